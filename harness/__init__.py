@@ -1,0 +1,1 @@
+"""Validation and benchmark harness for Monte Carlo renderers (adapters, judges, CLI)."""

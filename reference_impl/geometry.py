@@ -1,0 +1,112 @@
+"""Scene geometry as flat triangle arrays: the only form of scene the core knows."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from reference_impl.errors import SettingsError
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Triangles with Lambertian materials and area emission.
+
+    Attributes
+    ----------
+    vertices : (V, 3) float64
+        World-space positions.
+    triangles : (T, 3) int
+        Vertex indices. The *front* side of a triangle is the side its geometric normal
+        ``cross(v1 - v0, v2 - v0)`` points to.
+    material : (T,) int
+        Index into ``reflectance`` and ``two_sided``.
+    reflectance : (M, 3) float64
+        Albedo rho of each Lambertian material, f_r = rho / pi.
+    two_sided : (M,) bool
+        One-sided materials reflect on the front side only (Mitsuba's ``diffuse``); two-sided ones on both.
+    emission : (T, 3) float64
+        Radiance Le emitted from the front side; zero for triangles that do not emit.
+    light_id : (T,) int
+        Which light k a triangle belongs to (all triangles of one emissive shape share an id), -1 for non-emitters.
+        Ids run from 0 to N_L - 1.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    material: np.ndarray
+    reflectance: np.ndarray
+    two_sided: np.ndarray
+    emission: np.ndarray
+    light_id: np.ndarray
+    # Derived per-triangle data, filled in by __post_init__.
+    normal: np.ndarray = field(init=False, repr=False)  # (T, 3) unit geometric normal
+    area: np.ndarray = field(init=False, repr=False)  # (T,)
+    corners: np.ndarray = field(init=False, repr=False)  # (T, 3, 3): v0, v1, v2 of each triangle
+
+    def __post_init__(self) -> None:
+        set_ = object.__setattr__
+        vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
+        triangles = np.ascontiguousarray(self.triangles, dtype=np.int64)
+        n_tri = len(triangles)
+        if vertices.ndim != 2 or vertices.shape[1] != 3:
+            raise SettingsError("vertices", f"expected an array of shape (V, 3), got {vertices.shape}")
+        if triangles.ndim != 2 or triangles.shape[1] != 3:
+            raise SettingsError("triangles", f"expected an array of shape (T, 3), got {triangles.shape}")
+        if n_tri and (triangles.min() < 0 or triangles.max() >= len(vertices)):
+            raise SettingsError("triangles", "vertex index out of range")
+        if not np.all(np.isfinite(vertices)):
+            raise SettingsError("vertices", "expected finite coordinates")
+        reflectance = np.ascontiguousarray(self.reflectance, dtype=np.float64).reshape(-1, 3)
+        two_sided = np.ascontiguousarray(self.two_sided, dtype=bool).reshape(-1)
+        material = np.ascontiguousarray(self.material, dtype=np.int64).reshape(-1)
+        emission = np.ascontiguousarray(self.emission, dtype=np.float64).reshape(-1, 3)
+        light_id = np.ascontiguousarray(self.light_id, dtype=np.int64).reshape(-1)
+        for name, arr in (("material", material), ("emission", emission), ("light_id", light_id)):
+            if len(arr) != n_tri:
+                raise SettingsError(name, f"expected one entry per triangle ({n_tri}), got {len(arr)}")
+        if len(two_sided) != len(reflectance):
+            raise SettingsError("two_sided", "expected one entry per material")
+        if n_tri and (material.min() < 0 or material.max() >= len(reflectance)):
+            raise SettingsError("material", "material index out of range")
+        if np.any(~np.isfinite(reflectance)) or np.any(reflectance < 0) or np.any(reflectance > 1):
+            raise SettingsError("reflectance", "expected albedos in [0, 1]")
+        if np.any(~np.isfinite(emission)) or np.any(emission < 0):
+            raise SettingsError("emission", "expected finite, non-negative radiance")
+        emits = np.any(emission > 0, axis=1)
+        if np.any(emits != (light_id >= 0)):
+            raise SettingsError("light_id", "expected an id >= 0 exactly for the triangles with emission > 0")
+        if np.any(light_id >= 0):
+            ids = np.unique(light_id[light_id >= 0])
+            if not np.array_equal(ids, np.arange(len(ids))):
+                raise SettingsError("light_id", "expected light ids 0 .. N_L - 1 without gaps")
+
+        corners = vertices[triangles]  # (T, 3, 3)
+        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        double_area = np.linalg.norm(cross, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            normal = cross / double_area[:, None]
+        normal[double_area == 0] = 0.0  # degenerate triangles: never hit, never sampled
+        set_(self, "vertices", vertices)
+        set_(self, "triangles", triangles)
+        set_(self, "material", material)
+        set_(self, "reflectance", reflectance)
+        set_(self, "two_sided", two_sided)
+        set_(self, "emission", emission)
+        set_(self, "light_id", light_id)
+        set_(self, "corners", corners)
+        set_(self, "normal", normal)
+        set_(self, "area", 0.5 * double_area)
+
+    @property
+    def num_lights(self) -> int:
+        """N_L, the number of lights (emissive shapes)."""
+        return int(self.light_id.max()) + 1 if len(self.light_id) and self.light_id.max() >= 0 else 0
+
+    @property
+    def extent(self) -> float:
+        """Largest coordinate magnitude of the scene's bounding box (sets ray offsets)."""
+        if len(self.vertices) == 0:
+            return 1.0
+        return float(np.max(np.abs(self.vertices)))
