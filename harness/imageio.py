@@ -1,0 +1,432 @@
+"""Image files: OpenEXR read/write, PNG previews, and atomic file writes.
+
+Conventions used throughout the harness:
+
+* An image is a numpy array of shape (H, W, 3): linear radiance in the
+  renderer's RGB space, channel order R, G, B.  Row 0 is the *top* of the
+  image (the OpenEXR default ``INCREASING_Y`` line order, no flipping).
+* A variance image has the same shape and holds, per pixel and channel, the
+  variance of that pixel's Monte Carlo estimate.
+* EXR files written here are single-part scanline files, ZIP compression,
+  float32 channels ``R``, ``G``, ``B`` and, when a variance is given,
+  ``variance.R``, ``variance.G``, ``variance.B``.  Extra string metadata
+  (renderer, spp, a settings JSON...) is stored as string header attributes.
+* Every writer is atomic: the data goes to a temporary file in the destination
+  folder, which is flushed, fsync'ed and then ``os.replace``'d over the
+  destination.  On any failure the temporary file is removed and the
+  destination is left as it was (absent, or with its old content).
+
+Errors a user can cause (a missing, corrupted or truncated EXR file, a file
+without R/G/B channels, an unwritable output folder) raise
+:class:`harness.errors.HarnessError` with a one-line message naming the file.
+Programmer errors (bad array shapes, non-string metadata) raise
+``ValueError`` / ``TypeError``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import BinaryIO
+
+import numpy as np
+import OpenEXR
+
+from harness.errors import HarnessError
+
+__all__ = [
+    "ExrImage",
+    "atomic_write_bytes",
+    "atomic_write_text",
+    "preview_path",
+    "read_exr",
+    "write_exr",
+    "write_png_preview",
+]
+
+RGB_CHANNELS: tuple[str, str, str] = ("R", "G", "B")
+VARIANCE_CHANNELS: tuple[str, str, str] = ("variance.R", "variance.G", "variance.B")
+
+# Header attributes that OpenEXR itself defines/needs; metadata may not use them.
+_RESERVED_ATTRIBUTES = frozenset(
+    {
+        "channels",
+        "chunkCount",
+        "compression",
+        "dataWindow",
+        "displayWindow",
+        "lineOrder",
+        "maxSamplesPerPixel",
+        "name",
+        "pixelAspectRatio",
+        "screenWindowCenter",
+        "screenWindowWidth",
+        "tiles",
+        "type",
+        "version",
+    }
+)
+
+_EXR_MAGIC = b"\x76\x2f\x31\x01"
+
+# Magenta for NaN pixels in previews, white for +Inf.
+_NAN_COLOUR = np.array([255, 0, 255], dtype=np.uint8)
+_POS_INF_COLOUR = np.array([255, 255, 255], dtype=np.uint8)
+
+
+def _current_umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# Read once at import: reading the umask means setting it, which is not
+# thread-safe, so it is not done per write.
+_FILE_MODE = 0o666 & ~_current_umask()
+
+
+# ---------------------------------------------------------------------------
+# Atomic writes
+# ---------------------------------------------------------------------------
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def _os_reason(err: OSError) -> str:
+    """A short, one-line reason for an OSError (no temp-file names)."""
+    return _one_line(err.strerror or str(err) or type(err).__name__)
+
+
+def _atomic_write(path: str | os.PathLike[str], fill: Callable[[BinaryIO], None]) -> Path:
+    """Write a file atomically: ``fill`` writes the content into an open binary file.
+
+    The content goes to a temporary file in the destination folder
+    (``tempfile.NamedTemporaryFile(dir=..., delete=False)``), which is flushed,
+    fsync'ed, given the usual permissions (``0o666`` less the umask, or the
+    destination's mode if it already exists) and moved over ``path`` with
+    ``os.replace``.  On any failure the temporary file is removed and the
+    destination is untouched.
+
+    An ``OSError`` (missing or read-only folder, disk full, destination is a
+    folder...) becomes ``HarnessError(str(path), "cannot write: <reason>")``;
+    any other exception (from ``fill``) propagates unchanged.
+    """
+    dest = Path(path)
+    folder = dest.parent
+    suffix = dest.suffix or ".tmp"
+    tmp_name: str | None = None
+    try:
+        try:
+            with tempfile.NamedTemporaryFile(
+                dir=folder, prefix=f".{dest.name}.", suffix=suffix, delete=False
+            ) as tmp:
+                tmp_name = tmp.name
+                fill(tmp)
+                tmp.flush()
+                os.fsync(tmp.fileno())
+            try:
+                mode = dest.stat().st_mode & 0o7777
+            except OSError:
+                mode = _FILE_MODE
+            os.chmod(tmp_name, mode)
+            os.replace(tmp_name, dest)
+            tmp_name = None
+        finally:
+            if tmp_name is not None:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp_name)
+    except OSError as err:
+        raise HarnessError(str(path), f"cannot write: {_write_reason(folder, err)}") from None
+    _fsync_folder(folder)
+    return dest
+
+
+def _write_reason(folder: Path, err: OSError) -> str:
+    try:
+        if not folder.exists():
+            return f"folder {str(folder)!r} does not exist"
+        if not folder.is_dir():
+            return f"{str(folder)!r} is not a folder"
+    except OSError:
+        pass
+    return _os_reason(err)
+
+
+def _fsync_folder(folder: Path) -> None:
+    """Best effort: make the rename itself durable."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
+    """Atomically replace the file at ``path`` with ``data``; returns the path.
+
+    Raises ``HarnessError(str(path), "cannot write: <reason>")`` if the folder
+    is missing or not writable; the destination is then left as it was.
+    """
+    if not isinstance(data, (bytes, bytearray, memoryview)):
+        raise TypeError(f"data must be bytes, got {type(data).__name__}")
+    return _atomic_write(path, lambda f: f.write(data))
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "utf-8") -> Path:
+    """Atomically replace the file at ``path`` with ``text`` (UTF-8 by default).
+
+    No newline translation is done.  Same errors as :func:`atomic_write_bytes`.
+    """
+    if not isinstance(text, str):
+        raise TypeError(f"text must be str, got {type(text).__name__}")
+    return atomic_write_bytes(path, text.encode(encoding))
+
+
+# ---------------------------------------------------------------------------
+# EXR
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ExrImage:
+    """An EXR file's content as the harness uses it.
+
+    ``image``: (H, W, 3) float32 linear RGB, row 0 at the top.
+    ``variance``: (H, W, 3) float32 per-pixel variance, or None if the file
+    has no ``variance.R/G/B`` channels.
+    ``metadata``: the file's string header attributes (str -> str).
+    """
+
+    image: np.ndarray
+    variance: np.ndarray | None = None
+    metadata: dict[str, str] = field(default_factory=dict)
+
+
+def _check_rgb_array(name: str, array: object, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    arr = np.asarray(array)
+    if arr.ndim != 3 or arr.shape[2] != 3:
+        raise ValueError(f"{name} must have shape (H, W, 3), got {arr.shape}")
+    if arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise ValueError(f"{name} must not be empty, got shape {arr.shape}")
+    if shape is not None and arr.shape != shape:
+        raise ValueError(f"{name} has shape {arr.shape}, expected {shape} like the image")
+    if not (np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer)
+            or arr.dtype == np.bool_):
+        raise ValueError(f"{name} must be a real numeric array, got dtype {arr.dtype}")
+    return arr
+
+
+def _check_metadata(metadata: Mapping[str, str] | None) -> dict[str, str]:
+    if metadata is None:
+        return {}
+    out: dict[str, str] = {}
+    for key, value in metadata.items():
+        if not isinstance(key, str) or not isinstance(value, str):
+            raise TypeError(
+                f"metadata must map str to str, got {type(key).__name__} -> {type(value).__name__}"
+                f" for key {key!r}"
+            )
+        if not key:
+            raise ValueError("metadata keys must not be empty")
+        if key in _RESERVED_ATTRIBUTES:
+            raise ValueError(f"metadata key {key!r} is a reserved OpenEXR header attribute")
+        out[key] = value
+    return out
+
+
+def write_exr(
+    path: str | os.PathLike[str],
+    image: np.ndarray,
+    variance: np.ndarray | None = None,
+    metadata: Mapping[str, str] | None = None,
+) -> Path:
+    """Write ``image`` (and optionally ``variance``) as an OpenEXR file, atomically.
+
+    ``image`` and ``variance`` are (H, W, 3) arrays (converted to float32; NaN
+    and Inf are written as they are).  The file is a single-part scanline
+    image with ZIP compression and float32 channels ``R``, ``G``, ``B`` plus,
+    if ``variance`` is given, ``variance.R``, ``variance.G``, ``variance.B``.
+    ``metadata`` (str -> str) becomes extra string header attributes; keys
+    may not be reserved OpenEXR attribute names (``channels``, ``type``...).
+    Row 0 is the top of the image.
+
+    Returns the path.  Raises ``ValueError``/``TypeError`` for bad shapes or
+    metadata, and ``HarnessError(str(path), "cannot write: <reason>")`` when
+    the output folder is missing or not writable (nothing is left behind).
+    """
+    img = _check_rgb_array("image", image)
+    var = None if variance is None else _check_rgb_array("variance", variance, img.shape)
+    header: dict[str, object] = dict(_check_metadata(metadata))
+    header["compression"] = OpenEXR.ZIP_COMPRESSION
+    header["type"] = OpenEXR.scanlineimage
+
+    channels: dict[str, np.ndarray] = {}
+    for i, name in enumerate(RGB_CHANNELS):
+        channels[name] = np.ascontiguousarray(img[:, :, i], dtype=np.float32)
+    if var is not None:
+        for i, name in enumerate(VARIANCE_CHANNELS):
+            channels[name] = np.ascontiguousarray(var[:, :, i], dtype=np.float32)
+
+    exr = OpenEXR.File(header, channels)
+
+    def fill(f: BinaryIO) -> None:
+        try:
+            exr.write(f)
+        except (RuntimeError, ValueError) as err:
+            # Failures writing to the stream (e.g. disk full) surface as RuntimeError.
+            raise OSError(_one_line(str(err))) from err
+
+    return _atomic_write(path, fill)
+
+
+def _read_channels(path: str) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """All channel arrays and the header of part 0, or HarnessError if unreadable."""
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(4)
+    except FileNotFoundError:
+        raise HarnessError(path, "no such file; expected an OpenEXR image") from None
+    except IsADirectoryError:
+        raise HarnessError(path, "is a folder; expected an OpenEXR image file") from None
+    except OSError as err:
+        raise HarnessError(path, f"cannot read: {_os_reason(err)}") from None
+    if magic != _EXR_MAGIC:
+        raise HarnessError(path, "not an OpenEXR file (bad magic number)")
+
+    broken = "cannot read OpenEXR file (corrupted or truncated?)"
+    try:
+        with OpenEXR.File(path, separate_channels=True) as exr:
+            if not exr.parts:
+                raise HarnessError(path, broken)
+            header = dict(exr.header())
+            channels = {name: np.asarray(ch.pixels) for name, ch in exr.channels().items()}
+    except HarnessError:
+        raise
+    except (RuntimeError, ValueError, OSError, TypeError) as err:
+        raise HarnessError(path, f"{broken}: {_one_line(str(err))}") from None
+    return channels, header
+
+
+def _stack(path: str, channels: dict[str, np.ndarray], names: tuple[str, ...]) -> np.ndarray:
+    planes = []
+    for name in names:
+        arr = channels[name]
+        if arr.dtype not in (np.float16, np.float32):
+            raise HarnessError(
+                path, f"channel {name} has pixel type {arr.dtype}; expected HALF or FLOAT"
+            )
+        planes.append(arr)
+    shapes = {p.shape for p in planes}
+    if len(shapes) != 1 or planes[0].ndim != 2:
+        found = ", ".join(f"{n} {p.shape}" for n, p in zip(names, planes))
+        raise HarnessError(path, f"channels must all be full-resolution 2-D planes of one size; got {found}")
+    return np.stack(planes, axis=-1).astype(np.float32, copy=False)
+
+
+def read_exr(path: str | os.PathLike[str]) -> ExrImage:
+    """Read an EXR file with channels ``R``, ``G``, ``B`` (HALF or FLOAT).
+
+    Optional ``variance.R``, ``variance.G``, ``variance.B`` become
+    ``ExrImage.variance``; other channels (``A``, depth, AOVs) are ignored,
+    so files from Mitsuba and other renderers are accepted.  Pixels are
+    returned as float32, row 0 at the top.  ``metadata`` holds the header's
+    string attributes.  Only the first part of a multi-part file is read.
+
+    Raises ``HarnessError(str(path), ...)`` (one line) if the file is missing,
+    not an OpenEXR file, corrupted or truncated, lacks R/G/B, has only some
+    of the variance channels, or has channels of inconsistent sizes.
+    """
+    where = str(path)
+    channels, header = _read_channels(where)
+
+    missing = [name for name in RGB_CHANNELS if name not in channels]
+    if missing:
+        found = ", ".join(sorted(channels)) or "none"
+        raise HarnessError(
+            where, f"expected channels R, G, B; missing {', '.join(missing)} (found: {found})"
+        )
+    image = _stack(where, channels, RGB_CHANNELS)
+
+    variance = None
+    present = [name for name in VARIANCE_CHANNELS if name in channels]
+    if present:
+        if len(present) != len(VARIANCE_CHANNELS):
+            absent = [name for name in VARIANCE_CHANNELS if name not in channels]
+            raise HarnessError(
+                where,
+                f"has {', '.join(present)} but not {', '.join(absent)}; "
+                "expected all of variance.R, variance.G, variance.B or none",
+            )
+        variance = _stack(where, channels, VARIANCE_CHANNELS)
+        if variance.shape != image.shape:
+            raise HarnessError(
+                where,
+                f"variance channels have shape {variance.shape[:2]}, expected {image.shape[:2]} like R, G, B",
+            )
+
+    metadata = {
+        key: value
+        for key, value in header.items()
+        if isinstance(key, str) and isinstance(value, str) and key not in _RESERVED_ATTRIBUTES
+    }
+    return ExrImage(image=image, variance=variance, metadata=metadata)
+
+
+# ---------------------------------------------------------------------------
+# PNG previews
+# ---------------------------------------------------------------------------
+
+
+def preview_path(exr_path: str | os.PathLike[str]) -> Path:
+    """The PNG preview beside an EXR file: ``foo.exr`` -> ``foo.png``."""
+    return Path(exr_path).with_suffix(".png")
+
+
+def tonemap_srgb8(image: np.ndarray, exposure: float = 0.0) -> np.ndarray:
+    """Linear RGB (H, W, 3) -> sRGB uint8 (H, W, 3), as used by previews.
+
+    The image is scaled by ``2**exposure``, clipped to [0, 1], encoded with
+    the sRGB transfer function (colour-science) and rounded to 8 bit.
+    Pixels with any NaN channel become magenta; otherwise pixels with any
+    +Inf channel become white (-Inf clips to 0).
+    """
+    import colour  # imported lazily: slow to import, only needed for previews
+
+    img = _check_rgb_array("image", image).astype(np.float64)
+    nan = np.isnan(img).any(axis=-1)
+    pos_inf = np.isposinf(img).any(axis=-1) & ~nan
+    with np.errstate(invalid="ignore", over="ignore"):
+        scaled = np.clip(np.nan_to_num(img * 2.0 ** float(exposure), nan=0.0), 0.0, 1.0)
+    encoded = np.asarray(colour.cctf_encoding(scaled, function="sRGB"), dtype=np.float64)
+    out = np.round(np.clip(encoded, 0.0, 1.0) * 255.0).astype(np.uint8)
+    out[pos_inf] = _POS_INF_COLOUR
+    out[nan] = _NAN_COLOUR
+    return out
+
+
+def write_png_preview(
+    path: str | os.PathLike[str], image: np.ndarray, exposure: float = 0.0
+) -> Path:
+    """Write an 8-bit sRGB PNG preview of linear ``image`` (H, W, 3), atomically.
+
+    Tone mapping is :func:`tonemap_srgb8`: ``sRGB(clip(image * 2**exposure, 0, 1))``;
+    NaN pixels are magenta, +Inf pixels white.  Returns the path.  Raises
+    ``ValueError`` for a bad shape and ``HarnessError(str(path), "cannot write: ...")``
+    if the folder is missing or not writable.
+    """
+    import imageio.v3 as iio  # the real imageio package, not this module
+
+    pixels = tonemap_srgb8(image, exposure)
+    data = iio.imwrite("<bytes>", pixels, extension=".png")
+    return atomic_write_bytes(path, data)

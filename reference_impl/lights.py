@@ -1,0 +1,119 @@
+"""Sampling points on lights: light selection pdf(k) and point sampling pdf(y|k) (slides, Fig. 5.8 and 5.10),
+and sampling points on all surfaces of the scene (global area sampling, Fig. 5.13).
+
+A light k is one emissive shape: a set of triangles sharing ``Geometry.light_id == k``. A point on it is drawn by
+picking one of its triangles with probability area / A_k and a uniform point on that triangle, so
+pdf(y | k) = 1 / A_k for every point of the light.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from reference_impl.geometry import Geometry
+from reference_impl.sampling import sample_discrete, square_to_uniform_triangle
+
+LIGHT_SELECTIONS = ("power", "uniform")
+
+# Luminance weights of linear sRGB / Rec. 709 primaries (the scalar "power" of an RGB radiance).
+_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+@dataclass(frozen=True)
+class SurfacePoints:
+    """Points sampled on triangles, with what the estimators need of them."""
+
+    triangle: np.ndarray  # (n,) triangle index
+    position: np.ndarray  # (n, 3)
+    normal: np.ndarray  # (n, 3) unit geometric normal (front side)
+    pdf_area: np.ndarray  # (n,) density per unit area of the whole sampling procedure
+
+
+def _uniform_point_on(geometry: Geometry, tri: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    b1, b2 = square_to_uniform_triangle(u1, u2)
+    c = geometry.corners[tri]
+    return c[:, 0] + b1[:, None] * (c[:, 1] - c[:, 0]) + b2[:, None] * (c[:, 2] - c[:, 0])
+
+
+class TriangleAreaSampler:
+    """Picks a triangle from a set with probability proportional to its area, then a uniform point on it."""
+
+    def __init__(self, geometry: Geometry, triangles: np.ndarray):
+        self.geometry = geometry
+        self.triangles = np.asarray(triangles, dtype=np.int64)
+        areas = geometry.area[self.triangles]
+        self.total_area = float(areas.sum())
+        self.cdf = np.cumsum(areas) / self.total_area if self.total_area > 0 else np.ones(len(areas))
+
+    def sample(self, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> SurfacePoints:
+        """Points with pdf 1 / (total area of the set)."""
+        tri = self.triangles[sample_discrete(self.cdf, u_tri)]
+        pos = _uniform_point_on(self.geometry, tri, u1, u2)
+        pdf = np.full(len(tri), 1.0 / self.total_area)
+        return SurfacePoints(tri, pos, self.geometry.normal[tri], pdf)
+
+
+class LightSampler:
+    """Light selection with pdf(k) ("power": proportional to Phi_k = pi A_k lum(Le_k); "uniform": 1 / N_L) and a
+    point y on light k with pdf(y | k) = 1 / A_k. The combined density per unit area is pdf(k) / A_k."""
+
+    def __init__(self, geometry: Geometry, selection: str):
+        self.geometry = geometry
+        self.num_lights = geometry.num_lights
+        emissive = np.flatnonzero(geometry.light_id >= 0)
+        # Triangles sorted by light, then each light's cumulative-area table as one global array.
+        order = emissive[np.argsort(geometry.light_id[emissive], kind="stable")]
+        self.triangles = order
+        ids = geometry.light_id[order]
+        self.area = np.bincount(ids, weights=geometry.area[order], minlength=self.num_lights)  # A_k
+        self.first = np.searchsorted(ids, np.arange(self.num_lights))  # first triangle of each light in `order`
+        self.count = np.bincount(ids, minlength=self.num_lights)
+        within = np.zeros(len(order))
+        for k in range(self.num_lights):  # one entry per light, not per ray
+            s = slice(self.first[k], self.first[k] + self.count[k])
+            within[s] = np.cumsum(geometry.area[order[s]]) / self.area[k]
+        self.within_cdf = within
+        if selection == "power":
+            radiance = np.zeros(self.num_lights)
+            # A light's power: sum over its triangles of pi * area * lum(Le).
+            np.add.at(radiance, ids, np.pi * geometry.area[order] * (geometry.emission[order] @ _LUMINANCE))
+            weights = radiance  # > 0: every emitter has some positive channel and all luminance weights are > 0
+        else:
+            weights = np.ones(self.num_lights)
+        self.pmf = weights / weights.sum() if self.num_lights else weights
+        self.cdf = np.cumsum(self.pmf)
+        if self.num_lights:
+            self.cdf[-1] = 1.0
+
+    def pdf_select(self, light: np.ndarray) -> np.ndarray:
+        """pdf(k)."""
+        return self.pmf[light]
+
+    def pdf_area(self, light: np.ndarray) -> np.ndarray:
+        """pdf(k) * pdf(y | k) = pdf(k) / A_k, per unit area on light k."""
+        return self.pmf[light] / self.area[light]
+
+    def sample(self, u_select: np.ndarray, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray):
+        """Light indices k and points y on them; pdf_area = pdf(k) pdf(y | k)."""
+        light = sample_discrete(self.cdf, u_select) if self.num_lights > 1 else np.zeros(len(u_select), np.int64)
+        first = self.first[light]
+        local = _search_within(self.within_cdf, first, self.count[light], u_tri)  # only within light k's triangles
+        tri = self.triangles[first + local]
+        pos = _uniform_point_on(self.geometry, tri, u1, u2)
+        return light, SurfacePoints(tri, pos, self.geometry.normal[tri], self.pdf_area(light))
+
+
+def _search_within(cdf: np.ndarray, first: np.ndarray, count: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """For each ray, the index i < count with cdf[first + i - 1] <= u < cdf[first + i] (vectorised bisection)."""
+    lo = np.zeros(len(u), np.int64)
+    hi = count - 1
+    while True:
+        active = lo < hi
+        if not np.any(active):
+            return lo
+        mid = (lo + hi) // 2
+        go_right = cdf[first + mid] <= u
+        lo = np.where(active & go_right, mid + 1, lo)
+        hi = np.where(active & ~go_right, mid, hi)

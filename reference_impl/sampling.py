@@ -1,0 +1,87 @@
+"""Warps from uniform random numbers to the distributions the estimators need, each beside its pdf.
+
+Conventions: directions are returned in a local frame whose +z is the surface normal; the pdf of a direction is
+per unit solid angle, the pdf of a point per unit area, the pdf of a discrete choice a probability.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+INV_PI = 1.0 / np.pi
+
+
+def square_to_cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Cosine-weighted directions on the +z hemisphere (Malley's method on Shirley-Chiu's concentric disk)."""
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    use_a = np.abs(a) > np.abs(b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(use_a, a, b)
+        phi = np.where(use_a, (np.pi / 4) * (b / a), (np.pi / 2) - (np.pi / 4) * (a / b))
+    phi = np.where((a == 0) & (b == 0), 0.0, phi)
+    x = r * np.cos(phi)
+    y = r * np.sin(phi)
+    z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
+    return np.stack([x, y, z], axis=-1)
+
+
+def cosine_hemisphere_pdf(cos_theta: np.ndarray) -> np.ndarray:
+    """p(Psi) = cos(Psi, N_x) / pi on the hemisphere (slides, "Cosine Sampling"), 0 below it."""
+    return np.where(cos_theta > 0, cos_theta * INV_PI, 0.0)
+
+
+def square_to_uniform_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Directions uniform over the +z hemisphere: cos(theta) = u1, phi = 2 pi u2."""
+    z = u1
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    phi = 2.0 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
+
+
+def uniform_hemisphere_pdf(cos_theta: np.ndarray) -> np.ndarray:
+    """p(Psi) = 1 / (2 pi) on the hemisphere, 0 below it."""
+    return np.where(cos_theta > 0, 0.5 * INV_PI, 0.0)
+
+
+def square_to_uniform_triangle(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentrics (b1, b2) uniform over a triangle: b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1); pdf = 1 / area."""
+    s = np.sqrt(u1)
+    return 1.0 - s, u2 * s
+
+
+def sample_discrete(cdf: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Index i with probability cdf[i] - cdf[i-1]; ``cdf`` is the normalised cumulative sum (last entry 1)."""
+    idx = np.searchsorted(cdf, u, side="right")
+    return np.minimum(idx, len(cdf) - 1)
+
+
+def coordinate_frame(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit tangents (s, t) with (s, t, n) right-handed orthonormal (Duff et al. 2017, branchless)."""
+    sign = np.where(n[:, 2] >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    s = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=-1)
+    t = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=-1)
+    return s, t
+
+
+def to_world(local: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Rotate local directions (+z = n) into world space."""
+    s, t = coordinate_frame(n)
+    return local[:, :1] * s + local[:, 1:2] * t + local[:, 2:3] * n
+
+
+def sample_hemisphere(kind: str, u1: np.ndarray, u2: np.ndarray, n: np.ndarray):
+    """World directions about normals ``n`` and their solid-angle pdfs; ``kind`` is "cosine" or "uniform"."""
+    if kind == "cosine":
+        local = square_to_cosine_hemisphere(u1, u2)
+        pdf = cosine_hemisphere_pdf(local[:, 2])
+    else:
+        local = square_to_uniform_hemisphere(u1, u2)
+        pdf = uniform_hemisphere_pdf(local[:, 2])
+    return to_world(local, n), local[:, 2], pdf
+
+
+def hemisphere_pdf(kind: str, cos_theta: np.ndarray) -> np.ndarray:
+    return cosine_hemisphere_pdf(cos_theta) if kind == "cosine" else uniform_hemisphere_pdf(cos_theta)

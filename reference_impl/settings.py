@@ -1,0 +1,143 @@
+"""Every choice of the algorithm as a setting, with the defaults first (``--set key=value`` in the CLI)."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass, fields
+
+from reference_impl.errors import SettingsError
+from reference_impl.lights import LIGHT_SELECTIONS
+from reference_impl.mutants import MUTANTS
+
+DIRECT_STRATEGIES = ("area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis")
+HEMISPHERES = ("cosine", "uniform")
+ROULETTES = ("albedo", "fixed", "off")
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The reference integrator's settings. Slide names in brackets.
+
+    spp             [Np] viewing rays per pixel, placed over the support of the pixel filter h.
+    seed            seed of every random stream.
+    shadow_rays     [Nd] direct-light samples per hit.
+    direct          how they are drawn: "area" (pick light k with pdf(k), a point y with pdf(y|k); Fig. 5.7, 5.8,
+                    5.10), "hemisphere-cosine" / "hemisphere-uniform" (Fig. 5.12), "global-area" (Fig. 5.13), or "mis"
+                    (beyond the slides: area samples and the indirect rays combined by the power heuristic).
+    light_selection pdf(k): "power" (proportional to emitted power) or "uniform".
+    indirect_rays   [Ni] indirect rays per hit (the recursion branches Ni ways at every hit).
+    hemisphere      their directions: "cosine" or "uniform".
+    rr              Russian roulette: "albedo" (survival = max reflectance), "fixed" (absorption alpha, as the
+                    slides), "off".
+    rr_depth        first path depth (camera hit = 1) at which roulette is played.
+    absorption      alpha for rr = "fixed".
+    max_depth       longest path in segments, Mitsuba's meaning (1 = emitters seen directly, 2 = plus direct light,
+                    -1 = unbounded); None = the scene's.
+    batch_size      camera paths traced together (memory / speed only: the image does not depend on it).
+    threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
+    mutant          name of a planted fault (see ``reference_impl.mutants``); "" = none. Never on by default.
+    """
+
+    spp: int = 16
+    seed: int = 0
+    shadow_rays: int = 1
+    direct: str = "area"
+    light_selection: str = "power"
+    indirect_rays: int = 1
+    hemisphere: str = "cosine"
+    rr: str = "albedo"
+    rr_depth: int = 5
+    absorption: float = 0.2
+    max_depth: int | None = None
+    batch_size: int = 1 << 18
+    threads: int = 0
+    mutant: str = ""
+
+    def __post_init__(self) -> None:
+        _positive_int(self, "spp")
+        _positive_int(self, "shadow_rays")
+        _positive_int(self, "indirect_rays")
+        _positive_int(self, "rr_depth")
+        _positive_int(self, "batch_size")
+        if not _is_int(self.seed) or self.seed < 0:
+            raise SettingsError("seed", f"expected a non-negative integer, got {self.seed!r}")
+        if not _is_int(self.threads) or self.threads < 0:
+            raise SettingsError("threads", f"expected a non-negative integer (0 = all cores), got {self.threads!r}")
+        _choice(self, "direct", DIRECT_STRATEGIES)
+        _choice(self, "light_selection", LIGHT_SELECTIONS)
+        _choice(self, "hemisphere", HEMISPHERES)
+        _choice(self, "rr", ROULETTES)
+        if not isinstance(self.absorption, (int, float)) or not (0.0 <= self.absorption < 1.0):
+            raise SettingsError("absorption", f"expected a number in [0, 1), got {self.absorption!r}")
+        if self.max_depth is not None and (not _is_int(self.max_depth) or (self.max_depth < 1 and self.max_depth != -1)):
+            raise SettingsError("max_depth", f"expected a positive integer or -1 (unbounded), got {self.max_depth!r}")
+        if self.mutant and self.mutant not in MUTANTS:
+            raise SettingsError("mutant", f"expected one of {', '.join(sorted(MUTANTS))} or empty, got {self.mutant!r}")
+
+    @classmethod
+    def field_names(cls) -> list[str]:
+        return [f.name for f in fields(cls)]
+
+    @classmethod
+    def from_strings(cls, values: dict[str, str], base: "Settings | None" = None) -> "Settings":
+        """Settings from ``key=value`` strings (as typed after ``--set``), converted to each field's type."""
+        import difflib
+
+        current = asdict(base or cls())
+        for key, text in values.items():
+            if key not in current:
+                close = difflib.get_close_matches(key, current, n=1)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                raise SettingsError(key, f"unknown setting (known: {', '.join(current)}){hint}")
+            current[key] = _parse(key, text, cls.__dataclass_fields__[key].default)
+        return cls(**current)
+
+    def resolved_max_depth(self, scene_max_depth: int) -> int:
+        depth = scene_max_depth if self.max_depth is None else self.max_depth
+        if depth == -1 and self.rr == "off":
+            raise SettingsError("rr", "max_depth = -1 (unbounded) needs Russian roulette (rr = albedo or fixed)")
+        if depth == -1 and self.rr == "fixed" and self.absorption == 0:
+            raise SettingsError("absorption", "max_depth = -1 with rr = fixed needs absorption > 0")
+        return depth
+
+    def worker_threads(self) -> int:
+        return self.threads or (os.cpu_count() or 1)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _positive_int(s: Settings, key: str) -> None:
+    v = getattr(s, key)
+    if not _is_int(v) or v < 1:
+        raise SettingsError(key, f"expected a positive integer, got {v!r}")
+
+
+def _choice(s: Settings, key: str, allowed: tuple[str, ...]) -> None:
+    v = getattr(s, key)
+    if v not in allowed:
+        raise SettingsError(key, f"expected one of {', '.join(allowed)}, got {v!r}")
+
+
+def _parse(key: str, text: str, default):
+    if not isinstance(text, str):
+        return text
+    if key == "max_depth":
+        if text.strip().lower() in ("", "none", "scene"):
+            return None
+        default = 0
+    try:
+        if isinstance(default, bool):
+            raise SettingsError(key, "boolean settings are not supported")
+        if isinstance(default, int):
+            return int(text)
+        if isinstance(default, float):
+            return float(text)
+    except ValueError:
+        kind = "an integer" if isinstance(default, int) else "a number"
+        raise SettingsError(key, f"expected {kind}, got {text!r}") from None
+    return text
