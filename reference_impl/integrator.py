@@ -158,6 +158,10 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
         return (p1 - p0) * spp, unit_stats
 
     done = 0
+    if not ctx.has_lights:  # nothing emits: the image is black, exactly, and needs no ray at all
+        units = []
+        if progress is not None:
+            progress(num_pixels * spp, num_pixels * spp)
     with ThreadPoolExecutor(max_workers=threads) as pool:
         for paths, unit_stats in pool.map(run_unit, units):
             done += paths
@@ -168,7 +172,9 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     seconds = time.perf_counter() - start
 
     mean = total / spp
-    if spp > 1:
+    if not ctx.has_lights:
+        var_of_mean = np.zeros_like(mean)
+    elif spp > 1:
         sample_var = np.maximum(total_sq - total * total / spp, 0.0) / (spp - 1)
         var_of_mean = sample_var / spp
     else:

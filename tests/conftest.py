@@ -1,0 +1,34 @@
+from __future__ import annotations
+
+import dataclasses
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = ROOT / "scenes"
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/mc.py, tests/chi2.py
+
+
+@pytest.fixture(scope="session")
+def scenes_dir() -> Path:
+    return SCENES
+
+
+def load_small(name: str, width: int, height: int | None = None, **overrides):
+    """A canonical scene at a smaller resolution (same camera), for fast statistical tests."""
+    from harness.scene import load_scene
+    from reference_impl import Film
+
+    scene = load_scene(SCENES / f"{name}.toml")
+    film = Film(width, height or width, scene.film.filter)
+    return dataclasses.replace(scene, film=film, **overrides)
+
+
+def render_reference(scene, spp: int, seed: int = 0, **settings):
+    """Render with the reference renderer through the harness adapter; settings as key=value strings."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
+    return get_renderer("reference").render(scene, request)
