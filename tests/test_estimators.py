@@ -59,28 +59,36 @@ def test_double_counting_differs_measurably_on_cornell_box():
 DIRECT = ["hemisphere-cosine", "hemisphere-uniform", "global-area", "mis"]
 
 
-@pytest.mark.parametrize("scene_name,spp", [("soft-shadows", 64), ("multi-light", 32)])
+@pytest.mark.parametrize("scene_name", ["soft-shadows", "multi-light"])
 @pytest.mark.parametrize("direct", DIRECT)
-def test_direct_strategies_share_one_expectation(scene_name, spp, direct):
+def test_direct_strategies_share_one_expectation(scene_name, direct):
     """Each direct-light strategy estimates the same image as light sampling ("area"): the difference of the two
-    images has mean zero, both over the whole image and tile by tile (chi^2 over tiles)."""
+    images has mean zero, over the whole image and tile by tile (sum of squared tile z-scores ~ chi^2).
+
+    Hemisphere and global-area sampling find the small lights rarely, so their per-pixel variance estimates are
+    noisy and their tile means skewed at low spp: they get 8x the samples and 16x16-pixel tiles (>= 100k samples
+    per tile), where the normal approximation holds.
+    """
     scene = load_small(scene_name, 32)
-    reference = render_reference(scene, spp=spp, seed=11)
-    other = render_reference(scene, spp=spp * (4 if direct.startswith("hemisphere") else 1), seed=12, direct=direct)
+    reference = render_reference(scene, spp=64, seed=11)
+    other = render_reference(scene, spp=64 * (1 if direct == "mis" else 8), seed=12, direct=direct)
     z = z_scores(image_mean(other.image, other.variance), image_mean(reference.image, reference.variance))
     assert np.all(np.abs(z) < z_critical(FALSE_ALARM, 6)), z
-    statistic, dof, p = tile_chi2(other.image - reference.image, other.variance + reference.variance, tile=8)
+    statistic, dof, p = tile_chi2(other.image - reference.image, other.variance + reference.variance, tile=16)
     assert p > FALSE_ALARM / 2, (statistic, dof, p)
 
 
 def test_strategy_comparison_can_fail():
-    """At the same budget the comparison is sharp enough to reject a 3 % energy loss."""
+    """At the same budget the comparison rejects what a wrong estimator does: the literal pseudo-code's double
+    counting, and a 10 % energy loss."""
     scene = load_small("multi-light", 32)
-    reference = render_reference(scene, spp=32, seed=11)
-    dimmed = render_reference(scene, spp=32, seed=12)
-    dimmed.image = dimmed.image * 0.97  # a 3 % energy loss
-    z = z_scores(image_mean(dimmed.image, dimmed.variance), image_mean(reference.image, reference.variance))
-    assert np.any(np.abs(z) > z_critical(FALSE_ALARM, 6)), z
+    reference = render_reference(scene, spp=64, seed=11)
+    wrong = render_reference(scene, spp=64, seed=12, mutant="double-emission")
+    z = z_scores(image_mean(wrong.image, wrong.variance), image_mean(reference.image, reference.variance))
+    assert np.all(z > z_critical(FALSE_ALARM, 6)), z
+    dimmed = render_reference(scene, spp=64, seed=13)
+    z = z_scores(image_mean(dimmed.image * 0.9, dimmed.variance * 0.81), image_mean(reference.image, reference.variance))
+    assert np.all(z < -z_critical(FALSE_ALARM, 6)), z
 
 
 @pytest.mark.parametrize("setting", [

@@ -1,0 +1,7 @@
+"""The TOML scene format (``docs/scene-format.md``): loading, the in-memory model, and triangulation for the core."""
+
+from harness.scene.load import load_scene
+from harness.scene.model import Material, Scene, Shape
+from harness.scene.triangulate import triangulate
+
+__all__ = ["Material", "Scene", "Shape", "load_scene", "triangulate"]

@@ -1,0 +1,514 @@
+"""Read a TOML scene file (``docs/scene-format.md``) into a validated :class:`Scene`.
+
+Every problem with the file raises :class:`HarnessError` whose ``where`` is ``"<file>: <key path>"`` (for example
+``"scenes/x.toml: shapes[2].translate"``) and whose message says what was expected and what was found.
+"""
+
+from __future__ import annotations
+
+import datetime
+import difflib
+import json
+import math
+import re
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import trimesh
+
+from reference_impl.camera import Camera, Film
+from reference_impl.errors import SettingsError
+
+from harness.errors import HarnessError
+from harness.scene.model import SHAPE_TYPES, Material, Scene, Shape
+from harness.scene.triangulate import (
+    object_to_world,
+    rotate_matrix,
+    scale_matrix,
+    shape_triangles,
+    translate_matrix,
+    triangle_areas,
+)
+
+TOP_LEVEL_KEYS = ("name", "description", "camera", "film", "integrator", "materials", "shapes")
+CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
+FILM_KEYS = ("width", "height", "filter")
+INTEGRATOR_KEYS = ("max_depth",)
+MATERIAL_KEYS = ("reflectance", "two_sided")
+SHAPE_KEYS = (
+    "name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
+    "file", "center", "radius", "subdivisions",
+)  # fmt: skip
+ROTATE_KEYS = ("axis", "angle")
+# Keys that only make sense for one shape type.
+KEYS_OF_ONE_TYPE = {"file": "mesh", "center": "sphere", "radius": "sphere", "subdivisions": "sphere"}
+MESH_SUFFIXES = (".ply", ".obj")
+
+DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
+DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
+MAX_SUBDIVISIONS = 7  # 327 680 triangles
+MAX_FILM_SIDE = 16384
+MAX_FILM_PIXELS = 2**26
+INT32_MAX = 2**31 - 1
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+_TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
+_TOML_END = "(at end of document)"
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read and validate the scene file at ``path``; raise :class:`HarnessError` for anything wrong with it.
+
+    Mesh files are read here too (relative to the scene file's folder), so a returned :class:`Scene` always
+    triangulates.
+    """
+    path = Path(path)
+    document = _read_toml(path)
+    return _SceneReader(str(path), path.parent).scene(document, path)
+
+
+def _read_toml(path: Path) -> dict[str, Any]:
+    """The parsed TOML document; file-system, encoding and syntax problems become :class:`HarnessError`."""
+    label = str(path)
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise HarnessError(label, "no such scene file") from None
+    except IsADirectoryError:
+        raise HarnessError(label, "expected a scene file, got a directory") from None
+    except (OSError, ValueError) as err:
+        raise HarnessError(label, f"cannot read the scene file ({err})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise HarnessError(label, f"expected UTF-8 text, got an undecodable byte at offset {err.start}") from None
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        message = str(err)
+        position = _TOML_POSITION.search(message)
+        if position:
+            where = f"{label}: line {position[1]}, column {position[2]}"
+            message = message[: position.start()]
+        elif message.endswith(_TOML_END):
+            where = f"{label}: end of document"
+            message = message[: -len(_TOML_END)].rstrip()
+        else:
+            where = label
+        raise HarnessError(where, f"malformed TOML: {message}") from None
+    except (ValueError, RecursionError) as err:  # e.g. integers beyond Python's digit limit, absurd nesting
+        raise HarnessError(label, f"malformed TOML: {err}") from None
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Showing values and key paths in messages.
+
+
+def _show(value: Any, limit: int = 60) -> str:
+    """A short TOML-like rendering of a parsed value for "got ..." in messages."""
+    text = _toml_text(value, depth=0)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _toml_text(value: Any, depth: int) -> str:
+    if depth > 4:
+        return "..."
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        try:
+            return str(value)
+        except ValueError:  # more digits than Python will print
+            return "a huge integer"
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list):
+        items = [_toml_text(item, depth + 1) for item in value[:8]]
+        return "[" + ", ".join(items) + (", ...]" if len(value) > 8 else "]")
+    if isinstance(value, dict):
+        items = [f"{_key_text(k)} = {_toml_text(v, depth + 1)}" for k, v in list(value.items())[:8]]
+        return "{" + ", ".join(items) + (", ...}" if len(value) > 8 else "}")
+    if isinstance(value, (datetime.date, datetime.time)):
+        return value.isoformat()
+    return repr(value)
+
+
+def _key_text(key: str) -> str:
+    """A key as TOML writes it: bare if it can be, quoted otherwise."""
+    return key if _BARE_KEY.fullmatch(key) else json.dumps(key, ensure_ascii=False)
+
+
+def _join(parent: str, key: str) -> str:
+    """The dotted key path of ``key`` inside the table at ``parent``."""
+    return f"{parent}.{_key_text(key)}" if parent else _key_text(key)
+
+
+def _suggestion(word: str, candidates) -> str:
+    """"; did you mean 'x'?" for the closest candidate, or an empty string."""
+    close = difflib.get_close_matches(word, list(candidates), n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# The reader.
+
+
+class _SceneReader:
+    """Turns a parsed TOML document into a :class:`Scene`, raising :class:`HarnessError` on the first problem.
+
+    ``label`` is the file path shown in messages; ``folder`` is where mesh file names are relative to.
+    """
+
+    def __init__(self, label: str, folder: Path):
+        self.label = label
+        self.folder = folder
+
+    # ---- errors and generic value readers ------------------------------------------------------------------------
+
+    def error(self, key: str, message: str) -> HarnessError:
+        return HarnessError(f"{self.label}: {key}" if key else self.label, message)
+
+    def expected(self, key: str, what: str, value: Any) -> HarnessError:
+        return self.error(key, f"expected {what}, got {_show(value)}")
+
+    def check_keys(self, table: dict, known: tuple[str, ...], parent: str) -> None:
+        """Refuse keys of ``table`` that are not in ``known``, suggesting the closest known one."""
+        for key in table:
+            if key not in known:
+                hint = _suggestion(key, known) or f"; expected one of: {', '.join(known)}"
+                raise self.error(_join(parent, key), f"unknown key {key!r}{hint}")
+
+    def require(self, table: dict, key: str, parent: str, what: str) -> Any:
+        if key not in table:
+            raise self.error(_join(parent, key), f"missing required key {key!r} ({what})")
+        return table[key]
+
+    def required_table(self, document: dict, name: str) -> dict:
+        if name not in document:
+            raise self.error(name, f"missing required table [{name}]")
+        return self.table(document[name], name)
+
+    def table(self, value: Any, key: str) -> dict:
+        if not isinstance(value, dict):
+            raise self.expected(key, "a table", value)
+        return value
+
+    def string(self, value: Any, key: str) -> str:
+        if not isinstance(value, str):
+            raise self.expected(key, "a string", value)
+        return value
+
+    def boolean(self, value: Any, key: str) -> bool:
+        if not isinstance(value, bool):
+            raise self.expected(key, "true or false", value)
+        return value
+
+    def integer(self, value: Any, key: str, what: str = "an integer") -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.expected(key, what, value)
+        return value
+
+    def number(self, value: Any, key: str, what: str = "a finite number") -> float:
+        number = _finite_float(value)
+        if number is None:
+            raise self.expected(key, what, value)
+        return number
+
+    def vector3(self, value: Any, key: str, what: str = "a list of 3 finite numbers") -> tuple[float, float, float]:
+        if not isinstance(value, list) or len(value) != 3:
+            raise self.expected(key, what, value)
+        numbers = [_finite_float(item) for item in value]
+        if any(number is None for number in numbers):
+            raise self.expected(key, what, value)
+        return tuple(numbers)
+
+    def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
+        if not isinstance(value, str) or value not in choices:
+            hint = _suggestion(value, choices) if isinstance(value, str) else ""
+            raise self.error(key, f"expected one of {', '.join(choices)}, got {_show(value)}{hint}")
+        return value
+
+    def matrix4(self, value: Any, key: str) -> np.ndarray:
+        what = "a 4x4 nested list of finite numbers (row-major)"
+        if not isinstance(value, list) or len(value) != 4:
+            raise self.expected(key, what, value)
+        rows = []
+        for row in value:
+            if not isinstance(row, list) or len(row) != 4:
+                raise self.expected(key, what, value)
+            numbers = [_finite_float(item) for item in row]
+            if any(number is None for number in numbers):
+                raise self.expected(key, what, value)
+            rows.append(numbers)
+        matrix = np.array(rows, dtype=np.float64)
+        if not np.array_equal(matrix[3], [0.0, 0.0, 0.0, 1.0]):
+            raise self.expected(key, "an affine transform whose last row is [0, 0, 0, 1]", value[3])
+        return matrix
+
+    def settings(self, build):
+        """Call ``build()`` (a core constructor); turn its SettingsError into a HarnessError at the same key."""
+        try:
+            with np.errstate(all="ignore"):
+                return build()
+        except SettingsError as err:
+            raise self.error(err.key, err.message) from None
+
+    # ---- the document --------------------------------------------------------------------------------------------
+
+    def scene(self, document: dict, path: Path) -> Scene:
+        self.check_keys(document, TOP_LEVEL_KEYS, "")
+        name = self.string(document.get("name", path.stem), "name")
+        description = self.string(document.get("description", ""), "description")
+        camera = self.camera(document)
+        film = self.film(document)
+        max_depth = self.max_depth(document)
+        materials = self.materials(document)
+        shapes = self.shapes(document, materials)
+        return Scene(name, description, camera, film, max_depth, materials, shapes, path)
+
+    def camera(self, document: dict) -> Camera:
+        table = self.required_table(document, "camera")
+        self.check_keys(table, CAMERA_KEYS, "camera")
+        origin, target, up = (
+            self.vector3(self.require(table, key, "camera", "a list of 3 numbers"), f"camera.{key}")
+            for key in ("origin", "target", "up")
+        )
+        fov = self.number(self.require(table, "fov", "camera", "degrees"), "camera.fov", "degrees in (0, 180)")
+        fov_axis = self.string(table.get("fov_axis", "x"), "camera.fov_axis")
+        return self.settings(lambda: Camera(origin, target, up, fov, fov_axis))
+
+    def film(self, document: dict) -> Film:
+        table = self.required_table(document, "film")
+        self.check_keys(table, FILM_KEYS, "film")
+        size = {}
+        for key in ("width", "height"):
+            value = self.integer(self.require(table, key, "film", "pixels"), f"film.{key}", "a positive integer")
+            if value < 1 or value > MAX_FILM_SIDE:
+                raise self.expected(f"film.{key}", f"a positive integer of at most {MAX_FILM_SIDE} pixels", value)
+            size[key] = value
+        if size["width"] * size["height"] > MAX_FILM_PIXELS:
+            raise self.error(
+                "film", f"expected at most {MAX_FILM_PIXELS} pixels, got {size['width']} x {size['height']}"
+            )
+        filter_name = self.string(table.get("filter", "box"), "film.filter")
+        return self.settings(lambda: Film(size["width"], size["height"], filter_name))
+
+    def max_depth(self, document: dict) -> int:
+        table = self.table(document.get("integrator", {}), "integrator")
+        self.check_keys(table, INTEGRATOR_KEYS, "integrator")
+        what = "-1 (unbounded) or an integer from 1 to 2**31 - 1"
+        depth = self.integer(table.get("max_depth", DEFAULT_MAX_DEPTH), "integrator.max_depth", what)
+        if depth == 0 or depth < -1 or depth > INT32_MAX:
+            raise self.expected("integrator.max_depth", what, depth)
+        return depth
+
+    def materials(self, document: dict) -> dict[str, Material]:
+        table = self.table(document.get("materials", {}), "materials")
+        materials = {}
+        for name, entry in table.items():
+            key = _join("materials", name)
+            entry = self.table(entry, key)
+            self.check_keys(entry, MATERIAL_KEYS, key)
+            what = "a list of 3 numbers in [0, 1]"
+            raw = self.require(entry, "reflectance", key, what)
+            reflectance = self.vector3(raw, f"{key}.reflectance", what)
+            if not all(0.0 <= channel <= 1.0 for channel in reflectance):
+                raise self.expected(f"{key}.reflectance", what, raw)
+            two_sided = self.boolean(entry.get("two_sided", False), f"{key}.two_sided")
+            materials[name] = Material(name, reflectance, two_sided)
+        return materials
+
+    # ---- shapes --------------------------------------------------------------------------------------------------
+
+    def shapes(self, document: dict, materials: dict[str, Material]) -> list[Shape]:
+        entries = document.get("shapes", [])
+        if not isinstance(entries, list):
+            raise self.expected("shapes", "an array of tables ([[shapes]])", entries)
+        shapes: list[Shape] = []
+        for index, entry in enumerate(entries):
+            shape = self.shape(index, entry, materials)
+            for other in shapes:
+                if other.name == shape.name:
+                    message = f"duplicate shape name {shape.name!r} (also shapes[{other.index}])"
+                    raise self.error(f"shapes[{index}].name", message)
+            shapes.append(shape)
+        return shapes
+
+    def shape(self, index: int, entry: Any, materials: dict[str, Material]) -> Shape:
+        key = f"shapes[{index}]"
+        table = self.table(entry, key)
+        self.check_keys(table, SHAPE_KEYS, key)
+        shape_type = self.choice(self.require(table, "type", key, "a shape type"), f"{key}.type", SHAPE_TYPES)
+        for name, only_type in KEYS_OF_ONE_TYPE.items():
+            if name in table and shape_type != only_type:
+                message = f"key {name!r} applies only to shapes of type {only_type!r}, not {shape_type!r}"
+                raise self.error(f"{key}.{name}", message)
+        fields: dict[str, Any] = {
+            "index": index,
+            "name": self.string(table.get("name", f"shape{index}"), f"{key}.name"),
+            "type": shape_type,
+            "material": self.material_name(table, key, materials),
+            "flip_normals": self.boolean(table.get("flip_normals", False), f"{key}.flip_normals"),
+        }
+        fields["to_world"], placement_key = self.placement(table, key)
+        if "emission" in table:
+            fields["emission"] = self.emission(table["emission"], f"{key}.emission")
+        if shape_type == "sphere":
+            fields.update(self.sphere(table, key))
+        if shape_type == "mesh":
+            fields.update(self.mesh(table, key))
+        shape = Shape(**fields)
+        self.check_placed_shape(shape, key, placement_key)
+        return shape
+
+    def material_name(self, table: dict, key: str, materials: dict[str, Material]) -> str:
+        name = self.string(self.require(table, "material", key, "the name of a [materials] table"), f"{key}.material")
+        if name not in materials:
+            defined = ", ".join(repr(m) for m in materials) or "none"
+            hint = _suggestion(name, materials)
+            raise self.error(f"{key}.material", f"unknown material {name!r}{hint} (defined in [materials]: {defined})")
+        return name
+
+    def emission(self, value: Any, key: str) -> tuple[float, float, float]:
+        what = "a list of 3 finite numbers >= 0, not all 0"
+        radiance = self.vector3(value, key, what)
+        if min(radiance) < 0 or max(radiance) == 0:
+            raise self.expected(key, what, value)
+        return radiance
+
+    def placement(self, table: dict, key: str) -> tuple[np.ndarray, str]:
+        """The shape's to_world matrix and the key path to blame if it is singular."""
+        composed = [name for name in ("translate", "rotate", "scale") if name in table]
+        if "to_world" in table:
+            if composed:
+                raise self.error(
+                    f"{key}.to_world",
+                    f"expected either to_world or translate / rotate / scale, not both (found {', '.join(composed)})",
+                )
+            return self.matrix4(table["to_world"], f"{key}.to_world"), f"{key}.to_world"
+        translation = self.vector3(table.get("translate", [0.0, 0.0, 0.0]), f"{key}.translate")
+        rotation = self.rotation(table.get("rotate", []), f"{key}.rotate")
+        scale = self.scale(table.get("scale", 1.0), f"{key}.scale")
+        with np.errstate(all="ignore"):
+            matrix = translate_matrix(translation) @ rotation @ scale_matrix(scale)
+        return matrix, f"{key}.scale" if "scale" in table else key
+
+    def rotation(self, value: Any, key: str) -> np.ndarray:
+        """R_1 @ R_2 @ ... for an array of rotations (the last listed acts first on points), or one rotation."""
+        if isinstance(value, dict):
+            return self.one_rotation(value, key)
+        if not isinstance(value, list):
+            raise self.expected(key, "a table {axis = [x, y, z], angle = degrees} or an array of such tables", value)
+        matrix = np.eye(4)
+        for index, item in enumerate(value):
+            matrix = matrix @ self.one_rotation(item, f"{key}[{index}]")
+        return matrix
+
+    def one_rotation(self, value: Any, key: str) -> np.ndarray:
+        table = self.table(value, key)
+        self.check_keys(table, ROTATE_KEYS, key)
+        what = "a list of 3 finite numbers, not all 0"
+        axis = self.vector3(self.require(table, "axis", key, what), f"{key}.axis", what)
+        with np.errstate(all="ignore"):
+            length = float(np.linalg.norm(axis))
+        if not (0.0 < length < math.inf):
+            raise self.expected(f"{key}.axis", what, table["axis"])
+        angle = self.number(self.require(table, "angle", key, "degrees"), f"{key}.angle", "a finite angle in degrees")
+        return rotate_matrix(axis, angle)
+
+    def scale(self, value: Any, key: str) -> tuple[float, float, float]:
+        what = "a finite number or a list of 3 finite numbers"
+        if isinstance(value, list):
+            return self.vector3(value, key, what)
+        factor = self.number(value, key, what)
+        return (factor, factor, factor)
+
+    def sphere(self, table: dict, key: str) -> dict[str, Any]:
+        center = self.vector3(table.get("center", [0.0, 0.0, 0.0]), f"{key}.center")
+        radius = self.number(table.get("radius", 1.0), f"{key}.radius", "a finite number > 0")
+        if radius <= 0:
+            raise self.expected(f"{key}.radius", "a finite number > 0", table["radius"])
+        what = f"an integer from 0 to {MAX_SUBDIVISIONS}"
+        subdivisions = self.integer(table.get("subdivisions", DEFAULT_SUBDIVISIONS), f"{key}.subdivisions", what)
+        if not 0 <= subdivisions <= MAX_SUBDIVISIONS:
+            raise self.expected(f"{key}.subdivisions", what, subdivisions)
+        return {"center": center, "radius": radius, "subdivisions": subdivisions}
+
+    def mesh(self, table: dict, key: str) -> dict[str, Any]:
+        """The mesh file's absolute path and its triangles, read with trimesh."""
+        file_key = f"{key}.file"
+        name = self.string(self.require(table, "file", key, "a PLY or OBJ file name"), file_key)
+        if not name.lower().endswith(MESH_SUFFIXES):
+            raise self.expected(file_key, "a .ply or .obj file name", name)
+        try:
+            path = (self.folder / name).resolve()
+            exists = path.is_file()
+        except (OSError, ValueError, RuntimeError):
+            exists = False
+        if not exists:
+            raise self.error(file_key, f"no such mesh file: {name!r} (relative to {str(self.folder)!r})")
+        try:
+            mesh = trimesh.load(path, force="mesh", process=False)
+            vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+            triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+        except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
+            raise self.error(file_key, f"cannot read the mesh file {name!r}: {err}") from None
+        if len(triangles) == 0:
+            raise self.error(file_key, f"expected a mesh with at least one triangle, got none in {name!r}")
+        if triangles.min() < 0 or triangles.max() >= len(vertices):
+            raise self.error(file_key, f"mesh {name!r} has a triangle with a vertex index out of range")
+        if not np.all(np.isfinite(vertices)):
+            raise self.error(file_key, f"mesh {name!r} has non-finite vertex coordinates")
+        return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles}
+
+    def check_placed_shape(self, shape: Shape, key: str, placement_key: str) -> None:
+        """Refuse singular or overflowing placements, non-uniformly scaled spheres and zero-area lights."""
+        with np.errstate(all="ignore"):
+            linear = object_to_world(shape)[:3, :3]
+            determinant = float(np.linalg.det(linear)) if np.all(np.isfinite(linear)) else math.nan
+        if not math.isfinite(determinant):
+            raise self.error(placement_key, "the placement overflows (non-finite matrix entries)")
+        if determinant == 0:
+            light = "; a light needs positive area" if shape.is_emitter else ""
+            message = f"expected an invertible placement, got a singular matrix (a zero scale){light}"
+            raise self.error(placement_key, message)
+        if shape.type == "sphere" and not _is_similarity(shape.to_world[:3, :3]):
+            raise self.error(
+                placement_key,
+                "expected a placement without non-uniform scale or shear for a sphere (Mitsuba's sphere allows "
+                "only rotation, uniform scale and translation)",
+            )
+        vertices, triangles = shape_triangles(shape)
+        if not np.all(np.isfinite(vertices)):
+            raise self.error(placement_key, "the placed shape overflows (non-finite world coordinates)")
+        if shape.is_emitter:
+            area = float(np.sum(triangle_areas(vertices, triangles)))
+            if area == math.inf or math.isnan(area):
+                raise self.error(placement_key, f"the area of light {shape.name!r} overflows")
+            if area <= 0:
+                raise self.error(key, f"zero-area light {shape.name!r}: all of its triangles are degenerate")
+
+
+def _finite_float(value: Any) -> float | None:
+    """``value`` as a float if it is a finite TOML number (not a boolean), else None."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        number = float(value)
+    except OverflowError:
+        return None
+    return number if math.isfinite(number) else None
+
+
+def _is_similarity(linear: np.ndarray, tolerance: float = 1e-6) -> bool:
+    """True if the 3x3 matrix is a rotation (or reflection) times a uniform scale."""
+    with np.errstate(all="ignore"):
+        gram = linear.T @ linear
+        scale2 = np.trace(gram) / 3.0
+        if not (np.isfinite(scale2) and scale2 > 0):
+            return False
+        return bool(np.max(np.abs(gram / scale2 - np.eye(3))) <= tolerance)

@@ -1,0 +1,194 @@
+"""Turn a :class:`Scene` into the flat triangle arrays of :class:`reference_impl.geometry.Geometry`.
+
+Orientation rules (see ``docs/scene-format.md``, "Orientation"): every triangle is wound so that
+``cross(v1 - v0, v2 - v0)`` points to its front side, the side a one-sided material reflects on and a light emits
+from. Unit shapes are those of Mitsuba: the rectangle [-1, 1]^2 at z = 0 facing +z, the cube [-1, 1]^3 and the
+sphere facing outward.
+
+Under a mirroring placement (negative determinant) we follow what Mitsuba 3 does (checked by rendering with
+Mitsuba 3.9.1): its rectangle and cube keep their front side (their normals are transformed by the inverse
+transpose), so their winding is reversed there; its sphere and meshes without vertex normals (or with
+``face_normals = true``) swap sides, which is just the winding as transformed. ``flip_normals`` reverses the
+winding once more.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+import trimesh
+
+from reference_impl.errors import SettingsError
+from reference_impl.geometry import Geometry
+
+from harness.errors import HarnessError
+from harness.scene.model import Scene, Shape
+
+# Shape types whose front side Mitsuba keeps under a mirroring placement (the others swap sides with the winding).
+KEEP_FRONT_WHEN_MIRRORED = ("rectangle", "cube")
+
+# --------------------------------------------------------------------------------------------------------------------
+# 4x4 transforms (row-major, applied to column vectors: p' = M p), the same matrices as Mitsuba's Transform4f.
+
+
+def translate_matrix(offset) -> np.ndarray:
+    """The 4x4 matrix that moves points by ``offset`` (3 numbers)."""
+    matrix = np.eye(4)
+    matrix[:3, 3] = np.asarray(offset, dtype=np.float64)
+    return matrix
+
+
+def scale_matrix(factors) -> np.ndarray:
+    """The 4x4 matrix that scales by one number or by 3 per-axis factors."""
+    return np.diag([*np.broadcast_to(np.asarray(factors, dtype=np.float64), (3,)), 1.0])
+
+
+def rotate_matrix(axis, angle_degrees: float) -> np.ndarray:
+    """Right-handed rotation by ``angle_degrees`` about ``axis`` (normalised here), Rodrigues' formula.
+
+    Matches Mitsuba's ``Transform4f.rotate(axis / |axis|, angle)`` (Mitsuba itself does not normalise the axis).
+    ``axis`` must not be the zero vector.
+    """
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    theta = math.radians(angle_degrees)
+    cos, sin = math.cos(theta), math.sin(theta)
+    cross_matrix = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    matrix = np.eye(4)
+    matrix[:3, :3] = cos * np.eye(3) + sin * cross_matrix + (1.0 - cos) * np.outer(k, k)
+    return matrix
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Unit shapes in object space, front side = cross(v1 - v0, v2 - v0).
+
+
+def unit_rectangle() -> tuple[np.ndarray, np.ndarray]:
+    """Mitsuba's rectangle: [-1, 1]^2 at z = 0, two triangles facing +z."""
+    vertices = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+    triangles = np.array([[0, 1, 2], [0, 2, 3]])
+    return vertices, triangles
+
+
+def unit_cube() -> tuple[np.ndarray, np.ndarray]:
+    """Mitsuba's cube: [-1, 1]^3, 12 triangles facing outward, each face with its own 4 vertices."""
+    identity = np.eye(3)
+    vertices, triangles = [], []
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            normal = sign * identity[axis]
+            # Tangents u, v with cross(u, v) = normal.
+            u, v = identity[(axis + 1) % 3], identity[(axis + 2) % 3]
+            if sign < 0:
+                u, v = v, u
+            first = len(vertices)
+            vertices += [normal - u - v, normal + u - v, normal + u + v, normal - u + v]
+            triangles += [[first, first + 1, first + 2], [first, first + 2, first + 3]]
+    return np.array(vertices), np.array(triangles)
+
+
+@lru_cache(maxsize=None)
+def _icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
+    vertices = np.array(mesh.vertices, dtype=np.float64)
+    vertices /= np.linalg.norm(vertices, axis=1, keepdims=True)  # exactly on the unit sphere
+    triangles = np.array(mesh.faces, dtype=np.int64)
+    vertices.setflags(write=False)
+    triangles.setflags(write=False)
+    return vertices, triangles
+
+
+def unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    """The unit sphere as an icosphere (20 * 4**subdivisions triangles) facing outward, vertices on the sphere."""
+    return _icosphere(int(subdivisions))
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Shapes to world-space triangles.
+
+
+def object_to_world(shape: Shape) -> np.ndarray:
+    """The full 4x4 object-to-world matrix of a shape (for spheres: to_world @ T(center) @ S(radius))."""
+    if shape.type == "sphere":
+        return shape.to_world @ translate_matrix(shape.center) @ scale_matrix(shape.radius)
+    return shape.to_world
+
+
+def object_mesh(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """The shape's vertices and triangles in object space (before ``object_to_world``)."""
+    if shape.type == "rectangle":
+        return unit_rectangle()
+    if shape.type == "cube":
+        return unit_cube()
+    if shape.type == "sphere":
+        return unit_sphere(shape.subdivisions)
+    if shape.type == "mesh":
+        return shape.mesh_vertices, shape.mesh_triangles
+    raise ValueError(f"unknown shape type {shape.type!r}")
+
+
+def reverses_winding(shape: Shape) -> bool:
+    """True if the shape's transformed triangles must be wound the other way round to face its front side."""
+    mirrored = np.linalg.det(object_to_world(shape)[:3, :3]) < 0
+    return bool(mirrored and shape.type in KEEP_FRONT_WHEN_MIRRORED) != bool(shape.flip_normals)
+
+
+def shape_triangles(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """World-space vertices (V, 3) and triangles (T, 3) of one shape, wound to face its front side."""
+    vertices, triangles = object_mesh(shape)
+    matrix = object_to_world(shape)
+    with np.errstate(all="ignore"):
+        world = vertices @ matrix[:3, :3].T + matrix[:3, 3]
+    triangles = np.array(triangles, dtype=np.int64)
+    if reverses_winding(shape):
+        triangles = triangles[:, [0, 2, 1]]
+    return world, triangles
+
+
+def triangle_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Area of each triangle."""
+    corners = vertices[triangles]
+    with np.errstate(all="ignore"):
+        return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+
+
+def triangulate(scene: Scene) -> Geometry:
+    """All shapes of ``scene`` as one :class:`Geometry`.
+
+    Materials are numbered in the order ``scene.materials`` defines them; emissive shapes become lights 0 .. N_L - 1
+    in shape order, and all triangles of one emissive shape share its light id and emission.
+    """
+    material_index = {name: i for i, name in enumerate(scene.materials)}
+    all_vertices, all_triangles, material, emission, light_id = [], [], [], [], []
+    vertex_count = 0
+    next_light = 0
+    for shape in scene.shapes:
+        vertices, triangles = shape_triangles(shape)
+        count = len(triangles)
+        all_vertices.append(vertices)
+        all_triangles.append(triangles + vertex_count)
+        vertex_count += len(vertices)
+        material.append(np.full(count, material_index[shape.material]))
+        if shape.is_emitter:
+            emission.append(np.tile(np.asarray(shape.emission, dtype=np.float64), (count, 1)))
+            light_id.append(np.full(count, next_light))
+            next_light += 1
+        else:
+            emission.append(np.zeros((count, 3)))
+            light_id.append(np.full(count, -1))
+
+    materials = list(scene.materials.values())
+    try:
+        return Geometry(
+            vertices=np.concatenate(all_vertices) if all_vertices else np.zeros((0, 3)),
+            triangles=np.concatenate(all_triangles) if all_triangles else np.zeros((0, 3), dtype=np.int64),
+            material=np.concatenate(material) if material else np.zeros(0, dtype=np.int64),
+            reflectance=np.array([m.reflectance for m in materials], dtype=np.float64).reshape(-1, 3),
+            two_sided=np.array([m.two_sided for m in materials], dtype=bool),
+            emission=np.concatenate(emission) if emission else np.zeros((0, 3)),
+            light_id=np.concatenate(light_id) if light_id else np.zeros(0, dtype=np.int64),
+        )
+    except SettingsError as err:
+        raise HarnessError(str(scene.path), f"cannot triangulate the scene: {err}") from err
