@@ -155,7 +155,7 @@ def test_cornell_box_matches_mitsuba_transforms():
 def test_furnace_faces_inward_and_emits():
     scene = load_scene(SCENES / "furnace.toml")
     geometry = triangulate(scene)
-    assert len(geometry.triangles) == 12 and geometry.num_lights == 1
+    assert len(geometry.triangles) == 5120 and geometry.num_lights == 1
     assert scene.max_depth == -1
     centroids = geometry.corners.mean(axis=1)
     assert np.all(np.sum(geometry.normal * (np.asarray(scene.camera.origin) - centroids), axis=1) > 0)
