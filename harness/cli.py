@@ -65,12 +65,15 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
     scene = load_scene(args.scene)
     renderer = get_renderer(args.renderer)
+    settings = _parse_set(args.set)
+    if args.mitsuba_variant:
+        if renderer.name != "mitsuba":
+            raise HarnessError("--mitsuba-variant", "applies to --renderer mitsuba only")
+        settings["variant"] = args.mitsuba_variant
     show = not args.quiet and sys.stderr.isatty()
     bar, progress = _progress_bar(show, f"{renderer.name} {scene.name}")
     try:
-        result = renderer.render(
-            scene, RenderRequest(spp=args.spp, seed=args.seed, settings=_parse_set(args.set), progress=progress)
-        )
+        result = renderer.render(scene, RenderRequest(spp=args.spp, seed=args.seed, settings=settings, progress=progress))
     finally:
         if bar is not None:
             bar.close()
@@ -94,6 +97,92 @@ def cmd_render(args: argparse.Namespace) -> int:
             f"wrote {out} and {preview}"
         )
     return EXIT_OK
+
+
+def cmd_ground_truth(args: argparse.Namespace) -> int:
+    from harness import groundtruth
+    from harness.scene import load_scene
+
+    scene = load_scene(args.scene)
+    show = not args.quiet and sys.stderr.isatty()
+    bar, progress = _progress_bar(show, f"ground truth {scene.name}")
+    try:
+        gt = groundtruth.ground_truth(
+            scene, spp=args.spp, seed=args.seed, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
+            chunk_spp=args.chunk_spp, use_closed_form=not args.no_closed_form, progress=progress,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = {
+        "scene": str(scene.path), "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
+        "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,
+        "mean_radiance": [float(v) for v in gt.image.astype(float).mean(axis=(0, 1))], "info": gt.info,
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    elif gt.source == "closed-form":
+        print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {gt.info.get('radiance')}; no render needed")
+    else:
+        state = "from the cache" if gt.cached else f"rendered in {gt.seconds:.1f} s ({gt.renders} chunk renders)"
+        print(f"{scene.name}: Mitsuba {gt.info.get('variant')} {gt.spp} spp, {state}\n{gt.path}")
+    return EXIT_OK
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from harness.compare import compare_files
+
+    report = compare_files(args.test, args.reference, tile=args.tile, alpha=args.alpha)
+    if args.json:
+        print(json.dumps(report, indent=2, default=float))
+    else:
+        m = report["metrics"]
+        v = report["verdict"]
+        print(f"verdict: {v['verdict']}" + (f" ({v.get('reason')})" if v.get("reason") else ""))
+        for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
+            if key in m:
+                print(f"  {key:7s} {m[key]:.6g}")
+    return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from harness.suite import load_suite, run_suite
+
+    suite = load_suite(args.suite)
+    out = Path(args.out) if args.out else Path("reports") / suite.name
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
+    show = not args.quiet and sys.stderr.isatty()
+    bar = None
+    if show:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(suite.cases), desc=suite.name, unit="case", file=sys.stderr)
+
+    def on_case(index: int, record: dict) -> None:
+        if bar is not None:
+            bar.set_postfix_str(f"{record['name']}: {record['status']}")
+            bar.update(1)
+        elif not args.quiet:
+            mark = "ok " if record["ok"] else "BAD"
+            print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}"
+                  + (f" ({record['reason']})" if record.get("reason") else ""), file=sys.stderr)
+
+    try:
+        results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant, on_case=on_case)
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = results["summary"]
+    print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
+          f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
+          f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; {out / 'results.json'}")
+    for name in summary["unexpected"]:
+        record = next(r for r in results["cases"] if r["name"] == name)
+        print(f"  unexpected: {name}: {record['status']} (expected {record['expect']}) {record.get('reason', '')}")
+    return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
 
 
 def _render_summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
@@ -143,7 +232,36 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--out", required=True, help="output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it")
     render.add_argument("--json", action="store_true", help="print one JSON object with timings and counters")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
+    render.add_argument("--mitsuba-variant", help="Mitsuba variant for --renderer mitsuba (default: the best that works)")
     render.set_defaults(func=cmd_render)
+
+    gt = sub.add_parser("ground-truth", help="render (or fetch from the cache) a scene's ground truth and print where it is")
+    gt.add_argument("scene")
+    gt.add_argument("--spp", type=int, default=1024, help="samples per pixel (default 1024)")
+    gt.add_argument("--seed", type=int, default=0)
+    gt.add_argument("--chunk-spp", type=int, default=256, help="samples per cached chunk (default 256)")
+    gt.add_argument("--cache-dir", help="cache folder (default: $HARNESS_CACHE_DIR or the user cache dir)")
+    gt.add_argument("--mitsuba-variant", help="override the Mitsuba variant (default: the best that works)")
+    gt.add_argument("--no-closed-form", action="store_true", help="render with Mitsuba even if the scene has a closed form")
+    gt.add_argument("--json", action="store_true")
+    gt.add_argument("--quiet", action="store_true")
+    gt.set_defaults(func=cmd_ground_truth)
+
+    cmp = sub.add_parser("compare", help="metrics and a statistical verdict for a render against a reference (exit 1 on fail)")
+    cmp.add_argument("test", help="the render to judge (.exr with variance.R/G/B channels)")
+    cmp.add_argument("reference", help="the reference (.exr; variance channels optional for a closed form)")
+    cmp.add_argument("--tile", type=int, default=8, help="tile size in pixels for the verdict (default 8)")
+    cmp.add_argument("--alpha", type=float, default=0.01, help="false-alarm probability of the verdict (default 0.01)")
+    cmp.add_argument("--json", action="store_true")
+    cmp.set_defaults(func=cmd_compare)
+
+    run = sub.add_parser("run", help="run a suite: exit 0 when every case is as expected, 1 when not, 2 on bad input")
+    run.add_argument("suite", help="suite file (TOML, see docs/suites.md)")
+    run.add_argument("--out", help="output folder (default reports/<suite name>)")
+    run.add_argument("--cache-dir", help="ground-truth cache folder")
+    run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
+    run.add_argument("--quiet", action="store_true")
+    run.set_defaults(func=cmd_run)
     return parser
 
 

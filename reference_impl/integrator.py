@@ -19,6 +19,7 @@ estimator is a few numpy expressions over all paths; there is no Python loop ove
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -111,6 +112,7 @@ class _Context:
         usable = np.flatnonzero(geometry.area > 0)
         self.all_surfaces = TriangleAreaSampler(geometry, usable) if len(usable) else None
         self.mis = settings.direct == "mis"
+        self.mutant = settings.mutant  # a planted fault (reference_impl/mutants.py), "" in every real render
         self.double_emission = settings.mutant == "double-emission"
         self.reflectance = geometry.reflectance / np.pi  # f_r of each material
         self.split_cap = 4 * settings.batch_size
@@ -196,6 +198,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     dx, dy, weight = ctx.filter.sample(rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y)))
     film_x = (pixel % width) + 0.5 + dx
     film_y = (pixel // width) + 0.5 + dy
+    if ctx.mutant == "camera-half-pixel":
+        film_x, film_y = film_x + 0.5, film_y + 0.5
     origins, directions = ctx.camera.generate_rays(film_x, film_y, width, height)
     n = len(pixel)
     stats["camera_rays"] += n
@@ -205,6 +209,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         beta=np.repeat(weight[:, None], 3, axis=1), pdf_dir=None,
     )
     _trace(ctx, state, 1, radiance, stats)
+    if ctx.mutant == "energy-loss-2pct":
+        radiance *= 0.98
     stats["nonfinite_samples"] += int(np.count_nonzero(~np.all(np.isfinite(radiance), axis=1)))
     return radiance
 
@@ -285,7 +291,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
         alive = rng.uniform(key, rng.dimension(depth, _ROULETTE)) < survival
         stats["roulette_terminated"] += int(np.count_nonzero(~alive))
         keep = np.flatnonzero(alive)
-        beta = beta[keep] / survival[keep, None]
+        beta = beta[keep] if ctx.mutant == "rr-no-reweight" else beta[keep] / survival[keep, None]
         key, x, normal, f_r, root = key[keep], x[keep], normal[keep], f_r[keep], state.root[keep]
     else:
         root = state.root
@@ -296,8 +302,11 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     u1 = rng.uniform(key, rng.dimension(depth, _INDIRECT_U1))
     u2 = rng.uniform(key, rng.dimension(depth, _INDIRECT_U2))
     direction, cos_theta, pdf = sample_hemisphere(settings.hemisphere, u1, u2, normal)
+    if ctx.mutant == "cosine-pdf-pi" and settings.hemisphere == "cosine":
+        pdf = pdf * np.pi
+    cos_factor = np.ones_like(cos_theta) if ctx.mutant == "no-cosine" else cos_theta
     with np.errstate(divide="ignore", invalid="ignore"):
-        beta = beta * (f_r * (cos_theta / (pdf * branches))[:, None])
+        beta = beta * (f_r * (cos_factor / (pdf * branches))[:, None])
     carries = np.all(np.isfinite(beta), axis=1) & np.any(beta > 0, axis=1)
     stats["roulette_terminated"] += int(np.count_nonzero(~carries))
     keep = np.flatnonzero(carries)
@@ -331,6 +340,8 @@ def _direct_area_sample(ctx, x, normal, f_r, key, depth, j, stats) -> np.ndarray
         rng.uniform(key, dim(_LIGHT_SELECT)), rng.uniform(key, dim(_LIGHT_TRIANGLE)),
         rng.uniform(key, dim(_LIGHT_U1)), rng.uniform(key, dim(_LIGHT_U2)),
     )
+    if ctx.mutant == "light-pdf-ignored":
+        points = dataclasses.replace(points, pdf_area=1.0 / ctx.lights.area[light])  # pdf(y|k) alone
     mis_weight = None
     if ctx.mis:
         mis_weight = lambda cos_x, cos_y, dist2, pdf_area: _mis_weight_light(ctx, cos_x, cos_y, dist2, pdf_area)  # noqa: E731
@@ -364,14 +375,18 @@ def _shadow_ray_estimate(ctx, x, normal, f_r, tri, y, normal_y, pdf_area, stats,
     if not len(idx):
         return result
     xs, ys = x[idx], y[idx]
-    origin = offset_origin(xs, normal[idx], ctx.intersector.offset(xs))
+    if ctx.mutant == "no-ray-offset":
+        origin = xs
+    else:
+        origin = offset_origin(xs, normal[idx], ctx.intersector.offset(xs))
     seg = ys - origin
     seg_len = np.sqrt(np.einsum("ij,ij->i", seg, seg))
     direction = seg / seg_len[:, None]
     t_max = seg_len * (1.0 - 1e-6) - ctx.intersector.offset(ys)
     visible = ~ctx.intersector.occluded(origin, direction, t_max)
     stats["shadow_rays"] += len(idx)
-    geometry_term = cos_x[idx] * cos_y[idx] / dist2[idx]  # G(x, y)
+    cos_at_x = 1.0 if ctx.mutant == "no-cosine" else cos_x[idx]
+    geometry_term = cos_at_x * cos_y[idx] / dist2[idx]  # G(x, y)
     value = g.emission[tri[idx]] * f_r[idx] * (geometry_term * visible / pdf_area[idx])[:, None]
     if mis_weight is not None:
         value *= mis_weight(cos_x[idx], cos_y[idx], dist2[idx], pdf_area[idx])[:, None]

@@ -32,7 +32,8 @@ from harness.scene.triangulate import (
     triangle_areas,
 )
 
-TOP_LEVEL_KEYS = ("name", "description", "camera", "film", "integrator", "materials", "shapes")
+TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes")
+CLOSED_FORMS = ("furnace",)
 CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
@@ -268,7 +269,10 @@ class _SceneReader:
         max_depth = self.max_depth(document)
         materials = self.materials(document)
         shapes = self.shapes(document, materials)
-        return Scene(name, description, camera, film, max_depth, materials, shapes, path)
+        closed_form = None
+        if "closed_form" in document:
+            closed_form = self.choice(document["closed_form"], "closed_form", CLOSED_FORMS)
+        return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form)
 
     def camera(self, document: dict) -> Camera:
         table = self.required_table(document, "camera")

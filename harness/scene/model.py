@@ -89,7 +89,8 @@ class Scene:
 
     ``materials`` keeps the file's order (``Geometry.material`` indexes materials in that order); ``shapes`` keeps
     the file's order (light ids number the emissive shapes in that order). ``path`` is the scene file's path as it
-    was given to :func:`load_scene`.
+    was given to :func:`load_scene`. ``closed_form`` names a known analytic solution of the scene ("furnace"), or
+    None.
     """
 
     name: str
@@ -100,6 +101,7 @@ class Scene:
     materials: dict[str, Material]
     shapes: list[Shape]
     path: Path
+    closed_form: str | None = None
 
     @property
     def lights(self) -> list[Shape]:

@@ -1,0 +1,262 @@
+"""Ground truth: a closed form where the scene has one, else Mitsuba 3, through a content-addressed cache.
+
+Cache layout (``<cache>/groundtruth/<key>/``): ``estimate.npz`` (mean, variance of the mean, spp), ``image.exr``
+(the same as an OpenEXR file for viewers) and ``meta.json`` (what was rendered, how, and the SHA-256 of both data
+files). The key is a SHA-256 over everything that determines the image: the scene file and every file it
+references (bytes), the film (size, filter), max_depth, Mitsuba's version, the variant, spp, seed and chunking.
+
+Long renders are split into chunks of ``chunk_spp`` samples, each its own cache entry, merged exactly
+(``harness.moments``): an interrupted ground truth resumes where it stopped.
+
+Entries are written into a private temporary folder and renamed into place (atomic); when two processes fill the
+same entry, the first rename wins and the second process uses the winner's files. Every read verifies the
+checksums; a partial or corrupted entry is removed and rendered again, never used.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shutil
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.moments import Estimate, merge
+from harness.scene import Scene
+
+FORMAT_VERSION = 1
+DEFAULT_SPP = 1024
+DEFAULT_CHUNK_SPP = 256
+
+
+@dataclass
+class GroundTruth:
+    """A reference image with the variance of each pixel's estimate (zeros for a closed form)."""
+
+    image: np.ndarray
+    variance: np.ndarray
+    source: str  # "closed-form" | "mitsuba"
+    spp: int
+    info: dict = field(default_factory=dict)
+    cached: bool = False  # every chunk came from the cache
+    renders: int = 0  # Mitsuba renders performed to produce it (0 when cached or closed form)
+    seconds: float = 0.0  # render time spent now
+    path: Path | None = None  # the cache entry's EXR
+
+
+def default_cache_dir() -> Path:
+    """``$HARNESS_CACHE_DIR``, else ``$XDG_CACHE_HOME/rendering-harness``, else ``~/.cache/rendering-harness``."""
+    if os.environ.get("HARNESS_CACHE_DIR"):
+        return Path(os.environ["HARNESS_CACHE_DIR"])
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "rendering-harness"
+
+
+# ---- closed forms ----------------------------------------------------------------------------------------------
+
+
+def closed_form(scene: Scene) -> GroundTruth:
+    """The analytic image of a scene that declares ``closed_form``.
+
+    furnace: every shape emits the same Le and reflects with the same albedo rho, and they enclose the camera, so
+    L = Le + rho L_in with L_in = L after each bounce: L = Le sum_{i < max_depth} rho^i, or Le / (1 - rho) unbounded.
+    """
+    if scene.closed_form != "furnace":
+        raise HarnessError(f"{scene.path}: closed_form", f"no closed form named {scene.closed_form!r}")
+    emissions = {tuple(s.emission) if s.emission else None for s in scene.shapes}
+    albedos = {tuple(scene.materials[s.material].reflectance) for s in scene.shapes}
+    if len(emissions) != 1 or None in emissions or len(albedos) != 1:
+        raise HarnessError(
+            f"{scene.path}: closed_form",
+            "the furnace closed form needs every shape to emit the same Le and have the same reflectance",
+        )
+    le = np.array(next(iter(emissions)))
+    rho = np.array(next(iter(albedos)))
+    if scene.max_depth == -1:
+        if np.any(rho >= 1):
+            raise HarnessError(f"{scene.path}: closed_form", "an unbounded furnace needs every albedo < 1")
+        radiance = le / (1.0 - rho)
+    else:
+        radiance = le * sum(rho**i for i in range(scene.max_depth))
+    shape = (scene.film.height, scene.film.width, 3)
+    image = np.broadcast_to(radiance.astype(np.float32), shape).copy()
+    return GroundTruth(image, np.zeros(shape, np.float32), "closed-form", 0,
+                       info={"closed_form": "furnace", "radiance": radiance.tolist()}, cached=False)
+
+
+# ---- the cache -------------------------------------------------------------------------------------------------
+
+
+def scene_digest(scene: Scene) -> str:
+    """SHA-256 of the scene file's bytes and of every file it references (meshes)."""
+    h = hashlib.sha256()
+    try:
+        h.update(Path(scene.path).read_bytes())
+        for shape in scene.shapes:
+            if shape.file is not None:
+                h.update(str(shape.file.name).encode())
+                h.update(Path(shape.file).read_bytes())
+    except OSError as err:
+        raise HarnessError(str(scene.path), f"cannot read for the ground-truth key: {err.strerror}") from None
+    return h.hexdigest()
+
+
+def mitsuba_version() -> str:
+    try:
+        return metadata.version("mitsuba")
+    except metadata.PackageNotFoundError:
+        return "not installed"
+
+
+def _key(fields: dict) -> str:
+    return hashlib.sha256(json.dumps(fields, sort_keys=True).encode()).hexdigest()
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+class Cache:
+    """Content-addressed entries of per-pixel estimates under ``root/groundtruth``."""
+
+    def __init__(self, root: Path | str | None = None):
+        self.root = Path(root) if root is not None else default_cache_dir()
+        self.folder = self.root / "groundtruth"
+
+    def entry(self, key: str) -> Path:
+        return self.folder / key
+
+    def load(self, key: str) -> tuple[Estimate, dict] | None:
+        """The verified entry, or None when absent; a damaged entry is removed (and reported as absent)."""
+        folder = self.entry(key)
+        meta_path = folder / "meta.json"
+        if not meta_path.exists():
+            if folder.exists():
+                self._discard(folder)
+            return None
+        try:
+            meta = json.loads(meta_path.read_text())
+            for name, digest in meta["sha256"].items():
+                if _sha256(folder / name) != digest:
+                    raise ValueError(f"checksum mismatch in {name}")
+            with np.load(folder / "estimate.npz") as data:
+                estimate = Estimate(data["mean"], data["variance"], int(data["n"]))
+        except (OSError, ValueError, KeyError, json.JSONDecodeError):
+            self._discard(folder)
+            return None
+        return estimate, meta
+
+    def store(self, key: str, estimate: Estimate, meta: dict) -> Path:
+        """Write an entry atomically; if another process stored it first, keep theirs."""
+        from harness.imageio import write_exr
+
+        try:
+            tmp = self.folder / f".tmp-{uuid.uuid4().hex}"
+            tmp.mkdir(parents=True)
+        except OSError as err:
+            raise HarnessError(str(self.root), f"cannot write the ground-truth cache: {err.strerror}") from None
+        try:
+            np.savez(tmp / "estimate.npz", mean=estimate.mean, variance=estimate.variance, n=estimate.n)
+            write_exr(tmp / "image.exr", estimate.mean, estimate.variance,
+                      metadata={"harness.groundtruth": json.dumps({k: v for k, v in meta.items() if k != "sha256"})})
+            meta = dict(meta, sha256={name: _sha256(tmp / name) for name in ("estimate.npz", "image.exr")})
+            (tmp / "meta.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
+            try:
+                os.rename(tmp, self.entry(key))
+            except OSError:
+                if self.load(key) is None:  # the existing entry was damaged (and is now removed): take its place
+                    os.rename(tmp, self.entry(key))
+        finally:
+            if tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+        return self.entry(key) / "image.exr"
+
+    def _discard(self, folder: Path) -> None:
+        trash = self.folder / f".bad-{uuid.uuid4().hex}"
+        try:
+            os.rename(folder, trash)
+            shutil.rmtree(trash, ignore_errors=True)
+        except OSError:
+            pass
+
+
+# ---- Mitsuba ground truth --------------------------------------------------------------------------------------
+
+
+def ground_truth(
+    scene: Scene,
+    *,
+    spp: int = DEFAULT_SPP,
+    seed: int = 0,
+    cache_dir: Path | str | None = None,
+    variant: str | None = None,
+    chunk_spp: int = DEFAULT_CHUNK_SPP,
+    use_closed_form: bool = True,
+    progress: Callable[[int, int], None] | None = None,
+) -> GroundTruth:
+    """Ground truth for ``scene``: its closed form if it has one (and ``use_closed_form``), else a Mitsuba render
+    of ``spp`` samples per pixel in chunks of ``chunk_spp``, each chunk cached."""
+    if scene.closed_form and use_closed_form:
+        return closed_form(scene)
+    if spp < 1 or chunk_spp < 1:
+        raise HarnessError("--spp", f"expected a positive number of samples, got {spp}")
+    from harness.renderers import RenderRequest, get_renderer
+    from harness.renderers.mitsuba import choose_variant
+
+    variant = choose_variant(variant)
+    cache = Cache(cache_dir)
+    base = {
+        "format": FORMAT_VERSION,
+        "scene": scene_digest(scene),
+        "film": [scene.film.width, scene.film.height, scene.film.filter],
+        "max_depth": scene.max_depth,
+        "mitsuba": mitsuba_version(),
+        "variant": variant,
+        "seed": seed,
+    }
+    full_key = _key(dict(base, spp=spp, chunk_spp=chunk_spp))
+    found = cache.load(full_key)
+    if found is not None:
+        estimate, meta = found
+        if progress is not None:
+            progress(1, 1)
+        return GroundTruth(estimate.mean.astype(np.float32), estimate.variance.astype(np.float32), "mitsuba", spp,
+                           info=meta, cached=True, path=cache.entry(full_key) / "image.exr")
+
+    counts = [chunk_spp] * (spp // chunk_spp) + ([spp % chunk_spp] if spp % chunk_spp else [])
+    renderer = get_renderer("mitsuba")
+    chunks: list[Estimate] = []
+    renders, seconds, info = 0, 0.0, {}
+    done = 0
+    for index, count in enumerate(counts):
+        chunk_key = _key(dict(base, chunk=index, chunk_spp=count))
+        found = cache.load(chunk_key)
+        if found is None:
+            chunk_seed = int(hashlib.sha256(f"{seed}/{index}".encode()).hexdigest()[:8], 16)
+            start = time.perf_counter()
+            result = renderer.render(scene, RenderRequest(spp=count, seed=chunk_seed, settings={"variant": variant}))
+            seconds += time.perf_counter() - start
+            renders += 1
+            info = dict(result.info)
+            estimate = Estimate(result.image, result.variance, count)
+            cache.store(chunk_key, estimate, dict(base, chunk=index, spp=count, chunk_seed=chunk_seed,
+                                                  render_seconds=result.seconds, info=info))
+        else:
+            estimate = found[0]
+        chunks.append(estimate)
+        done += count
+        if progress is not None:
+            progress(done, spp)
+    merged = merge(chunks)
+    meta = dict(base, spp=spp, chunk_spp=chunk_spp, chunks=len(counts), info=info, render_seconds=seconds)
+    path = cache.store(full_key, merged, meta)
+    return GroundTruth(merged.mean.astype(np.float32), merged.variance.astype(np.float32), "mitsuba", spp,
+                       info=meta, cached=renders == 0, renders=renders, seconds=seconds, path=path)

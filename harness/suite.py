@@ -1,0 +1,441 @@
+"""Suites: cases of (scene, renderer with settings, budget, what to compare against, thresholds), run as a gate.
+
+The file format is documented in ``docs/suites.md``; ``harness run SUITE`` runs one and writes ``results.json``
+(schema in ``docs/results-schema.md``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import json
+import platform
+import re
+import time
+import tomllib
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harness.errors import HarnessError
+
+SUITE_KEYS = ("name", "description", "defaults", "cases")
+CASE_KEYS = (
+    "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
+    "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp",
+)
+DEFAULT_KEYS = tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
+AGAINST_KEYS = ("renderer", "spp", "seed", "settings")
+AGAINST_KINDS = ("ground-truth", "closed-form", "mitsuba")
+METRICS = ("rmse", "relmse", "mape", "psnr", "ssim", "flip", "bias")
+HIGHER_IS_BETTER = ("psnr", "ssim")
+EXPECT = ("pass", "fail")
+
+
+@dataclass(frozen=True)
+class Against:
+    """What a case's render is compared with: "ground-truth" (the scene's closed form, else Mitsuba),
+    "closed-form", "mitsuba" (Mitsuba ground truth even where a closed form exists), or another renderer's render."""
+
+    kind: str
+    renderer: str | None = None
+    spp: int | None = None
+    seed: int = 1_000_003
+    settings: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    scene: Path
+    renderer: str = "reference"
+    settings: dict[str, str] = field(default_factory=dict)
+    spp: int | None = 64
+    seconds: float | None = None
+    chunk_spp: int = 4
+    seed: int = 0
+    against: Against = Against("ground-truth")
+    film: dict[str, int] | None = None
+    metrics: tuple[str, ...] = METRICS
+    thresholds: dict[str, float] = field(default_factory=dict)
+    expect: str = "pass"
+    alpha: float = 0.01
+    tile: int = 8
+    ground_truth_spp: int = 1024
+
+
+@dataclass(frozen=True)
+class Suite:
+    name: str
+    description: str
+    path: Path
+    cases: tuple[Case, ...]
+
+
+# ---- loading ---------------------------------------------------------------------------------------------------
+
+
+def load_suite(path: str | Path) -> Suite:
+    """Read and validate a suite file; every problem is a one-line HarnessError naming the file and key."""
+    path = Path(path)
+    label = str(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise HarnessError(label, "no such suite file") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise HarnessError(label, f"cannot read: {err}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise HarnessError(label, f"invalid TOML: {err}") from None
+    _check_keys(label, doc, SUITE_KEYS, "")
+    name = _typed(label, "name", doc.get("name", path.stem), str)
+    description = _typed(label, "description", doc.get("description", ""), str)
+    defaults = _typed(label, "defaults", doc.get("defaults", {}), dict)
+    _check_keys(label, defaults, DEFAULT_KEYS, "defaults")
+    entries = _typed(label, "cases", doc.get("cases", []), list)
+    if not entries:
+        raise HarnessError(f"{label}: cases", "expected at least one [[cases]] entry")
+    cases, names = [], set()
+    for i, entry in enumerate(entries):
+        where = f"cases[{i}]"
+        entry = _typed(label, where, entry, dict)
+        _check_keys(label, entry, CASE_KEYS, where)
+        merged = {**defaults, **entry}
+        case = _case(label, path.parent, where, merged)
+        if case.name in names:
+            raise HarnessError(f"{label}: {where}.name", f"duplicate case name {case.name!r}")
+        names.add(case.name)
+        cases.append(case)
+    return Suite(name, description, path, tuple(cases))
+
+
+def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
+    from harness.renderers import renderer_names
+
+    def key(k: str) -> str:
+        return f"{where}.{k}"
+
+    if "scene" not in d:
+        raise HarnessError(f"{label}: {key('scene')}", "missing: expected a scene name or a path to a scene file")
+    scene = _scene_path(label, key("scene"), folder, _typed(label, key("scene"), d["scene"], str))
+    name = _typed(label, key("name"), d.get("name", scene.stem), str)
+    renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
+    _renderer_known(label, key("renderer"), renderer, renderer_names())
+    settings = _settings(label, key("settings"), d.get("settings", {}))
+    spp = d.get("spp", None if "seconds" in d else 64)
+    seconds = d.get("seconds")
+    if spp is not None and seconds is not None:
+        raise HarnessError(f"{label}: {where}", "give a budget as spp or as seconds, not both")
+    if spp is not None:
+        spp = _positive(label, key("spp"), spp, int)
+    if seconds is not None:
+        seconds = float(_positive(label, key("seconds"), seconds, (int, float)))
+    against = _against(label, key("against"), d.get("against", "ground-truth"), renderer_names())
+    film = d.get("film")
+    if film is not None:
+        film = _typed(label, key("film"), film, dict)
+        _check_keys(label, film, ("width", "height"), key("film"))
+        film = {k: _positive(label, f"{key('film')}.{k}", v, int) for k, v in film.items()}
+    metrics = tuple(_typed(label, key("metrics"), d.get("metrics", list(METRICS)), list))
+    for m in metrics:
+        if m not in METRICS:
+            raise HarnessError(f"{label}: {key('metrics')}", f"unknown metric {m!r}{_hint(m, METRICS)}")
+    thresholds = _typed(label, key("thresholds"), d.get("thresholds", {}), dict)
+    for m, v in thresholds.items():
+        if m not in METRICS:
+            raise HarnessError(f"{label}: {key('thresholds')}.{m}", f"unknown metric{_hint(m, METRICS)}")
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v):
+            raise HarnessError(f"{label}: {key('thresholds')}.{m}", f"expected a finite number, got {v!r}")
+    expect = _typed(label, key("expect"), d.get("expect", "pass"), str)
+    if expect not in EXPECT:
+        raise HarnessError(f"{label}: {key('expect')}", f"expected 'pass' or 'fail', got {expect!r}")
+    alpha = float(_typed(label, key("alpha"), d.get("alpha", 0.01), (int, float)))
+    if not 0 < alpha < 1:
+        raise HarnessError(f"{label}: {key('alpha')}", f"expected a probability in (0, 1), got {alpha}")
+    return Case(
+        name=name, scene=scene, renderer=renderer, settings=settings, spp=spp, seconds=seconds,
+        chunk_spp=_positive(label, key("chunk_spp"), d.get("chunk_spp", 4), int),
+        seed=_non_negative(label, key("seed"), d.get("seed", 0)), against=against, film=film, metrics=metrics,
+        thresholds={k: float(v) for k, v in thresholds.items()}, expect=expect, alpha=alpha,
+        tile=_positive(label, key("tile"), d.get("tile", 8), int),
+        ground_truth_spp=_positive(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024), int),
+    )
+
+
+def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
+    candidates = [folder / value]
+    if "/" not in value and not value.endswith(".toml"):
+        candidates += [folder.parent / "scenes" / f"{value}.toml", Path("scenes") / f"{value}.toml"]
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise HarnessError(f"{label}: {key}", f"no scene {value!r} (looked for {', '.join(str(c) for c in candidates)})")
+
+
+def _against(label: str, key: str, value: Any, renderers: list[str]) -> Against:
+    if isinstance(value, str):
+        if value not in AGAINST_KINDS:
+            raise HarnessError(f"{label}: {key}", f"expected one of {', '.join(AGAINST_KINDS)} or a table "
+                               f"{{renderer = ..., spp = ...}}, got {value!r}{_hint(value, AGAINST_KINDS)}")
+        return Against(value)
+    table = _typed(label, key, value, dict)
+    _check_keys(label, table, AGAINST_KEYS, key)
+    if "renderer" not in table:
+        raise HarnessError(f"{label}: {key}.renderer", "missing: expected the name of the renderer to compare with")
+    renderer = _typed(label, f"{key}.renderer", table["renderer"], str)
+    _renderer_known(label, f"{key}.renderer", renderer, renderers)
+    return Against(
+        "renderer", renderer, _positive(label, f"{key}.spp", table.get("spp", 256), int),
+        _non_negative(label, f"{key}.seed", table.get("seed", 1_000_003)),
+        _settings(label, f"{key}.settings", table.get("settings", {})),
+    )
+
+
+def _renderer_known(label: str, key: str, name: str, known: list[str]) -> None:
+    if name not in known:
+        raise HarnessError(f"{label}: {key}", f"unknown renderer {name!r}{_hint(name, known)} (known: {', '.join(known)})")
+
+
+def _settings(label: str, key: str, value: Any) -> dict[str, str]:
+    table = _typed(label, key, value, dict)
+    out = {}
+    for k, v in table.items():
+        if isinstance(v, (dict, list)):
+            raise HarnessError(f"{label}: {key}.{k}", f"expected a string or number, got {v!r}")
+        out[str(k)] = str(v).lower() if isinstance(v, bool) else str(v)
+    return out
+
+
+def _check_keys(label: str, table: dict, known: tuple[str, ...], parent: str) -> None:
+    for k in table:
+        if k not in known:
+            where = f"{parent}.{k}" if parent else k
+            raise HarnessError(f"{label}: {where}", f"unknown key{_hint(k, known)}; expected one of {', '.join(known)}")
+
+
+def _hint(word: str, candidates) -> str:
+    close = difflib.get_close_matches(str(word), list(candidates), n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
+
+
+def _typed(label: str, key: str, value: Any, kind):
+    if isinstance(value, bool) and kind is not bool:
+        ok = False
+    else:
+        ok = isinstance(value, kind)
+    if not ok:
+        names = {str: "a string", dict: "a table", list: "a list", int: "an integer"}
+        what = names.get(kind, "a number") if not isinstance(kind, tuple) else "a number"
+        raise HarnessError(f"{label}: {key}", f"expected {what}, got {value!r}")
+    return value
+
+
+def _positive(label: str, key: str, value: Any, kind) -> Any:
+    value = _typed(label, key, value, kind)
+    if not value > 0 or (isinstance(value, float) and not np.isfinite(value)):
+        raise HarnessError(f"{label}: {key}", f"expected a positive number, got {value!r}")
+    return value
+
+
+def _non_negative(label: str, key: str, value: Any) -> int:
+    value = _typed(label, key, value, int)
+    if value < 0:
+        raise HarnessError(f"{label}: {key}", f"expected a non-negative integer, got {value}")
+    return value
+
+
+# ---- running ---------------------------------------------------------------------------------------------------
+
+
+def slug(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "case"
+
+
+def case_scene(case: Case):
+    from harness.scene import load_scene
+    from reference_impl import Film
+
+    scene = load_scene(case.scene)
+    if case.film:
+        film = Film(case.film.get("width", scene.film.width), case.film.get("height", scene.film.height),
+                    scene.film.filter)
+        scene = dataclasses.replace(scene, film=film)
+    return scene
+
+
+def render_with_budget(case: Case, scene, variant: str | None, progress=None):
+    """Render a case's test image within its budget: spp at once, or chunks of chunk_spp until ``seconds``."""
+    from harness.moments import Estimate, merge
+    from harness.renderers import RenderRequest, get_renderer
+
+    renderer = get_renderer(case.renderer)
+    settings = dict(case.settings)
+    if case.renderer == "mitsuba" and variant and "variant" not in settings:
+        settings["variant"] = variant
+    if case.spp is not None:
+        return renderer.render(scene, RenderRequest(spp=case.spp, seed=case.seed, settings=settings, progress=progress))
+    chunks, results, spent, index = [], [], 0.0, 0
+    while spent < case.seconds:
+        result = renderer.render(scene, RenderRequest(spp=case.chunk_spp, seed=case.seed + 7919 * index, settings=settings))
+        spent += result.seconds
+        results.append(result)
+        chunks.append(Estimate(result.image, result.variance, result.spp))
+        index += 1
+        if progress is not None:
+            progress(min(spent, case.seconds), case.seconds)
+    merged = merge(chunks)
+    first = results[0]
+    return dataclasses.replace(
+        first, image=merged.mean.astype(np.float32), variance=merged.variance.astype(np.float32),
+        seconds=spent, spp=merged.n,
+        rays={k: sum(r.rays.get(k, 0) for r in results) for k in first.rays},
+        stats={k: sum(r.stats.get(k, 0) for r in results) for k in first.stats},
+        info=dict(first.info, chunks=len(results)),
+    )
+
+
+def reference_for(case: Case, scene, cache_dir, variant: str | None, progress=None):
+    """The image a case is compared with, as a GroundTruth."""
+    from harness import groundtruth
+    from harness.renderers import RenderRequest, get_renderer
+
+    kind = case.against.kind
+    if kind == "closed-form":
+        if not scene.closed_form:
+            raise HarnessError(f"{case.scene}: closed_form", f"case {case.name!r} compares against a closed form, "
+                               "but the scene declares none")
+        return groundtruth.closed_form(scene)
+    if kind in ("ground-truth", "mitsuba"):
+        return groundtruth.ground_truth(scene, spp=case.ground_truth_spp, cache_dir=cache_dir, variant=variant,
+                                        use_closed_form=kind == "ground-truth", progress=progress)
+    against = case.against
+    if against.renderer == "mitsuba":  # Mitsuba renders always go through the cache
+        return groundtruth.ground_truth(scene, spp=against.spp, seed=against.seed, cache_dir=cache_dir,
+                                        variant=against.settings.get("variant", variant), use_closed_form=False,
+                                        progress=progress)
+    result = get_renderer(against.renderer).render(
+        scene, RenderRequest(spp=against.spp, seed=against.seed, settings=dict(against.settings)))
+    return groundtruth.GroundTruth(result.image, result.variance, against.renderer, against.spp,
+                                   info={"settings": result.settings, **result.info}, seconds=result.seconds)
+
+
+def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
+    """Descriptions of every threshold a metric breaks (upper bounds; lower bounds for psnr and ssim)."""
+    broken = []
+    for name, limit in thresholds.items():
+        value = metrics.get(name)
+        if isinstance(value, dict):  # bias: compare its magnitude
+            value = abs(value.get("overall", value.get("value", 0.0)))
+        if value is None or not np.isfinite(value):
+            broken.append(f"{name} is {value}")
+        elif name in HIGHER_IS_BETTER and value < limit:
+            broken.append(f"{name} {value:.4g} < {limit:.4g}")
+        elif name not in HIGHER_IS_BETTER and value > limit:
+            broken.append(f"{name} {value:.4g} > {limit:.4g}")
+    return broken
+
+
+def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None) -> dict:
+    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
+    from harness import imageio
+    from harness.compare import compare_images
+
+    record: dict[str, Any] = {
+        "name": case.name, "scene": str(case.scene), "renderer": case.renderer, "settings": case.settings,
+        "budget": {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds},
+        "seed": case.seed, "expect": case.expect, "against": dataclasses.asdict(case.against),
+    }
+    start = time.perf_counter()
+    try:
+        scene = case_scene(case)
+        gt = reference_for(case, scene, cache_dir, variant, progress)
+        record["ground_truth"] = {
+            "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
+            "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,
+            "variant": gt.info.get("variant") or gt.info.get("info", {}).get("variant"),
+            "mitsuba_version": gt.info.get("mitsuba"),
+        }
+        result = render_with_budget(case, scene, variant)
+        folder = out_dir / "cases" / slug(case.name)
+        folder.mkdir(parents=True, exist_ok=True)
+        imageio.write_exr(folder / "render.exr", result.image, result.variance,
+                          metadata={"renderer": result.renderer, "case": case.name})
+        imageio.write_png_preview(folder / "render.png", result.image)
+        comparison = compare_images(
+            imageio.ExrImage(result.image, result.variance, {}), imageio.ExrImage(gt.image, gt.variance, {}),
+            tile=case.tile, alpha=case.alpha,
+        )
+        metrics = {k: comparison["metrics"][k] for k in case.metrics if k in comparison["metrics"]}
+        broken = check_thresholds(comparison["metrics"], case.thresholds)
+        verdict = comparison["verdict"]
+        outcome = "pass" if verdict["verdict"] == "pass" and not broken else "fail"
+        reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""
+        if broken:
+            reason = "; ".join(filter(None, [reason, "threshold: " + ", ".join(broken)]))
+        record.update(
+            status=outcome, reason=reason, ok=outcome == case.expect, metrics=metrics, verdict=verdict,
+            thresholds=case.thresholds, thresholds_broken=broken,
+            render={"seconds": result.seconds, "spp": result.spp, "paths_per_second": result.paths / max(result.seconds, 1e-12),
+                    "rays": result.rays, "nonfinite_pixels": result.nonfinite_pixels, "settings": result.settings,
+                    "info": result.info, "exr": str(folder / "render.exr")},
+        )
+    except HarnessError:
+        raise
+    except Exception as err:  # a renderer or adapter failure fails this case only
+        record.update(status="error", ok=False, reason=f"{type(err).__name__}: {err}".splitlines()[0],
+                      traceback=traceback.format_exc(limit=8))
+    record["wall_seconds"] = time.perf_counter() - start
+    return record
+
+
+def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
+              on_case: Callable[[int, dict], None] | None = None) -> dict:
+    """Run every case, rewriting ``results.json`` atomically after each one (finished cases are never lost)."""
+    from harness.imageio import atomic_write_text
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    started = time.time()
+    results: dict[str, Any] = {
+        "schema": 1, "suite": suite.name, "suite_file": str(suite.path), "description": suite.description,
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+        "host": {"python": platform.python_version(), "machine": platform.machine(), "node": platform.node()},
+        "cases": [],
+    }
+    for index, case in enumerate(suite.cases):
+        record = run_case(case, out_dir, cache_dir=cache_dir, variant=variant)
+        results["cases"].append(record)
+        results["summary"] = summarise(results["cases"], time.time() - started)
+        atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
+        if on_case is not None:
+            on_case(index, record)
+    return results
+
+
+def summarise(records: list[dict], wall: float) -> dict:
+    return {
+        "cases": len(records),
+        "ok": sum(r["ok"] for r in records),
+        "passed": sum(r.get("status") == "pass" for r in records),
+        "failed": sum(r.get("status") == "fail" for r in records),
+        "errors": sum(r.get("status") == "error" for r in records),
+        "unexpected": [r["name"] for r in records if not r["ok"]],
+        "mitsuba_renders": sum(r.get("ground_truth", {}).get("renders", 0) for r in records),
+        "ground_truth_cached": sum(bool(r.get("ground_truth", {}).get("cached")) for r in records),
+        "wall_seconds": wall,
+    }
+
+
+def _json_default(value):
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
