@@ -367,12 +367,15 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         imageio.write_exr(folder / "render.exr", result.image, result.variance,
                           metadata={"renderer": result.renderer, "case": case.name})
         imageio.write_png_preview(folder / "render.png", result.image)
+        gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         comparison = compare_images(
-            imageio.ExrImage(result.image, result.variance, {}), imageio.ExrImage(gt.image, gt.variance, {}),
+            imageio.ExrImage(result.image, result.variance, {"spp": str(result.spp)}),
+            imageio.ExrImage(gt.image, gt.variance, gt_meta),
             tile=case.tile, alpha=case.alpha,
         )
-        metrics = {k: comparison["metrics"][k] for k in case.metrics if k in comparison["metrics"]}
-        broken = check_thresholds(comparison["metrics"], case.thresholds)
+        all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
+        metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
+        broken = check_thresholds(all_metrics, case.thresholds)
         verdict = comparison["verdict"]
         outcome = "pass" if verdict["verdict"] == "pass" and not broken else "fail"
         reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""

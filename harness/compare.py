@@ -1,0 +1,159 @@
+"""Compare a test render with a reference: every image metric plus the statistical verdict, as a JSON-ready dict.
+
+:func:`compare_images` works on :class:`harness.imageio.ExrImage` values,
+:func:`compare_files` reads two EXR files first.  Metrics are described in
+:mod:`harness.metrics`, the verdict in :mod:`harness.verdict` and
+``docs/verdict.md``.
+
+The returned dict holds only str, int, float, bool, None, lists and dicts,
+and no NaN or infinity: those are written as None (``null``), e.g. the PSNR of
+identical images (infinite) or the z of a differing zero-variance tile.
+``json.dumps(result, allow_nan=False)`` therefore works.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+from harness import metrics
+from harness.errors import HarnessError
+from harness.imageio import ExrImage, read_exr
+from harness.verdict import verdict
+
+__all__ = ["compare_files", "compare_images"]
+
+
+def _jsonable(value: Any) -> Any:
+    """Plain Python types; non-finite floats become None."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_jsonable(v) for v in value.tolist()]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        return f if math.isfinite(f) else None
+    return value
+
+
+def _variance_dof(image: ExrImage) -> int | None:
+    """spp - 1 from the file's ``spp`` metadata (what ``harness render`` writes), if present and >= 2."""
+    raw = image.metadata.get("spp") if image.metadata else None
+    try:
+        spp = int(str(raw).strip())
+    except (TypeError, ValueError):
+        return None
+    return spp - 1 if spp >= 2 else None
+
+
+def _size(image: np.ndarray) -> str:
+    return f"{image.shape[1]}x{image.shape[0]}"
+
+
+def _compare(test: ExrImage, ref: ExrImage, tile: int, alpha: float, names: tuple[str, str]) -> dict:
+    test_name, ref_name = names
+    if test.image.shape != ref.image.shape:
+        raise HarnessError(
+            test_name,
+            f"size {_size(test.image)} differs from the reference {ref_name} ({_size(ref.image)}); "
+            "expected images of the same size",
+        )
+    test_dof, ref_dof = _variance_dof(test), _variance_dof(ref)
+    # The verdict first: it checks that both variances exist and the reference is finite.
+    outcome = verdict(
+        test.image,
+        test.variance,
+        ref.image,
+        ref.variance,
+        tile=tile,
+        alpha=alpha,
+        test_dof=test_dof,
+        reference_dof=ref_dof,
+        names=names,
+    )
+    t, r = test.image, ref.image
+    h, w = t.shape[:2]
+    mask = metrics.finite_mask(t, r)
+    used = int(mask.sum())
+    nonfinite = {"test": metrics.count_nonfinite(t), "reference": metrics.count_nonfinite(r)}
+    finite_ref = r[mask]
+    psnr_peak = float(finite_ref.max()) if finite_ref.size else float("nan")
+    result = {
+        "width": w,
+        "height": h,
+        "pixels": h * w,
+        "nonfinite_pixels": nonfinite,
+        "metric_pixels": used,
+        "metric_note": f"metrics use only the {used} of {h * w} pixels finite in both images",
+        "metrics": {
+            "rmse": metrics.rmse(t, r),
+            "relmse": metrics.relmse(t, r),
+            "mape": metrics.mape(t, r),
+            "psnr": metrics.psnr(t, r),
+            "ssim": metrics.ssim(t, r),
+            "flip": metrics.flip(t, r),
+        },
+        "bias": metrics.bias(t, r, test.variance, ref.variance),
+        "conventions": {
+            "relmse_eps": metrics.RELMSE_EPS,
+            "mape_eps": metrics.MAPE_EPS,
+            "psnr": "linear radiance, data_range = max of the reference",
+            "psnr_data_range": psnr_peak,
+            "ssim": "sRGB-encoded images clipped to [0, 1], 11x11 Gaussian window (sigma 1.5), mean over channels",
+            "flip": "HDR-FLIP (flip-evaluator) on linear radiance, mean of the error map",
+        },
+        "verdict": outcome.to_dict(),
+    }
+    return _jsonable(result)
+
+
+def compare_images(test: ExrImage, ref: ExrImage, *, tile: int = 8, alpha: float = 0.01) -> dict:
+    """Every metric of ``test`` against ``ref``, the statistical verdict and the statistics behind it.
+
+    Both images need variance channels (the verdict's input; zeros for an
+    exact reference), else :class:`HarnessError`.  If a file's metadata has
+    ``spp`` (as ``harness render`` writes), spp - 1 is taken as the degrees of
+    freedom of its variance estimates (see :func:`harness.verdict.verdict`).
+
+    Returns a dict with keys ``width``, ``height``, ``pixels``,
+    ``nonfinite_pixels`` (``{"test": n, "reference": n}``), ``metric_pixels``
+    and ``metric_note`` (metrics use only pixels finite in both images),
+    ``metrics`` (``rmse``, ``relmse``, ``mape``, ``psnr``, ``ssim``, ``flip``),
+    ``bias`` (see :func:`harness.metrics.bias`), ``conventions`` (how each
+    metric was computed) and ``verdict`` (:meth:`harness.verdict.Verdict.to_dict`:
+    ``verdict`` "pass"/"fail", ``reason``, ``alpha``, ``threshold``, ``tile``,
+    ``nonfinite_pixels``, ``global_bias``, ``omnibus``, ``max_z``,
+    ``zero_variance``, ``worst_tile``, ``variance_dof``).  Non-finite floats
+    are None.
+
+    Raises :class:`HarnessError` if the sizes differ, a variance is missing or
+    invalid, or the reference has non-finite pixels.
+    """
+    return _compare(test, ref, tile, alpha, ("test image", "reference image"))
+
+
+def compare_files(
+    test_path: str | os.PathLike[str], ref_path: str | os.PathLike[str], **kw: Any
+) -> dict:
+    """:func:`compare_images` on two EXR files read with :func:`harness.imageio.read_exr`.
+
+    Keyword arguments (``tile``, ``alpha``) are passed on.  Errors name the
+    files: a size mismatch raises ``HarnessError`` naming both files and both
+    sizes; a file without variance channels raises one naming that file.
+    """
+    test = read_exr(test_path)
+    ref = read_exr(ref_path)
+    tile = kw.pop("tile", 8)
+    alpha = kw.pop("alpha", 0.01)
+    if kw:
+        raise TypeError(f"unexpected keyword arguments: {', '.join(sorted(kw))}")
+    return _compare(test, ref, tile, alpha, (str(test_path), str(ref_path)))

@@ -1,0 +1,488 @@
+r"""The statistical pass/fail verdict: is a test render consistent with a reference, given both images' noise?
+
+Both images are Monte Carlo estimates (or the reference is exact): per pixel p
+and channel c an estimate :math:`T_{pc}` with the variance of that estimate
+(of the mean, not of one sample) :math:`V^T_{pc}`, and likewise R, V^R.  Under
+the null hypothesis "same expected image", :math:`T - R` has mean 0 and
+variance :math:`V^T + V^R` at every pixel, pixels being independent.
+
+Pixels are pooled into ``tile`` x ``tile`` tiles (per channel; partial tiles at
+the right and bottom borders count, with their n pixels).  For a tile
+
+.. math:: D = \frac{1}{n}\sum_p (T_p - R_p), \qquad
+          S^2 = \frac{1}{n^2}\sum_p (V^T_p + V^R_p), \qquad z = D / S
+
+(Welch's statistic).  Three sub-tests, each over all channels:
+
+1. *global bias*: z of the image-wide mean difference per channel (catches a
+   small uniform energy error); two-sided, Šidák-combined over the channels.
+2. *omnibus*: per channel, :math:`\sum z^2` over the tiles ~ :math:`\chi^2(k)`
+   (catches many small local errors); Bonferroni-combined over the channels.
+3. *max |z|*: the largest tile |z| over tiles and channels, Šidák-corrected
+   for their number K (catches one strong local error).
+
+The verdict fails if any sub-test's p-value is below alpha / 3 (Bonferroni
+over the sub-tests), so a correct renderer fails with probability <= alpha.
+Tiles where both variances are zero are compared exactly instead (up to float
+rounding); any non-finite test pixel fails the verdict.  ``docs/verdict.md``
+explains the choices, the false-alarm rate, the power and the assumptions.
+
+When the variances are themselves estimated from few samples, the degrees of
+freedom of each pixel's variance estimate (spp - 1) may be given: a tile's z
+is then referred to Student's t with Welch-Satterthwaite degrees of freedom
+and converted to the normal quantile of equal tail probability before the
+sub-tests.  Without them, variances are taken as exact (z ~ N(0, 1)).
+
+References
+----------
+.. [1] B. L. Welch, "The generalization of 'Student's' problem when several
+       different population variances are involved", Biometrika 34, 1947;
+       F. E. Satterthwaite, "An approximate distribution of estimates of
+       variance components", Biometrics Bulletin 2(6), 1946.
+.. [2] Z. Šidák, "Rectangular confidence regions for the means of multivariate
+       normal distributions", J. Amer. Statist. Assoc. 62, 1967 (the
+       correction is valid for two-sided tests of correlated normal z's).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from harness.errors import HarnessError
+
+__all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "Verdict", "tile_z_scores", "verdict"]
+
+CHANNELS: tuple[str, str, str] = ("R", "G", "B")
+#: Relative tolerance for values that carry no Monte Carlo noise: ~16 float32 ulps.
+ROUNDING_RTOL = 1e-6
+#: The sub-tests combined by Bonferroni.
+SUBTESTS: tuple[str, str, str] = ("global_bias", "omnibus", "max_z")
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """The outcome of :func:`verdict`; :meth:`to_dict` gives plain Python types.
+
+    ``verdict``: ``"pass"`` or ``"fail"``; ``reason``: one line saying why.
+    ``alpha``: family-wise false-alarm probability; ``threshold`` = alpha / 3,
+    the level each sub-test is held to; ``tile``: tile side in pixels.
+    ``nonfinite_pixels``: test pixels with a NaN/Inf channel (left out of the
+    statistics; any makes the verdict fail).
+    ``global_bias``: ``difference``, ``stderr``, ``z``, ``dof``, ``p_values``
+    per channel, ``channels`` tested, ``p_value`` (Šidák over channels).
+    ``omnibus``: ``statistic``, ``dof`` (tiles), ``p_values`` per channel and
+    ``p_value`` (Bonferroni over channels).
+    ``max_z``: ``statistic`` (largest |z|, normal scale), ``count`` (K tiles
+    x channels), ``p_value`` (Šidák over K).
+    ``zero_variance``: ``tiles`` (tile-channels with both variances zero) and
+    ``differing`` (those not equal up to rounding).
+    ``worst_tile``: the tile-channel with the largest |z| (a differing
+    zero-variance tile, z = inf, first): ``row``, ``col`` (tile indices),
+    ``y``, ``x``, ``height``, ``width`` (pixels), ``channel``, ``difference``
+    (D), ``stderr`` (S), ``z`` (D / S), ``z_normal`` (the value the sub-tests
+    use), ``dof``; None if there is no tile.
+    ``variance_dof``: the degrees of freedom of the variance estimates used
+    (None: taken as exact).
+    """
+
+    verdict: str
+    reason: str
+    alpha: float
+    threshold: float
+    tile: int
+    nonfinite_pixels: int
+    global_bias: dict
+    omnibus: dict
+    max_z: dict
+    zero_variance: dict
+    worst_tile: dict | None
+    variance_dof: dict = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        return self.verdict == "pass"
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+# ---------------------------------------------------------------------------
+# Helpers
+# ---------------------------------------------------------------------------
+
+
+def _tile_sum(x: np.ndarray, tile: int) -> np.ndarray:
+    """(H, W, C) -> (ceil(H/tile), ceil(W/tile), C) sums over tiles; partial tiles at the borders."""
+    h, w, c = x.shape
+    th, tw = -(-h // tile), -(-w // tile)
+    if (th * tile, tw * tile) != (h, w):
+        padded = np.zeros((th * tile, tw * tile, c), dtype=x.dtype)
+        padded[:h, :w] = x
+        x = padded
+    return x.reshape(th, tile, tw, tile, c).sum(axis=(1, 3))
+
+
+def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
+    """The normal quantile with the same tail probability as ``z`` under Student's t(dof).
+
+    dof = inf leaves z as it is.  Computed from the upper tail so that large
+    |z| keep their precision.
+    """
+    z = np.asarray(z, dtype=np.float64)
+    dof = np.broadcast_to(np.asarray(dof, dtype=np.float64), z.shape)
+    out = z.copy()
+    finite = np.isfinite(dof) & np.isfinite(z)
+    if finite.any():
+        tail = stats.t.sf(np.abs(z[finite]), dof[finite])
+        out[finite] = np.sign(z[finite]) * stats.norm.isf(tail)
+    return out
+
+
+def _sidak(p_min: float, count: int) -> float:
+    """P(min of ``count`` p-values <= p_min) under independence: 1 - (1 - p_min)^count."""
+    if count <= 0:
+        return 1.0
+    if p_min >= 1.0:
+        return 1.0
+    return float(-np.expm1(count * np.log1p(-p_min)))
+
+
+def _dof_array(name: str, dof: object, shape: tuple[int, ...]) -> np.ndarray:
+    """Per-pixel degrees of freedom of a variance estimate; None means exact (inf)."""
+    if dof is None:
+        return np.full(shape, np.inf)
+    arr = np.asarray(dof, dtype=np.float64)
+    if arr.ndim == 2:
+        arr = arr[..., None]
+    try:
+        arr = np.broadcast_to(arr, shape)
+    except ValueError:
+        raise ValueError(f"{name} must be a scalar or broadcast to {shape}, got shape {arr.shape}") from None
+    if np.any(~(arr > 0)):
+        raise ValueError(f"{name} must be > 0 (spp - 1 for a sample variance), got min {arr.min()}")
+    return arr
+
+
+def _check_variance(name: str, variance: np.ndarray, image_ok: np.ndarray) -> None:
+    bad = ~(np.isfinite(variance) & (variance >= 0)) & image_ok[..., None]
+    if bad.any():
+        pixels = int(np.count_nonzero(bad.any(axis=-1)))
+        raise HarnessError(
+            name,
+            f"variance is NaN, infinite or negative at {pixels} pixels with a finite value; expected the "
+            "variance of each pixel's estimate, >= 0 (one sample per pixel gives no variance: render >= 2 spp)",
+        )
+
+
+def _dof_summary(dof: object) -> float | dict | None:
+    if dof is None:
+        return None
+    arr = np.asarray(dof, dtype=np.float64)
+    return float(arr) if arr.ndim == 0 else {"min": float(arr.min()), "max": float(arr.max())}
+
+
+def _fmt_p(p: float) -> str:
+    return f"{p:.3g}"
+
+
+# ---------------------------------------------------------------------------
+# Tile statistics
+# ---------------------------------------------------------------------------
+
+
+def tile_z_scores(
+    test: np.ndarray,
+    test_variance: np.ndarray,
+    reference: np.ndarray,
+    reference_variance: np.ndarray,
+    tile: int = 8,
+) -> np.ndarray:
+    r"""Welch z of every tile and channel: :math:`z = D / S` with D, S as in the module docstring.
+
+    Returns an array of shape (ceil(H/tile), ceil(W/tile), 3); NaN for tiles
+    with zero variance in both images (or with no finite test pixel).  A
+    diagnostic view of what :func:`verdict` tests (without its rounding floor).
+    """
+    t = np.asarray(test, dtype=np.float64)
+    r = np.asarray(reference, dtype=np.float64)
+    ok = np.all(np.isfinite(t), axis=-1)[..., None]
+    d = _tile_sum(np.where(ok, t - r, 0.0), tile)
+    v_pix = np.asarray(test_variance, np.float64) + np.asarray(reference_variance, np.float64)
+    v = _tile_sum(np.where(ok, v_pix, 0.0), tile)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(v > 0, d / np.sqrt(v), np.nan)
+
+
+# ---------------------------------------------------------------------------
+# The verdict
+# ---------------------------------------------------------------------------
+
+
+def verdict(
+    test: np.ndarray,
+    test_variance: np.ndarray | None,
+    reference: np.ndarray,
+    reference_variance: np.ndarray | None,
+    *,
+    tile: int = 8,
+    alpha: float = 0.01,
+    test_dof: float | np.ndarray | None = None,
+    reference_dof: float | np.ndarray | None = None,
+    rtol: float = ROUNDING_RTOL,
+    names: tuple[str, str] = ("test image", "reference image"),
+) -> Verdict:
+    r"""Decide whether ``test`` and ``reference`` estimate the same image.
+
+    Parameters
+    ----------
+    test, reference : (H, W, 3) arrays
+        Per-pixel estimates (linear radiance).  Non-finite test pixels make the
+        verdict fail and are left out of the statistics; a non-finite
+        reference pixel raises :class:`HarnessError`.
+    test_variance, reference_variance : (H, W, 3) arrays
+        Variance of each pixel's estimate (of the mean); zeros for an exact
+        (closed-form) image.  None raises :class:`HarnessError`: the verdict
+        needs the variance channels.
+    tile : int
+        Tile side in pixels (default 8).
+    alpha : float
+        Family-wise false-alarm probability (default 0.01): each of the three
+        sub-tests is held to alpha / 3.
+    test_dof, reference_dof : float or array, optional
+        Degrees of freedom of each pixel's variance estimate (spp - 1 for the
+        sample variance of spp samples).  None: the variance is taken as exact.
+        With them each tile's z is referred to Student's t with
+        Welch-Satterthwaite degrees of freedom
+        :math:`\nu = (\sum_p v_p)^2 / \sum_p (v_p^2 / \nu_p)`.
+    rtol : float
+        Values that carry no noise are equal if they agree to ``rtol``
+        relatively (default 1e-6, ~16 float32 ulps).  Zero-variance tiles are
+        compared pixel by pixel: :math:`|T_p - R_p| \le rtol \cdot \max(|T_p|, |R_p|)`.
+        In other tiles each pixel's variance gets a rounding floor
+        :math:`(rtol \cdot \max(|T_p|, |R_p|))^2`.
+    names : (str, str)
+        How error messages name the two images (e.g. their file paths).
+
+    Returns
+    -------
+    Verdict
+        See :class:`Verdict`.
+
+    Notes
+    -----
+    With :math:`\Delta = T - R` and :math:`v = V^T + V^R` (plus the rounding
+    floor), per channel c: global :math:`z_c = \sum_p \Delta_{pc} / \sqrt{\sum_p v_{pc}}`,
+    :math:`p = 1 - (1 - \min_c 2\Phi(-|z_c|))^{C}`; omnibus
+    :math:`X_c = \sum_{tiles} z^2 \sim \chi^2(k_c)`, :math:`p = \min(1, C \min_c p_c)`;
+    max :math:`p = 1 - (1 - 2\Phi(-\max|z|))^K`.  Fail if any p < alpha / 3,
+    if a zero-variance tile differs, or if a test pixel is not finite.
+    """
+    test_name, ref_name = names
+    if test_variance is None or reference_variance is None:
+        which = test_name if test_variance is None else ref_name
+        raise HarnessError(
+            which,
+            "has no variance channels (variance.R, variance.G, variance.B); the statistical verdict needs the "
+            "variance of each pixel's estimate (harness render writes them; use zeros for an exact reference)",
+        )
+    if not isinstance(tile, (int, np.integer)) or isinstance(tile, bool) or tile < 1:
+        raise ValueError(f"tile must be a positive integer, got {tile!r}")
+    if not (0.0 < float(alpha) < 1.0):
+        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    tile = int(tile)
+    alpha = float(alpha)
+    t = np.asarray(test, dtype=np.float64)
+    r = np.asarray(reference, dtype=np.float64)
+    vt = np.asarray(test_variance, dtype=np.float64)
+    vr = np.asarray(reference_variance, dtype=np.float64)
+    if t.ndim != 3 or t.shape[2] != 3 or t.shape[0] < 1 or t.shape[1] < 1:
+        raise ValueError(f"test must have shape (H, W, 3), got {t.shape}")
+    for label, arr in (("test_variance", vt), ("reference", r), ("reference_variance", vr)):
+        if arr.shape != t.shape:
+            raise ValueError(f"{label} has shape {arr.shape}, expected {t.shape} like test")
+
+    ref_bad = ~np.all(np.isfinite(r), axis=-1)
+    if ref_bad.any():
+        raise HarnessError(
+            ref_name, f"{int(ref_bad.sum())} non-finite (NaN/Inf) pixels; a reference must be finite everywhere"
+        )
+    _check_variance(ref_name, vr, np.ones(ref_bad.shape, dtype=bool))
+    ok = np.all(np.isfinite(t), axis=-1)
+    nonfinite = int(np.count_nonzero(~ok))
+    _check_variance(test_name, vt, ok)
+    nu_t = _dof_array("test_dof", test_dof, t.shape)
+    nu_r = _dof_array("reference_dof", reference_dof, t.shape)
+
+    m = np.broadcast_to(ok[..., None], t.shape)
+    diff = np.where(m, t - r, 0.0)
+    vt = np.where(m, vt, 0.0)
+    vr = vr * m
+    v_raw = vt + vr
+    scale = np.where(m, np.maximum(np.abs(np.where(m, t, 0.0)), np.abs(r)), 0.0)
+    v_eff = v_raw + (rtol * scale) ** 2
+    welch = vt**2 / nu_t + vr**2 / nu_r  # sum_p v_p^2 / nu_p; the rounding floor has nu = inf
+
+    # --- tiles -------------------------------------------------------------
+    n = _tile_sum(m.astype(np.float64), tile)
+    d_sum = _tile_sum(diff, tile)
+    v_raw_sum = _tile_sum(v_raw, tile)
+    v_sum = _tile_sum(v_eff, tile)
+    w_sum = _tile_sum(welch, tile)
+    zero_tiles = (n > 0) & (v_raw_sum == 0)
+    random_tiles = (n > 0) & (v_raw_sum > 0)
+    bad_pixel = m & (v_raw == 0) & (np.abs(diff) > rtol * scale)
+    differing = zero_tiles & (_tile_sum(bad_pixel.astype(np.float64), tile) > 0)
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(random_tiles, d_sum / np.sqrt(v_sum), 0.0)
+        dof = np.where(random_tiles & (w_sum > 0), v_sum**2 / w_sum, np.inf)
+    z_norm = np.where(random_tiles, _to_normal(z, dof), 0.0)
+
+    # --- 1. global bias ----------------------------------------------------
+    npix = int(ok.sum())
+    g_d = diff.sum(axis=(0, 1))
+    g_vraw = v_raw.sum(axis=(0, 1))
+    g_v = v_eff.sum(axis=(0, 1))
+    g_w = welch.sum(axis=(0, 1))
+    g_active = g_vraw > 0
+    g_z = np.zeros(3)
+    g_dof = np.full(3, np.inf)
+    g_p = np.ones(3)
+    for c in range(3):
+        if g_active[c]:
+            g_z[c] = g_d[c] / np.sqrt(g_v[c])
+            if g_w[c] > 0:
+                g_dof[c] = g_v[c] ** 2 / g_w[c]
+            zc = float(_to_normal(np.array([g_z[c]]), np.array([g_dof[c]]))[0])
+            g_p[c] = 2.0 * stats.norm.sf(abs(zc))
+    n_active = int(g_active.sum())
+    g_pvalue = _sidak(float(g_p.min()), n_active) if n_active else 1.0
+    g_worst = int(np.argmin(g_p)) if n_active else 0
+    global_bias = {
+        "difference": [float(x / npix) if npix else float("nan") for x in g_d],
+        "stderr": [float(np.sqrt(x) / npix) if npix else float("nan") for x in g_v],
+        "z": [float(x) for x in g_z],
+        "dof": [None if not np.isfinite(x) else float(x) for x in g_dof],
+        "p_values": [float(x) for x in g_p],
+        "channels": n_active,
+        "p_value": float(g_pvalue),
+    }
+
+    # --- 2. omnibus chi-square per channel -----------------------------------
+    o_stat = np.array([float(np.sum(z_norm[..., c][random_tiles[..., c]] ** 2)) for c in range(3)])
+    o_dof = np.array([int(random_tiles[..., c].sum()) for c in range(3)])
+    o_p = np.array([float(stats.chi2.sf(o_stat[c], o_dof[c])) if o_dof[c] > 0 else 1.0 for c in range(3)])
+    o_active = int(np.count_nonzero(o_dof))
+    o_pvalue = min(1.0, o_active * float(o_p.min())) if o_active else 1.0
+    omnibus = {
+        "statistic": [float(x) for x in o_stat],
+        "dof": [int(x) for x in o_dof],
+        "p_values": [float(x) for x in o_p],
+        "p_value": float(o_pvalue),
+    }
+
+    # --- 3. max |z| ----------------------------------------------------------
+    count = int(random_tiles.sum())
+    abs_z = np.where(random_tiles, np.abs(z_norm), -1.0)
+    if count:
+        flat = int(np.argmax(abs_z))
+        zmax = float(abs_z.flat[flat])
+        m_pvalue = _sidak(float(2.0 * stats.norm.sf(zmax)), count)
+    else:
+        flat, zmax, m_pvalue = -1, 0.0, 1.0
+    max_z = {"statistic": zmax, "count": count, "p_value": float(m_pvalue)}
+
+    # --- worst tile ----------------------------------------------------------
+    h, w = t.shape[:2]
+
+    def describe(index: tuple[int, int, int], z_value: float, z_normal: float, dof_value: float) -> dict:
+        i, j, c = index
+        y, x = i * tile, j * tile
+        n_ij = float(n[i, j, c])
+        return {
+            "row": i,
+            "col": j,
+            "y": y,
+            "x": x,
+            "height": min(tile, h - y),
+            "width": min(tile, w - x),
+            "channel": CHANNELS[c],
+            "pixels": int(n_ij),
+            "difference": float(d_sum[i, j, c] / n_ij),
+            "stderr": float(np.sqrt(v_sum[i, j, c]) / n_ij),
+            "z": z_value,
+            "z_normal": z_normal,
+            "dof": None if not np.isfinite(dof_value) else float(dof_value),
+        }
+
+    n_differing = int(differing.sum())
+    if n_differing:
+        first = tuple(int(k) for k in np.argwhere(differing)[0])
+        sign = float(np.sign(d_sum[first])) or 1.0
+        worst = describe(first, sign * float("inf"), sign * float("inf"), float("inf"))
+        worst["stderr"] = 0.0
+    elif count:
+        idx = tuple(int(k) for k in np.unravel_index(flat, z.shape))
+        worst = describe(idx, float(z[idx]), float(z_norm[idx]), float(dof[idx]))
+    else:
+        worst = None
+    zero_variance = {"tiles": int(zero_tiles.sum()), "differing": n_differing}
+
+    # --- decision ------------------------------------------------------------
+    threshold = alpha / len(SUBTESTS)
+    failures: list[str] = []
+    if nonfinite:
+        failures.append(f"{nonfinite} non-finite pixels in the {test_name}")
+    if n_differing:
+        assert worst is not None
+        failures.append(
+            f"zero-variance tile differs ({n_differing} tile-channels; first at y={worst['y']}, x={worst['x']}, "
+            f"channel {worst['channel']}, mean difference {worst['difference']:.3g})"
+        )
+    if g_pvalue < threshold:
+        c = g_worst
+        failures.append(
+            f"global bias: z = {g_z[c]:.2f} in {CHANNELS[c]} (mean difference {global_bias['difference'][c]:.3g} "
+            f"+- {global_bias['stderr'][c]:.2g}), p = {_fmt_p(g_pvalue)} < {_fmt_p(threshold)}"
+        )
+    if o_pvalue < threshold:
+        c = int(np.argmin(o_p))
+        failures.append(
+            f"omnibus: chi2 = {o_stat[c]:.1f} on {o_dof[c]} tiles in {CHANNELS[c]}, p = {_fmt_p(o_pvalue)} "
+            f"< {_fmt_p(threshold)}"
+        )
+    if m_pvalue < threshold and worst is not None:
+        failures.append(
+            f"max |z| = {zmax:.2f} at tile y={worst['y']}, x={worst['x']} in {worst['channel']} "
+            f"(of {count}), p = {_fmt_p(m_pvalue)} < {_fmt_p(threshold)}"
+        )
+    if failures:
+        outcome, reason = "fail", "; ".join(failures)
+    else:
+        ps = {"global bias": g_pvalue, "omnibus": o_pvalue, "max |z|": m_pvalue}
+        smallest = min(ps, key=ps.__getitem__)
+        outcome = "pass"
+        reason = (
+            f"every sub-test has p >= alpha/3 = {_fmt_p(threshold)} (smallest: {smallest} p = "
+            f"{_fmt_p(ps[smallest])})"
+        )
+        if zero_variance["tiles"]:
+            reason += f"; {zero_variance['tiles']} zero-variance tile-channels match exactly"
+
+    return Verdict(
+        verdict=outcome,
+        reason=reason,
+        alpha=alpha,
+        threshold=threshold,
+        tile=tile,
+        nonfinite_pixels=nonfinite,
+        global_bias=global_bias,
+        omnibus=omnibus,
+        max_z=max_z,
+        zero_variance=zero_variance,
+        worst_tile=worst,
+        variance_dof={"test": _dof_summary(test_dof), "reference": _dof_summary(reference_dof)},
+    )
