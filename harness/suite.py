@@ -26,7 +26,7 @@ from harness.errors import HarnessError
 SUITE_KEYS = ("name", "description", "defaults", "cases")
 CASE_KEYS = (
     "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
-    "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp",
+    "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth",
 )
 DEFAULT_KEYS = tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
 AGAINST_KEYS = ("renderer", "spp", "seed", "settings")
@@ -60,6 +60,7 @@ class Case:
     seed: int = 0
     against: Against = Against("ground-truth")
     film: dict[str, int] | None = None
+    max_depth: int | None = None
     metrics: tuple[str, ...] = METRICS
     thresholds: dict[str, float] = field(default_factory=dict)
     expect: str = "pass"
@@ -142,6 +143,11 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
         film = _typed(label, key("film"), film, dict)
         _check_keys(label, film, ("width", "height"), key("film"))
         film = {k: _positive(label, f"{key('film')}.{k}", v, int) for k, v in film.items()}
+    max_depth = d.get("max_depth")
+    if max_depth is not None:
+        max_depth = _typed(label, key("max_depth"), max_depth, int)
+        if max_depth < 1 and max_depth != -1:
+            raise HarnessError(f"{label}: {key('max_depth')}", f"expected a positive integer or -1, got {max_depth}")
     metrics = tuple(_typed(label, key("metrics"), d.get("metrics", list(METRICS)), list))
     for m in metrics:
         if m not in METRICS:
@@ -161,7 +167,8 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     return Case(
         name=name, scene=scene, renderer=renderer, settings=settings, spp=spp, seconds=seconds,
         chunk_spp=_positive(label, key("chunk_spp"), d.get("chunk_spp", 4), int),
-        seed=_non_negative(label, key("seed"), d.get("seed", 0)), against=against, film=film, metrics=metrics,
+        seed=_non_negative(label, key("seed"), d.get("seed", 0)), against=against, film=film, max_depth=max_depth,
+        metrics=metrics,
         thresholds={k: float(v) for k, v in thresholds.items()}, expect=expect, alpha=alpha,
         tile=_positive(label, key("tile"), d.get("tile", 8), int),
         ground_truth_spp=_positive(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024), int),
@@ -266,10 +273,12 @@ def case_scene(case: Case):
         film = Film(case.film.get("width", scene.film.width), case.film.get("height", scene.film.height),
                     scene.film.filter)
         scene = dataclasses.replace(scene, film=film)
+    if case.max_depth is not None:  # the scene's own depth, so the ground truth and the render agree
+        scene = dataclasses.replace(scene, max_depth=case.max_depth)
     return scene
 
 
-def render_with_budget(case: Case, scene, variant: str | None, progress=None):
+def render_with_budget(case: Case, scene, variant: str | None, progress=None, cache_dir=None):
     """Render a case's test image within its budget: spp at once, or chunks of chunk_spp until ``seconds``."""
     from harness.moments import Estimate, merge
     from harness.renderers import RenderRequest, get_renderer
@@ -278,6 +287,8 @@ def render_with_budget(case: Case, scene, variant: str | None, progress=None):
     settings = dict(case.settings)
     if case.renderer == "mitsuba" and variant and "variant" not in settings:
         settings["variant"] = variant
+    if case.renderer == "mitsuba" and case.spp is not None and set(settings) <= {"variant"}:
+        return _cached_mitsuba_render(case, scene, settings.get("variant"), cache_dir, progress)
     if case.spp is not None:
         return renderer.render(scene, RenderRequest(spp=case.spp, seed=case.seed, settings=settings, progress=progress))
     chunks, results, spent, index = [], [], 0.0, 0
@@ -297,6 +308,23 @@ def render_with_budget(case: Case, scene, variant: str | None, progress=None):
         rays={k: sum(r.rays.get(k, 0) for r in results) for k in first.rays},
         stats={k: sum(r.stats.get(k, 0) for r in results) for k in first.stats},
         info=dict(first.info, chunks=len(results)),
+    )
+
+
+def _cached_mitsuba_render(case: Case, scene, variant: str | None, cache_dir, progress):
+    """A Mitsuba test render through the ground-truth cache, so a suite's second run renders nothing."""
+    from harness import groundtruth
+    from harness.renderers import RenderResult
+
+    gt = groundtruth.ground_truth(scene, spp=case.spp, seed=case.seed, cache_dir=cache_dir, variant=variant,
+                                  use_closed_form=False, progress=progress)
+    info = dict(gt.info.get("info", {}), cached=gt.cached, mitsuba_renders=gt.renders)
+    width, height = scene.film.width, scene.film.height
+    return RenderResult(
+        renderer="mitsuba", image=gt.image, variance=gt.variance,
+        seconds=gt.info.get("render_seconds", gt.seconds) if not gt.cached else gt.info.get("render_seconds", 0.0),
+        spp=gt.spp, rays={"camera": width * height * gt.spp}, stats={"mitsuba_renders": gt.renders},
+        settings={"spp": gt.spp, "seed": case.seed, "variant": gt.info.get("variant")}, info=info,
     )
 
 
@@ -361,7 +389,7 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
             "variant": gt.info.get("variant") or gt.info.get("info", {}).get("variant"),
             "mitsuba_version": gt.info.get("mitsuba"),
         }
-        result = render_with_budget(case, scene, variant)
+        result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
         folder = out_dir / "cases" / slug(case.name)
         folder.mkdir(parents=True, exist_ok=True)
         imageio.write_exr(folder / "render.exr", result.image, result.variance,
@@ -428,10 +456,19 @@ def summarise(records: list[dict], wall: float) -> dict:
         "failed": sum(r.get("status") == "fail" for r in records),
         "errors": sum(r.get("status") == "error" for r in records),
         "unexpected": [r["name"] for r in records if not r["ok"]],
-        "mitsuba_renders": sum(r.get("ground_truth", {}).get("renders", 0) for r in records),
+        "mitsuba_renders": sum(_mitsuba_renders(r) for r in records),
         "ground_truth_cached": sum(bool(r.get("ground_truth", {}).get("cached")) for r in records),
         "wall_seconds": wall,
     }
+
+
+def _mitsuba_renders(record: dict) -> int:
+    """Mitsuba renders a case performed: for its ground truth, and for its test render if Mitsuba made it."""
+    renders = record.get("ground_truth", {}).get("renders", 0)
+    render = record.get("render", {})
+    if record.get("renderer") == "mitsuba":
+        renders += render.get("info", {}).get("mitsuba_renders", 1 if render else 0)
+    return renders
 
 
 def _json_default(value):

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from harness.errors import HarnessError
 from harness.renderers.base import RenderRequest, RenderResult, Renderer
+from harness.renderers.mitsuba import MitsubaRenderer
 from harness.renderers.reference import ReferenceRenderer
 
-_RENDERERS: dict[str, type] = {"reference": ReferenceRenderer}
+_RENDERERS: dict[str, type] = {"mitsuba": MitsubaRenderer, "reference": ReferenceRenderer}
 
 
 def renderer_names() -> list[str]:

@@ -1,0 +1,691 @@
+"""Adapter: a :class:`~harness.scene.Scene` rendered by Mitsuba 3, with per-pixel variances (``docs/mitsuba.md``).
+
+Three parts:
+
+* **Variant choice** (:func:`choose_variant`): ``cuda_ad_rgb`` where a GPU works, else ``llvm_ad_rgb`` where a
+  libLLVM >= 16 can be found, else ``scalar_rgb``. Each candidate is tried in a *subprocess* (a 4 x 4 render),
+  because Dr.Jit's LLVM backend aborts the whole process on some LLVM versions (15), which no ``try`` can catch.
+  ``DRJIT_LIBLLVM_PATH`` is set to the library that passed before Mitsuba runs anything in this process.
+* **Scene conversion** (:func:`scene_to_mitsuba_dict`): the same shapes, placements, materials, lights, camera,
+  film and integrator as a Mitsuba scene dict.
+* **Rendering in passes** (:class:`MitsubaRenderer`): independent passes with distinct seeds, each through Mitsuba's
+  ``moment`` integrator, so every pixel's variance comes from all of its samples; passes are merged by adding
+  float64 sums (:func:`merge_moments`).
+
+Mitsuba is imported lazily (:func:`import_mitsuba`): importing this module costs nothing and never touches LLVM.
+"""
+
+from __future__ import annotations
+
+import glob
+import importlib.metadata
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.renderers.base import RenderRequest, RenderResult
+from harness.scene import Scene
+from harness.scene.triangulate import object_to_world, shape_triangles
+
+# Variants in order of preference. Only RGB variants: the scene format is RGB (spectral variants would upsample the
+# colours, mono ones would collapse them), so any other variant would render a different image.
+VARIANT_ORDER = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+MIN_LLVM_VERSION = 16  # Dr.Jit 1.5's LLVM backend aborts the process on LLVM 15 ("Cannot select: fminimum")
+RR_DEPTH = 5  # Mitsuba's default, the same as the reference's
+DEFAULT_CHUNK_SPP = 64
+MAX_PASS_SAMPLES = 2**31  # camera samples per pass at most (Mitsuba's wavefront index is 32-bit)
+SETTING_KEYS = ("chunk_spp", "max_depth", "variant")
+PROBE_TIMEOUT_S = 300.0
+NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
+FAR_MARGIN = 1.1  # far_clip = this factor times the distance to the farthest corner of the scene's bounding box
+
+_LIBLLVM_GLOBS = (
+    "/usr/lib/*-linux-gnu/libLLVM*.so*",
+    "/usr/lib/llvm-*/lib/libLLVM*.so*",
+    "/usr/lib/llvm*/lib/libLLVM*.so*",
+    "/usr/lib64/libLLVM*.so*",
+    "/usr/lib64/llvm*/lib/libLLVM*.so*",
+    "/usr/lib/libLLVM*.so*",
+    "/usr/local/lib/libLLVM*.so*",
+    "/usr/local/opt/llvm*/lib/libLLVM*.dylib",
+    "/opt/homebrew/opt/llvm*/lib/libLLVM*.dylib",
+    "/opt/local/libexec/llvm-*/lib/libLLVM*.dylib",
+)
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# libLLVM search
+
+
+def libllvm_version(path: str) -> int | None:
+    """The LLVM major version a library path names (``libLLVM-19.so``, ``libLLVM.so.19.1``, ``llvm-17/lib/...``)."""
+    name = os.path.basename(path)
+    for pattern in (r"libLLVM-(\d+)", r"libLLVM\.so\.(\d+)", r"libLLVM\.(\d+)\.dylib"):
+        match = re.search(pattern, name)
+        if match:
+            return int(match.group(1))
+    match = re.search(r"llvm[-@]?(\d+)", os.path.dirname(path))
+    return int(match.group(1)) if match else None
+
+
+def find_libllvm_candidates() -> list[str]:
+    """Shared libLLVM files worth trying, best first.
+
+    ``$DRJIT_LIBLLVM_PATH`` (if set and present) comes first whatever its version; then libraries of version
+    >= :data:`MIN_LLVM_VERSION` from the usual system folders, newest first. One entry per real file.
+    """
+    found: dict[str, tuple[int, str]] = {}
+    env = os.environ.get("DRJIT_LIBLLVM_PATH")
+    ordered: list[str] = []
+    seen: set[str] = set()
+    if env and os.path.isfile(env):
+        ordered.append(env)
+        seen.add(os.path.realpath(env))
+    for pattern in _LIBLLVM_GLOBS:
+        for path in glob.glob(pattern):
+            if path.endswith((".a", ".la")) or not os.path.isfile(path):
+                continue
+            version = libllvm_version(path)
+            if version is None:
+                version = libllvm_version(os.path.realpath(path))
+            if version is None or version < MIN_LLVM_VERSION:
+                continue
+            real = os.path.realpath(path)
+            if real in seen:
+                continue
+            # Prefer the shortest name of one real file (libLLVM-19.so over libLLVM.so.19.1): either works.
+            if real not in found or len(path) < len(found[real][1]):
+                found[real] = (version, path)
+    ordered += [path for _, path in sorted(found.values(), key=lambda item: (-item[0], item[1]))]
+    return ordered
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Probing a variant in a subprocess
+
+_PROBE_SCRIPT = r"""
+import sys
+import numpy as np
+import mitsuba as mi
+mi.set_variant(sys.argv[1])
+scene = mi.load_dict({
+    "type": "scene",
+    "integrator": {"type": "path", "max_depth": 3},
+    "sensor": {
+        "type": "perspective", "fov": 40.0,
+        "to_world": mi.ScalarTransform4f.look_at(origin=[0, 0, 4], target=[0, 0, 0], up=[0, 1, 0]),
+        "film": {"type": "hdrfilm", "width": 4, "height": 4, "rfilter": {"type": "box"}, "pixel_format": "rgb"},
+        "sampler": {"type": "independent", "sample_count": 4},
+    },
+    "light": {"type": "rectangle", "emitter": {"type": "area", "radiance": {"type": "rgb", "value": [1.0, 1.0, 1.0]}}},
+})
+image = np.array(mi.render(scene, spp=4))
+assert image.shape == (4, 4, 3) and np.all(np.isfinite(image)) and image.max() > 0.5, image
+print("MITSUBA_PROBE_OK", sys.argv[1])
+"""
+
+
+def gpu_present() -> bool:
+    """True if an NVIDIA GPU might be usable: ``nvidia-smi`` on PATH or ``/dev/nvidia0``."""
+    return shutil.which("nvidia-smi") is not None or os.path.exists("/dev/nvidia0")
+
+
+def probe_variant(variant: str, libllvm: str | None = None, timeout: float = PROBE_TIMEOUT_S) -> bool:
+    """Whether ``variant`` renders a tiny scene, tried in a fresh Python process (a crash there is just False)."""
+    env = dict(os.environ)
+    if libllvm:
+        env["DRJIT_LIBLLVM_PATH"] = libllvm
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", _PROBE_SCRIPT, variant],
+            env=env, capture_output=True, text=True, timeout=timeout, check=False,
+        )
+    except (OSError, subprocess.TimeoutExpired):
+        return False
+    return done.returncode == 0 and f"MITSUBA_PROBE_OK {variant}" in done.stdout
+
+
+def _package_version(name: str) -> str:
+    try:
+        return importlib.metadata.version(name)
+    except importlib.metadata.PackageNotFoundError:
+        return "?"
+
+
+def probe_cache_path() -> Path | None:
+    """The JSON file remembering probe results across processes (None: no file cache)."""
+    root = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(root) / "rendering-harness" / "mitsuba-variant-probes.json"
+
+
+def _probe_key(variant: str, libllvm: str | None) -> str:
+    """What a probe result depends on: versions, interpreter, and the library file's identity."""
+    parts = [variant, _package_version("mitsuba"), _package_version("drjit"), sys.executable]
+    if libllvm:
+        try:
+            st = os.stat(libllvm)
+            parts += [os.path.realpath(libllvm), str(st.st_size), str(st.st_mtime_ns)]
+        except OSError:
+            parts.append(libllvm)
+    if variant.startswith("cuda"):
+        try:
+            parts.append(Path("/proc/driver/nvidia/version").read_text().splitlines()[0])
+        except (OSError, IndexError):
+            parts.append("no-driver-version")
+    return "|".join(parts)
+
+
+def _probe_cached(variant: str, libllvm: str | None) -> bool:
+    """:func:`probe_variant`, remembered in :func:`probe_cache_path` (unreadable or unwritable caches are ignored)."""
+    path = probe_cache_path()
+    key = _probe_key(variant, libllvm)
+    cache: dict = {}
+    if path is not None:
+        try:
+            cache = json.loads(path.read_text())
+            if isinstance(cache.get(key), bool):
+                return cache[key]
+        except (OSError, ValueError, AttributeError):
+            cache = {}
+    ok = probe_variant(variant, libllvm)
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            cache = cache if isinstance(cache, dict) else {}
+            cache[key] = ok
+            with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as tmp:
+                json.dump(cache, tmp, indent=1, sort_keys=True)
+            os.replace(tmp.name, path)
+        except OSError:
+            pass
+    return ok
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Variant choice
+
+
+@dataclass(frozen=True)
+class VariantChoice:
+    """A variant that passed its probe, and the libLLVM it needs (llvm variants only)."""
+
+    variant: str
+    libllvm: str | None = None
+
+
+_CHOICES: dict[str | None, VariantChoice] = {}
+
+
+def reset_variant_cache() -> None:
+    """Forget this process's variant decisions (tests)."""
+    _CHOICES.clear()
+
+
+def available_variants() -> list[str]:
+    """The variants this Mitsuba build has (importing Mitsuba runs no JIT backend, so this is safe)."""
+    try:
+        import mitsuba
+    except ImportError as err:
+        raise HarnessError("--renderer mitsuba", f"cannot import Mitsuba 3 ({err}); pip install mitsuba") from None
+    return list(mitsuba.variants())
+
+
+def _usable(variant: str) -> VariantChoice | None:
+    """Probe one variant; for llvm variants, try each libLLVM candidate until one works."""
+    if variant.startswith("cuda"):
+        return VariantChoice(variant) if gpu_present() and _probe_cached(variant, None) else None
+    if variant.startswith("llvm"):
+        for lib in find_libllvm_candidates():
+            if _probe_cached(variant, lib):
+                return VariantChoice(variant, lib)
+        return None
+    return VariantChoice(variant) if _probe_cached(variant, None) else None
+
+
+def resolve_variant(requested: str | None = None) -> VariantChoice:
+    """The variant to render with and its libLLVM: ``requested`` if it works, else the first of
+    :data:`VARIANT_ORDER` that works. Decided once per process (and per ``requested``).
+
+    Raises HarnessError (``--set variant``) for a requested variant this Mitsuba lacks, one that is not an RGB
+    variant, or one that fails its probe.
+    """
+    if requested in _CHOICES:
+        return _CHOICES[requested]
+    if requested is not None:
+        known = available_variants()
+        rgb = [v for v in known if v.endswith("_rgb")]
+        if requested not in known:
+            raise HarnessError("--set variant", f"expected one of {', '.join(rgb)}, got {requested!r}")
+        if requested not in rgb:
+            raise HarnessError("--set variant", f"expected an RGB variant ({', '.join(rgb)}), got {requested!r}: "
+                                                "the scene format is RGB")
+        choice = _usable(requested)
+        if choice is None:
+            why = {"cuda": "no working CUDA GPU", "llvm": f"no working libLLVM >= {MIN_LLVM_VERSION} found (set "
+                   "DRJIT_LIBLLVM_PATH)"}.get(requested.split("_")[0], "its test render failed")
+            raise HarnessError("--set variant", f"{requested} is not usable here: {why}")
+    else:
+        known = set(available_variants())
+        choice = None
+        for variant in VARIANT_ORDER:
+            if variant in known:
+                choice = _usable(variant)
+                if choice is not None:
+                    break
+        if choice is None:
+            raise HarnessError("--renderer mitsuba", f"none of {', '.join(VARIANT_ORDER)} works in this Mitsuba")
+    _CHOICES[requested] = choice
+    return choice
+
+
+def choose_variant(requested: str | None = None) -> str:
+    """``cuda_ad_rgb`` where a GPU works, ``llvm_ad_rgb`` where a libLLVM >= 16 works, else ``scalar_rgb``;
+    ``requested`` overrides (HarnessError if unknown or unusable). See :func:`resolve_variant`."""
+    return resolve_variant(requested).variant
+
+
+def import_mitsuba(variant: str):
+    """Import Mitsuba with ``variant`` active, ``DRJIT_LIBLLVM_PATH`` set first for llvm variants; returns ``mi``.
+
+    For llvm variants the library comes from :func:`resolve_variant` (probing if not done yet).
+    """
+    if variant.startswith("llvm"):
+        known = [c for c in _CHOICES.values() if c.variant == variant]
+        choice = known[0] if known else resolve_variant(variant)
+        if choice.libllvm:
+            os.environ["DRJIT_LIBLLVM_PATH"] = choice.libllvm
+    import mitsuba as mi
+
+    if mi.variant() != variant:
+        mi.set_variant(variant)
+    return mi
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Scene conversion
+
+
+def _point_triangle_distances(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Distance from point ``p`` to each triangle (a[i], b[i], c[i])."""
+
+    def segment(u, v):
+        d = v - u
+        dd = np.einsum("ij,ij->i", d, d)
+        t = np.clip(np.einsum("ij,ij->i", p - u, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        return np.linalg.norm(p - (u + t[:, None] * d), axis=1)
+
+    ab, ac, ap = b - a, c - a, p - a
+    d00, d01, d11 = (np.einsum("ij,ij->i", x, y) for x, y in ((ab, ab), (ab, ac), (ac, ac)))
+    d20, d21 = np.einsum("ij,ij->i", ap, ab), np.einsum("ij,ij->i", ap, ac)
+    denom = d00 * d11 - d01 * d01
+    ok = denom > 0
+    safe = np.where(ok, denom, 1.0)
+    s = (d11 * d20 - d01 * d21) / safe
+    t = (d00 * d21 - d01 * d20) / safe
+    inside = ok & (s >= 0) & (t >= 0) & (s + t <= 1)
+    normal = np.cross(ab, ac)
+    plane = np.abs(np.einsum("ij,ij->i", ap, normal)) / np.sqrt(np.where(ok, denom, 1.0))
+    edges = np.minimum(np.minimum(segment(a, b), segment(b, c)), segment(c, a))
+    return np.where(inside, plane, edges)
+
+
+def clip_planes(scene: Scene) -> tuple[float, float]:
+    """``near_clip``, ``far_clip`` for the scene's camera.
+
+    near = :data:`NEAR_FRACTION` of the distance from the eye to the nearest surface (spheres exactly, other shapes
+    by their triangles), far = :data:`FAR_MARGIN` times the distance to the farthest corner of the scene's bounding
+    box. Mitsuba's defaults (0.01, 10000) would clip away a scene scaled down or up far enough.
+    """
+    eye = np.asarray(scene.camera.origin, dtype=np.float64)
+    nearest, corners = math.inf, []
+    with np.errstate(all="ignore"):
+        for shape in scene.shapes:
+            if shape.type == "sphere":
+                matrix = object_to_world(shape)
+                centre, radius = matrix[:3, 3], float(np.linalg.norm(matrix[:3, 0]))
+                nearest = min(nearest, abs(float(np.linalg.norm(eye - centre)) - radius))
+                corners += [centre - radius, centre + radius]
+                continue
+            vertices, triangles = shape_triangles(shape)
+            corners += [vertices.min(axis=0), vertices.max(axis=0)]
+            t = vertices[triangles]
+            distances = _point_triangle_distances(eye[None, :], t[:, 0], t[:, 1], t[:, 2])
+            if distances.size:
+                nearest = min(nearest, float(np.nanmin(distances)))
+    if not corners:
+        return 1e-3, 1e4  # nothing to see: anything valid will do
+    lo, hi = np.min(corners, axis=0), np.max(corners, axis=0)
+    box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    farthest = float(np.max(np.linalg.norm(box - eye, axis=1)))
+    far = FAR_MARGIN * farthest + 1e-6 * max(farthest, 1e-30)
+    if not (math.isfinite(nearest) and nearest > 0):
+        nearest = 1e-3 * farthest  # the eye lies on a surface: a tiny near plane anyway
+    near = max(NEAR_FRACTION * nearest, 1e-7 * farthest)
+    if not (math.isfinite(near) and near > 0):
+        near = 1e-6
+    far = max(far, 2.0 * near)
+    return float(near), float(far)
+
+
+def _bsdf(material) -> dict:
+    diffuse = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in material.reflectance]}}
+    return {"type": "twosided", "bsdf": diffuse} if material.two_sided else diffuse
+
+
+def _emitter(shape) -> dict:
+    return {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in shape.emission]}}
+
+
+def _mesh_object(mi, shape, material) -> object:
+    """A ``mi.Mesh`` from the triangles already loaded (world space, wound to face the front side, flat normals)."""
+    vertices, triangles = shape_triangles(shape)  # object_to_world applied; flip_normals by the winding
+    props = mi.Properties()
+    props["face_normals"] = True
+    props["bsdf"] = mi.load_dict(_bsdf(material))
+    if shape.is_emitter:
+        props["emitter"] = mi.load_dict(_emitter(shape))
+    mesh = mi.Mesh(shape.name, len(vertices), len(triangles), props=props,
+                   has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(mesh)
+    params["vertex_positions"] = np.ascontiguousarray(vertices, dtype=np.float32).ravel()
+    params["faces"] = np.ascontiguousarray(triangles, dtype=np.uint32).ravel()
+    params.update()
+    return mesh
+
+
+def film_dict(scene: Scene) -> dict:
+    """Mitsuba's ``hdrfilm``: the scene's size and filter (always explicit: Mitsuba's default is the Gaussian).
+
+    ``sample_border`` is on for tent and Gaussian filters, so that border pixels also receive samples from outside
+    the image, as the reference's (filter-importance-sampled) border pixels do.
+    """
+    rfilter = {"box": {"type": "box"}, "tent": {"type": "tent", "radius": 1.0},
+               "gaussian": {"type": "gaussian", "stddev": 0.5}}[scene.film.filter]
+    return {
+        "type": "hdrfilm",
+        "width": int(scene.film.width),
+        "height": int(scene.film.height),
+        "rfilter": rfilter,
+        "pixel_format": "rgb",
+        "component_format": "float32",
+        "sample_border": scene.film.filter != "box",
+    }
+
+
+def path_integrator(max_depth: int) -> dict:
+    return {"type": "path", "max_depth": int(max_depth), "rr_depth": RR_DEPTH}
+
+
+def moment_integrator(nested: dict) -> dict:
+    """``moment`` around ``aov`` around ``nested``: per-pixel first and second moments of the RGB samples.
+
+    ``moment`` alone gives the moments of its nested integrator's colour converted to XYZ (whose second moments
+    cannot be turned into RGB ones); the ``aov`` integrator in between passes the nested colour on as R, G, B
+    (and A) AOV channels, whose moments ``moment`` then adds (see :func:`moment_channels`).
+    """
+    return {"type": "moment", "rgb": {"type": "aov", "aovs": "", "path": nested}}
+
+
+def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4) -> dict:
+    """The scene as a Mitsuba 3 scene dict for ``variant`` (which this makes the active variant).
+
+    Shapes keep their type (analytic sphere) and placement matrix; meshes become ``mi.Mesh`` objects built from the
+    arrays already loaded. Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i (each
+    object's id); the integrator is ``path`` with the scene's ``max_depth`` (or ``max_depth``) and ``rr_depth`` 5.
+    """
+    mi = import_mitsuba(variant)
+    near, far = clip_planes(scene)
+    camera = scene.camera
+    out: dict = {
+        "type": "scene",
+        "integrator": path_integrator(scene.max_depth if max_depth is None else max_depth),
+        "sensor": {
+            "type": "perspective",
+            "to_world": mi.ScalarTransform4f.look_at(
+                origin=[float(x) for x in camera.origin], target=[float(x) for x in camera.target],
+                up=[float(x) for x in camera.up]),
+            "fov": float(camera.fov),
+            "fov_axis": camera.fov_axis,
+            "near_clip": near,
+            "far_clip": far,
+            "film": film_dict(scene),
+            "sampler": {"type": "independent", "sample_count": int(spp)},
+        },
+    }
+    material_key = {}
+    for j, (name, material) in enumerate(scene.materials.items()):
+        material_key[name] = f"bsdf_{j}"
+        out[f"bsdf_{j}"] = _bsdf(material)
+    for shape in scene.shapes:
+        key = f"shape_{shape.index}"
+        if shape.type == "mesh":
+            out[key] = _mesh_object(mi, shape, scene.materials[shape.material])
+            continue
+        entry = {
+            "type": shape.type,
+            "to_world": mi.ScalarTransform4f(np.asarray(object_to_world(shape), dtype=np.float64).tolist()),
+            "bsdf": {"type": "ref", "id": material_key[shape.material]},
+        }
+        if shape.flip_normals:
+            entry["flip_normals"] = True
+        if shape.is_emitter:
+            entry["emitter"] = _emitter(shape)
+        out[key] = entry
+    return out
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Moments of the samples
+
+
+@dataclass(frozen=True)
+class Moments:
+    """Sums over a pixel's samples: ``n`` samples (per pixel), ``s1`` = sum of x, ``s2`` = sum of x^2 (float64)."""
+
+    n: float
+    s1: np.ndarray
+    s2: np.ndarray
+
+    @classmethod
+    def from_means(cls, n: float, m1: np.ndarray, m2: np.ndarray) -> Moments:
+        """From per-pixel means of x and x^2 over ``n`` samples (what Mitsuba's ``moment`` integrator outputs)."""
+        return cls(float(n), float(n) * np.asarray(m1, np.float64), float(n) * np.asarray(m2, np.float64))
+
+
+def merge_moments(parts: Iterable[Moments]) -> Moments:
+    """The moments of the union of independent sample sets: sums add (exact up to float64 rounding)."""
+    parts = list(parts)
+    if not parts:
+        raise ValueError("merge_moments needs at least one part")
+    n = math.fsum(p.n for p in parts)
+    s1 = np.sum([p.s1 for p in parts], axis=0, dtype=np.float64)
+    s2 = np.sum([p.s2 for p in parts], axis=0, dtype=np.float64)
+    return Moments(n, s1, s2)
+
+
+def filter_efficiency(name: str) -> float:
+    """(integral h)^2 / integral h^2 of the 2D pixel filter: Mitsuba's splatted estimate of a pixel from samples at
+    density N per unit area has the variance of a plain mean of about this factor times N samples (box 1, tent
+    2.25, Gaussian ~pi)."""
+    from reference_impl.filters import make_filter
+
+    pixel_filter = make_filter(name)
+    if name == "box":
+        return 1.0
+    cells = 200000  # midpoint rule; the kernels are smooth enough for 1e-9 accuracy
+    x = (np.arange(cells) + 0.5) / cells * 2.0 * pixel_filter.radius - pixel_filter.radius
+    h = pixel_filter.eval_1d(x)
+    one_d = h.sum() ** 2 / (h * h).sum() * (2.0 * pixel_filter.radius / cells)
+    return float(one_d**2)
+
+
+def mean_and_variance(moments: Moments, efficiency: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel mean S1/N and the variance of that mean.
+
+    With ``efficiency`` 1 (box filter): (S2 - S1^2/N) / (N - 1) / N, the unbiased sample variance over N. Otherwise
+    the weighted population variance S2/N - mean^2 divided by (N_eff - 1), N_eff = efficiency * N. NaN when
+    N_eff <= 1.
+    """
+    n = float(moments.n)
+    mean = moments.s1 / n
+    n_eff = efficiency * n
+    if n_eff <= 1.0:
+        return mean, np.full_like(mean, np.nan)
+    if efficiency == 1.0:
+        variance = (moments.s2 - moments.s1 * moments.s1 / n) / (n - 1.0) / n
+    else:
+        variance = (moments.s2 / n - mean * mean) / (n_eff - 1.0)
+    return mean, np.maximum(variance, 0.0)
+
+
+def moment_channels(integrator, channel_count: int) -> tuple[list[int], list[int]]:
+    """Indices of the m1 and m2 R, G, B channels in what ``mi.render`` returns for :func:`moment_integrator`.
+
+    ``mi.render`` returns the film's R, G, B followed by the integrator's AOV channels, ``integrator.aov_names()``:
+    for moment(aov(path)) those are ``<aov>.<path>.R, .G, .B, .A``, then the XYZ first moments ``<aov>.X, .Y, .Z``,
+    then the same seven names prefixed ``m2_`` (second moments).
+    """
+    names = list(integrator.aov_names())
+    base = channel_count - len(names)
+    first = [n for n in names if n.endswith(".R") and not n.startswith("m2_")]
+    if base != 3 or len(first) != 1:
+        raise RuntimeError(f"unexpected channels from Mitsuba's moment integrator: {names}")
+    stem = first[0][:-2]
+    m1 = [base + names.index(f"{stem}.{c}") for c in "RGB"]
+    m2 = [base + names.index(f"m2_{stem}.{c}") for c in "RGB"]
+    return m1, m2
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# The renderer
+
+
+def pass_seed(seed: int, index: int) -> int:
+    """A 32-bit Mitsuba seed for pass ``index`` of a render with ``seed``: a SplitMix64 hash of both, so that passes
+    (and renders with nearby seeds) get unrelated seeds rather than consecutive ones, which Mitsuba's per-block
+    seeding in scalar variants could make overlap."""
+    mask = (1 << 64) - 1
+    z = (int(seed) * 0x9E3779B97F4A7C15 + int(index) * 0xD1B54A32D192ED03 + 0x632BE59BD9B4E019) & mask
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & mask
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & mask
+    z ^= z >> 31
+    return int(z & 0xFFFFFFFF)
+
+
+def _parse_int(key: str, value: str) -> int:
+    try:
+        return int(str(value).strip())
+    except ValueError:
+        raise HarnessError(f"--set {key}", f"expected an integer, got {value!r}") from None
+
+
+@dataclass(frozen=True)
+class MitsubaSettings:
+    variant: str | None
+    chunk_spp: int
+    max_depth: int
+
+
+def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
+    """``--set`` values: ``variant``, ``chunk_spp`` (spp per pass, default 64), ``max_depth`` (default: the scene's)."""
+    for key in settings:
+        if key in ("spp", "seed"):
+            raise HarnessError(f"--set {key}", f"give {key} with --{key}, not --set")
+        if key not in SETTING_KEYS:
+            raise HarnessError(f"--set {key}", f"unknown Mitsuba setting; expected one of {', '.join(SETTING_KEYS)}")
+    chunk = _parse_int("chunk_spp", settings["chunk_spp"]) if "chunk_spp" in settings else DEFAULT_CHUNK_SPP
+    if chunk < 1:
+        raise HarnessError("--set chunk_spp", f"expected a positive integer, got {chunk}")
+    depth = _parse_int("max_depth", settings["max_depth"]) if "max_depth" in settings else scene.max_depth
+    if depth == 0 or depth < -1:
+        raise HarnessError("--set max_depth", f"expected -1 (unbounded) or an integer >= 1, got {depth}")
+    variant = settings.get("variant") or None
+    return MitsubaSettings(variant.strip() if variant else None, chunk, depth)
+
+
+class MitsubaRenderer:
+    """Mitsuba 3's ``path`` integrator on the same scene, in passes, with per-pixel variances from all samples."""
+
+    name = "mitsuba"
+
+    def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
+        if request.spp < 1:
+            raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")
+        options = parse_settings(scene, request.settings)
+        choice = resolve_variant(options.variant)
+        mi = import_mitsuba(choice.variant)
+        import drjit as dr
+
+        scene_dict = scene_to_mitsuba_dict(scene, choice.variant, max_depth=options.max_depth,
+                                           spp=min(options.chunk_spp, request.spp))
+        scene_dict["integrator"] = moment_integrator(scene_dict["integrator"])
+        try:
+            mitsuba_scene = mi.load_dict(scene_dict)
+        except Exception as err:  # Mitsuba raises plain RuntimeErrors for anything it rejects
+            raise HarnessError(str(scene.path), f"Mitsuba cannot load the scene: {err}") from None
+
+        width, height = scene.film.width, scene.film.height
+        film = mitsuba_scene.sensors()[0].film()
+        border = int(film.rfilter().border_size()) if scene.film.filter != "box" else 0
+        # Mitsuba's wavefront (sampled pixels x spp of one pass) must stay below 2^32 lanes.
+        chunk = max(1, min(options.chunk_spp, MAX_PASS_SAMPLES // ((width + 2 * border) * (height + 2 * border))))
+        total_paths = width * height * request.spp
+        m1_idx = m2_idx = None
+        parts: list[Moments] = []
+        seconds, first_pass_seconds, done = 0.0, 0.0, 0
+        passes = math.ceil(request.spp / chunk)
+        for index in range(passes):
+            n = min(chunk, request.spp - index * chunk)
+            start = time.perf_counter()
+            out = np.array(mi.render(mitsuba_scene, seed=pass_seed(request.seed, index), spp=n), dtype=np.float32)
+            elapsed = time.perf_counter() - start
+            seconds += elapsed
+            if index == 0:
+                first_pass_seconds = elapsed
+                m1_idx, m2_idx = moment_channels(mitsuba_scene.integrator(), out.shape[2])
+            parts.append(Moments.from_means(n, out[..., m1_idx], out[..., m2_idx]))
+            done += width * height * n
+            if request.progress is not None:
+                request.progress(done, total_paths)
+
+        merged = merge_moments(parts)
+        image, variance = mean_and_variance(merged, filter_efficiency(scene.film.filter))
+        camera_rays = (width + 2 * border) * (height + 2 * border) * request.spp
+        near, far = scene_dict["sensor"]["near_clip"], scene_dict["sensor"]["far_clip"]
+        return RenderResult(
+            renderer=self.name,
+            image=image.astype(np.float32),
+            variance=variance.astype(np.float32),
+            seconds=seconds,
+            spp=request.spp,
+            rays={"camera": int(camera_rays)},
+            stats={"passes": passes, "chunk_spp": chunk, "camera_rays": int(camera_rays),
+                   "border_pixels": border},
+            settings={"variant": choice.variant, "chunk_spp": chunk, "max_depth": options.max_depth,
+                      "rr_depth": RR_DEPTH, "spp": request.spp, "seed": request.seed},
+            info={
+                "variant": choice.variant,
+                "mitsuba_version": mi.__version__,
+                "drjit_version": dr.__version__,
+                "libllvm": choice.libllvm,
+                "integrator": "moment(aov(path))",
+                "near_clip": near,
+                "far_clip": far,
+                "sample_border": bool(scene_dict["sensor"]["film"]["sample_border"]),
+                "first_pass_seconds": first_pass_seconds,
+                "rays_note": "Mitsuba reports no ray counts; camera rays are counted (incl. sampled border pixels), "
+                             "shadow and indirect rays are unknown",
+            },
+        )
