@@ -21,6 +21,7 @@ import os
 import shutil
 import time
 import uuid
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
@@ -35,6 +36,7 @@ from harness.scene import Scene
 FORMAT_VERSION = 1
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
+DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
 
 
 @dataclass
@@ -144,12 +146,16 @@ class Cache:
             return None
         try:
             meta = json.loads(meta_path.read_text())
-            for name, digest in meta["sha256"].items():
-                if _sha256(folder / name) != digest:
+            # meta.json may parse and still be garbage (null, a list, no checksums): every data file must be listed
+            checksums = meta.get("sha256") if isinstance(meta, dict) else None
+            if not isinstance(checksums, dict) or any(name not in checksums for name in DATA_FILES):
+                raise ValueError("meta.json lacks the checksums of the data files")
+            for name in DATA_FILES:
+                if _sha256(folder / name) != checksums[name]:
                     raise ValueError(f"checksum mismatch in {name}")
             with np.load(folder / "estimate.npz") as data:
                 estimate = Estimate(data["mean"], data["variance"], int(data["n"]))
-        except (OSError, ValueError, KeyError, json.JSONDecodeError):
+        except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile):
             self._discard(folder)
             return None
         return estimate, meta
@@ -167,13 +173,20 @@ class Cache:
             np.savez(tmp / "estimate.npz", mean=estimate.mean, variance=estimate.variance, n=estimate.n)
             write_exr(tmp / "image.exr", estimate.mean, estimate.variance,
                       metadata={"harness.groundtruth": json.dumps({k: v for k, v in meta.items() if k != "sha256"})})
-            meta = dict(meta, sha256={name: _sha256(tmp / name) for name in ("estimate.npz", "image.exr")})
+            meta = dict(meta, sha256={name: _sha256(tmp / name) for name in DATA_FILES})
             (tmp / "meta.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
-            try:
-                os.rename(tmp, self.entry(key))
-            except OSError:
-                if self.load(key) is None:  # the existing entry was damaged (and is now removed): take its place
+            for _attempt in range(3):
+                try:
                     os.rename(tmp, self.entry(key))
+                    break
+                except OSError as err:
+                    # Taken: keep a valid entry; a damaged one is removed by load(), then try to take its place
+                    # (another process may take it first, hence the retries).
+                    if self.load(key) is not None:
+                        break
+                    failure = err
+            else:
+                raise HarnessError(str(self.root), f"cannot write the ground-truth cache: {failure.strerror}")
         finally:
             if tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
@@ -189,6 +202,13 @@ class Cache:
 
 
 # ---- Mitsuba ground truth --------------------------------------------------------------------------------------
+
+
+def _stored(cache: Cache, key: str, estimate: Estimate) -> Estimate:
+    """What the cache holds under ``key`` after a store: when another process stored it first, its estimate (the
+    files at the entry's path), so that every user of a key gets the same image; else ``estimate`` itself."""
+    found = cache.load(key)
+    return found[0] if found is not None else estimate
 
 
 def ground_truth(
@@ -249,6 +269,7 @@ def ground_truth(
             estimate = Estimate(result.image, result.variance, count)
             cache.store(chunk_key, estimate, dict(base, chunk=index, spp=count, chunk_seed=chunk_seed,
                                                   render_seconds=result.seconds, info=info))
+            estimate = _stored(cache, chunk_key, estimate)
         else:
             estimate = found[0]
         chunks.append(estimate)
@@ -258,5 +279,6 @@ def ground_truth(
     merged = merge(chunks)
     meta = dict(base, spp=spp, chunk_spp=chunk_spp, chunks=len(counts), info=info, render_seconds=seconds)
     path = cache.store(full_key, merged, meta)
+    merged = _stored(cache, full_key, merged)
     return GroundTruth(merged.mean.astype(np.float32), merged.variance.astype(np.float32), "mitsuba", spp,
                        info=meta, cached=renders == 0, renders=renders, seconds=seconds, path=path)

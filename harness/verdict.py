@@ -125,6 +125,9 @@ def _tile_sum(x: np.ndarray, tile: int) -> np.ndarray:
     return x.reshape(th, tile, tw, tile, c).sum(axis=(1, 3))
 
 
+_LARGEST_NORMAL_Z = float(stats.norm.isf(np.finfo(float).tiny))
+
+
 def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
     """The normal quantile with the same tail probability as ``z`` under Student's t(dof).
 
@@ -137,7 +140,11 @@ def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
     finite = np.isfinite(dof) & np.isfinite(z)
     if finite.any():
         tail = stats.t.sf(np.abs(z[finite]), dof[finite])
-        out[finite] = np.sign(z[finite]) * stats.norm.isf(tail)
+        converted = stats.norm.isf(tail)
+        # Where the t tail underflows to 0 the normal quantile is inf; report the largest finite one instead
+        # (about 37.5: "at least this many standard deviations"), which is just as decisive and keeps sums finite.
+        converted = np.where(np.isfinite(converted), converted, _LARGEST_NORMAL_Z)
+        out[finite] = np.sign(z[finite]) * converted
     return out
 
 

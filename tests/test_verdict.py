@@ -158,7 +158,7 @@ def test_t_to_normal_conversion() -> None:
     assert _to_normal(np.array([2.0, -2.0]), np.array([10.0, 10.0])) == pytest.approx([1.79041, -1.79041], abs=1e-5)
     assert _to_normal(np.array([3.0]), np.array([np.inf]))[0] == 3.0
     assert 7.5 < _to_normal(np.array([1e3]), np.array([5.0]))[0] < 8  # tail ~1e-14
-    assert _to_normal(np.array([1e300]), np.array([5.0]))[0] == np.inf
+    assert 37 < _to_normal(np.array([1e300]), np.array([5.0]))[0] < 38  # tail underflows: the largest finite z
 
 
 # ---------------------------------------------------------------------------

@@ -1,0 +1,42 @@
+"""The verdict is sharp: every planted fault of reference_impl/mutants.py fails at the canonical suite's budget,
+on the scene the canonical suite runs it on, while the same case without the fault passes."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+from conftest import ROOT
+
+from harness.suite import load_suite, run_case
+from reference_impl.mutants import MUTANTS
+
+CANONICAL = load_suite(ROOT / "suites" / "canonical.toml")
+MUTANT_CASES = {c.settings["mutant"]: c for c in CANONICAL.cases if "mutant" in c.settings}
+
+
+def test_every_mutant_has_a_canonical_case():
+    assert set(MUTANT_CASES) == set(MUTANTS)
+    assert all(case.expect == "fail" for case in MUTANT_CASES.values())
+
+
+@pytest.fixture(scope="module")
+def cache_dir(tmp_path_factory):
+    return tmp_path_factory.mktemp("gt-cache")
+
+
+@pytest.mark.parametrize("mutant", sorted(MUTANTS))
+def test_mutant_is_caught_at_the_suite_budget(mutant, cache_dir, tmp_path):
+    case = MUTANT_CASES[mutant]
+    record = run_case(case, tmp_path, cache_dir=cache_dir)
+    verdict = record["verdict"]
+    print(f"{case.name}: verdict {verdict['verdict']}: {record['reason']}")
+    assert record["status"] == "fail" and verdict["verdict"] == "fail", record.get("reason")
+
+
+@pytest.mark.parametrize("scene", sorted({c.scene.stem for c in MUTANT_CASES.values()}))
+def test_the_same_cases_without_a_fault_pass(scene, cache_dir, tmp_path):
+    case = next(c for c in MUTANT_CASES.values() if c.scene.stem == scene)
+    clean = dataclasses.replace(case, name=f"{scene}/clean", settings={}, expect="pass")
+    record = run_case(clean, tmp_path, cache_dir=cache_dir)
+    assert record["status"] == "pass", record.get("reason")

@@ -1,0 +1,190 @@
+"""Suites: loading with one-line errors, running as a gate, results.json, and the cache on a second run."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from conftest import ROOT
+
+from harness.errors import HarnessError
+from harness.suite import load_suite, run_suite
+
+SUITES = ROOT / "suites"
+
+
+def run_cli(*args, env_cache: Path | None = None):
+    import os
+
+    env = dict(os.environ)
+    if env_cache is not None:
+        env["HARNESS_CACHE_DIR"] = str(env_cache)
+    proc = subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, env=env)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def write_suite(tmp_path: Path, body: str, name: str = "s.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(body.replace("SCENES", str(ROOT / "scenes")))
+    return path
+
+
+def test_repository_suites_load():
+    smoke = load_suite(SUITES / "smoke.toml")
+    canonical = load_suite(SUITES / "canonical.toml")
+    assert len(smoke.cases) >= 5
+    names = {c.scene.stem for c in canonical.cases}
+    assert names == {"cornell-box", "furnace", "soft-shadows", "multi-light"}
+    # Every strategy of the reference appears on every scene.
+    for scene in names:
+        settings = [c.settings for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"]
+        seen = {(k, v) for s in settings for k, v in s.items()}
+        for pair in [("direct", "hemisphere-cosine"), ("direct", "hemisphere-uniform"), ("direct", "global-area"),
+                     ("direct", "mis"), ("light_selection", "uniform"), ("hemisphere", "uniform"), ("rr", "fixed"),
+                     ("rr", "off")]:
+            assert pair in seen, (scene, pair)
+    # Every planted fault is a case the verdict must fail.
+    from reference_impl.mutants import MUTANTS
+
+    mutant_cases = {c.settings.get("mutant") for c in canonical.cases if c.expect == "fail"}
+    assert set(MUTANTS) <= mutant_cases
+
+
+@pytest.mark.parametrize("body,where", [
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nspp = 4\nseconds = 1\n', "cases[0]"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nsppp = 4\n', "did you mean 'spp'"),
+    ('[[cases]]\nscene = "nope"\n', "cases[0].scene"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nrenderer = "blender"\n', "cases[0].renderer"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nexpect = "maybe"\n', "cases[0].expect"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nagainst = "oracle"\n', "cases[0].against"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nthresholds = { rmse = "low" }\n', "cases[0].thresholds.rmse"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nspp = -3\n', "cases[0].spp"),
+    ('[defaults]\nfilm = { width = 0 }\n[[cases]]\nscene = "SCENES/furnace.toml"\n', "film.width"),
+    ('name = "x"\n', "cases"),
+    ('[[cases]\n', "invalid TOML"),
+])
+def test_bad_suites_are_one_line_errors(tmp_path, body, where):
+    path = write_suite(tmp_path, body)
+    with pytest.raises(HarnessError) as info:
+        load_suite(path)
+    assert str(path) in str(info.value) and where in str(info.value)
+    code, stdout, stderr = run_cli("run", str(path), "--out", str(tmp_path / "out"))
+    assert code == 2 and len(stderr.strip().splitlines()) == 1 and "Traceback" not in stderr
+    assert not (tmp_path / "out" / "results.json").exists()
+
+
+def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path):
+    cache = tmp_path / "cache"
+    out = tmp_path / "out"
+    code, stdout, stderr = run_cli("run", str(SUITES / "smoke.toml"), "--out", str(out), "--quiet", env_cache=cache)
+    assert code == 0, stdout + stderr
+    first = json.loads((out / "results.json").read_text())
+    assert first["summary"]["ok"] == first["summary"]["cases"]
+    assert first["summary"]["mitsuba_renders"] > 0
+    for case in first["cases"]:
+        assert case["status"] in ("pass", "fail") and case["ok"]
+        assert {"rmse", "relmse", "psnr", "ssim", "flip", "bias"} <= set(case["metrics"])
+        assert case["verdict"]["verdict"] in ("pass", "fail")
+        assert case["render"]["seconds"] > 0 and Path(case["render"]["exr"]).is_file()
+        assert "cached" in case["ground_truth"]
+    code, stdout, _ = run_cli("run", str(SUITES / "smoke.toml"), "--out", str(out), "--quiet", env_cache=cache)
+    assert code == 0
+    second = json.loads((out / "results.json").read_text())
+    assert second["summary"]["mitsuba_renders"] == 0, second["summary"]
+    assert all(c["ground_truth"]["cached"] or c["ground_truth"]["source"] == "closed-form" for c in second["cases"])
+    assert "0 Mitsuba renders" in stdout
+    assert [c["verdict"]["verdict"] for c in first["cases"]] == [c["verdict"]["verdict"] for c in second["cases"]]
+
+
+def test_a_failing_case_makes_the_run_exit_1(tmp_path):
+    path = write_suite(tmp_path, '''
+[[cases]]
+name = "furnace/energy-loss"
+scene = "SCENES/furnace.toml"
+settings = { mutant = "energy-loss-2pct" }
+spp = 16
+film = { width = 16, height = 16 }
+''')
+    code, stdout, _ = run_cli("run", str(path), "--out", str(tmp_path / "out"), "--quiet")
+    assert code == 1
+    assert "unexpected: furnace/energy-loss" in stdout
+    record = json.loads((tmp_path / "out" / "results.json").read_text())["cases"][0]
+    assert record["status"] == "fail" and record["verdict"]["verdict"] == "fail"
+
+
+def test_thresholds_fail_a_case(tmp_path):
+    path = write_suite(tmp_path, '''
+[[cases]]
+scene = "SCENES/furnace.toml"
+spp = 4
+film = { width = 16, height = 16 }
+thresholds = { rmse = 1e-9 }
+''')
+    suite = load_suite(path)
+    results = run_suite(suite, tmp_path / "out")
+    case = results["cases"][0]
+    assert case["status"] == "fail" and case["thresholds_broken"] and "rmse" in case["reason"]
+
+
+def test_time_budget_merges_chunks(tmp_path):
+    path = write_suite(tmp_path, '''
+[[cases]]
+scene = "SCENES/furnace.toml"
+seconds = 0.3
+chunk_spp = 2
+film = { width = 16, height = 16 }
+''')
+    results = run_suite(load_suite(path), tmp_path / "out")
+    case = results["cases"][0]
+    assert case["status"] == "pass", case.get("reason")
+    assert case["render"]["spp"] >= 2 and case["render"]["spp"] % 2 == 0
+    assert case["render"]["seconds"] >= 0.3
+
+
+def test_a_crashing_renderer_fails_its_case_and_the_suite_goes_on(tmp_path, monkeypatch):
+    from harness import renderers
+
+    class Broken:
+        name = "broken"
+
+        def render(self, scene, request):
+            raise RuntimeError("segfault simulated")
+
+    monkeypatch.setitem(renderers._RENDERERS, "broken", Broken)
+    path = write_suite(tmp_path, '''
+[defaults]
+spp = 4
+film = { width = 8, height = 8 }
+[[cases]]
+name = "crashes"
+scene = "SCENES/furnace.toml"
+renderer = "broken"
+[[cases]]
+name = "works"
+scene = "SCENES/furnace.toml"
+''')
+    results = run_suite(load_suite(path), tmp_path / "out")
+    crashed, worked = results["cases"]
+    assert crashed["status"] == "error" and "segfault simulated" in crashed["reason"] and not crashed["ok"]
+    assert worked["status"] == "pass"
+    saved = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert saved["summary"]["errors"] == 1 and saved["summary"]["unexpected"] == ["crashes"]
+
+
+def test_compare_cli(tmp_path):
+    """`harness compare` judges a render against a reference: exit 0 on pass, 1 on fail, JSON on request."""
+    scene = str(ROOT / "scenes" / "furnace.toml")
+    for name, seed, extra in (("a", 1, []), ("b", 2, []), ("bad", 3, ["--set", "mutant=energy-loss-2pct"])):
+        code, _, err = run_cli("render", scene, "--spp", "8", "--seed", str(seed), "--out", str(tmp_path / f"{name}.exr"), "--quiet", *extra)
+        assert code == 0, err
+    code, stdout, _ = run_cli("compare", str(tmp_path / "a.exr"), str(tmp_path / "b.exr"), "--json")
+    assert code == 0
+    report = json.loads(stdout)
+    assert report["verdict"]["verdict"] == "pass" and "rmse" in report["metrics"]
+    code, stdout, _ = run_cli("compare", str(tmp_path / "bad.exr"), str(tmp_path / "b.exr"))
+    assert code == 1 and "verdict: fail" in stdout
+    code, _, stderr = run_cli("compare", str(tmp_path / "missing.exr"), str(tmp_path / "b.exr"))
+    assert code == 2 and "missing.exr" in stderr and len(stderr.strip().splitlines()) == 1
