@@ -185,6 +185,29 @@ def cmd_run(args: argparse.Namespace) -> int:
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
 
 
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from harness import calibrate
+    from harness.suite import load_suite
+
+    if args.seeds < 1:
+        raise HarnessError("--seeds", f"expected a positive integer, got {args.seeds}")
+    suite = load_suite(args.suite)
+    out = Path(args.out) if args.out else Path("reports") / f"{suite.name}-calibration"
+    out.mkdir(parents=True, exist_ok=True)
+
+    def on_progress(name: str, seed: int) -> None:
+        if not args.quiet:
+            print(f"  {name} seed {seed}", file=sys.stderr, flush=True)
+
+    result = calibrate.calibrate(suite, out, seeds=args.seeds, patterns=args.cases, cache_dir=args.cache_dir,
+                                 variant=args.mitsuba_variant, on_progress=on_progress)
+    calibrate.write(result, out / "calibration.json")
+    for line in calibrate.summary_lines(result):
+        print(line)
+    print(f"wrote {out / 'calibration.json'}")
+    return EXIT_OK
+
+
 def _render_summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
     import numpy as np
 
@@ -262,6 +285,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     run.add_argument("--quiet", action="store_true")
     run.set_defaults(func=cmd_run)
+
+    cal = sub.add_parser("calibrate", help="false alarms of the verdict over many seeds, and how planted faults fail")
+    cal.add_argument("suite")
+    cal.add_argument("--seeds", type=int, default=50, help="seeds per expect=pass case (default 50)")
+    cal.add_argument("--cases", action="append", help="only cases whose name matches this glob (repeatable)")
+    cal.add_argument("--out", help="output folder (default reports/<suite>-calibration)")
+    cal.add_argument("--cache-dir")
+    cal.add_argument("--mitsuba-variant")
+    cal.add_argument("--quiet", action="store_true")
+    cal.set_defaults(func=cmd_calibrate)
     return parser
 
 
