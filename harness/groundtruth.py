@@ -98,7 +98,12 @@ def closed_form(scene: Scene) -> GroundTruth:
 
 
 def scene_digest(scene: Scene) -> str:
-    """SHA-256 of the scene file's bytes and of every file it references (meshes)."""
+    """SHA-256 of the scene file's bytes, of every file it references (meshes), and of the loaded scene itself.
+
+    The loaded content (camera, materials, every shape's placement, emission and mesh arrays) is hashed too, so a
+    scene changed in memory after loading (a suite's resolution or depth override, a test's edit) or a file edited
+    between loading and rendering can never be served another scene's entry.
+    """
     h = hashlib.sha256()
     try:
         h.update(Path(scene.path).read_bytes())
@@ -108,7 +113,24 @@ def scene_digest(scene: Scene) -> str:
                 h.update(Path(shape.file).read_bytes())
     except OSError as err:
         raise HarnessError(str(scene.path), f"cannot read for the ground-truth key: {err.strerror}") from None
+    h.update(_loaded_content(scene))
     return h.hexdigest()
+
+
+def _loaded_content(scene: Scene) -> bytes:
+    cam = scene.camera
+    parts = [repr((tuple(cam.origin), tuple(cam.target), tuple(cam.up), float(cam.fov), cam.fov_axis)),
+             repr((scene.film.width, scene.film.height, scene.film.filter, scene.max_depth, scene.closed_form))]
+    for name, m in scene.materials.items():
+        parts.append(repr((name, tuple(m.reflectance), m.two_sided)))
+    for shape in scene.shapes:
+        parts.append(repr((shape.type, shape.material, shape.emission, shape.flip_normals, tuple(shape.center),
+                           shape.radius, shape.subdivisions)))
+        parts.append(np.asarray(shape.to_world, np.float64).tobytes().hex())
+        for array in (shape.mesh_vertices, shape.mesh_triangles):
+            if array is not None:
+                parts.append(hashlib.sha256(np.ascontiguousarray(array).tobytes()).hexdigest())
+    return "\n".join(parts).encode()
 
 
 def mitsuba_version() -> str:
@@ -226,8 +248,10 @@ def ground_truth(
     of ``spp`` samples per pixel in chunks of ``chunk_spp``, each chunk cached."""
     if scene.closed_form and use_closed_form:
         return closed_form(scene)
-    if spp < 1 or chunk_spp < 1:
+    if spp < 1:
         raise HarnessError("--spp", f"expected a positive number of samples, got {spp}")
+    if chunk_spp < 1:
+        raise HarnessError("--chunk-spp", f"expected a positive number of samples, got {chunk_spp}")
     from harness.renderers import RenderRequest, get_renderer
     from harness.renderers.mitsuba import choose_variant
 

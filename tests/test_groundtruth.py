@@ -21,7 +21,6 @@ import numpy as np
 import pytest
 from conftest import ROOT, SCENES, load_small
 
-from harness import groundtruth
 from harness.errors import HarnessError
 from harness.groundtruth import Cache, ground_truth
 from harness.imageio import read_exr
@@ -585,6 +584,34 @@ def test_store_replaces_a_damaged_entry(tmp_path):
     assert not hidden(tmp_path)
 
 
+def test_store_races_another_writer_for_a_damaged_entry(tmp_path, monkeypatch):
+    """A damaged entry is removed by store(); another process takes the free place before this one: its (valid)
+    entry is kept, and store() neither fails nor overwrites it."""
+    cache = Cache(tmp_path)
+    mine = Estimate(np.full((4, 4, 3), 1.0), np.full((4, 4, 3), 0.1), 4)
+    theirs = Estimate(np.full((4, 4, 3), 2.0), np.full((4, 4, 3), 0.2), 4)
+    cache.store("k", mine, {"writer": "old"})
+    _truncate_exr(cache.entry("k"))
+    real_load, real_store = Cache.load, Cache.store
+    raced = []
+
+    def racing_load(self, key):
+        found = real_load(self, key)  # removes the damaged entry
+        if found is None and not raced:
+            raced.append(True)
+            real_store(self, key, theirs, {"writer": "other"})  # the other process is faster
+        return found
+
+    monkeypatch.setattr(Cache, "load", racing_load)
+    path = cache.store("k", mine, {"writer": "me"})
+    monkeypatch.setattr(Cache, "load", real_load)
+    assert raced and path == cache.entry("k") / "image.exr"
+    loaded, meta = cache.load("k")
+    assert meta["writer"] == "other"
+    np.testing.assert_array_equal(loaded.mean, theirs.mean)
+    assert not hidden(tmp_path)
+
+
 def test_losing_writer_uses_the_winners_entry(tmp_path, renders, monkeypatch):
     """When another process stores the same entry first, the ground truth returned is the winner's (the cache's),
     not this process's own render: every user of one key sees the same image, and the image is the one at path."""
@@ -746,3 +773,20 @@ def test_cli_bad_spp(tmp_path):
     scene = copy_scene("soft-shadows", tmp_path)
     proc = run_cli(str(scene), "--cache-dir", str(tmp_path / "c"), "--spp", "0", env_cache=tmp_path / "d")
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1 and "--spp" in proc.stderr
+
+
+def test_a_scene_changed_after_loading_gets_its_own_entry(tmp_path):
+    """The key covers the loaded scene, not only the file: an edit in memory is never served the old entry."""
+    import dataclasses as _dc
+
+    from conftest import load_small
+    from harness.groundtruth import scene_digest
+
+    scene = load_small("cornell-box", 8)
+    light = next(i for i, s in enumerate(scene.shapes) if s.emission is not None)
+    brighter = list(scene.shapes)
+    brighter[light] = _dc.replace(brighter[light], emission=(100.0, 100.0, 100.0))
+    assert scene_digest(scene) != scene_digest(_dc.replace(scene, shapes=brighter))
+    moved = _dc.replace(scene, camera=_dc.replace(scene.camera, fov=30.0))
+    assert scene_digest(scene) != scene_digest(moved)
+    assert scene_digest(scene) == scene_digest(load_small("cornell-box", 8))
