@@ -182,6 +182,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     for name in summary["unexpected"]:
         record = next(r for r in results["cases"] if r["name"] == name)
         print(f"  unexpected: {name}: {record['status']} (expected {record['expect']}) {record.get('reason', '')}")
+    _write_run_report(args, out)
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
 
 
@@ -205,6 +206,131 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     for line in calibrate.summary_lines(result):
         print(line)
     print(f"wrote {out / 'calibration.json'}")
+    return EXIT_OK
+
+
+def _report_options(args: argparse.Namespace, **overrides):
+    from harness.report import ReportOptions
+
+    return ReportOptions(cache_dir=getattr(args, "cache_dir", None), variant=getattr(args, "mitsuba_variant", None),
+                         progress=not args.quiet and sys.stderr.isatty(), **overrides)
+
+
+def _write_run_report(args: argparse.Namespace, out: Path) -> None:
+    """The report of a finished run (DIR/index.html, report.json, summary.md). A failure is one line on stderr and
+    leaves the run's exit code alone."""
+    try:
+        from harness.report import write_suite_report
+
+        if getattr(args, "no_report", False):
+            return
+        paths = write_suite_report(out / "results.json", out, _report_options(args))
+        print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")
+    except KeyboardInterrupt:
+        raise
+    except Exception as err:  # noqa: BLE001 - the gate's result stands whatever happens to its report
+        reason = " ".join(str(err).split()) or type(err).__name__
+        print(f"harness: report not written: {type(err).__name__}: {reason}"[:400], file=sys.stderr)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from harness.report import write_suite_report
+    from harness.report.convergence import parse_ladder
+
+    if args.strategy_spp < 1:
+        raise HarnessError("--strategy-spp", f"expected a positive integer, got {args.strategy_spp}")
+    results = Path(args.results)
+    out = Path(args.out) if args.out else results.parent
+    options = _report_options(
+        args, convergence=not args.no_convergence, shadow_rays=not args.no_shadow_rays,
+        strategies=not args.no_strategies, render_strategies=not args.no_strategy_renders,
+        convergence_spp=tuple(parse_ladder(args.convergence_spp, "--convergence-spp")),
+        strategy_spp=args.strategy_spp,
+    )
+    paths = write_suite_report(results, out, options)
+    print(f"wrote {paths['index']}, {paths['report_json']} and {paths['summary']} in {paths['seconds']:.1f} s")
+    return EXIT_OK
+
+
+class _SeriesAction(argparse.Action):
+    """--renderer starts a curve; --set adds a setting to the latest curve (before any --renderer: to every curve)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        series = getattr(namespace, "series", None)
+        if series is None:
+            series = []
+            namespace.series = series
+        if self.dest == "renderer":
+            series.append({"renderer": values, "settings": {}})
+        else:
+            target = series[-1]["settings"] if series else namespace.common_settings
+            target.update(_parse_set([values]))
+
+
+def cmd_convergence(args: argparse.Namespace) -> int:
+    from harness import groundtruth
+    from harness.report import write_convergence_report
+    from harness.report.convergence import Series, parse_ladder, replace_film, run_convergence
+    from harness.renderers import renderer_names
+    from harness.scene import load_scene
+
+    spp = parse_ladder(args.spp, "--spp") if args.spp else []
+    seconds = parse_ladder(args.seconds, "--seconds", float) if args.seconds else []
+    if not spp and not seconds:
+        raise HarnessError("--spp", "give an spp ladder (e.g. --spp 1,2,4,8,16) and/or a --seconds ladder")
+    for name, value in (("--ground-truth-spp", args.ground_truth_spp), ("--chunk-spp", args.chunk_spp)):
+        if value < 1:
+            raise HarnessError(name, f"expected a positive integer, got {value}")
+    if args.seed < 0:
+        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+    width = height = None
+    if args.film:
+        w, sep, h = args.film.lower().partition("x")
+        if not sep or not w.isdigit() or not h.isdigit() or int(w) < 1 or int(h) < 1:
+            raise HarnessError("--film", f"expected WIDTHxHEIGHT, e.g. 32x32, got {args.film!r}")
+        width, height = int(w), int(h)
+    specs = getattr(args, "series", None) or [{"renderer": "reference", "settings": {}}]
+    series = []
+    for spec in specs:
+        if spec["renderer"] not in renderer_names():
+            raise HarnessError("--renderer", f"expected one of {', '.join(renderer_names())}, got {spec['renderer']!r}")
+        series.append(Series(spec["renderer"], {**args.common_settings, **spec["settings"]}))
+    scene = replace_film(load_scene(args.scene), width, height)
+    show = not args.quiet and sys.stderr.isatty()
+    bar = None
+    if show:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(series) * (len(spp) + len(seconds)), desc=f"convergence {scene.name}", unit="render",
+                   file=sys.stderr, leave=False)
+    try:
+        gt = groundtruth.ground_truth(scene, spp=args.ground_truth_spp, cache_dir=args.cache_dir,
+                                      variant=args.mitsuba_variant)
+        result = run_convergence(scene, gt, series, spp=spp, seconds=seconds, seed=args.seed, chunk_spp=args.chunk_spp,
+                                 k=args.k, variant=args.mitsuba_variant,
+                                 progress=(lambda _: bar.update(1)) if bar is not None else None)
+    finally:
+        if bar is not None:
+            bar.close()
+    out = Path(args.out) if args.out else Path("reports") / "convergence" / scene.path.stem
+    paths = write_convergence_report(result, out)
+    for s in result["series"]:
+        fit = s["fit_rmse"]
+        slope = "n/a" if fit.get("slope") is None else f"{fit['slope']:.3f}"
+        flag = f"; flattens from {fit['departure_spp']:g} spp (bias?)" if fit.get("biased") else ""
+        print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}")
+    comparison = (result.get("comparisons") or {}).get("rmse_corrected")
+    if comparison and comparison["equal_time"].get("time"):
+        et = comparison["equal_time"]
+        print(f"equal time ({et['time']:.3g} s): " + ", ".join(
+            f"{k} RMSE {v:.4g}" if v is not None else f"{k} n/a" for k, v in et["errors"].items()))
+    if comparison and comparison["equal_error"].get("error"):
+        ee = comparison["equal_error"]
+        print(f"equal error (RMSE {ee['error']:.4g}): " + ", ".join(
+            f"{k} {v:.3g} s" if v is not None else f"{k} n/a" for k, v in ee["times"].items()))
+    if args.json:
+        print(Path(paths["report_json"]).read_text())
+    print(f"wrote {paths['index']} and {paths['report_json']}")
     return EXIT_OK
 
 
@@ -274,7 +400,7 @@ def build_parser() -> argparse.ArgumentParser:
     cmp.add_argument("test", help="the render to judge (.exr with variance.R/G/B channels)")
     cmp.add_argument("reference", help="the reference (.exr; variance channels optional for a closed form)")
     cmp.add_argument("--tile", type=int, default=8, help="tile size in pixels for the verdict (default 8)")
-    cmp.add_argument("--alpha", type=float, default=0.01, help="false-alarm probability of the verdict (default 0.01)")
+    cmp.add_argument("--alpha", type=float, default=0.001, help="false-alarm probability of the verdict (default 0.001)")
     cmp.add_argument("--json", action="store_true")
     cmp.set_defaults(func=cmd_compare)
 
@@ -284,7 +410,43 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--cache-dir", help="ground-truth cache folder")
     run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     run.add_argument("--quiet", action="store_true")
+    run.add_argument("--no-report", action="store_true", help="do not write the report (index.html, report.json)")
     run.set_defaults(func=cmd_run)
+
+    rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
+    rep.add_argument("results", help="a results.json written by harness run")
+    rep.add_argument("--out", help="output folder (default: the results file's folder)")
+    rep.add_argument("--convergence-spp", default="1,2,4,8,16", help="spp ladder of each scene's convergence "
+                     "(default 1,2,4,8,16)")
+    rep.add_argument("--strategy-spp", type=int, default=16, help="spp of strategy renders no case covers (default 16)")
+    rep.add_argument("--no-convergence", action="store_true", help="leave out the convergence section")
+    rep.add_argument("--no-shadow-rays", action="store_true", help="leave out the shadow-ray study")
+    rep.add_argument("--no-strategies", action="store_true", help="leave out the strategy comparison")
+    rep.add_argument("--no-strategy-renders", action="store_true", help="compare only strategies the suite's cases cover")
+    rep.add_argument("--cache-dir", help="ground-truth cache folder")
+    rep.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
+    rep.add_argument("--quiet", action="store_true")
+    rep.set_defaults(func=cmd_report)
+
+    cv = sub.add_parser("convergence", help="error against spp and time for one or more renderers/settings, with "
+                        "the fitted slope, bias detection and equal-time / equal-error comparisons")
+    cv.add_argument("scene")
+    cv.add_argument("--renderer", action=_SeriesAction, help="starts a curve (repeatable; default: one reference curve)")
+    cv.add_argument("--set", action=_SeriesAction, metavar="KEY=VALUE", dest="set",
+                    help="a setting of the latest --renderer's curve (before any --renderer: of every curve)")
+    cv.add_argument("--spp", default="1,2,4,8,16,32,64", help="spp ladder, comma-separated (default 1,2,4,8,16,32,64)")
+    cv.add_argument("--seconds", help="time ladder, comma-separated seconds (chunks of --chunk-spp until spent)")
+    cv.add_argument("--chunk-spp", type=int, default=1, help="spp per chunk of a --seconds rung (default 1)")
+    cv.add_argument("--film", help="resolution WIDTHxHEIGHT (default: the scene's)")
+    cv.add_argument("--ground-truth-spp", type=int, default=1024, help="Mitsuba ground-truth spp (default 1024)")
+    cv.add_argument("--seed", type=int, default=1, help="first seed; every render gets its own (default 1)")
+    cv.add_argument("--k", type=float, default=3.0, help="multiple of the expected scatter that flags bias (default 3)")
+    cv.add_argument("--out", help="output folder (default reports/convergence/<scene>)")
+    cv.add_argument("--cache-dir", help="ground-truth cache folder")
+    cv.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
+    cv.add_argument("--json", action="store_true", help="also print convergence.json")
+    cv.add_argument("--quiet", action="store_true")
+    cv.set_defaults(func=cmd_convergence, series=None, common_settings={})
 
     cal = sub.add_parser("calibrate", help="false alarms of the verdict over many seeds, and how planted faults fail")
     cal.add_argument("suite")

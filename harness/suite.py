@@ -64,7 +64,7 @@ class Case:
     metrics: tuple[str, ...] = METRICS
     thresholds: dict[str, float] = field(default_factory=dict)
     expect: str = "pass"
-    alpha: float = 0.01
+    alpha: float = 0.001
     tile: int = 8
     ground_truth_spp: int = 1024
 
@@ -161,7 +161,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     expect = _typed(label, key("expect"), d.get("expect", "pass"), str)
     if expect not in EXPECT:
         raise HarnessError(f"{label}: {key('expect')}", f"expected 'pass' or 'fail', got {expect!r}")
-    alpha = float(_typed(label, key("alpha"), d.get("alpha", 0.01), (int, float)))
+    alpha = float(_typed(label, key("alpha"), d.get("alpha", 0.001), (int, float)))
     if not 0 < alpha < 1:
         raise HarnessError(f"{label}: {key('alpha')}", f"expected a probability in (0, 1), got {alpha}")
     return Case(

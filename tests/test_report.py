@@ -1,0 +1,403 @@
+"""Reports: the files of a suite report, a self-contained and escaped page, the numbers in report.json, the
+convergence fit and equal-time / equal-error reading on synthetic curves, the CLI, and the page in a headless browser.
+
+The suites here are tiny (8x8 and 16x16 films, a few spp) and need no Mitsuba: the furnace has a closed form and the
+soft-shadows case compares against a reference render.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import ROOT
+
+from harness.report.convergence import (
+    equal_error,
+    equal_time,
+    fit_convergence,
+    loglog_interpolate,
+    parse_ladder,
+    time_to_error,
+)
+
+EVIL = "<script>alert('x')</script> & \"quotes\""
+
+SUITE = f'''
+name = "tiny <b>report</b>"
+description = "a tiny suite for report tests <img src=x onerror=alert(1)>"
+
+[defaults]
+spp = 4
+film = {{ width = 8, height = 8 }}
+
+[[cases]]
+name = "furnace/reference"
+scene = "SCENES/furnace.toml"
+
+[[cases]]
+name = {json.dumps(EVIL)}
+scene = "SCENES/furnace.toml"
+settings = {{ direct = "mis" }}
+
+[[cases]]
+name = "soft-shadows/vs-reference"
+scene = "SCENES/soft-shadows.toml"
+film = {{ width = 16, height = 16 }}
+against = {{ renderer = "reference", spp = 64, seed = 99 }}
+'''
+
+
+def fast_options(**overrides):
+    from harness.report import ReportOptions
+
+    values = dict(convergence_spp=(1, 2, 4, 8), strategy_spp=4, min_timing_seconds=0.0, strategy_min_seconds=0.0)
+    values.update(overrides)
+    return ReportOptions(**values)
+
+
+@pytest.fixture(scope="module")
+def report_dir(tmp_path_factory) -> Path:
+    """A tiny suite run and its report (written once for the module)."""
+    from harness.report import write_suite_report
+    from harness.suite import load_suite, run_suite
+
+    folder = tmp_path_factory.mktemp("report")
+    suite_path = folder / "tiny.toml"
+    suite_path.write_text(SUITE.replace("SCENES", str(ROOT / "scenes")))
+    out = folder / "out"
+    run_suite(load_suite(suite_path), out)
+    write_suite_report(out / "results.json", out, fast_options())
+    return out
+
+
+# ---- files and page ----------------------------------------------------------------------------------------------
+
+
+def test_report_files_exist(report_dir):
+    for name in ("index.html", "report.json", "summary.md", "results.json"):
+        assert (report_dir / name).is_file(), name
+    summary = (report_dir / "summary.md").read_text()
+    assert "cases as expected" in summary and "Best strategy" in summary
+
+
+def test_page_is_self_contained(report_dir):
+    page = (report_dir / "index.html").read_text()
+    lowered = page.lower()
+    for bad in ('src="http', "src='http", 'href="http', "href='http", "url(http", "@import", "<link", "<script",
+                "<iframe", 'src="//', 'href="//'):
+        assert bad not in lowered, bad
+    sources = re.findall(r'<img[^>]*\ssrc="([^"]*)"', page)
+    assert len(sources) >= 15
+    assert all(s.startswith("data:image/png;base64,") for s in sources)
+    # links only to anchors in the page and to the report's own files beside it
+    for href in re.findall(r'href="([^"]*)"', page):
+        assert href.startswith("#") or href.startswith("report/"), href
+        if href.startswith("report/"):
+            assert (report_dir / html.unescape(href)).is_file(), href
+
+
+def test_page_escapes_every_string(report_dir):
+    page = (report_dir / "index.html").read_text()
+    assert "<script>alert" not in page and "<img src=x" not in page and "<b>report</b>" not in page
+    assert html.escape(EVIL, quote=True) in page
+    assert "&lt;b&gt;report&lt;/b&gt;" in page
+
+
+def test_report_json_holds_the_numbers(report_dir):
+    report = json.loads((report_dir / "report.json").read_text())
+    results = json.loads((report_dir / "results.json").read_text())
+    assert report["schema"] == 1 and report["kind"] == "suite-report"
+    assert [c["name"] for c in report["cases"]] == [c["name"] for c in results["cases"]]
+    for case, record in zip(report["cases"], results["cases"]):
+        assert case["metrics"] == record["metrics"]
+        assert case["verdict"]["verdict"] == record["verdict"]["verdict"]
+        assert case["problems"] == []
+        keys = {im["key"] for im in case["images"]}
+        assert keys == {"ground_truth", "render", "error_signed", "error_relative", "flip"}
+        # the relative-error map's mean is the case's MAPE
+        assert case["error_maps"]["mean_relative_error"] == pytest.approx(record["metrics"]["mape"], rel=1e-4)
+        signed = next(im for im in case["images"] if im["key"] == "error_signed")
+        assert signed["legend"]["vmin"] == -signed["legend"]["vmax"] > -np.inf
+    conv = report["convergence"]
+    assert len(conv["scenes"]) == 2
+    for scene in conv["scenes"]:
+        series = scene["result"]["series"][0]
+        assert [p["spp"] for p in series["points"]] == [1, 2, 4, 8]
+        seeds = [s for p in series["points"] for s in p["seeds"]]
+        assert len(seeds) == len(set(seeds))
+        assert series["fit_rmse"]["slope"] is not None and -1.5 < series["fit_rmse"]["slope"] < 0
+    shadow = report["shadow_rays"]
+    assert [r["shadow_rays"] for r in shadow["rows"]] == [1, 4, 9, 16, 36, 64, 100]
+    assert shadow["penumbra"]["pixels"] > 0 and shadow["penumbra"]["method"] == "per-pixel"
+    assert all(r["penumbra"]["rmse"] > 0 and r["seconds"] > 0 for r in shadow["rows"])
+    strategies = {s["scene"]: s for s in report["strategies"]["scenes"]}
+    assert set(strategies) == {"furnace", "soft-shadows"}
+    furnace = {r["label"]: r for r in strategies["furnace"]["rows"]}
+    assert furnace["direct=mis"]["case"] == EVIL  # a case's measurement is used where one exists
+    assert "skipped" in furnace["rr=off"]  # unbounded max_depth
+    assert furnace["default"]["relative_efficiency"] == pytest.approx(1.0)
+    assert strategies["furnace"]["best"] in furnace
+
+
+def test_every_image_has_exr_and_png(report_dir):
+    from harness.imageio import read_exr
+
+    report = json.loads((report_dir / "report.json").read_text())
+    images = [im for case in report["cases"] for im in case["images"]]
+    assert images
+    for im in images:
+        assert Path(im["png"]).is_file() and Path(im["exr"]).is_file()
+        assert Path(im["png"]).with_suffix(".exr") == Path(im["exr"])
+        exr = read_exr(im["exr"])
+        assert exr.image.shape[2] == 3 and np.isfinite(exr.image).all()
+    shadow_dir = report_dir / "report" / "shadow-rays"
+    for n in (1, 4, 9, 16, 36, 64, 100):
+        assert (shadow_dir / f"shadow_rays_{n}.exr").is_file() and (shadow_dir / f"shadow_rays_{n}.png").is_file()
+
+
+def test_signed_error_exr_holds_the_difference(report_dir):
+    from harness.imageio import read_exr
+
+    folder = report_dir / "report" / "furnace_reference"
+    render = read_exr(folder / "render.exr").image.astype(np.float64)
+    truth = read_exr(folder / "ground_truth.exr").image.astype(np.float64)
+    signed = read_exr(folder / "error_signed.exr").image[..., 0]
+    np.testing.assert_allclose(signed, (render - truth).mean(axis=-1), rtol=1e-5, atol=1e-6)
+
+
+# ---- convergence fit and interpolation ---------------------------------------------------------------------------
+
+SPP = 2.0 ** np.arange(0, 13)
+
+
+def test_fit_unbiased_sequence_has_slope_minus_half():
+    fit = fit_convergence(SPP, 0.3 / np.sqrt(SPP))
+    assert fit["slope"] == pytest.approx(-0.5, abs=1e-9)
+    assert not fit["biased"] and fit["departure_spp"] is None
+    assert fit["model"]["bias"] == pytest.approx(0.0, abs=1e-6)
+    # relMSE-like errors: slope -1
+    mse = fit_convergence(SPP, 0.09 / SPP, expected_slope=-1.0)
+    assert mse["slope"] == pytest.approx(-1.0, abs=1e-9) and not mse["biased"]
+
+
+def test_fit_noisy_unbiased_sequences_are_rarely_flagged():
+    rng = np.random.default_rng(7)
+    flagged, slopes = 0, []
+    for _ in range(200):
+        noisy = 0.3 / np.sqrt(SPP) * np.exp(rng.normal(0.0, 0.02, SPP.size))
+        fit = fit_convergence(SPP, noisy, scatter=0.02)
+        flagged += fit["biased"]
+        slopes.append(fit["slope"])
+    assert flagged <= 2
+    assert np.mean(slopes) == pytest.approx(-0.5, abs=0.005)
+
+
+def test_fit_flags_a_biased_sequence_where_it_flattens():
+    c, b = 0.3, 0.01  # variance and bias terms equal at spp = (c / b)^2 = 900
+    fit = fit_convergence(SPP, np.sqrt(c**2 / SPP + b**2))
+    assert fit["biased"]
+    assert 64 <= fit["departure_spp"] <= 900
+    assert fit["slope"] > -0.45  # flatter than -1/2 over the whole ladder
+    assert fit["model"]["bias"] == pytest.approx(b, rel=1e-3)
+    assert fit["model"]["variance_coefficient"] == pytest.approx(c**2, rel=1e-3)
+    # every point from the departure on lies above its threshold
+    j = fit["spp"].index(fit["departure_spp"])
+    assert all(r > t for r, t in zip(fit["residuals"][j:], fit["thresholds"][j:]))
+    # a larger expected scatter moves the departure later
+    later = fit_convergence(SPP, np.sqrt(c**2 / SPP + b**2), scatter=0.1)
+    assert later["departure_spp"] > fit["departure_spp"]
+
+
+def test_fit_ignores_unusable_points():
+    errors = list(0.3 / np.sqrt(SPP))
+    errors[3] = None
+    errors[5] = float("nan")
+    fit = fit_convergence(SPP, errors)
+    assert fit["points"] == SPP.size - 2 and fit["slope"] == pytest.approx(-0.5)
+
+
+def test_equal_time_and_equal_error_on_synthetic_curves():
+    # error = a / sqrt(t): power laws are straight in log-log, so interpolation is exact
+    times = [0.1, 0.2, 0.4, 0.8, 1.6]
+    fast = [0.1 / np.sqrt(t) for t in times]
+    slow = [0.3 / np.sqrt(t) for t in times]
+    assert loglog_interpolate(times, fast, 0.3) == pytest.approx(0.1 / np.sqrt(0.3))
+    assert loglog_interpolate(times, fast, 5.0) is None
+    assert time_to_error(times, slow, 0.5) == pytest.approx((0.3 / 0.5) ** 2)
+    assert time_to_error(times, slow, 10.0) is None
+    et = equal_time({"fast": (times, fast), "slow": (times, slow)}, at=0.5)
+    assert et["errors"]["fast"] == pytest.approx(0.1 / np.sqrt(0.5))
+    assert et["ratio_to_first"]["slow"] == pytest.approx(3.0)
+    assert not any(et["extrapolated"].values())
+    ee = equal_error({"fast": (times, fast), "slow": (times, slow)}, target=0.3)
+    assert ee["times"]["slow"] == pytest.approx(1.0)
+    assert ee["times"]["fast"] == pytest.approx(1 / 9)
+    assert ee["speedup_vs_first"]["slow"] == pytest.approx(1 / 9)
+    assert not any(ee["extrapolated"].values())
+    ee = equal_error({"fast": (times, fast), "slow": (times, slow)}, target=0.5)
+    assert ee["times"]["slow"] == pytest.approx(0.36)
+    assert ee["times"]["fast"] == pytest.approx(0.04)  # 0.5 lies above fast's first point: along its own line
+    assert ee["extrapolated"] == {"fast": True, "slow": False}
+    # defaults: the longest common time, and the smallest error every curve reaches
+    shifted = [t * 2 for t in times]
+    et = equal_time({"a": (times, fast), "b": (shifted, slow)})
+    assert et["time"] == pytest.approx(1.6)
+    ee = equal_error({"a": (times, fast), "b": (shifted, slow)})
+    assert ee["error"] == pytest.approx(max(min(fast), min(slow)))
+    assert ee["times"]["b"] == pytest.approx(3.2)
+
+
+def test_parse_ladder():
+    assert parse_ladder("8, 1,2,2,4", "--spp") == [1, 2, 4, 8]
+    assert parse_ladder("0.5,1", "--seconds", float) == [0.5, 1.0]
+    from harness.errors import HarnessError
+
+    for bad in ("1,x", "0,1", ""):
+        with pytest.raises(HarnessError):
+            parse_ladder(bad, "--spp")
+
+
+# ---- command line ------------------------------------------------------------------------------------------------
+
+
+def run_cli(*args):
+    proc = subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, timeout=300)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def write_suite(tmp_path: Path, body: str) -> Path:
+    path = tmp_path / "s.toml"
+    path.write_text(body.replace("SCENES", str(ROOT / "scenes")))
+    return path
+
+
+ONE_CASE = '''
+[[cases]]
+name = "furnace/tiny"
+scene = "SCENES/furnace.toml"
+spp = 4
+film = { width = 8, height = 8 }
+'''
+
+
+def test_run_writes_the_report_and_report_rewrites_it(tmp_path):
+    suite = write_suite(tmp_path, ONE_CASE)
+    out = tmp_path / "out"
+    code, stdout, stderr = run_cli("run", str(suite), "--out", str(out), "--quiet")
+    assert code == 0, stdout + stderr
+    assert "report:" in stdout and (out / "index.html").is_file() and (out / "report.json").is_file()
+    again = tmp_path / "again"
+    code, stdout, stderr = run_cli("report", str(out / "results.json"), "--out", str(again), "--quiet",
+                                   "--convergence-spp", "1,2", "--no-strategies", "--no-shadow-rays")
+    assert code == 0, stdout + stderr
+    report = json.loads((again / "report.json").read_text())
+    assert report["strategies"] is None and report["convergence"]["spp_ladder"] == [1, 2]
+
+
+def test_report_of_a_missing_file_is_one_line(tmp_path, capsys):
+    from harness.cli import main
+
+    assert main(["report", str(tmp_path / "missing.json")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "missing.json" in err
+
+
+def test_a_failing_report_does_not_change_the_run_exit_code(tmp_path, monkeypatch, capsys):
+    import harness.report
+    from harness.cli import main
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("disk on fire\nsecond line")
+
+    monkeypatch.setattr(harness.report, "write_suite_report", broken)
+    suite = write_suite(tmp_path, ONE_CASE)
+    code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 0
+    assert err.strip().splitlines() == ["harness: report not written: RuntimeError: disk on fire second line"]
+
+
+def test_convergence_command(tmp_path):
+    out = tmp_path / "conv"
+    code, stdout, stderr = run_cli(
+        "convergence", str(ROOT / "scenes" / "furnace.toml"), "--film", "8x8", "--spp", "1,2,4,8",
+        "--renderer", "reference", "--renderer", "reference", "--set", "hemisphere=uniform", "--out", str(out),
+        "--quiet")
+    assert code == 0, stdout + stderr
+    result = json.loads((out / "convergence.json").read_text())
+    assert [s["label"] for s in result["series"]] == ["reference", "reference hemisphere=uniform"]
+    assert result["series"][1]["resolved_settings"]["hemisphere"] == "uniform"
+    assert set(result["comparisons"]) == {"rmse_corrected", "relmse_corrected"}
+    page = (out / "index.html").read_text()
+    assert "data:image/png;base64," in page and "<script" not in page
+    code, _, stderr = run_cli("convergence", str(ROOT / "scenes" / "furnace.toml"), "--spp", "1,two")
+    assert code == 2 and "--spp" in stderr and len(stderr.strip().splitlines()) == 1
+
+
+# ---- a real browser ----------------------------------------------------------------------------------------------
+
+CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                  "--disable-component-update", "--disable-sync", "--no-first-run", "--hide-scrollbars"]
+
+CHECK_SCRIPT = """
+<script>
+window.__errors = [];
+window.addEventListener("error", function (e) { window.__errors.push(String(e.message || e)); }, true);
+window.addEventListener("load", function () {
+  var imgs = Array.prototype.slice.call(document.images);
+  var ok = imgs.filter(function (im) { return im.complete && im.naturalWidth > 0; }).length;
+  var div = document.createElement("div");
+  div.id = "img-check";
+  div.textContent = "images " + ok + "/" + imgs.length + " errors " + window.__errors.length;
+  document.body.appendChild(div);
+});
+</script>
+"""
+
+
+def _chromium(tmp_path: Path, *args: str) -> subprocess.CompletedProcess:
+    exe = shutil.which("chromium")
+    profile = tmp_path / "chromium-profile"
+    return subprocess.run([exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}", *args], capture_output=True,
+                          text=True, timeout=180)
+
+
+@pytest.mark.skipif(shutil.which("chromium") is None,
+                    reason="chromium not installed (apt-get install -y chromium)")
+def test_page_in_a_headless_browser(report_dir, tmp_path):
+    import imageio.v3 as iio
+
+    page = report_dir / "index.html"
+    # 1. the page as it is: no console errors, no failed loads
+    proc = _chromium(tmp_path, "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", "--dump-dom",
+                     page.as_uri())
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    console = [line for line in proc.stderr.splitlines()
+               if "CONSOLE" in line or "Uncaught" in line or "Failed to load resource" in line
+               or "Not allowed to load local resource" in line]
+    assert not console, console
+    assert "Suite report" in proc.stdout
+    # 2. a copy with a check script: every image decoded
+    checked = tmp_path / "checked.html"
+    checked.write_text(page.read_text().replace("</body>", CHECK_SCRIPT + "</body>"))
+    proc = _chromium(tmp_path, "--virtual-time-budget=5000", "--dump-dom", checked.as_uri())
+    match = re.search(r'id="img-check">images (\d+)/(\d+) errors (\d+)<', proc.stdout)
+    assert match, proc.stdout[-2000:]
+    ok, total, errors = map(int, match.groups())
+    assert total >= 15 and ok == total and errors == 0
+    # 3. a screenshot that is not blank
+    shot = tmp_path / "shot.png"
+    proc = _chromium(tmp_path, f"--screenshot={shot}", "--window-size=1200,2000", page.as_uri())
+    assert shot.is_file(), proc.stderr[-2000:]
+    pixels = iio.imread(shot)[..., :3].astype(np.float64)
+    assert pixels.shape[:2] == (2000, 1200)
+    assert pixels.std() > 20.0  # text, tables and images, not an empty page
+    assert (pixels.mean(axis=-1) < 128).mean() > 0.01  # some dark pixels: text was drawn
