@@ -13,14 +13,20 @@ already in L_direct and is not added again (the literal pseudo-code's ``computeR
 counts direct light twice; it survives only as the mutant "double-emission"). Russian roulette divides survivors
 by their survival probability (Fig. 5.16, ``estimatedRadiance / (1 - absorption)``).
 
-All paths of a batch advance one bounce at a time (a wavefront): every ray query is one batched Embree call and every
-estimator is a few numpy expressions over all paths; there is no Python loop over rays.
+All paths of a batch advance one bounce at a time (a wavefront): every ray query is one batched Embree call, and
+everything between two queries is one compiled kernel over all paths (``reference_impl/kernels.py``, numba, ``nogil``
+so that the worker threads run kernels and Embree queries concurrently); there is no Python loop over rays. One
+bounce (:func:`_bounce`) is: closest hits of the wavefront (Embree) -> :func:`kernels.bounce` (emission at the hits,
+the Nd direct-light samples and the rays they need, Russian roulette and the next wavefront) -> shadow rays (Embree,
+any-hit; closest-hit for hemisphere sampling) -> :func:`kernels.resolve_shadow` / :func:`kernels.resolve_hemisphere`
+(the direct light). The functions ``_direct_*``, ``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments
+are the sections of ``kernels.bounce`` that compute each estimator; their formulas are the ones written above.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -31,12 +37,12 @@ from reference_impl import rng
 from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
-from reference_impl.intersect import Intersector, offset_origin
+from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.sampling import INV_PI, hemisphere_pdf, sample_hemisphere
+from reference_impl.sampling import INV_PI
 from reference_impl.settings import Settings
 
-# What each random dimension is for (see rng.dimension).
+# What each random dimension is for (see rng.dimension); the kernels use the same numbers (kernels.FILM_X, ...).
 _FILM_X, _FILM_Y = 0, 1
 _LIGHT_SELECT, _LIGHT_TRIANGLE, _LIGHT_U1, _LIGHT_U2 = 2, 3, 4, 5
 _DIRECT_DIR_U1, _DIRECT_DIR_U2 = 6, 7
@@ -54,6 +60,17 @@ COUNTERS = (
     "roulette_terminated",  # paths ended by Russian roulette (including zero-albedo surfaces)
     "nonfinite_samples",  # camera samples whose radiance is NaN or infinite
 )
+# Time, in microseconds, the worker threads spent inside Embree queries (summed over threads, so it can exceed the
+# wall time): the only entry of ``stats`` that is not a deterministic count.
+EMBREE_MICROSECONDS = "embree_microseconds"
+
+
+def _kernels():
+    """reference_impl.kernels, imported on first use (importing numba takes a few tenths of a second, which only a
+    render needs to pay)."""
+    from reference_impl import kernels
+
+    return kernels
 
 
 @dataclass
@@ -62,7 +79,8 @@ class RenderOutput:
 
     image    (H, W, 3) float32: mean of the Np weighted samples of each pixel.
     variance (H, W, 3) float32: variance of that mean (sample variance / Np); NaN when Np = 1.
-    stats    counters (see ``COUNTERS``) plus ``paths`` (camera paths traced).
+    stats    counters (see ``COUNTERS``) plus ``paths`` (camera paths traced) and ``embree_microseconds`` (time in
+             Embree queries, summed over threads).
     seconds  wall time of the render alone (no scene loading, no file writing).
     """
 
@@ -81,17 +99,64 @@ class _PathState:
     key: np.ndarray  # (n,) uint64 random-stream key
     origin: np.ndarray  # (n, 3)
     direction: np.ndarray  # (n, 3) unit
+    origin32: np.ndarray  # (n, 3) float32 copy of origin, for Embree
+    direction32: np.ndarray  # (n, 3) float32 copy of direction, for Embree
     beta: np.ndarray  # (n, 3) throughput: product of weights f cos / p / Ni / q so far
-    pdf_dir: np.ndarray | None  # (n,) Ni * p(Psi) of the ray that reached the next vertex (MIS only)
+    pdf_dir: np.ndarray  # (n,) Ni * p(Psi) of the ray that reached the next vertex (used by MIS only)
 
     def __len__(self) -> int:
         return len(self.root)
 
-    def take(self, idx: np.ndarray) -> "_PathState":
-        return _PathState(
-            self.root[idx], self.key[idx], self.origin[idx], self.direction[idx], self.beta[idx],
-            None if self.pdf_dir is None else self.pdf_dir[idx],
-        )
+    def arrays(self) -> tuple:
+        return (self.root, self.key, self.origin, self.direction, self.origin32, self.direction32, self.beta,
+                self.pdf_dir)
+
+    def take(self, idx) -> "_PathState":
+        return _PathState(*(a[idx] for a in self.arrays()))
+
+
+def _alloc_state(capacity: int) -> tuple:
+    """Room for a wavefront of ``capacity`` paths (the fields of :class:`_PathState`)."""
+    return (np.empty(capacity, np.int64), np.empty(capacity, np.uint64), np.empty((capacity, 3)),
+            np.empty((capacity, 3)), np.empty((capacity, 3), np.float32), np.empty((capacity, 3), np.float32),
+            np.empty((capacity, 3)), np.empty(capacity))
+
+
+def _view(buffers: tuple, n: int) -> tuple:
+    return tuple(a[:n] for a in buffers)
+
+
+class _Workspace:
+    """One worker thread's buffers, reused by every bounce of every batch it traces: two wavefronts (with Ni = 1 the
+    next wavefront is written into the one the current wavefront does not use), and the hits of a bounce with their
+    direct-light rays. Writing into fresh memory at every bounce costs page faults: about a fifth of the render time
+    at the default batch size. Buffers only grow; one that is replaced stays alive as long as a view of it does."""
+
+    def __init__(self, nd: int, hemisphere: bool):
+        self._nd = nd
+        self._hemisphere = hemisphere
+        self._states: list[tuple | None] = [None, None]
+        self._hit_capacity = -1
+        self.hits = self.total = self.rays = None
+
+    def state(self, which: int, n: int) -> tuple:
+        """Wavefront buffer ``which`` (0 or 1), with room for ``n`` paths."""
+        buf = self._states[which]
+        if buf is None or len(buf[0]) < n:
+            buf = self._states[which] = _alloc_state(n)
+        return buf
+
+    def direct(self, n: int) -> tuple:
+        """(hits, total, rays) with room for ``n`` hits and their Nd direct-light rays each (see kernels.bounce)."""
+        if self._hit_capacity < n:
+            cap, hemi = n * self._nd, self._hemisphere
+            self.hits = np.empty(n, np.int64)
+            self.total = np.empty((n, 3))
+            self.rays = (np.empty(cap, np.int64), np.empty((cap, 3), np.float32), np.empty((cap, 3), np.float32),
+                         np.empty(0 if hemi else cap, np.float32), np.empty((cap, 3)), np.empty(cap if hemi else 0),
+                         np.empty((cap if hemi else 0, 3)))
+            self._hit_capacity = n
+        return self.hits, self.total, self.rays
 
 
 class _Context:
@@ -116,10 +181,92 @@ class _Context:
         self.double_emission = settings.mutant == "double-emission"
         self.reflectance = geometry.reflectance / np.pi  # f_r of each material
         self.split_cap = 4 * settings.batch_size
+        self.hemisphere_direct = settings.direct in ("hemisphere-cosine", "hemisphere-uniform")
+        self._local = threading.local()
+        self._kernel_tables()
+
+    def workspace(self) -> _Workspace:
+        """The calling thread's buffers."""
+        ws = getattr(self._local, "workspace", None)
+        if ws is None:
+            ws = self._local.workspace = _Workspace(self.settings.shadow_rays, self.hemisphere_direct)
+        return ws
+
+    def _kernel_tables(self) -> None:
+        """The scene, the samplers and the settings as the flat arrays the kernels take."""
+        kernels = _kernels()
+        g, s = self.geometry, self.settings
+        c = np.ascontiguousarray
+        self.scene_tables = (
+            c(self.intersector.prim_to_tri, dtype=np.int64), c(g.normal), c(g.corners[:, 0]), c(g.corners),
+            c(g.emission), c(g.light_id), c(g.material), c(g.two_sided), c(self.reflectance),
+            c(np.max(g.reflectance, axis=1)) if len(g.reflectance) else np.zeros(0),  # survival for rr = "albedo"
+        )
+        if self.lights is not None:
+            lt = self.lights
+            self.light_tables = (c(lt.cdf, dtype=np.float64), c(lt.triangles, dtype=np.int64), c(lt.first, dtype=np.int64),
+                                 c(lt.count, dtype=np.int64), c(lt.within_cdf, dtype=np.float64),
+                                 c(lt.pmf, dtype=np.float64), c(lt.area, dtype=np.float64))
+        else:
+            empty_f, empty_i = np.zeros(0), np.zeros(0, np.int64)
+            self.light_tables = (empty_f, empty_i, empty_i, empty_i, empty_f, empty_f, empty_f)
+        if self.all_surfaces is not None:
+            self.surface_tables = (c(self.all_surfaces.triangles, dtype=np.int64), c(self.all_surfaces.cdf, dtype=np.float64))
+            surface_pdf = 1.0 / self.all_surfaces.total_area
+        else:
+            self.surface_tables = (np.zeros(0, np.int64), np.zeros(0))
+            surface_pdf = 0.0
+        self.cfg_f = np.zeros(kernels.CFGF_SIZE)
+        self.cfg_f[kernels.CFGF_FIXED_SURVIVAL] = 1.0 - s.absorption
+        self.cfg_f[kernels.CFGF_OFFSET_SCENE] = self.intersector.offset_scene
+        self.cfg_f[kernels.CFGF_SURFACE_PDF] = surface_pdf
+        cfg = np.zeros(kernels.CFG_SIZE, np.int64)
+        cfg[kernels.CFG_DIRECT] = kernels.DIRECT_MODES[s.direct]
+        cfg[kernels.CFG_ND] = s.shadow_rays
+        cfg[kernels.CFG_NI] = s.indirect_rays
+        cfg[kernels.CFG_HEMI_COSINE] = s.hemisphere == "cosine"
+        cfg[kernels.CFG_RR] = kernels.RR_MODES[s.rr]
+        cfg[kernels.CFG_RR_DEPTH] = s.rr_depth
+        cfg[kernels.CFG_MUTANTS] = kernels.MUTANT_BITS.get(self.mutant, 0)
+        cfg[kernels.CFG_NUM_LIGHTS] = self.geometry.num_lights
+        self._cfg = cfg
+        self.filter_kind = kernels.FILTER_KINDS[self.filter.name]
+        width, height = self.film.width, self.film.height
+        self.tan_half_fov = self.camera.tan_half_fov(width, height)
+        self.camera_frame = c(self.camera.frame(), dtype=np.float64)
+        self.eye = np.asarray(self.camera.origin, dtype=np.float64)
+        self.seed_key = np.uint64(rng._mix64_int(s.seed ^ int(rng._GOLDEN)))
+
+    def bounce_config(self, depth: int) -> np.ndarray:
+        """The kernels' integer settings for the hits of vertex ``depth``."""
+        kernels = _kernels()
+        cfg = self._cfg.copy()
+        cfg[kernels.CFG_DEPTH] = depth
+        # Emission Le(x -> Theta): only for the viewing ray's hit (eq. 5.2 recurses on L_r), unless MIS weighs the
+        # indirect ray as a direct-light sample, or the double-counting mutant is on.
+        if depth == 1 or self.double_emission:
+            cfg[kernels.CFG_EMIT] = kernels.EMIT_ALL
+        elif self.mis:
+            cfg[kernels.CFG_EMIT] = kernels.EMIT_MIS
+        else:
+            cfg[kernels.CFG_EMIT] = kernels.EMIT_NONE
+        cfg[kernels.CFG_ALLOW_NEXT] = self.depth_allows(depth + 1)
+        # Indirect light (Fig. 5.14): needed if the next vertex can still add anything.
+        cfg[kernels.CFG_ALLOW_INDIRECT] = self.depth_allows(depth + 2) or (self.mis and self.depth_allows(depth + 1))
+        return cfg
 
     def depth_allows(self, path_length: int) -> bool:
         """Whether paths of this many segments are counted (Mitsuba's max_depth)."""
         return self.max_depth == -1 or path_length <= self.max_depth
+
+
+class _Clock:
+    """Seconds one worker spent inside Embree queries."""
+
+    __slots__ = ("seconds",)
+
+    def __init__(self):
+        self.seconds = 0.0
 
 
 def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, progress=None) -> RenderOutput:
@@ -130,6 +277,7 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     ``settings.seed``: not on ``batch_size`` or ``threads``.
     """
     ctx = _Context(geometry, camera, film, settings)
+    kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp
     num_pixels = width * height
     threads = settings.worker_threads()
@@ -143,20 +291,20 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     total = np.zeros((num_pixels, 3))
     total_sq = np.zeros((num_pixels, 3))
     stats = dict.fromkeys(COUNTERS, 0)
+    stats[EMBREE_MICROSECONDS] = 0
     start = time.perf_counter()
 
     def run_unit(unit):
         p0, p1 = unit
         unit_stats = dict.fromkeys(COUNTERS, 0)
+        unit_stats[EMBREE_MICROSECONDS] = 0
         for s0 in range(0, spp, samples_per_chunk):
             s1 = min(spp, s0 + samples_per_chunk)
             pixel = np.repeat(np.arange(p0, p1, dtype=np.int64), s1 - s0)
             sample = np.tile(np.arange(s0, s1, dtype=np.int64), p1 - p0)
             values = _trace_camera_paths(ctx, pixel, sample, unit_stats)
-            values = values.reshape(p1 - p0, s1 - s0, 3)
-            # Sequential sums (cumsum never reorders), so chunking cannot change a single bit.
-            total[p0:p1] = np.cumsum(np.concatenate([total[p0:p1, None], values], axis=1), axis=1)[:, -1]
-            total_sq[p0:p1] = np.cumsum(np.concatenate([total_sq[p0:p1, None], values**2], axis=1), axis=1)[:, -1]
+            # Sequential sums in sample order, so chunking cannot change a single bit.
+            kernels.accumulate(total, total_sq, p0, values, s1 - s0)
         return (p1 - p0) * spp, unit_stats
 
     done = 0
@@ -193,244 +341,90 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
 
 def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict) -> np.ndarray:
     """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16."""
+    kernels = _kernels()
     width, height = ctx.film.width, ctx.film.height
-    keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
-    dx, dy, weight = ctx.filter.sample(rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y)))
-    film_x = (pixel % width) + 0.5 + dx
-    film_y = (pixel // width) + 0.5 + dy
-    if ctx.mutant == "camera-half-pixel":
-        film_x, film_y = film_x + 0.5, film_y + 0.5
-    origins, directions = ctx.camera.generate_rays(film_x, film_y, width, height)
+    tan_x, tan_y = ctx.tan_half_fov
     n = len(pixel)
-    stats["camera_rays"] += n
-    radiance = np.zeros((n, 3))
-    state = _PathState(
-        root=np.arange(n), key=keys, origin=np.ascontiguousarray(origins), direction=directions,
-        beta=np.repeat(weight[:, None], 3, axis=1), pdf_dir=None,
+    if ctx.filter_kind == kernels.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
+        keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
+        filter_samples = ctx.filter.sample(rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y)))
+    else:
+        filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
+    first = _view(ctx.workspace().state(0, n), n)
+    kernels.camera_paths(
+        np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key,
+        ctx.settings.spp, width, height, ctx.filter_kind, filter_samples, ctx.mutant == "camera-half-pixel",
+        tan_x, tan_y, ctx.camera_frame, ctx.eye, first,
     )
-    _trace(ctx, state, 1, radiance, stats)
-    if ctx.mutant == "energy-loss-2pct":
-        radiance *= 0.98
-    stats["nonfinite_samples"] += int(np.count_nonzero(~np.all(np.isfinite(radiance), axis=1)))
+    radiance = np.zeros((n, 3))
+    counters = np.zeros(len(COUNTERS), np.int64)
+    counters[kernels.C_CAMERA] = n
+    clock = _Clock()
+    _trace(ctx, _PathState(*first), 1, radiance, counters, clock)
+    counters[kernels.C_NONFINITE] += kernels.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
+    for name, count in zip(COUNTERS, counters.tolist()):
+        stats[name] += count
+    stats[EMBREE_MICROSECONDS] += int(round(clock.seconds * 1e6))
     return radiance
 
 
-def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, stats: dict) -> None:
-    """Advance the wavefront until every path has ended. With Ni > 1 the wavefront grows; it is then split at
-    camera-sample boundaries, so each sample's contributions are still summed in the same order."""
+def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock) -> None:
+    """Advance the wavefront until every path has ended. With Ni = 1 it never grows: it lives in the thread's
+    workspace, the next wavefront written into the other half of it. With Ni > 1 it grows; each next wavefront is
+    new memory, and a wavefront is split at camera-sample boundaries, so each sample's contributions are still
+    summed in the same order."""
+    if ctx.settings.indirect_rays == 1:
+        ws = ctx.workspace()
+        current = 0  # state is in wavefront buffer 0 (the camera rays)
+        while len(state):
+            state = _bounce(ctx, state, depth, radiance, counters, clock, ws.state(1 - current, len(state)))
+            current = 1 - current
+            depth += 1
+        return
     while len(state):
         if len(state) > ctx.split_cap:
             mid = np.searchsorted(state.root, state.root[len(state) // 2])
             if mid == 0:
                 mid = np.searchsorted(state.root, state.root[0], side="right")
             if mid < len(state):
-                _trace(ctx, state.take(slice(0, mid)), depth, radiance, stats)
-                _trace(ctx, state.take(slice(mid, None)), depth, radiance, stats)
+                _trace(ctx, state.take(slice(0, mid)), depth, radiance, counters, clock)
+                _trace(ctx, state.take(slice(mid, None)), depth, radiance, counters, clock)
                 return
-        state = _bounce(ctx, state, depth, radiance, stats)
+        state = _bounce(ctx, state, depth, radiance, counters, clock, _alloc_state(len(state) * ctx.settings.indirect_rays))
         depth += 1
 
 
-def _add(ctx: _Context, radiance: np.ndarray, root: np.ndarray, value: np.ndarray) -> None:
-    if ctx.settings.indirect_rays == 1:
-        radiance[root] += value  # roots are unique when paths never branch
-    else:
-        np.add.at(radiance, root, value)
-
-
-def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, stats: dict) -> _PathState:
+def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock,
+            out: tuple) -> _PathState:
     """Find the hits x of the current rays (vertex number ``depth``), add their contributions and return the rays
-    of the next wavefront."""
-    g = ctx.geometry
-    tri, t = ctx.intersector.closest_hit(state.origin, state.direction)
-    hit = tri >= 0
-    stats["escaped_rays"] += int(np.count_nonzero(~hit))
-    if not np.all(hit):
-        state = state.take(hit)
-        tri, t = tri[hit], t[hit]
-    if not len(state):
-        return state
-    x = state.origin + t[:, None] * state.direction
-    normal = g.normal[tri]
-    cos_out = -np.einsum("ij,ij->i", state.direction, normal)  # cos between N_x and Theta (toward the eye)
-    front = cos_out > 0
-
-    # Emission Le(x -> Theta): only for the viewing ray's hit (eq. 5.2 recurses on L_r), unless MIS weighs the
-    # indirect ray as a direct-light sample, or the double-counting mutant is on.
-    emitted = g.emission[tri] * front[:, None]
-    if depth == 1 or ctx.double_emission:
-        _add(ctx, radiance, state.root, state.beta * emitted)
-    elif ctx.mis:
-        _add(ctx, radiance, state.root, state.beta * emitted * _mis_weight_hemisphere(ctx, state, tri, t, cos_out)[:, None])
-
-    if not ctx.depth_allows(depth + 1):
-        return state.take(np.zeros(0, np.int64))
-    material = g.material[tri]
-    reflects = front | g.two_sided[material]
-    stats["back_face_absorbed"] += int(np.count_nonzero(~reflects))
-    if not np.all(reflects):
-        keep = np.flatnonzero(reflects)
-        state, tri, x, normal, front, material = state.take(keep), tri[keep], x[keep], normal[keep], front[keep], material[keep]
-    normal = np.where(front[:, None], normal, -normal)  # the side Theta leaves from
-    f_r = ctx.reflectance[material]
-
-    if ctx.has_lights:
-        _add(ctx, radiance, state.root, state.beta * _direct_light(ctx, x, normal, f_r, state.key, depth, stats))
-
-    # Indirect light (Fig. 5.14): needed if the next vertex can still add anything.
-    if not (ctx.depth_allows(depth + 2) or (ctx.mis and ctx.depth_allows(depth + 1))):
-        return state.take(np.zeros(0, np.int64))
-    beta = state.beta
-    key = state.key
-    settings = ctx.settings
-    if settings.rr != "off" and depth >= settings.rr_depth:
-        if settings.rr == "albedo":
-            survival = np.max(g.reflectance[material], axis=1)
+    of the next wavefront (written into ``out``, room for Ni rows per current row)."""
+    kernels = _kernels()
+    intersector = ctx.intersector
+    t0 = time.perf_counter()
+    prim = intersector.closest_prims(state.origin32, state.direction32)
+    clock.seconds += time.perf_counter() - t0
+    hits, total, rays = ctx.workspace().direct(len(state))
+    m, s, n_next = kernels.bounce(
+        state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
+        ctx.cfg_f, radiance, counters, hits, rays, out,
+    )
+    if m:
+        nd = ctx.settings.shadow_rays
+        hits = hits[:m]
+        owner, o32, d32, tfar, value, aux, direction = rays
+        if ctx.hemisphere_direct:
+            t0 = time.perf_counter()
+            s_prim = intersector.closest_prims(o32[:s], d32[:s])
+            clock.seconds += time.perf_counter() - t0
+            kernels.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
+                                       s_prim, ctx.scene_tables[0], ctx.scene_tables[1], ctx.scene_tables[4],
+                                       total, radiance)
         else:
-            survival = np.full(len(state), 1.0 - settings.absorption)
-        alive = rng.uniform(key, rng.dimension(depth, _ROULETTE)) < survival
-        stats["roulette_terminated"] += int(np.count_nonzero(~alive))
-        keep = np.flatnonzero(alive)
-        beta = beta[keep] if ctx.mutant == "rr-no-reweight" else beta[keep] / survival[keep, None]
-        key, x, normal, f_r, root = key[keep], x[keep], normal[keep], f_r[keep], state.root[keep]
-    else:
-        root = state.root
-    branches = settings.indirect_rays
-    if branches > 1:
-        root, x, normal, f_r, beta = (np.repeat(a, branches, axis=0) for a in (root, x, normal, f_r, beta))
-        key = np.concatenate([rng.branch_keys(key, b, depth)[:, None] for b in range(branches)], axis=1).reshape(-1)
-    u1 = rng.uniform(key, rng.dimension(depth, _INDIRECT_U1))
-    u2 = rng.uniform(key, rng.dimension(depth, _INDIRECT_U2))
-    direction, cos_theta, pdf = sample_hemisphere(settings.hemisphere, u1, u2, normal)
-    if ctx.mutant == "cosine-pdf-pi" and settings.hemisphere == "cosine":
-        pdf = pdf * np.pi
-    cos_factor = np.ones_like(cos_theta) if ctx.mutant == "no-cosine" else cos_theta
-    with np.errstate(divide="ignore", invalid="ignore"):
-        beta = beta * (f_r * (cos_factor / (pdf * branches))[:, None])
-    carries = np.all(np.isfinite(beta), axis=1) & np.any(beta > 0, axis=1)
-    stats["roulette_terminated"] += int(np.count_nonzero(~carries))
-    keep = np.flatnonzero(carries)
-    origin = offset_origin(x[keep], normal[keep], ctx.intersector.offset(x[keep]))
-    stats["indirect_rays"] += len(keep)
-    return _PathState(
-        root=root[keep], key=key[keep], origin=origin, direction=direction[keep], beta=beta[keep],
-        pdf_dir=(pdf[keep] * branches) if ctx.mis else None,
-    )
+            t0 = time.perf_counter()
+            s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])
+            clock.seconds += time.perf_counter() - t0
+            kernels.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
+    return _PathState(*_view(out, n_next))
 
 
-def _direct_light(ctx: _Context, x, normal, f_r, key, depth: int, stats: dict) -> np.ndarray:
-    """<L_direct(x -> Theta)> with Nd samples of the chosen strategy: the average of Nd one-sample estimates."""
-    strategy = ctx.settings.direct
-    nd = ctx.settings.shadow_rays
-    total = np.zeros((len(x), 3))
-    for j in range(nd):  # one batched query per shadow-ray index; Nd is small and each pass covers all paths
-        if strategy in ("area", "mis"):
-            total += _direct_area_sample(ctx, x, normal, f_r, key, depth, j, stats)
-        elif strategy == "global-area":
-            total += _direct_global_area_sample(ctx, x, normal, f_r, key, depth, j, stats)
-        else:
-            total += _direct_hemisphere_sample(ctx, x, normal, f_r, key, depth, j, stats)
-    return total / nd
-
-
-def _direct_area_sample(ctx, x, normal, f_r, key, depth, j, stats) -> np.ndarray:
-    """One sample of eq. 5.3 by light sampling (Fig. 5.10): Le f_r G V / (pdf(k) pdf(y|k))."""
-    dim = lambda purpose: rng.dimension(depth, purpose, j)  # noqa: E731
-    light, points = ctx.lights.sample(
-        rng.uniform(key, dim(_LIGHT_SELECT)), rng.uniform(key, dim(_LIGHT_TRIANGLE)),
-        rng.uniform(key, dim(_LIGHT_U1)), rng.uniform(key, dim(_LIGHT_U2)),
-    )
-    if ctx.mutant == "light-pdf-ignored":
-        points = dataclasses.replace(points, pdf_area=1.0 / ctx.lights.area[light])  # pdf(y|k) alone
-    mis_weight = None
-    if ctx.mis:
-        mis_weight = lambda cos_x, cos_y, dist2, pdf_area: _mis_weight_light(ctx, cos_x, cos_y, dist2, pdf_area)  # noqa: E731
-    return _shadow_ray_estimate(ctx, x, normal, f_r, points.triangle, points.position, points.normal, points.pdf_area, stats, mis_weight)
-
-
-def _direct_global_area_sample(ctx, x, normal, f_r, key, depth, j, stats) -> np.ndarray:
-    """One sample of eq. 5.3 with y uniform over all surfaces of the scene (Fig. 5.13): pdf(y) = 1 / A_scene.
-    Points that are not on a light contribute zero and cost no ray."""
-    dim = lambda purpose: rng.dimension(depth, purpose, j)  # noqa: E731
-    points = ctx.all_surfaces.sample(
-        rng.uniform(key, dim(_LIGHT_TRIANGLE)), rng.uniform(key, dim(_LIGHT_U1)), rng.uniform(key, dim(_LIGHT_U2)),
-    )
-    return _shadow_ray_estimate(ctx, x, normal, f_r, points.triangle, points.position, points.normal, points.pdf_area, stats)
-
-
-def _shadow_ray_estimate(ctx, x, normal, f_r, tri, y, normal_y, pdf_area, stats, mis_weight=None) -> np.ndarray:
-    """Le(y -> x) f_r G(x, y) V(x, y) / p(y) for sampled points y, with a shadow ray only where it can matter."""
-    g = ctx.geometry
-    result = np.zeros((len(x), 3))
-    to_light = y - x
-    dist2 = np.einsum("ij,ij->i", to_light, to_light)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        wi = to_light / np.sqrt(dist2)[:, None]
-    cos_x = np.einsum("ij,ij->i", normal, wi)
-    cos_y = -np.einsum("ij,ij->i", normal_y, wi)
-    # No ray toward a point that faces away, lies behind x, or does not emit.
-    needed = (cos_x > 0) & (cos_y > 0) & (g.light_id[tri] >= 0) & (dist2 > 0)
-    stats["shadow_rays_skipped"] += int(np.count_nonzero(~needed))
-    idx = np.flatnonzero(needed)
-    if not len(idx):
-        return result
-    xs, ys = x[idx], y[idx]
-    if ctx.mutant == "no-ray-offset":
-        origin = xs
-    else:
-        origin = offset_origin(xs, normal[idx], ctx.intersector.offset(xs))
-    seg = ys - origin
-    seg_len = np.sqrt(np.einsum("ij,ij->i", seg, seg))
-    direction = seg / seg_len[:, None]
-    t_max = seg_len * (1.0 - 1e-6) - ctx.intersector.offset(ys)
-    visible = ~ctx.intersector.occluded(origin, direction, t_max)
-    stats["shadow_rays"] += len(idx)
-    cos_at_x = 1.0 if ctx.mutant == "no-cosine" else cos_x[idx]
-    geometry_term = cos_at_x * cos_y[idx] / dist2[idx]  # G(x, y)
-    value = g.emission[tri[idx]] * f_r[idx] * (geometry_term * visible / pdf_area[idx])[:, None]
-    if mis_weight is not None:
-        value *= mis_weight(cos_x[idx], cos_y[idx], dist2[idx], pdf_area[idx])[:, None]
-    result[idx] = value
-    return result
-
-
-def _direct_hemisphere_sample(ctx, x, normal, f_r, key, depth, j, stats) -> np.ndarray:
-    """One sample of L_direct by hemisphere sampling (Fig. 5.12): trace a direction Psi from x and take the emission
-    Le(r(x, Psi) -> -Psi) of what it hits, weighted by f_r cos(Psi, N_x) / p(Psi)."""
-    g = ctx.geometry
-    kind = "cosine" if ctx.settings.direct == "hemisphere-cosine" else "uniform"
-    dim = lambda purpose: rng.dimension(depth, purpose, j)  # noqa: E731
-    direction, cos_theta, pdf = sample_hemisphere(kind, rng.uniform(key, dim(_DIRECT_DIR_U1)), rng.uniform(key, dim(_DIRECT_DIR_U2)), normal)
-    origin = offset_origin(x, normal, ctx.intersector.offset(x))
-    tri, _ = ctx.intersector.closest_hit(origin, direction)
-    stats["hemisphere_direct_rays"] += len(x)
-    result = np.zeros((len(x), 3))
-    idx = np.flatnonzero((tri >= 0) & (pdf > 0))
-    if len(idx):
-        th = tri[idx]
-        faces_x = np.einsum("ij,ij->i", direction[idx], g.normal[th]) < 0
-        weight = cos_theta[idx] / pdf[idx] * faces_x
-        result[idx] = g.emission[th] * f_r[idx] * weight[:, None]
-    return result
-
-
-def _mis_weight_light(ctx, cos_x, cos_y, dist2, pdf_area) -> np.ndarray:
-    """Power heuristic for a light sample: (Nd p_l)^2 / ((Nd p_l)^2 + (Ni p_b)^2), pdfs per unit solid angle."""
-    p_light = ctx.settings.shadow_rays * pdf_area * dist2 / cos_y
-    p_hemi = ctx.settings.indirect_rays * hemisphere_pdf(ctx.settings.hemisphere, cos_x)
-    return p_light**2 / (p_light**2 + p_hemi**2)
-
-
-def _mis_weight_hemisphere(ctx, state: _PathState, tri, t, cos_out) -> np.ndarray:
-    """Power heuristic for an indirect ray that lands on a light: (Ni p_b)^2 / ((Ni p_b)^2 + (Nd p_l)^2)."""
-    light = ctx.geometry.light_id[tri]
-    on_light = (light >= 0) & (cos_out > 0)
-    weight = np.zeros(len(tri))
-    if np.any(on_light):
-        p_light = ctx.settings.shadow_rays * ctx.lights.pdf_area(light[on_light]) * t[on_light] ** 2 / cos_out[on_light]
-        p_hemi = state.pdf_dir[on_light]
-        weight[on_light] = p_hemi**2 / (p_hemi**2 + p_light**2)
-    return weight
-
-
-__all__ = ["COUNTERS", "INV_PI", "RenderOutput", "render"]
+__all__ = ["COUNTERS", "EMBREE_MICROSECONDS", "INV_PI", "RenderOutput", "render"]

@@ -40,12 +40,38 @@ class Intersector:
             # Commit once, before threads share the scene.
             self._embree.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
 
+    @property
+    def prim_to_tri(self) -> np.ndarray:
+        """Triangle index of each Embree primitive (the usable triangles, in order)."""
+        return self._prim_to_tri if self._embree is not None else np.zeros(0, np.int64)
+
+    @property
+    def offset_scene(self) -> float:
+        """The scene-size part of :meth:`offset`."""
+        return _OFFSET_SCENE * self.scene_size
+
+    def closest_prims(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """Embree's closest-hit query on float32 (n, 3) C-contiguous rays: the primitive hit (an index into
+        :attr:`prim_to_tri`), -1 for a miss, as int32. The wavefront integrator calls this directly."""
+        n = len(origins)
+        if self._embree is None or n == 0:
+            return np.full(n, -1, np.int32)
+        return self._embree.run(origins, directions, query="INTERSECT")
+
+    def occluders(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
+        """Embree's any-hit query on float32 rays with float32 ``tfar``: >= 0 where something blocks the segment,
+        -1 where nothing does (int32)."""
+        n = len(origins)
+        if self._embree is None or n == 0:
+            return np.full(n, -1, np.int32)
+        return self._embree.run(origins, directions, dists=tfar, query="OCCLUDED")
+
     def closest_hit(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Triangle index (-1 for a miss) and float64 distance t along unit ``directions`` of the closest hit."""
         n = len(origins)
         if self._embree is None or n == 0:
             return np.full(n, -1, np.int64), np.full(n, np.inf)
-        prim = self._embree.run(_f32(origins), _f32(directions), query="INTERSECT")
+        prim = self.closest_prims(_f32(origins), _f32(directions))
         hit = prim >= 0
         tri = np.full(n, -1, np.int64)
         tri[hit] = self._prim_to_tri[prim[hit]]
@@ -67,8 +93,7 @@ class Intersector:
         if self._embree is None or n == 0:
             return np.zeros(n, bool)
         tfar = np.ascontiguousarray(np.maximum(t_max, 0.0), dtype=np.float32)
-        geom = self._embree.run(_f32(origins), _f32(directions), dists=tfar, query="OCCLUDED")
-        return geom >= 0
+        return self.occluders(_f32(origins), _f32(directions), tfar) >= 0
 
     def offset(self, points: np.ndarray) -> np.ndarray:
         """Per-point distance by which to move a ray origin off the surface along its normal."""

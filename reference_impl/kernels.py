@@ -1,0 +1,595 @@
+"""Compiled kernels of the integrator: the per-path arithmetic of one bounce, over whole arrays, in numba.
+
+The wavefront of ``integrator.py`` alternates between batched Embree queries (``intersect.py``) and the kernels
+here; a kernel loops over every path of the batch once and does all the arithmetic of its stage without numpy
+temporaries. They compute exactly what the numpy definitions compute, with the same random numbers:
+
+* random numbers: :mod:`reference_impl.rng` (``mix64``, ``path_keys``, ``branch_keys``, ``uniform``,
+  ``dimension``) -> :func:`mix64`, :func:`dim_salt`, :func:`uniform`, :func:`branch_salt`;
+* warps: :mod:`reference_impl.sampling` -> :func:`cosine_hemisphere`, :func:`uniform_hemisphere`,
+  :func:`to_world`, :func:`sample_discrete`;
+* light sampling: :mod:`reference_impl.lights` -> :func:`_sample_light_point`, :func:`_sample_surface_point`;
+* pixel filters: :mod:`reference_impl.filters` -> :func:`_filter_sample` (box and tent).
+
+The numpy functions stay the documented definitions (the chi^2 tests run them); the kernels repeat the same
+formulas, operation for operation (same order of floating-point operations wherever the numpy code fixes one), so
+images are bit for bit those of the numpy implementation they replaced: checked for every setting and planted fault
+on the development machine (docs/performance.md). The order of numpy's einsum sums and the last bits of sin/cos/sqrt
+come from the numpy build, the CPU and libm, so elsewhere the two may differ in last bits (each still deterministic).
+``tests/benchmarks/test_kernel_equivalence.py`` checks the warps, light sampling and random numbers against the numpy
+functions, bit for bit.
+
+Every kernel is ``nogil`` (the integrator's thread pool runs them concurrently, as it runs Embree queries) and
+sequential within a batch, so results never depend on the thread count or the batch size. ``cache=True`` keeps the
+compiled code in ``reference_impl/__pycache__``: only the first import on a machine pays the compile time.
+IEEE semantics are kept: no ``fastmath`` (no reassociation, no FMA contraction), and ``error_model="numpy"`` so a
+division by zero gives inf/NaN as in numpy instead of raising.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from reference_impl.rng import _GOLDEN, _M1, _M2, _S11, _S27, _S30, _S31, _TO_UNIT
+
+_JIT = dict(cache=True, nogil=True, error_model="numpy")
+
+_PI = np.pi
+_INV_PI = 1.0 / np.pi  # the same constant as sampling.INV_PI
+_PI_4 = np.pi / 4
+_PI_2 = np.pi / 2
+_TWO_PI = 2.0 * np.pi
+_HALF_INV_PI = 0.5 * _INV_PI
+_U32 = np.uint64(32)
+_U40 = np.uint64(40)
+_ONE = np.uint64(1)
+
+# Relative offset of ray origins (intersect._OFFSET_REL), repeated so the kernels need no import of Embree.
+_OFFSET_REL = 2.0**-17
+
+# Random-number purposes (integrator: rng.dimension(depth, purpose, index)).
+FILM_X, FILM_Y = 0, 1
+LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2 = 2, 3, 4, 5
+DIRECT_DIR_U1, DIRECT_DIR_U2 = 6, 7
+ROULETTE = 8
+INDIRECT_U1, INDIRECT_U2 = 9, 10
+
+# Counters, in the order of integrator.COUNTERS.
+C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE = range(9)
+
+# Integer configuration of one bounce (the ``cfg`` array of :func:`bounce`).
+(CFG_DEPTH, CFG_EMIT, CFG_ALLOW_NEXT, CFG_ALLOW_INDIRECT, CFG_DIRECT, CFG_ND, CFG_NI, CFG_HEMI_COSINE, CFG_RR,
+ CFG_RR_DEPTH, CFG_MUTANTS, CFG_NUM_LIGHTS, CFG_SIZE) = range(13)
+# Float configuration (the ``cfg_f`` array).
+CFGF_FIXED_SURVIVAL, CFGF_OFFSET_SCENE, CFGF_SURFACE_PDF, CFGF_SIZE = range(4)
+
+EMIT_NONE, EMIT_ALL, EMIT_MIS = 0, 1, 2  # emission at the hit: not counted, counted, counted with the MIS weight
+DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM = range(5)
+DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
+                "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM}
+RR_OFF, RR_ALBEDO, RR_FIXED = 0, 1, 2
+RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED}
+FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
+FILTER_KINDS = {"box": FILTER_BOX, "tent": FILTER_TENT, "gaussian": FILTER_GAUSSIAN}
+
+# Planted faults (reference_impl/mutants.py) that live in the kernels, as bits of cfg[CFG_MUTANTS]; each place one
+# changes is marked with a comment naming it. ("camera-half-pixel" is an argument of camera_paths; "double-emission" is the
+# EMIT_ALL mode chosen by the integrator; "energy-loss-2pct" is the scale of finish_samples.)
+M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET = 1, 2, 4, 8, 16
+MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-no-reweight": M_RR_NO_REWEIGHT,
+               "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET}
+
+
+# ---------------------------------------------------------------------------------------------- random numbers
+
+
+@njit(**_JIT)
+def mix64(x):
+    """rng.mix64 on one uint64 (wrapping uint64 arithmetic)."""
+    x = (x ^ (x >> _S30)) * _M1
+    x = (x ^ (x >> _S27)) * _M2
+    return x ^ (x >> _S31)
+
+
+@njit(**_JIT)
+def dim_salt(depth, purpose, index):
+    """What rng.uniform adds to a key for dimension rng.dimension(depth, purpose, index): (dim + 1) * golden."""
+    dim = (np.uint64(depth) << _U40) | (np.uint64(purpose) << _U32) | np.uint64(index)
+    return (dim + _ONE) * _GOLDEN
+
+
+@njit(**_JIT)
+def uniform(key, salt):
+    """rng.uniform of one key, with ``salt = dim_salt(...)``: a float64 in [0, 1) with 53 random bits."""
+    return np.float64(mix64(key + salt) >> _S11) * _TO_UNIT
+
+
+@njit(**_JIT)
+def branch_salt(branch, depth):
+    """rng.branch_keys(keys, branch, depth) is mix64(keys ^ branch_salt(branch, depth))."""
+    return mix64((np.uint64(depth & 0xFFFF) << _U32) | np.uint64(branch & 0xFFFFFFFF))
+
+
+@njit(**_JIT)
+def path_key(seed_key, path_id):
+    """rng.path_keys for one path id, with ``seed_key = mix64(seed ^ golden)``."""
+    return mix64((np.uint64(path_id) * _GOLDEN) ^ seed_key)
+
+
+# ---------------------------------------------------------------------------------------------------- warps
+
+
+@njit(**_JIT)
+def dot3(a0, a1, a2, b0, b1, b2):
+    """A dot product of 3-vectors, summed in the order numpy's ``einsum("ij,ij->i")`` uses for rows of three (two
+    SIMD lanes: (a0 b0 + a2 b2) + a1 b1), so the kernels reproduce the numpy estimators' bits."""
+    return (a0 * b0 + a2 * b2) + a1 * b1
+
+
+@njit(**_JIT)
+def cosine_hemisphere(u1, u2):
+    """sampling.square_to_cosine_hemisphere for one pair of uniforms: local (x, y, z)."""
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    if abs(a) > abs(b):
+        r = a
+        phi = _PI_4 * (b / a)
+    else:
+        r = b
+        phi = 0.0 if (a == 0.0 and b == 0.0) else _PI_2 - _PI_4 * (a / b)
+    x = r * math.cos(phi)
+    y = r * math.sin(phi)
+    return x, y, math.sqrt(max(0.0, 1.0 - x * x - y * y))
+
+
+@njit(**_JIT)
+def uniform_hemisphere(u1, u2):
+    """sampling.square_to_uniform_hemisphere for one pair of uniforms."""
+    z = u1
+    r = math.sqrt(max(0.0, 1.0 - z * z))
+    phi = _TWO_PI * u2
+    return r * math.cos(phi), r * math.sin(phi), z
+
+
+@njit(**_JIT)
+def hemisphere_pdf(cosine, cos_theta):
+    """sampling.hemisphere_pdf: cos / pi ("cosine") or 1 / (2 pi) ("uniform") above the surface, else 0."""
+    if cos_theta > 0:
+        return cos_theta * _INV_PI if cosine else _HALF_INV_PI
+    return 0.0
+
+
+@njit(**_JIT)
+def to_world(lx, ly, lz, n0, n1, n2):
+    """sampling.to_world for one direction (frame of sampling.coordinate_frame, Duff et al. 2017)."""
+    sign = 1.0 if n2 >= 0 else -1.0
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    s0 = 1.0 + sign * (n0 * n0) * a
+    s1 = sign * b
+    s2 = -sign * n0
+    t0 = b
+    t1 = sign + (n1 * n1) * a
+    t2 = -n1
+    return (lx * s0 + ly * t0 + lz * n0, lx * s1 + ly * t1 + lz * n1, lx * s2 + ly * t2 + lz * n2)
+
+
+@njit(**_JIT)
+def sample_hemisphere(cosine, u1, u2, n0, n1, n2):
+    """sampling.sample_hemisphere for one normal: world direction, cos(theta) and pdf."""
+    if cosine:
+        lx, ly, lz = cosine_hemisphere(u1, u2)
+    else:
+        lx, ly, lz = uniform_hemisphere(u1, u2)
+    w0, w1, w2 = to_world(lx, ly, lz, n0, n1, n2)
+    return w0, w1, w2, lz, hemisphere_pdf(cosine, lz)
+
+
+@njit(**_JIT)
+def sample_discrete(cdf, u):
+    """sampling.sample_discrete for one uniform: min(searchsorted(cdf, u, side="right"), len(cdf) - 1)."""
+    lo = 0
+    hi = len(cdf)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if cdf[mid] <= u:
+            lo = mid + 1
+        else:
+            hi = mid
+    return min(lo, len(cdf) - 1)
+
+
+@njit(**_JIT)
+def _point_on_triangle(corners, tri, u1, u2):
+    """lights._uniform_point_on for one triangle: c0 + b1 (c1 - c0) + b2 (c2 - c0)."""
+    s = math.sqrt(u1)
+    b1 = 1.0 - s
+    b2 = u2 * s
+    p0 = corners[tri, 0, 0] + b1 * (corners[tri, 1, 0] - corners[tri, 0, 0]) + b2 * (corners[tri, 2, 0] - corners[tri, 0, 0])
+    p1 = corners[tri, 0, 1] + b1 * (corners[tri, 1, 1] - corners[tri, 0, 1]) + b2 * (corners[tri, 2, 1] - corners[tri, 0, 1])
+    p2 = corners[tri, 0, 2] + b1 * (corners[tri, 1, 2] - corners[tri, 0, 2]) + b2 * (corners[tri, 2, 2] - corners[tri, 0, 2])
+    return p0, p1, p2
+
+
+@njit(**_JIT)
+def _sample_light_point(lights, num_lights, corners, u_select, u_tri, u1, u2):
+    """LightSampler.sample for one set of uniforms: (light k, triangle, point y)."""
+    cdf, triangles, first, count, within_cdf, _pmf, _area = lights
+    light = sample_discrete(cdf, u_select) if num_lights > 1 else 0
+    f = first[light]
+    lo = 0  # lights._search_within: bisection among light k's triangles
+    hi = count[light] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if within_cdf[f + mid] <= u_tri:
+            lo = mid + 1
+        else:
+            hi = mid
+    tri = triangles[f + lo]
+    p0, p1, p2 = _point_on_triangle(corners, tri, u1, u2)
+    return light, tri, p0, p1, p2
+
+
+@njit(**_JIT)
+def _sample_surface_point(surfaces, corners, u_tri, u1, u2):
+    """TriangleAreaSampler.sample for one set of uniforms: (triangle, point y)."""
+    triangles, cdf = surfaces
+    tri = triangles[sample_discrete(cdf, u_tri)]
+    p0, p1, p2 = _point_on_triangle(corners, tri, u1, u2)
+    return tri, p0, p1, p2
+
+
+@njit(**_JIT)
+def _offset(offset_scene, p0, p1, p2):
+    """Intersector.offset for one point."""
+    return _OFFSET_REL * max(abs(p0), abs(p1), abs(p2)) + offset_scene
+
+
+# ------------------------------------------------------------------------------------------------ pixel filter
+
+
+@njit(**_JIT)
+def _filter_sample(kind, u):
+    """PixelFilter.sample_1d of the box and tent filters for one uniform: (offset, weight)."""
+    if kind == FILTER_BOX:
+        return u - 0.5, 1.0
+    x = math.sqrt(2.0 * u) - 1.0 if u < 0.5 else 1.0 - math.sqrt(2.0 * (1.0 - u))
+    return x, 1.0
+
+
+@njit(**_JIT)
+def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filter_samples, half_pixel,
+                 tan_x, tan_y, frame, eye, out):
+    """The viewing rays of camera samples (pixel, sample) (integrator._trace_camera_paths, Camera.generate_rays).
+
+    Box and tent filter offsets are drawn here; the Gaussian's (a table lookup and exp) come in ``filter_samples``
+    (dx, dy, weight per sample, from PixelFilter.sample), so that numpy's exp, not libm's, gives their bits.
+    Writes the wavefront ``out`` (root, key, origin, direction, origin32, direction32, beta, pdf_dir): root i for
+    sample i, float64 origins and unit directions with their float32 copies for Embree, and the throughput (the
+    filter weight in all three channels).
+    """
+    pre_dx, pre_dy, pre_w = filter_samples
+    root, key, origin, direction, o32, d32, beta, pdf_dir = out
+    n = len(pixel)
+    salt_x = dim_salt(0, FILM_X, 0)
+    salt_y = dim_salt(0, FILM_Y, 0)
+    for i in range(n):
+        k = path_key(seed_key, np.uint64(pixel[i]) * np.uint64(spp) + np.uint64(sample[i]))
+        key[i] = k
+        if filter_kind == FILTER_GAUSSIAN:
+            dx, dy, w = pre_dx[i], pre_dy[i], pre_w[i]
+        else:
+            dx, wx = _filter_sample(filter_kind, uniform(k, salt_x))
+            dy, wy = _filter_sample(filter_kind, uniform(k, salt_y))
+            w = wx * wy
+        film_x = np.float64(pixel[i] % width) + 0.5 + dx
+        film_y = np.float64(pixel[i] // width) + 0.5 + dy
+        if half_pixel:  # mutant "camera-half-pixel"
+            film_x, film_y = film_x + 0.5, film_y + 0.5
+        l0 = (1.0 - 2.0 * film_x / width) * tan_x
+        l1 = (1.0 - 2.0 * film_y / height) * tan_y
+        d0 = l0 * frame[0, 0] + l1 * frame[0, 1] + frame[0, 2]
+        d1 = l0 * frame[1, 0] + l1 * frame[1, 1] + frame[1, 2]
+        d2 = l0 * frame[2, 0] + l1 * frame[2, 1] + frame[2, 2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        d0, d1, d2 = d0 / norm, d1 / norm, d2 / norm
+        direction[i, 0], direction[i, 1], direction[i, 2] = d0, d1, d2
+        d32[i, 0], d32[i, 1], d32[i, 2] = d0, d1, d2
+        for c in range(3):
+            origin[i, c] = eye[c]
+            o32[i, c] = eye[c]
+        beta[i, 0], beta[i, 1], beta[i, 2] = w, w, w
+        root[i] = i
+        pdf_dir[i] = 0.0
+
+
+# ------------------------------------------------------------------------------------------------------- bounce
+
+
+@njit(**_JIT)
+def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters, hits, rays, out):
+    """One bounce of the wavefront (integrator._bounce), given the closest hits ``prim`` of the current rays.
+
+    Adds the emission seen at the hits to ``radiance``, draws the Nd direct-light samples of each reflecting hit
+    (the rays they need: shadow rays, or closest-hit rays for hemisphere sampling, with what their results are
+    multiplied by) and the next wavefront (Russian roulette, Ni branches, hemisphere sampling). The direct light is
+    added by :func:`resolve_shadow` / :func:`resolve_hemisphere` once Embree has answered.
+
+    ``state`` and ``out`` are wavefronts (root, key, origin, direction, origin32, direction32, beta, pdf_dir), the
+    current one and room for the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the
+    reflecting hits, in order; ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the
+    direct-light rays of each hit, in sample order, Nd rows per row of ``state``. Returns how many hits, direct-light
+    rays and next paths were written.
+    """
+    root, key, origin, direction, _o32, _d32, beta, pdf_dir = state
+    x_root, x_key, x_origin, x_dir, x_o32, x_d32, x_beta, x_pdf = out
+    s_owner, s_o32, s_d32, s_tfar, s_value, s_aux, s_dir = rays
+    prim_to_tri, tri_normal, tri_v0, corners, emission, light_id, tri_material, two_sided, f_r_table, albedo_max = scene
+    light_pmf, light_area = lights[5], lights[6]
+    depth = cfg[CFG_DEPTH]
+    emit = cfg[CFG_EMIT]
+    allow_next = cfg[CFG_ALLOW_NEXT] != 0
+    allow_indirect = cfg[CFG_ALLOW_INDIRECT] != 0
+    direct = cfg[CFG_DIRECT]
+    nd = cfg[CFG_ND]
+    ni = cfg[CFG_NI]
+    hemi_cosine = cfg[CFG_HEMI_COSINE] != 0
+    rr = cfg[CFG_RR]
+    mutants = cfg[CFG_MUTANTS]
+    num_lights = cfg[CFG_NUM_LIGHTS]
+    fixed_survival = cfg_f[CFGF_FIXED_SURVIVAL]
+    offset_scene = cfg_f[CFGF_OFFSET_SCENE]
+    surface_pdf = cfg_f[CFGF_SURFACE_PDF]
+    no_cosine = (mutants & M_NO_COSINE) != 0
+    play_roulette = rr != RR_OFF and depth >= cfg[CFG_RR_DEPTH]
+    hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
+
+    n = len(root)
+    m = 0
+    s = 0
+    n_next = 0
+
+    salt_rr = dim_salt(depth, ROULETTE, 0)
+    salt_u1 = dim_salt(depth, INDIRECT_U1, 0)
+    salt_u2 = dim_salt(depth, INDIRECT_U2, 0)
+
+    for i in range(n):
+        p = prim[i]
+        if p < 0:
+            counters[C_ESCAPED] += 1
+            continue
+        tri = prim_to_tri[p]
+        nx0, nx1, nx2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
+        o0, o1, o2 = origin[i, 0], origin[i, 1], origin[i, 2]
+        d0, d1, d2 = direction[i, 0], direction[i, 1], direction[i, 2]
+        # Intersector.closest_hit: t recomputed in float64 from the triangle's plane.
+        denom = dot3(d0, d1, d2, nx0, nx1, nx2)
+        t = dot3(tri_v0[tri, 0] - o0, tri_v0[tri, 1] - o1, tri_v0[tri, 2] - o2, nx0, nx1, nx2) / denom
+        if not (math.isfinite(t) and t > 0):
+            t = 0.0
+        x0, x1, x2 = o0 + t * d0, o1 + t * d1, o2 + t * d2
+        cos_out = -dot3(d0, d1, d2, nx0, nx1, nx2)
+        front = cos_out > 0
+        b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
+        r = root[i]
+
+        # Emission Le(x -> Theta) (integrator._bounce and _mis_weight_hemisphere).
+        if emit != EMIT_NONE:
+            fr = 1.0 if front else 0.0
+            e0, e1, e2 = emission[tri, 0] * fr, emission[tri, 1] * fr, emission[tri, 2] * fr
+            if emit == EMIT_ALL:
+                radiance[r, 0] += b0 * e0
+                radiance[r, 1] += b1 * e1
+                radiance[r, 2] += b2 * e2
+            else:
+                light = light_id[tri]
+                w = 0.0
+                if light >= 0 and cos_out > 0:
+                    p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
+                    p_hemi = pdf_dir[i]
+                    w = p_hemi * p_hemi / (p_hemi * p_hemi + p_light * p_light)
+                radiance[r, 0] += b0 * e0 * w
+                radiance[r, 1] += b1 * e1 * w
+                radiance[r, 2] += b2 * e2 * w
+
+        if not allow_next:
+            continue
+        material = tri_material[tri]
+        if not (front or two_sided[material]):
+            counters[C_BACK_FACE] += 1
+            continue
+        if not front:  # the side Theta leaves from
+            nx0, nx1, nx2 = -nx0, -nx1, -nx2
+        f0, f1, f2 = f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2]
+        k = key[i]
+        h = m
+        hits[h] = i
+        m += 1
+        off_x = _offset(offset_scene, x0, x1, x2)
+        ox0, ox1, ox2 = x0 + off_x * nx0, x1 + off_x * nx1, x2 + off_x * nx2  # offset_origin(x, normal, ...)
+
+        # Direct light: Nd samples (integrator._direct_light and the one-sample estimators).
+        for j in range(nd):
+            if hemi_direct:  # _direct_hemisphere_sample: a closest-hit ray, resolved in resolve_hemisphere
+                w0, w1, w2, cos_theta, pdf = sample_hemisphere(
+                    direct == DIRECT_HEMI_COSINE, uniform(k, dim_salt(depth, DIRECT_DIR_U1, j)),
+                    uniform(k, dim_salt(depth, DIRECT_DIR_U2, j)), nx0, nx1, nx2)
+                counters[C_HEMI_DIRECT] += 1
+                s_owner[s] = h
+                s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
+                s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = w0, w1, w2
+                s_dir[s, 0], s_dir[s, 1], s_dir[s, 2] = w0, w1, w2
+                s_value[s, 0], s_value[s, 1], s_value[s, 2] = f0, f1, f2
+                s_aux[s] = cos_theta / pdf if pdf > 0 else -1.0
+                s += 1
+                continue
+            if direct == DIRECT_GLOBAL_AREA:  # _direct_global_area_sample
+                ltri, y0, y1, y2 = _sample_surface_point(
+                    surfaces, corners, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
+                    uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                pdf_area = surface_pdf
+            else:  # _direct_area_sample ("area" and "mis")
+                u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0  # unused for 1
+                light, ltri, y0, y1, y2 = _sample_light_point(
+                    lights, num_lights, corners, u_select, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
+                    uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                if mutants & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
+                    pdf_area = 1.0 / light_area[light]
+                else:
+                    pdf_area = light_pmf[light] / light_area[light]
+            # _shadow_ray_estimate
+            l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
+            dist2 = dot3(l0, l1, l2, l0, l1, l2)
+            dist = math.sqrt(dist2)
+            wi0, wi1, wi2 = l0 / dist, l1 / dist, l2 / dist
+            cos_x = dot3(nx0, nx1, nx2, wi0, wi1, wi2)
+            cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
+            if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
+                counters[C_SHADOW_SKIPPED] += 1
+                continue
+            if mutants & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
+                so0, so1, so2 = x0, x1, x2
+            else:
+                so0, so1, so2 = ox0, ox1, ox2
+            g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
+            seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
+            t_max = seg_len * (1.0 - 1e-6) - _offset(offset_scene, y0, y1, y2)
+            counters[C_SHADOW] += 1
+            s_owner[s] = h
+            s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = so0, so1, so2
+            s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = g0 / seg_len, g1 / seg_len, g2 / seg_len
+            s_tfar[s] = max(t_max, 0.0)
+            cos_at_x = 1.0 if no_cosine else cos_x  # mutant "no-cosine" (direct light)
+            scale = cos_at_x * cos_y / dist2 / pdf_area  # G(x, y) V / p(y), for V = 1
+            v0 = emission[ltri, 0] * f0 * scale
+            v1 = emission[ltri, 1] * f1 * scale
+            v2 = emission[ltri, 2] * f2 * scale
+            if direct == DIRECT_MIS:  # _mis_weight_light
+                p_light = nd * pdf_area * dist2 / cos_y
+                p_hemi = ni * hemisphere_pdf(hemi_cosine, cos_x)
+                w = p_light * p_light / (p_light * p_light + p_hemi * p_hemi)
+                v0, v1, v2 = v0 * w, v1 * w, v2 * w
+            s_value[s, 0], s_value[s, 1], s_value[s, 2] = v0, v1, v2
+            s += 1
+
+        # Indirect light (Fig. 5.14), if the next vertex can still add anything.
+        if not allow_indirect:
+            continue
+        if play_roulette:
+            survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
+            if not (uniform(k, salt_rr) < survival):
+                counters[C_ROULETTE] += 1
+                continue
+            if not (mutants & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight"
+                b0, b1, b2 = b0 / survival, b1 / survival, b2 / survival
+        for branch in range(ni):
+            kb = k if ni == 1 else mix64(k ^ branch_salt(branch, depth))
+            w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, uniform(kb, salt_u1), uniform(kb, salt_u2),
+                                                           nx0, nx1, nx2)
+            if (mutants & M_COSINE_PDF_PI) and hemi_cosine:  # mutant "cosine-pdf-pi"
+                pdf = pdf * _PI
+            cos_factor = 1.0 if no_cosine else cos_theta  # mutant "no-cosine" (indirect light)
+            weight = cos_factor / (pdf * ni)
+            c0, c1, c2 = b0 * (f0 * weight), b1 * (f1 * weight), b2 * (f2 * weight)
+            carries = (math.isfinite(c0) and math.isfinite(c1) and math.isfinite(c2)) and (c0 > 0 or c1 > 0 or c2 > 0)
+            if not carries:
+                counters[C_ROULETTE] += 1
+                continue
+            counters[C_INDIRECT] += 1
+            q = n_next
+            n_next += 1
+            x_root[q] = r
+            x_key[q] = kb
+            x_origin[q, 0], x_origin[q, 1], x_origin[q, 2] = ox0, ox1, ox2
+            x_o32[q, 0], x_o32[q, 1], x_o32[q, 2] = ox0, ox1, ox2
+            x_dir[q, 0], x_dir[q, 1], x_dir[q, 2] = w0, w1, w2
+            x_d32[q, 0], x_d32[q, 1], x_d32[q, 2] = w0, w1, w2
+            x_beta[q, 0], x_beta[q, 1], x_beta[q, 2] = c0, c1, c2
+            x_pdf[q] = pdf * ni
+
+    return m, s, n_next
+
+
+@njit(**_JIT)
+def resolve_shadow(root, beta, hits, nd, s_owner, s_value, s_hit, total, radiance):
+    """Direct light by shadow rays: each hit's Nd samples (value x V, V = 1 where Embree found no blocker,
+    ``s_hit < 0``) summed in sample order, averaged, and added to ``radiance`` weighted by the hit's throughput.
+    ``hits`` are the rows of (root, beta) that hit; ``total`` is room for one sum per hit."""
+    m = len(hits)
+    total[:m] = 0.0
+    for q in range(len(s_owner)):
+        if s_hit[q] < 0:
+            h = s_owner[q]
+            total[h, 0] += s_value[q, 0]
+            total[h, 1] += s_value[q, 1]
+            total[h, 2] += s_value[q, 2]
+    _add_direct(root, beta, hits, nd, total, radiance)
+
+
+@njit(**_JIT)
+def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_prim, prim_to_tri, tri_normal,
+                       emission, total, radiance):
+    """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only), times
+    f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0), averaged over the Nd samples."""
+    m = len(hits)
+    total[:m] = 0.0
+    for q in range(len(s_owner)):
+        p = s_prim[q]
+        if p < 0 or s_aux[q] < 0:
+            continue
+        tri = prim_to_tri[p]
+        faces_x = dot3(s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], tri_normal[tri, 0], tri_normal[tri, 1],
+                       tri_normal[tri, 2]) < 0
+        weight = s_aux[q] * (1.0 if faces_x else 0.0)
+        h = s_owner[q]
+        total[h, 0] += emission[tri, 0] * s_value[q, 0] * weight
+        total[h, 1] += emission[tri, 1] * s_value[q, 1] * weight
+        total[h, 2] += emission[tri, 2] * s_value[q, 2] * weight
+    _add_direct(root, beta, hits, nd, total, radiance)
+
+
+@njit(**_JIT)
+def _add_direct(root, beta, hits, nd, total, radiance):
+    for h in range(len(hits)):
+        i = hits[h]
+        r = root[i]
+        radiance[r, 0] += beta[i, 0] * (total[h, 0] / nd)
+        radiance[r, 1] += beta[i, 1] * (total[h, 1] / nd)
+        radiance[r, 2] += beta[i, 2] * (total[h, 2] / nd)
+
+
+# ------------------------------------------------------------------------------------------------ accumulation
+
+
+@njit(**_JIT)
+def finish_samples(radiance, scale):
+    """Scale the camera samples' radiance (mutant "energy-loss-2pct": 0.98, else 1 and skipped) and count the
+    samples with a non-finite channel."""
+    nonfinite = 0
+    for i in range(radiance.shape[0]):
+        if scale != 1.0:
+            for c in range(3):
+                radiance[i, c] *= scale
+        if not (math.isfinite(radiance[i, 0]) and math.isfinite(radiance[i, 1]) and math.isfinite(radiance[i, 2])):
+            nonfinite += 1
+    return nonfinite
+
+
+@njit(**_JIT)
+def accumulate(total, total_sq, p0, values, samples):
+    """Add the samples of pixels p0, p0 + 1, ... (``samples`` consecutive rows each) to the pixels' sums and sums of
+    squares, one after the other in sample order (so no decomposition of the work can change a bit)."""
+    num = values.shape[0] // samples
+    for p in range(num):
+        for c in range(3):
+            a = total[p0 + p, c]
+            b = total_sq[p0 + p, c]
+            for q in range(p * samples, (p + 1) * samples):
+                v = values[q, c]
+                a += v
+                b += v * v
+            total[p0 + p, c] = a
+            total_sq[p0 + p, c] = b
