@@ -313,19 +313,44 @@ def render_with_budget(case: Case, scene, variant: str | None, progress=None, ca
 
 def _cached_mitsuba_render(case: Case, scene, variant: str | None, cache_dir, progress):
     """A Mitsuba test render through the ground-truth cache, so a suite's second run renders nothing."""
+    return cached_mitsuba_render(scene, case.spp, case.seed, variant, cache_dir, progress)
+
+
+def cached_mitsuba_render(scene, spp: int, seed: int, variant: str | None, cache_dir, progress=None, chunk_spp=None):
+    """A Mitsuba render of ``spp`` samples through the ground-truth cache, as a RenderResult. Its ``seconds`` is
+    the time the render took when it was made (from the cache entry's metadata)."""
     from harness import groundtruth
     from harness.renderers import RenderResult
 
-    gt = groundtruth.ground_truth(scene, spp=case.spp, seed=case.seed, cache_dir=cache_dir, variant=variant,
-                                  use_closed_form=False, progress=progress)
+    gt = groundtruth.ground_truth(scene, spp=spp, seed=seed, cache_dir=cache_dir, variant=variant,
+                                  use_closed_form=False, progress=progress,
+                                  chunk_spp=chunk_spp or groundtruth.DEFAULT_CHUNK_SPP)
     info = dict(gt.info.get("info", {}), cached=gt.cached, mitsuba_renders=gt.renders)
     width, height = scene.film.width, scene.film.height
     return RenderResult(
         renderer="mitsuba", image=gt.image, variance=gt.variance,
-        seconds=gt.info.get("render_seconds", gt.seconds) if not gt.cached else gt.info.get("render_seconds", 0.0),
+        seconds=float(gt.info.get("render_seconds", gt.seconds)),
         spp=gt.spp, rays={"camera": width * height * gt.spp}, stats={"mitsuba_renders": gt.renders},
-        settings={"spp": gt.spp, "seed": case.seed, "variant": gt.info.get("variant")}, info=info,
+        settings={"spp": gt.spp, "seed": seed, "variant": gt.info.get("variant")}, info=info,
     )
+
+
+class CachedMitsubaRenderer:
+    """Mitsuba behind the ground-truth cache: a render already made (same scene, spp, seed, variant) is not made
+    again. Used where reports and studies render Mitsuba, so that re-running them performs no Mitsuba render."""
+
+    name = "mitsuba"
+
+    def __init__(self, cache_dir=None, variant: str | None = None):
+        self.cache_dir = cache_dir
+        self.variant = variant
+
+    def render(self, scene, request):
+        variant = request.settings.get("variant", self.variant)
+        if set(request.settings) - {"variant"}:
+            raise HarnessError("--set", "cached Mitsuba renders take no settings but the variant")
+        return cached_mitsuba_render(scene, request.spp, request.seed, variant, self.cache_dir, request.progress,
+                                     chunk_spp=request.spp)
 
 
 def reference_for(case: Case, scene, cache_dir, variant: str | None, progress=None):

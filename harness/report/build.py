@@ -30,6 +30,9 @@ class ReportOptions:
 
     convergence: bool = True
     convergence_spp: tuple[int, ...] = conv.DEFAULT_SPP_LADDER
+    #: besides the defaults, convergence curves of these `direct` strategies and (cached) Mitsuba
+    convergence_strategies: tuple[str, ...] = ("mis", "hemisphere-cosine", "global-area")
+    convergence_mitsuba: bool = True
     shadow_rays: bool = True
     shadow_ray_counts: tuple[int, ...] = studies.SHADOW_RAY_COUNTS
     strategies: bool = True
@@ -362,14 +365,28 @@ def _scene_bases(items: list[LoadedCase], options: ReportOptions) -> dict[str, L
 
 def _convergence_section(bases: dict[str, LoadedCase], out: Path, options: ReportOptions, progress) -> dict:
     section = {"spp_ladder": list(options.convergence_spp), "k": options.k, "scenes": []}
-    progress.add(len(bases) * len(options.convergence_spp))
+    progress.add(len(bases) * len(options.convergence_spp) * (1 + len(options.convergence_strategies)
+                                                              + int(options.convergence_mitsuba)))
     for key, base in bases.items():
         entry: dict[str, Any] = {"scene": key, "scene_name": Path(key).stem, "case": base.record["name"]}
         try:
             series = [conv.Series("reference", {}, "reference (defaults)")]
+            series += [conv.Series("reference", {"direct": d}, f"reference direct={d}")
+                       for d in options.convergence_strategies]
+            if options.convergence_mitsuba:
+                series.append(conv.Series("mitsuba", {}, "mitsuba (path, cached)"))
+            from harness.renderers import get_renderer
+            from harness.suite import CachedMitsubaRenderer
+
+            def factory(name: str):
+                if name == "mitsuba":
+                    return CachedMitsubaRenderer(options.cache_dir, options.variant)
+                return get_renderer(name)
+
             result = conv.run_convergence(base.scene, base.gt, series, spp=options.convergence_spp, seed=10_000,
                                           k=options.k, min_timing_seconds=options.min_timing_seconds,
-                                          progress=progress.step)
+                                          progress=progress.step, renderer_factory=factory,
+                                          warmup=True)
             png = figures.convergence_figure(result, title=f"{Path(key).stem}: convergence")
             folder = out / "report" / "convergence"
             folder.mkdir(parents=True, exist_ok=True)
@@ -894,14 +911,16 @@ def _summary_md(results, items, sections) -> str:
                      f"{fmt((r.get('render') or {}).get('seconds'), 3)} |")
     c = sections.get("convergence")
     if c:
-        lines += ["", "## Convergence (reference, defaults)", ""]
+        lines += ["", "## Convergence (slope of log RMSE against log spp; -1/2 when unbiased)", ""]
         for e in c["scenes"]:
             if e.get("error"):
                 lines.append(f"- {_md(e['scene_name'])}: failed ({_md(e['error'])})")
                 continue
-            f = e["result"]["series"][0]["fit_rmse"]
-            flag = f"flattens from {fmt(f.get('departure_spp'))} spp (bias?)" if f.get("biased") else "no flattening"
-            lines.append(f"- {_md(e['scene_name'])}: slope of log RMSE vs log spp {fmt(f.get('slope'), 3)}; {flag}")
+            for series in e["result"]["series"]:
+                f = series["fit_rmse"]
+                flag = (f"flattens from {fmt(f.get('departure_spp'))} spp (bias?)" if f.get("biased")
+                        else "no flattening")
+                lines.append(f"- {_md(e['scene_name'])}, {_md(series['label'])}: slope {fmt(f.get('slope'), 3)}; {flag}")
     sr = sections.get("shadow_rays")
     if sr and sr.get("rows"):
         lines += ["", "## Noise against shadow rays (spp = 1)", "",

@@ -397,6 +397,7 @@ def run_convergence(
     warmup: bool = True,
     min_timing_seconds: float = MIN_TIMING_SECONDS,
     progress: Callable[[str], None] | None = None,
+    renderer_factory: Callable[[str], Any] | None = None,
 ) -> dict[str, Any]:
     """Render ``scene`` with each series at every rung of the spp ladder (and of the seconds ladder: chunks of
     ``chunk_spp`` until the time is spent), every render with its own seed, and measure each against ``reference``
@@ -405,7 +406,8 @@ def run_convergence(
     comparisons between the series. ``warmup``: one untimed 1-spp render per series first, so that one-off costs
     (compilation, acceleration structures) do not land on the first rung. A rung that renders in less than
     ``min_timing_seconds`` is rendered again (same seed) and timed by the mean (see :func:`timed_render`).
-    ``progress(description)`` is called after every rung."""
+    ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
+    renderer (default: :func:`harness.renderers.get_renderer`)."""
     from harness.moments import Estimate, merge
     from harness.renderers import RenderRequest, get_renderer
 
@@ -414,7 +416,7 @@ def run_convergence(
     seeds = iter(range(seed, seed + 10**9))
     out_series = []
     for s in series:
-        renderer = get_renderer(s.renderer)
+        renderer = (renderer_factory or get_renderer)(s.renderer)
         settings = dict(s.settings)
         if s.renderer == "mitsuba" and variant and "variant" not in settings:
             settings["variant"] = variant
