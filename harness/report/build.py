@@ -443,6 +443,9 @@ def _strategies_section(items: list[LoadedCase], bases: dict[str, LoadedCase], o
             if mse is None:
                 continue
             h, w = item.render.shape[:2]
+            if (h, w) != tuple(base.render.shape[:2]):
+                # per-pixel MSE depends on the pixel size (edges, lights): compare strategies at one film only
+                continue
             case_rows.append({"case": rec["name"], "source": "case", "settings": dict(rec.get("settings") or {}),
                               "mse": float(mse), "floor_mse": item.summary.get("floor_mse") or 0.0,
                               "variance": studies.mean_variance(item.render_variance),
