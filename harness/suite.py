@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import itertools
 import json
 import platform
 import re
@@ -280,7 +281,6 @@ def case_scene(case: Case):
 
 def render_with_budget(case: Case, scene, variant: str | None, progress=None, cache_dir=None):
     """Render a case's test image within its budget: spp at once, or chunks of chunk_spp until ``seconds``."""
-    from harness.moments import Estimate, merge
     from harness.renderers import RenderRequest, get_renderer
 
     renderer = get_renderer(case.renderer)
@@ -291,15 +291,28 @@ def render_with_budget(case: Case, scene, variant: str | None, progress=None, ca
         return _cached_mitsuba_render(case, scene, settings.get("variant"), cache_dir, progress)
     if case.spp is not None:
         return renderer.render(scene, RenderRequest(spp=case.spp, seed=case.seed, settings=settings, progress=progress))
-    chunks, results, spent, index = [], [], 0.0, 0
-    while spent < case.seconds:
-        result = renderer.render(scene, RenderRequest(spp=case.chunk_spp, seed=case.seed + 7919 * index, settings=settings))
+    seeds = (case.seed + 7919 * index for index in itertools.count())
+    return render_for_seconds(renderer, scene, case.seconds, case.chunk_spp, seeds, settings, progress)
+
+
+def render_for_seconds(renderer, scene, seconds: float, chunk_spp: int, seeds, settings: dict[str, str],
+                       progress=None):
+    """Render chunks of ``chunk_spp`` (seeds drawn from the iterator ``seeds``) until ``seconds`` of render time
+    are spent, and merge them exactly (``harness.moments``) into one RenderResult with the summed time and rays;
+    ``info["seeds"]`` lists the seeds used."""
+    from harness.moments import Estimate, merge
+    from harness.renderers import RenderRequest
+
+    chunks, results, used, spent = [], [], [], 0.0
+    while spent < seconds:
+        seed = next(seeds)
+        result = renderer.render(scene, RenderRequest(spp=chunk_spp, seed=seed, settings=dict(settings)))
         spent += result.seconds
         results.append(result)
+        used.append(seed)
         chunks.append(Estimate(result.image, result.variance, result.spp))
-        index += 1
         if progress is not None:
-            progress(min(spent, case.seconds), case.seconds)
+            progress(min(spent, seconds), seconds)
     merged = merge(chunks)
     first = results[0]
     return dataclasses.replace(
@@ -307,7 +320,7 @@ def render_with_budget(case: Case, scene, variant: str | None, progress=None, ca
         seconds=spent, spp=merged.n,
         rays={k: sum(r.rays.get(k, 0) for r in results) for k in first.rays},
         stats={k: sum(r.stats.get(k, 0) for r in results) for k in first.stats},
-        info=dict(first.info, chunks=len(results)),
+        info=dict(first.info, chunks=len(results), seeds=used),
     )
 
 

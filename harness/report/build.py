@@ -746,7 +746,8 @@ def convergence_tables(result: dict) -> Raw:
 
 def _convergence_html(section: dict) -> Raw:
     parts = ['<section id="convergence"><h2>Convergence</h2>',
-             f'<p class="note">Each scene rendered by the reference renderer (default settings) at '
+             f'<p class="note">Each scene rendered by each series (the reference renderer with its defaults and '
+             f"with other direct-light strategies, and Mitsuba through the ground-truth cache) at "
              f'{esc(", ".join(str(n) for n in section["spp_ladder"]))} spp, each render with its own seed, at the film '
              f"of the scene's smallest case, compared with that case's ground truth. The ground truth's own noise is "
              f"subtracted from every MSE (dotted: its level). Dashed: the line of slope -1/2 (RMSE) or -1 (relMSE) "

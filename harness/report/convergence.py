@@ -408,8 +408,8 @@ def run_convergence(
     ``min_timing_seconds`` is rendered again (same seed) and timed by the mean (see :func:`timed_render`).
     ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
     renderer (default: :func:`harness.renderers.get_renderer`)."""
-    from harness.moments import Estimate, merge
     from harness.renderers import RenderRequest, get_renderer
+    from harness.suite import render_for_seconds
 
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")
@@ -435,18 +435,11 @@ def run_convergence(
             if progress is not None:
                 progress(f"{s.name} {n} spp")
         for budget in seconds:
-            spent, chunks, used = 0.0, [], []
-            while spent < budget:
-                sd = next(seeds)
-                result = renderer.render(scene, RenderRequest(spp=chunk_spp, seed=sd, settings=settings))
-                resolved = result.settings
-                spent += result.seconds
-                chunks.append(Estimate(result.image, result.variance, result.spp))
-                used.append(sd)
-            merged = merge(chunks)
-            point = error_point(merged.mean, reference.image, reference.variance)
-            points.append(dict(budget={"seconds": float(budget)}, spp=int(merged.n), seconds=float(spent),
-                               timing_repeats=1, seeds=used, **point))
+            merged = render_for_seconds(renderer, scene, budget, chunk_spp, seeds, settings)
+            resolved = merged.settings
+            point = error_point(merged.image, reference.image, reference.variance)
+            points.append(dict(budget={"seconds": float(budget)}, spp=int(merged.spp), seconds=float(merged.seconds),
+                               timing_repeats=1, seeds=merged.info["seeds"], **point))
             if progress is not None:
                 progress(f"{s.name} {budget:g} s")
         points.sort(key=lambda p: (p["spp"], p["seconds"]))

@@ -260,6 +260,20 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
             "near_best": near, "tie_factor": TIE_FACTOR}
 
 
+def _warm_render(scene, settings: dict[str, str], spp: int, seed: int, min_seconds: float):
+    """The reference renderer with ``settings``: an untimed 1-spp warm-up, then ``spp``, quadrupled (up to
+    MAX_STRATEGY_SPP) while the render takes less than ``min_seconds``."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    renderer = get_renderer("reference")
+    renderer.render(scene, RenderRequest(spp=1, seed=seed + 500_000, settings=dict(settings)))
+    while True:
+        result = renderer.render(scene, RenderRequest(spp=spp, seed=seed, settings=dict(settings)))
+        if result.seconds >= min_seconds or spp * 4 > MAX_STRATEGY_SPP:
+            return result
+        spp *= 4
+
+
 def time_per_path(scene, settings: dict[str, str], spp: int, seed: int,
                   min_seconds: float = MIN_STRATEGY_SECONDS) -> tuple[float, int]:
     """Render seconds per path (pixel sample) of the reference renderer with ``settings`` on ``scene``: an untimed
@@ -269,15 +283,7 @@ def time_per_path(scene, settings: dict[str, str], spp: int, seed: int,
     A suite's case times include one-off costs when the case is the first of its kind in the run (compilation,
     acceleration structures: several times the render itself at small films), so the strategy table times every
     row alike with this, and takes only the MSE from the case."""
-    from harness.renderers import RenderRequest, get_renderer
-
-    renderer = get_renderer("reference")
-    renderer.render(scene, RenderRequest(spp=1, seed=seed + 500_000, settings=dict(settings)))
-    while True:
-        result = renderer.render(scene, RenderRequest(spp=spp, seed=seed, settings=dict(settings)))
-        if result.seconds >= min_seconds or spp * 4 > MAX_STRATEGY_SPP:
-            break
-        spp *= 4
+    result = _warm_render(scene, settings, spp, seed, min_seconds)
     return float(result.seconds) / (result.image.shape[0] * result.image.shape[1] * result.spp), int(result.spp)
 
 
@@ -285,15 +291,7 @@ def measure_render(scene, gt, settings: dict[str, str], spp: int, seed: int,
                    min_seconds: float = MIN_STRATEGY_SECONDS) -> dict:
     """Render one strategy and measure it against ``gt`` (for :func:`strategy_rows`): an untimed 1-spp warm-up,
     then ``spp``, quadrupled while the render takes less than ``min_seconds``."""
-    from harness.renderers import RenderRequest, get_renderer
-
-    renderer = get_renderer("reference")
-    renderer.render(scene, RenderRequest(spp=1, seed=seed + 500_000, settings=dict(settings)))
-    while True:
-        result = renderer.render(scene, RenderRequest(spp=spp, seed=seed, settings=dict(settings)))
-        if result.seconds >= min_seconds or spp * 4 > MAX_STRATEGY_SPP:
-            break
-        spp *= 4
+    result = _warm_render(scene, settings, spp, seed, min_seconds)
     point = error_point(result.image, gt.image, gt.variance)
     h, w = result.image.shape[:2]
     return {"case": None, "source": "rendered", "settings": dict(settings), "mse": point["mse"],
