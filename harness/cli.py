@@ -314,23 +314,24 @@ def cmd_convergence(args: argparse.Namespace) -> int:
             bar.close()
     out = Path(args.out) if args.out else Path("reports") / "convergence" / scene.path.stem
     paths = write_convergence_report(result, out)
+    human = sys.stderr if args.json else sys.stdout  # with --json, stdout holds the JSON alone
     for s in result["series"]:
         fit = s["fit_rmse"]
         slope = "n/a" if fit.get("slope") is None else f"{fit['slope']:.3f}"
         flag = f"; flattens from {fit['departure_spp']:g} spp (bias?)" if fit.get("biased") else ""
-        print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}")
+        print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}", file=human)
     comparison = (result.get("comparisons") or {}).get("rmse_corrected")
     if comparison and comparison["equal_time"].get("time"):
         et = comparison["equal_time"]
         print(f"equal time ({et['time']:.3g} s): " + ", ".join(
-            f"{k} RMSE {v:.4g}" if v is not None else f"{k} n/a" for k, v in et["errors"].items()))
+            f"{k} RMSE {v:.4g}" if v is not None else f"{k} n/a" for k, v in et["errors"].items()), file=human)
     if comparison and comparison["equal_error"].get("error"):
         ee = comparison["equal_error"]
         print(f"equal error (RMSE {ee['error']:.4g}): " + ", ".join(
-            f"{k} {v:.3g} s" if v is not None else f"{k} n/a" for k, v in ee["times"].items()))
+            f"{k} {v:.3g} s" if v is not None else f"{k} n/a" for k, v in ee["times"].items()), file=human)
     if args.json:
         print(Path(paths["report_json"]).read_text())
-    print(f"wrote {paths['index']} and {paths['report_json']}")
+    print(f"wrote {paths['index']} and {paths['report_json']}", file=human)
     return EXIT_OK
 
 

@@ -401,3 +401,18 @@ def test_page_in_a_headless_browser(report_dir, tmp_path):
     assert pixels.shape[:2] == (2000, 1200)
     assert pixels.std() > 20.0  # text, tables and images, not an empty page
     assert (pixels.mean(axis=-1) < 128).mean() > 0.01  # some dark pixels: text was drawn
+
+
+def test_convergence_json_is_alone_on_stdout(tmp_path):
+    """`harness convergence --json` prints one JSON object on stdout (the human summary goes to stderr)."""
+    import json as _json
+    import subprocess
+    import sys
+
+    proc = subprocess.run([sys.executable, "-m", "harness", "convergence", str(ROOT / "scenes" / "furnace.toml"),
+                           "--film", "8x8", "--spp", "1,2", "--seconds", "0.02", "--out", str(tmp_path), "--quiet",
+                           "--json"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    result = _json.loads(proc.stdout)
+    budgets = [p["budget"] for p in result["series"][0]["points"]]
+    assert {"seconds": 0.02} in budgets and "slope" in proc.stderr
