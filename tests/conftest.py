@@ -11,6 +11,20 @@ SCENES = ROOT / "scenes"
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/mc.py, tests/chi2.py
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _private_cache(tmp_path_factory):
+    """Every test (and every subprocess it starts) uses a fresh ground-truth cache, never the user's."""
+    import os
+
+    previous = os.environ.get("HARNESS_CACHE_DIR")
+    os.environ["HARNESS_CACHE_DIR"] = str(tmp_path_factory.mktemp("harness-cache"))
+    yield
+    if previous is None:
+        os.environ.pop("HARNESS_CACHE_DIR", None)
+    else:
+        os.environ["HARNESS_CACHE_DIR"] = previous
+
+
 @pytest.fixture(scope="session")
 def scenes_dir() -> Path:
     return SCENES

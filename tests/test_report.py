@@ -416,3 +416,19 @@ def test_convergence_json_is_alone_on_stdout(tmp_path):
     result = _json.loads(proc.stdout)
     budgets = [p["budget"] for p in result["series"][0]["points"]]
     assert {"seconds": 0.02} in budgets and "slope" in proc.stderr
+
+
+def test_a_report_made_again_renders_no_mitsuba_image(report_dir, monkeypatch, tmp_path):
+    """The convergence curves' Mitsuba rungs come from the ground-truth cache the first report filled."""
+    from harness.renderers.mitsuba import MitsubaRenderer
+    from harness.report import write_suite_report
+
+    def no_render(self, scene, request):
+        raise AssertionError("Mitsuba rendered although its images are cached")
+
+    monkeypatch.setattr(MitsubaRenderer, "render", no_render)
+    write_suite_report(report_dir / "results.json", tmp_path, fast_options())
+    report = json.loads((tmp_path / "report.json").read_text())
+    for scene in report["convergence"]["scenes"]:
+        assert "error" not in scene, scene.get("error")
+        assert any(s["renderer"] == "mitsuba" for s in scene["result"]["series"])
