@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError
+from harness.moments import Estimate
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
@@ -539,14 +540,14 @@ def mean_and_variance(moments: Moments, efficiency: float = 1.0) -> tuple[np.nda
     N_eff <= 1.
     """
     n = float(moments.n)
+    if efficiency == 1.0:  # plain samples: the harness's one formula for a mean and its variance
+        estimate = Estimate.from_sums(moments.s1, moments.s2, n)
+        return estimate.mean, estimate.variance
     mean = moments.s1 / n
     n_eff = efficiency * n
     if n_eff <= 1.0:
         return mean, np.full_like(mean, np.nan)
-    if efficiency == 1.0:
-        variance = (moments.s2 - moments.s1 * moments.s1 / n) / (n - 1.0) / n
-    else:
-        variance = (moments.s2 / n - mean * mean) / (n_eff - 1.0)
+    variance = (moments.s2 / n - mean * mean) / (n_eff - 1.0)
     return mean, np.maximum(variance, 0.0)
 
 
