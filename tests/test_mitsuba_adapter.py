@@ -382,8 +382,8 @@ def test_scalar_rgb_renders_and_records_what_it_used():
     mi = mts.import_mitsuba("scalar_rgb")
     assert result.info["variant"] == "scalar_rgb" and result.info["mitsuba_version"] == mi.__version__
     assert result.info["libllvm"] is None
-    assert result.settings == {"variant": "scalar_rgb", "chunk_spp": 8, "max_depth": 8, "rr_depth": 5, "spp": 20,
-                               "seed": 9}
+    assert result.settings == {"variant": "scalar_rgb", "chunk_spp": 8, "max_depth": 8, "moments": "on",
+                               "rr_depth": 5, "spp": 20, "seed": 9}
     assert result.stats["passes"] == 3 and result.rays == {"camera": 16 * 16 * 20}
     assert progress == [(2048, 5120), (4096, 5120), (5120, 5120)]
     assert result.seconds > 0
@@ -412,6 +412,7 @@ def test_llvm_renders_deterministically_when_available():
     ({"chunk_spp": "many"}, "--set chunk_spp"),
     ({"max_depth": "0"}, "--set max_depth"),
     ({"variant": "nope"}, "--set variant"),
+    ({"moments": "maybe"}, "--set moments"),
 ])
 def test_bad_settings_are_user_errors(settings, where):
     scene = load_small("soft-shadows", 4)
@@ -419,4 +420,14 @@ def test_bad_settings_are_user_errors(settings, where):
         get_renderer("mitsuba").render(scene, RenderRequest(spp=4, settings=settings))
     assert err.value.where == where
     if where == "--set shadow_rays":
-        assert "chunk_spp, max_depth, variant" in str(err.value)
+        assert "chunk_spp, max_depth, moments, variant" in str(err.value)
+
+
+def test_plain_path_integrator_renders_the_moment_renders_samples():
+    """``moments=off`` (Mitsuba's own ``path``, as ``harness bench`` times it) draws the same samples as the
+    ``moment(aov(path))`` wrapper: the same image, without the variance."""
+    scene = load_small("cornell-box", 16)
+    with_moments = render_mitsuba(scene, spp=8, seed=3, variant="scalar_rgb", chunk_spp="4")
+    plain = render_mitsuba(scene, spp=8, seed=3, variant="scalar_rgb", chunk_spp="4", moments="off")
+    assert plain.variance is None and plain.settings["moments"] == "off" and plain.info["integrator"] == "path"
+    np.testing.assert_allclose(plain.image, with_moments.image, rtol=1e-5, atol=1e-6)

@@ -44,10 +44,10 @@ from harness.scene.triangulate import object_to_world, shape_triangles
 # colours, mono ones would collapse them), so any other variant would render a different image.
 VARIANT_ORDER = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 MIN_LLVM_VERSION = 16  # Dr.Jit 1.5's LLVM backend aborts the process on LLVM 15 ("Cannot select: fminimum")
-RR_DEPTH = 5  # Mitsuba's default, the same as the reference's
+RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
 DEFAULT_CHUNK_SPP = 64
 MAX_PASS_SAMPLES = 2**31  # camera samples per pass at most (Mitsuba's wavefront index is 32-bit)
-SETTING_KEYS = ("chunk_spp", "max_depth", "variant")
+SETTING_KEYS = ("chunk_spp", "max_depth", "moments", "variant")
 PROBE_TIMEOUT_S = 300.0
 NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
 FAR_MARGIN = 1.1  # far_clip = this factor times the distance to the farthest corner of the scene's bounding box
@@ -597,10 +597,13 @@ class MitsubaSettings:
     variant: str | None
     chunk_spp: int
     max_depth: int
+    moments: bool = True
 
 
 def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
-    """``--set`` values: ``variant``, ``chunk_spp`` (spp per pass, default 64), ``max_depth`` (default: the scene's)."""
+    """``--set`` values: ``variant``, ``chunk_spp`` (spp per pass, default 64), ``max_depth`` (default: the scene's),
+    ``moments`` (``on``, the default: per-pixel variances through ``moment(aov(path))``; ``off``: Mitsuba's plain
+    ``path`` integrator as a user runs it, no variance, used to time Mitsuba at its defaults)."""
     for key in settings:
         if key in ("spp", "seed"):
             raise HarnessError(f"--set {key}", f"give {key} with --{key}, not --set")
@@ -613,7 +616,10 @@ def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
     if depth == 0 or depth < -1:
         raise HarnessError("--set max_depth", f"expected -1 (unbounded) or an integer >= 1, got {depth}")
     variant = settings.get("variant") or None
-    return MitsubaSettings(variant.strip() if variant else None, chunk, depth)
+    moments = str(settings.get("moments", "on")).strip().lower()
+    if moments not in ("on", "off"):
+        raise HarnessError("--set moments", f"expected on or off, got {settings['moments']!r}")
+    return MitsubaSettings(variant.strip() if variant else None, chunk, depth, moments == "on")
 
 
 class MitsubaRenderer:
@@ -631,7 +637,8 @@ class MitsubaRenderer:
 
         scene_dict = scene_to_mitsuba_dict(scene, choice.variant, max_depth=options.max_depth,
                                            spp=min(options.chunk_spp, request.spp))
-        scene_dict["integrator"] = moment_integrator(scene_dict["integrator"])
+        if options.moments:
+            scene_dict["integrator"] = moment_integrator(scene_dict["integrator"])
         try:
             mitsuba_scene = mi.load_dict(scene_dict)
         except Exception as err:  # Mitsuba raises plain RuntimeErrors for anything it rejects
@@ -645,6 +652,7 @@ class MitsubaRenderer:
         total_paths = width * height * request.spp
         m1_idx = m2_idx = None
         parts: list[Moments] = []
+        plain_sum: np.ndarray | float = 0.0  # sum of pass means x pass spp, when moments are off
         seconds, first_pass_seconds, done = 0.0, 0.0, 0
         passes = math.ceil(request.spp / chunk)
         for index in range(passes):
@@ -655,33 +663,42 @@ class MitsubaRenderer:
             seconds += elapsed
             if index == 0:
                 first_pass_seconds = elapsed
-                m1_idx, m2_idx = moment_channels(mitsuba_scene.integrator(), out.shape[2])
-            parts.append(Moments.from_means(n, out[..., m1_idx], out[..., m2_idx]))
+                if options.moments:
+                    m1_idx, m2_idx = moment_channels(mitsuba_scene.integrator(), out.shape[2])
+            if options.moments:
+                parts.append(Moments.from_means(n, out[..., m1_idx], out[..., m2_idx]))
+            else:
+                plain_sum = plain_sum + out[..., :3].astype(np.float64) * n
             done += width * height * n
             if request.progress is not None:
                 request.progress(done, total_paths)
 
-        merged = merge_moments(parts)
-        image, variance = mean_and_variance(merged, filter_efficiency(scene.film.filter))
+        if options.moments:
+            merged = merge_moments(parts)
+            image, variance = mean_and_variance(merged, filter_efficiency(scene.film.filter))
+            variance = variance.astype(np.float32)
+        else:
+            image, variance = plain_sum / request.spp, None
         camera_rays = (width + 2 * border) * (height + 2 * border) * request.spp
         near, far = scene_dict["sensor"]["near_clip"], scene_dict["sensor"]["far_clip"]
         return RenderResult(
             renderer=self.name,
             image=image.astype(np.float32),
-            variance=variance.astype(np.float32),
+            variance=variance,
             seconds=seconds,
             spp=request.spp,
             rays={"camera": int(camera_rays)},
             stats={"passes": passes, "chunk_spp": chunk, "camera_rays": int(camera_rays),
                    "border_pixels": border},
             settings={"variant": choice.variant, "chunk_spp": chunk, "max_depth": options.max_depth,
+                      "moments": "on" if options.moments else "off",
                       "rr_depth": RR_DEPTH, "spp": request.spp, "seed": request.seed},
             info={
                 "variant": choice.variant,
                 "mitsuba_version": mi.__version__,
                 "drjit_version": dr.__version__,
                 "libllvm": choice.libllvm,
-                "integrator": "moment(aov(path))",
+                "integrator": "moment(aov(path))" if options.moments else "path",
                 "near_clip": near,
                 "far_clip": far,
                 "sample_border": bool(scene_dict["sensor"]["film"]["sample_border"]),
