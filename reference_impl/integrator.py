@@ -59,6 +59,7 @@ COUNTERS = (
     "back_face_absorbed",  # hits on the back of one-sided surfaces (black, end of path)
     "roulette_terminated",  # paths ended by Russian roulette (including zero-albedo surfaces)
     "nonfinite_samples",  # camera samples whose radiance is NaN or infinite
+    "light_selections",  # draws of a light k from pdf(k) (none in a scene with one light)
 )
 # Time, in microseconds, the worker threads spent inside Embree queries (summed over threads, so it can exceed the
 # wall time): the only entry of ``stats`` that is not a deterministic count.

@@ -48,7 +48,7 @@ _U40 = np.uint64(40)
 _ONE = np.uint64(1)
 
 # Relative offset of ray origins (intersect._OFFSET_REL), repeated so the kernels need no import of Embree.
-_OFFSET_REL = 2.0**-17
+_OFFSET_REL = 2.0**-20
 
 # Random-number purposes (integrator: rng.dimension(depth, purpose, index)).
 FILM_X, FILM_Y = 0, 1
@@ -58,7 +58,8 @@ ROULETTE = 8
 INDIRECT_U1, INDIRECT_U2 = 9, 10
 
 # Counters, in the order of integrator.COUNTERS.
-C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE = range(9)
+(C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE,
+ C_LIGHT_SELECT) = range(10)
 
 # Integer configuration of one bounce (the ``cfg`` array of :func:`bounce`).
 (CFG_DEPTH, CFG_EMIT, CFG_ALLOW_NEXT, CFG_ALLOW_INDIRECT, CFG_DIRECT, CFG_ND, CFG_NI, CFG_HEMI_COSINE, CFG_RR,
@@ -432,7 +433,10 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                     uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
                 pdf_area = surface_pdf
             else:  # _direct_area_sample ("area" and "mis")
-                u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0  # unused for 1
+                u_select = 0.0  # with one light there is nothing to choose: pdf(k) = 1
+                if num_lights > 1:
+                    u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
+                    counters[C_LIGHT_SELECT] += 1
                 light, ltri, y0, y1, y2 = _sample_light_point(
                     lights, num_lights, corners, u_select, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
                     uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))

@@ -120,9 +120,10 @@ def test_random_dimensions_and_counters_agree_with_the_integrator():
                  "DIRECT_DIR_U2", "ROULETTE", "INDIRECT_U1", "INDIRECT_U2"):
         assert getattr(integrator, "_" + name) == getattr(K, name), name
     order = ("C_CAMERA", "C_SHADOW", "C_SHADOW_SKIPPED", "C_HEMI_DIRECT", "C_INDIRECT", "C_ESCAPED", "C_BACK_FACE",
-             "C_ROULETTE", "C_NONFINITE")
+             "C_ROULETTE", "C_NONFINITE", "C_LIGHT_SELECT")
     assert [getattr(K, c) for c in order] == list(range(len(integrator.COUNTERS)))
     assert integrator.COUNTERS[K.C_NONFINITE] == "nonfinite_samples" and integrator.COUNTERS[K.C_SHADOW] == "shadow_rays"
+    assert integrator.COUNTERS[K.C_LIGHT_SELECT] == "light_selections"
     from reference_impl.intersect import _OFFSET_REL
 
     assert K._OFFSET_REL == _OFFSET_REL
