@@ -1,0 +1,369 @@
+"""``harness bench``: the reference path tracer against Mitsuba 3 in error per second.
+
+For each scene, every contender renders the same film at the same spp, once to warm up (numba's compiled kernels,
+Dr.Jit's kernel cache) and then ``repeats`` times with different seeds, the contenders taking turns so that a change
+in the shared machine's load falls on all of them alike. Per contender:
+
+- ``seconds``: median render time (the renderer's own clock: no scene loading, no file writing);
+- ``paths_per_second`` = pixels x spp / seconds; ``rays_per_second`` where the renderer counts its rays;
+- ``cores_busy``: process CPU time / wall time during the timed renders (2.0 = both cores of this machine);
+- ``mse``: mean over pixels and channels of (render - ground truth)^2, less the ground truth's own mean variance
+  (for an unbiased render E[(R - G)^2] = Var R + Var G), averaged over the repeats;
+- ``efficiency`` = 1 / (mse x seconds) (Veach's efficiency of an estimator: the inverse of the product of its
+  variance and its cost), and its ratio to each Mitsuba variant's.
+
+Mitsuba runs its plain ``path`` integrator, in one pass per render, as a user would run it (``--set moments=off``):
+the per-pixel variances of the harness's ``moment(aov(path))`` wrapper cost Mitsuba time that a user does not pay.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+
+ROOT = Path(__file__).resolve().parent.parent
+BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
+DEFAULT_SPP = 64
+DEFAULT_REPEATS = 3
+DEFAULT_GT_SPP = 4096
+
+# Reference settings tried for "the best strategy" (the first is the defaults). Each is a one-change variation, so
+# the table says which choice pays on which scene.
+STRATEGIES: tuple[dict[str, str], ...] = (
+    {},
+    {"direct": "mis"},
+    {"shadow_rays": "2"},
+    {"rr_depth": "2"},
+    {"rr_depth": "3"},
+    {"rr_depth": "5"},
+    {"rr": "off"},
+    {"light_selection": "uniform"},
+)
+
+# The targets of the performance issue, as (ratio name, minimum).
+TARGETS = (("efficiency_vs_llvm_ad_rgb", 1.0 / 3.0), ("efficiency_vs_scalar_rgb", 3.0))
+
+
+@dataclass(frozen=True)
+class Contender:
+    """One renderer configuration in the race: a label, the renderer's name and its ``--set`` values."""
+
+    label: str
+    renderer: str
+    settings: dict[str, str] = field(default_factory=dict)
+
+
+def default_contenders(spp: int) -> list[Contender]:
+    """The reference at its defaults, Mitsuba's ``llvm_ad_rgb`` and ``scalar_rgb`` at theirs (one pass)."""
+    plain = {"moments": "off", "chunk_spp": str(spp)}
+    return [
+        Contender("reference", "reference"),
+        Contender("mitsuba llvm_ad_rgb", "mitsuba", {**plain, "variant": "llvm_ad_rgb"}),
+        Contender("mitsuba scalar_rgb", "mitsuba", {**plain, "variant": "scalar_rgb"}),
+    ]
+
+
+@dataclass
+class Row:
+    """What one contender measured on one scene (see the module docstring for each figure)."""
+
+    scene: str
+    label: str
+    renderer: str
+    settings: dict
+    spp: int
+    width: int
+    height: int
+    seconds: float = math.nan
+    seconds_all: list[float] = field(default_factory=list)
+    paths_per_second: float = math.nan
+    rays_per_second: float | None = None
+    rays_per_path: float | None = None
+    cores_busy: float = math.nan
+    mse: float = math.nan
+    mse_all: list[float] = field(default_factory=list)
+    mse_raw: float = math.nan
+    efficiency: float = math.nan
+    embree_share: float | None = None
+    variant: str | None = None
+    stats: dict = field(default_factory=dict)
+    error: str | None = None
+
+
+def mse_against(image: np.ndarray, gt_image: np.ndarray, gt_variance: np.ndarray | None) -> tuple[float, float]:
+    """(MSE corrected for the ground truth's own noise, raw MSE): mean (R - G)^2 - mean Var G, and mean (R - G)^2."""
+    raw = float(np.mean((image.astype(np.float64) - gt_image.astype(np.float64)) ** 2))
+    gt_var = float(np.mean(gt_variance)) if gt_variance is not None else 0.0
+    return raw - gt_var, raw
+
+
+def efficiency(mse: float, seconds: float) -> float:
+    """1 / (MSE x seconds); NaN when either is not positive (an MSE at or below the ground truth's noise)."""
+    return 1.0 / (mse * seconds) if mse > 0 and seconds > 0 else math.nan
+
+
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
+def bench_scene(
+    scene,
+    contenders: Sequence[Contender],
+    *,
+    spp: int,
+    repeats: int,
+    gt,
+    seed: int = 1,
+    on_render: Callable[[str], None] | None = None,
+) -> list[Row]:
+    """Race ``contenders`` on ``scene`` (a loaded Scene) at ``spp`` against ground truth ``gt``
+    (a :class:`harness.groundtruth.GroundTruth`). Renders alternate between contenders, repeat by repeat."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    rows = [Row(scene.name, c.label, c.renderer, dict(c.settings), spp, scene.film.width, scene.film.height)
+            for c in contenders]
+    renderers = [get_renderer(c.renderer) for c in contenders]
+    cpu = [0.0] * len(contenders)
+    wall = [0.0] * len(contenders)
+    for attempt in range(repeats + 1):  # attempt 0 is the warm-up
+        for i, (contender, renderer, row) in enumerate(zip(contenders, renderers, rows)):
+            if row.error:
+                continue
+            request = RenderRequest(spp=spp, seed=seed + attempt, settings=dict(contender.settings))
+            cpu0, wall0 = _cpu_seconds(), time.perf_counter()
+            try:
+                result = renderer.render(scene, request)
+            except HarnessError as err:
+                row.error = f"{err.where}: {err.message}"
+                continue
+            cpu1, wall1 = _cpu_seconds(), time.perf_counter()
+            if on_render is not None:
+                on_render(f"{scene.name}: {contender.label}" + (" (warm-up)" if attempt == 0 else ""))
+            if attempt == 0:
+                continue
+            cpu[i] += cpu1 - cpu0
+            wall[i] += wall1 - wall0
+            row.seconds_all.append(result.seconds)
+            mse, raw = mse_against(result.image, gt.image, gt.variance)
+            row.mse_all.append(mse)
+            row.mse_raw = raw if math.isnan(row.mse_raw) else row.mse_raw + raw
+            row.variant = result.info.get("variant")
+            if result.rays and set(result.rays) >= {"camera", "shadow", "indirect"}:
+                rays = sum(result.rays.values())
+                row.rays_per_second = rays / result.seconds if row.rays_per_second is None else row.rays_per_second
+                row.rays_per_path = rays / result.paths
+            if "embree_microseconds" in result.stats:
+                threads = result.info.get("threads", 1)
+                share = result.stats["embree_microseconds"] / 1e6 / (result.seconds * threads)
+                row.embree_share = share if row.embree_share is None else row.embree_share + share
+                row.stats = {k: v for k, v in result.stats.items() if k != "embree_microseconds"}
+    for i, row in enumerate(rows):
+        if row.error or not row.seconds_all:
+            continue
+        n = len(row.seconds_all)
+        row.seconds = statistics.median(row.seconds_all)
+        row.paths_per_second = row.width * row.height * spp / row.seconds
+        if row.rays_per_path is not None:
+            row.rays_per_second = row.rays_per_path * row.paths_per_second
+        row.mse = float(np.mean(row.mse_all))
+        row.mse_raw /= n
+        row.efficiency = efficiency(row.mse, row.seconds)
+        row.cores_busy = cpu[i] / wall[i] if wall[i] > 0 else math.nan
+        if row.embree_share is not None:
+            row.embree_share /= n
+    return rows
+
+
+def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
+    """Efficiency and paths/s of row ``label`` over every Mitsuba row, keyed ``efficiency_vs_<variant>``."""
+    mine = next((r for r in rows if r.label == label), None)
+    out: dict[str, float] = {}
+    if mine is None:
+        return out
+    for row in rows:
+        if row.renderer != "mitsuba" or row.error:
+            continue
+        variant = row.settings.get("variant") or row.variant or "mitsuba"
+        out[f"efficiency_vs_{variant}"] = mine.efficiency / row.efficiency
+        out[f"paths_per_second_vs_{variant}"] = mine.paths_per_second / row.paths_per_second
+    return out
+
+
+def check_targets(cornell_ratios: dict[str, float]) -> list[dict]:
+    """Each target of the performance issue with the measured ratio and whether it is met (None: not measured)."""
+    return [{"ratio": name, "minimum": minimum, "measured": cornell_ratios.get(name),
+             "met": None if name not in cornell_ratios else bool(cornell_ratios[name] >= minimum)}
+            for name, minimum in TARGETS]
+
+
+def scaling(scene, *, spp_list=(8, 16, 32), sizes=(64, 128, 256), seed: int = 1,
+            on_render: Callable[[str], None] | None = None) -> dict:
+    """The reference's render time against spp (at the scene's film) and against pixel count (at ``spp_list[0]``
+    spp, square films of ``sizes``), with the seconds per path of each; linear cost means a flat seconds/path."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    renderer = get_renderer("reference")
+    renderer.render(scene, RenderRequest(spp=1, seed=seed))  # load the compiled kernels
+
+    def timed(s, n_spp):
+        best = math.inf
+        for attempt in range(2):
+            best = min(best, renderer.render(s, RenderRequest(spp=n_spp, seed=seed + attempt)).seconds)
+        if on_render is not None:
+            on_render(f"scaling: {s.film.width}x{s.film.height} at {n_spp} spp")
+        return best
+
+    by_spp = []
+    for n_spp in spp_list:
+        secs = timed(scene, n_spp)
+        by_spp.append({"spp": n_spp, "seconds": secs,
+                       "microseconds_per_path": secs / (scene.film.width * scene.film.height * n_spp) * 1e6})
+    by_pixels = []
+    for size in sizes:
+        resized = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size, height=size))
+        secs = timed(resized, spp_list[-1])
+        by_pixels.append({"pixels": size * size, "seconds": secs,
+                          "microseconds_per_path": secs / (size * size * spp_list[-1]) * 1e6})
+    return {"scene": scene.name, "by_spp": by_spp, "by_pixels": by_pixels}
+
+
+_MEMORY_CHILD = """
+import dataclasses, json, resource, sys
+from harness.renderers import RenderRequest, get_renderer
+from harness.scene import load_scene
+scene = load_scene(sys.argv[1])
+size, spp = int(sys.argv[2]), int(sys.argv[3])
+scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size, height=size))
+result = get_renderer("reference").render(scene, RenderRequest(spp=spp, seed=1))
+print(json.dumps({"seconds": result.seconds, "paths_per_second": result.paths / result.seconds,
+                  "peak_rss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
+"""
+
+
+def peak_memory(scene_path: Path, size: int, spp: int) -> dict:
+    """Peak resident memory of a reference render of ``scene_path`` at ``size`` x ``size`` and ``spp``, in a child
+    process (its ru_maxrss: the interpreter, numba, Embree, the film's sums and the batches' buffers)."""
+    from harness.scene import load_scene
+
+    load_scene(scene_path)  # bad input fails here, with its one line
+    start = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, str(scene_path), str(size), str(spp)],
+                          capture_output=True, text=True)
+    wall = time.perf_counter() - start
+    if proc.returncode != 0:
+        raise RuntimeError(f"memory render failed: {proc.stderr.strip().splitlines()[-1:]}")
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    return {"scene": str(scene_path), "width": size, "height": size, "spp": spp,
+            "peak_rss_mib": summary["peak_rss_kib"] / 1024.0,
+            "seconds": summary["seconds"], "wall_seconds": wall, "paths_per_second": summary["paths_per_second"]}
+
+
+def row_dict(row: Row) -> dict:
+    return dataclasses.asdict(row)
+
+
+def format_table(rows: Sequence[Row]) -> str:
+    """A fixed-width table of the rows (one scene or several)."""
+    head = (f"{'scene':<13} {'contender':<34} {'seconds':>8} {'Mpaths/s':>9} {'Mrays/s':>8} {'cores':>5} "
+            f"{'MSE':>10} {'efficiency':>11} {'embree':>6}")
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        if r.error:
+            lines.append(f"{r.scene:<13} {r.label:<34} skipped: {r.error}")
+            continue
+        rays = f"{r.rays_per_second / 1e6:8.2f}" if r.rays_per_second else f"{'n/a':>8}"
+        embree = f"{r.embree_share:6.0%}" if r.embree_share is not None else f"{'':>6}"
+        lines.append(f"{r.scene:<13} {r.label:<34} {r.seconds:8.3f} {r.paths_per_second / 1e6:9.3f} {rays} "
+                     f"{r.cores_busy:5.2f} {r.mse:10.4g} {r.efficiency:11.4g} {embree}")
+    return "\n".join(lines)
+
+
+def run_bench(
+    *,
+    scenes: Sequence[str] = BENCH_SCENES,
+    spp: int = DEFAULT_SPP,
+    repeats: int = DEFAULT_REPEATS,
+    gt_spp: int = DEFAULT_GT_SPP,
+    strategies: bool = True,
+    cache_dir=None,
+    on_render: Callable[[str], None] | None = None,
+) -> dict:
+    """The whole benchmark: per scene, the three contenders and (``strategies``) the reference's strategy variations;
+    the reference/Mitsuba ratios; the targets checked on the Cornell box."""
+    from harness.groundtruth import ground_truth
+    from harness.scene import load_scene
+
+    result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
+                    "scenes": {}}
+    for name in scenes:
+        path = Path(name)
+        if not path.suffix:
+            path = ROOT / "scenes" / f"{name}.toml"
+        scene = load_scene(path)
+        gt = ground_truth(scene, spp=gt_spp, cache_dir=cache_dir, use_closed_form=True)
+        contenders = default_contenders(spp)
+        if strategies:
+            contenders += [Contender("reference " + " ".join(f"{k}={v}" for k, v in s.items()), "reference", s)
+                           for s in STRATEGIES[1:]]
+        rows = bench_scene(scene, contenders, spp=spp, repeats=repeats, gt=gt, on_render=on_render)
+        ref_rows = [r for r in rows if r.renderer == "reference" and not r.error]
+        best = max(ref_rows, key=lambda r: r.efficiency if not math.isnan(r.efficiency) else -1.0)
+        result["scenes"][scene.name] = {
+            "scene_file": str(path),
+            "ground_truth": {"source": gt.source, "spp": gt.spp, "variant": gt.info.get("variant")
+                             or gt.info.get("info", {}).get("variant")},
+            "rows": [row_dict(r) for r in rows],
+            "ratios": ratios(rows),
+            "best_strategy": {"label": best.label, "settings": best.settings, "efficiency": best.efficiency,
+                              "ratios": ratios(rows, best.label)},
+        }
+    if "cornell-box" in result["scenes"]:
+        result["targets"] = check_targets(result["scenes"]["cornell-box"]["ratios"])
+    return result
+
+
+def format_report(result: dict) -> str:
+    """The human-readable form of :func:`run_bench`'s result."""
+    out = []
+    for name, block in result["scenes"].items():
+        rows = [Row(**r) for r in block["rows"]]
+        gt = block["ground_truth"]
+        out.append(f"{name}: {rows[0].width}x{rows[0].height}, {result['spp']} spp, median of {result['repeats']} "
+                   f"timed renders after a warm-up; ground truth: {gt['source']} {gt['spp'] or ''} spp "
+                   f"{gt['variant'] or ''}".rstrip())
+        out.append(format_table(rows))
+        ratio_text = ", ".join(f"{k} {v:.2f}" for k, v in block["ratios"].items())
+        out.append(f"reference / Mitsuba: {ratio_text}")
+        best = block["best_strategy"]
+        out.append(f"best reference strategy: {best['label']} (efficiency {best['efficiency']:.4g}; "
+                   + ", ".join(f"{k} {v:.2f}" for k, v in best["ratios"].items() if k.startswith("efficiency")) + ")")
+        out.append("")
+    for target in result.get("targets", []):
+        measured = "not measured" if target["measured"] is None else f"{target['measured']:.2f}"
+        state = {True: "met", False: "NOT met", None: "unknown"}[target["met"]]
+        out.append(f"target {target['ratio']} >= {target['minimum']:.2f}: {measured} ({state})")
+    if "scaling" in result:
+        s = result["scaling"]
+        out.append(f"scaling ({s['scene']}): microseconds per path by spp "
+                   + ", ".join(f"{e['spp']}: {e['microseconds_per_path']:.3f}" for e in s["by_spp"])
+                   + "; by pixels " + ", ".join(f"{e['pixels']}: {e['microseconds_per_path']:.3f}" for e in s["by_pixels"]))
+    if "memory" in result:
+        m = result["memory"]
+        out.append(f"peak memory: {m['peak_rss_mib']:.0f} MiB for {m['width']}x{m['height']} at {m['spp']} spp "
+                   f"({m['seconds']:.1f} s render)")
+    return "\n".join(out)

@@ -1,0 +1,74 @@
+"""The ``harness bench`` subcommand (its parser and its body); the work is in :mod:`harness.bench`."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from harness.errors import HarnessError
+
+
+def register(sub) -> None:
+    bench = sub.add_parser(
+        "bench", help="the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, "
+                      "MSE against ground truth, efficiency 1/(MSE x s) and their ratios")
+    bench.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
+                                                       "cornell-box, soft-shadows, multi-light)")
+    bench.add_argument("--spp", type=int, default=64, help="samples per pixel of every render (default 64)")
+    bench.add_argument("--repeats", type=int, default=3, help="timed renders per contender after a warm-up (default 3)")
+    bench.add_argument("--ground-truth-spp", type=int, default=4096, help="spp of the (cached) Mitsuba ground truth")
+    bench.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
+    bench.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
+    bench.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
+                       help="also measure the peak RSS of a SIZE x SIZE render at SPP (default 1024x256)")
+    bench.add_argument("--check", action="store_true", help="exit 1 when a target of the performance issue is not met")
+    bench.add_argument("--json", action="store_true", help="print the result as one JSON object on stdout")
+    bench.add_argument("--out", help="also write the JSON result to this file (atomically)")
+    bench.add_argument("--cache-dir")
+    bench.add_argument("--quiet", action="store_true")
+    bench.set_defaults(func=cmd_bench)
+
+
+def _memory_option(text: str) -> tuple[int, int]:
+    size, sep, spp = text.lower().partition("x")
+    if not sep or not size.isdigit() or not spp.isdigit() or int(size) < 1 or int(spp) < 1:
+        raise HarnessError("--memory", f"expected SIZExSPP, e.g. 1024x256, got {text!r}")
+    return int(size), int(spp)
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from harness import bench
+    from harness.imageio import atomic_write_text
+    from harness.scene import load_scene
+
+    for option, value in (("--spp", args.spp), ("--repeats", args.repeats), ("--ground-truth-spp", args.ground_truth_spp)):
+        if value < 1:
+            raise HarnessError(option, f"expected a positive integer, got {value}")
+    memory = _memory_option(args.memory) if args.memory else None
+    if args.out:
+        out = Path(args.out)
+        if not out.parent.is_dir():
+            raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
+    scenes = args.scene or list(bench.BENCH_SCENES)
+    resolved = []
+    for name in scenes:
+        path = Path(name) if Path(name).suffix else bench.ROOT / "scenes" / f"{name}.toml"
+        if not path.is_file():
+            raise HarnessError("--scene", f"expected a canonical scene name or a scene file, got {name!r}")
+        resolved.append(str(path))
+    say = (lambda text: print(f"  {text}", file=sys.stderr, flush=True)) if not args.quiet else None
+    result = bench.run_bench(scenes=resolved, spp=args.spp, repeats=args.repeats, gt_spp=args.ground_truth_spp,
+                             strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say)
+    if args.scaling:
+        result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
+    if memory is not None:
+        result["memory"] = bench.peak_memory(Path(resolved[0]), memory[0], memory[1])
+    text = json.dumps(result, indent=2, default=float)
+    if args.out:
+        atomic_write_text(Path(args.out), text)
+    print(text if args.json else bench.format_report(result))
+    if args.check and any(t["met"] is False for t in result.get("targets", [])):
+        return 1
+    return 0

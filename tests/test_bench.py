@@ -1,0 +1,95 @@
+"""``harness bench``: its figures are computed as documented, and the command works end to end on a small scene.
+
+The timings themselves are measurements, not tests (docs/performance.md); these tests check the arithmetic, the
+shape of the result and the command's errors.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from conftest import ROOT, SCENES, load_small
+
+from harness import bench
+from harness.groundtruth import closed_form
+
+
+def test_mse_subtracts_the_ground_truths_own_noise():
+    rng = np.random.default_rng(1)
+    truth = np.full((64, 64, 3), 0.5)
+    gt_var, render_var = 1e-4, 4e-4
+    gt = truth + rng.normal(0.0, math.sqrt(gt_var), truth.shape)
+    render = truth + rng.normal(0.0, math.sqrt(render_var), truth.shape)
+    mse, raw = bench.mse_against(render, gt, np.full(truth.shape, gt_var))
+    # raw estimates Var R + Var G; the corrected one Var R. Their standard errors are about sqrt(2 / N) relative.
+    tolerance = 5 * math.sqrt(2.0 / truth.size) * (render_var + gt_var)
+    assert abs(raw - (render_var + gt_var)) < tolerance
+    assert abs(mse - render_var) < tolerance
+    assert bench.mse_against(render, gt, None)[0] == raw
+
+
+def test_efficiency_and_ratios():
+    assert bench.efficiency(0.01, 2.0) == pytest.approx(50.0)
+    assert math.isnan(bench.efficiency(0.0, 1.0)) and math.isnan(bench.efficiency(-1e-6, 1.0))
+    rows = [
+        bench.Row("s", "reference", "reference", {}, 4, 8, 8, efficiency=30.0, paths_per_second=2e6),
+        bench.Row("s", "mitsuba llvm_ad_rgb", "mitsuba", {"variant": "llvm_ad_rgb"}, 4, 8, 8, efficiency=60.0,
+                  paths_per_second=4e6),
+        bench.Row("s", "mitsuba scalar_rgb", "mitsuba", {"variant": "scalar_rgb"}, 4, 8, 8, efficiency=10.0,
+                  paths_per_second=1e6),
+    ]
+    r = bench.ratios(rows)
+    assert r == {"efficiency_vs_llvm_ad_rgb": 0.5, "paths_per_second_vs_llvm_ad_rgb": 0.5,
+                 "efficiency_vs_scalar_rgb": 3.0, "paths_per_second_vs_scalar_rgb": 2.0}
+    targets = bench.check_targets(r)
+    assert [t["met"] for t in targets] == [True, True]
+    assert [t["met"] for t in bench.check_targets({"efficiency_vs_scalar_rgb": 2.9})] == [None, False]
+
+
+def test_bench_scene_races_contenders_against_a_closed_form():
+    scene = load_small("furnace", 8)
+    contenders = [bench.Contender("reference", "reference"),
+                  bench.Contender("reference direct=mis", "reference", {"direct": "mis"}),
+                  bench.Contender("mitsuba scalar_rgb", "mitsuba", {"moments": "off", "variant": "scalar_rgb"}),
+                  bench.Contender("broken", "reference", {"direct": "nonsense"})]
+    rows = bench.bench_scene(scene, contenders, spp=4, repeats=2, gt=closed_form(scene))
+    ref, off, mitsuba, broken = rows
+    for row in (ref, off, mitsuba):
+        assert row.error is None and len(row.seconds_all) == 2 and row.seconds > 0
+        assert row.mse > 0 and row.efficiency == pytest.approx(1.0 / (row.mse * row.seconds))
+        assert row.paths_per_second == pytest.approx(8 * 8 * 4 / row.seconds)
+    assert ref.rays_per_second > 0 and ref.embree_share is not None and 0 <= ref.embree_share
+    assert mitsuba.rays_per_second is None and mitsuba.variant == "scalar_rgb"
+    assert broken.error and "direct" in broken.error
+    text = bench.format_table(rows)
+    assert "skipped" in text and "mitsuba scalar_rgb" in text
+
+
+def test_bench_command_writes_json_and_refuses_bad_options(tmp_path):
+    out = tmp_path / "bench.json"
+    proc = subprocess.run(
+        [sys.executable, "-m", "harness", "bench", "--scene", str(SCENES / "furnace.toml"), "--spp", "1",
+         "--repeats", "1", "--no-strategies", "--json", "--quiet", "--out", str(out)],
+        capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout)
+    assert json.loads(out.read_text()) == result
+    block = result["scenes"]["furnace"]
+    assert block["ground_truth"]["source"] == "closed-form"
+    labels = [row["label"] for row in block["rows"]]
+    assert labels == ["reference", "mitsuba llvm_ad_rgb", "mitsuba scalar_rgb"]
+    assert "efficiency_vs_scalar_rgb" in block["ratios"]
+    for option, value in (("--spp", "0"), ("--repeats", "0"), ("--memory", "big"), ("--scene", "no-such-scene")):
+        proc = subprocess.run([sys.executable, "-m", "harness", "bench", option, value, "--quiet"],
+                              capture_output=True, text=True, cwd=ROOT, timeout=120)
+        assert proc.returncode == 2 and option in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_peak_memory_is_measured_in_a_child(tmp_path):
+    m = bench.peak_memory(SCENES / "furnace.toml", 32, 2)
+    assert 50 < m["peak_rss_mib"] < 2048 and m["width"] == 32 and m["seconds"] > 0
