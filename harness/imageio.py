@@ -26,8 +26,12 @@ Programmer errors (bad array shapes, non-string metadata) raise
 from __future__ import annotations
 
 import contextlib
+import io
 import os
+import re
+import sys
 import tempfile
+import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -290,8 +294,117 @@ def write_exr(
     return _atomic_write(path, fill)
 
 
+# Limits on what a file may claim before its pixels are read (a corrupted header can claim terabytes): the film
+# limits of harness/limits.py, and a generous number of channels.
+MAX_READ_CHANNELS = 64
+
+_CAPTURE_LOCK = threading.Lock()
+_LIBRARY_MESSAGE = re.compile(r"\((EXR_ERR_[A-Z_]+)\)\s*(.*)")
+_BINDING_WARNING = re.compile(r"Warning: Exception raised reading pixel data for part \d+ - (.*)")
+
+
+@contextlib.contextmanager
+def _captured_output():
+    """Capture what OpenEXR prints while a file is read: the Python binding's warnings (on ``sys.stdout``) and the C
+    library's messages (on file descriptor 2), so that a broken file gives one line of ours, not library chatter.
+
+    Yields a list that holds the captured (stdout, stderr) text once the block has ended. The redirection is
+    process-wide, so it is serialised by a lock; text others wrote meanwhile is passed on when the read succeeds.
+    """
+    captured: list[tuple[str, str]] = []
+    with _CAPTURE_LOCK:
+        buffer = io.StringIO()
+        with contextlib.ExitStack() as stack:
+            sink = saved = None
+            try:
+                sys.stderr.flush()
+                sink = stack.enter_context(tempfile.TemporaryFile())
+                saved = os.dup(2)
+                os.dup2(sink.fileno(), 2)
+            except (OSError, ValueError, AttributeError):  # no usable fd 2: capture the binding's text only
+                if saved is not None:
+                    os.close(saved)
+                sink = saved = None
+            try:
+                with contextlib.redirect_stdout(buffer):
+                    yield captured
+            finally:
+                errors = ""
+                if saved is not None:
+                    os.dup2(saved, 2)
+                    os.close(saved)
+                    sink.seek(0)
+                    errors = sink.read().decode("utf-8", errors="replace")
+                captured.append((buffer.getvalue(), errors))
+
+
+def _library_reason(text: str) -> str:
+    """The most telling line of what OpenEXR printed, without the file name it starts with."""
+    for line in text.splitlines():
+        found = _LIBRARY_MESSAGE.search(line)
+        if found:
+            return f"{found[1]}: {found[2].strip()}"
+    for line in text.splitlines():
+        found = _BINDING_WARNING.search(line)
+        if found:
+            return found[1].strip()
+    return ""
+
+
+def _passed_on(out: str, err: str) -> None:
+    """Text captured during a successful read (another thread's, say) goes where it was going after all."""
+    if out:
+        sys.stdout.write(out)
+    if err:
+        sys.stderr.write(err)
+
+
+def _open_exr(path: str, **options):
+    """``OpenEXR.File(path, **options)`` with its chatter captured; HarnessError (one line) if it fails."""
+    broken = "cannot read OpenEXR file (corrupted or truncated?)"
+    failure = None
+    with _captured_output() as captured:
+        try:
+            exr = OpenEXR.File(path, **options)
+        except (RuntimeError, ValueError, OSError, TypeError, MemoryError, UnicodeDecodeError) as err:
+            exr, failure = None, _one_line(str(err)) or type(err).__name__
+    out, err = captured[0]
+    text = out + err
+    reason = _library_reason(text)
+    if exr is None or not exr.parts or _BINDING_WARNING.search(text):
+        detail = "; ".join(filter(None, [reason, failure])) or "no readable part"
+        raise HarnessError(path, f"{broken}: {_one_line(detail)}"[:400])
+    _passed_on(out, err)
+    return exr
+
+
+def _check_claimed_size(path: str, header: dict) -> None:
+    """Refuse a header whose data window or channel count is beyond the harness's limits, before pixels are read."""
+    from harness.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
+
+    try:
+        low, high = (np.asarray(corner, dtype=np.int64) for corner in header["dataWindow"])
+        width, height = int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
+    except (KeyError, TypeError, ValueError, IndexError) as err:
+        raise HarnessError(path, f"cannot read OpenEXR file (corrupted?): bad dataWindow ({_one_line(str(err))})") \
+            from None
+    if width < 1 or height < 1:
+        raise HarnessError(path, f"data window is {width} x {height} pixels; expected a non-empty image (corrupted?)")
+    if max(width, height) > MAX_FILM_SIDE or width * height > MAX_FILM_PIXELS:
+        raise HarnessError(path, (
+            f"data window is {width} x {height} pixels ({estimate_text(width, height)}); expected at most "
+            f"{MAX_FILM_SIDE} per side and 2^26 pixels (a film the harness renders; corrupted header?)"))
+    channels = header.get("channels") or []
+    if len(channels) > MAX_READ_CHANNELS:
+        raise HarnessError(path, f"has {len(channels)} channels; expected at most {MAX_READ_CHANNELS} (corrupted?)")
+
+
 def _read_channels(path: str) -> tuple[dict[str, np.ndarray], dict[str, object]]:
-    """All channel arrays and the header of part 0, or HarnessError if unreadable."""
+    """All channel arrays and the header of part 0, or HarnessError (one line, nothing printed) if unreadable.
+
+    The header is read first and its claimed size checked (:func:`_check_claimed_size`), so a corrupted header
+    cannot make the reader allocate more than a film the harness renders would need.
+    """
     try:
         with open(path, "rb") as fh:
             magic = fh.read(4)
@@ -305,15 +418,17 @@ def _read_channels(path: str) -> tuple[dict[str, np.ndarray], dict[str, object]]
         raise HarnessError(path, "not an OpenEXR file (bad magic number)")
 
     broken = "cannot read OpenEXR file (corrupted or truncated?)"
+    with _open_exr(path, header_only=True) as exr:
+        _check_claimed_size(path, dict(exr.header()))
+    exr = _open_exr(path, separate_channels=True)
     try:
-        with OpenEXR.File(path, separate_channels=True) as exr:
-            if not exr.parts:
-                raise HarnessError(path, broken)
+        with exr:
             header = dict(exr.header())
+            _check_claimed_size(path, header)
             channels = {name: np.asarray(ch.pixels) for name, ch in exr.channels().items()}
     except HarnessError:
         raise
-    except (RuntimeError, ValueError, OSError, TypeError) as err:
+    except (RuntimeError, ValueError, OSError, TypeError, MemoryError) as err:
         raise HarnessError(path, f"{broken}: {_one_line(str(err))}") from None
     return channels, header
 

@@ -10,6 +10,7 @@ import datetime
 import difflib
 import json
 import math
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -22,6 +23,7 @@ from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 
 from harness.errors import HarnessError
+from harness.limits import MAX_FILM_SIDE, estimate_text, film_problem
 from harness.scene.model import SHAPE_TYPES, Material, Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,
@@ -50,8 +52,6 @@ MESH_SUFFIXES = (".ply", ".obj")
 DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
 DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
 MAX_SUBDIVISIONS = 7  # 327 680 triangles
-MAX_FILM_SIDE = 16384
-MAX_FILM_PIXELS = 2**26
 INT32_MAX = 2**31 - 1
 
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
@@ -59,15 +59,28 @@ _TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
 _TOML_END = "(at end of document)"
 
 
-def load_scene(path: str | Path) -> Scene:
+ALLOW_OUTSIDE_ENV = "HARNESS_ALLOW_OUTSIDE_PATHS"
+
+
+def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> Scene:
     """Read and validate the scene file at ``path``; raise :class:`HarnessError` for anything wrong with it.
 
     Mesh files are read here too (relative to the scene file's folder), so a returned :class:`Scene` always
-    triangulates.
+    triangulates. A file a scene names (a mesh) must resolve, after symlinks, inside the scene file's folder unless
+    ``allow_outside_paths``; None (the default) takes it from the environment variable
+    ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed), which the CLI's ``--allow-outside-paths`` sets, so that worker
+    processes follow the command's choice.
     """
     path = Path(path)
+    if allow_outside_paths is None:
+        allow_outside_paths = outside_paths_allowed()
     document = _read_toml(path)
-    return _SceneReader(str(path), path.parent).scene(document, path)
+    return _SceneReader(str(path), path.parent, allow_outside_paths).scene(document, path)
+
+
+def outside_paths_allowed() -> bool:
+    """The process-wide default of ``load_scene(allow_outside_paths=...)``: ``$HARNESS_ALLOW_OUTSIDE_PATHS``."""
+    return os.environ.get(ALLOW_OUTSIDE_ENV, "").strip().lower() in ("1", "true", "yes")
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
@@ -126,7 +139,7 @@ def _toml_text(value: Any, depth: int) -> str:
     if isinstance(value, float):
         return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
     if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
+        return _quoted(value)
     if isinstance(value, list):
         items = [_toml_text(item, depth + 1) for item in value[:8]]
         return "[" + ", ".join(items) + (", ...]" if len(value) > 8 else "]")
@@ -140,7 +153,14 @@ def _toml_text(value: Any, depth: int) -> str:
 
 def _key_text(key: str) -> str:
     """A key as TOML writes it: bare if it can be, quoted otherwise."""
-    return key if _BARE_KEY.fullmatch(key) else json.dumps(key, ensure_ascii=False)
+    return key if _BARE_KEY.fullmatch(key) else _quoted(key)
+
+
+def _quoted(text: str) -> str:
+    """A JSON string literal that stays on one line: non-printable characters (line and paragraph separators
+    too, which JSON leaves alone) are escaped as \\uXXXX."""
+    return "".join(ch if ch.isprintable() else ch.encode("unicode_escape").decode("ascii")
+                   for ch in json.dumps(text, ensure_ascii=False))
 
 
 def _join(parent: str, key: str) -> str:
@@ -161,12 +181,14 @@ def _suggestion(word: str, candidates) -> str:
 class _SceneReader:
     """Turns a parsed TOML document into a :class:`Scene`, raising :class:`HarnessError` on the first problem.
 
-    ``label`` is the file path shown in messages; ``folder`` is where mesh file names are relative to.
+    ``label`` is the file path shown in messages; ``folder`` is where mesh file names are relative to and, unless
+    ``allow_outside``, the folder they must stay in.
     """
 
-    def __init__(self, label: str, folder: Path):
+    def __init__(self, label: str, folder: Path, allow_outside: bool = False):
         self.label = label
         self.folder = folder
+        self.allow_outside = allow_outside
 
     # ---- errors and generic value readers ------------------------------------------------------------------------
 
@@ -291,13 +313,18 @@ class _SceneReader:
         size = {}
         for key in ("width", "height"):
             value = self.integer(self.require(table, key, "film", "pixels"), f"film.{key}", "a positive integer")
-            if value < 1 or value > MAX_FILM_SIDE:
+            if value < 1:
                 raise self.expected(f"film.{key}", f"a positive integer of at most {MAX_FILM_SIDE} pixels", value)
             size[key] = value
-        if size["width"] * size["height"] > MAX_FILM_PIXELS:
-            raise self.error(
-                "film", f"expected at most {MAX_FILM_PIXELS} pixels, got {size['width']} x {size['height']}"
-            )
+        width, height = size["width"], size["height"]
+        for key, value in size.items():
+            if value > MAX_FILM_SIDE:
+                raise self.error(f"film.{key}", (
+                    f"expected a positive integer of at most {MAX_FILM_SIDE} pixels, got {_show(value)} "
+                    f"({_show(width)} x {_show(height)} pixels need {estimate_text(width, height)}); lower film.{key}"))
+        problem = film_problem(width, height)
+        if problem:
+            raise self.error("film", f"{problem}; lower film.width / film.height")
         filter_name = self.string(table.get("filter", "box"), "film.filter")
         return self.settings(lambda: Film(size["width"], size["height"], filter_name))
 
@@ -448,19 +475,14 @@ class _SceneReader:
         name = self.string(self.require(table, "file", key, "a PLY or OBJ file name"), file_key)
         if not name.lower().endswith(MESH_SUFFIXES):
             raise self.expected(file_key, "a .ply or .obj file name", name)
-        try:
-            path = (self.folder / name).resolve()
-            exists = path.is_file()
-        except (OSError, ValueError, RuntimeError):
-            exists = False
-        if not exists:
-            raise self.error(file_key, f"no such mesh file: {name!r} (relative to {str(self.folder)!r})")
+        path = self.file_path(name, file_key, "mesh")
         try:
             mesh = trimesh.load(path, force="mesh", process=False)
             vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
             triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
         except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
-            raise self.error(file_key, f"cannot read the mesh file {name!r}: {err}") from None
+            reason = " ".join(str(err).split()) or type(err).__name__
+            raise self.error(file_key, f"cannot read the mesh file {name!r}: {reason[:300]}") from None
         if len(triangles) == 0:
             raise self.error(file_key, f"expected a mesh with at least one triangle, got none in {name!r}")
         if triangles.min() < 0 or triangles.max() >= len(vertices):
@@ -468,6 +490,27 @@ class _SceneReader:
         if not np.all(np.isfinite(vertices)):
             raise self.error(file_key, f"mesh {name!r} has non-finite vertex coordinates")
         return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles}
+
+    def file_path(self, name: str, key: str, what: str) -> Path:
+        """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist
+        and, unless ``allow_outside``, lie inside the scene file's folder. Every file a scene names goes through
+        here (meshes now; textures, should the format grow them)."""
+        try:
+            path = (self.folder / name).resolve()
+            folder = self.folder.resolve()
+        except (OSError, ValueError, RuntimeError) as err:
+            raise self.error(key, f"cannot resolve the {what} file name {name!r}: {err}") from None
+        if not self.allow_outside and not path.is_relative_to(folder):
+            raise self.error(key, (
+                f"{what} file {name!r} resolves to {str(path)!r}, outside the scene's folder {str(folder)!r}; "
+                "expected a file inside it (--allow-outside-paths allows others)"))
+        try:
+            exists = path.is_file()
+        except (OSError, ValueError):
+            exists = False
+        if not exists:
+            raise self.error(key, f"no such {what} file: {name!r} (relative to {str(self.folder)!r})")
+        return path
 
     def check_placed_shape(self, shape: Shape, key: str, placement_key: str) -> None:
         """Refuse singular or overflowing placements, non-uniformly scaled spheres and zero-area lights."""

@@ -1,0 +1,60 @@
+"""Is a renderer's :class:`RenderResult` an image the harness can judge? One pure check, before anything is written.
+
+A renderer that returns a wrong-shaped, non-numeric or entirely non-finite image, or no variance, or a variance that
+is negative or NaN where the image is finite, has failed: :func:`validate_result` raises :class:`BadRenderError` (an ordinary exception, not a user error) with
+one line saying what is wrong, and ``run_case`` turns it into the case's ``error`` status and reason while the suite
+goes on. Some non-finite pixels are not refused here: the verdict counts them and fails the case.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+class BadRenderError(Exception):
+    """A renderer returned an image the harness cannot judge. ``str(err)`` is one line."""
+
+
+def validate_result(result, width: int, height: int) -> None:
+    """Raise :class:`BadRenderError` unless ``result`` holds an image the harness can compare:
+
+    * ``image``: a real floating-point array of shape (height, width, 3) with at least one finite pixel;
+    * ``variance``: a real floating-point array of the same shape, finite and >= 0 at every pixel where the image
+      is finite (the verdict needs it; one sample per pixel gives none);
+    * ``spp``: an integer >= 1; ``seconds``: a finite number >= 0.
+    """
+    expected = (height, width, 3)
+    image = _array(result, "image", expected)
+    if not np.isfinite(image).all(axis=-1).any():
+        raise BadRenderError(f"the image is NaN or infinite at every one of its {width * height} pixels")
+    if getattr(result, "variance", None) is None:
+        raise BadRenderError("no variance image; the verdict needs the variance of each pixel's estimate")
+    variance = _array(result, "variance", expected)
+    finite_pixel = np.isfinite(image).all(axis=-1)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.isfinite(variance) & (variance >= 0)) & finite_pixel[..., None]
+    if bad.any():
+        raise BadRenderError(
+            f"the variance is NaN, infinite or negative at {int(np.count_nonzero(bad.any(axis=-1)))} pixels with a "
+            "finite value; expected the variance of each pixel's estimate, >= 0 (one sample per pixel gives none: "
+            "use spp >= 2)")
+    spp = getattr(result, "spp", None)
+    if isinstance(spp, bool) or not isinstance(spp, (int, np.integer)) or spp < 1:
+        raise BadRenderError(f"spp is {spp!r}; expected an integer >= 1")
+    seconds = getattr(result, "seconds", None)
+    if isinstance(seconds, bool) or not isinstance(seconds, (int, float, np.floating, np.integer)) or not (
+            math.isfinite(seconds) and seconds >= 0):
+        raise BadRenderError(f"seconds is {seconds!r}; expected a finite number >= 0")
+
+
+def _array(result, name: str, expected: tuple[int, int, int]) -> np.ndarray:
+    value = getattr(result, name, None)
+    if not isinstance(value, np.ndarray):
+        raise BadRenderError(f"the {name} is a {type(value).__name__}; expected a numpy array of shape {expected}")
+    if value.shape != expected:
+        raise BadRenderError(f"the {name} has shape {value.shape}; expected {expected} (height, width, RGB)")
+    if not np.issubdtype(value.dtype, np.floating):
+        raise BadRenderError(f"the {name} has dtype {value.dtype}; expected floating point")
+    return value
