@@ -252,20 +252,11 @@ def ground_truth(
         raise HarnessError("--spp", f"expected a positive number of samples, got {spp}")
     if chunk_spp < 1:
         raise HarnessError("--chunk-spp", f"expected a positive number of samples, got {chunk_spp}")
-    from harness.renderers import RenderRequest, get_renderer
     from harness.renderers.mitsuba import choose_variant
 
     variant = choose_variant(variant)
     cache = Cache(cache_dir)
-    base = {
-        "format": FORMAT_VERSION,
-        "scene": scene_digest(scene),
-        "film": [scene.film.width, scene.film.height, scene.film.filter],
-        "max_depth": scene.max_depth,
-        "mitsuba": mitsuba_version(),
-        "variant": variant,
-        "seed": seed,
-    }
+    base = _base(scene, seed, variant)
     full_key = _key(dict(base, spp=spp, chunk_spp=chunk_spp))
     found = cache.load(full_key)
     if found is not None:
@@ -275,34 +266,99 @@ def ground_truth(
         return GroundTruth(estimate.mean.astype(np.float32), estimate.variance.astype(np.float32), "mitsuba", spp,
                            info=meta, cached=True, path=cache.entry(full_key) / "image.exr")
 
-    counts = [chunk_spp] * (spp // chunk_spp) + ([spp % chunk_spp] if spp % chunk_spp else [])
-    renderer = get_renderer("mitsuba")
+    counts = _counts(spp, chunk_spp)
     chunks: list[Estimate] = []
     renders, seconds, info = 0, 0.0, {}
+    render_seconds = 0.0  # the chunks' own render times, whenever they were rendered (by this call or before)
     done = 0
     for index, count in enumerate(counts):
-        chunk_key = _key(dict(base, chunk=index, chunk_spp=count))
-        found = cache.load(chunk_key)
-        if found is None:
-            chunk_seed = int(hashlib.sha256(f"{seed}/{index}".encode()).hexdigest()[:8], 16)
-            start = time.perf_counter()
-            result = renderer.render(scene, RenderRequest(spp=count, seed=chunk_seed, settings={"variant": variant}))
-            seconds += time.perf_counter() - start
+        estimate, rendered, chunk_meta = _chunk(scene, cache, base, index, count)
+        if rendered is not None:
+            seconds += rendered
             renders += 1
-            info = dict(result.info)
-            estimate = Estimate(result.image, result.variance, count)
-            cache.store(chunk_key, estimate, dict(base, chunk=index, spp=count, chunk_seed=chunk_seed,
-                                                  render_seconds=result.seconds, info=info))
-            estimate = _stored(cache, chunk_key, estimate)
-        else:
-            estimate = found[0]
+        info = chunk_meta.get("info") or info
+        render_seconds += float(chunk_meta.get("render_seconds") or 0.0)
         chunks.append(estimate)
         done += count
         if progress is not None:
             progress(done, spp)
     merged = merge(chunks)
-    meta = dict(base, spp=spp, chunk_spp=chunk_spp, chunks=len(counts), info=info, render_seconds=seconds)
+    meta = dict(base, spp=spp, chunk_spp=chunk_spp, chunks=len(counts), info=info, render_seconds=render_seconds)
     path = cache.store(full_key, merged, meta)
     merged = _stored(cache, full_key, merged)
     return GroundTruth(merged.mean.astype(np.float32), merged.variance.astype(np.float32), "mitsuba", spp,
                        info=meta, cached=renders == 0, renders=renders, seconds=seconds, path=path)
+
+
+def _base(scene: Scene, seed: int, variant: str) -> dict:
+    """What every cache key of a Mitsuba ground truth holds (``variant`` already resolved)."""
+    return {
+        "format": FORMAT_VERSION,
+        "scene": scene_digest(scene),
+        "film": [scene.film.width, scene.film.height, scene.film.filter],
+        "max_depth": scene.max_depth,
+        "mitsuba": mitsuba_version(),
+        "variant": variant,
+        "seed": seed,
+    }
+
+
+def _counts(spp: int, chunk_spp: int) -> list[int]:
+    return [chunk_spp] * (spp // chunk_spp) + ([spp % chunk_spp] if spp % chunk_spp else [])
+
+
+def _chunk(scene: Scene, cache: Cache, base: dict, index: int, count: int):
+    """Chunk ``index`` of ``count`` samples from the cache, else rendered and stored: (estimate, None, meta) when
+    it was cached, (estimate, seconds spent now, meta) when it was rendered now."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    chunk_key = _key(dict(base, chunk=index, chunk_spp=count))
+    found = cache.load(chunk_key)
+    if found is not None:
+        return found[0], None, found[1]
+    chunk_seed = int(hashlib.sha256(f"{base['seed']}/{index}".encode()).hexdigest()[:8], 16)
+    start = time.perf_counter()
+    result = get_renderer("mitsuba").render(
+        scene, RenderRequest(spp=count, seed=chunk_seed, settings={"variant": base["variant"]}))
+    seconds = time.perf_counter() - start
+    info = dict(result.info)
+    estimate = Estimate(result.image, result.variance, count)
+    meta = dict(base, chunk=index, spp=count, chunk_seed=chunk_seed, render_seconds=result.seconds, info=info)
+    cache.store(chunk_key, estimate, meta)
+    return _stored(cache, chunk_key, estimate), seconds, meta
+
+
+@dataclass(frozen=True)
+class ChunkJob:
+    """One chunk of a Mitsuba ground truth, as a unit of work an executor can run anywhere that sees the cache:
+    ``ground_truth()`` with the same arguments merges the chunks it finds cached, so rendering the chunks of a
+    long ground truth as separate tasks first gives the same image, bit for bit."""
+
+    scene: Scene
+    key: str  # the chunk's cache key (jobs with the same key are the same work)
+    index: int
+    count: int
+    base: dict
+    cache_dir: str | None
+
+    def run(self) -> bool:
+        """Render the chunk unless it is cached; True when it was rendered now."""
+        return _chunk(self.scene, Cache(self.cache_dir), self.base, self.index, self.count)[1] is not None
+
+
+def missing_chunks(scene: Scene, *, spp: int, seed: int = 0, cache_dir=None, variant: str | None = None,
+                   chunk_spp: int = DEFAULT_CHUNK_SPP) -> list[ChunkJob]:
+    """The chunks ``ground_truth()`` would render for these arguments: none when the merged entry or every chunk
+    is cached (a damaged entry counts as missing)."""
+    from harness.renderers.mitsuba import choose_variant
+
+    base = _base(scene, seed, choose_variant(variant))
+    cache = Cache(cache_dir)
+    if cache.load(_key(dict(base, spp=spp, chunk_spp=chunk_spp))) is not None:
+        return []
+    jobs = []
+    for index, count in enumerate(_counts(spp, chunk_spp)):
+        key = _key(dict(base, chunk=index, chunk_spp=count))
+        if cache.load(key) is None:
+            jobs.append(ChunkJob(scene, key, index, count, base, None if cache_dir is None else str(cache_dir)))
+    return jobs
