@@ -46,7 +46,14 @@ def _jsonable(value: Any) -> Any:
 
 
 def _variance_dof(image: ExrImage) -> int | None:
-    """spp - 1 from the file's ``spp`` metadata (what ``harness render`` writes), if present and >= 2."""
+    """The ``variance_dof`` metadata if present (external renderers' repeated runs: K - 1), else spp - 1 from the
+    file's ``spp`` metadata (what ``harness render`` writes), if present and >= 2."""
+    raw = image.metadata.get("variance_dof") if image.metadata else None
+    try:
+        if raw is not None and int(str(raw).strip()) >= 1:
+            return int(str(raw).strip())
+    except ValueError:
+        pass
     raw = image.metadata.get("spp") if image.metadata else None
     try:
         spp = int(str(raw).strip())

@@ -1,0 +1,228 @@
+"""Export a scene in formats other renderers load: Mitsuba 3 XML (with PLY meshes), PLY, OBJ and glTF.
+
+* ``mitsuba-xml``: ``scene.xml`` describing exactly the scene :func:`harness.renderers.mitsuba.scene_to_mitsuba_dict`
+  builds (same shapes and placements, BSDFs, area emitters, camera with its clip planes, film and pixel filter,
+  ``path`` integrator with the scene's ``max_depth`` and ``rr_depth`` 5), so Mitsuba renders the same image from it.
+  Rectangles, cubes and spheres stay Mitsuba's analytic shapes; ``mesh`` shapes become ``meshes/<shape>.ply`` (world
+  space, wound to face their front side, loaded with ``face_normals``). The sampler's ``sample_count`` and ``seed``
+  are the XML parameters ``$spp`` and ``$seed``, so ``mi.load_file(path, spp=64, seed=3)`` (or ``mitsuba -D
+  spp=64``) overrides them.
+* ``ply``: one ``<index>-<name>.ply`` per shape (world-space triangles as the reference core sees them: spheres
+  are icospheres).
+* ``obj``: ``scene.obj`` and its ``.mtl``, one object per shape, diffuse colour = reflectance.
+* ``gltf``: ``scene.gltf`` with its buffer, one node per shape, a PBR material per shape (base colour =
+  reflectance, emissive = emission / its largest channel; the radiance itself is in the node's ``extras``).
+
+Meshes are written with trimesh; every file is written atomically (:mod:`harness.imageio`).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.imageio import atomic_write_bytes, atomic_write_text
+from harness.scene import Scene
+from harness.scene.triangulate import object_to_world, shape_triangles
+
+FORMATS = ("mitsuba-xml", "ply", "obj", "gltf")
+MESH_DIR = "meshes"
+
+# Plugin-valued keys of the adapter's dicts and the XML tag of each.
+_PLUGIN_TAGS = {"film": "film", "rfilter": "rfilter", "sampler": "sampler", "bsdf": "bsdf", "emitter": "emitter",
+                "integrator": "integrator"}
+
+
+def safe_name(name: str) -> str:
+    """A file-name-safe form of a shape name."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "shape"
+
+
+def _num(value: float) -> str:
+    """Shortest repr that round-trips (the XML holds exactly the adapter's float64 numbers)."""
+    return repr(float(value))
+
+
+def _vec(values) -> str:
+    return ", ".join(_num(v) for v in values)
+
+
+def _plugin_xml(tag: str, spec: dict, indent: str, name: str | None = None, plugin_id: str | None = None) -> list[str]:
+    """One Mitsuba plugin dict (``{"type": ..., key: value}``) as XML lines. Values: bool, int, float, str, an
+    ``{"type": "rgb", "value": [...]}`` colour, or a nested plugin dict."""
+    attrs = f'type={quoteattr(spec["type"])}'
+    if name is not None:
+        attrs += f" name={quoteattr(name)}"
+    if plugin_id is not None:
+        attrs += f" id={quoteattr(plugin_id)}"
+    lines = [f"{indent}<{tag} {attrs}>"]
+    inner = indent + "    "
+    for key, value in spec.items():
+        if key == "type":
+            continue
+        if isinstance(value, dict) and value.get("type") == "rgb" and "value" in value:
+            lines.append(f'{inner}<rgb name={quoteattr(key)} value="{_vec(value["value"])}"/>')
+        elif isinstance(value, dict) and key in _PLUGIN_TAGS:
+            lines += _plugin_xml(_PLUGIN_TAGS[key], value, inner)
+        elif isinstance(value, bool):
+            lines.append(f'{inner}<boolean name={quoteattr(key)} value="{str(value).lower()}"/>')
+        elif isinstance(value, (int, np.integer)):
+            lines.append(f'{inner}<integer name={quoteattr(key)} value="{int(value)}"/>')
+        elif isinstance(value, (float, np.floating)):
+            lines.append(f'{inner}<float name={quoteattr(key)} value="{_num(value)}"/>')
+        elif isinstance(value, str):
+            lines.append(f"{inner}<string name={quoteattr(key)} value={quoteattr(value)}/>")
+        else:
+            raise TypeError(f"cannot write {key!r} = {value!r} as Mitsuba XML")
+    lines.append(f"{indent}</{tag}>")
+    return lines
+
+
+def _matrix_xml(matrix: np.ndarray, indent: str) -> list[str]:
+    values = " ".join(_num(v) for v in np.asarray(matrix, dtype=np.float64).ravel())
+    return [f'{indent}<transform name="to_world">', f'{indent}    <matrix value="{values}"/>', f"{indent}</transform>"]
+
+
+def _ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
+    import trimesh
+
+    mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64), faces=np.asarray(triangles, np.int64),
+                           process=False, validate=False)
+    return mesh.export(file_type="ply", encoding="binary")
+
+
+def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = MESH_DIR) -> tuple[str, dict[str, bytes]]:
+    """The scene as Mitsuba 3 XML text, and the PLY files it refers to (``{relative path: bytes}``).
+
+    ``spp`` and ``seed`` are the defaults of the XML parameters ``$spp`` and ``$seed``.
+    """
+    from harness.renderers.mitsuba import RR_DEPTH, _bsdf, _emitter, clip_planes, film_dict, path_integrator
+
+    near, far = clip_planes(scene)
+    camera = scene.camera
+    lines = [
+        '<?xml version="1.0" encoding="utf-8"?>',
+        f"<!-- {scene.name}: exported by rendering-harness (harness export) from {scene.path} -->",
+        '<scene version="3.0.0">',
+        f'    <default name="spp" value="{int(spp)}"/>',
+        f'    <default name="seed" value="{int(seed)}"/>',
+    ]
+    integrator = path_integrator(scene.max_depth)
+    assert integrator["rr_depth"] == RR_DEPTH
+    lines += _plugin_xml("integrator", integrator, "    ")
+    film = _plugin_xml("film", film_dict(scene), "        ")
+    lines += [
+        '    <sensor type="perspective">',
+        f'        <float name="fov" value="{_num(camera.fov)}"/>',
+        f'        <string name="fov_axis" value={quoteattr(camera.fov_axis)}/>',
+        f'        <float name="near_clip" value="{_num(near)}"/>',
+        f'        <float name="far_clip" value="{_num(far)}"/>',
+        '        <transform name="to_world">',
+        f'            <lookat origin="{_vec(camera.origin)}" target="{_vec(camera.target)}" up="{_vec(camera.up)}"/>',
+        "        </transform>",
+        '        <sampler type="independent">',
+        '            <integer name="sample_count" value="$spp"/>',
+        '            <integer name="seed" value="$seed"/>',
+        "        </sampler>",
+        *film,
+        "    </sensor>",
+    ]
+    material_key = {}
+    for j, (name, material) in enumerate(scene.materials.items()):
+        material_key[name] = f"bsdf_{j}"
+        lines.append(f"    <!-- material {name} -->")
+        lines += _plugin_xml("bsdf", _bsdf(material), "    ", plugin_id=f"bsdf_{j}")
+    meshes: dict[str, bytes] = {}
+    for shape in scene.shapes:
+        key = f"shape_{shape.index}"
+        lines.append(f"    <!-- shape {shape.index}: {shape.name} -->")
+        if shape.type == "mesh":
+            rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
+            meshes[rel] = _ply_bytes(*shape_triangles(shape))  # world space, wound to face the front side
+            lines += [f'    <shape type="ply" id="{key}">',
+                      f"        <string name=\"filename\" value={quoteattr(rel)}/>",
+                      '        <boolean name="face_normals" value="true"/>']
+        else:
+            lines.append(f'    <shape type="{shape.type}" id="{key}">')
+            lines += _matrix_xml(object_to_world(shape), "        ")
+            if shape.flip_normals:
+                lines.append('        <boolean name="flip_normals" value="true"/>')
+        lines.append(f'        <ref id="{material_key[shape.material]}"/>')
+        if shape.is_emitter:
+            lines += _plugin_xml("emitter", _emitter(shape), "        ")
+        lines.append("    </shape>")
+    lines.append("</scene>")
+    return "\n".join(lines) + "\n", meshes
+
+
+def _trimesh_scene(scene: Scene):
+    """A trimesh.Scene with one named, coloured mesh per shape (world space, as the core triangulates it)."""
+    import trimesh
+    from trimesh.visual.material import PBRMaterial
+
+    out = trimesh.Scene()
+    for shape in scene.shapes:
+        vertices, triangles = shape_triangles(shape)
+        material = scene.materials[shape.material]
+        emission = np.asarray(shape.emission if shape.is_emitter else (0.0, 0.0, 0.0), dtype=np.float64)
+        peak = float(emission.max())
+        pbr = PBRMaterial(name=safe_name(shape.material), baseColorFactor=[*material.reflectance, 1.0],
+                          emissiveFactor=(emission / peak).tolist() if peak > 0 else None,
+                          metallicFactor=0.0, roughnessFactor=1.0, doubleSided=material.two_sided)
+        mesh = trimesh.Trimesh(vertices=vertices, faces=triangles, process=False, validate=False,
+                               visual=trimesh.visual.TextureVisuals(material=pbr))
+        mesh.metadata["name"] = shape.name
+        extras = {"material": shape.material, "reflectance": list(material.reflectance)}
+        if shape.is_emitter:
+            extras["emission"] = [float(x) for x in shape.emission]
+        out.add_geometry(mesh, node_name=safe_name(shape.name), geom_name=safe_name(shape.name),
+                         metadata=extras)
+    return out
+
+
+def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
+    """Write ``scene`` in format ``fmt`` (one of :data:`FORMATS`) into the folder ``out_dir`` (created if needed);
+    returns the files written, the main file first."""
+    if fmt not in FORMATS:
+        raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HarnessError("--out", f"cannot create {str(out_dir)!r}: {err.strerror}") from None
+    files: dict[str, bytes] = {}
+    if fmt == "mitsuba-xml":
+        text, meshes = mitsuba_xml(scene, spp=spp, seed=seed)
+        files["scene.xml"] = text.encode("utf-8")
+        files.update(meshes)
+    elif fmt == "ply":
+        for shape in scene.shapes:
+            files[f"{shape.index}-{safe_name(shape.name)}.ply"] = _ply_bytes(*shape_triangles(shape))
+    elif fmt == "obj":
+        from trimesh.exchange.obj import export_obj
+
+        text, extra = export_obj(_trimesh_scene(scene), include_normals=False, include_texture=True,
+                                 return_texture=True, mtl_name="scene.mtl")
+        files["scene.obj"] = text.encode("utf-8")
+        files.update({name: data for name, data in extra.items()})
+    else:
+        from trimesh.exchange.gltf import export_gltf
+
+        parts = export_gltf(_trimesh_scene(scene), include_normals=False, merge_buffers=True)
+        main = next(name for name in parts if name.endswith(".gltf"))
+        files["scene.gltf"] = parts[main]
+        files.update({name: data for name, data in parts.items() if name != main})
+    written = []
+    for rel, data in files.items():
+        path = out_dir / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(data, str):
+            atomic_write_text(path, data)
+        else:
+            atomic_write_bytes(path, data)
+        written.append(path)
+    return written

@@ -1,0 +1,45 @@
+"""``harness export SCENE --format mitsuba-xml|ply|obj|gltf --out DIR``: a scene in formats other renderers load
+(:mod:`harness.export`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from harness.errors import HarnessError
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from harness.export import FORMATS, export_scene
+    from harness.scene import load_scene
+
+    if args.format not in FORMATS:
+        raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {args.format!r}")
+    if args.spp < 1:
+        raise HarnessError("--spp", f"expected a positive integer, got {args.spp}")
+    if args.seed < 0:
+        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+    scene = load_scene(args.scene)
+    files = export_scene(scene, args.format, args.out, spp=args.spp, seed=args.seed)
+    if args.json:
+        print(json.dumps({"scene": str(scene.path), "format": args.format, "files": [str(f) for f in files]}))
+    else:
+        size = sum(f.stat().st_size for f in files)
+        print(f"{scene.name}: {args.format}, {len(scene.shapes)} shapes, {len(files)} files ({size / 1024:.1f} KiB); "
+              f"main file {files[0]}")
+    return 0
+
+
+def register(sub) -> None:
+    """Add the ``export`` subcommand to the CLI's subparsers."""
+    from harness.export import FORMATS
+
+    ex = sub.add_parser("export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), PLY, OBJ or glTF for other "
+                        "renderers (docs/external-renderers.md)")
+    ex.add_argument("scene", help="scene file (TOML)")
+    ex.add_argument("--format", required=True, help=f"one of: {', '.join(FORMATS)}")
+    ex.add_argument("--out", required=True, help="output folder (created if needed)")
+    ex.add_argument("--spp", type=int, default=16, help="mitsuba-xml: default of the $spp parameter (default 16)")
+    ex.add_argument("--seed", type=int, default=0, help="mitsuba-xml: default of the $seed parameter (default 0)")
+    ex.add_argument("--json", action="store_true", help="print the files written as JSON")
+    ex.set_defaults(func=cmd_export)

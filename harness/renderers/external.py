@@ -1,0 +1,348 @@
+"""External renderers: any program, run as a command described by a small TOML file (``docs/external-renderers.md``).
+
+A renderer file::
+
+    name = "mitsuba-scalar-cli"                 # default: the file's stem
+    description = "..."                         # optional
+    command = ["{python}", "{here}/render.py", "{scene_xml}", "--spp", "{spp}", "--seed", "{seed}", "--out", "{out}"]
+    timeout = 600                               # seconds per run (default 600)
+    repeats = 4                                 # runs with distinct seeds when the EXR has no variance (default 4)
+
+Placeholders in ``command``: ``{scene_xml}`` (the scene exported as Mitsuba XML, :mod:`harness.export`),
+``{scene_toml}`` (the scene file), ``{spp}``, ``{seed}``, ``{width}``, ``{height}``, ``{max_depth}``, ``{out}`` (the
+EXR to write), ``{here}`` (the renderer file's folder) and ``{python}`` (this Python). The command runs without a
+shell, in a fresh temporary folder, stdout and stderr captured.
+
+The EXR is read with :func:`harness.imageio.read_exr`: channels R, G, B and, optionally, variance.R/G/B (the
+variance of each pixel's estimate, i.e. of the mean; spp - 1 degrees of freedom). Without variance channels the
+renderer is run K = ``repeats`` times with independent seeds s_1..s_K and the harness uses
+
+    image    = (1/K) sum_k I_k
+    variance = 1/(K (K-1)) sum_k (I_k - image)^2     (the sample variance of the K images over K)
+
+per pixel and channel: an unbiased estimate of the variance of ``image`` with K - 1 degrees of freedom, which the
+verdict's t-correction takes from ``RenderResult.info["variance_dof"]``.
+
+A non-zero exit, a timeout (the whole process group is killed), a missing or unreadable EXR, or one of the wrong
+size raises :class:`ExternalRendererError`, which a suite records as the case's ``error`` with the reason. A
+missing or invalid renderer file is a user error (:class:`~harness.errors.HarnessError`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from harness.errors import HarnessError
+from harness.renderers.base import RenderRequest, RenderResult
+from harness.scene import Scene
+
+PLACEHOLDERS = ("scene_xml", "scene_toml", "spp", "seed", "width", "height", "max_depth", "out", "here", "python")
+FILE_KEYS = ("name", "description", "command", "timeout", "repeats")
+DEFAULT_TIMEOUT_S = 600.0
+DEFAULT_REPEATS = 4
+STDERR_TAIL_LINES = 3
+_PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
+
+
+class ExternalRendererError(RuntimeError):
+    """A run of an external renderer failed (exit code, timeout, missing/unreadable/wrong-size EXR).
+
+    Not a :class:`HarnessError`: a suite records it as the case's error and goes on."""
+
+
+@dataclass(frozen=True)
+class ExternalSpec:
+    """A validated renderer file."""
+
+    name: str
+    path: Path
+    command: tuple[str, ...]
+    timeout: float = DEFAULT_TIMEOUT_S
+    repeats: int = DEFAULT_REPEATS
+    description: str = ""
+
+
+def load_spec(path: str | Path) -> ExternalSpec:
+    """Read and validate a renderer TOML file; every problem is a one-line HarnessError naming the file and key."""
+    path = Path(path)
+    label = str(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HarnessError(label, "no such renderer file; expected a TOML file with command = [...]") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise HarnessError(label, f"cannot read: {err}") from None
+    except tomllib.TOMLDecodeError as err:
+        raise HarnessError(label, f"invalid TOML: {err}") from None
+    for key in doc:
+        if key not in FILE_KEYS:
+            raise HarnessError(f"{label}: {key}", f"unknown key; expected one of {', '.join(FILE_KEYS)}")
+    command = doc.get("command")
+    if not isinstance(command, list) or not command or not all(isinstance(a, str) for a in command):
+        raise HarnessError(f"{label}: command", f"expected a non-empty list of strings, got {command!r}")
+    for arg in command:
+        for name in _PLACEHOLDER.findall(arg):
+            if name not in PLACEHOLDERS:
+                raise HarnessError(f"{label}: command", f"unknown placeholder {{{name}}} in {arg!r}; expected "
+                                   + ", ".join(f"{{{p}}}" for p in PLACEHOLDERS))
+    if not any("{out}" in arg for arg in command):
+        raise HarnessError(f"{label}: command", "expected an argument with {out} (the EXR the renderer writes)")
+    timeout = doc.get("timeout", DEFAULT_TIMEOUT_S)
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (0 < timeout < math.inf):
+        raise HarnessError(f"{label}: timeout", f"expected a positive number of seconds, got {timeout!r}")
+    repeats = doc.get("repeats", DEFAULT_REPEATS)
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 2:
+        raise HarnessError(f"{label}: repeats", f"expected an integer >= 2, got {repeats!r}")
+    name = doc.get("name", path.stem)
+    description = doc.get("description", "")
+    for key, value in (("name", name), ("description", description)):
+        if not isinstance(value, str):
+            raise HarnessError(f"{label}: {key}", f"expected a string, got {value!r}")
+    return ExternalSpec(name, path.resolve(), tuple(command), float(timeout), repeats, description)
+
+
+def repeat_seed(seed: int, index: int) -> int:
+    """The seed of run ``index`` of a render with ``seed``: a 32-bit SplitMix64 hash of both (unrelated seeds for
+    nearby inputs, and within the range every renderer accepts)."""
+    from harness.renderers.mitsuba import pass_seed
+
+    return pass_seed(seed, index)
+
+
+def combine_repeats(images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
+    """K independent renders I_1..I_K (each (H, W, 3)) as one estimate: their mean, the variance of that mean
+    estimated as s^2 / K with s^2 = sum_k (I_k - mean)^2 / (K - 1) (unbiased), and its degrees of freedom K - 1."""
+    stack = np.stack([np.asarray(i, dtype=np.float64) for i in images])
+    k = stack.shape[0]
+    if k < 2:
+        raise ValueError("combine_repeats needs at least two renders")
+    return stack.mean(axis=0), stack.var(axis=0, ddof=1) / k, k - 1
+
+
+def _tail(text: str, lines: int = STDERR_TAIL_LINES) -> str:
+    kept = [line.strip() for line in text.strip().splitlines() if line.strip()][-lines:]
+    return " | ".join(kept)[-400:]
+
+
+def _run(argv: list[str], cwd: Path, timeout: float, name: str) -> tuple[float, str]:
+    """Run ``argv`` without a shell in its own process group; returns (seconds, stderr). Raises
+    ExternalRendererError on a non-zero exit or a timeout (after killing the whole group)."""
+    start = time.perf_counter()
+    try:
+        proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True, errors="replace", start_new_session=True)
+    except OSError as err:
+        raise ExternalRendererError(f"renderer {name!r} could not start {argv[0]!r}: {err.strerror or err}") from None
+    try:
+        _, stderr = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        try:  # a descendant that left the group may hold the pipes open: do not wait for it forever
+            proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            pass
+        raise ExternalRendererError(f"renderer {name!r} timed out after {timeout:g} s (killed): "
+                                    f"{shlex.join(argv)}") from None
+    seconds = time.perf_counter() - start
+    if proc.returncode != 0:
+        tail = _tail(stderr)
+        raise ExternalRendererError(f"renderer {name!r} exited with code {proc.returncode}"
+                                    + (f": {tail}" if tail else " (no stderr)"))
+    return seconds, stderr
+
+
+class ExternalRenderer:
+    """A renderer run as an external command (see the module docstring)."""
+
+    def __init__(self, spec: ExternalSpec):
+        self.spec = spec
+        self.name = spec.name
+
+    def argv(self, values: dict[str, str]) -> list[str]:
+        """The command with every placeholder replaced."""
+        return [_PLACEHOLDER.sub(lambda m: values[m.group(1)], arg) for arg in self.spec.command]
+
+    def _read(self, path: Path, scene: Scene):
+        from harness.imageio import read_exr
+
+        if not path.is_file():
+            raise ExternalRendererError(f"renderer {self.name!r} exited with code 0 but wrote no EXR ({path.name})")
+        try:
+            exr = read_exr(path)
+        except HarnessError as err:
+            raise ExternalRendererError(f"renderer {self.name!r} wrote an unreadable EXR: {err.message}") from None
+        want = (scene.film.height, scene.film.width)
+        if exr.image.shape[:2] != want:
+            raise ExternalRendererError(
+                f"renderer {self.name!r} wrote a {exr.image.shape[1]}x{exr.image.shape[0]} EXR; expected "
+                f"{want[1]}x{want[0]}")
+        return exr
+
+    def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
+        from harness.export import mitsuba_xml
+
+        if request.settings:
+            key = next(iter(request.settings))
+            raise HarnessError(f"--set {key}", f"external renderer {self.name!r} takes no settings (put options in "
+                               f"its command, {self.spec.path})")
+        if request.spp < 1:
+            raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")
+        with tempfile.TemporaryDirectory(prefix=f"harness-{self.name}-") as tmp:
+            work = Path(tmp)
+            xml, meshes = mitsuba_xml(scene, spp=request.spp, seed=request.seed)
+            scene_dir = work / "scene"
+            for rel, data in meshes.items():
+                (scene_dir / rel).parent.mkdir(parents=True, exist_ok=True)
+                (scene_dir / rel).write_bytes(data)
+            scene_dir.mkdir(exist_ok=True)
+            (scene_dir / "scene.xml").write_text(xml, encoding="utf-8")
+            values = {
+                "scene_xml": str(scene_dir / "scene.xml"), "scene_toml": str(Path(scene.path).resolve()),
+                "spp": str(request.spp), "width": str(scene.film.width), "height": str(scene.film.height),
+                "max_depth": str(scene.max_depth), "here": str(self.spec.path.parent), "python": sys.executable,
+            }
+            images, seconds, seeds, argvs = [], 0.0, [], []
+            variance = None
+            runs = 1
+            index = 0
+            while index < runs:
+                seed = request.seed if index == 0 else repeat_seed(request.seed, index)
+                out = work / f"render-{index}.exr"
+                argv = self.argv(dict(values, seed=str(seed), out=str(out)))
+                elapsed, _ = _run(argv, work, self.spec.timeout, self.name)
+                exr = self._read(out, scene)
+                seconds += elapsed
+                images.append(exr.image.astype(np.float64))
+                seeds.append(seed)
+                argvs.append(shlex.join(argv))
+                if index == 0:
+                    variance = exr.variance
+                    runs = 1 if variance is not None else self.spec.repeats
+                index += 1
+                if request.progress is not None:
+                    request.progress(index, runs)
+        width, height = scene.film.width, scene.film.height
+        if variance is not None:
+            image, var, spp, dof = images[0], variance.astype(np.float64), request.spp, request.spp - 1
+            source = "the renderer's variance channels"
+        else:
+            image, var, dof = combine_repeats(images)
+            spp = request.spp * len(images)
+            source = f"{len(images)} runs with independent seeds (sample variance / K, K - 1 dof)"
+        info = {"command": argvs[0], "renderer_file": str(self.spec.path), "runs": len(images), "seeds": seeds,
+                "variance_from": source, "variance_dof": dof, "spp_per_run": request.spp}
+        return RenderResult(
+            renderer=self.name, image=image.astype(np.float32), variance=var.astype(np.float32), seconds=seconds,
+            spp=spp, rays={"camera": width * height * spp}, stats={"runs": len(images)},
+            settings={"spp": request.spp, "seed": request.seed, "repeats": self.spec.repeats,
+                      "timeout": self.spec.timeout, "command": list(self.spec.command)},
+            info=info,
+        )
+
+
+# ---- finding renderers: renderer files by path or by name, and the ``harness.renderers`` entry points -------------
+
+ENTRY_POINT_GROUP = "harness.renderers"
+REPO_ROOT = Path(__file__).resolve().parents[2]
+
+
+def looks_like_path(value: str) -> bool:
+    """True if a --renderer value names a file rather than a renderer: it ends in .toml or holds a slash."""
+    return value.endswith(".toml") or "/" in value or os.sep in value
+
+
+def renderer_dirs(extra: tuple[Path, ...] = ()) -> list[Path]:
+    """Folders whose ``NAME.toml`` files make NAME a renderer name: ``extra`` (e.g. beside a suite), then
+    ``./renderers`` and the ``renderers/`` folder of this checkout."""
+    out: list[Path] = []
+    for folder in (*extra, Path.cwd() / "renderers", REPO_ROOT / "renderers"):
+        folder = Path(folder).resolve()
+        if folder not in out and folder.is_dir():
+            out.append(folder)
+    return out
+
+
+def renderer_files(extra: tuple[Path, ...] = ()) -> dict[str, Path]:
+    """``{name: path}`` of every ``renderers/NAME.toml`` (the first folder of :func:`renderer_dirs` wins)."""
+    found: dict[str, Path] = {}
+    for folder in renderer_dirs(extra):
+        for path in sorted(folder.glob("*.toml")):
+            found.setdefault(path.stem, path)
+    return found
+
+
+def entry_points() -> dict[str, object]:
+    """``{name: EntryPoint}`` of the installed packages' ``harness.renderers`` entry points."""
+    import importlib.metadata
+
+    return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def resolve_path(value: str, bases: tuple[Path, ...] = ()) -> Path | None:
+    """The renderer file a path-like ``value`` names: relative to each of ``bases`` first, then to the current
+    folder; None if no such file exists."""
+    candidates = [Path(base) / value for base in bases] + [Path(value)]
+    return next((c.resolve() for c in candidates if c.is_file()), None)
+
+
+def load_entry_point(name: str, ep) -> object:
+    """Call the object an entry point names (a renderer class or a factory taking no arguments)."""
+    try:
+        renderer = ep.load()()
+    except Exception as err:  # noqa: BLE001 - a broken plugin is the user's configuration
+        raise HarnessError("--renderer", f"entry point {name!r} ({ep.value}) of group {ENTRY_POINT_GROUP} failed: "
+                           f"{type(err).__name__}: {err}".splitlines()[0]) from None
+    if not callable(getattr(renderer, "render", None)):
+        raise HarnessError("--renderer", f"entry point {name!r} ({ep.value}) gave {renderer!r}, which has no "
+                           "render(scene, request) method")
+    if not getattr(renderer, "name", None):
+        renderer.name = name
+    return renderer
+
+
+def find_renderer(name: str, bases: tuple[Path, ...] = ()):
+    """A renderer file given by path, a ``renderers/NAME.toml``, or an entry point; None if ``name`` is none of
+    these. A path that does not exist is a HarnessError."""
+    if looks_like_path(name):
+        path = resolve_path(name, bases)
+        if path is None:
+            raise HarnessError("--renderer", f"no renderer file {name!r}; expected a renderer name or the path of a "
+                               "TOML file with command = [...] (docs/external-renderers.md)")
+        return ExternalRenderer(load_spec(path))
+    files = renderer_files(tuple(Path(b) / "renderers" for b in bases))
+    if name in files:
+        return ExternalRenderer(load_spec(files[name]))
+    points = entry_points()
+    if name in points:
+        return load_entry_point(name, points[name])
+    return None
+
+
+def external_names(bases: tuple[Path, ...] = ()) -> list[str]:
+    """Names of renderer files and entry points."""
+    return sorted(set(renderer_files(tuple(Path(b) / "renderers" for b in bases))) | set(entry_points()))
+
+
+def variance_metadata(result: RenderResult) -> dict[str, str]:
+    """EXR metadata that tells the verdict the degrees of freedom of ``result.variance``: ``spp`` always, and
+    ``variance_dof`` where it is not spp - 1 (K - 1 for K repeated runs; read by harness.compare)."""
+    meta = {"spp": str(result.spp)}
+    if result.info.get("variance_dof") is not None:
+        meta["variance_dof"] = str(int(result.info["variance_dof"]))
+    return meta
