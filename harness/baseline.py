@@ -1,0 +1,556 @@
+r"""Baselines: a suite run's per-case metrics saved to a JSON file, and later runs gated against it.
+
+``harness baseline save SUITE --out FILE`` runs the suite (or takes an existing ``--from RESULTS.json``) and writes
+the baseline; ``harness run SUITE --baseline FILE`` compares every case with its baseline entry after it ran and
+fails (``ok = false``, exit code 1) a case whose metrics got worse than the baseline's by more than chance allows.
+``docs/ci.md`` describes the file and the rules; in short:
+
+*Noise metrics* (``rmse``, ``relmse``, ``mape``). Each is an image mean of a per-pixel error
+:math:`u_p` (the channel mean of :math:`(t-r)^2`, :math:`(t-r)^2/(r^2+\varepsilon)`, :math:`|t-r|/(|r|+\varepsilon)`).
+Pixels are independent estimates, so by the central limit theorem over the P pixels the metric m has relative
+standard error :math:`s = \mathrm{sd}(u_p) / (\sqrt{P}\, m)`, estimated from the image itself (heavy-tailed,
+firefly-prone pixels widen it, as they should).  Two renders of the same expected quality (e.g. a renderer change
+that only reorders its random numbers) then have :math:`\log(m_1/m_0) \approx N(0, s_0^2 + s_1^2)`; the run
+regresses when :math:`m_1 / m_0 > \exp(z_{1-a}\sqrt{s_0^2+s_1^2})` (one-sided; for ``rmse`` the square root of
+the bound on the MSE).  Both errors share the same reference image, which correlates them and narrows the true
+spread, so the bound is conservative.  An unchanged seeded render is bit-identical: ratio 1, always passes.
+
+*Bias*. The image mean of a channel moves between the baseline's render and the new one by
+:math:`z_c = (\bar t_{1c} - \bar t_{0c}) / \sqrt{\sigma_{0c}^2 + \sigma_{1c}^2}` (the reference cancels;
+:math:`\sigma` from each render's variance channels).  It regresses in channel c when :math:`|z_c| > z_{crit}`
+(two-sided, Šidák over the three channels) *and* the new render's mean lies farther from the reference than the
+baseline's (a fix that removes a bias is not a regression).
+
+*Family*. The statistical checks of a case share the false-alarm probability ``alpha`` (default 1e-3 per case,
+Bonferroni over the active checks: a = alpha / k).
+
+*Factors*. A suite's ``[baseline]`` table or ``--baseline-tolerance KEY=VALUE`` replaces a rule by a fixed bound:
+``relmse = 1.10`` (10 % worse allowed; also ``rmse``, ``mape``, ``flip``), ``seconds = 1.5`` (render time; and
+``paths_per_second = 1.5``: 1.5 x fewer allowed), ``psnr = 0.5`` (dB drop), ``ssim = 0.01`` (drop), ``bias = 4``
+(|z| bound of the shift), ``alpha = 1e-4``; ``off`` disables a check, ``auto`` restores the statistical rule.
+Time checks are off by default: render time on a shared machine varies by more than any useful bound.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import platform
+import sys
+import time
+import tomllib
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from harness.errors import HarnessError
+
+SCHEMA = "rendering-harness/baseline"
+VERSION = 1
+DEFAULT_ALPHA = 1e-3
+NOISE_METRICS = ("rmse", "relmse", "mape")  # image means of a per-pixel error: statistical by default
+FACTOR_METRICS = ("rmse", "relmse", "mape", "flip")  # lower is better: new <= factor x baseline
+TOLERANCE_KEYS = (*FACTOR_METRICS, "psnr", "ssim", "bias", "seconds", "paths_per_second", "alpha")
+DEFAULTS: dict[str, float | str] = {
+    "rmse": "auto", "relmse": "auto", "mape": "auto", "bias": "auto", "flip": "off", "psnr": "off", "ssim": "off",
+    "seconds": "off", "paths_per_second": "off", "alpha": DEFAULT_ALPHA,
+}
+#: relative slack for values that carry no noise (a bit-identical render, float rounding of JSON round trips)
+ROUNDING = 1e-9
+CHANNELS = ("R", "G", "B")
+
+
+# ---- tolerances ------------------------------------------------------------------------------------------------
+
+
+def parse_tolerance(where: str, key: str, value: Any) -> float | str:
+    """One tolerance value, checked: a number (see the module docstring for its meaning), "auto" or "off"."""
+    label = f"{where}{' ' if where.startswith('--') else '.'}{key}"
+    if key not in TOLERANCE_KEYS:
+        from harness.suite import _hint
+
+        raise HarnessError(label, f"unknown baseline tolerance{_hint(key, TOLERANCE_KEYS)}; expected one of "
+                           f"{', '.join(TOLERANCE_KEYS)}")
+    if value is False or (isinstance(value, str) and value.strip().lower() == "off"):
+        return "off"
+    if isinstance(value, str) and value.strip().lower() == "auto":
+        if key not in (*NOISE_METRICS, "bias"):
+            raise HarnessError(label, f"'auto' (a statistical rule) exists only for {', '.join(NOISE_METRICS)} and "
+                               "bias; give a number or 'off'")
+        return "auto"
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            raise HarnessError(label, f"expected a number, 'auto' or 'off', got {value!r}") from None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise HarnessError(label, f"expected a number, 'auto' or 'off', got {value!r}")
+    value = float(value)
+    if key == "alpha" and not 0 < value < 1:
+        raise HarnessError(label, f"expected a probability in (0, 1), got {value}")
+    if key in (*FACTOR_METRICS, "seconds", "paths_per_second") and value < 1:
+        raise HarnessError(label, f"expected a factor >= 1 (1.10 = 10 % worse allowed), got {value}")
+    if key in ("psnr", "ssim") and value < 0:
+        raise HarnessError(label, f"expected the drop allowed, >= 0, got {value}")
+    if key == "bias" and value <= 0:
+        raise HarnessError(label, f"expected a positive |z| bound, got {value}")
+    return value
+
+
+def suite_tolerances(suite) -> dict[str, float | str]:
+    """The suite file's ``[baseline]`` table (checked), on top of the defaults."""
+    label = str(suite.path)
+    try:
+        doc = tomllib.loads(Path(suite.path).read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError) as err:
+        raise HarnessError(label, f"cannot read: {err}") from None
+    table = doc.get("baseline", {})
+    if not isinstance(table, dict):
+        raise HarnessError(f"{label}: baseline", f"expected a table [baseline], got {table!r}")
+    out = dict(DEFAULTS)
+    for key, value in table.items():
+        out[key] = parse_tolerance(f"{label}: baseline", key, value)
+    return out
+
+
+def option_tolerances(items: list[str], base: dict[str, float | str]) -> dict[str, float | str]:
+    """``--baseline-tolerance KEY=VALUE`` items on top of ``base``."""
+    out = dict(base)
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise HarnessError("--baseline-tolerance", f"expected KEY=VALUE (e.g. relmse=1.10), got {item!r}")
+        key = key.strip()
+        out[key] = parse_tolerance("--baseline-tolerance", key, value.strip())
+    return out
+
+
+# ---- what a baseline holds of a case -------------------------------------------------------------------------
+
+
+def definition_hash(case) -> str:
+    """SHA-256 over the *problem* a case poses: the loaded scene's content (with the case's film and depth), the
+    budget, the reference it is compared with, and the verdict's tile and alpha. A baseline whose case differs in
+    any of these measured another problem: comparing would be meaningless. Not the renderer, its settings or the
+    seed: they are the solution under test, whose changes the baseline exists to judge (they are recorded in each
+    entry and reported as changed). Not expect, metrics or thresholds either (they judge numbers, not make them)."""
+    from harness.groundtruth import scene_digest
+    from harness.suite import case_scene
+
+    fields = {
+        "scene": scene_digest(case_scene(case)), "spp": case.spp, "seconds": case.seconds,
+        "chunk_spp": case.chunk_spp if case.spp is None else None, "against": dataclasses.asdict(case.against),
+        "tile": case.tile, "alpha": case.alpha, "ground_truth_spp": case.ground_truth_spp,
+    }
+    return hashlib.sha256(json.dumps(fields, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def solution(case) -> dict:
+    """What a case renders with: the part of its definition a baseline judges rather than requires equal."""
+    return {"renderer": case.renderer, "settings": dict(case.settings), "seed": case.seed}
+
+
+def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, reference: np.ndarray) -> dict:
+    """Per noise metric its value and relative standard error (CLT over pixels), and each channel's image mean
+    with its standard error from the variance channels. Uses the pixels finite in both images, like
+    :mod:`harness.metrics`."""
+    from harness.metrics import MAPE_EPS, RELMSE_EPS
+
+    t = np.asarray(test, np.float64)
+    r = np.asarray(reference, np.float64)
+    mask = np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(r), axis=-1)
+    n = int(mask.sum())
+    tm, rm = t[mask], r[mask]
+    d = tm - rm
+    per_pixel = {
+        "mse": np.mean(d**2, axis=1),
+        "relmse": np.mean(d**2 / (rm**2 + RELMSE_EPS), axis=1),
+        "mape": np.mean(np.abs(d) / (np.abs(rm) + MAPE_EPS), axis=1),
+    }
+    out: dict[str, Any] = {"pixels": n}
+    for name, u in per_pixel.items():
+        value = float(u.mean()) if n else float("nan")
+        rel_se = float(u.std(ddof=1) / math.sqrt(n) / value) if n > 1 and value > 0 else None
+        out[name] = {"value": value, "rel_se": rel_se}
+    out["mean"] = [float(x) for x in tm.mean(axis=0)] if n else None
+    out["reference_mean"] = [float(x) for x in rm.mean(axis=0)] if n else None
+    if test_variance is not None and n:
+        v = np.asarray(test_variance, np.float64)[mask]
+        out["mean_stderr"] = [float(x) for x in np.sqrt(np.clip(v, 0, None).sum(axis=0)) / n]
+    else:
+        out["mean_stderr"] = None
+    return out
+
+
+def record_statistics(case, record: dict, *, cache_dir=None, variant=None) -> dict:
+    """:func:`image_statistics` of a finished case: its render (``record["render"]["exr"]``) against its
+    reference, fetched again through :func:`harness.suite.reference_for` (the closed form, or the cache for
+    Mitsuba; a reference made by another non-Mitsuba renderer is rendered again, seeded, so identical)."""
+    from harness.imageio import read_exr
+    from harness.suite import case_scene, reference_for
+
+    exr = Path(record["render"]["exr"])
+    if not exr.is_file():
+        raise HarnessError(str(exr), f"case {record['name']!r}: its render is gone; expected the EXR the run wrote")
+    test = read_exr(exr)
+    gt = reference_for(case, case_scene(case, for_ground_truth=True), cache_dir, variant)  # as run_case does
+    return image_statistics(test.image, test.variance, gt.image)
+
+
+def case_entry(case, record: dict, *, cache_dir=None, variant=None) -> dict:
+    """What a baseline keeps of one finished case (only cases with a render: status pass or fail)."""
+    v = record["verdict"]
+    worst = v.get("worst_tile") or {}
+    render = record["render"]
+    return {
+        "definition": definition_hash(case),
+        "solution": solution(case),
+        "status": record["status"], "expect": record["expect"], "ok": record["ok"],
+        "metrics": record.get("metrics", {}),
+        "verdict": {
+            "verdict": v["verdict"], "global_bias_z": v["global_bias"].get("z"),
+            "global_bias_p": v["global_bias"].get("p_value"), "omnibus_statistic": v["omnibus"].get("statistic"),
+            "omnibus_dof": v["omnibus"].get("dof"), "omnibus_p": v["omnibus"].get("p_value"),
+            "max_z": v["max_z"].get("statistic"), "max_z_p": v["max_z"].get("p_value"),
+            "worst_tile": {k: worst.get(k) for k in ("y", "x", "channel", "z")} if worst else None,
+        },
+        "render": {"seconds": render["seconds"], "spp": render["spp"], "paths_per_second": render["paths_per_second"]},
+        "ground_truth": {k: record.get("ground_truth", {}).get(k) for k in ("source", "spp", "variant",
+                                                                             "mitsuba_version")},
+        "statistics": record_statistics(case, record, cache_dir=cache_dir, variant=variant),
+    }
+
+
+def tool_versions(results: dict | None = None) -> dict:
+    def version(name: str) -> str | None:
+        try:
+            return metadata.version(name)
+        except metadata.PackageNotFoundError:
+            return None
+
+    variants = sorted({c.get("ground_truth", {}).get("variant") for c in (results or {}).get("cases", [])} - {None})
+    return {
+        "harness": version("rendering-harness"), "python": platform.python_version(), "numpy": version("numpy"),
+        "numba": version("numba"), "embreex": version("embreex"), "mitsuba": version("mitsuba"),
+        "mitsuba_variants": variants, "machine": platform.machine(), "node": platform.node(),
+    }
+
+
+# ---- saving and loading ----------------------------------------------------------------------------------------
+
+
+def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "run") -> tuple[dict, list[str]]:
+    """The baseline document of a finished run of ``suite``, and notes on cases left out (no render)."""
+    records = {r["name"]: r for r in results.get("cases", [])}
+    cases, notes = {}, []
+    for case in suite.cases:
+        record = records.get(case.name)
+        if record is None:
+            notes.append(f"{case.name}: not in the run; left out")
+            continue
+        if record.get("status") not in ("pass", "fail") or "render" not in record:
+            notes.append(f"{case.name}: status {record.get('status')} ({record.get('reason', '')}); left out")
+            continue
+        cases[case.name] = case_entry(case, record, cache_dir=cache_dir, variant=variant)
+    doc = {
+        "schema": SCHEMA, "version": VERSION, "suite": suite.name, "suite_file": str(suite.path),
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "source": source, "tools": tool_versions(results),
+        "cases": cases,
+    }
+    return doc, notes
+
+
+def save(doc: dict, path: str | Path) -> Path:
+    from harness.imageio import atomic_write_text
+    from harness.suite import _json_default
+
+    return atomic_write_text(path, json.dumps(doc, indent=2, default=_json_default, allow_nan=False) + "\n")
+
+
+def load(path: str | Path) -> dict:
+    """A baseline file, checked: one-line HarnessError naming the file for anything that is not one."""
+    label = str(path)
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HarnessError(label, "no such baseline file (write one with: harness baseline save SUITE --out FILE)") from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise HarnessError(label, f"cannot read: {err}") from None
+    except json.JSONDecodeError as err:
+        raise HarnessError(label, f"not a baseline file: invalid JSON ({err})") from None
+    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
+        raise HarnessError(label, f"not a baseline file: expected \"schema\": \"{SCHEMA}\"")
+    if doc.get("version") != VERSION:
+        raise HarnessError(label, f"baseline version {doc.get('version')!r}; this harness reads version {VERSION}: "
+                           "save a new one")
+    if not isinstance(doc.get("cases"), dict) or not isinstance(doc.get("suite"), str):
+        raise HarnessError(label, "not a baseline file: expected \"suite\" and a \"cases\" table")
+    return doc
+
+
+def check_matches(doc: dict, path: str | Path, suite) -> None:
+    """A baseline must be for this suite's content: same suite name, and every case it shares with the suite
+    defined the same way (:func:`definition_hash`); else a one-line HarnessError naming the file."""
+    if doc["suite"] != suite.name:
+        raise HarnessError(str(path), f"baseline of suite {doc['suite']!r}, not of {suite.name!r} ({suite.path}); "
+                           "save one for this suite with: harness baseline save")
+    for case in suite.cases:
+        entry = doc["cases"].get(case.name)
+        if entry is not None and entry.get("definition") != definition_hash(case):
+            raise HarnessError(str(path), f"case {case.name!r} was saved for another content (its scene, film, "
+                               "budget, reference or verdict tile/alpha changed since); save the baseline again")
+
+
+# ---- comparing -------------------------------------------------------------------------------------------------
+
+
+def _z_one_sided(a: float) -> float:
+    return float(stats.norm.isf(a))
+
+
+def _worse(new: float, bound: float) -> bool:
+    return new > bound * (1 + ROUNDING) + 1e-300
+
+
+def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
+    """Compare a case's new entry with its baseline entry. Returns ``{"checks": [...], "regressions": [...]}``:
+    every check made (metric, rule, values, bound, ok) and a one-line reason per regression."""
+    checks: list[dict] = []
+    active_stat = [k for k in (*NOISE_METRICS, "bias") if tolerance.get(k) == "auto"]
+    a = float(tolerance.get("alpha", DEFAULT_ALPHA)) / max(len(active_stat), 1)
+    bs, ns = base["statistics"], new["statistics"]
+
+    for name in NOISE_METRICS:
+        rule = tolerance.get(name, "off")
+        key = "mse" if name == "rmse" else name
+        b, n = bs.get(key, {}), ns.get(key, {})
+        if rule == "off" or b.get("value") is None or n.get("value") is None:
+            continue
+        power = 0.5 if name == "rmse" else 1.0  # rmse = mse ** 0.5
+        b_val, n_val = b["value"] ** power, n["value"] ** power
+        if rule == "auto":
+            spread = math.hypot(b.get("rel_se") or 0.0, n.get("rel_se") or 0.0)
+            factor = math.exp(_z_one_sided(a) * spread * power)
+            how = f"noise bound, alpha {a:.2g}"
+        else:
+            factor, how = float(rule), "tolerance"
+        ok = not _worse(n_val, factor * b_val)
+        checks.append({"metric": name, "rule": rule if rule != "auto" else "statistical", "baseline": b_val,
+                       "value": n_val, "factor": factor, "ok": ok})
+        if not ok:
+            checks[-1]["reason"] = f"baseline: {name} {n_val:.4g} > {factor:.3g} x {b_val:.4g} ({how})"
+
+    rule = tolerance.get("bias", "off")
+    if rule != "off" and bs.get("mean") and ns.get("mean"):
+        if rule == "auto":
+            bound = float(stats.norm.isf(-math.expm1(math.log1p(-a) / 3) / 2))  # Šidák over 3 channels, two-sided
+        else:
+            bound = float(rule)
+        b_se, n_se = bs.get("mean_stderr") or [0.0] * 3, ns.get("mean_stderr") or [0.0] * 3
+        ref = ns.get("reference_mean") or bs.get("reference_mean")
+        for c, channel in enumerate(CHANNELS[: len(ns["mean"])]):
+            shift = ns["mean"][c] - bs["mean"][c]
+            se = math.hypot(b_se[c], n_se[c])
+            exact = abs(shift) <= ROUNDING * max(abs(ns["mean"][c]), abs(bs["mean"][c])) + 1e-300
+            z = 0.0 if exact else (shift / se if se > 0 else math.copysign(math.inf, shift))
+            farther = abs(ns["mean"][c] - ref[c]) > abs(bs["mean"][c] - ref[c])
+            ok = abs(z) <= bound or not farther
+            checks.append({"metric": f"bias.{channel}", "rule": "statistical" if rule == "auto" else "tolerance",
+                           "baseline": bs["mean"][c], "value": ns["mean"][c], "reference": ref[c], "z": z,
+                           "bound": bound, "ok": ok})
+            if not ok:
+                checks[-1]["reason"] = (f"baseline: bias in {channel}: mean {bs['mean'][c]:.5g} -> {ns['mean'][c]:.5g} "
+                                        f"(reference {ref[c]:.5g}), shift z = {z:.2f}, |z| > {bound:.2f}")
+
+    for name in ("flip", "psnr", "ssim"):
+        rule = tolerance.get(name, "off")
+        b_val, n_val = base["metrics"].get(name), new["metrics"].get(name)
+        if rule == "off" or b_val is None or n_val is None:
+            continue
+        if name == "flip":
+            ok, text = not _worse(n_val, rule * b_val), f"{name} {n_val:.4g} > {rule:.3g} x {b_val:.4g}"
+        else:
+            ok = n_val >= b_val - rule - ROUNDING * abs(b_val)
+            text = f"{name} {n_val:.4g} < {b_val:.4g} - {rule:.3g}"
+        checks.append({"metric": name, "rule": "tolerance", "baseline": b_val, "value": n_val, "tolerance": rule,
+                       "ok": ok})
+        if not ok:
+            checks[-1]["reason"] = f"baseline: {text}"
+
+    rule = tolerance.get("seconds", "off")
+    if rule != "off":
+        b_val, n_val = base["render"]["seconds"], new["render"]["seconds"]
+        ok = not _worse(n_val, rule * b_val)
+        checks.append({"metric": "seconds", "rule": "tolerance", "baseline": b_val, "value": n_val, "factor": rule,
+                       "ok": ok})
+        if not ok:
+            checks[-1]["reason"] = f"baseline: seconds {n_val:.3g} > {rule:.3g} x {b_val:.3g}"
+    rule = tolerance.get("paths_per_second", "off")
+    if rule != "off":
+        b_val, n_val = base["render"]["paths_per_second"], new["render"]["paths_per_second"]
+        ok = n_val * rule * (1 + ROUNDING) >= b_val
+        checks.append({"metric": "paths_per_second", "rule": "tolerance", "baseline": b_val, "value": n_val,
+                       "factor": rule, "ok": ok})
+        if not ok:
+            checks[-1]["reason"] = f"baseline: paths_per_second {n_val:.4g} < {b_val:.4g} / {rule:.3g}"
+    return {"checks": checks, "regressions": [c["reason"] for c in checks if not c["ok"]]}
+
+
+class Gate:
+    """A run's baseline gate: loaded and matched to the suite before the run (bad input: exit 2 before any
+    render), then :meth:`check` after each case and :meth:`finish` after the run."""
+
+    def __init__(self, path: str | Path, suite, *, tolerance_options: list[str] | None = None, cache_dir=None,
+                 variant=None):
+        self.path = Path(path)
+        self.suite = suite
+        self.doc = load(path)
+        check_matches(self.doc, path, suite)
+        self.tolerance = option_tolerances(tolerance_options or [], suite_tolerances(suite))
+        self.cache_dir, self.variant = cache_dir, variant
+        self.missing: list[str] = []
+        self.regressed: list[str] = []
+        self.compared: list[str] = []
+        self.checked: set[str] = set()
+
+    def check(self, case, record: dict) -> None:
+        """Compare a finished case with its baseline entry; a regression makes it ``ok = false`` with the reason
+        (``record["baseline"]`` holds every check, and the outcome before it, so that a record resumed from an
+        earlier run is judged afresh against this baseline)."""
+        earlier = record.get("baseline")
+        if isinstance(earlier, dict) and "ok_before" in earlier:
+            record["ok"], record["reason"] = earlier["ok_before"], earlier["reason_before"]
+        before = {"ok_before": record.get("ok"), "reason_before": record.get("reason", "")}
+        self.checked.add(case.name)
+        self._check(case, record)
+        record["baseline"].update(before)
+
+    def _check(self, case, record: dict) -> None:
+        entry = self.doc["cases"].get(case.name)
+        if entry is None:
+            self.missing.append(case.name)
+            record["baseline"] = {"compared": False, "note": "not in the baseline (not failed)"}
+            return
+        if case.expect != "pass":
+            record["baseline"] = {"compared": False, "note": "expect = fail: judged by its verdict only"}
+            return
+        if record.get("status") not in ("pass", "fail") or "render" not in record:
+            record["baseline"] = {"compared": False, "note": f"status {record.get('status')}: nothing to compare"}
+            return
+        try:
+            new = case_entry(case, record, cache_dir=self.cache_dir, variant=self.variant)
+        except HarnessError:
+            raise
+        except Exception as err:  # noqa: BLE001 - a comparison that cannot be made fails this case only
+            record.update(ok=False, reason="; ".join(filter(None, [record.get("reason"), f"baseline: cannot compare: "
+                                                                   f"{type(err).__name__}: {err}"])))
+            record["baseline"] = {"compared": False, "note": "comparison failed"}
+            self.regressed.append(case.name)
+            return
+        outcome = compare(entry, new, self.tolerance)
+        self.compared.append(case.name)
+        changed = {k: {"baseline": entry.get("solution", {}).get(k), "now": v} for k, v in new["solution"].items()
+                   if entry.get("solution", {}).get(k) != v}
+        record["baseline"] = {"compared": True, "file": str(self.path), "changed": changed, **outcome}
+        if outcome["regressions"]:
+            self.regressed.append(case.name)
+            record["ok"] = False
+            record["reason"] = "; ".join(filter(None, [record.get("reason"), *outcome["regressions"]]))
+
+    def finish(self, results: dict, out_dir: Path) -> list[str]:
+        """Recompute the run's summary with the baseline outcomes, record them in ``results.json`` (rewritten
+        atomically) and return the lines to print."""
+        from harness.imageio import atomic_write_text
+        from harness.suite import _json_default, summarise
+
+        by_name = {c.name: c for c in self.suite.cases}
+        for record in results["cases"]:  # cases resumed from an earlier run were not seen by check()
+            if record["name"] not in self.checked and record["name"] in by_name:
+                self.check(by_name[record["name"]], record)
+        results["summary"] = summarise(results["cases"], results["summary"]["wall_seconds"])
+        base_tools = self.doc.get("tools", {})
+        now = tool_versions(results)
+        changed = [f"{k} {base_tools.get(k)} -> {now.get(k)}" for k in ("mitsuba", "mitsuba_variants", "numpy")
+                   if base_tools.get(k) != now.get(k)]
+        results["baseline"] = {"file": str(self.path), "created": self.doc.get("created"),
+                               "tolerance": self.tolerance, "compared": self.compared, "regressed": self.regressed,
+                               "not_in_baseline": self.missing, "tools_changed": changed}
+        atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
+        lines = [f"baseline {self.path}: {len(self.compared)} cases compared, {len(self.regressed)} regressed"]
+        if self.missing:
+            lines.append(f"  not in the baseline (reported, not failed): {', '.join(self.missing)}")
+        if changed:
+            lines.append(f"  note: tools changed since the baseline: {'; '.join(changed)}")
+        return lines
+
+
+# ---- the command -----------------------------------------------------------------------------------------------
+
+
+def save_command(args) -> int:
+    """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
+    from harness.suite import load_suite, run_suite
+
+    suite = load_suite(args.suite)
+    out = Path(args.out)
+    if not out.parent.is_dir():
+        raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
+    if args.from_results:
+        results = _read_results(args.from_results, suite)
+        source = str(args.from_results)
+    else:
+        run_dir = Path(args.run_out) if args.run_out else Path("reports") / f"{suite.name}-baseline"
+        try:
+            run_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise HarnessError("--run-out", f"cannot create {str(run_dir)!r}: {err.strerror}") from None
+
+        def on_case(index: int, record: dict) -> None:
+            if not args.quiet:
+                mark = "ok " if record["ok"] else "BAD"
+                print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}", file=sys.stderr)
+
+        results = run_suite(suite, run_dir, cache_dir=args.cache_dir, variant=args.mitsuba_variant, on_case=on_case)
+        source = f"run {run_dir / 'results.json'}"
+    unexpected = [r["name"] for r in results["cases"] if not r.get("ok")]
+    if unexpected and not args.allow_unexpected:
+        print(f"baseline not written: {len(unexpected)} cases not as expected ({', '.join(unexpected)}); a baseline "
+              "is a known-good state (--allow-unexpected writes it anyway)", file=sys.stderr)
+        return 1
+    doc, notes = build(suite, results, cache_dir=args.cache_dir, variant=args.mitsuba_variant, source=source)
+    save(doc, out)
+    for note in notes:
+        print(f"  {note}", file=sys.stderr)
+    print(f"{suite.name}: baseline of {len(doc['cases'])}/{len(suite.cases)} cases written to {out}")
+    return 0
+
+
+def _read_results(path: str | Path, suite) -> dict:
+    label = str(path)
+    try:
+        results = json.loads(Path(path).read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise HarnessError(f"--from {label}", "no such results file") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise HarnessError(f"--from {label}", f"cannot read a results.json: {err}") from None
+    if not isinstance(results, dict) or not isinstance(results.get("cases"), list):
+        raise HarnessError(f"--from {label}", "expected a results.json written by harness run")
+    if results.get("suite") != suite.name:
+        raise HarnessError(f"--from {label}", f"results of suite {results.get('suite')!r}, not {suite.name!r}")
+    by_name = {c.name: c for c in suite.cases}
+    for record in results["cases"]:
+        case = by_name.get(record.get("name"))
+        if case is None:
+            raise HarnessError(f"--from {label}", f"case {record.get('name')!r} is not in {suite.path}")
+        budget = {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds}
+        same = (record.get("renderer"), record.get("settings"), record.get("seed"), record.get("budget")) == (
+            case.renderer, case.settings, case.seed, budget)
+        if not same:
+            raise HarnessError(f"--from {label}", f"case {case.name!r} was run with another renderer, settings, seed "
+                               f"or budget than {suite.path} defines now")
+    return results
