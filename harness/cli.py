@@ -64,6 +64,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.seed < 0:
         raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
     scene = load_scene(args.scene)
+    _check_cost(scene, args.spp, "--spp")
     renderer = get_renderer(args.renderer)
     settings = _parse_set(args.set)
     if args.mitsuba_variant:
@@ -72,15 +73,20 @@ def cmd_render(args: argparse.Namespace) -> int:
         settings["variant"] = args.mitsuba_variant
     show = not args.quiet and sys.stderr.isatty()
     bar, progress = _progress_bar(show, f"{renderer.name} {scene.name}")
+    from harness.renderers.external import ExternalRendererError, variance_metadata
+
     try:
         result = renderer.render(scene, RenderRequest(spp=args.spp, seed=args.seed, settings=settings, progress=progress))
+    except ExternalRendererError as err:  # the renderer failed, not the user's input: exit 1
+        print(f"harness: render failed: {err}", file=sys.stderr)
+        return EXIT_FAIL
     finally:
         if bar is not None:
             bar.close()
     metadata = {
         "renderer": result.renderer,
         "scene": str(scene.path),
-        "spp": str(result.spp),
+        **variance_metadata(result),
         "seed": str(args.seed),
         "settings": json.dumps(result.settings, sort_keys=True),
     }
@@ -99,11 +105,26 @@ def cmd_render(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+MAX_TILE = 1024  # the verdict pads the image to whole tiles: a larger tile only costs memory
+
+
+def _check_cost(scene, spp: int, option: str) -> None:
+    """Refuse a render of ``scene`` at ``spp`` whose memory or time estimate is absurd (harness/limits.py)."""
+    from harness.limits import check_render_cost
+
+    check_render_cost(scene.film.width, scene.film.height, spp, film_where=f"{scene.path}: film",
+                      spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option)
+
+
 def cmd_ground_truth(args: argparse.Namespace) -> int:
     from harness import groundtruth
     from harness.scene import load_scene
 
+    if args.seed < 0:
+        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
     scene = load_scene(args.scene)
+    if not (scene.closed_form and not args.no_closed_form):  # a closed form renders nothing
+        _check_cost(scene, args.spp, "--spp")
     show = not args.quiet and sys.stderr.isatty()
     bar, progress = _progress_bar(show, f"ground truth {scene.name}")
     try:
@@ -132,6 +153,10 @@ def cmd_ground_truth(args: argparse.Namespace) -> int:
 def cmd_compare(args: argparse.Namespace) -> int:
     from harness.compare import compare_files
 
+    if not 1 <= args.tile <= MAX_TILE:
+        raise HarnessError("--tile", f"expected an integer from 1 to {MAX_TILE} (pixels per tile side), got {args.tile}")
+    if not 0 < args.alpha < 1:
+        raise HarnessError("--alpha", f"expected a false-alarm probability in (0, 1), got {args.alpha}")
     report = compare_files(args.test, args.reference, tile=args.tile, alpha=args.alpha)
     if args.json:
         print(json.dumps(report, indent=2, default=float))
@@ -148,7 +173,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from harness.suite import load_suite, run_suite
 
+    from harness import executors, runstate
+
     suite = load_suite(args.suite)
+    executor = executors.make_executor(args.executor, args.workers)  # checked before anything is written
+    if args.timeout is not None and not args.timeout > 0:
+        raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
+    gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/baseline.py)
     out = Path(args.out) if args.out else Path("reports") / suite.name
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -162,6 +193,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         bar = tqdm(total=len(suite.cases), desc=suite.name, unit="case", file=sys.stderr)
 
     def on_case(index: int, record: dict) -> None:
+        if gate is not None:
+            gate.check(suite.cases[index], record)
         if bar is not None:
             bar.set_postfix_str(f"{record['name']}: {record['status']}")
             bar.update(1)
@@ -170,11 +203,31 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}"
                   + (f" ({record['reason']})" if record.get("reason") else ""), file=sys.stderr)
 
+    done = [0]
+
+    def on_resume(kept: int, total: int) -> None:
+        done[0] = kept
+        print(f"resuming: {kept} of {total} cases done", file=sys.stderr)
+
+    def on_each(index: int, record: dict) -> None:
+        done[0] += 1
+        on_case(index, record)
+
     try:
-        results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant, on_case=on_case)
+        with runstate.interruptible():
+            results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant, on_case=on_each,
+                                executor=executor, resume=not args.fresh, on_resume=on_resume, timeout=args.timeout)
+    except runstate.Interrupted as stop:
+        if bar is not None:
+            bar.close()
+            bar = None
+        print(f"harness: interrupted after {done[0]} of {len(suite.cases)} cases; run again to resume",
+              file=sys.stderr)
+        return stop.exit_code
     finally:
         if bar is not None:
             bar.close()
+    baseline_lines = gate.finish(results, out) if gate is not None else []
     summary = results["summary"]
     print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
           f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
@@ -182,8 +235,36 @@ def cmd_run(args: argparse.Namespace) -> int:
     for name in summary["unexpected"]:
         record = next(r for r in results["cases"] if r["name"] == name)
         print(f"  unexpected: {name}: {record['status']} (expected {record['expect']}) {record.get('reason', '')}")
+    for line in baseline_lines:
+        print(line)
+    if args.junit:
+        from harness import junit
+
+        print(f"junit: {junit.write(results, args.junit)}")
     _write_run_report(args, out)
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
+
+
+def _baseline_gate(args: argparse.Namespace, suite):
+    """The run's baseline gate (None without --baseline); bad --baseline, --baseline-tolerance or --junit input
+    is a one-line error before anything runs."""
+    from harness import baseline, junit
+
+    gate = None
+    if args.baseline:
+        gate = baseline.Gate(args.baseline, suite, tolerance_options=args.baseline_tolerance,
+                             cache_dir=args.cache_dir, variant=args.mitsuba_variant)
+    elif args.baseline_tolerance:
+        raise HarnessError("--baseline-tolerance", "applies only with --baseline FILE")
+    if args.junit:
+        junit.check_writable(args.junit)
+    return gate
+
+
+def cmd_baseline_save(args: argparse.Namespace) -> int:
+    from harness.baseline import save_command
+
+    return save_command(args)
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
@@ -292,10 +373,12 @@ def cmd_convergence(args: argparse.Namespace) -> int:
     specs = getattr(args, "series", None) or [{"renderer": "reference", "settings": {}}]
     series = []
     for spec in specs:
-        if spec["renderer"] not in renderer_names():
+        if spec["renderer"] not in renderer_names() and not spec["renderer"].endswith(".toml"):
             raise HarnessError("--renderer", f"expected one of {', '.join(renderer_names())}, got {spec['renderer']!r}")
         series.append(Series(spec["renderer"], {**args.common_settings, **spec["settings"]}))
     scene = replace_film(load_scene(args.scene), width, height)
+    if spp:
+        _check_cost(scene, max(spp), "--spp")
     show = not args.quiet and sys.stderr.isatty()
     bar = None
     if show:
@@ -371,7 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     render = sub.add_parser("render", help="render a scene to an OpenEXR file (plus a PNG preview)")
     render.add_argument("scene", help="scene file (TOML, see docs/scene-format.md)")
-    render.add_argument("--renderer", default="reference", help=f"one of: {', '.join(renderer_names())}")
+    render.add_argument("--renderer", default="reference", help=f"one of: {', '.join(renderer_names())}, or the "
+                        "path of a renderer file (.toml, docs/external-renderers.md)")
     render.add_argument("--spp", type=int, required=True, help="viewing rays (samples) per pixel, Np")
     render.add_argument("--seed", type=int, default=0, help="seed of every random stream (default 0)")
     render.add_argument(
@@ -412,7 +496,35 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     run.add_argument("--quiet", action="store_true")
     run.add_argument("--no-report", action="store_true", help="do not write the report (index.html, report.json)")
+    run.add_argument("--executor", default="local", help="where cases run: local (a process pool, the default), "
+                     "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler)")
+    run.add_argument("--workers", type=int, help="worker processes of local (default 1) or dask (default 2)")
+    run.add_argument("--timeout", type=float, help="seconds before a case's worker is killed (default: the case's "
+                     "timeout key, else 600 s for an spp budget, max(120 s, 20 x the budget) for a seconds budget)")
+    run.add_argument("--fresh", action="store_true", help="ignore an earlier results.json in --out: run every case "
+                     "(default: resume, keeping the cases it finished)")
+    run.add_argument("--baseline", metavar="FILE", help="also fail a case whose metrics regressed against this "
+                     "baseline (harness baseline save; docs/ci.md)")
+    run.add_argument("--baseline-tolerance", action="append", default=[], metavar="KEY=VALUE",
+                     help="override a baseline rule, e.g. relmse=1.10 (10 %% worse allowed), seconds=1.5, bias=off "
+                     "(repeatable; docs/ci.md)")
+    run.add_argument("--junit", metavar="FILE", help="also write JUnit XML of the run for CI (docs/ci.md)")
     run.set_defaults(func=cmd_run)
+
+    bl = sub.add_parser("baseline", help="save a suite's metrics as a baseline that harness run --baseline gates on")
+    bl_sub = bl.add_subparsers(dest="baseline_command", required=True, parser_class=_Parser)
+    bls = bl_sub.add_parser("save", help="run the suite (or take --from RESULTS.json) and write its baseline")
+    bls.add_argument("suite", help="suite file (TOML, see docs/suites.md)")
+    bls.add_argument("--out", required=True, metavar="FILE", help="the baseline file to write (JSON)")
+    bls.add_argument("--from", dest="from_results", metavar="RESULTS.json",
+                     help="take this earlier run of the suite instead of running it")
+    bls.add_argument("--run-out", help="output folder of the run (default reports/<suite name>-baseline)")
+    bls.add_argument("--allow-unexpected", action="store_true",
+                     help="write the baseline even if some cases did not end as expected")
+    bls.add_argument("--cache-dir", help="ground-truth cache folder")
+    bls.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
+    bls.add_argument("--quiet", action="store_true")
+    bls.set_defaults(func=cmd_baseline_save)
 
     rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
     rep.add_argument("results", help="a results.json written by harness run")
@@ -458,14 +570,59 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--mitsuba-variant")
     cal.add_argument("--quiet", action="store_true")
     cal.set_defaults(func=cmd_calibrate)
+    from harness.export_cli import register as register_export
+
+    register_export(sub)
+    from harness.bench_cli import register as register_bench
+
+    register_bench(sub)
+    from harness.stress import add_parser as register_stress
+
+    register_stress(sub)
+    for name in SCENE_COMMANDS:  # commands that load scene files, and so follow their mesh paths
+        if name in sub.choices:
+            try:
+                sub.choices[name].add_argument(
+                    "--allow-outside-paths", action="store_true",
+                    help="let scenes name mesh files outside their own folder (default: refused)")
+            except argparse.ArgumentError:  # the command defines it itself
+                pass
     return parser
+
+
+SCENE_COMMANDS = ("render", "ground-truth", "run", "report", "convergence", "calibrate", "stress", "bench", "export")
+
+
+class _OutsidePaths:
+    """With ``--allow-outside-paths``: set ``$HARNESS_ALLOW_OUTSIDE_PATHS`` (read by load_scene, inherited by worker
+    processes) for the command's duration, then restore it."""
+
+    def __init__(self, args: argparse.Namespace):
+        self.allow = bool(getattr(args, "allow_outside_paths", False))
+
+    def __enter__(self):
+        from harness.scene.load import ALLOW_OUTSIDE_ENV
+
+        self.saved = os.environ.get(ALLOW_OUTSIDE_ENV)
+        if self.allow:
+            os.environ[ALLOW_OUTSIDE_ENV] = "1"
+
+    def __exit__(self, *exc):
+        from harness.scene.load import ALLOW_OUTSIDE_ENV
+
+        if self.allow:
+            if self.saved is None:
+                os.environ.pop(ALLOW_OUTSIDE_ENV, None)
+            else:
+                os.environ[ALLOW_OUTSIDE_ENV] = self.saved
 
 
 def main(argv: list[str] | None = None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
-        return args.func(args)
+        with _OutsidePaths(args):
+            return args.func(args)
     except HarnessError as err:
         print(f"harness: error: {err}", file=sys.stderr)
         return EXIT_USAGE

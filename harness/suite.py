@@ -10,6 +10,7 @@ import dataclasses
 import difflib
 import itertools
 import json
+import math
 import platform
 import re
 import time
@@ -24,10 +25,11 @@ import numpy as np
 
 from harness.errors import HarnessError
 
-SUITE_KEYS = ("name", "description", "defaults", "cases")
+SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/baseline.py
 CASE_KEYS = (
     "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
-    "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth",
+    "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth", "timeout",
+    "variant",
 )
 DEFAULT_KEYS = tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
 AGAINST_KEYS = ("renderer", "spp", "seed", "settings")
@@ -68,6 +70,8 @@ class Case:
     alpha: float = 0.001
     tile: int = 8
     ground_truth_spp: int = 1024
+    timeout: float | None = None  # seconds before a worker running the case is killed (None: derived, executors.py)
+    variant: str | None = None  # a transformed scene (harness/stress.py), e.g. "scale=1e3"
 
 
 @dataclass(frozen=True)
@@ -95,6 +99,8 @@ def load_suite(path: str | Path) -> Suite:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise HarnessError(label, f"invalid TOML: {err}") from None
+    except (ValueError, RecursionError) as err:  # e.g. integers beyond Python's digit limit, absurd nesting
+        raise HarnessError(label, f"invalid TOML: {err}") from None
     _check_keys(label, doc, SUITE_KEYS, "")
     name = _typed(label, "name", doc.get("name", path.stem), str)
     description = _typed(label, "description", doc.get("description", ""), str)
@@ -103,7 +109,7 @@ def load_suite(path: str | Path) -> Suite:
     entries = _typed(label, "cases", doc.get("cases", []), list)
     if not entries:
         raise HarnessError(f"{label}: cases", "expected at least one [[cases]] entry")
-    cases, names = [], set()
+    cases, names, scenes = [], set(), {}
     for i, entry in enumerate(entries):
         where = f"cases[{i}]"
         entry = _typed(label, where, entry, dict)
@@ -112,6 +118,7 @@ def load_suite(path: str | Path) -> Suite:
         case = _case(label, path.parent, where, merged)
         if case.name in names:
             raise HarnessError(f"{label}: {where}.name", f"duplicate case name {case.name!r}")
+        _check_case_cost(label, where, case, scenes)
         names.add(case.name)
         cases.append(case)
     return Suite(name, description, path, tuple(cases))
@@ -128,7 +135,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     scene = _scene_path(label, key("scene"), folder, _typed(label, key("scene"), d["scene"], str))
     name = _typed(label, key("name"), d.get("name", scene.stem), str)
     renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
-    _renderer_known(label, key("renderer"), renderer, renderer_names())
+    renderer = _renderer_known(label, key("renderer"), renderer, renderer_names(), folder)
     settings = _settings(label, key("settings"), d.get("settings", {}))
     spp = d.get("spp", None if "seconds" in d else 64)
     seconds = d.get("seconds")
@@ -138,7 +145,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
         spp = _positive(label, key("spp"), spp, int)
     if seconds is not None:
         seconds = float(_positive(label, key("seconds"), seconds, (int, float)))
-    against = _against(label, key("against"), d.get("against", "ground-truth"), renderer_names())
+    against = _against(label, key("against"), d.get("against", "ground-truth"), renderer_names(), folder)
     film = d.get("film")
     if film is not None:
         film = _typed(label, key("film"), film, dict)
@@ -156,9 +163,9 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     thresholds = _typed(label, key("thresholds"), d.get("thresholds", {}), dict)
     for m, v in thresholds.items():
         if m not in METRICS:
-            raise HarnessError(f"{label}: {key('thresholds')}.{m}", f"unknown metric{_hint(m, METRICS)}")
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not np.isfinite(v):
-            raise HarnessError(f"{label}: {key('thresholds')}.{m}", f"expected a finite number, got {v!r}")
+            raise HarnessError(f"{label}: {key('thresholds')}.{_key(m)}", f"unknown metric{_hint(m, METRICS)}")
+        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(_float_or_inf(v)):
+            raise HarnessError(f"{label}: {key('thresholds')}.{_key(m)}", f"expected a finite number, got {_short(v)}")
     expect = _typed(label, key("expect"), d.get("expect", "pass"), str)
     if expect not in EXPECT:
         raise HarnessError(f"{label}: {key('expect')}", f"expected 'pass' or 'fail', got {expect!r}")
@@ -171,9 +178,60 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
         seed=_non_negative(label, key("seed"), d.get("seed", 0)), against=against, film=film, max_depth=max_depth,
         metrics=metrics,
         thresholds={k: float(v) for k, v in thresholds.items()}, expect=expect, alpha=alpha,
-        tile=_positive(label, key("tile"), d.get("tile", 8), int),
+        tile=_tile(label, key("tile"), d.get("tile", 8)),
         ground_truth_spp=_positive(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024), int),
+        timeout=(None if d.get("timeout") is None
+                 else float(_positive(label, key("timeout"), d["timeout"], (int, float)))),
+        variant=_stress_variant(label, key("variant"), d.get("variant")),
     )
+
+
+def _stress_variant(label: str, key: str, value: Any) -> str | None:
+    """A case's ``variant`` (harness/stress.py), normalised (``scale=1000`` -> ``scale=1e3``), or None."""
+    if value is None:
+        return None
+    from harness.stress import parse_variant
+
+    return parse_variant(_typed(label, key, value, str), f"{label}: {key}").name
+
+
+MAX_TILE = 1024  # the verdict pads the image to whole tiles: a larger tile only costs memory
+
+
+def _tile(label: str, key: str, value: Any) -> int:
+    value = _positive(label, key, value, int)
+    if value > MAX_TILE:
+        raise HarnessError(f"{label}: {key}", f"expected a tile side from 1 to {MAX_TILE} pixels, got {value}")
+    return value
+
+
+def _check_case_cost(label: str, where: str, case: Case, scenes: dict) -> None:
+    """Load the case's scene (once per suite: its problems are one line naming the scene file, before anything
+    runs) and refuse a film or budget whose memory or time estimate is absurd (harness/limits.py)."""
+    from harness.limits import MAX_FILM_SIDE, check_render_cost, film_problem
+    from harness.scene import load_scene
+
+    if case.scene not in scenes:
+        scenes[case.scene] = load_scene(case.scene)
+    scene = scenes[case.scene]
+    film = case.film or {}
+    width, height = film.get("width", scene.film.width), film.get("height", scene.film.height)
+    film_where = f"{label}: {where}.film" if film else f"{scene.path}: film"
+    film_keys = f"{where}.film" if film else f"film.width / film.height in {scene.path}"
+    if max(width, height) > MAX_FILM_SIDE:
+        raise HarnessError(film_where, f"expected at most {MAX_FILM_SIDE} pixels per side, got {width} x {height}; "
+                           f"lower {film_keys}")
+    problem = film_problem(width, height)
+    if problem:
+        raise HarnessError(film_where, f"{problem}; lower {film_keys}")
+    budgets = [(case.spp, case.seconds, "spp" if case.seconds is None else "seconds")]
+    if case.against.kind == "renderer":
+        budgets.append((case.against.spp, None, "against.spp"))
+    elif case.against.kind == "mitsuba" or (case.against.kind == "ground-truth" and not scene.closed_form):
+        budgets.append((case.ground_truth_spp, None, "ground_truth_spp"))
+    for spp, seconds, key in budgets:
+        check_render_cost(width, height, spp, seconds=seconds, film_where=film_where,
+                          spp_where=f"{label}: {where}.{key}", film_keys=film_keys, spp_name=f"{where}.{key}")
 
 
 def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
@@ -183,10 +241,10 @@ def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
     for c in candidates:
         if c.is_file():
             return c
-    raise HarnessError(f"{label}: {key}", f"no scene {value!r} (looked for {', '.join(str(c) for c in candidates)})")
+    raise HarnessError(f"{label}: {key}", f"no scene {value!r} (looked for {', '.join(repr(str(c)) for c in candidates)})")
 
 
-def _against(label: str, key: str, value: Any, renderers: list[str]) -> Against:
+def _against(label: str, key: str, value: Any, renderers: list[str], folder: Path | None = None) -> Against:
     if isinstance(value, str):
         if value not in AGAINST_KINDS:
             raise HarnessError(f"{label}: {key}", f"expected one of {', '.join(AGAINST_KINDS)} or a table "
@@ -197,7 +255,7 @@ def _against(label: str, key: str, value: Any, renderers: list[str]) -> Against:
     if "renderer" not in table:
         raise HarnessError(f"{label}: {key}.renderer", "missing: expected the name of the renderer to compare with")
     renderer = _typed(label, f"{key}.renderer", table["renderer"], str)
-    _renderer_known(label, f"{key}.renderer", renderer, renderers)
+    renderer = _renderer_known(label, f"{key}.renderer", renderer, renderers, folder)
     return Against(
         "renderer", renderer, _positive(label, f"{key}.spp", table.get("spp", 256), int),
         _non_negative(label, f"{key}.seed", table.get("seed", 1_000_003)),
@@ -205,9 +263,23 @@ def _against(label: str, key: str, value: Any, renderers: list[str]) -> Against:
     )
 
 
-def _renderer_known(label: str, key: str, name: str, known: list[str]) -> None:
+def _renderer_known(label: str, key: str, name: str, known: list[str], folder: Path | None = None) -> str:
+    """The renderer a case names: a known name, or the absolute path of a renderer file given relative to the
+    suite's folder (or the current one); a file is validated now (harness.renderers.external)."""
+    from harness.renderers import external
+
+    if external.looks_like_path(name):
+        path = external.resolve_path(name, (folder,) if folder is not None else ())
+        if path is None:
+            raise HarnessError(f"{label}: {key}", f"no renderer file {name!r} (relative to {folder or '.'})")
+        external.load_spec(path)
+        return str(path)
     if name not in known:
         raise HarnessError(f"{label}: {key}", f"unknown renderer {name!r}{_hint(name, known)} (known: {', '.join(known)})")
+    files = external.renderer_files()
+    if name in files:
+        external.load_spec(files[name])
+    return name
 
 
 def _settings(label: str, key: str, value: Any) -> dict[str, str]:
@@ -215,7 +287,7 @@ def _settings(label: str, key: str, value: Any) -> dict[str, str]:
     out = {}
     for k, v in table.items():
         if isinstance(v, (dict, list)):
-            raise HarnessError(f"{label}: {key}.{k}", f"expected a string or number, got {v!r}")
+            raise HarnessError(f"{label}: {key}.{_key(k)}", f"expected a string or number, got {_short(v)}")
         out[str(k)] = str(v).lower() if isinstance(v, bool) else str(v)
     return out
 
@@ -223,7 +295,7 @@ def _settings(label: str, key: str, value: Any) -> dict[str, str]:
 def _check_keys(label: str, table: dict, known: tuple[str, ...], parent: str) -> None:
     for k in table:
         if k not in known:
-            where = f"{parent}.{k}" if parent else k
+            where = f"{parent}.{_key(k)}" if parent else _key(k)
             raise HarnessError(f"{label}: {where}", f"unknown key{_hint(k, known)}; expected one of {', '.join(known)}")
 
 
@@ -240,8 +312,31 @@ def _typed(label: str, key: str, value: Any, kind):
     if not ok:
         names = {str: "a string", dict: "a table", list: "a list", int: "an integer"}
         what = names.get(kind, "a number") if not isinstance(kind, tuple) else "a number"
-        raise HarnessError(f"{label}: {key}", f"expected {what}, got {value!r}")
+        raise HarnessError(f"{label}: {key}", f"expected {what}, got {_short(value)}")
+    if isinstance(kind, tuple) and float in kind and not isinstance(value, float) and _float_or_inf(value) == math.inf:
+        raise HarnessError(f"{label}: {key}", f"expected a finite number, got an integer of {len(str(value))} digits")
     return value
+
+
+def _key(name: str) -> str:
+    """A key as TOML writes it in a key path: bare if it can be, else quoted with every odd character escaped."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def _float_or_inf(value) -> float:
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for "got ..." in one-line messages."""
+    try:
+        text = repr(value)
+    except ValueError:  # an integer with more digits than Python prints
+        text = "a huge integer"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _positive(label: str, key: str, value: Any, kind) -> Any:
@@ -265,7 +360,9 @@ def slug(name: str) -> str:
     return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "case"
 
 
-def case_scene(case: Case):
+def case_scene(case: Case, for_ground_truth: bool = False):
+    """The case's scene: film and depth overrides, then its stress ``variant``, unless ``for_ground_truth`` and the
+    variant must not change the image (then the untransformed scene is the reference's)."""
     from harness.scene import load_scene
     from reference_impl import Film
 
@@ -276,6 +373,12 @@ def case_scene(case: Case):
         scene = dataclasses.replace(scene, film=film)
     if case.max_depth is not None:  # the scene's own depth, so the ground truth and the render agree
         scene = dataclasses.replace(scene, max_depth=case.max_depth)
+    if case.variant is not None:
+        from harness.stress import parse_variant
+
+        stress_variant = parse_variant(case.variant, f"{case.scene}: variant")
+        if not (for_ground_truth and stress_variant.judged_against_original):
+            scene = stress_variant.apply(scene)
     return scene
 
 
@@ -411,16 +514,14 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
     """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
     from harness import imageio
     from harness.compare import compare_images
+    from harness.renderers.external import variance_metadata
+    from harness.renderers.validate import validate_result
 
-    record: dict[str, Any] = {
-        "name": case.name, "scene": str(case.scene), "renderer": case.renderer, "settings": case.settings,
-        "budget": {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds},
-        "seed": case.seed, "expect": case.expect, "against": dataclasses.asdict(case.against),
-    }
+    record = case_header(case)
     start = time.perf_counter()
     try:
         scene = case_scene(case)
-        gt = reference_for(case, scene, cache_dir, variant, progress)
+        gt = reference_for(case, case_scene(case, for_ground_truth=True), cache_dir, variant, progress)
         record["ground_truth"] = {
             "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
             "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,
@@ -428,6 +529,7 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
             "mitsuba_version": gt.info.get("mitsuba"),
         }
         result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
+        validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
         folder = out_dir / "cases" / slug(case.name)
         folder.mkdir(parents=True, exist_ok=True)
         imageio.write_exr(folder / "render.exr", result.image, result.variance,
@@ -435,7 +537,7 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         imageio.write_png_preview(folder / "render.png", result.image)
         gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         comparison = compare_images(
-            imageio.ExrImage(result.image, result.variance, {"spp": str(result.spp)}),
+            imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
             imageio.ExrImage(gt.image, gt.variance, gt_meta),
             tile=case.tile, alpha=case.alpha,
         )
@@ -463,9 +565,25 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
     return record
 
 
+def case_header(case: Case) -> dict[str, Any]:
+    """The fields every record of a case starts with, whatever its outcome."""
+    return {
+        "name": case.name, "scene": str(case.scene), "renderer": case.renderer, "settings": case.settings,
+        "budget": {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds},
+        "seed": case.seed, "expect": case.expect, "against": dataclasses.asdict(case.against),
+    }
+
+
 def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
-              on_case: Callable[[int, dict], None] | None = None) -> dict:
-    """Run every case, rewriting ``results.json`` atomically after each one (finished cases are never lost)."""
+              on_case: Callable[[int, dict], None] | None = None, executor=None, resume: bool = False,
+              on_resume: Callable[[int, int], None] | None = None, timeout: float | None = None) -> dict:
+    """Run every case on ``executor`` (default: in this process, in order; ``harness.executors``), rewriting
+    ``results.json`` atomically after each finished case, records in suite order whatever order cases finish in
+    (finished cases are never lost). With ``resume``, the finished records of an earlier run of this suite in
+    ``out_dir`` whose case definitions are unchanged are kept (``"resumed": true``) and only the rest run
+    (``harness.runstate``); ``on_resume(kept, total)`` is told how many. A task whose worker is killed (past
+    ``timeout``, else the case's own, see ``executors.case_timeout``) or dies makes its case an error."""
+    from harness import executors, runstate
     from harness.imageio import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -476,13 +594,56 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
         "host": {"python": platform.python_version(), "machine": platform.machine(), "node": platform.node()},
         "cases": [],
     }
-    for index, case in enumerate(suite.cases):
-        record = run_case(case, out_dir, cache_dir=cache_dir, variant=variant)
-        results["cases"].append(record)
+    executor = executor or executors.SerialExecutor()
+    results["executor"] = executor.name
+    digests = [runstate.case_digest(case) for case in suite.cases]
+    records = runstate.reusable(out_dir / "results.json", suite.name, suite.cases, digests) if resume else {}
+    if records and on_resume is not None:
+        on_resume(len(records), len(suite.cases))
+
+    def write() -> None:
+        results["cases"] = [records[i] for i in sorted(records)]
+        results["complete"] = len(records) == len(suite.cases)
         results["summary"] = summarise(results["cases"], time.time() - started)
-        atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
-        if on_case is not None:
-            on_case(index, record)
+        with runstate.no_interrupts():  # a signal waits until the file is renamed into place
+            atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
+
+    todo = [(i, case) for i, case in enumerate(suite.cases) if i not in records]
+    tasks = executors.plan(todo, out_dir, cache_dir=cache_dir, variant=variant, timeout=timeout,
+                           chunks=executor.chunks)
+    rendered: set[str] = set()  # chunk tasks that rendered, not yet counted in a case's record
+    outcomes = executor.run(tasks)
+    try:
+        for task, outcome in outcomes:
+            if outcome[0] == "failed" and runstate.requested():
+                runstate.check()  # a worker that died of the signal that stops the run is not the case's fault
+            if outcome[0] == "harness-error":
+                raise HarnessError(outcome[1], outcome[2])
+            if task.kind != "case":
+                if outcome == ("ok", True):
+                    rendered.add(task.key)
+                continue
+            index = int(task.key.split(":")[1])
+            case = suite.cases[index]
+            if outcome[0] == "ok":
+                record = outcome[1]
+                mine = rendered.intersection(task.deps)  # its chunks rendered ahead count as its renders
+                if mine and "ground_truth" in record:
+                    rendered -= mine
+                    record["ground_truth"].update(renders=record["ground_truth"]["renders"] + len(mine), cached=False)
+            else:  # the worker was killed or died: the suite goes on
+                record = dict(case_header(case), status="error", ok=False, reason=outcome[1],
+                              wall_seconds=outcome[2] if len(outcome) > 2 else None)
+            record["definition"] = digests[index]
+            records[index] = record
+            write()
+            if on_case is not None:
+                on_case(index, record)
+            runstate.check()
+    finally:
+        outcomes.close()  # stops the workers, whatever ended the loop
+    if not todo:  # everything was resumed: still record this run
+        write()
     return results
 
 
@@ -494,7 +655,8 @@ def summarise(records: list[dict], wall: float) -> dict:
         "failed": sum(r.get("status") == "fail" for r in records),
         "errors": sum(r.get("status") == "error" for r in records),
         "unexpected": [r["name"] for r in records if not r["ok"]],
-        "mitsuba_renders": sum(_mitsuba_renders(r) for r in records),
+        "mitsuba_renders": sum(_mitsuba_renders(r) for r in records if not r.get("resumed")),  # by this run
+        "resumed": sum(bool(r.get("resumed")) for r in records),
         "ground_truth_cached": sum(bool(r.get("ground_truth", {}).get("cached")) for r in records),
         "wall_seconds": wall,
     }
