@@ -74,11 +74,21 @@ def cmd_render(args: argparse.Namespace) -> int:
     show = not args.quiet and sys.stderr.isatty()
     bar, progress = _progress_bar(show, f"{renderer.name} {scene.name}")
     from harness.renderers.external import ExternalRendererError, variance_metadata
+    from harness.renderers.validate import BadRenderError, validate_result
 
     try:
         result = renderer.render(scene, RenderRequest(spp=args.spp, seed=args.seed, settings=settings, progress=progress))
-    except ExternalRendererError as err:  # the renderer failed, not the user's input: exit 1
-        print(f"harness: render failed: {err}", file=sys.stderr)
+        validate_result(result, scene.film.width, scene.film.height, for_verdict=False)
+    except (ExternalRendererError, BadRenderError) as err:  # the renderer failed, not the user's input: exit 1
+        print(f"harness: render failed: {renderer.name}: {err}", file=sys.stderr)
+        return EXIT_FAIL
+    except HarnessError:
+        raise
+    except Exception as err:  # a crash inside the renderer: one line (HARNESS_DEBUG=1 shows the traceback)
+        if os.environ.get("HARNESS_DEBUG"):
+            raise
+        print(f"harness: render failed: {renderer.name}: {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"
+              " (HARNESS_DEBUG=1 shows the traceback)", file=sys.stderr)
         return EXIT_FAIL
     finally:
         if bar is not None:

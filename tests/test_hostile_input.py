@@ -702,3 +702,20 @@ def test_fuzz_suite_through_the_cli(suite_fuzz_folder):
         assert proc.stdout == "" and "Traceback" not in proc.stderr
         assert len(proc.stderr.splitlines()) == 1 and proc.stderr.startswith(f"harness: error: {path}"), proc.stderr
         assert not out.exists()
+
+
+@pytest.mark.parametrize("how", ["crash", "shape"])
+def test_render_command_with_a_bad_renderer_fails_in_one_line_and_writes_nothing(how, tmp_path, monkeypatch, capsys):
+    """``harness render`` checks what an in-process renderer returns before writing: a wrong-shaped image or a crash
+    inside the renderer is a failed render (exit 1, one line), not a traceback."""
+    from harness import cli, renderers
+
+    monkeypatch.setitem(renderers._RENDERERS, f"bad-{how}", lambda: _BadRenderer(how))
+    out = tmp_path / "x.exr"
+    args = ["render", str(ROOT / "scenes" / "furnace.toml"), "--renderer", f"bad-{how}", "--spp", "2", "--out", str(out),
+            "--quiet"]
+    monkeypatch.delenv("HARNESS_DEBUG", raising=False)
+    assert cli.main(args) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "render failed" in err[0] and ("shape" if how == "shape" else "fell over") in err[0]
+    assert not out.exists()
