@@ -237,7 +237,10 @@ def _check_case_cost(label: str, where: str, case: Case, scenes: dict) -> None:
 def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
     candidates = [folder / value]
     if "/" not in value and not value.endswith(".toml"):
-        candidates += [folder.parent / "scenes" / f"{value}.toml", Path("scenes") / f"{value}.toml"]
+        # A bare name: a scene beside the suite's folder, in ./scenes, or one of this checkout's canonical scenes.
+        canonical = Path(__file__).resolve().parent.parent / "scenes" / f"{value}.toml"
+        candidates += [folder.parent / "scenes" / f"{value}.toml", Path("scenes") / f"{value}.toml", canonical]
+        candidates = list(dict.fromkeys(candidates))
     for c in candidates:
         if c.is_file():
             return c

@@ -189,3 +189,15 @@ def test_compare_cli(tmp_path):
     assert code == 1 and "verdict: fail" in stdout
     code, _, stderr = run_cli("compare", str(tmp_path / "missing.exr"), str(tmp_path / "b.exr"))
     assert code == 2 and "missing.exr" in stderr and len(stderr.strip().splitlines()) == 1
+
+
+def test_a_suite_anywhere_names_canonical_scenes_by_name(tmp_path, monkeypatch):
+    """A user's suite outside the checkout, run from another folder, still finds ``scene = "furnace"``."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "mine.toml").write_text('[[cases]]\nscene = "furnace"\n')
+    suite = load_suite(tmp_path / "mine.toml")
+    assert suite.cases[0].scene.resolve() == (ROOT / "scenes" / "furnace.toml").resolve()
+    (tmp_path / "bad.toml").write_text('[[cases]]\nscene = "furnaces"\n')
+    with pytest.raises(HarnessError) as err:
+        load_suite(tmp_path / "bad.toml")
+    assert "furnaces" in str(err.value)
