@@ -1,4 +1,4 @@
-"""The stochastic global-illumination algorithm of the slides (Fig. 5.16), traced as a wavefront.
+"""The stochastic global-illumination algorithm of the slides (Fig. 5.16), traced path by path or as a wavefront.
 
 For each pixel, Np viewing rays through the pixel filter h (``computeImage``). At each hit x, the radiance toward
 the previous vertex is estimated from the equations, not from the pseudo-code taken literally:
@@ -13,9 +13,13 @@ already in L_direct and is not added again (the literal pseudo-code's ``computeR
 counts direct light twice; it survives only as the mutant "double-emission"). Russian roulette divides survivors
 by their survival probability (Fig. 5.16, ``estimatedRadiance / (1 - absorption)``).
 
-All paths of a batch advance one bounce at a time (a wavefront): every ray query is one batched Embree call, and
-everything between two queries is one compiled kernel over all paths (``reference_impl/kernels.py``, numba, ``nogil``
-so that the worker threads run kernels and Embree queries concurrently); there is no Python loop over rays. One
+Two engines give the same bits (``Settings.engine``). The default, "path", hands a batch of camera samples to one
+compiled loop (:func:`kernels.trace_paths`) that follows each path to its end and queries Embree itself (its C API:
+``reference_impl/embree_c.py``), after tracing the batch's camera rays in packets of 16; it serves Ni = 1. The
+"wavefront" engine, needed when paths branch (Ni > 1): all paths of a batch advance one bounce at a time, every ray
+query is one batched call, and everything between two queries is one compiled kernel over all paths
+(``reference_impl/kernels.py``, numba, ``nogil`` so that the worker threads run kernels and Embree queries
+concurrently); there is no Python loop over rays. One
 bounce (:func:`_bounce`) is: closest hits of the wavefront (Embree) -> :func:`kernels.bounce` (emission at the hits,
 the Nd direct-light samples and the rays they need, Russian roulette and the next wavefront) -> shadow rays (Embree,
 any-hit; closest-hit for hemisphere sampling) -> :func:`kernels.resolve_shadow` / :func:`kernels.resolve_hemisphere`
@@ -62,7 +66,8 @@ COUNTERS = (
     "light_selections",  # draws of a light k from pdf(k) (none in a scene with one light)
 )
 # Time, in microseconds, the worker threads spent inside Embree queries (summed over threads, so it can exceed the
-# wall time): the only entry of ``stats`` that is not a deterministic count.
+# wall time): the only entry of ``stats`` that is not a deterministic count. The wavefront times each batched query;
+# the path engine times one query in kernels.TIMING_STRIDE and scales by the stride.
 EMBREE_MICROSECONDS = "embree_microseconds"
 
 
@@ -139,6 +144,15 @@ class _Workspace:
         self._states: list[tuple | None] = [None, None]
         self._hit_capacity = -1
         self.hits = self.total = self.rays = None
+        self._radiance = None
+
+    def radiance(self, n: int) -> np.ndarray:
+        """Zeroed room for ``n`` camera samples' radiance (valid until this thread's next batch)."""
+        if self._radiance is None or len(self._radiance) < n:
+            self._radiance = np.empty((n, 3))
+        view = self._radiance[:n]
+        view.fill(0.0)
+        return view
 
     def state(self, which: int, n: int) -> tuple:
         """Wavefront buffer ``which`` (0 or 1), with room for ``n`` paths."""
@@ -231,6 +245,10 @@ class _Context:
         cfg[kernels.CFG_MUTANTS] = kernels.MUTANT_BITS.get(self.mutant, 0)
         cfg[kernels.CFG_NUM_LIGHTS] = self.geometry.num_lights
         self._cfg = cfg
+        # The path-at-a-time kernel derives the per-vertex entries itself; EMIT_ALL marks the double-emission mutant.
+        self.path_config = cfg.copy()
+        self.path_config[kernels.CFG_EMIT] = kernels.EMIT_ALL if self.double_emission else kernels.EMIT_NONE
+        self.path_engine = (s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0)
         self.filter_kind = kernels.FILTER_KINDS[self.filter.name]
         width, height = self.film.width, self.film.height
         self.tan_half_fov = self.camera.tan_half_fov(width, height)
@@ -357,11 +375,17 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         ctx.settings.spp, width, height, ctx.filter_kind, filter_samples, ctx.mutant == "camera-half-pixel",
         tan_x, tan_y, ctx.camera_frame, ctx.eye, first,
     )
-    radiance = np.zeros((n, 3))
+    radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.C_CAMERA] = n
     clock = _Clock()
-    _trace(ctx, _PathState(*first), 1, radiance, counters, clock)
+    if ctx.path_engine:
+        timing = np.zeros(2, np.int64)
+        kernels.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
+                            ctx.surface_tables, ctx.path_config, ctx.cfg_f, ctx.max_depth, radiance, counters, timing)
+        clock.seconds += timing[0] * 1e-9
+    else:
+        _trace(ctx, _PathState(*first), 1, radiance, counters, clock)
     counters[kernels.C_NONFINITE] += kernels.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
     for name, count in zip(COUNTERS, counters.tolist()):
         stats[name] += count
@@ -402,7 +426,10 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     kernels = _kernels()
     intersector = ctx.intersector
     t0 = time.perf_counter()
-    prim = intersector.closest_prims(state.origin32, state.direction32)
+    if depth == 1:  # camera rays, one pixel's samples together: packet queries
+        prim = intersector.closest_prims_coherent(state.origin32, state.direction32)
+    else:
+        prim = intersector.closest_prims(state.origin32, state.direction32)
     clock.seconds += time.perf_counter() - t0
     hits, total, rays = ctx.workspace().direct(len(state))
     m, s, n_next = kernels.bounce(

@@ -1,6 +1,9 @@
-"""The one place that talks to Embree (through embreex): closest-hit and occlusion queries in large batches.
+"""The one place that talks to Embree: closest-hit and occlusion queries, in batches or (from the kernels) one ray at
+a time.
 
-Embree works in float32 and starts every ray at t = 0, so callers offset ray origins off the surface
+The scene is built through Embree 4's C API (:mod:`reference_impl.embree_c`, the library the embreex wheel ships) and
+queried by compiled loops that call ``rtcIntersect1`` / ``rtcOccluded1``, the same functions embreex's ``run`` calls
+once per ray. Embree works in float32 and starts every ray at t = 0, so callers offset ray origins off the surface
 (:func:`offset_origin`). Hit distances are recomputed here in float64 from the triangle's plane, so hit points are
 as exact as the float64 ray allows, not rounded through Embree's float32 t.
 """
@@ -8,8 +11,6 @@ as exact as the float64 ray allows, not rounded through Embree's float32 t.
 from __future__ import annotations
 
 import numpy as np
-from embreex import rtcore_scene
-from embreex.mesh_construction import TriangleMesh
 
 from reference_impl.geometry import Geometry
 
@@ -21,25 +22,26 @@ _OFFSET_SCENE = 2.0**-22
 
 
 class Intersector:
-    """Batched ray queries against one scene. Thread-safe: Embree releases the GIL and allows concurrent queries."""
+    """Batched ray queries against one scene. Thread-safe: the query loops release the GIL, and Embree allows
+    concurrent queries on a committed scene."""
 
     def __init__(self, geometry: Geometry):
+        from reference_impl.embree_c import TriangleScene
+
         self.geometry = geometry
         self.scene_size = max(geometry.extent, 1e-30)
         self._embree = None
         usable = geometry.area > 0
         self._usable = usable
         if np.any(usable):
-            self._embree = rtcore_scene.EmbreeScene()
             # Degenerate triangles are left out; primID indexes the kept ones, mapped back with `_prim_to_tri`.
             self._prim_to_tri = np.flatnonzero(usable)
-            TriangleMesh(
-                self._embree,
-                np.ascontiguousarray(geometry.vertices, dtype=np.float32),
-                np.ascontiguousarray(geometry.triangles[usable], dtype=np.int32),
-            )
-            # Commit once, before threads share the scene.
-            self._embree.run(np.zeros((1, 3), np.float32), np.ones((1, 3), np.float32))
+            self._embree = TriangleScene(geometry.vertices, geometry.triangles[usable])
+
+    @property
+    def scene_pointer(self) -> int:
+        """The RTCScene handle for kernels that query Embree themselves (0 when there is nothing to hit)."""
+        return self._embree.pointer if self._embree is not None else 0
 
     @property
     def prim_to_tri(self) -> np.ndarray:
@@ -55,17 +57,37 @@ class Intersector:
         """Embree's closest-hit query on float32 (n, 3) C-contiguous rays: the primitive hit (an index into
         :attr:`prim_to_tri`), -1 for a miss, as int32. The wavefront integrator calls this directly."""
         n = len(origins)
+        out = np.full(n, -1, np.int32)
         if self._embree is None or n == 0:
-            return np.full(n, -1, np.int32)
-        return self._embree.run(origins, directions, query="INTERSECT")
+            return out
+        from reference_impl import kernels
+
+        kernels.closest_prims(self._embree.pointer, origins, directions, out)
+        return out
+
+    def closest_prims_coherent(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """:meth:`closest_prims` for rays that come in runs of 16 travelling together (one pixel's camera rays):
+        one packet query per 16 rays. The same hits."""
+        n = len(origins)
+        out = np.full(n, -1, np.int32)
+        if self._embree is None or n == 0:
+            return out
+        from reference_impl import kernels
+
+        kernels.closest_prims_packets(self._embree.pointer, origins, directions, out)
+        return out
 
     def occluders(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
         """Embree's any-hit query on float32 rays with float32 ``tfar``: >= 0 where something blocks the segment,
         -1 where nothing does (int32)."""
         n = len(origins)
+        out = np.full(n, -1, np.int32)
         if self._embree is None or n == 0:
-            return np.full(n, -1, np.int32)
-        return self._embree.run(origins, directions, dists=tfar, query="OCCLUDED")
+            return out
+        from reference_impl import kernels
+
+        kernels.occluders(self._embree.pointer, origins, directions, tfar, out)
+        return out
 
     def closest_hit(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Triangle index (-1 for a miss) and float64 distance t along unit ``directions`` of the closest hit."""

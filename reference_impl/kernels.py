@@ -1,8 +1,11 @@
-"""Compiled kernels of the integrator: the per-path arithmetic of one bounce, over whole arrays, in numba.
+"""Compiled kernels of the integrator, in numba: whole paths one at a time, or one bounce of a wavefront.
 
-The wavefront of ``integrator.py`` alternates between batched Embree queries (``intersect.py``) and the kernels
-here; a kernel loops over every path of the batch once and does all the arithmetic of its stage without numpy
-temporaries. They compute exactly what the numpy definitions compute, with the same random numbers:
+Two engines trace the same estimator to the same bits (``Settings.engine``): :func:`trace_paths` follows each camera
+path from its viewing ray to its end in one loop and asks Embree for each hit and shadow ray on the spot, through
+Embree's C API (:mod:`reference_impl.embree_c`); the wavefront of ``integrator.py`` alternates between batched queries
+(``intersect.py``) and :func:`bounce` / :func:`resolve_shadow`, which loop over every path of a batch once (it is
+used with Ni > 1, where paths branch). Both compute exactly what the numpy definitions compute, with the same
+random numbers:
 
 * random numbers: :mod:`reference_impl.rng` (``mix64``, ``path_keys``, ``branch_keys``, ``uniform``,
   ``dimension``) -> :func:`mix64`, :func:`dim_salt`, :func:`uniform`, :func:`branch_salt`;
@@ -13,10 +16,11 @@ temporaries. They compute exactly what the numpy definitions compute, with the s
 
 The numpy functions stay the documented definitions (the chi^2 tests run them); the kernels repeat the same
 formulas, operation for operation (same order of floating-point operations wherever the numpy code fixes one), so
-images are bit for bit those of the numpy implementation they replaced: checked for every setting and planted fault
-on the development machine (docs/performance.md). The order of numpy's einsum sums and the last bits of sin/cos/sqrt
+the warps and samplers give the numpy functions' bits. (The shading arithmetic has since been reordered for speed,
+one division and three products where three divisions were, so images are no longer those of the numpy integrator
+of git 5dd5d08; the two engines agree bit for bit: ``tests/test_engines.py``.) The order of numpy's einsum sums and the last bits of sin/cos/sqrt
 come from the numpy build, the CPU and libm, so elsewhere the two may differ in last bits (each still deterministic).
-``tests/benchmarks/test_kernel_equivalence.py`` checks the warps, light sampling and random numbers against the numpy
+``tests/test_kernel_equivalence.py`` checks the warps, light sampling and random numbers against the numpy
 functions, bit for bit.
 
 Every kernel is ``nogil`` (the integrator's thread pool runs them concurrently, as it runs Embree queries) and
@@ -33,9 +37,14 @@ import math
 import numpy as np
 from numba import njit
 
+from reference_impl import embree_c
 from reference_impl.rng import _GOLDEN, _M1, _M2, _S11, _S27, _S30, _S31, _TO_UNIT
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
+# Helpers that take arrays are inlined into their callers at numba's level: a call that passes an array increments
+# and decrements its reference count atomically, and with two threads sharing the scene's arrays those atomics took
+# a quarter of a render's time (perf: NRT_incref / NRT_decref).
+_JIT_INLINE = dict(_JIT, inline="always")
 
 _PI = np.pi
 _INV_PI = 1.0 / np.pi  # the same constant as sampling.INV_PI
@@ -133,17 +142,9 @@ def dot3(a0, a1, a2, b0, b1, b2):
 @njit(**_JIT)
 def cosine_hemisphere(u1, u2):
     """sampling.square_to_cosine_hemisphere for one pair of uniforms: local (x, y, z)."""
-    a = 2.0 * u1 - 1.0
-    b = 2.0 * u2 - 1.0
-    if abs(a) > abs(b):
-        r = a
-        phi = _PI_4 * (b / a)
-    else:
-        r = b
-        phi = 0.0 if (a == 0.0 and b == 0.0) else _PI_2 - _PI_4 * (a / b)
-    x = r * math.cos(phi)
-    y = r * math.sin(phi)
-    return x, y, math.sqrt(max(0.0, 1.0 - x * x - y * y))
+    r = math.sqrt(u1)
+    phi = _TWO_PI * u2
+    return r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))
 
 
 @njit(**_JIT)
@@ -189,7 +190,7 @@ def sample_hemisphere(cosine, u1, u2, n0, n1, n2):
     return w0, w1, w2, lz, hemisphere_pdf(cosine, lz)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def sample_discrete(cdf, u):
     """sampling.sample_discrete for one uniform: min(searchsorted(cdf, u, side="right"), len(cdf) - 1)."""
     lo = 0
@@ -203,7 +204,7 @@ def sample_discrete(cdf, u):
     return min(lo, len(cdf) - 1)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _point_on_triangle(corners, tri, u1, u2):
     """lights._uniform_point_on for one triangle: c0 + b1 (c1 - c0) + b2 (c2 - c0)."""
     s = math.sqrt(u1)
@@ -215,7 +216,7 @@ def _point_on_triangle(corners, tri, u1, u2):
     return p0, p1, p2
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _sample_light_point(lights, num_lights, corners, u_select, u_tri, u1, u2):
     """LightSampler.sample for one set of uniforms: (light k, triangle, point y)."""
     cdf, triangles, first, count, within_cdf, _pmf, _area = lights
@@ -234,7 +235,7 @@ def _sample_light_point(lights, num_lights, corners, u_select, u_tri, u1, u2):
     return light, tri, p0, p1, p2
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _sample_surface_point(surfaces, corners, u_tri, u1, u2):
     """TriangleAreaSampler.sample for one set of uniforms: (triangle, point y)."""
     triangles, cdf = surfaces
@@ -296,7 +297,8 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
         d1 = l0 * frame[1, 0] + l1 * frame[1, 1] + frame[1, 2]
         d2 = l0 * frame[2, 0] + l1 * frame[2, 1] + frame[2, 2]
         norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        d0, d1, d2 = d0 / norm, d1 / norm, d2 / norm
+        inv_norm = 1.0 / norm
+        d0, d1, d2 = d0 * inv_norm, d1 * inv_norm, d2 * inv_norm
         direction[i, 0], direction[i, 1], direction[i, 2] = d0, d1, d2
         d32[i, 0], d32[i, 1], d32[i, 2] = d0, d1, d2
         for c in range(3):
@@ -448,7 +450,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
             dist2 = dot3(l0, l1, l2, l0, l1, l2)
             dist = math.sqrt(dist2)
-            wi0, wi1, wi2 = l0 / dist, l1 / dist, l2 / dist
+            inv_dist = 1.0 / dist  # one division, three products
+            wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
             cos_x = dot3(nx0, nx1, nx2, wi0, wi1, wi2)
             cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
             if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
@@ -464,10 +467,11 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             counters[C_SHADOW] += 1
             s_owner[s] = h
             s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = so0, so1, so2
-            s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = g0 / seg_len, g1 / seg_len, g2 / seg_len
+            inv_seg = 1.0 / seg_len
+            s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = g0 * inv_seg, g1 * inv_seg, g2 * inv_seg
             s_tfar[s] = max(t_max, 0.0)
             cos_at_x = 1.0 if no_cosine else cos_x  # mutant "no-cosine" (direct light)
-            scale = cos_at_x * cos_y / dist2 / pdf_area  # G(x, y) V / p(y), for V = 1
+            scale = (cos_at_x * cos_y) / (dist2 * pdf_area)  # G(x, y) V / p(y), for V = 1 (one division)
             v0 = emission[ltri, 0] * f0 * scale
             v1 = emission[ltri, 1] * f1 * scale
             v2 = emission[ltri, 2] * f2 * scale
@@ -488,7 +492,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                 counters[C_ROULETTE] += 1
                 continue
             if not (mutants & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight"
-                b0, b1, b2 = b0 / survival, b1 / survival, b2 / survival
+                inv_survival = 1.0 / survival
+                b0, b1, b2 = b0 * inv_survival, b1 * inv_survival, b2 * inv_survival
         for branch in range(ni):
             kb = k if ni == 1 else mix64(k ^ branch_salt(branch, depth))
             w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, uniform(kb, salt_u1), uniform(kb, salt_u2),
@@ -555,14 +560,425 @@ def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_p
     _add_direct(root, beta, hits, nd, total, radiance)
 
 
-@njit(**_JIT)
+@njit(**_JIT_INLINE)
 def _add_direct(root, beta, hits, nd, total, radiance):
+    inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
     for h in range(len(hits)):
         i = hits[h]
         r = root[i]
-        radiance[r, 0] += beta[i, 0] * (total[h, 0] / nd)
-        radiance[r, 1] += beta[i, 1] * (total[h, 1] / nd)
-        radiance[r, 2] += beta[i, 2] * (total[h, 2] / nd)
+        radiance[r, 0] += beta[i, 0] * (total[h, 0] * inv_nd)
+        radiance[r, 1] += beta[i, 1] * (total[h, 1] * inv_nd)
+        radiance[r, 2] += beta[i, 2] * (total[h, 2] * inv_nd)
+
+
+# ----------------------------------------------------------------------------------------- Embree, called directly
+
+
+@njit(**_JIT)
+def ray_buffer():
+    """A 16-byte aligned RTCRayHit (uint32 words) and its float32 view."""
+    raw = np.empty(embree_c.RAY_WORDS + 4, np.uint32)
+    skip = ((16 - raw.ctypes.data % 16) % 16) // 4
+    words = raw[skip:skip + embree_c.RAY_WORDS]
+    return words, words.view(np.float32)
+
+
+@njit(**_JIT_INLINE)
+def _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar):
+    """Fill an RTCRay: float32 origin and direction (rounded as numpy's astype rounds), tnear 0, ``tfar``."""
+    floats[0], floats[1], floats[2], floats[3] = o0, o1, o2, 0.0
+    floats[4], floats[5], floats[6], floats[7] = d0, d1, d2, 0.0
+    floats[embree_c.W_TFAR] = tfar
+    words[embree_c.W_MASK] = embree_c.INVALID_ID  # every mask bit
+    words[embree_c.W_ID] = 0
+    words[embree_c.W_FLAGS] = 0
+
+
+@njit(**_JIT_INLINE)
+def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2):
+    """Embree's closest hit of one ray (float32 coordinates): the primitive id, or -1 for a miss."""
+    _set_ray(words, floats, o0, o1, o2, d0, d1, d2, np.inf)
+    words[embree_c.W_GEOM_ID] = embree_c.INVALID_ID
+    embree_c.rtc_intersect1(scene_ptr, words.ctypes.data, 0)
+    if words[embree_c.W_GEOM_ID] == embree_c.INVALID_ID:
+        return -1
+    return np.int64(words[embree_c.W_PRIM_ID])
+
+
+@njit(**_JIT_INLINE)
+def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar):
+    """Embree's any-hit query on the segment 0 < t < ``tfar``: True where something blocks it (Embree sets tfar
+    to -inf)."""
+    _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar)
+    embree_c.rtc_occluded1(scene_ptr, words.ctypes.data, 0)
+    return floats[embree_c.W_TFAR] < 0
+
+
+@njit(**_JIT)
+def packet_buffer():
+    """A 64-byte aligned RTCRayHit16 (uint32 words), its float32 view, and the 16 lanes' valid flags (int32)."""
+    raw = np.empty(embree_c.PACKET_WORDS + 16 + 32, np.uint32)
+    skip = ((64 - raw.ctypes.data % 64) % 64) // 4
+    words = raw[skip:skip + embree_c.PACKET_WORDS]
+    valid = raw[skip + embree_c.PACKET_WORDS:skip + embree_c.PACKET_WORDS + 16].view(np.int32)
+    return words, words.view(np.float32), valid
+
+
+@njit(**_JIT)
+def closest_prims_coherent(scene_ptr, o32, d32, out, start, stop, words, floats, valid):
+    """Closest hits of rays ``start:stop`` (at most 16) with one packet query: for rays that start together and
+    point nearly the same way (one pixel's camera rays), Embree traverses its tree once for all of them. The hits
+    are the same as one query per ray (``closest_prim``)."""
+    n = stop - start
+    for lane in range(embree_c.PACKET):
+        if lane < n:
+            i = start + lane
+            valid[lane] = -1
+            floats[lane] = o32[i, 0]
+            floats[16 + lane] = o32[i, 1]
+            floats[32 + lane] = o32[i, 2]
+            floats[64 + lane] = d32[i, 0]
+            floats[80 + lane] = d32[i, 1]
+            floats[96 + lane] = d32[i, 2]
+        else:
+            valid[lane] = 0
+            floats[lane] = 0.0
+            floats[16 + lane] = 0.0
+            floats[32 + lane] = 0.0
+            floats[64 + lane] = 0.0
+            floats[80 + lane] = 0.0
+            floats[96 + lane] = 1.0
+        floats[48 + lane] = 0.0  # tnear
+        floats[112 + lane] = 0.0  # time
+        floats[128 + lane] = np.inf  # tfar
+        words[144 + lane] = embree_c.INVALID_ID  # mask
+        words[160 + lane] = 0  # id
+        words[176 + lane] = 0  # flags
+        words[embree_c.P_GEOM_ID + lane] = embree_c.INVALID_ID
+    embree_c.rtc_intersect16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    for lane in range(n):
+        if words[embree_c.P_GEOM_ID + lane] == embree_c.INVALID_ID:
+            out[start + lane] = -1
+        else:
+            out[start + lane] = np.int64(words[embree_c.P_PRIM_ID + lane])
+
+
+@njit(**_JIT)
+def closest_prims_packets(scene_ptr, o32, d32, out):
+    """Closest hits of a batch of camera rays, 16 consecutive rays per packet query."""
+    words, floats, valid = packet_buffer()
+    n = o32.shape[0]
+    for start in range(0, n, embree_c.PACKET):
+        closest_prims_coherent(scene_ptr, o32, d32, out, start, min(n, start + embree_c.PACKET), words, floats, valid)
+
+
+@njit(**_JIT)
+def closest_prims(scene_ptr, o32, d32, out):
+    """Closest hits of a batch of float32 rays (Intersector.closest_prims): primitive ids, -1 for a miss."""
+    words, floats = ray_buffer()
+    for i in range(o32.shape[0]):
+        out[i] = closest_prim(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                              d32[i, 2])
+
+
+@njit(**_JIT)
+def occluders(scene_ptr, o32, d32, tfar, out):
+    """Any-hit queries of a batch (Intersector.occluders): 0 where something blocks the segment, -1 where not."""
+    words, floats = ray_buffer()
+    for i in range(o32.shape[0]):
+        blocked = occluded(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                           d32[i, 2], tfar[i])
+        out[i] = 0 if blocked else -1
+
+
+@njit(**_JIT_INLINE)
+def _now_ns(ts):
+    embree_c.clock_gettime(embree_c.CLOCK_MONOTONIC, ts.ctypes.data)
+    return ts[0] * 1_000_000_000 + ts[1]
+
+
+# One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
+# clock read (measured at the start of each call), times the stride.
+TIMING_STRIDE = 64
+
+
+# ------------------------------------------------------------------------------------- whole paths, one at a time
+
+
+@njit(**_JIT)
+def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth, radiance, counters, timing):
+    """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one path at a time,
+    with Ni = 1: the same estimator, random numbers and order of floating-point operations as the wavefront
+    (``bounce`` then ``resolve_shadow`` / ``resolve_hemisphere`` at each vertex), so the same bits, but each
+    vertex's queries are made on the spot (Embree's C API) instead of in batches, and nothing is written between
+    vertices but the path's own few numbers.
+
+    ``cfg`` is the integer configuration of :func:`bounce` without its per-vertex entries (depth, emission mode,
+    whether a next vertex and indirect light are needed), which are derived here from ``max_depth`` (-1: unbounded),
+    the direct-light mode (MIS) and the planted faults; ``cfg[CFG_EMIT]`` = EMIT_ALL marks the double-emission
+    mutant. The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet query.
+    ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
+    the number of queries.
+    """
+    root, key, origin, direction, o32, d32, beta, pdf_dir = state
+    prim_to_tri, tri_normal, tri_v0, corners, emission, light_id, tri_material, two_sided, f_r_table, albedo_max = scene
+    light_pmf, light_area = lights[5], lights[6]
+    double_emission = cfg[CFG_EMIT] == EMIT_ALL
+    direct = cfg[CFG_DIRECT]
+    mis = direct == DIRECT_MIS
+    nd = cfg[CFG_ND]
+    inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
+    ni = 1
+    hemi_cosine = cfg[CFG_HEMI_COSINE] != 0
+    rr = cfg[CFG_RR]
+    rr_depth = cfg[CFG_RR_DEPTH]
+    mutants = cfg[CFG_MUTANTS]
+    num_lights = cfg[CFG_NUM_LIGHTS]
+    fixed_survival = cfg_f[CFGF_FIXED_SURVIVAL]
+    offset_scene = cfg_f[CFGF_OFFSET_SCENE]
+    surface_pdf = cfg_f[CFGF_SURFACE_PDF]
+    no_cosine = (mutants & M_NO_COSINE) != 0
+    hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
+    words, floats = ray_buffer()
+    ts = np.zeros(2, np.int64)
+    queries = 0
+    sampled_ns = 0
+    clock_ns = 1 << 62  # the cheapest of a few back-to-back clock reads: what a timed interval holds besides Embree
+    for _ in range(8):
+        t_start = _now_ns(ts)
+        clock_ns = min(clock_ns, _now_ns(ts) - t_start)
+    timed = 0
+    # The camera rays first, 16 of one pixel's samples per packet query (the same hits as one query per ray).
+    n = len(root)
+    first_prim = np.empty(n, np.int32)
+    t_start = _now_ns(ts)
+    closest_prims_packets(scene_ptr, o32, d32, first_prim)
+    packet_ns = _now_ns(ts) - t_start
+
+    count_back_face = 0
+    count_escaped = 0
+    count_hemi_direct = 0
+    count_indirect = 0
+    count_light_select = 0
+    count_roulette = 0
+    count_shadow = 0
+    count_shadow_skipped = 0
+    for i in range(n):
+        r = root[i]
+        k = key[i]
+        o0, o1, o2 = origin[i, 0], origin[i, 1], origin[i, 2]
+        d0, d1, d2 = direction[i, 0], direction[i, 1], direction[i, 2]
+        b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
+        ray_pdf = pdf_dir[i]
+        depth = 1
+        rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
+        while True:
+            # The per-vertex configuration (integrator._Context.bounce_config).
+            if depth == 1 or double_emission:
+                emit = EMIT_ALL
+            elif mis:
+                emit = EMIT_MIS
+            else:
+                emit = EMIT_NONE
+            allow_next = max_depth == -1 or depth + 1 <= max_depth
+            allow_indirect = (max_depth == -1 or depth + 2 <= max_depth) or (mis and allow_next)
+            play_roulette = rr != RR_OFF and depth >= rr_depth
+
+            if depth == 1:
+                p = np.int64(first_prim[i])
+            else:
+                queries += 1
+                if queries % TIMING_STRIDE == 0:
+                    t_start = _now_ns(ts)
+                    p = closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2)
+                    sampled_ns += _now_ns(ts) - t_start
+                    timed += 1
+                else:
+                    p = closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2)
+            if p < 0:
+                count_escaped += 1
+                break
+            tri = prim_to_tri[p]
+            nx0, nx1, nx2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
+            denom = dot3(d0, d1, d2, nx0, nx1, nx2)
+            t = dot3(tri_v0[tri, 0] - o0, tri_v0[tri, 1] - o1, tri_v0[tri, 2] - o2, nx0, nx1, nx2) / denom
+            if not (math.isfinite(t) and t > 0):
+                t = 0.0
+            x0, x1, x2 = o0 + t * d0, o1 + t * d1, o2 + t * d2
+            cos_out = -dot3(d0, d1, d2, nx0, nx1, nx2)
+            front = cos_out > 0
+
+            if emit != EMIT_NONE:
+                fr = 1.0 if front else 0.0
+                e0, e1, e2 = emission[tri, 0] * fr, emission[tri, 1] * fr, emission[tri, 2] * fr
+                if emit == EMIT_ALL:
+                    rad0 += b0 * e0
+                    rad1 += b1 * e1
+                    rad2 += b2 * e2
+                else:
+                    light = light_id[tri]
+                    w = 0.0
+                    if light >= 0 and cos_out > 0:
+                        p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
+                        p_hemi = ray_pdf
+                        w = p_hemi * p_hemi / (p_hemi * p_hemi + p_light * p_light)
+                    rad0 += b0 * e0 * w
+                    rad1 += b1 * e1 * w
+                    rad2 += b2 * e2 * w
+
+            if not allow_next:
+                break
+            material = tri_material[tri]
+            if not (front or two_sided[material]):
+                count_back_face += 1
+                break
+            if not front:
+                nx0, nx1, nx2 = -nx0, -nx1, -nx2
+            f0, f1, f2 = f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2]
+            off_x = _offset(offset_scene, x0, x1, x2)
+            ox0, ox1, ox2 = x0 + off_x * nx0, x1 + off_x * nx1, x2 + off_x * nx2
+
+            # Indirect light (Fig. 5.14), if the next vertex can still add anything. Drawn before the direct light's
+            # queries (the random numbers are counter-based, so the order of drawing changes nothing), which gives the
+            # processor independent arithmetic to overlap instead of a chain broken by every Embree call.
+            go_on = allow_indirect
+            if go_on and play_roulette:
+                survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
+                if not (uniform(k, dim_salt(depth, ROULETTE, 0)) < survival):
+                    count_roulette += 1
+                    go_on = False
+                elif not (mutants & M_RR_NO_REWEIGHT):
+                    inv_survival = 1.0 / survival
+                    q0, q1, q2 = b0 * inv_survival, b1 * inv_survival, b2 * inv_survival
+                else:
+                    q0, q1, q2 = b0, b1, b2
+            else:
+                q0, q1, q2 = b0, b1, b2
+            if go_on:
+                w0, w1, w2, cos_theta, pdf = sample_hemisphere(
+                    hemi_cosine, uniform(k, dim_salt(depth, INDIRECT_U1, 0)), uniform(k, dim_salt(depth, INDIRECT_U2, 0)),
+                    nx0, nx1, nx2)
+                if (mutants & M_COSINE_PDF_PI) and hemi_cosine:
+                    pdf = pdf * _PI
+                cos_factor = 1.0 if no_cosine else cos_theta
+                weight = cos_factor / (pdf * ni)
+                c0, c1, c2 = q0 * (f0 * weight), q1 * (f1 * weight), q2 * (f2 * weight)
+                carries = (math.isfinite(c0) and math.isfinite(c1) and math.isfinite(c2)) and (c0 > 0 or c1 > 0 or c2 > 0)
+                if not carries:
+                    count_roulette += 1
+                    go_on = False
+                else:
+                    count_indirect += 1
+
+            # Direct light: Nd samples, summed in sample order (resolve_shadow / resolve_hemisphere).
+            tot0, tot1, tot2 = 0.0, 0.0, 0.0
+            for j in range(nd):
+                if hemi_direct:
+                    h0, h1, h2, h_cos, h_pdf = sample_hemisphere(
+                        direct == DIRECT_HEMI_COSINE, uniform(k, dim_salt(depth, DIRECT_DIR_U1, j)),
+                        uniform(k, dim_salt(depth, DIRECT_DIR_U2, j)), nx0, nx1, nx2)
+                    count_hemi_direct += 1
+                    aux = h_cos / h_pdf if h_pdf > 0 else -1.0
+                    queries += 1
+                    if queries % TIMING_STRIDE == 0:
+                        t_start = _now_ns(ts)
+                        hp = closest_prim(scene_ptr, words, floats, ox0, ox1, ox2, h0, h1, h2)
+                        sampled_ns += _now_ns(ts) - t_start
+                        timed += 1
+                    else:
+                        hp = closest_prim(scene_ptr, words, floats, ox0, ox1, ox2, h0, h1, h2)
+                    if hp < 0 or aux < 0:
+                        continue
+                    htri = prim_to_tri[hp]
+                    faces_x = dot3(h0, h1, h2, tri_normal[htri, 0], tri_normal[htri, 1], tri_normal[htri, 2]) < 0
+                    weight = aux * (1.0 if faces_x else 0.0)
+                    tot0 += emission[htri, 0] * f0 * weight
+                    tot1 += emission[htri, 1] * f1 * weight
+                    tot2 += emission[htri, 2] * f2 * weight
+                    continue
+                if direct == DIRECT_GLOBAL_AREA:
+                    ltri, y0, y1, y2 = _sample_surface_point(
+                        surfaces, corners, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
+                        uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                    pdf_area = surface_pdf
+                else:
+                    u_select = 0.0
+                    if num_lights > 1:
+                        u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
+                        count_light_select += 1
+                    light, ltri, y0, y1, y2 = _sample_light_point(
+                        lights, num_lights, corners, u_select, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
+                        uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                    if mutants & M_LIGHT_PDF_IGNORED:
+                        pdf_area = 1.0 / light_area[light]
+                    else:
+                        pdf_area = light_pmf[light] / light_area[light]
+                l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
+                dist2 = dot3(l0, l1, l2, l0, l1, l2)
+                dist = math.sqrt(dist2)
+                inv_dist = 1.0 / dist  # one division, three products
+                wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
+                cos_x = dot3(nx0, nx1, nx2, wi0, wi1, wi2)
+                cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
+                if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
+                    count_shadow_skipped += 1
+                    continue
+                if mutants & M_NO_RAY_OFFSET:
+                    so0, so1, so2 = x0, x1, x2
+                else:
+                    so0, so1, so2 = ox0, ox1, ox2
+                g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
+                seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
+                t_max = seg_len * (1.0 - 1e-6) - _offset(offset_scene, y0, y1, y2)
+                inv_seg = 1.0 / seg_len
+                count_shadow += 1
+                cos_at_x = 1.0 if no_cosine else cos_x
+                scale = (cos_at_x * cos_y) / (dist2 * pdf_area)
+                v0 = emission[ltri, 0] * f0 * scale
+                v1 = emission[ltri, 1] * f1 * scale
+                v2 = emission[ltri, 2] * f2 * scale
+                if mis:
+                    p_light = nd * pdf_area * dist2 / cos_y
+                    p_hemi = ni * hemisphere_pdf(hemi_cosine, cos_x)
+                    w = p_light * p_light / (p_light * p_light + p_hemi * p_hemi)
+                    v0, v1, v2 = v0 * w, v1 * w, v2 * w
+                tfar = np.float32(max(t_max, 0.0))
+                queries += 1
+                if queries % TIMING_STRIDE == 0:
+                    t_start = _now_ns(ts)
+                    blocked = occluded(scene_ptr, words, floats, so0, so1, so2, g0 * inv_seg, g1 * inv_seg,
+                                       g2 * inv_seg, tfar)
+                    sampled_ns += _now_ns(ts) - t_start
+                    timed += 1
+                else:
+                    blocked = occluded(scene_ptr, words, floats, so0, so1, so2, g0 * inv_seg, g1 * inv_seg,
+                                       g2 * inv_seg, tfar)
+                if not blocked:
+                    tot0 += v0
+                    tot1 += v1
+                    tot2 += v2
+            rad0 += b0 * (tot0 * inv_nd)
+            rad1 += b1 * (tot1 * inv_nd)
+            rad2 += b2 * (tot2 * inv_nd)
+
+            if not go_on:
+                break
+            o0, o1, o2 = ox0, ox1, ox2
+            d0, d1, d2 = w0, w1, w2
+            b0, b1, b2 = c0, c1, c2
+            ray_pdf = pdf * ni
+            depth += 1
+        radiance[r, 0], radiance[r, 1], radiance[r, 2] = rad0, rad1, rad2
+    counters[C_BACK_FACE] += count_back_face
+    counters[C_ESCAPED] += count_escaped
+    counters[C_HEMI_DIRECT] += count_hemi_direct
+    counters[C_INDIRECT] += count_indirect
+    counters[C_LIGHT_SELECT] += count_light_select
+    counters[C_ROULETTE] += count_roulette
+    counters[C_SHADOW] += count_shadow
+    counters[C_SHADOW_SKIPPED] += count_shadow_skipped
+    timing[0] += max(sampled_ns - timed * clock_ns, 0) * TIMING_STRIDE + packet_ns
+    timing[1] += queries + n
 
 
 # ------------------------------------------------------------------------------------------------ accumulation

@@ -12,18 +12,12 @@ INV_PI = 1.0 / np.pi
 
 
 def square_to_cosine_hemisphere(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
-    """Cosine-weighted directions on the +z hemisphere (Malley's method on Shirley-Chiu's concentric disk)."""
-    a = 2.0 * u1 - 1.0
-    b = 2.0 * u2 - 1.0
-    use_a = np.abs(a) > np.abs(b)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(use_a, a, b)
-        phi = np.where(use_a, (np.pi / 4) * (b / a), (np.pi / 2) - (np.pi / 4) * (a / b))
-    phi = np.where((a == 0) & (b == 0), 0.0, phi)
-    x = r * np.cos(phi)
-    y = r * np.sin(phi)
-    z = np.sqrt(np.maximum(0.0, 1.0 - x * x - y * y))
-    return np.stack([x, y, z], axis=-1)
+    """Cosine-weighted directions on the +z hemisphere (Malley's method: a uniform point of the unit disk in polar
+    form, r = sqrt(u1), phi = 2 pi u2, lifted to z = sqrt(1 - r^2) = sqrt(1 - u1)). The polar map needs no branch
+    and no division, unlike Shirley-Chiu's concentric one; with independent uniforms both give the same density."""
+    r = np.sqrt(u1)
+    phi = 2.0 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), np.sqrt(np.maximum(0.0, 1.0 - u1))], axis=-1)
 
 
 def cosine_hemisphere_pdf(cos_theta: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from reference_impl.mutants import MUTANTS
 DIRECT_STRATEGIES = ("area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis")
 HEMISPHERES = ("cosine", "uniform")
 ROULETTES = ("albedo", "fixed", "off")
+ENGINES = ("path", "wavefront")
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,9 @@ class Settings:
                     -1 = unbounded); None = the scene's.
     batch_size      camera paths traced together (memory / speed only: the image does not depend on it).
     threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
+    engine          how paths are traced (speed only: the same bits either way): "path", each path from its camera
+                    ray to its end in one compiled loop that queries Embree itself (Ni = 1 only; with Ni > 1 the
+                    wavefront is used), or "wavefront", every bounce of a batch at once, queries in batches.
     mutant          name of a planted fault (see ``reference_impl.mutants``); "" = none. Never on by default.
     """
 
@@ -49,8 +53,9 @@ class Settings:
     rr_depth: int = 1
     absorption: float = 0.2
     max_depth: int | None = None
-    batch_size: int = 1 << 18
+    batch_size: int = 1 << 15
     threads: int = 0
+    engine: str = "path"
     mutant: str = ""
 
     def __post_init__(self) -> None:
@@ -67,6 +72,7 @@ class Settings:
         _choice(self, "light_selection", LIGHT_SELECTIONS)
         _choice(self, "hemisphere", HEMISPHERES)
         _choice(self, "rr", ROULETTES)
+        _choice(self, "engine", ENGINES)
         if not isinstance(self.absorption, (int, float)) or not (0.0 <= self.absorption < 1.0):
             raise SettingsError("absorption", f"expected a number in [0, 1), got {self.absorption!r}")
         if self.max_depth is not None and (not _is_int(self.max_depth) or (self.max_depth < 1 and self.max_depth != -1)):

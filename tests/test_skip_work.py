@@ -61,7 +61,9 @@ def test_no_shadow_ray_from_a_back_face():
 
 
 def test_shadow_rays_are_occlusion_queries(monkeypatch):
-    """Shadow rays go to Embree's any-hit query; only camera and indirect rays use closest-hit queries."""
+    """Shadow rays go to Embree's any-hit query; only camera and indirect rays use closest-hit queries. Counted on
+    the wavefront engine, whose queries go through the Intersector; the path engine calls rtcOccluded1 for the same
+    rays (its counters equal the wavefront's: tests/test_engines.py)."""
     from reference_impl import intersect
 
     counted = {"closest": 0, "occluded": 0}
@@ -75,9 +77,16 @@ def test_shadow_rays_are_occlusion_queries(monkeypatch):
         counted["occluded"] += len(origins)
         return occluders(self, origins, directions, tfar)
 
+    coherent = intersect.Intersector.closest_prims_coherent
+
+    def count_coherent(self, origins, directions):  # camera rays, in packets
+        counted["closest"] += len(origins)
+        return coherent(self, origins, directions)
+
     monkeypatch.setattr(intersect.Intersector, "closest_prims", count_closest)
+    monkeypatch.setattr(intersect.Intersector, "closest_prims_coherent", count_coherent)
     monkeypatch.setattr(intersect.Intersector, "occluders", count_occluders)
-    result = render_reference(load_small("cornell-box", 16), spp=2)
+    result = render_reference(load_small("cornell-box", 16), spp=2, engine="wavefront")
     assert counted["occluded"] == result.stats["shadow_rays"] > 0
     assert counted["closest"] == result.stats["camera_rays"] + result.stats["indirect_rays"]
 

@@ -67,5 +67,6 @@ def convert_inputs(baseline, geometry, camera, film, settings):
                                    geometry.two_sided, geometry.emission, geometry.light_id)
     cam = baseline.camera.Camera(camera.origin, camera.target, camera.up, camera.fov, camera.fov_axis)
     f = baseline.camera.Film(film.width, film.height, film.filter)
-    s = baseline.settings.Settings(**dataclasses.asdict(settings))
+    known = {f.name for f in dataclasses.fields(baseline.settings.Settings)}
+    s = baseline.settings.Settings(**{k: v for k, v in dataclasses.asdict(settings).items() if k in known})
     return g, cam, f, s

@@ -1,0 +1,136 @@
+"""Embree 4's C API, for compiled code: the scene is built through ctypes, and numba kernels call ``rtcIntersect1`` and
+``rtcOccluded1`` themselves, one ray at a time, without a pass through Python or numpy between queries.
+
+The library is the ``libembree4`` that the embreex wheel ships (``embreex.libs``); embreex's own Python API calls the
+same two functions once per ray in a Cython loop, so the queries are Embree's either way. Calling them from the
+kernels lets a path be traced from its camera ray to its end in one loop (``kernels.trace_paths``), which removes the
+wavefront's memory traffic: docs/performance.md. The symbols are made visible to LLVM with
+``load_library_permanently``, so kernels that call them can be cached by numba (the call goes by symbol name, not by an
+address baked into the machine code).
+
+Ray layouts (Embree 4, ``rtcore_ray.h``), as 32-bit words: ``RTCRay`` is org x, y, z, tnear, dir x, y, z, time, tfar,
+mask, id, flags (48 bytes); ``RTCRayHit`` is that ray followed by ``RTCHit``: Ng x, y, z, u, v, primID, geomID,
+instID... The structures must be 16-byte aligned (:func:`ray_buffer`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import glob
+import os
+
+import llvmlite.binding as llvm
+import numpy as np
+from numba import types
+
+INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
+_GEOMETRY_TYPE_TRIANGLE = 0
+_BUFFER_TYPE_INDEX, _BUFFER_TYPE_VERTEX = 0, 1
+_FORMAT_UINT3, _FORMAT_FLOAT3 = 0x5003, 0x9003
+RAY_WORDS = 32  # room for an RTCRayHit (at most 96 bytes with instance ids), in uint32 words
+# Word offsets in a ray buffer.
+W_TFAR, W_MASK, W_ID, W_FLAGS = 8, 9, 10, 11
+W_PRIM_ID, W_GEOM_ID = 12 + 5, 12 + 6
+# RTCRayHit16: field f of lane l at word 16 f + l; the ray's 12 fields, then the hit's (primID, geomID 6th and 7th).
+PACKET = 16
+PACKET_WORDS = 16 * 24  # up to 12 ray fields and 12 hit fields
+P_PRIM_ID, P_GEOM_ID = 16 * (12 + 5), 16 * (12 + 6)
+
+
+@functools.cache
+def library_path() -> str:
+    """The libembree4 shared library inside the installed embreex wheel."""
+    import embreex
+
+    here = os.path.dirname(embreex.__file__)
+    found = sorted(glob.glob(os.path.join(here, "..", "embreex.libs", "libembree4*.so*")))
+    found += sorted(glob.glob(os.path.join(here, "libembree4*.so*")))
+    if not found:
+        raise ImportError(f"no libembree4 shared library next to embreex ({here})")
+    return os.path.realpath(found[0])
+
+
+@functools.cache
+def library() -> ctypes.CDLL:
+    """The library, loaded once, with the signatures this module uses; its symbols also made visible to LLVM."""
+    path = library_path()
+    llvm.load_library_permanently(path)
+    lib = ctypes.CDLL(path)
+    vp = ctypes.c_void_p
+    signatures = {
+        "rtcNewDevice": (vp, [ctypes.c_char_p]),
+        "rtcNewScene": (vp, [vp]),
+        "rtcNewGeometry": (vp, [vp, ctypes.c_int]),
+        "rtcSetNewGeometryBuffer": (vp, [vp, ctypes.c_int, ctypes.c_uint, ctypes.c_int, ctypes.c_size_t,
+                                         ctypes.c_size_t]),
+        "rtcCommitGeometry": (None, [vp]),
+        "rtcAttachGeometry": (ctypes.c_uint, [vp, vp]),
+        "rtcReleaseGeometry": (None, [vp]),
+        "rtcCommitScene": (None, [vp]),
+        "rtcReleaseScene": (None, [vp]),
+        "rtcReleaseDevice": (None, [vp]),
+        "rtcGetDeviceError": (ctypes.c_int, [vp]),
+    }
+    for name, (restype, argtypes) in signatures.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = restype, argtypes
+    return lib
+
+
+library()  # before any kernel that calls Embree is compiled or loaded from numba's cache
+
+# void rtcIntersect1(RTCScene, RTCRayHit*, RTCIntersectArguments*); void rtcOccluded1(RTCScene, RTCRay*, ...);
+# pointers passed as integers (the same registers on x86-64 and aarch64).
+rtc_intersect1 = types.ExternalFunction("rtcIntersect1", types.void(types.uintp, types.uintp, types.uintp))
+rtc_occluded1 = types.ExternalFunction("rtcOccluded1", types.void(types.uintp, types.uintp, types.uintp))
+# void rtcIntersect16(const int* valid, RTCScene, RTCRayHit16*, RTCIntersectArguments*): 16 rays at once, for the
+# camera rays of one pixel's samples, which travel together (structure of arrays, 64-byte aligned).
+rtc_intersect16 = types.ExternalFunction("rtcIntersect16",
+                                         types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+# int clock_gettime(clockid_t, struct timespec*): samples of the time spent in queries.
+clock_gettime = types.ExternalFunction("clock_gettime", types.int32(types.int32, types.uintp))
+CLOCK_MONOTONIC = 1
+
+
+class TriangleScene:
+    """A committed Embree scene of one triangle mesh. ``pointer`` is the RTCScene handle the kernels take.
+
+    Primitive ids are the rows of ``triangles``. Embree copies the vertices and indices, so the arrays may go away.
+    """
+
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray):
+        lib = library()
+        self._lib = lib
+        self._device = lib.rtcNewDevice(None)
+        if not self._device:
+            raise RuntimeError("Embree: rtcNewDevice failed")
+        self._scene = lib.rtcNewScene(self._device)
+        v = np.ascontiguousarray(vertices, dtype=np.float32)
+        t = np.ascontiguousarray(triangles, dtype=np.uint32)
+        geometry = lib.rtcNewGeometry(self._device, _GEOMETRY_TYPE_TRIANGLE)
+        vb = lib.rtcSetNewGeometryBuffer(geometry, _BUFFER_TYPE_VERTEX, 0, _FORMAT_FLOAT3, 12, max(len(v), 1))
+        ib = lib.rtcSetNewGeometryBuffer(geometry, _BUFFER_TYPE_INDEX, 0, _FORMAT_UINT3, 12, max(len(t), 1))
+        if not vb or not ib:
+            raise RuntimeError(f"Embree: cannot allocate geometry buffers (error {lib.rtcGetDeviceError(self._device)})")
+        ctypes.memmove(vb, v.ctypes.data, v.nbytes)
+        ctypes.memmove(ib, t.ctypes.data, t.nbytes)
+        lib.rtcCommitGeometry(geometry)
+        lib.rtcAttachGeometry(self._scene, geometry)
+        lib.rtcReleaseGeometry(geometry)
+        lib.rtcCommitScene(self._scene)
+        error = lib.rtcGetDeviceError(self._device)
+        if error:
+            raise RuntimeError(f"Embree: scene build failed (error {error})")
+        self.pointer = int(self._scene)
+
+    def __del__(self):
+        lib = getattr(self, "_lib", None)
+        if lib is None:
+            return
+        if getattr(self, "_scene", None):
+            lib.rtcReleaseScene(self._scene)
+            self._scene = None
+        if getattr(self, "_device", None):
+            lib.rtcReleaseDevice(self._device)
+            self._device = None
