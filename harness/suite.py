@@ -259,8 +259,12 @@ def _against(label: str, key: str, value: Any, renderers: list[str], folder: Pat
         raise HarnessError(f"{label}: {key}.renderer", "missing: expected the name of the renderer to compare with")
     renderer = _typed(label, f"{key}.renderer", table["renderer"], str)
     renderer = _renderer_known(label, f"{key}.renderer", renderer, renderers, folder)
+    spp = _positive(label, f"{key}.spp", table.get("spp", 256), int)
+    if spp < 2:
+        raise HarnessError(f"{label}: {key}.spp", f"expected at least 2 (the reference render's variance comes from "
+                           f"its samples; one sample per pixel gives none), got {spp}")
     return Against(
-        "renderer", renderer, _positive(label, f"{key}.spp", table.get("spp", 256), int),
+        "renderer", renderer, spp,
         _non_negative(label, f"{key}.seed", table.get("seed", 1_000_003)),
         _settings(label, f"{key}.settings", table.get("settings", {})),
     )

@@ -719,3 +719,13 @@ def test_render_command_with_a_bad_renderer_fails_in_one_line_and_writes_nothing
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "render failed" in err[0] and ("shape" if how == "shape" else "fell over") in err[0]
     assert not out.exists()
+
+
+def test_suite_comparing_against_a_one_sample_reference_is_refused(tmp_path):
+    """A reference render of one sample per pixel has no variance to judge with: the loader says so, naming the key,
+    before anything runs (it used to stop the run half-way with a message naming no file)."""
+    suite = tmp_path / "s.toml"
+    suite.write_text('[[cases]]\nscene = "furnace"\nagainst = { renderer = "reference", spp = 1 }\n')
+    with pytest.raises(HarnessError) as err:
+        load_suite(suite)
+    assert err.value.where.endswith("cases[0].against.spp") and str(suite) in err.value.where
