@@ -21,6 +21,7 @@ Characters XML 1.0 cannot hold (control characters in a traceback) are replaced;
 from __future__ import annotations
 
 import re
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -158,3 +159,8 @@ def check_writable(path: str | Path, option: str = "--junit") -> None:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise HarnessError(option, f"cannot create the folder {str(folder)!r}: {err.strerror}") from None
+    try:  # a real write, as the atomic write at the end will do (permission bits alone say nothing to root)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".junit-probe-"):
+            pass
+    except OSError as err:
+        raise HarnessError(option, f"cannot write in the folder {str(folder)!r}: {err.strerror}") from None

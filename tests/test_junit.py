@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
 
 from conftest import ROOT
 
@@ -75,3 +78,15 @@ def test_run_writes_junit(tmp_path, capsys):
     root = ET.parse(tmp_path / "j.xml").getroot()
     (case,) = root.iter("testcase")
     assert case.get("name") == "furnace/reference" and not case.findall("failure") and float(case.get("time")) > 0
+
+
+def test_unwritable_junit_folder_is_refused_before_the_run(tmp_path, capsys):
+    """A folder that exists but takes no files (/proc; root ignores permission bits) is found out by a real write
+    before any case runs: one line, exit 2, no results.json."""
+    if not Path("/proc").is_dir():
+        pytest.skip("no /proc on this system")
+    code = main(["run", str(ROOT / "suites" / "smoke.toml"), "--out", str(tmp_path / "out"), "--junit",
+                 "/proc/j.xml", "--no-report", "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--junit" in err[0]
+    assert not (tmp_path / "out" / "results.json").exists()
