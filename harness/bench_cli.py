@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.options import require_positive
 
 
 def register(sub) -> None:
@@ -44,8 +45,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from harness.scene import load_scene
 
     for option, value in (("--spp", args.spp), ("--repeats", args.repeats), ("--ground-truth-spp", args.ground_truth_spp)):
-        if value < 1:
-            raise HarnessError(option, f"expected a positive integer, got {value}")
+        require_positive(option, value)
     memory = _memory_option(args.memory) if args.memory else None
     if args.out:
         out = Path(args.out)

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.options import require_non_negative, require_positive
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 
@@ -59,10 +60,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
     if not os.access(out.parent, os.W_OK):
         raise HarnessError("--out", f"folder {str(out.parent)!r} is not writable")
-    if args.spp < 1:
-        raise HarnessError("--spp", f"expected a positive integer, got {args.spp}")
-    if args.seed < 0:
-        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+    require_positive("--spp", args.spp)
+    require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
     _check_cost(scene, args.spp, "--spp")
     renderer = get_renderer(args.renderer)
@@ -130,8 +129,7 @@ def cmd_ground_truth(args: argparse.Namespace) -> int:
     from harness import groundtruth
     from harness.scene import load_scene
 
-    if args.seed < 0:
-        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+    require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
     if not (scene.closed_form and not args.no_closed_form):  # a closed form renders nothing
         _check_cost(scene, args.spp, "--spp")
@@ -281,8 +279,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from harness import calibrate
     from harness.suite import load_suite
 
-    if args.seeds < 1:
-        raise HarnessError("--seeds", f"expected a positive integer, got {args.seeds}")
+    require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)
     out = Path(args.out) if args.out else Path("reports") / f"{suite.name}-calibration"
     out.mkdir(parents=True, exist_ok=True)
@@ -328,8 +325,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     from harness.report import write_suite_report
     from harness.report.convergence import parse_ladder
 
-    if args.strategy_spp < 1:
-        raise HarnessError("--strategy-spp", f"expected a positive integer, got {args.strategy_spp}")
+    require_positive("--strategy-spp", args.strategy_spp)
     results = Path(args.results)
     out = Path(args.out) if args.out else results.parent
     options = _report_options(
@@ -370,10 +366,8 @@ def cmd_convergence(args: argparse.Namespace) -> int:
     if not spp and not seconds:
         raise HarnessError("--spp", "give an spp ladder (e.g. --spp 1,2,4,8,16) and/or a --seconds ladder")
     for name, value in (("--ground-truth-spp", args.ground_truth_spp), ("--chunk-spp", args.chunk_spp)):
-        if value < 1:
-            raise HarnessError(name, f"expected a positive integer, got {value}")
-    if args.seed < 0:
-        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+        require_positive(name, value)
+    require_non_negative("--seed", args.seed)
     width = height = None
     if args.film:
         w, sep, h = args.film.lower().partition("x")

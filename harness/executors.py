@@ -110,11 +110,10 @@ def _chunk_jobs(case, cache_dir, variant) -> list:
     ``render_with_budget`` make through the cache). A scene that cannot be loaded needs none here: the case itself
     reports it."""
     from harness import groundtruth
-    from harness.suite import case_scene
+    from harness.suite import case_scenes
 
     try:
-        gt_scene = case_scene(case, for_ground_truth=True)  # a stress variant may be judged on the plain scene
-        scene = case_scene(case)
+        scene, gt_scene = case_scenes(case)  # a stress variant may be judged on the plain scene
     except HarnessError:
         return []
     needs = []  # (scene, spp, seed, variant)

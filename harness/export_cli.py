@@ -7,6 +7,7 @@ import argparse
 import json
 
 from harness.errors import HarnessError
+from harness.options import require_non_negative, require_positive
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -15,10 +16,8 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     if args.format not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {args.format!r}")
-    if args.spp < 1:
-        raise HarnessError("--spp", f"expected a positive integer, got {args.spp}")
-    if args.seed < 0:
-        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+    require_positive("--spp", args.spp)
+    require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
     files = export_scene(scene, args.format, args.out, spp=args.spp, seed=args.seed)
     if args.json:

@@ -40,6 +40,7 @@ import numpy as np
 from scipy import stats
 
 from harness.errors import HarnessError
+from harness.options import require_non_negative, require_positive
 from harness.scene.model import Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,
@@ -715,10 +716,8 @@ def command(args) -> int:
     from reference_impl import Film
 
     for name, value in (("--spp", args.spp), ("--ground-truth-spp", args.ground_truth_spp)):
-        if value < 1:
-            raise HarnessError(name, f"expected a positive integer, got {value}")
-    if args.seed < 0:
-        raise HarnessError("--seed", f"expected a non-negative integer, got {args.seed}")
+        require_positive(name, value)
+    require_non_negative("--seed", args.seed)
     if not (math.isfinite(args.k) and args.k > 0):
         raise HarnessError("--k", f"expected a positive number of standard deviations, got {args.k}")
     if not 0 < args.alpha < 1:

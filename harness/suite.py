@@ -370,6 +370,13 @@ def slug(name: str) -> str:
 def case_scene(case: Case, for_ground_truth: bool = False):
     """The case's scene: film and depth overrides, then its stress ``variant``, unless ``for_ground_truth`` and the
     variant must not change the image (then the untransformed scene is the reference's)."""
+    render_scene, reference_scene = case_scenes(case)
+    return reference_scene if for_ground_truth else render_scene
+
+
+def case_scenes(case: Case):
+    """(the scene the case renders, the scene its reference is made from), from one read of the scene file: the
+    same scene unless a stress ``variant`` must not change the image (:func:`case_scene`)."""
     from harness.scene import load_scene
     from reference_impl import Film
 
@@ -380,13 +387,13 @@ def case_scene(case: Case, for_ground_truth: bool = False):
         scene = dataclasses.replace(scene, film=film)
     if case.max_depth is not None:  # the scene's own depth, so the ground truth and the render agree
         scene = dataclasses.replace(scene, max_depth=case.max_depth)
-    if case.variant is not None:
-        from harness.stress import parse_variant
+    if case.variant is None:
+        return scene, scene
+    from harness.stress import parse_variant
 
-        stress_variant = parse_variant(case.variant, f"{case.scene}: variant")
-        if not (for_ground_truth and stress_variant.judged_against_original):
-            scene = stress_variant.apply(scene)
-    return scene
+    stress_variant = parse_variant(case.variant, f"{case.scene}: variant")
+    varied = stress_variant.apply(scene)
+    return varied, (scene if stress_variant.judged_against_original else varied)
 
 
 def render_with_budget(case: Case, scene, variant: str | None, progress=None, cache_dir=None):
@@ -527,8 +534,8 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
     record = case_header(case)
     start = time.perf_counter()
     try:
-        scene = case_scene(case)
-        gt = reference_for(case, case_scene(case, for_ground_truth=True), cache_dir, variant, progress)
+        scene, reference_scene = case_scenes(case)
+        gt = reference_for(case, reference_scene, cache_dir, variant, progress)
         record["ground_truth"] = {
             "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
             "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,

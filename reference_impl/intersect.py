@@ -56,37 +56,26 @@ class Intersector:
     def closest_prims(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """Embree's closest-hit query on float32 (n, 3) C-contiguous rays: the primitive hit (an index into
         :attr:`prim_to_tri`), -1 for a miss, as int32. The wavefront integrator calls this directly."""
-        n = len(origins)
-        out = np.full(n, -1, np.int32)
-        if self._embree is None or n == 0:
-            return out
-        from reference_impl import kernels
-
-        kernels.closest_prims(self._embree.pointer, origins, directions, out)
-        return out
+        return self._query("closest_prims", origins, directions)
 
     def closest_prims_coherent(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
         """:meth:`closest_prims` for rays that come in runs of 16 travelling together (one pixel's camera rays):
         one packet query per 16 rays. The same hits."""
-        n = len(origins)
-        out = np.full(n, -1, np.int32)
-        if self._embree is None or n == 0:
-            return out
-        from reference_impl import kernels
-
-        kernels.closest_prims_packets(self._embree.pointer, origins, directions, out)
-        return out
+        return self._query("closest_prims_packets", origins, directions)
 
     def occluders(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
         """Embree's any-hit query on float32 rays with float32 ``tfar``: >= 0 where something blocks the segment,
         -1 where nothing does (int32)."""
-        n = len(origins)
-        out = np.full(n, -1, np.int32)
-        if self._embree is None or n == 0:
-            return out
-        from reference_impl import kernels
+        return self._query("occluders", origins, directions, tfar)
 
-        kernels.occluders(self._embree.pointer, origins, directions, tfar, out)
+    def _query(self, kernel: str, *rays: np.ndarray) -> np.ndarray:
+        """Run the batch query ``kernels.<kernel>(scene, *rays, out)``: int32 per ray, -1 where nothing is hit."""
+        n = len(rays[0])
+        out = np.full(n, -1, np.int32)
+        if self._embree is not None and n:
+            from reference_impl import kernels
+
+            getattr(kernels, kernel)(self._embree.pointer, *rays, out)
         return out
 
     def closest_hit(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

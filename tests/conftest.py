@@ -10,6 +10,24 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/mc.py, tests/chi2.py
 
+# A small valid scene file: a camera, a 16 x 16 film and one white material, no shapes. Tests add shapes to it.
+MINIMAL_SCENE = """\
+name = "minimal"
+
+[camera]
+origin = [0, 0, 5]
+target = [0, 0, 0]
+up = [0, 1, 0]
+fov = 40
+
+[film]
+width = 16
+height = 16
+
+[materials.white]
+reflectance = [0.8, 0.8, 0.8]
+"""
+
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):

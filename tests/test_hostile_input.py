@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import MINIMAL_SCENE, ROOT
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_scene_format import to_toml, toml_string
@@ -32,22 +32,7 @@ from harness.renderers.validate import BadRenderError, validate_result
 from harness.scene import load_scene
 from harness.suite import Suite, load_suite
 
-SCENE = """\
-name = "tiny"
-
-[camera]
-origin = [0, 0, 5]
-target = [0, 0, 0]
-up = [0, 1, 0]
-fov = 40
-
-[film]
-width = 16
-height = 16
-
-[materials.white]
-reflectance = [0.8, 0.8, 0.8]
-
+SCENE = MINIMAL_SCENE.replace('name = "minimal"', 'name = "tiny"') + """
 [[shapes]]
 name = "light"
 type = "rectangle"

@@ -16,6 +16,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from conftest import MINIMAL_SCENE
 from harness.errors import HarnessError
 from harness.scene import Scene, load_scene, triangulate
 from harness.scene.triangulate import rotate_matrix, shape_triangles
@@ -25,22 +26,7 @@ SCENES = REPO / "scenes"
 CANONICAL = ["cornell-box", "furnace", "soft-shadows", "multi-light"]
 
 # A small valid scene that tests extend with extra shapes or override with replacements.
-MINIMAL = """\
-name = "minimal"
-
-[camera]
-origin = [0, 0, 5]
-target = [0, 0, 0]
-up = [0, 1, 0]
-fov = 40
-
-[film]
-width = 16
-height = 16
-
-[materials.white]
-reflectance = [0.8, 0.8, 0.8]
-"""
+MINIMAL = MINIMAL_SCENE
 
 
 def write_scene(folder: Path, text: str, name: str = "scene.toml") -> Path:
