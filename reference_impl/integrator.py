@@ -84,7 +84,9 @@ class RenderOutput:
     """What a render returns: the pixel estimates, their variances, and counters.
 
     image    (H, W, 3) float32: mean of the Np weighted samples of each pixel.
-    variance (H, W, 3) float32: variance of that mean (sample variance / Np); NaN when Np = 1.
+    variance (H, W, 3) float32: variance of that mean, estimated as the sample variance / Np; NaN when Np = 1.
+             Exact in expectation for ``sampler = "independent"``; an upper bound for "sobol", whose samples of a
+             pixel are stratified (docs/reference-renderer.md).
     stats    counters (see ``COUNTERS``) plus ``paths`` (camera paths traced) and ``embree_microseconds`` (time in
              Embree queries, summed over threads).
     seconds  wall time of the render alone (no scene loading, no file writing).
@@ -244,6 +246,8 @@ class _Context:
         cfg[kernels.CFG_RR_DEPTH] = s.rr_depth
         cfg[kernels.CFG_MUTANTS] = kernels.MUTANT_BITS.get(self.mutant, 0)
         cfg[kernels.CFG_NUM_LIGHTS] = self.geometry.num_lights
+        cfg[kernels.CFG_SOBOL] = s.sampler == "sobol"
+        cfg[kernels.CFG_SPP] = s.spp
         self._cfg = cfg
         # The path-at-a-time kernel derives the per-vertex entries itself; EMIT_ALL marks the double-emission mutant.
         self.path_config = cfg.copy()
@@ -364,16 +368,21 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     width, height = ctx.film.width, ctx.film.height
     tan_x, tan_y = ctx.tan_half_fov
     n = len(pixel)
+    sobol = ctx.settings.sampler == "sobol"
     if ctx.filter_kind == kernels.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
-        keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
-        filter_samples = ctx.filter.sample(rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y)))
+        if sobol:
+            ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, _FILM_X))
+        else:
+            keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
+            ux, uy = rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y))
+        filter_samples = ctx.filter.sample(ux, uy)
     else:
         filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
     first = _view(ctx.workspace().state(0, n), n)
+    film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key)
     kernels.camera_paths(
-        np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key,
-        ctx.settings.spp, width, height, ctx.filter_kind, filter_samples, ctx.mutant == "camera-half-pixel",
-        tan_x, tan_y, ctx.camera_frame, ctx.eye, first,
+        film_samples[0], film_samples[1], ctx.seed_key, ctx.settings.spp, width, height, ctx.filter_kind,
+        filter_samples, ctx.mutant == "camera-half-pixel", tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
     )
     radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
@@ -382,10 +391,11 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     if ctx.path_engine:
         timing = np.zeros(2, np.int64)
         kernels.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                            ctx.surface_tables, ctx.path_config, ctx.cfg_f, ctx.max_depth, radiance, counters, timing)
+                            ctx.surface_tables, ctx.path_config, ctx.cfg_f, ctx.max_depth, radiance, counters, timing,
+                            film_samples)
         clock.seconds += timing[0] * 1e-9
     else:
-        _trace(ctx, _PathState(*first), 1, radiance, counters, clock)
+        _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
     counters[kernels.C_NONFINITE] += kernels.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
     for name, count in zip(COUNTERS, counters.tolist()):
         stats[name] += count
@@ -393,7 +403,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     return radiance
 
 
-def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock) -> None:
+def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock,
+           film_samples: tuple) -> None:
     """Advance the wavefront until every path has ended. With Ni = 1 it never grows: it lives in the thread's
     workspace, the next wavefront written into the other half of it. With Ni > 1 it grows; each next wavefront is
     new memory, and a wavefront is split at camera-sample boundaries, so each sample's contributions are still
@@ -402,7 +413,7 @@ def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, c
         ws = ctx.workspace()
         current = 0  # state is in wavefront buffer 0 (the camera rays)
         while len(state):
-            state = _bounce(ctx, state, depth, radiance, counters, clock, ws.state(1 - current, len(state)))
+            state = _bounce(ctx, state, depth, radiance, counters, clock, ws.state(1 - current, len(state)), film_samples)
             current = 1 - current
             depth += 1
         return
@@ -412,15 +423,16 @@ def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, c
             if mid == 0:
                 mid = np.searchsorted(state.root, state.root[0], side="right")
             if mid < len(state):
-                _trace(ctx, state.take(slice(0, mid)), depth, radiance, counters, clock)
-                _trace(ctx, state.take(slice(mid, None)), depth, radiance, counters, clock)
+                _trace(ctx, state.take(slice(0, mid)), depth, radiance, counters, clock, film_samples)
+                _trace(ctx, state.take(slice(mid, None)), depth, radiance, counters, clock, film_samples)
                 return
-        state = _bounce(ctx, state, depth, radiance, counters, clock, _alloc_state(len(state) * ctx.settings.indirect_rays))
+        state = _bounce(ctx, state, depth, radiance, counters, clock, _alloc_state(len(state) * ctx.settings.indirect_rays),
+                        film_samples)
         depth += 1
 
 
 def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock,
-            out: tuple) -> _PathState:
+            out: tuple, film_samples: tuple) -> _PathState:
     """Find the hits x of the current rays (vertex number ``depth``), add their contributions and return the rays
     of the next wavefront (written into ``out``, room for Ni rows per current row)."""
     kernels = _kernels()
@@ -434,7 +446,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     hits, total, rays = ctx.workspace().direct(len(state))
     m, s, n_next = kernels.bounce(
         state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
-        ctx.cfg_f, radiance, counters, hits, rays, out,
+        ctx.cfg_f, radiance, counters, hits, rays, out, film_samples,
     )
     if m:
         nd = ctx.settings.shadow_rays

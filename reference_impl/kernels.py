@@ -38,7 +38,8 @@ import numpy as np
 from numba import njit
 
 from reference_impl import embree_c
-from reference_impl.rng import _GOLDEN, _M1, _M2, _S11, _S27, _S30, _S31, _TO_UNIT
+from reference_impl.rng import (_GOLDEN, _LK, _M1, _M2, _PIXEL_SALT, _ROUND_MULTIPLIER, _S11, _S27, _S30, _S31, _TO_UNIT,
+                                _TO_UNIT32)
 
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 # Helpers that take arrays are inlined into their callers at numba's level: a call that passes an array increments
@@ -72,7 +73,11 @@ INDIRECT_U1, INDIRECT_U2 = 9, 10
 
 # Integer configuration of one bounce (the ``cfg`` array of :func:`bounce`).
 (CFG_DEPTH, CFG_EMIT, CFG_ALLOW_NEXT, CFG_ALLOW_INDIRECT, CFG_DIRECT, CFG_ND, CFG_NI, CFG_HEMI_COSINE, CFG_RR,
- CFG_RR_DEPTH, CFG_MUTANTS, CFG_NUM_LIGHTS, CFG_SIZE) = range(13)
+ CFG_RR_DEPTH, CFG_MUTANTS, CFG_NUM_LIGHTS, CFG_SOBOL, CFG_SPP, CFG_SIZE) = range(15)
+# The stratified sampler ("sobol") draws the camera sample (depth 0) and the decisions of the first hit (depth 1:
+# light sample, roulette, indirect direction); deeper ones are independent. Measured on the Cornell box, 64 spp: the
+# first hit gives nearly all of the gain (MSE 5.6e-4 -> 1.5e-4); going on to depth 2 took 3 % more time for 3 % less
+# MSE.
 # Float configuration (the ``cfg_f`` array).
 CFGF_FIXED_SURVIVAL, CFGF_OFFSET_SCENE, CFGF_SURFACE_PDF, CFGF_SIZE = range(4)
 
@@ -127,6 +132,112 @@ def branch_salt(branch, depth):
 def path_key(seed_key, path_id):
     """rng.path_keys for one path id, with ``seed_key = mix64(seed ^ golden)``."""
     return mix64((np.uint64(path_id) * _GOLDEN) ^ seed_key)
+
+
+_LOW32 = np.uint64(0xFFFFFFFF)
+_B1, _B2, _B4, _B8, _B16 = (np.uint64(m) for m in (0x55555555, 0x33333333, 0x0F0F0F0F, 0x00FF00FF, 0x0000FFFF))
+_SH1, _SH2, _SH4, _SH8, _SH16 = (np.uint64(v) for v in (1, 2, 4, 8, 16))
+_LK0, _LK1, _LK2, _LK3 = _LK
+_PIXEL_SALT_U = np.uint64(_PIXEL_SALT)
+_ROUND_MUL = _ROUND_MULTIPLIER
+_GOLDEN_1, _GOLDEN_2, _GOLDEN_3 = (np.uint64((r * int(_GOLDEN)) & ((1 << 64) - 1)) for r in (1, 2, 3))
+
+
+@njit(**_JIT)
+def reverse_bits32(x):
+    """rng.reverse_bits32 for one word."""
+    x = ((x >> _SH1) & _B1) | ((x & _B1) << _SH1)
+    x = ((x >> _SH2) & _B2) | ((x & _B2) << _SH2)
+    x = ((x >> _SH4) & _B4) | ((x & _B4) << _SH4)
+    x = ((x >> _SH8) & _B8) | ((x & _B8) << _SH8)
+    return ((x >> _SH16) | (x << _SH16)) & _LOW32
+
+
+@njit(**_JIT)
+def lk_permutation(x, seed):
+    """rng.lk_permutation for one word (uint64 arithmetic; only the low 32 bits are kept)."""
+    x = (x + seed) & _LOW32
+    x ^= x * _LK0
+    x ^= x * _LK1
+    x ^= x * _LK2
+    x ^= x * _LK3
+    return x & _LOW32
+
+
+@njit(**_JIT)
+def pascal32(x):
+    """rng.pascal32 for one word."""
+    x ^= (x >> _SH1) & _B1
+    x ^= (x >> _SH2) & _B2
+    x ^= (x >> _SH4) & _B4
+    x ^= (x >> _SH8) & _B8
+    x ^= (x >> _SH16) & _B16
+    return x
+
+
+@njit(**_JIT)
+def pixel_key(seed_key, pixel):
+    """rng.pixel_keys for one pixel, with ``seed_key = mix64(seed ^ golden)``."""
+    return mix64((np.uint64(pixel) * _GOLDEN) ^ seed_key ^ _PIXEL_SALT_U)
+
+
+@njit(**_JIT)
+def sobol_seeds(pix_key, salt, n):
+    """rng.sobol_seeds for one pixel and pair (``salt = dim_salt(...)`` of its first dimension), with what the
+    order of its n points needs: (n, 2^k - 1, ceil(k/2), floor(k/3), three order seeds, x seed, y seed)."""
+    seed = mix64(pix_key + salt)
+    k = 0
+    while (1 << k) < n:
+        k += 1
+    w = np.uint64((1 << k) - 1)
+    s1 = np.uint64(max((k + 1) // 2, 1))
+    s2 = np.uint64(max(k // 3, 1))
+    return (np.uint64(n), w, s1, s2, mix64(seed + _GOLDEN_1), mix64(seed + _GOLDEN_2), mix64(seed + _GOLDEN_3),
+            seed >> _U32, mix64(seed) & _LOW32)
+
+
+@njit(**_JIT)
+def _order_round(v, q, w, s1, s2):
+    """One round of rng.permutation_element."""
+    v = (v + q) & w
+    v ^= v >> s1
+    v = (v * ((q >> _U32) | _ONE)) & w
+    v ^= v >> s2
+    v = (v * _ROUND_MUL) & w
+    return v ^ (v >> s1)
+
+
+@njit(**_JIT)
+def sobol_point(seeds, index):
+    """rng.sobol_2d for one point, given the pixel's and pair's ``sobol_seeds``."""
+    n, w, s1, s2, q0, q1, q2, seed_x, seed_y = seeds
+    v = np.uint64(index)
+    while True:
+        v = _order_round(_order_round(_order_round(v, q0, w, s1, s2), q1, w, s1, s2), q2, w, s1, s2)
+        if v < n:
+            break
+    x = reverse_bits32(lk_permutation(v, seed_x))
+    y = reverse_bits32(lk_permutation(pascal32(v), seed_y))
+    return np.float64(x) * _TO_UNIT32, np.float64(y) * _TO_UNIT32
+
+
+@njit(**_JIT)
+def uniform_2d(sobol, seeds, index, key, j, depth, purpose_a, purpose_b):
+    """The two uniforms of one decision: point ``index`` of the pixel's stratified set (``sobol``, ``seeds`` of
+    its pair), or independent numbers of the path key for dimensions (depth, purpose_a / purpose_b, j)."""
+    if sobol:
+        return sobol_point(seeds, index)
+    return uniform(key, dim_salt(depth, purpose_a, j)), uniform(key, dim_salt(depth, purpose_b, j))
+
+
+@njit(**_JIT)
+def first_hit_seeds(seed_key, pixel, spp, nd, ni):
+    """The ``sobol_seeds`` of a pixel's first-hit pairs: (light choice, light point, direct-light direction,
+    roulette, indirect direction); Np x Nd, Np x Nd, Np x Nd, Np and Np x Ni points."""
+    pk = pixel_key(seed_key, pixel)
+    return (sobol_seeds(pk, dim_salt(1, LIGHT_SELECT, 0), spp * nd), sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+            sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd), sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp),
+            sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
 
 
 # ---------------------------------------------------------------------------------------------------- warps
@@ -264,10 +375,10 @@ def _filter_sample(kind, u):
 
 @njit(**_JIT)
 def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filter_samples, half_pixel,
-                 tan_x, tan_y, frame, eye, out):
+                 tan_x, tan_y, frame, eye, sobol, out):
     """The viewing rays of camera samples (pixel, sample) (integrator._trace_camera_paths, Camera.generate_rays).
 
-    Box and tent filter offsets are drawn here; the Gaussian's (a table lookup and exp) come in ``filter_samples``
+    Box and tent filter offsets are drawn here (``sobol``: from the pixel's stratified set, index ``sample``); the Gaussian's (a table lookup and exp) come in ``filter_samples``
     (dx, dy, weight per sample, from PixelFilter.sample), so that numpy's exp, not libm's, gives their bits.
     Writes the wavefront ``out`` (root, key, origin, direction, origin32, direction32, beta, pdf_dir): root i for
     sample i, float64 origins and unit directions with their float32 copies for Embree, and the throughput (the
@@ -278,14 +389,23 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
     n = len(pixel)
     salt_x = dim_salt(0, FILM_X, 0)
     salt_y = dim_salt(0, FILM_Y, 0)
+    seeds_pixel = -1
+    seeds = sobol_seeds(_ONE, salt_x, 1)
     for i in range(n):
         k = path_key(seed_key, np.uint64(pixel[i]) * np.uint64(spp) + np.uint64(sample[i]))
         key[i] = k
         if filter_kind == FILTER_GAUSSIAN:
             dx, dy, w = pre_dx[i], pre_dy[i], pre_w[i]
         else:
-            dx, wx = _filter_sample(filter_kind, uniform(k, salt_x))
-            dy, wy = _filter_sample(filter_kind, uniform(k, salt_y))
+            if sobol:
+                if pixel[i] != seeds_pixel:  # a pixel's samples come together: its seeds once
+                    seeds_pixel = pixel[i]
+                    seeds = sobol_seeds(pixel_key(seed_key, seeds_pixel), salt_x, spp)
+                ux, uy = sobol_point(seeds, sample[i])
+            else:
+                ux, uy = uniform(k, salt_x), uniform(k, salt_y)
+            dx, wx = _filter_sample(filter_kind, ux)
+            dy, wy = _filter_sample(filter_kind, uy)
             w = wx * wy
         film_x = np.float64(pixel[i] % width) + 0.5 + dx
         film_y = np.float64(pixel[i] // width) + 0.5 + dy
@@ -313,7 +433,7 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
 
 
 @njit(**_JIT)
-def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters, hits, rays, out):
+def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters, hits, rays, out, film_samples):
     """One bounce of the wavefront (integrator._bounce), given the closest hits ``prim`` of the current rays.
 
     Adds the emission seen at the hits to ``radiance``, draws the Nd direct-light samples of each reflecting hit
@@ -324,8 +444,9 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
     ``state`` and ``out`` are wavefronts (root, key, origin, direction, origin32, direction32, beta, pdf_dir), the
     current one and room for the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the
     reflecting hits, in order; ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the
-    direct-light rays of each hit, in sample order, Nd rows per row of ``state``. Returns how many hits, direct-light
-    rays and next paths were written.
+    direct-light rays of each hit, in sample order, Nd rows per row of ``state``. ``film_samples`` = (pixel, sample,
+    seed_key) of the camera samples (rows of ``root``), for the stratified sampler. Returns how many hits,
+    direct-light rays and next paths were written.
     """
     root, key, origin, direction, _o32, _d32, beta, pdf_dir = state
     x_root, x_key, x_origin, x_dir, x_o32, x_d32, x_beta, x_pdf = out
@@ -349,6 +470,12 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
     no_cosine = (mutants & M_NO_COSINE) != 0
     play_roulette = rr != RR_OFF and depth >= cfg[CFG_RR_DEPTH]
     hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
+    sob = cfg[CFG_SOBOL] != 0 and depth == 1
+    film_pixel, film_sample, seed_key = film_samples
+    spp = cfg[CFG_SPP]
+    fh = first_hit_seeds(seed_key, 0, 1, 1, 1)
+    fh_pixel = -1
+    si = 0
 
     n = len(root)
     m = 0
@@ -408,6 +535,11 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             nx0, nx1, nx2 = -nx0, -nx1, -nx2
         f0, f1, f2 = f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2]
         k = key[i]
+        if sob:
+            if film_pixel[r] != fh_pixel:
+                fh_pixel = film_pixel[r]
+                fh = first_hit_seeds(seed_key, fh_pixel, spp, nd, ni)
+            si = film_sample[r]
         h = m
         hits[h] = i
         m += 1
@@ -417,9 +549,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         # Direct light: Nd samples (integrator._direct_light and the one-sample estimators).
         for j in range(nd):
             if hemi_direct:  # _direct_hemisphere_sample: a closest-hit ray, resolved in resolve_hemisphere
-                w0, w1, w2, cos_theta, pdf = sample_hemisphere(
-                    direct == DIRECT_HEMI_COSINE, uniform(k, dim_salt(depth, DIRECT_DIR_U1, j)),
-                    uniform(k, dim_salt(depth, DIRECT_DIR_U2, j)), nx0, nx1, nx2)
+                u_a, u_b = uniform_2d(sob, fh[2], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+                w0, w1, w2, cos_theta, pdf = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, nx0, nx1, nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
                 s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
@@ -430,18 +561,18 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                 s += 1
                 continue
             if direct == DIRECT_GLOBAL_AREA:  # _direct_global_area_sample
-                ltri, y0, y1, y2 = _sample_surface_point(
-                    surfaces, corners, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
-                    uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
+                u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
+                ltri, y0, y1, y2 = _sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
                 pdf_area = surface_pdf
             else:  # _direct_area_sample ("area" and "mis")
-                u_select = 0.0  # with one light there is nothing to choose: pdf(k) = 1
+                u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
                 if num_lights > 1:
-                    u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
                     counters[C_LIGHT_SELECT] += 1
-                light, ltri, y0, y1, y2 = _sample_light_point(
-                    lights, num_lights, corners, u_select, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
-                    uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                else:
+                    u_select = 0.0  # with one light there is nothing to choose: pdf(k) = 1
+                u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
+                light, ltri, y0, y1, y2 = _sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
                 if mutants & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
                     pdf_area = 1.0 / light_area[light]
                 else:
@@ -488,7 +619,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             continue
         if play_roulette:
             survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
-            if not (uniform(k, salt_rr) < survival):
+            u_rr = sobol_point(fh[3], si)[0] if sob else uniform(k, salt_rr)
+            if not (u_rr < survival):
                 counters[C_ROULETTE] += 1
                 continue
             if not (mutants & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight"
@@ -496,8 +628,11 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                 b0, b1, b2 = b0 * inv_survival, b1 * inv_survival, b2 * inv_survival
         for branch in range(ni):
             kb = k if ni == 1 else mix64(k ^ branch_salt(branch, depth))
-            w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, uniform(kb, salt_u1), uniform(kb, salt_u2),
-                                                           nx0, nx1, nx2)
+            if sob:
+                u_a, u_b = sobol_point(fh[4], si * ni + branch)
+            else:
+                u_a, u_b = uniform(kb, salt_u1), uniform(kb, salt_u2)
+            w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, u_a, u_b, nx0, nx1, nx2)
             if (mutants & M_COSINE_PDF_PI) and hemi_cosine:  # mutant "cosine-pdf-pi"
                 pdf = pdf * _PI
             cos_factor = 1.0 if no_cosine else cos_theta  # mutant "no-cosine" (indirect light)
@@ -706,7 +841,8 @@ TIMING_STRIDE = 64
 
 
 @njit(**_JIT)
-def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth, radiance, counters, timing):
+def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth, radiance, counters, timing,
+                film_samples):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one path at a time,
     with Ni = 1: the same estimator, random numbers and order of floating-point operations as the wavefront
     (``bounce`` then ``resolve_shadow`` / ``resolve_hemisphere`` at each vertex), so the same bits, but each
@@ -718,7 +854,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
     the direct-light mode (MIS) and the planted faults; ``cfg[CFG_EMIT]`` = EMIT_ALL marks the double-emission
     mutant. The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet query.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
-    the number of queries.
+    the number of queries. ``film_samples`` = (pixel, sample, seed_key) of the camera samples, for the stratified
+    sampler.
     """
     root, key, origin, direction, o32, d32, beta, pdf_dir = state
     prim_to_tri, tri_normal, tri_v0, corners, emission, light_id, tri_material, two_sided, f_r_table, albedo_max = scene
@@ -739,6 +876,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
     surface_pdf = cfg_f[CFGF_SURFACE_PDF]
     no_cosine = (mutants & M_NO_COSINE) != 0
     hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
+    sobol = cfg[CFG_SOBOL] != 0
+    film_pixel, film_sample, seed_key = film_samples
+    spp = cfg[CFG_SPP]
+    fh = first_hit_seeds(seed_key, 0, 1, 1, 1)
+    fh_pixel = -1
+    si = 0
     # The vertex below repeats :func:`bounce` line for line (both must give the same bits). Sharing the light sample
     # and shadow ray through helper functions was measured: numba passes their arrays and 11-value results through
     # calls it does not optimise away, and the Cornell box fell from 4.98 to 3.0-3.3 M paths/s (inline="always" or
@@ -775,6 +918,11 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         ray_pdf = pdf_dir[i]
         depth = 1
+        if sobol:
+            if film_pixel[r] != fh_pixel:  # a pixel's samples come together: its seeds once
+                fh_pixel = film_pixel[r]
+                fh = first_hit_seeds(seed_key, fh_pixel, spp, nd, 1)
+            si = film_sample[r]
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
         while True:
             # The per-vertex configuration (integrator._Context.bounce_config).
@@ -787,6 +935,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             allow_next = max_depth == -1 or depth + 1 <= max_depth
             allow_indirect = (max_depth == -1 or depth + 2 <= max_depth) or (mis and allow_next)
             play_roulette = rr != RR_OFF and depth >= rr_depth
+            sob = sobol and depth == 1
 
             if depth == 1:
                 p = np.int64(first_prim[i])
@@ -848,7 +997,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             go_on = allow_indirect
             if go_on and play_roulette:
                 survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
-                if not (uniform(k, dim_salt(depth, ROULETTE, 0)) < survival):
+                u_rr = sobol_point(fh[3], si)[0] if sob else uniform(k, dim_salt(depth, ROULETTE, 0))
+                if not (u_rr < survival):
                     count_roulette += 1
                     go_on = False
                 elif not (mutants & M_RR_NO_REWEIGHT):
@@ -859,9 +1009,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             else:
                 q0, q1, q2 = b0, b1, b2
             if go_on:
-                w0, w1, w2, cos_theta, pdf = sample_hemisphere(
-                    hemi_cosine, uniform(k, dim_salt(depth, INDIRECT_U1, 0)), uniform(k, dim_salt(depth, INDIRECT_U2, 0)),
-                    nx0, nx1, nx2)
+                u_a, u_b = uniform_2d(sob, fh[4], si, k, 0, depth, INDIRECT_U1, INDIRECT_U2)
+                w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, u_a, u_b, nx0, nx1, nx2)
                 if (mutants & M_COSINE_PDF_PI) and hemi_cosine:
                     pdf = pdf * _PI
                 cos_factor = 1.0 if no_cosine else cos_theta
@@ -878,9 +1027,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    h0, h1, h2, h_cos, h_pdf = sample_hemisphere(
-                        direct == DIRECT_HEMI_COSINE, uniform(k, dim_salt(depth, DIRECT_DIR_U1, j)),
-                        uniform(k, dim_salt(depth, DIRECT_DIR_U2, j)), nx0, nx1, nx2)
+                    u_a, u_b = uniform_2d(sob, fh[2], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+                    h0, h1, h2, h_cos, h_pdf = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, nx0, nx1, nx2)
                     count_hemi_direct += 1
                     aux = h_cos / h_pdf if h_pdf > 0 else -1.0
                     queries += 1
@@ -901,18 +1049,18 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
                     tot2 += emission[htri, 2] * f2 * weight
                     continue
                 if direct == DIRECT_GLOBAL_AREA:
-                    ltri, y0, y1, y2 = _sample_surface_point(
-                        surfaces, corners, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
-                        uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                    u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
+                    u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
+                    ltri, y0, y1, y2 = _sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
                     pdf_area = surface_pdf
                 else:
-                    u_select = 0.0
+                    u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
                     if num_lights > 1:
-                        u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
                         count_light_select += 1
-                    light, ltri, y0, y1, y2 = _sample_light_point(
-                        lights, num_lights, corners, u_select, uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j)),
-                        uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j)))
+                    else:
+                        u_select = 0.0
+                    u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
+                    light, ltri, y0, y1, y2 = _sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
                     if mutants & M_LIGHT_PDF_IGNORED:
                         pdf_area = 1.0 / light_area[light]
                     else:

@@ -34,6 +34,10 @@ CASES = [
     ("multi-light", {"direct": "mis", "mutant": "light-pdf-ignored", "max_depth": -1}),
     ("cornell-box", {"mutant": "no-cosine", "max_depth": 2}),
     ("cornell-box", {"max_depth": 1}),
+    ("cornell-box", {"sampler": "independent"}),
+    ("multi-light", {"sampler": "independent", "direct": "hemisphere-cosine", "shadow_rays": 2}),
+    ("cornell-box", {"sampler": "independent", "direct": "global-area", "shadow_rays": 3}),
+    ("furnace", {"sampler": "independent", "mutant": "rr-no-reweight"}),
 ]
 
 
@@ -58,11 +62,12 @@ def test_path_engine_and_wavefront_give_the_same_bits(name, settings):
     assert b.stats["embree_microseconds"] >= 0
 
 
-def test_gaussian_filter_and_odd_batches_agree_too():
+@pytest.mark.parametrize("sampler", ["sobol", "independent"])
+def test_gaussian_filter_and_odd_batches_agree_too(sampler):
     scene = load_small("cornell-box", 20)
     scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, filter="gaussian"))
-    a = _render(scene, "wavefront", batch_size=37)
-    b = _render(scene, "path", batch_size=1000, threads=1)
+    a = _render(scene, "wavefront", batch_size=37, sampler=sampler)
+    b = _render(scene, "path", batch_size=1000, threads=1, sampler=sampler)
     assert a.image.tobytes() == b.image.tobytes()
 
 
