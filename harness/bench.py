@@ -45,10 +45,11 @@ DEFAULT_GT_SPP = 4096
 # the table says which choice pays on which scene.
 STRATEGIES: tuple[dict[str, str], ...] = (
     {},
+    {"sampler": "independent"},
     {"direct": "mis"},
     {"shadow_rays": "2"},
+    {"rr_depth": "1"},
     {"rr_depth": "2"},
-    {"rr_depth": "3"},
     {"rr_depth": "5"},
     {"rr": "off"},
     {"light_selection": "uniform"},

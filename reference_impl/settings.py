@@ -59,7 +59,7 @@ class Settings:
     indirect_rays: int = 1
     hemisphere: str = "cosine"
     rr: str = "albedo"
-    rr_depth: int = 1
+    rr_depth: int = 3
     absorption: float = 0.2
     max_depth: int | None = None
     batch_size: int = 1 << 15

@@ -48,11 +48,13 @@ def cornell():
     first = integrator._view(ws.state(0, N_RAYS), N_RAYS)
     tan_x, tan_y = ctx.tan_half_fov
     camera_args = (pixel, sample, ctx.seed_key, settings.spp, 256, 256, ctx.filter_kind,
-                   (np.zeros(0), np.zeros(0), np.zeros(0)), False, tan_x, tan_y, ctx.camera_frame, ctx.eye, first)
+                   (np.zeros(0), np.zeros(0), np.zeros(0)), False, tan_x, tan_y, ctx.camera_frame, ctx.eye,
+                   settings.sampler == "sobol", first)
     kernels.camera_paths(*camera_args)
     state = integrator._PathState(*first)
     prim = ctx.intersector.closest_prims(state.origin32, state.direction32)
-    return {"ctx": ctx, "ws": ws, "state": state, "prim": prim, "camera_args": camera_args}
+    return {"ctx": ctx, "ws": ws, "state": state, "prim": prim, "camera_args": camera_args,
+            "film_samples": (pixel, sample, ctx.seed_key)}
 
 
 def _counters():
@@ -67,7 +69,8 @@ def _run_bounce_kernel(c, radiance, counters):
     ctx, ws = c["ctx"], c["ws"]
     hits, _, rays = ws.direct(N_RAYS)
     return kernels.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                          ctx.bounce_config(1), ctx.cfg_f, radiance, counters, hits, rays, ws.state(1, N_RAYS))
+                          ctx.bounce_config(1), ctx.cfg_f, radiance, counters, hits, rays, ws.state(1, N_RAYS),
+                          c["film_samples"])
 
 
 @pytest.mark.benchmark(group="primary rays")
@@ -111,7 +114,7 @@ def test_bounce_with_queries(benchmark, cornell):
 
     ctx, ws, state = cornell["ctx"], cornell["ws"], cornell["state"]
     radiance, counters, clock = np.zeros((N_RAYS, 3)), _counters(), integrator._Clock()
-    benchmark(integrator._bounce, ctx, state, 1, radiance, counters, clock, ws.state(1, N_RAYS))
+    benchmark(integrator._bounce, ctx, state, 1, radiance, counters, clock, ws.state(1, N_RAYS), cornell["film_samples"])
     benchmark.extra_info["paths_per_second"] = N_RAYS / benchmark.stats.stats.median
 
 
