@@ -361,6 +361,14 @@ def _offset(offset_scene, p0, p1, p2):
     return _OFFSET_REL * max(abs(p0), abs(p1), abs(p2)) + offset_scene
 
 
+@njit(**_JIT)
+def shadow_t_max(seg_len, offset_y, cos_y):
+    """Where a shadow ray toward y stops: short of y by y's offset measured off y's plane, i.e. offset / cos_y along
+    the ray. (A fixed distance along the ray left y's own triangle within float32 rounding of a grazing ray's end:
+    2.6e-4 of the furnace's direct light was lost, a bias the stratified sampler's lower noise made visible.)"""
+    return seg_len * (1.0 - 1e-6) - offset_y / cos_y
+
+
 # ------------------------------------------------------------------------------------------------ pixel filter
 
 
@@ -594,7 +602,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                 so0, so1, so2 = ox0, ox1, ox2
             g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
             seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
-            t_max = seg_len * (1.0 - 1e-6) - _offset(offset_scene, y0, y1, y2)
+            t_max = shadow_t_max(seg_len, _offset(offset_scene, y0, y1, y2), cos_y)
             counters[C_SHADOW] += 1
             s_owner[s] = h
             s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = so0, so1, so2
@@ -1081,7 +1089,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
                     so0, so1, so2 = ox0, ox1, ox2
                 g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
                 seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
-                t_max = seg_len * (1.0 - 1e-6) - _offset(offset_scene, y0, y1, y2)
+                t_max = shadow_t_max(seg_len, _offset(offset_scene, y0, y1, y2), cos_y)
                 inv_seg = 1.0 / seg_len
                 count_shadow += 1
                 cos_at_x = 1.0 if no_cosine else cos_x
