@@ -69,13 +69,21 @@ class Contender:
 
 
 def default_contenders(spp: int) -> list[Contender]:
-    """The reference at its defaults, Mitsuba's ``llvm_ad_rgb`` and ``scalar_rgb`` at theirs (one pass)."""
+    """The reference at its defaults, Mitsuba's ``llvm_ad_rgb`` and ``scalar_rgb`` at theirs (one pass), and
+    ``llvm_ad_rgb`` with its low-discrepancy sampler (``ldsampler``, a (0,2)-sequence: the like of the reference's
+    default sampler), so that the gain of stratification is seen on both sides."""
+    from harness.renderers.mitsuba import sampler_takes
+
     plain = {"moments": "off", "chunk_spp": str(spp)}
-    return [
+    contenders = [
         Contender("reference", "reference"),
         Contender("mitsuba llvm_ad_rgb", "mitsuba", {**plain, "variant": "llvm_ad_rgb"}),
         Contender("mitsuba scalar_rgb", "mitsuba", {**plain, "variant": "scalar_rgb"}),
     ]
+    if sampler_takes("ldsampler", spp):  # it draws powers of 4 only
+        contenders.append(Contender("mitsuba llvm_ad_rgb ldsampler", "mitsuba",
+                                    {**plain, "variant": "llvm_ad_rgb", "sampler": "ldsampler"}))
+    return contenders
 
 
 @dataclass
@@ -191,7 +199,8 @@ def bench_scene(
 
 
 def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
-    """Efficiency and paths/s of row ``label`` over every Mitsuba row, keyed ``efficiency_vs_<variant>``."""
+    """Efficiency and paths/s of row ``label`` over every Mitsuba row, keyed ``efficiency_vs_<variant>`` (with
+    ``_<sampler>`` added for a sampler other than Mitsuba's default)."""
     mine = next((r for r in rows if r.label == label), None)
     out: dict[str, float] = {}
     if mine is None:
@@ -200,6 +209,8 @@ def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
         if row.renderer != "mitsuba" or row.error:
             continue
         variant = row.settings.get("variant") or row.variant or "mitsuba"
+        if row.settings.get("sampler", "independent") != "independent":
+            variant += "_" + row.settings["sampler"]
         out[f"efficiency_vs_{variant}"] = mine.efficiency / row.efficiency
         out[f"paths_per_second_vs_{variant}"] = mine.paths_per_second / row.paths_per_second
     return out

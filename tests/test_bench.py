@@ -42,10 +42,13 @@ def test_efficiency_and_ratios():
                   paths_per_second=4e6),
         bench.Row("s", "mitsuba scalar_rgb", "mitsuba", {"variant": "scalar_rgb"}, 4, 8, 8, efficiency=10.0,
                   paths_per_second=1e6),
+        bench.Row("s", "mitsuba llvm_ad_rgb ldsampler", "mitsuba", {"variant": "llvm_ad_rgb", "sampler": "ldsampler"},
+                  4, 8, 8, efficiency=120.0, paths_per_second=4e6),
     ]
     r = bench.ratios(rows)
     assert r == {"efficiency_vs_llvm_ad_rgb": 0.5, "paths_per_second_vs_llvm_ad_rgb": 0.5,
-                 "efficiency_vs_scalar_rgb": 3.0, "paths_per_second_vs_scalar_rgb": 2.0}
+                 "efficiency_vs_scalar_rgb": 3.0, "paths_per_second_vs_scalar_rgb": 2.0,
+                 "efficiency_vs_llvm_ad_rgb_ldsampler": 0.25, "paths_per_second_vs_llvm_ad_rgb_ldsampler": 0.5}
     targets = bench.check_targets(r)
     assert [t["met"] for t in targets] == [True, True]
     assert [t["met"] for t in bench.check_targets({"efficiency_vs_scalar_rgb": 2.9})] == [None, False]
@@ -82,7 +85,8 @@ def test_bench_command_writes_json_and_refuses_bad_options(tmp_path):
     block = result["scenes"]["furnace"]
     assert block["ground_truth"]["source"] == "closed-form"
     labels = [row["label"] for row in block["rows"]]
-    assert labels == ["reference", "mitsuba llvm_ad_rgb", "mitsuba scalar_rgb"]
+    assert labels == ["reference", "mitsuba llvm_ad_rgb", "mitsuba scalar_rgb"]  # spp 1: no ldsampler row
+    assert [c.label for c in bench.default_contenders(64)][-1] == "mitsuba llvm_ad_rgb ldsampler"
     assert "efficiency_vs_scalar_rgb" in block["ratios"]
     for option, value in (("--spp", "0"), ("--repeats", "0"), ("--memory", "big"), ("--scene", "no-such-scene")):
         proc = subprocess.run([sys.executable, "-m", "harness", "bench", option, value, "--quiet"],

@@ -20,6 +20,7 @@ from __future__ import annotations
 import glob
 import importlib.metadata
 import json
+import dataclasses
 import math
 import os
 import re
@@ -47,7 +48,25 @@ MIN_LLVM_VERSION = 16  # Dr.Jit 1.5's LLVM backend aborts the process on LLVM 15
 RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
 DEFAULT_CHUNK_SPP = 64
 MAX_PASS_SAMPLES = 2**31  # camera samples per pass at most (Mitsuba's wavefront index is 32-bit)
-SETTING_KEYS = ("chunk_spp", "max_depth", "moments", "variant")
+SETTING_KEYS = ("chunk_spp", "max_depth", "moments", "sampler", "variant")
+# Mitsuba's samplers (``--set sampler=...``); "independent" is its default and the ground truth's.
+SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
+
+
+def sampler_takes(sampler: str, count: int) -> bool:
+    """Whether Mitsuba's ``sampler`` draws exactly ``count`` samples per pixel (others round it, with a warning on
+    stdout): stratified and multijitter want a square, ldsampler a power of 4 from 4 up, orthogonal the square of a
+    prime (checked against Mitsuba 3.9.1's ``sample_count()``)."""
+    root = math.isqrt(count)
+    if sampler == "independent":
+        return count >= 1
+    if root * root != count:
+        return False
+    if sampler == "ldsampler":  # and at least 4: Mitsuba rounds 1 up to 4
+        return root >= 2 and root & (root - 1) == 0
+    if sampler == "orthogonal":
+        return root >= 2 and all(root % d for d in range(2, math.isqrt(root) + 1))
+    return True
 PROBE_TIMEOUT_S = 300.0
 NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
 FAR_MARGIN = 1.1  # far_clip = this factor times the distance to the farthest corner of the scene's bounding box
@@ -439,7 +458,8 @@ def moment_integrator(nested: dict) -> dict:
     return {"type": "moment", "rgb": {"type": "aov", "aovs": "", "path": nested}}
 
 
-def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4) -> dict:
+def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4,
+                          sampler: str = "independent") -> dict:
     """The scene as a Mitsuba 3 scene dict for ``variant`` (which this makes the active variant).
 
     Shapes keep their type (analytic sphere) and placement matrix; meshes become ``mi.Mesh`` objects built from the
@@ -462,7 +482,7 @@ def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None =
             "near_clip": near,
             "far_clip": far,
             "film": film_dict(scene),
-            "sampler": {"type": "independent", "sample_count": int(spp)},
+            "sampler": {"type": sampler, "sample_count": int(spp)},
         },
     }
     material_key = {}
@@ -598,12 +618,14 @@ class MitsubaSettings:
     chunk_spp: int
     max_depth: int
     moments: bool = True
+    sampler: str = "independent"
 
 
 def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
     """``--set`` values: ``variant``, ``chunk_spp`` (spp per pass, default 64), ``max_depth`` (default: the scene's),
     ``moments`` (``on``, the default: per-pixel variances through ``moment(aov(path))``; ``off``: Mitsuba's plain
-    ``path`` integrator as a user runs it, no variance, used to time Mitsuba at its defaults)."""
+    ``path`` integrator as a user runs it, no variance, used to time Mitsuba at its defaults), ``sampler`` (one of
+    :data:`SAMPLERS`; default ``independent``: a stratified one makes the moment variances an upper bound)."""
     for key in settings:
         if key in ("spp", "seed"):
             raise HarnessError(f"--set {key}", f"give {key} with --{key}, not --set")
@@ -619,7 +641,18 @@ def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
     moments = str(settings.get("moments", "on")).strip().lower()
     if moments not in ("on", "off"):
         raise HarnessError("--set moments", f"expected on or off, got {settings['moments']!r}")
-    return MitsubaSettings(variant.strip() if variant else None, chunk, depth, moments == "on")
+    sampler = str(settings.get("sampler", "independent")).strip()
+    if sampler not in SAMPLERS:
+        raise HarnessError("--set sampler", f"expected one of {', '.join(SAMPLERS)}, got {settings['sampler']!r}")
+    return MitsubaSettings(variant.strip() if variant else None, chunk, depth, moments == "on", sampler)
+
+
+def check_sampler_count(options: MitsubaSettings, spp: int) -> None:
+    """A stratified sampler renders in one pass of exactly ``spp`` samples, or not at all (HarnessError)."""
+    if options.sampler != "independent" and not sampler_takes(options.sampler, spp):
+        want = {"ldsampler": "a power of 4 (>= 4)", "orthogonal": "the square of a prime"}.get(options.sampler, "a square")
+        raise HarnessError("--set sampler", f"{options.sampler} draws {want} samples per pixel; --spp {spp} is not "
+                                            "(Mitsuba would round it and the timing would count the wrong samples)")
 
 
 class MitsubaRenderer:
@@ -631,12 +664,15 @@ class MitsubaRenderer:
         if request.spp < 1:
             raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")
         options = parse_settings(scene, request.settings)
+        check_sampler_count(options, request.spp)
+        if options.sampler != "independent":  # one pass: its point set is the pixel's whole sample set
+            options = dataclasses.replace(options, chunk_spp=request.spp)
         choice = resolve_variant(options.variant)
         mi = import_mitsuba(choice.variant)
         import drjit as dr
 
         scene_dict = scene_to_mitsuba_dict(scene, choice.variant, max_depth=options.max_depth,
-                                           spp=min(options.chunk_spp, request.spp))
+                                           spp=min(options.chunk_spp, request.spp), sampler=options.sampler)
         if options.moments:
             scene_dict["integrator"] = moment_integrator(scene_dict["integrator"])
         try:
@@ -691,7 +727,7 @@ class MitsubaRenderer:
             stats={"passes": passes, "chunk_spp": chunk, "camera_rays": int(camera_rays),
                    "border_pixels": border},
             settings={"variant": choice.variant, "chunk_spp": chunk, "max_depth": options.max_depth,
-                      "moments": "on" if options.moments else "off",
+                      "moments": "on" if options.moments else "off", "sampler": options.sampler,
                       "rr_depth": RR_DEPTH, "spp": request.spp, "seed": request.seed},
             info={
                 "variant": choice.variant,
