@@ -232,12 +232,12 @@ def uniform_2d(sobol, seeds, index, key, j, depth, purpose_a, purpose_b):
 
 @njit(**_JIT)
 def first_hit_seeds(seed_key, pixel, spp, nd, ni):
-    """The ``sobol_seeds`` of a pixel's first-hit pairs: (light choice, light point, direct-light direction,
-    roulette, indirect direction); Np x Nd, Np x Nd, Np x Nd, Np and Np x Ni points."""
+    """The ``sobol_seeds`` of a pixel's first-hit pairs: (light sample, direct-light direction, roulette, indirect
+    direction); Np x Nd, Np x Nd, Np and Np x Ni points. (A light sample's choices of light and triangle reuse its
+    point's first coordinate: lights.LightSampler.split_uniform.)"""
     pk = pixel_key(seed_key, pixel)
-    return (sobol_seeds(pk, dim_salt(1, LIGHT_SELECT, 0), spp * nd), sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
-            sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd), sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp),
-            sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
+    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd), sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
+            sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp), sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
 
 
 # ---------------------------------------------------------------------------------------------------- warps
@@ -353,6 +353,44 @@ def _sample_surface_point(surfaces, corners, u_tri, u1, u2):
     tri = triangles[sample_discrete(cdf, u_tri)]
     p0, p1, p2 = _point_on_triangle(corners, tri, u1, u2)
     return tri, p0, p1, p2
+
+
+_BELOW_ONE = np.nextafter(1.0, 0.0)
+
+
+@njit(**_JIT)
+def rescale_within(u, lo, hi):
+    """lights.rescale_within for one uniform."""
+    return min((u - lo) / (hi - lo), _BELOW_ONE)
+
+
+@njit(**_JIT_INLINE)
+def _split_light_uniform(lights, num_lights, u):
+    """LightSampler.split_uniform for one uniform: (u_select, u_tri, u1)."""
+    cdf, _triangles, first, count, within_cdf, _pmf, _area = lights
+    light = 0
+    u_tri = u
+    if num_lights > 1:
+        light = sample_discrete(cdf, u)
+        u_tri = rescale_within(u, cdf[light - 1] if light > 0 else 0.0, cdf[light])
+    f = first[light]
+    lo = 0
+    hi = count[light] - 1
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if within_cdf[f + mid] <= u_tri:
+            lo = mid + 1
+        else:
+            hi = mid
+    return u, u_tri, rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0, within_cdf[f + lo])
+
+
+@njit(**_JIT_INLINE)
+def _split_surface_uniform(surfaces, u):
+    """TriangleAreaSampler.split_uniform for one uniform: (u_tri, u1)."""
+    _triangles, cdf = surfaces
+    index = sample_discrete(cdf, u)
+    return u, rescale_within(u, cdf[index - 1] if index > 0 else 0.0, cdf[index])
 
 
 @njit(**_JIT)
@@ -557,7 +595,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         # Direct light: Nd samples (integrator._direct_light and the one-sample estimators).
         for j in range(nd):
             if hemi_direct:  # _direct_hemisphere_sample: a closest-hit ray, resolved in resolve_hemisphere
-                u_a, u_b = uniform_2d(sob, fh[2], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+                u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
                 w0, w1, w2, cos_theta, pdf = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, nx0, nx1, nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
@@ -568,18 +606,28 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                 s_aux[s] = cos_theta / pdf if pdf > 0 else -1.0
                 s += 1
                 continue
+            # The stratified sampler draws one 2D point per light sample and reuses its first coordinate for the
+            # discrete choices (lights.LightSampler.split_uniform); independent numbers need no reuse.
+            if sob:
+                u_a, u_b = sobol_point(fh[0], si * nd + j)
+            else:
+                u_a, u_b = uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j))
             if direct == DIRECT_GLOBAL_AREA:  # _direct_global_area_sample
-                u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
-                u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
+                if sob:
+                    u_tri, u_a = _split_surface_uniform(surfaces, u_a)
+                else:
+                    u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
                 ltri, y0, y1, y2 = _sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
                 pdf_area = surface_pdf
             else:  # _direct_area_sample ("area" and "mis")
-                u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
+                if sob:
+                    u_select, u_tri, u_a = _split_light_uniform(lights, num_lights, u_a)
+                else:
+                    u_select, u_tri = uniform(k, dim_salt(depth, LIGHT_SELECT, j)), uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
                 if num_lights > 1:
                     counters[C_LIGHT_SELECT] += 1
                 else:
                     u_select = 0.0  # with one light there is nothing to choose: pdf(k) = 1
-                u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
                 light, ltri, y0, y1, y2 = _sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
                 if mutants & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
                     pdf_area = 1.0 / light_area[light]
@@ -627,7 +675,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             continue
         if play_roulette:
             survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
-            u_rr = sobol_point(fh[3], si)[0] if sob else uniform(k, salt_rr)
+            u_rr = sobol_point(fh[2], si)[0] if sob else uniform(k, salt_rr)
             if not (u_rr < survival):
                 counters[C_ROULETTE] += 1
                 continue
@@ -637,7 +685,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         for branch in range(ni):
             kb = k if ni == 1 else mix64(k ^ branch_salt(branch, depth))
             if sob:
-                u_a, u_b = sobol_point(fh[4], si * ni + branch)
+                u_a, u_b = sobol_point(fh[3], si * ni + branch)
             else:
                 u_a, u_b = uniform(kb, salt_u1), uniform(kb, salt_u2)
             w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, u_a, u_b, nx0, nx1, nx2)
@@ -1005,7 +1053,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             go_on = allow_indirect
             if go_on and play_roulette:
                 survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
-                u_rr = sobol_point(fh[3], si)[0] if sob else uniform(k, dim_salt(depth, ROULETTE, 0))
+                u_rr = sobol_point(fh[2], si)[0] if sob else uniform(k, dim_salt(depth, ROULETTE, 0))
                 if not (u_rr < survival):
                     count_roulette += 1
                     go_on = False
@@ -1017,7 +1065,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             else:
                 q0, q1, q2 = b0, b1, b2
             if go_on:
-                u_a, u_b = uniform_2d(sob, fh[4], si, k, 0, depth, INDIRECT_U1, INDIRECT_U2)
+                u_a, u_b = uniform_2d(sob, fh[3], si, k, 0, depth, INDIRECT_U1, INDIRECT_U2)
                 w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, u_a, u_b, nx0, nx1, nx2)
                 if (mutants & M_COSINE_PDF_PI) and hemi_cosine:
                     pdf = pdf * _PI
@@ -1035,7 +1083,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    u_a, u_b = uniform_2d(sob, fh[2], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+                    u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
                     h0, h1, h2, h_cos, h_pdf = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, nx0, nx1, nx2)
                     count_hemi_direct += 1
                     aux = h_cos / h_pdf if h_pdf > 0 else -1.0
@@ -1056,18 +1104,27 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
                     tot1 += emission[htri, 1] * f1 * weight
                     tot2 += emission[htri, 2] * f2 * weight
                     continue
+                if sob:
+                    u_a, u_b = sobol_point(fh[0], si * nd + j)
+                else:
+                    u_a, u_b = uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j))
                 if direct == DIRECT_GLOBAL_AREA:
-                    u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
-                    u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
+                    if sob:
+                        u_tri, u_a = _split_surface_uniform(surfaces, u_a)
+                    else:
+                        u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
                     ltri, y0, y1, y2 = _sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
                     pdf_area = surface_pdf
                 else:
-                    u_select, u_tri = uniform_2d(sob, fh[0], si * nd + j, k, j, depth, LIGHT_SELECT, LIGHT_TRIANGLE)
+                    if sob:
+                        u_select, u_tri, u_a = _split_light_uniform(lights, num_lights, u_a)
+                    else:
+                        u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
+                        u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
                     if num_lights > 1:
                         count_light_select += 1
                     else:
                         u_select = 0.0
-                    u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, LIGHT_U1, LIGHT_U2)
                     light, ltri, y0, y1, y2 = _sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
                     if mutants & M_LIGHT_PDF_IGNORED:
                         pdf_area = 1.0 / light_area[light]

@@ -47,6 +47,13 @@ class TriangleAreaSampler:
         self.total_area = float(areas.sum())
         self.cdf = np.cumsum(areas) / self.total_area if self.total_area > 0 else np.ones(len(areas))
 
+    def split_uniform(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """One uniform for both the triangle and the point: (u_tri, u1) = (u, what is left of u inside the chosen
+        triangle's cdf interval, :func:`rescale_within`). ``sample(*split_uniform(u), u2)`` is then one 2D sample, so
+        a stratified (u, u2) stays stratified over the whole set, not only within each triangle."""
+        index = sample_discrete(self.cdf, u)
+        return u, rescale_within(u, np.where(index > 0, self.cdf[index - 1], 0.0), self.cdf[index])
+
     def sample(self, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> SurfacePoints:
         """Points with pdf 1 / (total area of the set)."""
         tri = self.triangles[sample_discrete(self.cdf, u_tri)]
@@ -95,6 +102,23 @@ class LightSampler:
         """pdf(k) * pdf(y | k) = pdf(k) / A_k, per unit area on light k."""
         return self.pmf[light] / self.area[light]
 
+    def split_uniform(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One uniform for the light, its triangle and the point (sample reuse, as pbrt-v4's light samplers do):
+        u_select = u picks light k; what is left of it inside k's cdf interval picks the triangle; what is left of
+        that inside the triangle's interval is u1 (:func:`rescale_within` each time). ``sample(*split_uniform(u), u2)``
+        is one 2D sample over all lights: a stratified (u, u2) stays stratified over the lights, not only within
+        each triangle."""
+        u = np.asarray(u, dtype=np.float64)
+        if self.num_lights > 1:
+            light = sample_discrete(self.cdf, u)
+            u_tri = rescale_within(u, np.where(light > 0, self.cdf[light - 1], 0.0), self.cdf[light])
+        else:
+            light, u_tri = np.zeros(len(u), np.int64), u
+        first = self.first[light]
+        local = _search_within(self.within_cdf, first, self.count[light], u_tri)
+        lo = np.where(local > 0, self.within_cdf[first + local - 1], 0.0)
+        return u, u_tri, rescale_within(u_tri, lo, self.within_cdf[first + local])
+
     def sample(self, u_select: np.ndarray, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray):
         """Light indices k and points y on them; pdf_area = pdf(k) pdf(y | k)."""
         light = sample_discrete(self.cdf, u_select) if self.num_lights > 1 else np.zeros(len(u_select), np.int64)
@@ -103,6 +127,15 @@ class LightSampler:
         tri = self.triangles[first + local]
         pos = _uniform_point_on(self.geometry, tri, u1, u2)
         return light, SurfacePoints(tri, pos, self.geometry.normal[tri], self.pdf_area(light))
+
+
+_BELOW_ONE = np.nextafter(1.0, 0.0)
+
+
+def rescale_within(u: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(u - lo) / (hi - lo): a uniform u that a discrete choice took because lo <= u < hi, made a fresh uniform on
+    [0, 1) again (clamped below 1, against rounding and a last cdf entry a hair under 1)."""
+    return np.minimum((u - lo) / (hi - lo), _BELOW_ONE)
 
 
 def _search_within(cdf: np.ndarray, first: np.ndarray, count: np.ndarray, u: np.ndarray) -> np.ndarray:

@@ -581,14 +581,19 @@ def fan_light() -> PlanarLight:
     return PlanarLight(poly, tris, rotation([-0.3, 0.2, 1.0], 2.3), np.array([-0.4, 0.1, 2.0]))
 
 
-def light_point_sampler(geometry, light: PlanarLight, seed: int, selection: str = "power"):
-    """Points from ``LightSampler(geometry, selection).sample`` in the plane coordinates of ``light``."""
+def light_point_sampler(geometry, light: PlanarLight, seed: int, selection: str = "power", reuse: bool = False):
+    """Points from ``LightSampler(geometry, selection).sample`` in the plane coordinates of ``light``; with ``reuse``,
+    from ``sample(*split_uniform(u1), u2)`` (the stratified sampler's one 2D sample per light sample)."""
     from reference_impl.lights import LightSampler
 
     sampler = LightSampler(geometry, selection)
 
     def sample(n):
-        k, pts = sampler.sample(*_uniforms(seed, n, 4))
+        if reuse:
+            u1, u2 = _uniforms(seed, n, 2)
+            k, pts = sampler.sample(*sampler.split_uniform(u1), u2)
+        else:
+            k, pts = sampler.sample(*_uniforms(seed, n, 4))
         x, y, z = light.to_plane(pts.position)
         if np.any(k != 0) or np.max(np.abs(z)) > 1e-9:
             return np.full(n, np.nan), np.full(n, np.nan)  # off the light: every sample out of domain
@@ -600,9 +605,10 @@ def light_point_sampler(geometry, light: PlanarLight, seed: int, selection: str 
     return sampler, sample, pdf
 
 
-def _light_points_case(name: str, light: PlanarLight, res, quadrature: str, order: int, seed: int) -> Chi2Result:
+def _light_points_case(name: str, light: PlanarLight, res, quadrature: str, order: int, seed: int,
+                       reuse: bool = False) -> Chi2Result:
     geom, _ = light_geometry([(light, (4.0, 3.0, 2.0))])
-    _, sample, pdf = light_point_sampler(geom, light, seed)
+    _, sample, pdf = light_point_sampler(geom, light, seed, reuse=reuse)
     return chi2_test_2d(sample, pdf, bbox(light.polygon), res, N_SAMPLES, name=name, quadrature=quadrature, order=order)
 
 
@@ -693,6 +699,9 @@ def standard_cases() -> dict[str, Callable[[], Chi2Result]]:
     )
     cases["light_fan_points"] = lambda: _light_points_case(
         "light_fan_points", fan_light(), (48, 32), "midpoint", 24, 502
+    )
+    cases["light_fan_points_reused_uniform"] = lambda: _light_points_case(
+        "light_fan_points_reused_uniform", fan_light(), (48, 32), "midpoint", 24, 504, reuse=True
     )
     cases["light_fan_triangle_choice"] = lambda: _fan_choice_case("light_fan_triangle_choice", 503)
     cases["light_select_power"] = lambda: _selection_case("light_select_power", "power", 601)

@@ -104,6 +104,29 @@ def test_surface_points_match_triangle_area_sampler():
     np.testing.assert_array_equal(np.array([g[1:] for g in got]), points.position)
 
 
+@pytest.mark.parametrize("selection", ["power", "uniform"])
+def test_sample_reuse_matches_split_uniform(selection):
+    """The stratified sampler's reuse of one uniform for light, triangle and point (and for triangle and point in
+    global area sampling): kernels = lights.*.split_uniform, bit for bit."""
+    lights = chi2.four_lights()
+    lights[1] = (chi2.fan_light(), lights[1][1])
+    geometry, _ = chi2.light_geometry(lights)
+    sampler = LightSampler(geometry, selection)
+    tables = (sampler.cdf, sampler.triangles, sampler.first, sampler.count, sampler.within_cdf, sampler.pmf,
+              sampler.area)
+    u = _uniforms(40)
+    want = sampler.split_uniform(u)
+    got = np.array([K._split_light_uniform(tables, sampler.num_lights, a) for a in u])
+    for i in range(3):
+        np.testing.assert_array_equal(got[:, i], want[i])
+    assert np.all((want[2] >= 0) & (want[2] < 1))
+    surfaces = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
+    want = surfaces.split_uniform(u)
+    got = np.array([K._split_surface_uniform((surfaces.triangles, surfaces.cdf), a) for a in u])
+    np.testing.assert_array_equal(got[:, 0], want[0])
+    np.testing.assert_array_equal(got[:, 1], want[1])
+
+
 @pytest.mark.parametrize("name", ["box", "tent"])
 def test_filter_offsets_match_pixel_filter(name):
     u = _uniforms(30)

@@ -8,13 +8,14 @@ are binned and compared with the routine's *own* pdf integrated over the bins (s
 * ``sample_hemisphere`` about non-axis normals (world frame), mapped back to each normal's local frame;
 * ``square_to_uniform_triangle`` on a skewed triangle vs 1 / area;
 * ``LightSampler.sample`` points on a rotated 0.7 x 0.3 rectangle light and on a fan of unequal triangles vs
-  ``pdf_area``, and the fan's triangle choice vs area / A;
+  ``pdf_area`` (on the fan also with one uniform reused for triangle and point, ``split_uniform``), and the fan's
+  triangle choice vs area / A;
 * ``LightSampler`` light selection ("power", "uniform") among 4 lights vs ``pdf_select``;
 * ``TriangleAreaSampler`` (global area sampling) choosing triangles in proportion to their areas;
 * ``PixelFilter.sample_1d`` ("tent", "gaussian") vs ``pdf_1d``.
 
 Significance: each chi^2 test of the standard set fails when p < alpha with
-alpha = 1 - (1 - 0.01)^(1/m) (Sidak, ~ 0.01 / m) for the m = len(chi2.STANDARD_NAMES) = 19 tests, so the whole
+alpha = 1 - (1 - 0.01)^(1/m) (Sidak, ~ 0.01 / m) for the m = len(chi2.STANDARD_NAMES) = 20 tests, so the whole
 file has a 1 % chance of a false alarm; the seeds are fixed, so a given tree passes or fails reproducibly. A test
 also fails hard, whatever p, if a sample lands where the pdf is 0, outside the binned domain, or if the pdf does not
 integrate to 1 (within 1e-3, the quadrature's accuracy).
@@ -53,7 +54,7 @@ def _report(result: chi2.Chi2Result) -> chi2.Chi2Result:
 
 
 def test_family_alpha():
-    m = 19
+    m = 20
     assert len(chi2.STANDARD_NAMES) == m
     assert ALPHA == pytest.approx(1 - 0.99 ** (1 / m))
     assert 0.01 / m <= ALPHA <= 0.0101 / m
