@@ -36,6 +36,18 @@ def test_pascal_matrix_is_sobols_second_dimension():
     assert got == [_sobol_1_by_direction_numbers(int(i)) for i in idx]
 
 
+def test_unscrambled_points_are_scipys_sobol_points():
+    """Cross-check with a maintained implementation: scipy.stats.qmc.Sobol (unscrambled) gives the same first 4096
+    points of dimensions 0 and 1, in Gray-code order (its point i is our index i xor i/2)."""
+    from scipy.stats import qmc
+
+    want = qmc.Sobol(d=2, scramble=False).random_base2(12)
+    i = np.arange(4096, dtype=np.uint64)
+    gray = i ^ (i >> np.uint64(1))
+    np.testing.assert_array_equal(rng.reverse_bits32(gray) * 2.0**-32, want[:, 0])
+    np.testing.assert_array_equal(rng.reverse_bits32(rng.pascal32(gray)) * 2.0**-32, want[:, 1])
+
+
 def test_reverse_bits_is_an_involution_and_reverses():
     x = np.random.default_rng(1).integers(0, 2**32, 5000).astype(np.uint64)
     assert np.array_equal(rng.reverse_bits32(rng.reverse_bits32(x)), x)
