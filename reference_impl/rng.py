@@ -67,7 +67,9 @@ def dimension(depth: int, purpose: int, index: int = 0) -> int:
 # pairs are independent of each other within the pixel ("padding"; Kensler, "Correlated Multi-Jittered Sampling",
 # Pixar TM 13-01, 2013, for the permutation). Everything is seeded by the pixel and the pair. Each point is uniform on
 # [0, 1)^2 on its own and the pairs are independent, so every estimator stays unbiased; the n points of one pixel
-# and pair are not independent of each other (that is the stratification).
+# and pair are not independent of each other (that is the stratification). scipy.stats.qmc.Sobol makes the same
+# points (tests/test_sobol_sampler.py checks it), but as whole arrays from Python with one scramble per generator;
+# the kernels need any point of any (pixel, pair) on the spot, inside the compiled path loop, hence this code.
 
 _LOW32 = 0xFFFFFFFF
 _BIT_MASKS = ((1, 0x55555555), (2, 0x33333333), (4, 0x0F0F0F0F), (8, 0x00FF00FF))
