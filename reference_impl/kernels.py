@@ -622,12 +622,11 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             else:  # _direct_area_sample ("area" and "mis")
                 if sob:
                     u_select, u_tri, u_a = _split_light_uniform(lights, num_lights, u_a)
-                else:
-                    u_select, u_tri = uniform(k, dim_salt(depth, LIGHT_SELECT, j)), uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
+                else:  # with one light there is nothing to choose (pdf(k) = 1) and nothing to draw
+                    u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
+                    u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
                 if num_lights > 1:
                     counters[C_LIGHT_SELECT] += 1
-                else:
-                    u_select = 0.0  # with one light there is nothing to choose: pdf(k) = 1
                 light, ltri, y0, y1, y2 = _sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
                 if mutants & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
                     pdf_area = 1.0 / light_area[light]
@@ -1119,12 +1118,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
                     if sob:
                         u_select, u_tri, u_a = _split_light_uniform(lights, num_lights, u_a)
                     else:
-                        u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
+                        u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
                         u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
                     if num_lights > 1:
                         count_light_select += 1
-                    else:
-                        u_select = 0.0
                     light, ltri, y0, y1, y2 = _sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
                     if mutants & M_LIGHT_PDF_IGNORED:
                         pdf_area = 1.0 / light_area[light]
