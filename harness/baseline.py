@@ -40,7 +40,6 @@ import math
 import platform
 import sys
 import time
-import tomllib
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -48,7 +47,7 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, read_user_text
 
 SCHEMA = "rendering-harness/baseline"
 VERSION = 1
@@ -105,11 +104,7 @@ def parse_tolerance(where: str, key: str, value: Any) -> float | str:
 def suite_tolerances(suite) -> dict[str, float | str]:
     """The suite file's ``[baseline]`` table (checked), on top of the defaults."""
     label = str(suite.path)
-    try:
-        doc = tomllib.loads(Path(suite.path).read_text(encoding="utf-8"))
-    except (OSError, tomllib.TOMLDecodeError) as err:
-        raise HarnessError(label, f"cannot read: {err}") from None
-    table = doc.get("baseline", {})
+    table = suite.baseline
     if not isinstance(table, dict):
         raise HarnessError(f"{label}: baseline", f"expected a table [baseline], got {table!r}")
     out = dict(DEFAULTS)
@@ -275,12 +270,9 @@ def save(doc: dict, path: str | Path) -> Path:
 def load(path: str | Path) -> dict:
     """A baseline file, checked: one-line HarnessError naming the file for anything that is not one."""
     label = str(path)
+    text = read_user_text(path, missing="no such baseline file (write one with: harness baseline save SUITE --out FILE)")
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HarnessError(label, "no such baseline file (write one with: harness baseline save SUITE --out FILE)") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise HarnessError(label, f"cannot read: {err}") from None
+        doc = json.loads(text)
     except json.JSONDecodeError as err:
         raise HarnessError(label, f"not a baseline file: invalid JSON ({err})") from None
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
@@ -317,6 +309,13 @@ def _worse(new: float, bound: float) -> bool:
     return new > bound * (1 + ROUNDING) + 1e-300
 
 
+def _check(checks: list, ok: bool, reason: str, **fields) -> None:
+    """Record one check (``fields`` then ``ok``); a failed one also gets its one-line ``reason``."""
+    checks.append({**fields, "ok": ok})
+    if not ok:
+        checks[-1]["reason"] = f"baseline: {reason}"
+
+
 def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
     """Compare a case's new entry with its baseline entry. Returns ``{"checks": [...], "regressions": [...]}``:
     every check made (metric, rule, values, bound, ok) and a one-line reason per regression."""
@@ -339,11 +338,8 @@ def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
             how = f"noise bound, alpha {a:.2g}"
         else:
             factor, how = float(rule), "tolerance"
-        ok = not _worse(n_val, factor * b_val)
-        checks.append({"metric": name, "rule": rule if rule != "auto" else "statistical", "baseline": b_val,
-                       "value": n_val, "factor": factor, "ok": ok})
-        if not ok:
-            checks[-1]["reason"] = f"baseline: {name} {n_val:.4g} > {factor:.3g} x {b_val:.4g} ({how})"
+        _check(checks, not _worse(n_val, factor * b_val), f"{name} {n_val:.4g} > {factor:.3g} x {b_val:.4g} ({how})",
+               metric=name, rule=rule if rule != "auto" else "statistical", baseline=b_val, value=n_val, factor=factor)
 
     rule = tolerance.get("bias", "off")
     if rule != "off" and bs.get("mean") and ns.get("mean"):
@@ -359,13 +355,11 @@ def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
             exact = abs(shift) <= ROUNDING * max(abs(ns["mean"][c]), abs(bs["mean"][c])) + 1e-300
             z = 0.0 if exact else (shift / se if se > 0 else math.copysign(math.inf, shift))
             farther = abs(ns["mean"][c] - ref[c]) > abs(bs["mean"][c] - ref[c])
-            ok = abs(z) <= bound or not farther
-            checks.append({"metric": f"bias.{channel}", "rule": "statistical" if rule == "auto" else "tolerance",
-                           "baseline": bs["mean"][c], "value": ns["mean"][c], "reference": ref[c], "z": z,
-                           "bound": bound, "ok": ok})
-            if not ok:
-                checks[-1]["reason"] = (f"baseline: bias in {channel}: mean {bs['mean'][c]:.5g} -> {ns['mean'][c]:.5g} "
-                                        f"(reference {ref[c]:.5g}), shift z = {z:.2f}, |z| > {bound:.2f}")
+            _check(checks, abs(z) <= bound or not farther,
+                   f"bias in {channel}: mean {bs['mean'][c]:.5g} -> {ns['mean'][c]:.5g} (reference {ref[c]:.5g}), "
+                   f"shift z = {z:.2f}, |z| > {bound:.2f}",
+                   metric=f"bias.{channel}", rule="statistical" if rule == "auto" else "tolerance",
+                   baseline=bs["mean"][c], value=ns["mean"][c], reference=ref[c], z=z, bound=bound)
 
     for name in ("flip", "psnr", "ssim"):
         rule = tolerance.get(name, "off")
@@ -377,27 +371,18 @@ def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
         else:
             ok = n_val >= b_val - rule - ROUNDING * abs(b_val)
             text = f"{name} {n_val:.4g} < {b_val:.4g} - {rule:.3g}"
-        checks.append({"metric": name, "rule": "tolerance", "baseline": b_val, "value": n_val, "tolerance": rule,
-                       "ok": ok})
-        if not ok:
-            checks[-1]["reason"] = f"baseline: {text}"
+        _check(checks, ok, text, metric=name, rule="tolerance", baseline=b_val, value=n_val, tolerance=rule)
 
     rule = tolerance.get("seconds", "off")
     if rule != "off":
         b_val, n_val = base["render"]["seconds"], new["render"]["seconds"]
-        ok = not _worse(n_val, rule * b_val)
-        checks.append({"metric": "seconds", "rule": "tolerance", "baseline": b_val, "value": n_val, "factor": rule,
-                       "ok": ok})
-        if not ok:
-            checks[-1]["reason"] = f"baseline: seconds {n_val:.3g} > {rule:.3g} x {b_val:.3g}"
+        _check(checks, not _worse(n_val, rule * b_val), f"seconds {n_val:.3g} > {rule:.3g} x {b_val:.3g}",
+               metric="seconds", rule="tolerance", baseline=b_val, value=n_val, factor=rule)
     rule = tolerance.get("paths_per_second", "off")
     if rule != "off":
         b_val, n_val = base["render"]["paths_per_second"], new["render"]["paths_per_second"]
-        ok = n_val * rule * (1 + ROUNDING) >= b_val
-        checks.append({"metric": "paths_per_second", "rule": "tolerance", "baseline": b_val, "value": n_val,
-                       "factor": rule, "ok": ok})
-        if not ok:
-            checks[-1]["reason"] = f"baseline: paths_per_second {n_val:.4g} < {b_val:.4g} / {rule:.3g}"
+        _check(checks, n_val * rule * (1 + ROUNDING) >= b_val, f"paths_per_second {n_val:.4g} < {b_val:.4g} / {rule:.3g}",
+               metric="paths_per_second", rule="tolerance", baseline=b_val, value=n_val, factor=rule)
     return {"checks": checks, "regressions": [c["reason"] for c in checks if not c["ok"]]}
 
 

@@ -11,3 +11,17 @@ class HarnessError(Exception):
         super().__init__(f"{where}: {message}" if where else message)
         self.where = where
         self.message = message
+
+
+def read_user_text(path, *, missing: str, where: str | None = None) -> str:
+    """The UTF-8 text of a file the user named. A one-line HarnessError at ``where`` (default: the path) otherwise:
+    ``missing`` when there is no such file, ``cannot read: ...`` for anything else that stops the read."""
+    from pathlib import Path
+
+    where = str(path) if where is None else where
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise HarnessError(where, missing) from None
+    except (OSError, UnicodeDecodeError) as err:
+        raise HarnessError(where, f"cannot read: {err}") from None

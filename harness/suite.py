@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, read_user_text
 
 SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/baseline.py
 CASE_KEYS = (
@@ -80,6 +80,7 @@ class Suite:
     description: str
     path: Path
     cases: tuple[Case, ...]
+    baseline: Any = field(default_factory=dict, compare=False)  # the file's [baseline] table, checked by harness/baseline.py
 
 
 # ---- loading ---------------------------------------------------------------------------------------------------
@@ -89,12 +90,7 @@ def load_suite(path: str | Path) -> Suite:
     """Read and validate a suite file; every problem is a one-line HarnessError naming the file and key."""
     path = Path(path)
     label = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise HarnessError(label, "no such suite file") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise HarnessError(label, f"cannot read: {err}") from None
+    text = read_user_text(path, missing="no such suite file")
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
@@ -121,7 +117,7 @@ def load_suite(path: str | Path) -> Suite:
         _check_case_cost(label, where, case, scenes)
         names.add(case.name)
         cases.append(case)
-    return Suite(name, description, path, tuple(cases))
+    return Suite(name, description, path, tuple(cases), doc.get("baseline", {}))
 
 
 def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:

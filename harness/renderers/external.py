@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, read_user_text
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 
@@ -79,12 +79,9 @@ def load_spec(path: str | Path) -> ExternalSpec:
     """Read and validate a renderer TOML file; every problem is a one-line HarnessError naming the file and key."""
     path = Path(path)
     label = str(path)
+    text = read_user_text(path, missing="no such renderer file; expected a TOML file with command = [...]")
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HarnessError(label, "no such renderer file; expected a TOML file with command = [...]") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise HarnessError(label, f"cannot read: {err}") from None
+        doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
         raise HarnessError(label, f"invalid TOML: {err}") from None
     for key in doc:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, read_user_text
 from harness.report import convergence as conv
 from harness.report import figures, studies
 from harness.report.html import Raw, badge, details, esc, fmt, image_figure, kv_table, page, plot_figure, pre, table
@@ -132,12 +132,7 @@ def dumps(value: Any) -> str:
 
 def load_results(path: str | Path) -> dict:
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise HarnessError(str(path), "no such results file (harness run writes DIR/results.json)") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise HarnessError(str(path), f"cannot read: {err}") from None
+    text = read_user_text(path, missing="no such results file (harness run writes DIR/results.json)")
     try:
         results = json.loads(text)
     except json.JSONDecodeError as err:
