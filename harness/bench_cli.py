@@ -12,9 +12,14 @@ from harness.options import require_positive
 
 
 def register(sub) -> None:
+    summary = ("the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, "
+               "MSE against ground truth, efficiency 1/(MSE x s) and their ratios")
     bench = sub.add_parser(
-        "bench", help="the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, "
-                      "MSE against ground truth, efficiency 1/(MSE x s) and their ratios")
+        "bench", help=summary,
+        description=summary[0].upper() + summary[1:] + ". Contenders: the reference at its defaults (stratified "
+                    "sampler), Mitsuba llvm_ad_rgb and scalar_rgb at theirs (independent sampler), Mitsuba llvm_ad_rgb "
+                    "with its ldsampler when spp is a power of 4, and the reference's strategy rows (one setting "
+                    "changed, e.g. sampler=independent). Method and latest figures: docs/performance.md.")
     bench.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
                                                        "cornell-box, soft-shadows, multi-light)")
     bench.add_argument("--spp", type=int, default=64, help="samples per pixel of every render (default 64)")
@@ -27,8 +32,8 @@ def register(sub) -> None:
     bench.add_argument("--check", action="store_true", help="exit 1 when a target of the performance issue is not met")
     bench.add_argument("--json", action="store_true", help="print the result as one JSON object on stdout")
     bench.add_argument("--out", help="also write the JSON result to this file (atomically)")
-    bench.add_argument("--cache-dir")
-    bench.add_argument("--quiet", action="store_true")
+    bench.add_argument("--cache-dir", help="ground-truth cache folder (default: $HARNESS_CACHE_DIR or the user cache)")
+    bench.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     bench.set_defaults(func=cmd_bench)
 
 

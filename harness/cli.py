@@ -464,8 +464,8 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--seed", type=int, default=0, help="seed of every random stream (default 0)")
     render.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE",
-        help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3 (repeatable; "
-        "see docs/reference-renderer.md)",
+        help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
+             "(repeatable; see docs/reference-renderer.md)",
     )
     render.add_argument("--out", required=True, help="output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it")
     render.add_argument("--json", action="store_true", help="print one JSON object with timings and counters")
