@@ -115,6 +115,7 @@ def load_suite(path: str | Path) -> Suite:
         if case.name in names:
             raise HarnessError(f"{label}: {where}.name", f"duplicate case name {case.name!r}")
         _check_case_cost(label, where, case, scenes)
+        _check_case_settings(label, where, case, _with_case_overrides(scenes[case.scene], case))
         names.add(case.name)
         cases.append(case)
     return Suite(name, description, path, tuple(cases), doc.get("baseline", {}))
@@ -228,6 +229,26 @@ def _check_case_cost(label: str, where: str, case: Case, scenes: dict) -> None:
     for spp, seconds, key in budgets:
         check_render_cost(width, height, spp, seconds=seconds, film_where=film_where,
                           spp_where=f"{label}: {where}.{key}", film_keys=film_keys, spp_name=f"{where}.{key}")
+
+
+def _check_case_settings(label: str, where: str, case: Case, scene) -> None:
+    """Let the built-in renderers check a case's settings (and its comparison render's) before anything runs: a bad
+    one is a one-line error naming the suite file and the key, not a failure halfway through the run."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    requests = [(case.renderer, case.settings, case.spp if case.seconds is None else case.chunk_spp, f"{where}.settings")]
+    if case.against.kind == "renderer":
+        requests.append((case.against.renderer, case.against.settings, case.against.spp, f"{where}.against.settings"))
+    for name, settings, spp, key in requests:
+        check = getattr(get_renderer(name), "check", None) if name in ("reference", "mitsuba") else None
+        if check is None or spp is None:
+            continue
+        try:
+            check(scene, RenderRequest(spp=spp, seed=case.seed, settings=dict(settings)))
+        except HarnessError as err:
+            if not err.where.startswith("--set "):
+                raise
+            raise HarnessError(f"{label}: {key}.{err.where[len('--set '):]}", err.message) from None
 
 
 def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
@@ -370,19 +391,25 @@ def case_scene(case: Case, for_ground_truth: bool = False):
     return reference_scene if for_ground_truth else render_scene
 
 
-def case_scenes(case: Case):
-    """(the scene the case renders, the scene its reference is made from), from one read of the scene file: the
-    same scene unless a stress ``variant`` must not change the image (:func:`case_scene`)."""
-    from harness.scene import load_scene
+def _with_case_overrides(scene, case: Case):
+    """The scene with the case's ``film`` and ``max_depth`` overrides."""
     from reference_impl import Film
 
-    scene = load_scene(case.scene)
     if case.film:
         film = Film(case.film.get("width", scene.film.width), case.film.get("height", scene.film.height),
                     scene.film.filter)
         scene = dataclasses.replace(scene, film=film)
     if case.max_depth is not None:  # the scene's own depth, so the ground truth and the render agree
         scene = dataclasses.replace(scene, max_depth=case.max_depth)
+    return scene
+
+
+def case_scenes(case: Case):
+    """(the scene the case renders, the scene its reference is made from), from one read of the scene file: the
+    same scene unless a stress ``variant`` must not change the image (:func:`case_scene`)."""
+    from harness.scene import load_scene
+
+    scene = _with_case_overrides(load_scene(case.scene), case)
     if case.variant is None:
         return scene, scene
     from harness.stress import parse_variant

@@ -63,6 +63,12 @@ def test_repository_suites_load():
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nthresholds = { rmse = "low" }\n', "cases[0].thresholds.rmse"),
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nspp = -3\n', "cases[0].spp"),
     ('[defaults]\nfilm = { width = 0 }\n[[cases]]\nscene = "SCENES/furnace.toml"\n', "film.width"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\n[[cases]]\nname = "b"\nscene = "SCENES/furnace.toml"\n'
+     'settings = { sampler = "halton" }\n', "cases[1].settings.sampler"),  # refused before case 0 runs
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nrenderer = "mitsuba"\nspp = 8\nsettings = { sampler = "ldsampler" }\n',
+     "cases[0].settings.sampler"),  # Mitsuba would round 8 to 16
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nagainst = { renderer = "reference", spp = 4, settings = { rr = "maybe" } }\n',
+     "cases[0].against.settings.rr"),
     ('name = "x"\n', "cases"),
     ('[[cases]\n', "invalid TOML"),
 ])

@@ -660,6 +660,10 @@ class MitsubaRenderer:
 
     name = "mitsuba"
 
+    def check(self, scene: Scene, request: RenderRequest) -> None:
+        """Refuse bad ``--set`` values before any work (HarnessError at ``--set KEY``); imports no Mitsuba."""
+        check_sampler_count(parse_settings(scene, request.settings), request.spp)
+
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         if request.spp < 1:
             raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")

@@ -31,6 +31,10 @@ class ReferenceRenderer:
             raise HarnessError(f"--set {err.key}", err.message) from None
         return settings
 
+    def check(self, scene: Scene, request: RenderRequest) -> None:
+        """Refuse bad ``--set`` values before any work (HarnessError at ``--set KEY``)."""
+        self.settings_for(scene, request)
+
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         settings = self.settings_for(scene, request)
         geometry = triangulate(scene)
