@@ -57,6 +57,11 @@ def cornell():
             "film_samples": (pixel, sample, ctx.seed_key)}
 
 
+def _per_second(benchmark, count):
+    """count / the median time; None when timing is off (``--benchmark-disable`` runs each body once, untimed)."""
+    return count / benchmark.stats.stats.median if benchmark.stats is not None else None
+
+
 def _counters():
     from reference_impl import integrator
 
@@ -78,14 +83,14 @@ def test_primary_rays_camera_kernel(benchmark, cornell):
     from reference_impl import kernels
 
     benchmark(kernels.camera_paths, *cornell["camera_args"])
-    benchmark.extra_info["rays_per_second"] = N_RAYS / benchmark.stats.stats.median
+    benchmark.extra_info["rays_per_second"] = _per_second(benchmark, N_RAYS)
 
 
 @pytest.mark.benchmark(group="primary rays")
 def test_primary_rays_embree_closest_hit(benchmark, cornell):
     state, intersector = cornell["state"], cornell["ctx"].intersector
     benchmark(intersector.closest_prims, state.origin32, state.direction32)
-    benchmark.extra_info["rays_per_second"] = N_RAYS / benchmark.stats.stats.median
+    benchmark.extra_info["rays_per_second"] = _per_second(benchmark, N_RAYS)
 
 
 @pytest.mark.benchmark(group="shadow rays")
@@ -96,7 +101,7 @@ def test_shadow_rays_embree_occluded(benchmark, cornell):
     o32, d32, tfar = o32[:s].copy(), d32[:s].copy(), tfar[:s].copy()
     benchmark(cornell["ctx"].intersector.occluders, o32, d32, tfar)
     benchmark.extra_info["rays"] = int(s)
-    benchmark.extra_info["rays_per_second"] = s / benchmark.stats.stats.median
+    benchmark.extra_info["rays_per_second"] = _per_second(benchmark, s)
 
 
 @pytest.mark.benchmark(group="bounce")
@@ -104,7 +109,7 @@ def test_bounce_kernel_only(benchmark, cornell):
     """kernels.bounce on the camera rays' hits: emission, light samples and shadow rays, next wavefront."""
     radiance, counters = np.zeros((N_RAYS, 3)), _counters()
     benchmark(_run_bounce_kernel, cornell, radiance, counters)
-    benchmark.extra_info["paths_per_second"] = N_RAYS / benchmark.stats.stats.median
+    benchmark.extra_info["paths_per_second"] = _per_second(benchmark, N_RAYS)
 
 
 @pytest.mark.benchmark(group="bounce")
@@ -115,7 +120,7 @@ def test_bounce_with_queries(benchmark, cornell):
     ctx, ws, state = cornell["ctx"], cornell["ws"], cornell["state"]
     radiance, counters, clock = np.zeros((N_RAYS, 3)), _counters(), integrator._Clock()
     benchmark(integrator._bounce, ctx, state, 1, radiance, counters, clock, ws.state(1, N_RAYS), cornell["film_samples"])
-    benchmark.extra_info["paths_per_second"] = N_RAYS / benchmark.stats.stats.median
+    benchmark.extra_info["paths_per_second"] = _per_second(benchmark, N_RAYS)
 
 
 @pytest.mark.benchmark(group="bounce")
@@ -136,7 +141,7 @@ def test_bounce_numpy_baseline(benchmark, cornell):
                               direction=state.direction.copy(), beta=state.beta.copy(), pdf_dir=None)
     radiance = np.zeros((N_RAYS, 3))
     benchmark(bi._bounce, ctx, old_state, 1, radiance, dict.fromkeys(bi.COUNTERS, 0))
-    benchmark.extra_info["paths_per_second"] = N_RAYS / benchmark.stats.stats.median
+    benchmark.extra_info["paths_per_second"] = _per_second(benchmark, N_RAYS)
 
 
 def _frame_inputs(threads: int):
@@ -155,7 +160,7 @@ def test_frame_cornell_64px_16spp(benchmark, threads):
     inputs = _frame_inputs(threads)
     ri.render(*inputs)  # load the compiled kernels outside the timing
     out = benchmark(ri.render, *inputs)
-    benchmark.extra_info["paths_per_second"] = out.stats["paths"] / benchmark.stats.stats.median
+    benchmark.extra_info["paths_per_second"] = _per_second(benchmark, out.stats["paths"])
     benchmark.extra_info["embree_fraction"] = out.stats["embree_microseconds"] / 1e6 / (out.seconds * threads)
 
 
@@ -167,4 +172,4 @@ def test_frame_cornell_64px_16spp_numpy_baseline(benchmark, threads):
         pytest.skip("the numpy integrator is not available from git")
     inputs = convert_inputs(baseline, *_frame_inputs(threads))
     out = benchmark(baseline.render, *inputs)
-    benchmark.extra_info["paths_per_second"] = out.stats["paths"] / benchmark.stats.stats.median
+    benchmark.extra_info["paths_per_second"] = _per_second(benchmark, out.stats["paths"])
