@@ -25,3 +25,15 @@ def read_user_text(path, *, missing: str, where: str | None = None) -> str:
         raise HarnessError(where, missing) from None
     except (OSError, UnicodeDecodeError) as err:
         raise HarnessError(where, f"cannot read: {err}") from None
+
+
+def read_user_toml(path, *, missing: str) -> dict:
+    """:func:`read_user_text`, parsed as TOML; a syntax error, an integer beyond Python's digit limit or absurd
+    nesting is one line too (``invalid TOML: ...``). (Scene files have their own reader, with line and column.)"""
+    import tomllib
+
+    text = read_user_text(path, missing=missing)
+    try:
+        return tomllib.loads(text)
+    except (ValueError, RecursionError) as err:  # tomllib.TOMLDecodeError is a ValueError
+        raise HarnessError(str(path), f"invalid TOML: {err}") from None

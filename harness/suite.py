@@ -14,7 +14,6 @@ import math
 import platform
 import re
 import time
-import tomllib
 import traceback
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -23,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError, read_user_text
+from harness.errors import HarnessError, read_user_toml
 
 SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/baseline.py
 CASE_KEYS = (
@@ -90,13 +89,7 @@ def load_suite(path: str | Path) -> Suite:
     """Read and validate a suite file; every problem is a one-line HarnessError naming the file and key."""
     path = Path(path)
     label = str(path)
-    text = read_user_text(path, missing="no such suite file")
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise HarnessError(label, f"invalid TOML: {err}") from None
-    except (ValueError, RecursionError) as err:  # e.g. integers beyond Python's digit limit, absurd nesting
-        raise HarnessError(label, f"invalid TOML: {err}") from None
+    doc = read_user_toml(path, missing="no such suite file")
     _check_keys(label, doc, SUITE_KEYS, "")
     name = _typed(label, "name", doc.get("name", path.stem), str)
     description = _typed(label, "description", doc.get("description", ""), str)

@@ -714,3 +714,16 @@ def test_suite_comparing_against_a_one_sample_reference_is_refused(tmp_path):
     with pytest.raises(HarnessError) as err:
         load_suite(suite)
     assert err.value.where.endswith("cases[0].against.spp") and str(suite) in err.value.where
+
+
+@pytest.mark.parametrize("data", [b'command = ["x"]\nn = 1' + b"0" * 5000, b'a = ' + b"[" * 2000 + b"]" * 2000,
+                                  b"\xff\xfe command", b"command = [", b""])
+def test_hostile_renderer_files_are_one_line_errors(capfd, tmp_path, data):
+    """Renderer TOML files get the suite files' treatment: an integer beyond Python's digit limit, absurd nesting,
+    bytes that are not UTF-8 or broken TOML are one line naming the file (the first two were a traceback)."""
+    path = tmp_path / "renderer.toml"
+    path.write_bytes(data)
+    out = tmp_path / "out.exr"
+    assert_one_line(*cli(capfd, "render", ROOT / "scenes" / "furnace.toml", "--renderer", path, "--spp", "2", "--out", out),
+                    str(path))
+    assert not out.exists()

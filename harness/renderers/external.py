@@ -39,13 +39,12 @@ import subprocess
 import sys
 import tempfile
 import time
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError, read_user_text
+from harness.errors import HarnessError, read_user_toml
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 
@@ -79,11 +78,7 @@ def load_spec(path: str | Path) -> ExternalSpec:
     """Read and validate a renderer TOML file; every problem is a one-line HarnessError naming the file and key."""
     path = Path(path)
     label = str(path)
-    text = read_user_text(path, missing="no such renderer file; expected a TOML file with command = [...]")
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        raise HarnessError(label, f"invalid TOML: {err}") from None
+    doc = read_user_toml(path, missing="no such renderer file; expected a TOML file with command = [...]")
     for key in doc:
         if key not in FILE_KEYS:
             raise HarnessError(f"{label}: {key}", f"unknown key; expected one of {', '.join(FILE_KEYS)}")
