@@ -48,6 +48,7 @@ import numpy as np
 from scipy import stats
 
 from harness.errors import HarnessError, read_user_text
+from harness.suite import _float_or_inf, _hint, _key, _short
 
 SCHEMA = "rendering-harness/baseline"
 VERSION = 1
@@ -69,9 +70,8 @@ CHANNELS = ("R", "G", "B")
 
 def parse_tolerance(where: str, key: str, value: Any) -> float | str:
     """One tolerance value, checked: a number (see the module docstring for its meaning), "auto" or "off"."""
-    label = f"{where}{' ' if where.startswith('--') else '.'}{key}"
+    label = f"{where}{' ' if where.startswith('--') else '.'}{key if where.startswith('--') else _key(key)}"
     if key not in TOLERANCE_KEYS:
-        from harness.suite import _hint
 
         raise HarnessError(label, f"unknown baseline tolerance{_hint(key, TOLERANCE_KEYS)}; expected one of "
                            f"{', '.join(TOLERANCE_KEYS)}")
@@ -86,9 +86,9 @@ def parse_tolerance(where: str, key: str, value: Any) -> float | str:
         try:
             value = float(value)
         except ValueError:
-            raise HarnessError(label, f"expected a number, 'auto' or 'off', got {value!r}") from None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise HarnessError(label, f"expected a number, 'auto' or 'off', got {value!r}")
+            raise HarnessError(label, f"expected a number, 'auto' or 'off', got {_short(value)}") from None
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_float_or_inf(value)):
+        raise HarnessError(label, f"expected a finite number, 'auto' or 'off', got {_short(value)}")
     value = float(value)
     if key == "alpha" and not 0 < value < 1:
         raise HarnessError(label, f"expected a probability in (0, 1), got {value}")
@@ -101,16 +101,17 @@ def parse_tolerance(where: str, key: str, value: Any) -> float | str:
     return value
 
 
+def check_table(label: str, table: Any) -> dict[str, float | str]:
+    """A suite file's ``[baseline]`` table, checked (``label`` names the file): its tolerances, parsed. Called when
+    the suite loads, so a broken table is an error whether or not the run has ``--baseline``."""
+    if not isinstance(table, dict):
+        raise HarnessError(f"{label}: baseline", f"expected a table [baseline], got {_short(table)}")
+    return {key: parse_tolerance(f"{label}: baseline", key, value) for key, value in table.items()}
+
+
 def suite_tolerances(suite) -> dict[str, float | str]:
     """The suite file's ``[baseline]`` table (checked), on top of the defaults."""
-    label = str(suite.path)
-    table = suite.baseline
-    if not isinstance(table, dict):
-        raise HarnessError(f"{label}: baseline", f"expected a table [baseline], got {table!r}")
-    out = dict(DEFAULTS)
-    for key, value in table.items():
-        out[key] = parse_tolerance(f"{label}: baseline", key, value)
-    return out
+    return {**DEFAULTS, **check_table(str(suite.path), suite.baseline)}
 
 
 def option_tolerances(items: list[str], base: dict[str, float | str]) -> dict[str, float | str]:
@@ -479,28 +480,32 @@ class Gate:
 
 def save_command(args) -> int:
     """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
+    from harness import runstate
     from harness.suite import load_suite, run_suite
 
     suite = load_suite(args.suite)
+    if not args.out.strip():
+        raise HarnessError("--out", "expected a file name, got an empty string")
     out = Path(args.out)
+    if out.is_dir():
+        raise HarnessError("--out", f"{str(out)!r} is a folder; expected a file name, e.g. baseline.json")
     if not out.parent.is_dir():
         raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
+    runstate.probe_writable(out.parent, "--out")  # before the run, not after it
     if args.from_results:
         results = _read_results(args.from_results, suite)
         source = str(args.from_results)
     else:
-        run_dir = Path(args.run_out) if args.run_out else Path("reports") / f"{suite.name}-baseline"
-        try:
-            run_dir.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise HarnessError("--run-out", f"cannot create {str(run_dir)!r}: {err.strerror}") from None
+        run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out")
 
         def on_case(index: int, record: dict) -> None:
             if not args.quiet:
                 mark = "ok " if record["ok"] else "BAD"
                 print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}", file=sys.stderr)
 
-        results = run_suite(suite, run_dir, cache_dir=args.cache_dir, variant=args.mitsuba_variant, on_case=on_case)
+        with runstate.locked(run_dir, "--run-out"):
+            results = run_suite(suite, run_dir, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
+                                on_case=on_case)
         source = f"run {run_dir / 'results.json'}"
     unexpected = [r["name"] for r in results["cases"] if not r.get("ok")]
     if unexpected and not args.allow_unexpected:

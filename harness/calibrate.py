@@ -18,12 +18,26 @@ from pathlib import Path
 
 from scipy import stats
 
-from harness.suite import Suite, run_case
+from harness.errors import HarnessError
+from harness.suite import Case, Suite, run_case
+
+
+def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
+    """The cases whose name matches any of the ``--cases`` globs (every case without any); a pattern that matches
+    no case (a typo would calibrate nothing, or less than asked) is a one-line HarnessError at ``--cases``."""
+    if not patterns:
+        return list(suite.cases)
+    for pattern in patterns:
+        if not any(fnmatch.fnmatchcase(c.name, pattern) for c in suite.cases):
+            names = [c.name for c in suite.cases]
+            shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
+            raise HarnessError("--cases", f"{pattern[:80]!r} matches no case of {suite.path} (its cases: {shown})")
+    return [c for c in suite.cases if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
 
 
 def calibrate(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | None, cache_dir=None, variant=None,
               on_progress=None) -> dict:
-    cases = [c for c in suite.cases if not patterns or any(fnmatch.fnmatch(c.name, p) for p in patterns)]
+    cases = select_cases(suite, patterns)
     rows = []
     for case in cases:
         start = time.perf_counter()

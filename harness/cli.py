@@ -188,68 +188,66 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/baseline.py)
-    out = Path(args.out) if args.out else Path("reports") / suite.name
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
-    show = not args.quiet and sys.stderr.isatty()
-    bar = None
-    if show:
-        from tqdm import tqdm
+    out = runstate.output_folder(args.out, Path("reports") / suite.name)  # created and written to before any render
+    with runstate.locked(out):  # a second run into the same folder stops here (one line naming the holder's pid)
+        show = not args.quiet and sys.stderr.isatty()
+        bar = None
+        if show:
+            from tqdm import tqdm
 
-        bar = tqdm(total=len(suite.cases), desc=suite.name, unit="case", file=sys.stderr)
+            bar = tqdm(total=len(suite.cases), desc=suite.name, unit="case", file=sys.stderr)
 
-    def on_case(index: int, record: dict) -> None:
-        if gate is not None:
-            gate.check(suite.cases[index], record)
-        if bar is not None:
-            bar.set_postfix_str(f"{record['name']}: {record['status']}")
-            bar.update(1)
-        elif not args.quiet:
-            mark = "ok " if record["ok"] else "BAD"
-            print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}"
-                  + (f" ({record['reason']})" if record.get("reason") else ""), file=sys.stderr)
+        def on_case(index: int, record: dict) -> None:
+            if gate is not None:
+                gate.check(suite.cases[index], record)
+            if bar is not None:
+                bar.set_postfix_str(f"{record['name']}: {record['status']}")
+                bar.update(1)
+            elif not args.quiet:
+                mark = "ok " if record["ok"] else "BAD"
+                print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}"
+                      + (f" ({record['reason']})" if record.get("reason") else ""), file=sys.stderr)
 
-    done = [0]
+        done = [0]
 
-    def on_resume(kept: int, total: int) -> None:
-        done[0] = kept
-        print(f"resuming: {kept} of {total} cases done", file=sys.stderr)
+        def on_resume(kept: int, total: int) -> None:
+            done[0] = kept
+            print(f"resuming: {kept} of {total} cases done", file=sys.stderr)
 
-    def on_each(index: int, record: dict) -> None:
-        done[0] += 1
-        on_case(index, record)
+        def on_each(index: int, record: dict) -> None:
+            done[0] += 1
+            on_case(index, record)
 
-    try:
-        with runstate.interruptible():
-            results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant, on_case=on_each,
-                                executor=executor, resume=not args.fresh, on_resume=on_resume, timeout=args.timeout)
-    except runstate.Interrupted as stop:
-        if bar is not None:
-            bar.close()
-            bar = None
-        print(f"harness: interrupted after {done[0]} of {len(suite.cases)} cases; run again to resume",
-              file=sys.stderr)
-        return stop.exit_code
-    finally:
-        if bar is not None:
-            bar.close()
-    baseline_lines = gate.finish(results, out) if gate is not None else []
-    summary = results["summary"]
-    print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
-          f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
-          f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; {out / 'results.json'}")
-    for name in summary["unexpected"]:
-        record = next(r for r in results["cases"] if r["name"] == name)
-        print(f"  unexpected: {name}: {record['status']} (expected {record['expect']}) {record.get('reason', '')}")
-    for line in baseline_lines:
-        print(line)
-    if args.junit:
-        from harness import junit
+        try:
+            with runstate.interruptible():
+                results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
+                                    on_case=on_each, executor=executor, resume=not args.fresh, on_resume=on_resume,
+                                    timeout=args.timeout)
+        except runstate.Interrupted as stop:
+            if bar is not None:
+                bar.close()
+                bar = None
+            print(f"harness: interrupted after {done[0]} of {len(suite.cases)} cases; run again to resume",
+                  file=sys.stderr)
+            return stop.exit_code
+        finally:
+            if bar is not None:
+                bar.close()
+        baseline_lines = gate.finish(results, out) if gate is not None else []
+        summary = results["summary"]
+        print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
+              f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
+              f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; {out / 'results.json'}")
+        for name in summary["unexpected"]:
+            record = next(r for r in results["cases"] if r["name"] == name)
+            print(f"  unexpected: {name}: {record['status']} (expected {record['expect']}) {record.get('reason', '')}")
+        for line in baseline_lines:
+            print(line)
+        if args.junit:
+            from harness import junit
 
-        print(f"junit: {junit.write(results, args.junit)}")
-    _write_run_report(args, out)
+            print(f"junit: {junit.write(results, args.junit)}")
+        _write_run_report(args, out)
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
 
 
@@ -276,21 +274,22 @@ def cmd_baseline_save(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from harness import calibrate
+    from harness import calibrate, runstate
     from harness.suite import load_suite
 
     require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)
-    out = Path(args.out) if args.out else Path("reports") / f"{suite.name}-calibration"
-    out.mkdir(parents=True, exist_ok=True)
+    calibrate.select_cases(suite, args.cases)  # a --cases pattern that matches no case: one line, before any render
+    out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration")
 
     def on_progress(name: str, seed: int) -> None:
         if not args.quiet:
             print(f"  {name} seed {seed}", file=sys.stderr, flush=True)
 
-    result = calibrate.calibrate(suite, out, seeds=args.seeds, patterns=args.cases, cache_dir=args.cache_dir,
-                                 variant=args.mitsuba_variant, on_progress=on_progress)
-    calibrate.write(result, out / "calibration.json")
+    with runstate.locked(out):
+        result = calibrate.calibrate(suite, out, seeds=args.seeds, patterns=args.cases, cache_dir=args.cache_dir,
+                                     variant=args.mitsuba_variant, on_progress=on_progress)
+        calibrate.write(result, out / "calibration.json")
     for line in calibrate.summary_lines(result):
         print(line)
     print(f"wrote {out / 'calibration.json'}")

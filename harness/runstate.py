@@ -9,20 +9,33 @@ once while the run waits for worker processes (``waiting()``), else after the ta
 (``check()``; a second signal raises at once), never inside ``no_interrupts()`` (writing results.json). results.json
 is written by an atomic rename anyway, and the ground-truth cache only ever renames finished entries into place, so
 an interrupted run leaves both valid.
+
+Output folders: :func:`output_folder` checks an ``--out`` before anything runs (not empty, created, a real file
+written and removed in it), and :func:`locked` holds ``OUT/.lock`` (``fcntl.flock``, exclusive) for a run, so a
+second run into the same folder stops at once with one line naming the process that holds it. The kernel drops
+the lock when its process dies, so a lock file left by a killed run blocks nothing.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
+import fcntl
 import hashlib
 import json
+import os
 import signal
+import tempfile
 from pathlib import Path
+
+from harness.errors import HarnessError
 
 _pending: list[int] = []  # signals received and not raised yet
 _critical = 0  # depth of no_interrupts() blocks
 _waiting = 0  # depth of waiting() blocks
+LOCK_NAME = ".lock"
+_locks: dict[str, list[int]] = {}  # real path of a folder this process has locked: [file descriptor, depth]
 
 
 class Interrupted(KeyboardInterrupt):
@@ -116,3 +129,107 @@ def reusable(results_path: Path, suite_name: str, cases, digests: list[str]) -> 
         if record and record.get("definition") == digest and record.get("status") in ("pass", "fail"):
             kept[index] = dict(record, resumed=True)
     return kept
+
+
+# ---- output folders ----------------------------------------------------------------------------------------------
+
+
+def output_folder(value: str | None, default: Path, option: str = "--out", subfolders: tuple[str, ...] = ("cases",)
+                  ) -> Path:
+    """The output folder an option names (``default`` when it is not given), created and found writable by a
+    real write (root ignores permission bits; /proc refuses everyone), or a one-line HarnessError at ``option``;
+    so are those of ``subfolders`` that exist (``cases``: each case's render). An empty value is refused rather
+    than read as "not given"."""
+    if value is not None and not value.strip():
+        raise HarnessError(option, "expected a folder name, got an empty string")
+    folder = Path(value) if value is not None else default
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HarnessError(option, f"cannot create {str(folder)!r}: {err.strerror or err}") from None
+    probe_writable(folder, option)
+    for name in subfolders:
+        sub = folder / name
+        if sub.exists() or sub.is_symlink():
+            if not sub.is_dir():
+                raise HarnessError(option, f"{str(sub)!r} is not a folder; expected a folder the run writes in")
+            probe_writable(sub, option)
+    return folder
+
+
+def probe_writable(folder: Path, option: str) -> None:
+    """Create and remove a file in ``folder``, as an atomic write will (a temporary file renamed into place)."""
+    try:
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".write-probe-"):
+            pass
+    except OSError as err:
+        raise HarnessError(option, f"cannot write in the folder {str(folder)!r}: {err.strerror or err}") from None
+
+
+@contextlib.contextmanager
+def locked(folder: Path, option: str = "--out"):
+    """Hold ``folder/.lock`` (exclusive ``flock``, the holder's pid written in it) within the block; another
+    process's lock is a one-line HarnessError at ``option`` naming its pid. Re-entrant within one process. The
+    file is removed when the block ends (while still locked, so a run waiting on it sees that and takes a new one)."""
+    key = os.path.realpath(folder)
+    if key in _locks:
+        _locks[key][1] += 1
+        try:
+            yield
+        finally:
+            _locks[key][1] -= 1
+        return
+    path = Path(folder) / LOCK_NAME
+    fd = _acquire(path, option)
+    _locks[key] = [fd, 1]
+    try:
+        yield
+    finally:
+        del _locks[key]
+        try:
+            if _same_file(fd, path):
+                path.unlink()
+        except OSError:
+            pass  # a lock file left behind blocks nothing: the lock goes with the descriptor
+        os.close(fd)
+
+
+def _acquire(path: Path, option: str) -> int:
+    """An open descriptor of ``path`` locked by this process, with this process's pid written in it."""
+    while True:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        except OSError as err:
+            raise HarnessError(option, f"cannot create the lock file {str(path)!r}: {err.strerror or err}") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as err:
+            holder = _holder(fd)
+            os.close(fd)
+            if err.errno in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise HarnessError(option, f"{str(path.parent)!r} is in use by another harness run ({holder}, "
+                                   f"holding {LOCK_NAME}); wait for it to end or choose another folder") from None
+            raise HarnessError(option, f"cannot lock {str(path)!r}: {err.strerror or err}") from None
+        if _same_file(fd, path):
+            break
+        os.close(fd)  # its holder removed it while we waited for the lock: lock the file there now
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    return fd
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    try:
+        here, there = os.fstat(fd), os.stat(path)
+    except OSError:
+        return False
+    return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)
+
+
+def _holder(fd: int) -> str:
+    """"process 1234" as the lock file says, or what is known."""
+    try:
+        text = os.pread(fd, 64, 0).decode("ascii", "replace").strip()
+    except OSError:
+        text = ""
+    return f"process {int(text)}" if text.isdigit() else "a process that has not written its pid yet"

@@ -41,14 +41,17 @@ from scipy import stats
 
 from harness.errors import HarnessError
 from harness.options import require_non_negative, require_positive
+from harness.runstate import output_folder
 from harness.scene.model import Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,
     scale_matrix,
     shape_triangles,
     translate_matrix,
+    triangulate,
     unit_rectangle,
 )
+from reference_impl import SettingsError
 
 INVARIANT, STRAIN = "invariant", "strain"
 #: Default firefly threshold, in standard deviations.
@@ -92,8 +95,13 @@ class Variant:
     description: str
 
     def apply(self, scene: Scene) -> Scene:
-        """The transformed scene."""
-        return _APPLY[self.kind](scene, self.value)
+        """The transformed scene; a HarnessError naming the scene file where the variant does not apply or makes
+        an invalid camera (one that looks at its own origin, say)."""
+        try:
+            return _APPLY[self.kind](scene, self.value)
+        except SettingsError as err:
+            raise HarnessError(str(scene.path), f"variant {self.name}: gives an invalid scene: {err.key}: "
+                               f"{err.message}") from None
 
     @property
     def judged_against_original(self) -> bool:
@@ -114,6 +122,16 @@ _KINDS: dict[str, tuple[str, float | None, str]] = {
 }
 _NEEDS_VALUE = ("scale", "translate")
 _NO_VALUE = ("original", "light-edge-on")
+#: The values a variant accepts (inclusive), beyond the open ranges parse_variant checks. A scale or translation
+#: past 1e6 puts any scene of ordinary size where float32 (one ulp at |p| = 1e6 is 0.06) holds no detail, so its
+#: row only repeats the expected fail of translate=1e5; factors past 1e9 leave slivers and lights below float32's
+#: resolution of a unit scene.
+BOUNDS: dict[str, tuple[float, float]] = {
+    "scale": (1e-6, 1e6), "translate": (-1e6, 1e6), "sliver": (1.0, 1e9), "light-shrink": (1.0, 1e9),
+}
+#: The largest coordinate a transformed scene may have: float32 squares of larger ones (squared distances in
+#: ray-triangle tests) overflow.
+MAX_COORDINATE = float(np.sqrt(np.finfo(np.float32).max))
 
 
 def variant_kinds() -> list[str]:
@@ -149,12 +167,31 @@ def parse_variant(text: str, where: str = "variant") -> Variant:
         raise HarnessError(where, f"expected a positive scale factor, got {value:g}")
     if kind in ("sliver", "light-shrink") and value < 1:
         raise HarnessError(where, f"expected a factor >= 1, got {value:g}")
+    low, high = BOUNDS.get(kind, (-math.inf, math.inf))
+    if not low <= value <= high:
+        raise HarnessError(where, f"expected a value from {low:g} to {high:g} after '{kind}=', got {value:g}")
     if kind == "grazing-camera" and not 0 < value < 90:
         raise HarnessError(where, f"expected an elevation in degrees in (0, 90), got {value:g}")
     if kind == "light-near-wall" and not 0 < value < 1:
         raise HarnessError(where, f"expected a gap in (0, 1) of the scene size, got {value:g}")
     name = f"{kind}={_number(value)}"
     return Variant(name, kind, value, group, template.format(v=_number(value)))
+
+
+def check_variant_scene(scene: Scene) -> Scene:
+    """``scene`` (a variant's result) if a renderer can take it: every triangle's vertices finite and within
+    :data:`MAX_COORDINATE`, radiance finite (the reference core's geometry checks), camera likewise; else a
+    HarnessError (without a location: the caller names the variant)."""
+    try:
+        geometry = triangulate(scene)
+    except SettingsError as err:
+        raise HarnessError("", f"gives an invalid scene: {err.key}: {err.message}") from None
+    camera = np.asarray([scene.camera.origin, scene.camera.target], float)
+    largest = float(np.max(np.abs(np.concatenate([np.asarray(geometry.vertices, float).reshape(-1, 3), camera]))))
+    if not largest <= MAX_COORDINATE:
+        raise HarnessError("", f"gives coordinates up to {largest:.3g}; expected at most {MAX_COORDINATE:.3g} "
+                           "(beyond it float32 squared distances overflow)")
+    return scene
 
 
 def _number(value: float) -> str:
@@ -736,12 +773,7 @@ def command(args) -> int:
     variants = args.variant or list(DEFAULT_VARIANTS)
     for text in variants:
         parse_variant(text, "--variant")
-    out = Path(args.out) if args.out else None
-    if out is not None:
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as err:
-            raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
+    out = None if args.out is None else output_folder(args.out, Path(args.out), subfolders=())  # before any render
     scene = _resolve_scene(args.scene)
     scene = dataclasses.replace(scene, film=Film(int(w), int(h), scene.film.filter))
     if settings:

@@ -15,6 +15,7 @@ import platform
 import re
 import time
 import traceback
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -36,6 +37,11 @@ AGAINST_KINDS = ("ground-truth", "closed-form", "mitsuba")
 METRICS = ("rmse", "relmse", "mape", "psnr", "ssim", "flip", "bias")
 HIGHER_IS_BETTER = ("psnr", "ssim")
 EXPECT = ("pass", "fail")
+MAX_NAME_LENGTH = 200  # a case name becomes a folder name (slug), and file systems allow 255 bytes
+#: Unicode categories refused in case names: control and format characters (newlines, NUL, bidirectional
+#: overrides), line and paragraph separators, surrogates. Names are printed one per line and become folder names.
+UNSAFE_NAME_CATEGORIES = ("Cc", "Cf", "Zl", "Zp", "Cs")
+MIN_SPP = 2  # the verdict needs each pixel's sample variance: one sample per pixel gives none
 
 
 @dataclass(frozen=True)
@@ -98,7 +104,13 @@ def load_suite(path: str | Path) -> Suite:
     entries = _typed(label, "cases", doc.get("cases", []), list)
     if not entries:
         raise HarnessError(f"{label}: cases", "expected at least one [[cases]] entry")
-    cases, names, scenes = [], set(), {}
+    baseline = doc.get("baseline", {})
+    if "baseline" in doc:  # checked with or without --baseline: a broken table is an error now, not at a later gate
+        # harness.baseline pulls in scipy; imported here, and only for a suite that has the table
+        from harness.baseline import check_table
+
+        check_table(label, baseline)
+    cases, names, folders, scenes = [], set(), {}, {}
     for i, entry in enumerate(entries):
         where = f"cases[{i}]"
         entry = _typed(label, where, entry, dict)
@@ -106,12 +118,14 @@ def load_suite(path: str | Path) -> Suite:
         merged = {**defaults, **entry}
         case = _case(label, path.parent, where, merged)
         if case.name in names:
-            raise HarnessError(f"{label}: {where}.name", f"duplicate case name {case.name!r}")
+            raise HarnessError(f"{label}: {where}.name", f"duplicate case name {_short(case.name)}")
+        _check_folder_unique(label, where, case.name, folders)
         _check_case_cost(label, where, case, scenes)
+        _check_case_variant(label, where, case, scenes[case.scene])
         _check_case_settings(label, where, case, _with_case_overrides(scenes[case.scene], case))
         names.add(case.name)
         cases.append(case)
-    return Suite(name, description, path, tuple(cases), doc.get("baseline", {}))
+    return Suite(name, description, path, tuple(cases), baseline)
 
 
 def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
@@ -123,7 +137,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     if "scene" not in d:
         raise HarnessError(f"{label}: {key('scene')}", "missing: expected a scene name or a path to a scene file")
     scene = _scene_path(label, key("scene"), folder, _typed(label, key("scene"), d["scene"], str))
-    name = _typed(label, key("name"), d.get("name", scene.stem), str)
+    name = _case_name(label, key("name"), d.get("name", scene.stem), "name" not in d)
     renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
     renderer = _renderer_known(label, key("renderer"), renderer, renderer_names(), folder)
     settings = _settings(label, key("settings"), d.get("settings", {}))
@@ -132,7 +146,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     if spp is not None and seconds is not None:
         raise HarnessError(f"{label}: {where}", "give a budget as spp or as seconds, not both")
     if spp is not None:
-        spp = _positive(label, key("spp"), spp, int)
+        spp = _at_least_two(label, key("spp"), spp)
     if seconds is not None:
         seconds = float(_positive(label, key("seconds"), seconds, (int, float)))
     against = _against(label, key("against"), d.get("against", "ground-truth"), renderer_names(), folder)
@@ -152,10 +166,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
             raise HarnessError(f"{label}: {key('metrics')}", f"unknown metric {m!r}{_hint(m, METRICS)}")
     thresholds = _typed(label, key("thresholds"), d.get("thresholds", {}), dict)
     for m, v in thresholds.items():
-        if m not in METRICS:
-            raise HarnessError(f"{label}: {key('thresholds')}.{_key(m)}", f"unknown metric{_hint(m, METRICS)}")
-        if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(_float_or_inf(v)):
-            raise HarnessError(f"{label}: {key('thresholds')}.{_key(m)}", f"expected a finite number, got {_short(v)}")
+        _threshold(label, f"{key('thresholds')}.{_key(m)}", m, v)
     expect = _typed(label, key("expect"), d.get("expect", "pass"), str)
     if expect not in EXPECT:
         raise HarnessError(f"{label}: {key('expect')}", f"expected 'pass' or 'fail', got {expect!r}")
@@ -169,11 +180,57 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
         metrics=metrics,
         thresholds={k: float(v) for k, v in thresholds.items()}, expect=expect, alpha=alpha,
         tile=_tile(label, key("tile"), d.get("tile", 8)),
-        ground_truth_spp=_positive(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024), int),
+        ground_truth_spp=_at_least_two(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024)),
         timeout=(None if d.get("timeout") is None
                  else float(_positive(label, key("timeout"), d["timeout"], (int, float)))),
         variant=_stress_variant(label, key("variant"), d.get("variant")),
     )
+
+
+def _case_name(label: str, key: str, value: Any, default: bool) -> str:
+    """A case's name, checked: it is printed on one line and becomes a folder name (:func:`slug`), so it has 1 to
+    ``MAX_NAME_LENGTH`` characters, not only spaces, none of ``UNSAFE_NAME_CATEGORIES``, and is not "." or ".."."""
+    name = _typed(label, key, value, str)
+    whose = " (the default: the scene file's name)" if default else ""
+    if not name.strip():
+        raise HarnessError(f"{label}: {key}", f"expected a non-empty name, got {name!r}")
+    if len(name) > MAX_NAME_LENGTH:
+        raise HarnessError(f"{label}: {key}", f"expected at most {MAX_NAME_LENGTH} characters, got {len(name)}{whose}: "
+                           f"{_short(name)}")
+    bad = next((ch for ch in name if unicodedata.category(ch) in UNSAFE_NAME_CATEGORIES), None)
+    if bad is not None:
+        raise HarnessError(f"{label}: {key}", f"expected no control or format characters, got {bad!r} (U+{ord(bad):04X}) "
+                           f"in {_short(name)}{whose}")
+    if name in (".", ".."):
+        raise HarnessError(f"{label}: {key}", f"expected a name that is not {name!r} (a case's folder is named after "
+                           "it)")
+    return name
+
+
+def _check_folder_unique(label: str, where: str, name: str, folders: dict[str, tuple[str, str]]) -> None:
+    """Refuse a case whose folder (``cases/`` + :func:`slug`) is another case's: the second would overwrite the
+    first's render. Compared without case, so that the suite runs the same on case-insensitive file systems."""
+    folder = slug(name)
+    other = folders.get(folder.casefold())
+    if other is not None:
+        raise HarnessError(f"{label}: {where}.name", (
+            f"{_short(name)} and {other[0]}.name {_short(other[1])} both map to the folder cases/{folder} (each run "
+            "of characters other than A-Z a-z 0-9 . _ - becomes _, and case is ignored); rename one"))
+    folders[folder.casefold()] = (where, name)
+
+
+def _threshold(label: str, key: str, metric: Any, value: Any) -> float:
+    """A ``thresholds`` entry, checked: a known metric and a finite bound that can be met (error metrics are >= 0,
+    so a negative upper bound fails every render; ssim is at most 1)."""
+    if metric not in METRICS:
+        raise HarnessError(f"{label}: {key}", f"unknown metric{_hint(metric, METRICS)}")
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(_float_or_inf(value)):
+        raise HarnessError(f"{label}: {key}", f"expected a finite number, got {_short(value)}")
+    if metric not in HIGHER_IS_BETTER and value < 0:
+        raise HarnessError(f"{label}: {key}", f"expected an upper bound >= 0 ({metric} is never negative), got {value}")
+    if metric == "ssim" and value > 1:
+        raise HarnessError(f"{label}: {key}", f"expected a lower bound <= 1 (ssim is at most 1), got {value}")
+    return float(value)
 
 
 def _stress_variant(label: str, key: str, value: Any) -> str | None:
@@ -224,6 +281,20 @@ def _check_case_cost(label: str, where: str, case: Case, scenes: dict) -> None:
                           spp_where=f"{label}: {where}.{key}", film_keys=film_keys, spp_name=f"{where}.{key}")
 
 
+def _check_case_variant(label: str, where: str, case: Case, scene) -> None:
+    """Apply a case's stress ``variant`` to its (loaded) scene now: a variant the scene cannot have (no light, no
+    rectangle) or one that gives an invalid scene is one line naming ``cases[i].variant`` before anything runs."""
+    if case.variant is None:
+        return
+    from harness.stress import check_variant_scene, parse_variant
+
+    try:
+        check_variant_scene(parse_variant(case.variant).apply(_with_case_overrides(scene, case)))
+    except HarnessError as err:
+        message = err.message if err.message.startswith("variant ") else f"variant {case.variant}: {err.message}"
+        raise HarnessError(f"{label}: {where}.variant", f"on {scene.path}: {message}") from None
+
+
 def _check_case_settings(label: str, where: str, case: Case, scene) -> None:
     """Let the built-in renderers check a case's settings (and its comparison render's) before anything runs: a bad
     one is a one-line error naming the suite file and the key, not a failure halfway through the run."""
@@ -252,9 +323,14 @@ def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
         candidates += [folder.parent / "scenes" / f"{value}.toml", Path("scenes") / f"{value}.toml", canonical]
         candidates = list(dict.fromkeys(candidates))
     for c in candidates:
-        if c.is_file():
-            return c
-    raise HarnessError(f"{label}: {key}", f"no scene {value!r} (looked for {', '.join(repr(str(c)) for c in candidates)})")
+        try:
+            if c.is_file():
+                return c
+        except OSError as err:  # a name too long for the file system, a loop of symbolic links, ...
+            raise HarnessError(f"{label}: {key}", f"cannot look for the scene file {_short(str(c))}: "
+                               f"{err.strerror or err}") from None
+    raise HarnessError(f"{label}: {key}", f"no scene {_short(value)} (looked for "
+                       f"{', '.join(_short(str(c)) for c in candidates)})")
 
 
 def _against(label: str, key: str, value: Any, renderers: list[str], folder: Path | None = None) -> Against:
@@ -286,9 +362,13 @@ def _renderer_known(label: str, key: str, name: str, known: list[str], folder: P
     from harness.renderers import external
 
     if external.looks_like_path(name):
-        path = external.resolve_path(name, (folder,) if folder is not None else ())
+        try:
+            path = external.resolve_path(name, (folder,) if folder is not None else ())
+        except OSError as err:  # a name too long for the file system, a loop of symbolic links, ...
+            raise HarnessError(f"{label}: {key}", f"cannot look for the renderer file {_short(name)}: "
+                               f"{err.strerror or err}") from None
         if path is None:
-            raise HarnessError(f"{label}: {key}", f"no renderer file {name!r} (relative to {folder or '.'})")
+            raise HarnessError(f"{label}: {key}", f"no renderer file {_short(name)} (relative to {folder or '.'})")
         external.load_spec(path)
         return str(path)
     if name not in known:
@@ -363,6 +443,15 @@ def _positive(label: str, key: str, value: Any, kind) -> Any:
     return value
 
 
+def _at_least_two(label: str, key: str, value: Any) -> int:
+    """A sample count the verdict can use: an integer >= ``MIN_SPP``."""
+    value = _positive(label, key, value, int)
+    if value < MIN_SPP:
+        raise HarnessError(f"{label}: {key}", f"expected >= {MIN_SPP} (the verdict needs each pixel's sample variance; "
+                           f"one sample per pixel gives none), got {value}")
+    return value
+
+
 def _non_negative(label: str, key: str, value: Any) -> int:
     value = _typed(label, key, value, int)
     if value < 0:
@@ -374,7 +463,12 @@ def _non_negative(label: str, key: str, value: Any) -> int:
 
 
 def slug(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "case"
+    """The folder name of a case (``OUT/cases/<slug>``): each run of characters other than A-Z a-z 0-9 . _ -
+    replaced by _, leading and trailing _ removed; "case" where nothing (or only "." or "..") is left, so a slug
+    never leaves its parent folder. Not injective (``a/b`` and ``a_b`` give ``a_b``): :func:`load_suite` refuses a
+    suite in which two cases share a slug (ignoring case)."""
+    text = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_")
+    return text if text not in ("", ".", "..") else "case"
 
 
 def case_scene(case: Case, for_ground_truth: bool = False):
