@@ -124,8 +124,9 @@ _NEEDS_VALUE = ("scale", "translate")
 _NO_VALUE = ("original", "light-edge-on")
 #: The values a variant accepts (inclusive), beyond the open ranges parse_variant checks. A scale or translation
 #: past 1e6 puts any scene of ordinary size where float32 (one ulp at |p| = 1e6 is 0.06) holds no detail, so its
-#: row only repeats the expected fail of translate=1e5; factors past 1e9 leave slivers and lights below float32's
-#: resolution of a unit scene.
+#: row only repeats the expected fail of translate=1e5. Factors past 1e9 test nothing more: a sliver's short side
+#: is then 2e-9 of its rectangle, far below float32's resolution (1.2e-7), and a light of 1e-9 its area is missed
+#: by every camera sample of any practical budget.
 BOUNDS: dict[str, tuple[float, float]] = {
     "scale": (1e-6, 1e6), "translate": (-1e6, 1e6), "sliver": (1.0, 1e9), "light-shrink": (1.0, 1e9),
 }

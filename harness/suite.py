@@ -106,7 +106,7 @@ def load_suite(path: str | Path) -> Suite:
         raise HarnessError(f"{label}: cases", "expected at least one [[cases]] entry")
     baseline = doc.get("baseline", {})
     if "baseline" in doc:  # checked with or without --baseline: a broken table is an error now, not at a later gate
-        # harness.baseline pulls in scipy; imported here, and only for a suite that has the table
+        # harness.baseline imports this module (and scipy): imported here, only for a suite that has the table
         from harness.baseline import check_table
 
         check_table(label, baseline)
@@ -199,8 +199,8 @@ def _case_name(label: str, key: str, value: Any, default: bool) -> str:
                            f"{_short(name)}")
     bad = next((ch for ch in name if unicodedata.category(ch) in UNSAFE_NAME_CATEGORIES), None)
     if bad is not None:
-        raise HarnessError(f"{label}: {key}", f"expected no control or format characters, got {bad!r} (U+{ord(bad):04X}) "
-                           f"in {_short(name)}{whose}")
+        raise HarnessError(f"{label}: {key}", f"expected no control or format characters, got {bad!r} "
+                           f"(U+{ord(bad):04X}) in {_short(name)}{whose}")
     if name in (".", ".."):
         raise HarnessError(f"{label}: {key}", f"expected a name that is not {name!r} (a case's folder is named after "
                            "it)")

@@ -198,6 +198,9 @@ def test_good_baseline_table_still_loads(folder):
     ("{rmse = -1}", "cases[0].thresholds.rmse: expected an upper bound >= 0"),
     ("{bias = -0.5}", "cases[0].thresholds.bias: expected an upper bound >= 0"),
     ("{ssim = 1.5}", "cases[0].thresholds.ssim: expected a lower bound <= 1"),
+    ("{relmse = nan}", "cases[0].thresholds.relmse: expected a finite number"),  # these three were refused already
+    ("{psnr = inf}", "cases[0].thresholds.psnr: expected a finite number"),
+    ("{rmsee = 1}", "cases[0].thresholds.rmsee: unknown metric; did you mean 'rmse'?"),
 ])
 def test_thresholds_no_render_can_meet_are_refused(folder, thresholds, fragment):
     refused(write_suite(folder, f"{CASE}thresholds = {thresholds}\n"), fragment)
