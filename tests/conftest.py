@@ -8,7 +8,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # tests/mc.py, tests/chi2.py
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # test helpers: tests/chi2_cases.py, flaky_renderers.py
 
 # A small valid scene file: a camera, a 16 x 16 film and one white material, no shapes. Tests add shapes to it.
 MINIMAL_SCENE = """\

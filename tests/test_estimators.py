@@ -1,11 +1,11 @@
-"""The reference estimators against closed forms and against each other (statistical tests, see tests/mc.py)."""
+"""The reference estimators against closed forms and against each other (statistics: harness/judges/mc.py)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from conftest import load_small, render_reference
-from mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_scores
+from harness.judges.mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_scores
 
 LE = np.array([1.0, 1.0, 1.0])
 RHO = np.array([0.3, 0.5, 0.7])

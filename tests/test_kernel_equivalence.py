@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 try:
-    import chi2
+    import chi2_cases
 except ImportError:  # tests/ imported as a package
-    from tests import chi2
+    from tests import chi2_cases
 
 from reference_impl import kernels as K
 from reference_impl import rng, sampling
@@ -79,9 +79,9 @@ def test_discrete_sampling_matches_searchsorted():
 
 @pytest.mark.parametrize("selection", ["power", "uniform"])
 def test_light_points_match_light_sampler(selection):
-    lights = chi2.four_lights()
-    lights[1] = (chi2.fan_light(), lights[1][1])  # a light of several unequal triangles
-    geometry, _ = chi2.light_geometry(lights)
+    lights = chi2_cases.four_lights()
+    lights[1] = (chi2_cases.fan_light(), lights[1][1])  # a light of several unequal triangles
+    geometry, _ = chi2_cases.light_geometry(lights)
     sampler = LightSampler(geometry, selection)
     u = [_uniforms(10 + i) for i in range(4)]
     light, points = sampler.sample(*u)
@@ -95,7 +95,7 @@ def test_light_points_match_light_sampler(selection):
 
 
 def test_surface_points_match_triangle_area_sampler():
-    geometry, _ = chi2.light_geometry(chi2.four_lights())
+    geometry, _ = chi2_cases.light_geometry(chi2_cases.four_lights())
     sampler = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     u = [_uniforms(20 + i) for i in range(3)]
     points = sampler.sample(*u)
@@ -108,9 +108,9 @@ def test_surface_points_match_triangle_area_sampler():
 def test_sample_reuse_matches_split_uniform(selection):
     """The stratified sampler's reuse of one uniform for light, triangle and point (and for triangle and point in
     global area sampling): kernels = lights.*.split_uniform, bit for bit."""
-    lights = chi2.four_lights()
-    lights[1] = (chi2.fan_light(), lights[1][1])
-    geometry, _ = chi2.light_geometry(lights)
+    lights = chi2_cases.four_lights()
+    lights[1] = (chi2_cases.fan_light(), lights[1][1])
+    geometry, _ = chi2_cases.light_geometry(lights)
     sampler = LightSampler(geometry, selection)
     tables = (sampler.cdf, sampler.triangles, sampler.first, sampler.count, sampler.within_cdf, sampler.pmf,
               sampler.area)

@@ -1,5 +1,5 @@
 """The Mitsuba 3 adapter: scene conversion, variant choice, moments and variances, and agreement with closed forms,
-with Mitsuba's own Cornell box and with the reference renderer (statistical tests, see tests/mc.py)."""
+with Mitsuba's own Cornell box and with the reference renderer (statistical tests, see harness/judges/mc.py)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import os
 import numpy as np
 import pytest
 from conftest import SCENES, load_small, render_reference
-from mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_scores
+from harness.judges.mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_scores
 
 import harness.renderers.mitsuba as mts
 from harness.errors import HarnessError

@@ -10,7 +10,7 @@ import numpy as np
 import OpenEXR
 import pytest
 from conftest import SCENES, load_small, render_reference
-from mc import FALSE_ALARM, image_mean, z_critical, z_scores
+from harness.judges.mc import FALSE_ALARM, image_mean, z_critical, z_scores
 
 from harness.cli import main
 

@@ -2,7 +2,8 @@
 
 Every sampling routine is run on ~10^6 uniforms from a fixed seed (``numpy.random.default_rng``; one hemisphere test
 and one unit-square test use the project's counter-based ``reference_impl.rng`` streams instead) and its samples
-are binned and compared with the routine's *own* pdf integrated over the bins (see ``tests/chi2.py``):
+are binned and compared with the routine's *own* pdf integrated over the bins (the library :mod:`harness.judges.chi2`;
+the cases and fixtures are in ``tests/chi2_cases.py``):
 
 * ``square_to_cosine_hemisphere`` / ``square_to_uniform_hemisphere`` vs their pdfs, in (cos theta, phi);
 * ``sample_hemisphere`` about non-axis normals (world frame), mapped back to each normal's local frame;
@@ -15,14 +16,14 @@ are binned and compared with the routine's *own* pdf integrated over the bins (s
 * ``PixelFilter.sample_1d`` ("tent", "gaussian") vs ``pdf_1d``.
 
 Significance: each chi^2 test of the standard set fails when p < alpha with
-alpha = 1 - (1 - 0.01)^(1/m) (Sidak, ~ 0.01 / m) for the m = len(chi2.STANDARD_NAMES) = 20 tests, so the whole
+alpha = 1 - (1 - 0.01)^(1/m) (Sidak, ~ 0.01 / m) for the m = len(cases.STANDARD_NAMES) = 20 tests, so the whole
 file has a 1 % chance of a false alarm; the seeds are fixed, so a given tree passes or fails reproducibly. A test
 also fails hard, whatever p, if a sample lands where the pdf is 0, outside the binned domain, or if the pdf does not
 integrate to 1 (within 1e-3, the quadrature's accuracy).
 The ``test_rejects_*`` tests feed deliberately wrong samplers to the same machinery and require rejection
 (p < 1e-9, or a hard failure): they prove the tests can fail, and are not part of the m above.
 
-Each test prints ``chi2 <name>: p = <value>`` (see them with ``pytest -s``); ``chi2.standard_p_values()`` returns
+Each test prints ``chi2 <name>: p = <value>`` (see them with ``pytest -s``); ``cases.standard_p_values()`` returns
 the standard set's p-values to any other script.
 """
 
@@ -32,15 +33,16 @@ import numpy as np
 import pytest
 
 try:
-    import chi2
+    import chi2_cases as cases
 except ImportError:  # tests/ imported as a package
-    from tests import chi2
+    from tests import chi2_cases as cases
 
+from harness.judges import chi2
 from reference_impl import sampling
 from reference_impl.filters import make_filter
 from reference_impl.lights import LightSampler
 
-ALPHA = chi2.STANDARD_ALPHA
+ALPHA = cases.STANDARD_ALPHA
 REJECT_P = 1e-9  # a deliberately wrong sampler must be rejected at least this strongly
 N_WRONG = 200_000  # samples for the wrong samplers (the effects are large)
 
@@ -55,14 +57,14 @@ def _report(result: chi2.Chi2Result) -> chi2.Chi2Result:
 
 def test_family_alpha():
     m = 20
-    assert len(chi2.STANDARD_NAMES) == m
+    assert len(cases.STANDARD_NAMES) == m
     assert ALPHA == pytest.approx(1 - 0.99 ** (1 / m))
     assert 0.01 / m <= ALPHA <= 0.0101 / m
 
 
-@pytest.mark.parametrize("name", chi2.STANDARD_NAMES)
+@pytest.mark.parametrize("name", cases.STANDARD_NAMES)
 def test_chi2_standard(name):
-    result = _report(chi2.standard_cases()[name]())
+    result = _report(cases.standard_cases()[name]())
     assert result.n_samples >= 10**6
     failures = result.failures(ALPHA)
     assert not failures, f"{name}: " + "; ".join(failures)
@@ -117,8 +119,8 @@ def test_sample_hemisphere_is_consistent_for_random_normals(kind):
 
 
 def test_rectangle_light_points_lie_on_the_light():
-    light = chi2.rectangle_light()
-    geom, _ = chi2.light_geometry([(light, (4.0, 3.0, 2.0))])
+    light = cases.rectangle_light()
+    geom, _ = cases.light_geometry([(light, (4.0, 3.0, 2.0))])
     sampler = LightSampler(geom, "power")
     g = np.random.default_rng(13)
     k, pts = sampler.sample(*(g.random(100_000) for _ in range(4)))
@@ -131,12 +133,12 @@ def test_rectangle_light_points_lie_on_the_light():
 
 @pytest.mark.parametrize("selection", ["power", "uniform"])
 def test_light_selection_pmf_by_direct_computation(selection):
-    lights = chi2.four_lights()
+    lights = cases.four_lights()
     areas = np.array([light.area() for light, _ in lights])
-    lum = np.array([np.dot(chi2.LUMINANCE, le) for _, le in lights])
+    lum = np.array([np.dot(cases.LUMINANCE, le) for _, le in lights])
     want = np.pi * areas * lum if selection == "power" else np.ones(len(lights))
     want = want / want.sum()
-    sampler, k, tri = chi2.light_selection_samples(selection, seed=14, n=10_000)
+    sampler, k, tri = cases.light_selection_samples(selection, seed=14, n=10_000)
     np.testing.assert_allclose(sampler.pdf_select(np.arange(4)), want, rtol=1e-12)
     np.testing.assert_allclose(sampler.area, areas, rtol=1e-12)
     np.testing.assert_allclose(sampler.pdf_area(np.arange(4)), want / areas, rtol=1e-12)
@@ -172,8 +174,8 @@ def _wrong_cosine(u1, u2):
 
 def _hemisphere_test(warp, pdf, name, seed=901):
     return chi2.chi2_test_2d(
-        lambda n: chi2.directions_to_cos_phi(warp(*chi2._uniforms(seed, n, 2))), pdf, chi2.SPHERE_COS_PHI,
-        chi2.HEMI_RES, N_WRONG, name=name,
+        lambda n: chi2.directions_to_cos_phi(warp(*cases._uniforms(seed, n, 2))), pdf, chi2.SPHERE_COS_PHI,
+        cases.HEMI_RES, N_WRONG, name=name,
     )
 
 
@@ -209,19 +211,19 @@ def test_rejects_wrongly_normalised_pdf():
 
 
 def test_rejects_nonuniform_triangle():
-    tri = chi2.TRIANGLE_2D
+    tri = cases.TRIANGLE_2D
     r = _report(chi2.chi2_test_2d(
-        chi2.triangle_sampler(tri, lambda u1, u2: (1.0 - u1, u2 * u1), seed=902), chi2.triangle_pdf(tri),
-        chi2.bbox(tri), (48, 48), N_WRONG, name="wrong_triangle_b1=1-u1", quadrature="midpoint", order=24,
+        cases.triangle_sampler(tri, lambda u1, u2: (1.0 - u1, u2 * u1), seed=902), cases.triangle_pdf(tri),
+        cases.bbox(tri), (48, 48), N_WRONG, name="wrong_triangle_b1=1-u1", quadrature="midpoint", order=24,
     ))
     assert r.impossible == 0 and r.p_value < REJECT_P
 
 
 def test_rejects_points_outside_the_triangle():
-    tri = chi2.TRIANGLE_2D
+    tri = cases.TRIANGLE_2D
     corners = np.vstack([tri, tri[1] + tri[2] - tri[0]])  # the parallelogram u1, u2 covers
     r = _report(chi2.chi2_test_2d(
-        chi2.triangle_sampler(tri, lambda u1, u2: (u1, u2), seed=903), chi2.triangle_pdf(tri), chi2.bbox(corners),
+        cases.triangle_sampler(tri, lambda u1, u2: (u1, u2), seed=903), cases.triangle_pdf(tri), cases.bbox(corners),
         (48, 48), N_WRONG, name="wrong_triangle_parallelogram", quadrature="midpoint", order=24,
     ))
     assert r.impossible > 0.4 * N_WRONG and not r.passed(ALPHA)
@@ -237,24 +239,24 @@ def _uniform_triangle_choice(sampler):
 
 
 def test_rejects_fan_light_with_equal_triangle_probabilities():
-    light = chi2.fan_light()
-    geom, _ = chi2.light_geometry([(light, (4.0, 3.0, 2.0))])
-    sampler, sample, pdf = chi2.light_point_sampler(geom, light, seed=904)
+    light = cases.fan_light()
+    geom, _ = cases.light_geometry([(light, (4.0, 3.0, 2.0))])
+    sampler, sample, pdf = cases.light_point_sampler(geom, light, seed=904)
     _uniform_triangle_choice(sampler)
     r = _report(chi2.chi2_test_2d(
-        sample, pdf, chi2.bbox(light.polygon), (48, 32), N_WRONG, name="wrong_fan_points_equal_triangles",
+        sample, pdf, cases.bbox(light.polygon), (48, 32), N_WRONG, name="wrong_fan_points_equal_triangles",
         quadrature="midpoint", order=24,
     ))
     assert r.p_value < REJECT_P
     areas = light.triangle_areas()
-    choice = chi2.fan_triangle_choices(905, N_WRONG, mutate=_uniform_triangle_choice)
+    choice = cases.fan_triangle_choices(905, N_WRONG, mutate=_uniform_triangle_choice)
     r = _report(chi2.chi2_test_discrete(choice, areas / areas.sum(), name="wrong_fan_triangle_choice"))
     assert r.p_value < REJECT_P
 
 
 def test_rejects_uniform_selection_against_power_pmf():
-    power, _, _ = chi2.light_selection_samples("power", seed=906, n=10)
-    _, k, _ = chi2.light_selection_samples("uniform", seed=906, n=N_WRONG)
+    power, _, _ = cases.light_selection_samples("power", seed=906, n=10)
+    _, k, _ = cases.light_selection_samples("uniform", seed=906, n=N_WRONG)
     r = _report(chi2.chi2_test_discrete(k, power.pdf_select(np.arange(4)), name="wrong_selection_uniform_vs_power"))
     assert r.p_value < REJECT_P
 
@@ -301,4 +303,4 @@ def test_bin_integrals_with_jacobian():
 
 def test_standard_p_values_are_quotable():
     # Only the cheap part: the names and the function exist (the values themselves come from test_chi2_standard).
-    assert callable(chi2.standard_p_values) and set(chi2.standard_cases()) == set(chi2.STANDARD_NAMES)
+    assert callable(cases.standard_p_values) and set(cases.standard_cases()) == set(cases.STANDARD_NAMES)

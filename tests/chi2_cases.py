@@ -1,0 +1,383 @@
+"""The standard chi^2 tests of ``reference_impl``'s warps, light sampling and pixel filters (test fixtures).
+
+The machinery is the library module :mod:`harness.judges.chi2`; this module holds what is specific to
+``reference_impl``: the samplers under test, the light and triangle fixtures they run on, and the *standard set*
+(:func:`standard_cases`). ``tests/test_sampling_chi2.py`` runs and asserts the set, and :func:`standard_p_values`
+returns its p-values for any script that wants to quote them (``python tests/chi2_cases.py`` prints them; from a
+script: ``sys.path.insert(0, "tests"); import chi2_cases``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from harness.judges.chi2 import (
+    FAMILY_ALPHA,
+    SPHERE_COS_PHI,
+    Chi2Result,
+    chi2_test_1d,
+    chi2_test_2d,
+    chi2_test_discrete,
+    directions_to_cos_phi,
+    sidak_alpha,
+    to_local,
+)
+from reference_impl import rng, sampling
+from reference_impl.filters import make_filter
+from reference_impl.geometry import Geometry
+from reference_impl.lights import LightSampler, TriangleAreaSampler
+from reference_impl.sampling import hemisphere_pdf, sample_hemisphere, square_to_uniform_triangle
+
+# ------------------------------------------------------------------------------ standard set (reference_impl)
+#
+# Each case draws its uniforms from a fixed seed, so the p-values are reproducible numbers, not a lottery.
+
+N_SAMPLES = 1_000_000
+HEMI_RES = (64, 64)  # over SPHERE_COS_PHI: 32 bins of cos theta per hemisphere
+
+
+def _uniforms(seed: int, n: int, k: int) -> list[np.ndarray]:
+    g = np.random.default_rng(seed)
+    return [g.random(n) for _ in range(k)]
+
+
+def _warp_case(name: str, kind: str, seed: int) -> Chi2Result:
+    warp = sampling.square_to_cosine_hemisphere if kind == "cosine" else sampling.square_to_uniform_hemisphere
+    return chi2_test_2d(
+        lambda n: directions_to_cos_phi(warp(*_uniforms(seed, n, 2))),
+        lambda c, phi: sampling.hemisphere_pdf(kind, c), SPHERE_COS_PHI, HEMI_RES, N_SAMPLES, name=name,
+    )
+
+
+def hemisphere_world_sampler(kind: str, normal: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """``sample_hemisphere`` about one ``normal`` (repeated), returned in the local frame of that normal."""
+    normal = np.asarray(normal, float) / np.linalg.norm(normal)
+    world, _, _ = sample_hemisphere(kind, u1, u2, np.repeat(normal[None, :], len(u1), axis=0))
+    return to_local(world, normal)
+
+
+HEMISPHERE_NORMALS = {
+    "a": (0.3, -0.5, 0.81),
+    "b": (-0.6, 0.7, -0.2),
+    "c": (0.02, -0.03, -0.95),  # near -z, the branch Duff et al.'s frame switches on
+}
+
+
+def _world_case(name: str, kind: str, normal, seed: int) -> Chi2Result:
+    return chi2_test_2d(
+        lambda n: directions_to_cos_phi(hemisphere_world_sampler(kind, normal, *_uniforms(seed, n, 2))),
+        lambda c, phi: hemisphere_pdf(kind, c), SPHERE_COS_PHI, HEMI_RES, N_SAMPLES, name=name,
+    )
+
+
+# The integrator's random dimensions for the indirect direction and the film offset (reference_impl.integrator).
+INDIRECT_U1, INDIRECT_U2, FILM_X, FILM_Y = 9, 10, 0, 1
+
+
+def keyed_uniforms(seed: int, n: int, dims: Sequence[int], branch: int | None = None, depth: int = 0):
+    """Uniforms from ``reference_impl.rng``: path keys for path ids 0 .. n-1, optionally a branch's keys."""
+    keys = rng.path_keys(seed, np.arange(n, dtype=np.uint64))
+    if branch is not None:
+        keys = rng.branch_keys(keys, branch, depth)
+    return [rng.uniform(keys, d) for d in dims]
+
+
+def _keyed_hemisphere_case(name: str, seed: int) -> Chi2Result:
+    depth = 2
+    dims = (rng.dimension(depth, INDIRECT_U1), rng.dimension(depth, INDIRECT_U2))
+    normal = HEMISPHERE_NORMALS["a"]
+    return chi2_test_2d(
+        lambda n: directions_to_cos_phi(
+            hemisphere_world_sampler("cosine", normal, *keyed_uniforms(seed, n, dims, branch=1, depth=depth))
+        ),
+        lambda c, phi: hemisphere_pdf("cosine", c), SPHERE_COS_PHI, HEMI_RES, N_SAMPLES, name=name,
+    )
+
+
+def _keyed_square_case(name: str, seed: int) -> Chi2Result:
+    """The pair of film dimensions straight: (u_x, u_y) must be uniform on the unit square."""
+    dims = (rng.dimension(0, FILM_X), rng.dimension(0, FILM_Y))
+    return chi2_test_2d(
+        lambda n: keyed_uniforms(seed, n, dims), lambda x, y: np.ones_like(x), ((0, 1), (0, 1)), (64, 64),
+        N_SAMPLES, name=name, order=1,
+    )
+
+
+# A skewed triangle in the plane (no axis-aligned or 45-degree edges, so no edge runs along bin nodes).
+TRIANGLE_2D = np.array([[0.13, 0.21], [1.37, 0.52], [0.46, 1.19]])
+
+
+def triangle_pdf(tri: np.ndarray, tol: float = 1e-12) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """1 / area inside the 2D triangle ``tri`` (3, 2), 0 outside."""
+    a, b, c = tri
+    e1, e2 = b - a, c - a
+    det = e1[0] * e2[1] - e1[1] * e2[0]
+    area = 0.5 * abs(det)
+
+    def pdf(x, y):
+        px, py = x - a[0], y - a[1]
+        b1 = (px * e2[1] - py * e2[0]) / det
+        b2 = (e1[0] * py - e1[1] * px) / det
+        inside = (b1 >= -tol) & (b2 >= -tol) & (b1 + b2 <= 1 + tol)
+        return np.where(inside, 1.0 / area, 0.0)
+
+    return pdf
+
+
+def bbox(points: np.ndarray) -> tuple[tuple[float, float], ...]:
+    return tuple((float(lo), float(hi)) for lo, hi in zip(points.min(axis=0), points.max(axis=0)))
+
+
+def triangle_sampler(tri: np.ndarray, warp: Callable | None = None, seed: int = 0):
+    """Points A + b1 (B - A) + b2 (C - A) of a 2D triangle from ``warp`` (default square_to_uniform_triangle)."""
+    warp = warp or square_to_uniform_triangle
+
+    def sample(n):
+        b1, b2 = warp(*_uniforms(seed, n, 2))
+        p = tri[0] + b1[:, None] * (tri[1] - tri[0]) + b2[:, None] * (tri[2] - tri[0])
+        return p[:, 0], p[:, 1]
+
+    return sample
+
+
+def _triangle_case(name: str, seed: int) -> Chi2Result:
+    return chi2_test_2d(
+        triangle_sampler(TRIANGLE_2D, seed=seed), triangle_pdf(TRIANGLE_2D), bbox(TRIANGLE_2D), (48, 48),
+        N_SAMPLES, name=name, quadrature="midpoint", order=24,
+    )
+
+
+def rotation(axis, angle: float) -> np.ndarray:
+    """Rodrigues rotation matrix about ``axis`` by ``angle`` radians."""
+    k = np.asarray(axis, float) / np.linalg.norm(axis)
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(angle) * kx + (1 - np.cos(angle)) * kx @ kx
+
+
+@dataclass(frozen=True)
+class PlanarLight:
+    """A light polygon given in 2D plane coordinates, placed in 3D by ``origin + R @ (x, y, 0)``."""
+
+    polygon: np.ndarray  # (m, 2) convex, counter-clockwise
+    triangles: np.ndarray  # (t, 3) indices into polygon
+    R: np.ndarray
+    origin: np.ndarray
+
+    def vertices3d(self) -> np.ndarray:
+        p = np.column_stack([self.polygon, np.zeros(len(self.polygon))])
+        return self.origin + p @ self.R.T
+
+    def to_plane(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, out-of-plane offset) of 3D points."""
+        q = (pts - self.origin) @ self.R
+        return q[:, 0], q[:, 1], q[:, 2]
+
+    def triangle_areas(self) -> np.ndarray:
+        """Areas of the triangles, from the 2D polygon (independently of Geometry.area)."""
+        a, b, c = (self.polygon[self.triangles[:, i]] for i in range(3))
+        return 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+
+    def area(self) -> float:
+        x, y = self.polygon[:, 0], self.polygon[:, 1]
+        return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+    def inside(self, x: np.ndarray, y: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+        ok = np.ones(np.shape(x), bool)
+        m = len(self.polygon)
+        for i in range(m):
+            a, b = self.polygon[i], self.polygon[(i + 1) % m]
+            ok &= (b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]) >= -tol
+        return ok
+
+
+def light_geometry(lights: Sequence[tuple[PlanarLight, Sequence[float]]], floor: bool = True):
+    """A :class:`reference_impl.geometry.Geometry` of the given (light, radiance) pairs plus a grey floor.
+
+    Triangles of different lights are interleaved in the arrays (and the floor put first), so that the light
+    sampler's grouping by ``light_id`` is exercised. Returns the geometry and, per triangle, its row in its light's
+    ``triangles`` (-1 for the floor).
+    """
+    verts, tris, emission, light_id, local = [], [], [], [], []
+    if floor:
+        verts += [[-5, -5, -1], [5, -5, -1], [5, 5, -1]]
+        tris.append([0, 1, 2])
+        emission.append([0, 0, 0])
+        light_id.append(-1)
+        local.append(-1)
+    per_light = []
+    for k, (light, le) in enumerate(lights):
+        base = len(verts)
+        verts += light.vertices3d().tolist()
+        per_light.append([(list(base + t), list(le), k) for t in light.triangles])
+    for j in range(max(len(p) for p in per_light)):  # round robin over the lights
+        for p in per_light:
+            if j < len(p):
+                tris.append(p[j][0])
+                emission.append(p[j][1])
+                light_id.append(p[j][2])
+                local.append(j)
+    t = len(tris)
+    geometry = Geometry(
+        vertices=np.array(verts, float), triangles=np.array(tris), material=np.zeros(t, int),
+        reflectance=np.array([[0.5, 0.5, 0.5]]), two_sided=np.array([False]), emission=np.array(emission, float),
+        light_id=np.array(light_id),
+    )
+    return geometry, np.array(local)
+
+
+def rectangle_light() -> PlanarLight:
+    """A 0.7 x 0.3 rectangle (the unit square scaled), two triangles, tilted and rotated in 3D."""
+    poly = np.array([[0.0, 0.0], [0.7, 0.0], [0.7, 0.3], [0.0, 0.3]])
+    tris = np.array([[0, 1, 2], [0, 2, 3]])
+    return PlanarLight(poly, tris, rotation([0.4, -1.0, 0.7], 1.1), np.array([0.2, 1.5, 0.9]))
+
+
+def fan_light() -> PlanarLight:
+    """A convex hexagon on an ellipse, fanned from one vertex into 4 triangles of very unequal areas."""
+    ang = np.radians([0.0, 17.0, 103.0, 148.0, 236.0, 322.0])
+    poly = np.column_stack([0.8 * np.cos(ang), 0.45 * np.sin(ang)])
+    tris = np.array([[0, i, i + 1] for i in range(1, len(poly) - 1)])
+    return PlanarLight(poly, tris, rotation([-0.3, 0.2, 1.0], 2.3), np.array([-0.4, 0.1, 2.0]))
+
+
+def light_point_sampler(geometry, light: PlanarLight, seed: int, selection: str = "power", reuse: bool = False):
+    """Points from ``LightSampler(geometry, selection).sample`` in the plane coordinates of ``light``; with ``reuse``,
+    from ``sample(*split_uniform(u1), u2)`` (the stratified sampler's one 2D sample per light sample)."""
+    sampler = LightSampler(geometry, selection)
+
+    def sample(n):
+        if reuse:
+            u1, u2 = _uniforms(seed, n, 2)
+            k, pts = sampler.sample(*sampler.split_uniform(u1), u2)
+        else:
+            k, pts = sampler.sample(*_uniforms(seed, n, 4))
+        x, y, z = light.to_plane(pts.position)
+        if np.any(k != 0) or np.max(np.abs(z)) > 1e-9:
+            return np.full(n, np.nan), np.full(n, np.nan)  # off the light: every sample out of domain
+        return x, y
+
+    def pdf(x, y):
+        return np.where(light.inside(x, y), sampler.pdf_area(np.zeros(len(x), np.int64)), 0.0)
+
+    return sampler, sample, pdf
+
+
+def _light_points_case(name: str, light: PlanarLight, res, quadrature: str, order: int, seed: int,
+                       reuse: bool = False) -> Chi2Result:
+    geom, _ = light_geometry([(light, (4.0, 3.0, 2.0))])
+    _, sample, pdf = light_point_sampler(geom, light, seed, reuse=reuse)
+    return chi2_test_2d(sample, pdf, bbox(light.polygon), res, N_SAMPLES, name=name, quadrature=quadrature, order=order)
+
+
+def fan_triangle_choices(seed: int, n: int = N_SAMPLES, mutate: Callable | None = None) -> np.ndarray:
+    """Which triangle of :func:`fan_light` (its row in ``triangles``) ``LightSampler.sample`` picked, n times.
+    ``mutate(sampler)`` may corrupt the sampler first (to prove the test can fail)."""
+    geom, local = light_geometry([(fan_light(), (4.0, 3.0, 2.0))])
+    sampler = LightSampler(geom, "power")
+    if mutate is not None:
+        mutate(sampler)
+    _, pts = sampler.sample(*_uniforms(seed, n, 4))
+    return local[pts.triangle]
+
+
+def _fan_choice_case(name: str, seed: int) -> Chi2Result:
+    areas = fan_light().triangle_areas()
+    return chi2_test_discrete(fan_triangle_choices(seed), areas / areas.sum(), name=name)
+
+
+def four_lights() -> list[tuple[PlanarLight, tuple[float, float, float]]]:
+    """Four lights of different shapes, sizes and radiances (areas span ~40x, powers ~20x)."""
+    sq = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    two = np.array([[0, 1, 2], [0, 2, 3]])
+    return [
+        (PlanarLight(np.array([[0.0, 0.0], [0.6, 0.1], [0.2, 0.5]]), np.array([[0, 1, 2]]), rotation([1, 0, 0], 0.3),
+                     np.array([0.0, 0.0, 3.0])), (10.0, 10.0, 10.0)),
+        (PlanarLight(sq * [1.2, 0.5], two, rotation([0, 1, 0], 2.0), np.array([1.0, 0.0, 2.0])), (1.0, 5.0, 0.2)),
+        (fan_light(), (20.0, 0.5, 0.5)),
+        (PlanarLight(sq * 0.15, two, rotation([1, 1, 0], 0.7), np.array([-1.0, 1.0, 2.5])), (0.3, 0.3, 30.0)),
+    ]
+
+
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709
+
+
+def light_selection_samples(selection: str, seed: int, n: int = N_SAMPLES):
+    """(LightSampler over :func:`four_lights`, chosen light indices, sampled triangles)."""
+    sampler = LightSampler(light_geometry(four_lights())[0], selection)
+    k, pts = sampler.sample(*_uniforms(seed, n, 4))
+    return sampler, k, pts.triangle
+
+
+def _selection_case(name: str, selection: str, seed: int) -> Chi2Result:
+    sampler, k, _ = light_selection_samples(selection, seed)
+    return chi2_test_discrete(k, sampler.pdf_select(np.arange(sampler.num_lights)), name=name)
+
+
+def _global_area_case(name: str, seed: int) -> Chi2Result:
+    """``TriangleAreaSampler`` over every triangle of the 4-light scene (floor included): choice vs area / total."""
+    geom, _ = light_geometry(four_lights())
+    corners = geom.vertices[geom.triangles]
+    areas = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    pts = TriangleAreaSampler(geom, np.arange(len(areas))).sample(*_uniforms(seed, N_SAMPLES, 3))
+    return chi2_test_discrete(pts.triangle, areas / areas.sum(), name=name)
+
+
+def _filter_case(name: str, filt: str, res: int, quadrature: str, order: int, seed: int) -> Chi2Result:
+    f = make_filter(filt)
+    return chi2_test_1d(
+        lambda n: f.sample_1d(_uniforms(seed, n, 1)[0])[0], f.pdf_1d, (-f.radius, f.radius), res, N_SAMPLES,
+        name=name, quadrature=quadrature, order=order,
+    )
+
+
+def standard_cases() -> dict[str, Callable[[], Chi2Result]]:
+    """The standard chi^2 tests of reference_impl, by name; each call runs one test (about 10^6 samples)."""
+    cases: dict[str, Callable[[], Chi2Result]] = {
+        "cosine_warp": lambda: _warp_case("cosine_warp", "cosine", 101),
+        "uniform_warp": lambda: _warp_case("uniform_warp", "uniform", 102),
+    }
+    for i, (label, normal) in enumerate(HEMISPHERE_NORMALS.items()):
+        for j, kind in enumerate(("cosine", "uniform")):
+            nm = f"sample_hemisphere_{kind}_n{label}"
+            cases[nm] = lambda nm=nm, kind=kind, normal=normal, s=200 + 10 * i + j: _world_case(nm, kind, normal, s)
+    cases["keyed_rng_hemisphere_cosine"] = lambda: _keyed_hemisphere_case("keyed_rng_hemisphere_cosine", 301)
+    cases["keyed_rng_film_square"] = lambda: _keyed_square_case("keyed_rng_film_square", 302)
+    cases["uniform_triangle"] = lambda: _triangle_case("uniform_triangle", 401)
+    cases["light_rectangle_points"] = lambda: _light_points_case(
+        "light_rectangle_points", rectangle_light(), (56, 24), "gauss", 2, 501
+    )
+    cases["light_fan_points"] = lambda: _light_points_case(
+        "light_fan_points", fan_light(), (48, 32), "midpoint", 24, 502
+    )
+    cases["light_fan_points_reused_uniform"] = lambda: _light_points_case(
+        "light_fan_points_reused_uniform", fan_light(), (48, 32), "midpoint", 24, 504, reuse=True
+    )
+    cases["light_fan_triangle_choice"] = lambda: _fan_choice_case("light_fan_triangle_choice", 503)
+    cases["light_select_power"] = lambda: _selection_case("light_select_power", "power", 601)
+    cases["light_select_uniform"] = lambda: _selection_case("light_select_uniform", "uniform", 602)
+    cases["global_area_triangle_choice"] = lambda: _global_area_case("global_area_triangle_choice", 603)
+    cases["filter_tent"] = lambda: _filter_case("filter_tent", "tent", 100, "gauss", 4, 701)
+    cases["filter_gaussian"] = lambda: _filter_case("filter_gaussian", "gaussian", 128, "midpoint", 16, 702)
+    return cases
+
+
+STANDARD_NAMES = tuple(standard_cases())
+STANDARD_ALPHA = sidak_alpha(len(STANDARD_NAMES))
+
+
+def standard_results() -> list[Chi2Result]:
+    return [run() for run in standard_cases().values()]
+
+
+def standard_p_values() -> dict[str, float]:
+    """p-value of every test of the standard set, by name (compare each with :data:`STANDARD_ALPHA`)."""
+    return {r.name: r.p_value for r in standard_results()}
+
+
+if __name__ == "__main__":
+    print(f"alpha per test = {STANDARD_ALPHA:.3g} (family {FAMILY_ALPHA:g} over {len(STANDARD_NAMES)} tests)")
+    for r in standard_results():
+        print(r.line(), "ok" if r.passed(STANDARD_ALPHA) else "FAIL: " + "; ".join(r.failures(STANDARD_ALPHA)))
