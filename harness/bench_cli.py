@@ -26,9 +26,12 @@ def register(sub) -> None:
                     "changed, e.g. sampler=independent). Method and latest figures: docs/performance.md.")
     bench.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
                                                        "cornell-box, soft-shadows, multi-light)")
-    bench.add_argument("--spp", type=options.positive_int, default=64, help="samples per pixel of every render (default 64)")
-    bench.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"), default=3, help="timed renders per contender after a warm-up (default 3)")
-    bench.add_argument("--ground-truth-spp", type=options.positive_int, default=4096, help="spp of the (cached) Mitsuba ground truth")
+    bench.add_argument("--spp", type=options.positive_int, default=64,
+                       help="samples per pixel of every render (default 64)")
+    bench.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"),
+                       default=3, help="timed renders per contender after a warm-up (default 3)")
+    bench.add_argument("--ground-truth-spp", type=options.positive_int, default=4096,
+                       help="spp of the (cached) Mitsuba ground truth")
     bench.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
     bench.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
     bench.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",

@@ -486,7 +486,8 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--renderer", default="reference", help=f"one of: {', '.join(renderer_names())}, or the "
                         "path of a renderer file (.toml, docs/external-renderers.md)")
     render.add_argument("--spp", type=options.positive_int, required=True, help="viewing rays (samples) per pixel, Np")
-    render.add_argument("--seed", type=options.non_negative_int, default=0, help="seed of every random stream (default 0)")
+    render.add_argument("--seed", type=options.non_negative_int, default=0,
+                        help="seed of every random stream (default 0)")
     render.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE",
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
@@ -502,7 +503,8 @@ def build_parser() -> argparse.ArgumentParser:
     gt.add_argument("scene")
     gt.add_argument("--spp", type=options.positive_int, default=1024, help="samples per pixel (default 1024)")
     gt.add_argument("--seed", type=options.non_negative_int, default=0)
-    gt.add_argument("--chunk-spp", type=options.positive_int, default=256, help="samples per cached chunk (default 256)")
+    gt.add_argument("--chunk-spp", type=options.positive_int, default=256,
+                    help="samples per cached chunk (default 256)")
     gt.add_argument("--cache-dir", help="cache folder (default: $HARNESS_CACHE_DIR or the user cache dir)")
     gt.add_argument("--mitsuba-variant", help="override the Mitsuba variant (default: the best that works)")
     gt.add_argument("--no-closed-form", action="store_true", help="render with Mitsuba even if the scene has a closed form")
@@ -513,8 +515,10 @@ def build_parser() -> argparse.ArgumentParser:
     cmp = sub.add_parser("compare", help="metrics and a statistical verdict for a render against a reference (exit 1 on fail)")
     cmp.add_argument("test", help="the render to judge (.exr with variance.R/G/B channels)")
     cmp.add_argument("reference", help="the reference (.exr; variance channels optional for a closed form)")
-    cmp.add_argument("--tile", type=options.parse_int, default=8, help="tile size in pixels for the verdict (default 8)")
-    cmp.add_argument("--alpha", type=options.probability, default=0.001, help="false-alarm probability of the verdict (default 0.001)")
+    cmp.add_argument("--tile", type=options.parse_int, default=8,
+                     help="tile size in pixels for the verdict (default 8)")
+    cmp.add_argument("--alpha", type=options.probability, default=0.001,
+                     help="false-alarm probability of the verdict (default 0.001)")
     cmp.add_argument("--json", action="store_true")
     cmp.set_defaults(func=cmd_compare)
 
@@ -527,8 +531,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-report", action="store_true", help="do not write the report (index.html, report.json)")
     run.add_argument("--executor", default="local", help="where cases run: local (a process pool, the default), "
                      "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler)")
-    run.add_argument("--workers", type=options.positive_int, help="worker processes of local (default 1) or dask (default 2)")
-    run.add_argument("--timeout", type=options.seconds, help="seconds before a case's worker is killed (default: the case's "
+    run.add_argument("--workers", type=options.positive_int,
+                     help="worker processes of local (default 1) or dask (default 2)")
+    run.add_argument("--timeout", type=options.seconds,
+                     help="seconds before a case's worker is killed (default: the case's "
                      "timeout key, else 600 s for an spp budget, max(120 s, 20 x the budget) for a seconds budget)")
     run.add_argument("--fresh", action="store_true", help="ignore an earlier results.json in --out: run every case "
                      "(default: resume, keeping the cases it finished)")
@@ -558,9 +564,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
     rep.add_argument("results", help="a results.json written by harness run")
     rep.add_argument("--out", help="output folder (default: the results file's folder)")
-    rep.add_argument("--convergence-spp", default="1,2,4,8,16", type=options.spp_ladder, help="spp ladder of each scene's convergence "
+    rep.add_argument("--convergence-spp", default="1,2,4,8,16", type=options.spp_ladder,
+                     help="spp ladder of each scene's convergence "
                      "(default 1,2,4,8,16)")
-    rep.add_argument("--strategy-spp", type=options.positive_int, default=16, help="spp of strategy renders no case covers (default 16)")
+    rep.add_argument("--strategy-spp", type=options.positive_int, default=16,
+                     help="spp of strategy renders no case covers (default 16)")
     rep.add_argument("--no-convergence", action="store_true", help="leave out the convergence section")
     rep.add_argument("--no-shadow-rays", action="store_true", help="leave out the shadow-ray study")
     rep.add_argument("--no-strategies", action="store_true", help="leave out the strategy comparison")
@@ -576,13 +584,19 @@ def build_parser() -> argparse.ArgumentParser:
     cv.add_argument("--renderer", action=_SeriesAction, help="starts a curve (repeatable; default: one reference curve)")
     cv.add_argument("--set", action=_SeriesAction, metavar="KEY=VALUE", dest="set",
                     help="a setting of the latest --renderer's curve (before any --renderer: of every curve)")
-    cv.add_argument("--spp", default="1,2,4,8,16,32,64", type=options.spp_ladder, help="spp ladder, comma-separated (default 1,2,4,8,16,32,64)")
-    cv.add_argument("--seconds", type=options.seconds_ladder, help="time ladder, comma-separated seconds (chunks of --chunk-spp until spent)")
-    cv.add_argument("--chunk-spp", type=options.positive_int, default=1, help="spp per chunk of a --seconds rung (default 1)")
+    cv.add_argument("--spp", default="1,2,4,8,16,32,64", type=options.spp_ladder,
+                    help="spp ladder, comma-separated (default 1,2,4,8,16,32,64)")
+    cv.add_argument("--seconds", type=options.seconds_ladder,
+                    help="time ladder, comma-separated seconds (chunks of --chunk-spp until spent)")
+    cv.add_argument("--chunk-spp", type=options.positive_int, default=1,
+                    help="spp per chunk of a --seconds rung (default 1)")
     cv.add_argument("--film", type=options.film_size, help="resolution WIDTHxHEIGHT (default: the scene's)")
-    cv.add_argument("--ground-truth-spp", type=options.positive_int, default=1024, help="Mitsuba ground-truth spp (default 1024)")
-    cv.add_argument("--seed", type=options.non_negative_int, default=1, help="first seed; every render gets its own (default 1)")
-    cv.add_argument("--k", type=options.positive_number, default=3.0, help="multiple of the expected scatter that flags bias (default 3)")
+    cv.add_argument("--ground-truth-spp", type=options.positive_int, default=1024,
+                    help="Mitsuba ground-truth spp (default 1024)")
+    cv.add_argument("--seed", type=options.non_negative_int, default=1,
+                    help="first seed; every render gets its own (default 1)")
+    cv.add_argument("--k", type=options.positive_number, default=3.0,
+                    help="multiple of the expected scatter that flags bias (default 3)")
     cv.add_argument("--out", help="output folder (default reports/convergence/<scene>)")
     cv.add_argument("--cache-dir", help="ground-truth cache folder")
     cv.add_argument("--mitsuba-variant", help="override the Mitsuba variant")

@@ -131,12 +131,14 @@ def parse_ladder(text: str, kind: type = int) -> list:
 
 def spp_ladder(text: str) -> str:
     """An argparse ``type=`` for a comma-separated spp ladder (strictly increasing positive integers); the text
-    is returned as given, for the command's own parser."""
-    parse_ladder(text, int)
+    is returned as given, for the command's own parser ("" too: no ladder)."""
+    if str(text).strip():
+        parse_ladder(text, int)
     return text
 
 
 def seconds_ladder(text: str) -> str:
     """An argparse ``type=`` for a comma-separated ladder of seconds (strictly increasing, finite, > 0)."""
-    parse_ladder(text, float)
+    if str(text).strip():
+        parse_ladder(text, float)
     return text
