@@ -101,8 +101,6 @@ def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
     changed = [key for key in COST_SETTINGS if getattr(settings, key) != getattr(defaults, key)
                and not (key == "max_depth" and settings.max_depth == scene.max_depth)]
     where = f"--set {changed[0]}" if changed else "--spp"
-    if settings.indirect_rays > 1:
-        where = "--set indirect_rays"
     shown = ", ".join(f"{key} = {getattr(settings, key)}" for key in COST_SETTINGS[:3])
     check_reference_cost(
         scene.film.width, scene.film.height, settings.spp, where=where, settings_text=shown,
