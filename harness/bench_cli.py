@@ -4,11 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
+from harness import options
 from harness.errors import HarnessError
 from harness.options import require_positive
+
+MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
 
 def register(sub) -> None:
@@ -22,9 +26,12 @@ def register(sub) -> None:
                     "changed, e.g. sampler=independent). Method and latest figures: docs/performance.md.")
     bench.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
                                                        "cornell-box, soft-shadows, multi-light)")
-    bench.add_argument("--spp", type=int, default=64, help="samples per pixel of every render (default 64)")
-    bench.add_argument("--repeats", type=int, default=3, help="timed renders per contender after a warm-up (default 3)")
-    bench.add_argument("--ground-truth-spp", type=int, default=4096, help="spp of the (cached) Mitsuba ground truth")
+    bench.add_argument("--spp", type=options.positive_int, default=64,
+                       help="samples per pixel of every render (default 64)")
+    bench.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"),
+                       default=3, help="timed renders per contender after a warm-up (default 3)")
+    bench.add_argument("--ground-truth-spp", type=options.positive_int, default=4096,
+                       help="spp of the (cached) Mitsuba ground truth")
     bench.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
     bench.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
     bench.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
@@ -38,10 +45,10 @@ def register(sub) -> None:
 
 
 def _memory_option(text: str) -> tuple[int, int]:
-    size, sep, spp = text.lower().partition("x")
-    if not sep or not size.isdigit() or not spp.isdigit() or int(size) < 1 or int(spp) < 1:
+    match = re.fullmatch(r"([0-9]+)[xX]([0-9]+)", text)
+    if not match or int(match[1]) < 1 or int(match[2]) < 1:
         raise HarnessError("--memory", f"expected SIZExSPP, e.g. 1024x256, got {text!r}")
-    return int(size), int(spp)
+    return int(match[1]), int(match[2])
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

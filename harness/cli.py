@@ -6,19 +6,31 @@ import argparse
 import json
 import os
 import platform
+import re
+import select
 import sys
 from pathlib import Path
 
+from harness import options
 from harness.errors import HarnessError
 from harness.options import require_non_negative, require_positive
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
+# A closed stdout (``harness ... | head``): what a shell reports for a command killed by SIGPIPE, 128 + 13. Python
+# ignores SIGPIPE, so the harness sees BrokenPipeError instead, and exits quietly with this code.
+EXIT_BROKEN_PIPE = 141
+
+_OPTION_MESSAGE = re.compile(r"argument (-[^\s:]*): (.*)", re.S)
 
 
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line naming the option (and exit code 2)."""
 
     def error(self, message: str) -> None:  # noqa: D401 - argparse's signature
+        match = _OPTION_MESSAGE.fullmatch(message)
+        if match:  # "argument -s/--spp: expected ..." -> "--spp: expected ..."
+            names = match[1].split("/")
+            raise HarnessError(max(names, key=len), match[2])
         raise HarnessError(self.prog, message)
 
 
@@ -129,10 +141,11 @@ def cmd_ground_truth(args: argparse.Namespace) -> int:
     from harness import groundtruth
     from harness.scene import load_scene
 
+    require_positive("--spp", args.spp)
+    require_positive("--chunk-spp", args.chunk_spp)
     require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
-    if not (scene.closed_form and not args.no_closed_form):  # a closed form renders nothing
-        _check_cost(scene, args.spp, "--spp")
+    _check_cost(scene, args.spp, "--spp")  # with a closed form too: a budget no render could meet is a typo
     show = not args.quiet and sys.stderr.isatty()
     bar, progress = _progress_bar(show, f"ground truth {scene.name}")
     try:
@@ -382,6 +395,7 @@ def cmd_convergence(args: argparse.Namespace) -> int:
     scene = replace_film(load_scene(args.scene), width, height)
     if spp:
         _check_cost(scene, max(spp), "--spp")
+    _check_series(scene, series, ([max(spp)] if spp else []) + ([args.chunk_spp] if seconds else []), args.seed)
     show = not args.quiet and sys.stderr.isatty()
     bar = None
     if show:
@@ -419,6 +433,17 @@ def cmd_convergence(args: argparse.Namespace) -> int:
         print(Path(paths["report_json"]).read_text())
     print(f"wrote {paths['index']} and {paths['report_json']}", file=human)
     return EXIT_OK
+
+
+def _check_series(scene, series, budgets: list[int], seed: int) -> None:
+    """Let each built-in renderer of a convergence check its settings at the largest render it will do (the
+    reference's memory and time estimates too), before the ground truth or any curve is rendered."""
+    from harness.renderers import RenderRequest, get_renderer
+
+    for s in series:
+        check = getattr(get_renderer(s.renderer), "check", None) if s.renderer in ("reference", "mitsuba") else None
+        for spp in budgets if check is not None else []:
+            check(scene, RenderRequest(spp=spp, seed=seed, settings=dict(s.settings)))
 
 
 def _render_summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
@@ -459,8 +484,9 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("scene", help="scene file (TOML, see docs/scene-format.md)")
     render.add_argument("--renderer", default="reference", help=f"one of: {', '.join(renderer_names())}, or the "
                         "path of a renderer file (.toml, docs/external-renderers.md)")
-    render.add_argument("--spp", type=int, required=True, help="viewing rays (samples) per pixel, Np")
-    render.add_argument("--seed", type=int, default=0, help="seed of every random stream (default 0)")
+    render.add_argument("--spp", type=options.positive_int, required=True, help="viewing rays (samples) per pixel, Np")
+    render.add_argument("--seed", type=options.non_negative_int, default=0,
+                        help="seed of every random stream (default 0)")
     render.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE",
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
@@ -474,9 +500,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     gt = sub.add_parser("ground-truth", help="render (or fetch from the cache) a scene's ground truth and print where it is")
     gt.add_argument("scene")
-    gt.add_argument("--spp", type=int, default=1024, help="samples per pixel (default 1024)")
-    gt.add_argument("--seed", type=int, default=0)
-    gt.add_argument("--chunk-spp", type=int, default=256, help="samples per cached chunk (default 256)")
+    gt.add_argument("--spp", type=options.positive_int, default=1024, help="samples per pixel (default 1024)")
+    gt.add_argument("--seed", type=options.non_negative_int, default=0)
+    gt.add_argument("--chunk-spp", type=options.positive_int, default=256,
+                    help="samples per cached chunk (default 256)")
     gt.add_argument("--cache-dir", help="cache folder (default: $HARNESS_CACHE_DIR or the user cache dir)")
     gt.add_argument("--mitsuba-variant", help="override the Mitsuba variant (default: the best that works)")
     gt.add_argument("--no-closed-form", action="store_true", help="render with Mitsuba even if the scene has a closed form")
@@ -487,8 +514,10 @@ def build_parser() -> argparse.ArgumentParser:
     cmp = sub.add_parser("compare", help="metrics and a statistical verdict for a render against a reference (exit 1 on fail)")
     cmp.add_argument("test", help="the render to judge (.exr with variance.R/G/B channels)")
     cmp.add_argument("reference", help="the reference (.exr; variance channels optional for a closed form)")
-    cmp.add_argument("--tile", type=int, default=8, help="tile size in pixels for the verdict (default 8)")
-    cmp.add_argument("--alpha", type=float, default=0.001, help="false-alarm probability of the verdict (default 0.001)")
+    cmp.add_argument("--tile", type=options.parse_int, default=8,
+                     help="tile size in pixels for the verdict (default 8)")
+    cmp.add_argument("--alpha", type=options.probability, default=0.001,
+                     help="false-alarm probability of the verdict (default 0.001)")
     cmp.add_argument("--json", action="store_true")
     cmp.set_defaults(func=cmd_compare)
 
@@ -501,8 +530,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-report", action="store_true", help="do not write the report (index.html, report.json)")
     run.add_argument("--executor", default="local", help="where cases run: local (a process pool, the default), "
                      "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler)")
-    run.add_argument("--workers", type=int, help="worker processes of local (default 1) or dask (default 2)")
-    run.add_argument("--timeout", type=float, help="seconds before a case's worker is killed (default: the case's "
+    run.add_argument("--workers", type=options.positive_int,
+                     help="worker processes of local (default 1) or dask (default 2)")
+    run.add_argument("--timeout", type=options.seconds,
+                     help="seconds before a case's worker is killed (default: the case's "
                      "timeout key, else 600 s for an spp budget, max(120 s, 20 x the budget) for a seconds budget)")
     run.add_argument("--fresh", action="store_true", help="ignore an earlier results.json in --out: run every case "
                      "(default: resume, keeping the cases it finished)")
@@ -532,9 +563,11 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
     rep.add_argument("results", help="a results.json written by harness run")
     rep.add_argument("--out", help="output folder (default: the results file's folder)")
-    rep.add_argument("--convergence-spp", default="1,2,4,8,16", help="spp ladder of each scene's convergence "
+    rep.add_argument("--convergence-spp", default="1,2,4,8,16", type=options.spp_ladder,
+                     help="spp ladder of each scene's convergence "
                      "(default 1,2,4,8,16)")
-    rep.add_argument("--strategy-spp", type=int, default=16, help="spp of strategy renders no case covers (default 16)")
+    rep.add_argument("--strategy-spp", type=options.positive_int, default=16,
+                     help="spp of strategy renders no case covers (default 16)")
     rep.add_argument("--no-convergence", action="store_true", help="leave out the convergence section")
     rep.add_argument("--no-shadow-rays", action="store_true", help="leave out the shadow-ray study")
     rep.add_argument("--no-strategies", action="store_true", help="leave out the strategy comparison")
@@ -550,13 +583,19 @@ def build_parser() -> argparse.ArgumentParser:
     cv.add_argument("--renderer", action=_SeriesAction, help="starts a curve (repeatable; default: one reference curve)")
     cv.add_argument("--set", action=_SeriesAction, metavar="KEY=VALUE", dest="set",
                     help="a setting of the latest --renderer's curve (before any --renderer: of every curve)")
-    cv.add_argument("--spp", default="1,2,4,8,16,32,64", help="spp ladder, comma-separated (default 1,2,4,8,16,32,64)")
-    cv.add_argument("--seconds", help="time ladder, comma-separated seconds (chunks of --chunk-spp until spent)")
-    cv.add_argument("--chunk-spp", type=int, default=1, help="spp per chunk of a --seconds rung (default 1)")
-    cv.add_argument("--film", help="resolution WIDTHxHEIGHT (default: the scene's)")
-    cv.add_argument("--ground-truth-spp", type=int, default=1024, help="Mitsuba ground-truth spp (default 1024)")
-    cv.add_argument("--seed", type=int, default=1, help="first seed; every render gets its own (default 1)")
-    cv.add_argument("--k", type=float, default=3.0, help="multiple of the expected scatter that flags bias (default 3)")
+    cv.add_argument("--spp", default="1,2,4,8,16,32,64", type=options.spp_ladder,
+                    help="spp ladder, comma-separated (default 1,2,4,8,16,32,64)")
+    cv.add_argument("--seconds", type=options.seconds_ladder,
+                    help="time ladder, comma-separated seconds (chunks of --chunk-spp until spent)")
+    cv.add_argument("--chunk-spp", type=options.positive_int, default=1,
+                    help="spp per chunk of a --seconds rung (default 1)")
+    cv.add_argument("--film", type=options.film_size, help="resolution WIDTHxHEIGHT (default: the scene's)")
+    cv.add_argument("--ground-truth-spp", type=options.positive_int, default=1024,
+                    help="Mitsuba ground-truth spp (default 1024)")
+    cv.add_argument("--seed", type=options.non_negative_int, default=1,
+                    help="first seed; every render gets its own (default 1)")
+    cv.add_argument("--k", type=options.positive_number, default=3.0,
+                    help="multiple of the expected scatter that flags bias (default 3)")
     cv.add_argument("--out", help="output folder (default reports/convergence/<scene>)")
     cv.add_argument("--cache-dir", help="ground-truth cache folder")
     cv.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
@@ -566,7 +605,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     cal = sub.add_parser("calibrate", help="false alarms of the verdict over many seeds, and how planted faults fail")
     cal.add_argument("suite")
-    cal.add_argument("--seeds", type=int, default=50, help="seeds per expect=pass case (default 50)")
+    cal.add_argument("--seeds", type=options.positive_int, default=50, help="seeds per expect=pass case (default 50)")
     cal.add_argument("--cases", action="append", help="only cases whose name matches this glob (repeatable)")
     cal.add_argument("--out", help="output folder (default reports/<suite>-calibration)")
     cal.add_argument("--cache-dir")
@@ -620,7 +659,7 @@ class _OutsidePaths:
                 os.environ[ALLOW_OUTSIDE_ENV] = self.saved
 
 
-def main(argv: list[str] | None = None) -> int:
+def _run(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
         args = parser.parse_args(argv)
@@ -632,6 +671,44 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)
         return 130
+
+
+def _closed(stream) -> bool:
+    """Whether ``stream`` is a pipe (or socket) whose reader has gone: poll() reports an error on it."""
+    try:
+        poller = select.poll()
+        poller.register(stream.fileno(), select.POLLOUT)
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poller.poll(0))
+    except (AttributeError, OSError, ValueError):  # no poll() (Windows) or no file descriptor: assume closed
+        return True
+
+
+def _discard(stream) -> None:
+    """Point ``stream``'s file descriptor at /dev/null, so that what is still buffered (flushed again at
+    interpreter shutdown) goes nowhere instead of raising BrokenPipeError there."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, stream.fileno())
+        os.close(devnull)
+    except (AttributeError, OSError, ValueError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The ``harness`` command: its exit code. A closed stdout or stderr (``harness ... | head -c 10``) ends the
+    command quietly with :data:`EXIT_BROKEN_PIPE` (the Python documentation's recipe for SIGPIPE)."""
+    try:
+        try:
+            return _run(argv)
+        finally:  # also after --help's SystemExit: a closed pipe shows here, not at interpreter shutdown
+            sys.stdout.flush()
+    except BrokenPipeError:
+        broken = [stream for stream in (sys.stdout, sys.stderr) if _closed(stream)]
+        if not broken:  # not ours: some other pipe (a worker's) broke
+            raise
+        for stream in broken:
+            _discard(stream)
+        return EXIT_BROKEN_PIPE
 
 
 if __name__ == "__main__":

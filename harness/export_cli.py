@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from harness import options
 from harness.errors import HarnessError
 from harness.options import require_non_negative, require_positive
 
@@ -38,7 +39,9 @@ def register(sub) -> None:
     ex.add_argument("scene", help="scene file (TOML)")
     ex.add_argument("--format", required=True, help=f"one of: {', '.join(FORMATS)}")
     ex.add_argument("--out", required=True, help="output folder (created if needed)")
-    ex.add_argument("--spp", type=int, default=16, help="mitsuba-xml: default of the $spp parameter (default 16)")
-    ex.add_argument("--seed", type=int, default=0, help="mitsuba-xml: default of the $seed parameter (default 0)")
+    ex.add_argument("--spp", type=options.positive_int, default=16,
+                    help="mitsuba-xml: default of the $spp parameter (default 16)")
+    ex.add_argument("--seed", type=options.non_negative_int, default=0,
+                    help="mitsuba-xml: default of the $seed parameter (default 0)")
     ex.add_argument("--json", action="store_true", help="print the files written as JSON")
     ex.set_defaults(func=cmd_export)

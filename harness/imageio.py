@@ -40,7 +40,7 @@ from typing import BinaryIO
 import numpy as np
 import OpenEXR
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, not_regular
 
 __all__ = [
     "ExrImage",
@@ -405,6 +405,9 @@ def _read_channels(path: str) -> tuple[dict[str, np.ndarray], dict[str, object]]
     The header is read first and its claimed size checked (:func:`_check_claimed_size`), so a corrupted header
     cannot make the reader allocate more than a film the harness renders would need.
     """
+    irregular = None if os.path.isdir(path) else not_regular(path)  # a device or pipe: reading it never ends
+    if irregular is not None:
+        raise HarnessError(path, f"{irregular.message}; expected an OpenEXR image file")
     try:
         with open(path, "rb") as fh:
             magic = fh.read(4)

@@ -14,12 +14,34 @@ machine (``harness.scene.load``). Where the samples per pixel are known too (``h
   multi-light scenes with other work running; up to about 2 M/s unloaded); it is an order-of-magnitude estimate,
   so the limit only catches budgets far beyond reason, never a merely slow render.
 
+The reference renderer's settings change both (:func:`reference_cost`, checked by
+``harness.renderers.reference.ReferenceRenderer`` before anything is allocated, so for ``harness render``,
+``convergence`` and every suite case as it loads):
+
+* memory: each worker thread traces a batch of n camera samples (n from ``batch_size``, spp, the film and the
+  thread count, as ``reference_impl.integrator.render`` splits the work) and holds, per path of a wavefront,
+  ``WAVEFRONT_ROW_BYTES`` = 120 B (root and key 8 B each; origin, direction and throughput 3 x 8 B each; float32
+  copies of origin and direction 3 x 4 B each; the pdf 8 B), twice (the current and the next wavefront), plus
+  24 B of radiance and 32 B of hit record per camera sample and ``DIRECT_ROW_BYTES`` (60 B; 88 B for hemisphere
+  direct sampling) per direct-light ray (shadow_rays per hit). With ``indirect_rays`` = Ni > 1 the wavefront
+  branches: each bounce allocates room for Ni rows per current row (even at a bounce that spawns none), and a
+  wavefront longer than 4 x batch_size is split only at camera-sample boundaries, so one sample's m_j rows at
+  depth j are bounced together. m_1 = 1, m_{j+1} = m_j Ni s_j, with s_j the survival probability of Russian
+  roulette at depths >= rr_depth (rr = albedo: the largest reflectance in the scene; fixed: 1 - absorption; off:
+  1), counting every ray as a hit (a closed scene), for the depths 1 .. max_depth - 1 that bounce (max_depth with
+  direct = mis).
+* time: the paths' estimate above times the rays per camera sample, sum_j m_j (1 + shadow_rays), over that of the
+  default settings (Ni = 1, one shadow ray): (1 + shadow_rays) / 2 for Ni = 1. With max_depth = -1 (unbounded)
+  and Ni x survival >= 1 the branching never dies out in a closed scene: refused (set a max_depth).
+
 Every refusal is one :class:`HarnessError` line naming the key or option to change and giving both estimates.
 """
 
 from __future__ import annotations
 
+import math
 import os
+from dataclasses import dataclass
 
 from harness.errors import HarnessError
 
@@ -29,6 +51,14 @@ BYTES_PER_PIXEL = 2 * 24 + 3 * 24 + 2 * 12 + 2 * 12
 PATHS_PER_SECOND = 1e6
 MAX_SECONDS = 24 * 3600.0
 MEMORY_FRACTION = 0.5
+MAX_TIMEOUT_SECONDS = 7 * 24 * 3600.0  # a per-run timeout beyond a week is a typo (and 1e308 s overflows the OS)
+
+WAVEFRONT_ROW_BYTES = 2 * 8 + 3 * 24 + 2 * 12 + 8
+CAMERA_SAMPLE_BYTES = 24 + 8 + 24  # radiance, hit index and direct-light total of each camera sample
+DIRECT_ROW_BYTES = 8 + 12 + 12 + 4 + 24
+HEMISPHERE_DIRECT_ROW_BYTES = 8 + 12 + 12 + 24 + 8 + 24
+SPLIT_FACTOR = 4  # reference_impl.integrator._Context.split_cap = 4 * batch_size
+DEPTH_SUM_TERMS = 100_000  # an unbounded depth's sums stop here (or when their terms become negligible)
 
 
 def memory_bytes(width: int, height: int) -> float:
@@ -124,3 +154,97 @@ def check_render_cost(width: int, height: int, spp: int | None, *, film_where: s
         raise HarnessError(spp_where, (
             f"{width} x {height} pixels at {spp} spp need {estimate_text(width, height, spp)}, more than the "
             f"{format_seconds(MAX_SECONDS)} limit; lower {spp_name} or {film_keys}"))
+
+
+@dataclass(frozen=True)
+class ReferenceCost:
+    """What :func:`reference_cost` estimates for one reference render."""
+
+    memory: float  # bytes: the per-pixel buffers and every worker thread's wavefront buffers
+    seconds: float  # the paths' time estimate scaled by ``relative_work``
+    relative_work: float  # rays per camera sample over those of the default settings (math.inf: unbounded)
+    wavefront_rows: float  # the largest wavefront allocation of one thread, in paths
+    direct_rows: float = 0.0  # the direct-light rays of one thread's largest bounce
+    unbounded: bool = False  # max_depth = -1 and indirect_rays x survival >= 1: the branching never dies out
+
+
+def _batch(pixels: int, spp: int, batch_size: int, threads: int) -> tuple[int, int]:
+    """(camera samples per batch, threads that get work) as ``reference_impl.integrator.render`` splits a render."""
+    per_unit = max(1, batch_size // spp)
+    per_unit = min(per_unit, max(1, math.ceil(pixels / (4 * threads))))
+    samples = max(1, min(spp, batch_size // per_unit))
+    units = math.ceil(pixels / per_unit)
+    return per_unit * samples, min(threads, units)
+
+
+def _depth_terms(indirect_rays: int, survival: float, rr_depth: int, bounces: float):
+    """m_1, m_2, ... (expected rows per camera sample at each bouncing depth, every ray a hit), or None when the
+    sum of the m_j diverges (unbounded depth and indirect_rays x survival >= 1)."""
+    if bounces == math.inf and indirect_rays * survival >= 1:
+        return None
+    terms, m, total, depth = [], 1.0, 0.0, 1
+    while depth <= min(bounces, DEPTH_SUM_TERMS):
+        terms.append(m)
+        total += m
+        if m == math.inf:  # overflowed before roulette could stop it (0 x inf would hide it)
+            break
+        m *= indirect_rays * (survival if depth >= rr_depth else 1.0)
+        depth += 1
+        if depth > rr_depth and m < 1e-12 * total:  # the rest cannot change the sums
+            break
+    return terms
+
+
+def reference_cost(width: int, height: int, spp: int, *, shadow_rays: int = 1, indirect_rays: int = 1,
+                   max_depth: int = -1, survival: float = 1.0, rr_depth: int = 3, mis: bool = False,
+                   hemisphere_direct: bool = False, batch_size: int = 1 << 15, threads: int = 1) -> ReferenceCost:
+    """Memory and time estimates of a reference render with these settings (module docstring).
+
+    ``survival``: Russian roulette's survival probability (1.0 for rr = off); ``threads``: the resolved count.
+    """
+    pixels = int(width) * int(height)
+    n, busy = _batch(pixels, spp, batch_size, threads)
+    direct_row = HEMISPHERE_DIRECT_ROW_BYTES if hemisphere_direct else DIRECT_ROW_BYTES
+    bounces = math.inf if max_depth == -1 else max(1, max_depth if mis else max_depth - 1)
+    if indirect_rays == 1:
+        relative, rows, hits = (1 + shadow_rays) / 2, float(n), float(n)
+        per_thread = n * (2 * WAVEFRONT_ROW_BYTES + CAMERA_SAMPLE_BYTES + shadow_rays * direct_row)
+    else:
+        terms = _depth_terms(indirect_rays, survival, rr_depth, bounces)
+        plain = _depth_terms(1, survival, rr_depth, bounces)
+        if terms is None:
+            return ReferenceCost(math.inf, math.inf, math.inf, math.inf, math.inf, unbounded=True)
+        relative = sum(terms) * (1 + shadow_rays) / (2 * sum(plain))
+        split = SPLIT_FACTOR * batch_size
+        bounced = [min(n * m, max(split, m)) for m in terms]  # the longest wavefront bounced at each depth
+        rows, hits = max(bounced) * indirect_rays, max(bounced)
+        per_thread = (n * (WAVEFRONT_ROW_BYTES + CAMERA_SAMPLE_BYTES) + sum(bounced) * indirect_rays
+                      * WAVEFRONT_ROW_BYTES + max(bounced) * shadow_rays * direct_row)
+    memory = memory_bytes(width, height) + busy * per_thread
+    return ReferenceCost(memory, render_seconds(width, height, spp) * relative, relative, rows, hits * shadow_rays)
+
+
+def check_reference_cost(width: int, height: int, spp: int, *, where: str, settings_text: str, lower: str,
+                         **settings) -> None:
+    """Refuse a reference render whose :func:`reference_cost` breaks the memory or time limit: a HarnessError at
+    ``where`` (the setting to blame) that shows ``settings_text`` and says to lower ``lower``."""
+    cost = reference_cost(width, height, spp, **settings)
+    head = f"{width} x {height} pixels at {spp} spp with {settings_text}"
+    if cost.unbounded:
+        ni, survival = settings.get("indirect_rays", 1), settings.get("survival", 1.0)
+        raise HarnessError(where, (
+            f"indirect_rays = {ni} with max_depth = -1 (unbounded) and a Russian-roulette survival of up to "
+            f"{survival:g}: each hit spawns up to {ni * survival:g} paths on average, a branching that never dies out "
+            "in a closed scene; set a max_depth (--set max_depth=N or the scene's integrator.max_depth) or lower "
+            "indirect_rays"))
+    available = machine_memory()
+    if available is not None and cost.memory > MEMORY_FRACTION * available:
+        raise HarnessError(where, (
+            f"{head} need about {format_bytes(cost.memory)} of memory (per worker thread: wavefronts of up to "
+            f"{cost.wavefront_rows:.3g} paths and {cost.direct_rows:.3g} direct-light rays), more than {MEMORY_FRACTION:.0%} of this machine's "
+            f"{format_bytes(available)}; lower {lower}"))
+    if cost.seconds > MAX_SECONDS:
+        raise HarnessError(where, (
+            f"{head} need about {format_seconds(cost.seconds)} ({cost.relative_work:.3g} x the rays per path of the "
+            f"default settings, at {PATHS_PER_SECOND / 1e6:g} M default paths/s), more than the "
+            f"{format_seconds(MAX_SECONDS)} limit; lower {lower}"))

@@ -1,8 +1,24 @@
-"""Checks of command-line option values shared by the subcommands: one line naming the option (exit code 2)."""
+"""Checks of command-line option values shared by the subcommands: one line naming the option (exit code 2).
+
+Two layers. The argparse ``type=`` functions below (:func:`positive_int`, :func:`seconds`, :func:`spp_ladder`, ...)
+parse an option's text strictly as it is read: integers in plain decimal digits only (``int()`` would also take
+``1_000``, `` 7 `` and other scripts' digits), finite numbers only (no ``nan``, ``inf`` or ``1e999``), ladders
+strictly increasing. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
+(``harness.cli._Parser``). The ``require_*`` functions check values that did not come through argparse.
+"""
 
 from __future__ import annotations
 
+import argparse
+import math
+import re
+
 from harness.errors import HarnessError
+from harness.limits import MAX_TIMEOUT_SECONDS
+
+_INTEGER = re.compile(r"-?[0-9]+")
+_NUMBER = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
+_SIZE = re.compile(r"([0-9]+)[xX]([0-9]+)")
 
 
 def require_positive(option: str, value: int) -> int:
@@ -17,3 +33,112 @@ def require_non_negative(option: str, value: int) -> int:
     if value < 0:
         raise HarnessError(option, f"expected a non-negative integer, got {value}")
     return value
+
+
+# ---- argparse type= functions ---------------------------------------------------------------------------------
+
+
+def parse_int(text: str, what: str = "an integer") -> int:
+    """``text`` as an integer if it is plain decimal digits (an optional leading ``-``), else ArgumentTypeError."""
+    if not isinstance(text, str) or not _INTEGER.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected {what} in plain decimal digits, got {text!r}")
+    try:
+        return int(text)
+    except ValueError:  # more digits than Python converts (sys.get_int_max_str_digits)
+        raise argparse.ArgumentTypeError(f"expected {what} of a sensible size, got {len(text)} digits") from None
+
+
+def parse_number(text: str, what: str = "a finite number") -> float:
+    """``text`` as a finite float if it is a decimal number (``0.5``, ``2``, ``1e-3``), else ArgumentTypeError."""
+    if not isinstance(text, str) or not _NUMBER.fullmatch(text):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+    return value
+
+
+def int_type(minimum: int | None = None, maximum: int | None = None, what: str = "an integer"):
+    """An argparse ``type=`` for an integer in [minimum, maximum] (either bound optional); ``what`` names it."""
+
+    def convert(text: str) -> int:
+        value = parse_int(text, what)
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {value}")
+        return value
+
+    convert.__name__ = "integer"
+    return convert
+
+
+def number_type(*, positive: bool = False, maximum: float | None = None, what: str = "a finite number"):
+    """An argparse ``type=`` for a finite number, > 0 if ``positive``, <= ``maximum`` if given."""
+
+    def convert(text: str) -> float:
+        value = parse_number(text, what)
+        if (positive and not value > 0) or (maximum is not None and value > maximum):
+            raise argparse.ArgumentTypeError(f"expected {what}, got {text!r}")
+        return value
+
+    convert.__name__ = "number"
+    return convert
+
+
+positive_int = int_type(1, what="a positive integer")
+non_negative_int = int_type(0, what="a non-negative integer")
+positive_number = number_type(positive=True, what="a positive finite number")
+seconds = number_type(positive=True, maximum=MAX_TIMEOUT_SECONDS,
+                      what=f"a positive number of seconds of at most {MAX_TIMEOUT_SECONDS:g} (a week)")
+
+
+def probability(text: str) -> float:
+    """A false-alarm probability in (0, 1)."""
+    value = parse_number(text, "a false-alarm probability in (0, 1)")
+    if not 0 < value < 1:
+        raise argparse.ArgumentTypeError(f"expected a false-alarm probability in (0, 1), got {text!r}")
+    return value
+
+
+def film_size(text: str) -> str:
+    """``WIDTHxHEIGHT`` with positive plain-decimal sides (e.g. ``64x64``); returned as given."""
+    match = _SIZE.fullmatch(text) if isinstance(text, str) else None
+    if not match or int(match[1]) < 1 or int(match[2]) < 1:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT with positive integer sides, e.g. 64x64, got {text!r}")
+    return text
+
+
+def parse_ladder(text: str, kind: type = int) -> list:
+    """``'1,2,4'`` as a strictly increasing list of positive integers (``kind=int``) or finite numbers
+    (``kind=float``); ArgumentTypeError otherwise (a ladder out of order is refused, not sorted: it is likelier a
+    typo than a wish)."""
+    what = "positive integers" if kind is int else "positive numbers"
+    items = [item.strip() for item in str(text).split(",")]
+    if not any(items):
+        raise argparse.ArgumentTypeError(f"expected comma-separated {what}, e.g. 1,2,4, got {text!r}")
+    values = []
+    for item in items:
+        if not item:
+            continue
+        value = parse_int(item, "integers") if kind is int else parse_number(item, "finite numbers")
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"expected comma-separated {what}, got {item!r}")
+        if values and not value > values[-1]:
+            raise argparse.ArgumentTypeError(
+                f"expected a strictly increasing ladder, got {item} after {values[-1]} in {text!r}")
+        values.append(value)
+    return values
+
+
+def spp_ladder(text: str) -> str:
+    """An argparse ``type=`` for a comma-separated spp ladder (strictly increasing positive integers); the text
+    is returned as given, for the command's own parser ("" too: no ladder)."""
+    if str(text).strip():
+        parse_ladder(text, int)
+    return text
+
+
+def seconds_ladder(text: str) -> str:
+    """An argparse ``type=`` for a comma-separated ladder of seconds (strictly increasing, finite, > 0)."""
+    if str(text).strip():
+        parse_ladder(text, float)
+    return text

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from harness import options
 from harness.errors import HarnessError
 from harness.options import require_non_negative, require_positive
 from harness.runstate import output_folder
@@ -714,13 +715,17 @@ def add_parser(sub) -> None:
                         help=f"a variant (repeatable; default: all of {', '.join(DEFAULT_VARIANTS)})")
     stress.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a reference renderer setting (repeatable), e.g. direct=mis or mutant=double-emission")
-    stress.add_argument("--spp", type=int, default=64, help="samples per pixel of each render (default 64)")
-    stress.add_argument("--seed", type=int, default=0)
-    stress.add_argument("--film", default="64x64", help="resolution WIDTHxHEIGHT (default 64x64)")
-    stress.add_argument("--ground-truth-spp", type=int, default=1024, help="Mitsuba ground truth spp (default 1024)")
-    stress.add_argument("--k", type=float, default=DEFAULT_K,
+    stress.add_argument("--spp", type=options.positive_int, default=64,
+                        help="samples per pixel of each render (default 64)")
+    stress.add_argument("--seed", type=options.non_negative_int, default=0)
+    stress.add_argument("--film", default="64x64", type=options.film_size,
+                        help="resolution WIDTHxHEIGHT (default 64x64)")
+    stress.add_argument("--ground-truth-spp", type=options.positive_int, default=1024,
+                        help="Mitsuba ground truth spp (default 1024)")
+    stress.add_argument("--k", type=options.positive_number, default=DEFAULT_K,
                         help=f"firefly threshold in standard deviations (default {DEFAULT_K:g})")
-    stress.add_argument("--alpha", type=float, default=0.001, help="verdict false-alarm probability (default 0.001)")
+    stress.add_argument("--alpha", type=options.probability, default=0.001,
+                        help="verdict false-alarm probability (default 0.001)")
     stress.add_argument("--out", help="folder for stress.json and stress.md")
     stress.add_argument("--cache-dir", help="ground-truth cache folder")
     stress.add_argument("--mitsuba-variant", help="override the Mitsuba variant")

@@ -30,7 +30,6 @@ missing or invalid renderer file is a user error (:class:`~harness.errors.Harnes
 
 from __future__ import annotations
 
-import math
 import os
 import re
 import shlex
@@ -45,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.errors import HarnessError, read_user_toml
+from harness.limits import MAX_TIMEOUT_SECONDS
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 
@@ -54,6 +54,10 @@ DEFAULT_TIMEOUT_S = 600.0
 DEFAULT_REPEATS = 4
 STDERR_TAIL_LINES = 3
 _PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
+MAX_REPEATS = 1000  # each repeat is a whole run of the program, and every image is held until they are combined
+#: a renderer's name: it is shown in tables and goes into a temporary folder's name, so no "/", "..", control
+#: characters or leading "-"
+SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9 ._+-]{0,63}")
 
 
 class ExternalRendererError(RuntimeError):
@@ -93,17 +97,32 @@ def load_spec(path: str | Path) -> ExternalSpec:
     if not any("{out}" in arg for arg in command):
         raise HarnessError(f"{label}: command", "expected an argument with {out} (the EXR the renderer writes)")
     timeout = doc.get("timeout", DEFAULT_TIMEOUT_S)
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (0 < timeout < math.inf):
-        raise HarnessError(f"{label}: timeout", f"expected a positive number of seconds, got {timeout!r}")
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (0 < timeout <= MAX_TIMEOUT_SECONDS):
+        raise HarnessError(f"{label}: timeout", f"expected a positive number of seconds of at most "
+                           f"{MAX_TIMEOUT_SECONDS:g} (a week), got {_short(timeout)}")
     repeats = doc.get("repeats", DEFAULT_REPEATS)
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 2:
-        raise HarnessError(f"{label}: repeats", f"expected an integer >= 2, got {repeats!r}")
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or not 2 <= repeats <= MAX_REPEATS:
+        raise HarnessError(f"{label}: repeats", f"expected an integer from 2 to {MAX_REPEATS}, got {_short(repeats)}")
     name = doc.get("name", path.stem)
     description = doc.get("description", "")
     for key, value in (("name", name), ("description", description)):
         if not isinstance(value, str):
-            raise HarnessError(f"{label}: {key}", f"expected a string, got {value!r}")
+            raise HarnessError(f"{label}: {key}", f"expected a string, got {_short(value)}")
+    if not SAFE_NAME.fullmatch(name):
+        default = "" if "name" in doc else " (no name key: the file's stem)"
+        raise HarnessError(f"{label}: name", (
+            f"expected 1 to 64 letters, digits, spaces and . _ + - starting with a letter or digit (the name goes "
+            f"into file names), got {_short(name)}{default}"))
     return ExternalSpec(name, path.resolve(), tuple(command), float(timeout), repeats, description)
+
+
+def _short(value, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters (an integer beyond Python's digit limit as "a huge integer")."""
+    try:
+        text = repr(value)
+    except ValueError:
+        return "a huge integer"
+    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def repeat_seed(seed: int, index: int) -> int:

@@ -606,10 +606,12 @@ def pass_seed(seed: int, index: int) -> int:
 
 
 def _parse_int(key: str, value: str) -> int:
-    try:
-        return int(str(value).strip())
-    except ValueError:
-        raise HarnessError(f"--set {key}", f"expected an integer, got {value!r}") from None
+    """A setting's integer: plain decimal digits (``int()`` takes ``1_000`` too), within Mitsuba's 32 bits."""
+    text = str(value).strip() if not isinstance(value, bool) else ""
+    if not re.fullmatch(r"-?[0-9]{1,10}", text) or not -(2**31) <= int(text) < 2**31:
+        raise HarnessError(f"--set {key}", f"expected an integer in plain decimal digits, of at most 2**31 - 1, "
+                           f"got {value!r}")
+    return int(text)
 
 
 @dataclass(frozen=True)

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import dataclasses
+import re
 
 import reference_impl
 from harness.errors import HarnessError
+from harness.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene, triangulate
 
@@ -21,6 +23,7 @@ class ReferenceRenderer:
         for key in ("spp", "seed"):
             if key in values:
                 raise HarnessError(f"--set {key}", f"give {key} with --{key}, not --set")
+        _check_integer_texts(values)
         try:
             settings = reference_impl.Settings.from_strings(values)
             settings = dataclasses.replace(settings, spp=request.spp, seed=request.seed)
@@ -29,6 +32,7 @@ class ReferenceRenderer:
             settings.resolved_max_depth(settings.max_depth)
         except reference_impl.SettingsError as err:
             raise HarnessError(f"--set {err.key}", err.message) from None
+        _check_cost(scene, settings)
         return settings
 
     def check(self, scene: Scene, request: RenderRequest) -> None:
@@ -59,3 +63,49 @@ class ReferenceRenderer:
             settings=settings.as_dict(),
             info={"threads": settings.worker_threads(), "triangles": int(len(geometry.triangles))},
         )
+
+
+_PLAIN_INTEGER = re.compile(r"-?[0-9]+")
+#: settings that shape the work per camera sample, the first non-default of which a cost refusal names
+COST_SETTINGS = ("indirect_rays", "shadow_rays", "max_depth", "batch_size", "threads")
+
+
+def _check_integer_texts(values: dict) -> None:
+    """Refuse ``--set KEY=VALUE`` text for an integer setting that is not plain decimal digits (``int()`` takes
+    ``1_000`` and other scripts' digits too)."""
+    defaults = reference_impl.Settings()
+    for key, text in values.items():
+        default = getattr(defaults, key, None)
+        integer = key == "max_depth" or (isinstance(default, int) and not isinstance(default, bool))
+        if not integer or not isinstance(text, str):
+            continue
+        if key == "max_depth" and text.strip().lower() in ("", "none", "scene"):
+            continue
+        if not _PLAIN_INTEGER.fullmatch(text.strip()):
+            raise HarnessError(f"--set {key}", f"expected an integer in plain decimal digits, got {text!r}")
+
+
+def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
+    """The largest probability that Russian roulette lets a path go on (1.0 without roulette)."""
+    if settings.rr == "off":
+        return 1.0
+    if settings.rr == "fixed":
+        return 1.0 - settings.absorption
+    return max((max(m.reflectance) for m in scene.materials.values()), default=0.0)
+
+
+def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
+    """Refuse settings whose memory or time estimate (harness.limits.reference_cost) is absurd, before anything is
+    allocated: one line at ``--set KEY`` for the first setting of COST_SETTINGS that is not its default."""
+    defaults = reference_impl.Settings()
+    changed = [key for key in COST_SETTINGS if getattr(settings, key) != getattr(defaults, key)
+               and not (key == "max_depth" and settings.max_depth == scene.max_depth)]
+    where = f"--set {changed[0]}" if changed else "--spp"
+    shown = ", ".join(f"{key} = {getattr(settings, key)}" for key in COST_SETTINGS[:3])
+    check_reference_cost(
+        scene.film.width, scene.film.height, settings.spp, where=where, settings_text=shown,
+        lower=f"{', '.join(changed)}, --spp or the film" if changed else "--spp or the film",
+        shadow_rays=settings.shadow_rays, indirect_rays=settings.indirect_rays, max_depth=settings.max_depth,
+        survival=_survival(scene, settings), rr_depth=settings.rr_depth, mis=settings.direct == "mis",
+        hemisphere_direct=settings.direct in ("hemisphere-cosine", "hemisphere-uniform"),
+        batch_size=settings.batch_size, threads=settings.worker_threads())

@@ -22,7 +22,7 @@ import trimesh
 from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 
-from harness.errors import HarnessError
+from harness.errors import HarnessError, not_regular, read_user_bytes
 from harness.limits import MAX_FILM_SIDE, estimate_text, film_problem
 from harness.scene.model import SHAPE_TYPES, Material, Scene, Shape
 from harness.scene.triangulate import (
@@ -52,9 +52,14 @@ MESH_SUFFIXES = (".ply", ".obj")
 DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
 DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
 MAX_SUBDIVISIONS = 7  # 327 680 triangles
+# Radiance per channel: a path's sample is emission times weights that reach 1e6 and more near small lights, and
+# the variance squares it; both must stay far inside float32 (3.4e38), the type of every image and EXR.
+MAX_EMISSION = 1e12
+MAX_MESH_BYTES = 2**30  # a mesh file is read whole (and an OBJ scanned line by line) before trimesh parses it
 INT32_MAX = 2**31 - 1
 
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+_OBJ_INDEX = re.compile(rb"[-+]?[0-9]+")
 _TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
 _TOML_END = "(at end of document)"
 
@@ -86,14 +91,7 @@ def outside_paths_allowed() -> bool:
 def _read_toml(path: Path) -> dict[str, Any]:
     """The parsed TOML document; file-system, encoding and syntax problems become :class:`HarnessError`."""
     label = str(path)
-    try:
-        data = path.read_bytes()
-    except FileNotFoundError:
-        raise HarnessError(label, "no such scene file") from None
-    except IsADirectoryError:
-        raise HarnessError(label, "expected a scene file, got a directory") from None
-    except (OSError, ValueError) as err:
-        raise HarnessError(label, f"cannot read the scene file ({err})") from None
+    data = read_user_bytes(path, missing="no such scene file", directory="expected a scene file, got a directory")
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as err:
@@ -405,9 +403,9 @@ class _SceneReader:
         return name
 
     def emission(self, value: Any, key: str) -> tuple[float, float, float]:
-        what = "a list of 3 finite numbers >= 0, not all 0"
+        what = f"a list of 3 finite numbers >= 0, not all 0, each at most {MAX_EMISSION:g}".replace("e+", "e")
         radiance = self.vector3(value, key, what)
-        if min(radiance) < 0 or max(radiance) == 0:
+        if min(radiance) < 0 or max(radiance) == 0 or max(radiance) > MAX_EMISSION:
             raise self.expected(key, what, value)
         return radiance
 
@@ -476,6 +474,15 @@ class _SceneReader:
         if not name.lower().endswith(MESH_SUFFIXES):
             raise self.expected(file_key, "a .ply or .obj file name", name)
         path = self.file_path(name, file_key, "mesh")
+        size = path.stat().st_size
+        if size > MAX_MESH_BYTES:
+            raise self.error(file_key, f"mesh file {name!r} is {size / 2**20:.0f} MiB; expected at most "
+                                       f"{MAX_MESH_BYTES / 2**30:g} GiB")
+        if path.suffix.lower() == ".obj":
+            problem = obj_face_problem(read_user_bytes(path, missing="no such mesh file", where=file_key,
+                                                       limit=MAX_MESH_BYTES))
+            if problem:
+                raise self.error(file_key, f"mesh {name!r}: {problem}")
         try:
             mesh = trimesh.load(path, force="mesh", process=False)
             vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
@@ -504,6 +511,9 @@ class _SceneReader:
             raise self.error(key, (
                 f"{what} file {name!r} resolves to {str(path)!r}, outside the scene's folder {str(folder)!r}; "
                 "expected a file inside it (--allow-outside-paths allows others)"))
+        irregular = not_regular(path, key)
+        if irregular is not None:
+            raise self.error(key, f"{what} file {name!r} is {irregular.message}") from None
         try:
             exists = path.is_file()
         except (OSError, ValueError):
@@ -538,6 +548,57 @@ class _SceneReader:
                 raise self.error(placement_key, f"the area of light {shape.name!r} overflows")
             if area <= 0:
                 raise self.error(key, f"zero-area light {shape.name!r}: all of its triangles are degenerate")
+
+
+def obj_face_problem(data: bytes) -> str | None:
+    """Why the faces of an OBJ file's text are wrong, or None. OBJ indices are 1-based (negative: relative to the
+    last one so far); trimesh turns an index 0 (``f 0 1 2``, ``f 1/0 2 3``) into some other vertex and goes on, so
+    every index is checked here: an integer, not 0, naming a vertex (texture coordinate, normal) that exists."""
+    kinds = (b"v", b"vt", b"vn")
+    lines = data.splitlines()
+    totals = dict.fromkeys(kinds, 0)
+    for line in lines:
+        head = line.split(None, 1)[:1]
+        if head and head[0] in totals:
+            totals[head[0]] += 1
+    so_far = dict.fromkeys(kinds, 0)
+    for number, line in enumerate(lines, 1):
+        fields = line.split()
+        if not fields:
+            continue
+        if fields[0] in so_far:
+            so_far[fields[0]] += 1
+        if fields[0] != b"f":
+            continue
+        for token in fields[1:]:
+            if token.startswith(b"#"):
+                break
+            problem = _obj_index_problem(token, totals, so_far)
+            if problem:
+                return f"line {number}: {problem}"
+    return None
+
+
+def _obj_index_problem(token: bytes, totals: dict, so_far: dict) -> str | None:
+    """Why one face vertex (``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``) of an OBJ file is wrong, or None."""
+    shown = _show(token.decode("utf-8", "replace"))
+    parts = token.split(b"/")
+    if len(parts) > 3 or not parts[0]:
+        return f"expected a face vertex v, v/vt, v//vn or v/vt/vn, got {shown}"
+    for kind, part in zip((b"v", b"vt", b"vn"), parts):
+        if not part:
+            continue
+        if not _OBJ_INDEX.fullmatch(part):
+            return f"expected integer indices in a face, got {shown}"
+        index = int(part)
+        if index == 0:
+            return f"index 0 in the face vertex {shown}; OBJ indices start at 1"
+        total = totals[kind] if index > 0 else so_far[kind]
+        if abs(index) > total:
+            where = " before it" if index < 0 else ""
+            return (f"the face vertex {shown} names {kind.decode()} {index}, but the file has {total} "
+                    f"{kind.decode()} lines{where}")
+    return None
 
 
 def _finite_float(value: Any) -> float | None:
