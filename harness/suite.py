@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from harness.errors import HarnessError, read_user_toml
+from harness.limits import MAX_TIMEOUT_SECONDS
 
 SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/baseline.py
 CASE_KEYS = (
@@ -181,10 +182,18 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
         thresholds={k: float(v) for k, v in thresholds.items()}, expect=expect, alpha=alpha,
         tile=_tile(label, key("tile"), d.get("tile", 8)),
         ground_truth_spp=_at_least_two(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024)),
-        timeout=(None if d.get("timeout") is None
-                 else float(_positive(label, key("timeout"), d["timeout"], (int, float)))),
+        timeout=(None if d.get("timeout") is None else _timeout(label, key("timeout"), d["timeout"])),
         variant=_stress_variant(label, key("variant"), d.get("variant")),
     )
+
+
+def _timeout(label: str, key: str, value: Any) -> float:
+    """A case's ``timeout`` in seconds: positive, at most a week (1e308 s overflowed the OS's timeout)."""
+    value = _positive(label, key, value, (int, float))
+    if not value <= MAX_TIMEOUT_SECONDS:
+        raise HarnessError(f"{label}: {key}",
+                           f"expected at most {MAX_TIMEOUT_SECONDS:g} seconds (a week), got {_short(value)}")
+    return float(value)
 
 
 def _case_name(label: str, key: str, value: Any, default: bool) -> str:

@@ -327,3 +327,12 @@ def test_lock_is_exclusive_between_processes(tmp_path):
     free = subprocess.run([sys.executable, "-c", code, str(out)], capture_output=True, text=True, env=env)
     assert busy.returncode == 2 and f"process {os.getpid()}" in busy.stdout, busy
     assert free.returncode == 0, free
+
+
+@pytest.mark.parametrize("value", ["1e308", "10" + "0" * 400, "700000"])
+def test_case_timeout_beyond_a_week_is_refused(tmp_path, value):
+    """A case's ``timeout`` of 1e308 s overflowed the OS's timeout at run time; at most a week, refused at load."""
+    path = tmp_path / "s.toml"
+    path.write_text(f'name = "s"\n[[cases]]\nscene = "cornell-box"\ntimeout = {value}\n')
+    with pytest.raises(HarnessError, match=r"cases\[0\]\.timeout: expected (at most 604800 seconds \(a week\)|a finite number)"):
+        load_suite(path)
