@@ -48,6 +48,7 @@ import numpy as np
 from scipy import stats
 
 from harness.errors import HarnessError, read_user_text
+from harness.results import read_results
 
 SCHEMA = "rendering-harness/baseline"
 VERSION = 1
@@ -517,14 +518,7 @@ def save_command(args) -> int:
 
 def _read_results(path: str | Path, suite) -> dict:
     label = str(path)
-    try:
-        results = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HarnessError(f"--from {label}", "no such results file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise HarnessError(f"--from {label}", f"cannot read a results.json: {err}") from None
-    if not isinstance(results, dict) or not isinstance(results.get("cases"), list):
-        raise HarnessError(f"--from {label}", "expected a results.json written by harness run")
+    results = read_results(path, where=f"--from {label}")  # checked: a malformation names its JSON path
     if results.get("suite") != suite.name:
         raise HarnessError(f"--from {label}", f"results of suite {results.get('suite')!r}, not {suite.name!r}")
     by_name = {c.name: c for c in suite.cases}
