@@ -172,9 +172,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
         m = report["metrics"]
         v = report["verdict"]
         print(f"verdict: {v['verdict']}" + (f" ({v.get('reason')})" if v.get("reason") else ""))
+        # a metric that is not a finite number is None (null in --json): PSNR of identical images or of an all-zero
+        # reference, every metric when no pixel is finite in both images
+        why = " (no pixel is finite in both images)" if not report.get("metric_pixels") else ""
         for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
             if key in m:
-                print(f"  {key:7s} {m[key]:.6g}")
+                print(f"  {key:7s} {m[key]:.6g}" if m[key] is not None else f"  {key:7s} undefined{why}")
     return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL
 
 
