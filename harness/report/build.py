@@ -889,25 +889,40 @@ def _suite_html(results, results_path, items, sections, options, suite_note) -> 
 # ---- summary.md ------------------------------------------------------------------------------------------------
 
 
-def _md(text: Any) -> str:
-    return str(text).replace("|", "\\|").replace("\n", " ")
+#: Markdown's inline punctuation that could start markup (emphasis, code, links, images, strikethrough, headings,
+#: table cells), escaped with a backslash; < > & become entities, since Markdown passes HTML through
+_MD_PUNCTUATION = "\\`*_[]|~#"
+_MD_TABLE = str.maketrans({**{c: "\\" + c for c in _MD_PUNCTUATION}, "<": "&lt;", ">": "&gt;", "&": "&amp;",
+                           "\n": " ", "\r": " ", "\t": " ", "\v": " ", "\f": " ", "\x85": " ", "\u2028": " ",
+                           "\u2029": " "})
+
+
+def _md(value: Any) -> str:
+    """``str(value)`` as literal text in Markdown that is rendered as HTML (CI step summaries, wikis): no tag,
+    entity, emphasis, code span, link or table cell can start in it, and it stays on one line."""
+    return str(value).translate(_MD_TABLE)
+
+
+def _mdf(value: Any, digits: int = 4) -> str:
+    """A number (or whatever stands in its place) for summary.md: :func:`fmt`, escaped."""
+    return _md(fmt(value, digits))
 
 
 def _summary_md(results, items, sections) -> str:
     s = results.get("summary") or {}
     lines = [f"# Suite report: {_md(results.get('suite'))}", "",
-             f"{s.get('ok')}/{s.get('cases')} cases as expected ({s.get('passed')} passed, {s.get('failed')} failed, "
-             f"{s.get('errors')} errors); {s.get('mitsuba_renders')} Mitsuba renders. Full report: `index.html`; "
-             "numbers: `report.json`.", ""]
+             f"{_mdf(s.get('ok'))}/{_mdf(s.get('cases'))} cases as expected ({_mdf(s.get('passed'))} passed, "
+             f"{_mdf(s.get('failed'))} failed, {_mdf(s.get('errors'))} errors); {_mdf(s.get('mitsuba_renders'))} "
+             "Mitsuba renders. Full report: `index.html`; numbers: `report.json`.", ""]
     if s.get("unexpected"):
         lines += ["**Not as expected:** " + ", ".join(_md(n) for n in s["unexpected"]), ""]
     lines += ["| case | status | expect | RMSE | relMSE | FLIP | time [s] |", "|---|---|---|---|---|---|---|"]
     for item in items:
         r = item.record
         m = r.get("metrics") or {}
-        lines.append(f"| {_md(r.get('name'))} | {r.get('status')}{'' if r.get('ok') else ' (unexpected)'} | "
-                     f"{r.get('expect')} | {fmt(m.get('rmse'))} | {fmt(m.get('relmse'))} | {fmt(m.get('flip'))} | "
-                     f"{fmt((r.get('render') or {}).get('seconds'), 3)} |")
+        lines.append(f"| {_md(r.get('name'))} | {_md(r.get('status'))}{'' if r.get('ok') else ' (unexpected)'} | "
+                     f"{_md(r.get('expect'))} | {_mdf(m.get('rmse'))} | {_mdf(m.get('relmse'))} | "
+                     f"{_mdf(m.get('flip'))} | {_mdf((r.get('render') or {}).get('seconds'), 3)} |")
     c = sections.get("convergence")
     if c:
         lines += ["", "## Convergence (slope of log RMSE against log spp; -1/2 when unbiased)", ""]
@@ -917,15 +932,17 @@ def _summary_md(results, items, sections) -> str:
                 continue
             for series in e["result"]["series"]:
                 f = series["fit_rmse"]
-                flag = (f"flattens from {fmt(f.get('departure_spp'))} spp (bias?)" if f.get("biased")
+                flag = (f"flattens from {_mdf(f.get('departure_spp'))} spp (bias?)" if f.get("biased")
                         else "no flattening")
-                lines.append(f"- {_md(e['scene_name'])}, {_md(series['label'])}: slope {fmt(f.get('slope'), 3)}; {flag}")
+                lines.append(f"- {_md(e['scene_name'])}, {_md(series['label'])}: slope {_mdf(f.get('slope'), 3)}; "
+                             f"{flag}")
     sr = sections.get("shadow_rays")
     if sr and sr.get("rows"):
         lines += ["", "## Noise against shadow rays (spp = 1)", "",
                   "| shadow rays | RMSE penumbra | time [s] |", "|---|---|---|"]
         for r in sr["rows"]:
-            lines.append(f"| {r['shadow_rays']} | {fmt(r['penumbra']['rmse_corrected'])} | {fmt(r['seconds'], 3)} |")
+            lines.append(f"| {_mdf(r['shadow_rays'])} | {_mdf(r['penumbra']['rmse_corrected'])} | "
+                         f"{_mdf(r['seconds'], 3)} |")
     st = sections.get("strategies")
     if st:
         lines += ["", "## Best strategy per scene (efficiency relative to the default)", ""]
@@ -935,8 +952,8 @@ def _summary_md(results, items, sections) -> str:
             else:
                 near = [n for n in e.get("near_best") or [] if n != e.get("best")]
                 lines.append(f"- {_md(e['scene'])}: {_md(e.get('best'))} "
-                             f"({fmt(e.get('best_relative_efficiency'), 3)} x the default)"
-                             + (f"; within {fmt(e.get('tie_factor'))} x: {_md(', '.join(near))}" if near else ""))
+                             f"({_mdf(e.get('best_relative_efficiency'), 3)} x the default)"
+                             + (f"; within {_mdf(e.get('tie_factor'))} x: {_md(', '.join(near))}" if near else ""))
     return "\n".join(lines) + "\n"
 
 
@@ -945,19 +962,23 @@ def _summary_md(results, items, sections) -> str:
 
 def write_convergence_report(result: dict, out_dir: str | Path, *, title: str = "") -> dict:
     """Write a convergence run (:func:`harness.report.convergence.run_convergence`) as ``DIR/convergence.json``,
-    ``DIR/convergence.png``, a self-contained ``DIR/index.html`` and ``DIR/summary.md``."""
-    from harness.imageio import atomic_write_text
-
+    ``DIR/convergence.png``, a self-contained ``DIR/index.html`` and ``DIR/summary.md``, moved into place together
+    (:class:`harness.imageio.StagedFolder`: a failed write leaves the folder as it was)."""
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
     name = result.get("scene_name") or Path(str(result.get("scene"))).stem
     title = title or f"Convergence: {name}"
     png = figures.convergence_figure(result, title=title)
     plot = out / "convergence.png"
-    _write_bytes(plot, png)
+    with StagedFolder(out, "--out") as stage:
+        _write_convergence_files(result, stage.root, title, png, plot)
+        stage.commit(last=("index.html",))
+    return {"index": out / "index.html", "report_json": out / "convergence.json", "summary": out / "summary.md",
+            "plot": plot}
+
+
+def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes, plot: Path) -> None:
+    """The files of :func:`write_convergence_report` written into ``folder``; ``plot`` is where the plot will be."""
+    _write_bytes(folder / plot.name, png)
     gt = result["ground_truth"]
     doc = dict(result, schema=REPORT_SCHEMA, kind="convergence", generated=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                plot=str(plot), definitions={k: DEFINITIONS[k] for k in ("mse_corrected", "convergence_fit",
