@@ -308,8 +308,11 @@ def _report_options(args: argparse.Namespace, **overrides):
 
 
 def _write_run_report(args: argparse.Namespace, out: Path) -> None:
-    """The report of a finished run (DIR/index.html, report.json, summary.md). A failure is one line on stderr and
-    leaves the run's exit code alone."""
+    """The report of a finished run (DIR/index.html, report.json, summary.md). A report that fails in its own
+    code is one line on stderr and leaves the run's exit code alone; one that cannot be written (a full disk) is a
+    WriteError: one line and exit code 2, the old report (if any) left as it was."""
+    from harness.imageio import WriteError
+
     try:
         from harness.report import write_suite_report
 
@@ -317,7 +320,7 @@ def _write_run_report(args: argparse.Namespace, out: Path) -> None:
             return
         paths = write_suite_report(out / "results.json", out, _report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, WriteError):
         raise
     except Exception as err:  # noqa: BLE001 - the gate's result stands whatever happens to its report
         reason = " ".join(str(err).split()) or type(err).__name__
