@@ -48,6 +48,7 @@ import numpy as np
 from scipy import stats
 
 from harness.errors import HarnessError, read_user_text
+from harness.results import read_results
 from harness.suite import _float_or_inf, _hint, _key, _short
 
 SCHEMA = "rendering-harness/baseline"
@@ -522,14 +523,7 @@ def save_command(args) -> int:
 
 def _read_results(path: str | Path, suite) -> dict:
     label = str(path)
-    try:
-        results = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise HarnessError(f"--from {label}", "no such results file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise HarnessError(f"--from {label}", f"cannot read a results.json: {err}") from None
-    if not isinstance(results, dict) or not isinstance(results.get("cases"), list):
-        raise HarnessError(f"--from {label}", "expected a results.json written by harness run")
+    results = read_results(path, where=f"--from {label}")  # checked: a malformation names its JSON path
     if results.get("suite") != suite.name:
         raise HarnessError(f"--from {label}", f"results of suite {results.get('suite')!r}, not {suite.name!r}")
     by_name = {c.name: c for c in suite.cases}

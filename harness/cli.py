@@ -185,9 +185,12 @@ def cmd_compare(args: argparse.Namespace) -> int:
         m = report["metrics"]
         v = report["verdict"]
         print(f"verdict: {v['verdict']}" + (f" ({v.get('reason')})" if v.get("reason") else ""))
+        # a metric that is not a finite number is None (null in --json): PSNR of identical images or of an all-zero
+        # reference, every metric when no pixel is finite in both images
+        why = " (no pixel is finite in both images)" if not report.get("metric_pixels") else ""
         for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
             if key in m:
-                print(f"  {key:7s} {m[key]:.6g}")
+                print(f"  {key:7s} {m[key]:.6g}" if m[key] is not None else f"  {key:7s} undefined{why}")
     return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL
 
 
@@ -317,8 +320,11 @@ def _report_options(args: argparse.Namespace, **overrides):
 
 
 def _write_run_report(args: argparse.Namespace, out: Path) -> None:
-    """The report of a finished run (DIR/index.html, report.json, summary.md). A failure is one line on stderr and
-    leaves the run's exit code alone."""
+    """The report of a finished run (DIR/index.html, report.json, summary.md). A report that fails in its own
+    code is one line on stderr and leaves the run's exit code alone; one that cannot be written (a full disk) is a
+    WriteError: one line and exit code 2, the old report (if any) left as it was."""
+    from harness.imageio import WriteError
+
     try:
         from harness.report import write_suite_report
 
@@ -326,7 +332,7 @@ def _write_run_report(args: argparse.Namespace, out: Path) -> None:
             return
         paths = write_suite_report(out / "results.json", out, _report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, WriteError):
         raise
     except Exception as err:  # noqa: BLE001 - the gate's result stands whatever happens to its report
         reason = " ".join(str(err).split()) or type(err).__name__

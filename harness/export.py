@@ -25,7 +25,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from harness.errors import HarnessError
-from harness.imageio import atomic_write_bytes, atomic_write_text
+from harness.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
@@ -186,14 +186,12 @@ def _trimesh_scene(scene: Scene):
 
 def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
     """Write ``scene`` in format ``fmt`` (one of :data:`FORMATS`) into the folder ``out_dir`` (created if needed);
-    returns the files written, the main file first."""
+    returns the files written, the main file first. The files are written into a staging folder and moved into
+    place together (:class:`harness.imageio.StagedFolder`): a failed write (a full disk) leaves ``out_dir`` as it
+    was, and no folder made for it."""
     if fmt not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
     out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise HarnessError("--out", f"cannot create {str(out_dir)!r}: {err.strerror}") from None
     files: dict[str, bytes] = {}
     if fmt == "mitsuba-xml":
         text, meshes = mitsuba_xml(scene, spp=spp, seed=seed)
@@ -216,13 +214,13 @@ def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, 
         main = next(name for name in parts if name.endswith(".gltf"))
         files["scene.gltf"] = parts[main]
         files.update({name: data for name, data in parts.items() if name != main})
-    written = []
-    for rel, data in files.items():
-        path = out_dir / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(data, str):
-            atomic_write_text(path, data)
-        else:
-            atomic_write_bytes(path, data)
-        written.append(path)
-    return written
+    with StagedFolder(out_dir, "--out") as stage:
+        for rel, data in files.items():
+            path = stage.root / rel
+            make_folders(path.parent)
+            if isinstance(data, str):
+                atomic_write_text(path, data)
+            else:
+                atomic_write_bytes(path, data)
+        stage.commit(last=tuple(rel.split("/")[0] for rel in list(files)[:1]))  # the main file last
+    return [out_dir / rel for rel in files]

@@ -2,7 +2,8 @@
 
 Cache layout (``<cache>/groundtruth/<key>/``): ``estimate.npz`` (mean, variance of the mean, spp), ``image.exr``
 (the same as an OpenEXR file for viewers) and ``meta.json`` (what was rendered, how, and the SHA-256 of both data
-files). The key is a SHA-256 over everything that determines the image: the scene file and every file it
+files and of meta.json's own content with the entry's key, so that an edited ``spp`` or ``chunks``, or an entry
+copied under another key, is damage like any other). The key is a SHA-256 over everything that determines the image: the scene file and every file it
 references (bytes), the film (size, filter), max_depth, Mitsuba's version, the variant, spp, seed and chunking.
 
 Long renders are split into chunks of ``chunk_spp`` samples, each its own cache entry, merged exactly
@@ -37,6 +38,7 @@ FORMAT_VERSION = 1
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
 DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
+META_CHECKSUM = "meta.json"  # the checksum of meta.json's content (but the checksums) and the entry's key
 
 
 @dataclass
@@ -148,6 +150,12 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def _meta_sha256(key: str, meta: dict) -> str:
+    """SHA-256 of an entry's key and its metadata but the checksums, as meta.json holds them (JSON, sorted keys)."""
+    content = {k: v for k, v in meta.items() if k != "sha256"}
+    return hashlib.sha256(f"{key}\n{json.dumps(content, sort_keys=True)}".encode()).hexdigest()
+
+
 class Cache:
     """Content-addressed entries of per-pixel estimates under ``root/groundtruth``."""
 
@@ -170,8 +178,10 @@ class Cache:
             meta = json.loads(meta_path.read_text())
             # meta.json may parse and still be garbage (null, a list, no checksums): every data file must be listed
             checksums = meta.get("sha256") if isinstance(meta, dict) else None
-            if not isinstance(checksums, dict) or any(name not in checksums for name in DATA_FILES):
-                raise ValueError("meta.json lacks the checksums of the data files")
+            if not isinstance(checksums, dict) or any(name not in checksums for name in (*DATA_FILES, META_CHECKSUM)):
+                raise ValueError("meta.json lacks the checksums of the data files or its own")  # older entries too
+            if checksums[META_CHECKSUM] != _meta_sha256(key, meta):
+                raise ValueError("meta.json was edited, or the entry is not this key's")
             for name in DATA_FILES:
                 if _sha256(folder / name) != checksums[name]:
                     raise ValueError(f"checksum mismatch in {name}")
@@ -183,19 +193,22 @@ class Cache:
         return estimate, meta
 
     def store(self, key: str, estimate: Estimate, meta: dict) -> Path:
-        """Write an entry atomically; if another process stored it first, keep theirs."""
-        from harness.imageio import write_exr
+        """Write an entry atomically; if another process stored it first, keep theirs. A failed write (a full disk)
+        is a one-line WriteError naming the cache, and leaves neither the entry nor folders made for it."""
+        from harness.imageio import WriteError, make_folders, remove_folders, write_exr
 
+        created: list[Path] = []
+        tmp = self.folder / f".tmp-{uuid.uuid4().hex}"
+        failure: OSError | None = None
         try:
-            tmp = self.folder / f".tmp-{uuid.uuid4().hex}"
-            tmp.mkdir(parents=True)
-        except OSError as err:
-            raise HarnessError(str(self.root), f"cannot write the ground-truth cache: {err.strerror}") from None
-        try:
+            created = make_folders(self.folder)
+            tmp.mkdir()
             np.savez(tmp / "estimate.npz", mean=estimate.mean, variance=estimate.variance, n=estimate.n)
             write_exr(tmp / "image.exr", estimate.mean, estimate.variance,
                       metadata={"harness.groundtruth": json.dumps({k: v for k, v in meta.items() if k != "sha256"})})
-            meta = dict(meta, sha256={name: _sha256(tmp / name) for name in DATA_FILES})
+            meta = json.loads(json.dumps({k: v for k, v in meta.items() if k != "sha256"}))  # as load() reads it
+            meta["sha256"] = {**{name: _sha256(tmp / name) for name in DATA_FILES},
+                              META_CHECKSUM: _meta_sha256(key, meta)}
             (tmp / "meta.json").write_text(json.dumps(meta, indent=2, sort_keys=True))
             for _attempt in range(3):
                 try:
@@ -208,9 +221,16 @@ class Cache:
                         break
                     failure = err
             else:
-                raise HarnessError(str(self.root), f"cannot write the ground-truth cache: {failure.strerror}")
+                raise failure
+        except (OSError, WriteError) as err:
+            shutil.rmtree(tmp, ignore_errors=True)
+            remove_folders(created)
+            # name the cache, not the temporary file
+            reason = err.message.removeprefix("cannot write: ") if isinstance(err, WriteError) else \
+                (err.strerror or str(err))
+            raise WriteError(str(self.root), f"cannot write the ground-truth cache: {reason}") from None
         finally:
-            if tmp.exists():
+            if tmp.exists():  # another process's entry was kept, or an exception of another kind
                 shutil.rmtree(tmp, ignore_errors=True)
         return self.entry(key) / "image.exr"
 

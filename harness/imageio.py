@@ -30,8 +30,10 @@ import io
 import os
 import re
 import sys
+import shutil
 import tempfile
 import threading
+import uuid
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -44,10 +46,14 @@ from harness.errors import HarnessError, not_regular
 
 __all__ = [
     "ExrImage",
+    "StagedFolder",
+    "WriteError",
     "atomic_write_bytes",
     "atomic_write_text",
+    "make_folders",
     "preview_path",
     "read_exr",
+    "remove_folders",
     "write_exr",
     "write_png_preview",
 ]
@@ -98,6 +104,14 @@ _FILE_MODE = 0o666 & ~_current_umask()
 # ---------------------------------------------------------------------------
 
 
+class WriteError(HarnessError):
+    """A file or folder could not be written (disk full, a missing or unwritable folder): one line, exit code 2.
+
+    Code that catches broad exceptions to carry on (a report's sections, a case's renderer) lets it through: a
+    write that failed means the output is incomplete, which no section note may hide.
+    """
+
+
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
@@ -118,7 +132,7 @@ def _atomic_write(path: str | os.PathLike[str], fill: Callable[[BinaryIO], None]
     destination is untouched.
 
     An ``OSError`` (missing or read-only folder, disk full, destination is a
-    folder...) becomes ``HarnessError(str(path), "cannot write: <reason>")``;
+    folder...) becomes ``WriteError(str(path), "cannot write: <reason>")``;
     any other exception (from ``fill``) propagates unchanged.
     """
     dest = Path(path)
@@ -146,7 +160,7 @@ def _atomic_write(path: str | os.PathLike[str], fill: Callable[[BinaryIO], None]
                 with contextlib.suppress(OSError):
                     os.unlink(tmp_name)
     except OSError as err:
-        raise HarnessError(str(path), f"cannot write: {_write_reason(folder, err)}") from None
+        raise WriteError(str(path), f"cannot write: {_write_reason(folder, err)}") from None
     _fsync_folder(folder)
     return dest
 
@@ -179,8 +193,9 @@ def _fsync_folder(folder: Path) -> None:
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     """Atomically replace the file at ``path`` with ``data``; returns the path.
 
-    Raises ``HarnessError(str(path), "cannot write: <reason>")`` if the folder
-    is missing or not writable; the destination is then left as it was.
+    Raises ``WriteError(str(path), "cannot write: <reason>")`` (a HarnessError)
+    if the folder is missing or not writable or the disk is full; the
+    destination is then left as it was.
     """
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise TypeError(f"data must be bytes, got {type(data).__name__}")
@@ -195,6 +210,147 @@ def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "
     if not isinstance(text, str):
         raise TypeError(f"text must be str, got {type(text).__name__}")
     return atomic_write_bytes(path, text.encode(encoding))
+
+
+def make_folders(path: str | os.PathLike[str], where: str | None = None) -> list[Path]:
+    """Create the folder ``path`` and its missing parents; returns the folders created, outermost first, so that
+    :func:`remove_folders` can take them back when what follows fails (no empty folders left by a failed command).
+
+    Raises ``WriteError(where, "cannot create 'PATH': <reason>")`` (``where`` defaults to the path) when a folder
+    cannot be made (disk full, a file in the way, an unwritable parent); the folders made so far are removed.
+    """
+    path = Path(path)
+    where = str(path) if where is None else where
+    missing = []
+    probe = path
+    while not probe.is_dir():
+        if probe.exists() or probe.is_symlink():
+            raise WriteError(where, f"cannot create {str(path)!r}: {str(probe)!r} is not a folder")
+        missing.append(probe)
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    created: list[Path] = []
+    for folder in reversed(missing):
+        try:
+            folder.mkdir()
+        except FileExistsError:
+            if folder.is_dir():  # made by someone else meanwhile
+                continue
+            remove_folders(created)
+            raise WriteError(where, f"cannot create {str(path)!r}: {str(folder)!r} is not a folder") from None
+        except OSError as err:
+            remove_folders(created)
+            raise WriteError(where, f"cannot create {str(path)!r}: {_os_reason(err)}") from None
+        created.append(folder)
+    return created
+
+
+def remove_folders(created: list[Path]) -> None:
+    """Remove the folders :func:`make_folders` created, innermost first, where they are still empty."""
+    for folder in reversed(created):
+        with contextlib.suppress(OSError):
+            folder.rmdir()
+
+
+class StagedFolder:
+    """The files of an output folder ``target``, written into a private staging folder first and moved into place
+    together by :meth:`commit`, so that a failure halfway (a full disk, an interrupt) leaves nothing half-written.
+
+    When ``target`` does not exist, the staging folder is made beside it (its missing parents are made too) and
+    renamed to ``target``: one atomic step. When it exists (a run's folder holding results.json), the staging
+    folder is made inside it and each of its entries is moved over the old one: a file with ``os.replace``, a
+    folder by renaming the old one aside, the new one in, and removing the old one, so every entry is either
+    old or new, never partial; :meth:`commit` moves the names in ``last`` last (a report's index.html).
+
+    Used as a context manager: leaving it without :meth:`commit` (an exception) removes the staging folder and
+    every folder it made, and a :class:`WriteError` naming a staged path is raised again naming the path it was
+    meant for. Errors are one-line WriteErrors at ``where`` (e.g. ``--out``).
+    """
+
+    def __init__(self, target: str | os.PathLike[str], where: str):
+        self.target = Path(target)
+        self.where = where
+        self.committed = False
+        if self.target.is_dir():
+            self._created: list[Path] = []
+            self.fresh = False
+            self.root = self.target / f".staging-{uuid.uuid4().hex[:12]}"
+        else:
+            if self.target.exists() or self.target.is_symlink():
+                raise WriteError(where, f"cannot create {str(self.target)!r}: it is not a folder")
+            self._created = make_folders(self.target.parent, where)
+            self.fresh = True
+            self.root = self.target.parent / f".{self.target.name}.staging-{uuid.uuid4().hex[:12]}"
+        try:
+            self.root.mkdir()
+        except OSError as err:
+            remove_folders(self._created)
+            raise WriteError(where, f"cannot create {str(self.target)!r}: {_os_reason(err)}") from None
+
+    def __enter__(self) -> StagedFolder:
+        return self
+
+    def __exit__(self, kind, error, trace) -> None:
+        if not self.committed:
+            self.discard()
+        if isinstance(error, WriteError) and str(self.root) in str(error):
+            raise WriteError(self.relocate(error.where), self.relocate(error.message)) from None
+
+    def relocate(self, text: str) -> str:
+        """``text`` with every staged path replaced by the path it is meant for (a path alone is joined as a path:
+        ``./.staging-x/a`` becomes ``a`` for the target ``.``, as ``Path(".") / "a"`` spells it)."""
+        root = str(self.root)
+        if text == root:
+            return str(self.target)
+        if text.startswith(root + os.sep):
+            return str(self.target / text[len(root) + 1:])
+        return text.replace(root, str(self.target))
+
+    def commit(self, last: tuple[str, ...] = ()) -> Path:
+        """Move the staged files into ``target``; returns ``target``."""
+        if self.fresh:
+            try:
+                os.rename(self.root, self.target)
+                self.committed = True
+            except OSError:
+                if not self.target.is_dir():  # else someone made it meanwhile: move the entries into it
+                    self.discard()
+                    raise WriteError(self.where, f"cannot create {str(self.target)!r}") from None
+        if not self.committed:
+            names = sorted(os.listdir(self.root), key=lambda name: (name in last, last.index(name) if name in last
+                                                                    else 0, name))
+            for name in names:
+                self._move(self.root / name, self.target / name)
+            with contextlib.suppress(OSError):
+                self.root.rmdir()
+            self.committed = True
+        _fsync_folder(self.target)
+        _fsync_folder(self.target.parent)
+        return self.target
+
+    def _move(self, source: Path, dest: Path) -> None:
+        try:
+            if source.is_dir() and dest.is_dir() and not dest.is_symlink():
+                old = dest.parent / f".{dest.name}.old-{uuid.uuid4().hex[:12]}"
+                os.rename(dest, old)
+                try:
+                    os.rename(source, dest)
+                except OSError:
+                    os.rename(old, dest)
+                    raise
+                shutil.rmtree(old, ignore_errors=True)
+            else:
+                os.replace(source, dest)
+        except OSError as err:
+            self.discard()
+            raise WriteError(str(dest), f"cannot write: {_os_reason(err)}") from None
+
+    def discard(self) -> None:
+        """Remove the staging folder and every folder made for it (nothing is left of a failed write)."""
+        shutil.rmtree(self.root, ignore_errors=True)
+        remove_folders(self._created)
+        self._created = []
 
 
 # ---------------------------------------------------------------------------

@@ -30,6 +30,7 @@ import tempfile
 from pathlib import Path
 
 from harness.errors import HarnessError
+from harness.results import read_results
 
 _pending: list[int] = []  # signals received and not raised yet
 _critical = 0  # depth of no_interrupts() blocks
@@ -115,14 +116,15 @@ def case_digest(case) -> str:
 
 
 def reusable(results_path: Path, suite_name: str, cases, digests: list[str]) -> dict[int, dict]:
-    """The records of a previous run at ``results_path`` that this run can keep, by case index."""
-    try:
-        previous = json.loads(Path(results_path).read_text(encoding="utf-8"))
-        if not isinstance(previous, dict) or previous.get("suite") != suite_name:
-            return {}
-        by_name = {r["name"]: r for r in previous.get("cases", []) if isinstance(r, dict) and "name" in r}
-    except (OSError, ValueError, TypeError, KeyError):
-        return {}  # no previous run, or not one of ours: run everything
+    """The records of a previous run at ``results_path`` that this run can keep, by case index: none when there is
+    no results.json or it is another suite's. A results.json that is not one (corrupt, edited, another tool's) is a
+    one-line HarnessError naming its JSON path, before anything runs: ``--fresh`` ignores it."""
+    if not Path(results_path).exists():
+        return {}
+    previous = read_results(results_path, hint="harness run --fresh ignores it and runs every case")
+    if previous["suite"] != suite_name:
+        return {}
+    by_name = {r["name"]: r for r in previous["cases"]}
     kept = {}
     for index, (case, digest) in enumerate(zip(cases, digests)):
         record = by_name.get(case.name)

@@ -15,11 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError, read_user_text
+from harness.errors import HarnessError
+from harness.imageio import StagedFolder, WriteError, atomic_write_bytes, atomic_write_text, make_folders
 from harness.report import convergence as conv
 from harness.report import figures, studies
 from harness.report.html import Raw, badge, details, esc, fmt, image_figure, kv_table, page, plot_figure, pre, table
 from harness.report.images import ImageWriter, ReportImage, display_exposure, error_images
+from harness.results import read_results
 
 REPORT_SCHEMA = 1
 
@@ -131,15 +133,9 @@ def dumps(value: Any) -> str:
 
 
 def load_results(path: str | Path) -> dict:
-    path = Path(path)
-    text = read_user_text(path, missing="no such results file (harness run writes DIR/results.json)")
-    try:
-        results = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise HarnessError(str(path), f"not JSON: {err}") from None
-    if not isinstance(results, dict) or not isinstance(results.get("cases"), list):
-        raise HarnessError(str(path), "expected a results.json of harness run (an object with a 'cases' list)")
-    return results
+    """A results.json, checked against its schema (docs/results-schema.md): any malformation is a one-line
+    HarnessError naming the file and the JSON path of the bad key (:func:`harness.results.read_results`)."""
+    return read_results(path)
 
 
 def _suite_cases(results: dict) -> tuple[dict, str | None]:
@@ -263,8 +259,14 @@ def _case_images(item: LoadedCase, out: Path) -> None:
 
 def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = None,
                        options: ReportOptions | None = None) -> dict:
-    """Write the report of a suite run. ``results``: the path of a results.json (or its content, then ``out_dir``
-    is required). Returns {"index", "report_json", "summary", "seconds"}."""
+    """Write the report of a suite run. ``results``: the path of a results.json (checked against its schema:
+    harness.results) or its content (then ``out_dir`` is required). Returns {"index", "report_json", "summary",
+    "seconds"}.
+
+    Everything is written into a staging folder and moved into ``out_dir`` at the end
+    (:class:`harness.imageio.StagedFolder`): a report that fails (bad results, a full disk) leaves the folder as
+    it was, an old report included. A write that fails is a :class:`harness.imageio.WriteError`, never a note in a
+    section."""
     options = options or ReportOptions()
     start = time.perf_counter()
     if isinstance(results, dict):
@@ -274,13 +276,36 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
         results_dir = Path(out_dir)
     else:
         results_path = Path(results)
-        results = load_results(results_path)
         results_dir = results_path.parent
     out = Path(out_dir) if out_dir is not None else results_dir
-    try:
-        (out / "report").mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
+    with StagedFolder(out, "--out") as stage:  # first: an unwritable --out is named before any work
+        if results_path is not None:
+            results = load_results(results_path)
+        page_html, doc, summary_md = _suite_report(results, results_path, results_dir, stage.root, options, start)
+        atomic_write_text(stage.root / "report.json", dumps(_relocate(doc, stage)))
+        atomic_write_text(stage.root / "summary.md", stage.relocate(summary_md))
+        atomic_write_text(stage.root / "index.html", stage.relocate(page_html).replace(esc(stage.root), esc(out)))
+        stage.commit(last=("index.html",))  # the page last: whoever opens it finds every file it names
+    return {"index": out / "index.html", "report_json": out / "report.json", "summary": out / "summary.md",
+            "seconds": time.perf_counter() - start}
+
+
+def _relocate(value: Any, stage) -> Any:
+    """``value`` (report.json's content) with every staged path replaced by the path it is meant for."""
+    if isinstance(value, dict):
+        return {k: _relocate(v, stage) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_relocate(v, stage) for v in value]
+    if isinstance(value, str):
+        return stage.relocate(value)
+    return value
+
+
+def _suite_report(results: dict, results_path: Path | None, results_dir: Path, out: Path, options: ReportOptions,
+                  start: float) -> tuple[str, dict, str]:
+    """The report's images and plots written under ``out``; returns the page, report.json's content and
+    summary.md."""
+    from harness.suite import slug
 
     records = results.get("cases", [])
     suite_cases, suite_note = _suite_cases(results)
@@ -290,8 +315,6 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
         t0 = time.perf_counter()
         items, used = [], set()
         for index, record in enumerate(records):
-            from harness.suite import slug
-
             name = slug(str(record.get("name", f"case-{index}")))
             if name in used:
                 name = f"{name}-{index}"
@@ -300,6 +323,8 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
             try:
                 _load_case(item, results_dir, options)
                 _case_images(item, out)
+            except WriteError:
+                raise
             except Exception as err:  # noqa: BLE001 - a broken case is reported in its section
                 item.problems.append(f"{type(err).__name__}: {err}".splitlines()[0])
             items.append(item)
@@ -325,13 +350,8 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
 
     timings["total"] = time.perf_counter() - start
     doc = _report_json(results, results_path, items, sections, options, timings, suite_note)
-    from harness.imageio import atomic_write_text
-
-    index = atomic_write_text(out / "index.html", _suite_html(results, results_path, items, sections, options,
-                                                               suite_note))
-    report_json = atomic_write_text(out / "report.json", dumps(doc))
-    summary = atomic_write_text(out / "summary.md", _summary_md(results, items, sections))
-    return {"index": index, "report_json": report_json, "summary": summary, "seconds": time.perf_counter() - start}
+    page_html = _suite_html(results, results_path, items, sections, options, suite_note)
+    return page_html, doc, _summary_md(results, items, sections)
 
 
 # ---- scenes and studies ----------------------------------------------------------------------------------------
@@ -384,10 +404,11 @@ def _convergence_section(bases: dict[str, LoadedCase], out: Path, options: Repor
                                           warmup=True)
             png = figures.convergence_figure(result, title=f"{Path(key).stem}: convergence")
             folder = out / "report" / "convergence"
-            folder.mkdir(parents=True, exist_ok=True)
             plot = folder / f"{_safe(Path(key).stem)}.png"
             _write_bytes(plot, png)
             entry.update(result=result, plot=str(plot), _png=png)
+        except WriteError:
+            raise
         except Exception as err:  # noqa: BLE001 - reported in the section
             entry["error"] = f"{type(err).__name__}: {err}".splitlines()[0]
             entry["traceback"] = traceback.format_exc(limit=6)
@@ -413,6 +434,8 @@ def _shadow_section(items: list[LoadedCase], out: Path, options: ReportOptions, 
         study, images, plots = studies.shadow_ray_study(base.scene, base.gt, writer, counts=options.shadow_ray_counts,
                                                         min_timing_seconds=options.min_timing_seconds,
                                                         progress=progress.step)
+    except WriteError:
+        raise
     except Exception as err:  # noqa: BLE001
         return {"error": f"{type(err).__name__}: {err}".splitlines()[0], "traceback": traceback.format_exc(limit=6)}
     for name, png in plots.items():
@@ -478,11 +501,12 @@ def _strategies_section(items: list[LoadedCase], bases: dict[str, LoadedCase], o
                                            bounded, defaults, retime=retime if options.render_strategies else None)
             png = figures.strategies_figure(table_["rows"], title=f"{Path(key).stem}: efficiency relative to default")
             folder = out / "report" / "strategies"
-            folder.mkdir(parents=True, exist_ok=True)
             plot = folder / f"{_safe(Path(key).stem)}.png"
             _write_bytes(plot, png)
             table_.update(scene_path=key, film=[base.scene.film.width, base.scene.film.height], plot=str(plot),
                           note=note, _png=png)
+        except WriteError:
+            raise
         except Exception as err:  # noqa: BLE001
             table_ = {"scene": Path(key).stem, "scene_path": key, "error": f"{type(err).__name__}: {err}".splitlines()[0],
                       "traceback": traceback.format_exc(limit=6)}
@@ -497,9 +521,7 @@ def _safe(name: str) -> str:
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
-    from harness.imageio import atomic_write_bytes
-
-    path.parent.mkdir(parents=True, exist_ok=True)
+    make_folders(path.parent)
     atomic_write_bytes(path, data)
 
 
@@ -889,25 +911,40 @@ def _suite_html(results, results_path, items, sections, options, suite_note) -> 
 # ---- summary.md ------------------------------------------------------------------------------------------------
 
 
-def _md(text: Any) -> str:
-    return str(text).replace("|", "\\|").replace("\n", " ")
+#: Markdown's inline punctuation that could start markup (emphasis, code, links, images, strikethrough, headings,
+#: table cells), escaped with a backslash; < > & become entities, since Markdown passes HTML through
+_MD_PUNCTUATION = "\\`*_[]|~#"
+_MD_TABLE = str.maketrans({**{c: "\\" + c for c in _MD_PUNCTUATION}, "<": "&lt;", ">": "&gt;", "&": "&amp;",
+                           "\n": " ", "\r": " ", "\t": " ", "\v": " ", "\f": " ", "\x85": " ", "\u2028": " ",
+                           "\u2029": " "})
+
+
+def _md(value: Any) -> str:
+    """``str(value)`` as literal text in Markdown that is rendered as HTML (CI step summaries, wikis): no tag,
+    entity, emphasis, code span, link or table cell can start in it, and it stays on one line."""
+    return str(value).translate(_MD_TABLE)
+
+
+def _mdf(value: Any, digits: int = 4) -> str:
+    """A number (or whatever stands in its place) for summary.md: :func:`fmt`, escaped."""
+    return _md(fmt(value, digits))
 
 
 def _summary_md(results, items, sections) -> str:
     s = results.get("summary") or {}
     lines = [f"# Suite report: {_md(results.get('suite'))}", "",
-             f"{s.get('ok')}/{s.get('cases')} cases as expected ({s.get('passed')} passed, {s.get('failed')} failed, "
-             f"{s.get('errors')} errors); {s.get('mitsuba_renders')} Mitsuba renders. Full report: `index.html`; "
-             "numbers: `report.json`.", ""]
+             f"{_mdf(s.get('ok'))}/{_mdf(s.get('cases'))} cases as expected ({_mdf(s.get('passed'))} passed, "
+             f"{_mdf(s.get('failed'))} failed, {_mdf(s.get('errors'))} errors); {_mdf(s.get('mitsuba_renders'))} "
+             "Mitsuba renders. Full report: `index.html`; numbers: `report.json`.", ""]
     if s.get("unexpected"):
         lines += ["**Not as expected:** " + ", ".join(_md(n) for n in s["unexpected"]), ""]
     lines += ["| case | status | expect | RMSE | relMSE | FLIP | time [s] |", "|---|---|---|---|---|---|---|"]
     for item in items:
         r = item.record
         m = r.get("metrics") or {}
-        lines.append(f"| {_md(r.get('name'))} | {r.get('status')}{'' if r.get('ok') else ' (unexpected)'} | "
-                     f"{r.get('expect')} | {fmt(m.get('rmse'))} | {fmt(m.get('relmse'))} | {fmt(m.get('flip'))} | "
-                     f"{fmt((r.get('render') or {}).get('seconds'), 3)} |")
+        lines.append(f"| {_md(r.get('name'))} | {_md(r.get('status'))}{'' if r.get('ok') else ' (unexpected)'} | "
+                     f"{_md(r.get('expect'))} | {_mdf(m.get('rmse'))} | {_mdf(m.get('relmse'))} | "
+                     f"{_mdf(m.get('flip'))} | {_mdf((r.get('render') or {}).get('seconds'), 3)} |")
     c = sections.get("convergence")
     if c:
         lines += ["", "## Convergence (slope of log RMSE against log spp; -1/2 when unbiased)", ""]
@@ -917,15 +954,17 @@ def _summary_md(results, items, sections) -> str:
                 continue
             for series in e["result"]["series"]:
                 f = series["fit_rmse"]
-                flag = (f"flattens from {fmt(f.get('departure_spp'))} spp (bias?)" if f.get("biased")
+                flag = (f"flattens from {_mdf(f.get('departure_spp'))} spp (bias?)" if f.get("biased")
                         else "no flattening")
-                lines.append(f"- {_md(e['scene_name'])}, {_md(series['label'])}: slope {fmt(f.get('slope'), 3)}; {flag}")
+                lines.append(f"- {_md(e['scene_name'])}, {_md(series['label'])}: slope {_mdf(f.get('slope'), 3)}; "
+                             f"{flag}")
     sr = sections.get("shadow_rays")
     if sr and sr.get("rows"):
         lines += ["", "## Noise against shadow rays (spp = 1)", "",
                   "| shadow rays | RMSE penumbra | time [s] |", "|---|---|---|"]
         for r in sr["rows"]:
-            lines.append(f"| {r['shadow_rays']} | {fmt(r['penumbra']['rmse_corrected'])} | {fmt(r['seconds'], 3)} |")
+            lines.append(f"| {_mdf(r['shadow_rays'])} | {_mdf(r['penumbra']['rmse_corrected'])} | "
+                         f"{_mdf(r['seconds'], 3)} |")
     st = sections.get("strategies")
     if st:
         lines += ["", "## Best strategy per scene (efficiency relative to the default)", ""]
@@ -935,8 +974,8 @@ def _summary_md(results, items, sections) -> str:
             else:
                 near = [n for n in e.get("near_best") or [] if n != e.get("best")]
                 lines.append(f"- {_md(e['scene'])}: {_md(e.get('best'))} "
-                             f"({fmt(e.get('best_relative_efficiency'), 3)} x the default)"
-                             + (f"; within {fmt(e.get('tie_factor'))} x: {_md(', '.join(near))}" if near else ""))
+                             f"({_mdf(e.get('best_relative_efficiency'), 3)} x the default)"
+                             + (f"; within {_mdf(e.get('tie_factor'))} x: {_md(', '.join(near))}" if near else ""))
     return "\n".join(lines) + "\n"
 
 
@@ -945,19 +984,23 @@ def _summary_md(results, items, sections) -> str:
 
 def write_convergence_report(result: dict, out_dir: str | Path, *, title: str = "") -> dict:
     """Write a convergence run (:func:`harness.report.convergence.run_convergence`) as ``DIR/convergence.json``,
-    ``DIR/convergence.png``, a self-contained ``DIR/index.html`` and ``DIR/summary.md``."""
-    from harness.imageio import atomic_write_text
-
+    ``DIR/convergence.png``, a self-contained ``DIR/index.html`` and ``DIR/summary.md``, moved into place together
+    (:class:`harness.imageio.StagedFolder`: a failed write leaves the folder as it was)."""
     out = Path(out_dir)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
     name = result.get("scene_name") or Path(str(result.get("scene"))).stem
     title = title or f"Convergence: {name}"
     png = figures.convergence_figure(result, title=title)
     plot = out / "convergence.png"
-    _write_bytes(plot, png)
+    with StagedFolder(out, "--out") as stage:
+        _write_convergence_files(result, stage.root, title, png, plot)
+        stage.commit(last=("index.html",))
+    return {"index": out / "index.html", "report_json": out / "convergence.json", "summary": out / "summary.md",
+            "plot": plot}
+
+
+def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes, plot: Path) -> None:
+    """The files of :func:`write_convergence_report` written into ``folder``; ``plot`` is where the plot will be."""
+    _write_bytes(folder / plot.name, png)
     gt = result["ground_truth"]
     doc = dict(result, schema=REPORT_SCHEMA, kind="convergence", generated=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                plot=str(plot), definitions={k: DEFINITIONS[k] for k in ("mse_corrected", "convergence_fit",
@@ -975,19 +1018,18 @@ def write_convergence_report(result: dict, out_dir: str | Path, *, title: str = 
         convergence_tables(result),
         Raw('<h2 id="definitions">Definitions</h2>' + kv_table(sorted(doc["definitions"].items()))),
     ]
-    index = atomic_write_text(out / "index.html", page(title, body))
-    report_json = atomic_write_text(out / "convergence.json", dumps(doc))
+    atomic_write_text(folder / "index.html", page(title, body))
+    atomic_write_text(folder / "convergence.json", dumps(doc))
     lines = [f"# {_md(title)}", "", "| series | slope (RMSE) | slope (relMSE) | flattens from spp |", "|---|---|---|---|"]
     for s in result["series"]:
         fr, fm = s["fit_rmse"], s["fit_relmse"]
-        lines.append(f"| {_md(s['label'])} | {fmt(fr.get('slope'), 3)} | {fmt(fm.get('slope'), 3)} | "
-                     f"{fmt(fr.get('departure_spp')) if fr.get('biased') else 'no'} |")
+        lines.append(f"| {_md(s['label'])} | {_mdf(fr.get('slope'), 3)} | {_mdf(fm.get('slope'), 3)} | "
+                     f"{_mdf(fr.get('departure_spp')) if fr.get('biased') else 'no'} |")
     comp = (result.get("comparisons") or {}).get("rmse_corrected")
     if comp:
         et, ee = comp["equal_time"], comp["equal_error"]
-        lines += ["", f"Equal time ({fmt(et.get('time'))} s): "
-                  + ", ".join(f"{_md(k)} RMSE {fmt(v)}" for k, v in et["errors"].items()),
-                  f"Equal error (RMSE {fmt(ee.get('error'))}): "
-                  + ", ".join(f"{_md(k)} {fmt(v)} s" for k, v in ee["times"].items())]
-    summary = atomic_write_text(out / "summary.md", "\n".join(lines) + "\n")
-    return {"index": index, "report_json": report_json, "summary": summary, "plot": plot}
+        lines += ["", f"Equal time ({_mdf(et.get('time'))} s): "
+                  + ", ".join(f"{_md(k)} RMSE {_mdf(v)}" for k, v in et["errors"].items()),
+                  f"Equal error (RMSE {_mdf(ee.get('error'))}): "
+                  + ", ".join(f"{_md(k)} {_mdf(v)} s" for k, v in ee["times"].items())]
+    atomic_write_text(folder / "summary.md", "\n".join(lines) + "\n")

@@ -132,7 +132,7 @@ class ImageWriter:
 
     def _write(self, key: str, pixels: np.ndarray, data: np.ndarray, variance: np.ndarray | None,
                extra_meta: dict[str, str]) -> tuple[bytes, Path, Path]:
-        self.folder.mkdir(parents=True, exist_ok=True)
+        imageio.make_folders(self.folder)  # a failure is a WriteError, which no report section swallows
         exr = self.folder / f"{key}.exr"
         png = self.folder / f"{key}.png"
         meta = dict(self.metadata, **{k: str(v) for k, v in extra_meta.items()})
