@@ -8,13 +8,13 @@ truth in one line.
 
 ``render_check(renderer, scene, spp=64, seed=0, settings=None, alpha=1e-3, resolution=None, tile=8,
 ground_truth_spp=1024)`` loads the scene (a path or a :class:`harness.scene.Scene`), gets its ground truth through
-:func:`harness.groundtruth.ground_truth` (the closed form, or Mitsuba through the cache: rendered once, then read),
+:func:`harness.renderers.groundtruth.ground_truth` (the closed form, or Mitsuba through the cache: rendered once, then read),
 renders with ``renderer`` (a registered name such as ``"reference"``, or any object with a
 ``render(scene, request) -> RenderResult`` method, see :mod:`harness.renderers.base`), and runs the statistical
-verdict (:mod:`harness.verdict`): a correct renderer fails with probability at most ``alpha``.  On a fail it raises
+verdict (:mod:`harness.judges.verdict`): a correct renderer fails with probability at most ``alpha``.  On a fail it raises
 ``AssertionError`` with one paragraph: the verdict's reason, the global-bias z per channel, the worst tile, and the
 EXR files of the render and the reference written to the test's ``tmp_path``.  On a pass it returns the comparison
-(:func:`harness.compare.compare_images`'s dict, plus ``"files"``).
+(:func:`harness.running.compare.compare_images`'s dict, plus ``"files"``).
 
 Options: ``--harness-cache-dir DIR`` (default ``$HARNESS_CACHE_DIR``, else the user cache), also the ini key
 ``harness_cache_dir``.  This module imports nothing heavy until the fixture is used, so installing the harness
@@ -91,8 +91,9 @@ class RenderCheck:
 
     def __call__(self, renderer, scene, spp: int = 64, seed: int = 0, settings: dict | None = None,
                  alpha: float = 1e-3, resolution=None, tile: int = 8, ground_truth_spp: int = 1024) -> dict:
-        from harness import groundtruth, imageio
-        from harness.compare import compare_images
+        from harness.renderers import groundtruth
+        from harness.files import imageio
+        from harness.running.compare import compare_images
         from harness.renderers import RenderRequest
 
         __tracebackhide__ = True

@@ -1,7 +1,7 @@
 """Test-only renderers that misbehave the ways a real one can: hang, crash the process, exit it.
 
 ``register()`` adds them to the harness's renderer table; tests pass it as a worker initializer so that worker
-processes know them too (``harness.executors.LocalExecutor(initializer=...)``).
+processes know them too (``harness.running.executors.LocalExecutor(initializer=...)``).
 """
 
 from __future__ import annotations

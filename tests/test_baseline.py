@@ -11,7 +11,7 @@ import pytest
 from conftest import ROOT
 from scipy import stats
 
-from harness import baseline
+from harness.running import baseline
 from harness.cli import main
 
 FURNACE = ROOT / "scenes" / "furnace.toml"
@@ -113,7 +113,7 @@ def test_identical_render_never_regresses_and_factors_override():
     ("alpha=2", "probability"), ("seconds=auto", "'auto'"), ("psnr=x", "expected a number"),
 ])
 def test_bad_tolerances_are_one_line_errors(item, where):
-    from harness.errors import HarnessError
+    from harness.core.errors import HarnessError
 
     with pytest.raises(HarnessError) as info:
         baseline.option_tolerances([item], baseline.DEFAULTS)

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, SCENES, load_small
 
-from harness import bench
-from harness.groundtruth import closed_form
+from harness.studies import bench
+from harness.renderers.groundtruth import closed_form
 
 
 def test_mse_subtracts_the_ground_truths_own_noise():

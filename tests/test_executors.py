@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 
 import flaky_renderers
-from harness import executors
+from harness.running import executors
 from harness.cli import main
-from harness.suite import load_suite, run_suite
+from harness.running.suite import load_suite, run_suite
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"

@@ -13,7 +13,7 @@ import pytest
 import trimesh
 
 from harness.cli import main
-from harness.export import FORMATS, export_scene
+from harness.renderers.export import FORMATS, export_scene
 from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles, triangle_areas
 from reference_impl import Film
@@ -141,7 +141,7 @@ def test_mitsuba_xml_renders_like_the_adapter(name, mesh_scene, tmp_path):
     K - 1 dof, false-alarm probability alpha = 1e-3)."""
     from harness.renderers.external import combine_repeats
     from harness.renderers.mitsuba import scene_to_mitsuba_dict
-    from harness.verdict import verdict
+    from harness.judges.verdict import verdict
 
     scene = load_scene(_scene_files(name, mesh_scene))
     scene = dataclasses.replace(scene, film=Film(20, 14, scene.film.filter))

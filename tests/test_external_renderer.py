@@ -17,7 +17,7 @@ import pytest
 from scipy import stats
 
 from harness.cli import main
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer, renderer_names
 from harness.renderers import external
 from harness.renderers.external import ExternalRendererError, combine_repeats, load_spec
@@ -45,7 +45,7 @@ if mode == "noexr":
 if mode == "garbage":
     open(out, "wb").write(b"not an exr")
     sys.exit(0)
-from harness.imageio import write_exr
+from harness.files.imageio import write_exr
 if mode == "wrongsize":
     w += 1
 rng = np.random.default_rng(int(args["--seed"]))
@@ -150,7 +150,7 @@ def test_verdict_with_repeat_variance_keeps_its_false_alarm_rate():
     accepted up to 15 + 5 sd = 33 (false alarm of this test < 1e-6). Without the dof (variance taken as exact)
     the same verdict fires far more often (about 250 of 300), which the second count shows. With 8x8 tiles the
     pooled variance has ~190 dof and both are calibrated."""
-    from harness.verdict import verdict
+    from harness.judges.verdict import verdict
 
     rng = np.random.default_rng(7)
     k, mu, trials = 4, 1.0, 300
@@ -223,7 +223,7 @@ def test_timeout_kills_the_process_group(tmp_path, small_scene):
 
 
 def test_suite_records_a_failing_renderer_as_error_and_goes_on(tmp_path):
-    from harness.suite import load_suite, run_suite
+    from harness.running.suite import load_suite, run_suite
 
     _renderer_file(tmp_path, "broken", "exit3")
     _renderer_file(tmp_path, "fine", "variance")
@@ -270,7 +270,7 @@ def test_bring_your_renderer_end_to_end(tmp_path, capsys):
     assert main(["export", str(scene), "--format", "mitsuba-xml", "--out", str(tmp_path / "xml")]) == 0
     subprocess.run([sys.executable, str(EXAMPLE), str(tmp_path / "xml" / "scene.xml"), "--spp", "1",
                     "--out", str(tmp_path / "direct.exr")], check=True, timeout=120)
-    from harness.imageio import read_exr
+    from harness.files.imageio import read_exr
 
     direct = read_exr(tmp_path / "direct.exr")
     assert direct.image.shape == (256, 256, 3) and direct.variance is None and direct.image.mean() > 0.05

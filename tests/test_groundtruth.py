@@ -1,4 +1,4 @@
-"""Ground truth (harness/groundtruth.py): the furnace's closed form, Mitsuba ground truths through the
+"""Ground truth (harness/renderers/groundtruth.py): the furnace's closed form, Mitsuba ground truths through the
 content-addressed cache (keys, chunks, resumption, corruption, concurrent writers) and the ``ground-truth`` CLI.
 
 Every Mitsuba render here is tiny (8 x 8 or 16 x 16 pixels, a few samples per pixel, ``scalar_rgb``) and every cache
@@ -21,10 +21,10 @@ import numpy as np
 import pytest
 from conftest import ROOT, SCENES, load_small
 
-from harness.errors import HarnessError
-from harness.groundtruth import Cache, ground_truth
-from harness.imageio import read_exr
-from harness.moments import Estimate, merge
+from harness.core.errors import HarnessError
+from harness.renderers.groundtruth import Cache, ground_truth
+from harness.files.imageio import read_exr
+from harness.judges.moments import Estimate, merge
 from harness.renderers.mitsuba import MitsubaRenderer
 from harness.scene import load_scene
 
@@ -643,8 +643,8 @@ from pathlib import Path
 sys.path.insert(0, sys.argv[1])
 import numpy as np
 from conftest import load_small
-from harness.groundtruth import Cache, ground_truth
-from harness.moments import Estimate
+from harness.renderers.groundtruth import Cache, ground_truth
+from harness.judges.moments import Estimate
 from harness.renderers.mitsuba import choose_variant, import_mitsuba
 
 cache_dir, go, ready, role = sys.argv[2:6]
@@ -780,7 +780,7 @@ def test_a_scene_changed_after_loading_gets_its_own_entry(tmp_path):
     import dataclasses as _dc
 
     from conftest import load_small
-    from harness.groundtruth import scene_digest
+    from harness.renderers.groundtruth import scene_digest
 
     scene = load_small("cornell-box", 8)
     light = next(i for i, s in enumerate(scene.shapes) if s.emission is not None)

@@ -17,14 +17,14 @@ from conftest import MINIMAL_SCENE, ROOT
 from test_hostile_input import assert_one_line, cli
 
 import reference_impl
-from harness import limits
-from harness.errors import HarnessError
+from harness.core import limits
+from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest
 from harness.renderers.external import load_spec
 from harness.renderers.mitsuba import MitsubaRenderer
 from harness.renderers.reference import ReferenceRenderer
 from harness.scene import load_scene
-from harness.suite import load_suite
+from harness.running.suite import load_suite
 
 FURNACE = ROOT / "scenes" / "furnace.toml"
 LIGHT = '\n[[shapes]]\nname = "light"\ntype = "rectangle"\nmaterial = "white"\nemission = [1, 1, 1]\n'

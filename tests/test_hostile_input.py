@@ -24,13 +24,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from test_scene_format import to_toml, toml_string
 
-from harness import imageio, limits
+from harness.files import imageio
+from harness.core import limits
 from harness.cli import main
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 from harness.renderers import RenderResult
 from harness.renderers.validate import BadRenderError, validate_result
 from harness.scene import load_scene
-from harness.suite import Suite, load_suite
+from harness.running.suite import Suite, load_suite
 
 SCENE = MINIMAL_SCENE.replace('name = "minimal"', 'name = "tiny"') + """
 [[shapes]]
@@ -452,7 +453,7 @@ def bad_run(tmp_path_factory):
     """A suite whose cases use misbehaving renderers, a good case last; its run and its report."""
     from harness import renderers
     from harness.report import ReportOptions, write_suite_report
-    from harness.suite import run_suite
+    from harness.running.suite import run_suite
 
     folder = tmp_path_factory.mktemp("bad-run")
     evil = "<script>alert(\"x\")</script> & 'quotes'"

@@ -24,11 +24,11 @@ from conftest import ROOT
 from test_groundtruth import assert_same, entries, gt, hidden, renders, small  # noqa: F401 - renders: a fixture
 from test_hostile_input import assert_one_line, cli, listing
 
-from harness import imageio
-from harness.errors import HarnessError
-from harness.groundtruth import Cache
-from harness.moments import Estimate
-from harness.results import format_path, read_results
+from harness.files import imageio
+from harness.core.errors import HarnessError
+from harness.renderers.groundtruth import Cache
+from harness.judges.moments import Estimate
+from harness.files.results import format_path, read_results
 
 SUITE = """
 name = "tiny"
@@ -52,8 +52,8 @@ NO_STUDIES = ("--quiet", "--no-convergence", "--no-shadow-rays", "--no-strategie
 @pytest.fixture(scope="module")
 def real(tmp_path_factory) -> dict:
     """{"suite": the suite file, "dir": the run's folder, "doc": its results.json parsed, "text": as written}."""
-    from harness.executors import SerialExecutor
-    from harness.suite import load_suite, run_suite
+    from harness.running.executors import SerialExecutor
+    from harness.running.suite import load_suite, run_suite
 
     folder = tmp_path_factory.mktemp("real")
     suite = folder / "tiny.toml"

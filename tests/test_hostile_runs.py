@@ -13,10 +13,10 @@ from pathlib import Path
 import pytest
 from test_hostile_input import SCENE, assert_one_line, cli
 
-from harness import runstate
-from harness.errors import HarnessError
-from harness.stress import parse_variant
-from harness.suite import load_suite, slug
+from harness.running import runstate
+from harness.core.errors import HarnessError
+from harness.studies.stress import parse_variant
+from harness.running.suite import load_suite, slug
 
 UNWRITABLE = Path("/proc")  # a folder that exists and takes no new file, even for root
 needs_proc = pytest.mark.skipif(not UNWRITABLE.is_dir(), reason="no /proc on this system")
@@ -39,8 +39,8 @@ def no_render(monkeypatch) -> list:
         started.append(case.name)
         raise AssertionError(f"case {case.name!r} ran")
 
-    monkeypatch.setattr("harness.suite.run_case", run_case)
-    monkeypatch.setattr("harness.calibrate.run_case", run_case)
+    monkeypatch.setattr("harness.running.suite.run_case", run_case)
+    monkeypatch.setattr("harness.running.calibrate.run_case", run_case)
     return started
 
 
@@ -168,7 +168,7 @@ def test_stress_command_refuses_bad_variant_and_empty_out_before_rendering(folde
     def run_stress(*args, **kwargs):
         raise AssertionError("rendered")
 
-    monkeypatch.setattr("harness.stress.run_stress", run_stress)
+    monkeypatch.setattr("harness.studies.stress.run_stress", run_stress)
     assert_one_line(*cli(capfd, "stress", folder / "scene.toml", "--variant", "translate=1e300"), "--variant")
     assert_one_line(*cli(capfd, "stress", folder / "scene.toml", "--out", ""), "--out", "empty")
 
@@ -318,7 +318,7 @@ def test_lock_of_a_killed_process_blocks_nothing(holder):
 def test_lock_is_exclusive_between_processes(tmp_path):
     """While this process holds the lock, a second process's run into the folder stops at once, naming us."""
     out = tmp_path / "out"
-    code = ("import sys; from harness import runstate\n"
+    code = ("import sys; from harness.running import runstate\n"
             "try:\n    with runstate.locked(runstate.output_folder(sys.argv[1], None)): pass\n"
             "except Exception as err:\n    print(err); sys.exit(2)\n")
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))

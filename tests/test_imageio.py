@@ -1,4 +1,4 @@
-"""Tests for harness.imageio: EXR round trips, error handling, atomic writes, PNG previews."""
+"""Tests for harness.files.imageio: EXR round trips, error handling, atomic writes, PNG previews."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import numpy as np
 import OpenEXR
 import pytest
 
-from harness import imageio as hio
-from harness.errors import HarnessError
+from harness.files import imageio as hio
+from harness.core.errors import HarnessError
 
 
 def _image(h: int = 7, w: int = 11, seed: int = 0) -> np.ndarray:

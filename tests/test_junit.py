@@ -9,7 +9,7 @@ import pytest
 
 from conftest import ROOT
 
-from harness import junit
+from harness.running import junit
 from harness.cli import main
 
 

@@ -1,4 +1,4 @@
-"""Tests for harness.metrics: exact values on tiny arrays, identities, NaN handling."""
+"""Tests for harness.judges.metrics: exact values on tiny arrays, identities, NaN handling."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from skimage.metrics import structural_similarity
 
-from harness import metrics
+from harness.judges import metrics
 
 
 def _pair() -> tuple[np.ndarray, np.ndarray]:

@@ -13,7 +13,7 @@ from conftest import SCENES, load_small, render_reference
 from harness.judges.mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_scores
 
 import harness.renderers.mitsuba as mts
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer
 from harness.scene import load_scene
 from harness.scene.triangulate import (

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from harness.report.convergence import (
+from harness.studies.convergence import (
     equal_error,
     equal_time,
     fit_convergence,
@@ -67,7 +67,7 @@ def fast_options(**overrides):
 def report_dir(tmp_path_factory) -> Path:
     """A tiny suite run and its report (written once for the module)."""
     from harness.report import write_suite_report
-    from harness.suite import load_suite, run_suite
+    from harness.running.suite import load_suite, run_suite
 
     folder = tmp_path_factory.mktemp("report")
     suite_path = folder / "tiny.toml"
@@ -148,7 +148,7 @@ def test_report_json_holds_the_numbers(report_dir):
 
 
 def test_every_image_has_exr_and_png(report_dir):
-    from harness.imageio import read_exr
+    from harness.files.imageio import read_exr
 
     report = json.loads((report_dir / "report.json").read_text())
     images = [im for case in report["cases"] for im in case["images"]]
@@ -164,7 +164,7 @@ def test_every_image_has_exr_and_png(report_dir):
 
 
 def test_signed_error_exr_holds_the_difference(report_dir):
-    from harness.imageio import read_exr
+    from harness.files.imageio import read_exr
 
     folder = report_dir / "report" / "furnace_reference"
     render = read_exr(folder / "render.exr").image.astype(np.float64)
@@ -258,7 +258,7 @@ def test_equal_time_and_equal_error_on_synthetic_curves():
 def test_parse_ladder():
     assert parse_ladder("8, 1,2,2,4", "--spp") == [1, 2, 4, 8]
     assert parse_ladder("0.5,1", "--seconds", float) == [0.5, 1.0]
-    from harness.errors import HarnessError
+    from harness.core.errors import HarnessError
 
     for bad in ("1,x", "0,1", ""):
         with pytest.raises(HarnessError):

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from harness import runstate
-from harness.executors import SerialExecutor
-from harness.groundtruth import Cache
-from harness.suite import load_suite, run_suite
+from harness.running import runstate
+from harness.running.executors import SerialExecutor
+from harness.renderers.groundtruth import Cache
+from harness.running.suite import load_suite, run_suite
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 HARNESS = Path(sys.executable).parent / "harness"

@@ -17,7 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import MINIMAL_SCENE
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 from harness.scene import Scene, load_scene, triangulate
 from harness.scene.triangulate import rotate_matrix, shape_triangles
 

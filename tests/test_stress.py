@@ -1,4 +1,4 @@
-"""The stress suite (harness/stress.py): exact variant generators, the firefly counter, a scaled and a translated
+"""The stress suite (harness/studies/stress.py): exact variant generators, the firefly counter, a scaled and a translated
 scene that the reference must render unchanged, the command line's exit codes and JSON, and the suite hook.
 
 Monte Carlo checks: each render-and-judge row is a verdict at alpha = 1e-3 (false alarm 0.1 % per row, fixed seeds,
@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from conftest import SCENES, load_small
-from harness import stress
-from harness.errors import HarnessError
+from harness.studies import stress
+from harness.core.errors import HarnessError
 from harness.scene import triangulate
 
 
@@ -179,7 +179,7 @@ def test_cli_json_and_exit_codes(capsys):
 
 
 def test_suite_variant_key(tmp_path):
-    from harness.suite import case_scene, load_suite
+    from harness.running.suite import case_scene, load_suite
 
     path = tmp_path / "s.toml"
     path.write_text(f'[[cases]]\nname = "a"\nscene = "{SCENES / "cornell-box.toml"}"\nvariant = "scale=1000"\n'

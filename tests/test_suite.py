@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 from conftest import ROOT
 
-from harness.errors import HarnessError
-from harness.suite import load_suite, run_suite
+from harness.core.errors import HarnessError
+from harness.running.suite import load_suite, run_suite
 
 SUITES = ROOT / "suites"
 

@@ -1,4 +1,4 @@
-"""Tests for harness.verdict and harness.compare: false-alarm rate, power on planted faults, edge cases, files.
+"""Tests for harness.judges.verdict and harness.running.compare: false-alarm rate, power on planted faults, edge cases, files.
 
 Rates are measured over SEEDS independent simulations.  A test with false-alarm probability alpha fails k of
 SEEDS runs with k ~ Binomial(SEEDS, alpha); we require k / SEEDS <= alpha + 3 sd, sd = sqrt(alpha (1 - alpha) / SEEDS)
@@ -23,10 +23,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
-from harness.compare import compare_files, compare_images
-from harness.errors import HarnessError
-from harness.imageio import ExrImage, write_exr
-from harness.verdict import Verdict, _to_normal, tile_z_scores, verdict
+from harness.running.compare import compare_files, compare_images
+from harness.core.errors import HarnessError
+from harness.files.imageio import ExrImage, write_exr
+from harness.judges.verdict import Verdict, _to_normal, tile_z_scores, verdict
 
 SEEDS = 200
 ALPHA = 0.01

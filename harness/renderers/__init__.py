@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 from harness.renderers.base import RenderRequest, RenderResult, Renderer
 from harness.renderers.mitsuba import MitsubaRenderer
 from harness.renderers.reference import ReferenceRenderer

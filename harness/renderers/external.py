@@ -8,12 +8,12 @@ A renderer file::
     timeout = 600                               # seconds per run (default 600)
     repeats = 4                                 # runs with distinct seeds when the EXR has no variance (default 4)
 
-Placeholders in ``command``: ``{scene_xml}`` (the scene exported as Mitsuba XML, :mod:`harness.export`),
+Placeholders in ``command``: ``{scene_xml}`` (the scene exported as Mitsuba XML, :mod:`harness.renderers.export`),
 ``{scene_toml}`` (the scene file), ``{spp}``, ``{seed}``, ``{width}``, ``{height}``, ``{max_depth}``, ``{out}`` (the
 EXR to write), ``{here}`` (the renderer file's folder) and ``{python}`` (this Python). The command runs without a
 shell, in a fresh temporary folder, stdout and stderr captured.
 
-The EXR is read with :func:`harness.imageio.read_exr`: channels R, G, B and, optionally, variance.R/G/B (the
+The EXR is read with :func:`harness.files.imageio.read_exr`: channels R, G, B and, optionally, variance.R/G/B (the
 variance of each pixel's estimate, i.e. of the mean; spp - 1 degrees of freedom). Without variance channels the
 renderer is run K = ``repeats`` times with independent seeds s_1..s_K and the harness uses
 
@@ -25,7 +25,7 @@ verdict's t-correction takes from ``RenderResult.info["variance_dof"]``.
 
 A non-zero exit, a timeout (the whole process group is killed), a missing or unreadable EXR, or one of the wrong
 size raises :class:`ExternalRendererError`, which a suite records as the case's ``error`` with the reason. A
-missing or invalid renderer file is a user error (:class:`~harness.errors.HarnessError`).
+missing or invalid renderer file is a user error (:class:`~harness.core.errors.HarnessError`).
 """
 
 from __future__ import annotations
@@ -43,8 +43,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError, read_user_toml
-from harness.limits import MAX_TIMEOUT_SECONDS
+from harness.core.errors import HarnessError, read_user_toml
+from harness.core.limits import MAX_TIMEOUT_SECONDS
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 
@@ -190,7 +190,7 @@ class ExternalRenderer:
         return [_PLACEHOLDER.sub(lambda m: values[m.group(1)], arg) for arg in self.spec.command]
 
     def _read(self, path: Path, scene: Scene):
-        from harness.imageio import read_exr
+        from harness.files.imageio import read_exr
 
         if not path.is_file():
             raise ExternalRendererError(f"renderer {self.name!r} exited with code 0 but wrote no EXR ({path.name})")
@@ -206,7 +206,7 @@ class ExternalRenderer:
         return exr
 
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
-        from harness.export import mitsuba_xml
+        from harness.renderers.export import mitsuba_xml
 
         if request.settings:
             key = next(iter(request.settings))
@@ -352,7 +352,7 @@ def external_names(bases: tuple[Path, ...] = ()) -> list[str]:
 
 def variance_metadata(result: RenderResult) -> dict[str, str]:
     """EXR metadata that tells the verdict the degrees of freedom of ``result.variance``: ``spp`` always, and
-    ``variance_dof`` where it is not spp - 1 (K - 1 for K repeated runs; read by harness.compare)."""
+    ``variance_dof`` where it is not spp - 1 (K - 1 for K repeated runs; read by harness.running.compare)."""
     meta = {"spp": str(result.spp)}
     if result.info.get("variance_dof") is not None:
         meta["variance_dof"] = str(int(result.info["variance_dof"]))

@@ -35,8 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError
-from harness.moments import Estimate
+from harness.core.errors import HarnessError
+from harness.judges.moments import Estimate
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles

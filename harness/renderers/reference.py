@@ -6,8 +6,8 @@ import dataclasses
 import re
 
 import reference_impl
-from harness.errors import HarnessError
-from harness.limits import check_reference_cost
+from harness.core.errors import HarnessError
+from harness.core.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene, triangulate
 
@@ -95,7 +95,7 @@ def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
 
 
 def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
-    """Refuse settings whose memory or time estimate (harness.limits.reference_cost) is absurd, before anything is
+    """Refuse settings whose memory or time estimate (harness.core.limits.reference_cost) is absurd, before anything is
     allocated: one line at ``--set KEY`` for the first setting of COST_SETTINGS that is not its default."""
     defaults = reference_impl.Settings()
     changed = [key for key in COST_SETTINGS if getattr(settings, key) != getattr(defaults, key)

@@ -15,13 +15,14 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError
-from harness.imageio import StagedFolder, WriteError, atomic_write_bytes, atomic_write_text, make_folders
-from harness.report import convergence as conv
-from harness.report import figures, studies
+from harness.core.errors import HarnessError
+from harness.files.imageio import StagedFolder, WriteError, atomic_write_bytes, atomic_write_text, make_folders
+from harness.studies import convergence as conv
+from harness.studies import figures
+from harness.studies import strategies as studies
 from harness.report.html import Raw, badge, details, esc, fmt, image_figure, kv_table, page, plot_figure, pre, table
-from harness.report.images import ImageWriter, ReportImage, display_exposure, error_images
-from harness.results import read_results
+from harness.files.previews import ImageWriter, ReportImage, display_exposure, error_images
+from harness.files.results import read_results
 
 REPORT_SCHEMA = 1
 
@@ -67,7 +68,7 @@ class LoadedCase:
     record: dict
     index: int
     slug: str
-    case: Any = None  # harness.suite.Case
+    case: Any = None  # harness.running.suite.Case
     scene: Any = None
     render: np.ndarray | None = None
     render_variance: np.ndarray | None = None
@@ -134,12 +135,12 @@ def dumps(value: Any) -> str:
 
 def load_results(path: str | Path) -> dict:
     """A results.json, checked against its schema (docs/results-schema.md): any malformation is a one-line
-    HarnessError naming the file and the JSON path of the bad key (:func:`harness.results.read_results`)."""
+    HarnessError naming the file and the JSON path of the bad key (:func:`harness.files.results.read_results`)."""
     return read_results(path)
 
 
 def _suite_cases(results: dict) -> tuple[dict, str | None]:
-    from harness.suite import load_suite
+    from harness.running.suite import load_suite
 
     suite_file = results.get("suite_file")
     if not suite_file:
@@ -161,7 +162,7 @@ def _existing(*candidates: Path | str | None) -> Path | None:
 def _case_scene(record: dict, case, shape: tuple[int, int] | None):
     """The scene a case rendered: from the suite's case when the suite file is readable, else from results.json
     (scene path, the render's size, the resolved max_depth)."""
-    from harness.suite import Case, case_scene
+    from harness.running.suite import Case, case_scene
 
     if case is None:
         settings = (record.get("render") or {}).get("settings") or {}
@@ -176,9 +177,9 @@ def _case_scene(record: dict, case, shape: tuple[int, int] | None):
 
 
 def _load_reference(item: LoadedCase, options: ReportOptions) -> Reference:
-    from harness import groundtruth
-    from harness.imageio import read_exr
-    from harness.suite import reference_for
+    from harness.renderers import groundtruth
+    from harness.files.imageio import read_exr
+    from harness.running.suite import reference_for
 
     gt = item.record.get("ground_truth") or {}
     source = gt.get("source")
@@ -201,8 +202,8 @@ def _load_reference(item: LoadedCase, options: ReportOptions) -> Reference:
 
 def _load_case(item: LoadedCase, results_dir: Path, options: ReportOptions) -> None:
     """Read a case's render and ground truth back (into ``item``); problems are noted, never raised."""
-    from harness.imageio import read_exr
-    from harness.suite import slug
+    from harness.files.imageio import read_exr
+    from harness.running.suite import slug
 
     record = item.record
     if record.get("status") == "error" or not record.get("render"):
@@ -260,12 +261,12 @@ def _case_images(item: LoadedCase, out: Path) -> None:
 def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = None,
                        options: ReportOptions | None = None) -> dict:
     """Write the report of a suite run. ``results``: the path of a results.json (checked against its schema:
-    harness.results) or its content (then ``out_dir`` is required). Returns {"index", "report_json", "summary",
+    harness.files.results) or its content (then ``out_dir`` is required). Returns {"index", "report_json", "summary",
     "seconds"}.
 
     Everything is written into a staging folder and moved into ``out_dir`` at the end
-    (:class:`harness.imageio.StagedFolder`): a report that fails (bad results, a full disk) leaves the folder as
-    it was, an old report included. A write that fails is a :class:`harness.imageio.WriteError`, never a note in a
+    (:class:`harness.files.imageio.StagedFolder`): a report that fails (bad results, a full disk) leaves the folder as
+    it was, an old report included. A write that fails is a :class:`harness.files.imageio.WriteError`, never a note in a
     section."""
     options = options or ReportOptions()
     start = time.perf_counter()
@@ -305,7 +306,7 @@ def _suite_report(results: dict, results_path: Path | None, results_dir: Path, o
                   start: float) -> tuple[str, dict, str]:
     """The report's images and plots written under ``out``; returns the page, report.json's content and
     summary.md."""
-    from harness.suite import slug
+    from harness.running.suite import slug
 
     records = results.get("cases", [])
     suite_cases, suite_note = _suite_cases(results)
@@ -391,7 +392,7 @@ def _convergence_section(bases: dict[str, LoadedCase], out: Path, options: Repor
             if options.convergence_mitsuba:
                 series.append(conv.Series("mitsuba", {}, "mitsuba (path, cached)"))
             from harness.renderers import get_renderer
-            from harness.suite import CachedMitsubaRenderer
+            from harness.running.suite import CachedMitsubaRenderer
 
             def factory(name: str):
                 if name == "mitsuba":
@@ -515,7 +516,7 @@ def _strategies_section(items: list[LoadedCase], bases: dict[str, LoadedCase], o
 
 
 def _safe(name: str) -> str:
-    from harness.suite import slug
+    from harness.running.suite import slug
 
     return slug(name)
 
@@ -983,9 +984,9 @@ def _summary_md(results, items, sections) -> str:
 
 
 def write_convergence_report(result: dict, out_dir: str | Path, *, title: str = "") -> dict:
-    """Write a convergence run (:func:`harness.report.convergence.run_convergence`) as ``DIR/convergence.json``,
+    """Write a convergence run (:func:`harness.studies.convergence.run_convergence`) as ``DIR/convergence.json``,
     ``DIR/convergence.png``, a self-contained ``DIR/index.html`` and ``DIR/summary.md``, moved into place together
-    (:class:`harness.imageio.StagedFolder`: a failed write leaves the folder as it was)."""
+    (:class:`harness.files.imageio.StagedFolder`: a failed write leaves the folder as it was)."""
     out = Path(out_dir)
     name = result.get("scene_name") or Path(str(result.get("scene"))).stem
     title = title or f"Convergence: {name}"

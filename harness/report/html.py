@@ -8,7 +8,7 @@ import math
 from collections.abc import Iterable, Sequence
 from typing import Any
 
-from harness.report.images import ReportImage
+from harness.files.previews import ReportImage
 
 
 class Raw(str):

@@ -22,8 +22,8 @@ import trimesh
 from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 
-from harness.errors import HarnessError, not_regular, read_user_bytes
-from harness.limits import MAX_FILM_SIDE, estimate_text, film_problem
+from harness.core.errors import HarnessError, not_regular, read_user_bytes
+from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
 from harness.scene.model import SHAPE_TYPES, Material, Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,

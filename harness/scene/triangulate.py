@@ -23,7 +23,7 @@ import trimesh
 from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 from harness.scene.model import Scene, Shape
 
 # Shape types whose front side Mitsuba keeps under a mirroring placement (the others swap sides with the winding).

@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError, read_user_toml
-from harness.limits import MAX_TIMEOUT_SECONDS
+from harness.core.errors import HarnessError, read_user_toml
+from harness.core.limits import MAX_TIMEOUT_SECONDS
 
-SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/baseline.py
+SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/running/baseline.py
 CASE_KEYS = (
     "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
     "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth", "timeout",
@@ -77,7 +77,7 @@ class Case:
     tile: int = 8
     ground_truth_spp: int = 1024
     timeout: float | None = None  # seconds before a worker running the case is killed (None: derived, executors.py)
-    variant: str | None = None  # a transformed scene (harness/stress.py), e.g. "scale=1e3"
+    variant: str | None = None  # a transformed scene (harness/studies/stress.py), e.g. "scale=1e3"
 
 
 @dataclass(frozen=True)
@@ -86,7 +86,7 @@ class Suite:
     description: str
     path: Path
     cases: tuple[Case, ...]
-    baseline: Any = field(default_factory=dict, compare=False)  # the file's [baseline] table, checked by harness/baseline.py
+    baseline: Any = field(default_factory=dict, compare=False)  # the file's [baseline] table, checked by harness/running/baseline.py
 
 
 # ---- loading ---------------------------------------------------------------------------------------------------
@@ -107,8 +107,8 @@ def load_suite(path: str | Path) -> Suite:
         raise HarnessError(f"{label}: cases", "expected at least one [[cases]] entry")
     baseline = doc.get("baseline", {})
     if "baseline" in doc:  # checked with or without --baseline: a broken table is an error now, not at a later gate
-        # harness.baseline imports this module (and scipy): imported here, only for a suite that has the table
-        from harness.baseline import check_table
+        # harness.running.baseline imports this module (and scipy): imported here, only for a suite that has the table
+        from harness.running.baseline import check_table
 
         check_table(label, baseline)
     cases, names, folders, scenes = [], set(), {}, {}
@@ -243,10 +243,10 @@ def _threshold(label: str, key: str, metric: Any, value: Any) -> float:
 
 
 def _stress_variant(label: str, key: str, value: Any) -> str | None:
-    """A case's ``variant`` (harness/stress.py), normalised (``scale=1000`` -> ``scale=1e3``), or None."""
+    """A case's ``variant`` (harness/studies/stress.py), normalised (``scale=1000`` -> ``scale=1e3``), or None."""
     if value is None:
         return None
-    from harness.stress import parse_variant
+    from harness.studies.stress import parse_variant
 
     return parse_variant(_typed(label, key, value, str), f"{label}: {key}").name
 
@@ -263,8 +263,8 @@ def _tile(label: str, key: str, value: Any) -> int:
 
 def _check_case_cost(label: str, where: str, case: Case, scenes: dict) -> None:
     """Load the case's scene (once per suite: its problems are one line naming the scene file, before anything
-    runs) and refuse a film or budget whose memory or time estimate is absurd (harness/limits.py)."""
-    from harness.limits import MAX_FILM_SIDE, check_render_cost, film_problem
+    runs) and refuse a film or budget whose memory or time estimate is absurd (harness/core/limits.py)."""
+    from harness.core.limits import MAX_FILM_SIDE, check_render_cost, film_problem
     from harness.scene import load_scene
 
     if case.scene not in scenes:
@@ -295,7 +295,7 @@ def _check_case_variant(label: str, where: str, case: Case, scene) -> None:
     rectangle) or one that gives an invalid scene is one line naming ``cases[i].variant`` before anything runs."""
     if case.variant is None:
         return
-    from harness.stress import check_variant_scene, parse_variant
+    from harness.studies.stress import check_variant_scene, parse_variant
 
     try:
         check_variant_scene(parse_variant(case.variant).apply(_with_case_overrides(scene, case)))
@@ -508,7 +508,7 @@ def case_scenes(case: Case):
     scene = _with_case_overrides(load_scene(case.scene), case)
     if case.variant is None:
         return scene, scene
-    from harness.stress import parse_variant
+    from harness.studies.stress import parse_variant
 
     stress_variant = parse_variant(case.variant, f"{case.scene}: variant")
     varied = stress_variant.apply(scene)
@@ -534,9 +534,9 @@ def render_with_budget(case: Case, scene, variant: str | None, progress=None, ca
 def render_for_seconds(renderer, scene, seconds: float, chunk_spp: int, seeds, settings: dict[str, str],
                        progress=None):
     """Render chunks of ``chunk_spp`` (seeds drawn from the iterator ``seeds``) until ``seconds`` of render time
-    are spent, and merge them exactly (``harness.moments``) into one RenderResult with the summed time and rays;
+    are spent, and merge them exactly (``harness.judges.moments``) into one RenderResult with the summed time and rays;
     ``info["seeds"]`` lists the seeds used."""
-    from harness.moments import Estimate, merge
+    from harness.judges.moments import Estimate, merge
     from harness.renderers import RenderRequest
 
     chunks, results, used, spent = [], [], [], 0.0
@@ -568,7 +568,7 @@ def _cached_mitsuba_render(case: Case, scene, variant: str | None, cache_dir, pr
 def cached_mitsuba_render(scene, spp: int, seed: int, variant: str | None, cache_dir, progress=None, chunk_spp=None):
     """A Mitsuba render of ``spp`` samples through the ground-truth cache, as a RenderResult. Its ``seconds`` is
     the time the render took when it was made (from the cache entry's metadata)."""
-    from harness import groundtruth
+    from harness.renderers import groundtruth
     from harness.renderers import RenderResult
 
     gt = groundtruth.ground_truth(scene, spp=spp, seed=seed, cache_dir=cache_dir, variant=variant,
@@ -604,7 +604,7 @@ class CachedMitsubaRenderer:
 
 def reference_for(case: Case, scene, cache_dir, variant: str | None, progress=None):
     """The image a case is compared with, as a GroundTruth."""
-    from harness import groundtruth
+    from harness.renderers import groundtruth
     from harness.renderers import RenderRequest, get_renderer
 
     kind = case.against.kind
@@ -645,8 +645,8 @@ def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
 
 def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None) -> dict:
     """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
-    from harness import imageio
-    from harness.compare import compare_images
+    from harness.files import imageio
+    from harness.running.compare import compare_images
     from harness.renderers.external import variance_metadata
     from harness.renderers.validate import validate_result
 
@@ -710,14 +710,15 @@ def case_header(case: Case) -> dict[str, Any]:
 def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
               on_case: Callable[[int, dict], None] | None = None, executor=None, resume: bool = False,
               on_resume: Callable[[int, int], None] | None = None, timeout: float | None = None) -> dict:
-    """Run every case on ``executor`` (default: in this process, in order; ``harness.executors``), rewriting
+    """Run every case on ``executor`` (default: in this process, in order; ``harness.running.executors``), rewriting
     ``results.json`` atomically after each finished case, records in suite order whatever order cases finish in
     (finished cases are never lost). With ``resume``, the finished records of an earlier run of this suite in
     ``out_dir`` whose case definitions are unchanged are kept (``"resumed": true``) and only the rest run
-    (``harness.runstate``); ``on_resume(kept, total)`` is told how many. A task whose worker is killed (past
+    (``harness.running.runstate``); ``on_resume(kept, total)`` is told how many. A task whose worker is killed (past
     ``timeout``, else the case's own, see ``executors.case_timeout``) or dies makes its case an error."""
-    from harness import executors, runstate
-    from harness.imageio import atomic_write_text
+    from harness.running import executors
+    from harness.running import runstate
+    from harness.files.imageio import atomic_write_text
 
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.time()

@@ -1,8 +1,8 @@
 """Compare a test render with a reference: every image metric plus the statistical verdict, as a JSON-ready dict.
 
-:func:`compare_images` works on :class:`harness.imageio.ExrImage` values,
+:func:`compare_images` works on :class:`harness.files.imageio.ExrImage` values,
 :func:`compare_files` reads two EXR files first.  Metrics are described in
-:mod:`harness.metrics`, the verdict in :mod:`harness.verdict` and
+:mod:`harness.judges.metrics`, the verdict in :mod:`harness.judges.verdict` and
 ``docs/verdict.md``.
 
 The returned dict holds only str, int, float, bool, None, lists and dicts,
@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from harness import metrics
-from harness.errors import HarnessError
-from harness.imageio import ExrImage, read_exr
-from harness.verdict import verdict
+from harness.judges import metrics
+from harness.core.errors import HarnessError
+from harness.files.imageio import ExrImage, read_exr
+from harness.judges.verdict import verdict
 
 __all__ = ["compare_files", "compare_images"]
 
@@ -129,14 +129,14 @@ def compare_images(test: ExrImage, ref: ExrImage, *, tile: int = 8, alpha: float
     Both images need variance channels (the verdict's input; zeros for an
     exact reference), else :class:`HarnessError`.  If a file's metadata has
     ``spp`` (as ``harness render`` writes), spp - 1 is taken as the degrees of
-    freedom of its variance estimates (see :func:`harness.verdict.verdict`).
+    freedom of its variance estimates (see :func:`harness.judges.verdict.verdict`).
 
     Returns a dict with keys ``width``, ``height``, ``pixels``,
     ``nonfinite_pixels`` (``{"test": n, "reference": n}``), ``metric_pixels``
     and ``metric_note`` (metrics use only pixels finite in both images),
     ``metrics`` (``rmse``, ``relmse``, ``mape``, ``psnr``, ``ssim``, ``flip``),
-    ``bias`` (see :func:`harness.metrics.bias`), ``conventions`` (how each
-    metric was computed) and ``verdict`` (:meth:`harness.verdict.Verdict.to_dict`:
+    ``bias`` (see :func:`harness.judges.metrics.bias`), ``conventions`` (how each
+    metric was computed) and ``verdict`` (:meth:`harness.judges.verdict.Verdict.to_dict`:
     ``verdict`` "pass"/"fail", ``reason``, ``alpha``, ``threshold``, ``tile``,
     ``nonfinite_pixels``, ``global_bias``, ``omnibus``, ``max_z``,
     ``zero_variance``, ``worst_tile``, ``variance_dof``).  Non-finite floats
@@ -151,7 +151,7 @@ def compare_images(test: ExrImage, ref: ExrImage, *, tile: int = 8, alpha: float
 def compare_files(
     test_path: str | os.PathLike[str], ref_path: str | os.PathLike[str], **kw: Any
 ) -> dict:
-    """:func:`compare_images` on two EXR files read with :func:`harness.imageio.read_exr`.
+    """:func:`compare_images` on two EXR files read with :func:`harness.files.imageio.read_exr`.
 
     Keyword arguments (``tile``, ``alpha``) are passed on.  Errors name the
     files: a size mismatch raises ``HarnessError`` naming both files and both

@@ -43,7 +43,7 @@ import math
 import os
 from dataclasses import dataclass
 
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 
 MAX_FILM_SIDE = 16384
 MAX_FILM_PIXELS = 2**26

@@ -7,7 +7,7 @@ copied under another key, is damage like any other). The key is a SHA-256 over e
 references (bytes), the film (size, filter), max_depth, Mitsuba's version, the variant, spp, seed and chunking.
 
 Long renders are split into chunks of ``chunk_spp`` samples, each its own cache entry, merged exactly
-(``harness.moments``): an interrupted ground truth resumes where it stopped.
+(``harness.judges.moments``): an interrupted ground truth resumes where it stopped.
 
 Entries are written into a private temporary folder and renamed into place (atomic); when two processes fill the
 same entry, the first rename wins and the second process uses the winner's files. Every read verifies the
@@ -30,8 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError
-from harness.moments import Estimate, merge
+from harness.core.errors import HarnessError
+from harness.judges.moments import Estimate, merge
 from harness.scene import Scene
 
 FORMAT_VERSION = 1
@@ -195,7 +195,7 @@ class Cache:
     def store(self, key: str, estimate: Estimate, meta: dict) -> Path:
         """Write an entry atomically; if another process stored it first, keep theirs. A failed write (a full disk)
         is a one-line WriteError naming the cache, and leaves neither the entry nor folders made for it."""
-        from harness.imageio import WriteError, make_folders, remove_folders, write_exr
+        from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
 
         created: list[Path] = []
         tmp = self.folder / f".tmp-{uuid.uuid4().hex}"
@@ -205,7 +205,7 @@ class Cache:
             tmp.mkdir()
             np.savez(tmp / "estimate.npz", mean=estimate.mean, variance=estimate.variance, n=estimate.n)
             write_exr(tmp / "image.exr", estimate.mean, estimate.variance,
-                      metadata={"harness.groundtruth": json.dumps({k: v for k, v in meta.items() if k != "sha256"})})
+                      metadata={"harness.renderers.groundtruth": json.dumps({k: v for k, v in meta.items() if k != "sha256"})})
             meta = json.loads(json.dumps({k: v for k, v in meta.items() if k != "sha256"}))  # as load() reads it
             meta["sha256"] = {**{name: _sha256(tmp / name) for name in DATA_FILES},
                               META_CHECKSUM: _meta_sha256(key, meta)}

@@ -18,7 +18,7 @@ Conventions used throughout the harness:
 
 Errors a user can cause (a missing, corrupted or truncated EXR file, a file
 without R/G/B channels, an unwritable output folder) raise
-:class:`harness.errors.HarnessError` with a one-line message naming the file.
+:class:`harness.core.errors.HarnessError` with a one-line message naming the file.
 Programmer errors (bad array shapes, non-string metadata) raise
 ``ValueError`` / ``TypeError``.
 """
@@ -42,7 +42,7 @@ from typing import BinaryIO
 import numpy as np
 import OpenEXR
 
-from harness.errors import HarnessError, not_regular
+from harness.core.errors import HarnessError, not_regular
 
 __all__ = [
     "ExrImage",
@@ -451,7 +451,7 @@ def write_exr(
 
 
 # Limits on what a file may claim before its pixels are read (a corrupted header can claim terabytes): the film
-# limits of harness/limits.py, and a generous number of channels.
+# limits of harness/core/limits.py, and a generous number of channels.
 MAX_READ_CHANNELS = 64
 
 _CAPTURE_LOCK = threading.Lock()
@@ -536,7 +536,7 @@ def _open_exr(path: str, **options):
 
 def _check_claimed_size(path: str, header: dict) -> None:
     """Refuse a header whose data window or channel count is beyond the harness's limits, before pixels are read."""
-    from harness.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
+    from harness.core.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
 
     try:
         low, high = (np.asarray(corner, dtype=np.int64) for corner in header["dataWindow"])

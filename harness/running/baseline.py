@@ -47,9 +47,9 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from harness.errors import HarnessError, read_user_text
-from harness.results import read_results
-from harness.suite import _float_or_inf, _hint, _key, _short
+from harness.core.errors import HarnessError, read_user_text
+from harness.files.results import read_results
+from harness.running.suite import _float_or_inf, _hint, _key, _short
 
 SCHEMA = "rendering-harness/baseline"
 VERSION = 1
@@ -136,8 +136,8 @@ def definition_hash(case) -> str:
     any of these measured another problem: comparing would be meaningless. Not the renderer, its settings or the
     seed: they are the solution under test, whose changes the baseline exists to judge (they are recorded in each
     entry and reported as changed). Not expect, metrics or thresholds either (they judge numbers, not make them)."""
-    from harness.groundtruth import scene_digest
-    from harness.suite import case_scene
+    from harness.renderers.groundtruth import scene_digest
+    from harness.running.suite import case_scene
 
     fields = {
         "scene": scene_digest(case_scene(case)), "spp": case.spp, "seconds": case.seconds,
@@ -155,8 +155,8 @@ def solution(case) -> dict:
 def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, reference: np.ndarray) -> dict:
     """Per noise metric its value and relative standard error (CLT over pixels), and each channel's image mean
     with its standard error from the variance channels. Uses the pixels finite in both images, like
-    :mod:`harness.metrics`."""
-    from harness.metrics import MAPE_EPS, RELMSE_EPS
+    :mod:`harness.judges.metrics`."""
+    from harness.judges.metrics import MAPE_EPS, RELMSE_EPS
 
     t = np.asarray(test, np.float64)
     r = np.asarray(reference, np.float64)
@@ -186,10 +186,10 @@ def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, referen
 
 def record_statistics(case, record: dict, *, cache_dir=None, variant=None) -> dict:
     """:func:`image_statistics` of a finished case: its render (``record["render"]["exr"]``) against its
-    reference, fetched again through :func:`harness.suite.reference_for` (the closed form, or the cache for
+    reference, fetched again through :func:`harness.running.suite.reference_for` (the closed form, or the cache for
     Mitsuba; a reference made by another non-Mitsuba renderer is rendered again, seeded, so identical)."""
-    from harness.imageio import read_exr
-    from harness.suite import case_scene, reference_for
+    from harness.files.imageio import read_exr
+    from harness.running.suite import case_scene, reference_for
 
     exr = Path(record["render"]["exr"])
     if not exr.is_file():
@@ -263,8 +263,8 @@ def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "
 
 
 def save(doc: dict, path: str | Path) -> Path:
-    from harness.imageio import atomic_write_text
-    from harness.suite import _json_default
+    from harness.files.imageio import atomic_write_text
+    from harness.running.suite import _json_default
 
     return atomic_write_text(path, json.dumps(doc, indent=2, default=_json_default, allow_nan=False) + "\n")
 
@@ -452,8 +452,8 @@ class Gate:
     def finish(self, results: dict, out_dir: Path) -> list[str]:
         """Recompute the run's summary with the baseline outcomes, record them in ``results.json`` (rewritten
         atomically) and return the lines to print."""
-        from harness.imageio import atomic_write_text
-        from harness.suite import _json_default, summarise
+        from harness.files.imageio import atomic_write_text
+        from harness.running.suite import _json_default, summarise
 
         by_name = {c.name: c for c in self.suite.cases}
         for record in results["cases"]:  # cases resumed from an earlier run were not seen by check()
@@ -481,8 +481,8 @@ class Gate:
 
 def save_command(args) -> int:
     """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
-    from harness import runstate
-    from harness.suite import load_suite, run_suite
+    from harness.running import runstate
+    from harness.running.suite import load_suite, run_suite
 
     suite = load_suite(args.suite)
     if not args.out.strip():

@@ -1,18 +1,18 @@
 """``harness export SCENE --format mitsuba-xml|ply|obj|gltf --out DIR``: a scene in formats other renderers load
-(:mod:`harness.export`)."""
+(:mod:`harness.renderers.export`)."""
 
 from __future__ import annotations
 
 import argparse
 import json
 
-from harness import options
-from harness.errors import HarnessError
-from harness.options import require_non_negative, require_positive
+from harness.core import options
+from harness.core.errors import HarnessError
+from harness.core.options import require_non_negative, require_positive
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from harness.export import FORMATS, export_scene
+    from harness.renderers.export import FORMATS, export_scene
     from harness.scene import load_scene
 
     if args.format not in FORMATS:
@@ -32,7 +32,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
 def register(sub) -> None:
     """Add the ``export`` subcommand to the CLI's subparsers."""
-    from harness.export import FORMATS
+    from harness.renderers.export import FORMATS
 
     ex = sub.add_parser("export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), PLY, OBJ or glTF for other "
                         "renderers (docs/external-renderers.md)")

@@ -3,7 +3,7 @@
 A suite run is a list of ``Task``s, each a case (``run_case``) or one chunk of a Mitsuba ground truth
 (``groundtruth.ChunkJob``). Chunk tasks come first and are deduplicated by cache key, so two workers never render
 the same chunk; a case depends on the chunks of its ground truth and, when it runs, ``ground_truth()`` finds them
-cached and merges them exactly (``harness.moments``), giving the same image as a serial run, bit for bit.
+cached and merges them exactly (``harness.judges.moments``), giving the same image as a serial run, bit for bit.
 
 Executors (``harness run --executor``):
 
@@ -33,14 +33,14 @@ from multiprocessing import connection
 from pathlib import Path
 from typing import Any
 
-from harness import runstate
-from harness.errors import HarnessError
+from harness.running import runstate
+from harness.core.errors import HarnessError
 
 CHUNK_TIMEOUT = 600.0  # seconds for one Mitsuba ground-truth chunk (256 spp by default)
 SPP_CASE_TIMEOUT = 600.0  # seconds for a case with an spp budget
 MIN_SECONDS_TIMEOUT, SECONDS_FACTOR = 120.0, 20.0  # a case with a seconds budget: max(120 s, 20 x the budget)
 DEFAULT_WORKERS = 1  # measured in docs/robustness.md ("Executors")
-PRELOAD = ["harness.suite", "harness.compare", "harness.renderers", "harness.groundtruth"]
+PRELOAD = ["harness.running.suite", "harness.running.compare", "harness.renderers", "harness.renderers.groundtruth"]
 
 
 @dataclass(frozen=True)
@@ -69,7 +69,7 @@ def run_task(task: Task):
     try:
         if task.kind == "chunk":
             return ("ok", task.payload.run())
-        from harness.suite import run_case
+        from harness.running.suite import run_case
 
         case, out_dir, cache_dir, variant = task.payload
         return ("ok", run_case(case, Path(out_dir), cache_dir=cache_dir, variant=variant))
@@ -88,7 +88,7 @@ def plan(cases: Sequence[tuple[int, Any]], out_dir: Path, *, cache_dir=None, var
          timeout: float | None = None, chunks: bool = True) -> list[Task]:
     """The tasks of a run: the missing ground-truth chunks of the ``(index, case)`` pairs (once each), then the
     cases in suite order, each depending on its chunks."""
-    from harness.groundtruth import default_cache_dir
+    from harness.renderers.groundtruth import default_cache_dir
 
     cache_dir = str(cache_dir if cache_dir is not None else default_cache_dir())  # resolved here, not by workers
     chunk_tasks: dict[str, Task] = {}
@@ -109,8 +109,8 @@ def _chunk_jobs(case, cache_dir, variant) -> list:
     """The Mitsuba ground-truth chunks a case will need that are not cached yet (the renders ``reference_for`` and
     ``render_with_budget`` make through the cache). A scene that cannot be loaded needs none here: the case itself
     reports it."""
-    from harness import groundtruth
-    from harness.suite import case_scenes
+    from harness.renderers import groundtruth
+    from harness.running.suite import case_scenes
 
     try:
         scene, gt_scene = case_scenes(case)  # a stress variant may be judged on the plain scene

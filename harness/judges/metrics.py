@@ -2,7 +2,7 @@
 
 Every function takes ``(test, reference)``: arrays of shape (H, W, C), linear
 radiance (the harness's images are (H, W, 3) float32; see
-:mod:`harness.imageio`).  Arithmetic is done in float64.
+:mod:`harness.files.imageio`).  Arithmetic is done in float64.
 
 Non-finite values.  A renderer may write NaN or Inf.  No metric raises on them:
 each one uses only the pixels whose every channel is finite in *both* images

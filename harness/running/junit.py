@@ -141,7 +141,7 @@ def _details(record: dict) -> str:
 
 def write(results: dict, path: str | Path) -> Path:
     """Write the JUnit XML of ``results`` to ``path`` atomically."""
-    from harness.imageio import atomic_write_bytes
+    from harness.files.imageio import atomic_write_bytes
 
     tree = build(results)
     data = ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True)
@@ -150,7 +150,7 @@ def write(results: dict, path: str | Path) -> Path:
 
 def check_writable(path: str | Path, option: str = "--junit") -> None:
     """Before a run: create the output's folder (like ``--out``), or refuse with a one-line error."""
-    from harness.errors import HarnessError
+    from harness.core.errors import HarnessError
 
     if Path(path).is_dir():
         raise HarnessError(option, f"{str(path)!r} is a folder; expected a file name, e.g. junit.xml")

@@ -1,4 +1,4 @@
-"""The ``harness bench`` subcommand (its parser and its body); the work is in :mod:`harness.bench`."""
+"""The ``harness bench`` subcommand (its parser and its body); the work is in :mod:`harness.studies.bench`."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import re
 import sys
 from pathlib import Path
 
-from harness import options
-from harness.errors import HarnessError
-from harness.options import require_positive
+from harness.core import options
+from harness.core.errors import HarnessError
+from harness.core.options import require_positive
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
@@ -52,8 +52,8 @@ def _memory_option(text: str) -> tuple[int, int]:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    from harness import bench
-    from harness.imageio import atomic_write_text
+    from harness.studies import bench
+    from harness.files.imageio import atomic_write_text
     from harness.scene import load_scene
 
     for option, value in (("--spp", args.spp), ("--repeats", args.repeats), ("--ground-truth-spp", args.ground_truth_spp)):

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 
 ROOT = Path(__file__).resolve().parent.parent
 BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
@@ -141,7 +141,7 @@ def bench_scene(
     on_render: Callable[[str], None] | None = None,
 ) -> list[Row]:
     """Race ``contenders`` on ``scene`` (a loaded Scene) at ``spp`` against ground truth ``gt``
-    (a :class:`harness.groundtruth.GroundTruth`). Renders alternate between contenders, repeat by repeat."""
+    (a :class:`harness.renderers.groundtruth.GroundTruth`). Renders alternate between contenders, repeat by repeat."""
     from harness.renderers import RenderRequest, get_renderer
 
     rows = [Row(scene.name, c.label, c.renderer, dict(c.settings), spp, scene.film.width, scene.film.height)
@@ -317,7 +317,7 @@ def run_bench(
 ) -> dict:
     """The whole benchmark: per scene, the three contenders and (``strategies``) the reference's strategy variations;
     the reference/Mitsuba ratios; the targets checked on the Cornell box."""
-    from harness.groundtruth import ground_truth
+    from harness.renderers.groundtruth import ground_truth
     from harness.scene import load_scene
 
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),

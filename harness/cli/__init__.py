@@ -11,9 +11,9 @@ import select
 import sys
 from pathlib import Path
 
-from harness import options
-from harness.errors import HarnessError
-from harness.options import require_non_negative, require_positive
+from harness.core import options
+from harness.core.errors import HarnessError
+from harness.core.options import require_non_negative, require_positive
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 # A closed stdout (``harness ... | head``): what a shell reports for a command killed by SIGPIPE, 128 + 13. Python
@@ -61,7 +61,7 @@ def _progress_bar(enabled: bool, description: str):
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from harness import imageio
+    from harness.files import imageio
     from harness.renderers import RenderRequest, get_renderer
     from harness.scene import load_scene
 
@@ -130,15 +130,15 @@ MAX_TILE = 1024  # the verdict pads the image to whole tiles: a larger tile only
 
 
 def _check_cost(scene, spp: int, option: str) -> None:
-    """Refuse a render of ``scene`` at ``spp`` whose memory or time estimate is absurd (harness/limits.py)."""
-    from harness.limits import check_render_cost
+    """Refuse a render of ``scene`` at ``spp`` whose memory or time estimate is absurd (harness/core/limits.py)."""
+    from harness.core.limits import check_render_cost
 
     check_render_cost(scene.film.width, scene.film.height, spp, film_where=f"{scene.path}: film",
                       spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option)
 
 
 def cmd_ground_truth(args: argparse.Namespace) -> int:
-    from harness import groundtruth
+    from harness.renderers import groundtruth
     from harness.scene import load_scene
 
     require_positive("--spp", args.spp)
@@ -172,7 +172,7 @@ def cmd_ground_truth(args: argparse.Namespace) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from harness.compare import compare_files
+    from harness.running.compare import compare_files
 
     if not 1 <= args.tile <= MAX_TILE:
         raise HarnessError("--tile", f"expected an integer from 1 to {MAX_TILE} (pixels per tile side), got {args.tile}")
@@ -195,15 +195,16 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from harness.suite import load_suite, run_suite
+    from harness.running.suite import load_suite, run_suite
 
-    from harness import executors, runstate
+    from harness.running import executors
+    from harness.running import runstate
 
     suite = load_suite(args.suite)
     executor = executors.make_executor(args.executor, args.workers)  # checked before anything is written
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
-    gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/baseline.py)
+    gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
     out = runstate.output_folder(args.out, Path("reports") / suite.name)  # created and written to before any render
     with runstate.locked(out):  # a second run into the same folder stops here (one line naming the holder's pid)
         show = not args.quiet and sys.stderr.isatty()
@@ -260,7 +261,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         for line in baseline_lines:
             print(line)
         if args.junit:
-            from harness import junit
+            from harness.running import junit
 
             print(f"junit: {junit.write(results, args.junit)}")
         _write_run_report(args, out)
@@ -270,7 +271,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 def _baseline_gate(args: argparse.Namespace, suite):
     """The run's baseline gate (None without --baseline); bad --baseline, --baseline-tolerance or --junit input
     is a one-line error before anything runs."""
-    from harness import baseline, junit
+    from harness.running import baseline
+    from harness.running import junit
 
     gate = None
     if args.baseline:
@@ -284,14 +286,15 @@ def _baseline_gate(args: argparse.Namespace, suite):
 
 
 def cmd_baseline_save(args: argparse.Namespace) -> int:
-    from harness.baseline import save_command
+    from harness.running.baseline import save_command
 
     return save_command(args)
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from harness import calibrate, runstate
-    from harness.suite import load_suite
+    from harness.running import calibrate
+    from harness.running import runstate
+    from harness.running.suite import load_suite
 
     require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)
@@ -323,7 +326,7 @@ def _write_run_report(args: argparse.Namespace, out: Path) -> None:
     """The report of a finished run (DIR/index.html, report.json, summary.md). A report that fails in its own
     code is one line on stderr and leaves the run's exit code alone; one that cannot be written (a full disk) is a
     WriteError: one line and exit code 2, the old report (if any) left as it was."""
-    from harness.imageio import WriteError
+    from harness.files.imageio import WriteError
 
     try:
         from harness.report import write_suite_report
@@ -341,7 +344,7 @@ def _write_run_report(args: argparse.Namespace, out: Path) -> None:
 
 def cmd_report(args: argparse.Namespace) -> int:
     from harness.report import write_suite_report
-    from harness.report.convergence import parse_ladder
+    from harness.studies.convergence import parse_ladder
 
     require_positive("--strategy-spp", args.strategy_spp)
     results = Path(args.results)
@@ -373,9 +376,9 @@ class _SeriesAction(argparse.Action):
 
 
 def cmd_convergence(args: argparse.Namespace) -> int:
-    from harness import groundtruth
+    from harness.renderers import groundtruth
     from harness.report import write_convergence_report
-    from harness.report.convergence import Series, parse_ladder, replace_film, run_convergence
+    from harness.studies.convergence import Series, parse_ladder, replace_film, run_convergence
     from harness.renderers import renderer_names
     from harness.scene import load_scene
 
@@ -618,13 +621,13 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--mitsuba-variant")
     cal.add_argument("--quiet", action="store_true")
     cal.set_defaults(func=cmd_calibrate)
-    from harness.export_cli import register as register_export
+    from harness.cli.export import register as register_export
 
     register_export(sub)
-    from harness.bench_cli import register as register_bench
+    from harness.cli.bench import register as register_bench
 
     register_bench(sub)
-    from harness.stress import add_parser as register_stress
+    from harness.studies.stress import add_parser as register_stress
 
     register_stress(sub)
     for name in SCENE_COMMANDS:  # commands that load scene files, and so follow their mesh paths

@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from harness.report import figures
-from harness.report.convergence import MIN_TIMING_SECONDS, error_point, fit_convergence, timed_render
-from harness.report.images import ImageWriter, ReportImage, display_exposure
+from harness.studies import figures
+from harness.studies.convergence import MIN_TIMING_SECONDS, error_point, fit_convergence, timed_render
+from harness.files.previews import ImageWriter, ReportImage, display_exposure
 
 SHADOW_RAY_COUNTS = (1, 4, 9, 16, 36, 64, 100)
 #: the penumbra: pixels whose ground truth lies strictly between these fractions of the fully lit level
@@ -109,7 +109,7 @@ def shadow_ray_study(scene, gt, writer: ImageWriter, *, counts: Sequence[int] = 
     Returns (JSON results, the images written (the renders, the ground truth, the mask), {"panel": png, "curves":
     png}).
     """
-    from harness.imageio import tonemap_srgb8
+    from harness.files.imageio import tonemap_srgb8
     from harness.renderers import RenderRequest, get_renderer
 
     renderer = get_renderer("reference")

@@ -18,8 +18,8 @@ from pathlib import Path
 
 from scipy import stats
 
-from harness.errors import HarnessError
-from harness.suite import Case, Suite, run_case
+from harness.core.errors import HarnessError
+from harness.running.suite import Case, Suite, run_case
 
 
 def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
@@ -100,6 +100,6 @@ def _fmt(v) -> str:
 
 
 def write(result: dict, path: Path) -> None:
-    from harness.imageio import atomic_write_text
+    from harness.files.imageio import atomic_write_text
 
     atomic_write_text(path, json.dumps(result, indent=2, default=str))

@@ -13,7 +13,7 @@
 * ``gltf``: ``scene.gltf`` with its buffer, one node per shape, a PBR material per shape (base colour =
   reflectance, emissive = emission / its largest channel; the radiance itself is in the node's ``extras``).
 
-Meshes are written with trimesh; every file is written atomically (:mod:`harness.imageio`).
+Meshes are written with trimesh; every file is written atomically (:mod:`harness.files.imageio`).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from harness.errors import HarnessError
-from harness.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
+from harness.core.errors import HarnessError
+from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
@@ -187,7 +187,7 @@ def _trimesh_scene(scene: Scene):
 def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
     """Write ``scene`` in format ``fmt`` (one of :data:`FORMATS`) into the folder ``out_dir`` (created if needed);
     returns the files written, the main file first. The files are written into a staging folder and moved into
-    place together (:class:`harness.imageio.StagedFolder`): a failed write (a full disk) leaves ``out_dir`` as it
+    place together (:class:`harness.files.imageio.StagedFolder`): a failed write (a full disk) leaves ``out_dir`` as it
     was, and no folder made for it."""
     if fmt not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 
 #: multiple of the expected scatter a point must exceed (above the fitted line) to count as leaving it
 DEFAULT_K = 3.0
@@ -30,7 +30,7 @@ DEFAULT_K = 3.0
 MIN_SCATTER = 0.02
 #: the ladder of a suite report's convergence section (cheap on purpose)
 DEFAULT_SPP_LADDER = (1, 2, 4, 8, 16)
-RELMSE_EPS = 1e-2  # as harness.metrics.RELMSE_EPS
+RELMSE_EPS = 1e-2  # as harness.judges.metrics.RELMSE_EPS
 
 
 # ---- fitting ---------------------------------------------------------------------------------------------------
@@ -409,7 +409,7 @@ def run_convergence(
     ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
     renderer (default: :func:`harness.renderers.get_renderer`)."""
     from harness.renderers import RenderRequest, get_renderer
-    from harness.suite import render_for_seconds
+    from harness.running.suite import render_for_seconds
 
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")

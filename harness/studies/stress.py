@@ -24,7 +24,7 @@ Two groups of variants, all generated in memory from a loaded :class:`~harness.s
 
 Each (variant, renderer) row counts NaN, Inf and negative pixels, gives RMSE and relMSE against the ground truth,
 the verdict's global bias z, the fireflies (pixels whose |render - GT| exceeds k standard deviations, see
-:func:`fireflies`), the render time and the verdict (:func:`harness.compare.compare_images`). Where float32 cannot
+:func:`fireflies`), the render time and the verdict (:func:`harness.running.compare.compare_images`). Where float32 cannot
 represent the variant well enough (:func:`float32_limits`) the row is an *expected* fail and its note says why.
 """
 
@@ -39,10 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
-from harness import options
-from harness.errors import HarnessError
-from harness.options import require_non_negative, require_positive
-from harness.runstate import output_folder
+from harness.core import options
+from harness.core.errors import HarnessError
+from harness.core.options import require_non_negative, require_positive
+from harness.running.runstate import output_folder
 from harness.scene.model import Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,
@@ -547,9 +547,9 @@ def run_stress(
     "ground_truth": {...}, "rows": [...], "ok"}`` (see ``docs/stress.md``). ``ok`` is True when every invariant
     variant of the reference ends as expected (passes, or fails where float32 limits make that expected).
     ``settings`` are the reference renderer's ``--set`` values (Mitsuba takes none)."""
-    from harness import groundtruth
-    from harness.compare import compare_images
-    from harness.imageio import ExrImage
+    from harness.renderers import groundtruth
+    from harness.running.compare import compare_images
+    from harness.files.imageio import ExrImage
     from harness.renderers import RenderRequest, get_renderer
 
     parsed = [parse_variant(v, "--variant") for v in (variants or DEFAULT_VARIANTS)]
@@ -754,7 +754,7 @@ def command(args) -> int:
     import sys
     from pathlib import Path
 
-    from harness.imageio import atomic_write_text
+    from harness.files.imageio import atomic_write_text
     from harness.renderers import renderer_names
     from reference_impl import Film
 

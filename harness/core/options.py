@@ -13,8 +13,8 @@ import argparse
 import math
 import re
 
-from harness.errors import HarnessError
-from harness.limits import MAX_TIMEOUT_SECONDS
+from harness.core.errors import HarnessError
+from harness.core.limits import MAX_TIMEOUT_SECONDS
 
 _INTEGER = re.compile(r"-?[0-9]+")
 _NUMBER = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")

@@ -21,7 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from harness.errors import HarnessError, read_user_text
+from harness.core.errors import HarnessError, read_user_text
 
 __all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "read_results"]
 

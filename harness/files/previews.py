@@ -13,13 +13,13 @@ from pathlib import Path
 
 import numpy as np
 
-from harness import imageio
+from harness.files import imageio
 
 #: colormaps (matplotlib names): diverging for signed error (red: render too bright), sequential otherwise
 SIGNED_CMAP = "RdBu_r"
 RELATIVE_CMAP = "viridis"
 FLIP_CMAP = "magma"
-#: relative error's epsilon, as MAPE's (harness.metrics.MAPE_EPS): |t - r| / (|r| + eps)
+#: relative error's epsilon, as MAPE's (harness.judges.metrics.MAPE_EPS): |t - r| / (|r| + eps)
 RELATIVE_EPS = 1e-2
 #: heat-map limits come from this percentile of the magnitudes, so one firefly does not wash the map out
 LIMIT_PERCENTILE = 99.0
@@ -175,7 +175,7 @@ class ImageWriter:
 
 def error_images(writer: ImageWriter, test: np.ndarray, reference: np.ndarray) -> list[ReportImage]:
     """Signed error (diverging, symmetric limits), relative error and the FLIP map of ``test`` against ``reference``."""
-    from harness import metrics
+    from harness.judges import metrics
 
     signed = signed_error(test, reference)
     lim = robust_limit(signed)

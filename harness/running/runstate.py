@@ -29,8 +29,8 @@ import signal
 import tempfile
 from pathlib import Path
 
-from harness.errors import HarnessError
-from harness.results import read_results
+from harness.core.errors import HarnessError
+from harness.files.results import read_results
 
 _pending: list[int] = []  # signals received and not raised yet
 _critical = 0  # depth of no_interrupts() blocks

@@ -51,7 +51,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy import stats
 
-from harness.errors import HarnessError
+from harness.core.errors import HarnessError
 
 __all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "Verdict", "tile_z_scores", "verdict"]
 

@@ -1,0 +1,1 @@
+"""Files the harness reads and writes: OpenEXR and PNG images (atomic writes), the results.json schema."""

@@ -1,0 +1,1 @@
+"""Studies that render: convergence, noise against shadow rays, strategies, stress, bench."""

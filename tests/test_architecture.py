@@ -1,0 +1,201 @@
+"""The house's rule (docs/architecture.md), from the code's own imports: every module of ``harness`` and
+``reference_impl`` imports only modules of its own layer or of the layers below; no circle of imports; no import
+inside a function except of an optional heavy dependency, marked at that line with a comment saying why
+(``# optional: ...``). The graph is read with :mod:`ast`, nothing is imported."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGES = ("reference_impl", "harness")
+
+# Bottom to top; a module belongs to the first prefix that matches (longest prefixes first within a layer).
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("reference_impl",),
+    ("harness.core",),
+    ("harness.judges",),
+    ("harness.scene", "harness.files"),
+    ("harness.renderers",),
+    ("harness.running",),
+    ("harness.studies",),
+    ("harness.report",),
+    ("harness.cli", "harness.pytest_plugin", "harness.__main__"),
+)
+UNLAYERED = ("harness",)  # the package itself: a docstring, imports nothing
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+def modules() -> dict[str, Path]:
+    return {module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
+
+
+def layer_of(name: str) -> int | None:
+    for index, prefixes in enumerate(LAYERS):
+        if any(name == p or name.startswith(p + ".") for p in prefixes):
+            return index
+    return None
+
+
+def imports(path: Path, name: str, known: dict[str, Path]) -> list[tuple[str, int, bool, str]]:
+    """(imported module, line, inside a function?, the line's text) for every import of a project module."""
+    source = path.read_text(encoding="utf-8")
+    lines = source.splitlines()
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    found = []
+
+    def resolve(target: str) -> str | None:
+        while target and target not in known:
+            target = target.rpartition(".")[0]
+        return target or None
+
+    class Visitor(ast.NodeVisitor):
+        depth = 0
+
+        def visit_FunctionDef(self, node):
+            self.depth += 1
+            self.generic_visit(node)
+            self.depth -= 1
+
+        visit_AsyncFunctionDef = visit_FunctionDef
+
+        def _add(self, node, targets):
+            for target in targets:
+                if target.split(".")[0] in PACKAGES:
+                    resolved = resolve(target)
+                    if resolved and resolved != name:
+                        found.append((resolved, node.lineno, self.depth > 0, lines[node.lineno - 1]))
+
+        def visit_Import(self, node):
+            self._add(node, [a.name for a in node.names])
+
+        def visit_ImportFrom(self, node):
+            base = node.module or ""
+            if node.level:
+                up = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(up + ([base] if base else []))
+            self._add(node, [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names])
+
+    Visitor().visit(ast.parse(source))
+    return found
+
+
+def nested_imports(path: Path) -> list[tuple[int, str]]:
+    """Every import statement inside a function (of any module, project or not), with its line's text."""
+    source = path.read_text(encoding="utf-8")
+    lines = source.splitlines()
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for inner in ast.walk(node):
+                if isinstance(inner, (ast.Import, ast.ImportFrom)):
+                    out.append((inner.lineno, lines[inner.lineno - 1]))
+    return sorted(set(out))
+
+
+def graph() -> dict[str, set[str]]:
+    known = modules()
+    return {name: {t for t, *_ in imports(path, name, known)} for name, path in known.items()}
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan, iterative)."""
+    index, low, on, stack, out, counter = {}, {}, set(), [], [], [0]
+
+    def strong(v):
+        work = [(v, iter(sorted(edges.get(v, ()))))]
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        while work:
+            node, it = work[-1]
+            for w in it:
+                if w not in index:
+                    index[w] = low[w] = counter[0]
+                    counter[0] += 1
+                    stack.append(w)
+                    on.add(w)
+                    work.append((w, iter(sorted(edges.get(w, ())))))
+                    break
+                if w in on:
+                    low[node] = min(low[node], index[w])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    comp = []
+                    while True:
+                        w = stack.pop()
+                        on.discard(w)
+                        comp.append(w)
+                        if w == node:
+                            break
+                    if len(comp) > 1:
+                        out.append(sorted(comp))
+
+    for v in sorted(edges):
+        if v not in index:
+            strong(v)
+    return out
+
+
+def test_every_module_has_a_layer():
+    missing = [m for m in modules() if layer_of(m) is None and m not in UNLAYERED]
+    assert not missing, f"modules outside every layer of docs/architecture.md: {missing}"
+
+
+def test_no_circle_of_imports():
+    assert cycles(graph()) == []
+
+
+def test_no_module_imports_a_layer_above_it():
+    known = modules()
+    upward = []
+    for name, path in known.items():
+        mine = layer_of(name)
+        for target, line, _, text in imports(path, name, known):
+            theirs = layer_of(target)
+            if mine is not None and theirs is not None and theirs > mine:
+                upward.append(f"{path.relative_to(ROOT)}:{line}: {text.strip()}")
+    assert not upward, "imports running up the layers:\n" + "\n".join(upward)
+
+
+def test_reference_impl_imports_neither_harness_nor_mitsuba():
+    for name, path in modules().items():
+        if name.startswith("reference_impl"):
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            for node in ast.walk(tree):
+                if isinstance(node, ast.Import):
+                    roots = [a.name.split(".")[0] for a in node.names]
+                elif isinstance(node, ast.ImportFrom) and not node.level:
+                    roots = [(node.module or "").split(".")[0]]
+                else:
+                    continue
+                assert not {"harness", "mitsuba"} & set(roots), (path, node.lineno)
+
+
+def test_imports_inside_functions_are_optional_heavy_dependencies_and_say_so():
+    bad = []
+    for name, path in modules().items():
+        for line, text in nested_imports(path):
+            if "# optional:" not in text:
+                bad.append(f"{path.relative_to(ROOT)}:{line}: {text.strip()}")
+    assert not bad, "imports inside functions without '# optional: why':\n" + "\n".join(bad)
+
+
+def test_the_checks_can_fail():
+    """The cycle finder and the layer table on a planted graph: a circle and an upward arrow are seen."""
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert layer_of("harness.cli.run") > layer_of("harness.running.cases") > layer_of("harness.core.errors")
+    assert layer_of("harness.report.build") > layer_of("harness.studies.convergence")
