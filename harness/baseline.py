@@ -482,6 +482,7 @@ class Gate:
 def save_command(args) -> int:
     """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
     from harness import runstate
+    from harness.imageio import removed_on_failure
     from harness.suite import load_suite, run_suite
 
     suite = load_suite(args.suite)
@@ -497,14 +498,16 @@ def save_command(args) -> int:
         results = _read_results(args.from_results, suite)
         source = str(args.from_results)
     else:
-        run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out")
+        created: list[Path] = []  # removed (where empty) when the run fails
+        run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out",
+                                         created=created)
 
         def on_case(index: int, record: dict) -> None:
             if not args.quiet:
                 mark = "ok " if record["ok"] else "BAD"
                 print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}", file=sys.stderr)
 
-        with runstate.locked(run_dir, "--run-out"):
+        with removed_on_failure(created), runstate.locked(run_dir, "--run-out"):
             results = run_suite(suite, run_dir, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
                                 on_case=on_case)
         source = f"run {run_dir / 'results.json'}"

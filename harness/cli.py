@@ -111,8 +111,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         "seed": str(args.seed),
         "settings": json.dumps(result.settings, sort_keys=True),
     }
-    imageio.write_exr(out, result.image, result.variance, metadata=metadata)
-    preview = imageio.write_png_preview(imageio.preview_path(out), result.image)
+    _, preview = imageio.write_exr_with_preview(out, result.image, result.variance, metadata=metadata)  # or neither
     summary = _render_summary(result, scene, out, preview, args.seed)
     if args.json:
         print(json.dumps(summary, indent=2, sort_keys=False))
@@ -197,15 +196,17 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     from harness.suite import load_suite, run_suite
 
-    from harness import executors, runstate
+    from harness import executors, imageio, runstate
 
     suite = load_suite(args.suite)
     executor = executors.make_executor(args.executor, args.workers)  # checked before anything is written
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/baseline.py)
-    out = runstate.output_folder(args.out, Path("reports") / suite.name)  # created and written to before any render
-    with runstate.locked(out):  # a second run into the same folder stops here (one line naming the holder's pid)
+    created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails
+    out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
+    # a second run into the same folder stops at the lock (one line naming the holder's pid)
+    with imageio.removed_on_failure(created), runstate.locked(out):
         show = not args.quiet and sys.stderr.isatty()
         bar = None
         if show:
@@ -290,19 +291,20 @@ def cmd_baseline_save(args: argparse.Namespace) -> int:
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    from harness import calibrate, runstate
+    from harness import calibrate, imageio, runstate
     from harness.suite import load_suite
 
     require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)
     calibrate.select_cases(suite, args.cases)  # a --cases pattern that matches no case: one line, before any render
-    out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration")
+    created: list[Path] = []  # removed (where empty) when the calibration fails
+    out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration", created=created)
 
     def on_progress(name: str, seed: int) -> None:
         if not args.quiet:
             print(f"  {name} seed {seed}", file=sys.stderr, flush=True)
 
-    with runstate.locked(out):
+    with imageio.removed_on_failure(created), runstate.locked(out):
         result = calibrate.calibrate(suite, out, seeds=args.seeds, patterns=args.cases, cache_dir=args.cache_dir,
                                      variant=args.mitsuba_variant, on_progress=on_progress)
         calibrate.write(result, out / "calibration.json")

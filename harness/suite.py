@@ -664,10 +664,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
         validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
         folder = out_dir / "cases" / slug(case.name)
-        folder.mkdir(parents=True, exist_ok=True)
-        imageio.write_exr(folder / "render.exr", result.image, result.variance,
-                          metadata={"renderer": result.renderer, "case": case.name})
-        imageio.write_png_preview(folder / "render.png", result.image)
+        with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
+            imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
+                                           metadata={"renderer": result.renderer, "case": case.name})
         gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         comparison = compare_images(
             imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
