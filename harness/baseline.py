@@ -48,7 +48,7 @@ import numpy as np
 from scipy import stats
 
 from harness.errors import HarnessError, read_user_text
-from harness.results import read_results
+from harness.results import dumps, read_results
 from harness.suite import _float_or_inf, _hint, _key, _short
 
 SCHEMA = "rendering-harness/baseline"
@@ -264,9 +264,8 @@ def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "
 
 def save(doc: dict, path: str | Path) -> Path:
     from harness.imageio import atomic_write_text
-    from harness.suite import _json_default
 
-    return atomic_write_text(path, json.dumps(doc, indent=2, default=_json_default, allow_nan=False) + "\n")
+    return atomic_write_text(path, dumps(doc) + "\n")  # strict JSON: a NaN statistic (no finite pixel) as null
 
 
 def load(path: str | Path) -> dict:
@@ -453,7 +452,7 @@ class Gate:
         """Recompute the run's summary with the baseline outcomes, record them in ``results.json`` (rewritten
         atomically) and return the lines to print."""
         from harness.imageio import atomic_write_text
-        from harness.suite import _json_default, summarise
+        from harness.suite import summarise
 
         by_name = {c.name: c for c in self.suite.cases}
         for record in results["cases"]:  # cases resumed from an earlier run were not seen by check()
@@ -467,7 +466,7 @@ class Gate:
         results["baseline"] = {"file": str(self.path), "created": self.doc.get("created"),
                                "tolerance": self.tolerance, "compared": self.compared, "regressed": self.regressed,
                                "not_in_baseline": self.missing, "tools_changed": changed}
-        atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
+        atomic_write_text(out_dir / "results.json", dumps(results))
         lines = [f"baseline {self.path}: {len(self.compared)} cases compared, {len(self.regressed)} regressed"]
         if self.missing:
             lines.append(f"  not in the baseline (reported, not failed): {', '.join(self.missing)}")

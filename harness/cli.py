@@ -500,7 +500,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
              "(repeatable; see docs/reference-renderer.md)",
     )
-    render.add_argument("--out", required=True, help="output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it")
+    render.add_argument("--out", required=True, type=options.out_file,
+                        help="output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it")
     render.add_argument("--json", action="store_true", help="print one JSON object with timings and counters")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.add_argument("--mitsuba-variant", help="Mitsuba variant for --renderer mitsuba (default: the best that works)")
@@ -531,7 +532,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run a suite: exit 0 when every case is as expected, 1 when not, 2 on bad input")
     run.add_argument("suite", help="suite file (TOML, see docs/suites.md)")
-    run.add_argument("--out", help="output folder (default reports/<suite name>)")
+    run.add_argument("--out", type=options.out_folder, help="output folder (default reports/<suite name>)")
     run.add_argument("--cache-dir", help="ground-truth cache folder")
     run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     run.add_argument("--quiet", action="store_true")
@@ -550,17 +551,20 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--baseline-tolerance", action="append", default=[], metavar="KEY=VALUE",
                      help="override a baseline rule, e.g. relmse=1.10 (10 %% worse allowed), seconds=1.5, bias=off "
                      "(repeatable; docs/ci.md)")
-    run.add_argument("--junit", metavar="FILE", help="also write JUnit XML of the run for CI (docs/ci.md)")
+    run.add_argument("--junit", metavar="FILE", type=options.out_file,
+                     help="also write JUnit XML of the run for CI (docs/ci.md)")
     run.set_defaults(func=cmd_run)
 
     bl = sub.add_parser("baseline", help="save a suite's metrics as a baseline that harness run --baseline gates on")
     bl_sub = bl.add_subparsers(dest="baseline_command", required=True, parser_class=_Parser)
     bls = bl_sub.add_parser("save", help="run the suite (or take --from RESULTS.json) and write its baseline")
     bls.add_argument("suite", help="suite file (TOML, see docs/suites.md)")
-    bls.add_argument("--out", required=True, metavar="FILE", help="the baseline file to write (JSON)")
+    bls.add_argument("--out", required=True, metavar="FILE", type=options.out_file,
+                     help="the baseline file to write (JSON)")
     bls.add_argument("--from", dest="from_results", metavar="RESULTS.json",
                      help="take this earlier run of the suite instead of running it")
-    bls.add_argument("--run-out", help="output folder of the run (default reports/<suite name>-baseline)")
+    bls.add_argument("--run-out", type=options.out_folder,
+                     help="output folder of the run (default reports/<suite name>-baseline)")
     bls.add_argument("--allow-unexpected", action="store_true",
                      help="write the baseline even if some cases did not end as expected")
     bls.add_argument("--cache-dir", help="ground-truth cache folder")
@@ -570,7 +574,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
     rep.add_argument("results", help="a results.json written by harness run")
-    rep.add_argument("--out", help="output folder (default: the results file's folder)")
+    rep.add_argument("--out", type=options.out_folder, help="output folder (default: the results file's folder)")
     rep.add_argument("--convergence-spp", default="1,2,4,8,16", type=options.spp_ladder,
                      help="spp ladder of each scene's convergence "
                      "(default 1,2,4,8,16)")
@@ -604,7 +608,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="first seed; every render gets its own (default 1)")
     cv.add_argument("--k", type=options.positive_number, default=3.0,
                     help="multiple of the expected scatter that flags bias (default 3)")
-    cv.add_argument("--out", help="output folder (default reports/convergence/<scene>)")
+    cv.add_argument("--out", type=options.out_folder, help="output folder (default reports/convergence/<scene>)")
     cv.add_argument("--cache-dir", help="ground-truth cache folder")
     cv.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     cv.add_argument("--json", action="store_true", help="also print convergence.json")
@@ -615,7 +619,7 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("suite")
     cal.add_argument("--seeds", type=options.positive_int, default=50, help="seeds per expect=pass case (default 50)")
     cal.add_argument("--cases", action="append", help="only cases whose name matches this glob (repeatable)")
-    cal.add_argument("--out", help="output folder (default reports/<suite>-calibration)")
+    cal.add_argument("--out", type=options.out_folder, help="output folder (default reports/<suite>-calibration)")
     cal.add_argument("--cache-dir")
     cal.add_argument("--mitsuba-variant")
     cal.add_argument("--quiet", action="store_true")
