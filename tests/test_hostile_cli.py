@@ -142,7 +142,7 @@ def test_moderate_settings_still_render(scene):
 
 def test_suite_case_with_absurd_indirect_rays_refused_at_load(tmp_path, scene):
     suite = tmp_path / "suite.toml"
-    suite.write_text(f'name = "s"\n[[cases]]\nname = "c"\nscene = "{scene}"\nrenderer = "reference"\nspp = 1\n'
+    suite.write_text(f'name = "s"\n[[cases]]\nname = "c"\nscene = "{scene}"\nrenderer = "reference"\nspp = 2\n'
                      'settings = { indirect_rays = 1000000 }\nagainst = { renderer = "reference", spp = 4 }\n')
     with pytest.raises(HarnessError) as info:
         load_suite(suite)

@@ -111,8 +111,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         "seed": str(args.seed),
         "settings": json.dumps(result.settings, sort_keys=True),
     }
-    imageio.write_exr(out, result.image, result.variance, metadata=metadata)
-    preview = imageio.write_png_preview(imageio.preview_path(out), result.image)
+    _, preview = imageio.write_exr_with_preview(out, result.image, result.variance, metadata=metadata)  # or neither
     summary = _render_summary(result, scene, out, preview, args.seed)
     if args.json:
         print(json.dumps(summary, indent=2, sort_keys=False))
@@ -198,6 +197,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from harness.running.suite import load_suite, run_suite
 
     from harness.running import executors
+    from harness.files import imageio
     from harness.running import runstate
 
     suite = load_suite(args.suite)
@@ -205,8 +205,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
-    out = runstate.output_folder(args.out, Path("reports") / suite.name)  # created and written to before any render
-    with runstate.locked(out):  # a second run into the same folder stops here (one line naming the holder's pid)
+    created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails
+    out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
+    # a second run into the same folder stops at the lock (one line naming the holder's pid)
+    with imageio.removed_on_failure(created), runstate.locked(out):
         show = not args.quiet and sys.stderr.isatty()
         bar = None
         if show:
@@ -293,19 +295,21 @@ def cmd_baseline_save(args: argparse.Namespace) -> int:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     from harness.running import calibrate
+    from harness.files import imageio
     from harness.running import runstate
     from harness.running.suite import load_suite
 
     require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)
     calibrate.select_cases(suite, args.cases)  # a --cases pattern that matches no case: one line, before any render
-    out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration")
+    created: list[Path] = []  # removed (where empty) when the calibration fails
+    out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration", created=created)
 
     def on_progress(name: str, seed: int) -> None:
         if not args.quiet:
             print(f"  {name} seed {seed}", file=sys.stderr, flush=True)
 
-    with runstate.locked(out):
+    with imageio.removed_on_failure(created), runstate.locked(out):
         result = calibrate.calibrate(suite, out, seeds=args.seeds, patterns=args.cases, cache_dir=args.cache_dir,
                                      variant=args.mitsuba_variant, on_progress=on_progress)
         calibrate.write(result, out / "calibration.json")
@@ -501,7 +505,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
              "(repeatable; see docs/reference-renderer.md)",
     )
-    render.add_argument("--out", required=True, help="output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it")
+    render.add_argument("--out", required=True, type=options.out_file,
+                        help="output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it")
     render.add_argument("--json", action="store_true", help="print one JSON object with timings and counters")
     render.add_argument("--quiet", action="store_true", help="no progress bar")
     render.add_argument("--mitsuba-variant", help="Mitsuba variant for --renderer mitsuba (default: the best that works)")
@@ -532,7 +537,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run a suite: exit 0 when every case is as expected, 1 when not, 2 on bad input")
     run.add_argument("suite", help="suite file (TOML, see docs/suites.md)")
-    run.add_argument("--out", help="output folder (default reports/<suite name>)")
+    run.add_argument("--out", type=options.out_folder, help="output folder (default reports/<suite name>)")
     run.add_argument("--cache-dir", help="ground-truth cache folder")
     run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     run.add_argument("--quiet", action="store_true")
@@ -551,17 +556,20 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--baseline-tolerance", action="append", default=[], metavar="KEY=VALUE",
                      help="override a baseline rule, e.g. relmse=1.10 (10 %% worse allowed), seconds=1.5, bias=off "
                      "(repeatable; docs/ci.md)")
-    run.add_argument("--junit", metavar="FILE", help="also write JUnit XML of the run for CI (docs/ci.md)")
+    run.add_argument("--junit", metavar="FILE", type=options.out_file,
+                     help="also write JUnit XML of the run for CI (docs/ci.md)")
     run.set_defaults(func=cmd_run)
 
     bl = sub.add_parser("baseline", help="save a suite's metrics as a baseline that harness run --baseline gates on")
     bl_sub = bl.add_subparsers(dest="baseline_command", required=True, parser_class=_Parser)
     bls = bl_sub.add_parser("save", help="run the suite (or take --from RESULTS.json) and write its baseline")
     bls.add_argument("suite", help="suite file (TOML, see docs/suites.md)")
-    bls.add_argument("--out", required=True, metavar="FILE", help="the baseline file to write (JSON)")
+    bls.add_argument("--out", required=True, metavar="FILE", type=options.out_file,
+                     help="the baseline file to write (JSON)")
     bls.add_argument("--from", dest="from_results", metavar="RESULTS.json",
                      help="take this earlier run of the suite instead of running it")
-    bls.add_argument("--run-out", help="output folder of the run (default reports/<suite name>-baseline)")
+    bls.add_argument("--run-out", type=options.out_folder,
+                     help="output folder of the run (default reports/<suite name>-baseline)")
     bls.add_argument("--allow-unexpected", action="store_true",
                      help="write the baseline even if some cases did not end as expected")
     bls.add_argument("--cache-dir", help="ground-truth cache folder")
@@ -571,7 +579,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
     rep.add_argument("results", help="a results.json written by harness run")
-    rep.add_argument("--out", help="output folder (default: the results file's folder)")
+    rep.add_argument("--out", type=options.out_folder, help="output folder (default: the results file's folder)")
     rep.add_argument("--convergence-spp", default="1,2,4,8,16", type=options.spp_ladder,
                      help="spp ladder of each scene's convergence "
                      "(default 1,2,4,8,16)")
@@ -605,7 +613,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="first seed; every render gets its own (default 1)")
     cv.add_argument("--k", type=options.positive_number, default=3.0,
                     help="multiple of the expected scatter that flags bias (default 3)")
-    cv.add_argument("--out", help="output folder (default reports/convergence/<scene>)")
+    cv.add_argument("--out", type=options.out_folder, help="output folder (default reports/convergence/<scene>)")
     cv.add_argument("--cache-dir", help="ground-truth cache folder")
     cv.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     cv.add_argument("--json", action="store_true", help="also print convergence.json")
@@ -616,7 +624,7 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("suite")
     cal.add_argument("--seeds", type=options.positive_int, default=50, help="seeds per expect=pass case (default 50)")
     cal.add_argument("--cases", action="append", help="only cases whose name matches this glob (repeatable)")
-    cal.add_argument("--out", help="output folder (default reports/<suite>-calibration)")
+    cal.add_argument("--out", type=options.out_folder, help="output folder (default reports/<suite>-calibration)")
     cal.add_argument("--cache-dir")
     cal.add_argument("--mitsuba-variant")
     cal.add_argument("--quiet", action="store_true")

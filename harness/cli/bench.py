@@ -11,6 +11,7 @@ from pathlib import Path
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_positive
+from harness.files.results import json_ready
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
@@ -38,7 +39,7 @@ def register(sub) -> None:
                        help="also measure the peak RSS of a SIZE x SIZE render at SPP (default 1024x256)")
     bench.add_argument("--check", action="store_true", help="exit 1 when a target of the performance issue is not met")
     bench.add_argument("--json", action="store_true", help="print the result as one JSON object on stdout")
-    bench.add_argument("--out", help="also write the JSON result to this file (atomically)")
+    bench.add_argument("--out", type=options.out_file, help="also write the JSON result to this file (atomically)")
     bench.add_argument("--cache-dir", help="ground-truth cache folder (default: $HARNESS_CACHE_DIR or the user cache)")
     bench.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     bench.set_defaults(func=cmd_bench)
@@ -77,7 +78,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
     if memory is not None:
         result["memory"] = bench.peak_memory(Path(resolved[0]), memory[0], memory[1])
-    text = json.dumps(result, indent=2, default=float)
+    text = json.dumps(json_ready(result), indent=2, default=float, allow_nan=False)  # NaN / inf as null
     if args.out:
         atomic_write_text(Path(args.out), text)
     print(text if args.json else bench.format_report(result))

@@ -38,7 +38,7 @@ def register(sub) -> None:
                         "renderers (docs/external-renderers.md)")
     ex.add_argument("scene", help="scene file (TOML)")
     ex.add_argument("--format", required=True, help=f"one of: {', '.join(FORMATS)}")
-    ex.add_argument("--out", required=True, help="output folder (created if needed)")
+    ex.add_argument("--out", required=True, type=options.out_folder, help="output folder (created if needed)")
     ex.add_argument("--spp", type=options.positive_int, default=16,
                     help="mitsuba-xml: default of the $spp parameter (default 16)")
     ex.add_argument("--seed", type=options.non_negative_int, default=0,

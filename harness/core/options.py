@@ -3,7 +3,7 @@
 Two layers. The argparse ``type=`` functions below (:func:`positive_int`, :func:`seconds`, :func:`spp_ladder`, ...)
 parse an option's text strictly as it is read: integers in plain decimal digits only (``int()`` would also take
 ``1_000``, `` 7 `` and other scripts' digits), finite numbers only (no ``nan``, ``inf`` or ``1e999``), ladders
-strictly increasing. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
+strictly increasing, output paths (:data:`out_folder`, :data:`out_file`) not empty. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
 (``harness.cli._Parser``). The ``require_*`` functions check values that did not come through argparse.
 """
 
@@ -105,6 +105,23 @@ def film_size(text: str) -> str:
     if not match or int(match[1]) < 1 or int(match[2]) < 1:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT with positive integer sides, e.g. 64x64, got {text!r}")
     return text
+
+
+def path_type(what: str):
+    """An argparse ``type=`` for an output path (``what``: "a folder path"): any text but an empty or blank one,
+    which would otherwise read as "not given" (the default folder) or as the current folder."""
+
+    def convert(text: str) -> str:
+        if not isinstance(text, str) or not text.strip():
+            raise argparse.ArgumentTypeError(f"expected {what}, got an empty string")
+        return text
+
+    convert.__name__ = "path"
+    return convert
+
+
+out_folder = path_type("a folder path")
+out_file = path_type("a file path")
 
 
 def parse_ladder(text: str, kind: type = int) -> list:

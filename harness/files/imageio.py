@@ -54,7 +54,9 @@ __all__ = [
     "preview_path",
     "read_exr",
     "remove_folders",
+    "removed_on_failure",
     "write_exr",
+    "write_exr_with_preview",
     "write_png_preview",
 ]
 
@@ -124,18 +126,33 @@ def _os_reason(err: OSError) -> str:
 def _atomic_write(path: str | os.PathLike[str], fill: Callable[[BinaryIO], None]) -> Path:
     """Write a file atomically: ``fill`` writes the content into an open binary file.
 
-    The content goes to a temporary file in the destination folder
-    (``tempfile.NamedTemporaryFile(dir=..., delete=False)``), which is flushed,
-    fsync'ed, given the usual permissions (``0o666`` less the umask, or the
-    destination's mode if it already exists) and moved over ``path`` with
-    ``os.replace``.  On any failure the temporary file is removed and the
-    destination is untouched.
+    The content goes to a temporary file in the destination folder (:func:`_staged_write`), which is moved over
+    ``path`` with ``os.replace``.  On any failure the temporary file is removed and the destination is untouched.
 
     An ``OSError`` (missing or read-only folder, disk full, destination is a
     folder...) becomes ``WriteError(str(path), "cannot write: <reason>")``;
     any other exception (from ``fill``) propagates unchanged.
     """
     dest = Path(path)
+    tmp_name: str | None = _staged_write(dest, fill)
+    try:
+        os.replace(tmp_name, dest)
+        tmp_name = None
+    except OSError as err:
+        raise WriteError(str(path), f"cannot write: {_write_reason(dest.parent, err)}") from None
+    finally:
+        if tmp_name is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp_name)
+    _fsync_folder(dest.parent)
+    return dest
+
+
+def _staged_write(dest: Path, fill: Callable[[BinaryIO], None]) -> str:
+    """The name of a complete temporary file beside ``dest`` holding what ``fill`` wrote: flushed, fsync'ed and
+    given the usual permissions (``0o666`` less the umask, or the destination's mode if it already exists), ready
+    to be renamed over ``dest``. On any failure it is removed: an ``OSError`` becomes ``WriteError(str(dest),
+    "cannot write: <reason>")``, any other exception (from ``fill``) propagates unchanged."""
     folder = dest.parent
     suffix = dest.suffix or ".tmp"
     tmp_name: str | None = None
@@ -153,16 +170,14 @@ def _atomic_write(path: str | os.PathLike[str], fill: Callable[[BinaryIO], None]
             except OSError:
                 mode = _FILE_MODE
             os.chmod(tmp_name, mode)
-            os.replace(tmp_name, dest)
-            tmp_name = None
+            done, tmp_name = tmp_name, None
+            return done
         finally:
             if tmp_name is not None:
                 with contextlib.suppress(OSError):
                     os.unlink(tmp_name)
     except OSError as err:
-        raise WriteError(str(path), f"cannot write: {_write_reason(folder, err)}") from None
-    _fsync_folder(folder)
-    return dest
+        raise WriteError(str(dest), f"cannot write: {_write_reason(folder, err)}") from None
 
 
 def _write_reason(folder: Path, err: OSError) -> str:
@@ -251,6 +266,18 @@ def remove_folders(created: list[Path]) -> None:
     for folder in reversed(created):
         with contextlib.suppress(OSError):
             folder.rmdir()
+
+
+@contextlib.contextmanager
+def removed_on_failure(created: list[Path]):
+    """Within the block, the folders :func:`make_folders` made (``created``, which may grow in the block) are
+    removed where empty when the block raises, and the exception goes on: a failed command leaves no empty folder
+    it made, and keeps what it finished in them."""
+    try:
+        yield created
+    except BaseException:
+        remove_folders(created)
+        raise
 
 
 class StagedFolder:
@@ -425,6 +452,12 @@ def write_exr(
     metadata, and ``HarnessError(str(path), "cannot write: <reason>")`` when
     the output folder is missing or not writable (nothing is left behind).
     """
+    return _atomic_write(path, _exr_fill(image, variance, metadata))
+
+
+def _exr_fill(image: np.ndarray, variance: np.ndarray | None, metadata: Mapping[str, str] | None
+              ) -> Callable[[BinaryIO], None]:
+    """What writes the EXR file of :func:`write_exr` into an open binary file (its arguments checked first)."""
     img = _check_rgb_array("image", image)
     var = None if variance is None else _check_rgb_array("variance", variance, img.shape)
     header: dict[str, object] = dict(_check_metadata(metadata))
@@ -447,7 +480,7 @@ def write_exr(
             # Failures writing to the stream (e.g. disk full) surface as RuntimeError.
             raise OSError(_one_line(str(err))) from err
 
-    return _atomic_write(path, fill)
+    return fill
 
 
 # Limits on what a file may claim before its pixels are read (a corrupted header can claim terabytes): the film
@@ -699,8 +732,47 @@ def write_png_preview(
     ``ValueError`` for a bad shape and ``HarnessError(str(path), "cannot write: ...")``
     if the folder is missing or not writable.
     """
+    return atomic_write_bytes(path, _png_bytes(image, exposure))
+
+
+def _png_bytes(image: np.ndarray, exposure: float = 0.0) -> bytes:
     import imageio.v3 as iio  # the real imageio package, not this module
 
-    pixels = tonemap_srgb8(image, exposure)
-    data = iio.imwrite("<bytes>", pixels, extension=".png")
-    return atomic_write_bytes(path, data)
+    return iio.imwrite("<bytes>", tonemap_srgb8(image, exposure), extension=".png")
+
+
+def write_exr_with_preview(
+    path: str | os.PathLike[str],
+    image: np.ndarray,
+    variance: np.ndarray | None = None,
+    metadata: Mapping[str, str] | None = None,
+    exposure: float = 0.0,
+) -> tuple[Path, Path]:
+    """Write an EXR file (:func:`write_exr`) and its PNG preview beside it (:func:`preview_path`,
+    :func:`write_png_preview`) as a pair: both are written to temporary files first and renamed into place only
+    when both are whole, so a failure (a full disk) leaves neither new file, and an old pair as it was. Returns
+    (the EXR's path, the preview's). Errors as :func:`write_exr`.
+    """
+    dest = Path(path)
+    preview = preview_path(dest)
+    fill = _exr_fill(image, variance, metadata)
+    png = _png_bytes(image, exposure)
+    for target in (dest, preview):  # a rename over a folder would fail halfway through the pair
+        if target.is_dir():
+            raise WriteError(str(target), "cannot write: it is a folder")
+    staged: list[str] = []
+    try:
+        staged.append(_staged_write(dest, fill))
+        staged.append(_staged_write(preview, lambda f: f.write(png)))
+        for target in (preview, dest):  # both are whole: the renames (in one folder) do not fail on a full disk
+            try:
+                os.replace(staged[-1], target)
+            except OSError as err:
+                raise WriteError(str(target), f"cannot write: {_os_reason(err)}") from None
+            staged.pop()
+    finally:
+        for tmp_name in staged:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp_name)
+    _fsync_folder(dest.parent)
+    return dest, preview

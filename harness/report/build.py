@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import sys
 import time
 import traceback
@@ -22,7 +21,7 @@ from harness.studies import figures
 from harness.studies import strategies as studies
 from harness.report.html import Raw, badge, details, esc, fmt, image_figure, kv_table, page, plot_figure, pre, table
 from harness.files.previews import ImageWriter, ReportImage, display_exposure, error_images
-from harness.files.results import read_results
+from harness.files.results import dumps, read_results
 
 REPORT_SCHEMA = 1
 
@@ -102,32 +101,6 @@ class _Progress:
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
-
-
-# ---- JSON ------------------------------------------------------------------------------------------------------
-
-
-def clean(value: Any) -> Any:
-    """JSON-ready: numpy scalars and arrays to Python, Paths to str, non-finite floats to None."""
-    if isinstance(value, dict):
-        return {str(k): clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return clean(value.tolist())
-    if isinstance(value, np.generic):
-        return clean(value.item())
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Path):
-        return str(value)
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return clean(dataclasses.asdict(value))
-    return value
-
-
-def dumps(value: Any) -> str:
-    return json.dumps(clean(value), indent=2, allow_nan=False)
 
 
 # ---- loading ---------------------------------------------------------------------------------------------------

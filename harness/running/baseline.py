@@ -48,7 +48,7 @@ import numpy as np
 from scipy import stats
 
 from harness.core.errors import HarnessError, read_user_text
-from harness.files.results import read_results
+from harness.files.results import dumps, read_results
 from harness.running.suite import _float_or_inf, _hint, _key, _short
 
 SCHEMA = "rendering-harness/baseline"
@@ -264,9 +264,8 @@ def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "
 
 def save(doc: dict, path: str | Path) -> Path:
     from harness.files.imageio import atomic_write_text
-    from harness.running.suite import _json_default
 
-    return atomic_write_text(path, json.dumps(doc, indent=2, default=_json_default, allow_nan=False) + "\n")
+    return atomic_write_text(path, dumps(doc) + "\n")  # strict JSON: a NaN statistic (no finite pixel) as null
 
 
 def load(path: str | Path) -> dict:
@@ -453,7 +452,7 @@ class Gate:
         """Recompute the run's summary with the baseline outcomes, record them in ``results.json`` (rewritten
         atomically) and return the lines to print."""
         from harness.files.imageio import atomic_write_text
-        from harness.running.suite import _json_default, summarise
+        from harness.running.suite import summarise
 
         by_name = {c.name: c for c in self.suite.cases}
         for record in results["cases"]:  # cases resumed from an earlier run were not seen by check()
@@ -467,7 +466,7 @@ class Gate:
         results["baseline"] = {"file": str(self.path), "created": self.doc.get("created"),
                                "tolerance": self.tolerance, "compared": self.compared, "regressed": self.regressed,
                                "not_in_baseline": self.missing, "tools_changed": changed}
-        atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
+        atomic_write_text(out_dir / "results.json", dumps(results))
         lines = [f"baseline {self.path}: {len(self.compared)} cases compared, {len(self.regressed)} regressed"]
         if self.missing:
             lines.append(f"  not in the baseline (reported, not failed): {', '.join(self.missing)}")
@@ -482,6 +481,7 @@ class Gate:
 def save_command(args) -> int:
     """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
     from harness.running import runstate
+    from harness.files.imageio import removed_on_failure
     from harness.running.suite import load_suite, run_suite
 
     suite = load_suite(args.suite)
@@ -497,14 +497,16 @@ def save_command(args) -> int:
         results = _read_results(args.from_results, suite)
         source = str(args.from_results)
     else:
-        run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out")
+        created: list[Path] = []  # removed (where empty) when the run fails
+        run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out",
+                                         created=created)
 
         def on_case(index: int, record: dict) -> None:
             if not args.quiet:
                 mark = "ok " if record["ok"] else "BAD"
                 print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}", file=sys.stderr)
 
-        with runstate.locked(run_dir, "--run-out"):
+        with removed_on_failure(created), runstate.locked(run_dir, "--run-out"):
             results = run_suite(suite, run_dir, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
                                 on_case=on_case)
         source = f"run {run_dir / 'results.json'}"

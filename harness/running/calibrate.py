@@ -19,6 +19,7 @@ from pathlib import Path
 from scipy import stats
 
 from harness.core.errors import HarnessError
+from harness.files.results import json_ready
 from harness.running.suite import Case, Suite, run_case
 
 
@@ -102,4 +103,4 @@ def _fmt(v) -> str:
 def write(result: dict, path: Path) -> None:
     from harness.files.imageio import atomic_write_text
 
-    atomic_write_text(path, json.dumps(result, indent=2, default=str))
+    atomic_write_text(path, json.dumps(json_ready(result), indent=2, default=str, allow_nan=False))

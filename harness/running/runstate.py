@@ -30,6 +30,7 @@ import tempfile
 from pathlib import Path
 
 from harness.core.errors import HarnessError
+from harness.files.imageio import make_folders, remove_folders
 from harness.files.results import read_results
 
 _pending: list[int] = []  # signals received and not raised yet
@@ -136,26 +137,30 @@ def reusable(results_path: Path, suite_name: str, cases, digests: list[str]) -> 
 # ---- output folders ----------------------------------------------------------------------------------------------
 
 
-def output_folder(value: str | None, default: Path, option: str = "--out", subfolders: tuple[str, ...] = ("cases",)
-                  ) -> Path:
+def output_folder(value: str | None, default: Path, option: str = "--out", subfolders: tuple[str, ...] = ("cases",),
+                  created: list[Path] | None = None) -> Path:
     """The output folder an option names (``default`` when it is not given), created and found writable by a
     real write (root ignores permission bits; /proc refuses everyone), or a one-line HarnessError at ``option``;
     so are those of ``subfolders`` that exist (``cases``: each case's render). An empty value is refused rather
-    than read as "not given"."""
+    than read as "not given". The folders made for it are added to ``created`` (for
+    :func:`harness.files.imageio.removed_on_failure`); a folder that fails the checks is not left behind."""
     if value is not None and not value.strip():
-        raise HarnessError(option, "expected a folder name, got an empty string")
+        raise HarnessError(option, "expected a folder path, got an empty string")
     folder = Path(value) if value is not None else default
+    made = make_folders(folder, option)
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise HarnessError(option, f"cannot create {str(folder)!r}: {err.strerror or err}") from None
-    probe_writable(folder, option)
-    for name in subfolders:
-        sub = folder / name
-        if sub.exists() or sub.is_symlink():
-            if not sub.is_dir():
-                raise HarnessError(option, f"{str(sub)!r} is not a folder; expected a folder the run writes in")
-            probe_writable(sub, option)
+        probe_writable(folder, option)
+        for name in subfolders:
+            sub = folder / name
+            if sub.exists() or sub.is_symlink():
+                if not sub.is_dir():
+                    raise HarnessError(option, f"{str(sub)!r} is not a folder; expected a folder the run writes in")
+                probe_writable(sub, option)
+    except HarnessError:
+        remove_folders(made)
+        raise
+    if created is not None:
+        created.extend(made)
     return folder
 
 

@@ -25,6 +25,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError, read_user_toml
 from harness.core.limits import MAX_TIMEOUT_SECONDS
+from harness.files.results import dumps
 
 SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/running/baseline.py
 CASE_KEYS = (
@@ -664,10 +665,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
         validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
         folder = out_dir / "cases" / slug(case.name)
-        folder.mkdir(parents=True, exist_ok=True)
-        imageio.write_exr(folder / "render.exr", result.image, result.variance,
-                          metadata={"renderer": result.renderer, "case": case.name})
-        imageio.write_png_preview(folder / "render.png", result.image)
+        with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
+            imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
+                                           metadata={"renderer": result.renderer, "case": case.name})
         gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         comparison = compare_images(
             imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
@@ -740,7 +740,7 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
         results["complete"] = len(records) == len(suite.cases)
         results["summary"] = summarise(results["cases"], time.time() - started)
         with runstate.no_interrupts():  # a signal waits until the file is renamed into place
-            atomic_write_text(out_dir / "results.json", json.dumps(results, indent=2, default=_json_default))
+            atomic_write_text(out_dir / "results.json", dumps(results))  # strict JSON: NaN / inf as null
 
     todo = [(i, case) for i, case in enumerate(suite.cases) if i not in records]
     tasks = executors.plan(todo, out_dir, cache_dir=cache_dir, variant=variant, timeout=timeout,
@@ -803,13 +803,3 @@ def _mitsuba_renders(record: dict) -> int:
     if record.get("renderer") == "mitsuba":
         renders += render.get("info", {}).get("mitsuba_renders", 1 if render else 0)
     return renders
-
-
-def _json_default(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Path):
-        return str(value)
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")

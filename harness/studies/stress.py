@@ -726,7 +726,7 @@ def add_parser(sub) -> None:
                         help=f"firefly threshold in standard deviations (default {DEFAULT_K:g})")
     stress.add_argument("--alpha", type=options.probability, default=0.001,
                         help="verdict false-alarm probability (default 0.001)")
-    stress.add_argument("--out", help="folder for stress.json and stress.md")
+    stress.add_argument("--out", type=options.out_folder, help="folder for stress.json and stress.md")
     stress.add_argument("--cache-dir", help="ground-truth cache folder")
     stress.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     stress.add_argument("--json", action="store_true", help="print the result as JSON")
