@@ -14,9 +14,10 @@ from pathlib import Path
 import pytest
 
 import flaky_renderers
-from harness.running import executors
+from harness.running import executors, judge
 from harness.cli import main
-from harness.running.suite import load_suite, run_suite
+from harness.running.cases import load_suite
+from harness.running.schedule import run_suite
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
@@ -98,7 +99,8 @@ name = "closed"
 scene = "SCENES/furnace.toml"
 """)
     suite = load_suite(path)
-    tasks = executors.plan(list(enumerate(suite.cases)), tmp_path, cache_dir=tmp_path / "cache")
+    tasks = executors.plan(list(enumerate(suite.cases)), tmp_path, run_case=judge.run_case,
+                           case_scenes=judge.case_scenes, cache_dir=tmp_path / "cache")
     chunks = [t for t in tasks if t.kind == "chunk"]
     cases = [t for t in tasks if t.kind == "case"]
     assert [c.payload.count for c in chunks] == [256, 256, 88]  # 600 spp in chunks of 256, once for both cases

@@ -19,7 +19,9 @@ from pathlib import Path
 from scipy import stats
 
 from harness.core.errors import HarnessError
-from harness.running.suite import Case, Suite, run_case
+from harness.files.imageio import atomic_write_text
+from harness.running.cases import Case, Suite
+from harness.running.judge import run_case
 
 
 def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
@@ -100,6 +102,4 @@ def _fmt(v) -> str:
 
 
 def write(result: dict, path: Path) -> None:
-    from harness.files.imageio import atomic_write_text
-
     atomic_write_text(path, json.dumps(result, indent=2, default=str))

@@ -381,7 +381,7 @@ def _resolve_scene(text: str):
 
     path = Path(text)
     if not path.is_file() and "/" not in text and not text.endswith(".toml"):
-        for candidate in (Path("scenes") / f"{text}.toml", Path(__file__).resolve().parent.parent / "scenes" / f"{text}.toml"):
+        for candidate in (Path("scenes") / f"{text}.toml", Path(__file__).resolve().parents[2] / "scenes" / f"{text}.toml"):
             if candidate.is_file():
                 path = candidate
                 break
