@@ -11,7 +11,7 @@ import pytest
 from conftest import ROOT
 from scipy import stats
 
-from harness.running import baseline
+from harness.running import baseline, tolerances
 from harness.cli import main
 
 FURNACE = ROOT / "scenes" / "furnace.toml"
@@ -69,7 +69,7 @@ def test_noise_rules_false_alarm_rate_is_at_most_alpha():
     exceeds the Binomial(400, 0.05) quantile at 1 - 1e-4 with probability < 1e-4 if the rule holds its level."""
     rng = np.random.default_rng(20261126)
     reference = rng.uniform(0.2, 2.0, (32, 32, 3))
-    tolerance = dict(baseline.DEFAULTS, alpha=0.05)
+    tolerance = dict(tolerances.DEFAULTS, alpha=0.05)
     trials, alarms = 400, 0
     for _ in range(trials):
         base = _entry(*_noisy(rng, reference, 0.3), reference)
@@ -85,11 +85,11 @@ def test_noise_rules_catch_more_noise_and_a_bias():
     reference = rng.uniform(0.2, 2.0, (32, 32, 3))
     for _ in range(20):
         base = _entry(*_noisy(rng, reference, 0.3), reference)
-        noisier = baseline.compare(base, _entry(*_noisy(rng, reference, 0.45), reference), baseline.DEFAULTS)
+        noisier = baseline.compare(base, _entry(*_noisy(rng, reference, 0.45), reference), tolerances.DEFAULTS)
         assert any(r.startswith("baseline: relmse") for r in noisier["regressions"]), noisier
         image, variance = _noisy(rng, reference, 0.3)
         shift = 8 * 0.3 / np.sqrt(32 * 32)  # 8 standard errors of a channel mean
-        biased = baseline.compare(base, _entry(image + shift, variance, reference), baseline.DEFAULTS)
+        biased = baseline.compare(base, _entry(image + shift, variance, reference), tolerances.DEFAULTS)
         assert any("bias in" in r for r in biased["regressions"]), biased
 
 
@@ -98,14 +98,14 @@ def test_identical_render_never_regresses_and_factors_override():
     reference = rng.uniform(0.2, 2.0, (16, 16, 3))
     image, variance = _noisy(rng, reference, 0.3)
     entry = _entry(image, variance, reference)
-    assert baseline.compare(entry, entry, baseline.DEFAULTS)["regressions"] == []
+    assert baseline.compare(entry, entry, tolerances.DEFAULTS)["regressions"] == []
     worse = _entry(reference + 1.08 * (image - reference), variance, reference)  # relMSE x 1.17
-    tight = baseline.option_tolerances(["relmse=1.10", "rmse=off", "mape=off", "bias=off"], baseline.DEFAULTS)
+    tight = tolerances.option_tolerances(["relmse=1.10", "rmse=off", "mape=off", "bias=off"], tolerances.DEFAULTS)
     reasons = baseline.compare(entry, worse, tight)["regressions"]
     assert len(reasons) == 1 and reasons[0].startswith("baseline: relmse") and "> 1.1 x" in reasons[0]
     # A bias that shrinks towards the reference is a fix, not a regression.
     fixed = _entry(image - 0.5 * (image.mean(axis=(0, 1)) - reference.mean(axis=(0, 1))), variance, reference)
-    assert not [r for r in baseline.compare(entry, fixed, baseline.DEFAULTS)["regressions"] if "bias" in r]
+    assert not [r for r in baseline.compare(entry, fixed, tolerances.DEFAULTS)["regressions"] if "bias" in r]
 
 
 @pytest.mark.parametrize("item,where", [
@@ -116,7 +116,7 @@ def test_bad_tolerances_are_one_line_errors(item, where):
     from harness.core.errors import HarnessError
 
     with pytest.raises(HarnessError) as info:
-        baseline.option_tolerances([item], baseline.DEFAULTS)
+        tolerances.option_tolerances([item], tolerances.DEFAULTS)
     assert "--baseline-tolerance" in str(info.value) and where in str(info.value)
 
 

@@ -14,9 +14,10 @@ from pathlib import Path
 import pytest
 
 import flaky_renderers
-from harness.running import executors
+from harness.running import executors, judge
 from harness.cli import main
-from harness.running.suite import load_suite, run_suite
+from harness.running.cases import load_suite
+from harness.running.schedule import run_suite
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
@@ -98,7 +99,8 @@ name = "closed"
 scene = "SCENES/furnace.toml"
 """)
     suite = load_suite(path)
-    tasks = executors.plan(list(enumerate(suite.cases)), tmp_path, cache_dir=tmp_path / "cache")
+    tasks = executors.plan(list(enumerate(suite.cases)), tmp_path, run_case=judge.run_case,
+                           case_scenes=judge.case_scenes, cache_dir=tmp_path / "cache")
     chunks = [t for t in tasks if t.kind == "chunk"]
     cases = [t for t in tasks if t.kind == "case"]
     assert [c.payload.count for c in chunks] == [256, 256, 88]  # 600 spp in chunks of 256, once for both cases
@@ -194,3 +196,35 @@ expect = "fail"
     # the Cornell box's ground truth (chunks of 256 + 44 spp) was two tasks on the cluster; the local run read it
     assert dask_run["summary"]["mitsuba_renders"] == 2 and local_run["summary"]["mitsuba_renders"] == 0
     assert dask_run["executor"] == "dask" and local_run["executor"] == "serial"
+
+
+def _handed_run_case(case, out_dir, *, cache_dir=None, variant=None):
+    """A case runner handed to the executors (module-level, as a worker process would need)."""
+    return {"name": case.name, "ran_by": "handed", "out": str(out_dir), "variant": variant}
+
+
+def test_the_case_runner_is_handed_in_not_imported(tmp_path):
+    """plan() takes what runs a case and what gives its scenes from its caller, and the executor runs exactly that;
+    executors.py imports none of the modules that call it (no circle schedule <-> executors)."""
+    import ast
+
+    suite = load_suite(_suite(tmp_path, '[[cases]]\nscene = "SCENES/furnace.toml"\nspp = 2\n'))
+    seen = []
+
+    def scenes(case):
+        seen.append(case.name)
+        return judge.case_scenes(case)
+
+    tasks = executors.plan(list(enumerate(suite.cases)), tmp_path, run_case=_handed_run_case, case_scenes=scenes,
+                           cache_dir=tmp_path / "cache", variant="v")
+    assert seen == ["furnace"]  # asked for its scenes, to plan its chunks (a closed form: none)
+    outcomes = [outcome for _, outcome in executors.SerialExecutor().run(tasks)]
+    assert outcomes == [("ok", {"name": "furnace", "ran_by": "handed", "out": str(tmp_path), "variant": "v"})]
+    imported = set()
+    for node in ast.walk(ast.parse(Path(executors.__file__).read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            imported |= {node.module, *(f"{node.module}.{a.name}" for a in node.names)}
+        elif isinstance(node, ast.Import):
+            imported |= {a.name for a in node.names}
+    callers = {"harness.running.schedule", "harness.running.judge", "harness.running.cases", "harness.running.suite"}
+    assert not imported & callers

@@ -167,7 +167,7 @@ def test_mitsuba_xml_renders_like_the_adapter(name, mesh_scene, tmp_path):
     test, test_var, dof = combine_repeats(xml_runs)
     ref, ref_var, _ = combine_repeats(dict_runs)
     assert test.shape == (14, 20, 3) and test.max() > 0
-    outcome = verdict(test, test_var, ref, ref_var, tile=4, alpha=1e-3, test_dof=dof, reference_dof=dof)
+    outcome = verdict(test, test_var, ref, ref_var, tile=4, alpha=1e-3, test_dof=dof, expected_dof=dof)
     assert outcome.passed, outcome.reason
 
 

@@ -223,7 +223,8 @@ def test_timeout_kills_the_process_group(tmp_path, small_scene):
 
 
 def test_suite_records_a_failing_renderer_as_error_and_goes_on(tmp_path):
-    from harness.running.suite import load_suite, run_suite
+    from harness.running.cases import load_suite
+    from harness.running.schedule import run_suite
 
     _renderer_file(tmp_path, "broken", "exit3")
     _renderer_file(tmp_path, "fine", "variance")

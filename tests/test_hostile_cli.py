@@ -24,7 +24,7 @@ from harness.renderers.external import load_spec
 from harness.renderers.mitsuba import MitsubaRenderer
 from harness.renderers.reference import ReferenceRenderer
 from harness.scene import load_scene
-from harness.running.suite import load_suite
+from harness.running.cases import load_suite
 
 FURNACE = ROOT / "scenes" / "furnace.toml"
 LIGHT = '\n[[shapes]]\nname = "light"\ntype = "rectangle"\nmaterial = "white"\nemission = [1, 1, 1]\n'

@@ -31,7 +31,7 @@ from harness.core.errors import HarnessError
 from harness.renderers import RenderResult
 from harness.renderers.validate import BadRenderError, validate_result
 from harness.scene import load_scene
-from harness.running.suite import Suite, load_suite
+from harness.running.cases import Suite, load_suite
 
 SCENE = MINIMAL_SCENE.replace('name = "minimal"', 'name = "tiny"') + """
 [[shapes]]
@@ -453,7 +453,7 @@ def bad_run(tmp_path_factory):
     """A suite whose cases use misbehaving renderers, a good case last; its run and its report."""
     from harness import renderers
     from harness.report import ReportOptions, write_suite_report
-    from harness.running.suite import run_suite
+    from harness.running.schedule import run_suite
 
     folder = tmp_path_factory.mktemp("bad-run")
     evil = "<script>alert(\"x\")</script> & 'quotes'"

@@ -53,7 +53,8 @@ NO_STUDIES = ("--quiet", "--no-convergence", "--no-shadow-rays", "--no-strategie
 def real(tmp_path_factory) -> dict:
     """{"suite": the suite file, "dir": the run's folder, "doc": its results.json parsed, "text": as written}."""
     from harness.running.executors import SerialExecutor
-    from harness.running.suite import load_suite, run_suite
+    from harness.running.cases import load_suite
+    from harness.running.schedule import run_suite
 
     folder = tmp_path_factory.mktemp("real")
     suite = folder / "tiny.toml"

@@ -15,8 +15,8 @@ from test_hostile_input import SCENE, assert_one_line, cli
 
 from harness.running import runstate
 from harness.core.errors import HarnessError
-from harness.studies.stress import parse_variant
-from harness.running.suite import load_suite, slug
+from harness.running.cases import load_suite, slug
+from harness.scene.variants import parse_variant
 
 UNWRITABLE = Path("/proc")  # a folder that exists and takes no new file, even for root
 needs_proc = pytest.mark.skipif(not UNWRITABLE.is_dir(), reason="no /proc on this system")
@@ -39,7 +39,7 @@ def no_render(monkeypatch) -> list:
         started.append(case.name)
         raise AssertionError(f"case {case.name!r} ran")
 
-    monkeypatch.setattr("harness.running.suite.run_case", run_case)
+    monkeypatch.setattr("harness.running.judge.run_case", run_case)
     monkeypatch.setattr("harness.running.calibrate.run_case", run_case)
     return started
 

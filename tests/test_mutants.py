@@ -8,7 +8,8 @@ import dataclasses
 import pytest
 from conftest import ROOT
 
-from harness.running.suite import load_suite, run_case
+from harness.running.cases import load_suite
+from harness.running.judge import run_case
 from reference_impl.mutants import MUTANTS
 
 CANONICAL = load_suite(ROOT / "suites" / "canonical.toml")

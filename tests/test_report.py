@@ -67,7 +67,8 @@ def fast_options(**overrides):
 def report_dir(tmp_path_factory) -> Path:
     """A tiny suite run and its report (written once for the module)."""
     from harness.report import write_suite_report
-    from harness.running.suite import load_suite, run_suite
+    from harness.running.cases import load_suite
+    from harness.running.schedule import run_suite
 
     folder = tmp_path_factory.mktemp("report")
     suite_path = folder / "tiny.toml"

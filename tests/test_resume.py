@@ -16,7 +16,8 @@ import pytest
 from harness.running import runstate
 from harness.running.executors import SerialExecutor
 from harness.renderers.groundtruth import Cache
-from harness.running.suite import load_suite, run_suite
+from harness.running.cases import load_suite
+from harness.running.schedule import run_suite
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 HARNESS = Path(sys.executable).parent / "harness"

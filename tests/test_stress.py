@@ -1,5 +1,6 @@
-"""The stress suite (harness/studies/stress.py): exact variant generators, the firefly counter, a scaled and a translated
-scene that the reference must render unchanged, the command line's exit codes and JSON, and the suite hook.
+"""The stress suite (harness/studies/stress.py; its variants: harness/scene/variants.py): exact variant generators,
+the firefly counter, a scaled and a translated scene that the reference must render unchanged, the command line's
+exit codes and JSON, and the suite hook.
 
 Monte Carlo checks: each render-and-judge row is a verdict at alpha = 1e-3 (false alarm 0.1 % per row, fixed seeds,
 so the outcome is reproducible); the firefly test's false count has expectation < 1e-6 (stated below).
@@ -15,9 +16,9 @@ import numpy as np
 import pytest
 
 from conftest import SCENES, load_small
-from harness.studies import stress
 from harness.core.errors import HarnessError
-from harness.scene import triangulate
+from harness.scene import triangulate, variants
+from harness.studies import stress
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +31,7 @@ def cornell():
 
 @pytest.mark.parametrize("factor", [1e-4, 3.0, 1e4])
 def test_scale_multiplies_geometry_and_camera(cornell, factor):
-    variant = stress.parse_variant(f"scale={factor}")
+    variant = variants.parse_variant(f"scale={factor}")
     out = variant.apply(cornell)
     before, after = triangulate(cornell), triangulate(out)
     np.testing.assert_allclose(after.vertices, factor * before.vertices, rtol=1e-12, atol=0)
@@ -38,11 +39,11 @@ def test_scale_multiplies_geometry_and_camera(cornell, factor):
     np.testing.assert_allclose(out.camera.target, factor * np.asarray(cornell.camera.target), rtol=1e-12)
     assert out.camera.up == cornell.camera.up and out.camera.fov == cornell.camera.fov
     np.testing.assert_array_equal(after.emission, before.emission)  # radiance unchanged
-    assert variant.group == stress.INVARIANT and variant.judged_against_original
+    assert variant.group == variants.INVARIANT and variant.judged_against_original
 
 
 def test_translate_moves_everything_by_the_vector(cornell):
-    out = stress.parse_variant("translate=1e3").apply(cornell)
+    out = variants.parse_variant("translate=1e3").apply(cornell)
     shift = 1e3 * np.ones(3) / math.sqrt(3.0)
     assert np.linalg.norm(shift) == pytest.approx(1e3)
     np.testing.assert_allclose(triangulate(out).vertices, triangulate(cornell).vertices + shift, rtol=0, atol=1e-12)
@@ -50,7 +51,7 @@ def test_translate_moves_everything_by_the_vector(cornell):
 
 
 def test_slivers_keep_the_surface_and_reach_the_aspect(cornell):
-    out = stress.parse_variant("sliver=1e6").apply(cornell)
+    out = variants.parse_variant("sliver=1e6").apply(cornell)
     before, after = triangulate(cornell), triangulate(out)
     for a, b in zip(cornell.shapes, out.shapes):
         assert (b.type == "mesh") == (a.type == "rectangle" and not a.is_emitter)
@@ -58,34 +59,34 @@ def test_slivers_keep_the_surface_and_reach_the_aspect(cornell):
     for m in range(len(before.reflectance)):
         assert after.area[after.material == m].sum() == pytest.approx(before.area[before.material == m].sum(), rel=1e-9)
     assert {tuple(np.round(n, 9)) for n in after.normal} == {tuple(np.round(n, 9)) for n in before.normal}
-    aspects = stress.triangle_aspects(*stress.sliver_rectangle(1e6))
+    aspects = variants.triangle_aspects(*variants.sliver_rectangle(1e6))
     assert 0.5e6 < aspects.max() < 2e6 and np.sum(aspects > 1e5) == 4
 
 
 def test_light_shrink_keeps_power(cornell):
-    out = stress.parse_variant("light-shrink=1e3").apply(cornell)
+    out = variants.parse_variant("light-shrink=1e3").apply(cornell)
     before, after = triangulate(cornell), triangulate(out)
     power = lambda g: float((g.emission[:, 0] * g.area)[g.light_id >= 0].sum())  # noqa: E731
     assert after.area[after.light_id >= 0].sum() == pytest.approx(before.area[before.light_id >= 0].sum() / 1e3)
     assert power(after) == pytest.approx(power(before), rel=1e-9)
-    assert stress.parse_variant("light-shrink=1e3").group == stress.STRAIN
+    assert variants.parse_variant("light-shrink=1e3").group == variants.STRAIN
 
 
 def test_light_near_wall_gap(cornell):
-    out = stress.parse_variant("light-near-wall=1e-5").apply(cornell)
+    out = variants.parse_variant("light-near-wall=1e-5").apply(cornell)
     g = triangulate(out)
     light_y = g.vertices[g.triangles[g.light_id >= 0]][..., 1]
     assert np.ptp(light_y) < 1e-12  # still a horizontal rectangle
-    assert 1.0 - light_y.max() == pytest.approx(1e-5 * stress.scene_size(cornell), rel=1e-6)  # ceiling at y = 1
+    assert 1.0 - light_y.max() == pytest.approx(1e-5 * variants.scene_size(cornell), rel=1e-6)  # ceiling at y = 1
 
 
 def test_camera_variants(cornell):
-    grazing = stress.parse_variant("grazing-camera=1").apply(cornell).camera
+    grazing = variants.parse_variant("grazing-camera=1").apply(cornell).camera
     view = np.subtract(grazing.target, grazing.origin)
     # the floor (y = -1, normal +y) is seen 1 degree above its plane, from inside the box
     assert math.degrees(math.asin(-view[1] / np.linalg.norm(view))) == pytest.approx(1.0)
     assert grazing.target[1] == pytest.approx(-1.0)
-    edge = stress.parse_variant("light-edge-on").apply(cornell).camera
+    edge = variants.parse_variant("light-edge-on").apply(cornell).camera
     light_y = triangulate(cornell).vertices[triangulate(cornell).triangles[triangulate(cornell).light_id >= 0]][..., 1]
     assert edge.origin[1] == pytest.approx(light_y.mean()) and edge.target[1] == pytest.approx(light_y.mean())
 
@@ -94,17 +95,17 @@ def test_camera_variants(cornell):
                                   "grazing-camera=90", "sliver=0.5"])
 def test_bad_variants_are_one_line_errors(text):
     with pytest.raises(HarnessError, match="^--variant: "):
-        stress.parse_variant(text, "--variant")
+        variants.parse_variant(text, "--variant")
 
 
 def test_float32_limits_mark_only_the_far_translation():
     scene = load_small("cornell-box", 8)
     for text, fails in (("scale=1e-4", False), ("scale=1e4", False), ("translate=1e4", False),
                         ("translate=1e5", True)):
-        limits = stress.float32_limits(stress.parse_variant(text).apply(scene))
+        limits = stress.float32_limits(variants.parse_variant(text).apply(scene))
         assert limits["expected_fail"] is fails, text
     # Mitsuba's offset has an absolute part: a scene scaled by 1e-4 is below it
-    assert stress.float32_limits(stress.parse_variant("scale=1e-4").apply(scene))["mitsuba_expected_fail"]
+    assert stress.float32_limits(variants.parse_variant("scale=1e-4").apply(scene))["mitsuba_expected_fail"]
 
 
 # ---- the statistics ----------------------------------------------------------------------------------------------
@@ -179,7 +180,8 @@ def test_cli_json_and_exit_codes(capsys):
 
 
 def test_suite_variant_key(tmp_path):
-    from harness.running.suite import case_scene, load_suite
+    from harness.running.cases import load_suite
+    from harness.running.judge import case_scene
 
     path = tmp_path / "s.toml"
     path.write_text(f'[[cases]]\nname = "a"\nscene = "{SCENES / "cornell-box.toml"}"\nvariant = "scale=1000"\n'

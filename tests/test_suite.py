@@ -11,7 +11,8 @@ import pytest
 from conftest import ROOT
 
 from harness.core.errors import HarnessError
-from harness.running.suite import load_suite, run_suite
+from harness.running.cases import load_suite
+from harness.running.schedule import run_suite
 
 SUITES = ROOT / "suites"
 

@@ -194,7 +194,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from harness.running.suite import load_suite, run_suite
+    from harness.running.cases import load_suite
+    from harness.running.schedule import run_suite
 
     from harness.running import executors
     from harness.files import imageio
@@ -297,7 +298,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from harness.running import calibrate
     from harness.files import imageio
     from harness.running import runstate
-    from harness.running.suite import load_suite
+    from harness.running.cases import load_suite
 
     require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)

@@ -11,7 +11,7 @@ from pathlib import Path
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_positive
-from harness.files.results import json_ready
+from harness.core import jsonsafe
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
@@ -78,7 +78,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
     if memory is not None:
         result["memory"] = bench.peak_memory(Path(resolved[0]), memory[0], memory[1])
-    text = json.dumps(json_ready(result), indent=2, default=float, allow_nan=False)  # NaN / inf as null
+    text = jsonsafe.dumps(result, indent=2, default=float)  # NaN / inf as null
     if args.out:
         atomic_write_text(Path(args.out), text)
     print(text if args.json else bench.format_report(result))

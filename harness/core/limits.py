@@ -63,15 +63,15 @@ DEPTH_SUM_TERMS = 100_000  # an unbounded depth's sums stop here (or when their 
 
 def memory_bytes(width: int, height: int) -> float:
     """Estimated peak memory of a render's per-pixel buffers in bytes: ``width * height * BYTES_PER_PIXEL``."""
-    return _float(width) * _float(height) * BYTES_PER_PIXEL
+    return float_or_inf(width) * float_or_inf(height) * BYTES_PER_PIXEL
 
 
 def render_seconds(width: int, height: int, spp: int) -> float:
     """Estimated render time: ``width * height * spp / PATHS_PER_SECOND``."""
-    return _float(width) * _float(height) * _float(spp) / PATHS_PER_SECOND
+    return float_or_inf(width) * float_or_inf(height) * float_or_inf(spp) / PATHS_PER_SECOND
 
 
-def _float(value) -> float:
+def float_or_inf(value) -> float:
     """``float(value)``, or infinity for an integer beyond float's range (TOML integers are unbounded)."""
     try:
         return float(value)
@@ -115,7 +115,7 @@ def estimate_text(width: int, height: int, spp: int | None = None) -> str:
     """"about 1.2 GiB of memory (168 B per pixel) and about 3.4 h (1.2e10 paths at 1 M paths/s)"."""
     text = f"about {format_bytes(memory_bytes(width, height))} of memory ({BYTES_PER_PIXEL} B per pixel)"
     if spp is not None:
-        paths = _float(width) * _float(height) * _float(spp)
+        paths = float_or_inf(width) * float_or_inf(height) * float_or_inf(spp)
         text += (f" and about {format_seconds(render_seconds(width, height, spp))} "
                  f"({paths:.3g} paths at {PATHS_PER_SECOND / 1e6:g} M paths/s)")
     return text

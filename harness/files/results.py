@@ -14,7 +14,6 @@ nesting deeper than :data:`MAX_DEPTH`.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import re
@@ -22,11 +21,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 
 from harness.core.errors import HarnessError, read_user_text
 
-__all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "dumps", "json_ready", "read_results"]
+__all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "read_results"]
 
 SCHEMA = 1
 #: deepest nesting accepted anywhere (harness run writes at most 6 levels)
@@ -374,32 +372,3 @@ def read_results(path: str | Path, *, where: str | None = None, hint: str = "") 
     where = str(path) if where is None else where
     text = read_user_text(path, missing="no such results file (harness run writes DIR/results.json)", where=where)
     return check_results(parse(text, where, hint), where, hint)
-
-
-# ---- writing ----------------------------------------------------------------------------------------------------
-
-
-def json_ready(value: Any) -> Any:
-    """JSON-ready: numpy scalars and arrays to Python, Paths to str, dataclasses to dicts, non-finite floats to None
-    (``null``, what the schema reads as "not a number")."""
-    if isinstance(value, dict):
-        return {str(k): json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return json_ready(value.tolist())
-    if isinstance(value, np.generic):
-        return json_ready(value.item())
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, Path):
-        return str(value)
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return json_ready(dataclasses.asdict(value))
-    return value
-
-
-def dumps(doc: Any) -> str:
-    """``doc`` as strict JSON text (no NaN / Infinity literals, which :func:`read_results` and other strict parsers
-    refuse): :func:`json_ready` first; anything else that is not JSON (an unknown object) is a TypeError."""
-    return json.dumps(json_ready(doc), indent=2, allow_nan=False)

@@ -1,6 +1,6 @@
-"""Image-error metrics between a test image and a reference.
+"""Image-error metrics between a test image and the expected image (the ground truth).
 
-Every function takes ``(test, reference)``: arrays of shape (H, W, C), linear
+Every function takes ``(test, expected)``: arrays of shape (H, W, C), linear
 radiance (the harness's images are (H, W, 3) float32; see
 :mod:`harness.files.imageio`).  Arithmetic is done in float64.
 
@@ -9,7 +9,7 @@ each one uses only the pixels whose every channel is finite in *both* images
 (:func:`finite_mask`); :func:`count_nonfinite` counts the others so that a
 caller can report them.  Point-wise metrics simply leave those pixels out.  The
 windowed metrics (SSIM, FLIP) need a full image, so a non-finite pixel is given
-the reference's value (no error there, and no NaN spreading into its
+the expected image's value (no error there, and no NaN spreading into its
 neighbours' windows) and is then left out of the mean of the error map.  If no
 pixel is finite in both images the metrics return NaN.
 
@@ -69,30 +69,30 @@ def _check_image(name: str, array: object) -> np.ndarray:
     return arr.astype(np.float64)
 
 
-def _pair(test: object, reference: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _pair(test: object, expected: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """float64 copies of both images and the (H, W) mask of pixels finite in both."""
     t = _check_image("test", test)
-    r = _check_image("reference", reference)
+    r = _check_image("expected", expected)
     if t.shape != r.shape:
-        raise ValueError(f"test has shape {t.shape} but reference has shape {r.shape}")
+        raise ValueError(f"test has shape {t.shape} but expected has shape {r.shape}")
     mask = np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(r), axis=-1)
     return t, r, mask
 
 
 def _filled(t: np.ndarray, r: np.ndarray, mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Full images for windowed metrics: a pixel not finite in both gets the reference's value
-    (0 where the reference itself is not finite), so it has no error and spreads no NaN."""
+    """Full images for windowed metrics: a pixel not finite in both gets the expected image's value
+    (0 where the expected image itself is not finite), so it has no error and spreads no NaN."""
     m = mask[..., None]
     r_full = np.where(m, r, 0.0)
     return np.where(m, t, r_full), r_full
 
 
-def finite_mask(test: np.ndarray, reference: np.ndarray) -> np.ndarray:
+def finite_mask(test: np.ndarray, expected: np.ndarray) -> np.ndarray:
     """(H, W) boolean mask of the pixels whose every channel is finite in both images.
 
     These are the pixels every metric in this module is computed on.
     """
-    return _pair(test, reference)[2]
+    return _pair(test, expected)[2]
 
 
 def count_nonfinite(image: np.ndarray) -> int:
@@ -107,7 +107,7 @@ def srgb_encode(image: np.ndarray) -> np.ndarray:
     The sRGB transfer function [4] from colour-science, applied at exposure 0
     (as the harness's PNG previews are), float64 out.
     """
-    import colour  # slow to import; only the display metrics need it
+    import colour  # optional: slow to import; only the display metrics need it
 
     clipped = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
     return np.asarray(colour.cctf_encoding(clipped, function="sRGB"), dtype=np.float64)
@@ -118,20 +118,20 @@ def srgb_encode(image: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------
 
 
-def rmse(test: np.ndarray, reference: np.ndarray) -> float:
+def rmse(test: np.ndarray, expected: np.ndarray) -> float:
     r"""Root-mean-square error.
 
     .. math:: \mathrm{RMSE} = \sqrt{\tfrac{1}{NC} \sum_{p,c} (t_{pc} - r_{pc})^2}
 
     over the N pixels finite in both images and the C channels.
     """
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     if not mask.any():
         return float("nan")
     return float(np.sqrt(np.mean((t[mask] - r[mask]) ** 2)))
 
 
-def relmse(test: np.ndarray, reference: np.ndarray, eps: float = RELMSE_EPS) -> float:
+def relmse(test: np.ndarray, expected: np.ndarray, eps: float = RELMSE_EPS) -> float:
     r"""Relative mean squared error [1].
 
     .. math:: \mathrm{relMSE} = \tfrac{1}{NC} \sum_{p,c} \frac{(t_{pc} - r_{pc})^2}{r_{pc}^2 + \varepsilon}
@@ -139,43 +139,43 @@ def relmse(test: np.ndarray, reference: np.ndarray, eps: float = RELMSE_EPS) -> 
     with :math:`\varepsilon = 10^{-2}` by default (it keeps black pixels from
     dominating), over the pixels finite in both images.
     """
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     if not mask.any():
         return float("nan")
     tm, rm = t[mask], r[mask]
     return float(np.mean((tm - rm) ** 2 / (rm**2 + eps)))
 
 
-def mape(test: np.ndarray, reference: np.ndarray, eps: float = MAPE_EPS) -> float:
+def mape(test: np.ndarray, expected: np.ndarray, eps: float = MAPE_EPS) -> float:
     r"""Mean absolute percentage (relative) error, as a fraction.
 
     .. math:: \mathrm{MAPE} = \tfrac{1}{NC} \sum_{p,c} \frac{|t_{pc} - r_{pc}|}{|r_{pc}| + \varepsilon}
 
     with :math:`\varepsilon = 10^{-2}` by default, over the pixels finite in both images.
     """
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     if not mask.any():
         return float("nan")
     tm, rm = t[mask], r[mask]
     return float(np.mean(np.abs(tm - rm) / (np.abs(rm) + eps)))
 
 
-def psnr(test: np.ndarray, reference: np.ndarray, data_range: float | None = None) -> float:
+def psnr(test: np.ndarray, expected: np.ndarray, data_range: float | None = None) -> float:
     r"""Peak signal-to-noise ratio on linear radiance, in dB.
 
     .. math:: \mathrm{PSNR} = 10 \log_{10} \frac{P^2}{\mathrm{MSE}}
 
     computed by :func:`skimage.metrics.peak_signal_noise_ratio` on the pixels
     finite in both images.  The peak P (``data_range``) defaults to the maximum
-    of the reference over those pixels: the images are HDR, so there is no
+    of the expected image over those pixels: the images are HDR, so there is no
     fixed white level.  A single very bright pixel (a visible light source)
     therefore raises the PSNR of the whole image; compare PSNRs only between
     renders of the same scene.  Returns ``inf`` for identical images and NaN
-    when the images differ but the peak is <= 0 (a black reference).
+    when the images differ but the peak is <= 0 (a black expected image).
     """
-    from skimage.metrics import peak_signal_noise_ratio
+    from skimage.metrics import peak_signal_noise_ratio  # optional: scikit-image is slow to import
 
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     if not mask.any():
         return float("nan")
     tm, rm = t[mask], r[mask]
@@ -196,7 +196,7 @@ _SSIM_SIGMA = 1.5
 _SSIM_GAUSSIAN_WIN = 11  # skimage's window for sigma = 1.5, truncate = 3.5
 
 
-def ssim(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
+def ssim(test: np.ndarray, expected: np.ndarray, *, full: bool = False):
     r"""Mean structural similarity [2] of the sRGB-encoded images.
 
     .. math:: \mathrm{SSIM}(x, y) = \frac{(2\mu_x\mu_y + C_1)(2\sigma_{xy} + C_2)}
@@ -216,9 +216,9 @@ def ssim(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
 
     Returns the mean, or ``(mean, map)`` with ``full=True`` (map (H, W, C)).
     """
-    from skimage.metrics import structural_similarity
+    from skimage.metrics import structural_similarity  # optional: scikit-image is slow to import
 
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     h, w = mask.shape
     side = min(h, w)
     if side >= _SSIM_GAUSSIAN_WIN:
@@ -248,21 +248,21 @@ def ssim(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
     return (mean, smap) if full else mean
 
 
-def flip(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
+def flip(test: np.ndarray, expected: np.ndarray, *, full: bool = False):
     r"""Mean HDR-FLIP error [3] (NVIDIA's ``flip-evaluator`` package), in [0, 1].
 
     Renders are linear HDR radiance, so HDR-FLIP is used: it tone-maps both
-    images (ACES) at a range of exposures chosen from the reference's luminance
+    images (ACES) at a range of exposures chosen from the expected image's luminance
     and takes, per pixel, the largest LDR-FLIP error over the exposures.
     (LDR-FLIP on clipped sRGB images would not see errors above display white.)
     Defaults of the package otherwise: 67 pixels per degree.
 
     Before evaluation: negative values (possible with filters that have
     negative lobes) are clipped to 0, as HDR-FLIP requires; non-finite pixels
-    get the reference's value; both images are divided by the reference's
+    get the expected image's value; both images are divided by the expected image's
     maximum.  HDR-FLIP's automatic exposures make it invariant to that scale,
     and the division keeps the package from failing (it ends the process) when
-    the reference's luminance is below ~1e-7.  A black reference has no
+    the expected image's luminance is below ~1e-7.  A black expected image has no
     exposure range: then the test image is divided by its own maximum and
     evaluated at exposure 0.  Identical images give 0.
 
@@ -270,7 +270,7 @@ def flip(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
     images.  Returns the mean, or ``(mean, map)`` with ``full=True``
     (map (H, W) float64).
     """
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     if not mask.any():
         nan_map = np.full(mask.shape, np.nan)
         return (float("nan"), nan_map) if full else float("nan")
@@ -282,7 +282,7 @@ def flip(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
     if np.array_equal(tf, rf):
         emap = np.zeros(mask.shape)
     else:
-        import flip_evaluator
+        import flip_evaluator  # optional: a compiled extension, slow to import; only FLIP needs it
 
         parameters: dict = {}
         scale = float(rf.max())
@@ -306,9 +306,9 @@ def flip(test: np.ndarray, reference: np.ndarray, *, full: bool = False):
 
 def bias(
     test: np.ndarray,
-    reference: np.ndarray,
+    expected: np.ndarray,
     test_variance: np.ndarray | None = None,
-    reference_variance: np.ndarray | None = None,
+    expected_variance: np.ndarray | None = None,
 ) -> dict:
     r"""Mean signed difference, per channel and overall, with standard errors.
 
@@ -328,13 +328,13 @@ def bias(
     None.  Returns ``{"per_channel": [..], "overall": b, "stderr_per_channel":
     [..] | None, "stderr": se | None}`` (plain Python floats).
     """
-    t, r, mask = _pair(test, reference)
+    t, r, mask = _pair(test, expected)
     n = int(mask.sum())
     nch = t.shape[2]
     if n == 0:
         per = [float("nan")] * nch
         out = {"per_channel": per, "overall": float("nan"), "stderr_per_channel": None, "stderr": None}
-        if test_variance is not None and reference_variance is not None:
+        if test_variance is not None and expected_variance is not None:
             out["stderr_per_channel"] = [float("nan")] * nch
             out["stderr"] = float("nan")
         return out
@@ -345,9 +345,9 @@ def bias(
         "stderr_per_channel": None,
         "stderr": None,
     }
-    if test_variance is not None and reference_variance is not None:
+    if test_variance is not None and expected_variance is not None:
         vt = _check_image("test_variance", test_variance)
-        vr = _check_image("reference_variance", reference_variance)
+        vr = _check_image("expected_variance", expected_variance)
         if vt.shape != t.shape or vr.shape != t.shape:
             raise ValueError(
                 f"variances have shapes {vt.shape} and {vr.shape}, expected {t.shape} like the images"

@@ -1,6 +1,7 @@
-r"""The statistical pass/fail verdict: is a test render consistent with a reference, given both images' noise?
+r"""The statistical pass/fail verdict: is a test render consistent with the expected image (the ground truth),
+given both images' noise?
 
-Both images are Monte Carlo estimates (or the reference is exact): per pixel p
+Both images are Monte Carlo estimates (or the expected image is exact): per pixel p
 and channel c an estimate :math:`T_{pc}` with the variance of that estimate
 (of the mean, not of one sample) :math:`V^T_{pc}`, and likewise R, V^R.  Under
 the null hypothesis "same expected image", :math:`T - R` has mean 0 and
@@ -203,8 +204,8 @@ def _fmt_p(p: float) -> str:
 def tile_z_scores(
     test: np.ndarray,
     test_variance: np.ndarray,
-    reference: np.ndarray,
-    reference_variance: np.ndarray,
+    expected: np.ndarray,
+    expected_variance: np.ndarray,
     tile: int = 8,
 ) -> np.ndarray:
     r"""Welch z of every tile and channel: :math:`z = D / S` with D, S as in the module docstring.
@@ -214,10 +215,10 @@ def tile_z_scores(
     diagnostic view of what :func:`verdict` tests (without its rounding floor).
     """
     t = np.asarray(test, dtype=np.float64)
-    r = np.asarray(reference, dtype=np.float64)
+    r = np.asarray(expected, dtype=np.float64)
     ok = np.all(np.isfinite(t), axis=-1)[..., None]
     d = _tile_sum(np.where(ok, t - r, 0.0), tile)
-    v_pix = np.asarray(test_variance, np.float64) + np.asarray(reference_variance, np.float64)
+    v_pix = np.asarray(test_variance, np.float64) + np.asarray(expected_variance, np.float64)
     v = _tile_sum(np.where(ok, v_pix, 0.0), tile)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(v > 0, d / np.sqrt(v), np.nan)
@@ -231,25 +232,25 @@ def tile_z_scores(
 def verdict(
     test: np.ndarray,
     test_variance: np.ndarray | None,
-    reference: np.ndarray,
-    reference_variance: np.ndarray | None,
+    expected: np.ndarray,
+    expected_variance: np.ndarray | None,
     *,
     tile: int = 8,
     alpha: float = 0.01,
     test_dof: float | np.ndarray | None = None,
-    reference_dof: float | np.ndarray | None = None,
+    expected_dof: float | np.ndarray | None = None,
     rtol: float = ROUNDING_RTOL,
     names: tuple[str, str] = ("test image", "reference image"),
 ) -> Verdict:
-    r"""Decide whether ``test`` and ``reference`` estimate the same image.
+    r"""Decide whether ``test`` and ``expected`` (the ground truth) estimate the same image.
 
     Parameters
     ----------
-    test, reference : (H, W, 3) arrays
+    test, expected : (H, W, 3) arrays
         Per-pixel estimates (linear radiance).  Non-finite test pixels make the
         verdict fail and are left out of the statistics; a non-finite
-        reference pixel raises :class:`HarnessError`.
-    test_variance, reference_variance : (H, W, 3) arrays
+        expected pixel raises :class:`HarnessError`.
+    test_variance, expected_variance : (H, W, 3) arrays
         Variance of each pixel's estimate (of the mean); zeros for an exact
         (closed-form) image.  None raises :class:`HarnessError`: the verdict
         needs the variance channels.
@@ -258,7 +259,7 @@ def verdict(
     alpha : float
         Family-wise false-alarm probability (default 0.01): each of the three
         sub-tests is held to alpha / 3.
-    test_dof, reference_dof : float or array, optional
+    test_dof, expected_dof : float or array, optional
         Degrees of freedom of each pixel's variance estimate (spp - 1 for the
         sample variance of spp samples).  None: the variance is taken as exact.
         With them each tile's z is referred to Student's t with
@@ -287,9 +288,9 @@ def verdict(
     max :math:`p = 1 - (1 - 2\Phi(-\max|z|))^K`.  Fail if any p < alpha / 3,
     if a zero-variance tile differs, or if a test pixel is not finite.
     """
-    test_name, ref_name = names
-    if test_variance is None or reference_variance is None:
-        which = test_name if test_variance is None else ref_name
+    test_name, expected_name = names
+    if test_variance is None or expected_variance is None:
+        which = test_name if test_variance is None else expected_name
         raise HarnessError(
             which,
             "has no variance channels (variance.R, variance.G, variance.B); the statistical verdict needs the "
@@ -302,26 +303,27 @@ def verdict(
     tile = int(tile)
     alpha = float(alpha)
     t = np.asarray(test, dtype=np.float64)
-    r = np.asarray(reference, dtype=np.float64)
+    r = np.asarray(expected, dtype=np.float64)
     vt = np.asarray(test_variance, dtype=np.float64)
-    vr = np.asarray(reference_variance, dtype=np.float64)
+    vr = np.asarray(expected_variance, dtype=np.float64)
     if t.ndim != 3 or t.shape[2] != 3 or t.shape[0] < 1 or t.shape[1] < 1:
         raise ValueError(f"test must have shape (H, W, 3), got {t.shape}")
-    for label, arr in (("test_variance", vt), ("reference", r), ("reference_variance", vr)):
+    for label, arr in (("test_variance", vt), ("expected", r), ("expected_variance", vr)):
         if arr.shape != t.shape:
             raise ValueError(f"{label} has shape {arr.shape}, expected {t.shape} like test")
 
-    ref_bad = ~np.all(np.isfinite(r), axis=-1)
-    if ref_bad.any():
+    expected_bad = ~np.all(np.isfinite(r), axis=-1)
+    if expected_bad.any():
         raise HarnessError(
-            ref_name, f"{int(ref_bad.sum())} non-finite (NaN/Inf) pixels; a reference must be finite everywhere"
+            expected_name,
+            f"{int(expected_bad.sum())} non-finite (NaN/Inf) pixels; a reference must be finite everywhere",
         )
-    _check_variance(ref_name, vr, np.ones(ref_bad.shape, dtype=bool))
+    _check_variance(expected_name, vr, np.ones(expected_bad.shape, dtype=bool))
     ok = np.all(np.isfinite(t), axis=-1)
     nonfinite = int(np.count_nonzero(~ok))
     _check_variance(test_name, vt, ok)
     nu_t = _dof_array("test_dof", test_dof, t.shape)
-    nu_r = _dof_array("reference_dof", reference_dof, t.shape)
+    nu_r = _dof_array("expected_dof", expected_dof, t.shape)
 
     m = np.broadcast_to(ok[..., None], t.shape)
     diff = np.where(m, t - r, 0.0)
@@ -491,5 +493,5 @@ def verdict(
         max_z=max_z,
         zero_variance=zero_variance,
         worst_tile=worst,
-        variance_dof={"test": _dof_summary(test_dof), "reference": _dof_summary(reference_dof)},
+        variance_dof={"test": _dof_summary(test_dof), "reference": _dof_summary(expected_dof)},
     )

@@ -45,6 +45,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError, read_user_toml
 from harness.core.limits import MAX_TIMEOUT_SECONDS
+from harness.core.text import short
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 
@@ -99,30 +100,22 @@ def load_spec(path: str | Path) -> ExternalSpec:
     timeout = doc.get("timeout", DEFAULT_TIMEOUT_S)
     if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (0 < timeout <= MAX_TIMEOUT_SECONDS):
         raise HarnessError(f"{label}: timeout", f"expected a positive number of seconds of at most "
-                           f"{MAX_TIMEOUT_SECONDS:g} (a week), got {_short(timeout)}")
+                           f"{MAX_TIMEOUT_SECONDS:g} (a week), got {short(timeout, 60)}")
     repeats = doc.get("repeats", DEFAULT_REPEATS)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or not 2 <= repeats <= MAX_REPEATS:
-        raise HarnessError(f"{label}: repeats", f"expected an integer from 2 to {MAX_REPEATS}, got {_short(repeats)}")
+        raise HarnessError(f"{label}: repeats",
+                           f"expected an integer from 2 to {MAX_REPEATS}, got {short(repeats, 60)}")
     name = doc.get("name", path.stem)
     description = doc.get("description", "")
     for key, value in (("name", name), ("description", description)):
         if not isinstance(value, str):
-            raise HarnessError(f"{label}: {key}", f"expected a string, got {_short(value)}")
+            raise HarnessError(f"{label}: {key}", f"expected a string, got {short(value, 60)}")
     if not SAFE_NAME.fullmatch(name):
         default = "" if "name" in doc else " (no name key: the file's stem)"
         raise HarnessError(f"{label}: name", (
             f"expected 1 to 64 letters, digits, spaces and . _ + - starting with a letter or digit (the name goes "
-            f"into file names), got {_short(name)}{default}"))
+            f"into file names), got {short(name, 60)}{default}"))
     return ExternalSpec(name, path.resolve(), tuple(command), float(timeout), repeats, description)
-
-
-def _short(value, limit: int = 60) -> str:
-    """``repr(value)`` cut to ``limit`` characters (an integer beyond Python's digit limit as "a huge integer")."""
-    try:
-        text = repr(value)
-    except ValueError:
-        return "a huge integer"
-    return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def repeat_seed(seed: int, index: int) -> int:

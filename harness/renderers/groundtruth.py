@@ -31,7 +31,10 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
 from harness.judges.moments import Estimate, merge
+from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
 
 FORMAT_VERSION = 1
@@ -43,7 +46,8 @@ META_CHECKSUM = "meta.json"  # the checksum of meta.json's content (but the chec
 
 @dataclass
 class GroundTruth:
-    """A reference image with the variance of each pixel's estimate (zeros for a closed form)."""
+    """A ground truth: the image a render is judged against, with the variance of each pixel's estimate (zeros for
+    a closed form)."""
 
     image: np.ndarray
     variance: np.ndarray
@@ -195,8 +199,6 @@ class Cache:
     def store(self, key: str, estimate: Estimate, meta: dict) -> Path:
         """Write an entry atomically; if another process stored it first, keep theirs. A failed write (a full disk)
         is a one-line WriteError naming the cache, and leaves neither the entry nor folders made for it."""
-        from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
-
         created: list[Path] = []
         tmp = self.folder / f".tmp-{uuid.uuid4().hex}"
         failure: OSError | None = None
@@ -272,8 +274,6 @@ def ground_truth(
         raise HarnessError("--spp", f"expected a positive number of samples, got {spp}")
     if chunk_spp < 1:
         raise HarnessError("--chunk-spp", f"expected a positive number of samples, got {chunk_spp}")
-    from harness.renderers.mitsuba import choose_variant
-
     variant = choose_variant(variant)
     cache = Cache(cache_dir)
     base = _base(scene, seed, variant)
@@ -330,8 +330,6 @@ def _counts(spp: int, chunk_spp: int) -> list[int]:
 def _chunk(scene: Scene, cache: Cache, base: dict, index: int, count: int):
     """Chunk ``index`` of ``count`` samples from the cache, else rendered and stored: (estimate, None, meta) when
     it was cached, (estimate, seconds spent now, meta) when it was rendered now."""
-    from harness.renderers import RenderRequest, get_renderer
-
     chunk_key = _key(dict(base, chunk=index, chunk_spp=count))
     found = cache.load(chunk_key)
     if found is not None:
@@ -370,8 +368,6 @@ def missing_chunks(scene: Scene, *, spp: int, seed: int = 0, cache_dir=None, var
                    chunk_spp: int = DEFAULT_CHUNK_SPP) -> list[ChunkJob]:
     """The chunks ``ground_truth()`` would render for these arguments: none when the merged entry or every chunk
     is cached (a damaged entry counts as missing)."""
-    from harness.renderers.mitsuba import choose_variant
-
     base = _base(scene, seed, choose_variant(variant))
     cache = Cache(cache_dir)
     if cache.load(_key(dict(base, spp=spp, chunk_spp=chunk_spp))) is not None:

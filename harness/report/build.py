@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from harness.core import jsonsafe
 from harness.core.errors import HarnessError
 from harness.files.imageio import StagedFolder, WriteError, atomic_write_bytes, atomic_write_text, make_folders
 from harness.studies import convergence as conv
@@ -21,7 +22,7 @@ from harness.studies import figures
 from harness.studies import strategies as studies
 from harness.report.html import Raw, badge, details, esc, fmt, image_figure, kv_table, page, plot_figure, pre, table
 from harness.files.previews import ImageWriter, ReportImage, display_exposure, error_images
-from harness.files.results import dumps, read_results
+from harness.files.results import read_results
 
 REPORT_SCHEMA = 1
 
@@ -67,7 +68,7 @@ class LoadedCase:
     record: dict
     index: int
     slug: str
-    case: Any = None  # harness.running.suite.Case
+    case: Any = None  # harness.running.cases.Case
     scene: Any = None
     render: np.ndarray | None = None
     render_variance: np.ndarray | None = None
@@ -113,7 +114,7 @@ def load_results(path: str | Path) -> dict:
 
 
 def _suite_cases(results: dict) -> tuple[dict, str | None]:
-    from harness.running.suite import load_suite
+    from harness.running.cases import load_suite
 
     suite_file = results.get("suite_file")
     if not suite_file:
@@ -135,7 +136,8 @@ def _existing(*candidates: Path | str | None) -> Path | None:
 def _case_scene(record: dict, case, shape: tuple[int, int] | None):
     """The scene a case rendered: from the suite's case when the suite file is readable, else from results.json
     (scene path, the render's size, the resolved max_depth)."""
-    from harness.running.suite import Case, case_scene
+    from harness.running.cases import Case
+    from harness.running.judge import case_scene
 
     if case is None:
         settings = (record.get("render") or {}).get("settings") or {}
@@ -152,7 +154,7 @@ def _case_scene(record: dict, case, shape: tuple[int, int] | None):
 def _load_reference(item: LoadedCase, options: ReportOptions) -> Reference:
     from harness.renderers import groundtruth
     from harness.files.imageio import read_exr
-    from harness.running.suite import reference_for
+    from harness.running.judge import ground_truth_for
 
     gt = item.record.get("ground_truth") or {}
     source = gt.get("source")
@@ -168,7 +170,7 @@ def _load_reference(item: LoadedCase, options: ReportOptions) -> Reference:
         return Reference(exr.image, variance, str(source), int(gt.get("spp") or 0), path)
     if item.case is None or item.scene is None:
         raise HarnessError(item.record["name"], "ground truth not found and the suite file is not readable")
-    ref = reference_for(item.case, item.scene, options.cache_dir, options.variant)
+    ref = ground_truth_for(item.case, item.scene, options.cache_dir, options.variant)
     variance = ref.variance if ref.variance is not None else np.zeros_like(ref.image)
     return Reference(ref.image, variance, ref.source, int(ref.spp), ref.path)
 
@@ -176,7 +178,7 @@ def _load_reference(item: LoadedCase, options: ReportOptions) -> Reference:
 def _load_case(item: LoadedCase, results_dir: Path, options: ReportOptions) -> None:
     """Read a case's render and ground truth back (into ``item``); problems are noted, never raised."""
     from harness.files.imageio import read_exr
-    from harness.running.suite import slug
+    from harness.running.cases import slug
 
     record = item.record
     if record.get("status") == "error" or not record.get("render"):
@@ -256,7 +258,7 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
         if results_path is not None:
             results = load_results(results_path)
         page_html, doc, summary_md = _suite_report(results, results_path, results_dir, stage.root, options, start)
-        atomic_write_text(stage.root / "report.json", dumps(_relocate(doc, stage)))
+        atomic_write_text(stage.root / "report.json", jsonsafe.dumps(_relocate(doc, stage), indent=2))
         atomic_write_text(stage.root / "summary.md", stage.relocate(summary_md))
         atomic_write_text(stage.root / "index.html", stage.relocate(page_html).replace(esc(stage.root), esc(out)))
         stage.commit(last=("index.html",))  # the page last: whoever opens it finds every file it names
@@ -279,7 +281,7 @@ def _suite_report(results: dict, results_path: Path | None, results_dir: Path, o
                   start: float) -> tuple[str, dict, str]:
     """The report's images and plots written under ``out``; returns the page, report.json's content and
     summary.md."""
-    from harness.running.suite import slug
+    from harness.running.cases import slug
 
     records = results.get("cases", [])
     suite_cases, suite_note = _suite_cases(results)
@@ -365,7 +367,7 @@ def _convergence_section(bases: dict[str, LoadedCase], out: Path, options: Repor
             if options.convergence_mitsuba:
                 series.append(conv.Series("mitsuba", {}, "mitsuba (path, cached)"))
             from harness.renderers import get_renderer
-            from harness.running.suite import CachedMitsubaRenderer
+            from harness.renderers.cached import CachedMitsubaRenderer
 
             def factory(name: str):
                 if name == "mitsuba":
@@ -489,7 +491,7 @@ def _strategies_section(items: list[LoadedCase], bases: dict[str, LoadedCase], o
 
 
 def _safe(name: str) -> str:
-    from harness.running.suite import slug
+    from harness.running.cases import slug
 
     return slug(name)
 
@@ -993,7 +995,7 @@ def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes,
         Raw('<h2 id="definitions">Definitions</h2>' + kv_table(sorted(doc["definitions"].items()))),
     ]
     atomic_write_text(folder / "index.html", page(title, body))
-    atomic_write_text(folder / "convergence.json", dumps(doc))
+    atomic_write_text(folder / "convergence.json", jsonsafe.dumps(doc, indent=2))
     lines = [f"# {_md(title)}", "", "| series | slope (RMSE) | slope (relMSE) | flattens from spp |", "|---|---|---|---|"]
     for s in result["series"]:
         fr, fm = s["fit_rmse"], s["fit_relmse"]

@@ -12,13 +12,13 @@ standard error :math:`s = \mathrm{sd}(u_p) / (\sqrt{P}\, m)`, estimated from the
 firefly-prone pixels widen it, as they should).  Two renders of the same expected quality (e.g. a renderer change
 that only reorders its random numbers) then have :math:`\log(m_1/m_0) \approx N(0, s_0^2 + s_1^2)`; the run
 regresses when :math:`m_1 / m_0 > \exp(z_{1-a}\sqrt{s_0^2+s_1^2})` (one-sided; for ``rmse`` the square root of
-the bound on the MSE).  Both errors share the same reference image, which correlates them and narrows the true
+the bound on the MSE).  Both errors share the same ground truth, which correlates them and narrows the true
 spread, so the bound is conservative.  An unchanged seeded render is bit-identical: ratio 1, always passes.
 
 *Bias*. The image mean of a channel moves between the baseline's render and the new one by
-:math:`z_c = (\bar t_{1c} - \bar t_{0c}) / \sqrt{\sigma_{0c}^2 + \sigma_{1c}^2}` (the reference cancels;
+:math:`z_c = (\bar t_{1c} - \bar t_{0c}) / \sqrt{\sigma_{0c}^2 + \sigma_{1c}^2}` (the ground truth cancels;
 :math:`\sigma` from each render's variance channels).  It regresses in channel c when :math:`|z_c| > z_{crit}`
-(two-sided, Šidák over the three channels) *and* the new render's mean lies farther from the reference than the
+(two-sided, Šidák over the three channels) *and* the new render's mean lies farther from the ground truth than the
 baseline's (a fix that removes a bias is not a regression).
 
 *Family*. The statistical checks of a case share the false-alarm probability ``alpha`` (default 1e-3 per case,
@@ -47,84 +47,23 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
+from harness.core import jsonsafe
 from harness.core.errors import HarnessError, read_user_text
-from harness.files.results import dumps, read_results
-from harness.running.suite import _float_or_inf, _hint, _key, _short
+from harness.files.imageio import atomic_write_text, read_exr, removed_on_failure
+from harness.files.results import read_results
+from harness.judges.metrics import MAPE_EPS, RELMSE_EPS
+from harness.renderers.groundtruth import scene_digest
+from harness.running import runstate
+from harness.running.cases import load_suite
+from harness.running.judge import case_scene, ground_truth_for
+from harness.running.schedule import run_suite, summarise
+from harness.running.tolerances import DEFAULT_ALPHA, NOISE_METRICS, option_tolerances, suite_tolerances
 
 SCHEMA = "rendering-harness/baseline"
 VERSION = 1
-DEFAULT_ALPHA = 1e-3
-NOISE_METRICS = ("rmse", "relmse", "mape")  # image means of a per-pixel error: statistical by default
-FACTOR_METRICS = ("rmse", "relmse", "mape", "flip")  # lower is better: new <= factor x baseline
-TOLERANCE_KEYS = (*FACTOR_METRICS, "psnr", "ssim", "bias", "seconds", "paths_per_second", "alpha")
-DEFAULTS: dict[str, float | str] = {
-    "rmse": "auto", "relmse": "auto", "mape": "auto", "bias": "auto", "flip": "off", "psnr": "off", "ssim": "off",
-    "seconds": "off", "paths_per_second": "off", "alpha": DEFAULT_ALPHA,
-}
 #: relative slack for values that carry no noise (a bit-identical render, float rounding of JSON round trips)
 ROUNDING = 1e-9
 CHANNELS = ("R", "G", "B")
-
-
-# ---- tolerances ------------------------------------------------------------------------------------------------
-
-
-def parse_tolerance(where: str, key: str, value: Any) -> float | str:
-    """One tolerance value, checked: a number (see the module docstring for its meaning), "auto" or "off"."""
-    label = f"{where}{' ' if where.startswith('--') else '.'}{key if where.startswith('--') else _key(key)}"
-    if key not in TOLERANCE_KEYS:
-
-        raise HarnessError(label, f"unknown baseline tolerance{_hint(key, TOLERANCE_KEYS)}; expected one of "
-                           f"{', '.join(TOLERANCE_KEYS)}")
-    if value is False or (isinstance(value, str) and value.strip().lower() == "off"):
-        return "off"
-    if isinstance(value, str) and value.strip().lower() == "auto":
-        if key not in (*NOISE_METRICS, "bias"):
-            raise HarnessError(label, f"'auto' (a statistical rule) exists only for {', '.join(NOISE_METRICS)} and "
-                               "bias; give a number or 'off'")
-        return "auto"
-    if isinstance(value, str):
-        try:
-            value = float(value)
-        except ValueError:
-            raise HarnessError(label, f"expected a number, 'auto' or 'off', got {_short(value)}") from None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_float_or_inf(value)):
-        raise HarnessError(label, f"expected a finite number, 'auto' or 'off', got {_short(value)}")
-    value = float(value)
-    if key == "alpha" and not 0 < value < 1:
-        raise HarnessError(label, f"expected a probability in (0, 1), got {value}")
-    if key in (*FACTOR_METRICS, "seconds", "paths_per_second") and value < 1:
-        raise HarnessError(label, f"expected a factor >= 1 (1.10 = 10 % worse allowed), got {value}")
-    if key in ("psnr", "ssim") and value < 0:
-        raise HarnessError(label, f"expected the drop allowed, >= 0, got {value}")
-    if key == "bias" and value <= 0:
-        raise HarnessError(label, f"expected a positive |z| bound, got {value}")
-    return value
-
-
-def check_table(label: str, table: Any) -> dict[str, float | str]:
-    """A suite file's ``[baseline]`` table, checked (``label`` names the file): its tolerances, parsed. Called when
-    the suite loads, so a broken table is an error whether or not the run has ``--baseline``."""
-    if not isinstance(table, dict):
-        raise HarnessError(f"{label}: baseline", f"expected a table [baseline], got {_short(table)}")
-    return {key: parse_tolerance(f"{label}: baseline", key, value) for key, value in table.items()}
-
-
-def suite_tolerances(suite) -> dict[str, float | str]:
-    """The suite file's ``[baseline]`` table (checked), on top of the defaults."""
-    return {**DEFAULTS, **check_table(str(suite.path), suite.baseline)}
-
-
-def option_tolerances(items: list[str], base: dict[str, float | str]) -> dict[str, float | str]:
-    """``--baseline-tolerance KEY=VALUE`` items on top of ``base``."""
-    out = dict(base)
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise HarnessError("--baseline-tolerance", f"expected KEY=VALUE (e.g. relmse=1.10), got {item!r}")
-        key = key.strip()
-        out[key] = parse_tolerance("--baseline-tolerance", key, value.strip())
-    return out
 
 
 # ---- what a baseline holds of a case -------------------------------------------------------------------------
@@ -132,13 +71,10 @@ def option_tolerances(items: list[str], base: dict[str, float | str]) -> dict[st
 
 def definition_hash(case) -> str:
     """SHA-256 over the *problem* a case poses: the loaded scene's content (with the case's film and depth), the
-    budget, the reference it is compared with, and the verdict's tile and alpha. A baseline whose case differs in
+    budget, the ground truth it is compared with, and the verdict's tile and alpha. A baseline whose case differs in
     any of these measured another problem: comparing would be meaningless. Not the renderer, its settings or the
     seed: they are the solution under test, whose changes the baseline exists to judge (they are recorded in each
     entry and reported as changed). Not expect, metrics or thresholds either (they judge numbers, not make them)."""
-    from harness.renderers.groundtruth import scene_digest
-    from harness.running.suite import case_scene
-
     fields = {
         "scene": scene_digest(case_scene(case)), "spp": case.spp, "seconds": case.seconds,
         "chunk_spp": case.chunk_spp if case.spp is None else None, "against": dataclasses.asdict(case.against),
@@ -152,14 +88,13 @@ def solution(case) -> dict:
     return {"renderer": case.renderer, "settings": dict(case.settings), "seed": case.seed}
 
 
-def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, reference: np.ndarray) -> dict:
-    """Per noise metric its value and relative standard error (CLT over pixels), and each channel's image mean
-    with its standard error from the variance channels. Uses the pixels finite in both images, like
+def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, expected: np.ndarray) -> dict:
+    """Per noise metric its value and relative standard error (CLT over pixels) against the ground truth
+    ``expected``, and each channel's image mean with its standard error from the variance channels (and the
+    ground truth's mean, under the key ``reference_mean``). Uses the pixels finite in both images, like
     :mod:`harness.judges.metrics`."""
-    from harness.judges.metrics import MAPE_EPS, RELMSE_EPS
-
     t = np.asarray(test, np.float64)
-    r = np.asarray(reference, np.float64)
+    r = np.asarray(expected, np.float64)
     mask = np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(r), axis=-1)
     n = int(mask.sum())
     tm, rm = t[mask], r[mask]
@@ -186,16 +121,14 @@ def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, referen
 
 def record_statistics(case, record: dict, *, cache_dir=None, variant=None) -> dict:
     """:func:`image_statistics` of a finished case: its render (``record["render"]["exr"]``) against its
-    reference, fetched again through :func:`harness.running.suite.reference_for` (the closed form, or the cache for
-    Mitsuba; a reference made by another non-Mitsuba renderer is rendered again, seeded, so identical)."""
-    from harness.files.imageio import read_exr
-    from harness.running.suite import case_scene, reference_for
-
+    ground truth, fetched again through :func:`harness.running.judge.ground_truth_for` (the closed form, or the
+    cache for Mitsuba; a ground truth made by another non-Mitsuba renderer is rendered again, seeded, so
+    identical)."""
     exr = Path(record["render"]["exr"])
     if not exr.is_file():
         raise HarnessError(str(exr), f"case {record['name']!r}: its render is gone; expected the EXR the run wrote")
     test = read_exr(exr)
-    gt = reference_for(case, case_scene(case, for_ground_truth=True), cache_dir, variant)  # as run_case does
+    gt = ground_truth_for(case, case_scene(case, for_ground_truth=True), cache_dir, variant)  # as run_case does
     return image_statistics(test.image, test.variance, gt.image)
 
 
@@ -263,9 +196,7 @@ def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "
 
 
 def save(doc: dict, path: str | Path) -> Path:
-    from harness.files.imageio import atomic_write_text
-
-    return atomic_write_text(path, dumps(doc) + "\n")  # strict JSON: a NaN statistic (no finite pixel) as null
+    return atomic_write_text(path, jsonsafe.dumps(doc, indent=2) + "\n")
 
 
 def load(path: str | Path) -> dict:
@@ -349,18 +280,18 @@ def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
         else:
             bound = float(rule)
         b_se, n_se = bs.get("mean_stderr") or [0.0] * 3, ns.get("mean_stderr") or [0.0] * 3
-        ref = ns.get("reference_mean") or bs.get("reference_mean")
+        truth = ns.get("reference_mean") or bs.get("reference_mean")  # the ground truth's mean
         for c, channel in enumerate(CHANNELS[: len(ns["mean"])]):
             shift = ns["mean"][c] - bs["mean"][c]
             se = math.hypot(b_se[c], n_se[c])
             exact = abs(shift) <= ROUNDING * max(abs(ns["mean"][c]), abs(bs["mean"][c])) + 1e-300
             z = 0.0 if exact else (shift / se if se > 0 else math.copysign(math.inf, shift))
-            farther = abs(ns["mean"][c] - ref[c]) > abs(bs["mean"][c] - ref[c])
+            farther = abs(ns["mean"][c] - truth[c]) > abs(bs["mean"][c] - truth[c])
             _check(checks, abs(z) <= bound or not farther,
-                   f"bias in {channel}: mean {bs['mean'][c]:.5g} -> {ns['mean'][c]:.5g} (reference {ref[c]:.5g}), "
+                   f"bias in {channel}: mean {bs['mean'][c]:.5g} -> {ns['mean'][c]:.5g} (reference {truth[c]:.5g}), "
                    f"shift z = {z:.2f}, |z| > {bound:.2f}",
                    metric=f"bias.{channel}", rule="statistical" if rule == "auto" else "tolerance",
-                   baseline=bs["mean"][c], value=ns["mean"][c], reference=ref[c], z=z, bound=bound)
+                   baseline=bs["mean"][c], value=ns["mean"][c], reference=truth[c], z=z, bound=bound)
 
     for name in ("flip", "psnr", "ssim"):
         rule = tolerance.get(name, "off")
@@ -451,9 +382,6 @@ class Gate:
     def finish(self, results: dict, out_dir: Path) -> list[str]:
         """Recompute the run's summary with the baseline outcomes, record them in ``results.json`` (rewritten
         atomically) and return the lines to print."""
-        from harness.files.imageio import atomic_write_text
-        from harness.running.suite import summarise
-
         by_name = {c.name: c for c in self.suite.cases}
         for record in results["cases"]:  # cases resumed from an earlier run were not seen by check()
             if record["name"] not in self.checked and record["name"] in by_name:
@@ -466,7 +394,7 @@ class Gate:
         results["baseline"] = {"file": str(self.path), "created": self.doc.get("created"),
                                "tolerance": self.tolerance, "compared": self.compared, "regressed": self.regressed,
                                "not_in_baseline": self.missing, "tools_changed": changed}
-        atomic_write_text(out_dir / "results.json", dumps(results))
+        atomic_write_text(out_dir / "results.json", jsonsafe.dumps(results, indent=2))
         lines = [f"baseline {self.path}: {len(self.compared)} cases compared, {len(self.regressed)} regressed"]
         if self.missing:
             lines.append(f"  not in the baseline (reported, not failed): {', '.join(self.missing)}")
@@ -480,10 +408,6 @@ class Gate:
 
 def save_command(args) -> int:
     """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
-    from harness.running import runstate
-    from harness.files.imageio import removed_on_failure
-    from harness.running.suite import load_suite, run_suite
-
     suite = load_suite(args.suite)
     if not args.out.strip():
         raise HarnessError("--out", "expected a file name, got an empty string")

@@ -18,9 +18,11 @@ from pathlib import Path
 
 from scipy import stats
 
+from harness.core import jsonsafe
 from harness.core.errors import HarnessError
-from harness.files.results import json_ready
-from harness.running.suite import Case, Suite, run_case
+from harness.files.imageio import atomic_write_text
+from harness.running.cases import Case, Suite
+from harness.running.judge import run_case
 
 
 def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
@@ -101,6 +103,4 @@ def _fmt(v) -> str:
 
 
 def write(result: dict, path: Path) -> None:
-    from harness.files.imageio import atomic_write_text
-
-    atomic_write_text(path, json.dumps(json_ready(result), indent=2, default=str, allow_nan=False))
+    atomic_write_text(path, jsonsafe.dumps(result, indent=2))  # strict JSON: NaN / inf as null

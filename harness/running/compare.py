@@ -1,4 +1,5 @@
-"""Compare a test render with a reference: every image metric plus the statistical verdict, as a JSON-ready dict.
+"""Compare a test render with the expected image (its ground truth): every image metric plus the statistical
+verdict, as a JSON-ready dict.
 
 :func:`compare_images` works on :class:`harness.files.imageio.ExrImage` values,
 :func:`compare_files` reads two EXR files first.  Metrics are described in
@@ -13,36 +14,18 @@ identical images (infinite) or the z of a differing zero-variance tile.
 
 from __future__ import annotations
 
-import math
 import os
 from typing import Any
 
 import numpy as np
 
-from harness.judges import metrics
 from harness.core.errors import HarnessError
+from harness.core.jsonsafe import plain
 from harness.files.imageio import ExrImage, read_exr
+from harness.judges import metrics
 from harness.judges.verdict import verdict
 
 __all__ = ["compare_files", "compare_images"]
-
-
-def _jsonable(value: Any) -> Any:
-    """Plain Python types; non-finite floats become None."""
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_jsonable(v) for v in value.tolist()]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        f = float(value)
-        return f if math.isfinite(f) else None
-    return value
 
 
 def _variance_dof(image: ExrImage) -> int | None:
@@ -66,34 +49,34 @@ def _size(image: np.ndarray) -> str:
     return f"{image.shape[1]}x{image.shape[0]}"
 
 
-def _compare(test: ExrImage, ref: ExrImage, tile: int, alpha: float, names: tuple[str, str]) -> dict:
-    test_name, ref_name = names
-    if test.image.shape != ref.image.shape:
+def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names: tuple[str, str]) -> dict:
+    test_name, expected_name = names
+    if test.image.shape != expected.image.shape:
         raise HarnessError(
             test_name,
-            f"size {_size(test.image)} differs from the reference {ref_name} ({_size(ref.image)}); "
+            f"size {_size(test.image)} differs from the reference {expected_name} ({_size(expected.image)}); "
             "expected images of the same size",
         )
-    test_dof, ref_dof = _variance_dof(test), _variance_dof(ref)
-    # The verdict first: it checks that both variances exist and the reference is finite.
+    test_dof, expected_dof = _variance_dof(test), _variance_dof(expected)
+    # The verdict first: it checks that both variances exist and the expected image is finite.
     outcome = verdict(
         test.image,
         test.variance,
-        ref.image,
-        ref.variance,
+        expected.image,
+        expected.variance,
         tile=tile,
         alpha=alpha,
         test_dof=test_dof,
-        reference_dof=ref_dof,
+        expected_dof=expected_dof,
         names=names,
     )
-    t, r = test.image, ref.image
+    t, r = test.image, expected.image
     h, w = t.shape[:2]
     mask = metrics.finite_mask(t, r)
     used = int(mask.sum())
     nonfinite = {"test": metrics.count_nonfinite(t), "reference": metrics.count_nonfinite(r)}
-    finite_ref = r[mask]
-    psnr_peak = float(finite_ref.max()) if finite_ref.size else float("nan")
+    finite_expected = r[mask]
+    psnr_peak = float(finite_expected.max()) if finite_expected.size else float("nan")
     result = {
         "width": w,
         "height": h,
@@ -109,7 +92,7 @@ def _compare(test: ExrImage, ref: ExrImage, tile: int, alpha: float, names: tupl
             "ssim": metrics.ssim(t, r),
             "flip": metrics.flip(t, r),
         },
-        "bias": metrics.bias(t, r, test.variance, ref.variance),
+        "bias": metrics.bias(t, r, test.variance, expected.variance),
         "conventions": {
             "relmse_eps": metrics.RELMSE_EPS,
             "mape_eps": metrics.MAPE_EPS,
@@ -120,14 +103,15 @@ def _compare(test: ExrImage, ref: ExrImage, tile: int, alpha: float, names: tupl
         },
         "verdict": outcome.to_dict(),
     }
-    return _jsonable(result)
+    return plain(result)
 
 
-def compare_images(test: ExrImage, ref: ExrImage, *, tile: int = 8, alpha: float = 0.01) -> dict:
-    """Every metric of ``test`` against ``ref``, the statistical verdict and the statistics behind it.
+def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01) -> dict:
+    """Every metric of ``test`` against ``expected`` (the ground truth), the statistical verdict and the statistics
+    behind it.
 
     Both images need variance channels (the verdict's input; zeros for an
-    exact reference), else :class:`HarnessError`.  If a file's metadata has
+    exact ground truth), else :class:`HarnessError`.  If a file's metadata has
     ``spp`` (as ``harness render`` writes), spp - 1 is taken as the degrees of
     freedom of its variance estimates (see :func:`harness.judges.verdict.verdict`).
 
@@ -143,13 +127,13 @@ def compare_images(test: ExrImage, ref: ExrImage, *, tile: int = 8, alpha: float
     are None.
 
     Raises :class:`HarnessError` if the sizes differ, a variance is missing or
-    invalid, or the reference has non-finite pixels.
+    invalid, or the expected image has non-finite pixels.
     """
-    return _compare(test, ref, tile, alpha, ("test image", "reference image"))
+    return _compare(test, expected, tile, alpha, ("test image", "reference image"))
 
 
 def compare_files(
-    test_path: str | os.PathLike[str], ref_path: str | os.PathLike[str], **kw: Any
+    test_path: str | os.PathLike[str], expected_path: str | os.PathLike[str], **kw: Any
 ) -> dict:
     """:func:`compare_images` on two EXR files read with :func:`harness.files.imageio.read_exr`.
 
@@ -158,9 +142,9 @@ def compare_files(
     sizes; a file without variance channels raises one naming that file.
     """
     test = read_exr(test_path)
-    ref = read_exr(ref_path)
+    expected = read_exr(expected_path)
     tile = kw.pop("tile", 8)
     alpha = kw.pop("alpha", 0.01)
     if kw:
         raise TypeError(f"unexpected keyword arguments: {', '.join(sorted(kw))}")
-    return _compare(test, ref, tile, alpha, (str(test_path), str(ref_path)))
+    return _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)))

@@ -1,7 +1,10 @@
 """Where a suite's work runs: in this process, on a pool of local worker processes, or on a Dask cluster.
 
-A suite run is a list of ``Task``s, each a case (``run_case``) or one chunk of a Mitsuba ground truth
-(``groundtruth.ChunkJob``). Chunk tasks come first and are deduplicated by cache key, so two workers never render
+A suite run is a list of ``Task``s, each a case or one chunk of a Mitsuba ground truth (``groundtruth.ChunkJob``).
+What runs a case, and what gives its scenes, are handed in by the caller (:func:`plan`'s ``run_case`` and
+``case_scenes``; :func:`harness.running.schedule.run_suite` hands in :mod:`harness.running.judge`'s): this module
+imports nothing from the modules that call it. They must be module-level functions, so that worker processes and
+Dask can unpickle them by name. Chunk tasks come first and are deduplicated by cache key, so two workers never render
 the same chunk; a case depends on the chunks of its ground truth and, when it runs, ``ground_truth()`` finds them
 cached and merges them exactly (``harness.judges.moments``), giving the same image as a serial run, bit for bit.
 
@@ -33,14 +36,16 @@ from multiprocessing import connection
 from pathlib import Path
 from typing import Any
 
-from harness.running import runstate
 from harness.core.errors import HarnessError
+from harness.renderers import groundtruth
+from harness.running import runstate
 
 CHUNK_TIMEOUT = 600.0  # seconds for one Mitsuba ground-truth chunk (256 spp by default)
 SPP_CASE_TIMEOUT = 600.0  # seconds for a case with an spp budget
 MIN_SECONDS_TIMEOUT, SECONDS_FACTOR = 120.0, 20.0  # a case with a seconds budget: max(120 s, 20 x the budget)
 DEFAULT_WORKERS = 1  # measured in docs/robustness.md ("Executors")
-PRELOAD = ["harness.running.suite", "harness.running.compare", "harness.renderers", "harness.renderers.groundtruth"]
+#: Modules the local workers' fork server imports once; the modules of the tasks' ``run_case`` functions are added.
+PRELOAD = ["harness.renderers", "harness.renderers.groundtruth"]
 
 
 @dataclass(frozen=True)
@@ -50,6 +55,7 @@ class Task:
     payload: Any  # (Case, out_dir, cache_dir, variant) for a case, a groundtruth.ChunkJob for a chunk
     timeout: float
     deps: tuple[str, ...] = ()  # keys of tasks that must finish first (whatever their outcome)
+    run_case: Callable[..., Any] | None = None  # a case's: run_case(case, out_dir, cache_dir=, variant=) -> record
 
 
 def case_timeout(case, override: float | None = None) -> float:
@@ -69,10 +75,8 @@ def run_task(task: Task):
     try:
         if task.kind == "chunk":
             return ("ok", task.payload.run())
-        from harness.running.suite import run_case
-
         case, out_dir, cache_dir, variant = task.payload
-        return ("ok", run_case(case, Path(out_dir), cache_dir=cache_dir, variant=variant))
+        return ("ok", task.run_case(case, Path(out_dir), cache_dir=cache_dir, variant=variant))
     except HarnessError as err:
         return ("harness-error", err.where, err.message)
     except Exception as err:  # a chunk that fails: the case that needs it renders it again and reports why
@@ -84,34 +88,32 @@ def _run_after(task: Task, _deps: list):
     return run_task(task)
 
 
-def plan(cases: Sequence[tuple[int, Any]], out_dir: Path, *, cache_dir=None, variant=None,
-         timeout: float | None = None, chunks: bool = True) -> list[Task]:
+def plan(cases: Sequence[tuple[int, Any]], out_dir: Path, *, run_case: Callable[..., Any],
+         case_scenes: Callable[[Any], tuple], cache_dir=None, variant=None, timeout: float | None = None,
+         chunks: bool = True) -> list[Task]:
     """The tasks of a run: the missing ground-truth chunks of the ``(index, case)`` pairs (once each), then the
-    cases in suite order, each depending on its chunks."""
-    from harness.renderers.groundtruth import default_cache_dir
-
-    cache_dir = str(cache_dir if cache_dir is not None else default_cache_dir())  # resolved here, not by workers
+    cases in suite order, each depending on its chunks. ``run_case(case, out_dir, cache_dir=, variant=)`` runs a
+    case (in a worker: a module-level function) and ``case_scenes(case)`` gives (the scene it renders, the scene
+    of its ground truth), to find the chunks."""
+    cache_dir = str(cache_dir if cache_dir is not None else groundtruth.default_cache_dir())  # here, not by workers
     chunk_tasks: dict[str, Task] = {}
     case_tasks = []
     for index, case in cases:
         deps = []
         if chunks:
-            for job in _chunk_jobs(case, cache_dir, variant):
+            for job in _chunk_jobs(case, cache_dir, variant, case_scenes):
                 key = f"chunk:{job.key}"
                 chunk_tasks.setdefault(key, Task(key, "chunk", job, max(CHUNK_TIMEOUT, timeout or 0.0)))
                 deps.append(key)
         case_tasks.append(Task(f"case:{index}", "case", (case, str(out_dir), cache_dir, variant),
-                               case_timeout(case, timeout), tuple(dict.fromkeys(deps))))
+                               case_timeout(case, timeout), tuple(dict.fromkeys(deps)), run_case))
     return [*chunk_tasks.values(), *case_tasks]
 
 
-def _chunk_jobs(case, cache_dir, variant) -> list:
-    """The Mitsuba ground-truth chunks a case will need that are not cached yet (the renders ``reference_for`` and
-    ``render_with_budget`` make through the cache). A scene that cannot be loaded needs none here: the case itself
-    reports it."""
-    from harness.renderers import groundtruth
-    from harness.running.suite import case_scenes
-
+def _chunk_jobs(case, cache_dir, variant, case_scenes: Callable[[Any], tuple]) -> list:
+    """The Mitsuba ground-truth chunks a case will need that are not cached yet (the renders ``ground_truth_for``
+    and ``render_with_budget`` make through the cache). A scene that cannot be loaded needs none here: the case
+    itself reports it."""
     try:
         scene, gt_scene = case_scenes(case)  # a stress variant may be judged on the plain scene
     except HarnessError:
@@ -195,6 +197,12 @@ def _exit_on_sigterm(signum, _frame):
     raise SystemExit(128 + signum)  # unwinds through finally blocks, unlike the default action
 
 
+def _preload(tasks: Sequence[Task]) -> list[str]:
+    """:data:`PRELOAD` and the modules of the tasks' ``run_case`` functions."""
+    modules = {getattr(t.run_case, "__module__", None) for t in tasks if t.run_case is not None}
+    return [*PRELOAD, *sorted(m for m in modules if m and m not in PRELOAD)]
+
+
 class LocalExecutor:
     """A pool of ``workers`` processes (forked from a clean server process); one task per worker at a time, a deadline
     per task, and a fresh worker for one that was killed or died. ``initializer`` runs in every worker first
@@ -213,7 +221,7 @@ class LocalExecutor:
         ctx = multiprocessing.get_context("forkserver")
         # Workers fork from a server that has imported the harness once (2-3 s), so a worker that replaces a killed
         # one starts at once; the server has started no threads, so forking it is safe.
-        ctx.set_forkserver_preload(PRELOAD)
+        ctx.set_forkserver_preload(_preload(tasks))
         pending = list(tasks)
         done: set[str] = set()
         idle: list[_Worker] = []
@@ -286,7 +294,7 @@ class DaskExecutor:
         self.threads = threads
 
     def run(self, tasks: Sequence[Task]) -> Iterator[tuple[Task, tuple]]:
-        from distributed import Client, LocalCluster, as_completed
+        from distributed import Client, LocalCluster, as_completed  # optional: heavy, only the dask executor uses it
 
         cluster = None
         try:

@@ -25,6 +25,9 @@ import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from harness.core.errors import HarnessError
+from harness.files.imageio import atomic_write_bytes
+
 _XML_BAD = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ufffe\uffff]")
 
 
@@ -141,8 +144,6 @@ def _details(record: dict) -> str:
 
 def write(results: dict, path: str | Path) -> Path:
     """Write the JUnit XML of ``results`` to ``path`` atomically."""
-    from harness.files.imageio import atomic_write_bytes
-
     tree = build(results)
     data = ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True)
     return atomic_write_bytes(path, data + b"\n")
@@ -150,8 +151,6 @@ def write(results: dict, path: str | Path) -> Path:
 
 def check_writable(path: str | Path, option: str = "--junit") -> None:
     """Before a run: create the output's folder (like ``--out``), or refuse with a one-line error."""
-    from harness.core.errors import HarnessError
-
     if Path(path).is_dir():
         raise HarnessError(option, f"{str(path)!r} is a folder; expected a file name, e.g. junit.xml")
     folder = Path(path).parent

@@ -1,4 +1,5 @@
-"""The TOML scene format (``docs/scene-format.md``): loading, the in-memory model, and triangulation for the core."""
+"""The TOML scene format (``docs/scene-format.md``): loading, the in-memory model, triangulation for the core, and
+stress variants (transformed copies of a scene, :mod:`harness.scene.variants`)."""
 
 from harness.scene.load import load_scene
 from harness.scene.model import Material, Scene, Shape

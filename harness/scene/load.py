@@ -7,7 +7,6 @@ Every problem with the file raises :class:`HarnessError` whose ``where`` is ``"<
 from __future__ import annotations
 
 import datetime
-import difflib
 import json
 import math
 import os
@@ -24,6 +23,7 @@ from reference_impl.errors import SettingsError
 
 from harness.core.errors import HarnessError, not_regular, read_user_bytes
 from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
+from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.scene.model import SHAPE_TYPES, Material, Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,
@@ -166,12 +166,6 @@ def _join(parent: str, key: str) -> str:
     return f"{parent}.{_key_text(key)}" if parent else _key_text(key)
 
 
-def _suggestion(word: str, candidates) -> str:
-    """"; did you mean 'x'?" for the closest candidate, or an empty string."""
-    close = difflib.get_close_matches(word, list(candidates), n=1)
-    return f"; did you mean {close[0]!r}?" if close else ""
-
-
 # --------------------------------------------------------------------------------------------------------------------
 # The reader.
 
@@ -200,7 +194,7 @@ class _SceneReader:
         """Refuse keys of ``table`` that are not in ``known``, suggesting the closest known one."""
         for key in table:
             if key not in known:
-                hint = _suggestion(key, known) or f"; expected one of: {', '.join(known)}"
+                hint = suggestion(key, known) or f"; expected one of: {', '.join(known)}"
                 raise self.error(_join(parent, key), f"unknown key {key!r}{hint}")
 
     def require(self, table: dict, key: str, parent: str, what: str) -> Any:
@@ -249,7 +243,7 @@ class _SceneReader:
 
     def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
         if not isinstance(value, str) or value not in choices:
-            hint = _suggestion(value, choices) if isinstance(value, str) else ""
+            hint = suggestion(value, choices) if isinstance(value, str) else ""
             raise self.error(key, f"expected one of {', '.join(choices)}, got {_show(value)}{hint}")
         return value
 
@@ -398,7 +392,7 @@ class _SceneReader:
         name = self.string(self.require(table, "material", key, "the name of a [materials] table"), f"{key}.material")
         if name not in materials:
             defined = ", ".join(repr(m) for m in materials) or "none"
-            hint = _suggestion(name, materials)
+            hint = suggestion(name, materials)
             raise self.error(f"{key}.material", f"unknown material {name!r}{hint} (defined in [materials]: {defined})")
         return name
 

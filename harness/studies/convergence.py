@@ -409,7 +409,7 @@ def run_convergence(
     ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
     renderer (default: :func:`harness.renderers.get_renderer`)."""
     from harness.renderers import RenderRequest, get_renderer
-    from harness.running.suite import render_for_seconds
+    from harness.running.budget import render_for_seconds
 
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")

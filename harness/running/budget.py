@@ -1,0 +1,60 @@
+"""Rendering a case's test image within its budget: ``spp`` samples at once, or chunks of ``chunk_spp`` until
+``seconds`` of render time are spent (merged exactly, :mod:`harness.judges.moments`). A Mitsuba render of an spp
+budget goes through the ground-truth cache (:mod:`harness.renderers.cached`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+
+import numpy as np
+
+from harness.judges.moments import Estimate, merge
+from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.cached import cached_mitsuba_render
+from harness.running.cases import Case
+
+
+def render_with_budget(case: Case, scene, variant: str | None, progress=None, cache_dir=None):
+    """Render a case's test image within its budget: spp at once, or chunks of chunk_spp until ``seconds``."""
+    renderer = get_renderer(case.renderer)
+    settings = dict(case.settings)
+    if case.renderer == "mitsuba" and variant and "variant" not in settings:
+        settings["variant"] = variant
+    if case.renderer == "mitsuba" and case.spp is not None and set(settings) <= {"variant"}:
+        return _cached_mitsuba_render(case, scene, settings.get("variant"), cache_dir, progress)
+    if case.spp is not None:
+        return renderer.render(scene, RenderRequest(spp=case.spp, seed=case.seed, settings=settings, progress=progress))
+    seeds = (case.seed + 7919 * index for index in itertools.count())
+    return render_for_seconds(renderer, scene, case.seconds, case.chunk_spp, seeds, settings, progress)
+
+
+def render_for_seconds(renderer, scene, seconds: float, chunk_spp: int, seeds, settings: dict[str, str],
+                       progress=None):
+    """Render chunks of ``chunk_spp`` (seeds drawn from the iterator ``seeds``) until ``seconds`` of render time
+    are spent, and merge them exactly (``harness.judges.moments``) into one RenderResult with the summed time and rays;
+    ``info["seeds"]`` lists the seeds used."""
+    chunks, results, used, spent = [], [], [], 0.0
+    while spent < seconds:
+        seed = next(seeds)
+        result = renderer.render(scene, RenderRequest(spp=chunk_spp, seed=seed, settings=dict(settings)))
+        spent += result.seconds
+        results.append(result)
+        used.append(seed)
+        chunks.append(Estimate(result.image, result.variance, result.spp))
+        if progress is not None:
+            progress(min(spent, seconds), seconds)
+    merged = merge(chunks)
+    first = results[0]
+    return dataclasses.replace(
+        first, image=merged.mean.astype(np.float32), variance=merged.variance.astype(np.float32),
+        seconds=spent, spp=merged.n,
+        rays={k: sum(r.rays.get(k, 0) for r in results) for k in first.rays},
+        stats={k: sum(r.stats.get(k, 0) for r in results) for k in first.stats},
+        info=dict(first.info, chunks=len(results), seeds=used),
+    )
+
+
+def _cached_mitsuba_render(case: Case, scene, variant: str | None, cache_dir, progress):
+    """A Mitsuba test render through the ground-truth cache, so a suite's second run renders nothing."""
+    return cached_mitsuba_render(scene, case.spp, case.seed, variant, cache_dir, progress)

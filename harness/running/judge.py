@@ -1,0 +1,139 @@
+"""Judging one case: its ground truth (:func:`ground_truth_for`), its render within the budget
+(:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`) and its
+thresholds, as the case's record in ``results.json`` (``docs/results-schema.md``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+import traceback
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from harness.core.errors import HarnessError
+from harness.files import imageio
+from harness.renderers import RenderRequest, get_renderer, groundtruth
+from harness.renderers.external import variance_metadata
+from harness.renderers.validate import validate_result
+from harness.running.budget import render_with_budget
+from harness.running.cases import HIGHER_IS_BETTER, Case, slug, with_case_overrides
+from harness.running.compare import compare_images
+from harness.scene import load_scene
+from harness.scene.variants import parse_variant
+
+
+def case_scene(case: Case, for_ground_truth: bool = False):
+    """The case's scene: film and depth overrides, then its stress ``variant``, unless ``for_ground_truth`` and the
+    variant must not change the image (then the untransformed scene is the ground truth's)."""
+    render_scene, gt_scene = case_scenes(case)
+    return gt_scene if for_ground_truth else render_scene
+
+
+def case_scenes(case: Case):
+    """(the scene the case renders, the scene its ground truth is made from), from one read of the scene file: the
+    same scene unless a stress ``variant`` must not change the image (:func:`case_scene`)."""
+    scene = with_case_overrides(load_scene(case.scene), case)
+    if case.variant is None:
+        return scene, scene
+    stress_variant = parse_variant(case.variant, f"{case.scene}: variant")
+    varied = stress_variant.apply(scene)
+    return varied, (scene if stress_variant.judged_against_original else varied)
+
+
+def ground_truth_for(case: Case, scene, cache_dir, variant: str | None, progress=None):
+    """The image a case is judged against (``case.against``), as a GroundTruth: the scene's closed form, Mitsuba's
+    ground truth through the cache, or another renderer's seeded render."""
+    kind = case.against.kind
+    if kind == "closed-form":
+        if not scene.closed_form:
+            raise HarnessError(f"{case.scene}: closed_form", f"case {case.name!r} compares against a closed form, "
+                               "but the scene declares none")
+        return groundtruth.closed_form(scene)
+    if kind in ("ground-truth", "mitsuba"):
+        return groundtruth.ground_truth(scene, spp=case.ground_truth_spp, cache_dir=cache_dir, variant=variant,
+                                        use_closed_form=kind == "ground-truth", progress=progress)
+    against = case.against
+    if against.renderer == "mitsuba":  # Mitsuba renders always go through the cache
+        return groundtruth.ground_truth(scene, spp=against.spp, seed=against.seed, cache_dir=cache_dir,
+                                        variant=against.settings.get("variant", variant), use_closed_form=False,
+                                        progress=progress)
+    result = get_renderer(against.renderer).render(
+        scene, RenderRequest(spp=against.spp, seed=against.seed, settings=dict(against.settings)))
+    return groundtruth.GroundTruth(result.image, result.variance, against.renderer, against.spp,
+                                   info={"settings": result.settings, **result.info}, seconds=result.seconds)
+
+
+def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
+    """Descriptions of every threshold a metric breaks (upper bounds; lower bounds for psnr and ssim)."""
+    broken = []
+    for name, limit in thresholds.items():
+        value = metrics.get(name)
+        if isinstance(value, dict):  # bias: compare its magnitude
+            value = abs(value.get("overall", value.get("value", 0.0)))
+        if value is None or not np.isfinite(value):
+            broken.append(f"{name} is {value}")
+        elif name in HIGHER_IS_BETTER and value < limit:
+            broken.append(f"{name} {value:.4g} < {limit:.4g}")
+        elif name not in HIGHER_IS_BETTER and value > limit:
+            broken.append(f"{name} {value:.4g} > {limit:.4g}")
+    return broken
+
+
+def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None) -> dict:
+    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
+    record = case_header(case)
+    start = time.perf_counter()
+    try:
+        scene, gt_scene = case_scenes(case)
+        gt = ground_truth_for(case, gt_scene, cache_dir, variant, progress)
+        record["ground_truth"] = {
+            "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
+            "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,
+            "variant": gt.info.get("variant") or gt.info.get("info", {}).get("variant"),
+            "mitsuba_version": gt.info.get("mitsuba"),
+        }
+        result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
+        validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
+        folder = out_dir / "cases" / slug(case.name)
+        with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
+            imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
+                                           metadata={"renderer": result.renderer, "case": case.name})
+        gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+        comparison = compare_images(
+            imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
+            imageio.ExrImage(gt.image, gt.variance, gt_meta),
+            tile=case.tile, alpha=case.alpha,
+        )
+        all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
+        metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
+        broken = check_thresholds(all_metrics, case.thresholds)
+        verdict = comparison["verdict"]
+        outcome = "pass" if verdict["verdict"] == "pass" and not broken else "fail"
+        reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""
+        if broken:
+            reason = "; ".join(filter(None, [reason, "threshold: " + ", ".join(broken)]))
+        record.update(
+            status=outcome, reason=reason, ok=outcome == case.expect, metrics=metrics, verdict=verdict,
+            thresholds=case.thresholds, thresholds_broken=broken,
+            render={"seconds": result.seconds, "spp": result.spp, "paths_per_second": result.paths / max(result.seconds, 1e-12),
+                    "rays": result.rays, "nonfinite_pixels": result.nonfinite_pixels, "settings": result.settings,
+                    "info": result.info, "exr": str(folder / "render.exr")},
+        )
+    except HarnessError:
+        raise
+    except Exception as err:  # a renderer or adapter failure fails this case only
+        record.update(status="error", ok=False, reason=f"{type(err).__name__}: {err}".splitlines()[0],
+                      traceback=traceback.format_exc(limit=8))
+    record["wall_seconds"] = time.perf_counter() - start
+    return record
+
+
+def case_header(case: Case) -> dict[str, Any]:
+    """The fields every record of a case starts with, whatever its outcome."""
+    return {
+        "name": case.name, "scene": str(case.scene), "renderer": case.renderer, "settings": case.settings,
+        "budget": {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds},
+        "seed": case.seed, "expect": case.expect, "against": dataclasses.asdict(case.against),
+    }
