@@ -16,7 +16,8 @@ from test_hostile_results import disk  # noqa: F401 - a fixture (a disk that fil
 
 from harness.running.executors import SerialExecutor
 from harness.files.results import read_results
-from harness.running.suite import load_suite, run_suite
+from harness.running.cases import load_suite
+from harness.running.schedule import run_suite
 
 SUITE = """
 name = "two"
@@ -108,9 +109,9 @@ def test_run_that_fails_after_a_case_keeps_it_and_resumes(folder, disk, capfd): 
 
 
 def test_results_json_writes_non_finite_numbers_as_null(folder, monkeypatch):
-    from harness.running import suite as suite_module
+    from harness.running import judge as judge_module
 
-    real_run_case = suite_module.run_case
+    real_run_case = judge_module.run_case
 
     def run_case(case, *args, **kwargs):  # a record as a renderer's odd output could make it
         record = real_run_case(case, *args, **kwargs)
@@ -118,7 +119,7 @@ def test_results_json_writes_non_finite_numbers_as_null(folder, monkeypatch):
         record["render"]["info"]["odd"] = [math.nan, 1.0]
         return record
 
-    monkeypatch.setattr(suite_module, "run_case", run_case)
+    monkeypatch.setattr(judge_module, "run_case", run_case)
     run_suite(load_suite(folder / "two.toml"), folder / "run", executor=SerialExecutor())
     text = (folder / "run" / "results.json").read_text()
     assert "NaN" not in text and "Infinity" not in text
