@@ -56,6 +56,7 @@ import sys
 import time
 import tomllib
 import traceback
+import types
 from collections import Counter
 from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
@@ -1406,8 +1407,11 @@ def call(inp_call: list[str]) -> dict:
 
         try:
             return {"rc": main(args)}
-        except SystemExit as stop:  # argparse's --help
-            return {"rc": stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 2)}
+        except SystemExit as stop:  # argparse's --help; anything else as the interpreter would end
+            if stop.code is None or isinstance(stop.code, int):
+                return {"rc": stop.code or 0, "system_exit": traceback.format_exc()}
+            print(stop.code, file=sys.stderr)
+            return {"rc": 1, "system_exit": traceback.format_exc()}
     loader = _loader(kind)
     try:
         return {"loaded": type(loader(args[0])).__name__}
@@ -1446,6 +1450,9 @@ def _child(inp: Input, folder: Path, capture: Path, limits: Limits) -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _apply_limits(limits)
+        # no main module to re-run: a worker pool's forkserver would otherwise run this script (or pytest) again
+        # in every worker, from the input's folder, as `python -m harness` never does
+        sys.modules["__main__"] = types.ModuleType("__main__")
         faulthandler.dump_traceback_later(max(1.0, limits.timeout - 2), file=sys.stderr)  # where a hang hangs
         try:
             result = call(inp.call)
@@ -1454,6 +1461,7 @@ def _child(inp: Input, folder: Path, capture: Path, limits: Limits) -> None:
             print(result["exception"], file=sys.stderr, end="")  # as the interpreter would
         sys.stdout.flush()
         sys.stderr.flush()
+        _kill_descendants(os.getpid())  # a worker pool's forkserver has its own process group and would stay
         capture.with_suffix(".json").write_text(json.dumps(result))
         status = 0
     except BaseException:  # noqa: BLE001
@@ -1573,6 +1581,7 @@ class Runner:
                 done, status = os.waitpid(pid, os.WNOHANG)
                 timed_out = False
                 if not done and time.monotonic() - start > self.limits.timeout:
+                    _kill_descendants(pid)
                     _kill_group(pid)
                     done, status = os.waitpid(pid, 0)
                     timed_out = True
@@ -1621,6 +1630,34 @@ class Runner:
         (target / "stdout").write_text(stdout)
         (target / "stderr").write_text(stderr)
         (target / "replay.sh").write_text(replay_script(inp))
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every living process below ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        children.setdefault(ppid, []).append(int(entry))
+    found, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.append(child)
+            todo.append(child)
+    return found
+
+
+def _kill_descendants(pid: int) -> None:
+    for child in _descendants(pid):
+        try:
+            os.kill(child, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
 
 
 def _kill_group(pid: int) -> None:
