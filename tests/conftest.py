@@ -1,14 +1,32 @@
 from __future__ import annotations
 
 import dataclasses
+import os
 import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # test helpers: tests/chi2_cases.py, flaky_renderers.py
+
+# Hypothesis: the same examples at every run. derandomize draws them from a seed fixed per test; without a database
+# no failing example saved by an earlier run can change what a later run tries. HARNESS_FUZZ=long (docs/ci.md)
+# selects the long profile and multiplies every test's max_examples by LONG_FUZZ_FACTOR (fuzz_examples).
+FUZZ_LONG = os.environ.get("HARNESS_FUZZ", "") == "long"
+LONG_FUZZ_FACTOR = 20
+settings.register_profile("deterministic", derandomize=True, database=None, print_blob=True)
+settings.register_profile("long", derandomize=True, database=None, print_blob=True, max_examples=2000)
+settings.load_profile("long" if FUZZ_LONG else "deterministic")
+
+
+def fuzz_examples(count: int) -> int:
+    """``max_examples`` for a test's ``@settings``: ``count`` in the default run, LONG_FUZZ_FACTOR times as many
+    under HARNESS_FUZZ=long (an explicit max_examples overrides the profile's)."""
+    return count * LONG_FUZZ_FACTOR if FUZZ_LONG else count
+
 
 # A small valid scene file: a camera, a 16 x 16 film and one white material, no shapes. Tests add shapes to it.
 MINIMAL_SCENE = """\
@@ -32,8 +50,6 @@ reflectance = [0.8, 0.8, 0.8]
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
     """Every test (and every subprocess it starts) uses a fresh ground-truth cache, never the user's."""
-    import os
-
     previous = os.environ.get("HARNESS_CACHE_DIR")
     os.environ["HARNESS_CACHE_DIR"] = str(tmp_path_factory.mktemp("harness-cache"))
     yield

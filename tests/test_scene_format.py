@@ -16,7 +16,7 @@ import trimesh
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import MINIMAL_SCENE
+from conftest import MINIMAL_SCENE, fuzz_examples
 from harness.core.errors import HarnessError
 from harness.scene import Scene, load_scene, triangulate
 from harness.scene.triangulate import rotate_matrix, shape_triangles
@@ -651,7 +651,7 @@ def fuzz_folder(tmp_path_factory) -> Path:
     return folder
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=fuzz_examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), seed=st.sampled_from(sorted(FUZZ_SEEDS)))
 def test_fuzz_mutated_documents(fuzz_folder, data, seed):
     document = copy.deepcopy(tomllib.loads(FUZZ_SEEDS[seed]))
@@ -660,7 +660,7 @@ def test_fuzz_mutated_documents(fuzz_folder, data, seed):
     load_or_harness_error(write_scene(fuzz_folder, to_toml(document), "mutated.toml"))
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=fuzz_examples(50), deadline=None)
 @given(data=st.data(), seed=st.sampled_from(sorted(FUZZ_SEEDS)))
 def test_fuzz_edited_text(fuzz_folder, data, seed):
     text = FUZZ_SEEDS[seed]

@@ -23,6 +23,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import stats
 
+from conftest import fuzz_examples
 from harness.running.compare import compare_files, compare_images
 from harness.core.errors import HarnessError
 from harness.files.imageio import ExrImage, write_exr
@@ -377,7 +378,7 @@ def test_compare_files_with_nan_in_the_test_does_not_crash(tmp_path: Path) -> No
 # Properties
 # ---------------------------------------------------------------------------
 
-@settings(max_examples=25, deadline=None)
+@settings(max_examples=fuzz_examples(25), deadline=None)
 @given(
     seed=st.integers(0, 2**31 - 1),
     scale=st.floats(1e-6, 1e6),

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import re
@@ -394,6 +395,8 @@ def cmd_convergence(args: argparse.Namespace) -> int:
     for name, value in (("--ground-truth-spp", args.ground_truth_spp), ("--chunk-spp", args.chunk_spp)):
         require_positive(name, value)
     require_non_negative("--seed", args.seed)
+    if not (math.isfinite(args.k) and args.k > 0):  # NaN would flag nothing, 0 everything
+        raise HarnessError("--k", f"expected a positive multiple of the expected scatter, got {args.k}")
     width = height = None
     if args.film:
         w, sep, h = args.film.lower().partition("x")
@@ -677,6 +680,16 @@ class _OutsidePaths:
                 os.environ[ALLOW_OUTSIDE_ENV] = self.saved
 
 
+# What str.splitlines() breaks a line at, written as escapes: an error quoting the user's text (an argument with a
+# newline, a file name with U+2028) stays one line.
+_LINE_BREAKS = {ord(c): c.encode("unicode_escape").decode("ascii") for c in "\n\r\v\f\x1c\x1d\x1e\x85\u2028\u2029"}
+
+
+def one_line(text: str) -> str:
+    """``text`` with every line break escaped (``\\n``, ``\\u2028``, ...)."""
+    return text.translate(_LINE_BREAKS)
+
+
 def _run(argv: list[str] | None) -> int:
     try:
         parser = build_parser()
@@ -684,7 +697,7 @@ def _run(argv: list[str] | None) -> int:
         with _OutsidePaths(args):
             return args.func(args)
     except HarnessError as err:
-        print(f"harness: error: {err}", file=sys.stderr)
+        print(f"harness: error: {one_line(str(err))}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("harness: interrupted", file=sys.stderr)

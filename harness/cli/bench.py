@@ -12,6 +12,7 @@ from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_positive
 from harness.core import jsonsafe
+from harness.core.limits import check_render_cost
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
@@ -52,6 +53,14 @@ def _memory_option(text: str) -> tuple[int, int]:
     return int(match[1]), int(match[2])
 
 
+def _check_costs(scene, args: argparse.Namespace) -> None:
+    """Refuse renders of ``scene`` at --spp and its ground truth at --ground-truth-spp whose estimates break
+    harness/core/limits.py's (absurd even where a closed form makes the ground truth free)."""
+    for option, spp in (("--spp", args.spp), ("--ground-truth-spp", args.ground_truth_spp)):
+        check_render_cost(scene.film.width, scene.film.height, spp, film_where=f"{scene.path}: film",
+                          spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option)
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from harness.studies import bench
     from harness.files.imageio import atomic_write_text
@@ -71,6 +80,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if not path.is_file():
             raise HarnessError("--scene", f"expected a canonical scene name or a scene file, got {name!r}")
         resolved.append(str(path))
+    for path in resolved:  # absurd budgets refused before the first render, as harness render does
+        _check_costs(load_scene(path), args)
+    if memory is not None:
+        check_render_cost(memory[0], memory[0], memory[1], film_where="--memory", spp_where="--memory",
+                          film_keys="SIZE in --memory", spp_name="SPP in --memory")
     say = (lambda text: print(f"  {text}", file=sys.stderr, flush=True)) if not args.quiet else None
     result = bench.run_bench(scenes=resolved, spp=args.spp, repeats=args.repeats, gt_spp=args.ground_truth_spp,
                              strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say)

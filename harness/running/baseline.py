@@ -205,7 +205,7 @@ def load(path: str | Path) -> dict:
     text = read_user_text(path, missing="no such baseline file (write one with: harness baseline save SUITE --out FILE)")
     try:
         doc = json.loads(text)
-    except json.JSONDecodeError as err:
+    except (json.JSONDecodeError, RecursionError) as err:  # RecursionError: absurd nesting
         raise HarnessError(label, f"not a baseline file: invalid JSON ({err})") from None
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
         raise HarnessError(label, f"not a baseline file: expected \"schema\": \"{SCHEMA}\"")
@@ -214,7 +214,51 @@ def load(path: str | Path) -> dict:
                            "save a new one")
     if not isinstance(doc.get("cases"), dict) or not isinstance(doc.get("suite"), str):
         raise HarnessError(label, "not a baseline file: expected \"suite\" and a \"cases\" table")
+    for name, entry in doc["cases"].items():
+        problem = _entry_problem(entry)
+        if problem:
+            raise HarnessError(label, f"not a baseline file: cases.{name}{problem}; save the baseline again")
     return doc
+
+
+def _finite(value) -> bool:
+    """A JSON number that is finite as a float (an integer beyond float's range is not)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+def _entry_problem(entry) -> str | None:
+    """What is wrong with one case entry of a baseline file, as ``.KEY: expected ...`` (None: nothing): every
+    value :func:`compare` reads must be there with its type, so a damaged file is refused before the run."""
+    if not isinstance(entry, dict):
+        return f": expected a table, got {type(entry).__name__}"
+    if not isinstance(entry.get("definition"), str):
+        return ".definition: expected the case's SHA-256 (a string)"
+    for key in ("metrics", "statistics", "render", "solution"):
+        if not isinstance(entry.get(key), dict):
+            return f".{key}: expected a table"
+    for key, value in entry["metrics"].items():
+        if not (value is None or isinstance(value, dict) or _finite(value)):
+            return f".metrics.{key}: expected a finite number, got {value!r:.40}"
+    statistics = entry["statistics"]
+    for key in ("mse", "relmse", "mape"):
+        item = statistics.get(key, {})
+        if not isinstance(item, dict) or not all(item.get(k) is None or _finite(item.get(k)) for k in ("value",
+                                                                                                        "rel_se")):
+            return f".statistics.{key}: expected {{value, rel_se}} finite numbers"
+    for key in ("mean", "mean_stderr", "reference_mean"):
+        value = statistics.get(key)
+        if value is not None and not (isinstance(value, list) and len(value) == len(CHANNELS)
+                                      and all(_finite(v) for v in value)):
+            return f".statistics.{key}: expected {len(CHANNELS)} finite numbers"
+    for key in ("seconds", "paths_per_second"):
+        if not _finite(entry["render"].get(key)):
+            return f".render.{key}: expected a finite number"
+    return None
 
 
 def check_matches(doc: dict, path: str | Path, suite) -> None:
@@ -439,7 +483,14 @@ def save_command(args) -> int:
         print(f"baseline not written: {len(unexpected)} cases not as expected ({', '.join(unexpected)}); a baseline "
               "is a known-good state (--allow-unexpected writes it anyway)", file=sys.stderr)
         return 1
-    doc, notes = build(suite, results, cache_dir=args.cache_dir, variant=args.mitsuba_variant, source=source)
+    try:
+        doc, notes = build(suite, results, cache_dir=args.cache_dir, variant=args.mitsuba_variant, source=source)
+    except (KeyError, TypeError, AttributeError, IndexError) as err:
+        if not args.from_results:
+            raise
+        # a results.json edited by hand: what build() reads may be missing or of another type
+        raise HarnessError(f"--from {args.from_results}", f"not a results.json written by harness run "
+                           f"({type(err).__name__}: {err})") from None
     save(doc, out)
     for note in notes:
         print(f"  {note}", file=sys.stderr)

@@ -27,6 +27,7 @@ Every executor yields ``(task, outcome)`` as tasks finish; ``outcome`` is ``("ok
 from __future__ import annotations
 
 import multiprocessing
+import re
 import signal
 import time
 import uuid
@@ -335,9 +336,12 @@ class DaskExecutor:
                 cluster.close()
 
 
+_TCP_ADDRESS = re.compile(r"tcp://(?:[A-Za-z0-9._-]+|\[[0-9A-Fa-f:.]+\]):([0-9]{1,5})")
+
+
 def make_executor(spec: str | None, workers: int | None = None):
     """The executor named by ``--executor`` (serial, local, dask or tcp://HOST:PORT) with ``--workers``."""
-    spec = spec or "local"
+    spec = "local" if spec is None else spec
     if workers is not None and workers < 1:
         raise HarnessError("--workers", f"expected a positive integer, got {workers}")
     if spec == "serial":
@@ -346,7 +350,8 @@ def make_executor(spec: str | None, workers: int | None = None):
         return LocalExecutor(workers or DEFAULT_WORKERS)
     if spec == "dask":
         return DaskExecutor(workers=workers or 2)
-    if spec.startswith("tcp://") and ":" in spec[len("tcp://"):]:
+    address = _TCP_ADDRESS.fullmatch(spec)
+    if address and 1 <= int(address.group(1)) <= 65535:  # Dask's own parser raises ValueError on a bad port
         return DaskExecutor(address=spec)
     raise HarnessError("--executor", f"expected serial, local, dask or tcp://HOST:PORT, got {spec!r}")
 

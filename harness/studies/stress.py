@@ -388,6 +388,21 @@ def _resolve_scene(text: str):
     return load_scene(path)
 
 
+def _check_costs(width: int, height: int, args) -> None:
+    """Refuse a film beyond the scene format's limits, and renders (``--spp``, ``--ground-truth-spp``) whose cost
+    estimates break harness/core/limits.py's, before anything renders."""
+    from harness.core.limits import MAX_FILM_SIDE, check_render_cost, film_problem
+
+    if max(width, height) > MAX_FILM_SIDE:
+        raise HarnessError("--film", f"expected at most {MAX_FILM_SIDE} pixels per side, got {args.film!r}")
+    problem = film_problem(width, height)
+    if problem:
+        raise HarnessError("--film", problem)
+    for option, spp in (("--spp", args.spp), ("--ground-truth-spp", args.ground_truth_spp)):
+        check_render_cost(width, height, spp, film_where="--film", spp_where=option, film_keys="--film",
+                          spp_name=option)
+
+
 def command(args) -> int:
     """``harness stress``: 0 when every invariant variant of the reference ends as expected, 1 otherwise."""
     import sys
@@ -407,6 +422,7 @@ def command(args) -> int:
     w, sep, h = args.film.lower().partition("x")
     if not sep or not w.isdigit() or not h.isdigit() or int(w) < 1 or int(h) < 1:
         raise HarnessError("--film", f"expected WIDTHxHEIGHT, e.g. 64x64, got {args.film!r}")
+    _check_costs(int(w), int(h), args)
     from harness.cli import _parse_set
 
     settings = _parse_set(args.set)
@@ -426,6 +442,12 @@ def command(args) -> int:
         from harness.renderers.reference import ReferenceRenderer
 
         ReferenceRenderer().settings_for(scene, RenderRequest(spp=args.spp, seed=args.seed, settings=settings))
+    out = Path(args.out) if args.out else None  # created once every input is known good
+    if out is not None:
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise HarnessError("--out", f"cannot create {str(out)!r}: {err.strerror}") from None
 
     bar = None
     if not args.quiet and sys.stderr.isatty():

@@ -1,0 +1,1819 @@
+"""The long fuzzing mode (docs/robustness.md, "Fuzzing"): generated inputs through every loader and every command.
+
+    python tests/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 20 min on 2 cores)
+    python tests/fuzz.py --inputs 300 --only compare,render      # some entry points only
+    python tests/fuzz.py --replay /tmp/fuzz/failures/render-00042 # one saved failing input again, in this process
+    HARNESS_FUZZ=long pytest tests/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
+
+Each input is a folder of files (a scene, a suite, a renderer file, a results.json, a baseline, EXR files, meshes)
+and one call: a command line for ``harness.cli.main`` or a loader (``load_scene``, ``load_suite``,
+``external.load_spec``). It runs in a child forked from this process, which has imported the harness and compiled
+the reference renderer's kernels once, so an input costs milliseconds, not the ~1 s of a fresh interpreter. The
+child works in the input's folder, its stdout and stderr go to files, its address space is capped
+(``RLIMIT_AS``, ``--memory-gib``), the files it writes too (``RLIMIT_FSIZE``, 256 MiB), and it is killed after
+``--timeout`` seconds. Mitsuba is not importable in the child (``--mitsuba`` allows it): the inputs exercise the
+harness's handling of them, and a Mitsuba JIT compile per input would cost seconds; commands that need Mitsuba end
+in their one-line "cannot import Mitsuba" error.
+
+Every input ends in exactly one outcome:
+
+``pass``        exit 0, or exit 1 where that is the command's verdict (a failed comparison or suite)
+``error``       exit 2 with one line on stderr, ``harness: error: ...``, and nothing on stdout (a loader: a one-line
+                HarnessError naming the file it read or a file that file names)
+``traceback``   an exception escaped (the child records it), or "Traceback" in the output
+``messy``       exit 2 but not one clean line, or another exit code
+``crash``       the child died of a signal (not the time limit)
+``hang``        still running after ``--timeout`` seconds (killed with its process group)
+``silent``      an input the generator knows is bad (a negative --spp, an unknown key, NaN where a number must be
+                finite, ...) ended in exit 0 or 1
+
+``refused_valid`` counts inputs built from valid parts only that were refused anyway (a hint, not a failure), and
+``wrote_on_error`` refusals that left files behind in the input's folder (a hint: "nothing written" on bad input).
+
+Failing inputs (traceback, messy, crash, hang, silent) are kept in ``OUT/failures/ENTRY-NNNNN/``: the files, the
+call (``input.json``), what it printed and ``replay.sh``; ``--replay FOLDER`` runs one again in this process, so its
+traceback shows. ``OUT/summary.json`` holds the counts per entry point and every failure; a table is printed at the
+end. Inputs come from ``random.Random(f"{seed}:{entry}:{index}")``: the same seed gives the same inputs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import faulthandler
+import gc
+import io
+import json
+import math
+import os
+import random
+import resource
+import shlex
+import shutil
+import signal
+import struct
+import sys
+import time
+import tomllib
+import traceback
+import types
+from collections import Counter
+from contextlib import redirect_stderr, redirect_stdout
+from pathlib import Path
+
+TESTS = Path(__file__).resolve().parent
+ROOT = TESTS.parent
+if str(ROOT) not in sys.path:  # run as a script: the harness and tests/ helpers importable
+    sys.path.insert(0, str(ROOT))
+if str(TESTS) not in sys.path:
+    sys.path.insert(0, str(TESTS))
+
+if __name__ == "__main__":
+    # Children are forked from this process: a library thread pool started here would be missing in them, and GNU
+    # OpenMP's (FLIP's) then deadlocks. One thread each starts no pool (the inputs' images are 16 x 16 pixels).
+    # Imported (by tests/test_fuzz.py), the module leaves the environment alone: run inputs that compute FLIP from
+    # the script, not from a process that may have started OpenMP's pool.
+    for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(_name, "1")
+
+import numpy as np  # noqa: E402
+
+from harness.files import imageio# noqa: E402
+from harness.core.errors import HarnessError  # noqa: E402
+
+OUTCOMES = ("pass", "error", "traceback", "messy", "crash", "hang", "silent")
+FAILURES = ("traceback", "messy", "crash", "hang", "silent")
+NAN, INF = math.nan, math.inf
+
+# ---------------------------------------------------------------------------------------------------------------
+# TOML and random values
+
+
+def toml_string(text: str) -> str:
+    """A TOML basic string (JSON's escapes, non-ASCII kept as is)."""
+    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
+
+
+def toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, str):
+        return toml_string(value)
+    if isinstance(value, list):
+        return "[" + ", ".join(toml_value(item) for item in value) + "]"
+    return "{" + ", ".join(f"{toml_string(str(k))} = {toml_value(v)}" for k, v in value.items()) + "}"
+
+
+def to_toml(document: dict) -> str:
+    """A TOML document with every value inline (None values, which TOML lacks, left out)."""
+    return "".join(f"{toml_string(str(k))} = {toml_value(v)}\n" for k, v in document.items() if v is not None)
+
+
+def _drop_none(value):
+    if isinstance(value, dict):
+        return {k: _drop_none(v) for k, v in value.items() if v is not None}
+    if isinstance(value, list):
+        return [_drop_none(v) for v in value if v is not None]
+    return value
+
+
+TEXT_POOLS = ("abcxyz", "ABC_-.", "0123456789", " \t", "/\\..", "<>&'\"", "\u00e9\u6f22\u0645\U0001f642", "\n\r",
+              "\x00\x01\x7f", "=[]{},#")
+WORDS = ["", "x", "reference", "refrence", "mitsuba", "furnace", "cornell-box", "nope", "scene.toml", "../x.toml",
+         "/etc/passwd", "/dev/zero", "/dev/null", ".", "..", "a/b", "a_b", "<script>", "a\nb", "\u00e9\u6f22",
+         "x" * 300, "pass", "fail", "maybe", "rmse", "psnr", "mis", "area", "box", "sphere", "mesh", "off", "auto"]
+NUMBERS = [0, -1, 1, 2, 3, 16, 2**31, 2**63 - 1, 2**64, 10**30, 10**400, -(10**400), 0.0, -0.0, 0.5, 1.5, -2.5, 1e-300,
+           1e-320, 1e308, -1e308, NAN, INF, -INF, 16384, 16385]
+
+
+def rand_text(rng: random.Random, size: int = 8) -> str:
+    pools = rng.sample(TEXT_POOLS, rng.randint(1, 3))
+    return "".join(rng.choice(rng.choice(pools)) for _ in range(rng.randint(0, size)))
+
+
+def rand_scalar(rng: random.Random, json_null: bool = False):
+    kind = rng.randrange(9 if json_null else 8)
+    if kind == 0:
+        return rng.random() < 0.5
+    if kind in (1, 2):
+        return rng.choice(NUMBERS)
+    if kind == 3:
+        return rng.randint(-5, 70000)
+    if kind == 4:
+        return rng.uniform(-10, 10) * 10 ** rng.randint(-5, 5)
+    if kind == 5:
+        return rand_text(rng)
+    if kind in (6, 7):
+        return rng.choice(WORDS)
+    return None
+
+
+def rand_value(rng: random.Random, depth: int = 0, json_null: bool = False):
+    """Anything: a scalar, or a short list or table of anything (three levels at most)."""
+    roll = rng.random()
+    if depth >= 3 or roll < 0.7:
+        return rand_scalar(rng, json_null)
+    if roll < 0.85:
+        return [rand_value(rng, depth + 1, json_null) for _ in range(rng.randint(0, 4))]
+    return {rng.choice(WORDS + ["spp", "name", "type", "width"]): rand_value(rng, depth + 1, json_null)
+            for _ in range(rng.randint(0, 3))}
+
+
+def entries(node, path=()) -> list[tuple[tuple, object, object]]:
+    """Every (path, container, key) inside a parsed document, depth first."""
+    found = []
+    for key, child in (node.items() if isinstance(node, dict) else enumerate(node)):
+        found.append((path + (key,), node, key))
+        if isinstance(child, (dict, list)):
+            found += entries(child, path + (key,))
+    return found
+
+
+def get_path(doc, path):
+    for key in path:
+        doc = doc[key]
+    return doc
+
+
+def random_edits(rng: random.Random, doc, allowed_keys, json_null: bool = False) -> list[str]:
+    """1-3 random edits anywhere (replace a value, tweak a number, delete an entry, add an entry). Returns the
+    reasons the result is certainly bad: an added key the schema does not know (``allowed_keys(path)`` gives a
+    table's keys, or None where any key may be), when it is the only edit."""
+    reasons = []
+    count = rng.choice((1, 1, 2, 3))
+    for _ in range(count):
+        pairs = entries(doc)
+        action = rng.choice(("replace", "replace", "tweak", "delete", "add", "add"))
+        if action != "add" and pairs:
+            path, container, key = rng.choice(pairs)
+            if action == "delete":
+                del container[key]
+            elif action == "tweak" and isinstance(container[key], list) and container[key]:
+                container[key][rng.randrange(len(container[key]))] = rng.choice(NUMBERS)
+            elif action == "tweak":
+                container[key] = rng.choice(NUMBERS)
+            else:
+                container[key] = rand_value(rng, json_null=json_null)
+            continue
+        containers = [((), doc)] + [(p, c[k]) for p, c, k in pairs if isinstance(c[k], (dict, list))]
+        path, container = rng.choice(containers)
+        if isinstance(container, dict):
+            key = rng.choice(["spp", "name", "scene", "type", "fov", "width", "emission", "seed", "cases", "zzz",
+                              rand_text(rng, 6)])
+            known = allowed_keys(path)
+            if known is not None and key not in known and key not in container and count == 1:
+                reasons.append(f"unknown key {key!r} added at {'.'.join(map(str, path)) or 'top level'}")
+            container[key] = rand_value(rng, json_null=json_null)
+        else:
+            container.append(rand_value(rng, json_null=json_null))
+    return reasons
+
+
+def text_edits(rng: random.Random, text: str) -> str:
+    """1-3 edits of the text: a span replaced by TOML/JSON syntax characters and stray letters."""
+    for _ in range(rng.randint(1, 3)):
+        start = rng.randint(0, len(text))
+        end = rng.randint(start, min(len(text), start + 20))
+        junk = "".join(rng.choice('[]{}=",.#-+:0123456789 \nabcxyz\u00e9') for _ in range(rng.randint(0, 10)))
+        text = text[:start] + junk + text[end:]
+    return text
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Inputs
+
+
+@dataclasses.dataclass
+class Input:
+    """One generated input: files to write in its folder, the call, and what the generator knows.
+
+    ``call`` is ``["cli", arg, ...]`` (harness.cli.main) or ``["load_scene" | "load_suite" | "load_spec", path]``.
+    ``bad`` lists why the input is certainly bad (empty: it may be fine); ``valid`` marks one built from valid
+    parts only; ``names`` are the files a loader's error may start with."""
+
+    entry: str
+    index: int
+    call: list[str]
+    files: dict[str, bytes] = dataclasses.field(default_factory=dict)
+    dirs: list[str] = dataclasses.field(default_factory=list)
+    bad: list[str] = dataclasses.field(default_factory=list)
+    valid: bool = False
+    names: list[str] = dataclasses.field(default_factory=list)
+    copies: dict[str, str] = dataclasses.field(default_factory=dict)  # name in the folder -> asset to copy
+
+    @property
+    def id(self) -> str:
+        return f"{self.entry}-{self.index:05d}"
+
+    def to_json(self) -> dict:
+        return {"entry": self.entry, "index": self.index, "call": self.call, "bad": self.bad, "valid": self.valid,
+                "names": self.names, "dirs": self.dirs, "copies": self.copies, "files": sorted(self.files)}
+
+
+class Assets:
+    """The valid material inputs start from, made once in ``folder``: tiny scenes (16 x 16) and meshes, a suite, a
+    run of it (results.json and its renders), its baseline, a renderer file and a pair of EXR files."""
+
+    SUITE = """\
+name = "fz"
+description = "the fuzzer's base suite: tiny, no Mitsuba"
+
+[defaults]
+spp = 4
+film = { width = 16, height = 16 }
+
+[[cases]]
+name = "furnace"
+scene = "furnace.toml"
+
+[[cases]]
+name = "tiny"
+scene = "tiny.toml"
+against = { renderer = "reference", spp = 4, seed = 3 }
+
+[[cases]]
+name = "furnace-mutant"
+scene = "furnace.toml"
+settings = { mutant = "double-emission" }
+expect = "fail"
+"""
+
+    TINY = """\
+name = "tiny"
+
+[camera]
+origin = [0, 0, 5]
+target = [0, 0, 0]
+up = [0, 1, 0]
+fov = 40
+
+[film]
+width = 16
+height = 16
+
+[materials.white]
+reflectance = [0.8, 0.8, 0.8]
+
+[[shapes]]
+name = "light"
+type = "rectangle"
+material = "white"
+emission = [1, 1, 1]
+"""
+
+    EXTRA_SHAPES = """
+[integrator]
+max_depth = 4
+
+[materials.red]
+reflectance = [0.6, 0.1, 0.1]
+two_sided = true
+
+[[shapes]]
+name = "floor"
+type = "cube"
+material = "red"
+translate = [0, -2, 0]
+scale = [3, 0.2, 3]
+rotate = { axis = [0, 1, 0], angle = 20 }
+
+[[shapes]]
+name = "ball"
+type = "sphere"
+material = "white"
+center = [1, 0, 0]
+radius = 0.5
+subdivisions = 1
+
+[[shapes]]
+name = "tri"
+type = "mesh"
+material = "red"
+file = "tri.obj"
+to_world = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -1], [0, 0, 0, 1]]
+"""
+
+    MESHES = {
+        "tri.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+        "nan.obj": b"v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n",
+        "flat.obj": b"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n",
+        "zero-index.obj": b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+        "garbage.ply": b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\nproperty float x\nend_header\n\x00",
+        "empty.obj": b"",
+    }
+    RENDERER = """\
+name = "copy"
+description = "copies a fixed 16 x 16 EXR with variance channels"
+command = ["cp", "{here}/good.exr", "{out}"]
+timeout = 30
+repeats = 2
+"""
+
+    def __init__(self, folder: Path):
+        self.folder = folder
+        self.texts: dict[str, str] = {}
+        self.blobs: dict[str, bytes] = {}
+
+    def build(self, run: bool = True) -> None:
+        """Write the assets; run the base suite once (serially, in this process: it also loads the reference
+        renderer's compiled kernels, which every forked child then shares) and save its baseline. Without
+        ``run`` only the files the loaders' inputs need (scenes, meshes, the suite, the renderer file, EXRs)."""
+        from harness.cli import main
+
+        folder = self.folder
+        folder.mkdir(parents=True, exist_ok=True)
+        scenes = {}
+        for name in ("furnace", "cornell-box", "soft-shadows", "multi-light"):
+            doc = tomllib.loads((ROOT / "scenes" / f"{name}.toml").read_text())
+            doc["film"] = {**doc.get("film", {}), "width": 16, "height": 16}
+            scenes[f"{name}.toml"] = to_toml(doc)
+        scenes["tiny.toml"] = self.TINY
+        scenes["shapes.toml"] = self.TINY.replace('name = "tiny"', 'name = "shapes"') + self.EXTRA_SHAPES
+        self.scene_names = sorted(scenes)
+        for name, text in scenes.items():
+            self.texts[name] = text
+        self.texts["suite.toml"] = self.SUITE
+        self.texts["renderer.toml"] = self.RENDERER
+        self.blobs.update(self.MESHES)
+        rng = np.random.default_rng(7)
+        for name in ("good", "ref"):
+            image = (1 + 0.1 * rng.standard_normal((16, 16, 3))).astype(np.float32)
+            imageio.write_exr(folder / f"{name}.exr", image, np.full_like(image, 0.01), metadata={"spp": "16"})
+            self.blobs[f"{name}.exr"] = (folder / f"{name}.exr").read_bytes()
+        for name, text in self.texts.items():
+            (folder / name).write_text(text)
+        for name, data in self.blobs.items():
+            (folder / name).write_bytes(data)
+        for kind, name in (("load_scene", "shapes.toml"), ("load_suite", "suite.toml"), ("load_spec", "renderer.toml")):
+            _loader(kind)(folder / name)  # imports what the loaders import lazily (trimesh, the renderers), once
+        if not run:
+            return
+        cwd = os.getcwd()
+        os.chdir(folder)
+        quiet = io.StringIO()
+        try:
+            with redirect_stdout(quiet), redirect_stderr(quiet):
+                code = main(["run", "suite.toml", "--out", "run", "--executor", "serial", "--quiet", "--no-report"])
+                assert code == 0, code
+                code = main(["baseline", "save", "suite.toml", "--out", "baseline.json", "--from", "run/results.json"])
+                assert code == 0, code
+                for settings in ([], ["engine=wavefront"], ["sampler=independent", "direct=mis"], ["indirect_rays=2"]):
+                    assert main(["render", "shapes.toml", "--spp", "2", "--out", "warm.exr", "--quiet",
+                                 *[a for s in settings for a in ("--set", s)]]) == 0
+                # warm up what the children would otherwise each import or compile: the report's figures, the
+                # convergence and stress code, the exporters
+                assert main(["report", "run/results.json", "--out", "warm-report", "--no-convergence",
+                             "--no-shadow-rays", "--no-strategies"]) == 0
+                assert main(["convergence", "furnace.toml", "--spp", "1,2", "--out", "warm-convergence", "--quiet"]) == 0
+                assert main(["stress", "furnace.toml", "--renderer", "reference", "--spp", "2", "--film", "8x8",
+                             "--variant", "scale=10", "--out", "warm-stress", "--quiet"]) == 0
+                assert main(["export", "shapes.toml", "--format", "gltf", "--out", "warm-export"]) == 0
+                assert main(["compare", "good.exr", "ref.exr"]) in (0, 1)
+        except BaseException:
+            print(quiet.getvalue(), file=sys.stderr)
+            raise
+        finally:
+            os.chdir(cwd)
+        self.texts["results.json"] = (folder / "run" / "results.json").read_text()
+        self.texts["baseline.json"] = (folder / "baseline.json").read_text()
+        self.run_files = {str(p.relative_to(folder / "run")): p.read_bytes() for p in (folder / "run").rglob("*")
+                          if p.is_file() and p.name != "results.json"}
+
+    def scene_files(self) -> dict[str, bytes]:
+        """Every tiny scene and mesh (a scene's folder)."""
+        files = {name: self.texts[name].encode() for name in self.scene_names}
+        files.update(self.MESHES)
+        return files
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Scene documents
+
+SCENE_TABLES = {(): ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes"),
+                ("camera",): ("origin", "target", "up", "fov", "fov_axis"), ("film",): ("width", "height", "filter"),
+                ("integrator",): ("max_depth",)}
+SHAPE_KEYS = ("name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
+              "file", "center", "radius", "subdivisions")
+
+
+def scene_keys(path: tuple):
+    if path in SCENE_TABLES:
+        return SCENE_TABLES[path]
+    if len(path) == 2 and path[0] == "materials":
+        return ("reflectance", "two_sided")
+    if len(path) == 2 and path[0] == "shapes":
+        return SHAPE_KEYS
+    if len(path) == 3 and path[0] == "shapes" and path[2] == "rotate":
+        return ("axis", "angle")
+    return None
+
+
+BAD_VECTORS = [[NAN, 0, 0], [0, 0], "x", [INF, 0, 0], [0, 0, 0, 0], [True, 0, 0], ["0", 0, 0], [], 5]
+BAD_MATRICES = [[[0] * 4] * 4, [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 1, 1, 1]], [[1, 0, 0]],
+                [[NAN, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], "identity"]
+SCENE_BAD = {  # a value certainly refused at this key
+    ("camera", "fov"): [0, 180, -5, NAN, INF, "40", True, [40], 1e308, 10**400],
+    ("camera", "origin"): BAD_VECTORS, ("camera", "target"): BAD_VECTORS, ("camera", "up"): BAD_VECTORS + [[0, 0, 0]],
+    ("camera", "fov_axis"): ["z", "X", 1, ""],
+    ("film", "width"): [0, -1, 16385, 1.5, "16", 10**30, True], ("film", "height"): [0, -1, 16385, 2.0, "16", 10**30],
+    ("film", "filter"): ["lanczos", "", 1],
+    ("integrator", "max_depth"): [0, -2, 1.5, "3", 10**30, True],
+    ("material", "reflectance"): [[1.2, 0, 0], [-0.1, 0, 0], [NAN, 0.5, 0.5], [0.5, 0.5], "x", [INF, 0, 0]],
+    ("material", "two_sided"): ["yes", 1],
+    ("shape", "emission"): [[-1, 1, 1], [INF, 1, 1], [NAN, 1, 1], [1e308, 1, 1], [0, 0, 0], [1, 1], "x"],
+    ("shape", "scale"): [0, [1, 0, 1], NAN, "2", [1, 1], INF],
+    ("shape", "type"): ["cylinder", "", 1],
+    ("shape", "material"): ["nope", 1],
+    ("shape", "translate"): BAD_VECTORS,
+    ("shape", "rotate"): [{"axis": [0, 0, 0], "angle": 10}, {"axis": [1, 0, 0], "angle": NAN}, {"axis": [1, 0, 0]},
+                          {"angle": 10}, {"axis": [1, 0, 0], "angle": 10, "x": 1}, 5],
+    ("shape", "to_world"): BAD_MATRICES,
+    ("shape", "flip_normals"): ["no", 0],
+    ("sphere", "radius"): [0, -1, NAN, "1", INF], ("sphere", "subdivisions"): [-1, 8, 1.5, 10**9],
+    ("sphere", "center"): BAD_VECTORS,
+    ("mesh", "file"): ["missing.obj", "../outside.obj", "/etc/passwd", "nan.obj", "garbage.ply", "zero-index.obj",
+                       "empty.obj", "tri.stl", "", ".", 5],
+}
+SCENE_VALID = {  # values that keep a scene valid
+    ("camera", "fov"): [30, 45.5, 90, 1], ("camera", "fov_axis"): ["x", "y", "smaller", "larger"],
+    ("film", "width"): [8, 16, 12], ("film", "height"): [8, 16, 1], ("film", "filter"): ["box", "tent", "gaussian"],
+    ("integrator", "max_depth"): [1, 2, 3, -1], ("material", "two_sided"): [True, False],
+    ("material", "reflectance"): [[0, 0, 0], [0.9, 0.9, 0.9], [0.5, 0.25, 0.125]],
+    ("shape", "flip_normals"): [True, False], ("sphere", "subdivisions"): [0, 1, 2],
+}
+REQUIRED = {("camera",), ("film",), ("camera", "origin"), ("camera", "target"), ("camera", "up"), ("camera", "fov"),
+            ("film", "width"), ("film", "height")}
+
+
+def _scene_slots(doc: dict) -> list[tuple[tuple, tuple]]:
+    """(schema slot, document path) for every key the document could have that SCENE_BAD knows."""
+    slots = []
+    for table in ("camera", "film", "integrator"):
+        for (t, key) in SCENE_BAD:
+            if t == table and isinstance(doc.get(table), dict):
+                slots.append(((t, key), (table, key)))
+    for name, material in (doc.get("materials") or {}).items():
+        if isinstance(material, dict):
+            slots += [(("material", k), ("materials", name, k)) for k in ("reflectance", "two_sided")]
+    for i, shape in enumerate(doc.get("shapes") or []):
+        if not isinstance(shape, dict):
+            continue
+        slots += [(("shape", k), ("shapes", i, k)) for (t, k) in SCENE_BAD if t == "shape"]
+        if shape.get("type") in ("sphere", "mesh"):
+            slots += [((shape["type"], k), ("shapes", i, k)) for (t, k) in SCENE_BAD if t == shape["type"]]
+    return slots
+
+
+def _set_path(doc, path, value) -> None:
+    get_path(doc, path[:-1])[path[-1]] = value
+
+
+def scene_document(rng: random.Random, assets: Assets, base: str | None = None,
+                   mutate: float = 1.0) -> tuple[str, list[str], bool, bool]:
+    """A scene file's text: (text, reasons it is bad, valid, names a mesh outside its folder). With probability
+    1 - ``mutate`` the scene is kept valid."""
+    base = base or rng.choice(assets.scene_names)
+    text = assets.texts[base]
+    roll = rng.random() if rng.random() < mutate else rng.random() * 0.22
+    if roll < 0.12:
+        return text, [], True, False
+    doc = tomllib.loads(text)
+    if roll < 0.22:  # valid tweaks
+        slots = [(s, p) for s, p in _scene_slots(doc) if s in SCENE_VALID]
+        for slot, path in rng.sample(slots, min(len(slots), rng.randint(1, 3))):
+            _set_path(doc, path, rng.choice(SCENE_VALID[slot]))
+        return to_toml(doc), [], True, False
+    if roll < 0.55:  # one certainly bad value
+        slot, path = rng.choice(_scene_slots(doc))
+        value = rng.choice(SCENE_BAD[slot])
+        if slot == ("camera", "target") and rng.random() < 0.3:
+            value = doc["camera"].get("origin", value)
+        _set_path(doc, path, value)
+        outside = slot == ("mesh", "file") and value in ("../outside.obj", "/etc/passwd")
+        return to_toml(doc), [f"{'.'.join(map(str, path))} = {value!r}"], False, outside
+    if roll < 0.62:  # a required key deleted, or a material a shape uses
+        shapes = [s for s in doc.get("shapes", []) if isinstance(s, dict) and s.get("material") in doc.get("materials", {})]
+        if shapes and rng.random() < 0.3:
+            name = rng.choice(shapes)["material"]
+            del doc["materials"][name]
+            return to_toml(doc), [f"material {name!r} deleted, a shape uses it"], False, False
+        path = rng.choice(sorted(REQUIRED))
+        if len(path) == 2 and not isinstance(doc.get(path[0]), dict):
+            path = path[:1]
+        get_path(doc, path[:-1]).pop(path[-1], None)
+        return to_toml(doc), [f"required {'.'.join(path)} deleted"], False, False
+    if roll < 0.88:
+        reasons = random_edits(rng, doc, scene_keys)
+        return to_toml(_drop_none(doc)), reasons, False, False
+    return text_edits(rng, text), [], False, False
+
+
+SPECIAL_FILES = {  # (content, certainly bad)
+    "empty": (b"", True), "not-utf8": (b"\xff\xfe[camera]", True), "huge-int": (b"name = 1" + b"0" * 5000, True),
+    "nested": (b"a = " + b"[" * 2000 + b"]" * 2000, True), "nul": (b"name = \"a\x00b\"", True),
+    "binary": (bytes(range(256)) * 4, True),
+}
+SPECIAL_PATHS = {  # a path instead of a file, all bad
+    "/dev/zero": "/dev/zero", "/dev/null": "/dev/null", "folder": "sub", "missing": "missing.toml",
+    "proc": "/proc/harness-fuzz/x.toml", "passwd": "/etc/passwd",
+}
+
+
+def special_file(rng: random.Random, inp: Input, name: str) -> str:
+    """Put a special file (or name a special path) for ``name``; returns the path to pass. Marks the input bad."""
+    if rng.random() < 0.5:
+        kind = rng.choice(sorted(SPECIAL_FILES))
+        data, bad = SPECIAL_FILES[kind]
+        inp.files[name] = data
+        if bad:
+            inp.bad.append(f"{name} is {kind}")
+        return name
+    kind = rng.choice(sorted(SPECIAL_PATHS) + ["folder", "missing", "proc"])  # /dev/zero: rarer, each costs seconds
+    if kind == "folder":
+        inp.dirs.append("sub")
+    inp.bad.append(f"{name} is {kind}")
+    return SPECIAL_PATHS[kind]
+
+
+def add_scene(rng: random.Random, inp: Input, assets: Assets, name: str = "scene.toml", base: str | None = None,
+              special: float = 0.04, mutate: float = 0.5) -> tuple[str, bool]:
+    """Write the scene folder (every tiny scene and mesh) and a generated scene ``name``; returns (path, names a
+    mesh outside). The input is marked bad or valid as the scene is."""
+    inp.files.update(assets.scene_files())
+    inp.copies["../outside.obj"] = "tri.obj"
+    if rng.random() < special:
+        return special_file(rng, inp, name), False
+    text, bad, valid, outside = scene_document(rng, assets, base, mutate)
+    inp.files[name] = text.encode("utf-8", "surrogatepass")
+    inp.bad += bad
+    inp.valid = inp.valid and valid
+    return name, outside
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Options: valid and certainly bad values
+
+INT_BAD = ["0", "-1", "x", "", "1.5", "1e3", "1_000", "nan", " ", "0x10", "\u0663", "\uff11\uff16", "--", "2 2"]
+SPP_VALID = ["1", "2", "3", "4"]
+SPP_BAD = INT_BAD + ["-2147483648", "10000000000", "10000000000000", "9" * 30]
+SEED_VALID = ["0", "1", "7", "4294967295"]
+SEED_BAD = ["-1", "x", "", "1.5", "1_0", "\u0663", "-9" * 3]
+SET_VALID = ["direct=area", "direct=mis", "direct=hemisphere-cosine", "direct=global-area", "light_selection=uniform",
+             "hemisphere=uniform", "rr=fixed", "rr_depth=1", "absorption=0.5", "shadow_rays=2", "indirect_rays=2",
+             "sampler=independent", "max_depth=2", "max_depth=-1", "batch_size=64", "threads=1", "engine=wavefront",
+             "mutant=double-emission", " direct = mis "]
+SET_BAD = ["nokey", "=x", "direct=nope", "shadow_rays=0", "shadow_rays=-1", "shadow_rays=x", "spp=4", "seed=1",
+           "nope=1", "absorption=1", "absorption=nan", "max_depth=0", "threads=-1", "batch_size=0", "mutant=nope",
+           "indirect_rays=1000000", "rr_depth=0", "sampler=halton", "engine=", "direct=", "shadow_rays=1_0",
+           "shadow_rays=1e9"]
+FLOAT_BAD = ["x", "", "nan", "inf", "-inf", "1e999", "--1"]
+
+
+def pick(rng: random.Random, inp: Input, option: str, valid: list[str], bad: list[str], p_bad: float) -> list[str]:
+    """``[option, value]``: a certainly bad value with probability p_bad (marked), else a valid one."""
+    if rng.random() < p_bad:
+        value = rng.choice(bad)
+        inp.bad.append(f"{option} {value!r}")
+    else:
+        value = rng.choice(valid)
+    return [option, value]
+
+
+def out_file(rng: random.Random, inp: Input, p_bad: float, suffix: str = ".exr", option: str = "--out") -> list[str]:
+    """An output file option: valid, or certainly bad (no folder, a file as folder, /proc, wrong suffix, too long)."""
+    inp.files["blocker"] = b"a file, not a folder"
+    inp.dirs.append("outdir")
+    bad = ["", "nofolder/x" + suffix, "blocker/x" + suffix, "/proc/harness-fuzz/x" + suffix, "x" * 300 + suffix]
+    if suffix == ".exr":
+        bad += ["out.png", "out", suffix, "outdir"]
+    return pick(rng, inp, option, [f"out{suffix}", f"outdir/o{suffix.upper()}", f"./o{suffix}"], bad, p_bad)
+
+
+def out_folder(rng: random.Random, inp: Input, p_bad: float, option: str = "--out") -> list[str]:
+    inp.files["blocker"] = b"a file, not a folder"
+    bad = ["", "blocker", "blocker/sub", "/proc/harness-fuzz/out", "x" * 300, "/dev/null"]
+    return pick(rng, inp, option, ["out", "out/deeper", "./o"], bad, p_bad)
+
+
+def ladder(rng: random.Random, inp: Input, option: str, p_bad: float, floats: bool = False) -> list[str]:
+    valid = ["0.05", "0.02,0.05"] if floats else ["1,2", "1,2,4", "2", " 1, 2 "]
+    bad = ["0", "-1", "", ",", "a", "4,2,1", "1,1", "1;2", "nan", "inf", "1e999"]
+    bad += ["1e300", "-0.1", "0.05,0"] if floats else ["1.5", "1,2,x", "1_0", "10000000000000"]
+    return pick(rng, inp, option, valid, bad, p_bad)
+
+
+def flags(rng: random.Random, *names: str, p: float = 0.3) -> list[str]:
+    return [name for name in names if rng.random() < p]
+
+
+def common_options(rng: random.Random, inp: Input, argv: list[str], p: float = 0.08) -> None:
+    """Now and then --cache-dir and --mitsuba-variant, usable or not (not certainly bad: many inputs never need
+    the cache or Mitsuba)."""
+    inp.files["blocker"] = b"a file, not a folder"
+    if rng.random() < p:
+        argv += ["--cache-dir", rng.choice(["cache", "cache/deeper", "blocker", "/proc/harness-fuzz/c", ""])]
+    if rng.random() < p:
+        argv += ["--mitsuba-variant", rng.choice(["scalar_rgb", "llvm_ad_rgb", "nope", ""])]
+
+
+def maybe_unknown_option(rng: random.Random, inp: Input, argv: list[str], p: float = 0.04) -> None:
+    """Now and then an unknown option, a stray positional or a missing value (certainly bad)."""
+    if rng.random() < p:
+        junk = rng.choice([["--bogus"], ["--spp"], ["extra-positional"], ["--spp=2", "--spp"], ["-x", "1"]])
+        if junk == ["--spp"] and argv[-1] == "--spp":
+            junk = ["--bogus"]
+        argv += junk
+        inp.bad.append(f"stray arguments {junk}")
+
+
+def cli_input(entry: str, index: int, argv: list[str]) -> Input:
+    return Input(entry, index, ["cli", *argv], valid=True)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Generators, one per entry point
+
+
+def gen_load_scene(rng, assets, index) -> Input:
+    inp = Input("load_scene", index, ["load_scene", "scene.toml"], valid=True)
+    path, _ = add_scene(rng, inp, assets, special=0.08, mutate=1.0)
+    inp.call[1] = path
+    inp.names = [path]
+    return inp
+
+
+def gen_render(rng, assets, index) -> Input:
+    inp = cli_input("render", index, ["render"])
+    scene, outside = add_scene(rng, inp, assets, base=rng.choice(["tiny.toml", "shapes.toml", "furnace.toml", None]))
+    argv = [scene, *pick(rng, inp, "--spp", SPP_VALID, SPP_BAD, 0.15), *out_file(rng, inp, 0.1)]
+    if rng.random() < 0.5:
+        argv += pick(rng, inp, "--seed", SEED_VALID, SEED_BAD, 0.15)
+    for _ in range(rng.choice((0, 0, 1, 2))):
+        argv += pick(rng, inp, "--set", SET_VALID, SET_BAD, 0.35)
+    if "--set" in argv and any(v.startswith("rr=") for v in argv):
+        argv += ["--set", "max_depth=3"]
+    if rng.random() < 0.15:
+        inp.files["renderer.toml"] = assets.texts["renderer.toml"].encode()
+        inp.files["good.exr"] = assets.blobs["good.exr"]
+        argv += pick(rng, inp, "--renderer", ["renderer.toml", "reference"], ["refrence", "", "nope.toml",
+                                                                               "/etc/passwd", "renderers"], 0.4)
+        if argv[-1] == "renderer.toml" and "--set" in argv:
+            inp.bad.append("--set for an external renderer")
+    if rng.random() < 0.05:
+        argv += ["--mitsuba-variant", rng.choice(["scalar_rgb", "nope"])]
+        if "--renderer" not in argv or argv[argv.index("--renderer") + 1] != "mitsuba":
+            inp.bad.append("--mitsuba-variant without --renderer mitsuba")
+    argv += flags(rng, "--json", "--quiet", "--allow-outside-paths")
+    if outside and "--allow-outside-paths" in argv:
+        inp.bad = [b for b in inp.bad if "file =" not in b]
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+SUITE_TABLES = {(): ("name", "description", "defaults", "cases", "baseline")}
+CASE_KEYS = ("name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
+             "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth", "timeout", "variant")
+
+
+def suite_keys(path: tuple):
+    if path in SUITE_TABLES:
+        return SUITE_TABLES[path]
+    if path == ("defaults",):
+        return tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
+    if len(path) == 2 and path[0] == "cases":
+        return CASE_KEYS
+    if len(path) == 3 and path[0] == "cases" and path[2] == "against":
+        return ("renderer", "spp", "seed", "settings")
+    if len(path) == 3 and path[0] == "cases" and path[2] == "film":
+        return ("width", "height")
+    return None
+
+
+CASE_BAD = {
+    "spp": [0, -1, 1.5, "8", 10**20, True, 1], "seconds": [0, -1, NAN, 1e9, "1", INF], "chunk_spp": [0, -1, 1.5],
+    "seed": [-1, 1.5, "0"], "alpha": [0, 1, NAN, -0.1, 2, "0.01"], "tile": [0, 5000, -1, 2.5],
+    "expect": ["maybe", "", True], "metrics": [["rsme"], "rmse", [5], ["rmse", "nope"]],
+    "thresholds": [{"rmse": -1}, {"nope": 1}, {"rmse": NAN}, {"rmse": "x"}, 5],
+    "against": ["grund-truth", {"renderer": "reference", "spp": 1}, {"spp": 4}, {"renderer": "refrence", "spp": 4},
+                {"renderer": "reference", "spp": 4, "zzz": 1}, 5, "closed-form!"],
+    "film": [{"width": 0, "height": 16}, {"width": 100000, "height": 16}, {"width": 16, "height": -1},
+             "16x16", {"width": 16, "height": 16, "filter": "box"}],
+    "name": [".", "..", "a/b", "x" * 300, 5, "a\x00b"],
+    "scene": ["nope", "/dev/zero", "/etc/passwd", "", 5, "sub"],
+    "renderer": ["refrence", "", "nope.toml", 5],
+    "settings": [{"shadow_rays": 0}, {"nope": 1}, {"direct": "nope"}, {"spp": 4}, "direct=mis"],
+    "variant": ["translate=1e300", "scale=0", "nope", "scale", "original=1", "translate=nan", 5],
+    "ground_truth_spp": [0, -1, 10**12, 1.5], "max_depth": [0, -2, 1.5, "3"], "timeout": [0, -1, NAN, "10"],
+}
+CASE_VALID = {
+    "spp": [2, 4], "seed": [0, 5], "alpha": [0.01, 0.001], "tile": [4, 8, 16], "expect": ["pass", "fail"],
+    "metrics": [["rmse"], ["rmse", "psnr", "bias"]], "thresholds": [{"rmse": 10.0}, {"psnr": 1}],
+    "max_depth": [2, 3], "timeout": [60, 120.5], "name": ["renamed", "with space", "\u00e9\u6f22"],
+    "settings": [{"direct": "mis"}, {"shadow_rays": 2}],
+}
+BASELINE_TABLE_BAD = [{"relmse": "x"}, {"nope": 1}, {"relmse": 0.5}, {"alpha": 2}, {"bias": -1}, 5, {"rmse": NAN}]
+
+
+def suite_document(rng: random.Random, assets: Assets, mutate: float = 1.0) -> tuple[str, list[str], bool]:
+    """A suite file's text from the base suite: (text, reasons it is bad, valid); kept valid with probability
+    1 - ``mutate``."""
+    text = assets.texts["suite.toml"]
+    doc = tomllib.loads(text)
+    doc["cases"] = rng.sample(doc["cases"], rng.randint(1, len(doc["cases"])))
+    roll = rng.random() if rng.random() < mutate else rng.random() * 0.25
+    if roll < 0.15:
+        return to_toml(doc), [], True
+    if roll < 0.25:
+        case = rng.choice(doc["cases"])
+        for key in rng.sample(sorted(CASE_VALID), rng.randint(1, 2)):
+            case[key] = rng.choice(CASE_VALID[key])
+        names = [c.get("name") for c in doc["cases"]]
+        return to_toml(doc), [] if len(set(names)) == len(names) else ["duplicate case names"], True
+    if roll < 0.6:
+        key = rng.choice(sorted(CASE_BAD) + ["baseline", "defaults"])
+        if key == "baseline":
+            doc["baseline"] = rng.choice(BASELINE_TABLE_BAD)
+            return to_toml(doc), [f"baseline = {doc['baseline']!r}"], False
+        table, where = (doc["defaults"], "defaults") if key == "defaults" else (rng.choice(doc["cases"]), "cases[i]")
+        key = rng.choice([k for k in CASE_BAD if k not in ("name", "scene")]) if key == "defaults" else key
+        value = rng.choice(CASE_BAD[key])
+        table[key] = value
+        if key == "spp" and "seconds" in table:
+            del table["seconds"]
+        return to_toml(doc), [f"{where}.{key} = {value!r}"], False
+    if roll < 0.68:
+        choice = rng.choice(["scene", "cases", "duplicate", "both-budgets"])
+        if choice == "scene":
+            del rng.choice(doc["cases"])["scene"]
+        elif choice == "cases":
+            doc["cases"] = rng.choice([[], {}, "x", [5]])
+        elif choice == "duplicate":
+            doc["cases"].append(dict(doc["cases"][0]))
+        else:
+            rng.choice(doc["cases"])["seconds"] = 0.05
+            if rng.random() < 0.5:
+                doc["defaults"].pop("spp")
+                rng.choice(doc["cases"])["spp"] = 2  # one case has both again
+                doc["cases"] = [c for c in doc["cases"] if "seconds" in c and "spp" in c] or doc["cases"]
+                if not all("seconds" in c and "spp" in c for c in doc["cases"]):
+                    return to_toml(doc), [], False
+        return to_toml(doc), [f"structure: {choice}"], False
+    if roll < 0.9:
+        reasons = random_edits(rng, doc, suite_keys)
+        return to_toml(_drop_none(doc)), reasons, False
+    return text_edits(rng, to_toml(doc)), [], False
+
+
+def add_suite(rng, inp: Input, assets: Assets, special: float = 0.03, mutate: float = 0.6) -> str:
+    inp.files.update(assets.scene_files())
+    inp.files["renderer.toml"] = assets.texts["renderer.toml"].encode()
+    inp.files["good.exr"] = assets.blobs["good.exr"]
+    inp.copies["../outside.obj"] = "tri.obj"
+    if rng.random() < special:
+        return special_file(rng, inp, "suite.toml")
+    text, bad, valid = suite_document(rng, assets, mutate)
+    if rng.random() < 0.05 and valid:  # an external renderer case
+        text = text.replace('name = "tiny"', 'name = "tiny"\nrenderer = "renderer.toml"', 1) if "[[cases]]" in text \
+            else text.replace('"name": "tiny"', '"name": "tiny", "renderer": "renderer.toml"')
+    inp.files["suite.toml"] = text.encode("utf-8", "surrogatepass")
+    inp.bad += bad
+    inp.valid = inp.valid and valid
+    return "suite.toml"
+
+
+def gen_load_suite(rng, assets, index) -> Input:
+    inp = Input("load_suite", index, ["load_suite", "suite.toml"], valid=True)
+    inp.call[1] = add_suite(rng, inp, assets, special=0.08, mutate=1.0)
+    inp.names = [inp.call[1]]
+    return inp
+
+
+TOLERANCE_VALID = ["relmse=1.10", "seconds=1.5", "bias=off", "rmse=auto", "alpha=0.01"]
+TOLERANCE_BAD = ["relmse=-1", "nope=1", "relmse=x", "relmse", "=1", "alpha=2", "relmse=0.5", "bias=-3", "rmse=nan"]
+
+
+def run_options(rng, inp: Input, p_bad: float) -> list[str]:
+    argv = out_folder(rng, inp, p_bad)
+    roll = rng.random()
+    if roll < 0.01:  # a worker pool starts in ~3 s: rarely
+        argv += ["--executor", "local", "--workers", "1"]
+    elif roll < 0.1:
+        argv += pick(rng, inp, "--executor", ["serial"], ["nope", "tcp://", "", "dask-ish", "tcp://:x"], 1.0)
+    elif roll < 0.14:
+        argv += ["--executor", "serial", *pick(rng, inp, "--workers", ["1"], ["0", "-1", "x", "1.5"], 0.8)]
+    else:
+        argv += ["--executor", "serial"]
+    if rng.random() < 0.15:
+        argv += pick(rng, inp, "--timeout", ["60", "120.5"], ["0", "-1", "nan", "x", "-inf", "inf"], 0.6)
+    if rng.random() < 0.1:
+        argv += pick(rng, inp, "--junit", ["junit.xml", "outdir/j.xml"], ["blocker/j.xml", "/proc/harness-fuzz/j.xml",
+                                                                           "nofolder/j.xml", "", "outdir"], 0.5)
+        inp.dirs.append("outdir")
+    argv += flags(rng, "--fresh", "--quiet", "--allow-outside-paths")
+    if rng.random() < 0.9:
+        argv.append("--no-report")
+    return argv
+
+
+def gen_run(rng, assets, index) -> Input:
+    inp = cli_input("run", index, ["run"])
+    suite = add_suite(rng, inp, assets)
+    argv = [suite, *run_options(rng, inp, 0.1)]
+    if rng.random() < 0.1:
+        inp.files["baseline.json"] = assets.texts["baseline.json"].encode()
+        argv += ["--baseline", "baseline.json"]
+        for _ in range(rng.randint(0, 2)):
+            argv += pick(rng, inp, "--baseline-tolerance", TOLERANCE_VALID, TOLERANCE_BAD, 0.5)
+    elif rng.random() < 0.03:
+        argv += ["--baseline-tolerance", "relmse=1.1"]
+        inp.bad.append("--baseline-tolerance without --baseline")
+    common_options(rng, inp, argv)
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+RENDERER_BAD = {
+    "name": ["", "a/b", 5, "..", "x" * 300], "command": [[], "cp", [1], ["{nope}", "{out}"], ["cp"], [""]],
+    "timeout": [0, -1, NAN, INF, "x", True, 1e308], "repeats": [0, 1, -1, 1.5, 10**9, True, 10**400],
+    "description": [5, ["x"]],
+}
+RENDERER_VALID = {"name": ["copy2", "\u00e9"], "timeout": [5, 60.5], "repeats": [2, 3], "description": ["", "x"],
+                  "command": [["cp", "{here}/good.exr", "{out}"], ["{python}", "-c", "import shutil, sys; "
+                              "shutil.copy(sys.argv[1], sys.argv[2])", "{here}/good.exr", "{out}"],
+                              ["false", "{out}"], ["sleep", "5", "{out}"], ["/nonexistent-program", "{out}"]]}
+
+
+def renderer_document(rng: random.Random, assets: Assets) -> tuple[str, list[str], bool]:
+    doc = tomllib.loads(assets.texts["renderer.toml"])
+    roll = rng.random()
+    if roll < 0.25:
+        for key in rng.sample(sorted(RENDERER_VALID), rng.randint(0, 2)):
+            doc[key] = rng.choice(RENDERER_VALID[key])
+        if doc["command"][0] == "sleep":
+            doc["timeout"] = 0.5
+        return to_toml(doc), [], True
+    if roll < 0.65:
+        key = rng.choice(sorted(RENDERER_BAD))
+        doc[key] = rng.choice(RENDERER_BAD[key])
+        return to_toml(doc), [f"{key} = {doc[key]!r}"], False
+    if roll < 0.7:
+        doc.pop("command")
+        return to_toml(doc), ["no command"], False
+    if roll < 0.9:
+        reasons = random_edits(rng, doc, lambda p: ("name", "description", "command", "timeout", "repeats")
+                               if p == () else None)
+        return to_toml(_drop_none(doc)), reasons, False
+    return text_edits(rng, assets.texts["renderer.toml"]), [], False
+
+
+def gen_renderer_file(rng, assets, index) -> Input:
+    inp = Input("renderer_file", index, [], valid=True)
+    inp.files["good.exr"] = assets.blobs["good.exr"]
+    if rng.random() < 0.06:
+        path = special_file(rng, inp, "renderer.toml")
+        if not path.endswith(".toml"):
+            path = "renderer.toml"  # a non-.toml name is a renderer name, not a file (see the suites' tests)
+            inp.files.setdefault(path, b"")
+            inp.bad.append("empty renderer file")
+    else:
+        text, bad, valid = renderer_document(rng, assets)
+        path = "renderer.toml"
+        inp.files[path] = text.encode("utf-8", "surrogatepass")
+        inp.bad += bad
+        inp.valid = valid
+    if rng.random() < 0.5:
+        inp.call = ["load_spec", path]
+        inp.names = [path]
+        return inp
+    inp.files.update(assets.scene_files())
+    inp.call = ["cli", "render", "tiny.toml", "--renderer", path, "--spp", rng.choice(SPP_VALID), "--out", "out.exr",
+                *flags(rng, "--json", "--quiet")]
+    return inp
+
+
+def json_document(rng: random.Random, text: str, targeted: dict, keys) -> tuple[str, list[str], bool]:
+    """A JSON file from ``text``: unchanged (valid), a targeted bad edit (``targeted``: name -> edit(doc) returning
+    the new document), random edits, text edits or not JSON at all."""
+    roll = rng.random()
+    if roll < 0.1:
+        return text, [], True
+    doc = json.loads(text)
+    if roll < 0.45:
+        name = rng.choice(sorted(targeted))
+        return json.dumps(targeted[name](doc, rng)), [name], False
+    if roll < 0.8:
+        reasons = random_edits(rng, doc, keys, json_null=True)
+        return json.dumps(doc), reasons, False
+    if roll < 0.92:
+        return text_edits(rng, text), [], False
+    junk = rng.choice(["", "{", "[" * 100000 + "]" * 100000, "null", "NaN", '{"cases": ' * 5000, "\x00" * 10,
+                       '"just a string"', "[]"])
+    return junk, ["not a results/baseline document"], False
+
+
+def _set(doc, path, value):
+    _set_path(doc, path, value)
+    return doc
+
+
+RESULTS_BAD = {
+    "top is a list": lambda d, r: [d], "top is a string": lambda d, r: "results",
+    "cases deleted": lambda d, r: {k: v for k, v in d.items() if k != "cases"},
+    "cases not a list": lambda d, r: _set(d, ("cases",), r.choice([5, "x", {"a": 1}, None])),
+    "a case not a table": lambda d, r: _set(d, ("cases", 0), r.choice([5, "x", None, []])),
+    "a case's name not a string": lambda d, r: _set(d, ("cases", 0, "name"), r.choice([5, None, ["x"]])),
+    "a case's metrics not a table": lambda d, r: _set(d, ("cases", 0, "metrics"), r.choice([5, "x", []])),
+    "suite not a string": lambda d, r: _set(d, ("suite",), r.choice([5, None, []])),
+}
+
+
+def results_keys(path: tuple):
+    return None
+
+
+def add_run(inp: Input, assets: Assets) -> None:
+    for name, data in assets.run_files.items():
+        inp.files[f"run/{name}"] = data
+
+
+def gen_report(rng, assets, index) -> Input:
+    inp = cli_input("report", index, ["report"])
+    add_run(inp, assets)
+    inp.files.update(assets.scene_files())
+    inp.files["suite.toml"] = assets.texts["suite.toml"].encode()
+    if rng.random() < 0.05:
+        results = special_file(rng, inp, "run/results.json")
+    else:
+        text, bad, valid = json_document(rng, assets.texts["results.json"], RESULTS_BAD, results_keys)
+        inp.files["run/results.json"] = text.encode("utf-8", "surrogatepass")
+        inp.bad += bad
+        inp.valid = valid
+        results = "run/results.json"
+    argv = [results]
+    if rng.random() < 0.3:
+        argv += out_folder(rng, inp, 0.3)
+    if rng.random() < 0.03:  # the full report: convergence and strategy studies, tiny
+        argv += ["--convergence-spp", "1,2", "--strategy-spp", "2"]
+    else:
+        argv += ["--no-convergence", "--no-shadow-rays", "--no-strategies"]
+        if rng.random() < 0.2:  # unused without the convergence study: only values no ladder can be
+            argv += pick(rng, inp, "--convergence-spp", ["1,2", "4"], ["0", "-1", "", ",", "a", "1;2", "nan"], 0.6)
+        if rng.random() < 0.2:
+            argv += pick(rng, inp, "--strategy-spp", ["2", "4"], INT_BAD, 0.6)
+    argv += flags(rng, "--quiet", "--no-strategy-renders", "--allow-outside-paths", p=0.2)
+    common_options(rng, inp, argv)
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+BASELINE_BAD = {
+    "schema changed": lambda d, r: _set(d, ("schema",), r.choice(["x", 1, None])),
+    "version changed": lambda d, r: _set(d, ("version",), r.choice([2, "1", None, 0, 1.5])),
+    "cases not a table": lambda d, r: _set(d, ("cases",), r.choice([[], 5, "x", None])),
+    "a case not a table": lambda d, r: _set(d, ("cases", "furnace"), r.choice([5, "x", None, []])),
+    "a definition changed": lambda d, r: _set(d, ("cases", "furnace", "definition"), r.choice(["0" * 64, 5, None])),
+    "another suite": lambda d, r: _set(d, ("suite",), r.choice(["other", 5, None])),
+    "schema deleted": lambda d, r: {k: v for k, v in d.items() if k != "schema"},
+    "a metric not a number": lambda d, r: _set(d, ("cases", "furnace", "metrics", "relmse"), r.choice(["x", [], {}])),
+}
+
+
+def gen_baseline(rng, assets, index) -> Input:
+    """``harness baseline save`` (from a generated results.json, or running a generated suite) and ``harness run
+    --baseline`` with a generated baseline file."""
+    inp = cli_input("baseline", index, [])
+    inp.files.update(assets.scene_files())
+    add_run(inp, assets)
+    inp.files["suite.toml"] = assets.texts["suite.toml"].encode()
+    roll = rng.random()
+    if roll < 0.45:
+        if rng.random() < 0.05:
+            results = special_file(rng, inp, "run/results.json")
+        else:
+            text, bad, valid = json_document(rng, assets.texts["results.json"], RESULTS_BAD, results_keys)
+            inp.files["run/results.json"] = text.encode("utf-8", "surrogatepass")
+            inp.bad += bad
+            inp.valid = valid
+            results = "run/results.json"
+        argv = ["baseline", "save", "suite.toml", *out_file(rng, inp, 0.1, ".json"), "--from", results]
+    elif roll < 0.55:
+        suite = add_suite(rng, inp, assets)
+        argv = ["baseline", "save", suite, *out_file(rng, inp, 0.1, ".json")]
+        argv += out_folder(rng, inp, 0.1, "--run-out") + flags(rng, "--allow-unexpected", "--quiet")
+    else:
+        if rng.random() < 0.05:
+            baseline = special_file(rng, inp, "baseline.json")
+        else:
+            text, bad, valid = json_document(rng, assets.texts["baseline.json"], BASELINE_BAD, lambda p: None)
+            inp.files["baseline.json"] = text.encode("utf-8", "surrogatepass")
+            inp.bad += bad
+            inp.valid = valid
+            baseline = "baseline.json"
+        argv = ["run", "suite.toml", "--baseline", baseline, "--out", "out", "--executor", "serial", "--no-report",
+                "--quiet"]
+        if rng.random() < 0.3:
+            argv += pick(rng, inp, "--baseline-tolerance", TOLERANCE_VALID, TOLERANCE_BAD, 0.5)
+    common_options(rng, inp, argv)
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+def _exr(image, variance=None, **kwargs) -> bytes:
+    """The bytes of an EXR file of these arrays."""
+    path = Path(f"/tmp/harness-fuzz-exr-{os.getpid()}.exr")
+    try:
+        imageio.write_exr(path, image, variance, **kwargs)
+        return path.read_bytes()
+    finally:
+        path.unlink(missing_ok=True)
+
+
+def _patch_window(data: bytes, x_max: int, y_max: int) -> bytes:
+    start = data.index(b"dataWindow\x00box2i\x00") + len(b"dataWindow\x00box2i\x00") + 4
+    x_min, y_min, _, _ = struct.unpack("<4i", data[start:start + 16])
+    return data[:start] + struct.pack("<4i", x_min, y_min, x_max, y_max) + data[start + 16:]
+
+
+class ExrMaker:
+    """EXR variants: (bytes, reason it is certainly bad or None). Synthesised images are made once."""
+
+    def __init__(self, assets: Assets):
+        self.good = assets.blobs["good.exr"]
+        ones = np.ones((16, 16, 3), np.float32)
+        nan = ones.copy()
+        nan[2, 3, 1] = np.nan
+        self.made = {
+            "nan-pixel": (_exr(nan, ones), "reference-bad"), "no-variance": (_exr(ones), "test-bad"),
+            "negative-variance": (_exr(ones, -ones), "bad"), "bigger": (_exr(np.ones((32, 16, 3)), np.ones((32, 16, 3))), "bad"),
+            "all-inf": (_exr(np.full_like(ones, -np.inf), ones), None), "all-zero": (_exr(0 * ones, 0 * ones), None),
+            "constant": (_exr(ones, ones), None), "huge-values": (_exr(ones * 6e4, ones), None),
+            "zero-variance": (_exr(ones * 0.5, 0 * ones), None), "1x1": (_exr(ones[:1, :1], ones[:1, :1]), "bad"),
+        }
+
+    def make(self, rng: random.Random) -> tuple[bytes, str | None]:
+        roll = rng.random()
+        data = self.good
+        if roll < 0.3:
+            return data, None
+        if roll < 0.55:
+            broken = bytearray(data)
+            for _ in range(rng.randint(1, 6)):
+                broken[rng.randrange(len(broken))] = rng.randrange(256)
+            return bytes(broken), None
+        if roll < 0.7:
+            return data[:rng.randrange(len(data))], "bad"
+        if roll < 0.75:
+            return _patch_window(data, rng.choice([200000, 2**30, -5, 15, 31]), rng.choice([200000, 15, -2])), None
+        name = rng.choice(sorted(self.made))
+        return self.made[name]
+
+
+def gen_compare(rng, assets, index) -> Input:
+    maker = _EXR_MAKERS.setdefault(id(assets), ExrMaker(assets))
+    inp = cli_input("compare", index, ["compare"])
+    paths = []
+    for role in ("test", "reference"):
+        name = f"{role}.exr"
+        if rng.random() < 0.06:
+            paths.append(special_file(rng, inp, name))
+            continue
+        data, bad = maker.make(rng)
+        inp.files[name] = data
+        paths.append(name)
+        if bad == "bad" or (bad == "reference-bad" and role == "reference") or (bad == "test-bad" and role == "test"):
+            inp.bad.append(f"{role} EXR is bad")
+        inp.valid = inp.valid and bad is None and data == maker.good
+    if rng.random() < 0.05:
+        paths[1] = paths[0]
+    argv = list(paths)
+    if rng.random() < 0.4:
+        argv += pick(rng, inp, "--tile", ["1", "8", "16", "1024"], ["0", "-1", "1025", "x", "", "1.5", "1_0"], 0.5)
+    if rng.random() < 0.4:
+        argv += pick(rng, inp, "--alpha", ["0.001", "0.5", "1e-9"], ["0", "1", "-0.1", "2"] + FLOAT_BAD, 0.5)
+    argv += flags(rng, "--json")
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+_EXR_MAKERS: dict[int, ExrMaker] = {}
+
+
+def gen_ground_truth(rng, assets, index) -> Input:
+    inp = cli_input("ground_truth", index, ["ground-truth"])
+    closed = rng.random() < 0.7
+    scene, _ = add_scene(rng, inp, assets, base="furnace.toml" if closed else None)
+    p_bad = 0.4 if closed else 1.0  # without a closed form only refusals stay cheap (Mitsuba is not imported)
+    argv = [scene]
+    options = [("--spp", ["4", "16", "1024"], SPP_BAD), ("--seed", SEED_VALID, SEED_BAD),
+               ("--chunk-spp", ["4", "256"], SPP_BAD)]
+    bad_one = rng.randrange(len(options)) if rng.random() < p_bad else -1
+    for i, (option, valid, bad) in enumerate(options):
+        if i == bad_one or rng.random() < 0.5:
+            argv += pick(rng, inp, option, valid, bad, 1.0 if i == bad_one else 0.0)
+    if rng.random() < 0.2:
+        inp.files["blocker"] = b"a file"
+        # a closed form caches nothing, so an unusable cache folder is not certainly an error
+        argv += ["--cache-dir", rng.choice(["cache", "cache/deeper", "blocker", "/proc/harness-fuzz/c", ""])]
+    argv += flags(rng, "--json", "--quiet", "--no-closed-form", p=0.2)
+    if rng.random() < 0.08:
+        argv += ["--mitsuba-variant", rng.choice(["scalar_rgb", "nope"])]
+    if not inp.bad and (not closed or "--no-closed-form" in argv):
+        argv[argv.index(scene):argv.index(scene) + 1] = [scene, "--spp", "0"]  # keep it cheap: refused
+        inp.bad.append("--spp '0'")
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+def gen_convergence(rng, assets, index) -> Input:
+    inp = cli_input("convergence", index, ["convergence"])
+    closed = rng.random() < 0.8
+    scene, _ = add_scene(rng, inp, assets, base="furnace.toml" if closed else None, special=0.03)
+    argv = [scene]
+    argv += ladder(rng, inp, "--spp", 0.2)
+    if rng.random() < 0.15:
+        argv += ladder(rng, inp, "--seconds", 0.5, floats=True)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--chunk-spp", ["1", "2"], SPP_BAD, 0.5)
+    argv += pick(rng, inp, "--film", ["16x16", "8x8", "4X6"], ["0x16", "16", "x", "16x16x16", "-1x4", "99999x99999",
+                                                                "\uff11\uff16x16", "", "16x"], 0.15)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--ground-truth-spp", ["16"], SPP_BAD, 0.6)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--seed", SEED_VALID, SEED_BAD, 0.5)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--k", ["3", "1.5"], ["0", "-1"] + FLOAT_BAD, 0.6)
+    for _ in range(rng.choice((0, 0, 1, 2))):
+        if rng.random() < 0.6:
+            argv += pick(rng, inp, "--renderer", ["reference"], ["refrence", "", "nope.toml"], 0.3)
+        else:
+            argv += pick(rng, inp, "--set", SET_VALID, SET_BAD, 0.4)
+    if "--set" in argv and any(v.startswith("rr=") for v in argv):
+        argv += ["--set", "max_depth=3"]
+    argv += out_folder(rng, inp, 0.1)
+    argv += flags(rng, "--json", "--quiet")
+    if not closed and not inp.bad:
+        argv += ["--spp", "0"]
+        inp.bad.append("--spp '0'")
+    common_options(rng, inp, argv)
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+def gen_calibrate(rng, assets, index) -> Input:
+    inp = cli_input("calibrate", index, ["calibrate"])
+    if rng.random() < 0.5:
+        suite = add_suite(rng, inp, assets)
+    else:
+        inp.files.update(assets.scene_files())
+        doc = tomllib.loads(assets.texts["suite.toml"])
+        doc["cases"] = [c for c in doc["cases"] if c["name"].startswith("furnace")]
+        inp.files["suite.toml"] = to_toml(doc).encode()
+        suite = "suite.toml"
+    argv = [suite, *pick(rng, inp, "--seeds", ["1", "2"], SPP_BAD + ["1000000000"], 0.2)]
+    for _ in range(rng.choice((0, 1, 1, 2))):
+        argv += pick(rng, inp, "--cases", ["furnace*", "*", "furnace", "*mutant"], ["[[", "nomatch", "", "x*"], 0.3)
+    argv += out_folder(rng, inp, 0.1)
+    argv += flags(rng, "--quiet")
+    common_options(rng, inp, argv)
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+def gen_stress(rng, assets, index) -> Input:
+    inp = cli_input("stress", index, ["stress"])
+    scene, _ = add_scene(rng, inp, assets, base="furnace.toml", special=0.03)
+    argv = [scene, *pick(rng, inp, "--renderer", ["reference"], ["refrence", ""], 0.05)]
+    for _ in range(rng.randint(1, 2)):
+        argv += pick(rng, inp, "--variant", ["original", "scale=10", "scale=1e-2", "translate=100", "sliver=10"],
+                     ["scale=0", "nope", "translate=nan", "scale", "original=1", "translate=1e300", "scale=-1",
+                      "sliver=0.5", "", "scale=inf"], 0.5)
+    argv += pick(rng, inp, "--spp", ["2", "4"], SPP_BAD, 0.15)
+    argv += pick(rng, inp, "--film", ["16x16", "8x8"], ["0x16", "16", "x", "99999x99999"], 0.1)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--k", ["6", "2.5"], ["0", "-1"] + FLOAT_BAD, 0.6)
+    if rng.random() < 0.15:
+        argv += pick(rng, inp, "--ground-truth-spp", ["16", "1024"], SPP_BAD, 0.6)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--alpha", ["0.001", "0.1"], ["0", "1", "-0.1", "2"] + FLOAT_BAD, 0.6)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--set", SET_VALID[:8], SET_BAD, 0.5)
+    if rng.random() < 0.2:
+        argv += pick(rng, inp, "--seed", SEED_VALID, SEED_BAD, 0.5)
+    argv += out_folder(rng, inp, 0.1)
+    argv += flags(rng, "--json", "--quiet")
+    common_options(rng, inp, argv)
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+def gen_export(rng, assets, index) -> Input:
+    inp = cli_input("export", index, ["export"])
+    scene, outside = add_scene(rng, inp, assets)
+    argv = [scene, *pick(rng, inp, "--format", ["mitsuba-xml", "ply", "obj", "gltf"], ["", "xml", "PLY", "stl"], 0.15)]
+    argv += out_folder(rng, inp, 0.1)
+    if rng.random() < 0.3:
+        argv += pick(rng, inp, "--spp", ["1", "16"], SPP_BAD, 0.5)
+    if rng.random() < 0.3:
+        argv += pick(rng, inp, "--seed", SEED_VALID, SEED_BAD, 0.5)
+    argv += flags(rng, "--json", "--allow-outside-paths")
+    if outside and "--allow-outside-paths" in argv:
+        inp.bad = [b for b in inp.bad if "file =" not in b]
+    maybe_unknown_option(rng, inp, argv)
+    inp.call += argv
+    return inp
+
+
+def gen_bench(rng, assets, index) -> Input:
+    """Only refusals (a valid bench renders Mitsuba): one certainly bad option among valid ones."""
+    inp = cli_input("bench", index, ["bench"])
+    inp.files.update(assets.scene_files())
+    options = [("--spp", ["1"], SPP_BAD), ("--repeats", ["1"], SPP_BAD), ("--ground-truth-spp", ["16"], SPP_BAD),
+               ("--memory", ["16x2"], ["0x1", "x", "1024", "16x0", "", "16x2x2", "\uff11x2"]),
+               ("--scene", ["furnace", "tiny.toml"], ["nope", "", "missing.toml", "sub"]),
+               ("--out", ["b.json"], ["nofolder/b.json", "blocker/b.json"])]
+    inp.files["blocker"] = b"a file"
+    inp.dirs.append("sub")
+    bad_one = rng.randrange(len(options))
+    argv = []
+    for i, (option, valid, bad) in enumerate(options):
+        if i == bad_one or rng.random() < 0.5:
+            argv += pick(rng, inp, option, valid, bad, 1.0 if i == bad_one else 0.0)
+    argv += flags(rng, "--no-strategies", "--json", "--quiet", "--check", "--scaling")
+    if rng.random() < 0.1:
+        argv += ["--cache-dir", rng.choice(["cache", "blocker", ""])]
+    inp.call += argv
+    return inp
+
+
+COMMANDS = ["render", "ground-truth", "compare", "run", "baseline", "report", "convergence", "calibrate", "export",
+            "bench", "stress"]
+
+
+def gen_cli(rng, assets, index) -> Input:
+    """The command line itself: no command, unknown commands, --help, missing arguments, stray tokens."""
+    inp = Input("cli", index, ["cli"])
+    roll = rng.random()
+    if roll < 0.15:
+        argv = rng.choice([["--help"], ["-h"], [rng.choice(COMMANDS), "--help"], ["baseline", "save", "--help"]])
+    elif roll < 0.5:
+        argv = [rng.choice(COMMANDS + ["", "rnder", "bogus", "-", "--", "baseline"])]
+        inp.bad.append("command without its arguments")
+    else:
+        argv = [rng.choice(COMMANDS)] + [rng.choice(WORDS[:20] + ["--spp", "--out", "-1", "--json", "=", "--set"])
+                                         for _ in range(rng.randint(1, 4))]
+    argv = [a.replace("\x00", "") for a in argv]
+    inp.call += argv
+    return inp
+
+
+GENERATORS = {  # entry point: (generator, weight); the weights sum to 10,000
+    "load_scene": (gen_load_scene, 1500), "render": (gen_render, 1200), "load_suite": (gen_load_suite, 1300),
+    "run": (gen_run, 700), "renderer_file": (gen_renderer_file, 900), "report": (gen_report, 600),
+    "baseline": (gen_baseline, 600), "compare": (gen_compare, 1100), "ground_truth": (gen_ground_truth, 400),
+    "convergence": (gen_convergence, 350), "calibrate": (gen_calibrate, 250), "stress": (gen_stress, 350),
+    "export": (gen_export, 400), "bench": (gen_bench, 150), "cli": (gen_cli, 200),
+}
+
+
+def plan(total: int, only: list[str] | None = None) -> list[tuple[str, int]]:
+    """(entry, index) for ``total`` inputs shared among the entry points by their weights (at least one each)."""
+    names = [n for n in GENERATORS if not only or n in only]
+    weights = {n: GENERATORS[n][1] for n in names}
+    scale = total / sum(weights.values())
+    counts = {n: max(1, round(w * scale)) for n, w in weights.items()}
+    while sum(counts.values()) > total and max(counts.values()) > 1:
+        counts[max(counts, key=counts.get)] -= 1
+    while sum(counts.values()) < total:
+        counts[max(weights, key=lambda n: weights[n] / counts[n])] += 1
+    jobs = [(n, i) for n in names for i in range(counts[n])]
+    random.Random(0).shuffle(jobs)  # a mix of cheap and costly inputs at every moment
+    return jobs
+
+
+def generate(seed: int, entry: str, index: int, assets: Assets) -> Input:
+    rng = random.Random(f"{seed}:{entry}:{index}")
+    return GENERATORS[entry][0](rng, assets, index)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Running one input in a forked child
+
+
+@dataclasses.dataclass
+class Limits:
+    timeout: float = 60.0
+    memory_gib: float = 1.0
+    file_mib: int = 256
+    mitsuba: bool = False
+
+
+def materialize(inp: Input, folder: Path, assets: Assets) -> None:
+    """Write the input's folder."""
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    for name in inp.dirs:
+        (folder / name).mkdir(parents=True, exist_ok=True)
+    for name, data in inp.files.items():
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(data)
+    for name, asset in inp.copies.items():
+        target = (folder / name).resolve()
+        if not target.exists():
+            target.write_bytes(assets.blobs[asset])
+
+
+def _address_space() -> int:
+    """This process's address-space size in bytes (what RLIMIT_AS limits)."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+
+
+def _apply_limits(limits: Limits) -> None:
+    added = int(limits.memory_gib * 2**30)
+    cap = _address_space() + added  # the forked child already maps what this process maps
+    resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+    size = limits.file_mib * 2**20
+    resource.setrlimit(resource.RLIMIT_FSIZE, (size, size))
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a file beyond the cap is an OSError, not a silent death
+    from harness.core import limits as harness_limits
+
+    harness_limits.machine_memory = lambda: added  # renders may use half of what the child may add
+    if not limits.mitsuba:
+        sys.modules["mitsuba"] = None  # import mitsuba -> ImportError
+        sys.modules["drjit"] = None
+
+
+def call(inp_call: list[str]) -> dict:
+    """Run the call in this process; returns {"rc": code} or {"loaded": type} or {"harness_error": text}; an
+    exception escapes."""
+    kind, args = inp_call[0], inp_call[1:]
+    if kind == "cli":
+        from harness.cli import main
+
+        try:
+            return {"rc": main(args)}
+        except SystemExit as stop:  # argparse's --help; anything else as the interpreter would end
+            if stop.code is None or isinstance(stop.code, int):
+                return {"rc": stop.code or 0, "system_exit": traceback.format_exc()}
+            print(stop.code, file=sys.stderr)
+            return {"rc": 1, "system_exit": traceback.format_exc()}
+    loader = _loader(kind)
+    try:
+        return {"loaded": type(loader(args[0])).__name__}
+    except HarnessError as err:
+        return {"harness_error": str(err)}
+
+
+def _loader(kind: str):
+    from harness.renderers.external import load_spec
+    from harness.scene import load_scene
+    from harness.running.suite import load_suite
+
+    return {"load_scene": load_scene, "load_suite": load_suite, "load_spec": load_spec}[kind]
+
+
+def _child(inp: Input, folder: Path, capture: Path, limits: Limits) -> None:
+    """In the forked child: isolate, run, record, and leave without running the parent's exit handlers."""
+    status = 70
+    try:
+        os.setpgid(0, 0)
+        os.chdir(folder)
+        null = os.open(os.devnull, os.O_RDONLY)
+        os.dup2(null, 0)
+        out = os.open(capture.with_suffix(".stdout"), os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        err = os.open(capture.with_suffix(".stderr"), os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        os.dup2(out, 1)
+        os.dup2(err, 2)
+        faulthandler.enable(file=err)  # a crash's Python stack goes to the input's stderr
+        # new text streams on the file descriptors, as an interpreter starts with (under pytest sys.stdout and
+        # sys.stderr are its capture objects, not the descriptors)
+        sys.stdout = io.TextIOWrapper(io.FileIO(1, "w", closefd=False), encoding="utf-8", line_buffering=True)
+        sys.stderr = io.TextIOWrapper(io.FileIO(2, "w", closefd=False), encoding="utf-8", errors="backslashreplace",
+                                      line_buffering=True)
+        for name in ("HARNESS_DEBUG", "HARNESS_ALLOW_OUTSIDE_PATHS"):
+            os.environ.pop(name, None)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        _apply_limits(limits)
+        # no main module to re-run: a worker pool's forkserver would otherwise run this script (or pytest) again
+        # in every worker, from the input's folder, as `python -m harness` never does
+        sys.modules["__main__"] = types.ModuleType("__main__")
+        faulthandler.dump_traceback_later(max(1.0, limits.timeout - 2), file=sys.stderr)  # where a hang hangs
+        try:
+            result = call(inp.call)
+        except BaseException:  # noqa: BLE001 - whatever escapes is the finding
+            result = {"exception": traceback.format_exc()}
+            print(result["exception"], file=sys.stderr, end="")  # as the interpreter would
+        sys.stdout.flush()
+        sys.stderr.flush()
+        _kill_descendants(os.getpid())  # a worker pool's forkserver has its own process group and would stay
+        capture.with_suffix(".json").write_text(json.dumps(result))
+        status = 0
+    except BaseException:  # noqa: BLE001
+        try:
+            capture.with_suffix(".json").write_text(json.dumps({"exception": traceback.format_exc()}))
+        except BaseException:  # noqa: BLE001
+            pass
+    finally:
+        os._exit(status)
+
+
+def classify(inp: Input, result: dict | None, stdout: str, stderr: str, *, timed_out: bool,
+             signalled: int | None) -> tuple[str, str]:
+    """(outcome, detail) of one finished input."""
+    if timed_out:
+        return "hang", "killed after the time limit"
+    if result is None:
+        return "crash", f"killed by signal {signalled}" if signalled else "no result recorded"
+    if "exception" in result:
+        lines = result["exception"].strip().splitlines()
+        return "traceback", lines[-1] if lines else "exception"
+    text = stdout + stderr
+    if "Traceback (most recent call last)" in text:
+        return "traceback", next((line for line in reversed(stderr.splitlines()) if line.strip()), "Traceback")
+    if "harness_error" in result:
+        message = result["harness_error"]
+        if len(message.splitlines()) != 1 or len(message) > 2000:
+            return "messy", f"HarnessError of {len(message.splitlines())} lines, {len(message)} characters"
+        if inp.names and not any(message.startswith(f"{name}: ") or message.startswith(f"{name}:")
+                                 for name in _nameable(inp, message)):
+            return "messy", f"names neither {inp.names[0]} nor a file it names: {message[:200]}"
+        return "error", message
+    if "loaded" in result:
+        return ("silent", "; ".join(inp.bad)) if inp.bad else ("pass", result["loaded"])
+    rc = result["rc"]
+    if rc == 2:
+        lines = stderr.splitlines()
+        if len(lines) != 1 or not lines[0].startswith("harness: error: ") or stdout.strip():
+            return "messy", f"exit 2 with {len(lines)} stderr lines and {len(stdout.splitlines())} stdout lines: " \
+                            f"{(lines or [''])[-1][:200]}"
+        return "error", lines[0]
+    if rc in (0, 1):
+        if inp.bad:
+            return "silent", f"exit {rc}; " + "; ".join(inp.bad)
+        return "pass", f"exit {rc}"
+    return "messy", f"exit code {rc}"
+
+
+def _nameable(inp: Input, message: str) -> list[str]:
+    """The files a loader's message may start with: the input's own, and any file it names (a string of the
+    document that is an existing file's path, as given, beside the file, or a canonical scene's)."""
+    names = list(inp.names)
+    for name in inp.names:
+        data = inp.files.get(name, b"")
+        try:
+            doc = tomllib.loads(data.decode("utf-8"))
+        except (ValueError, UnicodeDecodeError, RecursionError):
+            continue
+        strings = [v for _, c, k in entries(doc) if isinstance(v := c[k], str) and v]
+        base = Path(name).parent
+        for s in strings:
+            names += [s, str(base / s), str(ROOT / "scenes" / f"{s}.toml"),
+                      str(base.parent / "scenes" / f"{s}.toml"), str(Path("scenes") / f"{s}.toml")]
+    return names
+
+
+def _listing(folder: Path) -> set[str]:
+    try:
+        return {str(p.relative_to(folder)) for p in folder.rglob("*")}
+    except OSError:
+        return set()
+
+
+@dataclasses.dataclass
+class Record:
+    inp: Input
+    outcome: str
+    detail: str
+    seconds: float
+    wrote_on_error: list[str]
+
+
+class Runner:
+    """Runs inputs in forked children, ``jobs`` at a time; keeps failing inputs in ``out/failures``."""
+
+    def __init__(self, out: Path, assets: Assets, limits: Limits, jobs: int = 2, keep_all: bool = False):
+        self.out, self.assets, self.limits, self.jobs, self.keep_all = out, assets, limits, jobs, keep_all
+        self.work = out / "work"
+        self.failures = out / "failures"
+        self.work.mkdir(parents=True, exist_ok=True)
+        self.failures.mkdir(parents=True, exist_ok=True)
+
+    def run(self, inputs, on_record=None) -> list[Record]:
+        pending = list(inputs)
+        pending.reverse()
+        running: dict[int, tuple[Input, float, Path, Path, set[str]]] = {}
+        records = []
+        while pending or running:
+            while pending and len(running) < self.jobs:
+                inp = pending.pop()
+                folder = self.work / inp.id
+                capture = self.work / f"{inp.id}.capture"
+                materialize(inp, folder, self.assets)
+                before = _listing(folder)
+                sys.stdout.flush()
+                sys.stderr.flush()
+                pid = os.fork()
+                if pid == 0:
+                    _child(inp, folder, capture, self.limits)
+                try:
+                    os.setpgid(pid, pid)
+                except OSError:  # the child did it first
+                    pass
+                running[pid] = (inp, time.monotonic(), folder, capture, before)
+            finished = []
+            for pid, (inp, start, folder, capture, before) in running.items():
+                done, status = os.waitpid(pid, os.WNOHANG)
+                timed_out = False
+                if not done and time.monotonic() - start > self.limits.timeout:
+                    _kill_descendants(pid)
+                    _kill_group(pid)
+                    done, status = os.waitpid(pid, 0)
+                    timed_out = True
+                if done:
+                    _kill_group(pid)  # leftovers: worker pools, renderer processes
+                    finished.append(pid)
+                    records.append(self._finish(inp, status, timed_out, time.monotonic() - start, folder, capture,
+                                                before))
+                    if on_record:
+                        on_record(records[-1])
+            for pid in finished:
+                del running[pid]
+            if running and not finished:
+                time.sleep(0.003)
+        return records
+
+    def _finish(self, inp, status, timed_out, seconds, folder, capture, before) -> Record:
+        paths = {kind: capture.with_suffix(f".{kind}") for kind in ("stdout", "stderr", "json")}
+        stdout = _read(paths["stdout"])
+        stderr = _read(paths["stderr"])
+        try:
+            result = json.loads(paths["json"].read_text())
+        except (OSError, ValueError):
+            result = None
+        signalled = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+        outcome, detail = classify(inp, result, stdout, stderr, timed_out=timed_out, signalled=signalled)
+        wrote = []
+        if outcome == "error" and inp.call[0] == "cli":
+            wrote = sorted(_listing(folder) - before)
+        record = Record(inp, outcome, detail, seconds, wrote)
+        if outcome in FAILURES or self.keep_all:
+            self._keep(record, folder, stdout, stderr, result)
+        shutil.rmtree(folder, ignore_errors=True)
+        for path in paths.values():
+            path.unlink(missing_ok=True)
+        return record
+
+    def _keep(self, record: Record, folder: Path, stdout: str, stderr: str, result) -> None:
+        """Save the input (its files as generated, not as the run left them) for --replay."""
+        inp = record.inp
+        target = self.failures / inp.id
+        materialize(inp, target / "input", self.assets)
+        (target / "input.json").write_text(json.dumps(inp.to_json(), indent=1))
+        (target / "outcome.json").write_text(json.dumps({"outcome": record.outcome, "detail": record.detail,
+                                                         "seconds": record.seconds, "result": result}, indent=1))
+        (target / "stdout").write_text(stdout)
+        (target / "stderr").write_text(stderr)
+        (target / "replay.sh").write_text(replay_script(inp))
+
+
+def _descendants(pid: int) -> list[int]:
+    """Every living process below ``pid`` (from /proc)."""
+    children: dict[int, list[int]] = {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                ppid = int(f.read().rsplit(")", 1)[1].split()[1])
+        except (OSError, ValueError, IndexError):
+            continue
+        children.setdefault(ppid, []).append(int(entry))
+    found, todo = [], [pid]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            found.append(child)
+            todo.append(child)
+    return found
+
+
+def _kill_descendants(pid: int) -> None:
+    for child in _descendants(pid):
+        try:
+            os.kill(child, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+
+
+def _kill_group(pid: int) -> None:
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except (ProcessLookupError, PermissionError):
+        pass
+
+
+def _read(path: Path, limit: int = 200_000) -> str:
+    try:
+        with open(path, "rb") as f:
+            return f.read(limit).decode("utf-8", "replace")
+    except OSError:
+        return ""
+
+
+def replay_script(inp: Input) -> str:
+    python = shlex.quote(sys.executable)
+    if inp.call[0] == "cli":
+        command = f"{python} -m harness " + " ".join(shlex.quote(a) for a in inp.call[1:])
+    else:
+        module = {"load_scene": "harness.scene", "load_suite": "harness.running.suite",
+                  "load_spec": "harness.renderers.external"}[inp.call[0]]
+        command = f"{python} -c " + shlex.quote(f"from {module} import {inp.call[0]}; print({inp.call[0]}("
+                                                f"{inp.call[1]!r}))")
+    return (f"#!/bin/sh\n# {inp.id}: bad because: {'; '.join(inp.bad) or '-'}\ncd \"$(dirname \"$0\")/input\" && "
+            f"PYTHONPATH={shlex.quote(str(ROOT))} {command}\n")
+
+
+def replay(folder: Path) -> int:
+    """Run a saved input again in this process, in a copy of its folder; what it prints and raises shows."""
+    import tempfile
+
+    spec = json.loads((folder / "input.json").read_text())
+    print(f"{spec['entry']}-{spec['index']:05d}: {' '.join(spec['call'])}", file=sys.stderr)
+    print(f"bad because: {'; '.join(spec['bad']) or '-'}", file=sys.stderr)
+    with tempfile.TemporaryDirectory(prefix="harness-replay-") as tmp:
+        work = Path(tmp) / "input"
+        shutil.copytree(folder / "input", work, symlinks=True)
+        cwd = os.getcwd()
+        os.chdir(work)
+        try:
+            result = call(spec["call"])
+        finally:
+            os.chdir(cwd)
+    print(f"result: {result}", file=sys.stderr)
+    return 0
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The whole run
+
+
+def summarize(records: list[Record], seconds: float, settings: dict) -> dict:
+    table = {}
+    for record in records:
+        row = table.setdefault(record.inp.entry, {"inputs": 0, **{o: 0 for o in OUTCOMES}, "refused_valid": 0,
+                                                  "wrote_on_error": 0, "seconds": 0.0})
+        row["inputs"] += 1
+        row[record.outcome] += 1
+        row["seconds"] += record.seconds
+        if record.outcome == "error" and record.inp.valid and not record.inp.bad:
+            row["refused_valid"] += 1
+        if record.wrote_on_error:
+            row["wrote_on_error"] += 1
+    total = {"inputs": 0, **{o: 0 for o in OUTCOMES}, "refused_valid": 0, "wrote_on_error": 0, "seconds": 0.0}
+    for row in table.values():
+        for key in total:
+            total[key] += row[key]
+    failures = [{"id": r.inp.id, "outcome": r.outcome, "detail": r.detail[:500], "call": r.inp.call,
+                 "bad": r.inp.bad} for r in records if r.outcome in FAILURES]
+    hints = [{"id": r.inp.id, "hint": "refused_valid" if r.outcome == "error" else "wrote_on_error",
+              "detail": r.detail[:300], "wrote": r.wrote_on_error[:10], "call": r.inp.call}
+             for r in records if r.outcome == "error" and ((r.inp.valid and not r.inp.bad) or r.wrote_on_error)]
+    return {"settings": settings, "wall_seconds": seconds, "entries": table, "total": total, "failures": failures,
+            "hints": hints}
+
+
+def format_table(summary: dict) -> str:
+    columns = ["inputs", "pass", "error", "traceback", "messy", "crash", "hang", "silent", "refused_valid",
+               "wrote_on_error", "seconds"]
+    header = f"{'entry point':15s}" + "".join(f"{c:>15s}" for c in columns)
+    rows = [header, "-" * len(header)]
+    for name, row in sorted(summary["entries"].items()) + [("TOTAL", summary["total"])]:
+        rows.append(f"{name:15s}" + "".join(f"{row[c]:>15.0f}" if c == "seconds" else f"{row[c]:>15d}"
+                                            for c in columns))
+    rows.append(f"wall time {summary['wall_seconds']:.0f} s; failures (traceback, messy, crash, hang, silent): "
+                f"{sum(summary['total'][o] for o in FAILURES)}")
+    return "\n".join(rows)
+
+
+def fuzz(out: Path, inputs: int = 10_000, seed: int = 0, only: list[str] | None = None, jobs: int = 2,
+         limits: Limits | None = None, quiet: bool = False, keep_all: bool = False) -> dict:
+    """Generate and run ``inputs`` inputs; write ``out/summary.json``; return the summary."""
+    limits = limits or Limits()
+    out.mkdir(parents=True, exist_ok=True)
+    os.environ.setdefault("HARNESS_CACHE_DIR", str(out / "cache"))
+    start = time.monotonic()
+    assets = Assets(out / "assets")
+    assets.build()
+    gc.freeze()  # the children's garbage collections then leave this process's objects (and their pages) alone
+    runner = Runner(out, assets, limits, jobs=jobs, keep_all=keep_all)
+    jobs_planned = plan(inputs, only)
+    progress = Counter()
+
+    def on_record(record: Record) -> None:
+        progress[record.outcome] += 1
+        done = sum(progress.values())
+        if record.outcome in FAILURES and not quiet:
+            print(f"  {record.outcome:9s} {record.inp.id}: {record.detail[:160]}", file=sys.stderr, flush=True)
+        if not quiet and done % 500 == 0:
+            print(f"[{done}/{len(jobs_planned)}] {dict(progress)} {time.monotonic() - start:.0f} s", file=sys.stderr,
+                  flush=True)
+
+    inputs_iter = (generate(seed, entry, index, assets) for entry, index in jobs_planned)
+    records = runner.run(inputs_iter, on_record)
+    settings = {"inputs": inputs, "seed": seed, "only": only, "jobs": jobs, **dataclasses.asdict(limits)}
+    summary = summarize(records, time.monotonic() - start, settings)
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    shutil.rmtree(runner.work, ignore_errors=True)
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter)
+    parser.add_argument("--inputs", type=int, default=10_000, help="inputs in all (default 10000)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the generators (default 0)")
+    parser.add_argument("--only", help=f"comma-separated entry points: {', '.join(GENERATORS)}")
+    parser.add_argument("--out", default="reports/fuzz", help="output folder (default reports/fuzz)")
+    parser.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="inputs at a time (default 2)")
+    parser.add_argument("--timeout", type=float, default=60.0, help="seconds an input may take (default 60)")
+    parser.add_argument("--memory-gib", type=float, default=1.0,
+                        help="address space an input may add (default 1 GiB)")
+    parser.add_argument("--mitsuba", action="store_true", help="let inputs import Mitsuba (slow)")
+    parser.add_argument("--keep-all", action="store_true", help="save every input, not only the failing ones")
+    parser.add_argument("--replay", metavar="FOLDER", help="run one saved input (OUT/failures/ID) in this process")
+    parser.add_argument("--quiet", action="store_true")
+    args = parser.parse_args(argv)
+    if args.replay:
+        return replay(Path(args.replay))
+    only = args.only.split(",") if args.only else None
+    unknown = [name for name in only or [] if name not in GENERATORS]
+    if unknown:
+        parser.error(f"unknown entry points {unknown}; expected {', '.join(GENERATORS)}")
+    out = Path(args.out)
+    if out.exists() and (out / "summary.json").exists():
+        shutil.rmtree(out / "failures", ignore_errors=True)
+    summary = fuzz(out, args.inputs, args.seed, only, args.jobs,
+                   Limits(args.timeout, args.memory_gib, mitsuba=args.mitsuba), quiet=args.quiet,
+                   keep_all=args.keep_all)
+    print(format_table(summary))
+    print(f"summary: {out / 'summary.json'}; failing inputs: {out / 'failures'} (replay: python tests/fuzz.py "
+          "--replay FOLDER)")
+    return 1 if any(summary["total"][o] for o in FAILURES) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
