@@ -78,7 +78,7 @@ if __name__ == "__main__":
 
 import numpy as np  # noqa: E402
 
-from harness.files import imageio# noqa: E402
+from harness.files import imageio  # noqa: E402
 from harness.core.errors import HarnessError  # noqa: E402
 
 OUTCOMES = ("pass", "error", "traceback", "messy", "crash", "hang", "silent")
@@ -1422,7 +1422,7 @@ def call(inp_call: list[str]) -> dict:
 def _loader(kind: str):
     from harness.renderers.external import load_spec
     from harness.scene import load_scene
-    from harness.running.suite import load_suite
+    from harness.running.cases import load_suite
 
     return {"load_scene": load_scene, "load_suite": load_suite, "load_spec": load_spec}[kind]
 
@@ -1680,7 +1680,7 @@ def replay_script(inp: Input) -> str:
     if inp.call[0] == "cli":
         command = f"{python} -m harness " + " ".join(shlex.quote(a) for a in inp.call[1:])
     else:
-        module = {"load_scene": "harness.scene", "load_suite": "harness.running.suite",
+        module = {"load_scene": "harness.scene", "load_suite": "harness.running.cases",
                   "load_spec": "harness.renderers.external"}[inp.call[0]]
         command = f"{python} -c " + shlex.quote(f"from {module} import {inp.call[0]}; print({inp.call[0]}("
                                                 f"{inp.call[1]!r}))")
