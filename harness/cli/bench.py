@@ -1,4 +1,5 @@
-"""The ``harness bench`` subcommand (its parser and its body); the work is in :mod:`harness.studies.bench`."""
+"""``harness bench``: the reference against Mitsuba at equal spp (its parser and its body); the work is in
+:mod:`harness.studies.bench`, the method and the latest figures in docs/performance.md."""
 
 from __future__ import annotations
 
@@ -6,44 +7,60 @@ import argparse
 import json
 import re
 import sys
+from fractions import Fraction
 from pathlib import Path
 
+from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENES
 from harness.core import options
-from harness.core.errors import HarnessError
-from harness.core.options import require_positive
 from harness.core import jsonsafe
+from harness.core.errors import HarnessError
 from harness.core.limits import check_render_cost
+from harness.core.options import require_positive
+from harness.files.imageio import atomic_write_text
+from harness.scene import load_scene
+from harness.studies import bench
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
 
-def register(sub) -> None:
+def _targets_text() -> str:
+    """The targets ``--check`` tests (:data:`harness.studies.bench.TARGETS`), in words."""
+    parts = []
+    for name, minimum in bench.TARGETS:
+        what, _, contender = name.partition("_vs_")
+        parts.append(f"{what} >= {Fraction(minimum).limit_denominator(100)} x Mitsuba {contender}'s")
+    return ", ".join(parts)
+
+
+def register(sub, common) -> None:
+    """Add ``bench`` to the subparsers ``sub``."""
     summary = ("the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, "
                "MSE against ground truth, efficiency 1/(MSE x s) and their ratios")
-    bench = sub.add_parser(
+    parser = common.own()
+    parser.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
+                                                        "cornell-box, soft-shadows, multi-light)")
+    parser.add_argument("--spp", type=options.positive_int, default=64,
+                        help="samples per pixel of every render (default 64)")
+    parser.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"),
+                        default=3, help="timed renders per contender after a warm-up (default 3)")
+    parser.add_argument("--ground-truth-spp", type=options.positive_int, default=4096,
+                        help="spp of the (cached) Mitsuba ground truth (default 4096)")
+    parser.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
+    parser.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
+    parser.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
+                        help="also measure the peak RSS of a SIZE x SIZE render at SPP (default 1024x256)")
+    parser.add_argument("--check", action="store_true",
+                        help=f"exit 1 when a target is not met on cornell-box (when benched): the reference's "
+                             f"{_targets_text()} (docs/performance.md)")
+    parser.set_defaults(func=run)
+    sub.add_parser(
         "bench", help=summary,
         description=summary[0].upper() + summary[1:] + ". Contenders: the reference at its defaults (stratified "
                     "sampler), Mitsuba llvm_ad_rgb and scalar_rgb at theirs (independent sampler), Mitsuba llvm_ad_rgb "
                     "with its ldsampler when spp is a power of 4, and the reference's strategy rows (one setting "
-                    "changed, e.g. sampler=independent). Method and latest figures: docs/performance.md.")
-    bench.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
-                                                       "cornell-box, soft-shadows, multi-light)")
-    bench.add_argument("--spp", type=options.positive_int, default=64,
-                       help="samples per pixel of every render (default 64)")
-    bench.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"),
-                       default=3, help="timed renders per contender after a warm-up (default 3)")
-    bench.add_argument("--ground-truth-spp", type=options.positive_int, default=4096,
-                       help="spp of the (cached) Mitsuba ground truth")
-    bench.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
-    bench.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
-    bench.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
-                       help="also measure the peak RSS of a SIZE x SIZE render at SPP (default 1024x256)")
-    bench.add_argument("--check", action="store_true", help="exit 1 when a target of the performance issue is not met")
-    bench.add_argument("--json", action="store_true", help="print the result as one JSON object on stdout")
-    bench.add_argument("--out", type=options.out_file, help="also write the JSON result to this file (atomically)")
-    bench.add_argument("--cache-dir", help="ground-truth cache folder (default: $HARNESS_CACHE_DIR or the user cache)")
-    bench.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    bench.set_defaults(func=cmd_bench)
+                    "changed, e.g. sampler=independent). Method and latest figures: docs/performance.md.",
+        parents=[parser, common.out("also write the JSON result to this file (atomically)", file=True), common.json(),
+                 common.quiet(), common.cache_dir(), common.allow_outside_paths()])
 
 
 def _memory_option(text: str) -> tuple[int, int]:
@@ -61,11 +78,9 @@ def _check_costs(scene, args: argparse.Namespace) -> None:
                           spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option)
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
-    from harness.studies import bench
-    from harness.files.imageio import atomic_write_text
-    from harness.scene import load_scene
-
+def run(args: argparse.Namespace) -> int:
+    """Race the contenders on each scene and print the table (or the JSON); with ``--check``, exit 1 when a
+    target is not met."""
     for option, value in (("--spp", args.spp), ("--repeats", args.repeats), ("--ground-truth-spp", args.ground_truth_spp)):
         require_positive(option, value)
     memory = _memory_option(args.memory) if args.memory else None
@@ -76,7 +91,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     scenes = args.scene or list(bench.BENCH_SCENES)
     resolved = []
     for name in scenes:
-        path = Path(name) if Path(name).suffix else bench.ROOT / "scenes" / f"{name}.toml"
+        path = Path(name) if Path(name).suffix else SCENES / f"{name}.toml"
         if not path.is_file():
             raise HarnessError("--scene", f"expected a canonical scene name or a scene file, got {name!r}")
         resolved.append(str(path))
@@ -97,5 +112,5 @@ def cmd_bench(args: argparse.Namespace) -> int:
         atomic_write_text(Path(args.out), text)
     print(text if args.json else bench.format_report(result))
     if args.check and any(t["met"] is False for t in result.get("targets", [])):
-        return 1
-    return 0
+        return EXIT_FAIL
+    return EXIT_OK

@@ -6,15 +6,33 @@ from __future__ import annotations
 import argparse
 import json
 
+from harness.cli.common import EXIT_OK, SCENE_HELP
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_non_negative, require_positive
+from harness.renderers.export import FORMATS, export_scene
+from harness.scene import load_scene
 
 
-def cmd_export(args: argparse.Namespace) -> int:
-    from harness.renderers.export import FORMATS, export_scene
-    from harness.scene import load_scene
+def register(sub, common) -> None:
+    """Add ``export`` to the subparsers ``sub``."""
+    parser = common.own()
+    parser.add_argument("scene", help=SCENE_HELP)
+    parser.add_argument("--format", required=True, help=f"one of: {', '.join(FORMATS)}")
+    parser.add_argument("--spp", type=options.positive_int, default=16,
+                        help="mitsuba-xml: default of the $spp parameter (default 16)")
+    parser.add_argument("--seed", type=options.non_negative_int, default=0,
+                        help="mitsuba-xml: default of the $seed parameter (default 0)")
+    parser.set_defaults(func=run)
+    sub.add_parser(
+        "export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), PLY, OBJ or glTF for other renderers "
+        "(docs/external-renderers.md)",
+        parents=[parser, common.out("output folder (created if needed)", required=True),
+                 common.json("print the files written as JSON"), common.allow_outside_paths()])
 
+
+def run(args: argparse.Namespace) -> int:
+    """Write the scene's files into ``--out`` and print what was written."""
     if args.format not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {args.format!r}")
     require_positive("--spp", args.spp)
@@ -27,21 +45,4 @@ def cmd_export(args: argparse.Namespace) -> int:
         size = sum(f.stat().st_size for f in files)
         print(f"{scene.name}: {args.format}, {len(scene.shapes)} shapes, {len(files)} files ({size / 1024:.1f} KiB); "
               f"main file {files[0]}")
-    return 0
-
-
-def register(sub) -> None:
-    """Add the ``export`` subcommand to the CLI's subparsers."""
-    from harness.renderers.export import FORMATS
-
-    ex = sub.add_parser("export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), PLY, OBJ or glTF for other "
-                        "renderers (docs/external-renderers.md)")
-    ex.add_argument("scene", help="scene file (TOML)")
-    ex.add_argument("--format", required=True, help=f"one of: {', '.join(FORMATS)}")
-    ex.add_argument("--out", required=True, type=options.out_folder, help="output folder (created if needed)")
-    ex.add_argument("--spp", type=options.positive_int, default=16,
-                    help="mitsuba-xml: default of the $spp parameter (default 16)")
-    ex.add_argument("--seed", type=options.non_negative_int, default=0,
-                    help="mitsuba-xml: default of the $seed parameter (default 0)")
-    ex.add_argument("--json", action="store_true", help="print the files written as JSON")
-    ex.set_defaults(func=cmd_export)
+    return EXIT_OK

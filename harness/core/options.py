@@ -4,7 +4,8 @@ Two layers. The argparse ``type=`` functions below (:func:`positive_int`, :func:
 parse an option's text strictly as it is read: integers in plain decimal digits only (``int()`` would also take
 ``1_000``, `` 7 `` and other scripts' digits), finite numbers only (no ``nan``, ``inf`` or ``1e999``), ladders
 strictly increasing, output paths (:data:`out_folder`, :data:`out_file`) not empty. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
-(``harness.cli._Parser``). The ``require_*`` functions check values that did not come through argparse.
+(``harness.cli.common.Parser``). The ``require_*`` functions check values that did not come through argparse;
+:func:`parse_set` reads repeated ``--set KEY=VALUE`` options.
 """
 
 from __future__ import annotations
@@ -33,6 +34,18 @@ def require_non_negative(option: str, value: int) -> int:
     if value < 0:
         raise HarnessError(option, f"expected a non-negative integer, got {value}")
     return value
+
+
+def parse_set(values: list[str]) -> dict[str, str]:
+    """``--set KEY=VALUE`` options (repeatable) as a dict, keys and values stripped; a later key wins. An item
+    without ``=`` or with an empty key is the user error "--set: expected key=value, got ITEM"."""
+    settings: dict[str, str] = {}
+    for item in values:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise HarnessError("--set", f"expected key=value, got {item!r}")
+        settings[key.strip()] = value.strip()
+    return settings
 
 
 # ---- argparse type= functions ---------------------------------------------------------------------------------

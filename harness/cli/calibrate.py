@@ -1,0 +1,51 @@
+"""``harness calibrate SUITE``: the verdict's false alarms over many seeds, and how the planted faults fail
+(calibration.json)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from harness.cli.common import EXIT_OK, SUITE_HELP
+from harness.core import options
+from harness.core.options import require_positive
+from harness.running import calibrate, runstate
+from harness.files import imageio
+from harness.running.cases import load_suite
+
+
+def register(sub, common) -> None:
+    """Add ``calibrate`` to the subparsers ``sub``."""
+    parser = common.own()
+    parser.add_argument("suite", help=SUITE_HELP)
+    parser.add_argument("--seeds", type=options.positive_int, default=50,
+                        help="seeds per expect=pass case (default 50)")
+    parser.add_argument("--cases", action="append", help="only cases whose name matches this glob (repeatable)")
+    parser.set_defaults(func=run)
+    sub.add_parser(
+        "calibrate", help="false alarms of the verdict over many seeds, and how planted faults fail",
+        parents=[parser, common.out("output folder (default reports/<suite>-calibration)"), common.quiet(),
+                 common.cache_dir(), common.mitsuba_variant(), common.allow_outside_paths()])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Calibrate the suite's cases into ``--out``/calibration.json and print the summary."""
+    require_positive("--seeds", args.seeds)
+    suite = load_suite(args.suite)
+    calibrate.select_cases(suite, args.cases)  # a --cases pattern that matches no case: one line, before any render
+    created: list[Path] = []  # removed (where empty) when the calibration fails
+    out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration", created=created)
+
+    def on_progress(name: str, seed: int) -> None:
+        if not args.quiet:
+            print(f"  {name} seed {seed}", file=sys.stderr, flush=True)
+
+    with imageio.removed_on_failure(created), runstate.locked(out):
+        result = calibrate.calibrate(suite, out, seeds=args.seeds, patterns=args.cases, cache_dir=args.cache_dir,
+                                     variant=args.mitsuba_variant, on_progress=on_progress)
+        calibrate.write(result, out / "calibration.json")
+    for line in calibrate.summary_lines(result):
+        print(line)
+    print(f"wrote {out / 'calibration.json'}")
+    return EXIT_OK

@@ -1,0 +1,51 @@
+"""``harness compare TEST GROUND_TRUTH``: image metrics and the statistical verdict of a render against its
+ground truth (exit 1 on fail)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from harness.cli.common import EXIT_FAIL, EXIT_OK
+from harness.core import options
+from harness.core.errors import HarnessError
+from harness.running.compare import compare_files
+
+MAX_TILE = 1024  # the verdict pads the image to whole tiles: a larger tile only costs memory
+
+
+def register(sub, common) -> None:
+    """Add ``compare`` to the subparsers ``sub``."""
+    parser = common.own()
+    parser.add_argument("test", help="the render to judge (.exr with variance.R/G/B channels)")
+    parser.add_argument("ground_truth", metavar="ground-truth",
+                        help="the ground truth (.exr; variance channels optional for a closed form)")
+    parser.add_argument("--tile", type=options.parse_int, default=8,
+                        help=f"tile size in pixels for the verdict, 1 to {MAX_TILE} (default 8)")
+    parser.add_argument("--alpha", type=options.probability, default=0.001,
+                        help="false-alarm probability of the verdict (default 0.001)")
+    parser.set_defaults(func=run)
+    sub.add_parser("compare", help="metrics and a statistical verdict for a render against its ground truth "
+                   "(exit 1 on fail)", parents=[parser, common.json()])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Print the verdict and the metrics; exit 0 on pass, 1 on fail."""
+    if not 1 <= args.tile <= MAX_TILE:
+        raise HarnessError("--tile", f"expected an integer from 1 to {MAX_TILE} (pixels per tile side), got {args.tile}")
+    if not 0 < args.alpha < 1:
+        raise HarnessError("--alpha", f"expected a false-alarm probability in (0, 1), got {args.alpha}")
+    report = compare_files(args.test, args.ground_truth, tile=args.tile, alpha=args.alpha)
+    if args.json:
+        print(json.dumps(report, indent=2, default=float))
+    else:
+        m = report["metrics"]
+        v = report["verdict"]
+        print(f"verdict: {v['verdict']}" + (f" ({v.get('reason')})" if v.get("reason") else ""))
+        # a metric that is not a finite number is None (null in --json): PSNR of identical images or of an all-zero
+        # ground truth, every metric when no pixel is finite in both images
+        why = " (no pixel is finite in both images)" if not report.get("metric_pixels") else ""
+        for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
+            if key in m:
+                print(f"  {key:7s} {m[key]:.6g}" if m[key] is not None else f"  {key:7s} undefined{why}")
+    return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL

@@ -1,0 +1,62 @@
+"""``harness ground-truth SCENE``: a scene's ground truth, from its closed form or rendered by Mitsuba in cached
+chunks, and where it is."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, path_progress
+from harness.core import options
+from harness.core.options import require_non_negative, require_positive
+from harness.renderers import groundtruth
+from harness.scene import load_scene
+
+
+def register(sub, common) -> None:
+    """Add ``ground-truth`` to the subparsers ``sub``."""
+    parser = common.own()
+    parser.add_argument("scene", help=SCENE_HELP)
+    parser.add_argument("--spp", type=options.positive_int, default=1024, help="samples per pixel (default 1024)")
+    parser.add_argument("--seed", type=options.non_negative_int, default=0,
+                        help="seed every chunk's seed is derived from (default 0; part of the cache key)")
+    parser.add_argument("--chunk-spp", type=options.positive_int, default=256,
+                        help="samples per cached chunk (default 256)")
+    parser.add_argument("--no-closed-form", action="store_true",
+                        help="render with Mitsuba even if the scene has a closed form")
+    parser.set_defaults(func=run)
+    sub.add_parser(
+        "ground-truth", help="render (or fetch from the cache) a scene's ground truth and print where it is",
+        parents=[parser, common.json(), common.quiet(), common.cache_dir(), common.mitsuba_variant(),
+                 common.allow_outside_paths()])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Fetch or render the ground truth; print its source and path (or, with ``--json``, a summary)."""
+    require_positive("--spp", args.spp)
+    require_positive("--chunk-spp", args.chunk_spp)
+    require_non_negative("--seed", args.seed)
+    scene = load_scene(args.scene)
+    check_cost(scene, args.spp, "--spp")  # with a closed form too: a budget no render could meet is a typo
+    bar, progress = path_progress(args, f"ground truth {scene.name}")
+    try:
+        gt = groundtruth.ground_truth(
+            scene, spp=args.spp, seed=args.seed, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
+            chunk_spp=args.chunk_spp, use_closed_form=not args.no_closed_form, progress=progress,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = {
+        "scene": str(scene.path), "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
+        "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,
+        "mean_radiance": [float(v) for v in gt.image.astype(float).mean(axis=(0, 1))], "info": gt.info,
+    }
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    elif gt.source == "closed-form":
+        print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {gt.info.get('radiance')}; no render needed")
+    else:
+        state = "from the cache" if gt.cached else f"rendered in {gt.seconds:.1f} s ({gt.renders} chunk renders)"
+        print(f"{scene.name}: Mitsuba {gt.info.get('variant')} {gt.spp} spp, {state}\n{gt.path}")
+    return EXIT_OK

@@ -1,0 +1,132 @@
+"""``harness render SCENE --spp N --out FILE.exr``: one render to OpenEXR (R, G, B and variance), with a PNG
+preview beside it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, path_progress
+from harness.core import options
+from harness.core.errors import HarnessError
+from harness.core.options import parse_set, require_non_negative, require_positive
+from harness.files import imageio
+from harness.renderers import RenderRequest, get_renderer, renderer_names
+from harness.renderers.external import ExternalRendererError, variance_metadata
+from harness.renderers.validate import BadRenderError, validate_result
+from harness.scene import load_scene
+
+
+def register(sub, common) -> None:
+    """Add ``render`` to the subparsers ``sub``."""
+    parser = common.own()
+    parser.add_argument("scene", help=SCENE_HELP)
+    parser.add_argument("--renderer", default="reference", help=f"one of: {', '.join(renderer_names())}, or the "
+                        "path of a renderer file (.toml, docs/external-renderers.md)")
+    parser.add_argument("--spp", type=options.positive_int, required=True, help="viewing rays (samples) per pixel, Np")
+    parser.add_argument("--seed", type=options.non_negative_int, default=0,
+                        help="seed of every random stream (default 0)")
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
+             "(repeatable; see docs/reference-renderer.md)",
+    )
+    parser.set_defaults(func=run)
+    sub.add_parser(
+        "render", help="render a scene to an OpenEXR file (plus a PNG preview)",
+        parents=[parser,
+                 common.out("output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it", file=True,
+                            required=True),
+                 common.json("print one JSON object with timings and counters"), common.quiet(),
+                 common.mitsuba_variant(), common.allow_outside_paths()])
+
+
+def run(args: argparse.Namespace) -> int:
+    """Render, check what the renderer returned, write the EXR and its preview; exit 1 when the render failed."""
+    out = Path(args.out)
+    if out.suffix.lower() != ".exr":
+        raise HarnessError("--out", f"expected a file name ending in .exr, got {args.out!r}")
+    if not out.parent.is_dir():
+        raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
+    if not os.access(out.parent, os.W_OK):
+        raise HarnessError("--out", f"folder {str(out.parent)!r} is not writable")
+    require_positive("--spp", args.spp)
+    require_non_negative("--seed", args.seed)
+    scene = load_scene(args.scene)
+    check_cost(scene, args.spp, "--spp")
+    renderer = get_renderer(args.renderer)
+    settings = parse_set(args.set)
+    if args.mitsuba_variant:
+        if renderer.name != "mitsuba":
+            raise HarnessError("--mitsuba-variant", "applies to --renderer mitsuba only")
+        settings["variant"] = args.mitsuba_variant
+    bar, progress = path_progress(args, f"{renderer.name} {scene.name}")
+    try:
+        result = renderer.render(scene, RenderRequest(spp=args.spp, seed=args.seed, settings=settings, progress=progress))
+        validate_result(result, scene.film.width, scene.film.height, for_verdict=False)
+    except (ExternalRendererError, BadRenderError) as err:  # the renderer failed, not the user's input: exit 1
+        print(f"harness: render failed: {renderer.name}: {err}", file=sys.stderr)
+        return EXIT_FAIL
+    except HarnessError:
+        raise
+    except Exception as err:  # a crash inside the renderer: one line (HARNESS_DEBUG=1 shows the traceback)
+        if os.environ.get("HARNESS_DEBUG"):
+            raise
+        print(f"harness: render failed: {renderer.name}: {type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}"
+              " (HARNESS_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return EXIT_FAIL
+    finally:
+        if bar is not None:
+            bar.close()
+    metadata = {
+        "renderer": result.renderer,
+        "scene": str(scene.path),
+        **variance_metadata(result),
+        "seed": str(args.seed),
+        "settings": json.dumps(result.settings, sort_keys=True),
+    }
+    _, preview = imageio.write_exr_with_preview(out, result.image, result.variance, metadata=metadata)  # or neither
+    summary = _summary(result, scene, out, preview, args.seed)
+    if args.json:
+        print(json.dumps(summary, indent=2, sort_keys=False))
+    else:
+        print(
+            f"{result.renderer}: {scene.name} {scene.film.width}x{scene.film.height}, {result.spp} spp in "
+            f"{result.seconds:.2f} s ({summary['paths_per_second'] / 1e6:.3f} M paths/s, "
+            f"{summary['rays_per_second'] / 1e6:.2f} M rays/s); {summary['nonfinite_pixels']} non-finite pixels\n"
+            f"wrote {out} and {preview}"
+        )
+    return EXIT_OK
+
+
+def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
+    """What ``--json`` prints: the render's timings, counters and files."""
+    total_rays = sum(result.rays.values())
+    seconds = max(result.seconds, 1e-12)
+    return {
+        "renderer": result.renderer,
+        "scene": str(scene.path),
+        "width": scene.film.width,
+        "height": scene.film.height,
+        "spp": result.spp,
+        "seed": seed,
+        "seconds": result.seconds,
+        "paths": result.paths,
+        "paths_per_second": result.paths / seconds,
+        "rays": dict(result.rays, total=total_rays),
+        "rays_per_second": total_rays / seconds,
+        "nonfinite_pixels": result.nonfinite_pixels,
+        "mean_radiance": [float(v) for v in np.mean(result.image.astype(np.float64), axis=(0, 1))],
+        "settings": result.settings,
+        "stats": result.stats,
+        "info": result.info,
+        "out": str(out),
+        "preview": str(preview),
+        "host": {"python": platform.python_version(), "cpus": os.cpu_count()},
+    }
