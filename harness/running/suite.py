@@ -25,6 +25,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError, read_user_toml
 from harness.core.limits import MAX_TIMEOUT_SECONDS
+from harness.files.cases import GROUND_TRUTH_FILE
 
 SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseline]: harness/running/baseline.py
 CASE_KEYS = (
@@ -665,6 +666,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
         folder = out_dir / "cases" / slug(case.name)
         folder.mkdir(parents=True, exist_ok=True)
+        if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
+            record["ground_truth"]["path"] = str(imageio.write_exr(folder / GROUND_TRUTH_FILE, gt.image, gt.variance,
+                                                                   metadata={"case": case.name, "source": gt.source}))
         imageio.write_exr(folder / "render.exr", result.image, result.variance,
                           metadata={"renderer": result.renderer, "case": case.name})
         imageio.write_png_preview(folder / "render.png", result.image)
