@@ -315,25 +315,23 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _report_options(args: argparse.Namespace, **overrides):
-    from harness.report import ReportOptions
-
-    return ReportOptions(cache_dir=getattr(args, "cache_dir", None), variant=getattr(args, "mitsuba_variant", None),
-                         progress=not args.quiet and sys.stderr.isatty(), **overrides)
-
-
 def _write_run_report(args: argparse.Namespace, out: Path) -> None:
-    """The report of a finished run (DIR/index.html, report.json, summary.md). A report that fails in its own
-    code is one line on stderr and leaves the run's exit code alone; one that cannot be written (a full disk) is a
-    WriteError: one line and exit code 2, the old report (if any) left as it was."""
+    """The studies and the report of a finished run (DIR/studies/, DIR/index.html, report.json, summary.md). A
+    study or report that fails in its own code is one line on stderr and leaves the run's exit code alone; one
+    that cannot be written (a full disk) is a WriteError: one line and exit code 2, the old files (if any) left as
+    they were."""
     from harness.files.imageio import WriteError
 
+    if getattr(args, "no_report", False):
+        return
+    from harness.cli import studies
+
+    if not args.no_studies:
+        studies.write_studies(args, out / "results.json", out / "studies")
     try:
         from harness.report import write_suite_report
 
-        if getattr(args, "no_report", False):
-            return
-        paths = write_suite_report(out / "results.json", out, _report_options(args))
+        paths = write_suite_report(out / "results.json", out, studies.report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")
     except (KeyboardInterrupt, WriteError):
         raise
@@ -343,19 +341,17 @@ def _write_run_report(args: argparse.Namespace, out: Path) -> None:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    from harness.cli import studies
+    from harness.files.studies import studies_folder
     from harness.report import write_suite_report
-    from harness.studies.convergence import parse_ladder
 
-    require_positive("--strategy-spp", args.strategy_spp)
+    studies.check_report_flags(args)
     results = Path(args.results)
     out = Path(args.out) if args.out else results.parent
-    options = _report_options(
-        args, convergence=not args.no_convergence, shadow_rays=not args.no_shadow_rays,
-        strategies=not args.no_strategies, render_strategies=not args.no_strategy_renders,
-        convergence_spp=tuple(parse_ladder(args.convergence_spp, "--convergence-spp")),
-        strategy_spp=args.strategy_spp,
-    )
-    paths = write_suite_report(results, out, options)
+    studies_dir = studies_folder(out) if args.studies else None  # None: the studies beside results.json
+    if args.studies:
+        studies.write_studies(args, results, studies_dir)
+    paths = write_suite_report(results, out, studies.report_options(args), studies_dir=studies_dir)
     print(f"wrote {paths['index']}, {paths['report_json']} and {paths['summary']} in {paths['seconds']:.1f} s")
     return EXIT_OK
 
@@ -483,6 +479,25 @@ def _render_summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
     }
 
 
+def _add_study_flags(parser: argparse.ArgumentParser, command: str) -> None:
+    """The flags of the studies (harness/cli/studies.py), the same on ``run`` and ``report``. On ``report`` the
+    --no-... flags leave a section out of the page (and, with --studies, its study out of the computing); the others
+    apply only with --studies."""
+    with_studies = " (with --studies)" if command == "report" else ""
+    parser.add_argument("--convergence-spp", default=None if command == "report" else "1,2,4,8,16",
+                        type=options.spp_ladder,
+                        help=f"spp ladder of each scene's convergence study{with_studies} (default 1,2,4,8,16)")
+    parser.add_argument("--strategy-spp", type=options.positive_int, default=None if command == "report" else 16,
+                        help=f"spp of strategy renders no case covers{with_studies} (default 16)")
+    leave, also = ("leave out", " (with --studies: and do not compute it)") if command == "report" else ("skip", "")
+    parser.add_argument("--no-convergence", action="store_true",
+                        help=f"{leave} the convergence {'section' if command == 'report' else 'study'}{also}")
+    parser.add_argument("--no-shadow-rays", action="store_true", help=f"{leave} the shadow-ray study{also}")
+    parser.add_argument("--no-strategies", action="store_true", help=f"{leave} the strategy comparison{also}")
+    parser.add_argument("--no-strategy-renders", action="store_true",
+                        help=f"compare only strategies the suite's cases cover{with_studies}")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from harness.renderers import renderer_names
 
@@ -536,7 +551,8 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--cache-dir", help="ground-truth cache folder")
     run.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
     run.add_argument("--quiet", action="store_true")
-    run.add_argument("--no-report", action="store_true", help="do not write the report (index.html, report.json)")
+    run.add_argument("--no-report", action="store_true",
+                     help="do not write the studies or the report (studies/, index.html, report.json)")
     run.add_argument("--executor", default="local", help="where cases run: local (a process pool, the default), "
                      "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler)")
     run.add_argument("--workers", type=options.positive_int,
@@ -552,6 +568,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="override a baseline rule, e.g. relmse=1.10 (10 %% worse allowed), seconds=1.5, bias=off "
                      "(repeatable; docs/ci.md)")
     run.add_argument("--junit", metavar="FILE", help="also write JUnit XML of the run for CI (docs/ci.md)")
+    run.add_argument("--no-studies", action="store_true", help="compute no study (convergence, shadow rays, "
+                     "strategies) after the suite; the report then says how to get them")
+    _add_study_flags(run, "run")
     run.set_defaults(func=cmd_run)
 
     bl = sub.add_parser("baseline", help="save a suite's metrics as a baseline that harness run --baseline gates on")
@@ -572,17 +591,12 @@ def build_parser() -> argparse.ArgumentParser:
     rep = sub.add_parser("report", help="write the HTML report of a suite run (index.html, report.json, summary.md)")
     rep.add_argument("results", help="a results.json written by harness run")
     rep.add_argument("--out", help="output folder (default: the results file's folder)")
-    rep.add_argument("--convergence-spp", default="1,2,4,8,16", type=options.spp_ladder,
-                     help="spp ladder of each scene's convergence "
-                     "(default 1,2,4,8,16)")
-    rep.add_argument("--strategy-spp", type=options.positive_int, default=16,
-                     help="spp of strategy renders no case covers (default 16)")
-    rep.add_argument("--no-convergence", action="store_true", help="leave out the convergence section")
-    rep.add_argument("--no-shadow-rays", action="store_true", help="leave out the shadow-ray study")
-    rep.add_argument("--no-strategies", action="store_true", help="leave out the strategy comparison")
-    rep.add_argument("--no-strategy-renders", action="store_true", help="compare only strategies the suite's cases cover")
-    rep.add_argument("--cache-dir", help="ground-truth cache folder")
-    rep.add_argument("--mitsuba-variant", help="override the Mitsuba variant")
+    rep.add_argument("--studies", action="store_true",
+                     help="compute the run's studies first (they render and time, as harness run does after its "
+                     "suite), into --out's studies/; without it the report formats the studies the run wrote")
+    _add_study_flags(rep, "report")
+    rep.add_argument("--cache-dir", help="ground-truth cache folder (of the studies' Mitsuba renders, with --studies)")
+    rep.add_argument("--mitsuba-variant", help="override the Mitsuba variant (of the studies, with --studies)")
     rep.add_argument("--quiet", action="store_true")
     rep.set_defaults(func=cmd_report)
 

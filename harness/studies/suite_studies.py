@@ -113,8 +113,9 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
     sections: dict[str, Any] = {}
     try:
         t0 = time.perf_counter()
+        wanted = options.convergence or options.shadow_rays or options.strategies
         items = [_load_case(StudyCase(record=r, index=i, case=suite_cases.get(r.get("name"))), results_dir, progress)
-                 for i, r in enumerate(records)]
+                 for i, r in enumerate(records if wanted else [])]
         timings["cases"] = time.perf_counter() - t0
         bases = _scene_bases(items)
         if options.convergence:
@@ -345,8 +346,8 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
         except WriteError:
             raise
         except Exception as err:  # noqa: BLE001
-            table = {"scene": Path(key).stem, "scene_path": key, "error": f"{type(err).__name__}: {err}".splitlines()[0],
-                     "traceback": traceback.format_exc(limit=6)}
+            table = {"scene": Path(key).stem, "scene_path": key,
+                     "error": f"{type(err).__name__}: {err}".splitlines()[0], "traceback": traceback.format_exc(limit=6)}
         section["scenes"].append(table)
     return section
 
