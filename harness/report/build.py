@@ -269,7 +269,7 @@ def _convergence(section: dict, studies_dir: Path, out: Path) -> tuple[dict, Any
             view["plot_uri"] = data_uri(png) if png else None
         scenes.append(entry)
         views.append(view)
-    html = render("convergence.html.j2", notes=[],
+    html = render("convergence.html.j2",
                   section={"spp_ladder": section["spp_ladder"], "k": section["k"], "scenes": views})
     return dict(section, scenes=scenes), html
 
