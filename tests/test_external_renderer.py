@@ -290,7 +290,7 @@ def test_bring_your_renderer_end_to_end(tmp_path, capsys):
     assert good["status"] == "pass" and good["render"]["spp"] == 64
     assert good["verdict"]["variance_dof"]["test"] == 3.0  # K - 1 from the 4 runs
     assert main(["report", str(out / "results.json"), "--no-convergence", "--no-shadow-rays", "--no-strategies",
-                 "--no-strategy-renders", "--quiet"]) == 0
+                 "--quiet"]) == 0
     assert "cornell-box/mine" in (out / "index.html").read_text()
     # 5. the baseline of the good run; the faulty renderer, run against it, fails the suite (caught by the verdict)
     assert main(["baseline", "save", str(tmp_path / "good.toml"), "--from", str(out / "results.json"),

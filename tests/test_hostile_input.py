@@ -472,7 +472,7 @@ def bad_run(tmp_path_factory):
         results = run_suite(suite, folder / "out")
     finally:
         mp.undo()
-    options = ReportOptions(convergence=False, shadow_rays=False, strategies=False, render_strategies=False)
+    options = ReportOptions(convergence=False, shadow_rays=False, strategies=False)
     write_suite_report(folder / "out" / "results.json", folder / "out", options)
     return results, folder / "out", evil
 

@@ -56,26 +56,28 @@ against = {{ renderer = "reference", spp = 64, seed = 99 }}
 
 
 def fast_options(**overrides):
-    from harness.report import ReportOptions
+    from harness.studies.suite_studies import StudyOptions
 
     values = dict(convergence_spp=(1, 2, 4, 8), strategy_spp=4, min_timing_seconds=0.0, strategy_min_seconds=0.0)
     values.update(overrides)
-    return ReportOptions(**values)
+    return StudyOptions(**values)
 
 
 @pytest.fixture(scope="module")
 def report_dir(tmp_path_factory) -> Path:
-    """A tiny suite run and its report (written once for the module)."""
+    """A tiny suite run, its studies and its report (written once for the module)."""
     from harness.report import write_suite_report
     from harness.running.cases import load_suite
     from harness.running.schedule import run_suite
+    from harness.studies.suite_studies import write_suite_studies
 
     folder = tmp_path_factory.mktemp("report")
     suite_path = folder / "tiny.toml"
     suite_path.write_text(SUITE.replace("SCENES", str(ROOT / "scenes")))
     out = folder / "out"
-    run_suite(load_suite(suite_path), out)
-    write_suite_report(out / "results.json", out, fast_options())
+    results = run_suite(load_suite(suite_path), out)
+    write_suite_studies(results, out, fast_options())
+    write_suite_report(out / "results.json", out)
     return out
 
 
@@ -295,12 +297,14 @@ def test_run_writes_the_report_and_report_rewrites_it(tmp_path):
     code, stdout, stderr = run_cli("run", str(suite), "--out", str(out), "--quiet")
     assert code == 0, stdout + stderr
     assert "report:" in stdout and (out / "index.html").is_file() and (out / "report.json").is_file()
+    assert "studies:" in stdout and (out / "studies" / "studies.json").is_file()
     again = tmp_path / "again"
-    code, stdout, stderr = run_cli("report", str(out / "results.json"), "--out", str(again), "--quiet",
+    code, stdout, stderr = run_cli("report", str(out / "results.json"), "--out", str(again), "--quiet", "--studies",
                                    "--convergence-spp", "1,2", "--no-strategies", "--no-shadow-rays")
     assert code == 0, stdout + stderr
     report = json.loads((again / "report.json").read_text())
     assert report["strategies"] is None and report["convergence"]["spp_ladder"] == [1, 2]
+    assert (again / "studies" / "studies.json").is_file()  # --studies writes them beside the new report
 
 
 def test_report_of_a_missing_file_is_one_line(tmp_path, capsys):
@@ -311,19 +315,28 @@ def test_report_of_a_missing_file_is_one_line(tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1 and "missing.json" in err
 
 
-def test_a_failing_report_does_not_change_the_run_exit_code(tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize("broken", ["report", "studies"])
+def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, monkeypatch, capsys):
+    import harness.cli.studies
     import harness.report
     from harness.cli import main
 
-    def broken(*args, **kwargs):
+    def fail(*args, **kwargs):
         raise RuntimeError("disk on fire\nsecond line")
 
-    monkeypatch.setattr(harness.report, "write_suite_report", broken)
+    if broken == "report":
+        monkeypatch.setattr(harness.report, "write_suite_report", fail)
+    else:
+        monkeypatch.setattr(harness.cli.studies, "write_suite_studies", fail)
     suite = write_suite(tmp_path, ONE_CASE)
-    code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet"])
+    code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet"]
+                + (["--no-studies"] if broken == "report" else []))
     err = capsys.readouterr().err
     assert code == 0
-    assert err.strip().splitlines() == ["harness: report not written: RuntimeError: disk on fire second line"]
+    assert err.strip().splitlines() == [f"harness: {broken} not written: RuntimeError: disk on fire second line"]
+    if broken == "studies":  # the report is written all the same, and says how to get the studies
+        assert "Not computed" in (tmp_path / "out" / "index.html").read_text()
+        assert not (tmp_path / "out" / "studies").exists()
 
 
 def test_convergence_command(tmp_path):
@@ -419,17 +432,156 @@ def test_convergence_json_is_alone_on_stdout(tmp_path):
     assert {"seconds": 0.02} in budgets and "slope" in proc.stderr
 
 
-def test_a_report_made_again_renders_no_mitsuba_image(report_dir, monkeypatch, tmp_path):
-    """The convergence curves' Mitsuba rungs come from the ground-truth cache the first report filled."""
+def test_studies_made_again_render_no_mitsuba_image(report_dir, monkeypatch, tmp_path):
+    """The convergence curves' Mitsuba rungs come from the ground-truth cache the first studies filled."""
     from harness.renderers.mitsuba import MitsubaRenderer
-    from harness.report import write_suite_report
+    from harness.studies.suite_studies import write_suite_studies
 
     def no_render(self, scene, request):
         raise AssertionError("Mitsuba rendered although its images are cached")
 
     monkeypatch.setattr(MitsubaRenderer, "render", no_render)
-    write_suite_report(report_dir / "results.json", tmp_path, fast_options())
-    report = json.loads((tmp_path / "report.json").read_text())
-    for scene in report["convergence"]["scenes"]:
+    results = json.loads((report_dir / "results.json").read_text())
+    write_suite_studies(results, report_dir, fast_options(shadow_rays=False, strategies=False), out_dir=tmp_path / "s")
+    studies = json.loads((tmp_path / "s" / "studies.json").read_text())
+    for scene in studies["convergence"]["scenes"]:
         assert "error" not in scene, scene.get("error")
         assert any(s["renderer"] == "mitsuba" for s in scene["result"]["series"])
+
+
+# ---- the report only formats: it renders nothing, reads the ground truth results.json names, uses templates --------
+
+
+def test_a_report_renders_nothing(report_dir, monkeypatch, tmp_path):
+    """Every renderer and ground-truth function broken: the report of a run with its studies is still whole (every
+    case's images, every study section), read from results.json, the cases' EXRs and studies.json."""
+    import harness.renderers.groundtruth as groundtruth
+    from harness.renderers.base import Renderer
+    from harness.renderers.mitsuba import MitsubaRenderer
+    from harness.renderers.reference import ReferenceRenderer
+    from harness.report import write_suite_report
+
+    def broken(*args, **kwargs):
+        raise AssertionError("the report rendered")
+
+    for cls in (Renderer, ReferenceRenderer, MitsubaRenderer):
+        monkeypatch.setattr(cls, "render", broken, raising=False)
+    for name in ("ground_truth", "closed_form"):
+        monkeypatch.setattr(groundtruth, name, broken)
+    write_suite_report(report_dir / "results.json", tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert all(case["problems"] == [] and len(case["images"]) == 5 for case in report["cases"])
+    assert all("error" not in scene for scene in report["convergence"]["scenes"])
+    assert "error" not in report["shadow_rays"] and "skipped" not in report["shadow_rays"]
+    assert all("error" not in scene for scene in report["strategies"]["scenes"])
+    for plot in [s["plot"] for s in report["convergence"]["scenes"] + report["strategies"]["scenes"]]:
+        assert Path(plot).is_file() and Path(plot).is_relative_to(tmp_path / "report")  # copied into the report
+    page = (tmp_path / "index.html").read_text()
+    assert "Not computed" not in page and page.count('<figure class="plot">') == 2 + 2 + 2
+
+
+def test_the_ground_truth_shown_is_the_file_results_json_names(report_dir):
+    """run_case records the ground truth's file for a closed form and another renderer's image too (in the case's
+    folder), and the report's ground_truth.exr holds exactly that image."""
+    from harness.files.imageio import read_exr
+
+    results = json.loads((report_dir / "results.json").read_text())
+    for record in results["cases"]:
+        path = Path(record["ground_truth"]["path"])
+        assert path == report_dir / "cases" / path.parent.name / "ground_truth.exr"
+        shown = read_exr(report_dir / "report" / path.parent.name / "ground_truth.exr").image
+        np.testing.assert_array_equal(shown, read_exr(path).image)
+
+
+def test_a_run_without_studies_says_how_to_get_them(report_dir, tmp_path):
+    from harness.report import write_suite_report
+
+    run = tmp_path / "run"
+    shutil.copytree(report_dir, run, ignore=shutil.ignore_patterns("studies"))
+    write_suite_report(run / "results.json", run)
+    page = (run / "index.html").read_text()
+    report = json.loads((run / "report.json").read_text())
+    assert report["convergence"] is None and report["shadow_rays"] is None and report["strategies"] is None
+    assert report["studies"]["file"] is None and "not found" in report["studies"]["note"]
+    for anchor in ("convergence", "shadow-rays", "strategies"):
+        section = re.search(f'<section id="{anchor}">(.*?)</section>', page, re.S).group(1)
+        assert "Not computed" in section and "harness run SUITE" in section and "--studies" in section
+
+
+def test_a_run_with_some_studies_off_says_which(report_dir, tmp_path):
+    from harness.report import ReportOptions, write_suite_report
+    from harness.studies.suite_studies import write_suite_studies
+
+    results = json.loads((report_dir / "results.json").read_text())
+    write_suite_studies(results, report_dir, fast_options(convergence=False, shadow_rays=False, strategies=False),
+                        out_dir=tmp_path / "studies")
+    write_suite_report(report_dir / "results.json", tmp_path, ReportOptions(shadow_rays=False),
+                       studies_dir=tmp_path / "studies")
+    page = (tmp_path / "index.html").read_text()
+    assert 'id="shadow-rays"' not in page  # left out by the report
+    assert "Not computed by this run (harness run --no-convergence)" in page
+    assert "Not computed by this run (harness run --no-strategies)" in page
+
+
+def test_a_malformed_or_hostile_studies_json_is_a_note_not_a_crash(report_dir, tmp_path):
+    """studies.json is read defensively: bad JSON is a note in each section; a section that does not hold what it
+    should is a note in that section; a file named outside the studies' folder is not copied or embedded."""
+    from harness.report import write_suite_report
+
+    (tmp_path / "outside.png").write_bytes((report_dir / "studies" / "convergence" / "furnace.png").read_bytes())
+    studies = tmp_path / "studies"
+    studies.mkdir()
+    (studies / "studies.json").write_text("{not json")
+    write_suite_report(report_dir / "results.json", tmp_path / "a", studies_dir=studies)
+    page = (tmp_path / "a" / "index.html").read_text()
+    assert page.count("not valid JSON") == 3
+    doc = json.loads((report_dir / "studies" / "studies.json").read_text())
+    doc["convergence"]["scenes"][0]["plot"] = "../outside.png"
+    doc["strategies"]["scenes"][0]["rows"] = 7
+    doc["shadow_rays"]["images"][0]["legend"] = {"stops": ["red;background:url(http://x)"], "vmin": 0, "vmax": 1}
+    doc["shadow_rays"]["images"][0]["title"] = EVIL
+    (studies / "studies.json").write_text(json.dumps(doc))
+    for name in ("shadow-rays",):
+        shutil.copytree(report_dir / "studies" / name, studies / name)
+    write_suite_report(report_dir / "results.json", tmp_path / "b", studies_dir=studies)
+    page = (tmp_path / "b" / "index.html").read_text()
+    report = json.loads((tmp_path / "b" / "report.json").read_text())
+    assert report["convergence"]["scenes"][0]["plot"] is None and "plot missing (../outside.png)" in page
+    assert not (tmp_path / "b" / "outside.png").exists() and report["strategies"] is None
+    assert "studies.json&#x27;s strategies section could not be read (TypeError" in page
+    assert "url(http" not in page and "<script>alert" not in page and html.escape(EVIL, quote=True) in page
+
+
+def test_report_flags_that_compute_need_studies(tmp_path, capsys):
+    from harness.cli import main
+
+    for flag in (["--convergence-spp", "1,2"], ["--strategy-spp", "4"], ["--no-strategy-renders"]):
+        assert main(["report", str(tmp_path / "results.json"), *flag]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.splitlines() == [err] and err.startswith(f"harness: error: {flag[0]}: applies only with --studies")
+
+
+def test_the_report_layer_imports_nothing_that_renders_and_writes_no_html_in_python():
+    """harness/report imports only core, judges, files, scene and studies.figures (the plots of study data); its
+    HTML comes from the Jinja2 templates (autoescape on), not from Python strings."""
+    import ast
+
+    from harness.report import html as report_html
+
+    allowed = ("harness.core", "harness.judges", "harness.files", "harness.scene", "harness.studies.figures",
+               "harness.report")
+    for path in sorted((ROOT / "harness" / "report").glob("*.py")):
+        tree = ast.parse(path.read_text())
+        for node in ast.walk(tree):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [f"{node.module}.{a.name}" for a in node.names] if isinstance(node, ast.ImportFrom)
+                     and node.module else [])
+            for name in names:
+                if name.startswith("harness"):
+                    assert name.startswith(allowed), f"{path.name}: {name}"
+        source = path.read_text()
+        for tag in ("<table", "<section", "<td", "<p ", "<p>", "<figure", "<div"):
+            assert tag not in source, f"{path.name} builds HTML in Python ({tag})"
+    assert report_html.ENV.autoescape is True
+    templates = sorted((ROOT / "harness" / "report" / "templates").glob("*.html.j2"))
+    assert len(templates) >= 5 and not any("|safe" in t.read_text() for t in templates)

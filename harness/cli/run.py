@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from harness.cli.common import EXIT_FAIL, EXIT_OK, SUITE_HELP, progress_bar
-from harness.cli.report import report_options
+from harness.cli import studies
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.report import write_suite_report
@@ -22,7 +22,8 @@ def register(sub, common) -> None:
     """Add ``run`` to the subparsers ``sub``."""
     parser = common.own()
     parser.add_argument("suite", help=SUITE_HELP)
-    parser.add_argument("--no-report", action="store_true", help="do not write the report (index.html, report.json)")
+    parser.add_argument("--no-report", action="store_true",
+                        help="do not write the studies or the report (studies/, index.html, report.json)")
     parser.add_argument("--executor", default="local", help="where cases run: local (a process pool, the default), "
                         "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler)")
     parser.add_argument("--workers", type=options.positive_int,
@@ -38,6 +39,9 @@ def register(sub, common) -> None:
                         help="override a baseline rule, e.g. relmse=1.10 (10 %% worse allowed), seconds=1.5, "
                         "bias=off (repeatable; docs/ci.md)")
     parser.add_argument("--junit", metavar="FILE", type=options.out_file, help="also write JUnit XML of the run for CI (docs/ci.md)")
+    parser.add_argument("--no-studies", action="store_true", help="compute no study (convergence, shadow rays, "
+                        "strategies) after the suite; the report then says how to get them")
+    studies.add_flags(parser, "run")
     parser.set_defaults(func=run)
     sub.add_parser(
         "run", help="run a suite: exit 0 when every case is as expected, 1 when not, 2 on bad input",
@@ -127,11 +131,14 @@ def _baseline_gate(args: argparse.Namespace, suite) -> baseline.Gate | None:
 
 
 def _write_report(args: argparse.Namespace, out: Path) -> None:
-    """The report of a finished run (DIR/index.html, report.json, summary.md). A report that fails in its own
-    code is one line on stderr and leaves the run's exit code alone; one that cannot be written (a full disk) is a
-    imageio.WriteError: one line and exit code 2, the old report (if any) left as it was."""
+    """The studies and the report of a finished run (DIR/studies/, DIR/index.html, report.json, summary.md). A
+    study or report that fails in its own code is one line on stderr and leaves the run's exit code alone; one
+    that cannot be written (a full disk) is a WriteError: one line and exit code 2, the old files (if any) left as
+    they were."""
+    if not args.no_studies:
+        studies.write_studies(args, out / "results.json", out / "studies")
     try:
-        paths = write_suite_report(out / "results.json", out, report_options(args))
+        paths = write_suite_report(out / "results.json", out, studies.report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")
     except (KeyboardInterrupt, imageio.WriteError):
         raise

@@ -11,9 +11,11 @@ import base64
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
 
 from harness.files import imageio
+from harness.judges import metrics
 
 #: colormaps (matplotlib names): diverging for signed error (red: render too bright), sequential otherwise
 SIGNED_CMAP = "RdBu_r"
@@ -49,13 +51,11 @@ class ReportImage:
 
 def png_bytes(pixels: np.ndarray) -> bytes:
     """uint8 (H, W, 3|4) -> PNG bytes."""
-    import imageio.v3 as iio
-
     return iio.imwrite("<bytes>", np.ascontiguousarray(pixels), extension=".png")
 
 
 def _cmap(name: str):
-    import matplotlib
+    import matplotlib  # optional: heavy matplotlib, loaded to colour a map
 
     return matplotlib.colormaps[name]
 
@@ -90,10 +90,10 @@ def robust_limit(values: np.ndarray, percentile: float = LIMIT_PERCENTILE) -> fl
     return lim if lim > 0 else 1.0
 
 
-def display_exposure(reference: np.ndarray, percentile: float = LIMIT_PERCENTILE) -> float:
-    """Exposure (stops) for showing an image and its render side by side: 0 unless the reference's
+def display_exposure(expected: np.ndarray, percentile: float = LIMIT_PERCENTILE) -> float:
+    """Exposure (stops) for showing a ground truth and its render side by side: 0 unless the ground truth's
     ``percentile`` of its brightest channel is above 1 (it would clip to white), then just enough to bring it to 1."""
-    v = np.asarray(reference, dtype=np.float64).max(axis=-1)
+    v = np.asarray(expected, dtype=np.float64).max(axis=-1)
     v = v[np.isfinite(v)]
     if v.size == 0:
         return 0.0
@@ -101,16 +101,16 @@ def display_exposure(reference: np.ndarray, percentile: float = LIMIT_PERCENTILE
     return -float(np.log2(level)) if level > 1.0 else 0.0
 
 
-def signed_error(test: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """Per pixel, the mean over channels of test - reference (linear radiance)."""
-    return (np.asarray(test, np.float64) - np.asarray(reference, np.float64)).mean(axis=-1)
+def signed_error(test: np.ndarray, expected: np.ndarray) -> np.ndarray:
+    """Per pixel, the mean over channels of test - expected (the ground truth; linear radiance)."""
+    return (np.asarray(test, np.float64) - np.asarray(expected, np.float64)).mean(axis=-1)
 
 
-def relative_error(test: np.ndarray, reference: np.ndarray, eps: float = RELATIVE_EPS) -> np.ndarray:
-    """Per pixel, the mean over channels of |test - reference| / (|reference| + eps): MAPE's terms, so the map's mean
+def relative_error(test: np.ndarray, expected: np.ndarray, eps: float = RELATIVE_EPS) -> np.ndarray:
+    """Per pixel, the mean over channels of |test - expected| / (|expected| + eps): MAPE's terms, so the map's mean
     over finite pixels is the case's MAPE."""
     t = np.asarray(test, np.float64)
-    r = np.asarray(reference, np.float64)
+    r = np.asarray(expected, np.float64)
     return (np.abs(t - r) / (np.abs(r) + eps)).mean(axis=-1)
 
 
@@ -173,13 +173,12 @@ class ImageWriter:
         return ReportImage(key, title, encoded, exr, png, description, stats={"pixels": int(m.sum())})
 
 
-def error_images(writer: ImageWriter, test: np.ndarray, reference: np.ndarray) -> list[ReportImage]:
-    """Signed error (diverging, symmetric limits), relative error and the FLIP map of ``test`` against ``reference``."""
-    from harness.judges import metrics
-
-    signed = signed_error(test, reference)
+def error_images(writer: ImageWriter, test: np.ndarray, expected: np.ndarray) -> list[ReportImage]:
+    """Signed error (diverging, symmetric limits), relative error and the FLIP map of ``test`` against ``expected``
+    (the ground truth)."""
+    signed = signed_error(test, expected)
     lim = robust_limit(signed)
-    rel = relative_error(test, reference)
+    rel = relative_error(test, expected)
     rel_lim = robust_limit(rel)
     images = [
         writer.heatmap(
@@ -191,7 +190,7 @@ def error_images(writer: ImageWriter, test: np.ndarray, reference: np.ndarray) -
             description=f"|render - ground truth| / (|ground truth| + {RELATIVE_EPS:g}), mean over R, G, B (the map's "
                         f"mean is MAPE); limits 0..{rel_lim:.3g} (the {LIMIT_PERCENTILE:g}th percentile)"),
     ]
-    flip_mean, flip_map = metrics.flip(test, reference, full=True)
+    flip_mean, flip_map = metrics.flip(test, expected, full=True)
     images.append(writer.heatmap(
         "flip", "FLIP", flip_map, cmap=FLIP_CMAP, vmin=0.0, vmax=1.0,
         description=f"HDR-FLIP error map (flip-evaluator), 0..1; mean {flip_mean:.4g}"))

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from harness.core.errors import HarnessError, read_user_toml
+from harness.files.cases import slug  # the folder name of a case: files/cases.py reads them back
 from harness.core.limits import MAX_FILM_SIDE, MAX_TIMEOUT_SECONDS, check_render_cost, film_problem, float_or_inf
 from harness.core.text import hint, short, toml_key
 from harness.renderers import RenderRequest, external, get_renderer, renderer_names
@@ -428,15 +429,6 @@ def _non_negative(label: str, key: str, value: Any) -> int:
 
 
 # ---- a case's folder and scene ---------------------------------------------------------------------------------
-
-
-def slug(name: str) -> str:
-    """The folder name of a case (``OUT/cases/<slug>``): each run of characters other than A-Z a-z 0-9 . _ -
-    replaced by _, leading and trailing _ removed; "case" where nothing (or only "." or "..") is left, so a slug
-    never leaves its parent folder. Not injective (``a/b`` and ``a_b`` give ``a_b``): :func:`load_suite` refuses a
-    suite in which two cases share a slug (ignoring case)."""
-    text = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_")
-    return text if text not in ("", ".", "..") else "case"
 
 
 def with_case_overrides(scene, case: Case):

@@ -23,6 +23,10 @@ from typing import Any
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.judges.floor import error_point
+from harness.renderers import RenderRequest, get_renderer
+from harness.running.budget import render_for_seconds
+from reference_impl import Film
 
 #: multiple of the expected scatter a point must exceed (above the fitted line) to count as leaving it
 DEFAULT_K = 3.0
@@ -30,7 +34,6 @@ DEFAULT_K = 3.0
 MIN_SCATTER = 0.02
 #: the ladder of a suite report's convergence section (cheap on purpose)
 DEFAULT_SPP_LADDER = (1, 2, 4, 8, 16)
-RELMSE_EPS = 1e-2  # as harness.judges.metrics.RELMSE_EPS
 
 
 # ---- fitting ---------------------------------------------------------------------------------------------------
@@ -283,53 +286,6 @@ def _has_points(values) -> bool:
 # ---- measuring -------------------------------------------------------------------------------------------------
 
 
-def error_point(image: np.ndarray, reference: np.ndarray, reference_variance: np.ndarray | None,
-                mask: np.ndarray | None = None) -> dict[str, float | None]:
-    """MSE and relMSE of ``image`` against ``reference`` over the pixels finite in both (and in ``mask``), with the
-    reference's own noise floor subtracted, and the expected scatter of log(RMSE) and log(relMSE).
-
-    Returns ``mse``, ``relmse`` (raw), ``floor_mse``, ``floor_relmse`` (the mean of the reference's variance, plain
-    and relative: what its noise adds to the expected errors), ``mse_corrected``, ``relmse_corrected`` (raw minus
-    floor; may be <= 0 when the render is much less noisy than the reference), ``rmse``, ``rmse_corrected`` (None
-    when the corrected MSE is not positive), ``scatter_log_rmse``, ``scatter_log_relmse`` (from the squared errors'
-    own spread: the relative standard deviation of their mean is sqrt(sum e^4 / (sum e^2)^2 - 1/N)), ``pixels``.
-    """
-    t = np.asarray(image, dtype=np.float64)
-    r = np.asarray(reference, dtype=np.float64)
-    ok = np.all(np.isfinite(t), axis=-1) & np.all(np.isfinite(r), axis=-1)
-    if mask is not None:
-        ok &= np.asarray(mask, dtype=bool)
-    out: dict[str, float | None] = {"pixels": int(ok.sum())}
-    if not ok.any():
-        return dict(out, mse=None, relmse=None, floor_mse=None, floor_relmse=None, mse_corrected=None,
-                    relmse_corrected=None, rmse=None, rmse_corrected=None, scatter_log_rmse=None,
-                    scatter_log_relmse=None)
-    e2 = (t[ok] - r[ok]) ** 2
-    w = 1.0 / (r[ok] ** 2 + RELMSE_EPS)
-    mse, relmse = float(e2.mean()), float((e2 * w).mean())
-    if reference_variance is not None:
-        v = np.nan_to_num(np.asarray(reference_variance, dtype=np.float64)[ok], nan=0.0, posinf=0.0)
-        floor, floor_rel = float(v.mean()), float((v * w).mean())
-    else:
-        floor, floor_rel = 0.0, 0.0
-    mse_c, relmse_c = mse - floor, relmse - floor_rel
-
-    def scatter(values: np.ndarray, total: float, corrected: float) -> float | None:
-        s1 = float(values.sum())
-        if s1 <= 0 or corrected <= 0:
-            return None
-        rel = math.sqrt(max(float((values**2).sum()) / s1**2 - 1.0 / values.size, 0.0))
-        return 0.5 * rel * total / corrected
-
-    s_rmse = scatter(e2, mse, mse_c)
-    s_rel = scatter(e2 * w, relmse, relmse_c)
-    return dict(
-        out, mse=mse, relmse=relmse, floor_mse=floor, floor_relmse=floor_rel, mse_corrected=mse_c,
-        relmse_corrected=relmse_c, rmse=math.sqrt(mse), rmse_corrected=math.sqrt(mse_c) if mse_c > 0 else None,
-        scatter_log_rmse=s_rmse, scatter_log_relmse=None if s_rel is None else 2.0 * s_rel,
-    )
-
-
 @dataclass(frozen=True)
 class Series:
     """One curve: a renderer with its settings."""
@@ -385,7 +341,7 @@ def timed_render(renderer, scene, request, min_seconds: float = MIN_TIMING_SECON
 
 def run_convergence(
     scene,
-    reference,
+    ground_truth,
     series: Sequence[Series],
     *,
     spp: Sequence[int] = DEFAULT_SPP_LADDER,
@@ -400,7 +356,7 @@ def run_convergence(
     renderer_factory: Callable[[str], Any] | None = None,
 ) -> dict[str, Any]:
     """Render ``scene`` with each series at every rung of the spp ladder (and of the seconds ladder: chunks of
-    ``chunk_spp`` until the time is spent), every render with its own seed, and measure each against ``reference``
+    ``chunk_spp`` until the time is spent), every render with its own seed, and measure each against ``ground_truth``
     (an object with ``image``, ``variance``, ``source``, ``spp``). Returns a JSON-ready dict: per series the points
     (spp, seconds, seeds, errors), the fits of RMSE and relMSE against spp, and equal-time / equal-error
     comparisons between the series. ``warmup``: one untimed 1-spp render per series first, so that one-off costs
@@ -408,9 +364,6 @@ def run_convergence(
     ``min_timing_seconds`` is rendered again (same seed) and timed by the mean (see :func:`timed_render`).
     ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
     renderer (default: :func:`harness.renderers.get_renderer`)."""
-    from harness.renderers import RenderRequest, get_renderer
-    from harness.running.budget import render_for_seconds
-
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")
     seeds = iter(range(seed, seed + 10**9))
@@ -429,7 +382,7 @@ def run_convergence(
             result, secs, repeats = timed_render(renderer, scene, RenderRequest(spp=int(n), seed=sd, settings=settings),
                                                  min_timing_seconds)
             resolved = result.settings
-            point = error_point(result.image, reference.image, reference.variance)
+            point = error_point(result.image, ground_truth.image, ground_truth.variance)
             points.append(dict(budget={"spp": int(n)}, spp=int(result.spp), seconds=secs, timing_repeats=repeats,
                                seeds=[sd], **point))
             if progress is not None:
@@ -437,7 +390,7 @@ def run_convergence(
         for budget in seconds:
             merged = render_for_seconds(renderer, scene, budget, chunk_spp, seeds, settings)
             resolved = merged.settings
-            point = error_point(merged.image, reference.image, reference.variance)
+            point = error_point(merged.image, ground_truth.image, ground_truth.variance)
             points.append(dict(budget={"seconds": float(budget)}, spp=int(merged.spp), seconds=float(merged.seconds),
                                timing_repeats=1, seeds=merged.info["seeds"], **point))
             if progress is not None:
@@ -457,8 +410,9 @@ def run_convergence(
         "scene_name": getattr(scene, "name", ""),
         "film": [scene.film.width, scene.film.height],
         "max_depth": scene.max_depth,
-        "ground_truth": {"source": reference.source, "spp": reference.spp,
-                         "path": str(getattr(reference, "path", None)) if getattr(reference, "path", None) else None},
+        "ground_truth": {"source": ground_truth.source, "spp": ground_truth.spp,
+                         "path": str(getattr(ground_truth, "path", None)) if getattr(ground_truth, "path", None)
+                         else None},
         "spp_ladder": [int(n) for n in spp], "seconds_ladder": [float(s) for s in seconds],
         "k": k, "series": out_series,
         "comparisons": compare_series(out_series),
@@ -482,8 +436,6 @@ def compare_series(series: list[dict]) -> dict:
 
 def replace_film(scene, width: int | None, height: int | None):
     """The scene at another resolution (same filter)."""
-    from reference_impl import Film
-
     if not width and not height:
         return scene
     film = Film(width or scene.film.width, height or scene.film.height, scene.film.filter)

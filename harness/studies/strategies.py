@@ -1,4 +1,4 @@
-"""Studies a suite report runs besides its cases: noise against the number of shadow rays (the slides' Figure 5.9)
+"""Studies of a suite run besides its cases: noise against the number of shadow rays (the slides' Figure 5.9)
 and the efficiency of every sampling strategy of the reference renderer."""
 
 from __future__ import annotations
@@ -10,9 +10,13 @@ from typing import Any
 
 import numpy as np
 
-from harness.studies import figures
-from harness.studies.convergence import MIN_TIMING_SECONDS, error_point, fit_convergence, timed_render
+from harness.files.imageio import tonemap_srgb8
 from harness.files.previews import ImageWriter, ReportImage, display_exposure
+from harness.judges.floor import error_point
+from harness.renderers import RenderRequest, get_renderer
+from harness.studies import figures
+from harness.studies.convergence import MIN_TIMING_SECONDS, fit_convergence, timed_render
+from reference_impl import Settings
 
 SHADOW_RAY_COUNTS = (1, 4, 9, 16, 36, 64, 100)
 #: the penumbra: pixels whose ground truth lies strictly between these fractions of the fully lit level
@@ -44,8 +48,6 @@ TIE_FACTOR = 1.25
 def strategy_defaults() -> dict[str, str]:
     """The reference renderer's default choice of each strategy key (read from its Settings)."""
     try:
-        from reference_impl import Settings
-
         resolved = Settings.from_strings({}).as_dict()
         return {k: str(resolved.get(k, v)) for k, v in FALLBACK_DEFAULTS.items()}
     except Exception:  # noqa: BLE001 - fall back to the documented defaults
@@ -70,8 +72,6 @@ def penumbra_mask(scene, gt_image: np.ndarray, *, seed: int = 900_001) -> tuple[
 
     Returns (mask (H, W) bool, a JSON description, {"unoccluded": image or None, "receiver": mask or None}).
     """
-    from harness.renderers import RenderRequest, get_renderer
-
     lum = luminance(gt_image)
     occluders = [s for s in scene.shapes if s.name in OCCLUDER_NAMES]
     info: dict[str, Any] = {"low": PENUMBRA_LOW, "high": PENUMBRA_HIGH}
@@ -109,9 +109,6 @@ def shadow_ray_study(scene, gt, writer: ImageWriter, *, counts: Sequence[int] = 
     Returns (JSON results, the images written (the renders, the ground truth, the mask), {"panel": png, "curves":
     png}).
     """
-    from harness.files.imageio import tonemap_srgb8
-    from harness.renderers import RenderRequest, get_renderer
-
     renderer = get_renderer("reference")
     mask, mask_info, extra = penumbra_mask(scene, gt.image)
     exposure = display_exposure(gt.image)
@@ -263,8 +260,6 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
 def _warm_render(scene, settings: dict[str, str], spp: int, seed: int, min_seconds: float):
     """The reference renderer with ``settings``: an untimed 1-spp warm-up, then ``spp``, quadrupled (up to
     MAX_STRATEGY_SPP) while the render takes less than ``min_seconds``."""
-    from harness.renderers import RenderRequest, get_renderer
-
     renderer = get_renderer("reference")
     renderer.render(scene, RenderRequest(spp=1, seed=seed + 500_000, settings=dict(settings)))
     while True:
