@@ -35,7 +35,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
 DEFAULT_SPP = 64
 DEFAULT_REPEATS = 3
