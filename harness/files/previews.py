@@ -11,9 +11,11 @@ import base64
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
 
 from harness.files import imageio
+from harness.judges import metrics
 
 #: colormaps (matplotlib names): diverging for signed error (red: render too bright), sequential otherwise
 SIGNED_CMAP = "RdBu_r"
@@ -49,13 +51,11 @@ class ReportImage:
 
 def png_bytes(pixels: np.ndarray) -> bytes:
     """uint8 (H, W, 3|4) -> PNG bytes."""
-    import imageio.v3 as iio
-
     return iio.imwrite("<bytes>", np.ascontiguousarray(pixels), extension=".png")
 
 
 def _cmap(name: str):
-    import matplotlib
+    import matplotlib  # optional: matplotlib takes about a second to import and only error maps need it
 
     return matplotlib.colormaps[name]
 
@@ -175,8 +175,6 @@ class ImageWriter:
 
 def error_images(writer: ImageWriter, test: np.ndarray, reference: np.ndarray) -> list[ReportImage]:
     """Signed error (diverging, symmetric limits), relative error and the FLIP map of ``test`` against ``reference``."""
-    from harness.judges import metrics
-
     signed = signed_error(test, reference)
     lim = robust_limit(signed)
     rel = relative_error(test, reference)

@@ -11,8 +11,8 @@ DPI = 100
 
 
 def _figure(width: float, height: float, layout: str | None = None):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # optional: matplotlib takes about a second to import and only plots need it
+    from matplotlib.figure import Figure  # optional: matplotlib takes about a second to import and only plots need it
 
     fig = Figure(figsize=(width, height), dpi=DPI, layout=layout)
     FigureCanvasAgg(fig)
@@ -26,14 +26,14 @@ def to_png(fig) -> bytes:
 
 
 def _colour(index: int):
-    import matplotlib
+    import matplotlib  # optional: matplotlib takes about a second to import and only plots need it
 
     return matplotlib.colormaps["tab10"](index % 10)
 
 
 def _plain_log_ticks(ax, axis: str = "both") -> None:
     """Log axes labelled 0.02, 0.05, 0.1 ... (at 1, 2 and 5 times powers of ten) rather than 2x10^-2."""
-    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter  # optional: matplotlib takes about a second to import and only plots need it
 
     targets = [ax.xaxis, ax.yaxis] if axis == "both" else [ax.xaxis if axis == "x" else ax.yaxis]
     for a in targets:
