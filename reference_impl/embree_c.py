@@ -20,6 +20,7 @@ import functools
 import glob
 import os
 
+import embreex
 import llvmlite.binding as llvm
 import numpy as np
 from numba import types
@@ -41,8 +42,6 @@ P_PRIM_ID, P_GEOM_ID = 16 * (12 + 5), 16 * (12 + 6)
 @functools.cache
 def library_path() -> str:
     """The libembree4 shared library inside the installed embreex wheel."""
-    import embreex
-
     here = os.path.dirname(embreex.__file__)
     found = sorted(glob.glob(os.path.join(here, "..", "embreex.libs", "libembree4*.so*")))
     found += sorted(glob.glob(os.path.join(here, "libembree4*.so*")))

@@ -74,7 +74,7 @@ EMBREE_MICROSECONDS = "embree_microseconds"
 def _kernels():
     """reference_impl.kernels, imported on first use (importing numba takes a few tenths of a second, which only a
     render needs to pay)."""
-    from reference_impl import kernels
+    from reference_impl import kernels  # optional: numba-compiled, needed only to trace
 
     return kernels
 

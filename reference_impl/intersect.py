@@ -26,7 +26,7 @@ class Intersector:
     concurrent queries on a committed scene."""
 
     def __init__(self, geometry: Geometry):
-        from reference_impl.embree_c import TriangleScene
+        from reference_impl.embree_c import TriangleScene  # optional: loads numba, needed only for a scene
 
         self.geometry = geometry
         self.scene_size = max(geometry.extent, 1e-30)
@@ -73,7 +73,7 @@ class Intersector:
         n = len(rays[0])
         out = np.full(n, -1, np.int32)
         if self._embree is not None and n:
-            from reference_impl import kernels
+            from reference_impl import kernels  # optional: numba-compiled; loaded only when a scene is queried
 
             getattr(kernels, kernel)(self._embree.pointer, *rays, out)
         return out

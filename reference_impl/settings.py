@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import os
 from dataclasses import asdict, dataclass, fields
 
@@ -99,8 +100,6 @@ class Settings:
     @classmethod
     def from_strings(cls, values: dict[str, str], base: "Settings | None" = None) -> "Settings":
         """Settings from ``key=value`` strings (as typed after ``--set``), converted to each field's type."""
-        import difflib
-
         current = asdict(base or cls())
         for key, text in values.items():
             if key not in current:

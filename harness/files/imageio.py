@@ -39,10 +39,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
+import imageio.v3 as iio  # the imageio package (absolute import), not this module
 import numpy as np
 import OpenEXR
 
 from harness.core.errors import HarnessError, not_regular
+from harness.core.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
 
 __all__ = [
     "ExrImage",
@@ -569,8 +571,6 @@ def _open_exr(path: str, **options):
 
 def _check_claimed_size(path: str, header: dict) -> None:
     """Refuse a header whose data window or channel count is beyond the harness's limits, before pixels are read."""
-    from harness.core.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
-
     try:
         low, high = (np.asarray(corner, dtype=np.int64) for corner in header["dataWindow"])
         width, height = int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
@@ -708,7 +708,7 @@ def tonemap_srgb8(image: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     Pixels with any NaN channel become magenta; otherwise pixels with any
     +Inf channel become white (-Inf clips to 0).
     """
-    import colour  # imported lazily: slow to import, only needed for previews
+    import colour  # optional: colour-science takes seconds to import and only previews need it
 
     img = _check_rgb_array("image", image).astype(np.float64)
     nan = np.isnan(img).any(axis=-1)
@@ -736,8 +736,6 @@ def write_png_preview(
 
 
 def _png_bytes(image: np.ndarray, exposure: float = 0.0) -> bytes:
-    import imageio.v3 as iio  # the real imageio package, not this module
-
     return iio.imwrite("<bytes>", tonemap_srgb8(image, exposure), extension=".png")
 
 

@@ -23,9 +23,14 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
+import trimesh
+from trimesh.exchange.gltf import export_gltf
+from trimesh.exchange.obj import export_obj
+from trimesh.visual.material import PBRMaterial
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
+from harness.renderers.mitsuba import RR_DEPTH, _bsdf, _emitter, clip_planes, film_dict, path_integrator
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
@@ -88,8 +93,6 @@ def _matrix_xml(matrix: np.ndarray, indent: str) -> list[str]:
 
 
 def _ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
-    import trimesh
-
     mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64), faces=np.asarray(triangles, np.int64),
                            process=False, validate=False)
     return mesh.export(file_type="ply", encoding="binary")
@@ -100,8 +103,6 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
 
     ``spp`` and ``seed`` are the defaults of the XML parameters ``$spp`` and ``$seed``.
     """
-    from harness.renderers.mitsuba import RR_DEPTH, _bsdf, _emitter, clip_planes, film_dict, path_integrator
-
     near, far = clip_planes(scene)
     camera = scene.camera
     lines = [
@@ -161,9 +162,6 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
 
 def _trimesh_scene(scene: Scene):
     """A trimesh.Scene with one named, coloured mesh per shape (world space, as the core triangulates it)."""
-    import trimesh
-    from trimesh.visual.material import PBRMaterial
-
     out = trimesh.Scene()
     for shape in scene.shapes:
         vertices, triangles = shape_triangles(shape)
@@ -201,15 +199,11 @@ def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, 
         for shape in scene.shapes:
             files[f"{shape.index}-{safe_name(shape.name)}.ply"] = _ply_bytes(*shape_triangles(shape))
     elif fmt == "obj":
-        from trimesh.exchange.obj import export_obj
-
         text, extra = export_obj(_trimesh_scene(scene), include_normals=False, include_texture=True,
                                  return_texture=True, mtl_name="scene.mtl")
         files["scene.obj"] = text.encode("utf-8")
         files.update({name: data for name, data in extra.items()})
     else:
-        from trimesh.exchange.gltf import export_gltf
-
         parts = export_gltf(_trimesh_scene(scene), include_normals=False, merge_buffers=True)
         main = next(name for name in parts if name.endswith(".gltf"))
         files["scene.gltf"] = parts[main]

@@ -30,6 +30,7 @@ missing or invalid renderer file is a user error (:class:`~harness.core.errors.H
 
 from __future__ import annotations
 
+import importlib.metadata
 import os
 import re
 import shlex
@@ -46,7 +47,10 @@ import numpy as np
 from harness.core.errors import HarnessError, read_user_toml
 from harness.core.limits import MAX_TIMEOUT_SECONDS
 from harness.core.text import short
+from harness.files.imageio import read_exr
 from harness.renderers.base import RenderRequest, RenderResult
+from harness.renderers.export import mitsuba_xml
+from harness.renderers.mitsuba import pass_seed
 from harness.scene import Scene
 
 PLACEHOLDERS = ("scene_xml", "scene_toml", "spp", "seed", "width", "height", "max_depth", "out", "here", "python")
@@ -121,8 +125,6 @@ def load_spec(path: str | Path) -> ExternalSpec:
 def repeat_seed(seed: int, index: int) -> int:
     """The seed of run ``index`` of a render with ``seed``: a 32-bit SplitMix64 hash of both (unrelated seeds for
     nearby inputs, and within the range every renderer accepts)."""
-    from harness.renderers.mitsuba import pass_seed
-
     return pass_seed(seed, index)
 
 
@@ -183,8 +185,6 @@ class ExternalRenderer:
         return [_PLACEHOLDER.sub(lambda m: values[m.group(1)], arg) for arg in self.spec.command]
 
     def _read(self, path: Path, scene: Scene):
-        from harness.files.imageio import read_exr
-
         if not path.is_file():
             raise ExternalRendererError(f"renderer {self.name!r} exited with code 0 but wrote no EXR ({path.name})")
         try:
@@ -199,8 +199,6 @@ class ExternalRenderer:
         return exr
 
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
-        from harness.renderers.export import mitsuba_xml
-
         if request.settings:
             key = next(iter(request.settings))
             raise HarnessError(f"--set {key}", f"external renderer {self.name!r} takes no settings (put options in "
@@ -293,8 +291,6 @@ def renderer_files(extra: tuple[Path, ...] = ()) -> dict[str, Path]:
 
 def entry_points() -> dict[str, object]:
     """``{name: EntryPoint}`` of the installed packages' ``harness.renderers`` entry points."""
-    import importlib.metadata
-
     return {ep.name: ep for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)}
 
 

@@ -40,6 +40,7 @@ from harness.judges.moments import Estimate
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
+from reference_impl.filters import make_filter
 
 # Variants in order of preference. Only RGB variants: the scene format is RGB (spectral variants would upsample the
 # colours, mono ones would collapse them), so any other variant would render a different image.
@@ -256,7 +257,7 @@ def reset_variant_cache() -> None:
 def available_variants() -> list[str]:
     """The variants this Mitsuba build has (importing Mitsuba runs no JIT backend, so this is safe)."""
     try:
-        import mitsuba
+        import mitsuba  # optional: Mitsuba takes seconds to import and only Mitsuba renders need it
     except ImportError as err:
         raise HarnessError("--renderer mitsuba", f"cannot import Mitsuba 3 ({err}); pip install mitsuba") from None
     return list(mitsuba.variants())
@@ -326,7 +327,7 @@ def import_mitsuba(variant: str):
         choice = known[0] if known else resolve_variant(variant)
         if choice.libllvm:
             os.environ["DRJIT_LIBLLVM_PATH"] = choice.libllvm
-    import mitsuba as mi
+    import mitsuba as mi  # optional: Mitsuba takes seconds to import and only Mitsuba renders need it
 
     if mi.variant() != variant:
         mi.set_variant(variant)
@@ -540,8 +541,6 @@ def filter_efficiency(name: str) -> float:
     """(integral h)^2 / integral h^2 of the 2D pixel filter: Mitsuba's splatted estimate of a pixel from samples at
     density N per unit area has the variance of a plain mean of about this factor times N samples (box 1, tent
     2.25, Gaussian ~pi)."""
-    from reference_impl.filters import make_filter
-
     pixel_filter = make_filter(name)
     if name == "box":
         return 1.0
@@ -675,7 +674,7 @@ class MitsubaRenderer:
             options = dataclasses.replace(options, chunk_spp=request.spp)
         choice = resolve_variant(options.variant)
         mi = import_mitsuba(choice.variant)
-        import drjit as dr
+        import drjit as dr  # optional: Dr.Jit comes with Mitsuba, imported only to render with it
 
         scene_dict = scene_to_mitsuba_dict(scene, choice.variant, max_depth=options.max_depth,
                                            spp=min(options.chunk_spp, request.spp), sampler=options.sampler)

@@ -34,6 +34,10 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.groundtruth import ground_truth
+from harness.renderers.mitsuba import sampler_takes
+from harness.scene import load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
@@ -72,8 +76,6 @@ def default_contenders(spp: int) -> list[Contender]:
     """The reference at its defaults, Mitsuba's ``llvm_ad_rgb`` and ``scalar_rgb`` at theirs (one pass), and
     ``llvm_ad_rgb`` with its low-discrepancy sampler (``ldsampler``, a (0,2)-sequence: the like of the reference's
     default sampler), so that the gain of stratification is seen on both sides."""
-    from harness.renderers.mitsuba import sampler_takes
-
     plain = {"moments": "off", "chunk_spp": str(spp)}
     contenders = [
         Contender("reference", "reference"),
@@ -142,8 +144,6 @@ def bench_scene(
 ) -> list[Row]:
     """Race ``contenders`` on ``scene`` (a loaded Scene) at ``spp`` against ground truth ``gt``
     (a :class:`harness.renderers.groundtruth.GroundTruth`). Renders alternate between contenders, repeat by repeat."""
-    from harness.renderers import RenderRequest, get_renderer
-
     rows = [Row(scene.name, c.label, c.renderer, dict(c.settings), spp, scene.film.width, scene.film.height)
             for c in contenders]
     renderers = [get_renderer(c.renderer) for c in contenders]
@@ -227,8 +227,6 @@ def scaling(scene, *, spp_list=(8, 16, 32), sizes=(64, 128, 256), seed: int = 1,
             on_render: Callable[[str], None] | None = None) -> dict:
     """The reference's render time against spp (at the scene's film) and against pixel count (at ``spp_list[0]``
     spp, square films of ``sizes``), with the seconds per path of each; linear cost means a flat seconds/path."""
-    from harness.renderers import RenderRequest, get_renderer
-
     renderer = get_renderer("reference")
     renderer.render(scene, RenderRequest(spp=1, seed=seed))  # load the compiled kernels
 
@@ -270,8 +268,6 @@ print(json.dumps({"seconds": result.seconds, "paths_per_second": result.paths / 
 def peak_memory(scene_path: Path, size: int, spp: int) -> dict:
     """Peak resident memory of a reference render of ``scene_path`` at ``size`` x ``size`` and ``spp``, in a child
     process (its ru_maxrss: the interpreter, numba, Embree, the film's sums and the batches' buffers)."""
-    from harness.scene import load_scene
-
     load_scene(scene_path)  # bad input fails here, with its one line
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, str(scene_path), str(size), str(spp)],
@@ -317,9 +313,6 @@ def run_bench(
 ) -> dict:
     """The whole benchmark: per scene, the three contenders and (``strategies``) the reference's strategy variations;
     the reference/Mitsuba ratios; the targets checked on the Cornell box."""
-    from harness.renderers.groundtruth import ground_truth
-    from harness.scene import load_scene
-
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
                     "scenes": {}}
     for name in scenes:
