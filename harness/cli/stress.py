@@ -5,13 +5,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import sys
 from pathlib import Path
 
 from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENES, progress_bar
-from harness.core import options
+from harness.core import jsonsafe, options
 from harness.core.errors import HarnessError
 from harness.core.limits import MAX_FILM_SIDE, check_render_cost, film_problem
 from harness.core.options import parse_set, require_non_negative, require_positive
@@ -20,6 +19,7 @@ from harness.renderers import RenderRequest, renderer_names
 from harness.renderers.reference import ReferenceRenderer
 from harness.running.runstate import output_folder
 from harness.scene import Scene, load_scene
+from harness.scene.variants import parse_variant
 from harness.studies import stress
 from reference_impl import Film
 
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
     renderers = list(dict.fromkeys(renderers))
     variants = args.variant or list(stress.DEFAULT_VARIANTS)
     for text in variants:
-        stress.parse_variant(text, "--variant")
+        parse_variant(text, "--variant")
     out = None if args.out is None else output_folder(args.out, Path(args.out), subfolders=())  # before any render
     scene = _resolve_scene(args.scene)
     scene = dataclasses.replace(scene, film=Film(int(w), int(h), scene.film.filter))
@@ -123,11 +123,11 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
     text = stress.format_table(result)
     if out is not None:
-        atomic_write_text(out / "stress.json", json.dumps(stress._plain(result), indent=2, allow_nan=False))
+        atomic_write_text(out / "stress.json", jsonsafe.dumps(result, indent=2))
         atomic_write_text(out / "stress.md", f"{stress.summary_line(result)}\n\n"
                           f"{stress.format_table(result, markdown=True)}\n")
     if args.json:
-        print(json.dumps(stress._plain(result), indent=2, allow_nan=False))
+        print(jsonsafe.dumps(result, indent=2))
     else:
         print(text)
         print(stress.summary_line(result))

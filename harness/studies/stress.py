@@ -1,26 +1,10 @@
 """The numerical-stability stress suite: variants of a scene, rendered and judged (``harness stress``).
 
-Two groups of variants, all generated in memory from a loaded :class:`~harness.scene.Scene`:
-
-* **invariant** variants must not change the image, so they are judged against the *untransformed* scene's
-  ground truth (cached):
-
-  - ``scale=s``: every shape and the camera's origin and target scaled by ``s`` about the origin
-    (p' = s p); emitted radiance unchanged. A pinhole image depends on directions only, so it is the same image.
-  - ``translate=d``: everything moved by the vector d (1, 1, 1) / sqrt(3) (length d).
-  - ``sliver=a``: every non-emitting rectangle re-triangulated into a fan with sliver triangles of aspect ``a``
-    (longest edge / shortest altitude); the surface, hence the image, is unchanged.
-
-* **strain** variants change the image and strain the estimator; each is judged against Mitsuba's ground truth of
-  the *transformed* scene:
-
-  - ``light-shrink=f``: every light's area divided by ``f`` about its centre, its radiance multiplied by ``f``
-    (same power).
-  - ``grazing-camera=e``: the camera moved onto the largest non-emitting surface, ``e`` degrees above it, looking
-    at its centre along it.
-  - ``light-near-wall=g``: every light moved along its normal until it sits ``g`` times the scene size in front of
-    the surface behind it.
-  - ``light-edge-on``: the camera moved into the plane of the first light, looking at its centre.
+The variants (:mod:`harness.scene.variants`) are transformed copies of a loaded :class:`~harness.scene.Scene`:
+*invariant* ones (``scale``, ``translate``, ``sliver``) must not change the image, so they are judged against the
+untransformed scene's ground truth (cached); *strain* ones (``light-shrink``, ``grazing-camera``,
+``light-near-wall``, ``light-edge-on``) change the image and strain the estimator, each judged against Mitsuba's
+ground truth of the transformed scene.
 
 Each (variant, renderer) row counts NaN, Inf and negative pixels, gives RMSE and relMSE against the ground truth,
 the verdict's global bias z, the fireflies (pixels whose |render - GT| exceeds k standard deviations, see
@@ -34,31 +18,20 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
 
-from harness.core import options
+from harness.core import jsonsafe
 from harness.core.errors import HarnessError
-from harness.core.options import require_non_negative, require_positive
-from harness.running.runstate import output_folder
-from harness.scene.model import Scene, Shape
-from harness.scene.triangulate import (
-    object_to_world,
-    scale_matrix,
-    shape_triangles,
-    translate_matrix,
-    triangulate,
-    unit_rectangle,
-)
-from reference_impl import SettingsError
+from harness.files.imageio import ExrImage
+from harness.renderers import RenderRequest, get_renderer, groundtruth
+from harness.running.compare import compare_images
+from harness.scene.model import Scene
+from harness.scene.variants import INVARIANT, parse_variant, scene_size, world_points
 
-INVARIANT, STRAIN = "invariant", "strain"
 #: Default firefly threshold, in standard deviations.
 DEFAULT_K = 6.0
-#: Direction of the translation variants (unit vector): no axis is spared.
-TRANSLATE_DIRECTION = np.ones(3) / math.sqrt(3.0)
 #: A variant whose float32 position error (one ulp of its largest coordinate) exceeds this fraction of the scene
 #: size is an expected fail: a 64x64 pixel footprint is ~1e-2 of the scene, a shadow-terminator or contact detail
 #: ~1e-3 of it, and the reference's ray offsets (64-128 ulps) then exceed ~10 % of the scene size.
@@ -81,342 +54,12 @@ DEFAULT_VARIANTS = (
 )
 
 
-# ---- variants --------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Variant:
-    """One variant: ``name`` as written (``scale=1e3``), ``kind`` (the part before ``=``), its ``value``, its
-    ``group`` (:data:`INVARIANT` or :data:`STRAIN`) and what it does (``description``)."""
-
-    name: str
-    kind: str
-    value: float | None
-    group: str
-    description: str
-
-    def apply(self, scene: Scene) -> Scene:
-        """The transformed scene; a HarnessError naming the scene file where the variant does not apply or makes
-        an invalid camera (one that looks at its own origin, say)."""
-        try:
-            return _APPLY[self.kind](scene, self.value)
-        except SettingsError as err:
-            raise HarnessError(str(scene.path), f"variant {self.name}: gives an invalid scene: {err.key}: "
-                               f"{err.message}") from None
-
-    @property
-    def judged_against_original(self) -> bool:
-        """True when the image must not change, so the untransformed scene's ground truth is the reference."""
-        return self.group == INVARIANT
-
-
-# kind: (group, default value, description template)
-_KINDS: dict[str, tuple[str, float | None, str]] = {
-    "original": (INVARIANT, None, "the scene as loaded"),
-    "scale": (INVARIANT, None, "scene and camera scaled by {v} about the origin"),
-    "translate": (INVARIANT, None, "scene and camera moved by {v} along (1,1,1)/sqrt(3)"),
-    "sliver": (INVARIANT, 1e6, "non-emitting rectangles cut into slivers of aspect {v}"),
-    "light-shrink": (STRAIN, 1e3, "light area / {v}, radiance x {v} (same power)"),
-    "grazing-camera": (STRAIN, 1.0, "camera {v} deg above the largest surface, looking along it"),
-    "light-near-wall": (STRAIN, 1e-5, "light {v} x scene size in front of the wall behind it"),
-    "light-edge-on": (STRAIN, None, "camera in the plane of the light"),
-}
-_NEEDS_VALUE = ("scale", "translate")
-_NO_VALUE = ("original", "light-edge-on")
-#: The values a variant accepts (inclusive), beyond the open ranges parse_variant checks. A scale or translation
-#: past 1e6 puts any scene of ordinary size where float32 (one ulp at |p| = 1e6 is 0.06) holds no detail, so its
-#: row only repeats the expected fail of translate=1e5. Factors past 1e9 test nothing more: a sliver's short side
-#: is then 2e-9 of its rectangle, far below float32's resolution (1.2e-7), and a light of 1e-9 its area is missed
-#: by every camera sample of any practical budget.
-BOUNDS: dict[str, tuple[float, float]] = {
-    "scale": (1e-6, 1e6), "translate": (-1e6, 1e6), "sliver": (1.0, 1e9), "light-shrink": (1.0, 1e9),
-}
-#: The largest coordinate a transformed scene may have: float32 squares of larger ones (squared distances in
-#: ray-triangle tests) overflow.
-MAX_COORDINATE = float(np.sqrt(np.finfo(np.float32).max))
-
-
-def variant_kinds() -> list[str]:
-    return list(_KINDS)
-
-
-def parse_variant(text: str, where: str = "variant") -> Variant:
-    """A :class:`Variant` from ``KIND`` or ``KIND=VALUE`` (e.g. ``scale=1e-4``); bad text is a HarnessError naming
-    ``where``."""
-    if not isinstance(text, str):
-        raise HarnessError(where, f"expected a string like 'scale=1e3', got {text!r}")
-    kind, sep, raw = text.strip().partition("=")
-    kind = kind.strip()
-    if kind not in _KINDS:
-        raise HarnessError(where, f"unknown variant {kind!r}; expected one of {', '.join(_KINDS)}")
-    group, default, template = _KINDS[kind]
-    if kind in _NO_VALUE:
-        if sep:
-            raise HarnessError(where, f"variant {kind!r} takes no value, got {text!r}")
-        return Variant(kind, kind, None, group, template)
-    if not sep:
-        if kind in _NEEDS_VALUE:
-            raise HarnessError(where, f"variant {kind!r} needs a value, e.g. '{kind}=1e3'")
-        value = float(default)
-    else:
-        try:
-            value = float(raw)
-        except ValueError:
-            raise HarnessError(where, f"expected a number after '{kind}=', got {raw.strip()!r}") from None
-    if not math.isfinite(value):
-        raise HarnessError(where, f"expected a finite number after '{kind}=', got {raw.strip()!r}")
-    if kind == "scale" and value <= 0:
-        raise HarnessError(where, f"expected a positive scale factor, got {value:g}")
-    if kind in ("sliver", "light-shrink") and value < 1:
-        raise HarnessError(where, f"expected a factor >= 1, got {value:g}")
-    low, high = BOUNDS.get(kind, (-math.inf, math.inf))
-    if not low <= value <= high:
-        raise HarnessError(where, f"expected a value from {low:g} to {high:g} after '{kind}=', got {value:g}")
-    if kind == "grazing-camera" and not 0 < value < 90:
-        raise HarnessError(where, f"expected an elevation in degrees in (0, 90), got {value:g}")
-    if kind == "light-near-wall" and not 0 < value < 1:
-        raise HarnessError(where, f"expected a gap in (0, 1) of the scene size, got {value:g}")
-    name = f"{kind}={_number(value)}"
-    return Variant(name, kind, value, group, template.format(v=_number(value)))
-
-
-def check_variant_scene(scene: Scene) -> Scene:
-    """``scene`` (a variant's result) if a renderer can take it: every triangle's vertices finite and within
-    :data:`MAX_COORDINATE`, radiance finite (the reference core's geometry checks), camera likewise; else a
-    HarnessError (without a location: the caller names the variant)."""
-    try:
-        geometry = triangulate(scene)
-    except SettingsError as err:
-        raise HarnessError("", f"gives an invalid scene: {err.key}: {err.message}") from None
-    camera = np.asarray([scene.camera.origin, scene.camera.target], float)
-    largest = float(np.max(np.abs(np.concatenate([np.asarray(geometry.vertices, float).reshape(-1, 3), camera]))))
-    if not largest <= MAX_COORDINATE:
-        raise HarnessError("", f"gives coordinates up to {largest:.3g}; expected at most {MAX_COORDINATE:.3g} "
-                           "(beyond it float32 squared distances overflow)")
-    return scene
-
-
-def _number(value: float) -> str:
-    """1e3 for 1000, 1e-4 for 0.0001, else %g."""
-    if value > 0:
-        exponent = round(math.log10(value))
-        if value == 10.0**exponent and abs(exponent) >= 2:
-            return f"1e{exponent}"
-    return f"{value:g}"
-
-
-# ---- scene transforms --------------------------------------------------------------------------------------------
-
-
-def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
-    """Every shape and the camera (origin, target) moved by the 4x4 similarity ``matrix`` (uniform positive scale,
-    translation); the camera's up vector and fov are unchanged, so the image is unchanged."""
-    matrix = np.asarray(matrix, dtype=np.float64)
-    shapes = [dataclasses.replace(s, to_world=matrix @ s.to_world) for s in scene.shapes]
-    cam = scene.camera
-
-    def point(p):
-        return tuple(float(x) for x in matrix[:3, :3] @ np.asarray(p, float) + matrix[:3, 3])
-
-    camera = dataclasses.replace(cam, origin=point(cam.origin), target=point(cam.target))
-    return dataclasses.replace(scene, shapes=shapes, camera=camera)
-
-
-def scaled(scene: Scene, factor: float) -> Scene:
-    """Scene and camera scaled about the origin by ``factor``; radiance unchanged."""
-    return transform_scene(scene, scale_matrix(factor))
-
-
-def translated(scene: Scene, distance: float) -> Scene:
-    """Scene and camera moved by ``distance`` along :data:`TRANSLATE_DIRECTION`."""
-    return transform_scene(scene, translate_matrix(distance * TRANSLATE_DIRECTION))
-
-
-def _world_points(scene: Scene) -> np.ndarray:
-    points = [shape_triangles(s)[0] for s in scene.shapes]
-    return np.concatenate(points) if points else np.zeros((0, 3))
-
-
-def scene_size(scene: Scene) -> float:
-    """The largest side of the bounding box of every shape."""
-    points = _world_points(scene)
-    return float(np.max(points.max(axis=0) - points.min(axis=0))) if len(points) else 1.0
-
-
-def _surface(shape: Shape) -> tuple[np.ndarray, np.ndarray, float]:
-    """Area-weighted centroid, the unit normal of the largest triangle (front side) and the area of a shape."""
-    vertices, triangles = shape_triangles(shape)
-    corners = vertices[triangles]
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    area = 0.5 * np.linalg.norm(cross, axis=1)
-    if not np.any(area > 0):
-        raise HarnessError(f"shapes[{shape.index}]", f"shape {shape.name!r} has no area")
-    centroid = (area[:, None] * corners.mean(axis=1)).sum(axis=0) / area.sum()
-    normal = cross[np.argmax(area)] / (2 * area.max())
-    return centroid, normal, float(area.sum())
-
-
-def shrink_lights(scene: Scene, factor: float) -> Scene:
-    """Every light's area divided by ``factor`` (uniform scale 1/sqrt(factor) about its centre), its radiance
-    multiplied by ``factor``: the same power Le * A * pi."""
-    linear = 1.0 / math.sqrt(factor)
-    shapes = []
-    for shape in scene.shapes:
-        if shape.is_emitter:
-            centre = _surface(shape)[0]
-            about = translate_matrix(centre) @ scale_matrix(linear) @ translate_matrix(-centre)
-            shape = dataclasses.replace(shape, to_world=about @ shape.to_world,
-                                        emission=tuple(float(e) * factor for e in shape.emission))
-        shapes.append(shape)
-    if not any(s.is_emitter for s in scene.shapes):
-        raise HarnessError(str(scene.path), "variant light-shrink: the scene has no light")
-    return dataclasses.replace(scene, shapes=shapes)
-
-
-def grazing_camera(scene: Scene, elevation_degrees: float) -> Scene:
-    """The camera on the largest non-emitting shape (the first of equals): at its centre c plus d (cos e w + sin e n),
-    looking at c, with n its normal on the camera's side, w the in-plane direction toward the old camera and d the
-    shape's extent along w; up = n."""
-    candidates = [s for s in scene.shapes if not s.is_emitter]
-    if not candidates:
-        raise HarnessError(str(scene.path), "variant grazing-camera: the scene has no non-emitting shape")
-    surfaces = [_surface(s) for s in candidates]
-    index = int(np.argmax([round(area, 9) for _c, _n, area in surfaces]))
-    centre, normal, _area = surfaces[index]
-    vertices = shape_triangles(candidates[index])[0]
-    towards = np.asarray(scene.camera.origin, float) - centre
-    if towards @ normal < 0:
-        normal = -normal
-    in_plane = towards - (towards @ normal) * normal
-    if np.linalg.norm(in_plane) < 1e-12 * max(np.linalg.norm(towards), 1e-300):
-        in_plane = np.cross(normal, [1.0, 0.0, 0.0] if abs(normal[0]) < 0.9 else [0.0, 1.0, 0.0])
-    in_plane /= np.linalg.norm(in_plane)
-    distance = float(np.max((vertices - centre) @ in_plane))
-    e = math.radians(elevation_degrees)
-    origin = centre + distance * (math.cos(e) * in_plane + math.sin(e) * normal)
-    camera = dataclasses.replace(scene.camera, origin=tuple(map(float, origin)), target=tuple(map(float, centre)),
-                                 up=tuple(map(float, normal)))
-    return dataclasses.replace(scene, camera=camera)
-
-
-def light_near_wall(scene: Scene, gap_fraction: float) -> Scene:
-    """Every light moved along its normal n so that the first surface behind it (hit by the ray from its centre
-    along -n) is ``gap_fraction`` * scene size away."""
-    gap = gap_fraction * scene_size(scene)
-    blockers = [s for s in scene.shapes if not s.is_emitter]
-    corners = np.concatenate([shape_triangles(s)[0][shape_triangles(s)[1]] for s in blockers]) if blockers else None
-    shapes, moved = [], 0
-    for shape in scene.shapes:
-        if shape.is_emitter and corners is not None:
-            centre, normal, _ = _surface(shape)
-            behind = _ray_triangles(centre, -normal, corners)
-            if math.isfinite(behind):
-                shape = dataclasses.replace(shape, to_world=translate_matrix(-(behind - gap) * normal) @ shape.to_world)
-                moved += 1
-        shapes.append(shape)
-    if not moved:
-        raise HarnessError(str(scene.path), "variant light-near-wall: no light has a surface behind it")
-    return dataclasses.replace(scene, shapes=shapes)
-
-
-def _ray_triangles(origin: np.ndarray, direction: np.ndarray, corners: np.ndarray) -> float:
-    """Distance to the nearest of (T, 3, 3) triangles along the ray (Moller-Trumbore, float64), inf if none."""
-    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
-    p = np.cross(direction, e2)
-    det = np.einsum("ij,ij->i", e1, p)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / det
-        s = origin - corners[:, 0]
-        u = np.einsum("ij,ij->i", s, p) * inv
-        q = np.cross(s, e1)
-        v = (q @ direction) * inv
-        t = np.einsum("ij,ij->i", e2, q) * inv
-        ok = (np.abs(det) > 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-    return float(t[ok].min()) if np.any(ok) else math.inf
-
-
-def light_edge_on(scene: Scene) -> Scene:
-    """The camera moved into the plane of the first light (its old position projected onto that plane), looking
-    at the light's centre."""
-    lights = scene.lights
-    if not lights:
-        raise HarnessError(str(scene.path), "variant light-edge-on: the scene has no light")
-    centre, normal, _ = _surface(lights[0])
-    towards = np.asarray(scene.camera.origin, float) - centre
-    in_plane = towards - (towards @ normal) * normal
-    if np.linalg.norm(in_plane) < 1e-9 * max(np.linalg.norm(towards), 1e-300):
-        raise HarnessError(str(scene.path), "variant light-edge-on: the camera looks straight at the light")
-    origin = centre + in_plane
-    up = np.asarray(scene.camera.up, float)
-    if np.linalg.norm(np.cross(up, in_plane)) < 1e-3 * np.linalg.norm(up) * np.linalg.norm(in_plane):
-        up = normal
-    camera = dataclasses.replace(scene.camera, origin=tuple(map(float, origin)), target=tuple(map(float, centre)),
-                                 up=tuple(map(float, up)))
-    return dataclasses.replace(scene, camera=camera)
-
-
-def sliver_rectangle(aspect: float) -> tuple[np.ndarray, np.ndarray]:
-    """The unit rectangle ([-1, 1]^2, z = 0, facing +z) as 8 triangles: each of its two triangles (a, b, c) becomes
-    a fan from a over b, b + h (c - b), m, m + h (c - b), c (m the midpoint of bc) with h = 2 / aspect, so two
-    triangles of each fan are slivers of aspect (longest edge / shortest altitude) ~``aspect``."""
-    vertices, triangles = unit_rectangle()
-    h = 2.0 / aspect
-    out_v, out_t = [], []
-    for a, b, c in triangles:
-        pa, pb, pc = vertices[a], vertices[b], vertices[c]
-        pm = 0.5 * (pb + pc)
-        fan = [pb, pb + h * (pc - pb), pm, pm + h * (pc - pb), pc]
-        first = len(out_v)
-        out_v += [pa, *fan]
-        out_t += [[first, first + i, first + i + 1] for i in range(1, len(fan))]
-    return np.array(out_v), np.array(out_t, dtype=np.int64)
-
-
-def triangle_aspects(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
-    """Longest edge / shortest altitude = longest edge^2 / (2 area) of each triangle."""
-    c = vertices[triangles]
-    edges = np.stack([c[:, 1] - c[:, 0], c[:, 2] - c[:, 1], c[:, 0] - c[:, 2]], axis=1)
-    longest = np.max(np.linalg.norm(edges, axis=2), axis=1)
-    double_area = np.linalg.norm(np.cross(edges[:, 0], -edges[:, 2]), axis=1)
-    return longest**2 / double_area
-
-
-def sliver_walls(scene: Scene, aspect: float) -> Scene:
-    """Every non-emitting rectangle replaced by a mesh of the same surface cut into slivers
-    (:func:`sliver_rectangle`). The front side is kept: a rectangle under a mirroring placement keeps its front
-    side (Mitsuba's rule), a mesh swaps it, so the mesh is wound the other way there."""
-    vertices, triangles = sliver_rectangle(aspect)
-    shapes, replaced = [], 0
-    for shape in scene.shapes:
-        if shape.type == "rectangle" and not shape.is_emitter:
-            mirrored = np.linalg.det(object_to_world(shape)[:3, :3]) < 0
-            shape = dataclasses.replace(shape, type="mesh", mesh_vertices=vertices.copy(),
-                                        mesh_triangles=triangles[:, [0, 2, 1]] if mirrored else triangles.copy())
-            replaced += 1
-        shapes.append(shape)
-    if not replaced:
-        raise HarnessError(str(scene.path), "variant sliver: the scene has no non-emitting rectangle to cut")
-    return dataclasses.replace(scene, shapes=shapes)
-
-
-_APPLY: dict[str, Callable[[Scene, float | None], Scene]] = {
-    "original": lambda scene, _v: scene,
-    "scale": scaled,
-    "translate": translated,
-    "sliver": sliver_walls,
-    "light-shrink": shrink_lights,
-    "grazing-camera": grazing_camera,
-    "light-near-wall": light_near_wall,
-    "light-edge-on": lambda scene, _v: light_edge_on(scene),
-}
-
-
 # ---- float32 limits ----------------------------------------------------------------------------------------------
 
 
 def reference_offset_rel() -> float:
     """The reference's relative ray offset, read from its kernels (the constant the renders use)."""
-    from reference_impl import kernels
+    from reference_impl import kernels  # optional: numba-compiled, slow to import; only the limits read it
 
     return float(kernels._OFFSET_REL)
 
@@ -432,7 +75,7 @@ def float32_limits(scene: Scene) -> dict:
     :data:`OFFSET_FRACTION_LIMIT` of it (Mitsuba's offset has an absolute part, so it fails small scenes too). The
     reference's offset is its own choice, so a reference fail caused by it is a bug, not expected.
     """
-    points = np.concatenate([_world_points(scene), np.asarray([scene.camera.origin], float)])
+    points = np.concatenate([world_points(scene), np.asarray([scene.camera.origin], float)])
     p = float(np.max(np.abs(points)))
     size = scene_size(scene)
     ulp = float(np.spacing(np.float32(p)))
@@ -547,11 +190,6 @@ def run_stress(
     "ground_truth": {...}, "rows": [...], "ok"}`` (see ``docs/stress.md``). ``ok`` is True when every invariant
     variant of the reference ends as expected (passes, or fails where float32 limits make that expected).
     ``settings`` are the reference renderer's ``--set`` values (Mitsuba takes none)."""
-    from harness.renderers import groundtruth
-    from harness.running.compare import compare_images
-    from harness.files.imageio import ExrImage
-    from harness.renderers import RenderRequest, get_renderer
-
     parsed = [parse_variant(v, "--variant") for v in (variants or DEFAULT_VARIANTS)]
     engines = {name: get_renderer(name) for name in renderers}
     gt_cache: dict[str, groundtruth.GroundTruth] = {}
@@ -591,7 +229,7 @@ def run_stress(
             start = time.perf_counter()
             try:
                 result = engine.render(transformed, RenderRequest(spp=spp, seed=seed + 7919, settings=chosen))
-                row.update(_judge(result, gt, k, alpha, compare_images, ExrImage))
+                row.update(_judge(result, gt, k, alpha))
                 light = undersampled_light(transformed, gt.image, gt.variance, gt.spp, spp)
                 row["undersampled_light"] = light
                 if row["verdict"] == "fail" and light is not None and light["p_miss"] > 0.01 \
@@ -619,7 +257,7 @@ def run_stress(
     }
 
 
-def _judge(result, gt, k, alpha, compare_images, ExrImage) -> dict:
+def _judge(result, gt, k, alpha) -> dict:
     counts = pixel_counts(result.image)
     fly = fireflies(result.image, result.variance, gt.image, gt.variance, k, dof=max(result.spp - 1, 1))
     comparison = compare_images(ExrImage(result.image, result.variance, {"spp": str(result.spp)}),
@@ -699,26 +337,3 @@ def summary_line(result: dict) -> str:
             f"render - GT > {k:g} sigma, dark: GT - render > {k:g} sigma (each expected by chance per row: "
             f"{chance}); verdict alpha "
             f"{result['alpha']:g}; reference invariants as expected: {'yes' if result['ok'] else 'NO'}")
-
-
-def _plain(value):
-    """JSON-ready: numpy scalars to Python, non-finite floats to None."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
-__all__ = [
-    "DEFAULT_VARIANTS", "Variant", "parse_variant", "variant_kinds", "transform_scene", "scaled", "translated",
-    "shrink_lights", "grazing_camera", "light_near_wall", "light_edge_on", "sliver_walls", "sliver_rectangle",
-    "triangle_aspects", "float32_limits", "pixel_counts", "fireflies", "run_stress", "format_table", "table_rows",
-    "summary_line", "scene_size",
-]
