@@ -7,12 +7,12 @@ import argparse
 import sys
 from pathlib import Path
 
+import harness.report
 from harness.cli.common import EXIT_FAIL, EXIT_OK, SUITE_HELP, progress_bar
 from harness.cli.report import report_options
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.files.imageio import WriteError
-from harness.report import write_suite_report
 from harness.running import baseline, executors, junit, runstate
 from harness.running.suite import load_suite, run_suite
 
@@ -128,7 +128,7 @@ def _write_report(args: argparse.Namespace, out: Path) -> None:
     code is one line on stderr and leaves the run's exit code alone; one that cannot be written (a full disk) is a
     WriteError: one line and exit code 2, the old report (if any) left as it was."""
     try:
-        paths = write_suite_report(out / "results.json", out, report_options(args))
+        paths = harness.report.write_suite_report(out / "results.json", out, report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")
     except (KeyboardInterrupt, WriteError):
         raise
