@@ -18,9 +18,9 @@ The numpy functions stay the documented definitions (the chi^2 tests run them); 
 formulas, operation for operation (same order of floating-point operations wherever the numpy code fixes one), so
 the warps and samplers give the numpy functions' bits. (The shading arithmetic has since been reordered for speed,
 one division and three products where three divisions were, so images are no longer those of the numpy integrator
-of git 5dd5d08; the two engines agree bit for bit: ``tests/test_engines.py``.) The order of numpy's einsum sums and the last bits of sin/cos/sqrt
+of git 5dd5d08; the two engines agree bit for bit: ``tests/reference_impl/test_engines.py``.) The order of numpy's einsum sums and the last bits of sin/cos/sqrt
 come from the numpy build, the CPU and libm, so elsewhere the two may differ in last bits (each still deterministic).
-``tests/test_kernel_equivalence.py`` checks the warps, light sampling and random numbers against the numpy
+``tests/reference_impl/test_kernel_equivalence.py`` checks the warps, light sampling and random numbers against the numpy
 functions, bit for bit.
 
 Every kernel is ``nogil`` (the integrator's thread pool runs them concurrently, as it runs Embree queries) and
@@ -940,7 +940,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
     # The vertex below repeats :func:`bounce` line for line (both must give the same bits). Sharing the light sample
     # and shadow ray through helper functions was measured: numba passes their arrays and 11-value results through
     # calls it does not optimise away, and the Cornell box fell from 4.98 to 3.0-3.3 M paths/s (inline="always" or
-    # not). tests/test_engines.py holds the two copies to the same bits.
+    # not). tests/reference_impl/test_engines.py holds the two copies to the same bits.
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0

@@ -68,7 +68,7 @@ def dimension(depth: int, purpose: int, index: int = 0) -> int:
 # Pixar TM 13-01, 2013, for the permutation). Everything is seeded by the pixel and the pair. Each point is uniform on
 # [0, 1)^2 on its own and the pairs are independent, so every estimator stays unbiased; the n points of one pixel
 # and pair are not independent of each other (that is the stratification). scipy.stats.qmc.Sobol makes the same
-# points (tests/test_sobol_sampler.py checks it), but as whole arrays from Python with one scramble per generator;
+# points (tests/reference_impl/test_sobol_sampler.py checks it), but as whole arrays from Python with one scramble per generator;
 # the kernels need any point of any (pixel, pair) on the spot, inside the compiled path loop, hence this code.
 
 _LOW32 = 0xFFFFFFFF
@@ -113,7 +113,7 @@ def permutation_element(i: np.ndarray, n: int, seeds: tuple) -> np.ndarray:
     v ^= v >> floor(k/3), v *= 0x297A2D39, v ^= v >> ceil(k/2) (mod 2^k); the result is walked along its cycle until it
     lands below n (Kensler 2013's construction, with rounds of our own: what matters here is that a pixel's order in
     one pair says nothing of its order in another, and with his hash the mean n r^2 between two pairs' values was 1.33
-    at n = 64, against 1.02 for independent orders; these rounds give 1.01 (tests/test_sobol_sampler.py))."""
+    at n = 64, against 1.02 for independent orders; these rounds give 1.01 (tests/reference_impl/test_sobol_sampler.py))."""
     k = max(int(n) - 1, 0).bit_length()
     w = np.uint64((1 << k) - 1)
     s1, s2 = np.uint64(max((k + 1) // 2, 1)), np.uint64(max(k // 3, 1))

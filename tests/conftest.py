@@ -10,7 +10,12 @@ from hypothesis import settings
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # test helpers: tests/chi2_cases.py, flaky_renderers.py
+# tests/ mirrors the packages (tests/running/ tests harness/running/, ...). Test helpers that several folders use
+# (chi2_cases, flaky_renderers, fuzz, test_hostile_input's cli() ...) import by module name: every folder on the path.
+TESTS = Path(__file__).resolve().parent
+for _folder in sorted(p for p in TESTS.iterdir() if p.is_dir() and not p.name.startswith((".", "_"))):
+    sys.path.insert(0, str(_folder))
+sys.path.insert(0, str(TESTS))
 
 # Hypothesis: the same examples at every run. derandomize draws them from a seed fixed per test; without a database
 # no failing example saved by an earlier run can change what a later run tries. HARNESS_FUZZ=long (docs/ci.md)

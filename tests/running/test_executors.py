@@ -19,7 +19,7 @@ from harness.cli import main
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
 
 

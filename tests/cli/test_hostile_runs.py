@@ -259,7 +259,7 @@ def test_slug_never_leaves_its_folder():
 
 
 def test_repository_suites_have_distinct_case_folders():
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     for path in sorted((root / "suites").glob("*.toml")):
         cases = load_suite(path).cases
         assert len({slug(c.name).casefold() for c in cases}) == len(cases), path
@@ -321,7 +321,7 @@ def test_lock_is_exclusive_between_processes(tmp_path):
     code = ("import sys; from harness.running import runstate\n"
             "try:\n    with runstate.locked(runstate.output_folder(sys.argv[1], None)): pass\n"
             "except Exception as err:\n    print(err); sys.exit(2)\n")
-    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parent.parent))
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[2]))
     with runstate.locked(runstate.output_folder(str(out), None)):
         busy = subprocess.run([sys.executable, "-c", code, str(out)], capture_output=True, text=True, env=env)
     free = subprocess.run([sys.executable, "-c", code, str(out)], capture_output=True, text=True, env=env)

@@ -1,9 +1,9 @@
 """The long fuzzing mode (docs/robustness.md, "Fuzzing"): generated inputs through every loader and every command.
 
-    python tests/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 20 min on 2 cores)
-    python tests/fuzz.py --inputs 300 --only compare,render      # some entry points only
-    python tests/fuzz.py --replay /tmp/fuzz/failures/render-00042 # one saved failing input again, in this process
-    HARNESS_FUZZ=long pytest tests/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
+    python tests/cli/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 20 min on 2 cores)
+    python tests/cli/fuzz.py --inputs 300 --only compare,render      # some entry points only
+    python tests/cli/fuzz.py --replay /tmp/fuzz/failures/render-00042 # one saved failing input again, in this process
+    HARNESS_FUZZ=long pytest tests/cli/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
 
 Each input is a folder of files (a scene, a suite, a renderer file, a results.json, a baseline, EXR files, meshes)
 and one call: a command line for ``harness.cli.main`` or a loader (``load_scene``, ``load_suite``,
@@ -71,7 +71,7 @@ if str(TESTS) not in sys.path:
 if __name__ == "__main__":
     # Children are forked from this process: a library thread pool started here would be missing in them, and GNU
     # OpenMP's (FLIP's) then deadlocks. One thread each starts no pool (the inputs' images are 16 x 16 pixels).
-    # Imported (by tests/test_fuzz.py), the module leaves the environment alone: run inputs that compute FLIP from
+    # Imported (by tests/cli/test_fuzz.py), the module leaves the environment alone: run inputs that compute FLIP from
     # the script, not from a process that may have started OpenMP's pool.
     for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(_name, "1")
@@ -1810,7 +1810,7 @@ def main(argv: list[str] | None = None) -> int:
                    Limits(args.timeout, args.memory_gib, mitsuba=args.mitsuba), quiet=args.quiet,
                    keep_all=args.keep_all)
     print(format_table(summary))
-    print(f"summary: {out / 'summary.json'}; failing inputs: {out / 'failures'} (replay: python tests/fuzz.py "
+    print(f"summary: {out / 'summary.json'}; failing inputs: {out / 'failures'} (replay: python tests/cli/fuzz.py "
           "--replay FOLDER)")
     return 1 if any(summary["total"][o] for o in FAILURES) else 0
 

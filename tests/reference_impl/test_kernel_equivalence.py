@@ -1,6 +1,6 @@
 """The compiled kernels (reference_impl/kernels.py) repeat the numpy definitions bit for bit.
 
-The chi^2 tests (tests/test_sampling_chi2.py) check the numpy functions of ``rng``, ``sampling``, ``lights`` and
+The chi^2 tests (tests/reference_impl/test_sampling_chi2.py) check the numpy functions of ``rng``, ``sampling``, ``lights`` and
 ``filters``; the renderer runs their scalar copies in ``kernels``. These tests compare the two on the same inputs,
 bit for bit, so the chi^2 tests keep vouching for what the renderer draws. Unlike the benchmarks beside them they are
 cheap (about a second, once the kernels are compiled) and run in the default ``pytest`` run.

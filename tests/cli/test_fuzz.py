@@ -1,4 +1,4 @@
-"""The fuzzer of tests/fuzz.py (docs/robustness.md, "Fuzzing"): its verdicts on planted outcomes, a few real
+"""The fuzzer of tests/cli/fuzz.py (docs/robustness.md, "Fuzzing"): its verdicts on planted outcomes, a few real
 loader inputs, replaying a saved failure; bugs it found, fixed; and, under HARNESS_FUZZ=long, the long run itself
 (10,000 inputs through every loader and command)."""
 

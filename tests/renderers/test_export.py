@@ -18,7 +18,7 @@ from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles, triangle_areas
 from reference_impl import Film
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 CANONICAL = sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
 
 MESH_SCENE = """

@@ -2,9 +2,9 @@
 
 The machinery is the library module :mod:`harness.judges.chi2`; this module holds what is specific to
 ``reference_impl``: the samplers under test, the light and triangle fixtures they run on, and the *standard set*
-(:func:`standard_cases`). ``tests/test_sampling_chi2.py`` runs and asserts the set, and :func:`standard_p_values`
-returns its p-values for any script that wants to quote them (``python tests/chi2_cases.py`` prints them; from a
-script: ``sys.path.insert(0, "tests"); import chi2_cases``).
+(:func:`standard_cases`). ``tests/reference_impl/test_sampling_chi2.py`` runs and asserts the set, and :func:`standard_p_values`
+returns its p-values for any script that wants to quote them (``python tests/reference_impl/chi2_cases.py`` prints them; from a
+script: ``sys.path.insert(0, "tests/reference_impl"); import chi2_cases``).
 """
 
 from __future__ import annotations

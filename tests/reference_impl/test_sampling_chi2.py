@@ -3,7 +3,7 @@
 Every sampling routine is run on ~10^6 uniforms from a fixed seed (``numpy.random.default_rng``; one hemisphere test
 and one unit-square test use the project's counter-based ``reference_impl.rng`` streams instead) and its samples
 are binned and compared with the routine's *own* pdf integrated over the bins (the library :mod:`harness.judges.chi2`;
-the cases and fixtures are in ``tests/chi2_cases.py``):
+the cases and fixtures are in ``tests/reference_impl/chi2_cases.py``):
 
 * ``square_to_cosine_hemisphere`` / ``square_to_uniform_hemisphere`` vs their pdfs, in (cos theta, phi);
 * ``sample_hemisphere`` about non-axis normals (world frame), mapped back to each normal's local frame;

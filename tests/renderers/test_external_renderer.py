@@ -23,7 +23,7 @@ from harness.renderers import external
 from harness.renderers.external import ExternalRendererError, combine_repeats, load_spec
 from harness.scene import load_scene
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "mitsuba_xml_renderer.py"
 
 # A fake renderer for the failure modes: no Mitsuba, fast. Pixel values N(mu, 0.1^2) seeded by --seed.

@@ -191,7 +191,7 @@ def _seed_spread(scene, seeds: int, **settings):
 @pytest.mark.parametrize("settings", [{"max_depth": 3}, {"max_depth": 4, "indirect_rays": 3, "shadow_rays": 2}],
                          ids=["depth-3", "depth-4-Ni3-Nd2"])
 def test_sobol_renders_are_unbiased_on_the_furnace(settings):
-    """The furnace's closed form (tests/test_estimators.py) against the mean of 24 seeds, each pixel's variance from
+    """The furnace's closed form (tests/reference_impl/test_estimators.py) against the mean of 24 seeds, each pixel's variance from
     the spread across seeds (honest for a stratified sampler, whose own variance is only an upper bound): the
     image-wide mean per channel, Student's t with 23 degrees of freedom, false alarm 1e-3 over the three channels."""
     from conftest import load_small

@@ -19,7 +19,7 @@ from harness.renderers.groundtruth import Cache
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
-SCENES = Path(__file__).resolve().parent.parent / "scenes"
+SCENES = Path(__file__).resolve().parents[2] / "scenes"
 HARNESS = Path(sys.executable).parent / "harness"
 
 SUITE = """name = "resume"

@@ -21,7 +21,7 @@ from harness.core.errors import HarnessError
 from harness.scene import Scene, load_scene, triangulate
 from harness.scene.triangulate import rotate_matrix, shape_triangles
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SCENES = REPO / "scenes"
 CANONICAL = ["cornell-box", "furnace", "soft-shadows", "multi-light"]
 

@@ -102,7 +102,7 @@ def test_peak_memory_is_measured_in_a_child(tmp_path):
 def test_the_benchmark_suite_runs():
     """tests/benchmarks (timed only with --benchmark-only) runs each body once, untimed: a change that breaks a
     benchmark (a kernel's signature, a fixture) fails here, in the default run, and not only when someone times."""
-    proc = subprocess.run([sys.executable, "-m", "pytest", "tests/benchmarks", "-o", "addopts=", "--benchmark-disable",
+    proc = subprocess.run([sys.executable, "-m", "pytest", "tests/studies/benchmarks", "-o", "addopts=", "--benchmark-disable",
                            "-q", "-p", "no:cacheprovider"], capture_output=True, text=True, cwd=ROOT, timeout=600)
     assert proc.returncode == 0, proc.stdout[-3000:]
     assert " passed" in proc.stdout and "failed" not in proc.stdout
