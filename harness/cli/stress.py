@@ -100,11 +100,12 @@ def run(args: argparse.Namespace) -> int:
     variants = args.variant or list(stress.DEFAULT_VARIANTS)
     for text in variants:
         parse_variant(text, "--variant")
-    out = None if args.out is None else output_folder(args.out, Path(args.out), subfolders=())  # before any render
     scene = _resolve_scene(args.scene)
     scene = dataclasses.replace(scene, film=Film(int(w), int(h), scene.film.filter))
     if settings:
         ReferenceRenderer().settings_for(scene, RenderRequest(spp=args.spp, seed=args.seed, settings=settings))
+    # created and written to after every check, before any render: bad input leaves no folder
+    out = None if args.out is None else output_folder(args.out, Path(args.out), subfolders=())
 
     bar = progress_bar(args, f"stress {scene.name}", "render", total=len(variants) * len(renderers))
 

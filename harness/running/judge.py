@@ -99,11 +99,11 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
         folder = out_dir / "cases" / slug(case.name)
         with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
+            imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
+                                           metadata={"renderer": result.renderer, "case": case.name})
             if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
-            imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
-                                           metadata={"renderer": result.renderer, "case": case.name})
         gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         comparison = compare_images(
             imageio.ExrImage(result.image, result.variance, variance_metadata(result)),

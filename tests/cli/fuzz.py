@@ -62,7 +62,7 @@ from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 TESTS = Path(__file__).resolve().parent
-ROOT = TESTS.parent
+ROOT = TESTS.parents[1]
 if str(ROOT) not in sys.path:  # run as a script: the harness and tests/ helpers importable
     sys.path.insert(0, str(ROOT))
 if str(TESTS) not in sys.path:

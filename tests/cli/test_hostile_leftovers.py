@@ -97,12 +97,14 @@ def test_run_that_fails_after_a_case_keeps_it_and_resumes(folder, disk, capfd): 
     out = folder / "run"
     disk.fill(name=str(out / "cases" / "b"))  # case a is written, case b's render is not
     assert_one_line(*cli(capfd, *run_argv(folder, out)), "No space left on device")
-    assert listing(out) == ["cases", "cases/a", "cases/a/render.exr", "cases/a/render.png", "results.json"]
+    assert listing(out) == ["cases", "cases/a", "cases/a/ground_truth.exr", "cases/a/render.exr", "cases/a/render.png",
+                            "results.json"]  # the closed form judged against is kept beside the render
     assert [r["name"] for r in read_results(out / "results.json")["cases"]] == ["a"]
     disk.full = False
     code, stdout, err = cli(capfd, *run_argv(folder, out))
     assert code == 0 and "resuming: 1 of 2 cases done" in err, err
-    assert listing(out / "cases") == ["a", "a/render.exr", "a/render.png", "b", "b/render.exr", "b/render.png"]
+    assert listing(out / "cases") == ["a", "a/ground_truth.exr", "a/render.exr", "a/render.png",
+                                      "b", "b/ground_truth.exr", "b/render.exr", "b/render.png"]
 
 
 # ---- 3. results.json: strict JSON, non-finite numbers as null ------------------------------------------------------
@@ -137,7 +139,7 @@ def test_baseline_file_writes_non_finite_numbers_as_null(tmp_path):
     doc = {"schema": baseline.SCHEMA, "version": baseline.VERSION, "suite": "s", "cases": {
         "a": {"statistics": {"mse": {"value": math.nan, "rel_se": None}, "mean": [math.inf, 0.5, 1.0]}}}}
     path = baseline.save(doc, tmp_path / "base.json")  # a ValueError (allow_nan=False, nothing cleaned) before
-    assert baseline.load(path)["cases"]["a"]["statistics"] == {"mse": {"value": None, "rel_se": None},
+    assert json.loads(path.read_text())["cases"]["a"]["statistics"] == {"mse": {"value": None, "rel_se": None},
                                                               "mean": [None, 0.5, 1.0]}
 
 

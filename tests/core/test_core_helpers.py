@@ -21,7 +21,7 @@ from harness.running import judge
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_hint_short_and_toml_key():

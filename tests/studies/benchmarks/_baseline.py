@@ -17,7 +17,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 DEFAULT_REV = "5dd5d08"  # the last commit before reference_impl/kernels.py
 PACKAGE = "reference_baseline"
 _loaded: dict[str, object] = {}
