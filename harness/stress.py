@@ -377,7 +377,7 @@ _APPLY: dict[str, Callable[[Scene, float | None], Scene]] = {
 
 def reference_offset_rel() -> float:
     """The reference's relative ray offset, read from its kernels (the constant the renders use)."""
-    from reference_impl import kernels
+    from reference_impl.kernels import surface as kernels
 
     return float(kernels._OFFSET_REL)
 

@@ -14,17 +14,17 @@ counts direct light twice; it survives only as the mutant "double-emission"). Ru
 by their survival probability (Fig. 5.16, ``estimatedRadiance / (1 - absorption)``).
 
 Two engines give the same bits (``Settings.engine``). The default, "path", hands a batch of camera samples to one
-compiled loop (:func:`kernels.trace_paths`) that follows each path to its end and queries Embree itself (its C API:
-``reference_impl/embree_c.py``), after tracing the batch's camera rays in packets of 16; it serves Ni = 1. The
+compiled loop (:func:`kernels.path.trace_paths`) that follows each path to its end and queries Embree itself (its C
+API: ``reference_impl/embree_c.py``), after tracing the batch's camera rays in packets of 16; it serves Ni = 1. The
 "wavefront" engine, needed when paths branch (Ni > 1): all paths of a batch advance one bounce at a time, every ray
 query is one batched call, and everything between two queries is one compiled kernel over all paths
-(``reference_impl/kernels.py``, numba, ``nogil`` so that the worker threads run kernels and Embree queries
-concurrently); there is no Python loop over rays. One
-bounce (:func:`_bounce`) is: closest hits of the wavefront (Embree) -> :func:`kernels.bounce` (emission at the hits,
-the Nd direct-light samples and the rays they need, Russian roulette and the next wavefront) -> shadow rays (Embree,
-any-hit; closest-hit for hemisphere sampling) -> :func:`kernels.resolve_shadow` / :func:`kernels.resolve_hemisphere`
-(the direct light). The functions ``_direct_*``, ``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments
-are the sections of ``kernels.bounce`` that compute each estimator; their formulas are the ones written above.
+(``reference_impl/kernels/``, numba, ``nogil`` so that the worker threads run kernels and Embree queries
+concurrently); there is no Python loop over rays. One bounce (:func:`_bounce`) is: closest hits of the wavefront
+(Embree) -> :func:`kernels.wavefront.bounce` (emission at the hits, the Nd direct-light samples and the rays they
+need, Russian roulette and the next wavefront) -> shadow rays (Embree, any-hit; closest-hit for hemisphere sampling)
+-> :func:`kernels.wavefront.resolve_shadow` / :func:`kernels.wavefront.resolve_hemisphere` (the direct light). The
+functions ``_direct_*``, ``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments are the sections of the
+kernels that compute each estimator; their formulas are the ones written above.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from reference_impl.lights import LightSampler, TriangleAreaSampler
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import Settings
 
-# What each random dimension is for (see rng.dimension); the kernels use the same numbers (kernels.FILM_X, ...).
+# What each random dimension is for (see rng.dimension); the kernels use the same numbers (kernels.rng.FILM_X, ...).
 _FILM_X, _FILM_Y = 0, 1
 _LIGHT_SELECT, _LIGHT_TRIANGLE, _LIGHT_U1, _LIGHT_U2 = 2, 3, 4, 5
 _DIRECT_DIR_U1, _DIRECT_DIR_U2 = 6, 7
@@ -67,14 +67,15 @@ COUNTERS = (
 )
 # Time, in microseconds, the worker threads spent inside Embree queries (summed over threads, so it can exceed the
 # wall time): the only entry of ``stats`` that is not a deterministic count. The wavefront times each batched query;
-# the path engine times one query in kernels.TIMING_STRIDE and scales by the stride.
+# the path engine times one query in kernels.queries.TIMING_STRIDE and scales by the stride.
 EMBREE_MICROSECONDS = "embree_microseconds"
 
 
 def _kernels():
-    """reference_impl.kernels, imported on first use (importing numba takes a few tenths of a second, which only a
-    render needs to pay)."""
+    """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
+    first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels
+    from reference_impl.kernels import camera, config, film, path, wavefront  # noqa: F401 (attributes of kernels)
 
     return kernels
 
@@ -164,7 +165,7 @@ class _Workspace:
         return buf
 
     def direct(self, n: int) -> tuple:
-        """(hits, total, rays) with room for ``n`` hits and their Nd direct-light rays each (see kernels.bounce)."""
+        """(hits, total, rays) with room for ``n`` hits and their Nd direct-light rays each (see kernels.wavefront.bounce)."""
         if self._hit_capacity < n:
             cap, hemi = n * self._nd, self._hemisphere
             self.hits = np.empty(n, np.int64)
@@ -233,27 +234,27 @@ class _Context:
         else:
             self.surface_tables = (np.zeros(0, np.int64), np.zeros(0))
             surface_pdf = 0.0
-        self.cfg_f = np.zeros(kernels.CFGF_SIZE)
-        self.cfg_f[kernels.CFGF_FIXED_SURVIVAL] = 1.0 - s.absorption
-        self.cfg_f[kernels.CFGF_OFFSET_SCENE] = self.intersector.offset_scene
-        self.cfg_f[kernels.CFGF_SURFACE_PDF] = surface_pdf
-        cfg = np.zeros(kernels.CFG_SIZE, np.int64)
-        cfg[kernels.CFG_DIRECT] = kernels.DIRECT_MODES[s.direct]
-        cfg[kernels.CFG_ND] = s.shadow_rays
-        cfg[kernels.CFG_NI] = s.indirect_rays
-        cfg[kernels.CFG_HEMI_COSINE] = s.hemisphere == "cosine"
-        cfg[kernels.CFG_RR] = kernels.RR_MODES[s.rr]
-        cfg[kernels.CFG_RR_DEPTH] = s.rr_depth
-        cfg[kernels.CFG_MUTANTS] = kernels.MUTANT_BITS.get(self.mutant, 0)
-        cfg[kernels.CFG_NUM_LIGHTS] = self.geometry.num_lights
-        cfg[kernels.CFG_SOBOL] = s.sampler == "sobol"
-        cfg[kernels.CFG_SPP] = s.spp
+        self.cfg_f = np.zeros(kernels.config.CFGF_SIZE)
+        self.cfg_f[kernels.config.CFGF_FIXED_SURVIVAL] = 1.0 - s.absorption
+        self.cfg_f[kernels.config.CFGF_OFFSET_SCENE] = self.intersector.offset_scene
+        self.cfg_f[kernels.config.CFGF_SURFACE_PDF] = surface_pdf
+        cfg = np.zeros(kernels.config.CFG_SIZE, np.int64)
+        cfg[kernels.config.CFG_DIRECT] = kernels.config.DIRECT_MODES[s.direct]
+        cfg[kernels.config.CFG_ND] = s.shadow_rays
+        cfg[kernels.config.CFG_NI] = s.indirect_rays
+        cfg[kernels.config.CFG_HEMI_COSINE] = s.hemisphere == "cosine"
+        cfg[kernels.config.CFG_RR] = kernels.config.RR_MODES[s.rr]
+        cfg[kernels.config.CFG_RR_DEPTH] = s.rr_depth
+        cfg[kernels.config.CFG_MUTANTS] = kernels.config.MUTANT_BITS.get(self.mutant, 0)
+        cfg[kernels.config.CFG_NUM_LIGHTS] = self.geometry.num_lights
+        cfg[kernels.config.CFG_SOBOL] = s.sampler == "sobol"
+        cfg[kernels.config.CFG_SPP] = s.spp
         self._cfg = cfg
         # The path-at-a-time kernel derives the per-vertex entries itself; EMIT_ALL marks the double-emission mutant.
         self.path_config = cfg.copy()
-        self.path_config[kernels.CFG_EMIT] = kernels.EMIT_ALL if self.double_emission else kernels.EMIT_NONE
+        self.path_config[kernels.config.CFG_EMIT] = kernels.config.EMIT_ALL if self.double_emission else kernels.config.EMIT_NONE
         self.path_engine = (s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0)
-        self.filter_kind = kernels.FILTER_KINDS[self.filter.name]
+        self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         width, height = self.film.width, self.film.height
         self.tan_half_fov = self.camera.tan_half_fov(width, height)
         self.camera_frame = c(self.camera.frame(), dtype=np.float64)
@@ -264,18 +265,18 @@ class _Context:
         """The kernels' integer settings for the hits of vertex ``depth``."""
         kernels = _kernels()
         cfg = self._cfg.copy()
-        cfg[kernels.CFG_DEPTH] = depth
+        cfg[kernels.config.CFG_DEPTH] = depth
         # Emission Le(x -> Theta): only for the viewing ray's hit (eq. 5.2 recurses on L_r), unless MIS weighs the
         # indirect ray as a direct-light sample, or the double-counting mutant is on.
         if depth == 1 or self.double_emission:
-            cfg[kernels.CFG_EMIT] = kernels.EMIT_ALL
+            cfg[kernels.config.CFG_EMIT] = kernels.config.EMIT_ALL
         elif self.mis:
-            cfg[kernels.CFG_EMIT] = kernels.EMIT_MIS
+            cfg[kernels.config.CFG_EMIT] = kernels.config.EMIT_MIS
         else:
-            cfg[kernels.CFG_EMIT] = kernels.EMIT_NONE
-        cfg[kernels.CFG_ALLOW_NEXT] = self.depth_allows(depth + 1)
+            cfg[kernels.config.CFG_EMIT] = kernels.config.EMIT_NONE
+        cfg[kernels.config.CFG_ALLOW_NEXT] = self.depth_allows(depth + 1)
         # Indirect light (Fig. 5.14): needed if the next vertex can still add anything.
-        cfg[kernels.CFG_ALLOW_INDIRECT] = self.depth_allows(depth + 2) or (self.mis and self.depth_allows(depth + 1))
+        cfg[kernels.config.CFG_ALLOW_INDIRECT] = self.depth_allows(depth + 2) or (self.mis and self.depth_allows(depth + 1))
         return cfg
 
     def depth_allows(self, path_length: int) -> bool:
@@ -327,7 +328,7 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
             sample = np.tile(np.arange(s0, s1, dtype=np.int64), p1 - p0)
             values = _trace_camera_paths(ctx, pixel, sample, unit_stats)
             # Sequential sums in sample order, so chunking cannot change a single bit.
-            kernels.accumulate(total, total_sq, p0, values, s1 - s0)
+            kernels.film.accumulate(total, total_sq, p0, values, s1 - s0)
         return (p1 - p0) * spp, unit_stats
 
     done = 0
@@ -369,7 +370,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     tan_x, tan_y = ctx.tan_half_fov
     n = len(pixel)
     sobol = ctx.settings.sampler == "sobol"
-    if ctx.filter_kind == kernels.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
+    if ctx.filter_kind == kernels.config.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
         if sobol:
             ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, _FILM_X))
         else:
@@ -380,23 +381,23 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
     first = _view(ctx.workspace().state(0, n), n)
     film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key)
-    kernels.camera_paths(
+    kernels.camera.camera_paths(
         film_samples[0], film_samples[1], ctx.seed_key, ctx.settings.spp, width, height, ctx.filter_kind,
         filter_samples, ctx.mutant == "camera-half-pixel", tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
     )
     radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
-    counters[kernels.C_CAMERA] = n
+    counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
     if ctx.path_engine:
         timing = np.zeros(2, np.int64)
-        kernels.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
+        kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                             ctx.surface_tables, ctx.path_config, ctx.cfg_f, ctx.max_depth, radiance, counters, timing,
                             film_samples)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
-    counters[kernels.C_NONFINITE] += kernels.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
+    counters[kernels.config.C_NONFINITE] += kernels.film.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
     for name, count in zip(COUNTERS, counters.tolist()):
         stats[name] += count
     stats[EMBREE_MICROSECONDS] += int(round(clock.seconds * 1e6))
@@ -444,7 +445,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
         prim = intersector.closest_prims(state.origin32, state.direction32)
     clock.seconds += time.perf_counter() - t0
     hits, total, rays = ctx.workspace().direct(len(state))
-    m, s, n_next = kernels.bounce(
+    m, s, n_next = kernels.wavefront.bounce(
         state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
         ctx.cfg_f, radiance, counters, hits, rays, out, film_samples,
     )
@@ -456,14 +457,14 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             t0 = time.perf_counter()
             s_prim = intersector.closest_prims(o32[:s], d32[:s])
             clock.seconds += time.perf_counter() - t0
-            kernels.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
+            kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
                                        s_prim, ctx.scene_tables[0], ctx.scene_tables[1], ctx.scene_tables[4],
                                        total, radiance)
         else:
             t0 = time.perf_counter()
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])
             clock.seconds += time.perf_counter() - t0
-            kernels.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
+            kernels.wavefront.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
     return _PathState(*_view(out, n_next))
 
 
