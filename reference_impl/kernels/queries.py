@@ -11,7 +11,11 @@ import numpy as np
 from numba import njit
 
 from reference_impl import embree_c
-from reference_impl.kernels.config import JIT, JIT_INLINE
+from reference_impl.kernels.config import JIT, JIT_BORROW, JIT_INLINE
+
+# One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
+# clock read (measured at the start of each call), times the stride.
+TIMING_STRIDE = 64
 
 
 @njit(**JIT)
@@ -133,10 +137,30 @@ def occluders(scene_ptr, o32, d32, tfar, out):
 
 @njit(**JIT_INLINE)
 def now_ns(ts):
+    """CLOCK_MONOTONIC in nanoseconds (``ts``: room for a struct timespec, two int64)."""
     embree_c.clock_gettime(embree_c.CLOCK_MONOTONIC, ts.ctypes.data)
     return ts[0] * 1_000_000_000 + ts[1]
 
 
-# One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
-# clock read (measured at the start of each call), times the stride.
-TIMING_STRIDE = 64
+@njit(**JIT_BORROW)
+def closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2):
+    """:func:`closest_prim`, counted, and timed when it is query number TIMING_STRIDE, 2 TIMING_STRIDE, ...:
+    (primitive, queries, sampled_ns) with the count and the sampled nanoseconds brought up to date."""
+    queries += 1
+    if queries % TIMING_STRIDE == 0:
+        t_start = now_ns(ts)
+        p = closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2)
+        return p, queries, sampled_ns + (now_ns(ts) - t_start)
+    return closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2), queries, sampled_ns
+
+
+@njit(**JIT_BORROW)
+def occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2, tfar):
+    """:func:`occluded`, counted and timed as :func:`closest_prim_timed`: (blocked, queries, sampled_ns)."""
+    queries += 1
+    if queries % TIMING_STRIDE == 0:
+        t_start = now_ns(ts)
+        blocked = occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar)
+        return blocked, queries, sampled_ns + (now_ns(ts) - t_start)
+    return occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar), queries, sampled_ns
+

@@ -19,8 +19,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from reference_impl.kernels.config import JIT
-from reference_impl.kernels.rng import DIRECT_DIR_U1, INDIRECT_U1, LIGHT_U1, ROULETTE, dim_salt, mix64, pixel_key, uniform
+from reference_impl.kernels.config import JIT, JIT_BORROW
+from reference_impl.kernels.rng import (DIRECT_DIR_U1, INDIRECT_U1, LIGHT_U1, ROULETTE, dim_salt, mix64, pixel_key,
+                                        uniform)
 from reference_impl.rng import _GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32
 
 _U32 = np.uint64(32)
@@ -119,5 +120,17 @@ def first_hit_seeds(seed_key, pixel, spp, nd, ni):
     direction); Np x Nd, Np x Nd, Np and Np x Ni points. (A light sample's choices of light and triangle reuse its
     point's first coordinate: lights.LightSampler.split_uniform.)"""
     pk = pixel_key(seed_key, pixel)
-    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd), sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
+    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+            sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
             sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp), sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
+
+
+@njit(**JIT_BORROW)
+def pixel_first_hit_seeds(seeds, seeds_pixel, film_pixel, film_sample, r, seed_key, spp, nd, ni):
+    """The :func:`first_hit_seeds` of camera sample r's pixel, and r's index among the pixel's samples: (seeds,
+    their pixel, index). A pixel's samples come together, so its seeds are computed once: ``seeds`` of pixel
+    ``seeds_pixel`` are handed back unchanged while the pixel is the same."""
+    if film_pixel[r] != seeds_pixel:
+        seeds_pixel = film_pixel[r]
+        seeds = first_hit_seeds(seed_key, seeds_pixel, spp, nd, ni)
+    return seeds, seeds_pixel, film_sample[r]

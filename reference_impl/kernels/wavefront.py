@@ -2,31 +2,27 @@
 between batched Embree queries (``integrator._bounce``).
 
 :func:`bounce` takes the closest hits of the current rays and writes the direct-light rays and the next wavefront;
-:func:`resolve_shadow` / :func:`resolve_hemisphere` add the direct light once Embree has answered them.
+:func:`resolve_shadow` / :func:`resolve_hemisphere` add the direct light once Embree has answered them. Each vertex is
+the path engine's vertex (:mod:`.path`), from the same helpers (:mod:`.surface`, :mod:`.vertex`, :mod:`.direct`), so
+the two engines give the same bits.
 """
 
 from __future__ import annotations
 
-import math
-
 from numba import njit
 
-from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT, C_ROULETTE,
-                                           C_SHADOW, C_SHADOW_SKIPPED, CFG_ALLOW_INDIRECT, CFG_ALLOW_NEXT, CFG_DEPTH,
-                                           CFG_DIRECT, CFG_EMIT, CFG_HEMI_COSINE, CFG_MUTANTS, CFG_ND, CFG_NI,
-                                           CFG_NUM_LIGHTS, CFG_RR, CFG_RR_DEPTH, CFG_SOBOL, CFG_SPP, CFGF_FIXED_SURVIVAL,
-                                           CFGF_OFFSET_SCENE, CFGF_SURFACE_PDF, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE,
-                                           DIRECT_HEMI_UNIFORM, DIRECT_MIS, EMIT_ALL, EMIT_NONE, JIT, JIT_INLINE,
-                                           M_COSINE_PDF_PI, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET,
-                                           M_RR_NO_REWEIGHT, RR_ALBEDO, RR_OFF)
-from reference_impl.kernels.light_sampling import (sample_light_point, sample_surface_point, split_light_uniform,
-                                                   split_surface_uniform)
-from reference_impl.kernels.rng import (DIRECT_DIR_U1, DIRECT_DIR_U2, INDIRECT_U1, INDIRECT_U2, LIGHT_SELECT,
-                                        LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE, branch_salt, dim_salt, mix64,
-                                        uniform)
-from reference_impl.kernels.sobol import first_hit_seeds, sobol_point, uniform_2d
-from reference_impl.kernels.surface import origin_offset, shadow_t_max
-from reference_impl.kernels.warps import PI, dot3, hemisphere_pdf, sample_hemisphere
+from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, CFG_ALLOW_INDIRECT, CFG_ALLOW_NEXT,
+                                           CFG_DEPTH, CFG_DIRECT, CFG_EMIT, CFG_HEMI_COSINE, CFG_MUTANTS, CFG_ND,
+                                           CFG_NI, CFG_NUM_LIGHTS, CFG_RR, CFG_RR_DEPTH, CFG_SOBOL, CFG_SPP,
+                                           CFGF_FIXED_SURVIVAL, CFGF_OFFSET_SCENE, CFGF_SURFACE_PDF,
+                                           DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
+                                           EMIT_NONE, JIT, JIT_INLINE, M_RR_NO_REWEIGHT, RR_OFF)
+from reference_impl.kernels.direct import hemisphere_sample, hemisphere_weight, light_sample, shadow_ray
+from reference_impl.kernels.rng import INDIRECT_U1, INDIRECT_U2, branch_salt, mix64
+from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds, uniform_2d
+from reference_impl.kernels.surface import hit_point, offset_origin
+from reference_impl.kernels.vertex import continuation, emitted, roulette
 
 
 @njit(**JIT)
@@ -55,16 +51,18 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
     allow_next = cfg[CFG_ALLOW_NEXT] != 0
     allow_indirect = cfg[CFG_ALLOW_INDIRECT] != 0
     direct = cfg[CFG_DIRECT]
+    mis = direct == DIRECT_MIS
     nd = cfg[CFG_ND]
     ni = cfg[CFG_NI]
     hemi_cosine = cfg[CFG_HEMI_COSINE] != 0
     rr = cfg[CFG_RR]
     mutants = cfg[CFG_MUTANTS]
+    reweight = (mutants & M_RR_NO_REWEIGHT) == 0
     num_lights = cfg[CFG_NUM_LIGHTS]
+    selects = direct != DIRECT_GLOBAL_AREA and num_lights > 1  # each area sample chooses a light
     fixed_survival = cfg_f[CFGF_FIXED_SURVIVAL]
     offset_scene = cfg_f[CFGF_OFFSET_SCENE]
     surface_pdf = cfg_f[CFGF_SURFACE_PDF]
-    no_cosine = (mutants & M_NO_COSINE) != 0
     play_roulette = rr != RR_OFF and depth >= cfg[CFG_RR_DEPTH]
     hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
     sob = cfg[CFG_SOBOL] != 0 and depth == 1
@@ -78,11 +76,6 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
     m = 0
     s = 0
     n_next = 0
-
-    salt_rr = dim_salt(depth, ROULETTE, 0)
-    salt_u1 = dim_salt(depth, INDIRECT_U1, 0)
-    salt_u2 = dim_salt(depth, INDIRECT_U2, 0)
-
     for i in range(n):
         p = prim[i]
         if p < 0:
@@ -92,35 +85,17 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         nx0, nx1, nx2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
         o0, o1, o2 = origin[i, 0], origin[i, 1], origin[i, 2]
         d0, d1, d2 = direction[i, 0], direction[i, 1], direction[i, 2]
-        # Intersector.closest_hit: t recomputed in float64 from the triangle's plane.
-        denom = dot3(d0, d1, d2, nx0, nx1, nx2)
-        t = dot3(tri_v0[tri, 0] - o0, tri_v0[tri, 1] - o1, tri_v0[tri, 2] - o2, nx0, nx1, nx2) / denom
-        if not (math.isfinite(t) and t > 0):
-            t = 0.0
-        x0, x1, x2 = o0 + t * d0, o1 + t * d1, o2 + t * d2
-        cos_out = -dot3(d0, d1, d2, nx0, nx1, nx2)
+        t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, nx0, nx1, nx2, tri_v0[tri, 0], tri_v0[tri, 1],
+                                           tri_v0[tri, 2])
         front = cos_out > 0
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         r = root[i]
-
-        # Emission Le(x -> Theta) (integrator._bounce and _mis_weight_hemisphere).
         if emit != EMIT_NONE:
-            fr = 1.0 if front else 0.0
-            e0, e1, e2 = emission[tri, 0] * fr, emission[tri, 1] * fr, emission[tri, 2] * fr
-            if emit == EMIT_ALL:
-                radiance[r, 0] += b0 * e0
-                radiance[r, 1] += b1 * e1
-                radiance[r, 2] += b2 * e2
-            else:
-                light = light_id[tri]
-                w = 0.0
-                if light >= 0 and cos_out > 0:
-                    p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
-                    p_hemi = pdf_dir[i]
-                    w = p_hemi * p_hemi / (p_hemi * p_hemi + p_light * p_light)
-                radiance[r, 0] += b0 * e0 * w
-                radiance[r, 1] += b1 * e1 * w
-                radiance[r, 2] += b2 * e2 * w
+            e0, e1, e2, w = emitted(emit, front, tri, emission, light_id, light_pmf, light_area, nd, t, cos_out,
+                                    pdf_dir[i])
+            radiance[r, 0] += b0 * e0 * w
+            radiance[r, 1] += b1 * e1 * w
+            radiance[r, 2] += b2 * e2 * w
 
         if not allow_next:
             continue
@@ -133,90 +108,41 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         f0, f1, f2 = f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2]
         k = key[i]
         if sob:
-            if film_pixel[r] != fh_pixel:
-                fh_pixel = film_pixel[r]
-                fh = first_hit_seeds(seed_key, fh_pixel, spp, nd, ni)
-            si = film_sample[r]
+            fh, fh_pixel, si = pixel_first_hit_seeds(fh, fh_pixel, film_pixel, film_sample, r, seed_key, spp, nd, ni)
         h = m
         hits[h] = i
         m += 1
-        off_x = origin_offset(offset_scene, x0, x1, x2)
-        ox0, ox1, ox2 = x0 + off_x * nx0, x1 + off_x * nx1, x2 + off_x * nx2  # offset_origin(x, normal, ...)
+        ox0, ox1, ox2 = offset_origin(offset_scene, x0, x1, x2, nx0, nx1, nx2)
 
-        # Direct light: Nd samples (integrator._direct_light and the one-sample estimators).
+        # Direct light: the rays of Nd samples, resolved by resolve_shadow / resolve_hemisphere.
         for j in range(nd):
-            if hemi_direct:  # _direct_hemisphere_sample: a closest-hit ray, resolved in resolve_hemisphere
-                u_a, u_b = uniform_2d(sob, fh[1], si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
-                w0, w1, w2, cos_theta, pdf = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, nx0, nx1, nx2)
+            if hemi_direct:  # a closest-hit ray
+                w0, w1, w2, ratio = hemisphere_sample(direct, sob, fh[1], si * nd + j, k, depth, j, nx0, nx1, nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
                 s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
                 s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = w0, w1, w2
                 s_dir[s, 0], s_dir[s, 1], s_dir[s, 2] = w0, w1, w2
                 s_value[s, 0], s_value[s, 1], s_value[s, 2] = f0, f1, f2
-                s_aux[s] = cos_theta / pdf if pdf > 0 else -1.0
+                s_aux[s] = ratio
                 s += 1
                 continue
-            # The stratified sampler draws one 2D point per light sample and reuses its first coordinate for the
-            # discrete choices (lights.LightSampler.split_uniform); independent numbers need no reuse.
-            if sob:
-                u_a, u_b = sobol_point(fh[0], si * nd + j)
-            else:
-                u_a, u_b = uniform(k, dim_salt(depth, LIGHT_U1, j)), uniform(k, dim_salt(depth, LIGHT_U2, j))
-            if direct == DIRECT_GLOBAL_AREA:  # _direct_global_area_sample
-                if sob:
-                    u_tri, u_a = split_surface_uniform(surfaces, u_a)
-                else:
-                    u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
-                ltri, y0, y1, y2 = sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
-                pdf_area = surface_pdf
-            else:  # _direct_area_sample ("area" and "mis")
-                if sob:
-                    u_select, u_tri, u_a = split_light_uniform(lights, num_lights, u_a)
-                else:  # with one light there is nothing to choose (pdf(k) = 1) and nothing to draw
-                    u_select = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
-                    u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
-                if num_lights > 1:
-                    counters[C_LIGHT_SELECT] += 1
-                light, ltri, y0, y1, y2 = sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
-                if mutants & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
-                    pdf_area = 1.0 / light_area[light]
-                else:
-                    pdf_area = light_pmf[light] / light_area[light]
-            # _shadow_ray_estimate
-            l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
-            dist2 = dot3(l0, l1, l2, l0, l1, l2)
-            dist = math.sqrt(dist2)
-            inv_dist = 1.0 / dist  # one division, three products
-            wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
-            cos_x = dot3(nx0, nx1, nx2, wi0, wi1, wi2)
-            cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
-            if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
+            ltri, y0, y1, y2, pdf_area = light_sample(direct, sob, fh[0], si * nd + j, k, depth, j, lights,
+                                                      num_lights, surfaces, corners, surface_pdf, mutants)
+            if selects:
+                counters[C_LIGHT_SELECT] += 1
+            needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
+                x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, y0, y1, y2, tri_normal[ltri, 0], tri_normal[ltri, 1],
+                tri_normal[ltri, 2], light_id[ltri] >= 0, emission[ltri, 0], emission[ltri, 1], emission[ltri, 2],
+                f0, f1, f2, pdf_area, offset_scene, mis, nd, ni, hemi_cosine, mutants)
+            if not needed:
                 counters[C_SHADOW_SKIPPED] += 1
                 continue
-            if mutants & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
-                so0, so1, so2 = x0, x1, x2
-            else:
-                so0, so1, so2 = ox0, ox1, ox2
-            g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
-            seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
-            t_max = shadow_t_max(seg_len, origin_offset(offset_scene, y0, y1, y2), cos_y)
             counters[C_SHADOW] += 1
             s_owner[s] = h
             s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = so0, so1, so2
-            inv_seg = 1.0 / seg_len
-            s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = g0 * inv_seg, g1 * inv_seg, g2 * inv_seg
-            s_tfar[s] = max(t_max, 0.0)
-            cos_at_x = 1.0 if no_cosine else cos_x  # mutant "no-cosine" (direct light)
-            scale = (cos_at_x * cos_y) / (dist2 * pdf_area)  # G(x, y) V / p(y), for V = 1 (one division)
-            v0 = emission[ltri, 0] * f0 * scale
-            v1 = emission[ltri, 1] * f1 * scale
-            v2 = emission[ltri, 2] * f2 * scale
-            if direct == DIRECT_MIS:  # _mis_weight_light
-                p_light = nd * pdf_area * dist2 / cos_y
-                p_hemi = ni * hemisphere_pdf(hemi_cosine, cos_x)
-                w = p_light * p_light / (p_light * p_light + p_hemi * p_hemi)
-                v0, v1, v2 = v0 * w, v1 * w, v2 * w
+            s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = r0, r1, r2
+            s_tfar[s] = tfar
             s_value[s, 0], s_value[s, 1], s_value[s, 2] = v0, v1, v2
             s += 1
 
@@ -224,27 +150,16 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         if not allow_indirect:
             continue
         if play_roulette:
-            survival = albedo_max[material] if rr == RR_ALBEDO else fixed_survival
-            u_rr = sobol_point(fh[2], si)[0] if sob else uniform(k, salt_rr)
-            if not (u_rr < survival):
+            alive, b0, b1, b2 = roulette(rr, albedo_max[material], fixed_survival, sob, fh[2], si, k, depth, reweight,
+                                         b0, b1, b2)
+            if not alive:
                 counters[C_ROULETTE] += 1
                 continue
-            if not (mutants & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight"
-                inv_survival = 1.0 / survival
-                b0, b1, b2 = b0 * inv_survival, b1 * inv_survival, b2 * inv_survival
         for branch in range(ni):
             kb = k if ni == 1 else mix64(k ^ branch_salt(branch, depth))
-            if sob:
-                u_a, u_b = sobol_point(fh[3], si * ni + branch)
-            else:
-                u_a, u_b = uniform(kb, salt_u1), uniform(kb, salt_u2)
-            w0, w1, w2, cos_theta, pdf = sample_hemisphere(hemi_cosine, u_a, u_b, nx0, nx1, nx2)
-            if (mutants & M_COSINE_PDF_PI) and hemi_cosine:  # mutant "cosine-pdf-pi"
-                pdf = pdf * PI
-            cos_factor = 1.0 if no_cosine else cos_theta  # mutant "no-cosine" (indirect light)
-            weight = cos_factor / (pdf * ni)
-            c0, c1, c2 = b0 * (f0 * weight), b1 * (f1 * weight), b2 * (f2 * weight)
-            carries = (math.isfinite(c0) and math.isfinite(c1) and math.isfinite(c2)) and (c0 > 0 or c1 > 0 or c2 > 0)
+            u_a, u_b = uniform_2d(sob, fh[3], si * ni + branch, kb, 0, depth, INDIRECT_U1, INDIRECT_U2)
+            carries, w0, w1, w2, c0, c1, c2, next_pdf = continuation(hemi_cosine, mutants, ni, u_a, u_b, nx0, nx1,
+                                                                     nx2, f0, f1, f2, b0, b1, b2)
             if not carries:
                 counters[C_ROULETTE] += 1
                 continue
@@ -258,7 +173,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
             x_dir[q, 0], x_dir[q, 1], x_dir[q, 2] = w0, w1, w2
             x_d32[q, 0], x_d32[q, 1], x_d32[q, 2] = w0, w1, w2
             x_beta[q, 0], x_beta[q, 1], x_beta[q, 2] = c0, c1, c2
-            x_pdf[q] = pdf * ni
+            x_pdf[q] = next_pdf
 
     return m, s, n_next
 
@@ -291,9 +206,8 @@ def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_p
         if p < 0 or s_aux[q] < 0:
             continue
         tri = prim_to_tri[p]
-        faces_x = dot3(s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], tri_normal[tri, 0], tri_normal[tri, 1],
-                       tri_normal[tri, 2]) < 0
-        weight = s_aux[q] * (1.0 if faces_x else 0.0)
+        weight = hemisphere_weight(s_aux[q], s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], tri_normal[tri, 0],
+                                   tri_normal[tri, 1], tri_normal[tri, 2])
         h = s_owner[q]
         total[h, 0] += emission[tri, 0] * s_value[q, 0] * weight
         total[h, 1] += emission[tri, 1] * s_value[q, 1] * weight
