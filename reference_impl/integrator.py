@@ -46,13 +46,6 @@ from reference_impl.lights import LightSampler, TriangleAreaSampler
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import Settings
 
-# What each random dimension is for (see rng.dimension); the kernels use the same numbers (kernels.rng.FILM_X, ...).
-_FILM_X, _FILM_Y = 0, 1
-_LIGHT_SELECT, _LIGHT_TRIANGLE, _LIGHT_U1, _LIGHT_U2 = 2, 3, 4, 5
-_DIRECT_DIR_U1, _DIRECT_DIR_U2 = 6, 7
-_ROULETTE = 8
-_INDIRECT_U1, _INDIRECT_U2 = 9, 10
-
 COUNTERS = (
     "camera_rays",  # viewing rays traced
     "shadow_rays",  # occlusion (any-hit) queries toward sampled light points
@@ -194,9 +187,7 @@ class _Context:
         self.lights = LightSampler(geometry, settings.light_selection) if self.has_lights else None
         usable = np.flatnonzero(geometry.area > 0)
         self.all_surfaces = TriangleAreaSampler(geometry, usable) if len(usable) else None
-        self.mis = settings.direct == "mis"
         self.mutant = settings.mutant  # a planted fault (reference_impl/mutants.py), "" in every real render
-        self.double_emission = settings.mutant == "double-emission"
         self.reflectance = geometry.reflectance / np.pi  # f_r of each material
         self.split_cap = 4 * settings.batch_size
         self.hemisphere_direct = settings.direct in ("hemisphere-cosine", "hemisphere-uniform")
@@ -211,7 +202,7 @@ class _Context:
         return ws
 
     def _kernel_tables(self) -> None:
-        """The scene, the samplers and the settings as the flat arrays the kernels take."""
+        """The scene, the samplers and the settings as the flat arrays and the configuration the kernels take."""
         kernels = _kernels()
         g, s = self.geometry, self.settings
         c = np.ascontiguousarray
@@ -234,25 +225,8 @@ class _Context:
         else:
             self.surface_tables = (np.zeros(0, np.int64), np.zeros(0))
             surface_pdf = 0.0
-        self.cfg_f = np.zeros(kernels.config.CFGF_SIZE)
-        self.cfg_f[kernels.config.CFGF_FIXED_SURVIVAL] = 1.0 - s.absorption
-        self.cfg_f[kernels.config.CFGF_OFFSET_SCENE] = self.intersector.offset_scene
-        self.cfg_f[kernels.config.CFGF_SURFACE_PDF] = surface_pdf
-        cfg = np.zeros(kernels.config.CFG_SIZE, np.int64)
-        cfg[kernels.config.CFG_DIRECT] = kernels.config.DIRECT_MODES[s.direct]
-        cfg[kernels.config.CFG_ND] = s.shadow_rays
-        cfg[kernels.config.CFG_NI] = s.indirect_rays
-        cfg[kernels.config.CFG_HEMI_COSINE] = s.hemisphere == "cosine"
-        cfg[kernels.config.CFG_RR] = kernels.config.RR_MODES[s.rr]
-        cfg[kernels.config.CFG_RR_DEPTH] = s.rr_depth
-        cfg[kernels.config.CFG_MUTANTS] = kernels.config.MUTANT_BITS.get(self.mutant, 0)
-        cfg[kernels.config.CFG_NUM_LIGHTS] = self.geometry.num_lights
-        cfg[kernels.config.CFG_SOBOL] = s.sampler == "sobol"
-        cfg[kernels.config.CFG_SPP] = s.spp
-        self._cfg = cfg
-        # The path-at-a-time kernel derives the per-vertex entries itself; EMIT_ALL marks the double-emission mutant.
-        self.path_config = cfg.copy()
-        self.path_config[kernels.config.CFG_EMIT] = kernels.config.EMIT_ALL if self.double_emission else kernels.config.EMIT_NONE
+        self.config = kernels.config.kernel_config(s, self.geometry.num_lights, self.intersector.offset_scene,
+                                                   surface_pdf)
         self.path_engine = (s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         width, height = self.film.width, self.film.height
@@ -261,27 +235,9 @@ class _Context:
         self.eye = np.asarray(self.camera.origin, dtype=np.float64)
         self.seed_key = np.uint64(rng._mix64_int(s.seed ^ int(rng._GOLDEN)))
 
-    def bounce_config(self, depth: int) -> np.ndarray:
-        """The kernels' integer settings for the hits of vertex ``depth``."""
-        kernels = _kernels()
-        cfg = self._cfg.copy()
-        cfg[kernels.config.CFG_DEPTH] = depth
-        # Emission Le(x -> Theta): only for the viewing ray's hit (eq. 5.2 recurses on L_r), unless MIS weighs the
-        # indirect ray as a direct-light sample, or the double-counting mutant is on.
-        if depth == 1 or self.double_emission:
-            cfg[kernels.config.CFG_EMIT] = kernels.config.EMIT_ALL
-        elif self.mis:
-            cfg[kernels.config.CFG_EMIT] = kernels.config.EMIT_MIS
-        else:
-            cfg[kernels.config.CFG_EMIT] = kernels.config.EMIT_NONE
-        cfg[kernels.config.CFG_ALLOW_NEXT] = self.depth_allows(depth + 1)
-        # Indirect light (Fig. 5.14): needed if the next vertex can still add anything.
-        cfg[kernels.config.CFG_ALLOW_INDIRECT] = self.depth_allows(depth + 2) or (self.mis and self.depth_allows(depth + 1))
-        return cfg
-
-    def depth_allows(self, path_length: int) -> bool:
-        """Whether paths of this many segments are counted (Mitsuba's max_depth)."""
-        return self.max_depth == -1 or path_length <= self.max_depth
+    def bounce_config(self, depth: int):
+        """The kernels' configuration for the hits of vertex ``depth`` (a wavefront bounce)."""
+        return self.config._replace(depth=depth)
 
 
 class _Clock:
@@ -369,21 +325,22 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     width, height = ctx.film.width, ctx.film.height
     tan_x, tan_y = ctx.tan_half_fov
     n = len(pixel)
-    sobol = ctx.settings.sampler == "sobol"
+    sobol = ctx.config.sampler == kernels.config.SAMPLER_SOBOL
     if ctx.filter_kind == kernels.config.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
         if sobol:
-            ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, _FILM_X))
+            ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, rng.FILM_X))
         else:
             keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
-            ux, uy = rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y))
+            ux, uy = rng.uniform(keys, rng.dimension(0, rng.FILM_X)), rng.uniform(keys, rng.dimension(0, rng.FILM_Y))
         filter_samples = ctx.filter.sample(ux, uy)
     else:
         filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
     first = _view(ctx.workspace().state(0, n), n)
     film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key)
+    half_pixel = (ctx.config.mutant & kernels.config.M_CAMERA_HALF_PIXEL) != 0  # mutant "camera-half-pixel"
     kernels.camera.camera_paths(
-        film_samples[0], film_samples[1], ctx.seed_key, ctx.settings.spp, width, height, ctx.filter_kind,
-        filter_samples, ctx.mutant == "camera-half-pixel", tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
+        film_samples[0], film_samples[1], ctx.seed_key, ctx.config.spp, width, height, ctx.filter_kind,
+        filter_samples, half_pixel, tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
     )
     radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
@@ -392,8 +349,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     if ctx.path_engine:
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                            ctx.surface_tables, ctx.path_config, ctx.cfg_f, ctx.max_depth, radiance, counters, timing,
-                            film_samples)
+                                 ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
@@ -447,7 +403,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     hits, total, rays = ctx.workspace().direct(len(state))
     m, s, n_next = kernels.wavefront.bounce(
         state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
-        ctx.cfg_f, radiance, counters, hits, rays, out, film_samples,
+        radiance, counters, hits, rays, out, film_samples,
     )
     if m:
         nd = ctx.settings.shadow_rays

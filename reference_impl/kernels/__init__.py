@@ -8,22 +8,30 @@ Ni > 1, where paths branch). Both compute exactly what the numpy definitions com
 =================== ========================================================== ====================================
 module              what it holds                                              numpy definition it repeats
 =================== ========================================================== ====================================
-``config``          compile options, the cfg slots, modes, planted-fault bits, -
-                    counters
+``config``          compile options, the settings as the kernels read them     ``Settings`` (the table of slots)
+                    (``KernelConfig``), modes, planted-fault bits, counters
 ``rng``             hashed random numbers: keys, dimensions, uniforms          ``reference_impl.rng``
 ``sobol``           the stratified sampler: scrambled, shuffled Sobol points   ``rng.sobol_2d``
 ``warps``           hemisphere warps, the world frame, discrete choices        ``reference_impl.sampling``
 ``light_sampling``  points on the lights (Fig. 5.8, 5.10) and on all surfaces  ``reference_impl.lights``
                     (Fig. 5.13)
-``surface``         ray origin offsets, where a shadow ray stops               ``reference_impl.intersect``
+``surface``         the hit point in float64, ray origin offsets, where a      ``reference_impl.intersect``
+                    shadow ray stops
 ``camera``          viewing rays through the pixel filter (Fig. 5.16)          ``Camera``, ``filters``
+``vertex``          a vertex's rules (max_depth), emission, roulette, the      ``integrator`` (eq. 5.2, Fig. 5.14)
+                    indirect ray
+``direct``          the direct-light estimator: light and surface samples,     ``integrator`` (eq. 5.3, Fig. 5.7,
+                    shadow rays, MIS, hemisphere samples                       5.10, 5.12, 5.13)
 ``queries``         Embree's C API: ray buffers, closest hit, occlusion,       ``Intersector`` (embreex)
                     packets, timing
-``wavefront``       one bounce of a batch, and the direct light once Embree    ``integrator``'s wavefront
+``wavefront``       one bounce of a batch, and the direct light once Embree    the wavefront engine
                     has answered
 ``path``            whole paths, one at a time                                 the same bits as ``wavefront``
 ``film``            the samples' end: non-finite count, per-pixel sums         ``np.cumsum`` in sample order
 =================== ========================================================== ====================================
+
+Both engines build each vertex from the same helpers of ``surface``, ``vertex`` and ``direct``; they differ only in
+where the rays go (a query on the spot, or a buffer for the next batched query) and where the sums are kept.
 
 The numpy functions stay the documented definitions (the chi^2 tests run them); the kernels repeat the same
 formulas, operation for operation (same order of floating-point operations wherever the numpy code fixes one), so

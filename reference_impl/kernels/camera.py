@@ -14,8 +14,9 @@ import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import FILTER_BOX, FILTER_GAUSSIAN, JIT
-from reference_impl.kernels.rng import FILM_X, FILM_Y, dim_salt, path_key, pixel_key, uniform
+from reference_impl.kernels.rng import dim_salt, path_key, pixel_key, uniform
 from reference_impl.kernels.sobol import sobol_point, sobol_seeds
+from reference_impl.rng import FILM_X, FILM_Y
 
 _ONE = np.uint64(1)
 

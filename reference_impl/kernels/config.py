@@ -1,11 +1,12 @@
-"""What the kernels share besides code: numba's compile options, the configuration slots, modes and planted faults,
-and the order of the counters.
+"""What the kernels share besides code: numba's compile options, the settings as the kernels read them
+(:class:`KernelConfig` and the table that fills it from :class:`reference_impl.settings.Settings`), the modes and
+planted faults, and the order of the counters.
 
-Every setting is a runtime integer or float of two small arrays, ``cfg`` (int64) and ``cfg_f`` (float64), never a
-compile-time constant, so every setting runs the same compiled signatures and no setting triggers a compilation.
+Every setting is a runtime int or float of one :class:`KernelConfig`, never a compile-time constant, so every
+setting runs the same compiled signatures and no setting triggers a compilation.
 """
 
-from __future__ import annotations
+from typing import NamedTuple
 
 # Every kernel is nogil (the integrator's thread pool runs them concurrently, as it runs Embree queries) and cached
 # (reference_impl/kernels/__pycache__). IEEE semantics are kept: no fastmath (no reassociation, no FMA contraction),
@@ -28,28 +29,86 @@ JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
 (C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE,
  C_LIGHT_SELECT) = range(10)
 
-# Integer configuration of one bounce (the ``cfg`` array of :func:`bounce`).
-(CFG_DEPTH, CFG_EMIT, CFG_ALLOW_NEXT, CFG_ALLOW_INDIRECT, CFG_DIRECT, CFG_ND, CFG_NI, CFG_HEMI_COSINE, CFG_RR,
- CFG_RR_DEPTH, CFG_MUTANTS, CFG_NUM_LIGHTS, CFG_SOBOL, CFG_SPP, CFG_SIZE) = range(15)
-# The stratified sampler ("sobol") draws the camera sample (depth 0) and the decisions of the first hit (depth 1:
-# light sample, roulette, indirect direction); deeper ones are independent. Measured on the Cornell box, 64 spp: the
-# first hit gives nearly all of the gain (MSE 5.6e-4 -> 1.5e-4); going on to depth 2 took 3 % more time for 3 % less
-# MSE.
-# Float configuration (the ``cfg_f`` array).
-CFGF_FIXED_SURVIVAL, CFGF_OFFSET_SCENE, CFGF_SURFACE_PDF, CFGF_SIZE = range(4)
-
-EMIT_NONE, EMIT_ALL, EMIT_MIS = 0, 1, 2  # emission at the hit: not counted, counted, counted with the MIS weight
 DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM = range(5)
 DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
                 "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM}
+HEMI_UNIFORM, HEMI_COSINE = 0, 1
+HEMISPHERE_MODES = {"uniform": HEMI_UNIFORM, "cosine": HEMI_COSINE}
 RR_OFF, RR_ALBEDO, RR_FIXED = 0, 1, 2
 RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED}
+SAMPLER_INDEPENDENT, SAMPLER_SOBOL = 0, 1
+SAMPLER_MODES = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL}
 FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
 FILTER_KINDS = {"box": FILTER_BOX, "tent": FILTER_TENT, "gaussian": FILTER_GAUSSIAN}
+EMIT_NONE, EMIT_ALL, EMIT_MIS = 0, 1, 2  # emission at a hit: not counted, counted, counted with the MIS weight
 
-# Planted faults (reference_impl/mutants.py) that live in the kernels, as bits of cfg[CFG_MUTANTS]; each place one
-# changes is marked with a comment naming it. ("camera-half-pixel" is an argument of camera_paths; "double-emission" is the
-# EMIT_ALL mode chosen by the integrator; "energy-loss-2pct" is the scale of finish_samples.)
-M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET = 1, 2, 4, 8, 16
+# Planted faults (reference_impl/mutants.py) that live in the kernels, as bits of KernelConfig.mutant; each place
+# one changes is marked with a comment naming it. ("energy-loss-2pct" is the integrator's scale of finish_samples.)
+(M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET, M_DOUBLE_EMISSION,
+ M_CAMERA_HALF_PIXEL) = (1 << b for b in range(7))
 MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-no-reweight": M_RR_NO_REWEIGHT,
-               "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET}
+               "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET,
+               "double-emission": M_DOUBLE_EMISSION, "camera-half-pixel": M_CAMERA_HALF_PIXEL}
+
+
+class KernelConfig(NamedTuple):
+    """Every setting the kernels read, one slot each. A slot filled by a :class:`Settings` field has that field's
+    name (:data:`FROM_SETTINGS` says how it is filled); the others come from the scene (:data:`FROM_SCENE`). Only
+    ints and floats, so that every configuration is the same numba type."""
+
+    depth: int  # the vertex a wavefront bounce is at (the viewing ray's hit is 1); 0 for the path engine
+    max_depth: int  # longest path in segments, -1 unbounded
+    direct: int  # DIRECT_*
+    shadow_rays: int  # [Nd]
+    indirect_rays: int  # [Ni]
+    hemisphere: int  # HEMI_*
+    rr: int  # RR_*
+    rr_depth: int  # first vertex at which roulette is played
+    survival: float  # q of rr = "fixed"
+    mutant: int  # M_* bits
+    sampler: int  # SAMPLER_*
+    spp: int  # [Np]
+    num_lights: int  # N_L
+    offset_scene: float  # the scene-size part of a ray origin's offset (Intersector.offset_scene)
+    surface_pdf: float  # 1 / A_scene, the density of global area sampling
+
+
+# The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
+#   scene    = (prim_to_tri, normal, v0, corners, emission, light_id, material, two_sided, f_r, albedo_max), per
+#              triangle (prim_to_tri per Embree primitive; f_r and albedo_max per material);
+#   lights   = (cdf, triangles, first, count, within_cdf, pmf, area) of lights.LightSampler;
+#   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface.
+
+# The one table from Settings to the kernels: slot of KernelConfig -> (the Settings field that fills it, its value in
+# the slot).
+FROM_SETTINGS = {
+    "max_depth": ("max_depth", int),  # resolved to the scene's before a render
+    "direct": ("direct", DIRECT_MODES.__getitem__),
+    "shadow_rays": ("shadow_rays", int),
+    "indirect_rays": ("indirect_rays", int),
+    "hemisphere": ("hemisphere", HEMISPHERE_MODES.__getitem__),
+    "rr": ("rr", RR_MODES.__getitem__),
+    "rr_depth": ("rr_depth", int),
+    "survival": ("absorption", lambda absorption: float(1.0 - absorption)),
+    "mutant": ("mutant", lambda mutant: MUTANT_BITS.get(mutant, 0)),  # "" and "energy-loss-2pct": no bit
+    "sampler": ("sampler", SAMPLER_MODES.__getitem__),
+    "spp": ("spp", int),
+}
+# The slots the render fills from the scene (integrator._Context), and depth per wavefront bounce.
+FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf")
+# The Settings fields that fill no slot, and where they go instead.
+NOT_SLOTS = {
+    "seed": "seed_key = mix64(seed ^ golden), an argument of camera_paths and of the engines (film_samples)",
+    "light_selection": "the light tables' pdf(k) (lights.LightSampler)",
+    "batch_size": "how many camera samples the integrator hands to a kernel at once",
+    "threads": "the integrator's thread pool",
+    "engine": "which engine the integrator runs",
+}
+
+
+def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float) -> KernelConfig:
+    """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
+    lights; ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``)."""
+    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items()}
+    return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
+                        surface_pdf=float(surface_pdf), **slots)

@@ -26,36 +26,36 @@ import math
 
 from numba import njit
 
-from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, JIT, JIT_BORROW, JIT_INLINE,
-                                           M_LIGHT_PDF_IGNORED,
-                                           M_NO_COSINE, M_NO_RAY_OFFSET)
+from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
+                                           JIT_BORROW, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET)
 from reference_impl.kernels.light_sampling import (sample_light_point, sample_surface_point, split_light_uniform,
                                                    split_surface_uniform)
-from reference_impl.kernels.rng import (DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2,
-                                        dim_salt, uniform)
+from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import sobol_point, uniform_2d
 from reference_impl.kernels.surface import origin_offset, shadow_t_max
 from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
+from reference_impl.rng import DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2
 
 
 @njit(**JIT_BORROW)
-def light_sample(direct, sob, seeds, index, key, depth, j, lights, num_lights, surfaces, corners, surface_pdf,
-                 mutants):
-    """Sample j of a hit's Nd point samples (``_direct_area_sample``, ``_direct_global_area_sample``): the triangle
-    of y, y, and p(y) per unit area. The stratified sampler (``sob``) draws one 2D point (point ``index`` of the
-    pixel's set ``seeds``) and reuses its first coordinate for the discrete choices (lights.LightSampler.split_uniform);
-    independent numbers need no reuse."""
+def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces):
+    """Sample j of a hit's Nd point samples (``_direct_area_sample``, ``_direct_global_area_sample``), for the
+    camera sample ``index`` of its pixel: (whether a light was chosen, the triangle of y, y, p(y) per unit area).
+    The stratified sampler (``sob``) draws one 2D point of the pixel's set ``seeds`` and reuses its first coordinate
+    for the discrete choices (lights.LightSampler.split_uniform); independent numbers need no reuse."""
+    corners = scene[3]
     if sob:
-        u_a, u_b = sobol_point(seeds, index)
+        u_a, u_b = sobol_point(seeds, index * cfg.shadow_rays + j)
     else:
         u_a, u_b = uniform(key, dim_salt(depth, LIGHT_U1, j)), uniform(key, dim_salt(depth, LIGHT_U2, j))
-    if direct == DIRECT_GLOBAL_AREA:
+    if cfg.direct == DIRECT_GLOBAL_AREA:
         if sob:
             u_tri, u_a = split_surface_uniform(surfaces, u_a)
         else:
             u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
         tri, y0, y1, y2 = sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
-        return tri, y0, y1, y2, surface_pdf
+        return False, tri, y0, y1, y2, cfg.surface_pdf
+    num_lights = cfg.num_lights
     if sob:
         u_select, u_tri, u_a = split_light_uniform(lights, num_lights, u_a)
     else:  # with one light there is nothing to choose (pdf(k) = 1) and nothing to draw
@@ -63,54 +63,54 @@ def light_sample(direct, sob, seeds, index, key, depth, j, lights, num_lights, s
         u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
     light, tri, y0, y1, y2 = sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
     light_pmf, light_area = lights[5], lights[6]
-    if mutants & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
-        return tri, y0, y1, y2, 1.0 / light_area[light]
-    return tri, y0, y1, y2, light_pmf[light] / light_area[light]
+    if cfg.mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
+        return num_lights > 1, tri, y0, y1, y2, 1.0 / light_area[light]
+    return num_lights > 1, tri, y0, y1, y2, light_pmf[light] / light_area[light]
 
 
-@njit(**JIT_INLINE)
-def shadow_ray(x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, y0, y1, y2, m0, m1, m2, on_light, e0, e1, e2, f0, f1, f2,
-               pdf_area, offset_scene, mis, nd, ni, hemi_cosine, mutants):
-    """The shadow ray of a point sample y (normal m, emission Le = e, ``on_light`` whether its triangle belongs to a
-    light) seen from x (normal N_x, offset origin ox, reflectance f_r = f), and what it carries if nothing blocks it
-    (``_shadow_ray_estimate``, ``_mis_weight_light``): (needed, ray origin, unit direction, t_max,
-    Le f_r G / p(y) with its MIS weight). ``needed`` is False where the sample takes no ray."""
+@njit(**JIT_BORROW)
+def shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area):
+    """The shadow ray of a point sample y on triangle ``ltri`` (p(y) per unit area ``pdf_area``) seen from x (normal
+    N_x, offset origin ox, f_r = f), and what it carries where nothing blocks it (``_shadow_ray_estimate``,
+    ``_mis_weight_light``): (whether the sample needs a ray at all, the ray's origin, unit direction and t_max,
+    Le f_r G / p(y) with its MIS weight)."""
+    tri_normal, emission, light_id = scene[1], scene[4], scene[5]
     l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
     dist2 = dot3(l0, l1, l2, l0, l1, l2)
     dist = math.sqrt(dist2)
     inv_dist = 1.0 / dist  # one division, three products
     wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
     cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
-    cos_y = -dot3(m0, m1, m2, wi0, wi1, wi2)
-    if not (cos_x > 0 and cos_y > 0 and on_light and dist2 > 0):
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    if mutants & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
+    cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
+    if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
+        return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
         so0, so1, so2 = x0, x1, x2
     else:
         so0, so1, so2 = ox0, ox1, ox2
     g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
     seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
-    t_max = shadow_t_max(seg_len, origin_offset(offset_scene, y0, y1, y2), cos_y)
+    t_max = shadow_t_max(seg_len, origin_offset(cfg.offset_scene, y0, y1, y2), cos_y)
     inv_seg = 1.0 / seg_len
-    cos_at_x = 1.0 if mutants & M_NO_COSINE else cos_x  # mutant "no-cosine" (direct light)
+    cos_at_x = 1.0 if cfg.mutant & M_NO_COSINE else cos_x  # mutant "no-cosine" (direct light)
     scale = (cos_at_x * cos_y) / (dist2 * pdf_area)  # G(x, y) V / p(y), for V = 1 (one division)
-    v0 = e0 * f0 * scale
-    v1 = e1 * f1 * scale
-    v2 = e2 * f2 * scale
-    if mis:  # _mis_weight_light
-        p_light = nd * pdf_area * dist2 / cos_y
-        p_hemi = ni * hemisphere_pdf(hemi_cosine, cos_x)
+    v0 = emission[ltri, 0] * f0 * scale
+    v1 = emission[ltri, 1] * f1 * scale
+    v2 = emission[ltri, 2] * f2 * scale
+    if cfg.direct == DIRECT_MIS:  # _mis_weight_light
+        p_light = cfg.shadow_rays * pdf_area * dist2 / cos_y
+        p_hemi = cfg.indirect_rays * hemisphere_pdf(cfg.hemisphere == HEMI_COSINE, cos_x)
         w = p_light * p_light / (p_light * p_light + p_hemi * p_hemi)
         v0, v1, v2 = v0 * w, v1 * w, v2 * w
     return True, so0, so1, so2, g0 * inv_seg, g1 * inv_seg, g2 * inv_seg, max(t_max, 0.0), v0, v1, v2
 
 
-@njit(**JIT_INLINE)
-def hemisphere_sample(direct, sob, seeds, index, key, depth, j, n0, n1, n2):
-    """Sample j of a hit's Nd direction samples (``_direct_hemisphere_sample``): the direction Psi, and
-    cos(Psi, N_x) / p(Psi), or -1 where p(Psi) = 0 (nothing to count)."""
-    u_a, u_b = uniform_2d(sob, seeds, index, key, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
-    w0, w1, w2, cos_theta, pdf = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, n0, n1, n2)
+@njit(**JIT_BORROW)
+def hemisphere_sample(cfg, sob, seeds, index, j, key, depth, n0, n1, n2):
+    """Sample j of a hit's Nd direction samples (``_direct_hemisphere_sample``), for the camera sample ``index`` of
+    its pixel: the direction Psi, and cos(Psi, N_x) / p(Psi), or -1 where p(Psi) = 0 (nothing to count)."""
+    u_a, u_b = uniform_2d(sob, seeds, index * cfg.shadow_rays + j, key, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+    w0, w1, w2, cos_theta, pdf = sample_hemisphere(cfg.direct == DIRECT_HEMI_COSINE, u_a, u_b, n0, n1, n2)
     return w0, w1, w2, cos_theta / pdf if pdf > 0 else -1.0
 
 

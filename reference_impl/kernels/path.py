@@ -13,61 +13,36 @@ import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
-                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, CFG_DIRECT, CFG_EMIT,
-                                           CFG_HEMI_COSINE, CFG_MUTANTS, CFG_ND, CFG_NUM_LIGHTS, CFG_RR, CFG_RR_DEPTH,
-                                           CFG_SOBOL, CFG_SPP, CFGF_FIXED_SURVIVAL, CFGF_OFFSET_SCENE,
-                                           CFGF_SURFACE_PDF, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE,
-                                           DIRECT_HEMI_UNIFORM, DIRECT_MIS, EMIT_ALL, EMIT_NONE, JIT,
-                                           M_RR_NO_REWEIGHT, RR_OFF)
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_HEMI_COSINE,
+                                           DIRECT_HEMI_UNIFORM, EMIT_NONE, JIT, SAMPLER_SOBOL)
 from reference_impl.kernels.direct import hemisphere_sample, hemisphere_weight, light_sample, shadow_ray
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
-from reference_impl.kernels.rng import INDIRECT_U1, INDIRECT_U2
-from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds, uniform_2d
-from reference_impl.kernels.surface import hit_point, offset_origin
-from reference_impl.kernels.vertex import continuation, emitted, roulette, vertex_rules
+from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
+from reference_impl.kernels.surface import surface_hit
+from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
 
 @njit(**JIT)
-def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth, radiance, counters, timing,
-                film_samples):
+def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counters, timing, film_samples):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one path at a time,
     with Ni = 1: the same estimator, random numbers and order of floating-point operations as the wavefront
     (``bounce`` then ``resolve_shadow`` / ``resolve_hemisphere`` at each vertex), so the same bits, but each
     vertex's queries are made on the spot (Embree's C API) instead of in batches, and nothing is written between
     vertices but the path's own few numbers.
 
-    ``cfg`` is the integer configuration of :func:`.wavefront.bounce` without its per-vertex entries (depth,
-    emission mode, whether a next vertex and indirect light are needed), which are derived here from ``max_depth``
-    (-1: unbounded), the direct-light mode (MIS) and the planted faults; ``cfg[CFG_EMIT]`` = EMIT_ALL marks the
-    double-emission mutant. The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet
-    query. ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed),
-    ``timing[1]`` the number of queries. ``film_samples`` = (pixel, sample, seed_key) of the camera samples, for the
-    stratified sampler.
+    ``cfg`` is the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
+    The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet query. ``timing[0]``
+    receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]`` the number of
+    queries. ``film_samples`` = (pixel, sample, seed_key) of the camera samples, for the stratified sampler.
     """
     root, key, origin, direction, o32, d32, beta, pdf_dir = state
-    prim_to_tri, tri_normal, tri_v0, corners, emission, light_id, tri_material, two_sided, f_r_table, albedo_max = scene
-    light_pmf, light_area = lights[5], lights[6]
-    double_emission = cfg[CFG_EMIT] == EMIT_ALL
-    direct = cfg[CFG_DIRECT]
-    mis = direct == DIRECT_MIS
-    nd = cfg[CFG_ND]
+    prim_to_tri, tri_normal, emission = scene[0], scene[1], scene[4]
+    nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
-    hemi_cosine = cfg[CFG_HEMI_COSINE] != 0
-    rr = cfg[CFG_RR]
-    rr_depth = cfg[CFG_RR_DEPTH]
-    mutants = cfg[CFG_MUTANTS]
-    reweight = (mutants & M_RR_NO_REWEIGHT) == 0
-    num_lights = cfg[CFG_NUM_LIGHTS]
-    selects = direct != DIRECT_GLOBAL_AREA and num_lights > 1  # each area sample chooses a light
-    fixed_survival = cfg_f[CFGF_FIXED_SURVIVAL]
-    offset_scene = cfg_f[CFGF_OFFSET_SCENE]
-    surface_pdf = cfg_f[CFGF_SURFACE_PDF]
-    hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
-    sobol = cfg[CFG_SOBOL] != 0
-    film_pixel, film_sample, seed_key = film_samples
-    spp = cfg[CFG_SPP]
-    fh = first_hit_seeds(seed_key, 0, 1, 1, 1)
+    hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
+    sobol = cfg.sampler == SAMPLER_SOBOL
+    fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
     fh_pixel = -1
     si = 0
     words, floats = ray_buffer()
@@ -102,10 +77,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
         ray_pdf = pdf_dir[i]
         depth = 1
         if sobol:
-            fh, fh_pixel, si = pixel_first_hit_seeds(fh, fh_pixel, film_pixel, film_sample, r, seed_key, spp, nd, 1)
+            fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
         while True:
-            emit, allow_next, allow_indirect = vertex_rules(depth, max_depth, mis, double_emission)
+            emit, allow_next, allow_indirect = vertex_rules(cfg, depth)
             sob = sobol and depth == 1
             if depth == 1:
                 p = np.int64(first_prim[i])
@@ -115,43 +90,33 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             if p < 0:
                 count_escaped += 1
                 break
-            tri = prim_to_tri[p]
-            nx0, nx1, nx2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
-            t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, nx0, nx1, nx2, tri_v0[tri, 0], tri_v0[tri, 1],
-                                               tri_v0[tri, 2])
+            tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
             front = cos_out > 0
             if emit != EMIT_NONE:
-                e0, e1, e2, w = emitted(emit, front, tri, emission, light_id, light_pmf, light_area, nd, t, cos_out,
-                                        ray_pdf)
+                e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, ray_pdf)
                 rad0 += b0 * e0 * w
                 rad1 += b1 * e1 * w
                 rad2 += b2 * e2 * w
 
             if not allow_next:
                 break
-            material = tri_material[tri]
-            if not (front or two_sided[material]):
+            reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0,
+                                                                                         nx1, nx2, x0, x1, x2)
+            if not reflects:
                 count_back_face += 1
                 break
-            if not front:  # the side Theta leaves from
-                nx0, nx1, nx2 = -nx0, -nx1, -nx2
-            f0, f1, f2 = f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2]
-            ox0, ox1, ox2 = offset_origin(offset_scene, x0, x1, x2, nx0, nx1, nx2)
 
             # Indirect light, if the next vertex can still add anything. Drawn before the direct light's queries (the
             # random numbers are counter-based, so the order of drawing changes nothing), which gives the processor
             # independent arithmetic to overlap instead of a chain broken by every Embree call.
             go_on = allow_indirect
-            q0, q1, q2 = b0, b1, b2
-            if go_on and rr != RR_OFF and depth >= rr_depth:
-                go_on, q0, q1, q2 = roulette(rr, albedo_max[material], fixed_survival, sob, fh[2], si, k, depth,
-                                             reweight, b0, b1, b2)
+            if go_on:
+                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, fh[2], si, k, depth, b0, b1, b2)
                 if not go_on:
                     count_roulette += 1
             if go_on:
-                u_a, u_b = uniform_2d(sob, fh[3], si, k, 0, depth, INDIRECT_U1, INDIRECT_U2)
-                go_on, w0, w1, w2, c0, c1, c2, next_pdf = continuation(hemi_cosine, mutants, 1, u_a, u_b, nx0, nx1,
-                                                                       nx2, f0, f1, f2, q0, q1, q2)
+                go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, fh[3], si, 0, k, depth, nx0,
+                                                                                 nx1, nx2, f0, f1, f2, q0, q1, q2)
                 if go_on:
                     count_indirect += 1
                 else:
@@ -161,7 +126,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    h0, h1, h2, ratio = hemisphere_sample(direct, sob, fh[1], si * nd + j, k, depth, j, nx0, nx1, nx2)
+                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, fh[1], si, j, k, depth, nx0, nx1, nx2)
                     count_hemi_direct += 1
                     hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
                                                                  ox0, ox1, ox2, h0, h1, h2)
@@ -174,14 +139,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
                     tot1 += emission[htri, 1] * f1 * weight
                     tot2 += emission[htri, 2] * f2 * weight
                     continue
-                ltri, y0, y1, y2, pdf_area = light_sample(direct, sob, fh[0], si * nd + j, k, depth, j, lights,
-                                                          num_lights, surfaces, corners, surface_pdf, mutants)
-                if selects:
+                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
+                                                                    surfaces)
+                if selected:
                     count_light_select += 1
                 needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
-                    x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, y0, y1, y2, tri_normal[ltri, 0], tri_normal[ltri, 1],
-                    tri_normal[ltri, 2], light_id[ltri] >= 0, emission[ltri, 0], emission[ltri, 1], emission[ltri, 2],
-                    f0, f1, f2, pdf_area, offset_scene, mis, nd, 1, hemi_cosine, mutants)
+                    cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
                 if not needed:
                     count_shadow_skipped += 1
                     continue
@@ -198,6 +161,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, cfg_f, max_depth
 
             if not go_on:
                 break
+            k = next_key
             o0, o1, o2 = ox0, ox1, ox2
             d0, d1, d2 = w0, w1, w2
             b0, b1, b2 = c0, c1, c2

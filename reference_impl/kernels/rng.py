@@ -10,7 +10,7 @@ Every uniform is a hash of (seed, path key, dimension): SplitMix64's finalizer (
     branch     k_b = mix64(k ^ mix64((depth & 0xFFFF) << 32 | b))   (the b-th of Ni indirect rays)
 
 so no generator state passes between batches or threads (docs/reference-renderer.md, "Determinism"). The purposes
-(what a dimension decides) are the integrator's: FILM_X ... INDIRECT_U2.
+(what a dimension decides: FILM_X ... INDIRECT_U2) are :mod:`reference_impl.rng`'s.
 """
 
 from __future__ import annotations
@@ -25,13 +25,6 @@ _U32 = np.uint64(32)
 _U40 = np.uint64(40)
 _ONE = np.uint64(1)
 _PIXEL_SALT_U = np.uint64(_PIXEL_SALT)
-
-# Random-number purposes (integrator: rng.dimension(depth, purpose, index)).
-FILM_X, FILM_Y = 0, 1
-LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2 = 2, 3, 4, 5
-DIRECT_DIR_U1, DIRECT_DIR_U2 = 6, 7
-ROULETTE = 8
-INDIRECT_U1, INDIRECT_U2 = 9, 10
 
 
 @njit(**JIT)

@@ -11,7 +11,8 @@ Point i of the n points of a pixel and pair (docs/reference-renderer.md, "The st
 
 with every seed a hash of (seed, pixel, the pair's first dimension). For n = 2^m the points form a (0, m, 2)-net.
 The camera sample (depth 0) and the first hit's decisions (depth 1) use it; deeper vertices draw independent numbers
-(:mod:`reference_impl.kernels.rng`).
+(:mod:`reference_impl.kernels.rng`). (Measured on the Cornell box at 64 spp: the first hit gives nearly all of the
+gain, MSE 5.6e-4 -> 1.5e-4; going on to depth 2 took 3 % more time for 3 % less MSE.)
 """
 
 from __future__ import annotations
@@ -20,9 +21,8 @@ import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_BORROW
-from reference_impl.kernels.rng import (DIRECT_DIR_U1, INDIRECT_U1, LIGHT_U1, ROULETTE, dim_salt, mix64, pixel_key,
-                                        uniform)
-from reference_impl.rng import _GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32
+from reference_impl.kernels.rng import dim_salt, mix64, pixel_key, uniform
+from reference_impl.rng import _GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, DIRECT_DIR_U1, INDIRECT_U1, LIGHT_U1, ROULETTE
 
 _U32 = np.uint64(32)
 _ONE = np.uint64(1)
@@ -126,11 +126,13 @@ def first_hit_seeds(seed_key, pixel, spp, nd, ni):
 
 
 @njit(**JIT_BORROW)
-def pixel_first_hit_seeds(seeds, seeds_pixel, film_pixel, film_sample, r, seed_key, spp, nd, ni):
+def pixel_first_hit_seeds(cfg, seeds, seeds_pixel, film_samples, r):
     """The :func:`first_hit_seeds` of camera sample r's pixel, and r's index among the pixel's samples: (seeds,
     their pixel, index). A pixel's samples come together, so its seeds are computed once: ``seeds`` of pixel
-    ``seeds_pixel`` are handed back unchanged while the pixel is the same."""
+    ``seeds_pixel`` are handed back unchanged while the pixel is the same. ``film_samples`` = (pixel, sample,
+    seed_key) of the camera samples."""
+    film_pixel, film_sample, seed_key = film_samples
     if film_pixel[r] != seeds_pixel:
         seeds_pixel = film_pixel[r]
-        seeds = first_hit_seeds(seed_key, seeds_pixel, spp, nd, ni)
+        seeds = first_hit_seeds(seed_key, seeds_pixel, cfg.spp, cfg.shadow_rays, cfg.indirect_rays)
     return seeds, seeds_pixel, film_sample[r]

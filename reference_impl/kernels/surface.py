@@ -15,7 +15,7 @@ import math
 
 from numba import njit
 
-from reference_impl.kernels.config import JIT
+from reference_impl.kernels.config import JIT, JIT_BORROW
 from reference_impl.kernels.warps import dot3
 
 # Relative offset of ray origins (intersect._OFFSET_REL), repeated so the kernels need no import of Embree.
@@ -31,6 +31,16 @@ def hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, v0, v1, v2):
     if not (math.isfinite(t) and t > 0):
         t = 0.0
     return t, o0 + t * d0, o1 + t * d1, o2 + t * d2, -denom
+
+
+@njit(**JIT_BORROW)
+def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
+    """The hit of a ray on primitive p: (its triangle, the triangle's normal N, t, x, cos(theta_out))."""
+    prim_to_tri, tri_normal, tri_v0 = scene[0], scene[1], scene[2]
+    tri = prim_to_tri[p]
+    n0, n1, n2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
+    t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, tri_v0[tri, 0], tri_v0[tri, 1], tri_v0[tri, 2])
+    return tri, n0, n1, n2, t, x0, x1, x2, cos_out
 
 
 @njit(**JIT)

@@ -12,21 +12,16 @@ from __future__ import annotations
 from numba import njit
 
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
-                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, CFG_ALLOW_INDIRECT, CFG_ALLOW_NEXT,
-                                           CFG_DEPTH, CFG_DIRECT, CFG_EMIT, CFG_HEMI_COSINE, CFG_MUTANTS, CFG_ND,
-                                           CFG_NI, CFG_NUM_LIGHTS, CFG_RR, CFG_RR_DEPTH, CFG_SOBOL, CFG_SPP,
-                                           CFGF_FIXED_SURVIVAL, CFGF_OFFSET_SCENE, CFGF_SURFACE_PDF,
-                                           DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
-                                           EMIT_NONE, JIT, JIT_INLINE, M_RR_NO_REWEIGHT, RR_OFF)
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_HEMI_COSINE,
+                                           DIRECT_HEMI_UNIFORM, EMIT_NONE, JIT, JIT_INLINE, SAMPLER_SOBOL)
 from reference_impl.kernels.direct import hemisphere_sample, hemisphere_weight, light_sample, shadow_ray
-from reference_impl.kernels.rng import INDIRECT_U1, INDIRECT_U2, branch_salt, mix64
-from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds, uniform_2d
-from reference_impl.kernels.surface import hit_point, offset_origin
-from reference_impl.kernels.vertex import continuation, emitted, roulette
+from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
+from reference_impl.kernels.surface import surface_hit
+from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
 
 @njit(**JIT)
-def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters, hits, rays, out, film_samples):
+def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, rays, out, film_samples):
     """One bounce of the wavefront (integrator._bounce), given the closest hits ``prim`` of the current rays.
 
     Adds the emission seen at the hits to ``radiance``, draws the Nd direct-light samples of each reflecting hit
@@ -34,41 +29,24 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
     multiplied by) and the next wavefront (Russian roulette, Ni branches, hemisphere sampling). The direct light is
     added by :func:`resolve_shadow` / :func:`resolve_hemisphere` once Embree has answered.
 
-    ``state`` and ``out`` are wavefronts (root, key, origin, direction, origin32, direction32, beta, pdf_dir), the
-    current one and room for the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the
-    reflecting hits, in order; ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the
-    direct-light rays of each hit, in sample order, Nd rows per row of ``state``. ``film_samples`` = (pixel, sample,
-    seed_key) of the camera samples (rows of ``root``), for the stratified sampler. Returns how many hits,
-    direct-light rays and next paths were written.
+    ``cfg`` is the render's :class:`.config.KernelConfig` with the ``depth`` of the hits. ``state`` and ``out`` are
+    wavefronts (root, key, origin, direction, origin32, direction32, beta, pdf_dir), the current one and room for
+    the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the reflecting hits, in order;
+    ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the direct-light rays of each hit,
+    in sample order, Nd rows per row of ``state``. ``film_samples`` = (pixel, sample, seed_key) of the camera
+    samples (rows of ``root``), for the stratified sampler. Returns how many hits, direct-light rays and next paths
+    were written.
     """
     root, key, origin, direction, _o32, _d32, beta, pdf_dir = state
     x_root, x_key, x_origin, x_dir, x_o32, x_d32, x_beta, x_pdf = out
     s_owner, s_o32, s_d32, s_tfar, s_value, s_aux, s_dir = rays
-    prim_to_tri, tri_normal, tri_v0, corners, emission, light_id, tri_material, two_sided, f_r_table, albedo_max = scene
-    light_pmf, light_area = lights[5], lights[6]
-    depth = cfg[CFG_DEPTH]
-    emit = cfg[CFG_EMIT]
-    allow_next = cfg[CFG_ALLOW_NEXT] != 0
-    allow_indirect = cfg[CFG_ALLOW_INDIRECT] != 0
-    direct = cfg[CFG_DIRECT]
-    mis = direct == DIRECT_MIS
-    nd = cfg[CFG_ND]
-    ni = cfg[CFG_NI]
-    hemi_cosine = cfg[CFG_HEMI_COSINE] != 0
-    rr = cfg[CFG_RR]
-    mutants = cfg[CFG_MUTANTS]
-    reweight = (mutants & M_RR_NO_REWEIGHT) == 0
-    num_lights = cfg[CFG_NUM_LIGHTS]
-    selects = direct != DIRECT_GLOBAL_AREA and num_lights > 1  # each area sample chooses a light
-    fixed_survival = cfg_f[CFGF_FIXED_SURVIVAL]
-    offset_scene = cfg_f[CFGF_OFFSET_SCENE]
-    surface_pdf = cfg_f[CFGF_SURFACE_PDF]
-    play_roulette = rr != RR_OFF and depth >= cfg[CFG_RR_DEPTH]
-    hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
-    sob = cfg[CFG_SOBOL] != 0 and depth == 1
-    film_pixel, film_sample, seed_key = film_samples
-    spp = cfg[CFG_SPP]
-    fh = first_hit_seeds(seed_key, 0, 1, 1, 1)
+    depth = cfg.depth
+    emit, allow_next, allow_indirect = vertex_rules(cfg, depth)
+    nd = cfg.shadow_rays
+    ni = cfg.indirect_rays
+    hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
+    sob = cfg.sampler == SAMPLER_SOBOL and depth == 1
+    fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
     fh_pixel = -1
     si = 0
 
@@ -81,43 +59,35 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         if p < 0:
             counters[C_ESCAPED] += 1
             continue
-        tri = prim_to_tri[p]
-        nx0, nx1, nx2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
-        o0, o1, o2 = origin[i, 0], origin[i, 1], origin[i, 2]
-        d0, d1, d2 = direction[i, 0], direction[i, 1], direction[i, 2]
-        t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, nx0, nx1, nx2, tri_v0[tri, 0], tri_v0[tri, 1],
-                                           tri_v0[tri, 2])
+        tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2],
+                                                                 direction[i, 0], direction[i, 1], direction[i, 2])
         front = cos_out > 0
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         r = root[i]
         if emit != EMIT_NONE:
-            e0, e1, e2, w = emitted(emit, front, tri, emission, light_id, light_pmf, light_area, nd, t, cos_out,
-                                    pdf_dir[i])
+            e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, pdf_dir[i])
             radiance[r, 0] += b0 * e0 * w
             radiance[r, 1] += b1 * e1 * w
             radiance[r, 2] += b2 * e2 * w
 
         if not allow_next:
             continue
-        material = tri_material[tri]
-        if not (front or two_sided[material]):
+        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0, nx1,
+                                                                                     nx2, x0, x1, x2)
+        if not reflects:
             counters[C_BACK_FACE] += 1
             continue
-        if not front:  # the side Theta leaves from
-            nx0, nx1, nx2 = -nx0, -nx1, -nx2
-        f0, f1, f2 = f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2]
         k = key[i]
         if sob:
-            fh, fh_pixel, si = pixel_first_hit_seeds(fh, fh_pixel, film_pixel, film_sample, r, seed_key, spp, nd, ni)
+            fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
         h = m
         hits[h] = i
         m += 1
-        ox0, ox1, ox2 = offset_origin(offset_scene, x0, x1, x2, nx0, nx1, nx2)
 
         # Direct light: the rays of Nd samples, resolved by resolve_shadow / resolve_hemisphere.
         for j in range(nd):
             if hemi_direct:  # a closest-hit ray
-                w0, w1, w2, ratio = hemisphere_sample(direct, sob, fh[1], si * nd + j, k, depth, j, nx0, nx1, nx2)
+                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, fh[1], si, j, k, depth, nx0, nx1, nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
                 s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
@@ -127,14 +97,12 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
                 s_aux[s] = ratio
                 s += 1
                 continue
-            ltri, y0, y1, y2, pdf_area = light_sample(direct, sob, fh[0], si * nd + j, k, depth, j, lights,
-                                                      num_lights, surfaces, corners, surface_pdf, mutants)
-            if selects:
+            selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
+                                                                surfaces)
+            if selected:
                 counters[C_LIGHT_SELECT] += 1
             needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
-                x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, y0, y1, y2, tri_normal[ltri, 0], tri_normal[ltri, 1],
-                tri_normal[ltri, 2], light_id[ltri] >= 0, emission[ltri, 0], emission[ltri, 1], emission[ltri, 2],
-                f0, f1, f2, pdf_area, offset_scene, mis, nd, ni, hemi_cosine, mutants)
+                cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
             if not needed:
                 counters[C_SHADOW_SKIPPED] += 1
                 continue
@@ -149,17 +117,13 @@ def bounce(state, prim, scene, lights, surfaces, cfg, cfg_f, radiance, counters,
         # Indirect light (Fig. 5.14), if the next vertex can still add anything.
         if not allow_indirect:
             continue
-        if play_roulette:
-            alive, b0, b1, b2 = roulette(rr, albedo_max[material], fixed_survival, sob, fh[2], si, k, depth, reweight,
-                                         b0, b1, b2)
-            if not alive:
-                counters[C_ROULETTE] += 1
-                continue
+        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, fh[2], si, k, depth, b0, b1, b2)
+        if not alive:
+            counters[C_ROULETTE] += 1
+            continue
         for branch in range(ni):
-            kb = k if ni == 1 else mix64(k ^ branch_salt(branch, depth))
-            u_a, u_b = uniform_2d(sob, fh[3], si * ni + branch, kb, 0, depth, INDIRECT_U1, INDIRECT_U2)
-            carries, w0, w1, w2, c0, c1, c2, next_pdf = continuation(hemi_cosine, mutants, ni, u_a, u_b, nx0, nx1,
-                                                                     nx2, f0, f1, f2, b0, b1, b2)
+            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, fh[3], si, branch, k, depth, nx0,
+                                                                         nx1, nx2, f0, f1, f2, b0, b1, b2)
             if not carries:
                 counters[C_ROULETTE] += 1
                 continue

@@ -75,7 +75,7 @@ def _run_bounce_kernel(c, radiance, counters):
     ctx, ws = c["ctx"], c["ws"]
     hits, _, rays = ws.direct(N_RAYS)
     return wavefront.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                            ctx.bounce_config(1), ctx.cfg_f, radiance, counters, hits, rays, ws.state(1, N_RAYS),
+                            ctx.bounce_config(1), radiance, counters, hits, rays, ws.state(1, N_RAYS),
                             c["film_samples"])
 
 
