@@ -1,8 +1,9 @@
 """Viewing rays (``computeImage`` of Fig. 5.16): Np per pixel, through the pixel filter h, with :class:`Camera`'s
 pinhole model (``Camera.generate_rays``) and :class:`PixelFilter`'s samples.
 
-    film point   p = pixel centre + (dx, dy),  (dx, dy) ~ h / int h      (box: u - 1/2; tent: +-(1 - sqrt(2 u')))
-    weight       w = h(p) / (pdf(p) int h) = 1 for box and tent          (the Gaussian's comes from its table)
+    film point   p = pixel centre + (dx, dy),  (dx, dy) ~ h / int h, one coordinate per uniform u:
+                 box u - 1/2; tent sqrt(2 u) - 1 below u = 1/2, else 1 - sqrt(2 (1 - u)); Gaussian from its table
+    weight       w = h(p) / (pdf(p) int h) = 1 for box and tent (the Gaussian's comes with its table's samples)
     direction    normalize(frame (l0, l1, 1)),  l = ((1 - 2 p_x / W) tan_x, (1 - 2 p_y / H) tan_y)
 """
 

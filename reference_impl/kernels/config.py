@@ -19,10 +19,11 @@ JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True, forceinline=F
 # a quarter of a render's time (perf: NRT_incref / NRT_decref).
 JIT_INLINE = dict(JIT, inline="always")
 # The helpers that share a vertex's work between the two engines take the caller's arrays and branch on what they
-# find, so an inlined copy's reference counts die on different branches, where numba's pruning of them fails: one
-# light sample kept 13 increments and 23 decrements in the path loop, and the engines were 11-17 % slower. They only
-# borrow the arrays and allocate nothing, so they are compiled without reference counting (``_nrt=False``, numba's
-# option for such code) and always inlined by LLVM (``forceinline``): no count and no call is left.
+# find. Inlined at numba's level, their arguments' reference counts die on different branches, where numba's pruning
+# of them fails: the path loop kept 15 increments and 29 decrements of the light tables around each light sample, and
+# the engines were 11-17 % slower than with the code written out twice. These helpers only borrow the arrays and
+# allocate nothing, so they are compiled without reference counting (``_nrt=False``, numba's option for such code)
+# and always inlined by LLVM (``forceinline``): no count and no call is left in the loops.
 JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
 
 # Counters, in the order of integrator.COUNTERS.
