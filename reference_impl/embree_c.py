@@ -3,7 +3,7 @@
 
 The library is the ``libembree4`` that the embreex wheel ships (``embreex.libs``); embreex's own Python API calls the
 same two functions once per ray in a Cython loop, so the queries are Embree's either way. Calling them from the
-kernels lets a path be traced from its camera ray to its end in one loop (``kernels.trace_paths``), which removes the
+kernels lets a path be traced from its camera ray to its end in one loop (``kernels.path.trace_paths``), which removes the
 wavefront's memory traffic: docs/performance.md. The symbols are made visible to LLVM with
 ``load_library_permanently``, so kernels that call them can be cached by numba (the call goes by symbol name, not by an
 address baked into the machine code).

@@ -14,17 +14,17 @@ counts direct light twice; it survives only as the mutant "double-emission"). Ru
 by their survival probability (Fig. 5.16, ``estimatedRadiance / (1 - absorption)``).
 
 Two engines give the same bits (``Settings.engine``). The default, "path", hands a batch of camera samples to one
-compiled loop (:func:`kernels.trace_paths`) that follows each path to its end and queries Embree itself (its C API:
-``reference_impl/embree_c.py``), after tracing the batch's camera rays in packets of 16; it serves Ni = 1. The
+compiled loop (:func:`kernels.path.trace_paths`) that follows each path to its end and queries Embree itself (its C
+API: ``reference_impl/embree_c.py``), after tracing the batch's camera rays in packets of 16; it serves Ni = 1. The
 "wavefront" engine, needed when paths branch (Ni > 1): all paths of a batch advance one bounce at a time, every ray
 query is one batched call, and everything between two queries is one compiled kernel over all paths
-(``reference_impl/kernels.py``, numba, ``nogil`` so that the worker threads run kernels and Embree queries
-concurrently); there is no Python loop over rays. One
-bounce (:func:`_bounce`) is: closest hits of the wavefront (Embree) -> :func:`kernels.bounce` (emission at the hits,
-the Nd direct-light samples and the rays they need, Russian roulette and the next wavefront) -> shadow rays (Embree,
-any-hit; closest-hit for hemisphere sampling) -> :func:`kernels.resolve_shadow` / :func:`kernels.resolve_hemisphere`
-(the direct light). The functions ``_direct_*``, ``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments
-are the sections of ``kernels.bounce`` that compute each estimator; their formulas are the ones written above.
+(``reference_impl/kernels/``, numba, ``nogil`` so that the worker threads run kernels and Embree queries
+concurrently); there is no Python loop over rays. One bounce (:func:`_bounce`) is: closest hits of the wavefront
+(Embree) -> :func:`kernels.wavefront.bounce` (emission at the hits, the Nd direct-light samples and the rays they
+need, Russian roulette and the next wavefront) -> shadow rays (Embree, any-hit; closest-hit for hemisphere sampling)
+-> :func:`kernels.wavefront.resolve_shadow` / :func:`kernels.wavefront.resolve_hemisphere` (the direct light). The
+functions ``_direct_*``, ``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments are the sections of the
+kernels that compute each estimator; their formulas are the ones written above.
 """
 
 from __future__ import annotations
@@ -46,13 +46,6 @@ from reference_impl.lights import LightSampler, TriangleAreaSampler
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import Settings
 
-# What each random dimension is for (see rng.dimension); the kernels use the same numbers (kernels.FILM_X, ...).
-_FILM_X, _FILM_Y = 0, 1
-_LIGHT_SELECT, _LIGHT_TRIANGLE, _LIGHT_U1, _LIGHT_U2 = 2, 3, 4, 5
-_DIRECT_DIR_U1, _DIRECT_DIR_U2 = 6, 7
-_ROULETTE = 8
-_INDIRECT_U1, _INDIRECT_U2 = 9, 10
-
 COUNTERS = (
     "camera_rays",  # viewing rays traced
     "shadow_rays",  # occlusion (any-hit) queries toward sampled light points
@@ -67,14 +60,15 @@ COUNTERS = (
 )
 # Time, in microseconds, the worker threads spent inside Embree queries (summed over threads, so it can exceed the
 # wall time): the only entry of ``stats`` that is not a deterministic count. The wavefront times each batched query;
-# the path engine times one query in kernels.TIMING_STRIDE and scales by the stride.
+# the path engine times one query in kernels.queries.TIMING_STRIDE and scales by the stride.
 EMBREE_MICROSECONDS = "embree_microseconds"
 
 
 def _kernels():
-    """reference_impl.kernels, imported on first use (importing numba takes a few tenths of a second, which only a
-    render needs to pay)."""
+    """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
+    first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
+    from reference_impl.kernels import camera, config, film, path, wavefront  # optional: numba-compiled; noqa: F401 (attributes of kernels)
 
     return kernels
 
@@ -164,7 +158,7 @@ class _Workspace:
         return buf
 
     def direct(self, n: int) -> tuple:
-        """(hits, total, rays) with room for ``n`` hits and their Nd direct-light rays each (see kernels.bounce)."""
+        """(hits, total, rays) with room for ``n`` hits and their Nd direct-light rays each (see kernels.wavefront.bounce)."""
         if self._hit_capacity < n:
             cap, hemi = n * self._nd, self._hemisphere
             self.hits = np.empty(n, np.int64)
@@ -193,9 +187,7 @@ class _Context:
         self.lights = LightSampler(geometry, settings.light_selection) if self.has_lights else None
         usable = np.flatnonzero(geometry.area > 0)
         self.all_surfaces = TriangleAreaSampler(geometry, usable) if len(usable) else None
-        self.mis = settings.direct == "mis"
         self.mutant = settings.mutant  # a planted fault (reference_impl/mutants.py), "" in every real render
-        self.double_emission = settings.mutant == "double-emission"
         self.reflectance = geometry.reflectance / np.pi  # f_r of each material
         self.split_cap = 4 * settings.batch_size
         self.hemisphere_direct = settings.direct in ("hemisphere-cosine", "hemisphere-uniform")
@@ -210,7 +202,7 @@ class _Context:
         return ws
 
     def _kernel_tables(self) -> None:
-        """The scene, the samplers and the settings as the flat arrays the kernels take."""
+        """The scene, the samplers and the settings as the flat arrays and the configuration the kernels take."""
         kernels = _kernels()
         g, s = self.geometry, self.settings
         c = np.ascontiguousarray
@@ -233,54 +225,19 @@ class _Context:
         else:
             self.surface_tables = (np.zeros(0, np.int64), np.zeros(0))
             surface_pdf = 0.0
-        self.cfg_f = np.zeros(kernels.CFGF_SIZE)
-        self.cfg_f[kernels.CFGF_FIXED_SURVIVAL] = 1.0 - s.absorption
-        self.cfg_f[kernels.CFGF_OFFSET_SCENE] = self.intersector.offset_scene
-        self.cfg_f[kernels.CFGF_SURFACE_PDF] = surface_pdf
-        cfg = np.zeros(kernels.CFG_SIZE, np.int64)
-        cfg[kernels.CFG_DIRECT] = kernels.DIRECT_MODES[s.direct]
-        cfg[kernels.CFG_ND] = s.shadow_rays
-        cfg[kernels.CFG_NI] = s.indirect_rays
-        cfg[kernels.CFG_HEMI_COSINE] = s.hemisphere == "cosine"
-        cfg[kernels.CFG_RR] = kernels.RR_MODES[s.rr]
-        cfg[kernels.CFG_RR_DEPTH] = s.rr_depth
-        cfg[kernels.CFG_MUTANTS] = kernels.MUTANT_BITS.get(self.mutant, 0)
-        cfg[kernels.CFG_NUM_LIGHTS] = self.geometry.num_lights
-        cfg[kernels.CFG_SOBOL] = s.sampler == "sobol"
-        cfg[kernels.CFG_SPP] = s.spp
-        self._cfg = cfg
-        # The path-at-a-time kernel derives the per-vertex entries itself; EMIT_ALL marks the double-emission mutant.
-        self.path_config = cfg.copy()
-        self.path_config[kernels.CFG_EMIT] = kernels.EMIT_ALL if self.double_emission else kernels.EMIT_NONE
+        self.config = kernels.config.kernel_config(s, self.geometry.num_lights, self.intersector.offset_scene,
+                                                   surface_pdf)
         self.path_engine = (s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0)
-        self.filter_kind = kernels.FILTER_KINDS[self.filter.name]
+        self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         width, height = self.film.width, self.film.height
         self.tan_half_fov = self.camera.tan_half_fov(width, height)
         self.camera_frame = c(self.camera.frame(), dtype=np.float64)
         self.eye = np.asarray(self.camera.origin, dtype=np.float64)
         self.seed_key = np.uint64(rng._mix64_int(s.seed ^ int(rng._GOLDEN)))
 
-    def bounce_config(self, depth: int) -> np.ndarray:
-        """The kernels' integer settings for the hits of vertex ``depth``."""
-        kernels = _kernels()
-        cfg = self._cfg.copy()
-        cfg[kernels.CFG_DEPTH] = depth
-        # Emission Le(x -> Theta): only for the viewing ray's hit (eq. 5.2 recurses on L_r), unless MIS weighs the
-        # indirect ray as a direct-light sample, or the double-counting mutant is on.
-        if depth == 1 or self.double_emission:
-            cfg[kernels.CFG_EMIT] = kernels.EMIT_ALL
-        elif self.mis:
-            cfg[kernels.CFG_EMIT] = kernels.EMIT_MIS
-        else:
-            cfg[kernels.CFG_EMIT] = kernels.EMIT_NONE
-        cfg[kernels.CFG_ALLOW_NEXT] = self.depth_allows(depth + 1)
-        # Indirect light (Fig. 5.14): needed if the next vertex can still add anything.
-        cfg[kernels.CFG_ALLOW_INDIRECT] = self.depth_allows(depth + 2) or (self.mis and self.depth_allows(depth + 1))
-        return cfg
-
-    def depth_allows(self, path_length: int) -> bool:
-        """Whether paths of this many segments are counted (Mitsuba's max_depth)."""
-        return self.max_depth == -1 or path_length <= self.max_depth
+    def bounce_config(self, depth: int):
+        """The kernels' configuration for the hits of vertex ``depth`` (a wavefront bounce)."""
+        return self.config._replace(depth=depth)
 
 
 class _Clock:
@@ -327,7 +284,7 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
             sample = np.tile(np.arange(s0, s1, dtype=np.int64), p1 - p0)
             values = _trace_camera_paths(ctx, pixel, sample, unit_stats)
             # Sequential sums in sample order, so chunking cannot change a single bit.
-            kernels.accumulate(total, total_sq, p0, values, s1 - s0)
+            kernels.film.accumulate(total, total_sq, p0, values, s1 - s0)
         return (p1 - p0) * spp, unit_stats
 
     done = 0
@@ -368,35 +325,35 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     width, height = ctx.film.width, ctx.film.height
     tan_x, tan_y = ctx.tan_half_fov
     n = len(pixel)
-    sobol = ctx.settings.sampler == "sobol"
-    if ctx.filter_kind == kernels.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
+    sobol = ctx.config.sampler == kernels.config.SAMPLER_SOBOL
+    if ctx.filter_kind == kernels.config.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
         if sobol:
-            ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, _FILM_X))
+            ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, rng.FILM_X))
         else:
             keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
-            ux, uy = rng.uniform(keys, rng.dimension(0, _FILM_X)), rng.uniform(keys, rng.dimension(0, _FILM_Y))
+            ux, uy = rng.uniform(keys, rng.dimension(0, rng.FILM_X)), rng.uniform(keys, rng.dimension(0, rng.FILM_Y))
         filter_samples = ctx.filter.sample(ux, uy)
     else:
         filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
     first = _view(ctx.workspace().state(0, n), n)
     film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key)
-    kernels.camera_paths(
-        film_samples[0], film_samples[1], ctx.seed_key, ctx.settings.spp, width, height, ctx.filter_kind,
-        filter_samples, ctx.mutant == "camera-half-pixel", tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
+    half_pixel = (ctx.config.mutant & kernels.config.M_CAMERA_HALF_PIXEL) != 0  # mutant "camera-half-pixel"
+    kernels.camera.camera_paths(
+        film_samples[0], film_samples[1], ctx.seed_key, ctx.config.spp, width, height, ctx.filter_kind,
+        filter_samples, half_pixel, tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
     )
     radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
-    counters[kernels.C_CAMERA] = n
+    counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
     if ctx.path_engine:
         timing = np.zeros(2, np.int64)
-        kernels.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                            ctx.surface_tables, ctx.path_config, ctx.cfg_f, ctx.max_depth, radiance, counters, timing,
-                            film_samples)
+        kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
+                                 ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
-    counters[kernels.C_NONFINITE] += kernels.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
+    counters[kernels.config.C_NONFINITE] += kernels.film.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
     for name, count in zip(COUNTERS, counters.tolist()):
         stats[name] += count
     stats[EMBREE_MICROSECONDS] += int(round(clock.seconds * 1e6))
@@ -444,9 +401,9 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
         prim = intersector.closest_prims(state.origin32, state.direction32)
     clock.seconds += time.perf_counter() - t0
     hits, total, rays = ctx.workspace().direct(len(state))
-    m, s, n_next = kernels.bounce(
+    m, s, n_next = kernels.wavefront.bounce(
         state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
-        ctx.cfg_f, radiance, counters, hits, rays, out, film_samples,
+        radiance, counters, hits, rays, out, film_samples,
     )
     if m:
         nd = ctx.settings.shadow_rays
@@ -456,14 +413,14 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             t0 = time.perf_counter()
             s_prim = intersector.closest_prims(o32[:s], d32[:s])
             clock.seconds += time.perf_counter() - t0
-            kernels.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
+            kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
                                        s_prim, ctx.scene_tables[0], ctx.scene_tables[1], ctx.scene_tables[4],
                                        total, radiance)
         else:
             t0 = time.perf_counter()
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])
             clock.seconds += time.perf_counter() - t0
-            kernels.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
+            kernels.wavefront.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
     return _PathState(*_view(out, n_next))
 
 

@@ -69,13 +69,14 @@ class Intersector:
         return self._query("occluders", origins, directions, tfar)
 
     def _query(self, kernel: str, *rays: np.ndarray) -> np.ndarray:
-        """Run the batch query ``kernels.<kernel>(scene, *rays, out)``: int32 per ray, -1 where nothing is hit."""
+        """Run the batch query ``kernels.queries.<kernel>(scene, *rays, out)``: int32 per ray, -1 where nothing is
+        hit."""
         n = len(rays[0])
         out = np.full(n, -1, np.int32)
         if self._embree is not None and n:
-            from reference_impl import kernels  # optional: numba-compiled; loaded only when a scene is queried
+            from reference_impl.kernels import queries  # optional: numba-compiled; loaded only when a scene is queried
 
-            getattr(kernels, kernel)(self._embree.pointer, *rays, out)
+            getattr(queries, kernel)(self._embree.pointer, *rays, out)
         return out
 
     def closest_hit(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,10 +1,10 @@
 """Planted faults: deliberately wrong variants of the integrator, selectable by name (``--set mutant=NAME``).
 
 They exist so that tests and the harness's verdict can prove that they catch real mistakes: a verdict that passes
-one of these at its default budget is not sharp enough. None runs by default. "double-emission" and
-"energy-loss-2pct" live in ``reference_impl/integrator.py`` (guarded by ``_Context.mutant``), the others in the
-compiled kernels of ``reference_impl/kernels.py`` (the ``camera_paths`` argument ``half_pixel``, or a bit of
-``kernels.MUTANT_BITS`` in the bounce's configuration); every place a fault changes is marked with a comment naming it.
+one of these at its default budget is not sharp enough. None runs by default. "energy-loss-2pct" lives in
+``reference_impl/integrator.py`` (guarded by ``_Context.mutant``), the others in the compiled kernels of
+``reference_impl/kernels/``, as bits of ``kernels.config.MUTANT_BITS`` in the kernels' configuration; every place a
+fault changes is marked with a comment naming it.
 """
 
 MUTANTS: dict[str, str] = {

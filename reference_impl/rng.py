@@ -52,6 +52,14 @@ def uniform(keys: np.ndarray, dim: int) -> np.ndarray:
     return (x >> _S11).astype(np.float64) * _TO_UNIT
 
 
+# What a dimension decides (its ``purpose``), for the integrator and the kernels alike.
+FILM_X, FILM_Y = 0, 1
+LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2 = 2, 3, 4, 5
+DIRECT_DIR_U1, DIRECT_DIR_U2 = 6, 7
+ROULETTE = 8
+INDIRECT_U1, INDIRECT_U2 = 9, 10
+
+
 def dimension(depth: int, purpose: int, index: int = 0) -> int:
     """The dimension number of one decision: path depth, what it is for, and which of Nd / Ni samples."""
     return (depth << 40) | (purpose << 32) | index

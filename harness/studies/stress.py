@@ -59,7 +59,7 @@ DEFAULT_VARIANTS = (
 
 def reference_offset_rel() -> float:
     """The reference's relative ray offset, read from its kernels (the constant the renders use)."""
-    from reference_impl import kernels  # optional: numba-compiled, slow to import; only the limits read it
+    from reference_impl.kernels import surface as kernels  # optional: numba-compiled, slow to import; only the limits read it
 
     return float(kernels._OFFSET_REL)
 

@@ -1,4 +1,4 @@
-"""The compiled kernels (reference_impl/kernels.py) repeat the numpy definitions bit for bit.
+"""The compiled kernels (reference_impl/kernels/) repeat the numpy definitions bit for bit.
 
 The chi^2 tests (tests/reference_impl/test_sampling_chi2.py) check the numpy functions of ``rng``, ``sampling``, ``lights`` and
 ``filters``; the renderer runs their scalar copies in ``kernels``. These tests compare the two on the same inputs,
@@ -16,7 +16,12 @@ try:
 except ImportError:  # tests/ imported as a package
     from tests import chi2_cases
 
-from reference_impl import kernels as K
+from reference_impl.kernels import camera as k_camera
+from reference_impl.kernels import config as k_config
+from reference_impl.kernels import light_sampling as k_lights
+from reference_impl.kernels import rng as k_rng
+from reference_impl.kernels import surface as k_surface
+from reference_impl.kernels import warps as k_warps
 from reference_impl import rng, sampling
 from reference_impl.filters import make_filter
 from reference_impl.lights import LightSampler, TriangleAreaSampler
@@ -42,39 +47,39 @@ def test_random_numbers_match_rng():
     ids = np.concatenate([np.arange(500, dtype=np.uint64), np.random.default_rng(1).integers(0, 2**63, 500, dtype=np.uint64)])
     keys = rng.path_keys(seed, ids)
     seed_key = np.uint64(rng._mix64_int(seed ^ int(rng._GOLDEN)))
-    assert [K.path_key(seed_key, i) for i in ids] == keys.tolist()
+    assert [k_rng.path_key(seed_key, i) for i in ids] == keys.tolist()
     for depth, purpose, index in ((0, 0, 0), (1, 9, 0), (7, 3, 2), (300, 10, 5), (2**20, 8, 0)):
         want = rng.uniform(keys, rng.dimension(depth, purpose, index))
-        salt = np.uint64(K.dim_salt(depth, purpose, index))
-        got = np.array([K.uniform(k, salt) for k in keys])
+        salt = np.uint64(k_rng.dim_salt(depth, purpose, index))
+        got = np.array([k_rng.uniform(k, salt) for k in keys])
         np.testing.assert_array_equal(got, want)
     for depth, branch in ((1, 0), (3, 2), (70000, 5)):
         want = rng.branch_keys(keys, branch, depth)
-        salt = np.uint64(K.branch_salt(branch, depth))
-        assert [K.mix64(k ^ salt) for k in keys] == want.tolist()
+        salt = np.uint64(k_rng.branch_salt(branch, depth))
+        assert [k_rng.mix64(k ^ salt) for k in keys] == want.tolist()
 
 
 @pytest.mark.parametrize("kind", ["cosine", "uniform"])
 def test_hemisphere_warps_match_sampling(kind):
     u1, u2 = _uniforms(2), _uniforms(3)[::-1].copy()
     warp = sampling.square_to_cosine_hemisphere if kind == "cosine" else sampling.square_to_uniform_hemisphere
-    kernel = K.cosine_hemisphere if kind == "cosine" else K.uniform_hemisphere
+    kernel = k_warps.cosine_hemisphere if kind == "cosine" else k_warps.uniform_hemisphere
     np.testing.assert_array_equal(np.array([kernel(a, b) for a, b in zip(u1, u2)]), warp(u1, u2))
     n = _normals(4)
     want_dir, want_cos, want_pdf = sampling.sample_hemisphere(kind, u1, u2, n)
-    got = np.array([K.sample_hemisphere(kind == "cosine", a, b, *row) for a, b, row in zip(u1, u2, n)])
+    got = np.array([k_warps.sample_hemisphere(kind == "cosine", a, b, *row) for a, b, row in zip(u1, u2, n)])
     np.testing.assert_array_equal(got[:, :3], want_dir)
     np.testing.assert_array_equal(got[:, 3], want_cos)
     np.testing.assert_array_equal(got[:, 4], want_pdf)
     cos = np.concatenate([want_cos, [-0.5, 0.0]])
-    np.testing.assert_array_equal([K.hemisphere_pdf(kind == "cosine", c) for c in cos], sampling.hemisphere_pdf(kind, cos))
+    np.testing.assert_array_equal([k_warps.hemisphere_pdf(kind == "cosine", c) for c in cos], sampling.hemisphere_pdf(kind, cos))
 
 
 def test_discrete_sampling_matches_searchsorted():
     cdf = np.cumsum(np.random.default_rng(5).random(17))
     cdf /= cdf[-1]
     u = np.concatenate([_uniforms(6), cdf[:-1], [1.0]])
-    np.testing.assert_array_equal([K.sample_discrete(cdf, x) for x in u], sampling.sample_discrete(cdf, u))
+    np.testing.assert_array_equal([k_warps.sample_discrete(cdf, x) for x in u], sampling.sample_discrete(cdf, u))
 
 
 @pytest.mark.parametrize("selection", ["power", "uniform"])
@@ -87,7 +92,7 @@ def test_light_points_match_light_sampler(selection):
     light, points = sampler.sample(*u)
     tables = (sampler.cdf, sampler.triangles, sampler.first, sampler.count, sampler.within_cdf, sampler.pmf,
               sampler.area)
-    got = [K._sample_light_point(tables, sampler.num_lights, geometry.corners, *args) for args in zip(*u)]
+    got = [k_lights.sample_light_point(tables, sampler.num_lights, geometry.corners, *args) for args in zip(*u)]
     np.testing.assert_array_equal([g[0] for g in got], light)
     np.testing.assert_array_equal([g[1] for g in got], points.triangle)
     np.testing.assert_array_equal(np.array([g[2:] for g in got]), points.position)
@@ -99,7 +104,7 @@ def test_surface_points_match_triangle_area_sampler():
     sampler = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     u = [_uniforms(20 + i) for i in range(3)]
     points = sampler.sample(*u)
-    got = [K._sample_surface_point((sampler.triangles, sampler.cdf), geometry.corners, *args) for args in zip(*u)]
+    got = [k_lights.sample_surface_point((sampler.triangles, sampler.cdf), geometry.corners, *args) for args in zip(*u)]
     np.testing.assert_array_equal([g[0] for g in got], points.triangle)
     np.testing.assert_array_equal(np.array([g[1:] for g in got]), points.position)
 
@@ -116,13 +121,13 @@ def test_sample_reuse_matches_split_uniform(selection):
               sampler.area)
     u = _uniforms(40)
     want = sampler.split_uniform(u)
-    got = np.array([K._split_light_uniform(tables, sampler.num_lights, a) for a in u])
+    got = np.array([k_lights.split_light_uniform(tables, sampler.num_lights, a) for a in u])
     for i in range(3):
         np.testing.assert_array_equal(got[:, i], want[i])
     assert np.all((want[2] >= 0) & (want[2] < 1))
     surfaces = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     want = surfaces.split_uniform(u)
-    got = np.array([K._split_surface_uniform((surfaces.triangles, surfaces.cdf), a) for a in u])
+    got = np.array([k_lights.split_surface_uniform((surfaces.triangles, surfaces.cdf), a) for a in u])
     np.testing.assert_array_equal(got[:, 0], want[0])
     np.testing.assert_array_equal(got[:, 1], want[1])
 
@@ -131,7 +136,7 @@ def test_sample_reuse_matches_split_uniform(selection):
 def test_filter_offsets_match_pixel_filter(name):
     u = _uniforms(30)
     x, w = make_filter(name).sample_1d(u)
-    got = np.array([K._filter_sample(K.FILTER_KINDS[name], a) for a in u])
+    got = np.array([k_camera.filter_sample(k_config.FILTER_KINDS[name], a) for a in u])
     np.testing.assert_array_equal(got[:, 0], x)
     np.testing.assert_array_equal(got[:, 1], w)
 
@@ -139,14 +144,15 @@ def test_filter_offsets_match_pixel_filter(name):
 def test_random_dimensions_and_counters_agree_with_the_integrator():
     from reference_impl import integrator
 
-    for name in ("FILM_X", "FILM_Y", "LIGHT_SELECT", "LIGHT_TRIANGLE", "LIGHT_U1", "LIGHT_U2", "DIRECT_DIR_U1",
-                 "DIRECT_DIR_U2", "ROULETTE", "INDIRECT_U1", "INDIRECT_U2"):
-        assert getattr(integrator, "_" + name) == getattr(K, name), name
+    purposes = [getattr(rng, name) for name in ("FILM_X", "FILM_Y", "LIGHT_SELECT", "LIGHT_TRIANGLE", "LIGHT_U1",
+                                                "LIGHT_U2", "DIRECT_DIR_U1", "DIRECT_DIR_U2", "ROULETTE", "INDIRECT_U1",
+                                                "INDIRECT_U2")]
+    assert sorted(purposes) == list(range(len(purposes)))  # one dimension each
     order = ("C_CAMERA", "C_SHADOW", "C_SHADOW_SKIPPED", "C_HEMI_DIRECT", "C_INDIRECT", "C_ESCAPED", "C_BACK_FACE",
              "C_ROULETTE", "C_NONFINITE", "C_LIGHT_SELECT")
-    assert [getattr(K, c) for c in order] == list(range(len(integrator.COUNTERS)))
-    assert integrator.COUNTERS[K.C_NONFINITE] == "nonfinite_samples" and integrator.COUNTERS[K.C_SHADOW] == "shadow_rays"
-    assert integrator.COUNTERS[K.C_LIGHT_SELECT] == "light_selections"
+    assert [getattr(k_config, c) for c in order] == list(range(len(integrator.COUNTERS)))
+    assert integrator.COUNTERS[k_config.C_NONFINITE] == "nonfinite_samples" and integrator.COUNTERS[k_config.C_SHADOW] == "shadow_rays"
+    assert integrator.COUNTERS[k_config.C_LIGHT_SELECT] == "light_selections"
     from reference_impl.intersect import _OFFSET_REL
 
-    assert K._OFFSET_REL == _OFFSET_REL
+    assert k_surface._OFFSET_REL == _OFFSET_REL

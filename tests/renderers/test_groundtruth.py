@@ -31,7 +31,7 @@ from harness.scene import load_scene
 VARIANT = "scalar_rgb"  # the fastest variant for 8 x 8 films (no JIT compilation)
 LE = np.array([1.0, 1.0, 1.0])
 RHO = np.array([0.3, 0.5, 0.7])
-TESTS = Path(__file__).resolve().parents[1]  # tests/: conftest.py
+TESTS = Path(__file__).resolve().parents[2]  # tests/: conftest.py
 
 
 @pytest.fixture(autouse=True)

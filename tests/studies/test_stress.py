@@ -215,10 +215,10 @@ def test_undersampled_light_flags_a_partly_covered_pixel(cornell):
 def test_shadow_rays_inside_a_closed_sphere_are_never_blocked(scale):
     """Inside a convex enclosure nothing can block a shadow ray between two mutually visible points. 200000 pairs on
     the furnace's tessellated sphere, the rays made as the kernels make them (origin offset along x's normal, end at
-    ``kernels.shadow_t_max``): not one may be blocked. Stopping a fixed distance short of y, as before, left y's own
+    ``kernels.surface.shadow_t_max``): not one may be blocked. Stopping a fixed distance short of y, as before, left y's own
     triangle within float32 rounding of grazing rays' ends: 60 of these pairs were blocked (3e-4), a 2.6e-4
     loss of the furnace's direct light that the calibration found once the sampler's noise was low enough."""
-    from reference_impl import kernels
+    from reference_impl.kernels import surface
     from reference_impl.intersect import Intersector
 
     scene = load_small("furnace", 8)
@@ -244,7 +244,7 @@ def test_shadow_rays_inside_a_closed_sphere_are_never_blocked(scale):
     ok = (cos_x > 0) & (cos_y > 0)
     origin = x + ix.offset(x)[:, None] * normal[tx]
     seg = np.linalg.norm(y - origin, axis=1)
-    t_max = np.array([kernels.shadow_t_max(a, b, c) for a, b, c in zip(seg[ok], ix.offset(y)[ok], cos_y[ok])])
+    t_max = np.array([surface.shadow_t_max(a, b, c) for a, b, c in zip(seg[ok], ix.offset(y)[ok], cos_y[ok])])
     blocked = ix.occluded(origin[ok], (y - origin)[ok] / seg[ok, None], t_max)
     assert ok.sum() > n / 2
     assert blocked.sum() == 0, f"{blocked.sum()} of {ok.sum()} shadow rays blocked inside a convex enclosure"

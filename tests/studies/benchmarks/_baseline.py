@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[3]
-DEFAULT_REV = "5dd5d08"  # the last commit before reference_impl/kernels.py
+DEFAULT_REV = "5dd5d08"  # the last commit before the compiled kernels (reference_impl/kernels.py, now kernels/)
 PACKAGE = "reference_baseline"
 _loaded: dict[str, object] = {}
 
@@ -36,7 +36,7 @@ def load_baseline(rev: str | None = None):
                                capture_output=True, text=True, check=True).stdout.split()
     except (OSError, subprocess.CalledProcessError):
         return None
-    if not names or any(n.endswith("kernels.py") for n in names):
+    if not names or any(Path(n).stem == "kernels" for n in names):  # kernels.py, or the kernels/ package
         return None
     tmp = tempfile.mkdtemp(prefix="reference-baseline-")
     atexit.register(shutil.rmtree, tmp, ignore_errors=True)

@@ -36,7 +36,8 @@ def _scene(name: str):
 @pytest.fixture(scope="module")
 def cornell():
     """A one-thread context for the Cornell box, its first wavefront (camera rays) and their closest hits."""
-    from reference_impl import Film, Settings, integrator, kernels
+    from reference_impl import Film, Settings, integrator
+    from reference_impl.kernels import camera
 
     scene, geometry = _scene("cornell-box")
     settings = Settings(spp=1, seed=0, max_depth=scene.max_depth, threads=1)
@@ -50,7 +51,7 @@ def cornell():
     camera_args = (pixel, sample, ctx.seed_key, settings.spp, 256, 256, ctx.filter_kind,
                    (np.zeros(0), np.zeros(0), np.zeros(0)), False, tan_x, tan_y, ctx.camera_frame, ctx.eye,
                    settings.sampler == "sobol", first)
-    kernels.camera_paths(*camera_args)
+    camera.camera_paths(*camera_args)
     state = integrator._PathState(*first)
     prim = ctx.intersector.closest_prims(state.origin32, state.direction32)
     return {"ctx": ctx, "ws": ws, "state": state, "prim": prim, "camera_args": camera_args,
@@ -69,20 +70,20 @@ def _counters():
 
 
 def _run_bounce_kernel(c, radiance, counters):
-    from reference_impl import kernels
+    from reference_impl.kernels import wavefront
 
     ctx, ws = c["ctx"], c["ws"]
     hits, _, rays = ws.direct(N_RAYS)
-    return kernels.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                          ctx.bounce_config(1), ctx.cfg_f, radiance, counters, hits, rays, ws.state(1, N_RAYS),
-                          c["film_samples"])
+    return wavefront.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
+                            ctx.bounce_config(1), radiance, counters, hits, rays, ws.state(1, N_RAYS),
+                            c["film_samples"])
 
 
 @pytest.mark.benchmark(group="primary rays")
 def test_primary_rays_camera_kernel(benchmark, cornell):
-    from reference_impl import kernels
+    from reference_impl.kernels import camera
 
-    benchmark(kernels.camera_paths, *cornell["camera_args"])
+    benchmark(camera.camera_paths, *cornell["camera_args"])
     benchmark.extra_info["rays_per_second"] = _per_second(benchmark, N_RAYS)
 
 
@@ -106,7 +107,7 @@ def test_shadow_rays_embree_occluded(benchmark, cornell):
 
 @pytest.mark.benchmark(group="bounce")
 def test_bounce_kernel_only(benchmark, cornell):
-    """kernels.bounce on the camera rays' hits: emission, light samples and shadow rays, next wavefront."""
+    """kernels.wavefront.bounce on the camera rays' hits: emission, light samples and shadow rays, next wavefront."""
     radiance, counters = np.zeros((N_RAYS, 3)), _counters()
     benchmark(_run_bounce_kernel, cornell, radiance, counters)
     benchmark.extra_info["paths_per_second"] = _per_second(benchmark, N_RAYS)

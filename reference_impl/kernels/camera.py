@@ -1,0 +1,87 @@
+"""Viewing rays (``computeImage`` of Fig. 5.16): Np per pixel, through the pixel filter h, with :class:`Camera`'s
+pinhole model (``Camera.generate_rays``) and :class:`PixelFilter`'s samples.
+
+    film point   p = pixel centre + (dx, dy),  (dx, dy) ~ h / int h, one coordinate per uniform u:
+                 box u - 1/2; tent sqrt(2 u) - 1 below u = 1/2, else 1 - sqrt(2 (1 - u)); Gaussian from its table
+    weight       w = h(p) / (pdf(p) int h) = 1 for box and tent (the Gaussian's comes with its table's samples)
+    direction    normalize(frame (l0, l1, 1)),  l = ((1 - 2 p_x / W) tan_x, (1 - 2 p_y / H) tan_y)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from reference_impl.kernels.config import FILTER_BOX, FILTER_GAUSSIAN, JIT
+from reference_impl.kernels.rng import dim_salt, path_key, pixel_key, uniform
+from reference_impl.kernels.sobol import sobol_point, sobol_seeds
+from reference_impl.rng import FILM_X, FILM_Y
+
+_ONE = np.uint64(1)
+
+
+@njit(**JIT)
+def filter_sample(kind, u):
+    """PixelFilter.sample_1d of the box and tent filters for one uniform: (offset, weight)."""
+    if kind == FILTER_BOX:
+        return u - 0.5, 1.0
+    x = math.sqrt(2.0 * u) - 1.0 if u < 0.5 else 1.0 - math.sqrt(2.0 * (1.0 - u))
+    return x, 1.0
+
+
+@njit(**JIT)
+def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filter_samples, half_pixel,
+                 tan_x, tan_y, frame, eye, sobol, out):
+    """The viewing rays of camera samples (pixel, sample) (integrator._trace_camera_paths, Camera.generate_rays).
+
+    Box and tent filter offsets are drawn here (``sobol``: from the pixel's stratified set, index ``sample``); the Gaussian's (a table lookup and exp) come in ``filter_samples``
+    (dx, dy, weight per sample, from PixelFilter.sample), so that numpy's exp, not libm's, gives their bits.
+    Writes the wavefront ``out`` (root, key, origin, direction, origin32, direction32, beta, pdf_dir): root i for
+    sample i, float64 origins and unit directions with their float32 copies for Embree, and the throughput (the
+    filter weight in all three channels).
+    """
+    pre_dx, pre_dy, pre_w = filter_samples
+    root, key, origin, direction, o32, d32, beta, pdf_dir = out
+    n = len(pixel)
+    salt_x = dim_salt(0, FILM_X, 0)
+    salt_y = dim_salt(0, FILM_Y, 0)
+    seeds_pixel = -1
+    seeds = sobol_seeds(_ONE, salt_x, 1)
+    for i in range(n):
+        k = path_key(seed_key, np.uint64(pixel[i]) * np.uint64(spp) + np.uint64(sample[i]))
+        key[i] = k
+        if filter_kind == FILTER_GAUSSIAN:
+            dx, dy, w = pre_dx[i], pre_dy[i], pre_w[i]
+        else:
+            if sobol:
+                if pixel[i] != seeds_pixel:  # a pixel's samples come together: its seeds once
+                    seeds_pixel = pixel[i]
+                    seeds = sobol_seeds(pixel_key(seed_key, seeds_pixel), salt_x, spp)
+                ux, uy = sobol_point(seeds, sample[i])
+            else:
+                ux, uy = uniform(k, salt_x), uniform(k, salt_y)
+            dx, wx = filter_sample(filter_kind, ux)
+            dy, wy = filter_sample(filter_kind, uy)
+            w = wx * wy
+        film_x = np.float64(pixel[i] % width) + 0.5 + dx
+        film_y = np.float64(pixel[i] // width) + 0.5 + dy
+        if half_pixel:  # mutant "camera-half-pixel"
+            film_x, film_y = film_x + 0.5, film_y + 0.5
+        l0 = (1.0 - 2.0 * film_x / width) * tan_x
+        l1 = (1.0 - 2.0 * film_y / height) * tan_y
+        d0 = l0 * frame[0, 0] + l1 * frame[0, 1] + frame[0, 2]
+        d1 = l0 * frame[1, 0] + l1 * frame[1, 1] + frame[1, 2]
+        d2 = l0 * frame[2, 0] + l1 * frame[2, 1] + frame[2, 2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        inv_norm = 1.0 / norm
+        d0, d1, d2 = d0 * inv_norm, d1 * inv_norm, d2 * inv_norm
+        direction[i, 0], direction[i, 1], direction[i, 2] = d0, d1, d2
+        d32[i, 0], d32[i, 1], d32[i, 2] = d0, d1, d2
+        for c in range(3):
+            origin[i, c] = eye[c]
+            o32[i, c] = eye[c]
+        beta[i, 0], beta[i, 1], beta[i, 2] = w, w, w
+        root[i] = i
+        pdf_dir[i] = 0.0

@@ -1,0 +1,115 @@
+"""What the kernels share besides code: numba's compile options, the settings as the kernels read them
+(:class:`KernelConfig` and the table that fills it from :class:`reference_impl.settings.Settings`), the modes and
+planted faults, and the order of the counters.
+
+Every setting is a runtime int or float of one :class:`KernelConfig`, never a compile-time constant, so every
+setting runs the same compiled signatures and no setting triggers a compilation.
+"""
+
+from typing import NamedTuple
+
+# Every kernel is nogil (the integrator's thread pool runs them concurrently, as it runs Embree queries) and cached
+# (reference_impl/kernels/__pycache__). IEEE semantics are kept: no fastmath (no reassociation, no FMA contraction),
+# and error_model="numpy" so a division by zero gives inf/NaN as in numpy instead of raising. Reference counting and
+# LLVM inlining are set explicitly: numba would otherwise let a function inherit them from whichever caller happened
+# to compile it first.
+JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True, forceinline=False)
+# Helpers that take arrays are inlined into their callers at numba's level: a call that passes an array increments
+# and decrements its reference count atomically, and with two threads sharing the scene's arrays those atomics took
+# a quarter of a render's time (perf: NRT_incref / NRT_decref).
+JIT_INLINE = dict(JIT, inline="always")
+# The helpers that share a vertex's work between the two engines take the caller's arrays and branch on what they
+# find. Inlined at numba's level, their arguments' reference counts die on different branches, where numba's pruning
+# of them fails: the path loop kept 15 increments and 29 decrements of the light tables around each light sample, and
+# the engines were 11-17 % slower than with the code written out twice. These helpers only borrow the arrays and
+# allocate nothing, so they are compiled without reference counting (``_nrt=False``, numba's option for such code)
+# and always inlined by LLVM (``forceinline``): no count and no call is left in the loops.
+JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
+
+# Counters, in the order of integrator.COUNTERS.
+(C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE,
+ C_LIGHT_SELECT) = range(10)
+
+DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM = range(5)
+DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
+                "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM}
+HEMI_UNIFORM, HEMI_COSINE = 0, 1
+HEMISPHERE_MODES = {"uniform": HEMI_UNIFORM, "cosine": HEMI_COSINE}
+RR_OFF, RR_ALBEDO, RR_FIXED = 0, 1, 2
+RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED}
+SAMPLER_INDEPENDENT, SAMPLER_SOBOL = 0, 1
+SAMPLER_MODES = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL}
+FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
+FILTER_KINDS = {"box": FILTER_BOX, "tent": FILTER_TENT, "gaussian": FILTER_GAUSSIAN}
+EMIT_NONE, EMIT_ALL, EMIT_MIS = 0, 1, 2  # emission at a hit: not counted, counted, counted with the MIS weight
+
+# Planted faults (reference_impl/mutants.py) that live in the kernels, as bits of KernelConfig.mutant; each place
+# one changes is marked with a comment naming it. ("energy-loss-2pct" is the integrator's scale of finish_samples.)
+(M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET, M_DOUBLE_EMISSION,
+ M_CAMERA_HALF_PIXEL) = (1 << b for b in range(7))
+MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-no-reweight": M_RR_NO_REWEIGHT,
+               "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET,
+               "double-emission": M_DOUBLE_EMISSION, "camera-half-pixel": M_CAMERA_HALF_PIXEL}
+
+
+class KernelConfig(NamedTuple):
+    """Every setting the kernels read, one slot each. A slot filled by a :class:`Settings` field has that field's
+    name (:data:`FROM_SETTINGS` says how it is filled); the others come from the scene (:data:`FROM_SCENE`). Only
+    ints and floats, so that every configuration is the same numba type."""
+
+    depth: int  # the vertex a wavefront bounce is at (the viewing ray's hit is 1); 0 for the path engine
+    max_depth: int  # longest path in segments, -1 unbounded
+    direct: int  # DIRECT_*
+    shadow_rays: int  # [Nd]
+    indirect_rays: int  # [Ni]
+    hemisphere: int  # HEMI_*
+    rr: int  # RR_*
+    rr_depth: int  # first vertex at which roulette is played
+    survival: float  # q of rr = "fixed"
+    mutant: int  # M_* bits
+    sampler: int  # SAMPLER_*
+    spp: int  # [Np]
+    num_lights: int  # N_L
+    offset_scene: float  # the scene-size part of a ray origin's offset (Intersector.offset_scene)
+    surface_pdf: float  # 1 / A_scene, the density of global area sampling
+
+
+# The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
+#   scene    = (prim_to_tri, normal, v0, corners, emission, light_id, material, two_sided, f_r, albedo_max), per
+#              triangle (prim_to_tri per Embree primitive; f_r and albedo_max per material);
+#   lights   = (cdf, triangles, first, count, within_cdf, pmf, area) of lights.LightSampler;
+#   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface.
+
+# The one table from Settings to the kernels: slot of KernelConfig -> (the Settings field that fills it, its value in
+# the slot).
+FROM_SETTINGS = {
+    "max_depth": ("max_depth", int),  # resolved to the scene's before a render
+    "direct": ("direct", DIRECT_MODES.__getitem__),
+    "shadow_rays": ("shadow_rays", int),
+    "indirect_rays": ("indirect_rays", int),
+    "hemisphere": ("hemisphere", HEMISPHERE_MODES.__getitem__),
+    "rr": ("rr", RR_MODES.__getitem__),
+    "rr_depth": ("rr_depth", int),
+    "survival": ("absorption", lambda absorption: float(1.0 - absorption)),
+    "mutant": ("mutant", lambda mutant: MUTANT_BITS.get(mutant, 0)),  # "" and "energy-loss-2pct": no bit
+    "sampler": ("sampler", SAMPLER_MODES.__getitem__),
+    "spp": ("spp", int),
+}
+# The slots the render fills from the scene (integrator._Context), and depth per wavefront bounce.
+FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf")
+# The Settings fields that fill no slot, and where they go instead.
+NOT_SLOTS = {
+    "seed": "seed_key = mix64(seed ^ golden), an argument of camera_paths and of the engines (film_samples)",
+    "light_selection": "the light tables' pdf(k) (lights.LightSampler)",
+    "batch_size": "how many camera samples the integrator hands to a kernel at once",
+    "threads": "the integrator's thread pool",
+    "engine": "which engine the integrator runs",
+}
+
+
+def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float) -> KernelConfig:
+    """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
+    lights; ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``)."""
+    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items()}
+    return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
+                        surface_pdf=float(surface_pdf), **slots)

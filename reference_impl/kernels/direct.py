@@ -1,0 +1,123 @@
+"""The direct-light estimator, one sample at a time, for both engines (``integrator._direct_*``,
+``_shadow_ray_estimate``, ``_mis_weight_*``): eq. 5.3 of the slides,
+
+    <L_direct(x -> Theta)> = 1/Nd sum_i Le(y_i -> x) f_r G(x, y_i) V(x, y_i) / p(y_i),
+    G(x, y) = cos(theta_x) cos(theta_y) / |x - y|^2                                     (Fig. 5.7, radianceTransfer)
+
+with y drawn by one of three strategies (``Settings.direct``):
+
+* area ("area", "mis"): light k with pdf(k), then y uniform on k, p(y) = pdf(k) / A_k (Fig. 5.8, 5.10);
+* global area ("global-area"): y uniform over every surface, p(y) = 1 / A_scene; a y off the lights has Le = 0 and
+  costs no ray (Fig. 5.13);
+* hemisphere ("hemisphere-cosine", "-uniform"): a direction Psi from p(Psi), and Le of what the ray from x finds
+  there, counted on an emitter's front side only: Le f_r cos(Psi, N_x) / p(Psi) (Fig. 5.12).
+
+A point sample is computed as Le f_r s, s = (cos_x cos_y) / (|x - y|^2 p(y)) (one division). It needs no shadow ray
+where y faces away from x, lies behind x's surface or is not on a light (all counted as skipped); the ray starts at
+x's offset origin and stops short of y (:mod:`.surface`), and V = 1 where nothing blocks it. With "mis" (beyond the
+slides) the sample is weighted by the power heuristic (Veach 1997) against the Ni indirect rays, which could have found
+the same light: w = p_l^2 / (p_l^2 + p_h^2), p_l = Nd p(y) |x - y|^2 / cos_y (as a density of directions),
+p_h = Ni p(Psi); the emission an indirect ray finds is weighted the other way round (:func:`.vertex.emitted`).
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
+                                           JIT_BORROW, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET)
+from reference_impl.kernels.light_sampling import (sample_light_point, sample_surface_point, split_light_uniform,
+                                                   split_surface_uniform)
+from reference_impl.kernels.rng import dim_salt, uniform
+from reference_impl.kernels.sobol import sobol_point, uniform_2d
+from reference_impl.kernels.surface import origin_offset, shadow_t_max
+from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
+from reference_impl.rng import DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2
+
+
+@njit(**JIT_BORROW)
+def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces):
+    """Sample j of a hit's Nd point samples (``_direct_area_sample``, ``_direct_global_area_sample``), for the
+    camera sample ``index`` of its pixel: (whether a light was chosen, the triangle of y, y, p(y) per unit area).
+    The stratified sampler (``sob``) draws one 2D point of the pixel's set ``seeds`` and reuses its first coordinate
+    for the discrete choices (lights.LightSampler.split_uniform); independent numbers need no reuse."""
+    corners = scene[3]
+    if sob:
+        u_a, u_b = sobol_point(seeds, index * cfg.shadow_rays + j)
+    else:
+        u_a, u_b = uniform(key, dim_salt(depth, LIGHT_U1, j)), uniform(key, dim_salt(depth, LIGHT_U2, j))
+    if cfg.direct == DIRECT_GLOBAL_AREA:
+        if sob:
+            u_tri, u_a = split_surface_uniform(surfaces, u_a)
+        else:
+            u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
+        tri, y0, y1, y2 = sample_surface_point(surfaces, corners, u_tri, u_a, u_b)
+        return False, tri, y0, y1, y2, cfg.surface_pdf
+    num_lights = cfg.num_lights
+    if sob:
+        u_select, u_tri, u_a = split_light_uniform(lights, num_lights, u_a)
+    else:  # with one light there is nothing to choose (pdf(k) = 1) and nothing to draw
+        u_select = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
+        u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
+    light, tri, y0, y1, y2 = sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
+    light_pmf, light_area = lights[5], lights[6]
+    if cfg.mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
+        return num_lights > 1, tri, y0, y1, y2, 1.0 / light_area[light]
+    return num_lights > 1, tri, y0, y1, y2, light_pmf[light] / light_area[light]
+
+
+@njit(**JIT_BORROW)
+def shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area):
+    """The shadow ray of a point sample y on triangle ``ltri`` (p(y) per unit area ``pdf_area``) seen from x (normal
+    N_x, offset origin ox, f_r = f), and what it carries where nothing blocks it (``_shadow_ray_estimate``,
+    ``_mis_weight_light``): (whether the sample needs a ray at all, the ray's origin, unit direction and t_max,
+    Le f_r G / p(y) with its MIS weight)."""
+    tri_normal, emission, light_id = scene[1], scene[4], scene[5]
+    l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
+    dist2 = dot3(l0, l1, l2, l0, l1, l2)
+    dist = math.sqrt(dist2)
+    inv_dist = 1.0 / dist  # one division, three products
+    wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
+    cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
+    cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
+    if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
+        return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
+        so0, so1, so2 = x0, x1, x2
+    else:
+        so0, so1, so2 = ox0, ox1, ox2
+    g0, g1, g2 = y0 - so0, y1 - so1, y2 - so2
+    seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
+    t_max = shadow_t_max(seg_len, origin_offset(cfg.offset_scene, y0, y1, y2), cos_y)
+    inv_seg = 1.0 / seg_len
+    cos_at_x = 1.0 if cfg.mutant & M_NO_COSINE else cos_x  # mutant "no-cosine" (direct light)
+    scale = (cos_at_x * cos_y) / (dist2 * pdf_area)  # G(x, y) V / p(y), for V = 1 (one division)
+    v0 = emission[ltri, 0] * f0 * scale
+    v1 = emission[ltri, 1] * f1 * scale
+    v2 = emission[ltri, 2] * f2 * scale
+    if cfg.direct == DIRECT_MIS:  # _mis_weight_light
+        p_light = cfg.shadow_rays * pdf_area * dist2 / cos_y
+        p_hemi = cfg.indirect_rays * hemisphere_pdf(cfg.hemisphere == HEMI_COSINE, cos_x)
+        w = p_light * p_light / (p_light * p_light + p_hemi * p_hemi)
+        v0, v1, v2 = v0 * w, v1 * w, v2 * w
+    return True, so0, so1, so2, g0 * inv_seg, g1 * inv_seg, g2 * inv_seg, max(t_max, 0.0), v0, v1, v2
+
+
+@njit(**JIT_BORROW)
+def hemisphere_sample(cfg, sob, seeds, index, j, key, depth, n0, n1, n2):
+    """Sample j of a hit's Nd direction samples (``_direct_hemisphere_sample``), for the camera sample ``index`` of
+    its pixel: the direction Psi, and cos(Psi, N_x) / p(Psi), or -1 where p(Psi) = 0 (nothing to count)."""
+    u_a, u_b = uniform_2d(sob, seeds, index * cfg.shadow_rays + j, key, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+    w0, w1, w2, cos_theta, pdf = sample_hemisphere(cfg.direct == DIRECT_HEMI_COSINE, u_a, u_b, n0, n1, n2)
+    return w0, w1, w2, cos_theta / pdf if pdf > 0 else -1.0
+
+
+@njit(**JIT)
+def hemisphere_weight(ratio, w0, w1, w2, m0, m1, m2):
+    """What the emission found by a direction sample Psi (``ratio`` cos / p from :func:`hemisphere_sample`) is
+    multiplied by, besides f_r, where the ray hit a triangle of normal m: the ratio on the emitter's front side
+    (Psi . m < 0), else 0."""
+    faces_x = dot3(w0, w1, w2, m0, m1, m2) < 0
+    return ratio * (1.0 if faces_x else 0.0)

@@ -1,0 +1,166 @@
+"""Embree queries from compiled code, through Embree 4's C API (:mod:`reference_impl.embree_c`): ray buffers, one
+ray's closest hit or occlusion, 16-ray packets, the batch queries of the wavefront, and the clock that times them.
+
+Rays go to Embree in float32 (origins and directions rounded as numpy's ``astype`` rounds), tnear 0; a shadow ray
+is an occlusion (any-hit) query on 0 < t < tfar, which Embree answers by setting tfar to -inf.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from reference_impl import embree_c
+from reference_impl.kernels.config import JIT, JIT_BORROW, JIT_INLINE
+
+# One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
+# clock read (measured at the start of each call), times the stride.
+TIMING_STRIDE = 64
+
+
+@njit(**JIT)
+def ray_buffer():
+    """A 16-byte aligned RTCRayHit (uint32 words) and its float32 view."""
+    raw = np.empty(embree_c.RAY_WORDS + 4, np.uint32)
+    skip = ((16 - raw.ctypes.data % 16) % 16) // 4
+    words = raw[skip:skip + embree_c.RAY_WORDS]
+    return words, words.view(np.float32)
+
+
+@njit(**JIT_INLINE)
+def _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar):
+    """Fill an RTCRay: float32 origin and direction (rounded as numpy's astype rounds), tnear 0, ``tfar``."""
+    floats[0], floats[1], floats[2], floats[3] = o0, o1, o2, 0.0
+    floats[4], floats[5], floats[6], floats[7] = d0, d1, d2, 0.0
+    floats[embree_c.W_TFAR] = tfar
+    words[embree_c.W_MASK] = embree_c.INVALID_ID  # every mask bit
+    words[embree_c.W_ID] = 0
+    words[embree_c.W_FLAGS] = 0
+
+
+@njit(**JIT_INLINE)
+def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2):
+    """Embree's closest hit of one ray (float32 coordinates): the primitive id, or -1 for a miss."""
+    _set_ray(words, floats, o0, o1, o2, d0, d1, d2, np.inf)
+    words[embree_c.W_GEOM_ID] = embree_c.INVALID_ID
+    embree_c.rtc_intersect1(scene_ptr, words.ctypes.data, 0)
+    if words[embree_c.W_GEOM_ID] == embree_c.INVALID_ID:
+        return -1
+    return np.int64(words[embree_c.W_PRIM_ID])
+
+
+@njit(**JIT_INLINE)
+def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar):
+    """Embree's any-hit query on the segment 0 < t < ``tfar``: True where something blocks it (Embree sets tfar
+    to -inf)."""
+    _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar)
+    embree_c.rtc_occluded1(scene_ptr, words.ctypes.data, 0)
+    return floats[embree_c.W_TFAR] < 0
+
+
+@njit(**JIT)
+def packet_buffer():
+    """A 64-byte aligned RTCRayHit16 (uint32 words), its float32 view, and the 16 lanes' valid flags (int32)."""
+    raw = np.empty(embree_c.PACKET_WORDS + 16 + 32, np.uint32)
+    skip = ((64 - raw.ctypes.data % 64) % 64) // 4
+    words = raw[skip:skip + embree_c.PACKET_WORDS]
+    valid = raw[skip + embree_c.PACKET_WORDS:skip + embree_c.PACKET_WORDS + 16].view(np.int32)
+    return words, words.view(np.float32), valid
+
+
+@njit(**JIT)
+def closest_prims_coherent(scene_ptr, o32, d32, out, start, stop, words, floats, valid):
+    """Closest hits of rays ``start:stop`` (at most 16) with one packet query: for rays that start together and
+    point nearly the same way (one pixel's camera rays), Embree traverses its tree once for all of them. The hits
+    are the same as one query per ray (``closest_prim``)."""
+    n = stop - start
+    for lane in range(embree_c.PACKET):
+        if lane < n:
+            i = start + lane
+            valid[lane] = -1
+            floats[lane] = o32[i, 0]
+            floats[16 + lane] = o32[i, 1]
+            floats[32 + lane] = o32[i, 2]
+            floats[64 + lane] = d32[i, 0]
+            floats[80 + lane] = d32[i, 1]
+            floats[96 + lane] = d32[i, 2]
+        else:
+            valid[lane] = 0
+            floats[lane] = 0.0
+            floats[16 + lane] = 0.0
+            floats[32 + lane] = 0.0
+            floats[64 + lane] = 0.0
+            floats[80 + lane] = 0.0
+            floats[96 + lane] = 1.0
+        floats[48 + lane] = 0.0  # tnear
+        floats[112 + lane] = 0.0  # time
+        floats[128 + lane] = np.inf  # tfar
+        words[144 + lane] = embree_c.INVALID_ID  # mask
+        words[160 + lane] = 0  # id
+        words[176 + lane] = 0  # flags
+        words[embree_c.P_GEOM_ID + lane] = embree_c.INVALID_ID
+    embree_c.rtc_intersect16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    for lane in range(n):
+        if words[embree_c.P_GEOM_ID + lane] == embree_c.INVALID_ID:
+            out[start + lane] = -1
+        else:
+            out[start + lane] = np.int64(words[embree_c.P_PRIM_ID + lane])
+
+
+@njit(**JIT)
+def closest_prims_packets(scene_ptr, o32, d32, out):
+    """Closest hits of a batch of camera rays, 16 consecutive rays per packet query."""
+    words, floats, valid = packet_buffer()
+    n = o32.shape[0]
+    for start in range(0, n, embree_c.PACKET):
+        closest_prims_coherent(scene_ptr, o32, d32, out, start, min(n, start + embree_c.PACKET), words, floats, valid)
+
+
+@njit(**JIT)
+def closest_prims(scene_ptr, o32, d32, out):
+    """Closest hits of a batch of float32 rays (Intersector.closest_prims): primitive ids, -1 for a miss."""
+    words, floats = ray_buffer()
+    for i in range(o32.shape[0]):
+        out[i] = closest_prim(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                              d32[i, 2])
+
+
+@njit(**JIT)
+def occluders(scene_ptr, o32, d32, tfar, out):
+    """Any-hit queries of a batch (Intersector.occluders): 0 where something blocks the segment, -1 where not."""
+    words, floats = ray_buffer()
+    for i in range(o32.shape[0]):
+        blocked = occluded(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                           d32[i, 2], tfar[i])
+        out[i] = 0 if blocked else -1
+
+
+@njit(**JIT_INLINE)
+def now_ns(ts):
+    """CLOCK_MONOTONIC in nanoseconds (``ts``: room for a struct timespec, two int64)."""
+    embree_c.clock_gettime(embree_c.CLOCK_MONOTONIC, ts.ctypes.data)
+    return ts[0] * 1_000_000_000 + ts[1]
+
+
+@njit(**JIT_BORROW)
+def closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2):
+    """:func:`closest_prim`, counted, and timed when it is query number TIMING_STRIDE, 2 TIMING_STRIDE, ...:
+    (primitive, queries, sampled_ns) with the count and the sampled nanoseconds brought up to date."""
+    queries += 1
+    if queries % TIMING_STRIDE == 0:
+        t_start = now_ns(ts)
+        p = closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2)
+        return p, queries, sampled_ns + (now_ns(ts) - t_start)
+    return closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2), queries, sampled_ns
+
+
+@njit(**JIT_BORROW)
+def occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2, tfar):
+    """:func:`occluded`, counted and timed as :func:`closest_prim_timed`: (blocked, queries, sampled_ns)."""
+    queries += 1
+    if queries % TIMING_STRIDE == 0:
+        t_start = now_ns(ts)
+        blocked = occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar)
+        return blocked, queries, sampled_ns + (now_ns(ts) - t_start)
+    return occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar), queries, sampled_ns
+

@@ -1,0 +1,138 @@
+"""The stratified sampler in the kernels (``sampler = sobol``): :mod:`reference_impl.rng`'s ``sobol_2d`` for one
+point of one pixel and pair of dimensions, bit for bit.
+
+Point i of the n points of a pixel and pair (docs/reference-renderer.md, "The stratified sampler"):
+
+    i' = pi(i)                      a random permutation of [0, n): three rounds of v += q, v ^= v >> ceil(k/2),
+                                    v *= (q >> 32) | 1, v ^= v >> floor(k/3), v *= 0x297A2D39, v ^= v >> ceil(k/2)
+                                    on k bits (2^k >= n), cycle-walked below n (Kensler, Pixar TM 13-01, 2013)
+    x = nus(reverse(i'), s_x)       Sobol's dimension 0, Owen-scrambled: nus(v, s) = reverse(lk(reverse(v), s))
+    y = nus(sobol_1(i'), s_y)       dimension 1: sobol_1(i') = reverse(pascal32(i'))   (Burley, JCGT 9(4) 2020, list. 3)
+
+with every seed a hash of (seed, pixel, the pair's first dimension). For n = 2^m the points form a (0, m, 2)-net.
+The camera sample (depth 0) and the first hit's decisions (depth 1) use it; deeper vertices draw independent numbers
+(:mod:`reference_impl.kernels.rng`). (Measured on the Cornell box at 64 spp: the first hit gives nearly all of the
+gain, MSE 5.6e-4 -> 1.5e-4; going on to depth 2 took 3 % more time for 3 % less MSE.)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from reference_impl.kernels.config import JIT, JIT_BORROW
+from reference_impl.kernels.rng import dim_salt, mix64, pixel_key, uniform
+from reference_impl.rng import _GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, DIRECT_DIR_U1, INDIRECT_U1, LIGHT_U1, ROULETTE
+
+_U32 = np.uint64(32)
+_ONE = np.uint64(1)
+_LOW32 = np.uint64(0xFFFFFFFF)
+_B1, _B2, _B4, _B8, _B16 = (np.uint64(m) for m in (0x55555555, 0x33333333, 0x0F0F0F0F, 0x00FF00FF, 0x0000FFFF))
+_SH1, _SH2, _SH4, _SH8, _SH16 = (np.uint64(v) for v in (1, 2, 4, 8, 16))
+_LK0, _LK1, _LK2, _LK3 = _LK
+_GOLDEN_1, _GOLDEN_2, _GOLDEN_3 = (np.uint64((r * int(_GOLDEN)) & ((1 << 64) - 1)) for r in (1, 2, 3))
+
+
+@njit(**JIT)
+def reverse_bits32(x):
+    """rng.reverse_bits32 for one word."""
+    x = ((x >> _SH1) & _B1) | ((x & _B1) << _SH1)
+    x = ((x >> _SH2) & _B2) | ((x & _B2) << _SH2)
+    x = ((x >> _SH4) & _B4) | ((x & _B4) << _SH4)
+    x = ((x >> _SH8) & _B8) | ((x & _B8) << _SH8)
+    return ((x >> _SH16) | (x << _SH16)) & _LOW32
+
+
+@njit(**JIT)
+def lk_permutation(x, seed):
+    """rng.lk_permutation for one word (uint64 arithmetic; only the low 32 bits are kept)."""
+    x = (x + seed) & _LOW32
+    x ^= x * _LK0
+    x ^= x * _LK1
+    x ^= x * _LK2
+    x ^= x * _LK3
+    return x & _LOW32
+
+
+@njit(**JIT)
+def pascal32(x):
+    """rng.pascal32 for one word."""
+    x ^= (x >> _SH1) & _B1
+    x ^= (x >> _SH2) & _B2
+    x ^= (x >> _SH4) & _B4
+    x ^= (x >> _SH8) & _B8
+    x ^= (x >> _SH16) & _B16
+    return x
+
+
+@njit(**JIT)
+def sobol_seeds(pix_key, salt, n):
+    """rng.sobol_seeds for one pixel and pair (``salt = dim_salt(...)`` of its first dimension), with what the
+    order of its n points needs: (n, 2^k - 1, ceil(k/2), floor(k/3), three order seeds, x seed, y seed)."""
+    seed = mix64(pix_key + salt)
+    k = 0
+    while (1 << k) < n:
+        k += 1
+    w = np.uint64((1 << k) - 1)
+    s1 = np.uint64(max((k + 1) // 2, 1))
+    s2 = np.uint64(max(k // 3, 1))
+    return (np.uint64(n), w, s1, s2, mix64(seed + _GOLDEN_1), mix64(seed + _GOLDEN_2), mix64(seed + _GOLDEN_3),
+            seed >> _U32, mix64(seed) & _LOW32)
+
+
+@njit(**JIT)
+def _order_round(v, q, w, s1, s2):
+    """One round of rng.permutation_element."""
+    v = (v + q) & w
+    v ^= v >> s1
+    v = (v * ((q >> _U32) | _ONE)) & w
+    v ^= v >> s2
+    v = (v * _ROUND_MULTIPLIER) & w
+    return v ^ (v >> s1)
+
+
+@njit(**JIT)
+def sobol_point(seeds, index):
+    """rng.sobol_2d for one point, given the pixel's and pair's ``sobol_seeds``."""
+    n, w, s1, s2, q0, q1, q2, seed_x, seed_y = seeds
+    v = np.uint64(index)
+    while True:
+        v = _order_round(_order_round(_order_round(v, q0, w, s1, s2), q1, w, s1, s2), q2, w, s1, s2)
+        if v < n:
+            break
+    x = reverse_bits32(lk_permutation(v, seed_x))
+    y = reverse_bits32(lk_permutation(pascal32(v), seed_y))
+    return np.float64(x) * _TO_UNIT32, np.float64(y) * _TO_UNIT32
+
+
+@njit(**JIT)
+def uniform_2d(sobol, seeds, index, key, j, depth, purpose_a, purpose_b):
+    """The two uniforms of one decision: point ``index`` of the pixel's stratified set (``sobol``, ``seeds`` of
+    its pair), or independent numbers of the path key for dimensions (depth, purpose_a / purpose_b, j)."""
+    if sobol:
+        return sobol_point(seeds, index)
+    return uniform(key, dim_salt(depth, purpose_a, j)), uniform(key, dim_salt(depth, purpose_b, j))
+
+
+@njit(**JIT)
+def first_hit_seeds(seed_key, pixel, spp, nd, ni):
+    """The ``sobol_seeds`` of a pixel's first-hit pairs: (light sample, direct-light direction, roulette, indirect
+    direction); Np x Nd, Np x Nd, Np and Np x Ni points. (A light sample's choices of light and triangle reuse its
+    point's first coordinate: lights.LightSampler.split_uniform.)"""
+    pk = pixel_key(seed_key, pixel)
+    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+            sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
+            sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp), sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
+
+
+@njit(**JIT_BORROW)
+def pixel_first_hit_seeds(cfg, seeds, seeds_pixel, film_samples, r):
+    """The :func:`first_hit_seeds` of camera sample r's pixel, and r's index among the pixel's samples: (seeds,
+    their pixel, index). A pixel's samples come together, so its seeds are computed once: ``seeds`` of pixel
+    ``seeds_pixel`` are handed back unchanged while the pixel is the same. ``film_samples`` = (pixel, sample,
+    seed_key) of the camera samples."""
+    film_pixel, film_sample, seed_key = film_samples
+    if film_pixel[r] != seeds_pixel:
+        seeds_pixel = film_pixel[r]
+        seeds = first_hit_seeds(seed_key, seeds_pixel, cfg.spp, cfg.shadow_rays, cfg.indirect_rays)
+    return seeds, seeds_pixel, film_sample[r]

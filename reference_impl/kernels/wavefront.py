@@ -1,0 +1,190 @@
+"""The wavefront engine (``engine = "wavefront"``, and whenever Ni > 1): one bounce of every path of a batch at once,
+between batched Embree queries (``integrator._bounce``).
+
+:func:`bounce` takes the closest hits of the current rays and writes the direct-light rays and the next wavefront;
+:func:`resolve_shadow` / :func:`resolve_hemisphere` add the direct light once Embree has answered them. Each vertex is
+the path engine's vertex (:mod:`.path`), from the same helpers (:mod:`.surface`, :mod:`.vertex`, :mod:`.direct`), so
+the two engines give the same bits.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_HEMI_COSINE,
+                                           DIRECT_HEMI_UNIFORM, EMIT_NONE, JIT, JIT_INLINE, SAMPLER_SOBOL)
+from reference_impl.kernels.direct import hemisphere_sample, hemisphere_weight, light_sample, shadow_ray
+from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
+from reference_impl.kernels.surface import surface_hit
+from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
+
+
+@njit(**JIT)
+def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, rays, out, film_samples):
+    """One bounce of the wavefront (integrator._bounce), given the closest hits ``prim`` of the current rays.
+
+    Adds the emission seen at the hits to ``radiance``, draws the Nd direct-light samples of each reflecting hit
+    (the rays they need: shadow rays, or closest-hit rays for hemisphere sampling, with what their results are
+    multiplied by) and the next wavefront (Russian roulette, Ni branches, hemisphere sampling). The direct light is
+    added by :func:`resolve_shadow` / :func:`resolve_hemisphere` once Embree has answered.
+
+    ``cfg`` is the render's :class:`.config.KernelConfig` with the ``depth`` of the hits. ``state`` and ``out`` are
+    wavefronts (root, key, origin, direction, origin32, direction32, beta, pdf_dir), the current one and room for
+    the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the reflecting hits, in order;
+    ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the direct-light rays of each hit,
+    in sample order, Nd rows per row of ``state``. ``film_samples`` = (pixel, sample, seed_key) of the camera
+    samples (rows of ``root``), for the stratified sampler. Returns how many hits, direct-light rays and next paths
+    were written.
+    """
+    root, key, origin, direction, _o32, _d32, beta, pdf_dir = state
+    x_root, x_key, x_origin, x_dir, x_o32, x_d32, x_beta, x_pdf = out
+    s_owner, s_o32, s_d32, s_tfar, s_value, s_aux, s_dir = rays
+    depth = cfg.depth
+    emit, allow_next, allow_indirect = vertex_rules(cfg, depth)
+    nd = cfg.shadow_rays
+    ni = cfg.indirect_rays
+    hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
+    sob = cfg.sampler == SAMPLER_SOBOL and depth == 1
+    fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
+    fh_pixel = -1
+    si = 0
+
+    n = len(root)
+    m = 0
+    s = 0
+    n_next = 0
+    for i in range(n):
+        p = prim[i]
+        if p < 0:
+            counters[C_ESCAPED] += 1
+            continue
+        tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2],
+                                                                 direction[i, 0], direction[i, 1], direction[i, 2])
+        front = cos_out > 0
+        b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
+        r = root[i]
+        if emit != EMIT_NONE:
+            e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, pdf_dir[i])
+            radiance[r, 0] += b0 * e0 * w
+            radiance[r, 1] += b1 * e1 * w
+            radiance[r, 2] += b2 * e2 * w
+
+        if not allow_next:
+            continue
+        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0, nx1,
+                                                                                     nx2, x0, x1, x2)
+        if not reflects:
+            counters[C_BACK_FACE] += 1
+            continue
+        k = key[i]
+        if sob:
+            fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
+        h = m
+        hits[h] = i
+        m += 1
+
+        # Direct light: the rays of Nd samples, resolved by resolve_shadow / resolve_hemisphere.
+        for j in range(nd):
+            if hemi_direct:  # a closest-hit ray
+                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, fh[1], si, j, k, depth, nx0, nx1, nx2)
+                counters[C_HEMI_DIRECT] += 1
+                s_owner[s] = h
+                s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
+                s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = w0, w1, w2
+                s_dir[s, 0], s_dir[s, 1], s_dir[s, 2] = w0, w1, w2
+                s_value[s, 0], s_value[s, 1], s_value[s, 2] = f0, f1, f2
+                s_aux[s] = ratio
+                s += 1
+                continue
+            selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
+                                                                surfaces)
+            if selected:
+                counters[C_LIGHT_SELECT] += 1
+            needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
+                cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
+            if not needed:
+                counters[C_SHADOW_SKIPPED] += 1
+                continue
+            counters[C_SHADOW] += 1
+            s_owner[s] = h
+            s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = so0, so1, so2
+            s_d32[s, 0], s_d32[s, 1], s_d32[s, 2] = r0, r1, r2
+            s_tfar[s] = tfar
+            s_value[s, 0], s_value[s, 1], s_value[s, 2] = v0, v1, v2
+            s += 1
+
+        # Indirect light (Fig. 5.14), if the next vertex can still add anything.
+        if not allow_indirect:
+            continue
+        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, fh[2], si, k, depth, b0, b1, b2)
+        if not alive:
+            counters[C_ROULETTE] += 1
+            continue
+        for branch in range(ni):
+            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, fh[3], si, branch, k, depth, nx0,
+                                                                         nx1, nx2, f0, f1, f2, b0, b1, b2)
+            if not carries:
+                counters[C_ROULETTE] += 1
+                continue
+            counters[C_INDIRECT] += 1
+            q = n_next
+            n_next += 1
+            x_root[q] = r
+            x_key[q] = kb
+            x_origin[q, 0], x_origin[q, 1], x_origin[q, 2] = ox0, ox1, ox2
+            x_o32[q, 0], x_o32[q, 1], x_o32[q, 2] = ox0, ox1, ox2
+            x_dir[q, 0], x_dir[q, 1], x_dir[q, 2] = w0, w1, w2
+            x_d32[q, 0], x_d32[q, 1], x_d32[q, 2] = w0, w1, w2
+            x_beta[q, 0], x_beta[q, 1], x_beta[q, 2] = c0, c1, c2
+            x_pdf[q] = next_pdf
+
+    return m, s, n_next
+
+
+@njit(**JIT)
+def resolve_shadow(root, beta, hits, nd, s_owner, s_value, s_hit, total, radiance):
+    """Direct light by shadow rays: each hit's Nd samples (value x V, V = 1 where Embree found no blocker,
+    ``s_hit < 0``) summed in sample order, averaged, and added to ``radiance`` weighted by the hit's throughput.
+    ``hits`` are the rows of (root, beta) that hit; ``total`` is room for one sum per hit."""
+    m = len(hits)
+    total[:m] = 0.0
+    for q in range(len(s_owner)):
+        if s_hit[q] < 0:
+            h = s_owner[q]
+            total[h, 0] += s_value[q, 0]
+            total[h, 1] += s_value[q, 1]
+            total[h, 2] += s_value[q, 2]
+    _add_direct(root, beta, hits, nd, total, radiance)
+
+
+@njit(**JIT)
+def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_prim, prim_to_tri, tri_normal,
+                       emission, total, radiance):
+    """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only), times
+    f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0), averaged over the Nd samples."""
+    m = len(hits)
+    total[:m] = 0.0
+    for q in range(len(s_owner)):
+        p = s_prim[q]
+        if p < 0 or s_aux[q] < 0:
+            continue
+        tri = prim_to_tri[p]
+        weight = hemisphere_weight(s_aux[q], s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], tri_normal[tri, 0],
+                                   tri_normal[tri, 1], tri_normal[tri, 2])
+        h = s_owner[q]
+        total[h, 0] += emission[tri, 0] * s_value[q, 0] * weight
+        total[h, 1] += emission[tri, 1] * s_value[q, 1] * weight
+        total[h, 2] += emission[tri, 2] * s_value[q, 2] * weight
+    _add_direct(root, beta, hits, nd, total, radiance)
+
+
+@njit(**JIT_INLINE)
+def _add_direct(root, beta, hits, nd, total, radiance):
+    inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
+    for h in range(len(hits)):
+        i = hits[h]
+        r = root[i]
+        radiance[r, 0] += beta[i, 0] * (total[h, 0] * inv_nd)
+        radiance[r, 1] += beta[i, 1] * (total[h, 1] * inv_nd)
+        radiance[r, 2] += beta[i, 2] * (total[h, 2] * inv_nd)

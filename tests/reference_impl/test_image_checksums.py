@@ -1,0 +1,127 @@
+"""Renders of tiny canonical scenes keep the exact bits stored in ``tests/reference_impl/data/image_checksums.json``.
+
+Every strategy and setting value of ``reference_impl.Settings``, every planted fault of ``reference_impl/mutants.py``
+and every pixel filter is rendered on a 16 x 16 crop of a canonical scene at 4 spp, by both engines and with both
+samplers, and the SHA-256 of the float32 image and of the variance bytes, and the counters, must be those stored. A
+change meant to keep the images (a refactor of the kernels) must pass this unchanged; a change meant to alter them
+regenerates the file, in a commit of its own, and says why:
+
+    REGENERATE_IMAGE_CHECKSUMS=1 python -m pytest tests/reference_impl/test_image_checksums.py -q
+
+which renders every case and rewrites the JSON file (the tests then pass against what they just wrote). The bits
+depend on the numpy build, the CPU and libm (sin, cos, sqrt), as docs/performance.md says: on another machine the
+checksums may have to be regenerated from a commit known to be good. All renders run in this one process, so numba's
+compiled kernels are loaded once; the file takes a few seconds once they are in numba's cache.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import pytest
+from conftest import load_small
+
+from harness.scene import triangulate
+
+DATA = Path(__file__).resolve().parent / "data" / "image_checksums.json"
+REGENERATE = "REGENERATE_IMAGE_CHECKSUMS"
+SIZE, SPP, SEED = 16, 4, 7
+
+# (scene, settings): each value of each setting at least once, on a scene where it makes a difference.
+BASE_CASES = [
+    ("cornell-box", {}),
+    ("multi-light", {}),
+    ("soft-shadows", {}),
+    ("furnace", {}),
+    ("multi-light", {"direct": "hemisphere-cosine"}),
+    ("multi-light", {"direct": "hemisphere-uniform", "shadow_rays": 2}),
+    ("multi-light", {"direct": "global-area"}),
+    ("cornell-box", {"direct": "global-area", "shadow_rays": 3}),
+    ("multi-light", {"direct": "mis"}),
+    ("cornell-box", {"direct": "mis", "shadow_rays": 2, "hemisphere": "uniform"}),
+    ("cornell-box", {"direct": "mis", "indirect_rays": 2}),
+    ("multi-light", {"shadow_rays": 3}),
+    ("multi-light", {"light_selection": "uniform"}),
+    ("cornell-box", {"indirect_rays": 2}),
+    ("cornell-box", {"indirect_rays": 3, "shadow_rays": 2, "max_depth": 4}),
+    ("cornell-box", {"hemisphere": "uniform"}),
+    ("cornell-box", {"rr": "fixed"}),
+    ("cornell-box", {"rr": "fixed", "absorption": 0.5, "rr_depth": 1}),
+    ("cornell-box", {"rr": "off"}),
+    ("furnace", {"rr_depth": 1}),
+    ("cornell-box", {"max_depth": 1}),
+    ("cornell-box", {"max_depth": 2}),
+    ("cornell-box", {"max_depth": -1}),
+    ("multi-light", {"direct": "mis", "max_depth": 2}),
+    ("cornell-box", {"filter": "tent"}),
+    ("cornell-box", {"filter": "gaussian"}),
+    ("cornell-box", {"mutant": "double-emission"}),
+    ("cornell-box", {"mutant": "no-cosine"}),
+    ("cornell-box", {"mutant": "cosine-pdf-pi"}),
+    ("furnace", {"mutant": "rr-no-reweight"}),
+    ("multi-light", {"mutant": "light-pdf-ignored"}),
+    ("multi-light", {"mutant": "light-pdf-ignored", "direct": "mis"}),
+    ("soft-shadows", {"mutant": "camera-half-pixel"}),
+    ("soft-shadows", {"mutant": "no-ray-offset"}),
+    ("furnace", {"mutant": "energy-loss-2pct"}),
+]
+CASES = [(scene, {**settings, "engine": engine, "sampler": sampler})
+         for scene, settings in BASE_CASES for engine in ("path", "wavefront") for sampler in ("sobol", "independent")]
+
+
+def _case_id(scene: str, settings: dict) -> str:
+    return "/".join([scene] + [f"{k}={v}" for k, v in settings.items()])
+
+
+IDS = [_case_id(*case) for case in CASES]
+
+
+@functools.cache
+def _inputs(name: str, pixel_filter: str | None):
+    scene = load_small(name, SIZE)
+    if pixel_filter is not None:
+        scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, filter=pixel_filter))
+    return triangulate(scene), scene.camera, scene.film, scene.max_depth
+
+
+@functools.cache
+def _checksum(case_id: str) -> dict:
+    """The render of one case: SHA-256 of its image and variance bytes, and its counters (not Embree's time)."""
+    import reference_impl  # numba is imported with the first render
+
+    scene, settings = CASES[IDS.index(case_id)]
+    settings = dict(settings)
+    geometry, camera, film, max_depth = _inputs(scene, settings.pop("filter", None))
+    values = {"spp": SPP, "seed": SEED, "max_depth": max_depth, "threads": 1, **settings}
+    out = reference_impl.render(geometry, camera, film, reference_impl.Settings(**values))
+    stats = {k: v for k, v in sorted(out.stats.items()) if k != "embree_microseconds"}
+    return {"image": hashlib.sha256(out.image.tobytes()).hexdigest(),
+            "variance": hashlib.sha256(out.variance.tobytes()).hexdigest(), "stats": stats}
+
+
+@pytest.fixture(scope="module")
+def stored() -> dict:
+    if os.environ.get(REGENERATE):
+        data = {"size": SIZE, "spp": SPP, "seed": SEED, "cases": {i: _checksum(i) for i in IDS}}
+        DATA.parent.mkdir(parents=True, exist_ok=True)
+        tmp = DATA.with_suffix(".json.tmp")
+        tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+        tmp.replace(DATA)
+    return json.loads(DATA.read_text())
+
+
+def test_the_stored_checksums_are_of_these_cases(stored):
+    assert (stored["size"], stored["spp"], stored["seed"]) == (SIZE, SPP, SEED)
+    assert sorted(stored["cases"]) == sorted(IDS), f"cases changed: regenerate with {REGENERATE}=1"
+
+
+@pytest.mark.parametrize("case_id", IDS)
+def test_render_keeps_its_bits(case_id, stored):
+    expected = stored["cases"].get(case_id)
+    assert expected is not None, f"no stored checksum for {case_id}: regenerate with {REGENERATE}=1"
+    assert _checksum(case_id) == expected
