@@ -26,6 +26,8 @@ from harness.renderers.reference import ReferenceRenderer
 from harness.scene import load_scene
 from harness.running.cases import load_suite
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 FURNACE = ROOT / "scenes" / "furnace.toml"
 LIGHT = '\n[[shapes]]\nname = "light"\ntype = "rectangle"\nmaterial = "white"\nemission = [1, 1, 1]\n'
 # A tiny open scene with a bounded depth (so branching settings have a finite cost) and one light.

@@ -33,6 +33,8 @@ from harness.renderers.validate import BadRenderError, validate_result
 from harness.scene import load_scene
 from harness.running.cases import Suite, load_suite
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 SCENE = MINIMAL_SCENE.replace('name = "minimal"', 'name = "tiny"') + """
 [[shapes]]
 name = "light"

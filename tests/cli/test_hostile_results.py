@@ -30,6 +30,8 @@ from harness.renderers.groundtruth import Cache
 from harness.judges.moments import Estimate
 from harness.files.results import format_path, read_results
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 SUITE = """
 name = "tiny"
 [defaults]

@@ -14,6 +14,8 @@ from harness.judges.mc import FALSE_ALARM, image_mean, z_critical, z_scores
 
 from harness.cli import main
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 
 def run_cli(*args, cwd=None):
     proc = subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, cwd=cwd)

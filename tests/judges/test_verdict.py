@@ -29,6 +29,8 @@ from harness.core.errors import HarnessError
 from harness.files.imageio import ExrImage, write_exr
 from harness.judges.verdict import Verdict, _to_normal, tile_z_scores, verdict
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 SEEDS = 200
 ALPHA = 0.01
 TEST_NOISE = 0.05

@@ -26,6 +26,8 @@ from harness.scene import load_scene
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "mitsuba_xml_renderer.py"
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 # A fake renderer for the failure modes: no Mitsuba, fast. Pixel values N(mu, 0.1^2) seeded by --seed.
 FAKE = r'''
 import os, subprocess, sys, time
@@ -46,6 +48,7 @@ if mode == "garbage":
     open(out, "wb").write(b"not an exr")
     sys.exit(0)
 from harness.files.imageio import write_exr
+
 if mode == "wrongsize":
     w += 1
 rng = np.random.default_rng(int(args["--seed"]))

@@ -28,6 +28,8 @@ from harness.judges.moments import Estimate, merge
 from harness.renderers.mitsuba import MitsubaRenderer
 from harness.scene import load_scene
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 VARIANT = "scalar_rgb"  # the fastest variant for 8 x 8 films (no JIT compilation)
 LE = np.array([1.0, 1.0, 1.0])
 RHO = np.array([0.3, 0.5, 0.7])

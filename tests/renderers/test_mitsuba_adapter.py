@@ -27,6 +27,8 @@ from harness.scene.triangulate import (
     unit_sphere,
 )
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 CANONICAL = sorted(p.stem for p in SCENES.glob("*.toml"))
 RHO = np.array([0.3, 0.5, 0.7])
 

@@ -28,6 +28,8 @@ from harness.studies.convergence import (
     time_to_error,
 )
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 EVIL = "<script>alert('x')</script> & \"quotes\""
 
 SUITE = f'''

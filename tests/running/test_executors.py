@@ -19,6 +19,8 @@ from harness.cli import main
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
 

@@ -12,6 +12,8 @@ from harness.running.cases import load_suite
 from harness.running.judge import run_case
 from reference_impl.mutants import MUTANTS
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 CANONICAL = load_suite(ROOT / "suites" / "canonical.toml")
 MUTANT_CASES = {c.settings["mutant"]: c for c in CANONICAL.cases if "mutant" in c.settings}
 

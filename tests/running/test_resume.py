@@ -19,6 +19,8 @@ from harness.renderers.groundtruth import Cache
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 HARNESS = Path(sys.executable).parent / "harness"
 

@@ -14,6 +14,8 @@ from harness.core.errors import HarnessError
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 SUITES = ROOT / "suites"
 
 

@@ -18,6 +18,8 @@ from conftest import ROOT, SCENES, load_small
 from harness.studies import bench
 from harness.renderers.groundtruth import closed_form
 
+pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
+
 
 def test_mse_subtracts_the_ground_truths_own_noise():
     rng = np.random.default_rng(1)
