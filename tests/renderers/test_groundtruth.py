@@ -33,7 +33,7 @@ pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner 
 VARIANT = "scalar_rgb"  # the fastest variant for 8 x 8 films (no JIT compilation)
 LE = np.array([1.0, 1.0, 1.0])
 RHO = np.array([0.3, 0.5, 0.7])
-TESTS = Path(__file__).resolve().parents[2]  # tests/: conftest.py
+TESTS = Path(__file__).resolve().parents[1]  # tests/: conftest.py
 
 
 @pytest.fixture(autouse=True)
