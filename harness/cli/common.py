@@ -131,10 +131,12 @@ def path_progress(args: argparse.Namespace, description: str) -> tuple[tqdm | No
     return bar, progress
 
 
-def check_cost(scene, spp: int, option: str) -> None:
-    """Refuse a render of ``scene`` at ``spp`` whose memory or time estimate is absurd (harness/core/limits.py)."""
+def check_cost(scene, spp: int | None, option: str, *, seconds: float | None = None) -> None:
+    """Refuse a render of ``scene`` at ``spp`` (or for ``seconds``: a time budget of at most 24 h) whose memory or
+    time estimate is absurd (harness/core/limits.py)."""
     check_render_cost(scene.film.width, scene.film.height, spp, film_where=f"{scene.path}: film",
-                      spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option)
+                      spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option,
+                      seconds=seconds)
 
 
 @contextlib.contextmanager

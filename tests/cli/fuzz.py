@@ -670,6 +670,17 @@ def maybe_unknown_option(rng: random.Random, inp: Input, argv: list[str], p: flo
         inp.bad.append(f"stray arguments {junk}")
 
 
+def settle_settings(inp: Input, argv: list[str]) -> None:
+    """A --set whose key a later --set gives again is overridden: it is not a reason the input is bad."""
+    values = [argv[i + 1] for i in range(len(argv) - 1) if argv[i] == "--set"]
+    for i, value in enumerate(values):
+        key = value.partition("=")[0].strip()
+        reason = f"--set {value!r}"
+        if "=" in value and reason in inp.bad and any(v.partition("=")[0].strip() == key and "=" in v
+                                                      for v in values[i + 1:]):
+            inp.bad.remove(reason)  # one occurrence: the same bad value given again still counts
+
+
 def cli_input(entry: str, index: int, argv: list[str]) -> Input:
     return Input(entry, index, ["cli", *argv], valid=True)
 
@@ -710,6 +721,7 @@ def gen_render(rng, assets, index) -> Input:
     argv += flags(rng, "--json", "--quiet", "--allow-outside-paths")
     if outside and "--allow-outside-paths" in argv:
         inp.bad = [b for b in inp.bad if "file =" not in b]
+    settle_settings(inp, argv)
     maybe_unknown_option(rng, inp, argv)
     inp.call += argv
     return inp
@@ -851,8 +863,8 @@ def run_options(rng, inp: Input, p_bad: float) -> list[str]:
     if rng.random() < 0.15:
         argv += pick(rng, inp, "--timeout", ["60", "120.5"], ["0", "-1", "nan", "x", "-inf", "inf"], 0.6)
     if rng.random() < 0.1:
-        argv += pick(rng, inp, "--junit", ["junit.xml", "outdir/j.xml"], ["blocker/j.xml", "/proc/harness-fuzz/j.xml",
-                                                                           "nofolder/j.xml", "", "outdir"], 0.5)
+        argv += pick(rng, inp, "--junit", ["junit.xml", "outdir/j.xml", "newfolder/j.xml"],  # its folder is created
+                     ["blocker/j.xml", "/proc/harness-fuzz/j.xml", "", "outdir"], 0.5)
         inp.dirs.append("outdir")
     argv += flags(rng, "--fresh", "--quiet", "--allow-outside-paths")
     if rng.random() < 0.9:
@@ -1120,19 +1132,19 @@ def gen_compare(rng, assets, index) -> Input:
     maker = _EXR_MAKERS.setdefault(id(assets), ExrMaker(assets))
     inp = cli_input("compare", index, ["compare"])
     paths = []
-    for role in ("test", "reference"):
-        name = f"{role}.exr"
+    same = rng.random() < 0.05  # one file as both test and reference
+    for role in (("test", "reference"),) if same else ("test", "reference"):
+        roles = role if same else (role,)
+        name = f"{roles[0]}.exr"
         if rng.random() < 0.06:
-            paths.append(special_file(rng, inp, name))
+            paths += [special_file(rng, inp, name)] * len(roles)
             continue
         data, bad = maker.make(rng)
         inp.files[name] = data
-        paths.append(name)
-        if bad == "bad" or (bad == "reference-bad" and role == "reference") or (bad == "test-bad" and role == "test"):
-            inp.bad.append(f"{role} EXR is bad")
+        paths += [name] * len(roles)
+        if bad == "bad" or (bad == "reference-bad" and "reference" in roles) or (bad == "test-bad" and "test" in roles):
+            inp.bad.append(f"{'/'.join(roles)} EXR is bad")
         inp.valid = inp.valid and bad is None and data == maker.good
-    if rng.random() < 0.05:
-        paths[1] = paths[0]
     argv = list(paths)
     if rng.random() < 0.4:
         argv += pick(rng, inp, "--tile", ["1", "8", "16", "1024"], ["0", "-1", "1025", "x", "", "1.5", "1_0"], 0.5)
@@ -1205,6 +1217,7 @@ def gen_convergence(rng, assets, index) -> Input:
         argv += ["--spp", "0"]
         inp.bad.append("--spp '0'")
     common_options(rng, inp, argv)
+    settle_settings(inp, argv)
     maybe_unknown_option(rng, inp, argv)
     inp.call += argv
     return inp
@@ -1254,6 +1267,7 @@ def gen_stress(rng, assets, index) -> Input:
     argv += out_folder(rng, inp, 0.1)
     argv += flags(rng, "--json", "--quiet")
     common_options(rng, inp, argv)
+    settle_settings(inp, argv)
     maybe_unknown_option(rng, inp, argv)
     inp.call += argv
     return inp

@@ -164,6 +164,14 @@ def test_convergence_k_is_checked(tmp_path, capfd, k):
     assert not (tmp_path / "o").exists()
 
 
+def test_convergence_time_ladder_is_limited(tmp_path, capfd):
+    """--seconds 1e300 was accepted: each rung renders until its time is spent, so it ran for ever (a hang)."""
+    line = one_line_error(capfd, "convergence", FURNACE, "--spp", "1", "--seconds", "1e300", "--film", "4x4",
+                          "--out", tmp_path / "o", "--quiet")
+    assert line.startswith("harness: error: --seconds: expected a time budget of at most 24.0 h")
+    assert not (tmp_path / "o").exists()
+
+
 def test_stress_checks_costs_and_writes_nothing_on_bad_input(tmp_path, capfd):
     """harness stress had no cost check (an absurd --spp, --ground-truth-spp or --film ran for ever), and created
     --out before finding the scene broken."""
