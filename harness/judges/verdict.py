@@ -240,7 +240,7 @@ def verdict(
     test_dof: float | np.ndarray | None = None,
     expected_dof: float | np.ndarray | None = None,
     rtol: float = ROUNDING_RTOL,
-    names: tuple[str, str] = ("test image", "reference image"),
+    names: tuple[str, str] = ("test image", "ground truth image"),
 ) -> Verdict:
     r"""Decide whether ``test`` and ``expected`` (the ground truth) estimate the same image.
 
@@ -493,5 +493,5 @@ def verdict(
         max_z=max_z,
         zero_variance=zero_variance,
         worst_tile=worst,
-        variance_dof={"test": _dof_summary(test_dof), "reference": _dof_summary(expected_dof)},
+        variance_dof={"test": _dof_summary(test_dof), "ground_truth": _dof_summary(expected_dof)},
     )

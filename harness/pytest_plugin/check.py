@@ -46,7 +46,7 @@ def _explain(label: str, comparison: dict, files: dict[str, Path]) -> str:
     return (f"{label} disagrees with the ground truth (false-alarm probability {v['alpha']:g}): {v['reason']}. "
             f"Global bias z: {zs}; omnibus p = {v['omnibus']['p_value']:.3g}; max |z| = "
             f"{v['max_z']['statistic']:.2f} over {v['max_z']['count']} tile-channels; {where}; relMSE {relmse}. "
-            f"Images: {files['render']} (render), {files['reference']} (reference), PNG previews beside them.")
+            f"Images: {files['render']} (render), {files['ground_truth']} (ground truth), PNG previews beside them.")
 
 
 class RenderCheck:
@@ -71,9 +71,9 @@ class RenderCheck:
         self.calls += 1
         folder = self.tmp_path / f"render_check-{self.calls}"
         folder.mkdir(parents=True, exist_ok=True)
-        files = {"render": folder / "render.exr", "reference": folder / "reference.exr"}
+        files = {"render": folder / "render.exr", "ground_truth": folder / "ground_truth.exr"}
         imageio.write_exr(files["render"], result.image, result.variance, metadata={"spp": str(result.spp)})
-        imageio.write_exr(files["reference"], gt.image, gt.variance, metadata={"spp": str(gt.spp)})
+        imageio.write_exr(files["ground_truth"], gt.image, gt.variance, metadata={"spp": str(gt.spp)})
         for key in files:
             image = result.image if key == "render" else gt.image
             imageio.write_png_preview(imageio.preview_path(files[key]), image)

@@ -30,7 +30,7 @@ from trimesh.visual.material import PBRMaterial
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
-from harness.renderers.mitsuba import RR_DEPTH, _bsdf, _emitter, clip_planes, film_dict, path_integrator
+from harness.renderers.mitsuba import RR_DEPTH, bsdf_dict, clip_planes, emitter_dict, film_dict, path_integrator
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
@@ -136,7 +136,7 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
         lines.append(f"    <!-- material {name} -->")
-        lines += _plugin_xml("bsdf", _bsdf(material), "    ", plugin_id=f"bsdf_{j}")
+        lines += _plugin_xml("bsdf", bsdf_dict(material), "    ", plugin_id=f"bsdf_{j}")
     meshes: dict[str, bytes] = {}
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
@@ -154,7 +154,7 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
                 lines.append('        <boolean name="flip_normals" value="true"/>')
         lines.append(f'        <ref id="{material_key[shape.material]}"/>')
         if shape.is_emitter:
-            lines += _plugin_xml("emitter", _emitter(shape), "        ")
+            lines += _plugin_xml("emitter", emitter_dict(shape), "        ")
         lines.append("    </shape>")
     lines.append("</scene>")
     return "\n".join(lines) + "\n", meshes

@@ -400,12 +400,14 @@ def clip_planes(scene: Scene) -> tuple[float, float]:
     return float(near), float(far)
 
 
-def _bsdf(material) -> dict:
+def bsdf_dict(material) -> dict:
+    """Mitsuba's dict of ``material``: ``diffuse`` with its reflectance, inside ``twosided`` when two-sided."""
     diffuse = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in material.reflectance]}}
     return {"type": "twosided", "bsdf": diffuse} if material.two_sided else diffuse
 
 
-def _emitter(shape) -> dict:
+def emitter_dict(shape) -> dict:
+    """Mitsuba's ``area`` emitter dict of an emitting shape (its RGB radiance)."""
     return {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in shape.emission]}}
 
 
@@ -414,9 +416,9 @@ def _mesh_object(mi, shape, material) -> object:
     vertices, triangles = shape_triangles(shape)  # object_to_world applied; flip_normals by the winding
     props = mi.Properties()
     props["face_normals"] = True
-    props["bsdf"] = mi.load_dict(_bsdf(material))
+    props["bsdf"] = mi.load_dict(bsdf_dict(material))
     if shape.is_emitter:
-        props["emitter"] = mi.load_dict(_emitter(shape))
+        props["emitter"] = mi.load_dict(emitter_dict(shape))
     mesh = mi.Mesh(shape.name, len(vertices), len(triangles), props=props,
                    has_vertex_normals=False, has_vertex_texcoords=False)
     params = mi.traverse(mesh)
@@ -489,7 +491,7 @@ def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None =
     material_key = {}
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
-        out[f"bsdf_{j}"] = _bsdf(material)
+        out[f"bsdf_{j}"] = bsdf_dict(material)
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
         if shape.type == "mesh":
@@ -503,7 +505,7 @@ def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None =
         if shape.flip_normals:
             entry["flip_normals"] = True
         if shape.is_emitter:
-            entry["emitter"] = _emitter(shape)
+            entry["emitter"] = emitter_dict(shape)
         out[key] = entry
     return out
 

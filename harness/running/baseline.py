@@ -38,7 +38,6 @@ import hashlib
 import json
 import math
 import platform
-import sys
 import time
 from importlib import metadata
 from pathlib import Path
@@ -49,14 +48,12 @@ from scipy import stats
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError, read_user_text
-from harness.files.imageio import atomic_write_text, read_exr, removed_on_failure
+from harness.files.imageio import atomic_write_text, read_exr
 from harness.files.results import read_results
 from harness.judges.metrics import MAPE_EPS, RELMSE_EPS
 from harness.renderers.groundtruth import scene_digest
-from harness.running import runstate
-from harness.running.cases import load_suite
 from harness.running.judge import case_scene, ground_truth_for
-from harness.running.schedule import run_suite, summarise
+from harness.running.schedule import summarise
 from harness.running.tolerances import DEFAULT_ALPHA, NOISE_METRICS, option_tolerances, suite_tolerances
 
 SCHEMA = "rendering-harness/baseline"
@@ -447,58 +444,12 @@ class Gate:
         return lines
 
 
-# ---- the command -----------------------------------------------------------------------------------------------
+# ---- a results.json as the source of a baseline ---------------------------------------------------------
 
 
-def save_command(args) -> int:
-    """``harness baseline save SUITE --out FILE [--from RESULTS.json | --run-out DIR]``."""
-    suite = load_suite(args.suite)
-    if not args.out.strip():
-        raise HarnessError("--out", "expected a file name, got an empty string")
-    out = Path(args.out)
-    if out.is_dir():
-        raise HarnessError("--out", f"{str(out)!r} is a folder; expected a file name, e.g. baseline.json")
-    if not out.parent.is_dir():
-        raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
-    runstate.probe_writable(out.parent, "--out")  # before the run, not after it
-    if args.from_results:
-        results = _read_results(args.from_results, suite)
-        source = str(args.from_results)
-    else:
-        created: list[Path] = []  # removed (where empty) when the run fails
-        run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out",
-                                         created=created)
-
-        def on_case(index: int, record: dict) -> None:
-            if not args.quiet:
-                mark = "ok " if record["ok"] else "BAD"
-                print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}", file=sys.stderr)
-
-        with removed_on_failure(created), runstate.locked(run_dir, "--run-out"):
-            results = run_suite(suite, run_dir, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
-                                on_case=on_case)
-        source = f"run {run_dir / 'results.json'}"
-    unexpected = [r["name"] for r in results["cases"] if not r.get("ok")]
-    if unexpected and not args.allow_unexpected:
-        print(f"baseline not written: {len(unexpected)} cases not as expected ({', '.join(unexpected)}); a baseline "
-              "is a known-good state (--allow-unexpected writes it anyway)", file=sys.stderr)
-        return 1
-    try:
-        doc, notes = build(suite, results, cache_dir=args.cache_dir, variant=args.mitsuba_variant, source=source)
-    except (KeyError, TypeError, AttributeError, IndexError) as err:
-        if not args.from_results:
-            raise
-        # a results.json edited by hand: what build() reads may be missing or of another type
-        raise HarnessError(f"--from {args.from_results}", f"not a results.json written by harness run "
-                           f"({type(err).__name__}: {err})") from None
-    save(doc, out)
-    for note in notes:
-        print(f"  {note}", file=sys.stderr)
-    print(f"{suite.name}: baseline of {len(doc['cases'])}/{len(suite.cases)} cases written to {out}")
-    return 0
-
-
-def _read_results(path: str | Path, suite) -> dict:
+def read_suite_results(path: str | Path, suite) -> dict:
+    """``path`` (a results.json, given as ``--from``) checked against its schema and against ``suite``: the same
+    cases, each run with the renderer, settings, seed and budget the suite defines now."""
     label = str(path)
     results = read_results(path, where=f"--from {label}")  # checked: a malformation names its JSON path
     if results.get("suite") != suite.name:

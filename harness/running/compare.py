@@ -74,7 +74,7 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
     h, w = t.shape[:2]
     mask = metrics.finite_mask(t, r)
     used = int(mask.sum())
-    nonfinite = {"test": metrics.count_nonfinite(t), "reference": metrics.count_nonfinite(r)}
+    nonfinite = {"test": metrics.count_nonfinite(t), "ground_truth": metrics.count_nonfinite(r)}
     finite_expected = r[mask]
     psnr_peak = float(finite_expected.max()) if finite_expected.size else float("nan")
     result = {
@@ -116,7 +116,7 @@ def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: 
     freedom of its variance estimates (see :func:`harness.judges.verdict.verdict`).
 
     Returns a dict with keys ``width``, ``height``, ``pixels``,
-    ``nonfinite_pixels`` (``{"test": n, "reference": n}``), ``metric_pixels``
+    ``nonfinite_pixels`` (``{"test": n, "ground_truth": n}``), ``metric_pixels``
     and ``metric_note`` (metrics use only pixels finite in both images),
     ``metrics`` (``rmse``, ``relmse``, ``mape``, ``psnr``, ``ssim``, ``flip``),
     ``bias`` (see :func:`harness.judges.metrics.bias`), ``conventions`` (how each
@@ -129,7 +129,7 @@ def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: 
     Raises :class:`HarnessError` if the sizes differ, a variance is missing or
     invalid, or the expected image has non-finite pixels.
     """
-    return _compare(test, expected, tile, alpha, ("test image", "reference image"))
+    return _compare(test, expected, tile, alpha, ("test image", "ground truth image"))
 
 
 def compare_files(

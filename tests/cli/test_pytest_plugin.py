@@ -68,5 +68,5 @@ def test_render_check_passes_and_fails(pytester):
     assert "render_check: reference on furnace (16x16, 64 spp, seed 0, settings {'mutant': 'energy-loss-2pct'})" in text
     assert "disagrees with the ground truth" in text and "global bias: z = -" in text
     assert "Global bias z: R -" in text and "worst tile at x=" in text
-    images = re.search(r"Images: (\S+) \(render\), (\S+) \(reference\)", text)
+    images = re.search(r"Images: (\S+) \(render\), (\S+) \(ground truth\)", text)
     assert images and all(Path(p).is_file() for p in images.groups()), "the images the message names exist"

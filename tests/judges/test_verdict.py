@@ -274,11 +274,11 @@ def test_missing_or_invalid_inputs_raise_clear_errors() -> None:
     zero = np.zeros_like(r)
     with pytest.raises(HarnessError, match="variance"):
         verdict(r, None, r, zero)
-    with pytest.raises(HarnessError, match="reference image.*variance"):
+    with pytest.raises(HarnessError, match="ground truth image.*variance"):
         verdict(r, zero, r, None)
     bad = r.copy()
     bad[0, 0, 0] = np.nan
-    with pytest.raises(HarnessError, match="reference image: 1 non-finite"):
+    with pytest.raises(HarnessError, match="ground truth image: 1 non-finite"):
         verdict(r, zero, bad, zero)
     nan_var = zero.copy()
     nan_var[1, 1, 1] = np.nan
@@ -324,8 +324,8 @@ def test_compare_files_pass_and_fail(tmp_path: Path) -> None:
     }
     assert set(result["metrics"]) == {"rmse", "relmse", "mape", "psnr", "ssim", "flip"}
     assert result["verdict"]["verdict"] == "pass", result["verdict"]["reason"]
-    assert result["verdict"]["variance_dof"] == {"test": 15, "reference": 15}
-    assert result["nonfinite_pixels"] == {"test": 0, "reference": 0}
+    assert result["verdict"]["variance_dof"] == {"test": 15, "ground_truth": 15}
+    assert result["nonfinite_pixels"] == {"test": 0, "ground_truth": 0}
 
     tp, rp = _exr_pair(tmp_path, fault=lambda img: 0.98 * img)
     result = compare_files(tp, rp, tile=8, alpha=0.01)
@@ -369,7 +369,7 @@ def test_compare_files_with_nan_in_the_test_does_not_crash(tmp_path: Path) -> No
     rp = write_exr(tmp_path / "r.exr", TRUTH, np.zeros_like(TRUTH))
     result = compare_files(tp, rp)
     json.dumps(result, allow_nan=False)
-    assert result["nonfinite_pixels"] == {"test": 1, "reference": 0}
+    assert result["nonfinite_pixels"] == {"test": 1, "ground_truth": 0}
     assert result["metric_pixels"] == 64 * 64 - 1
     assert result["verdict"]["verdict"] == "fail"
     assert "1 non-finite pixels" in result["verdict"]["reason"]
