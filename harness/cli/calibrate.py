@@ -33,7 +33,8 @@ def run(args: argparse.Namespace) -> int:
     """Calibrate the suite's cases into ``--out``/calibration.json and print the summary."""
     require_positive("--seeds", args.seeds)
     suite = load_suite(args.suite)
-    calibrate.select_cases(suite, args.cases)  # a --cases pattern that matches no case: one line, before any render
+    cases = calibrate.select_cases(suite, args.cases)  # a --cases matching no case: one line, before any render
+    calibrate.check_cost(cases, args.seeds)
     created: list[Path] = []  # removed (where empty) when the calibration fails
     out = runstate.output_folder(args.out, Path("reports") / f"{suite.name}-calibration", created=created)
 

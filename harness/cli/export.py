@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from harness.cli.common import EXIT_OK, SCENE_HELP
+from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_non_negative, require_positive
@@ -38,6 +38,7 @@ def run(args: argparse.Namespace) -> int:
     require_positive("--spp", args.spp)
     require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
+    check_cost(scene, args.spp, "--spp")  # the $spp an exported Mitsuba scene renders at by default
     files = export_scene(scene, args.format, args.out, spp=args.spp, seed=args.seed)
     if args.json:
         print(json.dumps({"scene": str(scene.path), "format": args.format, "files": [str(f) for f in files]}))

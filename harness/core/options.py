@@ -3,7 +3,8 @@
 Two layers. The argparse ``type=`` functions below (:func:`positive_int`, :func:`seconds`, :func:`spp_ladder`, ...)
 parse an option's text strictly as it is read: integers in plain decimal digits only (``int()`` would also take
 ``1_000``, `` 7 `` and other scripts' digits), finite numbers only (no ``nan``, ``inf`` or ``1e999``), ladders
-strictly increasing, output paths (:data:`out_folder`, :data:`out_file`) not empty. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
+strictly increasing, output paths (:data:`out_folder`, :data:`out_file`) not empty and
+not too long for the file system. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
 (``harness.cli.common.Parser``). The ``require_*`` functions check values that did not come through argparse;
 :func:`parse_set` reads repeated ``--set KEY=VALUE`` options.
 """
@@ -12,10 +13,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 
 from harness.core.errors import HarnessError
 from harness.core.limits import MAX_TIMEOUT_SECONDS
+from harness.core.text import short
 
 _INTEGER = re.compile(r"-?[0-9]+")
 _NUMBER = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
@@ -120,6 +123,27 @@ def film_size(text: str) -> str:
     return text
 
 
+MAX_NAME_BYTES = 200  # a file system takes 255 bytes a name; the harness adds to a name (".tmp-...", ".png")
+MAX_PATH_BYTES = 3000  # of PATH_MAX's 4096, with room for the files written inside a folder
+
+
+def path_problem(text: str) -> str | None:
+    """Why the file system would refuse ``text`` as a path (a NUL character, a name over :data:`MAX_NAME_BYTES`
+    bytes, a path over :data:`MAX_PATH_BYTES`), or None: found before anything is read, rendered or written."""
+    if "\0" in text:
+        return "a path cannot hold a NUL character"
+    try:
+        raw = os.fsencode(text)
+    except UnicodeEncodeError:
+        return "a name this file system cannot encode"
+    longest = max((len(part) for part in raw.split(b"/")), default=0)
+    if longest > MAX_NAME_BYTES:
+        return f"a name of {longest} bytes, more than the {MAX_NAME_BYTES} a name may have here"
+    if len(raw) > MAX_PATH_BYTES:
+        return f"{len(raw)} bytes, more than the {MAX_PATH_BYTES} a path may have here"
+    return None
+
+
 def path_type(what: str):
     """An argparse ``type=`` for an output path (``what``: "a folder path"): any text but an empty or blank one,
     which would otherwise read as "not given" (the default folder) or as the current folder."""
@@ -127,6 +151,9 @@ def path_type(what: str):
     def convert(text: str) -> str:
         if not isinstance(text, str) or not text.strip():
             raise argparse.ArgumentTypeError(f"expected {what}, got an empty string")
+        problem = path_problem(text)
+        if problem:
+            raise argparse.ArgumentTypeError(f"expected {what}, got {short(text)}: {problem}")
         return text
 
     convert.__name__ = "path"
@@ -168,7 +195,7 @@ def spp_ladder(text: str) -> str:
 
 
 def seconds_ladder(text: str) -> str:
-    """An argparse ``type=`` for a comma-separated ladder of seconds (strictly increasing, finite, > 0)."""
-    if str(text).strip():
-        parse_ladder(text, float)
+    """An argparse ``type=`` for a comma-separated ladder of seconds (strictly increasing, finite, > 0); an empty
+    one is refused (it has no default to stand for)."""
+    parse_ladder(text, float)
     return text

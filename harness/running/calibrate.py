@@ -22,7 +22,10 @@ from harness.core import jsonsafe
 from harness.core.errors import HarnessError
 from harness.files.imageio import atomic_write_text
 from harness.running.cases import Case, Suite
-from harness.running.judge import run_case
+from harness.core.limits import MAX_SECONDS, format_seconds, render_seconds
+from harness.running.judge import case_scene, run_case
+
+RENDER_OVERHEAD_SECONDS = 0.02  # a case's fixed cost beyond its paths (scene load, verdict, EXR writes): measured >= 0.05
 
 
 def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
@@ -36,6 +39,24 @@ def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
             shown = ", ".join(names[:5]) + (f" and {len(names) - 5} more" if len(names) > 5 else "")
             raise HarnessError("--cases", f"{pattern[:80]!r} matches no case of {suite.path} (its cases: {shown})")
     return [c for c in suite.cases if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
+
+
+def check_cost(cases: list[Case], seeds: int, option: str = "--seeds") -> None:
+    """Refuse a calibration whose estimated time breaks the 24 h limit of a render (harness/core/limits.py): each
+    ``expect = "pass"`` case renders ``seeds`` times, each render its budget (``seconds``, or its pixels times
+    ``spp`` at the estimate's paths per second) plus :data:`RENDER_OVERHEAD_SECONDS`."""
+    total = 0.0
+    for case in cases:
+        runs = seeds if case.expect == "pass" else 1
+        if case.seconds is not None:
+            each = case.seconds
+        else:
+            scene = case_scene(case)
+            each = render_seconds(scene.film.width, scene.film.height, case.spp)
+        total += runs * (each + RENDER_OVERHEAD_SECONDS)
+    if total > MAX_SECONDS:
+        raise HarnessError(option, f"{seeds} seeds of {len(cases)} cases need about {format_seconds(total)}, more "
+                           f"than the {format_seconds(MAX_SECONDS)} limit; lower {option} or choose fewer --cases")
 
 
 def calibrate(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | None, cache_dir=None, variant=None,

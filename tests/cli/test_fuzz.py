@@ -20,6 +20,7 @@ import fuzz
 from harness import cli
 from harness.running import baseline
 from harness.core.errors import HarnessError
+from harness.running.cases import load_suite
 from harness.running.executors import make_executor
 
 FURNACE = ROOT / "scenes" / "furnace.toml"
@@ -170,6 +171,50 @@ def test_convergence_time_ladder_is_limited(tmp_path, capfd):
                           "--out", tmp_path / "o", "--quiet")
     assert line.startswith("harness: error: --seconds: expected a time budget of at most 24.0 h")
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", [["render", FURNACE, "--spp", "1"], ["export", FURNACE, "--format", "ply"]])
+@pytest.mark.parametrize("out", ["x" * 300 + ".exr", "a/" + "y" * 250 + "/b", "a\0b"])
+def test_an_output_path_the_file_system_refuses_is_one_line(tmp_path, capfd, monkeypatch, command, out):
+    """``--out`` with a 300-byte name was ``OSError: [Errno 36] File name too long`` (render after the render,
+    export as it staged its folder); a NUL was ``ValueError: embedded null byte``."""
+    monkeypatch.chdir(tmp_path)
+    line = one_line_error(capfd, *command, "--out", out, "--quiet")
+    assert line.startswith("harness: error: --out: expected a ")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_calibrate_seeds_are_limited_by_their_cost(tmp_path, capfd):
+    """``calibrate --seeds 1e30`` was accepted (exit 0 under the fuzzer's time limit only: it rendered for ever)."""
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[[cases]]\nname = "c"\nscene = "{FURNACE}"\nspp = 4\nfilm = {{ width = 4, height = 4 }}\n')
+    line = one_line_error(capfd, "calibrate", suite, "--seeds", "9" * 30, "--out", tmp_path / "o", "--quiet")
+    assert line.startswith("harness: error: --seeds: ") and "more than the 24.0 h limit" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_empty_seconds_ladder_is_refused(tmp_path, capfd):
+    """``convergence --spp 2 --seconds ''`` ran the spp ladder and ignored the empty time ladder in silence."""
+    line = one_line_error(capfd, "convergence", FURNACE, "--spp", "2", "--seconds", "", "--film", "4x4",
+                          "--out", tmp_path / "o", "--quiet")
+    assert line.startswith("harness: error: --seconds: expected comma-separated positive numbers")
+    assert not (tmp_path / "o").exists()
+
+
+def test_export_spp_is_limited_by_its_cost(tmp_path, capfd):
+    """``export --spp 1e30`` wrote that number into the Mitsuba XML as the scene's default $spp, in silence."""
+    line = one_line_error(capfd, "export", FURNACE, "--format", "mitsuba-xml", "--spp", "9" * 30,
+                          "--out", tmp_path / "o")
+    assert line.startswith("harness: error: --spp: ") and "limit" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_an_unused_ground_truth_spp_is_checked_too(tmp_path):
+    """``ground_truth_spp = 10**12`` on a closed-form scene (where no ground truth is rendered) was accepted."""
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[[cases]]\nname = "c"\nscene = "{FURNACE}"\nground_truth_spp = 1000000000000\n')
+    with pytest.raises(HarnessError, match=r"cases\[0\]\.ground_truth_spp: .*limit"):
+        load_suite(suite)
 
 
 def test_stress_checks_costs_and_writes_nothing_on_bad_input(tmp_path, capfd):
