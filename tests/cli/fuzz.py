@@ -65,8 +65,9 @@ TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parents[1]
 if str(ROOT) not in sys.path:  # run as a script: the harness and tests/ helpers importable
     sys.path.insert(0, str(ROOT))
-if str(TESTS) not in sys.path:
-    sys.path.insert(0, str(TESTS))
+for _folder in (TESTS, TESTS.parent):
+    if str(_folder) not in sys.path:
+        sys.path.insert(0, str(_folder))
 
 if __name__ == "__main__":
     # Children are forked from this process: a library thread pool started here would be missing in them, and GNU
@@ -79,6 +80,7 @@ if __name__ == "__main__":
 import numpy as np  # noqa: E402
 
 from harness.files import imageio  # noqa: E402
+from tomltext import to_toml, without_none  # noqa: E402
 from harness.core.errors import HarnessError  # noqa: E402
 
 OUTCOMES = ("pass", "error", "traceback", "messy", "crash", "hang", "silent")
@@ -87,38 +89,6 @@ NAN, INF = math.nan, math.inf
 
 # ---------------------------------------------------------------------------------------------------------------
 # TOML and random values
-
-
-def toml_string(text: str) -> str:
-    """A TOML basic string (JSON's escapes, non-ASCII kept as is)."""
-    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
-
-
-def toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, str):
-        return toml_string(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(toml_value(item) for item in value) + "]"
-    return "{" + ", ".join(f"{toml_string(str(k))} = {toml_value(v)}" for k, v in value.items()) + "}"
-
-
-def to_toml(document: dict) -> str:
-    """A TOML document with every value inline (None values, which TOML lacks, left out)."""
-    return "".join(f"{toml_string(str(k))} = {toml_value(v)}\n" for k, v in document.items() if v is not None)
-
-
-def _drop_none(value):
-    if isinstance(value, dict):
-        return {k: _drop_none(v) for k, v in value.items() if v is not None}
-    if isinstance(value, list):
-        return [_drop_none(v) for v in value if v is not None]
-    return value
 
 
 TEXT_POOLS = ("abcxyz", "ABC_-.", "0123456789", " \t", "/\\..", "<>&'\"", "\u00e9\u6f22\u0645\U0001f642", "\n\r",
@@ -548,7 +518,7 @@ def scene_document(rng: random.Random, assets: Assets, base: str | None = None,
         return to_toml(doc), [f"required {'.'.join(path)} deleted"], False, False
     if roll < 0.88:
         reasons = random_edits(rng, doc, scene_keys)
-        return to_toml(_drop_none(doc)), reasons, False, False
+        return to_toml(without_none(doc)), reasons, False, False
     return text_edits(rng, text), [], False, False
 
 
@@ -755,7 +725,7 @@ CASE_BAD = {
                 {"renderer": "reference", "spp": 4, "zzz": 1}, 5, "closed-form!"],
     "film": [{"width": 0, "height": 16}, {"width": 100000, "height": 16}, {"width": 16, "height": -1},
              "16x16", {"width": 16, "height": 16, "filter": "box"}],
-    "name": [".", "..", "a/b", "x" * 300, 5, "a\x00b"],
+    "name": [".", "..", "a/b", "a_b", "x" * 300, 5, "a\x00b"],  # a/b, a_b: bad beside each other (one folder)
     "scene": ["nope", "/dev/zero", "/etc/passwd", "", 5, "sub"],
     "renderer": ["refrence", "", "nope.toml", 5],
     "settings": [{"shadow_rays": 0}, {"nope": 1}, {"direct": "nope"}, {"spp": 4}, "direct=mis"],
@@ -795,6 +765,9 @@ def suite_document(rng: random.Random, assets: Assets, mutate: float = 1.0) -> t
         key = rng.choice([k for k in CASE_BAD if k not in ("name", "scene")]) if key == "defaults" else key
         value = rng.choice(CASE_BAD[key])
         table[key] = value
+        if key == "name" and value in ("a/b", "a_b"):  # both map to the folder cases/a_b (the base suite has a/b)
+            if not any(c is not table and c.get("name") in ("a/b", "a_b") for c in doc["cases"]):
+                return to_toml(doc), [], True
         if key == "spp" and "seconds" in table:
             del table["seconds"]
         return to_toml(doc), [f"{where}.{key} = {value!r}"], False
@@ -817,7 +790,7 @@ def suite_document(rng: random.Random, assets: Assets, mutate: float = 1.0) -> t
         return to_toml(doc), [f"structure: {choice}"], False
     if roll < 0.9:
         reasons = random_edits(rng, doc, suite_keys)
-        return to_toml(_drop_none(doc)), reasons, False
+        return to_toml(without_none(doc)), reasons, False
     return text_edits(rng, to_toml(doc)), [], False
 
 
@@ -920,7 +893,7 @@ def renderer_document(rng: random.Random, assets: Assets) -> tuple[str, list[str
     if roll < 0.9:
         reasons = random_edits(rng, doc, lambda p: ("name", "description", "command", "timeout", "repeats")
                                if p == () else None)
-        return to_toml(_drop_none(doc)), reasons, False
+        return to_toml(without_none(doc)), reasons, False
     return text_edits(rng, assets.texts["renderer.toml"]), [], False
 
 

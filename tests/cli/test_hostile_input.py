@@ -22,7 +22,7 @@ import pytest
 from conftest import MINIMAL_SCENE, ROOT, fuzz_examples
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_scene_format import to_toml, toml_string
+from tomltext import to_toml, toml_string
 
 from harness.files import imageio
 from harness.core import limits

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import json
 import math
 import re
 import tomllib
@@ -17,6 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from conftest import MINIMAL_SCENE, fuzz_examples
+from tomltext import to_toml
 from harness.core.errors import HarnessError
 from harness.scene import Scene, load_scene, triangulate
 from harness.scene.triangulate import rotate_matrix, shape_triangles
@@ -540,30 +540,6 @@ def test_missing_camera_table(tmp_path):
 
 # --------------------------------------------------------------------------------------------------------------------
 # Fuzzing: load_scene returns a Scene or raises HarnessError, never anything else
-
-
-def to_toml(document: dict) -> str:
-    """A TOML document with every value inline (keys quoted, floats as TOML writes them)."""
-    return "".join(f"{toml_string(key)} = {toml_value(value)}\n" for key, value in document.items())
-
-
-def toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, str):
-        return toml_string(value)
-    if isinstance(value, list):
-        return "[" + ", ".join(toml_value(item) for item in value) + "]"
-    return "{" + ", ".join(f"{toml_string(k)} = {toml_value(v)}" for k, v in value.items()) + "}"
-
-
-def toml_string(text: str) -> str:
-    """A TOML basic string: JSON's escapes, but non-ASCII kept as is (JSON would write surrogate pairs)."""
-    return json.dumps(text, ensure_ascii=False).replace("\x7f", "\\u007f")
 
 
 KEY_NAMES = ["name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
