@@ -14,6 +14,7 @@ import numpy as np
 from reference_impl.camera import Camera, Film
 
 SHAPE_TYPES = ("rectangle", "cube", "sphere", "mesh")
+EMITTER_TYPES = ("point", "spot", "directional", "constant", "envmap")
 
 Vector3 = tuple[float, float, float]
 
@@ -83,6 +84,86 @@ class Shape:
         return self.emission is not None
 
 
+# ---- emitters that are not shapes ([[emitters]]; Mitsuba's plugins of the same names and parameters) ----------
+
+
+@dataclass(frozen=True)
+class PointLight:
+    """Mitsuba's ``point``: radiant ``intensity`` I (W/sr, RGB) at ``position``; irradiance I cos / r^2."""
+
+    index: int
+    name: str
+    position: Vector3
+    intensity: Vector3
+    type = "point"
+
+
+@dataclass(frozen=True, eq=False)
+class SpotLight:
+    """Mitsuba's ``spot``: ``intensity`` I (W/sr) along the axis, from ``to_world``'s origin along its local +z.
+
+    Falloff (Mitsuba's ``spot.cpp``), theta the angle from the axis: 1 for theta <= ``beam_width``, linear in
+    theta down to 0 at ``cutoff_angle`` ((cutoff - theta) / (cutoff - beam_width)), 0 beyond (degrees here).
+    """
+
+    index: int
+    name: str
+    to_world: np.ndarray  # 4x4, world from the light's frame: origin = position, +z = the cone's axis
+    intensity: Vector3
+    cutoff_angle: float = 20.0
+    beam_width: float = 15.0  # the loader's default: 3/4 of cutoff_angle
+    type = "spot"
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.asarray(self.to_world, dtype=np.float64)[:3, 3].copy()
+
+    @property
+    def axis(self) -> np.ndarray:
+        z = np.asarray(self.to_world, dtype=np.float64)[:3, 2]
+        return z / np.linalg.norm(z)
+
+
+@dataclass(frozen=True)
+class DirectionalLight:
+    """Mitsuba's ``directional``: ``irradiance`` E (W/m^2, RGB) on a surface facing it, light travelling along the
+    unit vector ``direction`` (toward the scene, as in Mitsuba)."""
+
+    index: int
+    name: str
+    direction: Vector3
+    irradiance: Vector3
+    type = "directional"
+
+
+@dataclass(frozen=True)
+class ConstantEnvironment:
+    """Mitsuba's ``constant``: ``radiance`` L (RGB) arriving from every direction, seen by every escaping ray."""
+
+    index: int
+    name: str
+    radiance: Vector3
+    type = "constant"
+
+
+@dataclass(frozen=True, eq=False)
+class EnvironmentMap:
+    """Mitsuba's ``envmap``: a lat-long OpenEXR image (``file``, read into ``image``, (H, W, 3) float32 linear RGB)
+    times ``scale``, placed by ``to_world`` (world from the map's frame; a rotation). Orientation and bilinear
+    interpolation as Mitsuba's ``envmap.cpp`` (docs/scene-format.md, "Emitters", gives the mapping)."""
+
+    index: int
+    name: str
+    file: Path
+    image: np.ndarray
+    to_world: np.ndarray
+    scale: float = 1.0
+    type = "envmap"
+
+
+Emitter = PointLight | SpotLight | DirectionalLight | ConstantEnvironment | EnvironmentMap
+
+
 @dataclass(frozen=True, eq=False)
 class Scene:
     """A whole scene file.
@@ -102,6 +183,7 @@ class Scene:
     shapes: list[Shape]
     path: Path
     closed_form: str | None = None
+    emitters: tuple[Emitter, ...] = ()  # [[emitters]] in the file's order; emitting shapes are in ``shapes``
 
     @property
     def lights(self) -> list[Shape]:
