@@ -90,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
     scene = replace_film(load_scene(args.scene), width, height)
     if spp:
         check_cost(scene, max(spp), "--spp")
+    check_cost(scene, args.ground_truth_spp, "--ground-truth-spp")  # on a closed-form scene too, where it is unused
     if seconds:  # each rung renders chunks until its seconds are spent, per curve: at most a budget's 24 h
         check_cost(scene, None, "--seconds", seconds=max(seconds))
     _check_series(scene, series, ([max(spp)] if spp else []) + ([args.chunk_spp] if seconds else []), args.seed)

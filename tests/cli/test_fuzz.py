@@ -209,6 +209,14 @@ def test_export_spp_is_limited_by_its_cost(tmp_path, capfd):
     assert not (tmp_path / "o").exists()
 
 
+def test_convergence_ground_truth_spp_is_checked_on_a_closed_form_scene(tmp_path, capfd):
+    """``convergence --ground-truth-spp 1e13`` on the furnace (closed form: no ground truth rendered) was accepted."""
+    line = one_line_error(capfd, "convergence", FURNACE, "--spp", "2", "--ground-truth-spp", "1" + "0" * 13,
+                          "--film", "4x4", "--out", tmp_path / "o", "--quiet")
+    assert line.startswith("harness: error: --ground-truth-spp: ") and "limit" in line
+    assert not (tmp_path / "o").exists()
+
+
 def test_an_unused_ground_truth_spp_is_checked_too(tmp_path):
     """``ground_truth_spp = 10**12`` on a closed-form scene (where no ground truth is rendered) was accepted."""
     suite = tmp_path / "s.toml"
