@@ -90,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
     scene = replace_film(load_scene(args.scene), width, height)
     if spp:
         check_cost(scene, max(spp), "--spp")
-    check_cost(scene, args.ground_truth_spp, "--ground-truth-spp")  # on a closed-form scene too, where it is unused
+    for option, value in (("--ground-truth-spp", args.ground_truth_spp), ("--chunk-spp", args.chunk_spp)):
+        check_cost(scene, value, option)  # where it is unused too (a closed-form scene, no --seconds): a typo all the same
     if seconds:  # each rung renders chunks until its seconds are spent, per curve: at most a budget's 24 h
         check_cost(scene, None, "--seconds", seconds=max(seconds))
     _check_series(scene, series, ([max(spp)] if spp else []) + ([args.chunk_spp] if seconds else []), args.seed)

@@ -209,11 +209,13 @@ def test_export_spp_is_limited_by_its_cost(tmp_path, capfd):
     assert not (tmp_path / "o").exists()
 
 
-def test_convergence_ground_truth_spp_is_checked_on_a_closed_form_scene(tmp_path, capfd):
-    """``convergence --ground-truth-spp 1e13`` on the furnace (closed form: no ground truth rendered) was accepted."""
-    line = one_line_error(capfd, "convergence", FURNACE, "--spp", "2", "--ground-truth-spp", "1" + "0" * 13,
+@pytest.mark.parametrize("option", ["--ground-truth-spp", "--chunk-spp"])
+def test_convergence_unused_spp_options_are_checked(tmp_path, capfd, option):
+    """``convergence --ground-truth-spp 1e13`` on the furnace (closed form: no ground truth rendered), and
+    ``--chunk-spp 1e13`` without a --seconds ladder, were accepted in silence."""
+    line = one_line_error(capfd, "convergence", FURNACE, "--spp", "2", option, "1" + "0" * 13,
                           "--film", "4x4", "--out", tmp_path / "o", "--quiet")
-    assert line.startswith("harness: error: --ground-truth-spp: ") and "limit" in line
+    assert line.startswith(f"harness: error: {option}: ") and "limit" in line
     assert not (tmp_path / "o").exists()
 
 
