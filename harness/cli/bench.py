@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     target is not met."""
     for option, value in (("--spp", args.spp), ("--repeats", args.repeats), ("--ground-truth-spp", args.ground_truth_spp)):
         require_positive(option, value)
-    memory = _memory_option(args.memory) if args.memory else None
+    memory = _memory_option(args.memory) if args.memory is not None else None  # "" is refused, not "no --memory"
     if args.out:
         out = Path(args.out)
         if not out.parent.is_dir():

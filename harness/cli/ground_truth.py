@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
     require_positive("--chunk-spp", args.chunk_spp)
     require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
-    check_cost(scene, args.spp, "--spp")  # with a closed form too: a budget no render could meet is a typo
+    for option, value in (("--spp", args.spp), ("--chunk-spp", args.chunk_spp)):
+        check_cost(scene, value, option)  # with a closed form too: a budget no render could meet is a typo
     bar, progress = path_progress(args, f"ground truth {scene.name}")
     try:
         gt = groundtruth.ground_truth(

@@ -219,6 +219,19 @@ def test_convergence_unused_spp_options_are_checked(tmp_path, capfd, option):
     assert not (tmp_path / "o").exists()
 
 
+def test_ground_truth_chunk_spp_is_checked_on_a_closed_form_scene(tmp_path, capfd):
+    """``ground-truth --chunk-spp 1e30`` on the furnace (closed form: nothing rendered) was accepted in silence."""
+    line = one_line_error(capfd, "ground-truth", FURNACE, "--spp", "4", "--chunk-spp", "9" * 30,
+                          "--cache-dir", tmp_path / "c", "--quiet")
+    assert line.startswith("harness: error: --chunk-spp: ") and "limit" in line
+
+
+def test_bench_memory_may_not_be_empty(capfd):
+    """``bench --memory ''`` was read as no --memory at all (exit 0, no memory measured)."""
+    line = one_line_error(capfd, "bench", "--scene", FURNACE, "--memory", "", "--spp", "1", "--quiet")
+    assert line.startswith("harness: error: --memory: expected SIZExSPP")
+
+
 def test_an_unused_ground_truth_spp_is_checked_too(tmp_path):
     """``ground_truth_spp = 10**12`` on a closed-form scene (where no ground truth is rendered) was accepted."""
     suite = tmp_path / "s.toml"
