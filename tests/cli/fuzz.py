@@ -864,11 +864,11 @@ def gen_run(rng, assets, index) -> Input:
 
 
 RENDERER_BAD = {
-    "name": ["", "a/b", 5, "..", "x" * 300], "command": [[], "cp", [1], ["{nope}", "{out}"], ["cp"], [""]],
+    "name": ["", "a/b", 5, "..", "x" * 300, "\u00e9"], "command": [[], "cp", [1], ["{nope}", "{out}"], ["cp"], [""]],
     "timeout": [0, -1, NAN, INF, "x", True, 1e308], "repeats": [0, 1, -1, 1.5, 10**9, True, 10**400],
     "description": [5, ["x"]],
 }
-RENDERER_VALID = {"name": ["copy2", "\u00e9"], "timeout": [5, 60.5], "repeats": [2, 3], "description": ["", "x"],
+RENDERER_VALID = {"name": ["copy2", "v1.2 fast"], "timeout": [5, 60.5], "repeats": [2, 3], "description": ["", "x"],
                   "command": [["cp", "{here}/good.exr", "{out}"], ["{python}", "-c", "import shutil, sys; "
                               "shutil.copy(sys.argv[1], sys.argv[2])", "{here}/good.exr", "{out}"],
                               ["false", "{out}"], ["sleep", "5", "{out}"], ["/nonexistent-program", "{out}"]]}
@@ -983,15 +983,18 @@ def gen_report(rng, assets, index) -> Input:
     argv = [results]
     if rng.random() < 0.3:
         argv += out_folder(rng, inp, 0.3)
-    if rng.random() < 0.03:  # the full report: convergence and strategy studies, tiny
-        argv += ["--convergence-spp", "1,2", "--strategy-spp", "2"]
+    studies = rng.random() < 0.03  # --studies: the studies computed again first (tiny), then the full report
+    if studies:
+        argv += ["--studies", "--convergence-spp", "1,2", "--strategy-spp", "2"]
     else:
         argv += ["--no-convergence", "--no-shadow-rays", "--no-strategies"]
-        if rng.random() < 0.2:  # unused without the convergence study: only values no ladder can be
-            argv += pick(rng, inp, "--convergence-spp", ["1,2", "4"], ["0", "-1", "", ",", "a", "1;2", "nan"], 0.6)
+        if rng.random() < 0.2:  # the computing flags apply only with --studies: any value is refused
+            argv += pick(rng, inp, "--convergence-spp", [], ["1,2", "4", "0", "-1", "", ",", "a", "1;2", "nan"], 1.0)
         if rng.random() < 0.2:
-            argv += pick(rng, inp, "--strategy-spp", ["2", "4"], INT_BAD, 0.6)
+            argv += pick(rng, inp, "--strategy-spp", [], ["2", "4", *INT_BAD], 1.0)
     argv += flags(rng, "--quiet", "--no-strategy-renders", "--allow-outside-paths", p=0.2)
+    if "--no-strategy-renders" in argv and not studies:
+        inp.bad.append("--no-strategy-renders without --studies")
     common_options(rng, inp, argv)
     maybe_unknown_option(rng, inp, argv)
     inp.call += argv
