@@ -15,12 +15,15 @@ from harness.files import imageio
 from harness.running.cases import load_suite
 
 
+MAX_SEEDS = 100_000  # 100 false alarms expected at alpha = 0.001: more seeds would measure nothing new
+
+
 def register(sub, common) -> None:
     """Add ``calibrate`` to the subparsers ``sub``."""
     parser = common.own()
     parser.add_argument("suite", help=SUITE_HELP)
-    parser.add_argument("--seeds", type=options.positive_int, default=50,
-                        help="seeds per expect=pass case (default 50)")
+    parser.add_argument("--seeds", type=options.int_type(1, MAX_SEEDS, what=f"a number of seeds from 1 to {MAX_SEEDS}"),
+                        default=50, help=f"seeds per expect=pass case (default 50, at most {MAX_SEEDS})")
     parser.add_argument("--cases", action="append", help="only cases whose name matches this glob (repeatable)")
     parser.set_defaults(func=run)
     sub.add_parser(

@@ -187,10 +187,12 @@ def test_an_output_path_the_file_system_refuses_is_one_line(tmp_path, capfd, mon
 def test_calibrate_seeds_are_limited_by_their_cost(tmp_path, capfd):
     """``calibrate --seeds 1e30`` was accepted (exit 0 under the fuzzer's time limit only: it rendered for ever)."""
     suite = tmp_path / "s.toml"
-    suite.write_text(f'[[cases]]\nname = "c"\nscene = "{FURNACE}"\nspp = 4\nfilm = {{ width = 4, height = 4 }}\n')
-    line = one_line_error(capfd, "calibrate", suite, "--seeds", "9" * 30, "--out", tmp_path / "o", "--quiet")
+    suite.write_text(f'[[cases]]\nname = "c"\nscene = "{FURNACE}"\nspp = 64\nfilm = {{ width = 256, height = 256 }}\n')
+    line = one_line_error(capfd, "calibrate", suite, "--seeds", "100000", "--out", tmp_path / "o", "--quiet")
     assert line.startswith("harness: error: --seeds: ") and "more than the 24.0 h limit" in line
     assert not (tmp_path / "o").exists()
+    line = one_line_error(capfd, "calibrate", suite, "--seeds", "9" * 30, "--out", tmp_path / "o", "--quiet")
+    assert line == "harness: error: --seeds: expected a number of seeds from 1 to 100000, got " + "9" * 30
 
 
 def test_an_empty_seconds_ladder_is_refused(tmp_path, capfd):
