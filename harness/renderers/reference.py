@@ -9,7 +9,7 @@ import reference_impl
 from harness.core.errors import HarnessError
 from harness.core.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
-from harness.scene import Scene, triangulate
+from harness.scene import Scene, emitter_arrays, triangulate
 
 
 class ReferenceRenderer:
@@ -42,8 +42,10 @@ class ReferenceRenderer:
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         settings = self.settings_for(scene, request)
         geometry = triangulate(scene)
+        emitters = emitter_arrays(scene)
         try:
-            out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress)
+            out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress,
+                                        emitters=emitters)
         except reference_impl.SettingsError as err:
             raise HarnessError(f"{scene.path}: {err.key}", err.message) from None
         stats = dict(out.stats)

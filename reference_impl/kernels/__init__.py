@@ -62,7 +62,7 @@ except ImportError:
 
 _HERE = Path(__file__).resolve().parent
 # Besides this package, the kernels compile in constants and code of these modules.
-_ALSO_COMPILED_IN = ("embree_c.py", "rng.py")
+_ALSO_COMPILED_IN = ("embree_c.py", "rng.py", "emitters.py")
 _STAMP = "kernel-sources.sha256"
 
 
