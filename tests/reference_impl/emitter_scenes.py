@@ -14,27 +14,37 @@ import numpy as np
 
 from harness.scene.model import (ConstantEnvironment, DirectionalLight, EnvironmentMap, Material, PointLight, Scene,
                                  Shape, SpotLight)
+from harness.scene.emitter_arrays import core_record
 from harness.scene.triangulate import rotate_matrix, scale_matrix, translate_matrix
-from reference_impl import Camera, Film
+from reference_impl import Camera, Emitters, Film
+from reference_impl.emitters import environment_radiance, uv_to_direction
 
 RHO = 0.6  # albedo of the test planes and spheres (grey: the three channels agree)
 
 
 def plane_scene(size: int = 8, rho: float = RHO, half: float = 20.0, max_depth: int = 2, emitters=(),
-                camera: Camera | None = None, normal_up: str = "z") -> Scene:
-    """A one-sided diffuse square of side 2 ``half`` at the origin, facing +z (or +y with ``normal_up="y"``), seen
-    from above by a ``size`` x ``size`` box-filtered film."""
+                camera: Camera | None = None, normal_up: str = "z", tilt: float = 0.0) -> Scene:
+    """A one-sided diffuse square of side 2 ``half`` at the origin, facing +z (or +y with ``normal_up="y"``, then
+    tilted by ``tilt`` degrees toward +x), seen from above by a ``size`` x ``size`` box-filtered film."""
     to_world = scale_matrix(half)
     if normal_up == "y":
-        to_world = rotate_matrix((1, 0, 0), -90.0) @ to_world  # +z -> +y
+        to_world = rotate_matrix((0, 0, 1), -tilt) @ rotate_matrix((1, 0, 0), -90.0) @ to_world  # +z -> +y
     if camera is None:
+        normal = plane_normal(normal_up, tilt)
         camera = (Camera(origin=(0.0, 0.0, 3.0), target=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0), fov=40.0)
                   if normal_up == "z" else
-                  Camera(origin=(0.0, 3.0, 0.0), target=(0.0, 0.0, 0.0), up=(0.0, 0.0, -1.0), fov=40.0))
+                  Camera(origin=tuple(3.0 * normal), target=(0.0, 0.0, 0.0), up=(0.0, 0.0, -1.0), fov=40.0))
     shape = Shape(index=0, name="plane", type="rectangle", material="grey", to_world=to_world)
     return Scene(name="plane", description="", camera=camera, film=Film(size, size, "box"), max_depth=max_depth,
                  materials={"grey": Material("grey", (rho, rho, rho))}, shapes=[shape], path=Path("plane.toml"),
                  emitters=tuple(emitters))
+
+
+def plane_normal(normal_up: str = "z", tilt: float = 0.0) -> np.ndarray:
+    """The front normal of :func:`plane_scene`'s plane."""
+    if normal_up == "z":
+        return np.array([0.0, 0.0, 1.0])
+    return np.array([np.sin(np.radians(tilt)), np.cos(np.radians(tilt)), 0.0])
 
 
 def sphere_scene(size: int = 8, rho: float = RHO, distance: float = 1.6, fov: float = 40.0, max_depth: int = -1,
@@ -158,3 +168,17 @@ def spot_on_plane(scene: Scene, light: SpotLight, rho: float = RHO, ignore_beam:
         falloff = (theta < c).astype(float)
     value = rho / np.pi * np.maximum(cos, 0) * falloff / r2
     return (value @ weights)[..., None] * np.asarray(light.intensity, float)
+
+
+def envmap_on_plane(emitter: EnvironmentMap, normal, rho: float = RHO, n: int = 1024) -> np.ndarray:
+    """rho / pi int L(w) max(0, n . w) dw: the radiance of an unoccluded diffuse plane of normal ``n`` under an
+    envmap (the same at every point), by a midpoint rule over (u, v) on the map's bilinear radiance (RGB)."""
+    emitters = Emitters([core_record(emitter)])
+    u = (np.arange(2 * n) + 0.5) / (2 * n)
+    v = (np.arange(n) + 0.5) / n
+    uu, vv = np.meshgrid(u, v)
+    local = uv_to_direction(uu.ravel(), vv.ravel())
+    world = local @ emitters.to_world[0].T
+    cos = np.maximum(world @ np.asarray(normal, float), 0.0)
+    weight = cos * 2 * np.pi**2 * np.sin(np.pi * vv.ravel()) / (2 * n * n)
+    return rho / np.pi * (environment_radiance(emitters, world).T @ weight)
