@@ -18,6 +18,13 @@ x's offset origin and stops short of y (:mod:`.surface`), and V = 1 where nothin
 slides) the sample is weighted by the power heuristic (Veach 1997) against the Ni indirect rays, which could have found
 the same light: w = p_l^2 / (p_l^2 + p_h^2), p_l = Nd p(y) |x - y|^2 / cos_y (as a density of directions),
 p_h = Ni p(Psi); the emission an indirect ray finds is weighted the other way round (:func:`.vertex.emitted`).
+
+In a scene with emitters that are not surfaces (point, spot, directional lights, an environment), light k runs over
+the area lights and then those emitters (:func:`light_sample_all`, whose emitter samples are
+:func:`.emitters.emitter_sample`'s); a strategy that cannot find some of them (hemisphere sampling: delta lights;
+global area sampling: delta lights and the environment) adds each one's own sample once per hit
+(:func:`complement_sample`). Without such emitters the engines call :func:`light_sample` and :func:`shadow_ray` as
+before: numba compiles the other branch out.
 """
 
 from __future__ import annotations
