@@ -348,6 +348,7 @@ def _mixed_scene():
 ENGINE_CASES = [{}, {"direct": "mis"}, {"direct": "hemisphere-cosine", "shadow_rays": 2},
                 {"direct": "global-area"}, {"light_selection": "uniform", "env_sampling": "cosine"},
                 {"direct": "mis", "env_sampling": "uniform", "hemisphere": "uniform"},
+                {"direct": "mis", "env_sampling": "cosine", "max_depth": -1},
                 {"sampler": "independent", "direct": "mis"}]
 
 
@@ -377,6 +378,17 @@ def test_a_scene_with_only_emitters_that_are_not_shapes_renders():
     scene = with_emitters(plane_scene(8), directional(SUN, IRRADIANCE))
     assert not scene.lights
     assert render_reference(scene, spp=1, seed=0).image.min() > 0
+
+
+def test_a_scene_of_nothing_but_an_envmap_shows_the_map():
+    """No shape at all: every viewing ray escapes and shows the map (the closed form over each pixel)."""
+    camera = Camera(origin=(0.0, 0.0, 0.0), target=(1.0, 0.4, 0.2), up=(0.0, 1.0, 0.0), fov=70.0)
+    scene = dataclasses.replace(with_emitters(plane_scene(8, camera=camera), envmap(SKY, scale=1.5)), shapes=[])
+    expected = _envmap_in_view(camera, 8, SKY, np.eye(4))
+    for engine in ("path", "wavefront"):
+        result = render_reference(scene, spp=16, seed=13, engine=engine)
+        assert result.stats["escaped_rays"] == 8 * 8 * 16
+        assert _verdict(result, expected, label=f"envmap alone, {engine}").passed
 
 
 def test_empty_emitters_render_the_scene_as_before():
