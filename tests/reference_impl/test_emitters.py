@@ -24,6 +24,7 @@ from emitter_scenes import (RHO, constant, directional, envmap, envmap_on_plane,
 import reference_impl
 from harness.judges.mc import FALSE_ALARM
 from harness.judges.verdict import verdict
+from harness.renderers.reference import _complement_rays
 from harness.scene import emitter_arrays, triangulate
 from harness.scene.triangulate import rotate_matrix
 from reference_impl import Camera
@@ -395,3 +396,10 @@ def test_empty_emitters_render_the_scene_as_before():
     scene = plane_scene(8)
     assert emitter_arrays(scene) is None
     assert emitter_arrays(dataclasses.replace(scene, emitters=())) is None
+
+
+def test_the_cost_check_counts_the_rays_toward_what_a_strategy_cannot_find():
+    scene = _mixed_scene()  # a point, a spot, a directional light and an envmap
+    rays = {direct: _complement_rays(scene, reference_impl.Settings(direct=direct))
+            for direct in ("area", "mis", "hemisphere-cosine", "hemisphere-uniform", "global-area")}
+    assert rays == {"area": 0, "mis": 0, "hemisphere-cosine": 3, "hemisphere-uniform": 3, "global-area": 4}
