@@ -39,6 +39,7 @@ import numpy as np
 
 from reference_impl import rng
 from reference_impl.camera import Camera, Film
+from reference_impl.emitters import Emitters, scene_radius
 from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
@@ -105,13 +106,14 @@ class _PathState:
     direction32: np.ndarray  # (n, 3) float32 copy of direction, for Embree
     beta: np.ndarray  # (n, 3) throughput: product of weights f cos / p / Ni / q so far
     pdf_dir: np.ndarray  # (n,) Ni * p(Psi) of the ray that reached the next vertex (used by MIS only)
+    env_pdf: np.ndarray  # (n,) Nd pdf(k_env) p(Psi) of the light samples at its origin (MIS with an environment only)
 
     def __len__(self) -> int:
         return len(self.root)
 
     def arrays(self) -> tuple:
         return (self.root, self.key, self.origin, self.direction, self.origin32, self.direction32, self.beta,
-                self.pdf_dir)
+                self.pdf_dir, self.env_pdf)
 
     def take(self, idx) -> "_PathState":
         return _PathState(*(a[idx] for a in self.arrays()))
@@ -121,7 +123,7 @@ def _alloc_state(capacity: int) -> tuple:
     """Room for a wavefront of ``capacity`` paths (the fields of :class:`_PathState`)."""
     return (np.empty(capacity, np.int64), np.empty(capacity, np.uint64), np.empty((capacity, 3)),
             np.empty((capacity, 3)), np.empty((capacity, 3), np.float32), np.empty((capacity, 3), np.float32),
-            np.empty((capacity, 3)), np.empty(capacity))
+            np.empty((capacity, 3)), np.empty(capacity), np.empty(capacity))
 
 
 def _view(buffers: tuple, n: int) -> tuple:
@@ -134,12 +136,13 @@ class _Workspace:
     direct-light rays. Writing into fresh memory at every bounce costs page faults: about a fifth of the render time
     at the default batch size. Buffers only grow; one that is replaced stays alive as long as a view of it does."""
 
-    def __init__(self, nd: int, hemisphere: bool):
+    def __init__(self, nd: int, hemisphere: bool, complements: int = 0):
         self._nd = nd
         self._hemisphere = hemisphere
+        self._complements = complements  # complement rays per hit (kernels.direct.complement_sample)
         self._states: list[tuple | None] = [None, None]
         self._hit_capacity = -1
-        self.hits = self.total = self.rays = None
+        self.hits = self.total = self.rays = self.crays = None
         self._radiance = None
 
     def radiance(self, n: int) -> np.ndarray:
@@ -166,14 +169,22 @@ class _Workspace:
             self.rays = (np.empty(cap, np.int64), np.empty((cap, 3), np.float32), np.empty((cap, 3), np.float32),
                          np.empty(0 if hemi else cap, np.float32), np.empty((cap, 3)), np.empty(cap if hemi else 0),
                          np.empty((cap if hemi else 0, 3)))
+            ccap = n * self._complements
+            self.crays = (np.empty(ccap, np.int64), np.empty((ccap, 3), np.float32), np.empty((ccap, 3), np.float32),
+                          np.empty(ccap, np.float32), np.empty((ccap, 3)))
             self._hit_capacity = n
         return self.hits, self.total, self.rays
+
+    def complement_rays(self) -> tuple:
+        """(owner, origin32, direction32, tfar32, value) of the complement shadow rays (after :meth:`direct`)."""
+        return self.crays
 
 
 class _Context:
     """Everything shared by all batches of one render (read-only once built)."""
 
-    def __init__(self, geometry: Geometry, camera: Camera, film: Film, settings: Settings):
+    def __init__(self, geometry: Geometry, camera: Camera, film: Film, settings: Settings,
+                 emitters: Emitters | None = None):
         if settings.max_depth is None:
             raise SettingsError("max_depth", "expected the scene's max_depth to be resolved before rendering")
         self.max_depth = settings.resolved_max_depth(settings.max_depth)
@@ -183,8 +194,14 @@ class _Context:
         self.filter = film.pixel_filter
         self.settings = settings
         self.intersector = Intersector(geometry)
-        self.has_lights = geometry.num_lights > 0
-        self.lights = LightSampler(geometry, settings.light_selection) if self.has_lights else None
+        # Emitters that are not surfaces; none at all is the scene without them, to the bit (kernels.config).
+        self.emitters = emitters if emitters is not None and len(emitters) else None
+        self.has_lights = geometry.num_lights > 0 or self.emitters is not None
+        extra_power = None
+        if self.emitters is not None:
+            extra_power = self.emitters.powers(scene_radius(geometry.vertices[np.unique(geometry.triangles)]
+                                                            if len(geometry.triangles) else geometry.vertices))
+        self.lights = LightSampler(geometry, settings.light_selection, extra_power) if self.has_lights else None
         usable = np.flatnonzero(geometry.area > 0)
         self.all_surfaces = TriangleAreaSampler(geometry, usable) if len(usable) else None
         self.mutant = settings.mutant  # a planted fault (reference_impl/mutants.py), "" in every real render
@@ -198,7 +215,8 @@ class _Context:
         """The calling thread's buffers."""
         ws = getattr(self._local, "workspace", None)
         if ws is None:
-            ws = self._local.workspace = _Workspace(self.settings.shadow_rays, self.hemisphere_direct)
+            ws = self._local.workspace = _Workspace(self.settings.shadow_rays, self.hemisphere_direct,
+                                                    self.complements)
         return ws
 
     def _kernel_tables(self) -> None:
@@ -225,8 +243,19 @@ class _Context:
         else:
             self.surface_tables = (np.zeros(0, np.int64), np.zeros(0))
             surface_pdf = 0.0
-        self.config = kernels.config.kernel_config(s, self.geometry.num_lights, self.intersector.offset_scene,
-                                                   surface_pdf)
+        num_lights = self.lights.num_lights if self.lights is not None else 0
+        em = self.emitters
+        env_light = self.geometry.num_lights + em.env if em is not None and em.env >= 0 else -1
+        self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
+                                                   num_area_lights=self.geometry.num_lights, env_light=env_light)
+        self.emitter_tables = None
+        self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
+        if em is not None:
+            self.emitter_tables = (c(em.kind, dtype=np.int64), c(em.position), c(em.direction), c(em.intensity),
+                                   c(em.to_local), c(em.to_world), c(em.spot), c(em.env_image, dtype=np.float64),
+                                   c(em.env_cell_pdf), c(em.env_row_cdf), c(em.env_col_cdf))
+            if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
+                self.complements = len(em)
         self.path_engine = (s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         width, height = self.film.width, self.film.height
@@ -249,14 +278,16 @@ class _Clock:
         self.seconds = 0.0
 
 
-def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, progress=None) -> RenderOutput:
+def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, progress=None,
+           emitters: Emitters | None = None) -> RenderOutput:
     """Render an image with the slides' algorithm (Fig. 5.16).
 
     ``settings.max_depth`` must be set (the harness fills in the scene's). ``progress``, if given, is called from
-    the calling thread as ``progress(done_paths, total_paths)``. The result depends only on the inputs and
+    the calling thread as ``progress(done_paths, total_paths)``. ``emitters``: the scene's emitters that are not
+    surfaces (point, spot, directional lights, an environment), or None. The result depends only on the inputs and
     ``settings.seed``: not on ``batch_size`` or ``threads``.
     """
-    ctx = _Context(geometry, camera, film, settings)
+    ctx = _Context(geometry, camera, film, settings, emitters)
     kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp
     num_pixels = width * height
@@ -349,7 +380,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     if ctx.path_engine:
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                 ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples)
+                                 ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples,
+                                 ctx.emitter_tables)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
@@ -400,10 +432,12 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     else:
         prim = intersector.closest_prims(state.origin32, state.direction32)
     clock.seconds += time.perf_counter() - t0
-    hits, total, rays = ctx.workspace().direct(len(state))
-    m, s, n_next = kernels.wavefront.bounce(
+    ws = ctx.workspace()
+    hits, total, rays = ws.direct(len(state))
+    crays = ws.complement_rays()
+    m, s, n_next, c = kernels.wavefront.bounce(
         state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
-        radiance, counters, hits, rays, out, film_samples,
+        radiance, counters, hits, rays, out, film_samples, ctx.emitter_tables, crays,
     )
     if m:
         nd = ctx.settings.shadow_rays
@@ -415,12 +449,19 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             clock.seconds += time.perf_counter() - t0
             kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
                                        s_prim, ctx.scene_tables[0], ctx.scene_tables[1], ctx.scene_tables[4],
-                                       total, radiance)
+                                       total, radiance, ctx.config, ctx.emitter_tables)
         else:
             t0 = time.perf_counter()
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])
             clock.seconds += time.perf_counter() - t0
             kernels.wavefront.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
+        if c:  # after the strategy's own estimate, as the path engine adds them
+            c_owner, c_o32, c_d32, c_tfar, c_value = crays
+            t0 = time.perf_counter()
+            c_hit = intersector.occluders(c_o32[:c], c_d32[:c], c_tfar[:c])
+            clock.seconds += time.perf_counter() - t0
+            kernels.wavefront.resolve_complement(state.root, state.beta, hits, c_owner[:c], c_value[:c], c_hit, total,
+                                                 radiance)
     return _PathState(*_view(out, n_next))
 
 

@@ -64,29 +64,40 @@ class TriangleAreaSampler:
 
 class LightSampler:
     """Light selection with pdf(k) ("power": proportional to Phi_k = pi A_k lum(Le_k); "uniform": 1 / N_L) and a
-    point y on light k with pdf(y | k) = 1 / A_k. The combined density per unit area is pdf(k) / A_k."""
+    point y on light k with pdf(y | k) = 1 / A_k. The combined density per unit area is pdf(k) / A_k.
 
-    def __init__(self, geometry: Geometry, selection: str):
+    Lights k < ``num_area`` are the area lights (emissive shapes); with ``extra_power`` (the powers Phi of the
+    emitters that are not surfaces, :meth:`reference_impl.emitters.Emitters.powers`) lights num_area + e follow, one
+    per emitter e, chosen with the same pdf(k) (their points or directions are drawn by the integrator). Without
+    them every table is what it was for area lights alone."""
+
+    def __init__(self, geometry: Geometry, selection: str, extra_power: np.ndarray | None = None):
         self.geometry = geometry
-        self.num_lights = geometry.num_lights
+        self.num_area = num_area = geometry.num_lights
+        extra = np.zeros(0) if extra_power is None else np.asarray(extra_power, dtype=np.float64)
+        self.num_lights = num_area + len(extra)
         emissive = np.flatnonzero(geometry.light_id >= 0)
         # Triangles sorted by light, then each light's cumulative-area table as one global array.
         order = emissive[np.argsort(geometry.light_id[emissive], kind="stable")]
         self.triangles = order
         ids = geometry.light_id[order]
-        self.area = np.bincount(ids, weights=geometry.area[order], minlength=self.num_lights)  # A_k
-        self.first = np.searchsorted(ids, np.arange(self.num_lights))  # first triangle of each light in `order`
-        self.count = np.bincount(ids, minlength=self.num_lights)
+        self.area = np.bincount(ids, weights=geometry.area[order], minlength=num_area)  # A_k
+        self.first = np.searchsorted(ids, np.arange(num_area))  # first triangle of each light in `order`
+        self.count = np.bincount(ids, minlength=num_area)
         within = np.zeros(len(order))
-        for k in range(self.num_lights):  # one entry per light, not per ray
+        for k in range(num_area):  # one entry per light, not per ray
             s = slice(self.first[k], self.first[k] + self.count[k])
             within[s] = np.cumsum(geometry.area[order[s]]) / self.area[k]
         self.within_cdf = within
         if selection == "power":
-            radiance = np.zeros(self.num_lights)
+            radiance = np.zeros(num_area)
             # A light's power: sum over its triangles of pi * area * lum(Le).
             np.add.at(radiance, ids, np.pi * geometry.area[order] * (geometry.emission[order] @ _LUMINANCE))
             weights = radiance  # > 0: every emitter has some positive channel and all luminance weights are > 0
+            if len(extra):
+                weights = np.concatenate([weights, extra])
+                if not weights.sum() > 0:  # only infinite lights in a scene of no extent: nothing to weigh by
+                    weights = np.ones(self.num_lights)
         else:
             weights = np.ones(self.num_lights)
         self.pmf = weights / weights.sum() if self.num_lights else weights
@@ -102,12 +113,22 @@ class LightSampler:
         """pdf(k) * pdf(y | k) = pdf(k) / A_k, per unit area on light k."""
         return self.pmf[light] / self.area[light]
 
+    def select(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Light k from pdf(k) for each uniform, over area lights and emitters, and what is left of u inside k's
+        interval of the cdf (:func:`rescale_within`: a fresh uniform, the first coordinate of an emitter's direction
+        with the stratified sampler; kernels.emitters.split_light_uniform_all)."""
+        u = np.asarray(u, dtype=np.float64)
+        if self.num_lights <= 1:
+            return np.zeros(len(u), np.int64), u
+        light = sample_discrete(self.cdf, u)
+        return light, rescale_within(u, np.where(light > 0, self.cdf[light - 1], 0.0), self.cdf[light])
+
     def split_uniform(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """One uniform for the light, its triangle and the point (sample reuse, as pbrt-v4's light samplers do):
         u_select = u picks light k; what is left of it inside k's cdf interval picks the triangle; what is left of
         that inside the triangle's interval is u1 (:func:`rescale_within` each time). ``sample(*split_uniform(u), u2)``
         is one 2D sample over all lights: a stratified (u, u2) stays stratified over the lights, not only within
-        each triangle."""
+        each triangle. (Area lights only: a light k >= ``num_area`` has no triangles, see :meth:`select`.)"""
         u = np.asarray(u, dtype=np.float64)
         if self.num_lights > 1:
             light = sample_discrete(self.cdf, u)

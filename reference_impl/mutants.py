@@ -1,5 +1,11 @@
 """Planted faults: deliberately wrong variants of the integrator, selectable by name (``--set mutant=NAME``).
 
+``MUTANTS`` are the faults of the integrator and its area lights, each run by the canonical suite
+(``suites/canonical.toml``); ``EMITTER_MUTANTS`` are the faults of the emitters that are not surfaces (point, spot,
+directional, environments), caught by ``tests/reference_impl/test_emitters.py`` on scenes built in the test until
+scene files with ``[[emitters]]`` give the canonical suite cases for them too. ``ALL_MUTANTS`` is what
+``Settings.mutant`` accepts.
+
 They exist so that tests and the harness's verdict can prove that they catch real mistakes: a verdict that passes
 one of these at its default budget is not sharp enough. None runs by default. "energy-loss-2pct" lives in
 ``reference_impl/integrator.py`` (guarded by ``_Context.mutant``), the others in the compiled kernels of
@@ -20,3 +26,13 @@ MUTANTS: dict[str, str] = {
     "no-ray-offset": "shadow rays start exactly on the surface (no self-intersection offset)",
     "energy-loss-2pct": "every camera sample's radiance scaled by 0.98 (a 2 % energy loss)",
 }
+
+EMITTER_MUTANTS: dict[str, str] = {
+    "point-no-inverse-square": "a point light's irradiance taken as I cos instead of I cos / r^2",
+    "spot-ignores-beam-width": "a spot light's falloff taken as 1 out to cutoff_angle (beam_width ignored)",
+    "envmap-pdf-no-sin": "the envmap's solid-angle pdf taken as p(u, v) / (2 pi^2), the sin(theta) Jacobian dropped",
+    "envmap-mirrored-u": "the envmap looked up at 1 - u (the map mirrored left to right)",
+    "directional-reversed": "a directional light taken to travel against its direction (lights the other side)",
+}
+
+ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS}

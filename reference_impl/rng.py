@@ -58,6 +58,7 @@ LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2 = 2, 3, 4, 5
 DIRECT_DIR_U1, DIRECT_DIR_U2 = 6, 7
 ROULETTE = 8
 INDIRECT_U1, INDIRECT_U2 = 9, 10
+COMPLEMENT_U1, COMPLEMENT_U2 = 11, 12  # an environment's direction where the direct strategy cannot find it
 
 
 def dimension(depth: int, purpose: int, index: int = 0) -> int:

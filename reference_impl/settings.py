@@ -6,9 +6,10 @@ import difflib
 import os
 from dataclasses import asdict, dataclass, fields
 
+from reference_impl.emitters import ENV_SAMPLINGS
 from reference_impl.errors import SettingsError
 from reference_impl.lights import LIGHT_SELECTIONS
-from reference_impl.mutants import MUTANTS
+from reference_impl.mutants import ALL_MUTANTS
 
 DIRECT_STRATEGIES = ("area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis")
 HEMISPHERES = ("cosine", "uniform")
@@ -35,6 +36,9 @@ class Settings:
                     5.10), "hemisphere-cosine" / "hemisphere-uniform" (Fig. 5.12), "global-area" (Fig. 5.13), or "mis"
                     (beyond the slides: area samples and the indirect rays combined by the power heuristic).
     light_selection pdf(k): "power" (proportional to emitted power) or "uniform".
+    env_sampling    directions toward an environment, as light samples: "importance" (an envmap by its luminance
+                    times solid angle, cell by cell; a constant environment uniformly), "uniform" (over the sphere) or
+                    "cosine" (about the normal at x). Scenes without an environment ignore it.
     indirect_rays   [Ni] indirect rays per hit (the recursion branches Ni ways at every hit).
     hemisphere      their directions: "cosine" or "uniform".
     rr              Russian roulette: "albedo" (survival = max reflectance), "fixed" (absorption alpha, as the
@@ -57,6 +61,7 @@ class Settings:
     shadow_rays: int = 1
     direct: str = "area"
     light_selection: str = "power"
+    env_sampling: str = "importance"
     indirect_rays: int = 1
     hemisphere: str = "cosine"
     rr: str = "albedo"
@@ -80,6 +85,7 @@ class Settings:
             raise SettingsError("threads", f"expected a non-negative integer (0 = all cores), got {self.threads!r}")
         _choice(self, "direct", DIRECT_STRATEGIES)
         _choice(self, "light_selection", LIGHT_SELECTIONS)
+        _choice(self, "env_sampling", ENV_SAMPLINGS)
         _choice(self, "hemisphere", HEMISPHERES)
         _choice(self, "rr", ROULETTES)
         _choice(self, "engine", ENGINES)
@@ -90,8 +96,8 @@ class Settings:
             raise SettingsError("absorption", f"expected a number in [0, 1), got {self.absorption!r}")
         if self.max_depth is not None and (not _is_int(self.max_depth) or (self.max_depth < 1 and self.max_depth != -1)):
             raise SettingsError("max_depth", f"expected a positive integer or -1 (unbounded), got {self.max_depth!r}")
-        if self.mutant and self.mutant not in MUTANTS:
-            raise SettingsError("mutant", f"expected one of {', '.join(sorted(MUTANTS))} or empty, got {self.mutant!r}")
+        if self.mutant and self.mutant not in ALL_MUTANTS:
+            raise SettingsError("mutant", f"expected one of {', '.join(sorted(ALL_MUTANTS))} or empty, got {self.mutant!r}")
 
     @classmethod
     def field_names(cls) -> list[str]:

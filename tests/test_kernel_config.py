@@ -15,7 +15,7 @@ import numba
 
 from reference_impl import Settings
 from reference_impl.kernels import _cache_folder, _drop_stale_cache, config
-from reference_impl.mutants import MUTANTS
+from reference_impl.mutants import ALL_MUTANTS, EMITTER_MUTANTS, MUTANTS
 from reference_impl.settings import DIRECT_STRATEGIES, HEMISPHERES, ROULETTES, SAMPLERS
 
 
@@ -35,10 +35,15 @@ def test_the_slots_hold_what_the_settings_say():
                                                                  config.RR_FIXED, config.SAMPLER_INDEPENDENT)
     assert cfg.survival == 0.75 and cfg.mutant == config.M_NO_COSINE
     assert (cfg.depth, cfg.num_lights, cfg.offset_scene, cfg.surface_pdf) == (0, 4, 1e-6, 0.5)
+    assert (cfg.num_area_lights, cfg.env_light, cfg.env_sampling) == (4, -1, config.ENV_IMPORTANCE)
+    cfg = config.kernel_config(Settings(env_sampling="cosine", max_depth=2), 5, 0.0, 0.0, num_area_lights=2,
+                               env_light=4)
+    assert (cfg.num_lights, cfg.num_area_lights, cfg.env_light, cfg.env_sampling) == (5, 2, 4, config.ENV_COSINE)
 
 
 def test_every_planted_fault_but_the_integrators_is_a_kernel_bit():
-    assert set(config.MUTANT_BITS) == set(MUTANTS) - {"energy-loss-2pct"}
+    assert set(config.MUTANT_BITS) == set(ALL_MUTANTS) - {"energy-loss-2pct"}
+    assert not set(MUTANTS) & set(EMITTER_MUTANTS)
     bits = list(config.MUTANT_BITS.values())
     assert all(b & (b - 1) == 0 for b in bits) and len(set(bits)) == len(bits)
 
@@ -47,7 +52,7 @@ def test_every_configuration_is_one_numba_type():
     """Settings are runtime values: ints and floats of one namedtuple type, whatever the values."""
     types = set()
     for direct, hemisphere, rr, sampler, mutant in itertools.product(DIRECT_STRATEGIES, HEMISPHERES, ROULETTES,
-                                                                      SAMPLERS, ["", *sorted(MUTANTS)]):
+                                                                      SAMPLERS, ["", *sorted(ALL_MUTANTS)]):
         settings = Settings(direct=direct, hemisphere=hemisphere, rr=rr, sampler=sampler, mutant=mutant, max_depth=3,
                             absorption=0)
         cfg = config.kernel_config(settings, 1, 0, 1)
@@ -61,6 +66,7 @@ def _package(tmp_path):
     compile in."""
     (tmp_path / "embree_c.py").write_text("A = 1\n")
     (tmp_path / "rng.py").write_text("B = 2\n")
+    (tmp_path / "emitters.py").write_text("C = 3\n")
     package = tmp_path / "kernels"
     package.mkdir()
     (package / "path.py").write_text("def f():\n    return 1\n")

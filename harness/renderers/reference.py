@@ -9,7 +9,7 @@ import reference_impl
 from harness.core.errors import HarnessError
 from harness.core.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
-from harness.scene import Scene, triangulate
+from harness.scene import Scene, emitter_arrays, triangulate
 
 
 class ReferenceRenderer:
@@ -42,8 +42,10 @@ class ReferenceRenderer:
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         settings = self.settings_for(scene, request)
         geometry = triangulate(scene)
+        emitters = emitter_arrays(scene)
         try:
-            out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress)
+            out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress,
+                                        emitters=emitters)
         except reference_impl.SettingsError as err:
             raise HarnessError(f"{scene.path}: {err.key}", err.message) from None
         stats = dict(out.stats)
@@ -94,6 +96,16 @@ def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
     return max((max(m.reflectance) for m in scene.materials.values()), default=0.0)
 
 
+def _complement_rays(scene: Scene, settings: reference_impl.Settings) -> int:
+    """Shadow rays per hit for the emitters the direct strategy cannot find (docs/reference-renderer.md, "What a
+    strategy cannot find"): delta lights under hemisphere sampling, and the environment too under global area."""
+    findable = {"hemisphere-cosine": ("constant", "envmap"), "hemisphere-uniform": ("constant", "envmap"),
+                "global-area": ()}
+    if settings.direct not in findable:
+        return 0
+    return sum(1 for e in scene.emitters if e.type not in findable[settings.direct])
+
+
 def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
     """Refuse settings whose memory or time estimate (harness.core.limits.reference_cost) is absurd, before anything is
     allocated: one line at ``--set KEY`` for the first setting of COST_SETTINGS that is not its default."""
@@ -105,7 +117,8 @@ def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
     check_reference_cost(
         scene.film.width, scene.film.height, settings.spp, where=where, settings_text=shown,
         lower=f"{', '.join(changed)}, --spp or the film" if changed else "--spp or the film",
-        shadow_rays=settings.shadow_rays, indirect_rays=settings.indirect_rays, max_depth=settings.max_depth,
+        shadow_rays=settings.shadow_rays + _complement_rays(scene, settings), indirect_rays=settings.indirect_rays,
+        max_depth=settings.max_depth,
         survival=_survival(scene, settings), rr_depth=settings.rr_depth, mis=settings.direct == "mis",
         hemisphere_direct=settings.direct in ("hemisphere-cosine", "hemisphere-uniform"),
         batch_size=settings.batch_size, threads=settings.worker_threads())

@@ -1,8 +1,9 @@
-"""The TOML scene format (``docs/scene-format.md``): loading, the in-memory model, triangulation for the core, and
-stress variants (transformed copies of a scene, :mod:`harness.scene.variants`)."""
+"""The TOML scene format (``docs/scene-format.md``): loading, the in-memory model, triangulation and emitter arrays
+for the core, and stress variants (transformed copies of a scene, :mod:`harness.scene.variants`)."""
 
+from harness.scene.emitter_arrays import emitter_arrays
 from harness.scene.load import load_scene
 from harness.scene.model import Material, Scene, Shape
 from harness.scene.triangulate import triangulate
 
-__all__ = ["Material", "Scene", "Shape", "load_scene", "triangulate"]
+__all__ = ["Material", "Scene", "Shape", "emitter_arrays", "load_scene", "triangulate"]

@@ -15,6 +15,8 @@ module              what it holds                                              n
 ``warps``           hemisphere warps, the world frame, discrete choices        ``reference_impl.sampling``
 ``light_sampling``  points on the lights (Fig. 5.8, 5.10) and on all surfaces  ``reference_impl.lights``
                     (Fig. 5.13)
+``emitters``        point, spot, directional lights and environments: their   ``reference_impl.emitters``
+                    light samples, the environment's radiance and directions
 ``surface``         the hit point in float64, ray origin offsets, where a      ``reference_impl.intersect``
                     shadow ray stops
 ``camera``          viewing rays through the pixel filter (Fig. 5.16)          ``Camera``, ``filters``
@@ -62,7 +64,7 @@ except ImportError:
 
 _HERE = Path(__file__).resolve().parent
 # Besides this package, the kernels compile in constants and code of these modules.
-_ALSO_COMPILED_IN = ("embree_c.py", "rng.py")
+_ALSO_COMPILED_IN = ("embree_c.py", "rng.py", "emitters.py")
 _STAMP = "kernel-sources.sha256"
 
 

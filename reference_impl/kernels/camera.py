@@ -38,12 +38,13 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
 
     Box and tent filter offsets are drawn here (``sobol``: from the pixel's stratified set, index ``sample``); the Gaussian's (a table lookup and exp) come in ``filter_samples``
     (dx, dy, weight per sample, from PixelFilter.sample), so that numpy's exp, not libm's, gives their bits.
-    Writes the wavefront ``out`` (root, key, origin, direction, origin32, direction32, beta, pdf_dir): root i for
+    Writes the wavefront ``out`` (root, key, origin, direction, origin32, direction32, beta, pdf_dir, env_pdf; the
+    last is not written: the viewing ray's hit counts emission unweighted): root i for
     sample i, float64 origins and unit directions with their float32 copies for Embree, and the throughput (the
     filter weight in all three channels).
     """
     pre_dx, pre_dy, pre_w = filter_samples
-    root, key, origin, direction, o32, d32, beta, pdf_dir = out
+    root, key, origin, direction, o32, d32, beta, pdf_dir, _env_pdf = out
     n = len(pixel)
     salt_x = dim_salt(0, FILM_X, 0)
     salt_y = dim_salt(0, FILM_Y, 0)

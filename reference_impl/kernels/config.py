@@ -42,14 +42,20 @@ SAMPLER_MODES = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL}
 FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
 FILTER_KINDS = {"box": FILTER_BOX, "tent": FILTER_TENT, "gaussian": FILTER_GAUSSIAN}
 EMIT_NONE, EMIT_ALL, EMIT_MIS = 0, 1, 2  # emission at a hit: not counted, counted, counted with the MIS weight
+ENV_IMPORTANCE, ENV_UNIFORM, ENV_COSINE = range(3)
+ENV_SAMPLING_MODES = {"importance": ENV_IMPORTANCE, "uniform": ENV_UNIFORM, "cosine": ENV_COSINE}
 
 # Planted faults (reference_impl/mutants.py) that live in the kernels, as bits of KernelConfig.mutant; each place
 # one changes is marked with a comment naming it. ("energy-loss-2pct" is the integrator's scale of finish_samples.)
 (M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET, M_DOUBLE_EMISSION,
- M_CAMERA_HALF_PIXEL) = (1 << b for b in range(7))
+ M_CAMERA_HALF_PIXEL, M_POINT_NO_INVERSE_SQUARE, M_SPOT_IGNORES_BEAM_WIDTH, M_ENVMAP_PDF_NO_SIN, M_ENVMAP_MIRRORED_U,
+ M_DIRECTIONAL_REVERSED) = (1 << b for b in range(12))
 MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-no-reweight": M_RR_NO_REWEIGHT,
                "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET,
-               "double-emission": M_DOUBLE_EMISSION, "camera-half-pixel": M_CAMERA_HALF_PIXEL}
+               "double-emission": M_DOUBLE_EMISSION, "camera-half-pixel": M_CAMERA_HALF_PIXEL,
+               "point-no-inverse-square": M_POINT_NO_INVERSE_SQUARE,
+               "spot-ignores-beam-width": M_SPOT_IGNORES_BEAM_WIDTH, "envmap-pdf-no-sin": M_ENVMAP_PDF_NO_SIN,
+               "envmap-mirrored-u": M_ENVMAP_MIRRORED_U, "directional-reversed": M_DIRECTIONAL_REVERSED}
 
 
 class KernelConfig(NamedTuple):
@@ -72,13 +78,20 @@ class KernelConfig(NamedTuple):
     num_lights: int  # N_L
     offset_scene: float  # the scene-size part of a ray origin's offset (Intersector.offset_scene)
     surface_pdf: float  # 1 / A_scene, the density of global area sampling
+    env_sampling: int  # ENV_*: how light samples draw directions toward an environment
+    num_area_lights: int  # N_A: lights 0 .. N_A - 1 are area lights, N_A .. N_L - 1 the emitters that are not
+    env_light: int  # the light index k of the environment, -1 without one
 
 
 # The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
 #   scene    = (prim_to_tri, normal, v0, corners, emission, light_id, material, two_sided, f_r, albedo_max), per
 #              triangle (prim_to_tri per Embree primitive; f_r and albedo_max per material);
 #   lights   = (cdf, triangles, first, count, within_cdf, pmf, area) of lights.LightSampler;
-#   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface.
+#   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface;
+#   and, only in scenes that have emitters which are not surfaces (None otherwise, which compiles every branch for
+#   them out of the engines: such scenes run exactly the code they ran before those emitters existed),
+#   emitters = (kind, position, direction, intensity, to_local, to_world, spot, env_image, env_cell_pdf, env_row_cdf,
+#               env_col_cdf) of emitters.Emitters.
 
 # The one table from Settings to the kernels: slot of KernelConfig -> (the Settings field that fills it, its value in
 # the slot).
@@ -94,9 +107,10 @@ FROM_SETTINGS = {
     "mutant": ("mutant", lambda mutant: MUTANT_BITS.get(mutant, 0)),  # "" and "energy-loss-2pct": no bit
     "sampler": ("sampler", SAMPLER_MODES.__getitem__),
     "spp": ("spp", int),
+    "env_sampling": ("env_sampling", ENV_SAMPLING_MODES.__getitem__),
 }
 # The slots the render fills from the scene (integrator._Context), and depth per wavefront bounce.
-FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf")
+FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf", "num_area_lights", "env_light")
 # The Settings fields that fill no slot, and where they go instead.
 NOT_SLOTS = {
     "seed": "seed_key = mix64(seed ^ golden), an argument of camera_paths and of the engines (film_samples)",
@@ -107,9 +121,12 @@ NOT_SLOTS = {
 }
 
 
-def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float) -> KernelConfig:
+def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float,
+                  num_area_lights: int | None = None, env_light: int = -1) -> KernelConfig:
     """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
-    lights; ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``)."""
+    lights, the first ``num_area_lights`` of them area lights (all, by default), the environment light
+    ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``)."""
     slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items()}
+    area = int(num_lights if num_area_lights is None else num_area_lights)
     return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
-                        surface_pdf=float(surface_pdf), **slots)
+                        surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light), **slots)

@@ -18,6 +18,13 @@ x's offset origin and stops short of y (:mod:`.surface`), and V = 1 where nothin
 slides) the sample is weighted by the power heuristic (Veach 1997) against the Ni indirect rays, which could have found
 the same light: w = p_l^2 / (p_l^2 + p_h^2), p_l = Nd p(y) |x - y|^2 / cos_y (as a density of directions),
 p_h = Ni p(Psi); the emission an indirect ray finds is weighted the other way round (:func:`.vertex.emitted`).
+
+In a scene with emitters that are not surfaces (point, spot, directional lights, an environment), light k runs over
+the area lights and then those emitters (:func:`light_sample_all`, whose emitter samples are
+:func:`.emitters.emitter_sample`'s); a strategy that cannot find some of them (hemisphere sampling: delta lights;
+global area sampling: delta lights and the environment) adds each one's own sample once per hit
+(:func:`complement_sample`). Without such emitters the engines call :func:`light_sample` and :func:`shadow_ray` as
+before: numba compiles the other branch out.
 """
 
 from __future__ import annotations
@@ -26,15 +33,19 @@ import math
 
 from numba import njit
 
+from reference_impl.emitters import ENV_CONSTANT, ENV_MAP
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
                                            JIT_BORROW, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET)
-from reference_impl.kernels.light_sampling import (sample_light_point, sample_surface_point, split_light_uniform,
-                                                   split_surface_uniform)
+from reference_impl.kernels.emitters import emitter_sample, split_light_uniform_all
+from reference_impl.kernels.light_sampling import (point_on_triangle, sample_light_point, sample_surface_point,
+                                                   search_within, split_light_uniform, split_surface_uniform)
+from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import sobol_point, uniform_2d
 from reference_impl.kernels.surface import origin_offset, shadow_t_max
 from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
-from reference_impl.rng import DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2
+from reference_impl.rng import (COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT,
+                                LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2)
 
 
 @njit(**JIT_BORROW)
@@ -66,6 +77,65 @@ def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces)
     if cfg.mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
         return num_lights > 1, tri, y0, y1, y2, 1.0 / light_area[light]
     return num_lights > 1, tri, y0, y1, y2, light_pmf[light] / light_area[light]
+
+
+@njit(**JIT_BORROW)
+def light_sample_all(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces, emitters, x0, x1, x2, n0, n1,
+                     n2, ox0, ox1, ox2, f0, f1, f2):
+    """Sample j of a hit's Nd light samples in a scene with emitters that are not surfaces (:func:`light_sample`
+    and :func:`shadow_ray` in one, over lights k < N_A, the area lights, and k >= N_A, the emitters, with
+    :func:`.emitters.emitter_sample`): (whether a light was chosen, and :func:`shadow_ray`'s answer). The random
+    numbers are those of :func:`light_sample`; an emitter's direction takes the uniforms a point on a triangle
+    would have taken (with the stratified sampler, what is left of the first coordinate after the choice of k)."""
+    if cfg.direct == DIRECT_GLOBAL_AREA:
+        _sel, tri, y0, y1, y2, pdf_area = light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights,
+                                                       surfaces)
+        needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0,
+                                                                         ox1, ox2, f0, f1, f2, tri, y0, y1, y2,
+                                                                         pdf_area)
+        return False, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2
+    corners = scene[3]
+    cdf, triangles, first, count, within_cdf, light_pmf, light_area = lights
+    num_lights = cfg.num_lights
+    if sob:
+        u_a, u_b = sobol_point(seeds, index * cfg.shadow_rays + j)
+        light, u_select, u_tri, u_a = split_light_uniform_all(lights, num_lights, cfg.num_area_lights, u_a)
+        u_dir = u_tri
+    else:
+        u_a, u_b = uniform(key, dim_salt(depth, LIGHT_U1, j)), uniform(key, dim_salt(depth, LIGHT_U2, j))
+        u_select = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
+        u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
+        light = sample_discrete(cdf, u_select) if num_lights > 1 else 0
+        u_dir = u_a
+    pdf_select = 1.0 if cfg.mutant & M_LIGHT_PDF_IGNORED else light_pmf[light]  # mutant "light-pdf-ignored"
+    if light < cfg.num_area_lights:
+        f = first[light]
+        tri = triangles[f + search_within(within_cdf, f, count[light], u_tri)]
+        y0, y1, y2 = point_on_triangle(corners, tri, u_a, u_b)
+        needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0,
+                                                                         ox1, ox2, f0, f1, f2, tri, y0, y1, y2,
+                                                                         pdf_select / light_area[light])
+    else:
+        needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = emitter_sample(
+            cfg, emitters, light - cfg.num_area_lights, pdf_select, u_dir, u_b, x0, x1, x2, n0, n1, n2, ox0, ox1,
+            ox2, f0, f1, f2)
+    return num_lights > 1, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2
+
+
+@njit(**JIT_BORROW)
+def complement_sample(cfg, emitters, e, key, depth, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2):
+    """With a direct strategy that cannot find emitter e (hemisphere sampling cannot find a delta light, global area
+    sampling neither a delta light nor an environment): e's own light sample, as if it were the only light
+    (pdf(k) = 1), once per hit, added to the strategy's estimate. (whether e is such an emitter, and
+    :func:`.emitters.emitter_sample`'s answer.) An environment's direction comes from its own uniforms."""
+    kind = emitters[0][e]
+    if (kind == ENV_CONSTANT or kind == ENV_MAP) and cfg.direct != DIRECT_GLOBAL_AREA:  # hemisphere rays find it
+        return False, False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    u1 = uniform(key, dim_salt(depth, COMPLEMENT_U1, e))
+    u2 = uniform(key, dim_salt(depth, COMPLEMENT_U2, e))
+    needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = emitter_sample(cfg, emitters, e, 1.0, u1, u2, x0, x1, x2,
+                                                                         n0, n1, n2, ox0, ox1, ox2, f0, f1, f2)
+    return True, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2
 
 
 @njit(**JIT_BORROW)

@@ -13,9 +13,12 @@ import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
-                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_HEMI_COSINE,
-                                           DIRECT_HEMI_UNIFORM, EMIT_NONE, JIT, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import hemisphere_sample, hemisphere_weight, light_sample, shadow_ray
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_GLOBAL_AREA,
+                                           DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, EMIT_MIS, EMIT_NONE, JIT,
+                                           SAMPLER_SOBOL)
+from reference_impl.kernels.direct import (complement_sample, hemisphere_sample, hemisphere_weight, light_sample,
+                                           light_sample_all, shadow_ray)
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
@@ -24,7 +27,7 @@ from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shadi
 
 
 @njit(**JIT)
-def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counters, timing, film_samples):
+def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counters, timing, film_samples, emitters):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one path at a time,
     with Ni = 1: the same estimator, random numbers and order of floating-point operations as the wavefront
     (``bounce`` then ``resolve_shadow`` / ``resolve_hemisphere`` at each vertex), so the same bits, but each
@@ -35,8 +38,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
     The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet query. ``timing[0]``
     receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]`` the number of
     queries. ``film_samples`` = (pixel, sample, seed_key) of the camera samples, for the stratified sampler.
+    ``emitters``: the tables of the emitters that are not surfaces (:mod:`.config`), or None, which compiles every
+    branch for them out (``if emitters is not None`` is decided by numba from the argument's type).
     """
-    root, key, origin, direction, o32, d32, beta, pdf_dir = state
+    root, key, origin, direction, o32, d32, beta, pdf_dir, _env_pdf = state
     prim_to_tri, tri_normal, emission = scene[0], scene[1], scene[4]
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
@@ -79,6 +84,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
         if sobol:
             fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
+        if emitters is not None:
+            nx0, nx1, nx2 = 0.0, 0.0, 1.0  # the previous vertex's normal, for the escape's MIS weight
         while True:
             emit, allow_next, allow_indirect = vertex_rules(cfg, depth)
             sob = sobol and depth == 1
@@ -89,6 +96,16 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                                                             o2, d0, d1, d2)
             if p < 0:
                 count_escaped += 1
+                if emitters is not None:
+                    if emit != EMIT_NONE and cfg.env_light >= 0:  # the environment, seen by an escaping ray
+                        e0, e1, e2 = env_radiance(cfg, emitters, d0, d1, d2)
+                        w = 1.0
+                        if emit == EMIT_MIS:  # _mis_weight_hemisphere, against the light samples at the origin
+                            p_env = env_light_pdf(cfg, lights, emitters, d0, d1, d2, nx0, nx1, nx2)
+                            w = ray_pdf * ray_pdf / (ray_pdf * ray_pdf + p_env * p_env)
+                        rad0 += b0 * e0 * w
+                        rad1 += b1 * e1 * w
+                        rad2 += b2 * e2 * w
                 break
             tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
             front = cos_out > 0
@@ -131,6 +148,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                     hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
                                                                  ox0, ox1, ox2, h0, h1, h2)
                     if hp < 0 or ratio < 0:
+                        if emitters is not None:
+                            if hp < 0 and ratio >= 0 and cfg.env_light >= 0:  # the environment, found by Psi
+                                le0, le1, le2 = env_radiance(cfg, emitters, h0, h1, h2)
+                                tot0 += le0 * f0 * ratio
+                                tot1 += le1 * f1 * ratio
+                                tot2 += le2 * f2 * ratio
                         continue
                     htri = prim_to_tri[hp]
                     weight = hemisphere_weight(ratio, h0, h1, h2, tri_normal[htri, 0], tri_normal[htri, 1],
@@ -139,12 +162,17 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                     tot1 += emission[htri, 1] * f1 * weight
                     tot2 += emission[htri, 2] * f2 * weight
                     continue
-                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
-                                                                    surfaces)
+                if emitters is None:
+                    selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene,
+                                                                        lights, surfaces)
+                    needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
+                        cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
+                else:
+                    selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
+                        cfg, sob, fh[0], si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1,
+                        nx2, ox0, ox1, ox2, f0, f1, f2)
                 if selected:
                     count_light_select += 1
-                needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
-                    cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
                 if not needed:
                     count_shadow_skipped += 1
                     continue
@@ -158,6 +186,28 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             rad0 += b0 * (tot0 * inv_nd)
             rad1 += b1 * (tot1 * inv_nd)
             rad2 += b2 * (tot2 * inv_nd)
+            if emitters is not None:
+                if hemi_direct or cfg.direct == DIRECT_GLOBAL_AREA:  # what the strategy cannot find (resolve_complement)
+                    ct0, ct1, ct2 = 0.0, 0.0, 0.0
+                    for e in range(len(emitters[0])):
+                        is_complement, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = complement_sample(
+                            cfg, emitters, e, k, depth, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
+                        if not is_complement:
+                            continue
+                        if not needed:
+                            count_shadow_skipped += 1
+                            continue
+                        count_shadow += 1
+                        blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
+                                                                      sampled_ns, so0, so1, so2, r0, r1, r2,
+                                                                      np.float32(tfar))
+                        if not blocked:
+                            ct0 += v0
+                            ct1 += v1
+                            ct2 += v2
+                    rad0 += b0 * ct0
+                    rad1 += b1 * ct1
+                    rad2 += b2 * ct2
 
             if not go_on:
                 break

@@ -6,7 +6,8 @@ emission it shows, Russian roulette and the indirect ray (Fig. 5.14, 5.16; eq. 5
 
 The indirect estimate recurses on L_r, so emission is counted at the viewing ray's hit alone (or, with MIS, at every
 hit, weighted by the power heuristic against the light samples; with the planted fault "double-emission", at every
-hit unweighted: the pseudo-code's computeRadiance taken literally). Path lengths follow Mitsuba's max_depth: x_i adds
+hit unweighted: the pseudo-code's computeRadiance taken literally). An environment's radiance, seen by a ray that
+escapes, counts by the same rule (:mod:`.emitters`, in the engines). Path lengths follow Mitsuba's max_depth: x_i adds
 direct light only when i + 1 <= max_depth, and an indirect ray only when the next vertex can still add something
 (i + 2 <= max_depth; with MIS, i + 1 <= max_depth); -1 is unbounded. Russian roulette (from vertex ``rr_depth`` on)
 lets a path go on with probability q and divides what survives by q (Fig. 5.16, ``estimatedRadiance /

@@ -12,16 +12,20 @@ from __future__ import annotations
 from numba import njit
 
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
-                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_HEMI_COSINE,
-                                           DIRECT_HEMI_UNIFORM, EMIT_NONE, JIT, JIT_INLINE, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import hemisphere_sample, hemisphere_weight, light_sample, shadow_ray
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_GLOBAL_AREA,
+                                           DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS, EMIT_MIS, EMIT_NONE,
+                                           JIT, JIT_INLINE, SAMPLER_SOBOL)
+from reference_impl.kernels.direct import (complement_sample, hemisphere_sample, hemisphere_weight, light_sample,
+                                           light_sample_all, shadow_ray)
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
 
 @njit(**JIT)
-def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, rays, out, film_samples):
+def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, rays, out, film_samples, emitters,
+           crays):
     """One bounce of the wavefront (integrator._bounce), given the closest hits ``prim`` of the current rays.
 
     Adds the emission seen at the hits to ``radiance``, draws the Nd direct-light samples of each reflecting hit
@@ -34,11 +38,14 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
     the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the reflecting hits, in order;
     ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the direct-light rays of each hit,
     in sample order, Nd rows per row of ``state``. ``film_samples`` = (pixel, sample, seed_key) of the camera
-    samples (rows of ``root``), for the stratified sampler. Returns how many hits, direct-light rays and next paths
-    were written.
+    samples (rows of ``root``), for the stratified sampler. ``emitters``: the emitters that are not surfaces, or
+    None (every branch for them compiled out); ``crays`` (owner hit, origin32, direction32, tfar32, value) receives
+    the shadow rays of the emitters the direct strategy cannot find (:func:`.direct.complement_sample`). Returns
+    how many hits, direct-light rays, next paths and complement rays were written.
     """
-    root, key, origin, direction, _o32, _d32, beta, pdf_dir = state
-    x_root, x_key, x_origin, x_dir, x_o32, x_d32, x_beta, x_pdf = out
+    root, key, origin, direction, _o32, _d32, beta, pdf_dir, env_pdf = state
+    x_root, x_key, x_origin, x_dir, x_o32, x_d32, x_beta, x_pdf, x_env = out
+    c_owner, c_o32, c_d32, c_tfar, c_value = crays
     s_owner, s_o32, s_d32, s_tfar, s_value, s_aux, s_dir = rays
     depth = cfg.depth
     emit, allow_next, allow_indirect = vertex_rules(cfg, depth)
@@ -54,10 +61,22 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
     m = 0
     s = 0
     n_next = 0
+    c = 0
     for i in range(n):
         p = prim[i]
         if p < 0:
             counters[C_ESCAPED] += 1
+            if emitters is not None:
+                if emit != EMIT_NONE and cfg.env_light >= 0:  # the environment, seen by an escaping ray
+                    e0, e1, e2 = env_radiance(cfg, emitters, direction[i, 0], direction[i, 1], direction[i, 2])
+                    w = 1.0
+                    if emit == EMIT_MIS:
+                        ray_pdf, p_env = pdf_dir[i], env_pdf[i]
+                        w = ray_pdf * ray_pdf / (ray_pdf * ray_pdf + p_env * p_env)
+                    r = root[i]
+                    radiance[r, 0] += beta[i, 0] * e0 * w
+                    radiance[r, 1] += beta[i, 1] * e1 * w
+                    radiance[r, 2] += beta[i, 2] * e2 * w
             continue
         tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2],
                                                                  direction[i, 0], direction[i, 1], direction[i, 2])
@@ -97,12 +116,17 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                 s_aux[s] = ratio
                 s += 1
                 continue
-            selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
-                                                                surfaces)
+            if emitters is None:
+                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
+                                                                    surfaces)
+                needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
+                    cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
+            else:
+                selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
+                    cfg, sob, fh[0], si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1, nx2,
+                    ox0, ox1, ox2, f0, f1, f2)
             if selected:
                 counters[C_LIGHT_SELECT] += 1
-            needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
-                cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
             if not needed:
                 counters[C_SHADOW_SKIPPED] += 1
                 continue
@@ -113,6 +137,23 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
             s_tfar[s] = tfar
             s_value[s, 0], s_value[s, 1], s_value[s, 2] = v0, v1, v2
             s += 1
+        if emitters is not None:
+            if hemi_direct or cfg.direct == DIRECT_GLOBAL_AREA:  # what the strategy cannot find (resolve_complement)
+                for e in range(len(emitters[0])):
+                    is_complement, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = complement_sample(
+                        cfg, emitters, e, k, depth, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
+                    if not is_complement:
+                        continue
+                    if not needed:
+                        counters[C_SHADOW_SKIPPED] += 1
+                        continue
+                    counters[C_SHADOW] += 1
+                    c_owner[c] = h
+                    c_o32[c, 0], c_o32[c, 1], c_o32[c, 2] = so0, so1, so2
+                    c_d32[c, 0], c_d32[c, 1], c_d32[c, 2] = r0, r1, r2
+                    c_tfar[c] = tfar
+                    c_value[c, 0], c_value[c, 1], c_value[c, 2] = v0, v1, v2
+                    c += 1
 
         # Indirect light (Fig. 5.14), if the next vertex can still add anything.
         if not allow_indirect:
@@ -138,8 +179,13 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
             x_d32[q, 0], x_d32[q, 1], x_d32[q, 2] = w0, w1, w2
             x_beta[q, 0], x_beta[q, 1], x_beta[q, 2] = c0, c1, c2
             x_pdf[q] = next_pdf
+            if emitters is not None:
+                p_env = 0.0
+                if cfg.direct == DIRECT_MIS and cfg.env_light >= 0:  # for the MIS weight should the ray escape
+                    p_env = env_light_pdf(cfg, lights, emitters, w0, w1, w2, nx0, nx1, nx2)
+                x_env[q] = p_env
 
-    return m, s, n_next
+    return m, s, n_next, c
 
 
 @njit(**JIT)
@@ -160,14 +206,22 @@ def resolve_shadow(root, beta, hits, nd, s_owner, s_value, s_hit, total, radianc
 
 @njit(**JIT)
 def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_prim, prim_to_tri, tri_normal,
-                       emission, total, radiance):
-    """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only), times
-    f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0), averaged over the Nd samples."""
+                       emission, total, radiance, cfg, emitters):
+    """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only), or the
+    environment's where it escaped, times f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0),
+    averaged over the Nd samples."""
     m = len(hits)
     total[:m] = 0.0
     for q in range(len(s_owner)):
         p = s_prim[q]
         if p < 0 or s_aux[q] < 0:
+            if emitters is not None:
+                if p < 0 and s_aux[q] >= 0 and cfg.env_light >= 0:  # the environment, found by Psi
+                    le0, le1, le2 = env_radiance(cfg, emitters, s_dir[q, 0], s_dir[q, 1], s_dir[q, 2])
+                    h = s_owner[q]
+                    total[h, 0] += le0 * s_value[q, 0] * s_aux[q]
+                    total[h, 1] += le1 * s_value[q, 1] * s_aux[q]
+                    total[h, 2] += le2 * s_value[q, 2] * s_aux[q]
             continue
         tri = prim_to_tri[p]
         weight = hemisphere_weight(s_aux[q], s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], tri_normal[tri, 0],
@@ -177,6 +231,27 @@ def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_p
         total[h, 1] += emission[tri, 1] * s_value[q, 1] * weight
         total[h, 2] += emission[tri, 2] * s_value[q, 2] * weight
     _add_direct(root, beta, hits, nd, total, radiance)
+
+
+@njit(**JIT)
+def resolve_complement(root, beta, hits, c_owner, c_value, c_hit, total, radiance):
+    """The emitters the direct strategy cannot find (:func:`.direct.complement_sample`): each hit's complement
+    samples (value x V, V = 1 where ``c_hit < 0``) summed in order and added to ``radiance``, weighted by the hit's
+    throughput (after the strategy's own estimate, as the path engine adds them)."""
+    m = len(hits)
+    total[:m] = 0.0
+    for q in range(len(c_owner)):
+        if c_hit[q] < 0:
+            h = c_owner[q]
+            total[h, 0] += c_value[q, 0]
+            total[h, 1] += c_value[q, 1]
+            total[h, 2] += c_value[q, 2]
+    for h in range(m):
+        i = hits[h]
+        r = root[i]
+        radiance[r, 0] += beta[i, 0] * total[h, 0]
+        radiance[r, 1] += beta[i, 1] * total[h, 1]
+        radiance[r, 2] += beta[i, 2] * total[h, 2]
 
 
 @njit(**JIT_INLINE)
