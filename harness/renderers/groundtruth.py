@@ -24,7 +24,7 @@ import time
 import uuid
 import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import metadata
 from pathlib import Path
 
@@ -79,6 +79,10 @@ def closed_form(scene: Scene) -> GroundTruth:
     """
     if scene.closed_form != "furnace":
         raise HarnessError(f"{scene.path}: closed_form", f"no closed form named {scene.closed_form!r}")
+    if scene.emitters:
+        raise HarnessError(f"{scene.path}: closed_form", (
+            "the furnace closed form holds for emitting shapes alone; this scene also has [[emitters]] "
+            f"({', '.join(e.type for e in scene.emitters)})"))
     emissions = {tuple(s.emission) if s.emission else None for s in scene.shapes}
     albedos = {tuple(scene.materials[s.material].reflectance) for s in scene.shapes}
     if len(emissions) != 1 or None in emissions or len(albedos) != 1:
@@ -104,11 +108,13 @@ def closed_form(scene: Scene) -> GroundTruth:
 
 
 def scene_digest(scene: Scene) -> str:
-    """SHA-256 of the scene file's bytes, of every file it references (meshes), and of the loaded scene itself.
+    """SHA-256 of the scene file's bytes, of every file it references (meshes, environment maps), and of the loaded
+    scene itself.
 
-    The loaded content (camera, materials, every shape's placement, emission and mesh arrays) is hashed too, so a
-    scene changed in memory after loading (a suite's resolution or depth override, a test's edit) or a file edited
-    between loading and rendering can never be served another scene's entry.
+    The loaded content (camera, materials, every shape's placement, emission and mesh arrays, every emitter's
+    parameters and an environment map's pixels) is hashed too, so a scene changed in memory after loading (a
+    suite's resolution or depth override, a test's edit) or a file edited between loading and rendering can never
+    be served another scene's entry.
     """
     h = hashlib.sha256()
     try:
@@ -117,6 +123,10 @@ def scene_digest(scene: Scene) -> str:
             if shape.file is not None:
                 h.update(str(shape.file.name).encode())
                 h.update(Path(shape.file).read_bytes())
+        for emitter in scene.emitters:
+            if emitter.type == "envmap":
+                h.update(str(emitter.file.name).encode())
+                h.update(Path(emitter.file).read_bytes())
     except OSError as err:
         raise HarnessError(str(scene.path), f"cannot read for the ground-truth key: {err.strerror}") from None
     h.update(_loaded_content(scene))
@@ -136,7 +146,26 @@ def _loaded_content(scene: Scene) -> bytes:
         for array in (shape.mesh_vertices, shape.mesh_triangles):
             if array is not None:
                 parts.append(hashlib.sha256(np.ascontiguousarray(array).tobytes()).hexdigest())
+    for emitter in scene.emitters:
+        parts.append(_emitter_content(emitter))
     return "\n".join(parts).encode()
+
+
+def _emitter_content(emitter) -> str:
+    """Every field of an ``[[emitters]]`` entry but its index and name (which change no image): numbers as repr,
+    arrays by their bytes (an environment map's pixels by a SHA-256 of them, with their shape and type)."""
+    items = [emitter.type]
+    for field_ in fields(emitter):
+        if field_.name in ("index", "name"):
+            continue
+        value = getattr(emitter, field_.name)
+        if isinstance(value, np.ndarray):
+            array = np.ascontiguousarray(value)
+            value = (array.shape, str(array.dtype), hashlib.sha256(array.tobytes()).hexdigest())
+        elif isinstance(value, Path):
+            value = value.name
+        items.append(f"{field_.name}={value!r}")
+    return " ".join(items)
 
 
 def mitsuba_version() -> str:
