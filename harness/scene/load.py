@@ -104,8 +104,9 @@ ALLOW_OUTSIDE_ENV = "HARNESS_ALLOW_OUTSIDE_PATHS"
 def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> Scene:
     """Read and validate the scene file at ``path``; raise :class:`HarnessError` for anything wrong with it.
 
-    Mesh files are read here too (relative to the scene file's folder), so a returned :class:`Scene` always
-    triangulates. A file a scene names (a mesh) must resolve, after symlinks, inside the scene file's folder unless
+    Mesh and environment-map files are read here too (relative to the scene file's folder), so a returned
+    :class:`Scene` always triangulates and holds its maps' pixels. A file a scene names (a mesh, an envmap) must
+    resolve, after symlinks, inside the scene file's folder unless
     ``allow_outside_paths``; None (the default) takes it from the environment variable
     ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed), which the CLI's ``--allow-outside-paths`` sets, so that worker
     processes follow the command's choice.
@@ -702,8 +703,9 @@ class _SceneReader:
                 determinant = float(np.linalg.det(linear)) if math.isfinite(deviation) else math.nan
             if not (deviation <= ORTHONORMAL_TOLERANCE and determinant > 0):
                 raise self.error(f"{key}.to_world", (
-                    f"expected a rotation (orthonormal to {ORTHONORMAL_TOLERANCE:g}, determinant +1): Mitsuba turns "
-                    "directions with it unnormalised, so a scale or shear would move the map's texels"))
+                    f"expected a rotation (orthonormal within {ORTHONORMAL_TOLERANCE:g}, determinant +1)"
+                    .replace("e-0", "e-") + ": Mitsuba maps directions with it without normalising them, so a "
+                    "scale or shear would move the map"))
         else:
             to_world = self.rotation(table.get("rotate", []), f"{key}.rotate")
         return EnvironmentMap(index, name, path, image, to_world, scale)
@@ -719,9 +721,10 @@ class _SceneReader:
         if bad.any():
             row, column, channel = (int(i) for i in np.argwhere(bad)[0])
             value = float(image[row, column, channel])
+            count = int(bad.sum())
             raise self.error(key, (
-                f"envmap file {name!r} has {int(bad.sum())} bad values, the first at row {row}, column {column}: "
-                f"{'RGB'[channel]} = {_show(value)}; expected finite radiances >= 0"))
+                f"envmap file {name!r} has {count} bad value{'s' if count > 1 else ''}, the first at row {row}, "
+                f"column {column}: {'RGB'[channel]} = {_show(value)}; expected finite radiances >= 0"))
         peak = float(image.max())
         if peak == 0:
             raise self.error(key, f"envmap file {name!r} is black (every pixel 0); expected some emission")

@@ -403,7 +403,8 @@ repeats = 2
 # ---------------------------------------------------------------------------------------------------------------
 # Scene documents
 
-SCENE_TABLES = {(): ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes"),
+SCENE_TABLES = {(): ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
+                     "emitters"),
                 ("camera",): ("origin", "target", "up", "fov", "fov_axis"), ("film",): ("width", "height", "filter"),
                 ("integrator",): ("max_depth",)}
 SHAPE_KEYS = ("name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",

@@ -239,7 +239,7 @@ BAD = [
     ("envmap-garbage", ['type = "envmap"\nfile = "maps/garbage.exr"'], "emitters[0].file",
      "envmap file 'maps/garbage.exr': not an OpenEXR file"),
     ("envmap-nan", ['type = "envmap"\nfile = "maps/nan.exr"'], "emitters[0].file",
-     "1 bad values, the first at row 1, column 2: G = nan; expected finite radiances >= 0"),
+     "1 bad value, the first at row 1, column 2: G = nan; expected finite radiances >= 0"),
     ("envmap-negative", ['type = "envmap"\nfile = "maps/negative.exr"'], "emitters[0].file", "G = -0.5"),
     ("envmap-inf", ['type = "envmap"\nfile = "maps/inf.exr"'], "emitters[0].file", "G = inf"),
     ("envmap-narrow", ['type = "envmap"\nfile = "maps/narrow.exr"'], "emitters[0].file",
