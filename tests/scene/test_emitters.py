@@ -17,6 +17,7 @@ from harness.scene import load as scene_load
 from harness.scene.load import frame_to_world
 from harness.scene.model import ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, SpotLight
 from harness.scene.triangulate import rotate_matrix
+from harness.scene.variants import parse_variant
 
 MAP = np.arange(4 * 3 * 3, dtype=np.float32).reshape(3, 4, 3) / 10 + 0.1  # 4 x 3 pixels, all distinct, > 0
 
@@ -291,3 +292,30 @@ def test_envmap_size_limit_is_checked_before_reading_pixels(folder, monkeypatch)
 
 def test_the_default_size_limit_is_an_8k_map():
     assert scene_load.MAX_ENVMAP_PIXELS == 8192 * 4096
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Stress variants (harness/scene/variants.py)
+
+
+def test_scale_and_translate_variants_keep_what_point_and_spot_lights_give(folder):
+    """scale=s moves point and spot lights with the scene and multiplies their intensity by s^2, so the irradiance
+    I cos / r^2 at a scaled point is unchanged; infinitely far emitters stay as they are."""
+    scene = load(folder, POINT, SPOT, 'type = "directional"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]', ENVMAP)
+    lit = np.array([0.3, 0.0, 0.4])
+
+    def irradiance(point_light, at):
+        offset = np.asarray(point_light.position) - at
+        return np.asarray(point_light.intensity) * offset[1] / np.linalg.norm(offset) ** 3
+
+    for name, factor in [("scale=1e3", 1e3), ("scale=0.01", 0.01), ("translate=5", 1.0)]:
+        variant = parse_variant(name).apply(scene)
+        point, spot, directional, envmap = variant.emitters
+        shift = 5 / math.sqrt(3) * np.ones(3) if name.startswith("translate") else np.zeros(3)
+        np.testing.assert_allclose(irradiance(point, factor * lit + shift), irradiance(scene.emitters[0], lit),
+                                   rtol=1e-12)
+        np.testing.assert_allclose(spot.position, factor * scene.emitters[1].position + shift, rtol=1e-12)
+        np.testing.assert_allclose(spot.axis, scene.emitters[1].axis, atol=1e-15)
+        np.testing.assert_allclose(spot.intensity, np.asarray(scene.emitters[1].intensity) * factor**2, rtol=1e-12)
+        assert (spot.cutoff_angle, spot.beam_width) == (scene.emitters[1].cutoff_angle, scene.emitters[1].beam_width)
+        assert directional == scene.emitters[2] and envmap is scene.emitters[3]
