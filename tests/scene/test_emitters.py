@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import MINIMAL_SCENE
+from test_hostile_input import assert_one_line, cli
 from harness.core.errors import HarnessError
 from harness.files.imageio import write_exr
 from harness.scene import load_scene
@@ -319,3 +320,17 @@ def test_scale_and_translate_variants_keep_what_point_and_spot_lights_give(folde
         np.testing.assert_allclose(spot.intensity, np.asarray(scene.emitters[1].intensity) * factor**2, rtol=1e-12)
         assert (spot.cutoff_angle, spot.beam_width) == (scene.emitters[1].cutoff_angle, scene.emitters[1].beam_width)
         assert directional == scene.emitters[2] and envmap is scene.emitters[3]
+
+
+@pytest.mark.parametrize(("body", "fragment"), [
+    ('type = "point"\nposition = [0, 1, 0]\nintensty = [1, 1, 1]', "emitters[0].intensty: unknown key"),
+    ('type = "envmap"\nfile = "maps/nan.exr"', "emitters[0].file: envmap file 'maps/nan.exr' has 1 bad value"),
+    ('type = "envmap"\nfile = "/dev/zero.exr/.."', "emitters[0].file: expected an .exr file name"),
+    ('type = "envmap"\nfile = "maps"', "emitters[0].file: expected an .exr file name"),
+])
+def test_the_command_line_prints_one_line_and_writes_nothing(folder, capfd, body, fragment):
+    path = write(folder, body)
+    out = folder / "out.exr"
+    code, stdout, stderr = cli(capfd, "render", path, "--spp", "1", "--out", out)
+    assert_one_line(code, stdout, stderr, f"{path}: {fragment}")
+    assert not out.exists()
