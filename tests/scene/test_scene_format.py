@@ -23,7 +23,7 @@ from harness.scene.triangulate import rotate_matrix, shape_triangles
 
 REPO = Path(__file__).resolve().parents[2]
 SCENES = REPO / "scenes"
-CANONICAL = ["cornell-box", "furnace", "soft-shadows", "multi-light"]
+CANONICAL = sorted(p.stem for p in SCENES.glob("*.toml"))  # every scene in scenes/
 
 # A small valid scene that tests extend with extra shapes or override with replacements.
 MINIMAL = MINIMAL_SCENE
@@ -94,7 +94,7 @@ def test_canonical_scene_loads_and_triangulates(name):
     assert scene.film.filter == "box"
     assert len(geometry.triangles) > 0
     assert np.all(geometry.area > 0), "canonical scenes have no degenerate triangles"
-    assert geometry.num_lights == len(scene.lights) >= 1
+    assert geometry.num_lights == len(scene.lights) and len(scene.lights) + len(scene.emitters) >= 1
     for shape in scene.shapes:
         assert scene.materials[shape.material].two_sided is False  # everything one-sided, as in Mitsuba's diffuse
 
