@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_non_negative, require_positive
-from harness.renderers.export import FORMATS, export_scene
+from harness.renderers.export import FORMATS, export_losses, export_scene
 from harness.scene import load_scene
 
 
@@ -40,6 +41,8 @@ def run(args: argparse.Namespace) -> int:
     scene = load_scene(args.scene)
     check_cost(scene, args.spp, "--spp")  # the $spp an exported Mitsuba scene renders at by default
     files = export_scene(scene, args.format, args.out, spp=args.spp, seed=args.seed)
+    for loss in export_losses(scene, args.format):
+        print(f"harness: warning: {loss}", file=sys.stderr)
     if args.json:
         print(json.dumps({"scene": str(scene.path), "format": args.format, "files": [str(f) for f in files]}))
     else:

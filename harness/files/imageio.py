@@ -52,6 +52,7 @@ __all__ = [
     "WriteError",
     "atomic_write_bytes",
     "atomic_write_text",
+    "exr_bytes",
     "make_folders",
     "preview_path",
     "read_exr",
@@ -457,6 +458,15 @@ def write_exr(
     return _atomic_write(path, _exr_fill(image, variance, metadata))
 
 
+def exr_bytes(image: np.ndarray, variance: np.ndarray | None = None,
+              metadata: Mapping[str, str] | None = None) -> bytes:
+    """The bytes of the OpenEXR file :func:`write_exr` would write, in memory (for writers that stage several files,
+    such as ``harness export``)."""
+    buffer = io.BytesIO()
+    _exr_fill(image, variance, metadata)(buffer)
+    return buffer.getvalue()
+
+
 def _exr_fill(image: np.ndarray, variance: np.ndarray | None, metadata: Mapping[str, str] | None
               ) -> Callable[[BinaryIO], None]:
     """What writes the EXR file of :func:`write_exr` into an open binary file (its arguments checked first)."""
@@ -569,8 +579,9 @@ def _open_exr(path: str, **options):
     return exr
 
 
-def _check_claimed_size(path: str, header: dict) -> None:
-    """Refuse a header whose data window or channel count is beyond the harness's limits, before pixels are read."""
+def _check_claimed_size(path: str, header: dict, max_pixels: int | None = None) -> None:
+    """Refuse a header whose data window or channel count is beyond the harness's limits (and, when given, whose
+    data window has more than ``max_pixels`` pixels), before pixels are read."""
     try:
         low, high = (np.asarray(corner, dtype=np.int64) for corner in header["dataWindow"])
         width, height = int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
@@ -583,12 +594,14 @@ def _check_claimed_size(path: str, header: dict) -> None:
         raise HarnessError(path, (
             f"data window is {width} x {height} pixels ({estimate_text(width, height)}); expected at most "
             f"{MAX_FILM_SIDE} per side and 2^26 pixels (a film the harness renders; corrupted header?)"))
+    if max_pixels is not None and width * height > max_pixels:
+        raise HarnessError(path, f"is {width} x {height} = {width * height} pixels; expected at most {max_pixels}")
     channels = header.get("channels") or []
     if len(channels) > MAX_READ_CHANNELS:
         raise HarnessError(path, f"has {len(channels)} channels; expected at most {MAX_READ_CHANNELS} (corrupted?)")
 
 
-def _read_channels(path: str) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, object]]:
     """All channel arrays and the header of part 0, or HarnessError (one line, nothing printed) if unreadable.
 
     The header is read first and its claimed size checked (:func:`_check_claimed_size`), so a corrupted header
@@ -611,12 +624,12 @@ def _read_channels(path: str) -> tuple[dict[str, np.ndarray], dict[str, object]]
 
     broken = "cannot read OpenEXR file (corrupted or truncated?)"
     with _open_exr(path, header_only=True) as exr:
-        _check_claimed_size(path, dict(exr.header()))
+        _check_claimed_size(path, dict(exr.header()), max_pixels)
     exr = _open_exr(path, separate_channels=True)
     try:
         with exr:
             header = dict(exr.header())
-            _check_claimed_size(path, header)
+            _check_claimed_size(path, header, max_pixels)
             channels = {name: np.asarray(ch.pixels) for name, ch in exr.channels().items()}
     except HarnessError:
         raise
@@ -641,7 +654,7 @@ def _stack(path: str, channels: dict[str, np.ndarray], names: tuple[str, ...]) -
     return np.stack(planes, axis=-1).astype(np.float32, copy=False)
 
 
-def read_exr(path: str | os.PathLike[str]) -> ExrImage:
+def read_exr(path: str | os.PathLike[str], *, max_pixels: int | None = None) -> ExrImage:
     """Read an EXR file with channels ``R``, ``G``, ``B`` (HALF or FLOAT).
 
     Optional ``variance.R``, ``variance.G``, ``variance.B`` become
@@ -652,10 +665,11 @@ def read_exr(path: str | os.PathLike[str]) -> ExrImage:
 
     Raises ``HarnessError(str(path), ...)`` (one line) if the file is missing,
     not an OpenEXR file, corrupted or truncated, lacks R/G/B, has only some
-    of the variance channels, or has channels of inconsistent sizes.
+    of the variance channels, or has channels of inconsistent sizes; and, when ``max_pixels`` is given, if its data
+    window has more pixels than that (checked on the header, before any pixel is read).
     """
     where = str(path)
-    channels, header = _read_channels(where)
+    channels, header = _read_channels(where, max_pixels)
 
     missing = [name for name in RGB_CHANNELS if name not in channels]
     if missing:

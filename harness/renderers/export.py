@@ -7,17 +7,27 @@
   space, wound to face their front side, loaded with ``face_normals``). The sampler's ``sample_count`` and ``seed``
   are the XML parameters ``$spp`` and ``$seed``, so ``mi.load_file(path, spp=64, seed=3)`` (or ``mitsuba -D
   spp=64``) overrides them.
+  ``[[emitters]]`` become Mitsuba's emitters of the same names and parameters (:func:`~harness.renderers.mitsuba.
+  light_spec`); an envmap's image is written as ``textures/<index>-<name>.exr`` (the pixels the scene holds, float32
+  RGB) and named by ``filename``.
 * ``ply``: one ``<index>-<name>.ply`` per shape (world-space triangles as the reference core sees them: spheres
-  are icospheres).
-* ``obj``: ``scene.obj`` and its ``.mtl``, one object per shape, diffuse colour = reflectance.
+  are icospheres). No emitters.
+* ``obj``: ``scene.obj`` and its ``.mtl``, one object per shape, diffuse colour = reflectance. No emitters.
 * ``gltf``: ``scene.gltf`` with its buffer, one node per shape, a PBR material per shape (base colour =
-  reflectance, emissive = emission / its largest channel; the radiance itself is in the node's ``extras``).
+  reflectance, emissive = emission / its largest channel; the radiance itself is in the node's ``extras``); point,
+  spot and directional emitters as ``KHR_lights_punctual`` lights (:func:`gltf_light`); constant and envmap
+  emitters cannot be expressed in glTF 2.0 and are left out.
+
+:func:`export_losses` says, one line each, what a format leaves out of a scene (``harness export`` prints them as
+warnings).
 
 Meshes are written with trimesh; every file is written atomically (:mod:`harness.files.imageio`).
 """
 
 from __future__ import annotations
 
+import json
+import math
 import re
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -29,17 +39,33 @@ from trimesh.exchange.obj import export_obj
 from trimesh.visual.material import PBRMaterial
 
 from harness.core.errors import HarnessError
-from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
-from harness.renderers.mitsuba import RR_DEPTH, bsdf_dict, clip_planes, emitter_dict, film_dict, path_integrator
+from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, exr_bytes, make_folders
+from harness.renderers.mitsuba import (
+    RR_DEPTH,
+    bsdf_dict,
+    clip_planes,
+    emitter_dict,
+    film_dict,
+    light_spec,
+    path_integrator,
+)
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
 FORMATS = ("mitsuba-xml", "ply", "obj", "gltf")
 MESH_DIR = "meshes"
+TEXTURE_DIR = "textures"
+#: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
+#: Blender's glTF importer ("Standard" lighting), which turns the candela back into the same watts
+LUMENS_PER_WATT = 683.0
+GLTF_LIGHTS = "KHR_lights_punctual"
+PUNCTUAL_TYPES = ("point", "spot", "directional")
 
 # Plugin-valued keys of the adapter's dicts and the XML tag of each.
 _PLUGIN_TAGS = {"film": "film", "rfilter": "rfilter", "sampler": "sampler", "bsdf": "bsdf", "emitter": "emitter",
                 "integrator": "integrator"}
+# 3-vector parameters of the emitters and their XML tag (a point transforms with translation, a vector without).
+_VECTOR_TAGS = {"position": "point", "direction": "vector"}
 
 
 def safe_name(name: str) -> str:
@@ -71,6 +97,10 @@ def _plugin_xml(tag: str, spec: dict, indent: str, name: str | None = None, plug
             continue
         if isinstance(value, dict) and value.get("type") == "rgb" and "value" in value:
             lines.append(f'{inner}<rgb name={quoteattr(key)} value="{_vec(value["value"])}"/>')
+        elif key == "to_world" and isinstance(value, np.ndarray):
+            lines += _matrix_xml(value, inner)
+        elif key in _VECTOR_TAGS and isinstance(value, (list, tuple)):
+            lines.append(f'{inner}<{_VECTOR_TAGS[key]} name={quoteattr(key)} value="{_vec(value)}"/>')
         elif isinstance(value, dict) and key in _PLUGIN_TAGS:
             lines += _plugin_xml(_PLUGIN_TAGS[key], value, inner)
         elif isinstance(value, bool):
@@ -98,8 +128,9 @@ def _ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
     return mesh.export(file_type="ply", encoding="binary")
 
 
-def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = MESH_DIR) -> tuple[str, dict[str, bytes]]:
-    """The scene as Mitsuba 3 XML text, and the PLY files it refers to (``{relative path: bytes}``).
+def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = MESH_DIR,
+                texture_dir: str = TEXTURE_DIR) -> tuple[str, dict[str, bytes]]:
+    """The scene as Mitsuba 3 XML text, and the PLY and EXR files it refers to (``{relative path: bytes}``).
 
     ``spp`` and ``seed`` are the defaults of the XML parameters ``$spp`` and ``$seed``.
     """
@@ -156,6 +187,14 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
         if shape.is_emitter:
             lines += _plugin_xml("emitter", emitter_dict(shape), "        ")
         lines.append("    </shape>")
+    for emitter in scene.emitters:
+        lines.append(f"    <!-- emitter {emitter.index}: {emitter.name} -->")
+        spec = light_spec(emitter)
+        if emitter.type == "envmap":
+            rel = f"{texture_dir}/{emitter.index}-{safe_name(emitter.name)}.exr"
+            meshes[rel] = exr_bytes(emitter.image)  # the pixels the scene holds, as the adapter's bitmap
+            spec = {"type": "envmap", "filename": rel, **{k: v for k, v in spec.items() if k != "type"}}
+        lines += _plugin_xml("emitter", spec, "    ", plugin_id=f"emitter_{emitter.index}")
     lines.append("</scene>")
     return "\n".join(lines) + "\n", meshes
 
@@ -182,6 +221,92 @@ def _trimesh_scene(scene: Scene):
     return out
 
 
+def _rotation_from_minus_z(direction) -> list[float]:
+    """The unit quaternion [x, y, z, w] (glTF's order) that turns -z, where a glTF light points, into the unit
+    vector ``direction``."""
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    q = np.array([d[1], -d[0], 0.0, 1.0 - d[2]])  # [cross(-z, d), 1 + dot(-z, d)], normalised below
+    length = float(np.linalg.norm(q))
+    if length == 0.0:  # d = +z exactly: half a turn about x
+        return [1.0, 0.0, 0.0, 0.0]
+    return [float(x) + 0.0 for x in q / length]
+
+
+def _gltf_colour(rgb) -> tuple[list[float], float]:
+    """glTF's (color in [0, 1], intensity): color = rgb / its largest channel, intensity = that channel times
+    :data:`LUMENS_PER_WATT`."""
+    rgb = np.asarray(rgb, dtype=np.float64)
+    peak = float(rgb.max())
+    return [float(x) for x in rgb / peak], LUMENS_PER_WATT * peak
+
+
+def gltf_light(emitter) -> tuple[dict, dict]:
+    """A point, spot or directional emitter as a ``KHR_lights_punctual`` light and the node that places it.
+
+    Intensity: candela (point, spot) or lux (directional) = :data:`LUMENS_PER_WATT` x the largest channel of the
+    RGB W/sr (W/m^2), colour = the RGB divided by that channel. Spot: ``outerConeAngle`` = ``cutoff_angle``,
+    ``innerConeAngle`` = ``beam_width`` (radians; glTF wants inner < outer, so inner is a hair smaller when they are
+    equal); glTF's falloff between them is left to the viewer (the spec's sample code fades with the square of a
+    ramp in cos), not Mitsuba's ramp linear in the angle. glTF lights have no size and fall off with 1/r^2, as
+    Mitsuba's.
+    """
+    color, intensity = _gltf_colour(getattr(emitter, {"point": "intensity", "spot": "intensity",
+                                                       "directional": "irradiance"}[emitter.type]))
+    light = {"name": emitter.name, "type": emitter.type, "color": color, "intensity": intensity}
+    node: dict = {"name": safe_name(emitter.name)}
+    if emitter.type == "point":
+        node["translation"] = [float(x) for x in emitter.position]
+    elif emitter.type == "spot":
+        outer = math.radians(emitter.cutoff_angle)
+        inner = min(math.radians(emitter.beam_width), math.nextafter(outer, 0.0))
+        light["spot"] = {"innerConeAngle": inner, "outerConeAngle": outer}
+        node["translation"] = [float(x) for x in emitter.position]
+        node["rotation"] = _rotation_from_minus_z(emitter.axis)
+    else:
+        node["rotation"] = _rotation_from_minus_z(emitter.direction)
+    return light, node
+
+
+def _add_gltf_lights(text: bytes, scene: Scene) -> bytes:
+    """trimesh's glTF JSON with the scene's punctual emitters added as ``KHR_lights_punctual`` lights."""
+    emitters = [e for e in scene.emitters if e.type in PUNCTUAL_TYPES]
+    if not emitters:
+        return text
+    document = json.loads(text)
+    lights = []
+    nodes = document.setdefault("nodes", [])
+    scenes = document.setdefault("scenes", [{"nodes": []}])
+    roots = scenes[document.get("scene", 0)].setdefault("nodes", [])
+    for emitter in emitters:
+        light, node = gltf_light(emitter)
+        node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
+        lights.append(light)
+        roots.append(len(nodes))
+        nodes.append(node)
+    document.setdefault("extensions", {})[GLTF_LIGHTS] = {"lights": lights}
+    used = document.setdefault("extensionsUsed", [])
+    if GLTF_LIGHTS not in used:
+        used.append(GLTF_LIGHTS)
+    return json.dumps(document, separators=(",", ":")).encode("utf-8")
+
+
+def export_losses(scene: Scene, fmt: str) -> list[str]:
+    """What ``fmt`` cannot express of ``scene``, one line each (empty: nothing is lost beyond what
+    docs/external-renderers.md lists for every scene)."""
+    def names(emitters) -> str:
+        return ", ".join(f"{e.name} ({e.type})" for e in emitters)
+
+    if fmt in ("ply", "obj") and scene.emitters:
+        return [f"{fmt} has no lights: left out emitters {names(scene.emitters)}"]
+    if fmt == "gltf":
+        lost = [e for e in scene.emitters if e.type not in PUNCTUAL_TYPES]
+        if lost:
+            return [f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has point, "
+                    "spot and directional lights only)"]
+    return []
+
+
 def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
     """Write ``scene`` in format ``fmt`` (one of :data:`FORMATS`) into the folder ``out_dir`` (created if needed);
     returns the files written, the main file first. The files are written into a staging folder and moved into
@@ -206,7 +331,7 @@ def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, 
     else:
         parts = export_gltf(_trimesh_scene(scene), include_normals=False, merge_buffers=True)
         main = next(name for name in parts if name.endswith(".gltf"))
-        files["scene.gltf"] = parts[main]
+        files["scene.gltf"] = _add_gltf_lights(parts[main], scene)
         files.update({name: data for name, data in parts.items() if name != main})
     with StagedFolder(out_dir, "--out") as stage:
         for rel, data in files.items():

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import shutil
 import time
 import uuid
 import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import metadata
 from pathlib import Path
 
@@ -36,6 +37,7 @@ from harness.judges.moments import Estimate, merge
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
+from harness.scene.triangulate import object_to_world, shape_triangles
 
 FORMAT_VERSION = 1
 DEFAULT_SPP = 1024
@@ -72,13 +74,30 @@ def default_cache_dir() -> Path:
 
 
 def closed_form(scene: Scene) -> GroundTruth:
-    """The analytic image of a scene that declares ``closed_form``.
+    """The analytic image of a scene that declares ``closed_form`` (one of :data:`CLOSED_FORMS`).
 
     furnace: every shape emits the same Le and reflects with the same albedo rho, and they enclose the camera, so
     L = Le + rho L_in with L_in = L after each bounce: L = Le sum_{i < max_depth} rho^i, or Le / (1 - rho) unbounded.
+
+    white-furnace: one diffuse sphere of albedo rho under a ``constant`` environment L, covering every pixel's
+    footprint: a convex surface sees only the environment, so every pixel is rho L for max_depth >= 2 or -1
+    (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit).
     """
-    if scene.closed_form != "furnace":
+    if scene.closed_form not in CLOSED_FORMS:
         raise HarnessError(f"{scene.path}: closed_form", f"no closed form named {scene.closed_form!r}")
+    radiance = CLOSED_FORMS[scene.closed_form](scene)
+    shape = (scene.film.height, scene.film.width, 3)
+    image = np.broadcast_to(radiance.astype(np.float32), shape).copy()
+    return GroundTruth(image, np.zeros(shape, np.float32), "closed-form", 0,
+                       info={"closed_form": scene.closed_form, "radiance": radiance.tolist()}, cached=False)
+
+
+def _furnace(scene: Scene) -> np.ndarray:
+    """Every pixel's radiance in the furnace (every shape emits Le and has albedo rho, and they enclose the camera)."""
+    if scene.emitters:
+        raise HarnessError(f"{scene.path}: closed_form", (
+            "the furnace closed form holds for emitting shapes alone; this scene also has [[emitters]] "
+            f"({', '.join(e.type for e in scene.emitters)})"))
     emissions = {tuple(s.emission) if s.emission else None for s in scene.shapes}
     albedos = {tuple(scene.materials[s.material].reflectance) for s in scene.shapes}
     if len(emissions) != 1 or None in emissions or len(albedos) != 1:
@@ -91,24 +110,82 @@ def closed_form(scene: Scene) -> GroundTruth:
     if scene.max_depth == -1:
         if np.any(rho >= 1):
             raise HarnessError(f"{scene.path}: closed_form", "an unbounded furnace needs every albedo < 1")
-        radiance = le / (1.0 - rho)
-    else:
-        radiance = le * sum(rho**i for i in range(scene.max_depth))
-    shape = (scene.film.height, scene.film.width, 3)
-    image = np.broadcast_to(radiance.astype(np.float32), shape).copy()
-    return GroundTruth(image, np.zeros(shape, np.float32), "closed-form", 0,
-                       info={"closed_form": "furnace", "radiance": radiance.tolist()}, cached=False)
+        return le / (1.0 - rho)
+    return le * sum(rho**i for i in range(scene.max_depth))
+
+
+def _white_furnace(scene: Scene) -> np.ndarray:
+    """Every pixel's radiance in the white furnace: rho L (max_depth >= 2 or -1), 0 (max_depth = 1)."""
+    where = f"{scene.path}: closed_form"
+    kinds = [e.type for e in scene.emitters]
+    if kinds != ["constant"]:
+        raise HarnessError(where, "the white-furnace closed form needs exactly one [[emitters]] entry, a constant "
+                                  f"environment; this scene has {', '.join(kinds) or 'none'}")
+    if len(scene.shapes) != 1 or scene.shapes[0].type != "sphere" or scene.shapes[0].emission is not None:
+        found = ", ".join(f"{s.type}{' (emitting)' if s.emission else ''}" for s in scene.shapes) or "none"
+        raise HarnessError(where, "the white-furnace closed form needs exactly one shape, a sphere that does not "
+                                  f"emit; this scene has {found}")
+    problem = sphere_coverage_problem(scene)
+    if problem:
+        raise HarnessError(where, f"the white-furnace closed form needs the sphere to cover every pixel's filter "
+                                  f"footprint: {problem}")
+    rho = np.array(scene.materials[scene.shapes[0].material].reflectance, dtype=np.float64)
+    if scene.max_depth == 1:
+        return np.zeros(3)
+    return rho * np.array(scene.emitters[0].radiance, dtype=np.float64)
+
+
+def sphere_coverage_problem(scene: Scene) -> str | None:
+    """None if the scene's first shape (a sphere) covers the whole film as the camera sees it, else why not.
+
+    The film's footprint is every point a pixel's filter reaches: [1/2 - r, W - 1/2 + r] x [1/2 - r, H - 1/2 + r]
+    in film coordinates (r the filter radius in pixels; box: [0, W] x [0, H]). The sphere covers a cone of
+    directions from the eye, of half-angle asin(a / d) (d the distance to the centre, a the radius of the largest
+    ball centred there inside both the analytic sphere and the reference's icosphere: the distance to its nearest
+    face plane); a convex cone holds the footprint's image iff it holds its four corner rays.
+    """
+    sphere = scene.shapes[0]
+    matrix = object_to_world(sphere)
+    centre = matrix[:3, 3]
+    vertices, triangles = shape_triangles(sphere)
+    corners = vertices[triangles]
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    inner = float(np.min(np.abs(np.einsum("ij,ij->i", normals, corners[:, 0] - centre))))
+    inner = min(inner, float(np.linalg.norm(matrix[:3, 0])))
+    eye = np.asarray(scene.camera.origin, dtype=np.float64)
+    to_centre = centre - eye
+    distance = float(np.linalg.norm(to_centre))
+    if distance <= inner:
+        return f"the camera is inside the sphere ({distance:.6g} from its centre, inscribed radius {inner:.6g})"
+    width, height = scene.film.width, scene.film.height
+    reach = scene.film.pixel_filter.radius - 0.5  # how far past the film's edge the border pixels' filters reach
+    film_x = np.array([-reach, width + reach, -reach, width + reach])
+    film_y = np.array([-reach, -reach, height + reach, height + reach])
+    _origins, directions = scene.camera.generate_rays(film_x, film_y, width, height)
+    cosines = directions @ (to_centre / distance)
+    angle = math.degrees(math.acos(min(1.0, float(np.min(cosines)))))
+    half_angle = math.degrees(math.asin(inner / distance))
+    if angle >= half_angle:
+        return (f"the film's farthest corner ray (with the {scene.film.filter} filter's reach) is {angle:.4g} degrees "
+                f"from the sphere's centre, the sphere's angular radius {half_angle:.4g} degrees")
+    return None
+
+
+CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace}
 
 
 # ---- the cache -------------------------------------------------------------------------------------------------
 
 
 def scene_digest(scene: Scene) -> str:
-    """SHA-256 of the scene file's bytes, of every file it references (meshes), and of the loaded scene itself.
+    """SHA-256 of the scene file's bytes, of every file it references (meshes, environment maps), and of the loaded
+    scene itself.
 
-    The loaded content (camera, materials, every shape's placement, emission and mesh arrays) is hashed too, so a
-    scene changed in memory after loading (a suite's resolution or depth override, a test's edit) or a file edited
-    between loading and rendering can never be served another scene's entry.
+    The loaded content (camera, materials, every shape's placement, emission and mesh arrays, every emitter's
+    parameters and an environment map's pixels) is hashed too, so a scene changed in memory after loading (a
+    suite's resolution or depth override, a test's edit) or a file edited between loading and rendering can never
+    be served another scene's entry.
     """
     h = hashlib.sha256()
     try:
@@ -117,6 +194,10 @@ def scene_digest(scene: Scene) -> str:
             if shape.file is not None:
                 h.update(str(shape.file.name).encode())
                 h.update(Path(shape.file).read_bytes())
+        for emitter in scene.emitters:
+            if emitter.type == "envmap":
+                h.update(str(emitter.file.name).encode())
+                h.update(Path(emitter.file).read_bytes())
     except OSError as err:
         raise HarnessError(str(scene.path), f"cannot read for the ground-truth key: {err.strerror}") from None
     h.update(_loaded_content(scene))
@@ -136,7 +217,26 @@ def _loaded_content(scene: Scene) -> bytes:
         for array in (shape.mesh_vertices, shape.mesh_triangles):
             if array is not None:
                 parts.append(hashlib.sha256(np.ascontiguousarray(array).tobytes()).hexdigest())
+    for emitter in scene.emitters:
+        parts.append(_emitter_content(emitter))
     return "\n".join(parts).encode()
+
+
+def _emitter_content(emitter) -> str:
+    """Every field of an ``[[emitters]]`` entry but its index and name (which change no image): numbers as repr,
+    arrays by their bytes (an environment map's pixels by a SHA-256 of them, with their shape and type)."""
+    items = [emitter.type]
+    for field_ in fields(emitter):
+        if field_.name in ("index", "name"):
+            continue
+        value = getattr(emitter, field_.name)
+        if isinstance(value, np.ndarray):
+            array = np.ascontiguousarray(value)
+            value = (array.shape, str(array.dtype), hashlib.sha256(array.tobytes()).hexdigest())
+        elif isinstance(value, Path):
+            value = value.name
+        items.append(f"{field_.name}={value!r}")
+    return " ".join(items)
 
 
 def mitsuba_version() -> str:

@@ -411,6 +411,46 @@ def emitter_dict(shape) -> dict:
     return {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in shape.emission]}}
 
 
+def _rgb(values) -> dict:
+    return {"type": "rgb", "value": [float(x) for x in values]}
+
+
+def light_spec(emitter) -> dict:
+    """Mitsuba's plugin of an ``[[emitters]]`` entry (docs/mitsuba.md), in plain values: lists, floats, ``rgb``
+    dicts and, for ``to_world``, the 4x4 float64 array. An envmap's image is not in it: :func:`light_dict` adds a
+    ``bitmap``, the XML export a ``filename``."""
+    kind = emitter.type
+    if kind == "point":
+        return {"type": "point", "position": [float(x) for x in emitter.position],
+                "intensity": _rgb(emitter.intensity)}
+    if kind == "spot":
+        return {"type": "spot", "to_world": np.asarray(emitter.to_world, dtype=np.float64),
+                "intensity": _rgb(emitter.intensity), "cutoff_angle": float(emitter.cutoff_angle),
+                "beam_width": float(emitter.beam_width)}
+    if kind == "directional":
+        return {"type": "directional", "direction": [float(x) for x in emitter.direction],
+                "irradiance": _rgb(emitter.irradiance)}
+    if kind == "constant":
+        return {"type": "constant", "radiance": _rgb(emitter.radiance)}
+    if kind == "envmap":
+        return {"type": "envmap", "scale": float(emitter.scale),
+                "to_world": np.asarray(emitter.to_world, dtype=np.float64)}
+    raise ValueError(f"unknown emitter type {kind!r}")
+
+
+def light_dict(mi, emitter) -> dict:
+    """:func:`light_spec` for ``mi.load_dict``: ``to_world`` as a ``ScalarTransform4f``; an envmap's ``bitmap`` made
+    from the image already loaded (float32 linear RGB, row 0 = the map's top), so Mitsuba renders exactly the pixels
+    the scene holds (and the ground-truth key hashes)."""
+    spec = light_spec(emitter)
+    if "to_world" in spec:
+        spec["to_world"] = mi.ScalarTransform4f(spec["to_world"].tolist())
+    if emitter.type == "envmap":
+        # a writable copy: Mitsuba's binding refuses read-only arrays (the scene's image is read-only)
+        spec["bitmap"] = mi.Bitmap(np.array(emitter.image, dtype=np.float32, order="C"), mi.Bitmap.PixelFormat.RGB)
+    return spec
+
+
 def _mesh_object(mi, shape, material) -> object:
     """A ``mi.Mesh`` from the triangles already loaded (world space, wound to face the front side, flat normals)."""
     vertices, triangles = shape_triangles(shape)  # object_to_world applied; flip_normals by the winding
@@ -467,7 +507,7 @@ def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None =
 
     Shapes keep their type (analytic sphere) and placement matrix; meshes become ``mi.Mesh`` objects built from the
     arrays already loaded. Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i (each
-    object's id); the integrator is ``path`` with the scene's ``max_depth`` (or ``max_depth``) and ``rr_depth`` 5.
+    object's id), ``emitter_<k>`` for ``[[emitters]]`` entry k (:func:`light_dict`); the integrator is ``path`` with the scene's ``max_depth`` (or ``max_depth``) and ``rr_depth`` 5.
     """
     mi = import_mitsuba(variant)
     near, far = clip_planes(scene)
@@ -507,6 +547,8 @@ def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None =
         if shape.is_emitter:
             entry["emitter"] = emitter_dict(shape)
         out[key] = entry
+    for emitter in scene.emitters:
+        out[f"emitter_{emitter.index}"] = light_dict(mi, emitter)
     return out
 
 

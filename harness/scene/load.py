@@ -24,7 +24,20 @@ from reference_impl.errors import SettingsError
 from harness.core.errors import HarnessError, not_regular, read_user_bytes
 from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
 from harness.core.text import hint as suggestion  # `hint` is a local name here
-from harness.scene.model import SHAPE_TYPES, Material, Scene, Shape
+from harness.files.imageio import read_exr
+from harness.scene.model import (
+    EMITTER_TYPES,
+    SHAPE_TYPES,
+    ConstantEnvironment,
+    DirectionalLight,
+    Emitter,
+    EnvironmentMap,
+    Material,
+    PointLight,
+    Scene,
+    Shape,
+    SpotLight,
+)
 from harness.scene.triangulate import (
     object_to_world,
     rotate_matrix,
@@ -34,8 +47,9 @@ from harness.scene.triangulate import (
     triangle_areas,
 )
 
-TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes")
-CLOSED_FORMS = ("furnace",)
+TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
+                  "emitters")
+CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
 CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
@@ -48,6 +62,26 @@ ROTATE_KEYS = ("axis", "angle")
 # Keys that only make sense for one shape type.
 KEYS_OF_ONE_TYPE = {"file": "mesh", "center": "sphere", "radius": "sphere", "subdivisions": "sphere"}
 MESH_SUFFIXES = (".ply", ".obj")
+# [[emitters]]: the keys of each type (Mitsuba's parameter names), and all of them (for did-you-mean hints).
+EMITTER_KEYS_OF_TYPE = {
+    "point": ("name", "type", "position", "intensity"),
+    "spot": ("name", "type", "position", "target", "to_world", "intensity", "cutoff_angle", "beam_width"),
+    "directional": ("name", "type", "direction", "irradiance"),
+    "constant": ("name", "type", "radiance"),
+    "envmap": ("name", "type", "file", "scale", "to_world", "rotate"),
+}
+assert tuple(EMITTER_KEYS_OF_TYPE) == EMITTER_TYPES
+EMITTER_KEYS = tuple(dict.fromkeys(key for keys in EMITTER_KEYS_OF_TYPE.values() for key in keys))
+ENVIRONMENT_TYPES = ("constant", "envmap")  # Mitsuba takes one environment emitter per scene
+ENVMAP_SUFFIXES = (".exr",)
+DEFAULT_CUTOFF_ANGLE = 20.0  # degrees, Mitsuba's spot default
+BEAM_WIDTH_FRACTION = 0.75  # Mitsuba's spot default beam_width: 3/4 of cutoff_angle
+MAX_CUTOFF_ANGLE = 90.0
+# An environment map is held in memory as float32 RGB (12 B per pixel) and handed to Mitsuba (another copy and its
+# sampling tables): 8192 x 4096 (an "8K" lat-long map, 384 MiB as float32) at most.
+MAX_ENVMAP_PIXELS = 2**25
+MIN_ENVMAP_SIZE = (2, 3)  # width, height: Mitsuba pads smaller maps (repeating edges), which would move the texels
+ORTHONORMAL_TOLERANCE = 1e-5  # an envmap's to_world: |M^T M - I| at most this (entries typed with 6 digits pass)
 
 DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
 DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
@@ -70,8 +104,9 @@ ALLOW_OUTSIDE_ENV = "HARNESS_ALLOW_OUTSIDE_PATHS"
 def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> Scene:
     """Read and validate the scene file at ``path``; raise :class:`HarnessError` for anything wrong with it.
 
-    Mesh files are read here too (relative to the scene file's folder), so a returned :class:`Scene` always
-    triangulates. A file a scene names (a mesh) must resolve, after symlinks, inside the scene file's folder unless
+    Mesh and environment-map files are read here too (relative to the scene file's folder), so a returned
+    :class:`Scene` always triangulates and holds its maps' pixels. A file a scene names (a mesh, an envmap) must
+    resolve, after symlinks, inside the scene file's folder unless
     ``allow_outside_paths``; None (the default) takes it from the environment variable
     ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed), which the CLI's ``--allow-outside-paths`` sets, so that worker
     processes follow the command's choice.
@@ -283,10 +318,12 @@ class _SceneReader:
         max_depth = self.max_depth(document)
         materials = self.materials(document)
         shapes = self.shapes(document, materials)
+        emitters = self.emitters(document)
         closed_form = None
         if "closed_form" in document:
             closed_form = self.choice(document["closed_form"], "closed_form", CLOSED_FORMS)
-        return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form)
+        return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form,
+                     emitters=emitters)
 
     def camera(self, document: dict) -> Camera:
         table = self.required_table(document, "camera")
@@ -542,6 +579,174 @@ class _SceneReader:
                 raise self.error(placement_key, f"the area of light {shape.name!r} overflows")
             if area <= 0:
                 raise self.error(key, f"zero-area light {shape.name!r}: all of its triangles are degenerate")
+
+
+    # ---- emitters that are not shapes ----------------------------------------------------------------------------
+
+    def emitters(self, document: dict) -> tuple[Emitter, ...]:
+        entries = document.get("emitters", [])
+        if not isinstance(entries, list):
+            raise self.expected("emitters", "an array of tables ([[emitters]])", entries)
+        emitters: list[Emitter] = []
+        for index, entry in enumerate(entries):
+            emitter = self.emitter(index, entry)
+            for other in emitters:
+                if other.name == emitter.name:
+                    message = f"duplicate emitter name {emitter.name!r} (also emitters[{other.index}])"
+                    raise self.error(f"emitters[{index}].name", message)
+                if emitter.type in ENVIRONMENT_TYPES and other.type in ENVIRONMENT_TYPES:
+                    raise self.error(f"emitters[{index}].type", (
+                        f"a second environment emitter ({emitter.type!r}; emitters[{other.index}] is a {other.type!r}); "
+                        "expected at most one constant or envmap per scene, as in Mitsuba"))
+            emitters.append(emitter)
+        return tuple(emitters)
+
+    def emitter(self, index: int, entry: Any) -> Emitter:
+        key = f"emitters[{index}]"
+        table = self.table(entry, key)
+        self.check_keys(table, EMITTER_KEYS, key)
+        kind = self.choice(self.require(table, "type", key, "an emitter type"), f"{key}.type", EMITTER_TYPES)
+        for name in table:
+            if name not in EMITTER_KEYS_OF_TYPE[kind]:
+                owners = " or ".join(repr(t) for t, keys in EMITTER_KEYS_OF_TYPE.items() if name in keys)
+                message = f"key {name!r} applies only to emitters of type {owners}, not {kind!r}"
+                raise self.error(f"{key}.{name}", message)
+        name = self.string(table.get("name", f"emitter{index}"), f"{key}.name")
+        if kind == "point":
+            position = self.vector3(self.require(table, "position", key, "a point"), f"{key}.position")
+            return PointLight(index, name, position, self.colour(table, "intensity", key, "W/sr"))
+        if kind == "spot":
+            return self.spot(index, name, table, key)
+        if kind == "directional":
+            direction = self.direction(self.require(table, "direction", key, "the direction light travels"),
+                                       f"{key}.direction")
+            return DirectionalLight(index, name, direction, self.colour(table, "irradiance", key, "W/m^2"))
+        if kind == "constant":
+            return ConstantEnvironment(index, name, self.colour(table, "radiance", key, "W/(m^2 sr)"))
+        return self.envmap(index, name, table, key)
+
+    def colour(self, table: dict, name: str, key: str, unit: str) -> tuple[float, float, float]:
+        """A required [r, g, b] of an emitter: finite, >= 0, not all 0, at most MAX_EMISSION (as shapes' emission)."""
+        return self.emission(self.require(table, name, key, f"[r, g, b] in {unit}"), f"{key}.{name}")
+
+    def direction(self, value: Any, key: str) -> tuple[float, float, float]:
+        """A non-zero vector, normalised."""
+        what = "a list of 3 finite numbers, not all 0"
+        vector = np.array(self.vector3(value, key, what), dtype=np.float64)
+        with np.errstate(all="ignore"):
+            length = float(np.linalg.norm(vector))
+        if not (0.0 < length < math.inf):
+            raise self.expected(key, what, value)
+        return tuple(float(x) for x in vector / length)
+
+    def spot(self, index: int, name: str, table: dict, key: str) -> SpotLight:
+        if "to_world" in table:
+            given = [k for k in ("position", "target") if k in table]
+            if given:
+                raise self.error(f"{key}.to_world",
+                                 f"expected either to_world or position / target, not both (found {', '.join(given)})")
+            to_world = self.matrix4(table["to_world"], f"{key}.to_world")
+            if not _is_similarity(to_world[:3, :3]):
+                raise self.error(f"{key}.to_world", (
+                    "expected a rotation, a uniform scale and a translation (the spot's cone is the local +z axis; "
+                    "a non-uniform scale, a shear or a zero scale would distort or lose it)"))
+        else:
+            what = "a point, or give to_world"
+            position = self.vector3(self.require(table, "position", key, what), f"{key}.position")
+            target = self.vector3(self.require(table, "target", key, "a point the cone's axis passes through"),
+                                  f"{key}.target")
+            with np.errstate(all="ignore"):
+                axis = np.subtract(target, position)
+                length = float(np.linalg.norm(axis))
+            if not (0.0 < length < math.inf):
+                raise self.error(f"{key}.target", f"expected a point other than position (the cone's axis runs from "
+                                                  f"position to target), got {_show(table['target'])}")
+            to_world = frame_to_world(position, axis / length)
+        intensity = self.colour(table, "intensity", key, "W/sr")
+        what = f"an angle in degrees in (0, {MAX_CUTOFF_ANGLE:g}]"
+        cutoff = self.number(table.get("cutoff_angle", DEFAULT_CUTOFF_ANGLE), f"{key}.cutoff_angle", what)
+        if not 0.0 < cutoff <= MAX_CUTOFF_ANGLE:
+            raise self.expected(f"{key}.cutoff_angle", what, table["cutoff_angle"])
+        what = f"an angle in degrees in (0, cutoff_angle = {cutoff:g}]"
+        beam = self.number(table.get("beam_width", BEAM_WIDTH_FRACTION * cutoff), f"{key}.beam_width", what)
+        if not 0.0 < beam <= cutoff:
+            raise self.expected(f"{key}.beam_width", what, table["beam_width"])
+        return SpotLight(index, name, to_world, intensity, cutoff, beam)
+
+    def envmap(self, index: int, name: str, table: dict, key: str) -> EnvironmentMap:
+        file_key = f"{key}.file"
+        file_name = self.string(self.require(table, "file", key, "an OpenEXR lat-long image"), file_key)
+        if not file_name.lower().endswith(ENVMAP_SUFFIXES):
+            raise self.expected(file_key, "an .exr file name (OpenEXR, linear RGB)", file_name)
+        path = self.file_path(file_name, file_key, "envmap")
+        try:
+            image = read_exr(path, max_pixels=MAX_ENVMAP_PIXELS).image
+        except HarnessError as err:
+            raise self.error(file_key, f"envmap file {file_name!r}: {err.message}") from None
+        what = "a finite number > 0"
+        scale = self.number(table.get("scale", 1.0), f"{key}.scale", what)
+        if scale <= 0:
+            raise self.expected(f"{key}.scale", what, table["scale"])
+        self.check_envmap_pixels(image, file_name, file_key, scale, f"{key}.scale")
+        image.setflags(write=False)
+        if "to_world" in table:
+            if "rotate" in table:
+                raise self.error(f"{key}.to_world", "expected either to_world or rotate, not both")
+            to_world = self.matrix4(table["to_world"], f"{key}.to_world")
+            linear = to_world[:3, :3]
+            if np.any(to_world[:3, 3] != 0):
+                raise self.error(f"{key}.to_world", (
+                    "expected no translation (last column [0, 0, 0, 1]): an environment map is infinitely far, "
+                    "Mitsuba ignores it"))
+            with np.errstate(all="ignore"):
+                deviation = float(np.max(np.abs(linear.T @ linear - np.eye(3))))
+                determinant = float(np.linalg.det(linear)) if math.isfinite(deviation) else math.nan
+            if not (deviation <= ORTHONORMAL_TOLERANCE and determinant > 0):
+                raise self.error(f"{key}.to_world", (
+                    f"expected a rotation (orthonormal within {ORTHONORMAL_TOLERANCE:g}, determinant +1)"
+                    .replace("e-0", "e-") + ": Mitsuba maps directions with it without normalising them, so a "
+                    "scale or shear would move the map"))
+        else:
+            to_world = self.rotation(table.get("rotate", []), f"{key}.rotate")
+        return EnvironmentMap(index, name, path, image, to_world, scale)
+
+    def check_envmap_pixels(self, image: np.ndarray, name: str, key: str, scale: float, scale_key: str) -> None:
+        """Refuse maps too small for Mitsuba's mapping and pixels that are not finite radiances >= 0."""
+        height, width = image.shape[:2]
+        if width < MIN_ENVMAP_SIZE[0] or height < MIN_ENVMAP_SIZE[1]:
+            raise self.error(key, (
+                f"envmap file {name!r} is {width} x {height} pixels; expected at least {MIN_ENVMAP_SIZE[0]} x "
+                f"{MIN_ENVMAP_SIZE[1]} (Mitsuba pads smaller maps by repeating their edges)"))
+        bad = ~np.isfinite(image) | (image < 0)
+        if bad.any():
+            row, column, channel = (int(i) for i in np.argwhere(bad)[0])
+            value = float(image[row, column, channel])
+            count = int(bad.sum())
+            raise self.error(key, (
+                f"envmap file {name!r} has {count} bad value{'s' if count > 1 else ''}, the first at row {row}, "
+                f"column {column}: {'RGB'[channel]} = {_show(value)}; expected finite radiances >= 0"))
+        peak = float(image.max())
+        if peak == 0:
+            raise self.error(key, f"envmap file {name!r} is black (every pixel 0); expected some emission")
+        if peak * scale > MAX_EMISSION:
+            where = scale_key if scale != 1.0 else key
+            raise self.error(where, (
+                f"envmap file {name!r} times scale {scale:g} reaches {peak * scale:.3g}; expected radiances of at "
+                f"most {MAX_EMISSION:g}".replace("e+", "e")))
+
+
+def frame_to_world(origin, axis) -> np.ndarray:
+    """A 4x4 rigid transform whose local +z is the unit vector ``axis`` and whose origin is ``origin``; the other
+    two axes by Duff et al. (2017), Mitsuba's ``coordinate_system`` (any choice gives a spot light the same cone)."""
+    x, y, z = (float(v) for v in axis)
+    sign = math.copysign(1.0, z)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    s = np.array([1.0 + sign * x * x * a, sign * b, -sign * x])
+    t = np.array([b, sign + y * y * a, -y])
+    matrix = np.eye(4)
+    matrix[:3, 0], matrix[:3, 1], matrix[:3, 2], matrix[:3, 3] = s, t, (x, y, z), origin
+    return matrix + 0.0  # no -0.0 entries
 
 
 def obj_face_problem(data: bytes) -> str | None:

@@ -8,7 +8,9 @@ Two groups:
 
   - ``scale=s``: every shape and the camera's origin and target scaled by ``s`` about the origin
     (p' = s p); emitted radiance unchanged. A pinhole image depends on directions only, so it is the same image.
-  - ``translate=d``: everything moved by the vector d (1, 1, 1) / sqrt(3) (length d).
+    Point and spot lights move with the scene and their intensity is multiplied by s^2 (their irradiance falls as
+    1 / r^2); directional lights and environments, infinitely far, are unchanged.
+  - ``translate=d``: everything moved by the vector d (1, 1, 1) / sqrt(3) (length d), point and spot lights too.
   - ``sliver=a``: every non-emitting rectangle re-triangulated into a fan with sliver triangles of aspect ``a``
     (longest edge / shortest altitude); the surface, hence the image, is unchanged.
 
@@ -175,17 +177,29 @@ def _number(value: float) -> str:
 
 
 def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
-    """Every shape and the camera (origin, target) moved by the 4x4 similarity ``matrix`` (uniform positive scale,
-    translation); the camera's up vector and fov are unchanged, so the image is unchanged."""
+    """Every shape, point and spot light and the camera (origin, target) moved by the 4x4 similarity ``matrix``
+    (uniform positive scale s, translation), the lights' intensities times s^2; the camera's up vector and fov are
+    unchanged, so the image is unchanged."""
     matrix = np.asarray(matrix, dtype=np.float64)
     shapes = [dataclasses.replace(s, to_world=matrix @ s.to_world) for s in scene.shapes]
     cam = scene.camera
+    area = float(abs(np.linalg.det(matrix[:3, :3]))) ** (2.0 / 3.0)  # s^2
 
     def point(p):
         return tuple(float(x) for x in matrix[:3, :3] @ np.asarray(p, float) + matrix[:3, 3])
 
+    def moved(emitter):
+        if emitter.type == "point":
+            return dataclasses.replace(emitter, position=point(emitter.position),
+                                       intensity=tuple(float(i) * area for i in emitter.intensity))
+        if emitter.type == "spot":
+            return dataclasses.replace(emitter, to_world=matrix @ emitter.to_world,
+                                       intensity=tuple(float(i) * area for i in emitter.intensity))
+        return emitter  # directional, constant, envmap: infinitely far, unchanged by translation and scale
+
     camera = dataclasses.replace(cam, origin=point(cam.origin), target=point(cam.target))
-    return dataclasses.replace(scene, shapes=shapes, camera=camera)
+    return dataclasses.replace(scene, shapes=shapes, camera=camera,
+                               emitters=tuple(moved(e) for e in scene.emitters))
 
 
 def scaled(scene: Scene, factor: float) -> Scene:

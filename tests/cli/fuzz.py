@@ -5,8 +5,8 @@
     python tests/cli/fuzz.py --replay /tmp/fuzz/failures/render-00042 # one saved failing input again, in this process
     HARNESS_FUZZ=long pytest tests/cli/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
 
-Each input is a folder of files (a scene, a suite, a renderer file, a results.json, a baseline, EXR files, meshes)
-and one call: a command line for ``harness.cli.main`` or a loader (``load_scene``, ``load_suite``,
+Each input is a folder of files (a scene, a suite, a renderer file, a results.json, a baseline, EXR files, meshes,
+environment maps) and one call: a command line for ``harness.cli.main`` or a loader (``load_scene``, ``load_suite``,
 ``external.load_spec``). It runs in a child forked from this process, which has imported the harness and compiled
 the reference renderer's kernels once, so an input costs milliseconds, not the ~1 s of a fresh interpreter. The
 child works in the input's folder, its stdout and stderr go to files, its address space is capped
@@ -80,6 +80,7 @@ if __name__ == "__main__":
 import numpy as np  # noqa: E402
 
 from harness.files import imageio  # noqa: E402
+from harness.scene.sky import sky_image  # noqa: E402
 from tomltext import to_toml, without_none  # noqa: E402
 from harness.core.errors import HarnessError  # noqa: E402
 
@@ -315,6 +316,96 @@ to_world = [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, -1], [0, 0, 0, 1]]
         "garbage.ply": b"ply\nformat binary_little_endian 1.0\nelement vertex 1000\nproperty float x\nend_header\n\x00",
         "empty.obj": b"",
     }
+    LIGHTS = """\
+name = "lights"
+
+[camera]
+origin = [0, 1, 4]
+target = [0, 0, 0]
+up = [0, 1, 0]
+fov = 40
+
+[film]
+width = 16
+height = 16
+
+[integrator]
+max_depth = 3
+
+[materials.white]
+reflectance = [0.8, 0.8, 0.8]
+
+[[shapes]]
+name = "floor"
+type = "rectangle"
+material = "white"
+rotate = { axis = [1, 0, 0], angle = -90 }
+scale = 2
+
+[[emitters]]
+name = "bulb"
+type = "point"
+position = [0.5, 1, 0.5]
+intensity = [2, 2, 2]
+
+[[emitters]]
+name = "spot"
+type = "spot"
+position = [-0.5, 1.5, 0]
+target = [-0.5, 0, 0]
+intensity = [4, 4, 4]
+cutoff_angle = 25
+beam_width = 10
+
+[[emitters]]
+name = "sun"
+type = "directional"
+direction = [0.3, -1, 0.2]
+irradiance = [1, 1, 1]
+
+[[emitters]]
+name = "sky"
+type = "constant"
+radiance = [0.1, 0.2, 0.3]
+"""
+
+    SKY = """\
+name = "sky"
+
+[camera]
+origin = [0, 1, 4]
+target = [0, 0, 0]
+up = [0, 1, 0]
+fov = 40
+
+[film]
+width = 16
+height = 16
+
+[materials.white]
+reflectance = [0.8, 0.8, 0.8]
+
+[[shapes]]
+name = "ball"
+type = "sphere"
+material = "white"
+radius = 0.5
+subdivisions = 1
+
+[[emitters]]
+name = "map"
+type = "envmap"
+file = "sky.exr"
+scale = 0.5
+rotate = { axis = [0, 1, 0], angle = 30 }
+
+[[emitters]]
+name = "framed-spot"
+type = "spot"
+to_world = [[1, 0, 0, 0], [0, 0, -1, 1.5], [0, 1, 0, 0], [0, 0, 0, 1]]
+intensity = [3, 3, 3]
+"""
+
     RENDERER = """\
 name = "copy"
 description = "copies a fixed 16 x 16 EXR with variance channels"
@@ -342,6 +433,8 @@ repeats = 2
             doc["film"] = {**doc.get("film", {}), "width": 16, "height": 16}
             scenes[f"{name}.toml"] = to_toml(doc)
         scenes["tiny.toml"] = self.TINY
+        scenes["lights.toml"] = self.LIGHTS
+        scenes["sky.toml"] = self.SKY
         scenes["shapes.toml"] = self.TINY.replace('name = "tiny"', 'name = "shapes"') + self.EXTRA_SHAPES
         self.scene_names = sorted(scenes)
         for name, text in scenes.items():
@@ -349,6 +442,8 @@ repeats = 2
         self.texts["suite.toml"] = self.SUITE
         self.texts["renderer.toml"] = self.RENDERER
         self.blobs.update(self.MESHES)
+        self.envmaps = self.envmap_files()
+        self.blobs.update(self.envmaps)
         rng = np.random.default_rng(7)
         for name in ("good", "ref"):
             image = (1 + 0.1 * rng.standard_normal((16, 16, 3))).astype(np.float32)
@@ -393,21 +488,46 @@ repeats = 2
         self.run_files = {str(p.relative_to(folder / "run")): p.read_bytes() for p in (folder / "run").rglob("*")
                           if p.is_file() and p.name != "results.json"}
 
+    @staticmethod
+    def envmap_files() -> dict[str, bytes]:
+        """Environment maps: the sky (16 x 8) and maps the loader must refuse (a NaN, a negative value, black, too
+        small, not an EXR)."""
+        sky = sky_image(16, 8)
+        nan, negative = sky.copy(), sky.copy()
+        nan[3, 5, 1] = NAN
+        negative[2, 0, 2] = -1.0
+        return {"sky.exr": imageio.exr_bytes(sky), "nan-sky.exr": imageio.exr_bytes(nan),
+                "negative-sky.exr": imageio.exr_bytes(negative),
+                "black-sky.exr": imageio.exr_bytes(np.zeros((4, 8, 3), np.float32)),
+                "small-sky.exr": imageio.exr_bytes(np.ones((2, 8, 3), np.float32)),
+                "garbage.exr": b"v/1\x01" + bytes(range(256))}
+
     def scene_files(self) -> dict[str, bytes]:
-        """Every tiny scene and mesh (a scene's folder)."""
+        """Every tiny scene, mesh and environment map (a scene's folder)."""
         files = {name: self.texts[name].encode() for name in self.scene_names}
         files.update(self.MESHES)
+        files.update(self.envmaps)
         return files
 
 
 # ---------------------------------------------------------------------------------------------------------------
 # Scene documents
 
-SCENE_TABLES = {(): ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes"),
+SCENE_TABLES = {(): ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
+                     "emitters"),
                 ("camera",): ("origin", "target", "up", "fov", "fov_axis"), ("film",): ("width", "height", "filter"),
                 ("integrator",): ("max_depth",)}
 SHAPE_KEYS = ("name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
               "file", "center", "radius", "subdivisions")
+
+
+# [[emitters]]: every key of any type (a key of another type is refused too, but by type, not as unknown)
+EMITTER_KEYS = ("name", "type", "position", "intensity", "target", "to_world", "cutoff_angle", "beam_width",
+                "direction", "irradiance", "radiance", "file", "scale", "rotate")
+# The keys an entry of each type must have (a spot: position and target unless it has to_world).
+EMITTER_REQUIRED = {"point": ("type", "position", "intensity"), "spot": ("type", "intensity"),
+                    "directional": ("type", "direction", "irradiance"), "constant": ("type", "radiance"),
+                    "envmap": ("type", "file")}
 
 
 def scene_keys(path: tuple):
@@ -417,12 +537,15 @@ def scene_keys(path: tuple):
         return ("reflectance", "two_sided")
     if len(path) == 2 and path[0] == "shapes":
         return SHAPE_KEYS
-    if len(path) == 3 and path[0] == "shapes" and path[2] == "rotate":
+    if len(path) == 2 and path[0] == "emitters":
+        return EMITTER_KEYS
+    if len(path) == 3 and path[0] in ("shapes", "emitters") and path[2] == "rotate":
         return ("axis", "angle")
     return None
 
 
 BAD_VECTORS = [[NAN, 0, 0], [0, 0], "x", [INF, 0, 0], [0, 0, 0, 0], [True, 0, 0], ["0", 0, 0], [], 5]
+BAD_COLOURS = [[-1, 1, 1], [INF, 1, 1], [NAN, 1, 1], [1e308, 1, 1], [2e12, 0, 0], [0, 0, 0], [1, 1], "x", 5]
 BAD_MATRICES = [[[0] * 4] * 4, [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [1, 1, 1, 1]], [[1, 0, 0]],
                 [[NAN, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], "identity"]
 SCENE_BAD = {  # a value certainly refused at this key
@@ -447,13 +570,44 @@ SCENE_BAD = {  # a value certainly refused at this key
     ("sphere", "center"): BAD_VECTORS,
     ("mesh", "file"): ["missing.obj", "../outside.obj", "/etc/passwd", "nan.obj", "garbage.ply", "zero-index.obj",
                        "empty.obj", "tri.stl", "", ".", 5],
+    # [[emitters]]: any entry, then by type (docs/scene-format.md, "Errors of [[emitters]]")
+    ("emitter", "type"): ["laser", "", 1, "Point", "area", ["point"]],
+    ("emitter", "name"): [5, True, ["x"], {"a": 1}],
+    ("point", "position"): BAD_VECTORS, ("point", "intensity"): BAD_COLOURS,
+    ("spot", "position"): BAD_VECTORS, ("spot", "target"): BAD_VECTORS, ("spot", "intensity"): BAD_COLOURS,
+    ("spot", "cutoff_angle"): [0, -5, 90.5, 180, NAN, INF, "20", True, [20]],
+    ("spot", "beam_width"): [0, -1, 90.5, NAN, INF, "15", False],  # > 90 >= any cutoff_angle
+    ("spot", "to_world"): BAD_MATRICES + [[[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],  # squashed cone
+                                          [[1, 1, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]],  # sheared
+    ("directional", "direction"): BAD_VECTORS + [[0, 0, 0], [0.0, -0.0, 0]],
+    ("directional", "irradiance"): BAD_COLOURS,
+    ("constant", "radiance"): BAD_COLOURS,
+    ("envmap", "file"): ["missing.exr", "../outside.exr", "../outside-missing.exr", "/etc/passwd", "nan-sky.exr", "negative-sky.exr",
+                         "black-sky.exr", "small-sky.exr", "garbage.exr", "tri.obj", "sky.png", "", ".", 5, ["sky.exr"]],
+    ("envmap", "scale"): [0, -1, NAN, INF, "1", True, 1e300],  # 1e300: the map's peak times it beyond 1e12
+    ("envmap", "to_world"): BAD_MATRICES + [[[1, 0, 0, 1], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],  # translated
+                                            [[2, 0, 0, 0], [0, 2, 0, 0], [0, 0, 2, 0], [0, 0, 0, 1]],  # scaled
+                                            [[-1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]],  # mirrored
+    ("envmap", "rotate"): [{"axis": [0, 0, 0], "angle": 10}, {"axis": [1, 0, 0], "angle": NAN}, {"axis": [1, 0, 0]},
+                           {"angle": 10}, {"axis": [1, 0, 0], "angle": 10, "x": 1}, 5, [5]],
 }
+# Values that depend on the entry (certainly bad there): see _emitter_special.
+EMITTER_SPECIAL = ("target = position", "beam_width > cutoff_angle", "a duplicate name", "a second environment",
+                   "a key of another type")
 SCENE_VALID = {  # values that keep a scene valid
     ("camera", "fov"): [30, 45.5, 90, 1], ("camera", "fov_axis"): ["x", "y", "smaller", "larger"],
     ("film", "width"): [8, 16, 12], ("film", "height"): [8, 16, 1], ("film", "filter"): ["box", "tent", "gaussian"],
     ("integrator", "max_depth"): [1, 2, 3, -1], ("material", "two_sided"): [True, False],
     ("material", "reflectance"): [[0, 0, 0], [0.9, 0.9, 0.9], [0.5, 0.25, 0.125]],
     ("shape", "flip_normals"): [True, False], ("sphere", "subdivisions"): [0, 1, 2],
+    ("point", "position"): [[0, 0.001, 0], [-3, 2, 1e3]], ("point", "intensity"): [[1, 1, 1], [0, 0, 1e-3], [1e6] * 3],
+    ("spot", "intensity"): [[1, 0, 0], [1e11] * 3], ("spot", "cutoff_angle"): [10, 45, 90],  # >= every beam_width
+    ("spot", "beam_width"): [1, 5, 10],  # <= every cutoff_angle below
+    ("directional", "direction"): [[0, -1, 0], [1, -1e-9, 0], [3, -4, 0], [0, 1, 0]],
+    ("directional", "irradiance"): [[0.5, 0.5, 0.5]], ("constant", "radiance"): [[1, 1, 1], [0, 0, 1e-6]],
+    ("envmap", "scale"): [0.25, 1, 4.0], ("envmap", "file"): ["sky.exr"],
+    ("envmap", "rotate"): [{"axis": [0, 0, 2], "angle": -45}, [], [{"axis": [1, 0, 0], "angle": 90},
+                                                                 {"axis": [0, 1, 0], "angle": 10}]],
 }
 REQUIRED = {("camera",), ("film",), ("camera", "origin"), ("camera", "target"), ("camera", "up"), ("camera", "fov"),
             ("film", "width"), ("film", "height")}
@@ -475,7 +629,21 @@ def _scene_slots(doc: dict) -> list[tuple[tuple, tuple]]:
         slots += [(("shape", k), ("shapes", i, k)) for (t, k) in SCENE_BAD if t == "shape"]
         if shape.get("type") in ("sphere", "mesh"):
             slots += [((shape["type"], k), ("shapes", i, k)) for (t, k) in SCENE_BAD if t == shape["type"]]
+    for i, emitter in enumerate(_emitter_list(doc)):
+        if not isinstance(emitter, dict):
+            continue
+        slots += [(("emitter", k), ("emitters", i, k)) for (t, k) in SCENE_BAD if t == "emitter"]
+        kind = emitter.get("type")
+        # every bad value is refused whatever else the entry holds (a spot's position next to its to_world is refused
+        # for being both); valid values only where the entry has the key, so that no spot gets both
+        slots += [((kind, k), ("emitters", i, k)) for (t, k) in SCENE_BAD if t == kind]
+        slots += [((kind, k), ("emitters", i, k)) for (t, k) in SCENE_VALID if t == kind and (t, k) not in SCENE_BAD]
     return slots
+
+
+def _emitter_list(doc: dict) -> list:
+    emitters = doc.get("emitters")
+    return emitters if isinstance(emitters, list) else []
 
 
 def _set_path(doc, path, value) -> None:
@@ -484,8 +652,8 @@ def _set_path(doc, path, value) -> None:
 
 def scene_document(rng: random.Random, assets: Assets, base: str | None = None,
                    mutate: float = 1.0) -> tuple[str, list[str], bool, bool]:
-    """A scene file's text: (text, reasons it is bad, valid, names a mesh outside its folder). With probability
-    1 - ``mutate`` the scene is kept valid."""
+    """A scene file's text: (text, reasons it is bad, valid, names a mesh or envmap outside its folder). With
+    probability 1 - ``mutate`` the scene is kept valid."""
     base = base or rng.choice(assets.scene_names)
     text = assets.texts[base]
     roll = rng.random() if rng.random() < mutate else rng.random() * 0.22
@@ -498,14 +666,28 @@ def scene_document(rng: random.Random, assets: Assets, base: str | None = None,
             _set_path(doc, path, rng.choice(SCENE_VALID[slot]))
         return to_toml(doc), [], True, False
     if roll < 0.55:  # one certainly bad value
-        slot, path = rng.choice(_scene_slots(doc))
+        if _emitter_list(doc) and rng.random() < 0.15:
+            reason = _emitter_special(rng, doc)  # edits doc
+            return to_toml(doc), [reason], False, False
+        slot, path = rng.choice([(s, p) for s, p in _scene_slots(doc) if s in SCENE_BAD])
         value = rng.choice(SCENE_BAD[slot])
         if slot == ("camera", "target") and rng.random() < 0.3:
             value = doc["camera"].get("origin", value)
         _set_path(doc, path, value)
-        outside = slot == ("mesh", "file") and value in ("../outside.obj", "/etc/passwd")
+        outside = (slot == ("mesh", "file") and value in ("../outside.obj", "/etc/passwd")) or \
+            (slot == ("envmap", "file") and value == "../outside.exr")
         return to_toml(doc), [f"{'.'.join(map(str, path))} = {value!r}"], False, outside
     if roll < 0.62:  # a required key deleted, or a material a shape uses
+        emitters = [(i, e) for i, e in enumerate(_emitter_list(doc)) if isinstance(e, dict)
+                    and e.get("type") in EMITTER_REQUIRED]
+        if emitters and rng.random() < 0.3:
+            index, emitter = rng.choice(emitters)
+            required = EMITTER_REQUIRED[emitter["type"]]
+            if emitter["type"] == "spot" and "to_world" not in emitter:
+                required += ("position", "target")
+            key = rng.choice(required)
+            emitter.pop(key, None)
+            return to_toml(doc), [f"required emitters.{index}.{key} deleted"], False, False
         shapes = [s for s in doc.get("shapes", []) if isinstance(s, dict) and s.get("material") in doc.get("materials", {})]
         if shapes and rng.random() < 0.3:
             name = rng.choice(shapes)["material"]
@@ -520,6 +702,52 @@ def scene_document(rng: random.Random, assets: Assets, base: str | None = None,
         reasons = random_edits(rng, doc, scene_keys)
         return to_toml(without_none(doc)), reasons, False, False
     return text_edits(rng, text), [], False, False
+
+
+def _emitter_special(rng: random.Random, doc: dict) -> str:
+    """One edit of ``doc``'s [[emitters]] that is bad because of the rest of the entry or of the scene; returns why.
+    Always applicable: a key of another type (every type lacks some key) and a second environment (a constant when
+    the scene has one already, else a second constant)."""
+    emitters = _emitter_list(doc)
+    entries = [(i, e) for i, e in enumerate(emitters) if isinstance(e, dict) and e.get("type") in EMITTER_REQUIRED]
+    choices = ["a key of another type", "a second environment"]
+    spots = [(i, e) for i, e in entries if e["type"] == "spot"]
+    if any("position" in e for _, e in spots):
+        choices.append("target = position")
+    if spots:
+        choices.append("beam_width > cutoff_angle")
+    if len(entries) >= 2:
+        choices.append("a duplicate name")
+    what = rng.choice(choices)
+    if what == "target = position":
+        index, spot = rng.choice([(i, e) for i, e in spots if "position" in e])
+        spot["target"] = list(spot["position"])
+    elif what == "beam_width > cutoff_angle":
+        index, spot = rng.choice(spots)
+        cutoff = spot.get("cutoff_angle", 20)
+        spot["beam_width"] = cutoff + rng.choice((1e-6 * cutoff, 1, 30))
+    elif what == "a duplicate name":
+        (index, first), (_, second) = rng.sample(entries, 2)
+        name = first.get("name", f"emitter{index}")
+        second["name"] = name if isinstance(name, str) else "x"
+        first["name"] = second["name"]
+    elif what == "a second environment":
+        has = [e for e in emitters if isinstance(e, dict) and e.get("type") in ("constant", "envmap")]
+        emitters.insert(rng.randrange(len(emitters) + 1), {"type": "constant", "radiance": [1, 1, 1]})
+        if not has:
+            emitters.insert(rng.randrange(len(emitters) + 1), {"type": "constant", "radiance": [0.5, 0.5, 0.5]})
+        return f"{what} in [[emitters]]"
+    else:  # a key that applies only to other types than the entry's
+        index, entry = rng.choice(entries)
+        foreign = {"point": ("radiance", "file", "cutoff_angle", "direction"), "spot": ("radiance", "direction",
+                   "irradiance", "file", "scale", "rotate"), "directional": ("position", "intensity", "radiance",
+                   "file"), "constant": ("position", "intensity", "direction", "file", "rotate", "scale"),
+                   "envmap": ("position", "intensity", "radiance", "target", "direction")}[entry["type"]]
+        key = rng.choice(foreign)
+        entry[key] = {"file": "sky.exr", "rotate": {"axis": [0, 1, 0], "angle": 5}, "scale": 1.0,
+                      "cutoff_angle": 20}.get(key, [0.0, -1.0, 0.5])
+        return f"emitters.{index}.{key}: a key of another type than {entry['type']!r}"
+    return f"emitters.{index}: {what}"
 
 
 SPECIAL_FILES = {  # (content, certainly bad)
@@ -555,6 +783,7 @@ def add_scene(rng: random.Random, inp: Input, assets: Assets, name: str = "scene
     mesh outside). The input is marked bad or valid as the scene is."""
     inp.files.update(assets.scene_files())
     inp.copies["../outside.obj"] = "tri.obj"
+    inp.copies["../outside.exr"] = "sky.exr"
     if rng.random() < special:
         return special_file(rng, inp, name), False
     text, bad, valid, outside = scene_document(rng, assets, base, mutate)
@@ -669,7 +898,8 @@ def gen_load_scene(rng, assets, index) -> Input:
 
 def gen_render(rng, assets, index) -> Input:
     inp = cli_input("render", index, ["render"])
-    scene, outside = add_scene(rng, inp, assets, base=rng.choice(["tiny.toml", "shapes.toml", "furnace.toml", None]))
+    scene, outside = add_scene(rng, inp, assets, base=rng.choice(["tiny.toml", "shapes.toml", "furnace.toml",
+                                                                  "lights.toml", "sky.toml", None]))
     argv = [scene, *pick(rng, inp, "--spp", SPP_VALID, SPP_BAD, 0.15), *out_file(rng, inp, 0.1)]
     if rng.random() < 0.5:
         argv += pick(rng, inp, "--seed", SEED_VALID, SEED_BAD, 0.15)

@@ -7,21 +7,26 @@ from __future__ import annotations
 import json
 import math
 import os
+import random
 import signal
 import subprocess
 import sys
 import time
+import tomllib
+from collections import Counter
 from pathlib import Path
 
 import pytest
 from conftest import FUZZ_LONG, ROOT
 
 import fuzz
+from tomltext import to_toml
 from harness import cli
 from harness.running import baseline
 from harness.core.errors import HarnessError
 from harness.running.cases import load_suite
 from harness.running.executors import make_executor
+from harness.scene import load_scene
 
 FURNACE = ROOT / "scenes" / "furnace.toml"
 
@@ -112,6 +117,80 @@ def test_loader_inputs_are_reproducible_and_classified(tmp_path, light_assets):
     assert not any(r.outcome in ("crash", "hang") for r in records), [(r.inp.id, r.detail) for r in records]
     assert all(r.outcome == "pass" for r in records if r.inp.valid and not r.inp.bad), [
         (r.inp.id, r.detail) for r in records if r.inp.valid]
+
+
+def emitter_oracle_cases(assets: fuzz.Assets):
+    """Every [[emitters]] slot of the fuzzer's emitter scenes with every value its tables hold: (scene, path, value,
+    should load)."""
+    for base in ("lights.toml", "sky.toml"):
+        doc = tomllib.loads(assets.texts[base])
+        for slot, path in fuzz._scene_slots(doc):
+            if path[0] != "emitters":
+                continue
+            for value in fuzz.SCENE_BAD.get(slot, []):
+                yield base, path, value, False
+            for value in fuzz.SCENE_VALID.get(slot, []):
+                yield base, path, value, True
+
+
+def test_the_scene_oracle_knows_which_emitter_values_are_bad(tmp_path, light_assets):
+    """Each bad value of an [[emitters]] key is refused by the loader on one line naming the scene and each valid
+    one loads, in the scenes the fuzzer mutates; so are the edits that depend on the entry (a spot's target on its
+    position, a second environment, ...) and a required key deleted (the oracle's "silent" would be a false alarm
+    otherwise, or a real bad input would pass unnoticed)."""
+    for name, data in light_assets.scene_files().items():
+        (tmp_path / name).write_bytes(data)
+    (tmp_path / "scene.toml").write_text("")
+    checked = {True: 0, False: 0}
+    for base, path, value, good in emitter_oracle_cases(light_assets):
+        doc = tomllib.loads(light_assets.texts[base])
+        fuzz._set_path(doc, path, value)
+        (tmp_path / "scene.toml").write_text(to_toml(doc))
+        try:
+            load_scene(tmp_path / "scene.toml")
+            loaded = True
+        except HarnessError as err:
+            loaded = False
+            assert str(err).startswith(f"{tmp_path / 'scene.toml'}: emitters[{path[1]}]") and "\n" not in str(err)
+        assert loaded == good, (base, path, value)
+        checked[good] += 1
+    rng = random.Random(3)
+    for base in ("lights.toml", "sky.toml"):
+        for _ in range(24):  # the entry-dependent edits, every kind several times
+            doc = tomllib.loads(light_assets.texts[base])
+            reason = fuzz._emitter_special(rng, doc)
+            (tmp_path / "scene.toml").write_text(to_toml(doc))
+            with pytest.raises(HarnessError, match=r"emitters\["):
+                load_scene(tmp_path / "scene.toml")
+            checked[False] += 1
+            assert reason
+    assert checked[True] >= 20 and checked[False] >= 250, checked
+
+
+def test_scene_documents_with_emitters_are_marked_as_the_loader_finds_them(tmp_path, light_assets):
+    """Generated documents of the emitter scenes: every one marked bad is refused (nothing silent), every one built
+    from valid parts loads."""
+    for name, data in light_assets.scene_files().items():
+        (tmp_path / name).write_bytes(data)
+    (tmp_path.parent / "outside.exr").write_bytes(light_assets.envmaps["sky.exr"])
+    rng = random.Random(5)
+    outcomes = Counter()
+    for index in range(200):
+        text, bad, valid, outside = fuzz.scene_document(rng, light_assets, rng.choice(["lights.toml", "sky.toml"]))
+        path = tmp_path / "scene.toml"
+        path.write_text(text, encoding="utf-8", errors="surrogatepass")
+        try:
+            load_scene(path, allow_outside_paths=False)
+            loaded = True
+        except HarnessError as err:
+            loaded = False
+            assert "\n" not in str(err), err
+        if bad:
+            assert not loaded, (index, bad)
+        if valid:
+            assert loaded, (index, text)
+        outcomes["bad" if bad else "valid" if valid else "unknown", loaded] += 1
+    assert outcomes["bad", False] >= 60 and outcomes["valid", True] >= 20, outcomes
 
 
 def test_plan_shares_the_inputs_by_weight():

@@ -64,7 +64,9 @@ def test_canonical_scene_dicts_load(name):
     expected_area += sum(4 * math.pi * np.linalg.norm(object_to_world(s)[:3, 0]) ** 2 for s in spheres)
     area = sum(float(np.ravel(s.surface_area())[0]) for s in shapes)
     assert area == pytest.approx(expected_area, rel=1e-5)
-    assert len(loaded.emitters()) == len(scene.lights) and sum(s.is_emitter() for s in shapes) == len(scene.lights)
+    # one Mitsuba emitter per emitting shape and per [[emitters]] entry
+    assert len(loaded.emitters()) == len(scene.lights) + len(scene.emitters)
+    assert sum(s.is_emitter() for s in shapes) == len(scene.lights)
     sensor = loaded.sensors()[0]
     film = sensor.film()
     assert list(film.size()) == [scene.film.width, scene.film.height]

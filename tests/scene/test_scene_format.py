@@ -23,7 +23,7 @@ from harness.scene.triangulate import rotate_matrix, shape_triangles
 
 REPO = Path(__file__).resolve().parents[2]
 SCENES = REPO / "scenes"
-CANONICAL = ["cornell-box", "furnace", "soft-shadows", "multi-light"]
+CANONICAL = sorted(p.stem for p in SCENES.glob("*.toml"))  # every scene in scenes/
 
 # A small valid scene that tests extend with extra shapes or override with replacements.
 MINIMAL = MINIMAL_SCENE
@@ -48,6 +48,17 @@ def doc_example() -> str:
     """The example scene of docs/scene-format.md (it uses every shape type; its mesh is meshes/bunny.ply)."""
     text = (REPO / "docs" / "scene-format.md").read_text()
     return re.search(r"## Example\s+```toml\n(.*?)```", text, re.S).group(1)
+
+
+def doc_emitters_example() -> str:
+    """The example of the "Emitters" section of docs/scene-format.md (its map is textures/sky.exr)."""
+    text = (REPO / "docs" / "scene-format.md").read_text()
+    return re.search(r"### Example with emitters\s+```toml\n(.*?)```", text, re.S).group(1)
+
+
+def copy_sky(folder: Path) -> None:
+    (folder / "textures").mkdir(parents=True, exist_ok=True)
+    (folder / "textures" / "sky.exr").write_bytes((SCENES / "textures" / "sky.exr").read_bytes())
 
 
 def front_normals(scene: Scene, index: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -83,7 +94,7 @@ def test_canonical_scene_loads_and_triangulates(name):
     assert scene.film.filter == "box"
     assert len(geometry.triangles) > 0
     assert np.all(geometry.area > 0), "canonical scenes have no degenerate triangles"
-    assert geometry.num_lights == len(scene.lights) >= 1
+    assert geometry.num_lights == len(scene.lights) and len(scene.lights) + len(scene.emitters) >= 1
     for shape in scene.shapes:
         assert scene.materials[shape.material].two_sided is False  # everything one-sided, as in Mitsuba's diffuse
 
@@ -362,6 +373,14 @@ def test_doc_example_loads(tmp_path):
     assert triangulate(scene).num_lights == 1
 
 
+def test_doc_emitters_example_loads(tmp_path):
+    copy_sky(tmp_path)
+    scene = load_text(tmp_path, doc_emitters_example())
+    assert [e.type for e in scene.emitters] == ["point", "spot", "directional", "envmap"]
+    assert scene.emitters[0].name == "bulb" and scene.emitters[1].beam_width == 18.75
+    assert scene.emitters[3].image.shape == (64, 128, 3) and scene.lights == []
+
+
 # --------------------------------------------------------------------------------------------------------------------
 # Errors: each names the file and the key path
 
@@ -544,9 +563,11 @@ def test_missing_camera_table(tmp_path):
 
 KEY_NAMES = ["name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
              "file", "center", "radius", "subdivisions", "axis", "angle", "reflectance", "two_sided", "width",
-             "height", "filter", "max_depth", "origin", "target", "up", "fov", "fov_axis"]  # fmt: skip
+             "height", "filter", "max_depth", "origin", "target", "up", "fov", "fov_axis", "emitters", "position",
+             "intensity", "cutoff_angle", "beam_width", "direction", "irradiance", "radiance"]  # fmt: skip
 WORDS = ["box", "tent", "gaussian", "x", "y", "smaller", "larger", "white", "red", "rectangle", "cube", "sphere",
-         "mesh", "m.obj", "m.ply", ""]  # fmt: skip
+         "mesh", "m.obj", "m.ply", "", "point", "spot", "directional", "constant", "envmap", "textures/sky.exr",
+         "m.exr"]  # fmt: skip
 
 short_text = st.text(st.characters(exclude_categories=["Cs"]), max_size=6)  # no lone surrogates: TOML refuses them
 scalars = st.one_of(
@@ -617,13 +638,15 @@ def load_or_harness_error(path: Path) -> None:
         assert len(text.splitlines()) == 1 and text.startswith(f"{path}: "), text
 
 
-FUZZ_SEEDS = {name: (SCENES / f"{name}.toml").read_text() for name in CANONICAL} | {"doc-example": doc_example()}
+FUZZ_SEEDS = {name: (SCENES / f"{name}.toml").read_text() for name in CANONICAL} | {"doc-example": doc_example(),
+                                                                                    "doc-emitters": doc_emitters_example()}
 
 
 @pytest.fixture(scope="module")
 def fuzz_folder(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("fuzz")
     write_tetrahedron(folder / "meshes" / "bunny.ply")
+    copy_sky(folder)
     return folder
 
 
