@@ -1,10 +1,10 @@
 """Planted faults: deliberately wrong variants of the integrator, selectable by name (``--set mutant=NAME``).
 
-``MUTANTS`` are the faults of the integrator and its area lights, each run by the canonical suite
-(``suites/canonical.toml``); ``EMITTER_MUTANTS`` are the faults of the emitters that are not surfaces (point, spot,
-directional, environments), caught by ``tests/reference_impl/test_emitters.py`` on scenes built in the test until
-scene files with ``[[emitters]]`` give the canonical suite cases for them too. ``ALL_MUTANTS`` is what
-``Settings.mutant`` accepts.
+``MUTANTS`` are the faults of the integrator and its area lights, ``EMITTER_MUTANTS`` those of the emitters that
+are not surfaces (point, spot, directional, environments); each is run by the canonical suite
+(``suites/canonical.toml``) on a scene where it matters, and the emitters' also by
+``tests/reference_impl/test_emitters.py`` on scenes built in the test. ``ALL_MUTANTS`` is what ``Settings.mutant``
+accepts.
 
 They exist so that tests and the harness's verdict can prove that they catch real mistakes: a verdict that passes
 one of these at its default budget is not sharp enough. None runs by default. "energy-loss-2pct" lives in

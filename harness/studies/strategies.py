@@ -32,8 +32,12 @@ STRATEGIES: dict[str, tuple[str, ...]] = {
     "light_selection": ("power", "uniform"),
     "hemisphere": ("cosine", "uniform"),
     "rr": ("albedo", "fixed", "off"),
+    "env_sampling": ("importance", "uniform", "cosine"),  # rows only on scenes with an environment
 }
-FALLBACK_DEFAULTS = {"direct": "area", "light_selection": "power", "hemisphere": "cosine", "rr": "albedo"}
+FALLBACK_DEFAULTS = {"direct": "area", "light_selection": "power", "hemisphere": "cosine", "rr": "albedo",
+                     "env_sampling": "importance"}
+#: strategy keys that change nothing on a scene without an environment (constant or envmap emitter)
+ENVIRONMENT_KEYS = ("env_sampling",)
 #: settings that only parameterise a strategy (they may accompany it in a case)
 STRATEGY_PARAMETERS = ("absorption", "rr_depth")
 DEFAULT_STRATEGY_SPP = 16
@@ -174,12 +178,20 @@ def mean_variance(variance: np.ndarray | None) -> float | None:
     return float(v.mean()) if v.size else None
 
 
+def strategy_choices(defaults: dict[str, str], environment: bool) -> list[tuple[str, str]]:
+    """Every (key, value) of :data:`STRATEGIES` but the defaults: the rows of a strategy table besides "default"
+    (the environment's keys only where the scene has an environment)."""
+    return [(k, v) for k, values in STRATEGIES.items() for v in values
+            if v != defaults.get(k) and (environment or k not in ENVIRONMENT_KEYS)]
+
+
 def strategy_label(key: str, value: str) -> str:
     return f"{key}={value}"
 
 
 def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict[str, str]], dict] | None,
-                  bounded: bool, defaults: dict[str, str], retime: Callable[[dict], dict] | None = None) -> dict:
+                  bounded: bool, defaults: dict[str, str], retime: Callable[[dict], dict] | None = None,
+                  environment: bool = False) -> dict:
     """Assemble a scene's strategy table.
 
     ``case_rows``: measurements from the suite's cases of this scene, each {"case", "settings", "mse", "floor_mse",
@@ -187,6 +199,7 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     ``render(settings)`` measures a strategy no case covers (same keys, no "case"); None: leave it out.
     ``bounded``: the scene's max_depth is finite (rr=off allowed). ``retime(row)``: the case row chosen for a
     strategy with its time measured again under the report's conditions (see :func:`time_per_path`).
+    ``environment``: the scene has a constant or envmap emitter (the :data:`ENVIRONMENT_KEYS` rows apply).
     """
     by_strategy: dict[Any, dict] = {}
     for row in case_rows:
@@ -196,8 +209,7 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
         current = by_strategy.get(kind)
         if current is None or len(row["settings"]) < len(current["settings"]):
             by_strategy[kind] = row
-    wanted: list[Any] = ["default"] + [(k, v) for k, values in STRATEGIES.items() for v in values
-                                       if v != defaults.get(k)]
+    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment)]
     rows = []
     for kind in wanted:
         label = "default" if kind == "default" else strategy_label(*kind)

@@ -336,11 +336,13 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
             return dict(row, case_seconds=row["seconds"], seconds=per_path * row["pixels"] * row["spp"],
                         timing=f"measured again by the studies ({spp} spp, warm), scaled to the case's spp and film")
 
-        wanted = 1 + sum(len(v) - 1 for v in studies.STRATEGIES.values())
+        environment = any(e.type in ("constant", "envmap") for e in base.scene.emitters)
+        wanted = 1 + len(studies.strategy_choices(defaults, environment))
         progress.add(wanted if options.render_strategies else 0)
         try:
             table = studies.strategy_rows(Path(key).stem, case_rows, render if options.render_strategies else None,
-                                          bounded, defaults, retime=retime if options.render_strategies else None)
+                                          bounded, defaults, retime=retime if options.render_strategies else None,
+                                          environment=environment)
             plot = f"strategies/{slug(Path(key).stem)}.png"
             _write_bytes(out / plot, figures.strategies_figure(
                 table["rows"], title=f"{Path(key).stem}: efficiency relative to default"))

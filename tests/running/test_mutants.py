@@ -10,7 +10,7 @@ from conftest import ROOT
 
 from harness.running.cases import load_suite
 from harness.running.judge import run_case
-from reference_impl.mutants import MUTANTS
+from reference_impl.mutants import ALL_MUTANTS
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
@@ -19,7 +19,7 @@ MUTANT_CASES = {c.settings["mutant"]: c for c in CANONICAL.cases if "mutant" in 
 
 
 def test_every_mutant_has_a_canonical_case():
-    assert set(MUTANT_CASES) == set(MUTANTS)
+    assert set(MUTANT_CASES) == set(ALL_MUTANTS)
     assert all(case.expect == "fail" for case in MUTANT_CASES.values())
 
 
@@ -28,7 +28,7 @@ def cache_dir(tmp_path_factory):
     return tmp_path_factory.mktemp("gt-cache")
 
 
-@pytest.mark.parametrize("mutant", sorted(MUTANTS))
+@pytest.mark.parametrize("mutant", sorted(ALL_MUTANTS))
 def test_mutant_is_caught_at_the_suite_budget(mutant, cache_dir, tmp_path):
     case = MUTANT_CASES[mutant]
     record = run_case(case, tmp_path, cache_dir=cache_dir)

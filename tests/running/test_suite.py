@@ -13,6 +13,7 @@ from conftest import ROOT
 from harness.core.errors import HarnessError
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
+from reference_impl.mutants import ALL_MUTANTS
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
@@ -41,22 +42,24 @@ def test_repository_suites_load():
     assert len(smoke.cases) >= 5
     names = {c.scene.stem for c in canonical.cases}
     reference_scenes = {c.scene.stem for c in canonical.cases if c.renderer == "reference"}
-    assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"}
-    # The white furnaces: Mitsuba against their closed form (the reference has no constant environment yet).
-    assert names == reference_scenes | {"white-furnace", "white-furnace-albedo-1"}
-    # Every strategy of the reference appears on every scene it renders.
-    for scene in reference_scenes:
+    emitter_scenes = {"white-furnace", "white-furnace-albedo-1", "point-spot", "sun-sky", "envmap"}
+    assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes
+    assert names == reference_scenes
+    # Every strategy of the reference appears on every scene it renders (white-furnace-albedo-1: its rho = 1 cases).
+    for scene in reference_scenes - {"white-furnace-albedo-1"}:
         settings = [c.settings for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"]
         seen = {(k, v) for s in settings for k, v in s.items()}
         for pair in [("direct", "hemisphere-cosine"), ("direct", "hemisphere-uniform"), ("direct", "global-area"),
                      ("direct", "mis"), ("light_selection", "uniform"), ("hemisphere", "uniform"), ("rr", "fixed"),
                      ("rr", "off")]:
-            assert pair in seen, (scene, pair)
+            one_light = scene in {"furnace", "white-furnace", "envmap"}  # uniform selection = selection by power
+            assert pair in seen or (one_light and pair == ("light_selection", "uniform")), (scene, pair)
+    for scene in emitter_scenes - {"white-furnace-albedo-1"}:
+        seen = {c.settings.get("env_sampling") for c in canonical.cases if c.scene.stem == scene}
+        assert scene in {"point-spot"} or {"uniform", "cosine"} <= seen, (scene, seen)
     # Every planted fault is a case the verdict must fail.
-    from reference_impl.mutants import MUTANTS
-
     mutant_cases = {c.settings.get("mutant") for c in canonical.cases if c.expect == "fail"}
-    assert set(MUTANTS) <= mutant_cases
+    assert set(ALL_MUTANTS) <= mutant_cases
 
 
 @pytest.mark.parametrize("body,where", [
