@@ -40,6 +40,11 @@ SUN_RADIANCE = np.array([3000.0, 2850.0, 2550.0])
 SUPERSAMPLES = 8  # per pixel side: the sun's edge pixels hold the disk's coverage of their footprint
 
 DEFAULT_OUT = Path(__file__).resolve().parents[2] / "scenes" / "textures" / "sky.exr"
+#: The stress suite's map of one bright texel (scenes/stress/envmap-spike.toml; :func:`spike_image`).
+SPIKE_OUT = Path(__file__).resolve().parents[2] / "scenes" / "stress" / "textures" / "spike.exr"
+SPIKE_SHAPE = (16, 32)  # height, width
+SPIKE_TEXEL = (5, 9)  # row, column: 60 degrees from +y (v = 5 / 15), azimuth u = 9.5 / 32
+SPIKE_RATIO = 1e6
 
 
 def map_direction(u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -89,6 +94,20 @@ def sky_image(width: int = WIDTH, height: int = HEIGHT) -> np.ndarray:
 def write_sky(path: str | Path = DEFAULT_OUT, width: int = WIDTH, height: int = HEIGHT) -> Path:
     """Write :func:`sky_image` as an OpenEXR file (float32 RGB, atomically); returns the path."""
     return write_exr(path, sky_image(width, height), metadata={"harness.scene.sky": f"{width}x{height}"})
+
+
+def spike_image(height: int = SPIKE_SHAPE[0], width: int = SPIKE_SHAPE[1], texel: tuple[int, int] = SPIKE_TEXEL,
+                ratio: float = SPIKE_RATIO) -> np.ndarray:
+    """A (height, width, 3) float32 map of radiance 1 everywhere but one texel of radiance ``ratio`` (the stress
+    suite's numerical limit of an environment map, docs/stress.md)."""
+    image = np.ones((height, width, 3), np.float32)
+    image[texel] = ratio
+    return image
+
+
+def write_spike(path: str | Path = SPIKE_OUT) -> Path:
+    """Write :func:`spike_image` as an OpenEXR file (float32 RGB, atomically); returns the path."""
+    return write_exr(path, spike_image(), metadata={"harness.scene.sky": "spike"})
 
 
 def main(argv: list[str] | None = None) -> int:
