@@ -71,6 +71,7 @@ def light_assets(tmp_path_factory) -> fuzz.Assets:
     return assets
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_verdicts_on_planted_outcomes(tmp_path, light_assets, monkeypatch):
     """Each outcome is told apart, including a bad input accepted (silent) and a hang (killed in time)."""
     monkeypatch.setattr(cli, "main", planted_main)
@@ -102,6 +103,7 @@ def test_a_saved_failure_replays(tmp_path, light_assets, monkeypatch, capsys):
         fuzz.main(["--replay", str(folder)])
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_loader_inputs_are_reproducible_and_classified(tmp_path, light_assets):
     """A few real inputs of the loaders (no renders): the same seed makes the same inputs, each ends in an
     outcome, loaders never hang or crash, and inputs made of valid parts load."""
@@ -133,6 +135,7 @@ def emitter_oracle_cases(assets: fuzz.Assets):
                 yield base, path, value, True
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_the_scene_oracle_knows_which_emitter_values_are_bad(tmp_path, light_assets):
     """Each bad value of an [[emitters]] key is refused by the loader on one line naming the scene and each valid
     one loads, in the scenes the fuzzer mutates; so are the edits that depend on the entry (a spot's target on its
@@ -167,6 +170,7 @@ def test_the_scene_oracle_knows_which_emitter_values_are_bad(tmp_path, light_ass
     assert checked[True] >= 20 and checked[False] >= 250, checked
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_scene_documents_with_emitters_are_marked_as_the_loader_finds_them(tmp_path, light_assets):
     """Generated documents of the emitter scenes: every one marked bad is refused (nothing silent), every one built
     from valid parts loads."""

@@ -47,6 +47,7 @@ def folder(tmp_path) -> Path:
 # ---- 1. render: the EXR and its preview, both or neither ----------------------------------------------------------
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_render_whose_preview_cannot_be_written_leaves_no_exr(folder, disk, capfd):  # noqa: F811
     out = folder / "out"
     out.mkdir()

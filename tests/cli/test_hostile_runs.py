@@ -258,6 +258,7 @@ def test_slug_never_leaves_its_folder():
     assert slug("...") == "..."
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_repository_suites_have_distinct_case_folders():
     root = Path(__file__).resolve().parents[2]
     for path in sorted((root / "suites").glob("*.toml")):
@@ -315,6 +316,7 @@ def test_lock_of_a_killed_process_blocks_nothing(holder):
     assert not (out / ".lock").exists()  # removed by its holder at the end
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_lock_is_exclusive_between_processes(tmp_path):
     """While this process holds the lock, a second process's run into the folder stops at once, naming us."""
     out = tmp_path / "out"

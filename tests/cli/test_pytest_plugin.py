@@ -14,6 +14,8 @@ import re
 from importlib.metadata import entry_points
 from pathlib import Path
 
+import pytest
+
 from conftest import ROOT
 
 pytest_plugins = ["pytester"]
@@ -59,6 +61,7 @@ def test_entry_point_registered():
     assert any(ep.value == "harness.pytest_plugin" for ep in entry_points(group="pytest11"))
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_render_check_passes_and_fails(pytester):
     pytester.makepyfile(test_render=TESTS)
     cache = pytester.path / "cache"

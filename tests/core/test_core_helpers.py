@@ -32,6 +32,7 @@ def test_hint_short_and_toml_key():
     assert toml_key("relmse") == "relmse" and toml_key("a b") == '"a b"' and toml_key("a\nb") == '"a\\nb"'
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_one_did_you_mean_in_the_harness():
     """difflib (the did-you-mean) is imported by core/text.py alone (reference_impl, below core, has its own)."""
     users = []

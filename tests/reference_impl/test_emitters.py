@@ -231,6 +231,7 @@ def test_envmap_seen_directly_against_an_independent_render():
     assert not _verdict(mirrored, truth.image, truth.variance, label="envmap in view, envmap-mirrored-u").passed
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_envmap_orientation_and_interpolation_are_mitsubas():
     """Mitsuba 3 renders the map seen directly (max_depth 1, no geometry) as the closed form of emitters.py's mapping
     and bilinear lookup integrated over each pixel; the map mirrored in u is rejected by the same verdict."""

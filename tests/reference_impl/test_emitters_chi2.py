@@ -34,6 +34,8 @@ from reference_impl import emitters as em
 from reference_impl.geometry import Geometry
 from reference_impl.lights import LightSampler
 
+pytestmark = pytest.mark.slow  # 10^6 samples a test: outside the inner loop (pytest -m "not slow")
+
 N = 1_000_000
 FAMILY = 9
 ALPHA = sidak_alpha(FAMILY)

@@ -82,6 +82,7 @@ def test_discrete_sampling_matches_searchsorted():
     np.testing.assert_array_equal([k_warps.sample_discrete(cdf, x) for x in u], sampling.sample_discrete(cdf, u))
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 @pytest.mark.parametrize("selection", ["power", "uniform"])
 def test_light_points_match_light_sampler(selection):
     lights = chi2_cases.four_lights()
@@ -99,6 +100,7 @@ def test_light_points_match_light_sampler(selection):
     np.testing.assert_array_equal(sampler.pmf[light] / sampler.area[light], points.pdf_area)  # the kernel's pdf
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_surface_points_match_triangle_area_sampler():
     geometry, _ = chi2_cases.light_geometry(chi2_cases.four_lights())
     sampler = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
@@ -109,6 +111,7 @@ def test_surface_points_match_triangle_area_sampler():
     np.testing.assert_array_equal(np.array([g[1:] for g in got]), points.position)
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 @pytest.mark.parametrize("selection", ["power", "uniform"])
 def test_sample_reuse_matches_split_uniform(selection):
     """The stratified sampler's reuse of one uniform for light, triangle and point (and for triangle and point in

@@ -189,6 +189,7 @@ def _seed_spread(scene, seeds: int, **settings):
     return stack.mean(axis=0), stack.var(axis=0, ddof=1), np.mean(reported, axis=0)
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 @pytest.mark.parametrize("settings", [{"max_depth": 3}, {"max_depth": 4, "indirect_rays": 3, "shadow_rays": 2}],
                          ids=["depth-3", "depth-4-Ni3-Nd2"])
 def test_sobol_renders_are_unbiased_on_the_furnace(settings):

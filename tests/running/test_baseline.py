@@ -63,6 +63,7 @@ def _entry(image, variance, reference) -> dict:
             "render": {"seconds": 1.0, "paths_per_second": 1.0}}
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_noise_rules_false_alarm_rate_is_at_most_alpha():
     """Two independent renders of the same quality: the case's checks (rmse, relmse, mape, bias; Bonferroni) flag a
     regression with probability <= alpha. With alpha = 0.05 over n = 400 seeded trials, the count of false alarms
@@ -132,6 +133,7 @@ def saved(tmp_path, capsys):
     return suite, tmp_path / "base.json"
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_save_then_gate(tmp_path, capsys, saved):
     suite, base = saved
     doc = json.loads(base.read_text())

@@ -650,6 +650,7 @@ def fuzz_folder(tmp_path_factory) -> Path:
     return folder
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 @settings(max_examples=fuzz_examples(300), deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data(), seed=st.sampled_from(sorted(FUZZ_SEEDS)))
 def test_fuzz_mutated_documents(fuzz_folder, data, seed):

@@ -31,6 +31,7 @@ def _limit_cases():
     return [c for c in suite.cases if c.scene.resolve().parent == STRESS_SCENES.resolve()]
 
 
+@pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
 def test_the_suite_has_each_limit_under_the_default_strategy_and_mis():
     seen = {(c.scene.stem, c.settings.get("direct", "default")) for c in _limit_cases()}
     assert seen == {(name, direct) for name in LIMITS for direct in ("default", "mis")}
