@@ -48,6 +48,7 @@ from scipy import stats
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError, read_user_text
+from harness.core.text import short
 from harness.files.imageio import atomic_write_text, read_exr
 from harness.files.results import read_results
 from harness.judges.metrics import MAPE_EPS, RELMSE_EPS
@@ -211,6 +212,11 @@ def load(path: str | Path) -> dict:
                            "save a new one")
     if not isinstance(doc.get("cases"), dict) or not isinstance(doc.get("suite"), str):
         raise HarnessError(label, "not a baseline file: expected \"suite\" and a \"cases\" table")
+    for key, kind, what in (("tools", dict, "a table of tool versions"), ("created", str, "a time stamp"),
+                            ("source", str, "a text")):
+        if key in doc and not isinstance(doc[key], kind):
+            raise HarnessError(label, f"not a baseline file: {key}: expected {what}, got {short(doc[key])}; "
+                               "save the baseline again")
     for name, entry in doc["cases"].items():
         problem = _entry_problem(entry)
         if problem:

@@ -381,6 +381,18 @@ def test_damaged_baseline_files_are_refused_when_loaded(tmp_path, entry, fragmen
     assert str(err.value).startswith(f"{path}: not a baseline file: {fragment}") and "\n" not in str(err.value)
 
 
+@pytest.mark.parametrize("key,value", [("tools", None), ("tools", [1]), ("created", 5), ("source", {})])
+def test_a_baseline_whose_header_is_damaged_is_refused_when_loaded(tmp_path, key, value):
+    """``"tools": null`` loaded, then ``run --baseline`` ended in AttributeError: 'NoneType' object has no attribute
+    'get' after every case had run (found by the fuzzer, seed 2)."""
+    path = baseline_file(tmp_path, lambda e: e)
+    doc = json.loads(path.read_text())
+    path.write_text(json.dumps({**doc, key: value}))
+    with pytest.raises(HarnessError) as err:
+        baseline.load(path)
+    assert str(err.value).startswith(f"{path}: not a baseline file: {key}: expected ")
+
+
 def test_deeply_nested_baseline_and_results_files_are_one_line(tmp_path, capfd):
     """json.loads raises RecursionError (not a JSONDecodeError) on absurd nesting: it was a traceback."""
     deep = tmp_path / "deep.json"
