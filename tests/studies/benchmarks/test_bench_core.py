@@ -76,7 +76,7 @@ def _run_bounce_kernel(c, radiance, counters):
     hits, _, rays = ws.direct(N_RAYS)
     return wavefront.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
                             ctx.bounce_config(1), radiance, counters, hits, rays, ws.state(1, N_RAYS),
-                            c["film_samples"])
+                            c["film_samples"], ctx.emitter_tables, ws.complement_rays())
 
 
 @pytest.mark.benchmark(group="primary rays")
@@ -97,7 +97,7 @@ def test_primary_rays_embree_closest_hit(benchmark, cornell):
 @pytest.mark.benchmark(group="shadow rays")
 def test_shadow_rays_embree_occluded(benchmark, cornell):
     radiance = np.zeros((N_RAYS, 3))
-    _, s, _ = _run_bounce_kernel(cornell, radiance, _counters())
+    _, s, *_ = _run_bounce_kernel(cornell, radiance, _counters())  # (hemisphere?, shadow rays, next rays, complement rays)
     owner, o32, d32, tfar, *_ = cornell["ws"].direct(N_RAYS)[2]
     o32, d32, tfar = o32[:s].copy(), d32[:s].copy(), tfar[:s].copy()
     benchmark(cornell["ctx"].intersector.occluders, o32, d32, tfar)
