@@ -243,6 +243,8 @@ def make_folders(path: str | os.PathLike[str], where: str | None = None) -> list
     probe = path
     while not probe.is_dir():
         if probe.exists() or probe.is_symlink():
+            if probe.is_dir():  # made by another process between the two looks (two workers filling one cache)
+                break
             raise WriteError(where, f"cannot create {str(path)!r}: {str(probe)!r} is not a folder")
         missing.append(probe)
         if probe.parent == probe:

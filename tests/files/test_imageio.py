@@ -552,3 +552,22 @@ def test_png_missing_folder(tmp_path: Path) -> None:
     with pytest.raises(HarnessError) as info:
         hio.write_png_preview(path, _image())
     assert "cannot write" in _assert_one_line_naming(info.value, path)
+
+
+def test_make_folders_takes_a_folder_another_process_made_meanwhile(tmp_path, monkeypatch):
+    """Two workers filling one ground-truth cache: one saw no folder, the other made it, and the first then found
+    it "not a folder" (a WriteError that failed a CI run, test_two_processes_fill_the_same_entries)."""
+    target = tmp_path / "cache" / "groundtruth"
+    real_is_dir = Path.is_dir
+    first = []
+
+    def racing_is_dir(self):
+        if self == target and not first:  # the other process creates it just after this look
+            first.append(True)
+            target.mkdir(parents=True)
+            return False
+        return real_is_dir(self)
+
+    monkeypatch.setattr(Path, "is_dir", racing_is_dir)
+    assert hio.make_folders(target) == []
+    assert real_is_dir(target)
