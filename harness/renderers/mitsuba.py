@@ -401,9 +401,27 @@ def clip_planes(scene: Scene) -> tuple[float, float]:
 
 
 def bsdf_dict(material) -> dict:
-    """Mitsuba's dict of ``material``: ``diffuse`` with its reflectance, inside ``twosided`` when two-sided."""
-    diffuse = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [float(x) for x in material.reflectance]}}
-    return {"type": "twosided", "bsdf": diffuse} if material.two_sided else diffuse
+    """Mitsuba's dict of ``material``: its plugin (``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
+    ``roughdielectric``) with every parameter written out (so Mitsuba's defaults never decide), inside ``twosided``
+    when two-sided. A conductor with eta = 0, k = 1 is written as Mitsuba's ``material = "none"``."""
+    if material.is_diffuse:
+        spec = {"type": "diffuse", "reflectance": _rgb(material.reflectance)}
+    else:
+        spec = {"type": material.type}
+        if material.is_conductor:
+            if material.mirror:
+                spec["material"] = "none"
+            else:
+                spec["eta"], spec["k"] = _rgb(material.eta), _rgb(material.k)
+        else:
+            spec["int_ior"], spec["ext_ior"] = float(material.int_ior), float(material.ext_ior)
+        spec["specular_reflectance"] = _rgb(material.specular_reflectance)
+        if material.is_dielectric:
+            spec["specular_transmittance"] = _rgb(material.specular_transmittance)
+        if material.is_rough:
+            spec.update(alpha=float(material.alpha), distribution=material.distribution,
+                        sample_visible=bool(material.sample_visible))
+    return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
 
 
 def emitter_dict(shape) -> dict:

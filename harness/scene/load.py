@@ -26,7 +26,14 @@ from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
 from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.files.imageio import read_exr
 from harness.scene.model import (
+    DEFAULT_ALPHA,
+    DEFAULT_EXT_IOR,
+    DEFAULT_INT_IOR,
+    DISTRIBUTIONS,
     EMITTER_TYPES,
+    MATERIAL_TYPES,
+    MIRROR_ETA,
+    MIRROR_K,
     SHAPE_TYPES,
     ConstantEnvironment,
     DirectionalLight,
@@ -53,7 +60,29 @@ CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLO
 CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
-MATERIAL_KEYS = ("reflectance", "two_sided")
+# [materials.NAME]: the keys of each type (Mitsuba's parameter names), and all of them (for did-you-mean hints).
+_CONDUCTOR_KEYS = ("type", "material", "eta", "k", "specular_reflectance", "two_sided")
+_DIELECTRIC_KEYS = ("type", "int_ior", "ext_ior", "specular_reflectance", "specular_transmittance")
+_ROUGH_KEYS = ("alpha", "distribution", "sample_visible")
+MATERIAL_KEYS_OF_TYPE = {
+    "diffuse": ("type", "reflectance", "two_sided"),
+    "conductor": _CONDUCTOR_KEYS,
+    "roughconductor": _CONDUCTOR_KEYS + _ROUGH_KEYS,
+    "dielectric": _DIELECTRIC_KEYS,
+    "roughdielectric": _DIELECTRIC_KEYS + _ROUGH_KEYS,
+}
+assert tuple(MATERIAL_KEYS_OF_TYPE) == MATERIAL_TYPES
+MATERIAL_KEYS = tuple(dict.fromkeys(key for keys in MATERIAL_KEYS_OF_TYPE.values() for key in keys))
+CONDUCTOR_MATERIALS = ("none",)  # Mitsuba's named conductors but "none" (a perfect mirror) are refused
+# Mitsuba 3.9.1's "Cu" in its RGB variants (mi.load_dict({"type": "conductor", "material": "Cu"}) in scalar_rgb),
+# quoted by the refusal of named materials so that a user can type them.
+CU_ETA = (0.201005, 0.92375, 1.10222)
+CU_K = (3.91326, 2.45305, 2.14209)
+# Ranges the reference's BSDFs are tested over (docs/scene-format.md): alpha from near-specular to very rough;
+# indices and extinction coefficients of every real material, with room to spare.
+MIN_ALPHA, MAX_ALPHA = 1e-4, 1.0
+MIN_IOR, MAX_IOR = 0.01, 100.0
+MAX_CONDUCTOR_INDEX = 100.0
 SHAPE_KEYS = (
     "name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
     "file", "center", "radius", "subdivisions",
@@ -368,19 +397,104 @@ class _SceneReader:
 
     def materials(self, document: dict) -> dict[str, Material]:
         table = self.table(document.get("materials", {}), "materials")
-        materials = {}
-        for name, entry in table.items():
-            key = _join("materials", name)
-            entry = self.table(entry, key)
-            self.check_keys(entry, MATERIAL_KEYS, key)
+        return {name: self.material(name, entry) for name, entry in table.items()}
+
+    def material(self, name: str, entry: Any) -> Material:
+        """One ``[materials.NAME]`` table: its type (default diffuse) and that type's parameters."""
+        key = _join("materials", name)
+        entry = self.table(entry, key)
+        self.check_keys(entry, MATERIAL_KEYS, key)
+        kind = self.choice(entry.get("type", "diffuse"), f"{key}.type", MATERIAL_TYPES)
+        if kind in ("dielectric", "roughdielectric") and "two_sided" in entry:
+            raise self.error(f"{key}.two_sided", (
+                f"a {kind} has no two_sided: light crosses it from either side (Mitsuba's twosided wrapper takes no "
+                "transmitting BSDF); int_ior is the index behind the front side, ext_ior the one in front"))
+        for item in entry:
+            if item not in MATERIAL_KEYS_OF_TYPE[kind]:
+                owners = " or ".join(repr(t) for t, keys in MATERIAL_KEYS_OF_TYPE.items() if item in keys)
+                raise self.error(f"{key}.{item}", f"key {item!r} applies only to materials of type {owners}, "
+                                                  f"not {kind!r}")
+        two_sided = self.boolean(entry.get("two_sided", False), f"{key}.two_sided")
+        if kind == "diffuse":
             what = "a list of 3 numbers in [0, 1]"
             raw = self.require(entry, "reflectance", key, what)
             reflectance = self.vector3(raw, f"{key}.reflectance", what)
             if not all(0.0 <= channel <= 1.0 for channel in reflectance):
                 raise self.expected(f"{key}.reflectance", what, raw)
-            two_sided = self.boolean(entry.get("two_sided", False), f"{key}.two_sided")
-            materials[name] = Material(name, reflectance, two_sided)
-        return materials
+            return Material(name, reflectance, two_sided)
+        fields: dict[str, Any] = {"type": kind, "two_sided": two_sided,
+                                  "specular_reflectance": self.unit_colour(entry, "specular_reflectance", key)}
+        if kind in ("conductor", "roughconductor"):
+            fields.update(self.complex_index(entry, key))
+            bound = fields["specular_reflectance"]
+        else:
+            fields["specular_transmittance"] = self.unit_colour(entry, "specular_transmittance", key)
+            for item, default in (("int_ior", DEFAULT_INT_IOR), ("ext_ior", DEFAULT_EXT_IOR)):
+                fields[item] = self.index_of_refraction(entry.get(item, default), f"{key}.{item}")
+            bound = tuple(max(r, t) for r, t in zip(fields["specular_reflectance"], fields["specular_transmittance"]))
+        if kind in ("roughconductor", "roughdielectric"):
+            what = f"a finite number in [{MIN_ALPHA:g}, {MAX_ALPHA:g}] (the microfacets' roughness)"
+            alpha = self.number(entry.get("alpha", DEFAULT_ALPHA), f"{key}.alpha", what)
+            if not MIN_ALPHA <= alpha <= MAX_ALPHA:
+                raise self.expected(f"{key}.alpha", what, entry["alpha"])
+            fields["alpha"] = alpha
+            fields["distribution"] = self.choice(entry.get("distribution", "beckmann"), f"{key}.distribution",
+                                                 DISTRIBUTIONS)
+            fields["sample_visible"] = self.boolean(entry.get("sample_visible", True), f"{key}.sample_visible")
+        return Material(name, bound, **fields)
+
+    def unit_colour(self, entry: dict, item: str, key: str) -> tuple[float, float, float]:
+        """``specular_reflectance`` / ``specular_transmittance``: a number or [r, g, b], each in [0, 1]; default 1."""
+        what = "a number or a list of 3 numbers, each in [0, 1]"
+        colour = self.colour_or_number(entry.get(item, 1.0), f"{key}.{item}", what)
+        if not all(0.0 <= channel <= 1.0 for channel in colour):
+            raise self.expected(f"{key}.{item}", what, entry[item])
+        return colour
+
+    def colour_or_number(self, value: Any, key: str, what: str) -> tuple[float, float, float]:
+        """One finite number (the same in every channel, as Mitsuba takes it) or a list of 3."""
+        if isinstance(value, list):
+            return self.vector3(value, key, what)
+        number = self.number(value, key, what)
+        return (number, number, number)
+
+    def complex_index(self, entry: dict, key: str) -> dict[str, tuple[float, float, float]]:
+        """A conductor's ``eta`` and ``k`` (Mitsuba's defaults 0 and 1), or ``material = "none"`` (the same: a
+        perfect mirror); other named materials are refused."""
+        if "material" in entry:
+            material = entry["material"]
+            if material not in CONDUCTOR_MATERIALS:
+                raise self.error(f"{key}.material", (
+                    f'expected "none" (a perfect mirror), got {_show(material)}: named conductors are not supported; '
+                    f"give eta and k (Mitsuba 3.9.1's RGB Cu: eta = [{', '.join(map(str, CU_ETA))}], "
+                    f"k = [{', '.join(map(str, CU_K))}])"))
+            given = [item for item in ("eta", "k") if item in entry]
+            if given:
+                raise self.error(f"{key}.material",
+                                 f'expected either material = "none" or eta / k, not both (found {", ".join(given)})')
+        what = f"a number or a list of 3 numbers, each in [0, {MAX_CONDUCTOR_INDEX:g}]"
+        values = {}
+        for item, default in (("eta", MIRROR_ETA), ("k", MIRROR_K)):
+            values[item] = self.colour_or_number(entry.get(item, list(default)), f"{key}.{item}", what)
+            if not all(0.0 <= channel <= MAX_CONDUCTOR_INDEX for channel in values[item]):
+                raise self.expected(f"{key}.{item}", what, entry[item])
+        for channel, (eta, k) in enumerate(zip(values["eta"], values["k"])):
+            if eta == 0 and k == 0:
+                where = f"{key}.eta" if "eta" in entry else f"{key}.k"
+                raise self.error(where, (
+                    f"eta and k are both 0 in channel {'RGB'[channel]}: a complex index of 0 has no Fresnel "
+                    "reflectance; expected eta > 0 or k > 0 in every channel"))
+        return values
+
+    def index_of_refraction(self, value: Any, key: str) -> float:
+        what = f"a finite number in [{MIN_IOR:g}, {MAX_IOR:g}] (an index of refraction)"
+        if isinstance(value, str):
+            raise self.error(key, f"expected {what}, got {_show(value)}: named indices are not supported; give "
+                                  "the number")
+        ior = self.number(value, key, what)
+        if not MIN_IOR <= ior <= MAX_IOR:
+            raise self.expected(key, what, value)
+        return ior
 
     # ---- shapes --------------------------------------------------------------------------------------------------
 

@@ -19,17 +19,68 @@ EMITTER_TYPES = ("point", "spot", "directional", "constant", "envmap")
 Vector3 = tuple[float, float, float]
 
 
+MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric")  # Mitsuba's plugins
+CONDUCTOR_TYPES = ("conductor", "roughconductor")
+DIELECTRIC_TYPES = ("dielectric", "roughdielectric")
+ROUGH_TYPES = ("roughconductor", "roughdielectric")
+DISTRIBUTIONS = ("beckmann", "ggx")  # Mitsuba's microfacet distributions; beckmann is its default
+# Mitsuba 3.9.1's defaults (src/bsdfs/*.cpp): a conductor's material is "none" (eta = 0, k = 1: Fresnel = 1, a
+# perfect mirror), alpha 0.1, int_ior "bk7" = 1.5046, ext_ior "air" = 1.000277, specular_* = 1.
+MIRROR_ETA = (0.0, 0.0, 0.0)
+MIRROR_K = (1.0, 1.0, 1.0)
+DEFAULT_ALPHA = 0.1
+DEFAULT_INT_IOR = 1.5046
+DEFAULT_EXT_IOR = 1.000277
+
+
 @dataclass(frozen=True)
 class Material:
-    """A Lambertian BRDF f_r = reflectance / pi (Mitsuba's ``diffuse``).
+    """One ``[materials.NAME]`` table: Mitsuba's BSDF plugin ``type`` with its parameters (docs/scene-format.md).
 
+    ``type = "diffuse"`` (the default): a Lambertian BRDF f_r = reflectance / pi (Mitsuba's ``diffuse``);
     ``two_sided = False`` reflects on the front side of a surface only (the back side is black), like Mitsuba's
-    ``diffuse``; ``True`` reflects on both sides (Mitsuba's ``twosided`` wrapper).
+    BSDFs; ``True`` reflects on both sides (Mitsuba's ``twosided`` wrapper). Conductors take the same meaning of
+    ``two_sided``; dielectrics have no ``two_sided`` (light crosses them from either side).
+
+    The fields of the other types keep Mitsuba's defaults where a type does not use them. ``reflectance`` of a
+    non-diffuse material is a per-channel bound of what one bounce keeps: ``specular_reflectance`` for conductors
+    (Fresnel <= 1), the larger of ``specular_reflectance`` and ``specular_transmittance`` for dielectrics.
     """
 
     name: str
     reflectance: Vector3
     two_sided: bool = False
+    type: str = "diffuse"
+    eta: Vector3 = MIRROR_ETA  # conductors: the real part of the complex index of refraction, per channel
+    k: Vector3 = MIRROR_K  # conductors: its imaginary part (the extinction coefficient)
+    specular_reflectance: Vector3 = (1.0, 1.0, 1.0)
+    specular_transmittance: Vector3 = (1.0, 1.0, 1.0)  # dielectrics
+    alpha: float = DEFAULT_ALPHA  # rough types: the isotropic microfacet roughness
+    distribution: str = "beckmann"  # rough types
+    sample_visible: bool = True  # rough types: sample the visible normals
+    int_ior: float = DEFAULT_INT_IOR  # dielectrics: the index inside (behind the front side)
+    ext_ior: float = DEFAULT_EXT_IOR  # dielectrics: the index outside (on the front side)
+
+    @property
+    def is_diffuse(self) -> bool:
+        return self.type == "diffuse"
+
+    @property
+    def is_conductor(self) -> bool:
+        return self.type in CONDUCTOR_TYPES
+
+    @property
+    def is_dielectric(self) -> bool:
+        return self.type in DIELECTRIC_TYPES
+
+    @property
+    def is_rough(self) -> bool:
+        return self.type in ROUGH_TYPES
+
+    @property
+    def mirror(self) -> bool:
+        """A conductor with Mitsuba's ``material = "none"`` (eta = 0, k = 1): Fresnel = 1 exactly."""
+        return self.is_conductor and tuple(self.eta) == MIRROR_ETA and tuple(self.k) == MIRROR_K
 
 
 @dataclass(frozen=True, eq=False)
