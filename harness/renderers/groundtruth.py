@@ -82,6 +82,12 @@ def closed_form(scene: Scene) -> GroundTruth:
     white-furnace: one diffuse sphere of albedo rho under a ``constant`` environment L, covering every pixel's
     footprint: a convex surface sees only the environment, so every pixel is rho L for max_depth >= 2 or -1
     (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit).
+
+    lossless-furnace: every surface is lossless and specular (a smooth conductor with Fresnel 1, ``material =
+    "none"``, and ``specular_reflectance`` 1; a smooth dielectric with ``specular_reflectance`` and
+    ``specular_transmittance`` 1), nothing emits but one ``constant`` environment L, and paths are unbounded: every
+    path keeps its throughput until it escapes (the eta^2 scalings of a refraction into a body and out of it
+    cancel), so every pixel is exactly L, whatever the geometry.
     """
     if scene.closed_form not in CLOSED_FORMS:
         raise HarnessError(f"{scene.path}: closed_form", f"no closed form named {scene.closed_form!r}")
@@ -135,6 +141,31 @@ def _white_furnace(scene: Scene) -> np.ndarray:
     return rho * np.array(scene.emitters[0].radiance, dtype=np.float64)
 
 
+def _lossless_furnace(scene: Scene) -> np.ndarray:
+    """Every pixel's radiance when every surface is lossless and specular under one constant environment: L."""
+    where = f"{scene.path}: closed_form"
+    kinds = [e.type for e in scene.emitters]
+    if kinds != ["constant"]:
+        raise HarnessError(where, "the lossless-furnace closed form needs exactly one [[emitters]] entry, a constant "
+                                  f"environment; this scene has {', '.join(kinds) or 'none'}")
+    if any(s.emission is not None for s in scene.shapes):
+        raise HarnessError(where, "the lossless-furnace closed form needs shapes that do not emit")
+    for shape in scene.shapes:
+        m = scene.materials[shape.material]
+        ones = (1.0, 1.0, 1.0)
+        lossless = ((m.type == "conductor" and m.mirror and tuple(m.specular_reflectance) == ones)
+                    or (m.type == "dielectric" and tuple(m.specular_reflectance) == ones
+                        and tuple(m.specular_transmittance) == ones))
+        if not lossless:
+            raise HarnessError(where, (
+                f"the lossless-furnace closed form needs every material lossless and specular (conductor with "
+                f"material = \"none\" or dielectric, specular_* = 1); material {m.name!r} is {m.type}"))
+    if scene.max_depth != -1:
+        raise HarnessError(where, f"the lossless-furnace closed form needs max_depth = -1 (a path cut short loses "
+                                  f"energy), got {scene.max_depth}")
+    return np.array(scene.emitters[0].radiance, dtype=np.float64)
+
+
 def sphere_coverage_problem(scene: Scene) -> str | None:
     """None if the scene's first shape (a sphere) covers the whole film as the camera sees it, else why not.
 
@@ -172,7 +203,8 @@ def sphere_coverage_problem(scene: Scene) -> str | None:
     return None
 
 
-CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace}
+CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace,
+                                                         "lossless-furnace": _lossless_furnace}
 
 
 # ---- the cache -------------------------------------------------------------------------------------------------
