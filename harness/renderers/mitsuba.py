@@ -519,12 +519,21 @@ def moment_integrator(nested: dict) -> dict:
     return {"type": "moment", "rgb": {"type": "aov", "aovs": "", "path": nested}}
 
 
+def tessellates_spheres(scene: Scene) -> bool:
+    """Whether Mitsuba gets the scene's spheres as the reference's icospheres (flat-shaded meshes) instead of analytic
+    spheres: in scenes with a material that is not diffuse (conductors and dielectrics mirror or refract the facets;
+    a Lambertian scene keeps its analytic spheres, and the ground truth it always had)."""
+    return any(not m.is_diffuse for m in scene.materials.values())
+
+
 def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4,
                           sampler: str = "independent") -> dict:
     """The scene as a Mitsuba 3 scene dict for ``variant`` (which this makes the active variant).
 
     Shapes keep their type (analytic sphere) and placement matrix; meshes become ``mi.Mesh`` objects built from the
-    arrays already loaded. Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i (each
+    arrays already loaded. In a scene with a material that is not diffuse, spheres too become the reference's
+    icosphere as a mesh with flat normals (:func:`tessellates_spheres`): what a mirror or a glass ball shows
+    depends on its facets, so both renderers must trace the same ones. Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i (each
     object's id), ``emitter_<k>`` for ``[[emitters]]`` entry k (:func:`light_dict`); the integrator is ``path`` with the scene's ``max_depth`` (or ``max_depth``) and ``rr_depth`` 5.
     """
     mi = import_mitsuba(variant)
@@ -550,9 +559,10 @@ def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None =
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
         out[f"bsdf_{j}"] = bsdf_dict(material)
+    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
-        if shape.type == "mesh":
+        if shape.type in as_mesh:
             out[key] = _mesh_object(mi, shape, scene.materials[shape.material])
             continue
         entry = {
