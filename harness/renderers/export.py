@@ -199,6 +199,38 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
     return "\n".join(lines) + "\n", meshes
 
 
+def normal_incidence_reflectance(eta, k) -> list[float]:
+    """A conductor's Fresnel reflectance at normal incidence, per channel: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)
+    (1 for Mitsuba's perfect mirror eta = 0, k = 1)."""
+    eta, k = np.asarray(eta, dtype=np.float64), np.asarray(k, dtype=np.float64)
+    return [float(x) for x in ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)]
+
+
+def gltf_material(material) -> tuple[dict, dict]:
+    """The glTF 2.0 metallic-roughness factors of a material (keyword arguments of trimesh's PBRMaterial) and its
+    glTF extensions (docs/external-renderers.md, "glTF materials").
+
+    Diffuse: base colour = reflectance, metallic 0, roughness 1. Conductors: metallic 1, base colour = the normal-
+    incidence Fresnel reflectance times specular_reflectance (exact for a perfect mirror; glTF's Schlick Fresnel
+    approximates the others). Dielectrics: metallic 0, base colour = specular_transmittance,
+    ``KHR_materials_transmission`` 1, ``KHR_materials_ior`` = int_ior / ext_ior (glTF's outside is index 1, so the
+    relative index keeps the interface), ``KHR_materials_volume`` (a solid that refracts, not a thin wall).
+    Roughness: 0 for smooth types, sqrt(alpha) for rough ones (glTF's GGX alpha is roughness^2: exact for ggx).
+    """
+    if material.is_diffuse:
+        return {"baseColorFactor": [*material.reflectance, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}, {}
+    roughness = math.sqrt(material.alpha) if material.is_rough else 0.0
+    if material.is_conductor:
+        f0 = normal_incidence_reflectance(material.eta, material.k)
+        colour = [min(1.0, f * r) for f, r in zip(f0, material.specular_reflectance)]
+        return {"baseColorFactor": [*colour, 1.0], "metallicFactor": 1.0, "roughnessFactor": roughness}, {}
+    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                  "KHR_materials_ior": {"ior": float(material.int_ior / material.ext_ior)},
+                  "KHR_materials_volume": {"thicknessFactor": 1.0}}
+    return {"baseColorFactor": [*material.specular_transmittance, 1.0], "metallicFactor": 0.0,
+            "roughnessFactor": roughness}, extensions
+
+
 def _trimesh_scene(scene: Scene):
     """A trimesh.Scene with one named, coloured mesh per shape (world space, as the core triangulates it)."""
     out = trimesh.Scene()
@@ -207,13 +239,16 @@ def _trimesh_scene(scene: Scene):
         material = scene.materials[shape.material]
         emission = np.asarray(shape.emission if shape.is_emitter else (0.0, 0.0, 0.0), dtype=np.float64)
         peak = float(emission.max())
-        pbr = PBRMaterial(name=safe_name(shape.material), baseColorFactor=[*material.reflectance, 1.0],
+        factors, _extensions = gltf_material(material)  # trimesh writes no extensions: _add_gltf_materials does
+        pbr = PBRMaterial(name=safe_name(shape.material),
                           emissiveFactor=(emission / peak).tolist() if peak > 0 else None,
-                          metallicFactor=0.0, roughnessFactor=1.0, doubleSided=material.two_sided)
+                          doubleSided=material.two_sided or material.is_dielectric, **factors)
         mesh = trimesh.Trimesh(vertices=vertices, faces=triangles, process=False, validate=False,
                                visual=trimesh.visual.TextureVisuals(material=pbr))
         mesh.metadata["name"] = shape.name
         extras = {"material": shape.material, "reflectance": list(material.reflectance)}
+        if not material.is_diffuse:
+            extras["bsdf"] = bsdf_dict(material)  # Mitsuba's plugin and parameters, for a reader that wants all
         if shape.is_emitter:
             extras["emission"] = [float(x) for x in shape.emission]
         out.add_geometry(mesh, node_name=safe_name(shape.name), geom_name=safe_name(shape.name),
@@ -291,20 +326,73 @@ def _add_gltf_lights(text: bytes, scene: Scene) -> bytes:
     return json.dumps(document, separators=(",", ":")).encode("utf-8")
 
 
+def _add_gltf_materials(text: bytes, scene: Scene) -> bytes:
+    """trimesh's glTF JSON with the non-diffuse materials as :func:`gltf_material` says (found through each node's
+    ``extras.material``): their factors exact (trimesh rounds colours to 8 bits) and their extensions added.
+    Lambertian materials stay as trimesh wrote them."""
+    if all(m.is_diffuse for m in scene.materials.values()):
+        return text
+    document = json.loads(text)
+    used = document.get("extensionsUsed", [])
+    for node in document.get("nodes", []):
+        material = scene.materials.get(node.get("extras", {}).get("material"))
+        if material is None or material.is_diffuse or "mesh" not in node:
+            continue
+        factors, extensions = gltf_material(material)
+        for primitive in document["meshes"][node["mesh"]].get("primitives", []):
+            if "material" in primitive:
+                entry = document["materials"][primitive["material"]]
+                entry.setdefault("pbrMetallicRoughness", {}).update(factors)
+                if extensions:
+                    entry.setdefault("extensions", {}).update(extensions)
+        used += [extension for extension in extensions if extension not in used]
+    if used:
+        document["extensionsUsed"] = used
+    return json.dumps(document, separators=(",", ":")).encode("utf-8")
+
+
 def export_losses(scene: Scene, fmt: str) -> list[str]:
     """What ``fmt`` cannot express of ``scene``, one line each (empty: nothing is lost beyond what
     docs/external-renderers.md lists for every scene)."""
     def names(emitters) -> str:
         return ", ".join(f"{e.name} ({e.type})" for e in emitters)
 
+    losses = []
     if fmt in ("ply", "obj") and scene.emitters:
-        return [f"{fmt} has no lights: left out emitters {names(scene.emitters)}"]
+        losses.append(f"{fmt} has no lights: left out emitters {names(scene.emitters)}")
+    glossy = [m for m in scene.materials.values() if not m.is_diffuse]
+    if fmt == "obj" and glossy:
+        losses.append("OBJ's MTL has diffuse colours only: materials " + ", ".join(
+            f"{m.name} ({m.type})" for m in glossy) + " written with the colour of their glTF base colour")
     if fmt == "gltf":
         lost = [e for e in scene.emitters if e.type not in PUNCTUAL_TYPES]
         if lost:
-            return [f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has point, "
-                    "spot and directional lights only)"]
-    return []
+            losses.append(f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has "
+                          "point, spot and directional lights only)")
+        losses += _gltf_material_losses(glossy)
+    return losses
+
+
+def _gltf_material_losses(glossy) -> list[str]:
+    """What glTF's metallic-roughness model and its extensions cannot say exactly of the non-diffuse materials."""
+    def listed(materials) -> str:
+        return ", ".join(f"{m.name} ({m.type})" for m in materials)
+
+    losses = []
+    metals = [m for m in glossy if m.is_conductor and not (m.mirror and m.specular_reflectance == (1.0, 1.0, 1.0))]
+    if metals:
+        losses.append(f"glTF metals have Schlick's Fresnel from a base colour: {listed(metals)} written with base "
+                      "colour = normal-incidence reflectance x specular_reflectance (eta, k in the node's extras)")
+    beckmann = [m for m in glossy if m.is_rough and m.distribution == "beckmann"]
+    if beckmann:
+        losses.append(f"glTF's microfacets are GGX: {listed(beckmann)} (beckmann) written with roughness sqrt(alpha)")
+    tinted = [m for m in glossy if m.is_dielectric and m.specular_reflectance != (1.0, 1.0, 1.0)]
+    if tinted:
+        losses.append(f"glTF's transmission has no reflection tint: specular_reflectance of {listed(tinted)} left out")
+    sided = [m for m in glossy if m.is_conductor and not m.two_sided]
+    if sided:
+        losses.append(f"glTF's single-sided materials are culled from behind, not black: {listed(sided)}")
+    return losses
 
 
 def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
@@ -331,7 +419,7 @@ def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, 
     else:
         parts = export_gltf(_trimesh_scene(scene), include_normals=False, merge_buffers=True)
         main = next(name for name in parts if name.endswith(".gltf"))
-        files["scene.gltf"] = _add_gltf_lights(parts[main], scene)
+        files["scene.gltf"] = _add_gltf_materials(_add_gltf_lights(parts[main], scene), scene)
         files.update({name: data for name, data in parts.items() if name != main})
     with StagedFolder(out_dir, "--out") as stage:
         for rel, data in files.items():

@@ -81,13 +81,9 @@ def closed_form(scene: Scene) -> GroundTruth:
 
     white-furnace: one diffuse sphere of albedo rho under a ``constant`` environment L, covering every pixel's
     footprint: a convex surface sees only the environment, so every pixel is rho L for max_depth >= 2 or -1
-    (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit).
-
-    lossless-furnace: every surface is lossless and specular (a smooth conductor with Fresnel 1, ``material =
-    "none"``, and ``specular_reflectance`` 1; a smooth dielectric with ``specular_reflectance`` and
-    ``specular_transmittance`` 1), nothing emits but one ``constant`` environment L, and paths are unbounded: every
-    path keeps its throughput until it escapes (the eta^2 scalings of a refraction into a body and out of it
-    cancel), so every pixel is exactly L, whatever the geometry.
+    (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit). A perfect mirror
+    (conductor, material "none") gives specular_reflectance L the same way; a smooth dielectric with
+    specular_reflectance = specular_transmittance = 1 conserves energy, so every pixel is L at max_depth = -1.
     """
     if scene.closed_form not in CLOSED_FORMS:
         raise HarnessError(f"{scene.path}: closed_form", f"no closed form named {scene.closed_form!r}")
@@ -104,6 +100,10 @@ def _furnace(scene: Scene) -> np.ndarray:
         raise HarnessError(f"{scene.path}: closed_form", (
             "the furnace closed form holds for emitting shapes alone; this scene also has [[emitters]] "
             f"({', '.join(e.type for e in scene.emitters)})"))
+    glossy = sorted({scene.materials[s.material].type for s in scene.shapes} - {"diffuse"})
+    if glossy:
+        raise HarnessError(f"{scene.path}: closed_form", (
+            f"the furnace closed form holds for diffuse materials alone; this scene also has {', '.join(glossy)}"))
     emissions = {tuple(s.emission) if s.emission else None for s in scene.shapes}
     albedos = {tuple(scene.materials[s.material].reflectance) for s in scene.shapes}
     if len(emissions) != 1 or None in emissions or len(albedos) != 1:
@@ -135,35 +135,27 @@ def _white_furnace(scene: Scene) -> np.ndarray:
     if problem:
         raise HarnessError(where, f"the white-furnace closed form needs the sphere to cover every pixel's filter "
                                   f"footprint: {problem}")
-    rho = np.array(scene.materials[scene.shapes[0].material].reflectance, dtype=np.float64)
+    material = scene.materials[scene.shapes[0].material]
+    radiance = np.array(scene.emitters[0].radiance, dtype=np.float64)
+    if material.is_dielectric:
+        # a smooth dielectric loses nothing (each bounce keeps F / F or (1 - F) / (1 - F), and the eta^2 of entering
+        # and leaving cancel), but only an unbounded path gets all of it out again
+        if material.type != "dielectric" or scene.max_depth != -1 or \
+                material.specular_reflectance != (1.0, 1.0, 1.0) or material.specular_transmittance != (1.0, 1.0, 1.0):
+            raise HarnessError(where, (
+                "the white-furnace closed form of a dielectric sphere needs a smooth one (type dielectric) with "
+                "specular_reflectance = specular_transmittance = 1 at max_depth = -1 (then every pixel is L); this "
+                f"scene has a {material.type} at max_depth = {scene.max_depth}"))
+        return radiance
+    if material.is_conductor and not (material.type == "conductor" and material.mirror):
+        raise HarnessError(where, (
+            "the white-furnace closed form of a conductor sphere needs a perfect mirror (type conductor, material "
+            f"\"none\": every pixel specular_reflectance * L); this scene has a {material.type}"
+            f"{'' if material.mirror else ' with eta / k (Fresnel < 1)'}"))
     if scene.max_depth == 1:
         return np.zeros(3)
-    return rho * np.array(scene.emitters[0].radiance, dtype=np.float64)
-
-
-def _lossless_furnace(scene: Scene) -> np.ndarray:
-    """Every pixel's radiance when every surface is lossless and specular under one constant environment: L."""
-    where = f"{scene.path}: closed_form"
-    kinds = [e.type for e in scene.emitters]
-    if kinds != ["constant"]:
-        raise HarnessError(where, "the lossless-furnace closed form needs exactly one [[emitters]] entry, a constant "
-                                  f"environment; this scene has {', '.join(kinds) or 'none'}")
-    if any(s.emission is not None for s in scene.shapes):
-        raise HarnessError(where, "the lossless-furnace closed form needs shapes that do not emit")
-    for shape in scene.shapes:
-        m = scene.materials[shape.material]
-        ones = (1.0, 1.0, 1.0)
-        lossless = ((m.type == "conductor" and m.mirror and tuple(m.specular_reflectance) == ones)
-                    or (m.type == "dielectric" and tuple(m.specular_reflectance) == ones
-                        and tuple(m.specular_transmittance) == ones))
-        if not lossless:
-            raise HarnessError(where, (
-                f"the lossless-furnace closed form needs every material lossless and specular (conductor with "
-                f"material = \"none\" or dielectric, specular_* = 1); material {m.name!r} is {m.type}"))
-    if scene.max_depth != -1:
-        raise HarnessError(where, f"the lossless-furnace closed form needs max_depth = -1 (a path cut short loses "
-                                  f"energy), got {scene.max_depth}")
-    return np.array(scene.emitters[0].radiance, dtype=np.float64)
+    albedo = material.reflectance if material.is_diffuse else material.specular_reflectance
+    return np.array(albedo, dtype=np.float64) * radiance
 
 
 def sphere_coverage_problem(scene: Scene) -> str | None:
@@ -203,8 +195,7 @@ def sphere_coverage_problem(scene: Scene) -> str | None:
     return None
 
 
-CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace,
-                                                         "lossless-furnace": _lossless_furnace}
+CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace}
 
 
 # ---- the cache -------------------------------------------------------------------------------------------------
@@ -241,7 +232,7 @@ def _loaded_content(scene: Scene) -> bytes:
     parts = [repr((tuple(cam.origin), tuple(cam.target), tuple(cam.up), float(cam.fov), cam.fov_axis)),
              repr((scene.film.width, scene.film.height, scene.film.filter, scene.max_depth, scene.closed_form))]
     for name, m in scene.materials.items():
-        parts.append(repr((name, tuple(m.reflectance), m.two_sided)))
+        parts.append(_material_content(name, m))
     for shape in scene.shapes:
         parts.append(repr((shape.type, shape.material, shape.emission, shape.flip_normals, tuple(shape.center),
                            shape.radius, shape.subdivisions)))
@@ -252,6 +243,17 @@ def _loaded_content(scene: Scene) -> bytes:
     for emitter in scene.emitters:
         parts.append(_emitter_content(emitter))
     return "\n".join(parts).encode()
+
+
+def _material_content(name: str, material) -> str:
+    """A material as the key holds it: a Lambertian one as it always was (so their cache entries stay valid), any
+    other type with every field it has (type, eta, k, alpha, ...) after those."""
+    text = repr((name, tuple(material.reflectance), material.two_sided))
+    if material.is_diffuse:
+        return text
+    extra = [f"{field_.name}={getattr(material, field_.name)!r}" for field_ in fields(material)
+             if field_.name not in ("name", "reflectance", "two_sided")]
+    return " ".join([text, *extra])
 
 
 def _emitter_content(emitter) -> str:

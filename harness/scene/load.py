@@ -56,7 +56,7 @@ from harness.scene.triangulate import (
 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
                   "emitters")
-CLOSED_FORMS = ("furnace", "white-furnace", "lossless-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
+CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
 CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)

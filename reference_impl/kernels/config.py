@@ -56,6 +56,12 @@ MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-n
                "point-no-inverse-square": M_POINT_NO_INVERSE_SQUARE,
                "spot-ignores-beam-width": M_SPOT_IGNORES_BEAM_WIDTH, "envmap-pdf-no-sin": M_ENVMAP_PDF_NO_SIN,
                "envmap-mirrored-u": M_ENVMAP_MIRRORED_U, "directional-reversed": M_DIRECTIONAL_REVERSED}
+# Planted faults of the BSDFs (reference_impl/kernels/bsdf.py; reference_impl.mutants.BSDF_MUTANTS).
+M_MICROFACET_PDF_NO_JACOBIAN, M_CONDUCTOR_FRESNEL_ONE, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED = (
+    1 << b for b in range(12, 16))
+MUTANT_BITS.update({"microfacet-pdf-no-jacobian": M_MICROFACET_PDF_NO_JACOBIAN,
+                    "conductor-fresnel-one": M_CONDUCTOR_FRESNEL_ONE, "refraction-no-eta2": M_REFRACTION_NO_ETA2,
+                    "vndf-alpha-squared": M_VNDF_ALPHA_SQUARED})
 
 
 class KernelConfig(NamedTuple):

@@ -4,15 +4,17 @@ Lambertian materials keep the dicts they had before."""
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
 import numpy as np
 import pytest
+import trimesh
 
 from conftest import MINIMAL_SCENE
 import harness.renderers.mitsuba as mts
-from harness.renderers.export import export_scene
+from harness.renderers.export import export_losses, export_scene
 from harness.scene import load_scene
 from harness.scene.load import CU_ETA, CU_K
 from harness.scene.model import Material
@@ -147,3 +149,60 @@ def test_mitsubas_defaults_are_the_loaders(mi):
         if material.is_rough:
             for text in (bsdf_text(mi.load_dict(mts.bsdf_dict(material))), bsdf_text(mi.load_dict({"type": kind}))):
                 assert "distribution = beckmann" in text and "sample_visible = 1" in text
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# glTF: metallic-roughness and KHR_materials_* where the mapping is exact, the rest said by export_losses
+
+GLTF = {
+    # material -> (base colour, metallic, roughness, extensions)
+    "diffuse": ([0.2, 0.4, 0.6], 0.0, 1.0, {}),
+    "mirror": ([1.0, 1.0, 1.0], 1.0, 0.0, {}),
+    "real-index": ([0.04] * 3, 1.0, 0.0, {}),
+    "rough-ggx-two-sided": ([0.5] * 3, 1.0, np.sqrt(0.05), {}),
+    "glass": ([1.0, 1.0, 1.0], 0.0, 0.0, {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                          "KHR_materials_ior": {"ior": 1.5046 / 1.000277},
+                                          "KHR_materials_volume": {"thicknessFactor": 1.0}}),
+    "rough-glass-ggx": ([1.0, 1.0, 1.0], 0.0, 1.0, {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                                                    "KHR_materials_ior": {"ior": 1.0 / 1.5},
+                                                    "KHR_materials_volume": {"thicknessFactor": 1.0}}),
+}
+
+
+@pytest.mark.parametrize("name", list(GLTF))
+def test_gltf_materials(tmp_path, name):
+    scene = scene_with(tmp_path, MATERIALS[name])
+    document = json.loads(export_scene(scene, "gltf", tmp_path / "gltf")[0].read_text())
+    colour, metallic, roughness, extensions = GLTF[name]
+    (material,) = document["materials"]
+    pbr = material["pbrMetallicRoughness"]
+    np.testing.assert_allclose(pbr["baseColorFactor"], [*colour, 1.0], rtol=1e-12)
+    assert pbr["metallicFactor"] == metallic and pbr["roughnessFactor"] == pytest.approx(roughness, rel=1e-12)
+    assert material.get("extensions", {}) == extensions
+    assert set(extensions) <= set(document.get("extensionsUsed", []))
+    assert material["doubleSided"] == (scene.materials["m"].two_sided or scene.materials["m"].is_dielectric)
+    extras = [node["extras"] for node in document["nodes"] if "extras" in node]
+    assert all(("bsdf" in e) == (name != "diffuse") for e in extras) and extras
+    trimesh.load(tmp_path / "gltf" / "scene.gltf", force="scene")  # a file trimesh reads back
+
+
+def losses(folder: Path, name: str, fmt: str) -> list[str]:
+    """export_losses of the material ``name``'s scene but the line about its constant environment."""
+    return [line for line in export_losses(scene_with(folder, MATERIALS[name]), fmt) if "emitter0" not in line]
+
+
+def test_gltf_and_obj_losses_name_what_is_approximate(tmp_path):
+    assert losses(tmp_path, "mirror", "gltf") == [
+        "glTF's single-sided materials are culled from behind, not black: m (conductor)"]
+    assert losses(tmp_path, "glass", "gltf") == []
+    assert losses(tmp_path, "diffuse", "gltf") == []
+    lines = losses(tmp_path, "rough-beckmann", "gltf")
+    assert [line.split(":")[0] for line in lines] == [
+        "glTF metals have Schlick's Fresnel from a base colour", "glTF's microfacets are GGX",
+        "glTF's single-sided materials are culled from behind, not black"]
+    assert losses(tmp_path, "water-tinted", "gltf") == [
+        "glTF's transmission has no reflection tint: specular_reflectance of m (dielectric) left out"]
+    assert losses(tmp_path, "glass", "obj") == [
+        "OBJ's MTL has diffuse colours only: materials m (dielectric) written with the colour of their glTF base "
+        "colour"]
+    assert losses(tmp_path, "glass", "mitsuba-xml") == []

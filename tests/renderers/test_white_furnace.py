@@ -72,6 +72,56 @@ def test_white_furnace_closed_form(name, max_depth, monkeypatch, tmp_path):
     assert not (tmp_path / "cache").exists()
 
 
+GLOSSY_BALLS = {
+    # [materials.grey] replaced by -> (max_depth, the closed form's pixel as a multiple of L)
+    "mirror": ('type = "conductor"', [(-1, 1.0), (2, 1.0), (1, 0.0)]),
+    "tinted-mirror": ('type = "conductor"\nmaterial = "none"\nspecular_reflectance = [0.5, 0.25, 1]',
+                      [(-1, np.array([0.5, 0.25, 1.0])), (3, np.array([0.5, 0.25, 1.0]))]),
+    "glass": ('type = "dielectric"', [(-1, 1.0)]),
+    "water": ('type = "dielectric"\nint_ior = 1.33\next_ior = 1', [(-1, 1.0)]),
+}
+
+
+def glossy_ball(tmp_path, body: str):
+    return with_file(tmp_path, lambda t: t.replace("reflectance = [0.8, 0.8, 0.8]", body))
+
+
+@pytest.mark.parametrize("case", sorted(GLOSSY_BALLS))
+def test_white_furnace_of_a_mirror_and_of_glass(case, tmp_path):
+    body, expectations = GLOSSY_BALLS[case]
+    scene = glossy_ball(tmp_path, body)
+    for max_depth, factor in expectations:
+        result = closed_form(dataclasses.replace(scene, max_depth=max_depth))
+        np.testing.assert_allclose(result.image, np.broadcast_to(factor * L, result.image.shape), rtol=1e-7)
+
+
+GLOSSY_REFUSED = {
+    "glass-bounded": ('type = "dielectric"', 5, "a smooth one (type dielectric) with specular_reflectance"),
+    "tinted-glass": ('type = "dielectric"\nspecular_transmittance = 0.5', -1, "at max_depth = -1"),
+    "rough-glass": ('type = "roughdielectric"', -1, "this scene has a roughdielectric at max_depth = -1"),
+    "copper": ('type = "conductor"\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.1]', -1,
+               "this scene has a conductor with eta / k (Fresnel < 1)"),
+    "rough-mirror": ('type = "roughconductor"', -1, "needs a perfect mirror"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(GLOSSY_REFUSED))
+def test_white_furnace_refuses_glossy_balls_without_a_closed_form(case, tmp_path):
+    body, max_depth, fragment = GLOSSY_REFUSED[case]
+    scene = dataclasses.replace(glossy_ball(tmp_path, body), max_depth=max_depth)
+    with pytest.raises(HarnessError) as info:
+        closed_form(scene)
+    assert info.value.where == f"{scene.path}: closed_form"
+    assert fragment in info.value.message and "\n" not in str(info.value), info.value.message
+
+
+def test_the_furnace_closed_form_refuses_glossy_materials(tmp_path):
+    path = tmp_path / "furnace.toml"
+    path.write_text((SCENES / "furnace.toml").read_text().replace("reflectance = [", 'type = "conductor"\n#['))
+    with pytest.raises(HarnessError, match="holds for diffuse materials alone; this scene also has conductor"):
+        closed_form(load_scene(path))
+
+
 @pytest.mark.parametrize("filter_", ["box", "tent", "gaussian"])
 def test_the_canonical_framing_covers_every_filter_footprint(filter_):
     assert sphere_coverage_problem(furnace(filter_=filter_, size=64)) is None
