@@ -592,6 +592,11 @@ def _summary_md(results, items, sections) -> str:
                 lines.append(f"- {_md(e['scene'])}: {_md(e.get('best'))} "
                              f"({_mdf(e.get('best_relative_efficiency'), 3)} x the default)"
                              + (f"; within {_mdf(e.get('tie_factor'))} x: {_md(', '.join(near))}" if near else ""))
+                regions = e.get("regions") or {}
+                for name in regions.get("names", []):
+                    row = regions["relative_efficiency"][name]
+                    lines.append(f"  - {_md(name)}: best {_md(regions['best'][name])}; "
+                                 + ", ".join(f"{_md(k)} {_mdf(v, 3)}" for k, v in row.items()))
     return "\n".join(lines) + "\n"
 
 

@@ -55,7 +55,7 @@ from harness.scene.triangulate import (
 )
 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
-                  "emitters")
+                  "emitters", "regions")
 CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
 CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
@@ -351,8 +351,22 @@ class _SceneReader:
         closed_form = None
         if "closed_form" in document:
             closed_form = self.choice(document["closed_form"], "closed_form", CLOSED_FORMS)
+        regions = self.regions(document, shapes)
         return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form,
-                     emitters=emitters)
+                     emitters=emitters, regions=regions)
+
+    def regions(self, document: dict, shapes: list[Shape]) -> tuple[str, ...]:
+        """``regions``: names of shapes whose pixels the strategy table measures apart (docs/scene-format.md)."""
+        raw = document.get("regions", [])
+        if not isinstance(raw, list) or not all(isinstance(r, str) for r in raw):
+            raise self.expected("regions", "a list of shape names", raw)
+        names = {shape.name for shape in shapes}
+        for i, region in enumerate(raw):
+            if region not in names:
+                raise self.error(f"regions[{i}]", f"expected the name of a [[shapes]] entry, got {region!r}")
+        if len(set(raw)) != len(raw):
+            raise self.error("regions", "expected each shape once")
+        return tuple(raw)
 
     def camera(self, document: dict) -> Camera:
         table = self.required_table(document, "camera")

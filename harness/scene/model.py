@@ -235,6 +235,7 @@ class Scene:
     path: Path
     closed_form: str | None = None
     emitters: tuple[Emitter, ...] = ()  # [[emitters]] in the file's order; emitting shapes are in ``shapes``
+    regions: tuple[str, ...] = ()  # shape names: the strategy table's per-region efficiencies (their pixels)
 
     @property
     def lights(self) -> list[Shape]:

@@ -15,6 +15,7 @@ from harness.files.previews import ImageWriter, ReportImage, display_exposure
 from harness.judges.floor import error_point
 from harness.renderers import RenderRequest, get_renderer
 from harness.studies import figures
+from harness.studies.regions import region_variances
 from harness.studies.convergence import MIN_TIMING_SECONDS, fit_convergence, timed_render
 from reference_impl import Settings
 
@@ -264,9 +265,41 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     measured = [r for r in rows if r.get("relative_efficiency")]
     best = max(measured, key=lambda r: r["relative_efficiency"]) if measured else None
     near = [r["label"] for r in measured if best and r["relative_efficiency"] * TIE_FACTOR >= best["relative_efficiency"]]
-    return {"scene": scene_name, "rows": rows, "best": best["label"] if best else None,
-            "best_relative_efficiency": best["relative_efficiency"] if best else None,
-            "near_best": near, "tie_factor": TIE_FACTOR}
+    table = {"scene": scene_name, "rows": rows, "best": best["label"] if best else None,
+             "best_relative_efficiency": best["relative_efficiency"] if best else None,
+             "near_best": near, "tie_factor": TIE_FACTOR}
+    regions = _region_efficiencies(rows, default)
+    if regions:
+        table["regions"] = regions
+    return table
+
+
+def _region_efficiencies(rows: list[dict], default: dict | None) -> dict | None:
+    """Per region (the scene's ``regions``): each row's efficiency 1 / (region variance x seconds per megapixel)
+    relative to the default's over the same region, and the best row there. Rows carry ``variance_regions``
+    ({region: mean variance over its pixels}, :func:`harness.studies.regions.region_variances`)."""
+    names = [n for r in rows for n in (r.get("variance_regions") or {})]
+    names = list(dict.fromkeys(names))
+    if not names:
+        return None
+
+    def efficiency(row, name):
+        v = (row.get("variance_regions") or {}).get(name)
+        return 1.0 / (v * row["seconds_per_megapixel"]) if v and v > 0 and row.get("seconds", 0) > 0 else None
+
+    out: dict = {"names": names, "relative_efficiency": {}, "best": {}}
+    for name in names:
+        base = efficiency(default, name) if default is not None else None
+        values = {}
+        for row in rows:
+            if "skipped" in row:
+                continue
+            e = efficiency(row, name)
+            values[row["label"]] = e / base if e is not None and base else None
+        out["relative_efficiency"][name] = values
+        scored = [(v, k) for k, v in values.items() if v]
+        out["best"][name] = max(scored)[1] if scored else None
+    return out
 
 
 def _warm_render(scene, settings: dict[str, str], spp: int, seed: int, min_seconds: float):
@@ -295,7 +328,7 @@ def time_per_path(scene, settings: dict[str, str], spp: int, seed: int,
 
 
 def measure_render(scene, gt, settings: dict[str, str], spp: int, seed: int,
-                   min_seconds: float = MIN_STRATEGY_SECONDS) -> dict:
+                   min_seconds: float = MIN_STRATEGY_SECONDS, masks: dict | None = None) -> dict:
     """Render one strategy and measure it against ``gt`` (for :func:`strategy_rows`): an untimed 1-spp warm-up,
     then ``spp``, quadrupled while the render takes less than ``min_seconds``."""
     result = _warm_render(scene, settings, spp, seed, min_seconds)
@@ -304,4 +337,5 @@ def measure_render(scene, gt, settings: dict[str, str], spp: int, seed: int,
     return {"case": None, "source": "rendered", "settings": dict(settings), "mse": point["mse"],
             "variance": mean_variance(result.variance),
             "floor_mse": point["floor_mse"], "seconds": float(result.seconds), "pixels": int(h * w),
-            "spp": int(result.spp), "film": [w, h], "seed": seed, "timing": "rendered by the report (warm)"}
+            "spp": int(result.spp), "film": [w, h], "seed": seed, "timing": "rendered by the report (warm)",
+            "variance_regions": region_variances(result.variance, masks or {})}

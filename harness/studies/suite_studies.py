@@ -38,6 +38,7 @@ from harness.running.judge import case_scene
 from harness.studies import convergence as conv
 from harness.studies import figures
 from harness.studies import strategies as studies
+from harness.studies.regions import region_masks, region_variances
 
 #: the sections of studies.json, in the order the report shows them
 SECTIONS = ("convergence", "shadow_rays", "strategies")
@@ -280,7 +281,7 @@ def _shadow_section(items: list[StudyCase], out: Path, options: StudyOptions, pr
     return study
 
 
-def _case_rows(items: list[StudyCase], key: str, base: StudyCase) -> list[dict]:
+def _case_rows(items: list[StudyCase], key: str, base: StudyCase, masks: dict | None = None) -> list[dict]:
     """The measurements of a scene's reference cases that compared with a ground truth (not another renderer), at
     the base case's film: the strategy table's rows where one covers a strategy."""
     rows = []
@@ -302,7 +303,8 @@ def _case_rows(items: list[StudyCase], key: str, base: StudyCase) -> list[dict]:
                      "variance": studies.mean_variance(item.render_variance),
                      "seconds": float(rec["render"]["seconds"]), "pixels": int(h * w),
                      "spp": int(rec["render"].get("spp") or 0), "film": [w, h],
-                     "timing": "the case's own", "_scene": item.scene})
+                     "timing": "the case's own", "_scene": item.scene,
+                     "variance_regions": region_variances(item.render_variance, masks or {})})
     return rows
 
 
@@ -311,7 +313,8 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
     defaults = studies.strategy_defaults()
     section: dict[str, Any] = {"defaults": defaults, "strategy_spp": options.strategy_spp, "scenes": []}
     for key, base in bases.items():
-        case_rows = _case_rows(items, key, base)
+        masks = region_masks(base.scene, tuple(base.render.shape[:2])) if base.scene.regions else {}
+        case_rows = _case_rows(items, key, base, masks)
         note = None
         if case_rows and all(studies.classify(r["settings"], defaults) in (None, "default") for r in case_rows) \
                 and options.render_strategies:
@@ -321,9 +324,9 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
         bounded = base.scene.max_depth != -1
         seeds = iter(range(20_000, 30_000))
 
-        def render(settings, scene=base.scene, gt=base.gt):
+        def render(settings, scene=base.scene, gt=base.gt, masks=masks):
             row = studies.measure_render(scene, gt, settings, options.strategy_spp, next(seeds),
-                                         min_seconds=options.strategy_min_seconds)
+                                         min_seconds=options.strategy_min_seconds, masks=masks)
             progress.step("strategy " + " ".join(f"{k}={v}" for k, v in settings.items()))
             return row
 
