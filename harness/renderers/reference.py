@@ -9,7 +9,7 @@ import reference_impl
 from harness.core.errors import HarnessError
 from harness.core.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
-from harness.scene import Scene, emitter_arrays, triangulate
+from harness.scene import Scene, emitter_arrays, material_arrays, triangulate
 
 
 class ReferenceRenderer:
@@ -43,9 +43,11 @@ class ReferenceRenderer:
         settings = self.settings_for(scene, request)
         geometry = triangulate(scene)
         emitters = emitter_arrays(scene)
+        materials = material_arrays(scene)  # None on Lambertian-only scenes: the engines they always ran
+        extra = {} if materials is None else {"materials": materials}
         try:
             out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress,
-                                        emitters=emitters)
+                                        emitters=emitters, **extra)
         except reference_impl.SettingsError as err:
             raise HarnessError(f"{scene.path}: {err.key}", err.message) from None
         stats = dict(out.stats)

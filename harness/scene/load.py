@@ -446,6 +446,11 @@ class _SceneReader:
             for item, default in (("int_ior", DEFAULT_INT_IOR), ("ext_ior", DEFAULT_EXT_IOR)):
                 fields[item] = self.index_of_refraction(entry.get(item, default), f"{key}.{item}")
             bound = tuple(max(r, t) for r, t in zip(fields["specular_reflectance"], fields["specular_transmittance"]))
+            if kind == "roughdielectric" and np.float32(fields["int_ior"]) == np.float32(fields["ext_ior"]):
+                item = "int_ior" if "int_ior" in entry else "ext_ior"
+                raise self.error(f"{key}.{item}", (
+                    f"expected int_ior != ext_ior for a roughdielectric (Mitsuba refuses an index-matched rough "
+                    f"interface), got both {fields['int_ior']:g}; an invisible surface is a dielectric"))
         if kind in ("roughconductor", "roughdielectric"):
             what = f"a finite number in [{MIN_ALPHA:g}, {MAX_ALPHA:g}] (the microfacets' roughness)"
             alpha = self.number(entry.get("alpha", DEFAULT_ALPHA), f"{key}.alpha", what)

@@ -81,6 +81,7 @@ import numpy as np  # noqa: E402
 
 from harness.files import imageio  # noqa: E402
 from harness.scene.sky import sky_image  # noqa: E402
+from harness.scene.load import MATERIAL_KEYS  # noqa: E402
 from tomltext import to_toml, without_none  # noqa: E402
 from harness.core.errors import HarnessError  # noqa: E402
 
@@ -534,7 +535,7 @@ def scene_keys(path: tuple):
     if path in SCENE_TABLES:
         return SCENE_TABLES[path]
     if len(path) == 2 and path[0] == "materials":
-        return ("reflectance", "two_sided")
+        return MATERIAL_KEYS  # every type's (a key of another type is refused too, but by type, not as unknown)
     if len(path) == 2 and path[0] == "shapes":
         return SHAPE_KEYS
     if len(path) == 2 and path[0] == "emitters":
@@ -557,6 +558,7 @@ SCENE_BAD = {  # a value certainly refused at this key
     ("integrator", "max_depth"): [0, -2, 1.5, "3", 10**30, True],
     ("material", "reflectance"): [[1.2, 0, 0], [-0.1, 0, 0], [NAN, 0.5, 0.5], [0.5, 0.5], "x", [INF, 0, 0]],
     ("material", "two_sided"): ["yes", 1],
+    ("material", "type"): ["plastic", "", 1, "Diffuse", ["diffuse"], "twosided"],
     ("shape", "emission"): [[-1, 1, 1], [INF, 1, 1], [NAN, 1, 1], [1e308, 1, 1], [0, 0, 0], [1, 1], "x"],
     ("shape", "scale"): [0, [1, 0, 1], NAN, "2", [1, 1], INF],
     ("shape", "type"): ["cylinder", "", 1],
@@ -598,6 +600,7 @@ SCENE_VALID = {  # values that keep a scene valid
     ("camera", "fov"): [30, 45.5, 90, 1], ("camera", "fov_axis"): ["x", "y", "smaller", "larger"],
     ("film", "width"): [8, 16, 12], ("film", "height"): [8, 16, 1], ("film", "filter"): ["box", "tent", "gaussian"],
     ("integrator", "max_depth"): [1, 2, 3, -1], ("material", "two_sided"): [True, False],
+    ("material", "type"): ["diffuse"],
     ("material", "reflectance"): [[0, 0, 0], [0.9, 0.9, 0.9], [0.5, 0.25, 0.125]],
     ("shape", "flip_normals"): [True, False], ("sphere", "subdivisions"): [0, 1, 2],
     ("point", "position"): [[0, 0.001, 0], [-3, 2, 1e3]], ("point", "intensity"): [[1, 1, 1], [0, 0, 1e-3], [1e6] * 3],
@@ -622,7 +625,7 @@ def _scene_slots(doc: dict) -> list[tuple[tuple, tuple]]:
                 slots.append(((t, key), (table, key)))
     for name, material in (doc.get("materials") or {}).items():
         if isinstance(material, dict):
-            slots += [(("material", k), ("materials", name, k)) for k in ("reflectance", "two_sided")]
+            slots += [(("material", k), ("materials", name, k)) for k in ("reflectance", "two_sided", "type")]
     for i, shape in enumerate(doc.get("shapes") or []):
         if not isinstance(shape, dict):
             continue

@@ -6,12 +6,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+import reference_impl
 from conftest import MINIMAL_SCENE
+from reference_impl import materials as core
 from test_hostile_input import assert_one_line, cli
 from harness.core.errors import HarnessError
-from harness.scene import load_scene
+from harness.renderers import RenderRequest, get_renderer
+from harness.scene import load_scene, material_arrays, triangulate
 from harness.scene.load import CU_ETA, CU_K
 from harness.scene.model import Material
 
@@ -143,6 +147,9 @@ BAD = [
     ("ior-huge", 'type = "dielectric"\nint_ior = 1e6', "int_ior", "[0.01, 100]"),
     ("ior-nan", 'type = "dielectric"\next_ior = nan', "ext_ior", "got nan"),
     ("ior-named", 'type = "dielectric"\nint_ior = "bk7"', "int_ior", "named indices are not supported"),
+    ("rough-index-matched", 'type = "roughdielectric"\nint_ior = 1.33\next_ior = 1.33', "int_ior",
+     "expected int_ior != ext_ior for a roughdielectric"),
+    ("rough-index-matched-default", 'type = "roughdielectric"\next_ior = 1.5046', "ext_ior", "got both 1.5046"),
     ("ior-list", 'type = "dielectric"\nint_ior = [1.5, 1.5, 1.5]', "int_ior", "an index of refraction"),
 ]
 
@@ -169,3 +176,89 @@ def test_the_command_line_prints_one_line_and_writes_nothing(tmp_path, capfd, bo
     code, stdout, stderr = cli(capfd, "render", path, "--spp", "1", "--out", out)
     assert_one_line(code, stdout, stderr, f"{path}: {fragment}")
     assert not out.exists()
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# The core's material table (harness.scene.material_arrays)
+
+TABLE = MINIMAL_SCENE + """
+[materials.copper]
+type = "roughconductor"
+eta = [0.2, 0.9, 1.1]
+k = [3.9, 2.4, 2.1]
+alpha = 0.3
+distribution = "ggx"
+specular_reflectance = 0.5
+two_sided = true
+
+[materials.mirror]
+type = "conductor"
+
+[materials.glass]
+type = "roughdielectric"
+int_ior = 1.5
+ext_ior = 1.25
+alpha = 0.05
+sample_visible = false
+specular_transmittance = [0.25, 0.5, 1]
+
+[[shapes]]
+type = "sphere"
+material = "glass"
+
+[[shapes]]
+type = "rectangle"
+material = "white"
+emission = [1, 1, 1]
+translate = [0, 0, -2]
+"""
+
+
+def test_the_material_table_holds_every_parameter_in_file_order(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(TABLE)
+    scene = load_scene(path)
+    table = material_arrays(scene)
+    assert list(table.kind) == [core.DIFFUSE, core.ROUGHCONDUCTOR, core.CONDUCTOR, core.ROUGHDIELECTRIC]
+    white, copper, mirror, glass = table.params
+    assert list(white[core.P_REFLECTANCE:core.P_REFLECTANCE + 3]) == [0.8, 0.8, 0.8] and white[core.P_TWO_SIDED] == 0
+    assert list(copper[core.P_REFLECTANCE:core.P_REFLECTANCE + 3]) == [0.5, 0.5, 0.5]
+    assert list(copper[core.P_ETA:core.P_ETA + 3]) == [0.2, 0.9, 1.1]
+    assert list(copper[core.P_K:core.P_K + 3]) == [3.9, 2.4, 2.1]
+    assert (copper[core.P_ALPHA], copper[core.P_DISTRIBUTION], copper[core.P_SAMPLE_VISIBLE],
+            copper[core.P_TWO_SIDED], copper[core.P_MIRROR]) == (0.3, core.GGX, 1, 1, 0)
+    assert list(mirror[core.P_ETA:core.P_K + 3]) == [0, 0, 0, 1, 1, 1] and mirror[core.P_MIRROR] == 1
+    assert list(glass[core.P_TRANSMITTANCE:core.P_TRANSMITTANCE + 3]) == [0.25, 0.5, 1.0]
+    assert (glass[core.P_IOR], glass[core.P_ALPHA], glass[core.P_DISTRIBUTION], glass[core.P_SAMPLE_VISIBLE],
+            glass[core.P_TWO_SIDED], glass[core.P_MIRROR]) == (1.2, 0.05, core.BECKMANN, 0, 0, 0)
+    # Geometry indexes the same order
+    geometry = triangulate(scene)
+    assert set(geometry.material) == {3, 0} and geometry.reflectance.shape == (4, 3)
+    assert np.all((geometry.reflectance >= 0) & (geometry.reflectance <= 1))
+
+
+def test_lambertian_scenes_hand_the_core_no_table(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(MINIMAL_SCENE + SHAPE.replace('material = "m"', 'material = "white"'))
+    assert material_arrays(load_scene(path)) is None
+
+
+@pytest.mark.parametrize(("text", "passed"), [(TABLE, True), (MINIMAL_SCENE + SHAPE.replace('"m"', '"white"'), False)])
+def test_the_reference_renderer_passes_the_table_only_for_glossy_scenes(tmp_path, monkeypatch, text, passed):
+    """Lambertian scenes call the core exactly as before (no materials argument: the same engines, the same bits)."""
+    calls = []
+
+    def fake_render(geometry, camera, film, settings, progress=None, emitters=None, **kwargs):
+        calls.append(kwargs)
+        raise reference_impl.SettingsError("x", "stop here")
+
+    monkeypatch.setattr(reference_impl, "render", fake_render)
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    with pytest.raises(HarnessError, match="stop here"):
+        get_renderer("reference").render(load_scene(path), RenderRequest(spp=1, seed=0))
+    (kwargs,) = calls
+    assert ("materials" in kwargs) == passed
+    if passed:
+        assert list(kwargs["materials"].kind) == [core.DIFFUSE, core.ROUGHCONDUCTOR, core.CONDUCTOR,
+                                                  core.ROUGHDIELECTRIC]

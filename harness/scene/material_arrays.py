@@ -1,0 +1,48 @@
+"""Turn a :class:`Scene`'s ``[materials.NAME]`` tables into the core's :class:`reference_impl.Materials` (the table
+the reference renderer's BSDF kernels read beside the triangles of :func:`harness.scene.triangulate`), in the order
+``Geometry.material`` indexes them (the file's)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+import reference_impl
+from reference_impl import materials as core
+from reference_impl.errors import SettingsError
+
+from harness.core.errors import HarnessError
+from harness.scene.model import Material, Scene
+
+KINDS = {"diffuse": core.DIFFUSE, "conductor": core.CONDUCTOR, "roughconductor": core.ROUGHCONDUCTOR,
+         "dielectric": core.DIELECTRIC, "roughdielectric": core.ROUGHDIELECTRIC}
+
+
+def material_row(material: Material) -> np.ndarray:
+    """The core's parameter row of one material of the scene model (same parameters, Mitsuba's meaning)."""
+    if material.is_diffuse:
+        return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
+    return core.material_row(
+        KINDS[material.type], reflectance=material.specular_reflectance, eta=material.eta, k=material.k,
+        transmittance=material.specular_transmittance, alpha=material.alpha,
+        distribution=core.DISTRIBUTIONS[material.distribution], sample_visible=material.sample_visible,
+        int_ior=material.int_ior, ext_ior=material.ext_ior, two_sided=material.two_sided, mirror=material.mirror)
+
+
+def material_table(scene: Scene) -> reference_impl.Materials:
+    """Every material of ``scene`` as the core's table, in file order."""
+    materials = list(scene.materials.values())
+    kind = np.array([KINDS[m.type] for m in materials], dtype=np.int64)
+    params = np.array([material_row(m) for m in materials], dtype=np.float64).reshape(-1, core.NUM_PARAMS)
+    try:
+        return reference_impl.Materials(kind, params)
+    except SettingsError as err:
+        # The core names a material by its row; the file names it by its table.
+        raise HarnessError(str(scene.path), f"cannot use the materials: {err.key}: {err.message}") from err
+
+
+def material_arrays(scene: Scene) -> reference_impl.Materials | None:
+    """The core's material table, or None for a scene whose materials are all Lambertian (which then renders
+    exactly as it did before other materials existed: ``Geometry.reflectance`` and ``two_sided`` say it all)."""
+    if all(m.is_diffuse for m in scene.materials.values()):
+        return None
+    return material_table(scene)
