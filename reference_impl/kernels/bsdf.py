@@ -126,7 +126,8 @@ def fresnel_conductor(cos_theta_i, eta, k):
     r_s = (term1 - term2) / (term1 + term2)
     term3 = ab * c2 + s4
     term4 = term2 * s2
-    r_p = r_s * (term3 - term4) / (term3 + term4)
+    # eta = k = 0 at normal incidence leaves 0 / 0 (no physical conductor): take r_p = r_s there
+    r_p = r_s * (term3 - term4) / (term3 + term4) if term3 + term4 > 0.0 else r_s
     return 0.5 * (r_s + r_p)
 
 
