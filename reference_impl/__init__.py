@@ -11,7 +11,9 @@ from reference_impl.emitters import Constant, Directional, Emitters, EnvMap, Poi
 from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.integrator import RenderOutput, render
+from reference_impl.materials import Materials
 from reference_impl.settings import Settings
 
-__all__ = ["Camera", "Constant", "Directional", "Emitters", "EnvMap", "Film", "Geometry", "Point", "RenderOutput",
+__all__ = ["Camera", "Constant", "Directional", "Emitters", "EnvMap", "Film", "Geometry", "Materials", "Point",
+           "RenderOutput",
            "Settings", "SettingsError", "Spot", "render"]

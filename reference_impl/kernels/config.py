@@ -30,13 +30,15 @@ JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
 (C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE,
  C_LIGHT_SELECT) = range(10)
 
-DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM = range(5)
+DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_BSDF = range(6)
+# "auto" never reaches a kernel: kernel_config resolves it (Settings.resolved_direct) to "area" or "mis".
 DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
-                "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM}
+                "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM,
+                "bsdf": DIRECT_BSDF}
 HEMI_UNIFORM, HEMI_COSINE = 0, 1
 HEMISPHERE_MODES = {"uniform": HEMI_UNIFORM, "cosine": HEMI_COSINE}
-RR_OFF, RR_ALBEDO, RR_FIXED = 0, 1, 2
-RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED}
+RR_OFF, RR_ALBEDO, RR_FIXED, RR_THROUGHPUT = 0, 1, 2, 3
+RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED, "throughput": RR_THROUGHPUT}
 SAMPLER_INDEPENDENT, SAMPLER_SOBOL = 0, 1
 SAMPLER_MODES = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL}
 FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
@@ -49,13 +51,14 @@ ENV_SAMPLING_MODES = {"importance": ENV_IMPORTANCE, "uniform": ENV_UNIFORM, "cos
 # one changes is marked with a comment naming it. ("energy-loss-2pct" is the integrator's scale of finish_samples.)
 (M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET, M_DOUBLE_EMISSION,
  M_CAMERA_HALF_PIXEL, M_POINT_NO_INVERSE_SQUARE, M_SPOT_IGNORES_BEAM_WIDTH, M_ENVMAP_PDF_NO_SIN, M_ENVMAP_MIRRORED_U,
- M_DIRECTIONAL_REVERSED) = (1 << b for b in range(12))
+ M_DIRECTIONAL_REVERSED, M_MIS_WEIGHTS_NOT_ONE) = (1 << b for b in range(13))
 MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-no-reweight": M_RR_NO_REWEIGHT,
                "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET,
                "double-emission": M_DOUBLE_EMISSION, "camera-half-pixel": M_CAMERA_HALF_PIXEL,
                "point-no-inverse-square": M_POINT_NO_INVERSE_SQUARE,
                "spot-ignores-beam-width": M_SPOT_IGNORES_BEAM_WIDTH, "envmap-pdf-no-sin": M_ENVMAP_PDF_NO_SIN,
-               "envmap-mirrored-u": M_ENVMAP_MIRRORED_U, "directional-reversed": M_DIRECTIONAL_REVERSED}
+               "envmap-mirrored-u": M_ENVMAP_MIRRORED_U, "directional-reversed": M_DIRECTIONAL_REVERSED,
+               "mis-weights-not-one": M_MIS_WEIGHTS_NOT_ONE}
 
 
 class KernelConfig(NamedTuple):
@@ -122,11 +125,13 @@ NOT_SLOTS = {
 
 
 def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float,
-                  num_area_lights: int | None = None, env_light: int = -1) -> KernelConfig:
+                  num_area_lights: int | None = None, env_light: int = -1, glossy: bool = False) -> KernelConfig:
     """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
     lights, the first ``num_area_lights`` of them area lights (all, by default), the environment light
-    ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``)."""
-    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items()}
+    ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``).
+    ``direct = "auto"`` is resolved for a scene with (``glossy``) or without a non-diffuse material."""
+    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items() if slot != "direct"}
+    slots["direct"] = DIRECT_MODES[settings.resolved_direct(glossy)]
     area = int(num_lights if num_area_lights is None else num_area_lights)
     return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
                         surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light), **slots)
