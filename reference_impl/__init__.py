@@ -2,7 +2,7 @@
 
 Pure core: plain arrays in (:class:`Geometry`, :class:`Camera`, :class:`Film`, :class:`Settings`, and the emitters
 that are not surfaces, :class:`Emitters` of :class:`Point`, :class:`Spot`, :class:`Directional`, :class:`Constant`,
-:class:`EnvMap` records), arrays and
+:class:`EnvMap` records, and the non-Lambertian materials, :class:`Materials`), arrays and
 counters out (:class:`RenderOutput`). It imports neither ``harness`` nor ``mitsuba``.
 """
 

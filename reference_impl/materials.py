@@ -1,4 +1,11 @@
-"""STUB (helper B's placeholder for helper A's reference_impl/materials.py; replaced on merge): the material table."""
+"""The material table of the core: one row per material, as plain arrays the BSDF kernels read.
+
+Each material is a kind (:data:`DIFFUSE`, :data:`CONDUCTOR`, :data:`ROUGHCONDUCTOR`, :data:`DIELECTRIC`,
+:data:`ROUGHDIELECTRIC`, Mitsuba 3's plugins ``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
+``roughdielectric``) and a row of :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
+The kernels of :mod:`reference_impl.kernels.bsdf` evaluate and sample them; the harness builds the table from the
+scene's ``[materials.NAME]`` in the order ``Geometry.material`` indexes.
+"""
 
 from __future__ import annotations
 
@@ -6,28 +13,141 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from reference_impl.errors import SettingsError
+
 DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC = range(5)
-P_REFLECTANCE, P_ETA, P_K, P_TRANSMITTANCE = 0, 3, 6, 9
-P_ALPHA, P_DISTRIBUTION, P_SAMPLE_VISIBLE, P_IOR, P_TWO_SIDED, P_MIRROR = 12, 13, 14, 15, 16, 17
-NUM_PARAMS = 20
+#: Mitsuba's plugin name of each kind.
+KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
+              DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric"}
+BECKMANN, GGX = 0, 1
+DISTRIBUTIONS = {"beckmann": BECKMANN, "ggx": GGX}
+
+# Columns of Materials.params.
+P_REFLECTANCE = 0  # 0-2: reflectance (diffuse) | specular_reflectance (the others)
+P_ETA = 3  # 3-5: conductor eta (real part of the complex index), per channel
+P_K = 6  # 6-8: conductor k (imaginary part)
+P_TRANSMITTANCE = 9  # 9-11: specular_transmittance (dielectrics)
+P_ALPHA = 12  # microfacet roughness (rough kinds)
+P_DISTRIBUTION = 13  # BECKMANN | GGX
+P_SAMPLE_VISIBLE = 14  # 1: visible-normal sampling, 0: sampling of D(m) cos(theta_m)
+P_IOR = 15  # dielectrics: eta = int_ior / ext_ior
+P_TWO_SIDED = 16  # 1: Mitsuba's twosided wrapper (diffuse and conductors only)
+P_MIRROR = 17  # 1: conductor with material = "none" (Fresnel = 1)
+NUM_PARAMS = 20  # 18-19 spare
+
+#: Mitsuba's defaults (its plugins' constructors): alpha 0.1, int_ior "bk7", ext_ior "air".
+DEFAULT_ALPHA = 0.1
+DEFAULT_INT_IOR = 1.5046
+DEFAULT_EXT_IOR = 1.000277
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Materials:
+    """The materials of a scene.
+
+    Attributes
+    ----------
+    kind : (M,) int64
+        :data:`DIFFUSE` .. :data:`ROUGHDIELECTRIC`.
+    params : (M, NUM_PARAMS) float64
+        The columns ``P_*`` of this module; columns a kind does not use are ignored (keep them 0).
+
+    Validation (:class:`SettingsError` naming ``materials.kind`` or ``materials.params``): known kinds; finite
+    parameters; reflectances and transmittances in [0, 1]; alpha > 0 on rough kinds; eta > 0 on dielectrics (and != 1 on the rough one, as Mitsuba); k >= 0
+    on conductors; the distribution, sample_visible, two_sided and mirror flags 0 or 1; two_sided 0 on dielectrics.
+    """
+
     kind: np.ndarray
     params: np.ndarray
 
+    def __post_init__(self) -> None:
+        kind = np.ascontiguousarray(self.kind, dtype=np.int64).reshape(-1)
+        params = np.ascontiguousarray(self.params, dtype=np.float64)
+        if params.ndim != 2 or params.shape != (len(kind), NUM_PARAMS):
+            raise SettingsError("materials.params", f"expected an array of shape ({len(kind)}, {NUM_PARAMS}), "
+                                f"got {params.shape}")
+        if np.any((kind < DIFFUSE) | (kind > ROUGHDIELECTRIC)):
+            raise SettingsError("materials.kind", f"expected kinds {DIFFUSE} .. {ROUGHDIELECTRIC} "
+                                f"({', '.join(KIND_NAMES.values())})")
+        _check_params(kind, params)
+        params.setflags(write=False)
+        kind.setflags(write=False)
+        object.__setattr__(self, "kind", kind)
+        object.__setattr__(self, "params", params)
+
     @classmethod
     def diffuse(cls, reflectance, two_sided) -> "Materials":
-        reflectance = np.asarray(reflectance, np.float64).reshape(-1, 3)
+        """An all-diffuse table: ``reflectance`` (M, 3) albedos, ``two_sided`` (M,) flags (Geometry's arrays)."""
+        reflectance = np.asarray(reflectance, dtype=np.float64).reshape(-1, 3)
+        two_sided = np.asarray(two_sided, dtype=bool).reshape(-1)
+        if len(two_sided) != len(reflectance):
+            raise SettingsError("materials.params", "expected one two_sided flag per reflectance")
         params = np.zeros((len(reflectance), NUM_PARAMS))
-        params[:, 0:3] = reflectance
-        params[:, P_TWO_SIDED] = np.asarray(two_sided, np.float64)
-        return cls(np.zeros(len(reflectance), np.int64), params)
+        params[:, P_REFLECTANCE:P_REFLECTANCE + 3] = reflectance
+        params[:, P_TWO_SIDED] = two_sided
+        return cls(np.full(len(reflectance), DIFFUSE, dtype=np.int64), params)
 
     @property
     def all_diffuse(self) -> bool:
+        """True when every material is Lambertian (the scene runs the engines that predate this table)."""
         return bool(np.all(self.kind == DIFFUSE))
 
     def __len__(self) -> int:
         return len(self.kind)
+
+
+def material_row(kind: int, *, reflectance=(1.0, 1.0, 1.0), eta=(0.0, 0.0, 0.0), k=(1.0, 1.0, 1.0),
+                 transmittance=(1.0, 1.0, 1.0), alpha: float = DEFAULT_ALPHA, distribution: int = BECKMANN,
+                 sample_visible: bool = True, int_ior: float = DEFAULT_INT_IOR, ext_ior: float = DEFAULT_EXT_IOR,
+                 two_sided: bool = False, mirror: bool = False) -> np.ndarray:
+    """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
+
+    ``reflectance`` is the diffuse albedo or the specular_reflectance; ``eta``, ``k`` the conductor's complex index
+    (Mitsuba's default without a named material is eta = 0, k = 1: Fresnel = 1); ``int_ior / ext_ior`` becomes
+    :data:`P_IOR`.
+    """
+    row = np.zeros(NUM_PARAMS)
+    row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), 3)
+    row[P_ETA:P_ETA + 3] = np.broadcast_to(np.asarray(eta, dtype=np.float64), 3)
+    row[P_K:P_K + 3] = np.broadcast_to(np.asarray(k, dtype=np.float64), 3)
+    row[P_TRANSMITTANCE:P_TRANSMITTANCE + 3] = np.broadcast_to(np.asarray(transmittance, dtype=np.float64), 3)
+    row[P_ALPHA] = alpha
+    row[P_DISTRIBUTION] = distribution
+    row[P_SAMPLE_VISIBLE] = bool(sample_visible)
+    row[P_IOR] = int_ior / ext_ior
+    row[P_TWO_SIDED] = bool(two_sided)
+    row[P_MIRROR] = bool(mirror)
+    return row
+
+
+def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
+    """Raise :class:`SettingsError` on the first row that a kernel could not evaluate meaningfully."""
+    where = "materials.params"
+    if not np.all(np.isfinite(params)):
+        raise SettingsError(where, "expected finite numbers")
+    for m, (kd, row) in enumerate(zip(kind, params)):
+        name = f"{where}[{m}] ({KIND_NAMES[int(kd)]})"
+        rgb = row[P_REFLECTANCE:P_REFLECTANCE + 3]
+        if np.any(rgb < 0) or np.any(rgb > 1):
+            raise SettingsError(name, "expected the reflectance in [0, 1]")
+        for col, label in ((P_TWO_SIDED, "two_sided"), (P_MIRROR, "mirror"), (P_SAMPLE_VISIBLE, "sample_visible"),
+                           (P_DISTRIBUTION, "distribution")):
+            if row[col] not in (0.0, 1.0):
+                raise SettingsError(name, f"expected {label} 0 or 1, got {row[col]!r}")
+        if kd in (ROUGHCONDUCTOR, ROUGHDIELECTRIC) and not row[P_ALPHA] > 0:
+            raise SettingsError(name, f"expected alpha > 0, got {row[P_ALPHA]!r}")
+        if kd in (CONDUCTOR, ROUGHCONDUCTOR) and np.any(row[P_K:P_K + 3] < 0):
+            raise SettingsError(name, "expected k >= 0")
+        if kd in (CONDUCTOR, ROUGHCONDUCTOR) and np.any(row[P_ETA:P_ETA + 3] < 0):
+            raise SettingsError(name, "expected eta >= 0")
+        if kd in (DIELECTRIC, ROUGHDIELECTRIC):
+            trans = row[P_TRANSMITTANCE:P_TRANSMITTANCE + 3]
+            if np.any(trans < 0) or np.any(trans > 1):
+                raise SettingsError(name, "expected the specular_transmittance in [0, 1]")
+            if not row[P_IOR] > 0:
+                raise SettingsError(name, f"expected eta = int_ior / ext_ior > 0, got {row[P_IOR]!r}")
+            if kd == ROUGHDIELECTRIC and row[P_IOR] == 1.0:
+                raise SettingsError(name, "expected int_ior != ext_ior (Mitsuba's roughdielectric refuses an "
+                                    "index-matched interface; use a dielectric)")
+            if row[P_TWO_SIDED]:
+                raise SettingsError(name, "two_sided does not apply to dielectrics")

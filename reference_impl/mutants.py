@@ -1,7 +1,8 @@
 """Planted faults: deliberately wrong variants of the integrator, selectable by name (``--set mutant=NAME``).
 
 ``MUTANTS`` are the faults of the integrator and its area lights, ``EMITTER_MUTANTS`` those of the emitters that
-are not surfaces (point, spot, directional, environments); each is run by the canonical suite
+are not surfaces (point, spot, directional, environments), ``BSDF_MUTANTS`` those of the glossy and glass BSDFs
+(``reference_impl/kernels/bsdf.py``, caught by ``tests/reference_impl/test_bsdf_*.py``); each is run by the canonical suite
 (``suites/canonical.toml``) on a scene where it matters, and the emitters' also by
 ``tests/reference_impl/test_emitters.py`` on scenes built in the test. ``ALL_MUTANTS`` is what ``Settings.mutant``
 accepts.
@@ -35,6 +36,19 @@ EMITTER_MUTANTS: dict[str, str] = {
     "directional-reversed": "a directional light taken to travel against its direction (lights the other side)",
 }
 
+BSDF_MUTANTS: dict[str, str] = {
+    "microfacet-pdf-no-jacobian": (
+        "the microfacet reflection pdf without the 1/(4|wi.h|) Jacobian from half vectors to directions (Walter et "
+        "al. 2007, eq. 14), and the sampled weight f cos / pdf computed from that wrong pdf"
+    ),
+    "conductor-fresnel-one": "the conductors' Fresnel term (complex index) replaced by 1",
+    "refraction-no-eta2": "transmission through dielectrics without the eta^2 radiance scaling (solid-angle compression)",
+    "vndf-alpha-squared": (
+        "visible-normal sampling stretched by alpha^2 instead of alpha (Heitz 2018), the pdf unchanged: the samples "
+        "do not follow the pdf"
+    ),
+}
+
 # The glossy engine's (reference_impl/kernels/glossy.py), on scenes with a non-diffuse material or direct = bsdf.
 GLOSSY_MUTANTS: dict[str, str] = {
     "mis-weights-not-one": (
@@ -43,4 +57,4 @@ GLOSSY_MUTANTS: dict[str, str] = {
     ),
 }
 
-ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **GLOSSY_MUTANTS}
+ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS}

@@ -51,14 +51,22 @@ ENV_SAMPLING_MODES = {"importance": ENV_IMPORTANCE, "uniform": ENV_UNIFORM, "cos
 # one changes is marked with a comment naming it. ("energy-loss-2pct" is the integrator's scale of finish_samples.)
 (M_NO_COSINE, M_COSINE_PDF_PI, M_RR_NO_REWEIGHT, M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET, M_DOUBLE_EMISSION,
  M_CAMERA_HALF_PIXEL, M_POINT_NO_INVERSE_SQUARE, M_SPOT_IGNORES_BEAM_WIDTH, M_ENVMAP_PDF_NO_SIN, M_ENVMAP_MIRRORED_U,
- M_DIRECTIONAL_REVERSED, M_MIS_WEIGHTS_NOT_ONE) = (1 << b for b in range(13))
+ M_DIRECTIONAL_REVERSED) = (1 << b for b in range(12))
 MUTANT_BITS = {"no-cosine": M_NO_COSINE, "cosine-pdf-pi": M_COSINE_PDF_PI, "rr-no-reweight": M_RR_NO_REWEIGHT,
                "light-pdf-ignored": M_LIGHT_PDF_IGNORED, "no-ray-offset": M_NO_RAY_OFFSET,
                "double-emission": M_DOUBLE_EMISSION, "camera-half-pixel": M_CAMERA_HALF_PIXEL,
                "point-no-inverse-square": M_POINT_NO_INVERSE_SQUARE,
                "spot-ignores-beam-width": M_SPOT_IGNORES_BEAM_WIDTH, "envmap-pdf-no-sin": M_ENVMAP_PDF_NO_SIN,
-               "envmap-mirrored-u": M_ENVMAP_MIRRORED_U, "directional-reversed": M_DIRECTIONAL_REVERSED,
-               "mis-weights-not-one": M_MIS_WEIGHTS_NOT_ONE}
+               "envmap-mirrored-u": M_ENVMAP_MIRRORED_U, "directional-reversed": M_DIRECTIONAL_REVERSED}
+# Planted faults of the BSDFs (reference_impl/kernels/bsdf.py; reference_impl.mutants.BSDF_MUTANTS).
+M_MICROFACET_PDF_NO_JACOBIAN, M_CONDUCTOR_FRESNEL_ONE, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED = (
+    1 << b for b in range(12, 16))
+MUTANT_BITS.update({"microfacet-pdf-no-jacobian": M_MICROFACET_PDF_NO_JACOBIAN,
+                    "conductor-fresnel-one": M_CONDUCTOR_FRESNEL_ONE, "refraction-no-eta2": M_REFRACTION_NO_ETA2,
+                    "vndf-alpha-squared": M_VNDF_ALPHA_SQUARED})
+# The glossy engine's planted fault (reference_impl/kernels/glossy.py; reference_impl.mutants.GLOSSY_MUTANTS).
+M_MIS_WEIGHTS_NOT_ONE = 1 << 16
+MUTANT_BITS["mis-weights-not-one"] = M_MIS_WEIGHTS_NOT_ONE
 
 
 class KernelConfig(NamedTuple):

@@ -36,7 +36,7 @@ import numpy as np
 from numba import njit
 
 from reference_impl.emitters import DIRECTIONAL, POINT, SPOT
-from reference_impl.kernels.bsdf import bsdf_eval, bsdf_pdf, bsdf_sample, is_delta
+from reference_impl.kernels.bsdf import bsdf_eval, bsdf_pdf, bsdf_sample, is_delta, sample_eta
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT, C_ROULETTE,
                                            C_SHADOW, C_SHADOW_SKIPPED, DIRECT_AREA, DIRECT_BSDF, DIRECT_MIS, JIT,
                                            JIT_BORROW, M_DIRECTIONAL_REVERSED, M_MIS_WEIGHTS_NOT_ONE,
@@ -49,7 +49,7 @@ from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, c
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
-from reference_impl.materials import DIELECTRIC, DIFFUSE, P_IOR, P_TWO_SIDED, ROUGHDIELECTRIC
+from reference_impl.materials import DIELECTRIC, P_TWO_SIDED, ROUGHDIELECTRIC
 from reference_impl.rng import BSDF_LOBE, BSDF_U1, BSDF_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE
 
 MAX_VERTICES = 1 << 16
@@ -319,10 +319,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
             if direct == DIRECT_AREA and not delta and not (max_depth == -1 or depth + 2 <= max_depth):
                 break  # its vertex would add direct light only, which max_depth forbids
             nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
-            kind_m = mkind[m]
-            if (kind_m == DIELECTRIC or kind_m == ROUGHDIELECTRIC) and li2 * lo2 < 0:
-                eta = mparams[m, P_IOR]
-                eta2 *= eta * eta if lo2 > 0 else 1.0 / (eta * eta)
+            eta_rel = sample_eta(mkind, mparams, m, lo2, li2)
+            eta2 *= eta_rel * eta_rel
             if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
                 if cfg.rr == RR_THROUGHPUT:
                     q = min(max(nb0, nb1, nb2) * eta2, RR_THROUGHPUT_CAP)
