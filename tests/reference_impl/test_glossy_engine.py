@@ -20,9 +20,12 @@ from emitter_scenes import constant, sphere_scene, with_emitters
 import reference_impl
 from harness.judges.mc import FALSE_ALARM
 from harness.judges.verdict import verdict
+from harness.renderers import RenderRequest
+from harness.renderers.reference import ReferenceRenderer
 from harness.scene import emitter_arrays, triangulate
 from harness.scene.model import Material, Scene, Shape
 from harness.scene.triangulate import rotate_matrix, scale_matrix, translate_matrix
+from harness.studies import strategies
 from reference_impl import Camera, Film, Materials, Settings
 from reference_impl.errors import SettingsError
 from reference_impl.materials import CONDUCTOR, DIELECTRIC, ROUGHCONDUCTOR, ROUGHDIELECTRIC
@@ -191,3 +194,16 @@ def test_auto_resolves_to_area_without_a_glossy_material_and_to_mis_with_one():
     assert s.direct == "auto"
     assert (s.resolved_direct(False), s.resolved_direct(True)) == ("area", "mis")
     assert Settings(direct="bsdf").resolved_direct(False) == "bsdf"
+
+
+def test_the_harness_reads_the_resolved_strategy():
+    """The adapter resolves direct = auto before anything reads it ("area" on a Lambertian scene: the settings a
+    result records are those of before); the strategy tables' defaults and rows follow the scene's kind."""
+    settings = ReferenceRenderer().settings_for(plate_scene(), RenderRequest(spp=1, seed=0, settings={}))
+    assert settings.direct == "area"
+    assert strategies.strategy_defaults()["direct"] == "area"
+    assert strategies.strategy_defaults(glossy=True)["direct"] == "mis"
+    glossy_rows = strategies.strategy_choices(strategies.strategy_defaults(glossy=True), True, glossy=True)
+    assert ("direct", "bsdf") in glossy_rows and ("direct", "area") in glossy_rows
+    assert ("rr", "throughput") in glossy_rows and not any(k == "hemisphere" for k, _ in glossy_rows)
+    assert ("direct", "bsdf") not in strategies.strategy_choices(strategies.strategy_defaults(), True)
