@@ -537,7 +537,7 @@ def bsdf_sample(kind, params, m, mutant, wox, woy, woz, u_lobe, u1, u2):
                                    wox, woy, woz, u1, u2)
         wo_h = wox * hx + woy * hy + woz * hz
         wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
-        if not (ph > 0.0 and wiz > 0.0):
+        if not (ph > 0.0 and wiz > 0.0 and wo_h > 0.0):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         v0, v1, v2 = _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
         p = _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
@@ -566,6 +566,8 @@ def bsdf_sample(kind, params, m, mutant, wox, woy, woz, u_lobe, u1, u2):
         if not ph > 0.0:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         wo_h = wox * hx + woy * hy + woz * hz
+        if wo_h * woz <= 0.0:  # a normal facing away from wo (all-normals sampling): masked, G1(wo, h) = 0
+            return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         f, cos_t, eta_it, eta_ti = fresnel_dielectric(wo_h, params[m, P_IOR])
         if u_lobe < f:
             wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
