@@ -14,5 +14,6 @@ from reference_impl.integrator import RenderOutput, render
 from reference_impl.materials import Materials
 from reference_impl.settings import Settings
 
-__all__ = ["Camera", "Constant", "Directional", "Emitters", "EnvMap", "Film", "Geometry", "Materials", "Point", "RenderOutput",
+__all__ = ["Camera", "Constant", "Directional", "Emitters", "EnvMap", "Film", "Geometry", "Materials", "Point",
+           "RenderOutput",
            "Settings", "SettingsError", "Spot", "render"]

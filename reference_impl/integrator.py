@@ -33,6 +33,7 @@ import math
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,8 +45,9 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
+from reference_impl.materials import Materials
 from reference_impl.sampling import INV_PI
-from reference_impl.settings import Settings
+from reference_impl.settings import GLOSSY_DIRECT, Settings
 
 COUNTERS = (
     "camera_rays",  # viewing rays traced
@@ -69,7 +71,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, path, wavefront  # optional: numba-compiled; noqa: F401 (attributes of kernels)
+    from reference_impl.kernels import camera, config, film, glossy, path, wavefront  # optional: numba-compiled; noqa: F401 (attributes of kernels)
 
     return kernels
 
@@ -184,9 +186,10 @@ class _Context:
     """Everything shared by all batches of one render (read-only once built)."""
 
     def __init__(self, geometry: Geometry, camera: Camera, film: Film, settings: Settings,
-                 emitters: Emitters | None = None):
+                 emitters: Emitters | None = None, materials: Materials | None = None):
         if settings.max_depth is None:
             raise SettingsError("max_depth", "expected the scene's max_depth to be resolved before rendering")
+        self.glossy_engine, self.materials = _glossy_engine(geometry, settings, emitters, materials)
         self.max_depth = settings.resolved_max_depth(settings.max_depth)
         self.geometry = geometry
         self.camera = camera
@@ -248,6 +251,9 @@ class _Context:
         env_light = self.geometry.num_lights + em.env if em is not None and em.env >= 0 else -1
         self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light)
+        self.material_tables = None
+        if self.glossy_engine:
+            self.material_tables = (c(self.materials.kind, dtype=np.int64), c(self.materials.params, dtype=np.float64))
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -278,16 +284,49 @@ class _Clock:
         self.seconds = 0.0
 
 
+def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
+                   materials: Materials | None) -> tuple[bool, Materials | None]:
+    """Whether the render runs the glossy engine (kernels/glossy.py: a material that is not diffuse, ``direct =
+    bsdf`` or ``rr = throughput``), and the material table it reads; SettingsError for what that engine does not
+    do. ``settings.direct`` is resolved already."""
+    if materials is not None and len(materials) != len(geometry.reflectance):
+        raise SettingsError("materials", f"expected one material per entry of the geometry's reflectance "
+                                         f"({len(geometry.reflectance)}), got {len(materials)}")
+    glossy = materials is not None and not materials.all_diffuse
+    if not (glossy or settings.direct == "bsdf" or settings.rr == "throughput"):
+        return False, None
+    why = "with a material that is not diffuse" if glossy else f"with {'direct = bsdf' if settings.direct == 'bsdf' else 'rr = throughput'}"
+    if settings.direct not in GLOSSY_DIRECT:
+        raise SettingsError("direct", f"the glossy engine (scenes {why}) takes direct = {', '.join(GLOSSY_DIRECT)} "
+                                      f"or auto, got {settings.direct!r}")
+    if settings.indirect_rays != 1:
+        raise SettingsError("indirect_rays", f"the glossy engine (scenes {why}) traces one BSDF sample per vertex: "
+                                             f"expected indirect_rays = 1, got {settings.indirect_rays}")
+    if emitters is not None and emitters.env >= 0 and settings.env_sampling == "cosine":
+        raise SettingsError("env_sampling", f"the glossy engine (scenes {why}) samples the environment on both sides "
+                                            "of a surface: expected importance or uniform, got 'cosine'")
+    if materials is None:
+        materials = Materials.diffuse(geometry.reflectance, geometry.two_sided)
+    return True, materials
+
+
 def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, progress=None,
-           emitters: Emitters | None = None) -> RenderOutput:
+           emitters: Emitters | None = None, materials: Materials | None = None) -> RenderOutput:
     """Render an image with the slides' algorithm (Fig. 5.16).
 
     ``settings.max_depth`` must be set (the harness fills in the scene's). ``progress``, if given, is called from
     the calling thread as ``progress(done_paths, total_paths)``. ``emitters``: the scene's emitters that are not
     surfaces (point, spot, directional lights, an environment), or None. The result depends only on the inputs and
-    ``settings.seed``: not on ``batch_size`` or ``threads``.
+    ``settings.seed``: not on ``batch_size`` or ``threads``. ``materials``: the scene's material table
+    (:class:`Materials`, in the order ``geometry.material`` indexes), or None (all Lambertian, as
+    ``geometry.reflectance`` says). None or all diffuse runs the Lambertian engines (``settings.engine``); a
+    material that is not diffuse, ``direct = bsdf`` or ``rr = throughput`` the glossy engine (kernels/glossy.py).
+    ``direct = auto`` is resolved here (:meth:`Settings.resolved_direct`); the output's settings hold the resolved one.
     """
-    ctx = _Context(geometry, camera, film, settings, emitters)
+    glossy = materials is not None and not materials.all_diffuse
+    if settings.direct == "auto":
+        settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy))
+    ctx = _Context(geometry, camera, film, settings, emitters, materials)
     kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp
     num_pixels = width * height
@@ -377,7 +416,12 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
-    if ctx.path_engine:
+    if ctx.glossy_engine:
+        timing = np.zeros(2, np.int64)
+        kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
+                                    ctx.material_tables, ctx.config, radiance, counters, timing, ctx.emitter_tables)
+        clock.seconds += timing[0] * 1e-9
+    elif ctx.path_engine:
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                  ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples,

@@ -49,4 +49,12 @@ BSDF_MUTANTS: dict[str, str] = {
     ),
 }
 
-ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS}
+# The glossy engine's (reference_impl/kernels/glossy.py), on scenes with a non-diffuse material or direct = bsdf.
+GLOSSY_MUTANTS: dict[str, str] = {
+    "mis-weights-not-one": (
+        "direct = mis: the light sample weighted by the balance heuristic p_l / (p_l + p_b) while the BSDF sample "
+        "keeps the power heuristic p_b^2 / (p_b^2 + p_l^2), so the two weights do not sum to 1"
+    ),
+}
+
+ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS}

@@ -11,9 +11,11 @@ from reference_impl.errors import SettingsError
 from reference_impl.lights import LIGHT_SELECTIONS
 from reference_impl.mutants import ALL_MUTANTS
 
-DIRECT_STRATEGIES = ("area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis")
+DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis", "bsdf")
+#: the strategies the glossy engine (kernels/glossy.py, scenes with a non-diffuse material) runs
+GLOSSY_DIRECT = ("area", "mis", "bsdf")
 HEMISPHERES = ("cosine", "uniform")
-ROULETTES = ("albedo", "fixed", "off")
+ROULETTES = ("albedo", "fixed", "throughput", "off")
 ENGINES = ("path", "wavefront")
 SAMPLERS = ("sobol", "independent")
 
@@ -33,16 +35,21 @@ class Settings:
                     sample variance / Np over-estimates the variance of its mean (a conservative verdict).
     shadow_rays     [Nd] direct-light samples per hit.
     direct          how they are drawn: "area" (pick light k with pdf(k), a point y with pdf(y|k); Fig. 5.7, 5.8,
-                    5.10), "hemisphere-cosine" / "hemisphere-uniform" (Fig. 5.12), "global-area" (Fig. 5.13), or "mis"
-                    (beyond the slides: area samples and the indirect rays combined by the power heuristic).
+                    5.10), "hemisphere-cosine" / "hemisphere-uniform" (Fig. 5.12), "global-area" (Fig. 5.13), "mis"
+                    (beyond the slides: area samples and the indirect rays combined by the power heuristic), "bsdf"
+                    (no light samples: the emission the BSDF-sampled rays find; the glossy engine), or "auto", the
+                    default: "area" on Lambertian-only scenes, "mis" where a material is not diffuse
+                    (:meth:`resolved_direct`).
     light_selection pdf(k): "power" (proportional to emitted power) or "uniform".
     env_sampling    directions toward an environment, as light samples: "importance" (an envmap by its luminance
                     times solid angle, cell by cell; a constant environment uniformly), "uniform" (over the sphere) or
                     "cosine" (about the normal at x). Scenes without an environment ignore it.
     indirect_rays   [Ni] indirect rays per hit (the recursion branches Ni ways at every hit).
     hemisphere      their directions: "cosine" or "uniform".
-    rr              Russian roulette: "albedo" (survival = max reflectance), "fixed" (absorption alpha, as the
-                    slides), "off".
+    rr              Russian roulette: "albedo" (survival = max reflectance; in the glossy engine the largest
+                    channel of the bounce's weight f cos / p, at most 1), "fixed" (absorption alpha, as the slides),
+                    "throughput" (Mitsuba's: min(max channel of the throughput x eta^2, 0.95); the glossy engine
+                    only), "off".
     rr_depth        first path depth (camera hit = 1) at which roulette is played.
     absorption      alpha for rr = "fixed".
     max_depth       longest path in segments, Mitsuba's meaning (1 = emitters seen directly, 2 = plus direct light,
@@ -59,7 +66,7 @@ class Settings:
     seed: int = 0
     sampler: str = "sobol"
     shadow_rays: int = 1
-    direct: str = "area"
+    direct: str = "auto"
     light_selection: str = "power"
     env_sampling: str = "importance"
     indirect_rays: int = 1
@@ -122,6 +129,13 @@ class Settings:
         if depth == -1 and self.rr == "fixed" and self.absorption == 0:
             raise SettingsError("absorption", "max_depth = -1 with rr = fixed needs absorption > 0")
         return depth
+
+    def resolved_direct(self, glossy: bool) -> str:
+        """The direct strategy a render runs: ``direct``, or for "auto" "mis" on a scene with a non-diffuse
+        material (``glossy``) and "area" on a Lambertian-only one (today's default, the same bits)."""
+        if self.direct == "auto":
+            return "mis" if glossy else "area"
+        return self.direct
 
     def worker_threads(self) -> int:
         return self.threads or (os.cpu_count() or 1)

@@ -27,6 +27,8 @@ class ReferenceRenderer:
         try:
             settings = reference_impl.Settings.from_strings(values)
             settings = dataclasses.replace(settings, spp=request.spp, seed=request.seed)
+            if settings.direct == "auto":  # resolved here, so that every reader of settings.direct sees the run one
+                settings = dataclasses.replace(settings, direct=settings.resolved_direct(scene_is_glossy(scene)))
             if settings.max_depth is None:
                 settings = dataclasses.replace(settings, max_depth=scene.max_depth)
             settings.resolved_max_depth(settings.max_depth)
@@ -69,6 +71,12 @@ class ReferenceRenderer:
         )
 
 
+def scene_is_glossy(scene: Scene) -> bool:
+    """Whether a material of ``scene`` is not Lambertian (the reference runs its glossy engine, and ``direct =
+    auto`` means "mis" there; docs/reference-renderer.md, "Glossy and glass")."""
+    return any(getattr(m, "type", "diffuse") != "diffuse" for m in scene.materials.values())
+
+
 _PLAIN_INTEGER = re.compile(r"-?[0-9]+")
 #: settings that shape the work per camera sample, the first non-default of which a cost refusal names
 COST_SETTINGS = ("indirect_rays", "shadow_rays", "max_depth", "batch_size", "threads")
@@ -95,6 +103,8 @@ def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
         return 1.0
     if settings.rr == "fixed":
         return 1.0 - settings.absorption
+    if settings.rr == "throughput":
+        return 0.95  # Mitsuba's cap (kernels/glossy.py)
     return max((max(m.reflectance) for m in scene.materials.values()), default=0.0)
 
 
@@ -121,6 +131,6 @@ def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
         lower=f"{', '.join(changed)}, --spp or the film" if changed else "--spp or the film",
         shadow_rays=settings.shadow_rays + _complement_rays(scene, settings), indirect_rays=settings.indirect_rays,
         max_depth=settings.max_depth,
-        survival=_survival(scene, settings), rr_depth=settings.rr_depth, mis=settings.direct == "mis",
+        survival=_survival(scene, settings), rr_depth=settings.rr_depth, mis=settings.direct in ("mis", "bsdf"),
         hemisphere_direct=settings.direct in ("hemisphere-cosine", "hemisphere-uniform"),
         batch_size=settings.batch_size, threads=settings.worker_threads())

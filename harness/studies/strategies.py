@@ -35,6 +35,14 @@ STRATEGIES: dict[str, tuple[str, ...]] = {
     "rr": ("albedo", "fixed", "off"),
     "env_sampling": ("importance", "uniform", "cosine"),  # rows only on scenes with an environment
 }
+#: the same on scenes with a material that is not diffuse (the glossy engine: no hemisphere or global-area
+#: strategies, no hemisphere setting, no cosine sampling of an environment; direct = bsdf and rr = throughput beside)
+GLOSSY_STRATEGIES: dict[str, tuple[str, ...]] = {
+    "direct": ("area", "bsdf", "mis"),
+    "light_selection": ("power", "uniform"),
+    "rr": ("albedo", "fixed", "throughput", "off"),
+    "env_sampling": ("importance", "uniform"),
+}
 FALLBACK_DEFAULTS = {"direct": "area", "light_selection": "power", "hemisphere": "cosine", "rr": "albedo",
                      "env_sampling": "importance"}
 #: strategy keys that change nothing on a scene without an environment (constant or envmap emitter)
@@ -50,13 +58,15 @@ MAX_STRATEGY_SPP = 1024
 TIE_FACTOR = 1.25
 
 
-def strategy_defaults() -> dict[str, str]:
-    """The reference renderer's default choice of each strategy key (read from its Settings)."""
+def strategy_defaults(glossy: bool = False) -> dict[str, str]:
+    """The reference renderer's default choice of each strategy key (read from its Settings) on a Lambertian-only
+    scene, or on one with a material that is not diffuse (``glossy``: direct = auto resolves to "mis" there)."""
     try:
-        resolved = Settings.from_strings({}).as_dict()
+        settings = Settings.from_strings({})
+        resolved = dict(settings.as_dict(), direct=settings.resolved_direct(glossy))
         return {k: str(resolved.get(k, v)) for k, v in FALLBACK_DEFAULTS.items()}
     except Exception:  # noqa: BLE001 - fall back to the documented defaults
-        return dict(FALLBACK_DEFAULTS)
+        return dict(FALLBACK_DEFAULTS, direct="mis") if glossy else dict(FALLBACK_DEFAULTS)
 
 
 def luminance(image: np.ndarray) -> np.ndarray:
@@ -179,10 +189,11 @@ def mean_variance(variance: np.ndarray | None) -> float | None:
     return float(v.mean()) if v.size else None
 
 
-def strategy_choices(defaults: dict[str, str], environment: bool) -> list[tuple[str, str]]:
-    """Every (key, value) of :data:`STRATEGIES` but the defaults: the rows of a strategy table besides "default"
-    (the environment's keys only where the scene has an environment)."""
-    return [(k, v) for k, values in STRATEGIES.items() for v in values
+def strategy_choices(defaults: dict[str, str], environment: bool, glossy: bool = False) -> list[tuple[str, str]]:
+    """Every (key, value) of :data:`STRATEGIES` (:data:`GLOSSY_STRATEGIES` on a scene with a material that is not
+    diffuse) but the defaults: the rows of a strategy table besides "default" (the environment's keys only where
+    the scene has an environment)."""
+    return [(k, v) for k, values in (GLOSSY_STRATEGIES if glossy else STRATEGIES).items() for v in values
             if v != defaults.get(k) and (environment or k not in ENVIRONMENT_KEYS)]
 
 
@@ -192,7 +203,7 @@ def strategy_label(key: str, value: str) -> str:
 
 def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict[str, str]], dict] | None,
                   bounded: bool, defaults: dict[str, str], retime: Callable[[dict], dict] | None = None,
-                  environment: bool = False) -> dict:
+                  environment: bool = False, glossy: bool = False) -> dict:
     """Assemble a scene's strategy table.
 
     ``case_rows``: measurements from the suite's cases of this scene, each {"case", "settings", "mse", "floor_mse",
@@ -201,6 +212,7 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     ``bounded``: the scene's max_depth is finite (rr=off allowed). ``retime(row)``: the case row chosen for a
     strategy with its time measured again under the report's conditions (see :func:`time_per_path`).
     ``environment``: the scene has a constant or envmap emitter (the :data:`ENVIRONMENT_KEYS` rows apply).
+    ``glossy``: a material of the scene is not diffuse (the rows of :data:`GLOSSY_STRATEGIES`).
     """
     by_strategy: dict[Any, dict] = {}
     for row in case_rows:
@@ -210,7 +222,7 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
         current = by_strategy.get(kind)
         if current is None or len(row["settings"]) < len(current["settings"]):
             by_strategy[kind] = row
-    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment)]
+    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment, glossy)]
     rows = []
     for kind in wanted:
         label = "default" if kind == "default" else strategy_label(*kind)

@@ -32,6 +32,7 @@ from harness.files.previews import ImageWriter
 from harness.files.studies import STUDIES_FILE, STUDIES_KIND, STUDIES_SCHEMA, studies_folder
 from harness.judges.floor import error_point
 from harness.renderers import get_renderer
+from harness.renderers.reference import scene_is_glossy
 from harness.renderers.cached import CachedMitsubaRenderer
 from harness.running.cases import Case, load_suite
 from harness.running.judge import case_scene
@@ -312,7 +313,10 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                         progress) -> dict:
     defaults = studies.strategy_defaults()
     section: dict[str, Any] = {"defaults": defaults, "strategy_spp": options.strategy_spp, "scenes": []}
+    lambertian_defaults = defaults
     for key, base in bases.items():
+        glossy = scene_is_glossy(base.scene)  # direct = auto is "mis" there, and the rows are the glossy engine's
+        defaults = studies.strategy_defaults(glossy) if glossy else lambertian_defaults
         masks = region_masks(base.scene, tuple(base.render.shape[:2])) if base.scene.regions else {}
         case_rows = _case_rows(items, key, base, masks)
         note = None
@@ -340,16 +344,18 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                         timing=f"measured again by the studies ({spp} spp, warm), scaled to the case's spp and film")
 
         environment = any(e.type in ("constant", "envmap") for e in base.scene.emitters)
-        wanted = 1 + len(studies.strategy_choices(defaults, environment))
+        wanted = 1 + len(studies.strategy_choices(defaults, environment, glossy))
         progress.add(wanted if options.render_strategies else 0)
         try:
             table = studies.strategy_rows(Path(key).stem, case_rows, render if options.render_strategies else None,
                                           bounded, defaults, retime=retime if options.render_strategies else None,
-                                          environment=environment)
+                                          environment=environment, glossy=glossy)
             plot = f"strategies/{slug(Path(key).stem)}.png"
             _write_bytes(out / plot, figures.strategies_figure(
                 table["rows"], title=f"{Path(key).stem}: efficiency relative to default"))
             table.update(scene_path=key, film=[base.scene.film.width, base.scene.film.height], plot=plot, note=note)
+            if glossy:
+                table.update(defaults=defaults)
         except WriteError:
             raise
         except Exception as err:  # noqa: BLE001

@@ -29,6 +29,8 @@ module              what it holds                                              n
 ``wavefront``       one bounce of a batch, and the direct light once Embree    the wavefront engine
                     has answered
 ``path``            whole paths, one at a time                                 the same bits as ``wavefront``
+``glossy``          whole paths on scenes with materials that are not          (none: its checks are closed forms
+                    Lambertian (BSDF sampling, MIS), and for direct = bsdf     and the other strategies)
 ``film``            the samples' end: non-finite count, per-pixel sums         ``np.cumsum`` in sample order
 =================== ========================================================== ====================================
 

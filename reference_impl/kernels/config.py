@@ -30,13 +30,15 @@ JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
 (C_CAMERA, C_SHADOW, C_SHADOW_SKIPPED, C_HEMI_DIRECT, C_INDIRECT, C_ESCAPED, C_BACK_FACE, C_ROULETTE, C_NONFINITE,
  C_LIGHT_SELECT) = range(10)
 
-DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM = range(5)
+DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_BSDF = range(6)
+# "auto" never reaches a kernel: kernel_config resolves it (Settings.resolved_direct) to "area" or "mis".
 DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
-                "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM}
+                "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM,
+                "bsdf": DIRECT_BSDF}
 HEMI_UNIFORM, HEMI_COSINE = 0, 1
 HEMISPHERE_MODES = {"uniform": HEMI_UNIFORM, "cosine": HEMI_COSINE}
-RR_OFF, RR_ALBEDO, RR_FIXED = 0, 1, 2
-RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED}
+RR_OFF, RR_ALBEDO, RR_FIXED, RR_THROUGHPUT = 0, 1, 2, 3
+RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED, "throughput": RR_THROUGHPUT}
 SAMPLER_INDEPENDENT, SAMPLER_SOBOL = 0, 1
 SAMPLER_MODES = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL}
 FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
@@ -62,6 +64,9 @@ M_MICROFACET_PDF_NO_JACOBIAN, M_CONDUCTOR_FRESNEL_ONE, M_REFRACTION_NO_ETA2, M_V
 MUTANT_BITS.update({"microfacet-pdf-no-jacobian": M_MICROFACET_PDF_NO_JACOBIAN,
                     "conductor-fresnel-one": M_CONDUCTOR_FRESNEL_ONE, "refraction-no-eta2": M_REFRACTION_NO_ETA2,
                     "vndf-alpha-squared": M_VNDF_ALPHA_SQUARED})
+# The glossy engine's planted fault (reference_impl/kernels/glossy.py; reference_impl.mutants.GLOSSY_MUTANTS).
+M_MIS_WEIGHTS_NOT_ONE = 1 << 16
+MUTANT_BITS["mis-weights-not-one"] = M_MIS_WEIGHTS_NOT_ONE
 
 
 class KernelConfig(NamedTuple):
@@ -128,11 +133,13 @@ NOT_SLOTS = {
 
 
 def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float,
-                  num_area_lights: int | None = None, env_light: int = -1) -> KernelConfig:
+                  num_area_lights: int | None = None, env_light: int = -1, glossy: bool = False) -> KernelConfig:
     """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
     lights, the first ``num_area_lights`` of them area lights (all, by default), the environment light
-    ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``)."""
-    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items()}
+    ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``).
+    ``direct = "auto"`` is resolved for a scene with (``glossy``) or without a non-diffuse material."""
+    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items() if slot != "direct"}
+    slots["direct"] = DIRECT_MODES[settings.resolved_direct(glossy)]
     area = int(num_lights if num_area_lights is None else num_area_lights)
     return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
                         surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light), **slots)
