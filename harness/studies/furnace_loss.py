@@ -21,6 +21,7 @@ import sys
 
 import numpy as np
 
+from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer
 from harness.scene import load_scene
 from harness.scene.model import Scene
@@ -91,7 +92,15 @@ def main(argv=None) -> int:
         alphas = [float(a) for a in args.alphas.split(",")]
     except ValueError:
         parser.error(f"--alphas: expected comma-separated numbers, got {args.alphas!r}")
-    scene = load_scene(args.scene)
+    if args.spp < 1 or args.size < 1:
+        parser.error("--spp and --size: expected positive integers")
+    try:
+        scene = load_scene(args.scene)
+        if len(scene.materials) != 1 or not scene.emitters or scene.emitters[0].type != "constant":
+            raise HarnessError(args.scene, "expected a white furnace: one material, a constant environment")
+    except HarnessError as err:
+        print(f"harness: error: {err}", file=sys.stderr)
+        return 2
     scene = dataclasses.replace(scene, film=Film(args.size, args.size, scene.film.filter))
     rows = energy_loss_table(scene, alphas, args.distributions.split(","), args.spp,
                              mitsuba_variant=args.mitsuba_variant,
