@@ -4,7 +4,8 @@
   builds (same shapes and placements, BSDFs, area emitters, camera with its clip planes, film and pixel filter,
   ``path`` integrator with the scene's ``max_depth`` and ``rr_depth`` 5), so Mitsuba renders the same image from it.
   Rectangles, cubes and spheres stay Mitsuba's analytic shapes; ``mesh`` shapes become ``meshes/<shape>.ply`` (world
-  space, wound to face their front side, loaded with ``face_normals``). The sampler's ``sample_count`` and ``seed``
+  space, wound to face their front side, loaded with ``face_normals``), and so do spheres in a scene with a material
+  that is not diffuse (the reference's icosphere, as the adapter: ``tessellates_spheres``). The sampler's ``sample_count`` and ``seed``
   are the XML parameters ``$spp`` and ``$seed``, so ``mi.load_file(path, spp=64, seed=3)`` (or ``mitsuba -D
   spp=64``) overrides them.
   ``[[emitters]]`` become Mitsuba's emitters of the same names and parameters (:func:`~harness.renderers.mitsuba.
@@ -48,6 +49,7 @@ from harness.renderers.mitsuba import (
     film_dict,
     light_spec,
     path_integrator,
+    tessellates_spheres,
 )
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
@@ -169,10 +171,11 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
         lines.append(f"    <!-- material {name} -->")
         lines += _plugin_xml("bsdf", bsdf_dict(material), "    ", plugin_id=f"bsdf_{j}")
     meshes: dict[str, bytes] = {}
+    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
         lines.append(f"    <!-- shape {shape.index}: {shape.name} -->")
-        if shape.type == "mesh":
+        if shape.type in as_mesh:
             rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
             meshes[rel] = _ply_bytes(*shape_triangles(shape))  # world space, wound to face the front side
             lines += [f'    <shape type="ply" id="{key}">',

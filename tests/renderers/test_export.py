@@ -14,6 +14,7 @@ import trimesh
 
 from harness.cli import main
 from harness.renderers.export import FORMATS, export_scene
+from harness.renderers.mitsuba import tessellates_spheres
 from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles, triangle_areas
 from reference_impl import Film
@@ -99,14 +100,16 @@ def test_export_loads_back_with_the_same_triangles(name, fmt, mesh_scene, tmp_pa
     if fmt == "mitsuba-xml":
         root = ET.parse(files[0]).getroot()
         shapes = root.findall("shape")
-        assert [s.get("type") for s in shapes] == [("ply" if s.type == "mesh" else s.type) for s in scene.shapes]
+        as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)  # glossy scenes: icospheres
+        assert [s.get("type") for s in shapes] == [("ply" if s.type in as_mesh else s.type) for s in scene.shapes]
         assert len(root.findall("bsdf")) == len(scene.materials)
         assert len(root.findall("shape/emitter")) == len(scene.lights)
         for shape, xml_shape, (v, t) in zip(scene.shapes, shapes, per_shape):
-            if shape.type == "mesh":
+            if shape.type in as_mesh:
                 loaded = trimesh.load(tmp_path / xml_shape.find("string").get("value"), process=False)
                 assert len(loaded.faces) == len(t)
-                np.testing.assert_allclose(_area(loaded.vertices, loaded.faces), _area(v, t), rtol=1e-6)  # float32
+                # float32 vertices: an ulp at |p| ~ 7 is 5e-7, 1.6e-5 of veach-mis's smallest sphere (r = 0.03)
+                np.testing.assert_allclose(_area(loaded.vertices, loaded.faces), _area(v, t), rtol=1e-5)
         return
     if fmt == "ply":
         assert len(files) == len(scene.shapes)

@@ -43,10 +43,18 @@ def test_repository_suites_load():
     names = {c.scene.stem for c in canonical.cases}
     reference_scenes = {c.scene.stem for c in canonical.cases if c.renderer == "reference"}
     emitter_scenes = {"white-furnace", "white-furnace-albedo-1", "point-spot", "sun-sky", "envmap"}
-    assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes
+    glossy_scenes = {"veach-mis", "cornell-box-specular", "underwater", "white-furnace-mirror",
+                     "white-furnace-glass", "white-furnace-rough"}
+    assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes | glossy_scenes
     assert names == reference_scenes
-    # Every strategy of the reference appears on every scene it renders (white-furnace-albedo-1: its rho = 1 cases).
-    for scene in reference_scenes - {"white-furnace-albedo-1"}:
+    # The glossy engine's strategies (direct = auto is mis there) on every glossy scene but the perfect mirror's,
+    # where every strategy is the same deterministic path.
+    for scene in glossy_scenes - {"white-furnace-mirror"}:
+        seen = {c.settings.get("direct") for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"}
+        assert None in seen and ({"area", "bsdf"} & seen), (scene, seen)
+    # Every strategy of the reference appears on every Lambertian scene it renders (white-furnace-albedo-1: its
+    # rho = 1 cases).
+    for scene in reference_scenes - {"white-furnace-albedo-1"} - glossy_scenes:
         settings = [c.settings for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"]
         seen = {(k, v) for s in settings for k, v in s.items()}
         for pair in [("direct", "hemisphere-cosine"), ("direct", "hemisphere-uniform"), ("direct", "global-area"),

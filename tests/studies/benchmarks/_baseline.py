@@ -68,5 +68,8 @@ def convert_inputs(baseline, geometry, camera, film, settings):
     cam = baseline.camera.Camera(camera.origin, camera.target, camera.up, camera.fov, camera.fov_axis)
     f = baseline.camera.Film(film.width, film.height, film.filter)
     known = {f.name for f in dataclasses.fields(baseline.settings.Settings)}
-    s = baseline.settings.Settings(**{k: v for k, v in dataclasses.asdict(settings).items() if k in known})
+    values = {k: v for k, v in dataclasses.asdict(settings).items() if k in known}
+    if values.get("direct") == "auto":  # the baseline predates "auto"; on these Lambertian scenes it is "area"
+        values["direct"] = settings.resolved_direct(False)
+    s = baseline.settings.Settings(**values)
     return g, cam, f, s
