@@ -47,9 +47,8 @@ def test_repository_suites_load():
                      "white-furnace-glass", "white-furnace-rough"}
     assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes | glossy_scenes
     assert names == reference_scenes
-    # The glossy engine's strategies (direct = auto is mis there) on every glossy scene but the perfect mirror's,
-    # where every strategy is the same deterministic path.
-    for scene in glossy_scenes - {"white-furnace-mirror"}:
+    # The glossy engine's strategies (direct = auto is mis there) on every glossy scene.
+    for scene in glossy_scenes:
         seen = {c.settings.get("direct") for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"}
         assert None in seen and ({"area", "bsdf"} & seen), (scene, seen)
     # Every strategy of the reference appears on every Lambertian scene it renders (white-furnace-albedo-1: its
