@@ -131,6 +131,19 @@ def path_progress(args: argparse.Namespace, description: str) -> tuple[tqdm | No
     return bar, progress
 
 
+def exr_out_path(text: str) -> Path:
+    """``--out FILE.exr`` checked before any work: the name ends in ``.exr`` and its folder exists and is writable
+    (HarnessError at ``--out``)."""
+    out = Path(text)
+    if out.suffix.lower() != ".exr":
+        raise HarnessError("--out", f"expected a file name ending in .exr, got {text!r}")
+    if not out.parent.is_dir():
+        raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
+    if not os.access(out.parent, os.W_OK):
+        raise HarnessError("--out", f"folder {str(out.parent)!r} is not writable")
+    return out
+
+
 def check_cost(scene, spp: int | None, option: str, *, seconds: float | None = None) -> None:
     """Refuse a render of ``scene`` at ``spp`` (or for ``seconds``: a time budget of at most 24 h) whose memory or
     time estimate is absurd (harness/core/limits.py)."""

@@ -1,14 +1,16 @@
-"""``harness ground-truth SCENE``: a scene's ground truth, from its closed form or rendered by Mitsuba in cached
-chunks, and where it is."""
+"""``harness ground-truth SCENE [--out FILE.exr]``: a scene's ground truth, from its closed form or rendered by
+Mitsuba in cached chunks, and where it is; with ``--out``, also written as OpenEXR (R, G, B and variance.R/G/B, the
+closed form's variance 0) with its PNG preview, for ``harness compare`` by hand."""
 
 from __future__ import annotations
 
 import argparse
 import json
 
-from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, path_progress
+from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
 from harness.core import options
 from harness.core.options import require_non_negative, require_positive
+from harness.files import imageio
 from harness.renderers import groundtruth
 from harness.scene import load_scene
 
@@ -27,7 +29,10 @@ def register(sub, common) -> None:
     parser.set_defaults(func=run)
     sub.add_parser(
         "ground-truth", help="render (or fetch from the cache) a scene's ground truth and print where it is",
-        parents=[parser, common.json(), common.quiet(), common.cache_dir(), common.mitsuba_variant(),
+        parents=[parser,
+                 common.out("also write it to this .exr (R, G, B and variance.R/G/B; the closed form's variance is 0) "
+                            "with a .png preview beside it", file=True),
+                 common.json(), common.quiet(), common.cache_dir(), common.mitsuba_variant(),
                  common.allow_outside_paths()])
 
 
@@ -36,6 +41,7 @@ def run(args: argparse.Namespace) -> int:
     require_positive("--spp", args.spp)
     require_positive("--chunk-spp", args.chunk_spp)
     require_non_negative("--seed", args.seed)
+    out = exr_out_path(args.out) if args.out is not None else None
     scene = load_scene(args.scene)
     for option, value in (("--spp", args.spp), ("--chunk-spp", args.chunk_spp)):
         check_cost(scene, value, option)  # with a closed form too: a budget no render could meet is a typo
@@ -48,16 +54,23 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
+    if out is not None:
+        metadata = {"renderer": "ground-truth", "scene": str(scene.path), "source": gt.source, "spp": str(gt.spp),
+                    "info": json.dumps(gt.info, sort_keys=True, default=str)}
+        imageio.write_exr_with_preview(out, gt.image, gt.variance, metadata=metadata)
     summary = {
         "scene": str(scene.path), "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
-        "seconds": gt.seconds, "path": str(gt.path) if gt.path else None,
+        "seconds": gt.seconds, "path": str(gt.path) if gt.path else None, "out": str(out) if out else None,
         "mean_radiance": [float(v) for v in gt.image.astype(float).mean(axis=(0, 1))], "info": gt.info,
     }
     if args.json:
         print(json.dumps(summary, indent=2))
+    elif gt.source == "closed-form" and out is not None:
+        print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {gt.info.get('radiance')}; wrote {out}")
     elif gt.source == "closed-form":
         print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {gt.info.get('radiance')}; no render needed")
     else:
         state = "from the cache" if gt.cached else f"rendered in {gt.seconds:.1f} s ({gt.renders} chunk renders)"
-        print(f"{scene.name}: Mitsuba {gt.info.get('variant')} {gt.spp} spp, {state}\n{gt.path}")
+        print(f"{scene.name}: Mitsuba {gt.info.get('variant')} {gt.spp} spp, {state}\n{gt.path}"
+              + (f"\nwrote {out}" if out is not None else ""))
     return EXIT_OK

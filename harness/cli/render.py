@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, path_progress
+from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
@@ -49,13 +49,7 @@ def register(sub, common) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Render, check what the renderer returned, write the EXR and its preview; exit 1 when the render failed."""
-    out = Path(args.out)
-    if out.suffix.lower() != ".exr":
-        raise HarnessError("--out", f"expected a file name ending in .exr, got {args.out!r}")
-    if not out.parent.is_dir():
-        raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
-    if not os.access(out.parent, os.W_OK):
-        raise HarnessError("--out", f"folder {str(out.parent)!r} is not writable")
+    out = exr_out_path(args.out)
     require_positive("--spp", args.spp)
     require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
