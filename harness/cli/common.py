@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-import re
 import select
 import sys
 from collections.abc import Callable, Iterator
@@ -17,6 +16,7 @@ from tqdm import tqdm
 
 from harness.core import options
 from harness.core.errors import HarnessError
+from harness.core.options import Parser  # noqa: F401 - the shell's parser class, used as common.Parser
 from harness.core.limits import check_render_cost
 from harness.scene.load import ALLOW_OUTSIDE_ENV
 
@@ -31,18 +31,6 @@ SCENES = Path(__file__).resolve().parents[2] / "scenes"
 SCENE_HELP = "scene file (TOML, see docs/scene-format.md)"
 SUITE_HELP = "suite file (TOML, see docs/suites.md)"
 
-_OPTION_MESSAGE = re.compile(r"argument (-[^\s:]*): (.*)", re.S)
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line naming the option (and exit code 2)."""
-
-    def error(self, message: str) -> None:  # noqa: D401 - argparse's signature
-        match = _OPTION_MESSAGE.fullmatch(message)
-        if match:  # "argument -s/--spp: expected ..." -> "--spp: expected ..."
-            names = match[1].split("/")
-            raise HarnessError(max(names, key=len), match[2])
-        raise HarnessError(self.prog, message)
 
 
 # ---- the shared options ------------------------------------------------------------------------------------------

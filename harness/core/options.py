@@ -5,7 +5,7 @@ parse an option's text strictly as it is read: integers in plain decimal digits 
 ``1_000``, `` 7 `` and other scripts' digits), finite numbers only (no ``nan``, ``inf`` or ``1e999``), ladders
 strictly increasing, output paths (:data:`out_folder`, :data:`out_file`) not empty and
 not too long for the file system. Their :class:`argparse.ArgumentTypeError` message becomes ``OPTION: message``
-(``harness.cli.common.Parser``). The ``require_*`` functions check values that did not come through argparse;
+(:class:`Parser`). The ``require_*`` functions check values that did not come through argparse;
 :func:`parse_set` reads repeated ``--set KEY=VALUE`` options.
 """
 
@@ -20,10 +20,22 @@ from harness.core.errors import HarnessError
 from harness.core.limits import MAX_TIMEOUT_SECONDS
 from harness.core.text import short
 
+_OPTION_MESSAGE = re.compile(r"argument (-[^\s:]*): (.*)", re.S)
 _INTEGER = re.compile(r"-?[0-9]+")
 _NUMBER = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
 _SIZE = re.compile(r"([0-9]+)[xX]([0-9]+)")
 
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line naming the option (and exit code 2)."""
+
+    def error(self, message: str) -> None:  # noqa: D401 - argparse's signature
+        match = _OPTION_MESSAGE.fullmatch(message)
+        if match:  # "argument -s/--spp: expected ..." -> "--spp: expected ..."
+            names = match[1].split("/")
+            raise HarnessError(max(names, key=len), match[2])
+        raise HarnessError(self.prog, message)
 
 def require_positive(option: str, value: int) -> int:
     """``value`` if it is >= 1, else the user error "OPTION: expected a positive integer, got VALUE"."""

@@ -333,7 +333,7 @@ def _add_gltf_materials(text: bytes, scene: Scene) -> bytes:
     """trimesh's glTF JSON with the non-diffuse materials as :func:`gltf_material` says (found through each node's
     ``extras.material``): their factors exact (trimesh rounds colours to 8 bits) and their extensions added.
     Lambertian materials stay as trimesh wrote them."""
-    if all(m.is_diffuse for m in scene.materials.values()):
+    if not scene.has_glossy_materials:
         return text
     document = json.loads(text)
     used = document.get("extensionsUsed", [])

@@ -523,7 +523,7 @@ def tessellates_spheres(scene: Scene) -> bool:
     """Whether Mitsuba gets the scene's spheres as the reference's icospheres (flat-shaded meshes) instead of analytic
     spheres: in scenes with a material that is not diffuse (conductors and dielectrics mirror or refract the facets;
     a Lambertian scene keeps its analytic spheres, and the ground truth it always had)."""
-    return any(not m.is_diffuse for m in scene.materials.values())
+    return scene.has_glossy_materials
 
 
 def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4,

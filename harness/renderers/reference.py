@@ -74,7 +74,7 @@ class ReferenceRenderer:
 def scene_is_glossy(scene: Scene) -> bool:
     """Whether a material of ``scene`` is not Lambertian (the reference runs its glossy engine, and ``direct =
     auto`` means "mis" there; docs/reference-renderer.md, "Glossy and glass")."""
-    return any(getattr(m, "type", "diffuse") != "diffuse" for m in scene.materials.values())
+    return scene.has_glossy_materials
 
 
 _PLAIN_INTEGER = re.compile(r"-?[0-9]+")

@@ -43,6 +43,6 @@ def material_table(scene: Scene) -> reference_impl.Materials:
 def material_arrays(scene: Scene) -> reference_impl.Materials | None:
     """The core's material table, or None for a scene whose materials are all Lambertian (which then renders
     exactly as it did before other materials existed: ``Geometry.reflectance`` and ``two_sided`` say it all)."""
-    if all(m.is_diffuse for m in scene.materials.values()):
+    if not scene.has_glossy_materials:
         return None
     return material_table(scene)

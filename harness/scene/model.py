@@ -238,6 +238,12 @@ class Scene:
     regions: tuple[str, ...] = ()  # shape names: the strategy table's per-region efficiencies (their pixels)
 
     @property
+    def has_glossy_materials(self) -> bool:
+        """Whether a material is not Lambertian (conductors, dielectrics): the reference runs its glossy engine
+        (``direct = auto`` is "mis" there), the core gets a material table, Mitsuba gets the spheres as meshes."""
+        return any(not m.is_diffuse for m in self.materials.values())
+
+    @property
     def lights(self) -> list[Shape]:
         """The emissive shapes, in light-id order (light k is ``lights[k]``)."""
         return [shape for shape in self.shapes if shape.is_emitter]
