@@ -14,14 +14,15 @@ standard errors from the renders' own per-pixel variances; pixels are independen
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import sys
 
 import numpy as np
 
+from harness.core import options
 from harness.core.errors import HarnessError
+from harness.core.options import Parser
 from harness.renderers import RenderRequest, get_renderer
 from harness.scene import load_scene
 from harness.scene.model import Scene
@@ -80,24 +81,30 @@ def format_table(rows: list[dict]) -> str:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m harness.studies.furnace_loss", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scene", default="scenes/white-furnace-rough.toml")
-    parser.add_argument("--alphas", default=",".join(f"{a:g}" for a in ALPHAS))
-    parser.add_argument("--distributions", default=",".join(DISTRIBUTIONS))
-    parser.add_argument("--spp", type=int, default=64)
-    parser.add_argument("--size", type=int, default=32, help="film width and height (default 32)")
-    parser.add_argument("--mitsuba-variant", default=None)
-    args = parser.parse_args(argv)
+    parser = Parser(prog="python -m harness.studies.furnace_loss", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scene", default="scenes/white-furnace-rough.toml",
+                        help="a white furnace with one rough material (default scenes/white-furnace-rough.toml)")
+    parser.add_argument("--alphas", default=",".join(f"{a:g}" for a in ALPHAS),
+                        help="comma-separated roughnesses in (0, 1] (default %(default)s)")
+    parser.add_argument("--distributions", default=",".join(DISTRIBUTIONS), help="ggx and/or beckmann (default %(default)s)")
+    parser.add_argument("--spp", type=options.positive_int, default=64, help="samples per pixel of each render (default 64)")
+    parser.add_argument("--size", type=options.positive_int, default=32, help="film width and height (default 32)")
+    parser.add_argument("--mitsuba-variant", default=None, help="Mitsuba variant, e.g. scalar_rgb (default: the best that works)")
     try:
-        alphas = [float(a) for a in args.alphas.split(",")]
-    except ValueError:
-        parser.error(f"--alphas: expected comma-separated numbers, got {args.alphas!r}")
-    if args.spp < 1 or args.size < 1:
-        parser.error("--spp and --size: expected positive integers")
-    try:
+        args = parser.parse_args(argv)
+        try:
+            alphas = [float(a) for a in args.alphas.split(",")]
+        except ValueError:
+            raise HarnessError("--alphas", f"expected comma-separated numbers, got {args.alphas!r}") from None
+        if not all(0 < a <= 1 for a in alphas):
+            raise HarnessError("--alphas", f"expected roughnesses in (0, 1], got {args.alphas!r}")
+        bad = [d for d in args.distributions.split(",") if d not in DISTRIBUTIONS]
+        if bad:
+            raise HarnessError("--distributions", f"expected {' or '.join(DISTRIBUTIONS)}, got {bad[0]!r}")
         scene = load_scene(args.scene)
-        if len(scene.materials) != 1 or not scene.emitters or scene.emitters[0].type != "constant":
-            raise HarnessError(args.scene, "expected a white furnace: one material, a constant environment")
+        if (len(scene.materials) != 1 or not next(iter(scene.materials.values())).is_rough or not scene.emitters
+                or scene.emitters[0].type != "constant"):
+            raise HarnessError(args.scene, "expected a white furnace: one rough material, a constant environment")
     except HarnessError as err:
         print(f"harness: error: {err}", file=sys.stderr)
         return 2

@@ -33,7 +33,16 @@ def test_reference_and_mitsuba_lose_the_same_energy():
     assert "| ggx | 1 |" in format_table(rows)
 
 
-def test_bad_input_is_one_line(capsys):
-    assert main(["--scene", str(SCENES / "cornell-box.toml")]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "expected a white furnace" in err
+@pytest.mark.parametrize("argv, fragment", [
+    (["--scene", str(SCENES / "cornell-box.toml")], "expected a white furnace"),
+    (["--scene", str(SCENES / "white-furnace.toml")], "one rough material"),
+    (["--alphas", "0.1,x"], "--alphas: expected comma-separated numbers"),
+    (["--alphas", "2"], "--alphas: expected roughnesses in (0, 1]"),
+    (["--distributions", "phong"], "--distributions: expected ggx or beckmann, got 'phong'"),
+    (["--spp", "0"], "--spp: expected a positive integer"),
+    (["--sizee", "4"], "unrecognized arguments: --sizee"),
+])
+def test_bad_input_is_one_line(capsys, argv, fragment):
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1 and fragment in captured.err, captured.err
