@@ -122,10 +122,21 @@ def load_spec(path: str | Path) -> ExternalSpec:
     return ExternalSpec(name, path.resolve(), tuple(command), float(timeout), repeats, description)
 
 
+#: the largest seed handed to ``{seed}``: renderers with a signed 32-bit seed (Cycles, most C programs) take 0 to
+#: 2^31 - 1, so every seed is folded into that range (docs/external-renderers.md, "Seeds")
+MAX_SEED = 2**31 - 1
+
+
+def fold_seed(seed: int) -> int:
+    """``seed`` folded into 0 .. :data:`MAX_SEED`: seeds already in range are kept, the others are reduced modulo
+    2^31 (so a harness seed of 2^31 and one of 0 give the same runs; harness seeds of 32 bits or more are rare)."""
+    return int(seed) % (MAX_SEED + 1)
+
+
 def repeat_seed(seed: int, index: int) -> int:
-    """The seed of run ``index`` of a render with ``seed``: a 32-bit SplitMix64 hash of both (unrelated seeds for
-    nearby inputs, and within the range every renderer accepts)."""
-    return pass_seed(seed, index)
+    """The seed of run ``index`` of a render with ``seed``: a SplitMix64 hash of both (unrelated seeds for nearby
+    inputs), folded into 0 .. 2^31 - 1, the range every renderer accepts (:func:`fold_seed`)."""
+    return fold_seed(pass_seed(seed, index))
 
 
 def combine_repeats(images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, int]:
@@ -224,7 +235,7 @@ class ExternalRenderer:
             runs = 1
             index = 0
             while index < runs:
-                seed = request.seed if index == 0 else repeat_seed(request.seed, index)
+                seed = fold_seed(request.seed) if index == 0 else repeat_seed(request.seed, index)
                 out = work / f"render-{index}.exr"
                 argv = self.argv(dict(values, seed=str(seed), out=str(out)))
                 elapsed, _ = _run(argv, work, self.spec.timeout, self.name)

@@ -187,6 +187,18 @@ def test_fake_renderer_repeats_and_variance_channels(tmp_path, small_scene):
         get_renderer(str(tmp_path / "var.toml")).render(small_scene, RenderRequest(spp=1, settings={"x": "1"}))
 
 
+def test_seeds_handed_to_the_command_fit_a_signed_32_bit_integer(tmp_path, small_scene):
+    """Cycles (and most C programs) take a signed 32-bit seed: every ``{seed}`` is in 0 .. 2^31 - 1, the repeat
+    seeds included (unfolded, ``repeat_seed(1, 3)`` was 4155639228), and a large ``--seed`` is folded too."""
+    assert external.pass_seed(1, 3) > external.MAX_SEED  # the case the fold is for
+    seeds = [external.repeat_seed(s, i) for s in range(200) for i in range(1, 8)]
+    assert all(0 <= s <= external.MAX_SEED for s in seeds) and len(set(seeds)) == len(seeds)
+    runs = get_renderer(str(_renderer_file(tmp_path, "novar", "plain"))).render(
+        small_scene, RenderRequest(spp=1, seed=2**32 + 5))
+    assert runs.info["seeds"][0] == (2**32 + 5) % 2**31
+    assert all(0 <= s <= external.MAX_SEED for s in runs.info["seeds"])
+
+
 # ---- failures -------------------------------------------------------------------------------------------------------
 
 
