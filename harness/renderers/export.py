@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -41,6 +40,7 @@ from trimesh.visual.material import PBRMaterial
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, exr_bytes, make_folders
+from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.renderers.mitsuba import (
     RR_DEPTH,
     bsdf_dict,
@@ -55,8 +55,6 @@ from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
 FORMATS = ("mitsuba-xml", "ply", "obj", "gltf")
-MESH_DIR = "meshes"
-TEXTURE_DIR = "textures"
 #: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
 #: Blender's glTF importer ("Standard" lighting), which turns the candela back into the same watts
 LUMENS_PER_WATT = 683.0
@@ -68,11 +66,6 @@ _PLUGIN_TAGS = {"film": "film", "rfilter": "rfilter", "sampler": "sampler", "bsd
                 "integrator": "integrator"}
 # 3-vector parameters of the emitters and their XML tag (a point transforms with translation, a vector without).
 _VECTOR_TAGS = {"position": "point", "direction": "vector"}
-
-
-def safe_name(name: str) -> str:
-    """A file-name-safe form of a shape name."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "shape"
 
 
 def _num(value: float) -> str:
@@ -124,12 +117,6 @@ def _matrix_xml(matrix: np.ndarray, indent: str) -> list[str]:
     return [f'{indent}<transform name="to_world">', f'{indent}    <matrix value="{values}"/>', f"{indent}</transform>"]
 
 
-def _ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
-    mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64), faces=np.asarray(triangles, np.int64),
-                           process=False, validate=False)
-    return mesh.export(file_type="ply", encoding="binary")
-
-
 def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = MESH_DIR,
                 texture_dir: str = TEXTURE_DIR) -> tuple[str, dict[str, bytes]]:
     """The scene as Mitsuba 3 XML text, and the PLY and EXR files it refers to (``{relative path: bytes}``).
@@ -177,7 +164,7 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = M
         lines.append(f"    <!-- shape {shape.index}: {shape.name} -->")
         if shape.type in as_mesh:
             rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
-            meshes[rel] = _ply_bytes(*shape_triangles(shape))  # world space, wound to face the front side
+            meshes[rel] = ply_bytes(*shape_triangles(shape))  # world space, wound to face the front side
             lines += [f'    <shape type="ply" id="{key}">',
                       f"        <string name=\"filename\" value={quoteattr(rel)}/>",
                       '        <boolean name="face_normals" value="true"/>']
@@ -413,7 +400,7 @@ def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, 
         files.update(meshes)
     elif fmt == "ply":
         for shape in scene.shapes:
-            files[f"{shape.index}-{safe_name(shape.name)}.ply"] = _ply_bytes(*shape_triangles(shape))
+            files[f"{shape.index}-{safe_name(shape.name)}.ply"] = ply_bytes(*shape_triangles(shape))
     elif fmt == "obj":
         text, extra = export_obj(_trimesh_scene(scene), include_normals=False, include_texture=True,
                                  return_texture=True, mtl_name="scene.mtl")

@@ -1,0 +1,23 @@
+"""What every scene export shares: file-name-safe shape names, the folders meshes and maps go in, PLY bytes."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import trimesh
+
+MESH_DIR = "meshes"
+TEXTURE_DIR = "textures"
+
+
+def safe_name(name: str) -> str:
+    """A file-name-safe form of a shape name."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("_") or "shape"
+
+
+def ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
+    """A binary PLY of the triangles (vertices as float64, written by trimesh without merging or reordering)."""
+    mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64), faces=np.asarray(triangles, np.int64),
+                           process=False, validate=False)
+    return mesh.export(file_type="ply", encoding="binary")

@@ -1,0 +1,147 @@
+"""The resolved scene as JSON (``scene.json``): everything a renderer needs, with no TOML parser and no Mitsuba.
+
+The document (``docs/scene-json.md`` describes every key) holds the case's scene as the harness judges it: the
+suite's film, depth and stress variant applied, every default filled in, every placement a 4x4 matrix, every shape
+also as a world-space PLY mesh (``meshes/<index>-<name>.ply``, wound to face its front side), every environment map
+as an OpenEXR file (``textures/<index>-<name>.exr``). Numbers are float64 written with the shortest repr that
+round-trips (``json`` does that), so a reader gets exactly the values the harness holds.
+
+Conventions (Mitsuba 3's; the ground truth follows them): radiance in W m^-2 sr^-1, intensity in W sr^-1,
+irradiance in W m^-2, angles in degrees; emitting shapes emit from their front side only; a BSDF that is not
+``two_sided`` is black from behind; ``max_depth`` counts path vertices after the camera (1: emitters seen directly,
+2: direct light, -1: unbounded), Russian roulette from depth ``rr_depth`` on.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from harness.files.imageio import exr_bytes
+from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
+from harness.renderers.mitsuba import RR_DEPTH, clip_planes, tessellates_spheres
+from harness.scene import Scene
+from harness.scene.triangulate import object_to_world, shape_triangles
+
+FORMAT = "rendering-harness scene"
+VERSION = 1
+#: the pixel filters' radii in pixels and their parameters, as Mitsuba's (``box`` covers one pixel)
+FILTERS = {"box": {"type": "box", "radius": 0.5},
+           "tent": {"type": "tent", "radius": 1.0},
+           "gaussian": {"type": "gaussian", "stddev": 0.5, "radius": 2.0}}
+
+
+def _floats(values) -> list:
+    return np.asarray(values, dtype=np.float64).tolist()
+
+
+def camera_json(scene: Scene) -> dict:
+    """The perspective camera: its look-at, Mitsuba's ``fov`` / ``fov_axis``, the resolved full angles, the
+    camera-to-world matrix (columns: +x = image left, +y = image up, +z = forward, origin) and the clip planes."""
+    camera, film = scene.camera, scene.film
+    tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
+    to_world = np.eye(4)
+    to_world[:3, :3] = camera.frame()
+    to_world[:3, 3] = camera.origin
+    near, far = clip_planes(scene)
+    return {
+        "type": "perspective",
+        "origin": _floats(camera.origin), "target": _floats(camera.target), "up": _floats(camera.up),
+        "fov": float(camera.fov), "fov_axis": camera.fov_axis,
+        "fov_x": math.degrees(2 * math.atan(tan_x)), "fov_y": math.degrees(2 * math.atan(tan_y)),
+        "aspect": film.width / film.height,
+        "to_world": _floats(to_world),
+        "near_clip": float(near), "far_clip": float(far),
+    }
+
+
+def material_json(material) -> dict:
+    """One material with every parameter of its Mitsuba plugin (``two_sided`` for diffuse and conductors)."""
+    out: dict = {"type": material.type}
+    if material.is_diffuse:
+        out["reflectance"] = _floats(material.reflectance)
+    if material.is_conductor:
+        out.update(eta=_floats(material.eta), k=_floats(material.k),
+                   specular_reflectance=_floats(material.specular_reflectance))
+    if material.is_dielectric:
+        out.update(int_ior=float(material.int_ior), ext_ior=float(material.ext_ior),
+                   specular_reflectance=_floats(material.specular_reflectance),
+                   specular_transmittance=_floats(material.specular_transmittance))
+    if material.is_rough:
+        out.update(alpha=float(material.alpha), distribution=material.distribution,
+                   sample_visible=bool(material.sample_visible))
+    if not material.is_dielectric:
+        out["two_sided"] = bool(material.two_sided)
+    return out
+
+
+def emitter_json(emitter, texture: str | None = None) -> dict:
+    """One ``[[emitters]]`` entry with its Mitsuba parameters (plain numbers; matrices 4x4 row-major)."""
+    out: dict = {"index": emitter.index, "name": emitter.name, "type": emitter.type}
+    if emitter.type == "point":
+        out.update(position=_floats(emitter.position), intensity=_floats(emitter.intensity))
+    elif emitter.type == "spot":
+        out.update(to_world=_floats(emitter.to_world), position=_floats(emitter.position),
+                   axis=_floats(emitter.axis), intensity=_floats(emitter.intensity),
+                   cutoff_angle=float(emitter.cutoff_angle), beam_width=float(emitter.beam_width))
+    elif emitter.type == "directional":
+        out.update(direction=_floats(emitter.direction), irradiance=_floats(emitter.irradiance))
+    elif emitter.type == "constant":
+        out.update(radiance=_floats(emitter.radiance))
+    elif emitter.type == "envmap":
+        out.update(filename=texture, scale=float(emitter.scale), to_world=_floats(emitter.to_world),
+                   width=int(emitter.image.shape[1]), height=int(emitter.image.shape[0]))
+    else:
+        raise ValueError(f"unknown emitter type {emitter.type!r}")
+    return out
+
+
+def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEXTURE_DIR) -> tuple[dict, dict]:
+    """The scene as a JSON-ready dict and the files it names (``{relative path: bytes}``: PLY meshes, EXR maps).
+
+    Every shape has ``mesh`` (its world-space triangles as the reference core and, for spheres in scenes with a
+    material that is not diffuse, Mitsuba trace them) and, for rectangles, cubes and spheres, ``to_world``: the
+    object-to-world matrix of Mitsuba's analytic shape (a sphere's includes its centre and radius).
+    ``spheres_as_meshes`` says which of the two the ground truth renders.
+    """
+    files: dict[str, bytes] = {}
+    shapes = []
+    for shape in scene.shapes:
+        rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
+        vertices, triangles = shape_triangles(shape)
+        files[rel] = ply_bytes(vertices, triangles)
+        entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
+                       "emission": None if shape.emission is None else _floats(shape.emission),
+                       "mesh": rel, "triangles": int(len(triangles))}
+        if shape.type != "mesh":
+            entry["to_world"] = _floats(object_to_world(shape))
+            entry["flip_normals"] = bool(shape.flip_normals)
+        if shape.type == "sphere":
+            matrix = object_to_world(shape)
+            entry.update(center=_floats(matrix[:3, 3]), radius=float(np.linalg.norm(matrix[:3, 0])),
+                         subdivisions=int(shape.subdivisions))
+        shapes.append(entry)
+    emitters = []
+    for emitter in scene.emitters:
+        texture = None
+        if emitter.type == "envmap":
+            texture = f"{texture_dir}/{emitter.index}-{safe_name(emitter.name)}.exr"
+            files[texture] = exr_bytes(emitter.image)
+        emitters.append(emitter_json(emitter, texture))
+    document = {
+        "format": FORMAT, "version": VERSION,
+        "name": scene.name, "source": str(scene.path),
+        "units": {"radiance": "W m^-2 sr^-1", "intensity": "W sr^-1", "irradiance": "W m^-2", "angles": "degrees"},
+        "camera": camera_json(scene),
+        "film": {"width": int(scene.film.width), "height": int(scene.film.height),
+                 "filter": dict(FILTERS[scene.film.filter])},
+        "integrator": {"type": "path", "max_depth": int(scene.max_depth), "rr_depth": RR_DEPTH},
+        "spheres_as_meshes": bool(tessellates_spheres(scene)),
+        "closed_form": scene.closed_form,
+        "materials": {name: material_json(m) for name, m in scene.materials.items()},
+        "shapes": shapes,
+        "emitters": emitters,
+        "regions": list(scene.regions),
+    }
+    return document, files
