@@ -1,4 +1,4 @@
-"""Export a scene in formats other renderers load: Mitsuba 3 XML (with PLY meshes), PLY, OBJ and glTF.
+"""Export a scene in formats other renderers load: Mitsuba 3 XML (with PLY meshes), scene.json, PLY, OBJ and glTF.
 
 * ``mitsuba-xml``: ``scene.xml`` describing exactly the scene :func:`harness.renderers.mitsuba.scene_to_mitsuba_dict`
   builds (same shapes and placements, BSDFs, area emitters, camera with its clip planes, film and pixel filter,
@@ -11,18 +11,24 @@
   ``[[emitters]]`` become Mitsuba's emitters of the same names and parameters (:func:`~harness.renderers.mitsuba.
   light_spec`); an envmap's image is written as ``textures/<index>-<name>.exr`` (the pixels the scene holds, float32
   RGB) and named by ``filename``.
+* ``json``: ``scene.json``, the resolved scene for renderers without a TOML parser
+  (:func:`harness.renderers.scene_json.scene_json`, docs/scene-json.md), with ``meshes/<index>-<name>.ply`` for
+  every shape and ``textures/<index>-<name>.exr`` for every environment map.
 * ``ply``: one ``<index>-<name>.ply`` per shape (world-space triangles as the reference core sees them: spheres
   are icospheres). No emitters.
-* ``obj``: ``scene.obj`` and its ``.mtl``, one object per shape, diffuse colour = reflectance. No emitters.
-* ``gltf``: ``scene.gltf`` with its buffer, one node per shape, a PBR material per shape (base colour =
-  reflectance, emissive = emission / its largest channel; the radiance itself is in the node's ``extras``); point,
-  spot and directional emitters as ``KHR_lights_punctual`` lights (:func:`gltf_light`); constant and envmap
+* ``obj``: ``scene.obj`` and ``scene.mtl`` (:func:`obj_text`), one object per shape, ``Kd`` = reflectance and
+  ``Ke`` = an emitting shape's radiance as full-precision numbers, no other term. No other emitters.
+* ``gltf``: ``scene.gltf`` with its buffer ``scene.bin`` (:func:`gltf_document`): one node per shape, a PBR
+  material per material and emission with exact float factors (base colour = reflectance; emissive factor =
+  emission / its largest channel and ``KHR_materials_emissive_strength`` = that channel), the camera
+  (:func:`gltf_camera`), point, spot and directional emitters as ``KHR_lights_punctual`` lights
+  (:func:`gltf_light`), film, filter, ``max_depth`` and ``rr_depth`` in ``asset.extras``; constant and envmap
   emitters cannot be expressed in glTF 2.0 and are left out.
 
 :func:`export_losses` says, one line each, what a format leaves out of a scene (``harness export`` prints them as
 warnings).
 
-Meshes are written with trimesh; every file is written atomically (:mod:`harness.files.imageio`).
+PLY meshes are written with trimesh, glTF and OBJ by this module; every file is written atomically (:mod:`harness.files.imageio`).
 """
 
 from __future__ import annotations
@@ -33,10 +39,6 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
-import trimesh
-from trimesh.exchange.gltf import export_gltf
-from trimesh.exchange.obj import export_obj
-from trimesh.visual.material import PBRMaterial
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, exr_bytes, make_folders
@@ -51,14 +53,16 @@ from harness.renderers.mitsuba import (
     path_integrator,
     tessellates_spheres,
 )
+from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
-FORMATS = ("mitsuba-xml", "ply", "obj", "gltf")
+FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
 #: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
 #: Blender's glTF importer ("Standard" lighting), which turns the candela back into the same watts
 LUMENS_PER_WATT = 683.0
 GLTF_LIGHTS = "KHR_lights_punctual"
+GLTF_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
 PUNCTUAL_TYPES = ("point", "spot", "directional")
 
 # Plugin-valued keys of the adapter's dicts and the XML tag of each.
@@ -197,7 +201,7 @@ def normal_incidence_reflectance(eta, k) -> list[float]:
 
 
 def gltf_material(material) -> tuple[dict, dict]:
-    """The glTF 2.0 metallic-roughness factors of a material (keyword arguments of trimesh's PBRMaterial) and its
+    """The glTF 2.0 metallic-roughness factors of a material (the keys of ``pbrMetallicRoughness``) and its
     glTF extensions (docs/external-renderers.md, "glTF materials").
 
     Diffuse: base colour = reflectance, metallic 0, roughness 1. Conductors: metallic 1, base colour = the normal-
@@ -219,31 +223,6 @@ def gltf_material(material) -> tuple[dict, dict]:
                   "KHR_materials_volume": {"thicknessFactor": 1.0}}
     return {"baseColorFactor": [*material.specular_transmittance, 1.0], "metallicFactor": 0.0,
             "roughnessFactor": roughness}, extensions
-
-
-def _trimesh_scene(scene: Scene):
-    """A trimesh.Scene with one named, coloured mesh per shape (world space, as the core triangulates it)."""
-    out = trimesh.Scene()
-    for shape in scene.shapes:
-        vertices, triangles = shape_triangles(shape)
-        material = scene.materials[shape.material]
-        emission = np.asarray(shape.emission if shape.is_emitter else (0.0, 0.0, 0.0), dtype=np.float64)
-        peak = float(emission.max())
-        factors, _extensions = gltf_material(material)  # trimesh writes no extensions: _add_gltf_materials does
-        pbr = PBRMaterial(name=safe_name(shape.material),
-                          emissiveFactor=(emission / peak).tolist() if peak > 0 else None,
-                          doubleSided=material.two_sided or material.is_dielectric, **factors)
-        mesh = trimesh.Trimesh(vertices=vertices, faces=triangles, process=False, validate=False,
-                               visual=trimesh.visual.TextureVisuals(material=pbr))
-        mesh.metadata["name"] = shape.name
-        extras = {"material": shape.material, "reflectance": list(material.reflectance)}
-        if not material.is_diffuse:
-            extras["bsdf"] = bsdf_dict(material)  # Mitsuba's plugin and parameters, for a reader that wants all
-        if shape.is_emitter:
-            extras["emission"] = [float(x) for x in shape.emission]
-        out.add_geometry(mesh, node_name=safe_name(shape.name), geom_name=safe_name(shape.name),
-                         metadata=extras)
-    return out
 
 
 def _rotation_from_minus_z(direction) -> list[float]:
@@ -293,52 +272,187 @@ def gltf_light(emitter) -> tuple[dict, dict]:
     return light, node
 
 
-def _add_gltf_lights(text: bytes, scene: Scene) -> bytes:
-    """trimesh's glTF JSON with the scene's punctual emitters added as ``KHR_lights_punctual`` lights."""
-    emitters = [e for e in scene.emitters if e.type in PUNCTUAL_TYPES]
-    if not emitters:
-        return text
-    document = json.loads(text)
+def _plain(value):
+    """``value`` with numpy arrays and scalars turned into lists and Python numbers (for ``json``)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _unique(name: str, taken: set[str]) -> str:
+    """``name``, or ``name-2``, ``name-3``, ... if it is taken; the result is added to ``taken``."""
+    out, n = name, 1
+    while out in taken:
+        n += 1
+        out = f"{name}-{n}"
+    taken.add(out)
+    return out
+
+
+def gltf_camera(scene: Scene) -> tuple[dict, dict]:
+    """The scene's camera as a glTF perspective camera and the node that places it.
+
+    ``yfov`` = the resolved vertical field of view (radians; Mitsuba's ``fov`` / ``fov_axis`` for this film),
+    ``aspectRatio`` = width / height, ``znear`` / ``zfar`` = the clip planes. The node's ``matrix`` (column-major)
+    is Mitsuba's camera-to-world matrix with its x and z columns negated: a glTF camera looks down its -z with +x
+    to the image's right, Mitsuba's looks down +z with +x to the image's left, so both see the same image.
+    """
+    camera, film = scene.camera, scene.film
+    _tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
+    near, far = clip_planes(scene)
+    to_world = np.eye(4)
+    to_world[:3, :3] = camera.frame() * np.array([-1.0, 1.0, -1.0])
+    to_world[:3, 3] = camera.origin
+    gltf = {"name": "camera", "type": "perspective",
+            "perspective": {"yfov": 2.0 * math.atan(tan_y), "aspectRatio": film.width / film.height,
+                            "znear": float(near), "zfar": float(far)}}
+    return gltf, {"name": "camera", "camera": 0, "matrix": [float(x) + 0.0 for x in to_world.T.ravel()]}
+
+
+def gltf_render_settings(scene: Scene) -> dict:
+    """What glTF has no place for, kept under ``asset.extras``: the film (size and pixel filter, as in scene.json),
+    ``max_depth`` (Mitsuba's meaning, docs/scene-json.md) and ``rr_depth``."""
+    return {"film": {"width": int(scene.film.width), "height": int(scene.film.height),
+                     "filter": dict(FILTERS[scene.film.filter])},
+            "max_depth": int(scene.max_depth), "rr_depth": RR_DEPTH}
+
+
+def _gltf_shape_material(shape, material) -> dict:
+    """The glTF material of one shape: :func:`gltf_material`'s factors as full float64 numbers, and for an emitting
+    shape ``emissiveFactor`` = emission / its largest channel with ``KHR_materials_emissive_strength`` = that
+    channel (factor x strength = the radiance)."""
+    factors, extensions = gltf_material(material)
+    entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": _plain(factors),
+                   "doubleSided": bool(material.two_sided or material.is_dielectric)}
+    extensions = dict(extensions)
+    if shape.is_emitter:
+        emission = np.asarray(shape.emission, dtype=np.float64)
+        peak = float(emission.max())
+        if peak > 0:
+            entry["emissiveFactor"] = [float(x) for x in emission / peak]
+            extensions[GLTF_EMISSIVE_STRENGTH] = {"emissiveStrength": peak}
+    if extensions:
+        entry["extensions"] = extensions
+    return entry
+
+
+def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, bytes]:
+    """The scene as a glTF 2.0 document (a JSON-ready dict) and its binary buffer (``buffer_name``).
+
+    One node and mesh per shape (world-space triangles as the core triangulates them: float32 positions, uint32
+    indices, wound so that the front side is counter-clockwise), one material per scene material and emission
+    (:func:`_gltf_shape_material`), the camera (:func:`gltf_camera`), the punctual emitters as
+    ``KHR_lights_punctual`` lights (:func:`gltf_light`) and the render settings in ``asset.extras``
+    (:func:`gltf_render_settings`). Each mesh node's ``extras`` holds its material's name and reflectance, the
+    Mitsuba plugin dict of a non-diffuse material (``bsdf``) and an emitting shape's ``emission``.
+    """
+    chunks: list[bytes] = []
+    views: list[dict] = []
+    accessors: list[dict] = []
+
+    def accessor(data: np.ndarray, target: int, component: int, kind: str, **bounds) -> int:
+        raw = data.tobytes()
+        views.append({"buffer": 0, "byteOffset": sum(map(len, chunks)), "byteLength": len(raw), "target": target})
+        chunks.append(raw + b"\0" * (-len(raw) % 4))  # every view starts on a 4-byte boundary
+        accessors.append({"bufferView": len(views) - 1, "componentType": component, "count": int(len(data)),
+                          "type": kind, **bounds})
+        return len(accessors) - 1
+
+    materials: list[dict] = []
+    material_index: dict[tuple, int] = {}
+    nodes: list[dict] = []
+    meshes: list[dict] = []
+    used: list[str] = []
+    taken: set[str] = set()
+    for shape in scene.shapes:
+        vertices, triangles = shape_triangles(shape)
+        positions = np.asarray(vertices, dtype="<f4")
+        position = accessor(positions, 34962, 5126, "VEC3",  # ARRAY_BUFFER, FLOAT
+                            min=[float(x) for x in positions.min(axis=0)],
+                            max=[float(x) for x in positions.max(axis=0)])
+        indices = accessor(np.asarray(triangles, dtype="<u4").ravel(), 34963, 5125, "SCALAR")  # UNSIGNED_INT
+        material = scene.materials[shape.material]
+        key = (shape.material, tuple(shape.emission) if shape.is_emitter else None)
+        if key not in material_index:
+            material_index[key] = len(materials)
+            materials.append(_gltf_shape_material(shape, material))
+            used += [e for e in materials[-1].get("extensions", {}) if e not in used]
+        name = _unique(safe_name(shape.name), taken)
+        meshes.append({"name": name, "primitives": [
+            {"attributes": {"POSITION": position}, "indices": indices, "mode": 4, "material": material_index[key]}]})
+        extras: dict = {"material": shape.material, "reflectance": [float(x) for x in material.reflectance]}
+        if not material.is_diffuse:
+            extras["bsdf"] = _plain(bsdf_dict(material))  # Mitsuba's plugin and parameters, for a reader wanting all
+        if shape.is_emitter:
+            extras["emission"] = [float(x) for x in shape.emission]
+        nodes.append({"name": name, "mesh": len(meshes) - 1, "extras": extras})
+    camera, camera_node = gltf_camera(scene)
+    nodes.append(camera_node)
     lights = []
-    nodes = document.setdefault("nodes", [])
-    scenes = document.setdefault("scenes", [{"nodes": []}])
-    roots = scenes[document.get("scene", 0)].setdefault("nodes", [])
-    for emitter in emitters:
-        light, node = gltf_light(emitter)
-        node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
-        lights.append(light)
-        roots.append(len(nodes))
-        nodes.append(node)
-    document.setdefault("extensions", {})[GLTF_LIGHTS] = {"lights": lights}
-    used = document.setdefault("extensionsUsed", [])
-    if GLTF_LIGHTS not in used:
+    for emitter in scene.emitters:
+        if emitter.type in PUNCTUAL_TYPES:
+            light, node = gltf_light(emitter)
+            node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
+            lights.append(light)
+            nodes.append(node)
+    document: dict = {
+        "asset": {"version": "2.0", "generator": "rendering-harness (harness export)",
+                  "extras": gltf_render_settings(scene)},
+        "scene": 0, "scenes": [{"name": scene.name, "nodes": list(range(len(nodes)))}],
+        "nodes": nodes, "cameras": [camera],
+    }
+    if meshes:
+        document.update(meshes=meshes, materials=materials, accessors=accessors, bufferViews=views,
+                        buffers=[{"uri": buffer_name, "byteLength": sum(map(len, chunks))}])
+    if lights:
+        document["extensions"] = {GLTF_LIGHTS: {"lights": lights}}
         used.append(GLTF_LIGHTS)
-    return json.dumps(document, separators=(",", ":")).encode("utf-8")
-
-
-def _add_gltf_materials(text: bytes, scene: Scene) -> bytes:
-    """trimesh's glTF JSON with the non-diffuse materials as :func:`gltf_material` says (found through each node's
-    ``extras.material``): their factors exact (trimesh rounds colours to 8 bits) and their extensions added.
-    Lambertian materials stay as trimesh wrote them."""
-    if not scene.has_glossy_materials:
-        return text
-    document = json.loads(text)
-    used = document.get("extensionsUsed", [])
-    for node in document.get("nodes", []):
-        material = scene.materials.get(node.get("extras", {}).get("material"))
-        if material is None or material.is_diffuse or "mesh" not in node:
-            continue
-        factors, extensions = gltf_material(material)
-        for primitive in document["meshes"][node["mesh"]].get("primitives", []):
-            if "material" in primitive:
-                entry = document["materials"][primitive["material"]]
-                entry.setdefault("pbrMetallicRoughness", {}).update(factors)
-                if extensions:
-                    entry.setdefault("extensions", {}).update(extensions)
-        used += [extension for extension in extensions if extension not in used]
     if used:
         document["extensionsUsed"] = used
-    return json.dumps(document, separators=(",", ":")).encode("utf-8")
+    return document, b"".join(chunks)
+
+
+def _mtl_number(value: float) -> str:
+    return repr(float(value) + 0.0)
+
+
+def obj_text(scene: Scene, mtl_name: str = "scene.mtl") -> tuple[str, str]:
+    """The scene as OBJ text and its MTL text, holding only what the scene says.
+
+    OBJ: one ``o`` object per shape (world-space triangles as the core triangulates them, counter-clockwise seen
+    from the front side; vertices with the shortest repr that round-trips, so a reader gets the float64 values),
+    ``usemtl`` naming its material. MTL: one ``newmtl`` per scene material (and per emitting shape) with ``Kd``
+    (the diffuse reflectance; for other materials the glTF base colour, :func:`gltf_material`) and, for an
+    emitting shape, ``Ke`` = its radiance (W m^-2 sr^-1, from the front side; a common extension that Blender's
+    OBJ importer reads as the emission colour). No other term (no ``Ka``, ``Ks``, ``Ns``, ``illum``): a reader's
+    defaults decide those, docs/external-renderers.md says which matter.
+    """
+    obj = [f"# {scene.name}: exported by rendering-harness (harness export)", f"mtllib {mtl_name}"]
+    mtl = [f"# {scene.name}: materials exported by rendering-harness (harness export)"]
+    names: dict[tuple, str] = {}
+    taken_mtl: set[str] = set()
+    taken_obj: set[str] = set()
+    offset = 1
+    for shape in scene.shapes:
+        material = scene.materials[shape.material]
+        key = (shape.material, tuple(shape.emission) if shape.is_emitter else None)
+        if key not in names:
+            base = safe_name(shape.material) + (f"-emit-{safe_name(shape.name)}" if shape.is_emitter else "")
+            names[key] = _unique(base, taken_mtl)
+            factors, _ = gltf_material(material)
+            mtl += ["", f"newmtl {names[key]}", "Kd " + " ".join(map(_mtl_number, factors["baseColorFactor"][:3]))]
+            if shape.is_emitter:
+                mtl.append("Ke " + " ".join(map(_mtl_number, shape.emission)))
+        vertices, triangles = shape_triangles(shape)
+        obj += ["", f"o {_unique(safe_name(shape.name), taken_obj)}", f"usemtl {names[key]}"]
+        obj += [f"v {_mtl_number(x)} {_mtl_number(y)} {_mtl_number(z)}" for x, y, z in np.asarray(vertices, np.float64)]
+        obj += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in np.asarray(triangles, np.int64)]
+        offset += len(vertices)
+    return "\n".join(obj) + "\n", "\n".join(mtl) + "\n"
 
 
 def export_losses(scene: Scene, fmt: str) -> list[str]:
@@ -352,8 +466,8 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
         losses.append(f"{fmt} has no lights: left out emitters {names(scene.emitters)}")
     glossy = [m for m in scene.materials.values() if not m.is_diffuse]
     if fmt == "obj" and glossy:
-        losses.append("OBJ's MTL has diffuse colours only: materials " + ", ".join(
-            f"{m.name} ({m.type})" for m in glossy) + " written with the colour of their glTF base colour")
+        losses.append("OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials " + ", ".join(
+            f"{m.name} ({m.type})" for m in glossy) + " written with Kd = their glTF base colour")
     if fmt == "gltf":
         lost = [e for e in scene.emitters if e.type not in PUNCTUAL_TYPES]
         if lost:
@@ -385,32 +499,42 @@ def _gltf_material_losses(glossy) -> list[str]:
     return losses
 
 
-def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
-    """Write ``scene`` in format ``fmt`` (one of :data:`FORMATS`) into the folder ``out_dir`` (created if needed);
-    returns the files written, the main file first. The files are written into a staging folder and moved into
-    place together (:class:`harness.files.imageio.StagedFolder`): a failed write (a full disk) leaves ``out_dir`` as it
-    was, and no folder made for it."""
+def scene_files(scene: Scene, fmt: str, *, spp: int = 16, seed: int = 0) -> dict[str, bytes]:
+    """The files of ``scene`` in format ``fmt`` (one of :data:`FORMATS`), ``{relative path: bytes}``, the main file
+    first (``spp`` and ``seed``: the defaults of the Mitsuba XML's ``$spp`` and ``$seed``)."""
     if fmt not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
-    out_dir = Path(out_dir)
     files: dict[str, bytes] = {}
     if fmt == "mitsuba-xml":
         text, meshes = mitsuba_xml(scene, spp=spp, seed=seed)
         files["scene.xml"] = text.encode("utf-8")
         files.update(meshes)
+    elif fmt == "json":
+        document, extra = scene_json(scene)
+        files["scene.json"] = (json.dumps(document, indent=1, allow_nan=False) + "\n").encode("utf-8")
+        files.update(extra)
     elif fmt == "ply":
         for shape in scene.shapes:
             files[f"{shape.index}-{safe_name(shape.name)}.ply"] = ply_bytes(*shape_triangles(shape))
     elif fmt == "obj":
-        text, extra = export_obj(_trimesh_scene(scene), include_normals=False, include_texture=True,
-                                 return_texture=True, mtl_name="scene.mtl")
-        files["scene.obj"] = text.encode("utf-8")
-        files.update({name: data for name, data in extra.items()})
+        obj, mtl = obj_text(scene, mtl_name="scene.mtl")
+        files["scene.obj"] = obj.encode("utf-8")
+        files["scene.mtl"] = mtl.encode("utf-8")
     else:
-        parts = export_gltf(_trimesh_scene(scene), include_normals=False, merge_buffers=True)
-        main = next(name for name in parts if name.endswith(".gltf"))
-        files["scene.gltf"] = _add_gltf_materials(_add_gltf_lights(parts[main], scene), scene)
-        files.update({name: data for name, data in parts.items() if name != main})
+        document, buffer = gltf_document(scene, buffer_name="scene.bin")
+        files["scene.gltf"] = json.dumps(document, separators=(",", ":"), allow_nan=False).encode("utf-8")
+        if buffer:
+            files["scene.bin"] = buffer
+    return files
+
+
+def export_scene(scene: Scene, fmt: str, out_dir: str | Path, *, spp: int = 16, seed: int = 0) -> list[Path]:
+    """Write ``scene`` in format ``fmt`` (one of :data:`FORMATS`, :func:`scene_files`) into the folder ``out_dir``
+    (created if needed); returns the files written, the main file first. The files are written into a staging
+    folder and moved into place together (:class:`harness.files.imageio.StagedFolder`): a failed write (a full
+    disk) leaves ``out_dir`` as it was, and no folder made for it."""
+    out_dir = Path(out_dir)
+    files = scene_files(scene, fmt, spp=spp, seed=seed)
     with StagedFolder(out_dir, "--out") as stage:
         for rel, data in files.items():
             path = stage.root / rel

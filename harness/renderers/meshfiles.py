@@ -17,7 +17,8 @@ def safe_name(name: str) -> str:
 
 
 def ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
-    """A binary PLY of the triangles (vertices as float64, written by trimesh without merging or reordering)."""
+    """A binary PLY of the triangles, written by trimesh without merging or reordering: vertices as float32 (the
+    float64 positions rounded to nearest), faces as int32."""
     mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64), faces=np.asarray(triangles, np.int64),
                            process=False, validate=False)
     return mesh.export(file_type="ply", encoding="binary")

@@ -4,6 +4,7 @@ renders what the Mitsuba adapter's scene dict renders (same seed: the same image
 from __future__ import annotations
 
 import dataclasses
+import json
 import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -110,6 +111,14 @@ def test_export_loads_back_with_the_same_triangles(name, fmt, mesh_scene, tmp_pa
                 assert len(loaded.faces) == len(t)
                 # float32 vertices: an ulp at |p| ~ 7 is 5e-7, 1.6e-5 of veach-mis's smallest sphere (r = 0.03)
                 np.testing.assert_allclose(_area(loaded.vertices, loaded.faces), _area(v, t), rtol=1e-5)
+        return
+    if fmt == "json":
+        document = json.loads(files[0].read_text())
+        assert [s["name"] for s in document["shapes"]] == [s.name for s in scene.shapes]
+        for entry, (v, t) in zip(document["shapes"], per_shape):
+            loaded = trimesh.load(tmp_path / entry["mesh"], process=False)
+            np.testing.assert_array_equal(loaded.vertices, np.float32(v))  # float32 in the PLY: v rounded once
+            np.testing.assert_array_equal(loaded.faces, t)
         return
     if fmt == "ply":
         assert len(files) == len(scene.shapes)

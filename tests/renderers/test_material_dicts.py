@@ -203,6 +203,7 @@ def test_gltf_and_obj_losses_name_what_is_approximate(tmp_path):
     assert losses(tmp_path, "water-tinted", "gltf") == [
         "glTF's transmission has no reflection tint: specular_reflectance of m (dielectric) left out"]
     assert losses(tmp_path, "glass", "obj") == [
-        "OBJ's MTL has diffuse colours only: materials m (dielectric) written with the colour of their glTF base "
-        "colour"]
+        "OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials m (dielectric) written with Kd = "
+        "their glTF base colour"]
+    assert losses(tmp_path, "diffuse", "obj") == []
     assert losses(tmp_path, "glass", "mitsuba-xml") == []
