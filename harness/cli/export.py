@@ -1,5 +1,5 @@
-"""``harness export SCENE --format mitsuba-xml|ply|obj|gltf --out DIR``: a scene in formats other renderers load
-(:mod:`harness.renderers.export`)."""
+"""``harness export SCENE --format mitsuba-xml|json|ply|obj|gltf --out DIR``: a scene in formats other renderers
+load (:mod:`harness.renderers.export`; ``json`` is scene.json, docs/scene-json.md)."""
 
 from __future__ import annotations
 
@@ -26,8 +26,8 @@ def register(sub, common) -> None:
                         help="mitsuba-xml: default of the $seed parameter (default 0)")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), PLY, OBJ or glTF for other renderers "
-        "(docs/external-renderers.md)",
+        "export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), scene.json (+ PLY meshes; docs/scene-json.md), "
+        "PLY, OBJ or glTF for other renderers (docs/external-renderers.md)",
         parents=[parser, common.out("output folder (created if needed)", required=True),
                  common.json("print the files written as JSON"), common.allow_outside_paths()])
 

@@ -9,9 +9,11 @@ A renderer file::
     repeats = 4                                 # runs with distinct seeds when the EXR has no variance (default 4)
 
 Placeholders in ``command``: ``{scene_xml}`` (the scene exported as Mitsuba XML, :mod:`harness.renderers.export`),
-``{scene_toml}`` (the scene file), ``{spp}``, ``{seed}``, ``{width}``, ``{height}``, ``{max_depth}``, ``{out}`` (the
-EXR to write), ``{here}`` (the renderer file's folder) and ``{python}`` (this Python). The command runs without a
-shell, in a fresh temporary folder, stdout and stderr captured.
+``{scene_json}`` (the scene as scene.json, docs/scene-json.md), ``{scene_gltf}`` (as glTF), ``{mesh_dir}`` (the
+folder of scene.json's PLY meshes): each the case's resolved scene, written only when the command names it;
+``{scene_toml}`` (the scene file as written), ``{spp}``, ``{seed}``, ``{width}``, ``{height}``, ``{max_depth}``,
+``{out}`` (the EXR to write), ``{here}`` (the renderer file's folder) and ``{python}`` (this Python). The command
+runs without a shell, in a fresh temporary folder, stdout and stderr captured.
 
 The EXR is read with :func:`harness.files.imageio.read_exr`: channels R, G, B and, optionally, variance.R/G/B (the
 variance of each pixel's estimate, i.e. of the mean; spp - 1 degrees of freedom). Without variance channels the
@@ -49,11 +51,16 @@ from harness.core.limits import MAX_TIMEOUT_SECONDS
 from harness.core.text import short
 from harness.files.imageio import read_exr
 from harness.renderers.base import RenderRequest, RenderResult
-from harness.renderers.export import mitsuba_xml
+from harness.renderers.export import scene_files
 from harness.renderers.mitsuba import pass_seed
 from harness.scene import Scene
 
-PLACEHOLDERS = ("scene_xml", "scene_toml", "spp", "seed", "width", "height", "max_depth", "out", "here", "python")
+PLACEHOLDERS = ("scene_xml", "scene_json", "scene_gltf", "mesh_dir", "scene_toml", "spp", "seed", "width", "height",
+                "max_depth", "out", "here", "python")
+#: the placeholders that name an export of the case's resolved scene: (format, folder in the run's temporary folder,
+#: the path handed over, relative to that folder); every format a command names is written once per render
+SCENE_EXPORTS = {"scene_xml": ("mitsuba-xml", "scene", "scene.xml"), "scene_json": ("json", "json", "scene.json"),
+                 "mesh_dir": ("json", "json", "meshes"), "scene_gltf": ("gltf", "gltf", "scene.gltf")}
 FILE_KEYS = ("name", "description", "command", "timeout", "repeats")
 DEFAULT_TIMEOUT_S = 600.0
 DEFAULT_REPEATS = 4
@@ -209,6 +216,31 @@ class ExternalRenderer:
                 f"{want[1]}x{want[0]}")
         return exr
 
+    def values(self, scene: Scene, request: RenderRequest, work: Path) -> dict[str, str]:
+        """The placeholders of one render but ``{seed}`` and ``{out}``: the case's resolved ``scene`` (its film,
+        depth and stress variant applied) exported into ``work`` in each format the command names, and only
+        those (:data:`SCENE_EXPORTS`)."""
+        named = {name for arg in self.spec.command for name in _PLACEHOLDER.findall(arg)}
+        written: set[str] = set()
+        values = {
+            "scene_toml": str(Path(scene.path).resolve()),
+            "spp": str(request.spp), "width": str(scene.film.width), "height": str(scene.film.height),
+            "max_depth": str(scene.max_depth), "here": str(self.spec.path.parent), "python": sys.executable,
+        }
+        for placeholder, (fmt, folder, rel) in SCENE_EXPORTS.items():
+            if placeholder not in named:
+                continue
+            if fmt not in written:
+                (work / folder).mkdir()
+                for name, data in scene_files(scene, fmt, spp=request.spp, seed=request.seed).items():
+                    (work / folder / name).parent.mkdir(parents=True, exist_ok=True)
+                    (work / folder / name).write_bytes(data)
+                written.add(fmt)
+            if placeholder == "mesh_dir":
+                (work / folder / rel).mkdir(exist_ok=True)  # a scene without shapes still gets its (empty) folder
+            values[placeholder] = str(work / folder / rel)
+        return values
+
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         if request.settings:
             key = next(iter(request.settings))
@@ -218,18 +250,7 @@ class ExternalRenderer:
             raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")
         with tempfile.TemporaryDirectory(prefix=f"harness-{self.name}-") as tmp:
             work = Path(tmp)
-            xml, meshes = mitsuba_xml(scene, spp=request.spp, seed=request.seed)
-            scene_dir = work / "scene"
-            for rel, data in meshes.items():
-                (scene_dir / rel).parent.mkdir(parents=True, exist_ok=True)
-                (scene_dir / rel).write_bytes(data)
-            scene_dir.mkdir(exist_ok=True)
-            (scene_dir / "scene.xml").write_text(xml, encoding="utf-8")
-            values = {
-                "scene_xml": str(scene_dir / "scene.xml"), "scene_toml": str(Path(scene.path).resolve()),
-                "spp": str(request.spp), "width": str(scene.film.width), "height": str(scene.film.height),
-                "max_depth": str(scene.max_depth), "here": str(self.spec.path.parent), "python": sys.executable,
-            }
+            values = self.values(scene, request, work)
             images, seconds, seeds, argvs = [], 0.0, [], []
             variance = None
             runs = 1

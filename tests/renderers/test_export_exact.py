@@ -1,0 +1,315 @@
+"""Exports that other renderers read exactly: each format read back with a reader of its own (glTF with pygltflib,
+OBJ/MTL and PLY with trimesh, scene.json with ``json``) holds every colour of the scene to float32 precision, the
+camera (glTF: the same image corners), the emission (glTF: factor x strength = the radiance; MTL: ``Ke``) and the
+render settings; and the ``{scene_json}`` / ``{scene_gltf}`` / ``{mesh_dir}`` placeholders hand a renderer the
+case's resolved scene (a suite's film, depth and stress variant applied)."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pygltflib
+import pytest
+import trimesh
+from trimesh.exchange.obj import parse_mtl
+
+from harness.files.imageio import read_exr
+from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.export import export_scene, normal_incidence_reflectance
+from harness.renderers.meshfiles import safe_name
+from harness.renderers.mitsuba import RR_DEPTH, bsdf_dict, clip_planes
+from harness.renderers.scene_json import FILTERS
+from harness.running.cases import load_suite
+from harness.running.judge import case_scene
+from harness.scene import load_scene
+from harness.scene.triangulate import shape_triangles
+from reference_impl import Film
+
+ROOT = Path(__file__).resolve().parents[2]
+CANONICAL = sorted(p.stem for p in (ROOT / "scenes").glob("*.toml"))
+#: trimesh's glTF and OBJ writers stored 0.885809 (the Cornell box's white) as 226 / 255
+EIGHT_BIT_WHITE = round(0.885809 * 255) / 255
+
+
+def same32(read, scene_value) -> bool:
+    """Every number read back equals the scene's once both are rounded to float32."""
+    read, scene_value = np.asarray(read, dtype=np.float64), np.asarray(scene_value, dtype=np.float64)
+    return read.shape == scene_value.shape and bool(np.all(np.float32(read) == np.float32(scene_value)))
+
+
+def test_the_colour_check_rejects_eight_bit_colours():
+    """The check every colour goes through fails the value trimesh used to write."""
+    assert f"{EIGHT_BIT_WHITE:.5f}" == "0.88627"
+    assert not same32([EIGHT_BIT_WHITE], [0.885809])
+    assert not same32([math.nextafter(np.float32(0.885809), 1.0) + 1e-7], [0.885809])
+    assert same32([0.885809], [0.885809])
+
+
+def expected_base_colour(material) -> list[float]:
+    """The glTF base colour of a material (docs/external-renderers.md, "glTF materials"), computed here."""
+    if material.is_diffuse:
+        return list(material.reflectance)
+    if material.is_conductor:
+        f0 = normal_incidence_reflectance(material.eta, material.k)
+        return [min(1.0, f * r) for f, r in zip(f0, material.specular_reflectance)]
+    return list(material.specular_transmittance)
+
+
+# ---- glTF -----------------------------------------------------------------------------------------------------------
+
+
+def _accessor(gltf: pygltflib.GLTF2, folder: Path, index: int) -> np.ndarray:
+    """The data of accessor ``index`` (float32 VEC3 or uint32 SCALAR, tightly packed) from its external buffer."""
+    accessor = gltf.accessors[index]
+    view = gltf.bufferViews[accessor.bufferView]
+    data = (folder / gltf.buffers[view.buffer].uri).read_bytes()
+    start = view.byteOffset + (accessor.byteOffset or 0)
+    dtype, width = {(pygltflib.FLOAT, "VEC3"): ("<f4", 3), (pygltflib.UNSIGNED_INT, "SCALAR"): ("<u4", 1)}[
+        (accessor.componentType, accessor.type)]
+    values = np.frombuffer(data, dtype=dtype, count=accessor.count * width, offset=start)
+    return values.reshape(accessor.count, width) if width > 1 else values
+
+
+def _gltf_ndc(node_matrix, camera, directions) -> np.ndarray:
+    """Where world directions seen from a glTF camera land in its normalised image coordinates (x right, y up, the
+    image's edges at +-1), as the glTF specification's projection matrix puts them."""
+    rotation = np.asarray(node_matrix, dtype=np.float64).reshape(4, 4).T[:3, :3]
+    local = directions @ rotation  # rotation^T d for each row d
+    tan_y = math.tan(camera.yfov / 2)
+    depth = -local[:, 2]  # glTF cameras look down their -z
+    return np.stack([local[:, 0] / depth / (camera.aspectRatio * tan_y), local[:, 1] / depth / tan_y], axis=1)
+
+
+@pytest.mark.parametrize("name", CANONICAL)
+def test_gltf_reads_back_exactly(name, tmp_path):
+    scene = load_scene(ROOT / "scenes" / f"{name}.toml")
+    files = export_scene(scene, "gltf", tmp_path)
+    gltf = pygltflib.GLTF2().load(str(files[0]))
+    mesh_nodes = [n for n in gltf.nodes if n.mesh is not None]
+    assert [n.extras["material"] for n in mesh_nodes] == [s.material for s in scene.shapes]
+    for shape, node in zip(scene.shapes, mesh_nodes):
+        material = scene.materials[shape.material]
+        (primitive,) = gltf.meshes[node.mesh].primitives
+        entry = gltf.materials[primitive.material]
+        pbr = entry.pbrMetallicRoughness
+        assert same32(pbr.baseColorFactor, [*expected_base_colour(material), 1.0]), (shape.name, pbr.baseColorFactor)
+        assert same32(node.extras["reflectance"], material.reflectance)
+        assert (node.extras.get("bsdf") is None) == material.is_diffuse
+        if not material.is_diffuse:
+            assert node.extras["bsdf"] == json.loads(json.dumps(bsdf_dict(material)))
+        strength = entry.extensions.get("KHR_materials_emissive_strength", {}).get("emissiveStrength")
+        if shape.is_emitter:
+            assert max(entry.emissiveFactor) == 1.0 and strength == max(shape.emission)
+            assert same32(np.array(entry.emissiveFactor) * strength, shape.emission), (shape.name, strength)
+            assert same32(node.extras["emission"], shape.emission)
+        else:
+            assert strength is None and (entry.emissiveFactor or [0, 0, 0]) == [0, 0, 0]
+        vertices, triangles = shape_triangles(shape)
+        np.testing.assert_array_equal(_accessor(gltf, tmp_path, primitive.attributes.POSITION), np.float32(vertices))
+        np.testing.assert_array_equal(_accessor(gltf, tmp_path, primitive.indices), np.ravel(triangles))
+    if any(s.is_emitter for s in scene.shapes):
+        assert "KHR_materials_emissive_strength" in gltf.extensionsUsed
+    # the camera: its frustum, and the same four image corners as the scene's camera
+    (camera,) = gltf.cameras
+    (camera_node,) = [n for n in gltf.nodes if n.camera is not None]
+    film = scene.film
+    tan_x, tan_y = scene.camera.tan_half_fov(film.width, film.height)
+    perspective = camera.perspective
+    assert camera.type == "perspective" and perspective.yfov == pytest.approx(2 * math.atan(tan_y), rel=1e-15)
+    assert perspective.aspectRatio == film.width / film.height
+    assert (perspective.znear, perspective.zfar) == clip_planes(scene)
+    placement = np.array(camera_node.matrix).reshape(4, 4).T
+    np.testing.assert_array_equal(placement[:3, 3], scene.camera.origin)
+    forward = np.subtract(scene.camera.target, scene.camera.origin)
+    np.testing.assert_allclose(-placement[:3, 2], forward / np.linalg.norm(forward), atol=1e-15)
+    np.testing.assert_allclose(placement[:3, :3].T @ placement[:3, :3], np.eye(3), atol=1e-15)  # a rotation
+    assert np.dot(placement[:3, 1], scene.camera.up) > 0  # the image's up
+    corners_x = np.array([0.0, film.width, 0.0, film.width, film.width / 2])
+    corners_y = np.array([0.0, 0.0, film.height, film.height, film.height / 2])
+    _origins, directions = scene.camera.generate_rays(corners_x, corners_y, film.width, film.height)
+    want = np.stack([2 * corners_x / film.width - 1, 1 - 2 * corners_y / film.height], axis=1)
+    np.testing.assert_allclose(_gltf_ndc(camera_node.matrix, perspective, directions), want, atol=1e-12)
+    mitsuba_to_world = np.eye(4)  # the planted fault: Mitsuba's matrix as it is would mirror the image left-right
+    mitsuba_to_world[:3, :3] = scene.camera.frame()
+    wrong = _gltf_ndc(mitsuba_to_world.T.ravel(), perspective, directions)
+    assert not np.allclose(wrong, want, atol=1e-6)
+    # the render settings
+    assert gltf.asset.extras == {"film": {"width": film.width, "height": film.height,
+                                          "filter": FILTERS[film.filter]},
+                                 "max_depth": scene.max_depth, "rr_depth": RR_DEPTH}
+    assert tan_x > 0
+
+
+# ---- OBJ / MTL ------------------------------------------------------------------------------------------------------
+
+
+def _usemtl_of_objects(text: str) -> list[str]:
+    """The material each ``o`` object of an OBJ file uses (its first ``usemtl``)."""
+    names = []
+    for line in text.splitlines():
+        if line.startswith("o "):
+            names.append(None)
+        elif line.startswith("usemtl ") and names and names[-1] is None:
+            names[-1] = line.split(None, 1)[1]
+    return names
+
+
+@pytest.mark.parametrize("name", CANONICAL)
+def test_obj_and_mtl_read_back_exactly(name, tmp_path):
+    scene = load_scene(ROOT / "scenes" / f"{name}.toml")
+    files = export_scene(scene, "obj", tmp_path)
+    assert [f.name for f in files] == ["scene.obj", "scene.mtl"]
+    materials = parse_mtl((tmp_path / "scene.mtl").read_text())
+    uses = _usemtl_of_objects(files[0].read_text())
+    assert len(uses) == len(scene.shapes)
+    for shape, mtl_name in zip(scene.shapes, uses):
+        entry = materials[mtl_name]
+        assert set(entry) <= {"name", "kd", "diffuse", "ke"}, entry  # nothing the scene does not say: no Ks, Ka, Ns
+        assert same32(entry["kd"], expected_base_colour(scene.materials[shape.material])), (shape.name, entry["kd"])
+        if shape.is_emitter:
+            assert same32([float(x) for x in entry["ke"]], shape.emission)
+        else:
+            assert "ke" not in entry
+    # the geometry, per material group as trimesh loads it: the core's triangles, float64 exact
+    loaded = trimesh.load(files[0], process=False, maintain_order=True, force="scene")
+    groups = {mesh.visual.material.name: mesh for mesh in loaded.geometry.values()}
+    assert sorted(groups) == sorted(set(uses))
+    for mtl_name, mesh in groups.items():
+        want = np.concatenate([np.asarray(shape_triangles(s)[0])[shape_triangles(s)[1]]
+                               for s, used in zip(scene.shapes, uses) if used == mtl_name])
+        np.testing.assert_array_equal(mesh.vertices[mesh.faces], want)
+
+
+# ---- scene.json -----------------------------------------------------------------------------------------------------
+
+
+def _equal(read, value) -> bool:
+    if isinstance(value, str) or value is None or isinstance(value, bool):
+        return read == value
+    return bool(np.array_equal(np.asarray(read, dtype=np.float64), np.asarray(value, dtype=np.float64)))
+
+
+@pytest.mark.parametrize("name", CANONICAL)
+def test_scene_json_reads_back_exactly(name, tmp_path):
+    scene = load_scene(ROOT / "scenes" / f"{name}.toml")
+    files = export_scene(scene, "json", tmp_path)
+    document = json.loads(files[0].read_text())
+    camera, film = document["camera"], scene.film
+    to_world = np.array(camera["to_world"])
+    np.testing.assert_array_equal(to_world[:3, :3], scene.camera.frame())
+    np.testing.assert_array_equal(to_world[:3, 3], scene.camera.origin)
+    np.testing.assert_array_equal(to_world[3], [0, 0, 0, 1])
+    tan_x, tan_y = scene.camera.tan_half_fov(film.width, film.height)
+    assert camera["fov_x"] == pytest.approx(math.degrees(2 * math.atan(tan_x)), rel=1e-15)
+    assert camera["fov_y"] == pytest.approx(math.degrees(2 * math.atan(tan_y)), rel=1e-15)
+    assert (camera["fov"], camera["fov_axis"], camera["aspect"]) == (scene.camera.fov, scene.camera.fov_axis,
+                                                                     film.width / film.height)
+    assert (camera["near_clip"], camera["far_clip"]) == clip_planes(scene)
+    assert document["film"] == {"width": film.width, "height": film.height, "filter": FILTERS[film.filter]}
+    assert document["integrator"] == {"type": "path", "max_depth": scene.max_depth, "rr_depth": RR_DEPTH}
+    assert set(document["materials"]) == set(scene.materials)
+    for key, entry in document["materials"].items():
+        material = scene.materials[key]
+        assert entry["type"] == material.type and len(entry) > 2
+        for parameter, value in entry.items():
+            assert _equal(value, getattr(material, parameter)), (key, parameter, value)
+    assert len(document["emitters"]) == len(scene.emitters)
+    for entry, emitter in zip(document["emitters"], scene.emitters):
+        for parameter, value in entry.items():
+            if parameter == "filename":
+                image = read_exr(tmp_path / value).image
+                np.testing.assert_array_equal(image, np.float32(emitter.image))
+            elif parameter in ("width", "height"):
+                assert emitter.image.shape[:2] == (entry["height"], entry["width"])
+            else:
+                assert _equal(value, getattr(emitter, parameter)), (emitter.name, parameter, value)
+    assert len(document["shapes"]) == len(scene.shapes)
+    for entry, shape in zip(document["shapes"], scene.shapes):
+        assert (entry["name"], entry["material"]) == (shape.name, shape.material)
+        assert _equal(entry["emission"], shape.emission)
+        vertices, triangles = shape_triangles(shape)
+        mesh = trimesh.load(tmp_path / entry["mesh"], process=False)
+        np.testing.assert_array_equal(mesh.vertices, np.float32(vertices))
+        np.testing.assert_array_equal(mesh.faces, triangles)  # the winding: the front side is counter-clockwise
+        assert entry["triangles"] == len(triangles)
+
+
+# ---- the placeholders -----------------------------------------------------------------------------------------------
+
+# A renderer that reads only what the harness hands it: scene.json (its film gives the EXR's size), the glTF's
+# asset.extras, the meshes; it records what it saw and which exports its working folder holds.
+READER = r'''
+import json, os, sys
+from pathlib import Path
+import numpy as np
+from harness.files.imageio import write_exr
+args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
+record = {"cwd": sorted(os.listdir("."))}
+if "--json" in args:
+    scene = json.loads(Path(args["--json"]).read_text())
+    record["json"] = {"film": scene["film"], "max_depth": scene["integrator"]["max_depth"],
+                      "camera": scene["camera"]["origin"],
+                      "meshes_exist": all((Path(args["--json"]).parent / s["mesh"]).is_file() for s in scene["shapes"])}
+    width, height = scene["film"]["width"], scene["film"]["height"]
+if "--gltf" in args:
+    gltf = json.loads(Path(args["--gltf"]).read_text())
+    record["gltf"] = gltf["asset"]["extras"]
+    record["gltf_buffer"] = (Path(args["--gltf"]).parent / gltf["buffers"][0]["uri"]).is_file()
+if "--meshes" in args:
+    record["meshes"] = sorted(os.listdir(args["--meshes"]))
+Path(args["--record"]).write_text(json.dumps(record))
+write_exr(args["--out"], np.full((height, width, 3), 0.5), np.full((height, width, 3), 0.01))
+'''
+
+SUITE = """
+name = "placeholders"
+[defaults]
+film = { width = 6, height = 4 }
+max_depth = 3
+spp = 2
+[[cases]]
+name = "cornell"
+scene = "cornell-box"
+renderer = "reader.toml"
+variant = "scale=1e2"
+"""
+
+
+def _reader(folder: Path, args: list[str]) -> Path:
+    (folder / "reader.py").write_text(READER)
+    command = ["{python}", "{here}/reader.py", *args, "--record", str(folder / "record.json"), "--out", "{out}"]
+    (folder / "reader.toml").write_text(f"command = {json.dumps(command)}\nrepeats = 2\n")
+    return folder / "reader.toml"
+
+
+@pytest.mark.slow  # starts a process
+def test_placeholders_carry_the_suites_film_depth_and_variant(tmp_path):
+    _reader(tmp_path, ["--json", "{scene_json}", "--gltf", "{scene_gltf}", "--meshes", "{mesh_dir}"])
+    (tmp_path / "suite.toml").write_text(SUITE)
+    (case,) = load_suite(tmp_path / "suite.toml").cases
+    scene = case_scene(case)
+    assert (scene.film.width, scene.film.height, scene.max_depth) == (6, 4, 3)  # the file says 256 x 256, depth 8
+    result = get_renderer(str(tmp_path / "reader.toml")).render(scene, RenderRequest(spp=2, seed=1))
+    assert result.image.shape == (4, 6, 3)  # the EXR's size came from scene.json's film
+    record = json.loads((tmp_path / "record.json").read_text())
+    want_film = {"width": 6, "height": 4, "filter": FILTERS["box"]}
+    assert record["json"]["film"] == want_film and record["json"]["max_depth"] == 3
+    assert record["json"]["camera"] == pytest.approx(np.array(scene.camera.origin), rel=1e-15)
+    assert record["json"]["camera"][2] == pytest.approx(390.0)  # the stress variant's camera (scale=1e2)
+    assert record["json"]["meshes_exist"] and record["gltf_buffer"]
+    assert record["gltf"] == {"film": want_film, "max_depth": 3, "rr_depth": RR_DEPTH}
+    assert record["meshes"] == sorted(f"{s.index}-{safe_name(s.name)}.ply" for s in scene.shapes)
+    assert record["cwd"] == ["gltf", "json"]  # no Mitsuba XML: the command did not name {scene_xml}
+
+
+@pytest.mark.slow  # starts a process
+def test_only_the_formats_a_command_names_are_written(tmp_path):
+    _reader(tmp_path, ["--json", "{scene_json}"])
+    scene = dataclasses.replace(load_scene(ROOT / "scenes" / "furnace.toml"), film=Film(3, 2, "box"))
+    get_renderer(str(tmp_path / "reader.toml")).render(scene, RenderRequest(spp=1))
+    record = json.loads((tmp_path / "record.json").read_text())
+    assert record["cwd"] == ["json"] and "gltf" not in record and record["json"]["film"]["width"] == 3
