@@ -313,3 +313,33 @@ def test_only_the_formats_a_command_names_are_written(tmp_path):
     get_renderer(str(tmp_path / "reader.toml")).render(scene, RenderRequest(spp=1))
     record = json.loads((tmp_path / "record.json").read_text())
     assert record["cwd"] == ["json"] and "gltf" not in record and record["json"]["film"]["width"] == 3
+
+
+# ---- the reader in docs/scene-json.md ----------------------------------------------------------------------------
+
+
+def test_the_reader_in_scene_json_md(tmp_path):
+    """The Python reader the documentation gives reads an exported scene as the harness holds it: every mesh (float32
+    vertices, the front side's winding), every material and emission, and the camera rays through the corners."""
+    text = (ROOT / "docs" / "scene-json.md").read_text()
+    (code,) = [block.split("```")[0] for block in text.split("```python\n")[1:]]
+    namespace: dict = {}
+    exec(compile(code, "docs/scene-json.md", "exec"), namespace)
+    scene = load_scene(ROOT / "scenes" / "veach-mis.toml")
+    scene = dataclasses.replace(scene, film=Film(7, 5, "box"))
+    export_scene(scene, "json", tmp_path)
+    document, shapes = namespace["load"](tmp_path / "scene.json")
+    assert len(shapes) == len(scene.shapes)
+    for (vertices, triangles, material, emission), shape in zip(shapes, scene.shapes):
+        want_vertices, want_triangles = shape_triangles(shape)
+        np.testing.assert_array_equal(vertices, np.float32(want_vertices))
+        np.testing.assert_array_equal(triangles, want_triangles)
+        assert material["type"] == scene.materials[shape.material].type
+        assert _equal(emission, shape.emission)
+    x = np.array([0.0, 7.0, 0.0, 7.0, 3.5, 1.25])
+    y = np.array([0.0, 0.0, 5.0, 5.0, 2.5, 4.0])
+    origins, directions = scene.camera.generate_rays(x, y, 7, 5)
+    for i in range(len(x)):
+        origin, direction = namespace["camera_ray"](document, x[i], y[i])
+        np.testing.assert_allclose(origin, origins[i], rtol=0, atol=0)
+        np.testing.assert_allclose(direction, directions[i], rtol=0, atol=1e-15)
