@@ -427,8 +427,8 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl") -> tuple[str, str]:
     from the front side; vertices with the shortest repr that round-trips, so a reader gets the float64 values),
     ``usemtl`` naming its material. MTL: one ``newmtl`` per scene material (and per emitting shape) with ``Kd``
     (the diffuse reflectance; for other materials the glTF base colour, :func:`gltf_material`) and, for an
-    emitting shape, ``Ke`` = its radiance (W m^-2 sr^-1, from the front side; a common extension that Blender's
-    OBJ importer reads as the emission colour). No other term (no ``Ka``, ``Ks``, ``Ns``, ``illum``): a reader's
+    emitting shape, ``Ke`` = its radiance (W m^-2 sr^-1, from the front side; a common extension, which Blender's
+    OBJ importer reads as emission colour Ke / its largest channel and strength = that channel). No other term (no ``Ka``, ``Ks``, ``Ns``, ``illum``): a reader's
     defaults decide those, docs/external-renderers.md says which matter.
     """
     obj = [f"# {scene.name}: exported by rendering-harness (harness export)", f"mtllib {mtl_name}"]
