@@ -28,7 +28,8 @@
 :func:`export_losses` says, one line each, what a format leaves out of a scene (``harness export`` prints them as
 warnings).
 
-PLY meshes are written with trimesh, glTF and OBJ by this module; every file is written atomically (:mod:`harness.files.imageio`).
+PLY meshes are written with trimesh, glTF and OBJ by this module; every file is written atomically
+(:mod:`harness.files.imageio`).
 """
 
 from __future__ import annotations
@@ -428,8 +429,8 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl") -> tuple[str, str]:
     ``usemtl`` naming its material. MTL: one ``newmtl`` per scene material (and per emitting shape) with ``Kd``
     (the diffuse reflectance; for other materials the glTF base colour, :func:`gltf_material`) and, for an
     emitting shape, ``Ke`` = its radiance (W m^-2 sr^-1, from the front side; a common extension, which Blender's
-    OBJ importer reads as emission colour Ke / its largest channel and strength = that channel). No other term (no ``Ka``, ``Ks``, ``Ns``, ``illum``): a reader's
-    defaults decide those, docs/external-renderers.md says which matter.
+    OBJ importer reads as emission colour Ke / its largest channel and strength = that channel). No other term
+    (no ``Ka``, ``Ks``, ``Ns``, ``illum``): a reader's defaults decide those (docs/external-renderers.md).
     """
     obj = [f"# {scene.name}: exported by rendering-harness (harness export)", f"mtllib {mtl_name}"]
     mtl = [f"# {scene.name}: materials exported by rendering-harness (harness export)"]
