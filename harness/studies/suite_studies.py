@@ -43,6 +43,12 @@ from harness.studies.regions import region_masks, region_variances
 
 #: the sections of studies.json, in the order the report shows them
 SECTIONS = ("convergence", "shadow_rays", "strategies")
+#: renderers the studies build in; any other renderer of a suite's cases (a renderer file, an entry point) gets
+#: its own convergence curve and a line of its own in the strategy and shadow-ray sections
+BUILT_IN = ("reference", "mitsuba")
+#: why an external renderer has no strategy or shadow-ray rows (docs/report.md, "Other renderers")
+NO_SETTINGS = ("takes no settings (the harness cannot change its sampling strategy or shadow rays): the rows vary "
+               "the reference renderer's settings")
 
 
 @dataclass
@@ -124,7 +130,7 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
         bases = _scene_bases(items)
         if options.convergence:
             t0 = time.perf_counter()
-            sections["convergence"] = _convergence_section(bases, out, options, progress)
+            sections["convergence"] = _convergence_section(bases, out, options, progress, items)
             timings["convergence"] = time.perf_counter() - t0
         if options.shadow_rays:
             t0 = time.perf_counter()
@@ -198,6 +204,23 @@ def _scene_key(item: StudyCase) -> str:
     return str(item.record.get("scene"))
 
 
+def _other_renderers(items: list[StudyCase], key: str) -> list[StudyCase]:
+    """The cases of scene ``key`` rendered by a renderer other than the built-in ones, that rendered (one per
+    renderer: the first)."""
+    seen: dict[str, StudyCase] = {}
+    for item in items:
+        renderer = item.record.get("renderer")
+        if (_scene_key(item) == key and renderer not in BUILT_IN and item.render is not None
+                and item.record.get("status") in ("pass", "fail")):
+            seen.setdefault(str(renderer), item)
+    return list(seen.values())
+
+
+def renderer_label(name: str) -> str:
+    """A renderer's name as the studies show it: a renderer file by its stem."""
+    return Path(name).stem if name.endswith(".toml") or "/" in name else name
+
+
 def _scene_bases(items: list[StudyCase]) -> dict[str, StudyCase]:
     """Per scene, the case whose film and ground truth the studies use: its smallest film among cases with a
     ground truth (reference renderer first, default settings first)."""
@@ -218,10 +241,13 @@ def _scene_bases(items: list[StudyCase]) -> dict[str, StudyCase]:
 # ---- the studies -------------------------------------------------------------------------------------------------
 
 
-def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyOptions, progress) -> dict:
+def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyOptions, progress,
+                         items: list[StudyCase] = ()) -> dict:
     section = {"spp_ladder": list(options.convergence_spp), "k": options.k, "scenes": []}
-    progress.add(len(bases) * len(options.convergence_spp) * (1 + len(options.convergence_strategies)
-                                                              + int(options.convergence_mitsuba)))
+    others = {key: _other_renderers(list(items), key) for key in bases}
+    progress.add(sum(len(options.convergence_spp) * (1 + len(options.convergence_strategies)
+                                                     + int(options.convergence_mitsuba) + len(others[key]))
+                     for key in bases))
 
     def factory(name: str):
         if name == "mitsuba":
@@ -236,6 +262,8 @@ def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyO
                        for d in options.convergence_strategies]
             if options.convergence_mitsuba:
                 series.append(conv.Series("mitsuba", {}, "mitsuba (path, cached)"))
+            series += [conv.Series(str(o.record["renderer"]), {}, renderer_label(str(o.record["renderer"])))
+                       for o in others[key]]
             result = conv.run_convergence(base.scene, base.gt, series, spp=options.convergence_spp, seed=10_000,
                                           k=options.k, min_timing_seconds=options.min_timing_seconds,
                                           progress=progress.step, renderer_factory=factory, warmup=True)
@@ -276,6 +304,10 @@ def _shadow_section(items: list[StudyCase], out: Path, options: StudyOptions, pr
         return {"error": f"{type(err).__name__}: {err}".splitlines()[0], "traceback": traceback.format_exc(limit=6)}
     for name, png in plots.items():
         _write_bytes(out / folder / f"{name}.png", png)
+    other = sorted({renderer_label(str(i.record.get("renderer"))) for i in candidates
+                    if i.record.get("renderer") not in BUILT_IN})
+    if other:
+        study["other_renderers"] = {"renderers": other, "note": f"{', '.join(other)} {NO_SETTINGS}"}
     study.update(case=base.record["name"], plots={k: f"{folder}/{k}.png" for k in plots},
                  images=[dict(im.to_json(), exr=f"{folder}/{im.exr.name}", png=f"{folder}/{im.png_path.name}")
                          for im in images])
@@ -354,6 +386,9 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
             _write_bytes(out / plot, figures.strategies_figure(
                 table["rows"], title=f"{Path(key).stem}: efficiency relative to default"))
             table.update(scene_path=key, film=[base.scene.film.width, base.scene.film.height], plot=plot, note=note)
+            others = _other_strategy_rows(items, key, base, table)
+            if others:
+                table["other_renderers"] = others
             if glossy:
                 table.update(defaults=defaults)
         except WriteError:
@@ -363,6 +398,34 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                      "error": f"{type(err).__name__}: {err}".splitlines()[0], "traceback": traceback.format_exc(limit=6)}
         section["scenes"].append(table)
     return section
+
+
+def _other_strategy_rows(items: list[StudyCase], key: str, base: StudyCase, table: dict) -> list[dict]:
+    """Per other renderer of the scene (:func:`_other_renderers`), its case's own efficiency beside the strategy
+    rows: 1 / (mean render variance x render seconds per megapixel, start-up excluded), relative to the default
+    row's, where its film is the table's (per-pixel MSE depends on the pixel size); and why it has no rows."""
+    default = next((r for r in table["rows"] if r.get("is_default") and r.get("efficiency")), None)
+    rows = []
+    for item in _other_renderers(items, key):
+        rec = item.record
+        render = rec.get("render") or {}
+        h, w = item.render.shape[:2]
+        row = {"renderer": renderer_label(str(rec.get("renderer"))), "case": rec.get("name"), "film": [w, h],
+               "spp": render.get("spp"), "seconds": render.get("seconds"),
+               "time_from": (render.get("info") or {}).get("time_from"), "note": NO_SETTINGS,
+               "mse_estimate": studies.mean_variance(item.render_variance), "seconds_per_megapixel": None,
+               "efficiency": None, "relative_efficiency": None}
+        seconds = row["seconds"]
+        if isinstance(seconds, (int, float)) and seconds > 0:
+            row["seconds_per_megapixel"] = seconds / (w * h) * 1e6
+            if row["mse_estimate"]:
+                row["efficiency"] = 1.0 / (row["mse_estimate"] * row["seconds_per_megapixel"])
+        if (h, w) != tuple(base.render.shape[:2]):
+            row["note"] += f"; its film ({w}x{h}) is not the table's, so its efficiency is not compared"
+        elif default is not None and row["efficiency"]:
+            row["relative_efficiency"] = row["efficiency"] / default["efficiency"]
+        rows.append(row)
+    return rows
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
