@@ -20,7 +20,8 @@ from reference_impl import Film
 
 ROOT = Path(__file__).resolve().parents[2]
 
-# K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.2 s of sleep
+# K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.2 s of sleep, and
+# 0.02 s per spp of "rendering" at 8x8 pixels
 FAKE = r'''
 import sys, time
 args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
@@ -28,6 +29,7 @@ time.sleep(0.2)
 import numpy as np
 from harness.files.imageio import write_exr
 w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
+time.sleep(0.02 * spp * w * h / 64)
 rng = np.random.default_rng(int(args["--seed"]))
 write_exr(args["--out"], 0.5 + 0.1 / np.sqrt(spp) * rng.standard_normal((h, w, 3)), None)
 '''
@@ -77,6 +79,51 @@ def test_an_external_renderers_points_land_on_the_ladder(fake_renderer):
     assert [p["spp"] for p in series["points"]] == [2, 4]
     assert [p["budget"]["spp"] for p in series["points"]] == [1, 4]
     assert series["time_from"].startswith("start-up subtracted (") and "1x1 film" in series["time_from"]
-    # each render is 2 runs of 0.2 s sleep and the script's imports (about 0.5 s of wall time each) and nearly no
-    # rendering: what is left is the scatter of process start, well below the 1 s of wall time; timed once
+    # each render is 2 runs of 0.2 s sleep and the script's imports (about 0.5 s of wall time each) and at most
+    # 2 x 0.01 s of rendering: what is left is that and the scatter of process start, well below the 1 s of wall
+    # time; timed once
     assert all(p["seconds"] < 0.3 and p["timing_repeats"] == 1 for p in series["points"]), series["points"]
+
+
+@pytest.mark.slow
+def test_the_suite_studies_and_report_show_an_external_renderer(fake_renderer, tmp_path):
+    """A suite case rendered by a renderer file gets its own convergence curve, a line of its own beside the
+    strategy rows (its efficiency from its case, with why it has no rows), and the report shows both with where
+    its render time comes from."""
+    from harness.report import write_suite_report
+    from harness.running.cases import load_suite
+    from harness.running.schedule import run_suite
+    from harness.studies.suite_studies import StudyOptions, write_suite_studies
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'''name = "other"
+[defaults]
+spp = 4
+film = {{ width = 8, height = 8 }}
+[[cases]]
+name = "furnace/reference"
+scene = "{ROOT / 'scenes' / 'furnace.toml'}"
+[[cases]]
+name = "furnace/fake"
+scene = "{ROOT / 'scenes' / 'furnace.toml'}"
+renderer = "{fake_renderer}"
+expect = "fail"
+''')
+    out = tmp_path / "out"
+    results = run_suite(load_suite(suite), out)
+    fake = next(c for c in results["cases"] if c["name"] == "furnace/fake")
+    assert fake["render"]["info"]["time_from"].startswith("start-up subtracted")
+    options = StudyOptions(convergence_spp=(1, 2, 4), convergence_strategies=(), convergence_mitsuba=False,
+                           shadow_rays=False, render_strategies=False, min_timing_seconds=0.0,
+                           strategy_min_seconds=0.0)
+    write_suite_studies(results, out, options)
+    studies = json.loads((out / "studies" / "studies.json").read_text())
+    series = studies["convergence"]["scenes"][0]["result"]["series"]
+    assert [s["label"] for s in series] == ["reference (defaults)", "fake"]
+    assert [p["spp"] for p in series[1]["points"]] == [2, 4]
+    other = studies["strategies"]["scenes"][0]["other_renderers"]
+    assert [o["renderer"] for o in other] == ["fake"] and "takes no settings" in other[0]["note"]
+    assert other[0]["efficiency"] > 0 and other[0]["relative_efficiency"] > 0, (other, studies["strategies"])
+    write_suite_report(out / "results.json", out)
+    page = (out / "index.html").read_text()
+    assert "start-up subtracted (" in page and "takes no settings" in page
