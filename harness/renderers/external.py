@@ -187,9 +187,10 @@ def _run(argv: list[str], cwd: Path, timeout: float, name: str) -> tuple[float, 
     return seconds, stderr
 
 
-#: runs of the start-up probe (:meth:`ExternalRenderer.startup_seconds`); the shortest counts, since the first run
-#: of a process often pays for a cold disk cache
-STARTUP_PROBES = 2
+#: runs of the start-up probe (:meth:`ExternalRenderer.startup_seconds`); their median counts (the probe follows
+#: the render's own runs, so the disk cache is warm; the median is robust to one run slowed by the machine's load,
+#: where the shortest would be biased low and leave start-up time in every render time)
+STARTUP_PROBES = 3
 #: the keys a renderer may report of itself: as string attributes of the EXR header or in ``<out>.json``
 REPORTED_KEYS = ("render_seconds", "variance_dof")
 #: start-up seconds measured per (renderer file, scene): once per process
@@ -315,7 +316,7 @@ class ExternalRenderer:
 
     def startup_seconds(self, scene: Scene) -> tuple[float, str]:
         """The start-up of one run (process start, imports, scene loading, writing the EXR) on ``scene``, measured
-        once per renderer and scene in this process: the shortest of :data:`STARTUP_PROBES` runs at 1 spp on a
+        once per renderer and scene in this process: the median of :data:`STARTUP_PROBES` runs at 1 spp on a
         1 x 1 film of the same scene (one path of rendering, so the whole run is start-up), and how it was
         measured. Where the renderer cannot render a 1 x 1 film, 1-spp runs at the scene's film: their time
         includes one sample per pixel of rendering, so the render time left after subtracting it is a lower bound
@@ -327,13 +328,13 @@ class ExternalRenderer:
             try:
                 walls = [self._runs(tiny, RenderRequest(spp=1, seed=i), max_runs=1).wall[0]
                          for i in range(STARTUP_PROBES)]
-                how = f"a 1-spp run on a 1x1 film, the shortest of {STARTUP_PROBES}"
+                how = f"1-spp runs on a 1x1 film, the median of {STARTUP_PROBES}"
             except ExternalRendererError:
                 walls = [self._runs(scene, RenderRequest(spp=1, seed=i), max_runs=1).wall[0]
                          for i in range(STARTUP_PROBES)]
-                how = (f"a 1-spp run at the scene's film, the shortest of {STARTUP_PROBES}: it includes 1 spp of "
+                how = (f"1-spp runs at the scene's film, the median of {STARTUP_PROBES}: they include 1 spp of "
                        "rendering, so the time left is a lower bound")
-            _STARTUP[key] = (min(walls), how)
+            _STARTUP[key] = (float(np.median(walls)), how)
         return _STARTUP[key]
 
     def _runs(self, scene: Scene, request: RenderRequest, max_runs: int | None = None) -> "_Runs":
