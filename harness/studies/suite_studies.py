@@ -15,8 +15,11 @@ Each study measures against the ground truth the run recorded for a case (``grou
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing
+import os
 import time
 import traceback
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -115,12 +118,60 @@ def write_suite_studies(results: dict, results_dir: str | Path, options: StudyOp
     return {"studies_json": target / STUDIES_FILE, "folder": target, "seconds": time.perf_counter() - start}
 
 
+class _Plots:
+    """The plots of the studies, drawn after every render and timing is done, in parallel processes (matplotlib
+    holds the GIL and costs about a second a plot on a shared 2-core machine: a third of the studies' time on
+    suites/smoke.toml, drawn one by one between the renders)."""
+
+    def __init__(self):
+        self.jobs: list[tuple[Path, dict, Any, tuple, dict]] = []
+
+    def add(self, path: Path, entry: dict, fn, *args, **kwargs) -> None:
+        """Draw ``fn(*args, **kwargs)`` (PNG bytes) into ``path`` later; a failure is noted in ``entry``."""
+        self.jobs.append((path, entry, fn, _strip_private(args), kwargs))
+
+    def draw(self) -> None:
+        """Draw every plot (in up to 2 worker processes; one by one where no process can be started) and write
+        it; a plot that fails leaves ``plot`` None and its reason in ``plot_error``."""
+        workers = min(2, os.cpu_count() or 1, len(self.jobs))
+        results: list = []
+        if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
+            try:  # fork: the workers need no imports of their own (spawn would pay seconds for matplotlib)
+                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+                    futures = [pool.submit(fn, *args, **kwargs) for _, _, fn, args, kwargs in self.jobs]
+                    results = [_outcome(f) for f in futures]
+            except OSError:
+                results = []
+        if len(results) != len(self.jobs):
+            results = [_call(fn, *args, **kwargs) for _, _, fn, args, kwargs in self.jobs]
+        for (path, entry, *_), (png, error) in zip(self.jobs, results):
+            if error is not None:
+                entry.update(plot=None, plot_error=error)
+            else:
+                _write_bytes(path, png)
+
+
+def _outcome(future) -> tuple[bytes | None, str | None]:
+    try:
+        return future.result(), None
+    except Exception as err:  # noqa: BLE001 - a plot that fails is noted in its section
+        return None, f"{type(err).__name__}: {err}".splitlines()[0]
+
+
+def _call(fn, *args, **kwargs) -> tuple[bytes | None, str | None]:
+    try:
+        return fn(*args, **kwargs), None
+    except Exception as err:  # noqa: BLE001 - a plot that fails is noted in its section
+        return None, f"{type(err).__name__}: {err}".splitlines()[0]
+
+
 def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions) -> dict:
     records = results.get("cases", [])
     suite_cases, suite_note = _suite_cases(results)
     progress = Progress(options.progress, len(records), "studies")
     timings: dict[str, float] = {}
     sections: dict[str, Any] = {}
+    plots = _Plots()
     try:
         t0 = time.perf_counter()
         wanted = options.convergence or options.shadow_rays or options.strategies
@@ -130,7 +181,7 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
         bases = _scene_bases(items)
         if options.convergence:
             t0 = time.perf_counter()
-            sections["convergence"] = _convergence_section(bases, out, options, progress, items)
+            sections["convergence"] = _convergence_section(bases, out, options, progress, items, plots)
             timings["convergence"] = time.perf_counter() - t0
         if options.shadow_rays:
             t0 = time.perf_counter()
@@ -138,8 +189,11 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
             timings["shadow_rays"] = time.perf_counter() - t0
         if options.strategies:
             t0 = time.perf_counter()
-            sections["strategies"] = _strategies_section(items, bases, out, options, progress)
+            sections["strategies"] = _strategies_section(items, bases, out, options, progress, plots)
             timings["strategies"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        plots.draw()
+        timings["plots"] = time.perf_counter() - t0
     finally:
         progress.close()
     return {
@@ -242,7 +296,7 @@ def _scene_bases(items: list[StudyCase]) -> dict[str, StudyCase]:
 
 
 def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyOptions, progress,
-                         items: list[StudyCase] = ()) -> dict:
+                         items: list[StudyCase] = (), plots: _Plots | None = None) -> dict:
     section = {"spp_ladder": list(options.convergence_spp), "k": options.k, "scenes": []}
     others = {key: _other_renderers(list(items), key) for key in bases}
     progress.add(sum(len(options.convergence_spp) * (1 + len(options.convergence_strategies)
@@ -268,8 +322,8 @@ def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyO
                                           k=options.k, min_timing_seconds=options.min_timing_seconds,
                                           progress=progress.step, renderer_factory=factory, warmup=True)
             plot = f"convergence/{slug(Path(key).stem)}.png"
-            _write_bytes(out / plot, figures.convergence_figure(result, title=f"{Path(key).stem}: convergence"))
             entry.update(result=result, plot=plot)
+            _plot(plots, out / plot, entry, figures.convergence_figure, result, title=f"{Path(key).stem}: convergence")
         except WriteError:
             raise
         except Exception as err:  # noqa: BLE001 - reported in the section
@@ -342,7 +396,7 @@ def _case_rows(items: list[StudyCase], key: str, base: StudyCase, masks: dict | 
 
 
 def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out: Path, options: StudyOptions,
-                        progress) -> dict:
+                        progress, plots: _Plots | None = None) -> dict:
     defaults = studies.strategy_defaults()
     section: dict[str, Any] = {"defaults": defaults, "strategy_spp": options.strategy_spp, "scenes": []}
     lambertian_defaults = defaults
@@ -383,8 +437,8 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                                           bounded, defaults, retime=retime if options.render_strategies else None,
                                           environment=environment, glossy=glossy)
             plot = f"strategies/{slug(Path(key).stem)}.png"
-            _write_bytes(out / plot, figures.strategies_figure(
-                table["rows"], title=f"{Path(key).stem}: efficiency relative to default"))
+            _plot(plots, out / plot, table, figures.strategies_figure, table["rows"],
+                  title=f"{Path(key).stem}: efficiency relative to default")
             table.update(scene_path=key, film=[base.scene.film.width, base.scene.film.height], plot=plot, note=note)
             others = _other_strategy_rows(items, key, base, table)
             if others:
@@ -426,6 +480,14 @@ def _other_strategy_rows(items: list[StudyCase], key: str, base: StudyCase, tabl
             row["relative_efficiency"] = row["efficiency"] / default["efficiency"]
         rows.append(row)
     return rows
+
+
+def _plot(plots: _Plots | None, path: Path, entry: dict, fn, *args, **kwargs) -> None:
+    """Draw a plot into ``path``: later with the others (``plots``), or now."""
+    if plots is not None:
+        plots.add(path, entry, fn, *args, **kwargs)
+    else:
+        _write_bytes(path, fn(*args, **kwargs))
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
