@@ -391,3 +391,14 @@ def test_bad_reported_values_fail_the_run_in_one_line(tmp_path, small_scene, ext
     with pytest.raises(ExternalRendererError) as info:
         renderer.render(small_scene, RenderRequest(spp=2, seed=1))
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_start_up_measured_too_long_is_measured_again(tmp_path, small_scene, monkeypatch):
+    """A run that takes less than the start-up measured proves the probes were slowed (the machine's load): the
+    start-up is measured once more and the smaller kept, instead of every later render reading 0 s."""
+    renderer = get_renderer(str(_timed_renderer(tmp_path, "slowprobe", "none", 0.3, 0.05)))
+    monkeypatch.setitem(external._STARTUP, (renderer.spec, str(small_scene.path), small_scene.name,
+                                            small_scene.max_depth, (6, 4)), (5.0, "a slowed probe"))
+    result = renderer.render(small_scene, RenderRequest(spp=2, seed=1))
+    assert "measured twice (5 s," in result.info["time_from"] and result.info["startup_seconds"] < 5.0
+    assert 0.0 < result.seconds < result.info["wall_seconds"]
