@@ -1,6 +1,7 @@
 """The studies of a suite run, besides its cases (docs/report.md): per scene a convergence study (error against spp
-and time for the reference renderer's strategies and Mitsuba), noise against the number of shadow rays (a scene
-with an occluder), and the efficiency of every sampling strategy of the reference renderer.
+and time for the reference renderer's strategies, Mitsuba and every other renderer of the scene's cases), noise
+against the number of shadow rays (a scene with an occluder), and the efficiency of every sampling strategy of the
+reference renderer (with, beside it, each other renderer's own efficiency: it takes no settings to vary).
 
 They render and time, so ``harness run`` runs them after its suite (``harness report --studies`` too), and
 :func:`write_suite_studies` writes what they find into ``OUT/studies/``: ``studies.json`` (every number, paths
