@@ -17,6 +17,7 @@ from harness.core.errors import HarnessError
 from harness.core.limits import check_render_cost
 from harness.core.options import require_positive
 from harness.files.imageio import atomic_write_text
+from harness.renderers import get_renderer
 from harness.scene import load_scene
 from harness.studies import bench
 
@@ -45,6 +46,10 @@ def register(sub, common) -> None:
                         default=3, help="timed renders per contender after a warm-up (default 3)")
     parser.add_argument("--ground-truth-spp", type=options.positive_int, default=4096,
                         help="spp of the (cached) Mitsuba ground truth (default 4096)")
+    parser.add_argument("--renderer", action="append", default=[], metavar="NAME",
+                        help="also race this renderer (a renderer file, renderers/NAME.toml or an entry point; "
+                             "repeatable) at the same spp, its render time without process start-up "
+                             "(docs/external-renderers.md, Timing)")
     parser.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
     parser.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
     parser.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
@@ -58,7 +63,8 @@ def register(sub, common) -> None:
         description=summary[0].upper() + summary[1:] + ". Contenders: the reference at its defaults (stratified "
                     "sampler), Mitsuba llvm_ad_rgb and scalar_rgb at theirs (independent sampler), Mitsuba llvm_ad_rgb "
                     "with its ldsampler when spp is a power of 4, and the reference's strategy rows (one setting "
-                    "changed, e.g. sampler=independent). Method and latest figures: docs/performance.md.",
+                    "changed, e.g. sampler=independent); --renderer adds any other renderer (e.g. cycles, or a renderer file) at "
+                    "the same spp, timed without process start-up. Method and latest figures: docs/performance.md.",
         parents=[parser, common.out("also write the JSON result to this file (atomically)", file=True), common.json(),
                  common.quiet(), common.cache_dir(), common.allow_outside_paths()])
 
@@ -100,9 +106,12 @@ def run(args: argparse.Namespace) -> int:
     if memory is not None:
         check_render_cost(memory[0], memory[0], memory[1], film_where="--memory", spp_where="--memory",
                           film_keys="SIZE in --memory", spp_name="SPP in --memory")
+    for name in args.renderer:  # an unknown name or a bad renderer file: one line before anything renders
+        get_renderer(name)
     say = (lambda text: print(f"  {text}", file=sys.stderr, flush=True)) if not args.quiet else None
     result = bench.run_bench(scenes=resolved, spp=args.spp, repeats=args.repeats, gt_spp=args.ground_truth_spp,
-                             strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say)
+                             strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say,
+                             renderers=tuple(args.renderer))
     if args.scaling:
         result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
     if memory is not None:

@@ -112,20 +112,28 @@ def run(args: argparse.Namespace) -> int:
         fit = s["fit_rmse"]
         slope = "n/a" if fit.get("slope") is None else f"{fit['slope']:.3f}"
         flag = f"; flattens from {fit['departure_spp']:g} spp (bias?)" if fit.get("biased") else ""
-        print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}", file=human)
+        timing = f"; render time: {s['time_from']}" if s.get("time_from") else ""
+        print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}{timing}", file=human)
     comparison = (result.get("comparisons") or {}).get("rmse_corrected")
     if comparison and comparison["equal_time"].get("time"):
         et = comparison["equal_time"]
         print(f"equal time ({et['time']:.3g} s): " + ", ".join(
-            f"{k} RMSE {v:.4g}" if v is not None else f"{k} n/a" for k, v in et["errors"].items()), file=human)
+            f"{k} RMSE {v:.4g}" if v is not None else f"{k} {_missing(et, k)}" for k, v in et["errors"].items()),
+            file=human)
     if comparison and comparison["equal_error"].get("error"):
         ee = comparison["equal_error"]
         print(f"equal error (RMSE {ee['error']:.4g}): " + ", ".join(
-            f"{k} {v:.3g} s" if v is not None else f"{k} n/a" for k, v in ee["times"].items()), file=human)
+            f"{k} {v:.3g} s" if v is not None else f"{k} {_missing(ee, k)}" for k, v in ee["times"].items()),
+            file=human)
     if args.json:
         print(Path(paths["report_json"]).read_text())
     print(f"wrote {paths['index']} and {paths['report_json']}", file=human)
     return EXIT_OK
+
+
+def _missing(comparison: dict, label: str) -> str:
+    """How a comparison without a value for ``label`` says so: "out of range" (beyond 2x its measured times)."""
+    return "out of range" if (comparison.get("out_of_range") or {}).get(label) else "n/a"
 
 
 def _check_series(scene, series, budgets: list[int], seed: int) -> None:

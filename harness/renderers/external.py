@@ -25,6 +25,12 @@ renderer is run K = ``repeats`` times with independent seeds s_1..s_K and the ha
 per pixel and channel: an unbiased estimate of the variance of ``image`` with K - 1 degrees of freedom, which the
 verdict's t-correction takes from ``RenderResult.info["variance_dof"]``.
 
+Render time excludes process start-up (docs/external-renderers.md, "Timing"): a run may report its own
+``render_seconds`` (and ``variance_dof``, the degrees of freedom of its variance channels) as EXR string header
+attributes or in ``<out>.json`` (:func:`reported_values`); otherwise each run's wall time less the start-up,
+measured once per renderer and scene with 1-spp runs on a 1 x 1 film (:meth:`ExternalRenderer.startup_seconds`).
+``RenderResult.info["time_from"]`` says which.
+
 A non-zero exit, a timeout (the whole process group is killed), a missing or unreadable EXR, or one of the wrong
 size raises :class:`ExternalRendererError`, which a suite records as the case's ``error`` with the reason. A
 missing or invalid renderer file is a user error (:class:`~harness.core.errors.HarnessError`).
@@ -32,7 +38,10 @@ missing or invalid renderer file is a user error (:class:`~harness.core.errors.H
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.metadata
+import json
+import math
 import os
 import re
 import shlex
@@ -41,7 +50,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -191,8 +200,70 @@ def _run(argv: list[str], cwd: Path, timeout: float, name: str) -> tuple[float, 
     return seconds, stderr
 
 
+#: runs of the start-up probe (:meth:`ExternalRenderer.startup_seconds`); their median counts (the probe follows
+#: the render's own runs, so the disk cache is warm; the median is robust to one run slowed by the machine's load,
+#: where the shortest would be biased low and leave start-up time in every render time)
+STARTUP_PROBES = 3
+#: the keys a renderer may report of itself: as string attributes of the EXR header or in ``<out>.json``
+REPORTED_KEYS = ("render_seconds", "variance_dof")
+#: start-up seconds measured per (renderer file, scene): once per process
+_STARTUP: dict[tuple, tuple[float, str]] = {}
+_REMEASURED: set[tuple] = set()
+
+
+@dataclass
+class _Runs:
+    """What the runs of one render gave (:meth:`ExternalRenderer._runs`)."""
+
+    images: list = field(default_factory=list)
+    variance: np.ndarray | None = None
+    wall: list = field(default_factory=list)
+    reported: list = field(default_factory=list)
+    seeds: list = field(default_factory=list)
+    argvs: list = field(default_factory=list)
+
+
+def reported_values(metadata: dict[str, str] | None, out: Path, name: str) -> dict[str, float | int]:
+    """What a run reported of itself: ``render_seconds`` (seconds spent rendering, start-up excluded) and
+    ``variance_dof`` (degrees of freedom of its variance channels), from the EXR's string header attributes or,
+    for a key the header lacks, from the JSON file ``<out>.json`` beside it (``{out}`` with ".json" appended:
+    ``render.exr.json``). A bad value raises :class:`ExternalRendererError` (the run's output is wrong, not the
+    user's input)."""
+    found: dict[str, object] = {k: v for k, v in (metadata or {}).items() if k in REPORTED_KEYS}
+    side = Path(str(out) + ".json")
+    if side.is_file() and any(k not in found for k in REPORTED_KEYS):
+        try:
+            doc = json.loads(side.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError) as err:
+            raise ExternalRendererError(f"renderer {name!r} wrote an unreadable {side.name}: "
+                                        f"{str(err).splitlines()[0] if str(err) else type(err).__name__}") from None
+        if not isinstance(doc, dict):
+            raise ExternalRendererError(f"renderer {name!r} wrote {side.name} holding {type(doc).__name__}; expected "
+                                        'an object such as {"render_seconds": 1.5, "variance_dof": 63}')
+        found.update({k: doc[k] for k in REPORTED_KEYS if k in doc and k not in found})
+    out_values: dict[str, float | int] = {}
+    for key, raw in found.items():
+        try:
+            number = float(raw) if not isinstance(raw, bool) else math.nan
+        except (TypeError, ValueError):
+            number = math.nan
+        if key == "render_seconds":
+            ok = math.isfinite(number) and number >= 0
+            want = "a non-negative number of seconds"
+        else:
+            ok = math.isfinite(number) and number >= 1 and number == int(number)
+            want = "a positive integer"
+        if not ok:
+            raise ExternalRendererError(f"renderer {name!r} reported {key} = {short(raw, 40)}; expected {want}")
+        out_values[key] = number if key == "render_seconds" else int(number)
+    return out_values
+
+
 class ExternalRenderer:
     """A renderer run as an external command (see the module docstring)."""
+
+    #: each run restarts a process: the studies do not repeat a render just to time it better
+    cheap_to_repeat = False
 
     def __init__(self, spec: ExternalSpec):
         self.spec = spec
@@ -248,11 +319,80 @@ class ExternalRenderer:
                                f"its command, {self.spec.path})")
         if request.spp < 1:
             raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")
+        runs = self._runs(scene, request)
+        seconds, time_from, startup = self._render_seconds(scene, runs)
+        images, variance, seeds, argvs = runs.images, runs.variance, runs.seeds, runs.argvs
+        width, height = scene.film.width, scene.film.height
+        if variance is not None:
+            image, var, spp = images[0], variance.astype(np.float64), request.spp
+            dof = runs.reported[0].get("variance_dof", request.spp - 1)
+            source = "the renderer's variance channels"
+        else:
+            image, var, dof = combine_repeats(images)
+            spp = request.spp * len(images)
+            source = f"{len(images)} runs with independent seeds (sample variance / K, K - 1 dof)"
+        info = {"command": argvs[0], "renderer_file": str(self.spec.path), "runs": len(images), "seeds": seeds,
+                "variance_from": source, "variance_dof": dof, "spp_per_run": request.spp,
+                "time_from": time_from, "wall_seconds": float(sum(runs.wall)), "startup_seconds": startup}
+        return RenderResult(
+            renderer=self.name, image=image.astype(np.float32), variance=var.astype(np.float32), seconds=seconds,
+            spp=spp, rays={"camera": width * height * spp}, stats={"runs": len(images)},
+            settings={"spp": request.spp, "seed": request.seed, "repeats": self.spec.repeats,
+                      "timeout": self.spec.timeout, "command": list(self.spec.command)},
+            info=info,
+        )
+
+    def _render_seconds(self, scene: Scene, runs: "_Runs") -> tuple[float, str, float | None]:
+        """(render seconds of all runs, where they come from, the start-up subtracted or None): the renderer's own
+        ``render_seconds`` where every run reported one, else each run's wall time less the start-up
+        (:meth:`startup_seconds`), never below 0."""
+        own = [r.get("render_seconds") for r in runs.reported]
+        if all(v is not None for v in own):
+            return float(sum(own)), "renderer", None
+        startup, how = self.startup_seconds(scene)
+        if min(runs.wall) < startup:  # a whole run took less than the start-up: the probes were slowed; once more
+            startup, how = self.startup_seconds(scene, again=True)
+        seconds = float(sum(max(wall - startup, 0.0) for wall in runs.wall))
+        return seconds, f"start-up subtracted ({startup:.3g} s measured with {how})", startup
+
+    def startup_seconds(self, scene: Scene, again: bool = False) -> tuple[float, str]:
+        """The start-up of one run (process start, imports, scene loading, writing the EXR) on ``scene``, measured
+        once per renderer and scene in this process: the median of :data:`STARTUP_PROBES` runs at 1 spp on a
+        1 x 1 film of the same scene (one path of rendering, so the whole run is start-up), and how it was
+        measured. Where the renderer cannot render a 1 x 1 film, 1-spp runs at the scene's film: their time
+        includes one sample per pixel of rendering, so the render time left after subtracting it is a lower bound
+        (and says so). ``again``: a run was faster than the start-up measured (the machine's load slowed the
+        probes), so it is measured once more, once per renderer and scene, and the smaller median is kept."""
+        key = (self.spec, str(getattr(scene, "path", "")), scene.name, scene.max_depth,
+               (scene.film.width, scene.film.height))
+        if again and key in _STARTUP and key not in _REMEASURED:
+            _REMEASURED.add(key)
+            first, how = _STARTUP.pop(key)
+            second, how = self.startup_seconds(scene)
+            _STARTUP[key] = (min(first, second), how + f"; measured twice ({first:.3g} s, {second:.3g} s): a run "
+                             "was faster than the first, the smaller is kept")
+        if key not in _STARTUP:
+            tiny = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=1, height=1))
+            try:
+                walls = [self._runs(tiny, RenderRequest(spp=1, seed=i), max_runs=1).wall[0]
+                         for i in range(STARTUP_PROBES)]
+                how = f"1-spp runs on a 1x1 film, the median of {STARTUP_PROBES}"
+            except ExternalRendererError:
+                walls = [self._runs(scene, RenderRequest(spp=1, seed=i), max_runs=1).wall[0]
+                         for i in range(STARTUP_PROBES)]
+                how = (f"1-spp runs at the scene's film, the median of {STARTUP_PROBES}: they include 1 spp of "
+                       "rendering, so the time left is a lower bound")
+            _STARTUP[key] = (float(np.median(walls)), how)
+        return _STARTUP[key]
+
+    def _runs(self, scene: Scene, request: RenderRequest, max_runs: int | None = None) -> "_Runs":
+        """Run the command once, or ``repeats`` times (at most ``max_runs``) when its EXR has no variance channels:
+        the images, the first EXR's variance, each run's wall time and what it reported of itself
+        (:func:`reported_values`), the seeds and command lines."""
         with tempfile.TemporaryDirectory(prefix=f"harness-{self.name}-") as tmp:
             work = Path(tmp)
             values = self.values(scene, request, work)
-            images, seconds, seeds, argvs = [], 0.0, [], []
-            variance = None
+            done = _Runs()
             runs = 1
             index = 0
             while index < runs:
@@ -261,33 +401,18 @@ class ExternalRenderer:
                 argv = self.argv(dict(values, seed=str(seed), out=str(out)))
                 elapsed, _ = _run(argv, work, self.spec.timeout, self.name)
                 exr = self._read(out, scene)
-                seconds += elapsed
-                images.append(exr.image.astype(np.float64))
-                seeds.append(seed)
-                argvs.append(shlex.join(argv))
+                done.wall.append(elapsed)
+                done.reported.append(reported_values(exr.metadata, out, self.name))
+                done.images.append(exr.image.astype(np.float64))
+                done.seeds.append(seed)
+                done.argvs.append(shlex.join(argv))
                 if index == 0:
-                    variance = exr.variance
-                    runs = 1 if variance is not None else self.spec.repeats
+                    done.variance = exr.variance
+                    runs = 1 if exr.variance is not None else min(self.spec.repeats, max_runs or self.spec.repeats)
                 index += 1
                 if request.progress is not None:
                     request.progress(index, runs)
-        width, height = scene.film.width, scene.film.height
-        if variance is not None:
-            image, var, spp, dof = images[0], variance.astype(np.float64), request.spp, request.spp - 1
-            source = "the renderer's variance channels"
-        else:
-            image, var, dof = combine_repeats(images)
-            spp = request.spp * len(images)
-            source = f"{len(images)} runs with independent seeds (sample variance / K, K - 1 dof)"
-        info = {"command": argvs[0], "renderer_file": str(self.spec.path), "runs": len(images), "seeds": seeds,
-                "variance_from": source, "variance_dof": dof, "spp_per_run": request.spp}
-        return RenderResult(
-            renderer=self.name, image=image.astype(np.float32), variance=var.astype(np.float32), seconds=seconds,
-            spp=spp, rays={"camera": width * height * spp}, stats={"runs": len(images)},
-            settings={"spp": request.spp, "seed": request.seed, "repeats": self.spec.repeats,
-                      "timeout": self.spec.timeout, "command": list(self.spec.command)},
-            info=info,
-        )
+        return done
 
 
 # ---- finding renderers: renderer files by path or by name, and the ``harness.renderers`` entry points -------------

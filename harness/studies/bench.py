@@ -14,6 +14,11 @@ in the shared machine's load falls on all of them alike. Per contender:
 
 Mitsuba runs its plain ``path`` integrator, in one pass per render, as a user would run it (``--set moments=off``):
 the per-pixel variances of the harness's ``moment(aov(path))`` wrapper cost Mitsuba time that a user does not pay.
+
+Any other renderer (``harness bench --renderer NAME``: a renderer file, a ``renderers/NAME.toml``, an entry point)
+races at the same spp: an external renderer run K times per render (no variance channels) is asked for spp / K per
+run, so that its image holds the same samples, and its time is its render time without process start-up
+(:mod:`harness.renderers.external`: its own ``render_seconds``, or the wall time less the start-up measured once).
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import ground_truth
+from harness.renderers.external import ExternalRendererError
 from harness.renderers.mitsuba import sampler_takes
 from harness.scene import load_scene
 
@@ -113,6 +119,8 @@ class Row:
     variant: str | None = None
     stats: dict = field(default_factory=dict)
     error: str | None = None
+    #: where the render time comes from, for a renderer that does not time itself in-process (an external one)
+    time_from: str | None = None
 
 
 def mse_against(image: np.ndarray, gt_image: np.ndarray, gt_variance: np.ndarray | None) -> tuple[float, float]:
@@ -127,9 +135,15 @@ def efficiency(mse: float, seconds: float) -> float:
     return 1.0 / (mse * seconds) if mse > 0 and seconds > 0 else math.nan
 
 
-def _cpu_seconds() -> float:
+def _cpu_seconds(children: bool = False) -> float:
+    """CPU seconds of this process (and, with ``children``, of its finished child processes: an external
+    renderer's runs)."""
     usage = resource.getrusage(resource.RUSAGE_SELF)
-    return usage.ru_utime + usage.ru_stime
+    total = usage.ru_utime + usage.ru_stime
+    if children:
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        total += kids.ru_utime + kids.ru_stime
+    return total
 
 
 def bench_scene(
@@ -149,22 +163,29 @@ def bench_scene(
     renderers = [get_renderer(c.renderer) for c in contenders]
     cpu = [0.0] * len(contenders)
     wall = [0.0] * len(contenders)
+    per_run = [spp] * len(contenders)  # the spp asked of each contender: spp / K for K runs per render
     for attempt in range(repeats + 1):  # attempt 0 is the warm-up
         for i, (contender, renderer, row) in enumerate(zip(contenders, renderers, rows)):
             if row.error:
                 continue
-            request = RenderRequest(spp=spp, seed=seed + attempt, settings=dict(contender.settings))
-            cpu0, wall0 = _cpu_seconds(), time.perf_counter()
+            request = RenderRequest(spp=per_run[i], seed=seed + attempt, settings=dict(contender.settings))
+            external = not getattr(renderer, "cheap_to_repeat", True)
+            cpu0, wall0 = _cpu_seconds(external), time.perf_counter()
             try:
                 result = renderer.render(scene, request)
-            except HarnessError as err:
-                row.error = f"{err.where}: {err.message}"
+            except (HarnessError, ExternalRendererError) as err:
+                row.error = f"{err.where}: {err.message}" if isinstance(err, HarnessError) else str(err)
                 continue
-            cpu1, wall1 = _cpu_seconds(), time.perf_counter()
+            cpu1, wall1 = _cpu_seconds(external), time.perf_counter()
             if on_render is not None:
                 on_render(f"{scene.name}: {contender.label}" + (" (warm-up)" if attempt == 0 else ""))
             if attempt == 0:
+                if result.info.get("spp_per_run") is not None:  # K runs per render: spp / K each
+                    runs = max(1, int(result.spp) // per_run[i])
+                    per_run[i] = max(1, int(round(spp / runs)))
                 continue
+            row.spp = int(result.spp)
+            row.time_from = result.info.get("time_from", row.time_from)
             cpu[i] += cpu1 - cpu0
             wall[i] += wall1 - wall0
             row.seconds_all.append(result.seconds)
@@ -186,7 +207,7 @@ def bench_scene(
             continue
         n = len(row.seconds_all)
         row.seconds = statistics.median(row.seconds_all)
-        row.paths_per_second = row.width * row.height * spp / row.seconds
+        row.paths_per_second = row.width * row.height * row.spp / row.seconds if row.seconds > 0 else math.nan
         if row.rays_per_path is not None:
             row.rays_per_second = row.rays_per_path * row.paths_per_second
         row.mse = float(np.mean(row.mse_all))
@@ -214,6 +235,26 @@ def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
         out[f"efficiency_vs_{variant}"] = mine.efficiency / row.efficiency
         out[f"paths_per_second_vs_{variant}"] = mine.paths_per_second / row.paths_per_second
     return out
+
+
+def contender_ratios(rows: Sequence[Row], label: str) -> dict[str, float]:
+    """Efficiency and paths/s of row ``label`` (a renderer given with ``--renderer``) over the reference's (at its
+    defaults) and over every Mitsuba row's (:func:`ratios`)."""
+    mine = next((r for r in rows if r.label == label), None)
+    ref = next((r for r in rows if r.label == "reference" and not r.error), None)
+    out: dict[str, float] = {}
+    if mine is None or mine.error:
+        return out
+    if ref is not None:
+        out["efficiency_vs_reference"] = mine.efficiency / ref.efficiency
+        out["paths_per_second_vs_reference"] = mine.paths_per_second / ref.paths_per_second
+    out.update(ratios(rows, label))
+    return out
+
+
+def renderer_label(name: str) -> str:
+    """A contender's label for a renderer given by name or by file (the file's stem)."""
+    return Path(name).stem if name.endswith(".toml") or "/" in name else name
 
 
 def check_targets(cornell_ratios: dict[str, float]) -> list[dict]:
@@ -310,9 +351,12 @@ def run_bench(
     strategies: bool = True,
     cache_dir=None,
     on_render: Callable[[str], None] | None = None,
+    renderers: Sequence[str] = (),
 ) -> dict:
-    """The whole benchmark: per scene, the three contenders and (``strategies``) the reference's strategy variations;
-    the reference/Mitsuba ratios; the targets checked on the Cornell box."""
+    """The whole benchmark: per scene, the three contenders, each of ``renderers`` (any renderer name or file,
+    at the same spp, its render time without start-up) and (``strategies``) the reference's strategy variations;
+    the reference/Mitsuba ratios (and each other renderer's over the reference and Mitsuba); the targets checked
+    on the Cornell box."""
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
                     "scenes": {}}
     for name in scenes:
@@ -322,6 +366,7 @@ def run_bench(
         scene = load_scene(path)
         gt = ground_truth(scene, spp=gt_spp, cache_dir=cache_dir, use_closed_form=True)
         contenders = default_contenders(spp)
+        contenders += [Contender(renderer_label(name), name) for name in renderers]
         if strategies:
             contenders += [Contender("reference " + " ".join(f"{k}={v}" for k, v in s.items()), "reference", s)
                            for s in STRATEGIES[1:]]
@@ -334,6 +379,7 @@ def run_bench(
                              or gt.info.get("info", {}).get("variant")},
             "rows": [row_dict(r) for r in rows],
             "ratios": ratios(rows),
+            "contenders": {renderer_label(name): contender_ratios(rows, renderer_label(name)) for name in renderers},
             "best_strategy": {"label": best.label, "settings": best.settings, "efficiency": best.efficiency,
                               "ratios": ratios(rows, best.label)},
         }
@@ -354,6 +400,11 @@ def format_report(result: dict) -> str:
         out.append(format_table(rows))
         ratio_text = ", ".join(f"{k} {v:.2f}" for k, v in block["ratios"].items())
         out.append(f"reference / Mitsuba: {ratio_text}")
+        for label, values in (block.get("contenders") or {}).items():
+            row = next((r for r in rows if r.label == label), None)
+            text = ", ".join(f"{k} {v:.3g}" for k, v in values.items() if isinstance(v, float) and math.isfinite(v))
+            timing = f" (render time: {row.time_from})" if row is not None and row.time_from else ""
+            out.append(f"{label} / reference and Mitsuba: {text or 'not measured'}{timing}")
         best = block["best_strategy"]
         out.append(f"best reference strategy: {best['label']} (efficiency {best['efficiency']:.4g}; "
                    + ", ".join(f"{k} {v:.2f}" for k, v in best["ratios"].items() if k.startswith("efficiency")) + ")")

@@ -222,61 +222,82 @@ def _usable(values) -> list[float]:
     return [float(v) for v in values if v is not None and np.isfinite(v) and v > 0]
 
 
+#: a curve's own line is followed at most this factor beyond its measured times (below the shortest, above the
+#: longest); further out a comparison says "out of range" rather than trust a line that far
+MAX_EXTRAPOLATION = 2.0
+
+
+def _within_reach(ts: Sequence[float], t: float) -> bool:
+    """Whether time ``t`` lies within :data:`MAX_EXTRAPOLATION` of the curve's measured times."""
+    usable = _usable(ts)
+    return bool(usable) and min(usable) / MAX_EXTRAPOLATION <= t <= max(usable) * MAX_EXTRAPOLATION
+
+
 def equal_time(curves: dict[str, tuple[Sequence[float], Sequence[float]]], at: float | None = None) -> dict:
     """The error each curve (label -> (times, errors)) reaches at the same time: ``at``, or by default the longest
     time every curve covers (the smallest of the curves' last times). Read off each curve by log-log interpolation;
     where a curve does not reach that time (no common range), along its own least-squares line in log-log,
-    flagged in ``extrapolated``. Ratios are to the first curve's error."""
+    flagged in ``extrapolated``, but never further than :data:`MAX_EXTRAPOLATION` times beyond its measured
+    times: there the error is None, flagged in ``out_of_range``. Ratios are to the first curve's error."""
     if not curves:
-        return {"time": None, "errors": {}, "ratio_to_first": {}, "extrapolated": {}}
+        return {"time": None, "errors": {}, "ratio_to_first": {}, "extrapolated": {}, "out_of_range": {}}
     if at is None:
         ends = [max(_usable(ts)) for ts, _ in curves.values() if _usable(ts)]
         if len(ends) != len(curves):
             return {"time": None, "errors": {k: None for k in curves}, "ratio_to_first": {k: None for k in curves},
-                    "extrapolated": {k: False for k in curves}, "note": "a curve has no usable times"}
+                    "extrapolated": {k: False for k in curves}, "out_of_range": {k: False for k in curves},
+                    "note": "a curve has no usable times"}
         at = min(ends)
-    errors, extrapolated = {}, {}
+    errors, extrapolated, out_of_range = {}, {}, {}
     for label, (ts, es) in curves.items():
         value = loglog_interpolate(ts, es, at)
-        extrapolated[label] = False
+        extrapolated[label] = out_of_range[label] = False
         if value is None:
             line = _loglog_line(ts, es)
-            if line is not None:
+            if line is not None and not _within_reach(ts, at):
+                out_of_range[label] = True
+            elif line is not None:
                 value = float(math.exp(line[1] + line[0] * math.log(at)))
                 extrapolated[label] = True
         errors[label] = value
     first = next(iter(errors.values()), None)
     ratios = {label: (e / first if e is not None and first else None) for label, e in errors.items()}
-    return {"time": float(at), "errors": errors, "ratio_to_first": ratios, "extrapolated": extrapolated}
+    return {"time": float(at), "errors": errors, "ratio_to_first": ratios, "extrapolated": extrapolated,
+            "out_of_range": out_of_range}
 
 
 def equal_error(curves: dict[str, tuple[Sequence[float], Sequence[float]]], target: float | None = None) -> dict:
     """The time each curve (label -> (times, errors)) needs to reach the same error: ``target``, or by default the
     smallest error every curve reaches (the largest of the curves' smallest errors). Read off each curve by
     log-log interpolation at its first crossing; a curve already below the target at its first point, or never
-    reaching it, is extrapolated along its own least-squares line in log-log (flagged in ``extrapolated``).
-    Speed-ups are the first curve's time divided by each curve's."""
+    reaching it, is extrapolated along its own least-squares line in log-log (flagged in ``extrapolated``), but
+    only to a time within :data:`MAX_EXTRAPOLATION` times of its measured times (beyond: None, flagged in
+    ``out_of_range``). Speed-ups are the first curve's time divided by each curve's."""
     if not curves:
-        return {"error": None, "times": {}, "speedup_vs_first": {}, "extrapolated": {}}
+        return {"error": None, "times": {}, "speedup_vs_first": {}, "extrapolated": {}, "out_of_range": {}}
     if target is None:
         lows = [min(_usable(es)) for _, es in curves.values() if _usable(es)]
         if len(lows) != len(curves):
             return {"error": None, "times": {k: None for k in curves}, "speedup_vs_first": {k: None for k in curves},
-                    "extrapolated": {k: False for k in curves}, "note": "a curve has no usable errors"}
+                    "extrapolated": {k: False for k in curves}, "out_of_range": {k: False for k in curves},
+                    "note": "a curve has no usable errors"}
         target = max(lows)
-    times, extrapolated = {}, {}
+    times, extrapolated, out_of_range = {}, {}, {}
     for label, (ts, es) in curves.items():
         value = time_to_error(ts, es, target)
-        extrapolated[label] = False
+        extrapolated[label] = out_of_range[label] = False
         if value is None:
             line = _loglog_line(ts, es)
             if line is not None and line[0] < 0:
                 value = float(math.exp((math.log(target) - line[1]) / line[0]))
                 extrapolated[label] = True
+                if not _within_reach(ts, value):
+                    value, extrapolated[label], out_of_range[label] = None, False, True
         times[label] = value
     first = next(iter(times.values()), None)
     speedups = {label: (first / t if t and first is not None else None) for label, t in times.items()}
-    return {"error": float(target), "times": times, "speedup_vs_first": speedups, "extrapolated": extrapolated}
+    return {"error": float(target), "times": times, "speedup_vs_first": speedups, "extrapolated": extrapolated,
+            "out_of_range": out_of_range}
 
 
 def _has_points(values) -> bool:
@@ -330,10 +351,12 @@ MAX_TIMING_REPEATS = 50
 def timed_render(renderer, scene, request, min_seconds: float = MIN_TIMING_SECONDS):
     """Render once; if that took less than ``min_seconds``, render again with the same request until the total
     does, so that a tiny render's time is not lost in scheduler noise. Returns (result of the first render, mean
-    seconds per render, number of renders)."""
+    seconds per render, number of renders). A renderer whose ``cheap_to_repeat`` is False (an external renderer:
+    every render restarts its process) renders once."""
     result = renderer.render(scene, request)
     total, count = float(result.seconds), 1
-    while total < min_seconds and count < MAX_TIMING_REPEATS:
+    repeat = getattr(renderer, "cheap_to_repeat", True)
+    while repeat and total < min_seconds and count < MAX_TIMING_REPEATS:
         total += float(renderer.render(scene, request).seconds)
         count += 1
     return result, total / count, count
@@ -363,7 +386,13 @@ def run_convergence(
     (compilation, acceleration structures) do not land on the first rung. A rung that renders in less than
     ``min_timing_seconds`` is rendered again (same seed) and timed by the mean (see :func:`timed_render`).
     ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
-    renderer (default: :func:`harness.renderers.get_renderer`)."""
+    renderer (default: :func:`harness.renderers.get_renderer`).
+
+    A renderer whose image holds more samples than asked (an external renderer run K times with distinct seeds
+    holds K x spp) is asked for spp / K per run, so that its points land on the ladder; K is learnt from its
+    first render (the warm-up), and a rung it cannot reach (below K) is rendered at K, once. Every point sits at
+    the spp its image holds (``render.spp``), and the series says where its times come from (``time_from``:
+    the renderer's own clock, or its wall time less the start-up)."""
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")
     seeds = iter(range(seed, seed + 10**9))
@@ -375,13 +404,26 @@ def run_convergence(
             settings["variant"] = variant
         points = []
         resolved: dict = {}
+        runs = 1  # samples the image holds per spp asked (K for an external renderer's K runs)
+        time_from = None
         if warmup:
-            renderer.render(scene, RenderRequest(spp=1, seed=next(seeds), settings=settings))
+            warm = renderer.render(scene, RenderRequest(spp=1, seed=next(seeds), settings=settings))
+            runs = _runs_per_spp(warm, 1)
+        rendered: set[int] = set()
         for n in spp:
+            per_run = max(1, int(round(int(n) / runs)))
+            if runs > 1 and per_run * runs in rendered:  # a rung below K lands where another did
+                if progress is not None:
+                    progress(f"{s.name} {n} spp (as {per_run * runs})")
+                continue
             sd = next(seeds)
-            result, secs, repeats = timed_render(renderer, scene, RenderRequest(spp=int(n), seed=sd, settings=settings),
+            result, secs, repeats = timed_render(renderer, scene, RenderRequest(spp=per_run, seed=sd,
+                                                                                settings=settings),
                                                  min_timing_seconds)
+            runs = _runs_per_spp(result, per_run)
+            rendered.add(int(result.spp))
             resolved = result.settings
+            time_from = result.info.get("time_from", time_from)
             point = error_point(result.image, ground_truth.image, ground_truth.variance)
             points.append(dict(budget={"spp": int(n)}, spp=int(result.spp), seconds=secs, timing_repeats=repeats,
                                seeds=[sd], **point))
@@ -403,7 +445,7 @@ def run_convergence(
                                       for p in points],
                                      expected_slope=-1.0, scatter=[p["scatter_log_relmse"] for p in points], k=k)
         out_series.append({"label": s.name, "renderer": s.renderer, "settings": dict(s.settings),
-                           "resolved_settings": resolved, "points": points,
+                           "resolved_settings": resolved, "points": points, "time_from": time_from,
                            "fit_rmse": fit_rmse, "fit_relmse": fit_relmse})
     return {
         "scene": str(getattr(scene, "path", "")),
@@ -417,6 +459,14 @@ def run_convergence(
         "k": k, "series": out_series,
         "comparisons": compare_series(out_series),
     }
+
+
+def _runs_per_spp(result, spp: int) -> int:
+    """K for a render that holds K x ``spp`` samples because it is K runs (an external renderer's repeats, which
+    says so with ``info["spp_per_run"]``); 1 for every other renderer, whatever its sampler rounds to."""
+    if result.info.get("spp_per_run") is None:
+        return 1
+    return max(1, int(result.spp) // max(1, int(spp)))
 
 
 def compare_series(series: list[dict]) -> dict:

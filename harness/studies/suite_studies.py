@@ -1,6 +1,7 @@
 """The studies of a suite run, besides its cases (docs/report.md): per scene a convergence study (error against spp
-and time for the reference renderer's strategies and Mitsuba), noise against the number of shadow rays (a scene
-with an occluder), and the efficiency of every sampling strategy of the reference renderer.
+and time for the reference renderer's strategies, Mitsuba and every other renderer of the scene's cases), noise
+against the number of shadow rays (a scene with an occluder), and the efficiency of every sampling strategy of the
+reference renderer (with, beside it, each other renderer's own efficiency: it takes no settings to vary).
 
 They render and time, so ``harness run`` runs them after its suite (``harness report --studies`` too), and
 :func:`write_suite_studies` writes what they find into ``OUT/studies/``: ``studies.json`` (every number, paths
@@ -15,8 +16,11 @@ Each study measures against the ground truth the run recorded for a case (``grou
 from __future__ import annotations
 
 import dataclasses
+import multiprocessing
+import os
 import time
 import traceback
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -43,6 +47,12 @@ from harness.studies.regions import region_masks, region_variances
 
 #: the sections of studies.json, in the order the report shows them
 SECTIONS = ("convergence", "shadow_rays", "strategies")
+#: renderers the studies build in; any other renderer of a suite's cases (a renderer file, an entry point) gets
+#: its own convergence curve and a line of its own in the strategy and shadow-ray sections
+BUILT_IN = ("reference", "mitsuba")
+#: why an external renderer has no strategy or shadow-ray rows (docs/report.md, "Other renderers")
+NO_SETTINGS = ("takes no settings (the harness cannot change its sampling strategy or shadow rays): the rows vary "
+               "the reference renderer's settings")
 
 
 @dataclass
@@ -109,12 +119,60 @@ def write_suite_studies(results: dict, results_dir: str | Path, options: StudyOp
     return {"studies_json": target / STUDIES_FILE, "folder": target, "seconds": time.perf_counter() - start}
 
 
+class _Plots:
+    """The plots of the studies, drawn after every render and timing is done, in parallel processes (matplotlib
+    holds the GIL and costs about a second a plot on a shared 2-core machine: a third of the studies' time on
+    suites/smoke.toml, drawn one by one between the renders)."""
+
+    def __init__(self):
+        self.jobs: list[tuple[Path, dict, Any, tuple, dict]] = []
+
+    def add(self, path: Path, entry: dict, fn, *args, **kwargs) -> None:
+        """Draw ``fn(*args, **kwargs)`` (PNG bytes) into ``path`` later; a failure is noted in ``entry``."""
+        self.jobs.append((path, entry, fn, _strip_private(args), kwargs))
+
+    def draw(self) -> None:
+        """Draw every plot (in up to 2 worker processes; one by one where no process can be started) and write
+        it; a plot that fails leaves ``plot`` None and its reason in ``plot_error``."""
+        workers = min(2, os.cpu_count() or 1, len(self.jobs))
+        results: list = []
+        if workers > 1 and "fork" in multiprocessing.get_all_start_methods():
+            try:  # fork: the workers need no imports of their own (spawn would pay seconds for matplotlib)
+                with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+                    futures = [pool.submit(fn, *args, **kwargs) for _, _, fn, args, kwargs in self.jobs]
+                    results = [_outcome(f) for f in futures]
+            except OSError:
+                results = []
+        if len(results) != len(self.jobs):
+            results = [_call(fn, *args, **kwargs) for _, _, fn, args, kwargs in self.jobs]
+        for (path, entry, *_), (png, error) in zip(self.jobs, results):
+            if error is not None:
+                entry.update(plot=None, plot_error=error)
+            else:
+                _write_bytes(path, png)
+
+
+def _outcome(future) -> tuple[bytes | None, str | None]:
+    try:
+        return future.result(), None
+    except Exception as err:  # noqa: BLE001 - a plot that fails is noted in its section
+        return None, f"{type(err).__name__}: {err}".splitlines()[0]
+
+
+def _call(fn, *args, **kwargs) -> tuple[bytes | None, str | None]:
+    try:
+        return fn(*args, **kwargs), None
+    except Exception as err:  # noqa: BLE001 - a plot that fails is noted in its section
+        return None, f"{type(err).__name__}: {err}".splitlines()[0]
+
+
 def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions) -> dict:
     records = results.get("cases", [])
     suite_cases, suite_note = _suite_cases(results)
     progress = Progress(options.progress, len(records), "studies")
     timings: dict[str, float] = {}
     sections: dict[str, Any] = {}
+    plots = _Plots()
     try:
         t0 = time.perf_counter()
         wanted = options.convergence or options.shadow_rays or options.strategies
@@ -124,7 +182,7 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
         bases = _scene_bases(items)
         if options.convergence:
             t0 = time.perf_counter()
-            sections["convergence"] = _convergence_section(bases, out, options, progress)
+            sections["convergence"] = _convergence_section(bases, out, options, progress, items, plots)
             timings["convergence"] = time.perf_counter() - t0
         if options.shadow_rays:
             t0 = time.perf_counter()
@@ -132,8 +190,11 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
             timings["shadow_rays"] = time.perf_counter() - t0
         if options.strategies:
             t0 = time.perf_counter()
-            sections["strategies"] = _strategies_section(items, bases, out, options, progress)
+            sections["strategies"] = _strategies_section(items, bases, out, options, progress, plots)
             timings["strategies"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        plots.draw()
+        timings["plots"] = time.perf_counter() - t0
     finally:
         progress.close()
     return {
@@ -198,6 +259,23 @@ def _scene_key(item: StudyCase) -> str:
     return str(item.record.get("scene"))
 
 
+def _other_renderers(items: list[StudyCase], key: str) -> list[StudyCase]:
+    """The cases of scene ``key`` rendered by a renderer other than the built-in ones, that rendered (one per
+    renderer: the first)."""
+    seen: dict[str, StudyCase] = {}
+    for item in items:
+        renderer = item.record.get("renderer")
+        if (_scene_key(item) == key and renderer not in BUILT_IN and item.render is not None
+                and item.record.get("status") in ("pass", "fail")):
+            seen.setdefault(str(renderer), item)
+    return list(seen.values())
+
+
+def renderer_label(name: str) -> str:
+    """A renderer's name as the studies show it: a renderer file by its stem."""
+    return Path(name).stem if name.endswith(".toml") or "/" in name else name
+
+
 def _scene_bases(items: list[StudyCase]) -> dict[str, StudyCase]:
     """Per scene, the case whose film and ground truth the studies use: its smallest film among cases with a
     ground truth (reference renderer first, default settings first)."""
@@ -218,10 +296,13 @@ def _scene_bases(items: list[StudyCase]) -> dict[str, StudyCase]:
 # ---- the studies -------------------------------------------------------------------------------------------------
 
 
-def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyOptions, progress) -> dict:
+def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyOptions, progress,
+                         items: list[StudyCase] = (), plots: _Plots | None = None) -> dict:
     section = {"spp_ladder": list(options.convergence_spp), "k": options.k, "scenes": []}
-    progress.add(len(bases) * len(options.convergence_spp) * (1 + len(options.convergence_strategies)
-                                                              + int(options.convergence_mitsuba)))
+    others = {key: _other_renderers(list(items), key) for key in bases}
+    progress.add(sum(len(options.convergence_spp) * (1 + len(options.convergence_strategies)
+                                                     + int(options.convergence_mitsuba) + len(others[key]))
+                     for key in bases))
 
     def factory(name: str):
         if name == "mitsuba":
@@ -236,12 +317,14 @@ def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyO
                        for d in options.convergence_strategies]
             if options.convergence_mitsuba:
                 series.append(conv.Series("mitsuba", {}, "mitsuba (path, cached)"))
+            series += [conv.Series(str(o.record["renderer"]), {}, renderer_label(str(o.record["renderer"])))
+                       for o in others[key]]
             result = conv.run_convergence(base.scene, base.gt, series, spp=options.convergence_spp, seed=10_000,
                                           k=options.k, min_timing_seconds=options.min_timing_seconds,
                                           progress=progress.step, renderer_factory=factory, warmup=True)
             plot = f"convergence/{slug(Path(key).stem)}.png"
-            _write_bytes(out / plot, figures.convergence_figure(result, title=f"{Path(key).stem}: convergence"))
             entry.update(result=result, plot=plot)
+            _plot(plots, out / plot, entry, figures.convergence_figure, result, title=f"{Path(key).stem}: convergence")
         except WriteError:
             raise
         except Exception as err:  # noqa: BLE001 - reported in the section
@@ -276,6 +359,10 @@ def _shadow_section(items: list[StudyCase], out: Path, options: StudyOptions, pr
         return {"error": f"{type(err).__name__}: {err}".splitlines()[0], "traceback": traceback.format_exc(limit=6)}
     for name, png in plots.items():
         _write_bytes(out / folder / f"{name}.png", png)
+    other = sorted({renderer_label(str(i.record.get("renderer"))) for i in candidates
+                    if i.record.get("renderer") not in BUILT_IN})
+    if other:
+        study["other_renderers"] = {"renderers": other, "note": f"{', '.join(other)} {NO_SETTINGS}"}
     study.update(case=base.record["name"], plots={k: f"{folder}/{k}.png" for k in plots},
                  images=[dict(im.to_json(), exr=f"{folder}/{im.exr.name}", png=f"{folder}/{im.png_path.name}")
                          for im in images])
@@ -310,7 +397,7 @@ def _case_rows(items: list[StudyCase], key: str, base: StudyCase, masks: dict | 
 
 
 def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out: Path, options: StudyOptions,
-                        progress) -> dict:
+                        progress, plots: _Plots | None = None) -> dict:
     defaults = studies.strategy_defaults()
     section: dict[str, Any] = {"defaults": defaults, "strategy_spp": options.strategy_spp, "scenes": []}
     lambertian_defaults = defaults
@@ -351,9 +438,12 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                                           bounded, defaults, retime=retime if options.render_strategies else None,
                                           environment=environment, glossy=glossy)
             plot = f"strategies/{slug(Path(key).stem)}.png"
-            _write_bytes(out / plot, figures.strategies_figure(
-                table["rows"], title=f"{Path(key).stem}: efficiency relative to default"))
+            _plot(plots, out / plot, table, figures.strategies_figure, table["rows"],
+                  title=f"{Path(key).stem}: efficiency relative to default")
             table.update(scene_path=key, film=[base.scene.film.width, base.scene.film.height], plot=plot, note=note)
+            others = _other_strategy_rows(items, key, base, table)
+            if others:
+                table["other_renderers"] = others
             if glossy:
                 table.update(defaults=defaults)
         except WriteError:
@@ -363,6 +453,42 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                      "error": f"{type(err).__name__}: {err}".splitlines()[0], "traceback": traceback.format_exc(limit=6)}
         section["scenes"].append(table)
     return section
+
+
+def _other_strategy_rows(items: list[StudyCase], key: str, base: StudyCase, table: dict) -> list[dict]:
+    """Per other renderer of the scene (:func:`_other_renderers`), its case's own efficiency beside the strategy
+    rows: 1 / (mean render variance x render seconds per megapixel, start-up excluded), relative to the default
+    row's, where its film is the table's (per-pixel MSE depends on the pixel size); and why it has no rows."""
+    default = next((r for r in table["rows"] if r.get("is_default") and r.get("efficiency")), None)
+    rows = []
+    for item in _other_renderers(items, key):
+        rec = item.record
+        render = rec.get("render") or {}
+        h, w = item.render.shape[:2]
+        row = {"renderer": renderer_label(str(rec.get("renderer"))), "case": rec.get("name"), "film": [w, h],
+               "spp": render.get("spp"), "seconds": render.get("seconds"),
+               "time_from": (render.get("info") or {}).get("time_from"), "note": NO_SETTINGS,
+               "mse_estimate": studies.mean_variance(item.render_variance), "seconds_per_megapixel": None,
+               "efficiency": None, "relative_efficiency": None}
+        seconds = row["seconds"]
+        if isinstance(seconds, (int, float)) and seconds > 0:
+            row["seconds_per_megapixel"] = seconds / (w * h) * 1e6
+            if row["mse_estimate"]:
+                row["efficiency"] = 1.0 / (row["mse_estimate"] * row["seconds_per_megapixel"])
+        if (h, w) != tuple(base.render.shape[:2]):
+            row["note"] += f"; its film ({w}x{h}) is not the table's, so its efficiency is not compared"
+        elif default is not None and row["efficiency"]:
+            row["relative_efficiency"] = row["efficiency"] / default["efficiency"]
+        rows.append(row)
+    return rows
+
+
+def _plot(plots: _Plots | None, path: Path, entry: dict, fn, *args, **kwargs) -> None:
+    """Draw a plot into ``path``: later with the others (``plots``), or now."""
+    if plots is not None:
+        plots.add(path, entry, fn, *args, **kwargs)
+    else:
+        _write_bytes(path, fn(*args, **kwargs))
 
 
 def _write_bytes(path: Path, data: bytes) -> None:

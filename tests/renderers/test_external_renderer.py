@@ -320,3 +320,87 @@ def test_bring_your_renderer_end_to_end(tmp_path, capsys):
     assert "baseline" in printed.out and isinstance(bad.get("baseline"), dict)  # the baseline gate ran
     print(f"good: {good['status']} ({good['verdict']['reason']}); global z {good['verdict']['global_bias']['z']}")
     print(f"3% loss: {bad['status']} ({bad['reason']}); global z {bad['verdict']['global_bias']['z']}")
+
+
+# ---- timing: the renderer's own clock, or the start-up measured and subtracted -----------------------------------
+
+# A renderer that spends --startup seconds starting (imports, scene loading) and --work seconds per spp per 24
+# pixels rendering, and reports (--report header | json | none) its render time and --dof.
+TIMED = r'''
+import json, sys, time
+args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
+time.sleep(float(args["--startup"]))
+import numpy as np
+from harness.files.imageio import write_exr
+w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
+work = float(args["--work"]) * spp * w * h / 24
+time.sleep(work)
+rng = np.random.default_rng(int(args["--seed"]))
+image = 0.5 + 0.1 * rng.standard_normal((h, w, 3))
+own = {"render_seconds": args.get("--claim", str(work)), "variance_dof": args.get("--dof", str(spp - 1))}
+write_exr(args["--out"], image, np.full((h, w, 3), 0.01 / spp), own if args["--report"] == "header" else None)
+if args["--report"] == "json":
+    open(args["--out"] + ".json", "w").write(json.dumps({k: float(v) for k, v in own.items()}))
+'''
+
+
+def _timed_renderer(folder: Path, name: str, report: str, startup: float, work: float, extra=()) -> Path:
+    script = folder / "timed_renderer.py"
+    script.write_text(TIMED)
+    path = folder / f"{name}.toml"
+    command = ["{python}", str(script), "--report", report, "--startup", str(startup), "--work", str(work),
+               "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}", "--width", "{width}", "--height", "{height}",
+               *extra]
+    path.write_text(f"command = {json.dumps(command)}\n")
+    return path
+
+
+@pytest.mark.parametrize("report", ["header", "json"])
+def test_render_time_and_dof_reported_by_the_renderer(tmp_path, small_scene, report):
+    """A renderer that reports ``render_seconds`` and ``variance_dof`` (EXR header or ``<out>.json``) is taken at
+    its word: 0.5 s of start-up are in the run's wall time only."""
+    result = get_renderer(str(_timed_renderer(tmp_path, "own", report, 0.5, 0.01, ("--dof", "7")))).render(
+        small_scene, RenderRequest(spp=3, seed=1))
+    assert result.info["time_from"] == "renderer" and result.info["startup_seconds"] is None
+    assert result.seconds == pytest.approx(0.03) and result.info["wall_seconds"] > 0.5
+    assert result.info["variance_dof"] == 7 and result.spp == 3
+
+
+def test_start_up_is_measured_and_subtracted(tmp_path, small_scene):
+    """Without a reported time, the start-up (0.5 s of sleep plus the script's imports) is measured with 1-spp runs
+    on a 1x1 film and subtracted: what is left is the 0.4 s of rendering (4 spp x 0.1 s at 6x4 pixels), within
+    the scatter of process start on a loaded machine (0.35 s: the imports of one run against the median of three
+    probes), and far from the 0.9 s+ of the wall time, which a render that subtracted nothing would read."""
+    renderer = get_renderer(str(_timed_renderer(tmp_path, "quiet", "none", 0.5, 0.1)))
+    result = renderer.render(small_scene, RenderRequest(spp=4, seed=1))
+    assert result.info["time_from"].startswith("start-up subtracted (") and "1x1 film" in result.info["time_from"]
+    startup = result.info["startup_seconds"]
+    assert startup > 0.5 and result.info["wall_seconds"] > 0.9
+    assert result.seconds == pytest.approx(max(0.0, result.info["wall_seconds"] - startup), abs=1e-9)
+    assert abs(result.seconds - 0.4) < 0.35, (result.seconds, startup, result.info["wall_seconds"])
+    assert result.info["variance_dof"] == 3  # spp - 1: nothing reported
+    again = renderer.render(small_scene, RenderRequest(spp=1, seed=2))  # measured once per renderer and scene
+    assert again.info["startup_seconds"] == startup
+
+
+@pytest.mark.parametrize("extra, message", [
+    (("--claim", "-1"), "reported render_seconds = '-1'; expected a non-negative number"),
+    (("--claim", "soon"), "reported render_seconds = 'soon'"),
+    (("--dof", "2.5"), "reported variance_dof = '2.5'; expected a positive integer"),
+])
+def test_bad_reported_values_fail_the_run_in_one_line(tmp_path, small_scene, extra, message):
+    renderer = get_renderer(str(_timed_renderer(tmp_path, "liar", "header", 0.0, 0.0, extra)))
+    with pytest.raises(ExternalRendererError) as info:
+        renderer.render(small_scene, RenderRequest(spp=2, seed=1))
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_a_start_up_measured_too_long_is_measured_again(tmp_path, small_scene, monkeypatch):
+    """A run that takes less than the start-up measured proves the probes were slowed (the machine's load): the
+    start-up is measured once more and the smaller kept, instead of every later render reading 0 s."""
+    renderer = get_renderer(str(_timed_renderer(tmp_path, "slowprobe", "none", 0.3, 0.05)))
+    monkeypatch.setitem(external._STARTUP, (renderer.spec, str(small_scene.path), small_scene.name,
+                                            small_scene.max_depth, (6, 4)), (5.0, "a slowed probe"))
+    result = renderer.render(small_scene, RenderRequest(spp=2, seed=1))
+    assert "measured twice (5 s," in result.info["time_from"] and result.info["startup_seconds"] < 5.0
+    assert 0.0 < result.seconds < result.info["wall_seconds"]

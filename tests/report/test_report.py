@@ -247,10 +247,15 @@ def test_equal_time_and_equal_error_on_synthetic_curves():
     assert ee["times"]["fast"] == pytest.approx(1 / 9)
     assert ee["speedup_vs_first"]["slow"] == pytest.approx(1 / 9)
     assert not any(ee["extrapolated"].values())
+    ee = equal_error({"fast": (times, fast), "slow": (times, slow)}, target=0.35)
+    assert ee["times"]["slow"] == pytest.approx((0.3 / 0.35) ** 2)
+    assert ee["times"]["fast"] == pytest.approx((0.1 / 0.35) ** 2)  # above fast's first point: along its own line
+    assert ee["extrapolated"] == {"fast": True, "slow": False} and not any(ee["out_of_range"].values())
     ee = equal_error({"fast": (times, fast), "slow": (times, slow)}, target=0.5)
     assert ee["times"]["slow"] == pytest.approx(0.36)
-    assert ee["times"]["fast"] == pytest.approx(0.04)  # 0.5 lies above fast's first point: along its own line
-    assert ee["extrapolated"] == {"fast": True, "slow": False}
+    # fast's line reaches 0.5 at 0.04 s, 2.5x below its shortest time: out of range, not extrapolated
+    assert ee["times"]["fast"] is None and ee["speedup_vs_first"]["fast"] is None
+    assert ee["out_of_range"] == {"fast": True, "slow": False} and ee["extrapolated"] == {"fast": False, "slow": False}
     # defaults: the longest common time, and the smallest error every curve reaches
     shifted = [t * 2 for t in times]
     et = equal_time({"a": (times, fast), "b": (shifted, slow)})

@@ -1,0 +1,129 @@
+"""Convergence with any renderer (docs/report.md): equal-time and equal-error figures are read at most 2x beyond
+a curve's measured times ("out of range" further out), and an external renderer run K times per render gets its
+per-run spp chosen so that its points land on the ladder, each at the spp its image holds, its times without
+process start-up."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from harness.renderers import get_renderer
+from harness.scene import load_scene
+from harness.studies.convergence import MAX_EXTRAPOLATION, Series, equal_error, equal_time, run_convergence
+from reference_impl import Film
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.2 s of sleep, and
+# 0.02 s per spp of "rendering" at 8x8 pixels
+FAKE = r'''
+import sys, time
+args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
+time.sleep(0.2)
+import numpy as np
+from harness.files.imageio import write_exr
+w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
+time.sleep(0.02 * spp * w * h / 64)
+rng = np.random.default_rng(int(args["--seed"]))
+write_exr(args["--out"], 0.5 + 0.1 / np.sqrt(spp) * rng.standard_normal((h, w, 3)), None)
+'''
+
+
+def test_comparisons_go_at_most_2x_beyond_a_curve():
+    """The issue's RMSE 1.4e+08 came from a line followed far outside its points: a curve measured over 1-4 s is
+    read along its line down to 0.5 s and up to 8 s, and no further."""
+    times = [1.0, 2.0, 4.0]
+    errors = [0.1 / np.sqrt(t) for t in times]
+    late = [t * 100 for t in times]  # 100-400 s: the common time (4 s) is 25x below it
+    et = equal_time({"short": (times, errors), "late": (late, errors)})
+    assert et["time"] == 4.0 and et["errors"]["late"] is None and et["ratio_to_first"]["late"] is None
+    assert et["out_of_range"] == {"short": False, "late": True} and et["extrapolated"]["late"] is False
+    near = [t * 1.9 for t in times]  # 1.9-7.6 s: 4 s inside; at 0.95 s (= 1.9 / 2) still within reach
+    et = equal_time({"near": (near, errors), "short": (times, errors)}, at=1.9 / MAX_EXTRAPOLATION)
+    assert et["extrapolated"] == {"near": True, "short": True} and not any(et["out_of_range"].values())
+    assert et["errors"]["near"] == pytest.approx(0.1 / np.sqrt(0.5))
+    et = equal_time({"near": (near, errors), "short": (times, errors)}, at=0.9)
+    assert et["out_of_range"]["near"] and et["errors"]["near"] is None
+    steep = [0.1 / t for t in times]  # reaches the other's smallest error (0.05) at 2 s; "flat" never does
+    flat = [0.2, 0.19, 0.18]
+    ee = equal_error({"steep": (times, steep), "flat": (times, flat)}, target=0.01)
+    assert ee["out_of_range"] == {"steep": True, "flat": True} and ee["times"] == {"steep": None, "flat": None}
+
+
+@pytest.fixture()
+def fake_renderer(tmp_path):
+    script = tmp_path / "fake.py"
+    script.write_text(FAKE)
+    path = tmp_path / "fake.toml"
+    command = ["{python}", str(script), "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}",
+               "--width", "{width}", "--height", "{height}"]
+    path.write_text(f"command = {json.dumps(command)}\nrepeats = 2\n")
+    return path
+
+
+@pytest.mark.slow
+def test_an_external_renderers_points_land_on_the_ladder(fake_renderer):
+    scene = load_scene(ROOT / "scenes" / "furnace.toml")
+    scene = dataclasses.replace(scene, film=Film(4, 4, "box"))
+    gt = SimpleNamespace(image=np.full((4, 4, 3), 0.5, np.float32), variance=None, source="constant", spp=None)
+    result = run_convergence(scene, gt, [Series(str(fake_renderer), {}, "fake")], spp=(1, 2, 4), seed=3,
+                             renderer_factory=get_renderer)
+    series = result["series"][0]
+    # K = 2: rung 1 cannot be reached (it lands at 2, rendered once), 2 is 2 runs x 1 spp, 4 is 2 runs x 2 spp
+    assert [p["spp"] for p in series["points"]] == [2, 4]
+    assert [p["budget"]["spp"] for p in series["points"]] == [1, 4]
+    assert series["time_from"].startswith("start-up subtracted (") and "1x1 film" in series["time_from"]
+    # each render is 2 runs of 0.2 s sleep and the script's imports (about 0.5 s of wall time each) and at most
+    # 2 x 0.01 s of rendering: what is left is that and the scatter of process start, well below the 1 s of wall
+    # time; timed once
+    assert all(p["seconds"] < 0.3 and p["timing_repeats"] == 1 for p in series["points"]), series["points"]
+
+
+@pytest.mark.slow
+def test_the_suite_studies_and_report_show_an_external_renderer(fake_renderer, tmp_path):
+    """A suite case rendered by a renderer file gets its own convergence curve, a line of its own beside the
+    strategy rows (its efficiency from its case, with why it has no rows), and the report shows both with where
+    its render time comes from."""
+    from harness.report import write_suite_report
+    from harness.running.cases import load_suite
+    from harness.running.schedule import run_suite
+    from harness.studies.suite_studies import StudyOptions, write_suite_studies
+
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'''name = "other"
+[defaults]
+spp = 4
+film = {{ width = 8, height = 8 }}
+[[cases]]
+name = "furnace/reference"
+scene = "{ROOT / 'scenes' / 'furnace.toml'}"
+[[cases]]
+name = "furnace/fake"
+scene = "{ROOT / 'scenes' / 'furnace.toml'}"
+renderer = "{fake_renderer}"
+expect = "fail"
+''')
+    out = tmp_path / "out"
+    results = run_suite(load_suite(suite), out)
+    fake = next(c for c in results["cases"] if c["name"] == "furnace/fake")
+    assert fake["render"]["info"]["time_from"].startswith("start-up subtracted")
+    options = StudyOptions(convergence_spp=(1, 2, 4), convergence_strategies=(), convergence_mitsuba=False,
+                           shadow_rays=False, render_strategies=False, min_timing_seconds=0.0,
+                           strategy_min_seconds=0.0)
+    write_suite_studies(results, out, options)
+    studies = json.loads((out / "studies" / "studies.json").read_text())
+    series = studies["convergence"]["scenes"][0]["result"]["series"]
+    assert [s["label"] for s in series] == ["reference (defaults)", "fake"]
+    assert [p["spp"] for p in series[1]["points"]] == [2, 4]
+    other = studies["strategies"]["scenes"][0]["other_renderers"]
+    assert [o["renderer"] for o in other] == ["fake"] and "takes no settings" in other[0]["note"]
+    assert other[0]["efficiency"] > 0 and other[0]["relative_efficiency"] > 0, (other, studies["strategies"])
+    write_suite_report(out / "results.json", out)
+    page = (out / "index.html").read_text()
+    assert "start-up subtracted (" in page and "takes no settings" in page
