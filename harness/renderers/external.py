@@ -31,6 +31,7 @@ missing or invalid renderer file is a user error (:class:`~harness.core.errors.H
 from __future__ import annotations
 
 import importlib.metadata
+import json
 import os
 import re
 import shlex
@@ -51,9 +52,10 @@ from harness.files.imageio import read_exr
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.renderers.export import mitsuba_xml
 from harness.renderers.mitsuba import pass_seed
+from harness.renderers.scene_json import scene_json
 from harness.scene import Scene
 
-PLACEHOLDERS = ("scene_xml", "scene_toml", "spp", "seed", "width", "height", "max_depth", "out", "here", "python")
+PLACEHOLDERS = ("scene_xml", "scene_json", "scene_toml", "spp", "seed", "width", "height", "max_depth", "out", "here", "python")
 FILE_KEYS = ("name", "description", "command", "timeout", "repeats")
 DEFAULT_TIMEOUT_S = 600.0
 DEFAULT_REPEATS = 4
@@ -225,8 +227,17 @@ class ExternalRenderer:
                 (scene_dir / rel).write_bytes(data)
             scene_dir.mkdir(exist_ok=True)
             (scene_dir / "scene.xml").write_text(xml, encoding="utf-8")
+            # TEMPORARY (helper C, issue 16): {scene_json} until helper X's placeholder code lands
+            if any("{scene_json}" in arg for arg in self.spec.command):
+                document, files = scene_json(scene)
+                json_dir = work / "scene-json"
+                for rel, data in files.items():
+                    (json_dir / rel).parent.mkdir(parents=True, exist_ok=True)
+                    (json_dir / rel).write_bytes(data)
+                json_dir.mkdir(exist_ok=True)
+                (json_dir / "scene.json").write_text(json.dumps(document), encoding="utf-8")
             values = {
-                "scene_xml": str(scene_dir / "scene.xml"), "scene_toml": str(Path(scene.path).resolve()),
+                "scene_xml": str(scene_dir / "scene.xml"), "scene_json": str(work / "scene-json" / "scene.json"), "scene_toml": str(Path(scene.path).resolve()),
                 "spp": str(request.spp), "width": str(scene.film.width), "height": str(scene.film.height),
                 "max_depth": str(scene.max_depth), "here": str(self.spec.path.parent), "python": sys.executable,
             }
