@@ -112,9 +112,14 @@ def test_max_depth_1_is_refused(tmp_path, bpy_present):
     _one_line_error(_run(scene, "--spp", 4, "--out", tmp_path / "x.exr"), "max_depth = 1")
 
 
-def test_envmap_is_refused(tmp_path, bpy_present):
-    scene = _write_scene(tmp_path, "envmap")
-    _one_line_error(_run(scene, "--spp", 4, "--out", tmp_path / "x.exr"), "envmap", "not supported")
+def test_envmap_rows_are_resampled_to_mitsubas_lookup():
+    """Mitsuba's rows sit at v = i / (H - 1); the resampled map at v = (k + 1/2) / H' must hold Mitsuba's bilinear
+    value there (here a map linear in the row index, whose interpolation is exact)."""
+    module = _module()
+    image = np.arange(5, dtype=np.float64)[:, None, None] * np.ones((5, 2, 3))
+    rows = module.mitsuba_rows(image, 64)
+    v = (np.arange(64) + 0.5) / 64
+    assert np.allclose(rows[:, 0, 0], v * 4)
 
 
 @pytest.mark.parametrize("seed", [-1, 2**31])
