@@ -26,6 +26,7 @@ import os
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -421,15 +422,14 @@ def add_light(bpy, emitter: dict, scale: float, where: str) -> None:
         rgb, position, direction = emitter["intensity"], emitter["position"], (0.0, 0.0, -1.0)
         data = bpy.data.lights.new(f"light-{emitter['index']}", "POINT")
     elif kind == "spot":
-        if float(emitter["beam_width"]) != float(emitter["cutoff_angle"]):
-            raise SceneError(f"{where}: beam_width {emitter['beam_width']} != cutoff_angle "
-                             f"{emitter['cutoff_angle']}: Mitsuba's linear falloff in the angle has no Cycles "
-                             "spot blend (only a hard-edged cone, beam_width = cutoff_angle, is exact)")
         rgb, position, direction = emitter["intensity"], emitter["position"], emitter["axis"]
         data = bpy.data.lights.new(f"light-{emitter['index']}", "SPOT")
         data.spot_size = 2.0 * math.radians(float(emitter["cutoff_angle"]))
-        data.spot_blend = 0.0
+        data.spot_blend = 0.0  # a hard edge at cutoff_angle; Mitsuba's ramp is a node tree (spot_falloff)
         data.show_cone = False
+        if float(emitter["beam_width"]) < float(emitter["cutoff_angle"]):
+            spot_falloff(bpy, data, math.radians(float(emitter["beam_width"])),
+                         math.radians(float(emitter["cutoff_angle"])))
     elif kind == "directional":
         rgb, position, direction = emitter["irradiance"], (0.0, 0.0, 0.0), emitter["direction"]
         data = bpy.data.lights.new(f"light-{emitter['index']}", "SUN")
@@ -451,6 +451,42 @@ def add_light(bpy, emitter: dict, scale: float, where: str) -> None:
     obj = bpy.data.objects.new(f"light-{emitter['index']}", data)
     obj.matrix_world = look_along(position, direction)
     bpy.context.scene.collection.objects.link(obj)
+
+
+def spot_falloff(bpy, data, beam: float, cutoff: float) -> None:
+    """Mitsuba's spot falloff on a Cycles spot light: its strength times clamp((cutoff - theta) / (cutoff - beam),
+    0, 1), theta the angle between the spot's axis (the light's local -z) and the direction of emission (a light
+    shader's Texture Coordinate > Normal, in the light's frame). Cycles' own spot blend is a smoothstep of another
+    variable, so it stays 0."""
+    with warnings.catch_warnings():  # deprecated in Blender 5.0, but a light still gets its node tree only so
+        warnings.simplefilter("ignore", DeprecationWarning)
+        data.use_nodes = True
+    tree = data.node_tree
+    nodes, links = tree.nodes, tree.links
+    emission = next(n for n in nodes if n.bl_idname == "ShaderNodeEmission")
+    coords = nodes.new("ShaderNodeTexCoord")
+    normalize = nodes.new("ShaderNodeVectorMath")
+    normalize.operation = "NORMALIZE"
+    links.new(coords.outputs["Normal"], normalize.inputs[0])
+    split = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(normalize.outputs["Vector"], split.inputs[0])
+    negate = nodes.new("ShaderNodeMath")
+    negate.operation = "MULTIPLY"
+    links.new(split.outputs["Z"], negate.inputs[0])
+    negate.inputs[1].default_value = -1.0
+    angle = nodes.new("ShaderNodeMath")
+    angle.operation = "ARCCOSINE"
+    links.new(negate.outputs[0], angle.inputs[0])
+    gap = nodes.new("ShaderNodeMath")
+    gap.operation = "SUBTRACT"
+    gap.inputs[0].default_value = cutoff
+    links.new(angle.outputs[0], gap.inputs[1])
+    ramp = nodes.new("ShaderNodeMath")
+    ramp.operation = "MULTIPLY"
+    ramp.use_clamp = True
+    links.new(gap.outputs[0], ramp.inputs[0])
+    ramp.inputs[1].default_value = 1.0 / (cutoff - beam)
+    links.new(ramp.outputs[0], socket(emission, "Strength"))
 
 
 #: Blender light energy per unit of Mitsuba's quantity: point and spot lights' energy E watts give a radiant
