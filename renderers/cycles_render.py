@@ -7,10 +7,11 @@ harness checkout), numpy and OpenEXR; it does not import the harness (an author'
 
 The image is the mean of B batches rendered in this process with distinct seeds (spp / B samples each); the EXR
 holds R, G, B, the variance of that mean (s^2 / B per pixel and channel) as variance.R/G/B, and the string header
-attributes ``variance_dof`` (B - 1) and ``render_seconds`` (Cycles' rendering only: imports and scene building
-excluded). Every Cycles setting that would bias a comparison with Mitsuba is turned off; docs/external-renderers.md,
-"Cycles", lists each with its reason, and the conventions (one-sided emitters and BSDFs, max_bounces = max_depth - 2,
-a box filter of one pixel, the unit conversions of point and spot lights).
+attributes ``variance_dof`` (B - 1) and ``render_seconds`` (Cycles' rendering only: imports, scene building and
+Cycles' own scene sync, done by an untimed 1-sample render first, excluded). Every Cycles setting that would
+bias a comparison with Mitsuba is turned off; docs/external-renderers.md, "Cycles", lists each with its reason,
+and the conventions (one-sided emitters and BSDFs, max_bounces = max_depth - 2, a box filter of one pixel, the unit
+conversions of point and spot lights).
 
 Scenes it cannot express exit with code 2 and one line on stderr (``cycles_render: error: ...``).
 ``--emission-scale F`` and ``--extra-bounces N`` are planted faults for the suites (every emission times F;
@@ -537,8 +538,8 @@ def mitsuba_rows(image: np.ndarray, rows: int) -> np.ndarray:
 
 def add_envmap(bpy, tree, background, emitter: dict, folder: Path, scale: float) -> None:
     """An equirectangular map. Mitsuba looks up the direction d of the map's frame (y up; ``to_world`` takes it to
-    the world) at u = atan2(d.x, -d.z) / (2 pi) (mod 1), v = acos(d.y) / pi, v = 0 being the top row; Cycles' Environment
-    Texture looks up a direction e at u = 1/2 - atan2(e.y, e.x) / (2 pi), with z up and v = 1 at the top row
+    the world) at u = atan2(d.x, -d.z) / (2 pi) (mod 1), v = acos(d.y) / pi, v = 0 being the top row; Cycles'
+    Environment Texture looks up a direction e at u = 1/2 - atan2(e.y, e.x) / (2 pi), with z up and v = 1 at the top row
     (Blender stores rows bottom up). e = (d.z, d.x, d.y), a rotation, makes the two u agree (atan2(d.x, d.z) =
     pi - atan2(d.x, -d.z)), and e.z = d.y makes the rows agree once the map is stored bottom up."""
     rgb = read_exr_rgb(folder / emitter["filename"]).astype(np.float64)
@@ -591,7 +592,13 @@ def build_scene(bpy, doc: dict, folder: Path, args) -> None:
 
 
 def render_batches(bpy, spp: int, seed: int, batches: int, work: Path) -> tuple[list[np.ndarray], float]:
+    """Render the batches; returns their images and the seconds spent in them. A 1-sample render first, not
+    timed and not kept, builds Cycles' scene (BVH, shaders), which persistent data keeps for the batches."""
     scene = bpy.context.scene
+    scene.cycles.samples = 1
+    scene.cycles.seed = MAX_SEED
+    scene.render.filepath = str(work / "warm-up.exr")
+    bpy.ops.render.render(write_still=False)
     scene.cycles.samples = spp // batches  # batch_count divides spp
     images, seconds = [], 0.0
     for b in range(batches):
