@@ -1,0 +1,644 @@
+"""Render a harness ``scene.json`` with Blender Cycles so that the image means what Mitsuba's means.
+
+    python cycles_render.py SCENE.json --spp 64 --seed 0 --out render.exr [--batches 16] [--threads 0]
+
+Needs Blender as a Python module (``pip install bpy``, Python 3.11; or ``pip install -e '.[cycles]'`` in the
+harness checkout), numpy and OpenEXR; it does not import the harness (an author's adapter needs none).
+
+The image is the mean of B batches rendered in this process with distinct seeds (spp / B samples each); the EXR
+holds R, G, B, the variance of that mean (s^2 / B per pixel and channel) as variance.R/G/B, and the string header
+attributes ``variance_dof`` (B - 1) and ``render_seconds`` (Cycles' rendering only: imports, scene building and
+Cycles' own scene sync, done by an untimed 1-sample render first, excluded). Every Cycles setting that would
+bias a comparison with Mitsuba is turned off; docs/external-renderers.md, "Cycles", lists each with its reason,
+and the conventions (one-sided emitters and BSDFs, max_bounces = max_depth - 2, a box filter of one pixel, the unit
+conversions of point and spot lights).
+
+Scenes it cannot express exit with code 2 and one line on stderr (``cycles_render: error: ...``).
+``--emission-scale F`` and ``--extra-bounces N`` are planted faults for the suites (every emission times F;
+max_bounces + N); leave them at their defaults otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+INSTALL_HINT = ("cycles_render: error: Blender's Python module bpy is not installed; install it with "
+                "pip install -e '.[cycles]' in the harness checkout, or pip install bpy (needs Python 3.11)")
+#: Cycles' largest bounce count (its UI limit); Mitsuba's max_depth -1 (unbounded) maps to it, and Russian
+#: roulette ends the paths long before
+UNBOUNDED_BOUNCES = 1024
+MAX_SEED = 2**31 - 1
+DEFAULT_BATCHES = 16
+#: the fewest samples per batch: Cycles' image at fewer samples per render is measurably biased (cornell-box at
+#: 32 x 32, direct light only, 64 spp: batches of 4 and 8 spp failed the verdict, chi2 233 and 76.5 on 16 tiles;
+#: batches of 16 and 32 spp passed; docs/external-renderers.md, "Cycles")
+MIN_BATCH_SPP = 32
+
+
+class SceneError(Exception):
+    """What the scene asks for cannot be rendered exactly by Cycles (a one-line message)."""
+
+
+def fail(message: str) -> None:
+    print(f"cycles_render: error: {message}", file=sys.stderr)
+    sys.exit(2)
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("scene", help="the resolved scene.json (its meshes/ and textures/ beside it)")
+    parser.add_argument("--spp", type=int, required=True, help="samples per pixel in all (split across batches)")
+    parser.add_argument("--seed", type=int, default=0, help="seed, 0 .. 2^31 - 1 (default 0)")
+    parser.add_argument("--out", required=True, help="the OpenEXR file to write")
+    parser.add_argument("--batches", type=int, default=DEFAULT_BATCHES,
+                        help=f"at most this many batches (default {DEFAULT_BATCHES}; the largest divisor of spp "
+                             f"not above it that leaves {MIN_BATCH_SPP} or more samples per batch, at least 2)")
+    parser.add_argument("--threads", type=int, default=0, help="Cycles render threads (default 0: all cores)")
+    parser.add_argument("--pattern", default="TABULATED_SOBOL", choices=("TABULATED_SOBOL", "BLUE_NOISE"),
+                        help="Cycles' sampling pattern (default TABULATED_SOBOL: pixels independent)")
+    parser.add_argument("--min-light-bounces", type=int, default=0,
+                        help="Cycles' bounces before Russian roulette may end a path (default 0)")
+    parser.add_argument("--emission-scale", type=float, default=1.0,
+                        help="planted fault: every emission times this factor (default 1)")
+    parser.add_argument("--extra-bounces", type=int, default=0,
+                        help="planted fault: max_bounces plus this many (default 0)")
+
+    def error(message: str) -> None:
+        fail(message)
+
+    parser.error = error  # one line and exit 2, like every other error here
+    args = parser.parse_args(argv)
+    if args.spp < 2:
+        fail(f"--spp: expected an integer of at least 2 (the variance needs two batches), got {args.spp}")
+    if not 0 <= args.seed <= MAX_SEED:
+        fail(f"--seed: expected an integer from 0 to {MAX_SEED} (Cycles' seed is a signed 32-bit integer), "
+             f"got {args.seed}")
+    if args.batches < 2:
+        fail(f"--batches: expected an integer of at least 2, got {args.batches}")
+    if args.threads < 0:
+        fail(f"--threads: expected 0 (all cores) or a positive integer, got {args.threads}")
+    if not (math.isfinite(args.emission_scale) and args.emission_scale >= 0):
+        fail(f"--emission-scale: expected a finite number >= 0, got {args.emission_scale}")
+    if args.extra_bounces < 0:
+        fail(f"--extra-bounces: expected an integer >= 0, got {args.extra_bounces}")
+    return args
+
+
+def batch_count(spp: int, most: int, min_batch_spp: int = MIN_BATCH_SPP) -> int:
+    """The number of batches: the largest divisor of ``spp`` from 2 to ``most`` that leaves each batch at least
+    ``min_batch_spp`` samples; 2 when there is none (spp below 2 x min_batch_spp) and spp is even; otherwise the
+    smallest divisor of ``spp`` above 1 (a prime spp: spp batches of one sample)."""
+    for b in range(min(most, spp // min_batch_spp), 1, -1):
+        if spp % b == 0:
+            return b
+    return next(b for b in range(2, spp + 1) if spp % b == 0)
+
+
+def batch_seed(seed: int, index: int) -> int:
+    """Batch ``index``'s Cycles seed: a SplitMix64 hash of (seed, index) folded into 0 .. 2^31 - 1."""
+    z = (seed * 0x9E3779B97F4A7C15 + (index + 1) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+    return (z ^ (z >> 31)) & MAX_SEED
+
+
+def max_bounces(max_depth: int) -> int:
+    """Cycles' max_bounces for Mitsuba's max_depth: Cycles counts bounces after the first hit (0 = direct light
+    only), Mitsuba path vertices (2 = direct light), so max_bounces = max_depth - 2; -1 (unbounded) is Cycles'
+    largest count. max_depth 1 (emitters seen directly, no direct light) has no Cycles setting."""
+    if max_depth == -1:
+        return UNBOUNDED_BOUNCES
+    if max_depth < 2:
+        raise SceneError(f"integrator.max_depth = {max_depth}: Cycles cannot render emitters seen directly without "
+                         "their light on surfaces (its fewest bounces, 0, is Mitsuba's max_depth 2)")
+    return min(max_depth - 2, UNBOUNDED_BOUNCES)
+
+
+# ---- reading the scene's files ----------------------------------------------------------------------------------
+
+_PLY_TYPES = {"char": "i1", "uchar": "u1", "int8": "i1", "uint8": "u1", "short": "<i2", "ushort": "<u2",
+              "int16": "<i2", "uint16": "<u2", "int": "<i4", "uint": "<u4", "int32": "<i4", "uint32": "<u4",
+              "float": "<f4", "float32": "<f4", "double": "<f8", "float64": "<f8"}
+
+
+def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices (N, 3) and triangles (M, 3) of a binary little-endian PLY whose faces are all triangles."""
+    data = path.read_bytes()
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply") or end < 0:
+        raise SceneError(f"{path}: not a PLY file")
+    header = data[:end].decode("ascii").splitlines()
+    if "format binary_little_endian 1.0" not in header:
+        raise SceneError(f"{path}: expected a binary little-endian PLY")
+    elements: list[tuple[str, int, list]] = []
+    for line in header:
+        words = line.split()
+        if words[:1] == ["element"]:
+            elements.append((words[1], int(words[2]), []))
+        elif words[:1] == ["property"]:
+            elements[-1][2].append(words[1:])
+    offset = end + len(b"end_header\n")
+    vertices = triangles = None
+    for name, count, props in elements:
+        if name == "vertex":
+            dtype = np.dtype([(p[-1], _PLY_TYPES[p[0]]) for p in props])
+            table = np.frombuffer(data, dtype, count, offset)
+            offset += dtype.itemsize * count
+            vertices = np.stack([table["x"], table["y"], table["z"]], axis=1).astype(np.float64)
+        elif name == "face":
+            if len(props) != 1 or props[0][0] != "list":
+                raise SceneError(f"{path}: expected faces with one vertex-index list")
+            count_t, index_t = np.dtype(_PLY_TYPES[props[0][1]]), np.dtype(_PLY_TYPES[props[0][2]])
+            dtype = np.dtype([("n", count_t), ("i", index_t, (3,))])
+            table = np.frombuffer(data, dtype, count, offset)
+            if count and not np.all(table["n"] == 3):
+                raise SceneError(f"{path}: expected triangles only")
+            offset += dtype.itemsize * count
+            triangles = table["i"].astype(np.int64)
+        else:
+            raise SceneError(f"{path}: unexpected PLY element {name!r}")
+    if vertices is None or triangles is None:
+        raise SceneError(f"{path}: expected vertex and face elements")
+    return vertices, triangles
+
+
+def read_exr_rgb(path: Path) -> np.ndarray:
+    """R, G, B of an OpenEXR file as (H, W, 3) float32, row 0 at the top."""
+    import OpenEXR  # noqa: PLC0415 - imported where used, so a missing bpy is reported before anything else
+
+    with OpenEXR.File(str(path), separate_channels=True) as exr:
+        channels = exr.channels()
+        return np.stack([np.asarray(channels[c].pixels, np.float32) for c in "RGB"], axis=-1)
+
+
+def write_exr(path: Path, image: np.ndarray, variance: np.ndarray, metadata: dict[str, str]) -> None:
+    """The mean and its variance as R, G, B, variance.R/G/B (float32), with string header attributes; atomic."""
+    import OpenEXR  # noqa: PLC0415 - see read_exr_rgb
+
+    channels = {c: np.ascontiguousarray(image[:, :, i], np.float32) for i, c in enumerate("RGB")}
+    channels.update({f"variance.{c}": np.ascontiguousarray(variance[:, :, i], np.float32)
+                     for i, c in enumerate("RGB")})
+    header = dict(metadata, compression=OpenEXR.ZIP_COMPRESSION, type=OpenEXR.scanlineimage)
+    partial = path.with_name(path.name + ".partial.exr")
+    with OpenEXR.File(header, channels) as exr:
+        exr.write(str(partial))
+    os.replace(partial, path)
+
+
+# ---- building the Blender scene -----------------------------------------------------------------------------------
+
+def matrix(values) -> "object":
+    from mathutils import Matrix  # noqa: PLC0415 - part of bpy
+
+    return Matrix([list(row) for row in values])
+
+
+def look_along(position, direction) -> "object":
+    """A Blender object matrix at ``position`` whose local -z (where Blender's lights shine) is ``direction``."""
+    from mathutils import Vector  # noqa: PLC0415 - part of bpy
+
+    d = Vector(direction).normalized()
+    rotation = d.to_track_quat("-Z", "Y").to_matrix().to_4x4()
+    rotation.translation = Vector(position)
+    return rotation
+
+
+def socket(node, *names):
+    """The first input of ``node`` named one of ``names`` (socket names differ between Blender versions)."""
+    for name in names:
+        if name in node.inputs:
+            return node.inputs[name]
+    raise KeyError(f"{node.bl_idname} has none of the inputs {names}")
+
+
+def setup_render(bpy, doc: dict, args) -> None:
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    cycles.use_denoising = False
+    cycles.sampling_pattern = args.pattern
+    cycles.use_preview_denoising = False
+    cycles.use_adaptive_sampling = False
+    cycles.sample_clamp_direct = 0.0
+    cycles.sample_clamp_indirect = 0.0
+    cycles.light_sampling_threshold = 0.0
+    cycles.use_light_tree = False
+    if hasattr(cycles, "use_guiding"):
+        cycles.use_guiding = False
+    cycles.blur_glossy = 0.0
+    cycles.caustics_reflective = True
+    cycles.caustics_refractive = True
+    cycles.use_fast_gi = False
+    cycles.use_animated_seed = False
+    if hasattr(cycles, "use_scrambling_distance"):
+        cycles.use_scrambling_distance = False
+    cycles.film_exposure = 1.0
+    cycles.pixel_filter_type = "BOX"
+    cycles.filter_width = 1.0
+    bounces = max_bounces(int(doc["integrator"]["max_depth"])) + args.extra_bounces
+    for name in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
+                 "transparent_max_bounces"):
+        setattr(cycles, name, bounces)
+    cycles.min_light_bounces = args.min_light_bounces  # Russian roulette from this bounce on (unbiased)
+    cycles.min_transparent_bounces = 0
+    render = scene.render
+    render.resolution_x = int(doc["film"]["width"])
+    render.resolution_y = int(doc["film"]["height"])
+    render.resolution_percentage = 100
+    render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+    render.use_motion_blur = False
+    render.film_transparent = False
+    render.use_border = False
+    render.dither_intensity = 0.0
+    render.use_compositing = False
+    render.use_sequencer = False
+    render.use_persistent_data = True  # batches reuse the BVH and shaders: render_seconds is rendering
+    render.threads_mode = "FIXED" if args.threads else "AUTO"
+    if args.threads:
+        render.threads = args.threads
+    settings = render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    settings.exr_codec = "ZIP"
+    settings.color_mode = "RGB"
+    view = scene.view_settings
+    view.view_transform = "Standard"
+    view.look = "None"
+    view.exposure = 0.0
+    view.gamma = 1.0
+    view.use_curve_mapping = False
+
+
+def setup_camera(bpy, doc: dict) -> None:
+    camera = doc["camera"]
+    if camera["type"] != "perspective":
+        raise SceneError(f"camera.type = {camera['type']!r}: only perspective cameras")
+    data = bpy.data.cameras.new("camera")
+    data.type = "PERSP"
+    data.lens_unit = "FOV"
+    data.sensor_fit = "HORIZONTAL"
+    data.angle = math.radians(float(camera["fov_x"]))
+    data.shift_x = data.shift_y = 0.0
+    data.clip_start = float(camera["near_clip"])
+    data.clip_end = float(camera["far_clip"])
+    obj = bpy.data.objects.new("camera", data)
+    bpy.context.scene.collection.objects.link(obj)
+    # Mitsuba's camera frame: +x = image left, +y = up, +z = forward; Blender's camera: +x right, +y up, -z forward.
+    m = np.asarray(camera["to_world"], np.float64)
+    m[:3, 0] *= -1.0
+    m[:3, 2] *= -1.0
+    obj.matrix_world = matrix(m)
+    bpy.context.scene.camera = obj
+
+
+def new_material(bpy, name: str):
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):  # always on (and deprecated) from Blender 5.0
+        mat.use_nodes = True
+    tree = mat.node_tree
+    for node in list(tree.nodes):
+        tree.nodes.remove(node)
+    return mat, tree
+
+
+def bsdf_node(tree, spec: dict, where: str):
+    """The Cycles BSDF node of a harness material (docs/external-renderers.md, "Cycles", for each mapping)."""
+    kind = spec["type"]
+    nodes = tree.nodes
+    if kind == "diffuse":
+        node = nodes.new("ShaderNodeBsdfDiffuse")
+        socket(node, "Color").default_value = (*spec["reflectance"], 1.0)
+        socket(node, "Roughness").default_value = 0.0
+        return node
+    if kind in ("conductor", "roughconductor"):
+        eta, k, tint = spec["eta"], spec["k"], spec["specular_reflectance"]
+        alpha = float(spec.get("alpha", 0.0))
+        distribution = spec.get("distribution", "ggx")
+        if distribution not in ("ggx", "beckmann"):
+            raise SceneError(f"{where}.distribution = {distribution!r}: Cycles has ggx and beckmann")
+        mirror = all(e == 0.0 for e in eta) and all(x == 1.0 for x in k)
+        if mirror:  # eta 0, k 1: Fresnel exactly 1 (Mitsuba's material "none"); reflectance = the tint
+            node = nodes.new("ShaderNodeBsdfGlossy")
+            socket(node, "Color").default_value = (*tint, 1.0)
+        else:
+            if any(t != 1.0 for t in tint):
+                raise SceneError(f"{where}.specular_reflectance = {tint}: Cycles' physical-conductor Fresnel has "
+                                 "no tint")
+            node = nodes.new("ShaderNodeBsdfMetallic")
+            node.fresnel_type = "PHYSICAL_CONDUCTOR"
+            socket(node, "IOR").default_value = tuple(eta)
+            socket(node, "Extinction").default_value = tuple(k)
+        node.distribution = "BECKMANN" if distribution == "beckmann" else "GGX"
+        socket(node, "Roughness").default_value = math.sqrt(alpha)
+        return node
+    if kind in ("dielectric", "roughdielectric"):
+        refl, trans = spec["specular_reflectance"], spec["specular_transmittance"]
+        if refl != trans:
+            raise SceneError(f"{where}: specular_reflectance {refl} and specular_transmittance {trans} differ; "
+                             "Cycles' Glass BSDF tints both with one colour")
+        distribution = spec.get("distribution", "ggx")
+        if distribution not in ("ggx", "beckmann"):
+            raise SceneError(f"{where}.distribution = {distribution!r}: Cycles has ggx and beckmann")
+        node = nodes.new("ShaderNodeBsdfGlass")
+        node.distribution = "BECKMANN" if distribution == "beckmann" else "GGX"
+        socket(node, "Color").default_value = (*refl, 1.0)
+        socket(node, "IOR").default_value = float(spec["int_ior"]) / float(spec["ext_ior"])
+        socket(node, "Roughness").default_value = math.sqrt(float(spec.get("alpha", 0.0)))
+        return node
+    raise SceneError(f"{where}.type = {kind!r}: not a material this adapter maps to Cycles")
+
+
+def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str):
+    """A Cycles material for one shape: its BSDF (black from behind unless two-sided; dielectrics are two-sided)
+    plus its emission from the front side only."""
+    mat, tree = new_material(bpy, name)
+    nodes, links = tree.nodes, tree.links
+    output = nodes.new("ShaderNodeOutputMaterial")
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    surface = bsdf_node(tree, spec, where).outputs[0]
+    two_sided = spec["type"] in ("dielectric", "roughdielectric") or bool(spec.get("two_sided", False))
+    if emission is not None and any(e != 0.0 for e in emission):
+        glow = nodes.new("ShaderNodeEmission")
+        socket(glow, "Color").default_value = (*(float(e) * scale for e in emission), 1.0)
+        socket(glow, "Strength").default_value = 1.0
+        add = nodes.new("ShaderNodeAddShader")
+        links.new(surface, add.inputs[0])
+        links.new(glow.outputs[0], add.inputs[1])
+        front = add.outputs[0]
+        if two_sided:  # the BSDF from both sides, the emission from the front only
+            back = nodes.new("ShaderNodeMixShader")
+            links.new(geometry.outputs["Backfacing"], back.inputs[0])
+            links.new(front, back.inputs[1])
+            links.new(surface, back.inputs[2])
+            surface = back.outputs[0]
+        else:
+            surface = front
+    if not two_sided:  # from behind: black (absorbs everything, emits nothing)
+        black = nodes.new("ShaderNodeBsdfDiffuse")
+        socket(black, "Color").default_value = (0.0, 0.0, 0.0, 1.0)
+        mix = nodes.new("ShaderNodeMixShader")
+        links.new(geometry.outputs["Backfacing"], mix.inputs[0])
+        links.new(surface, mix.inputs[1])
+        links.new(black.outputs[0], mix.inputs[2])
+        surface = mix.outputs[0]
+    links.new(surface, output.inputs["Surface"])
+    return mat
+
+
+def add_shapes(bpy, doc: dict, folder: Path, scale: float) -> None:
+    materials = doc["materials"]
+    for i, shape in enumerate(doc["shapes"]):
+        where = f"shapes[{i}] ({shape['name']})"
+        vertices, triangles = read_ply(folder / shape["mesh"])
+        mesh = bpy.data.meshes.new(f"mesh-{i}")
+        mesh.from_pydata(vertices.tolist(), [], triangles.tolist())
+        mesh.update()
+        mesh.polygons.foreach_set("use_smooth", [False] * len(mesh.polygons))  # flat: the face normals
+        spec = materials[shape["material"]]
+        mesh.materials.append(shape_material(bpy, spec, shape["emission"], scale, f"material-{i}",
+                                             f"materials.{shape['material']}"))
+        obj = bpy.data.objects.new(f"shape-{i}", mesh)
+        obj.cycles.shadow_terminator_geometry_offset = 0.0  # no offset of shadow rays off low-poly meshes
+        obj.cycles.shadow_terminator_offset = 0.0
+        bpy.context.scene.collection.objects.link(obj)
+
+
+def add_light(bpy, emitter: dict, scale: float, where: str) -> None:
+    """A point, spot or sun light. Blender's light ``energy`` is a power, Mitsuba's a radiant intensity (W/sr) or
+    irradiance (W/m^2): the factors below were measured against Mitsuba's ground truth with the harness's verdict
+    (docs/external-renderers.md, "Cycles")."""
+    kind = emitter["type"]
+    if kind == "point":
+        rgb, position, direction = emitter["intensity"], emitter["position"], (0.0, 0.0, -1.0)
+        data = bpy.data.lights.new(f"light-{emitter['index']}", "POINT")
+    elif kind == "spot":
+        rgb, position, direction = emitter["intensity"], emitter["position"], emitter["axis"]
+        data = bpy.data.lights.new(f"light-{emitter['index']}", "SPOT")
+        data.spot_size = 2.0 * math.radians(float(emitter["cutoff_angle"]))
+        data.spot_blend = 0.0  # a hard edge at cutoff_angle; Mitsuba's ramp is a node tree (spot_falloff)
+        data.show_cone = False
+        if float(emitter["beam_width"]) < float(emitter["cutoff_angle"]):
+            spot_falloff(bpy, data, math.radians(float(emitter["beam_width"])),
+                         math.radians(float(emitter["cutoff_angle"])))
+    elif kind == "directional":
+        rgb, position, direction = emitter["irradiance"], (0.0, 0.0, 0.0), emitter["direction"]
+        data = bpy.data.lights.new(f"light-{emitter['index']}", "SUN")
+        data.angle = 0.0
+    else:
+        raise AssertionError(kind)
+    peak = max(float(c) for c in rgb)
+    if peak <= 0.0:
+        return
+    data.color = tuple(float(c) / peak for c in rgb)
+    data.energy = peak * scale * LIGHT_FACTOR[kind]
+    if kind != "directional":
+        data.shadow_soft_size = 0.0
+        if hasattr(data, "use_soft_falloff"):
+            data.use_soft_falloff = False
+    data.use_shadow = True
+    if hasattr(data.cycles, "use_multiple_importance_sampling"):
+        data.cycles.use_multiple_importance_sampling = True
+    obj = bpy.data.objects.new(f"light-{emitter['index']}", data)
+    obj.matrix_world = look_along(position, direction)
+    bpy.context.scene.collection.objects.link(obj)
+
+
+def spot_falloff(bpy, data, beam: float, cutoff: float) -> None:
+    """Mitsuba's spot falloff on a Cycles spot light: its strength times clamp((cutoff - theta) / (cutoff - beam),
+    0, 1), theta the angle between the spot's axis (the light's local -z) and the direction of emission (a light
+    shader's Texture Coordinate > Normal, in the light's frame). Cycles' own spot blend is a smoothstep of another
+    variable, so it stays 0."""
+    with warnings.catch_warnings():  # deprecated in Blender 5.0, but a light still gets its node tree only so
+        warnings.simplefilter("ignore", DeprecationWarning)
+        data.use_nodes = True
+    tree = data.node_tree
+    nodes, links = tree.nodes, tree.links
+    emission = next(n for n in nodes if n.bl_idname == "ShaderNodeEmission")
+    coords = nodes.new("ShaderNodeTexCoord")
+    normalize = nodes.new("ShaderNodeVectorMath")
+    normalize.operation = "NORMALIZE"
+    links.new(coords.outputs["Normal"], normalize.inputs[0])
+    split = nodes.new("ShaderNodeSeparateXYZ")
+    links.new(normalize.outputs["Vector"], split.inputs[0])
+    negate = nodes.new("ShaderNodeMath")
+    negate.operation = "MULTIPLY"
+    links.new(split.outputs["Z"], negate.inputs[0])
+    negate.inputs[1].default_value = -1.0
+    angle = nodes.new("ShaderNodeMath")
+    angle.operation = "ARCCOSINE"
+    links.new(negate.outputs[0], angle.inputs[0])
+    gap = nodes.new("ShaderNodeMath")
+    gap.operation = "SUBTRACT"
+    gap.inputs[0].default_value = cutoff
+    links.new(angle.outputs[0], gap.inputs[1])
+    ramp = nodes.new("ShaderNodeMath")
+    ramp.operation = "MULTIPLY"
+    ramp.use_clamp = True
+    links.new(gap.outputs[0], ramp.inputs[0])
+    ramp.inputs[1].default_value = 1.0 / (cutoff - beam)
+    links.new(ramp.outputs[0], socket(emission, "Strength"))
+
+
+#: Blender light energy per unit of Mitsuba's quantity: point and spot lights' energy E watts give a radiant
+#: intensity E / (4 pi) W/sr (measured: see docs/external-renderers.md); a sun's strength is its irradiance.
+LIGHT_FACTOR = {"point": 4.0 * math.pi, "spot": 4.0 * math.pi, "directional": 1.0}
+
+
+def setup_world(bpy, doc: dict, folder: Path, scale: float) -> None:
+    world = bpy.data.worlds.new("world")
+    bpy.context.scene.world = world
+    if bpy.app.version < (5, 0, 0):  # always on (and deprecated) from Blender 5.0
+        world.use_nodes = True
+    tree = world.node_tree
+    for node in list(tree.nodes):
+        tree.nodes.remove(node)
+    output = tree.nodes.new("ShaderNodeOutputWorld")
+    background = tree.nodes.new("ShaderNodeBackground")
+    socket(background, "Color").default_value = (0.0, 0.0, 0.0, 1.0)
+    socket(background, "Strength").default_value = 1.0
+    tree.links.new(background.outputs[0], output.inputs["Surface"])
+    environments = [e for e in doc["emitters"] if e["type"] in ("constant", "envmap")]
+    if len(environments) > 1:
+        raise SceneError("emitters: more than one environment (constant or envmap): Cycles has one world")
+    for emitter in environments:
+        if emitter["type"] == "constant":
+            socket(background, "Color").default_value = (*(float(c) * scale for c in emitter["radiance"]), 1.0)
+        else:
+            add_envmap(bpy, tree, background, emitter, folder, scale)
+    world.cycles.sampling_method = "AUTOMATIC"  # importance-sampled as a light (unbiased with MIS)
+
+
+#: rows of the map Cycles gets per row interval of the scene's map: Mitsuba's bilinear lookup has its rows at
+#: v = i / (H - 1) ("align corners"), Cycles' at v = (k + 1/2) / H', so the map is resampled at rows
+#: (k + 1/2) / H' with H' = ENVMAP_ROW_FACTOR (H - 1); the two lookups then differ only within 1 / (2 H') of
+#: Mitsuba's rows
+ENVMAP_ROW_FACTOR = 16
+
+
+def mitsuba_rows(image: np.ndarray, rows: int) -> np.ndarray:
+    """Mitsuba's envmap (rows at v = i / (H - 1), linear in v between them) sampled at v = (k + 1/2) / rows."""
+    height = image.shape[0]
+    y = (np.arange(rows) + 0.5) / rows * (height - 1)
+    y0 = np.minimum(np.floor(y).astype(np.int64), height - 1)
+    y1 = np.minimum(y0 + 1, height - 1)
+    f = (y - y0)[:, None, None]
+    return (1.0 - f) * image[y0] + f * image[y1]
+
+
+def add_envmap(bpy, tree, background, emitter: dict, folder: Path, scale: float) -> None:
+    """An equirectangular map. Mitsuba looks up the direction d of the map's frame (y up; ``to_world`` takes it to
+    the world) at u = atan2(d.x, -d.z) / (2 pi) (mod 1), v = acos(d.y) / pi, v = 0 being the top row; Cycles'
+    Environment Texture looks up a direction e at u = 1/2 - atan2(e.y, e.x) / (2 pi), with z up and v = 1 at the top row
+    (Blender stores rows bottom up). e = (d.z, d.x, d.y), a rotation, makes the two u agree (atan2(d.x, d.z) =
+    pi - atan2(d.x, -d.z)), and e.z = d.y makes the rows agree once the map is stored bottom up."""
+    rgb = read_exr_rgb(folder / emitter["filename"]).astype(np.float64)
+    if rgb.shape[0] < 3 or rgb.shape[1] < 2:
+        raise SceneError(f"emitters[{emitter['index']}]: an envmap of fewer than 3 x 2 texels (Mitsuba pads it)")
+    resampled = mitsuba_rows(rgb, ENVMAP_ROW_FACTOR * (rgb.shape[0] - 1))
+    height, width = resampled.shape[:2]
+    image = bpy.data.images.new(f"envmap-{emitter['index']}", width, height, alpha=True, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"  # the values as they are: no colour transform
+    pixels = np.ones((height, width, 4), np.float32)
+    pixels[:, :, :3] = resampled[::-1] * float(emitter["scale"]) * scale
+    image.pixels.foreach_set(pixels.ravel())
+    image.pack()
+    texture = tree.nodes.new("ShaderNodeTexEnvironment")
+    texture.image = image
+    texture.interpolation = "Linear"  # bilinear, texel centres at (j + 1/2) / W and periodic in u, as Mitsuba's
+    texture.projection = "EQUIRECTANGULAR"
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    # the world direction -> the map's frame (to_world^-1) -> Cycles' frame e = (d.z, d.x, d.y)
+    cyclic = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    total = cyclic @ np.linalg.inv(np.asarray(emitter["to_world"], np.float64)[:3, :3])
+    rotation = matrix(total).to_euler("XYZ")
+    if not np.allclose(np.asarray(rotation.to_matrix()), total, atol=1e-5):
+        raise SceneError(f"emitters[{emitter['index']}].to_world: only rotations can be mapped to Cycles")
+    node = tree.nodes.new("ShaderNodeMapping")
+    node.vector_type = "VECTOR"
+    socket(node, "Rotation").default_value = rotation
+    tree.links.new(coords.outputs["Generated"], node.inputs["Vector"])
+    tree.links.new(node.outputs[0], texture.inputs["Vector"])
+    tree.links.new(texture.outputs["Color"], socket(background, "Color"))
+
+
+def build_scene(bpy, doc: dict, folder: Path, args) -> None:
+    if doc.get("format") != "rendering-harness scene" or doc.get("version") != 1:
+        raise SceneError("expected a rendering-harness scene.json of version 1")
+    filt = doc["film"]["filter"]["type"]
+    if filt != "box":
+        raise SceneError(f"film.filter = {filt!r}: Cycles' Gaussian and Blackman-Harris filters are not "
+                         "Mitsuba's tent or gaussian; only box (one pixel) is exact")
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    setup_render(bpy, doc, args)
+    setup_camera(bpy, doc)
+    add_shapes(bpy, doc, folder, args.emission_scale)
+    for emitter in doc["emitters"]:
+        if emitter["type"] in ("point", "spot", "directional"):
+            add_light(bpy, emitter, args.emission_scale, f"emitters[{emitter['index']}] ({emitter['name']})")
+        elif emitter["type"] not in ("constant", "envmap"):
+            raise SceneError(f"emitters[{emitter['index']}].type = {emitter['type']!r}: not supported")
+    setup_world(bpy, doc, folder, args.emission_scale)
+
+
+def render_batches(bpy, spp: int, seed: int, batches: int, work: Path) -> tuple[list[np.ndarray], float]:
+    """Render the batches; returns their images and the seconds spent in them. A 1-sample render first, not
+    timed and not kept, builds Cycles' scene (BVH, shaders), which persistent data keeps for the batches."""
+    scene = bpy.context.scene
+    scene.cycles.samples = 1
+    scene.cycles.seed = MAX_SEED
+    scene.render.filepath = str(work / "warm-up.exr")
+    bpy.ops.render.render(write_still=False)
+    scene.cycles.samples = spp // batches  # batch_count divides spp
+    images, seconds = [], 0.0
+    for b in range(batches):
+        scene.cycles.seed = batch_seed(seed, b)
+        scene.render.filepath = str(work / f"batch-{b}.exr")
+        start = time.perf_counter()
+        bpy.ops.render.render(write_still=True)
+        seconds += time.perf_counter() - start
+        images.append(read_exr_rgb(work / f"batch-{b}.exr").astype(np.float64))
+    return images, seconds
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(sys.argv[1:] if argv is None else argv)
+    try:
+        import bpy  # noqa: PLC0415 - optional: Blender as a Python module; its absence is one line
+    except ImportError:
+        print(INSTALL_HINT, file=sys.stderr)
+        return 2
+    scene_path = Path(args.scene)
+    try:
+        doc = json.loads(scene_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        fail(f"{scene_path}: cannot read the scene.json: {err}".splitlines()[0])
+    batches = batch_count(args.spp, args.batches)
+    try:
+        build_scene(bpy, doc, scene_path.parent, args)
+    except (SceneError, KeyError) as err:
+        fail(f"{scene_path}: {err}")
+    out = Path(args.out)
+    with tempfile.TemporaryDirectory(prefix="cycles-render-") as tmp:
+        images, seconds = render_batches(bpy, args.spp, args.seed, batches, Path(tmp))
+    stack = np.stack(images)
+    mean = stack.mean(axis=0)
+    variance = stack.var(axis=0, ddof=1) / batches
+    write_exr(out, mean, variance, {"variance_dof": str(batches - 1), "render_seconds": f"{seconds:.6f}",
+                                     "spp": str(args.spp), "renderer": f"Cycles (Blender {bpy.app.version_string})",
+                                     "cycles_batches": str(batches)})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
