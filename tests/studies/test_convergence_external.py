@@ -13,6 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from fake_renderers import slow_start_renderer
 from harness.renderers import get_renderer
 from harness.scene import load_scene
 from harness.studies.convergence import MAX_EXTRAPOLATION, Series, equal_error, equal_time, run_convergence
@@ -20,19 +21,6 @@ from reference_impl import Film
 
 ROOT = Path(__file__).resolve().parents[2]
 
-# K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.2 s of sleep, and
-# 0.02 s per spp of "rendering" at 8x8 pixels
-FAKE = r'''
-import sys, time
-args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
-time.sleep(0.2)
-import numpy as np
-from harness.files.imageio import write_exr
-w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
-time.sleep(0.02 * spp * w * h / 64)
-rng = np.random.default_rng(int(args["--seed"]))
-write_exr(args["--out"], 0.5 + 0.1 / np.sqrt(spp) * rng.standard_normal((h, w, 3)), None)
-'''
 
 
 def test_comparisons_go_at_most_2x_beyond_a_curve():
@@ -58,13 +46,9 @@ def test_comparisons_go_at_most_2x_beyond_a_curve():
 
 @pytest.fixture()
 def fake_renderer(tmp_path):
-    script = tmp_path / "fake.py"
-    script.write_text(FAKE)
-    path = tmp_path / "fake.toml"
-    command = ["{python}", str(script), "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}",
-               "--width", "{width}", "--height", "{height}"]
-    path.write_text(f"command = {json.dumps(command)}\nrepeats = 2\n")
-    return path
+    # K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.2 s of sleep, and
+    # 0.02 s per spp of "rendering" at 8x8 pixels
+    return slow_start_renderer(tmp_path, startup=0.2, per_spp=0.02, noise=0.1)
 
 
 @pytest.mark.slow

@@ -1,0 +1,32 @@
+"""A fake external renderer for timing tests: it sleeps for its "start-up", then for its "rendering" (in proportion
+to spp x pixels), and writes 0.5 + Gaussian noise of standard deviation ``noise / sqrt(spp)`` (the furnace's closed
+form at 8 x 8 and depth 2 is 0.5) without variance channels, so the harness runs it ``repeats`` times."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+SCRIPT = r'''
+import sys, time
+args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
+time.sleep(float(args["--startup"]))
+import numpy as np
+from harness.files.imageio import write_exr
+w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
+time.sleep(float(args["--per-spp"]) * spp * w * h / 64)
+rng = np.random.default_rng(int(args["--seed"]))
+write_exr(args["--out"], 0.5 + float(args["--noise"]) / np.sqrt(spp) * rng.standard_normal((h, w, 3)), None)
+'''
+
+
+def slow_start_renderer(folder: Path, *, startup: float, per_spp: float, noise: float, repeats: int = 2) -> Path:
+    """Write the fake renderer's script and its renderer file into ``folder``; returns the renderer file.
+    ``per_spp``: seconds per spp at 8 x 8 pixels."""
+    script = folder / "fake.py"
+    script.write_text(SCRIPT)
+    path = folder / "fake.toml"
+    command = ["{python}", str(script), "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}", "--width", "{width}",
+               "--height", "{height}", "--startup", str(startup), "--per-spp", str(per_spp), "--noise", str(noise)]
+    path.write_text(f"command = {json.dumps(command)}\nrepeats = {repeats}\n")
+    return path
