@@ -14,19 +14,27 @@ time.sleep(float(args["--startup"]))
 import numpy as np
 from harness.files.imageio import write_exr
 w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
+if spp < int(args["--min-spp"]):
+    sys.exit(f"fake: error: --spp: expected at least {args['--min-spp']}, got {spp}")
+start = time.perf_counter()
 time.sleep(float(args["--per-spp"]) * spp * w * h / 64)
 rng = np.random.default_rng(int(args["--seed"]))
 write_exr(args["--out"], 0.5 + float(args["--noise"]) / np.sqrt(spp) * rng.standard_normal((h, w, 3)), None)
+if args["--own-time"] == "1":
+    open(args["--out"] + ".json", "w").write('{"render_seconds": %r}' % (time.perf_counter() - start))
 '''
 
 
-def slow_start_renderer(folder: Path, *, startup: float, per_spp: float, noise: float, repeats: int = 2) -> Path:
+def slow_start_renderer(folder: Path, *, startup: float, per_spp: float, noise: float, repeats: int = 2,
+                        min_spp: int = 1, own_time: bool = False) -> Path:
     """Write the fake renderer's script and its renderer file into ``folder``; returns the renderer file.
-    ``per_spp``: seconds per spp at 8 x 8 pixels."""
+    ``per_spp``: seconds per spp at 8 x 8 pixels; ``min_spp``: it exits 1 with an error below this spp;
+    ``own_time``: it reports its render time in ``<out>.json``."""
     script = folder / "fake.py"
     script.write_text(SCRIPT)
     path = folder / "fake.toml"
     command = ["{python}", str(script), "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}", "--width", "{width}",
-               "--height", "{height}", "--startup", str(startup), "--per-spp", str(per_spp), "--noise", str(noise)]
+               "--height", "{height}", "--startup", str(startup), "--per-spp", str(per_spp), "--noise", str(noise),
+               "--min-spp", str(min_spp), "--own-time", "1" if own_time else "0"]
     path.write_text(f"command = {json.dumps(command)}\nrepeats = {repeats}\n")
     return path

@@ -25,6 +25,7 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.judges.floor import error_point
 from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.external import ExternalRendererError
 from harness.running.budget import render_for_seconds
 from reference_impl import Film
 
@@ -392,11 +393,14 @@ def run_convergence(
     holds K x spp) is asked for spp / K per run, so that its points land on the ladder; K is learnt from its
     first render (the warm-up), and a rung it cannot reach (below K) is rendered at K, once. Every point sits at
     the spp its image holds (``render.spp``), and the series says where its times come from (``time_from``:
-    the renderer's own clock, or its wall time less the start-up)."""
+    the renderer's own clock, or its wall time less the start-up). A rung an external renderer refuses (it exits
+    with an error, e.g. the Cycles adapter at 1 spp, which needs two batches for its variance) is left out and
+    named in the series' ``skipped``; a series with no point at all is named in ``failed_series``."""
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")
     seeds = iter(range(seed, seed + 10**9))
-    out_series = []
+    out_series: list[dict] = []
+    failed: list[dict] = []  # series with no point at all (every rung refused), and why
     for s in series:
         renderer = (renderer_factory or get_renderer)(s.renderer)
         settings = dict(s.settings)
@@ -406,9 +410,15 @@ def run_convergence(
         resolved: dict = {}
         runs = 1  # samples the image holds per spp asked (K for an external renderer's K runs)
         time_from = None
+        skipped: list[dict] = []  # rungs an external renderer refused (e.g. too few samples for its variance)
         if warmup:
-            warm = renderer.render(scene, RenderRequest(spp=1, seed=next(seeds), settings=settings))
-            runs = _runs_per_spp(warm, 1)
+            for n in (1, *spp):  # the smallest spp the renderer takes
+                try:
+                    warm = renderer.render(scene, RenderRequest(spp=int(n), seed=next(seeds), settings=settings))
+                except ExternalRendererError:
+                    continue
+                runs = _runs_per_spp(warm, int(n))
+                break
         rendered: set[int] = set()
         for n in spp:
             per_run = max(1, int(round(int(n) / runs)))
@@ -417,9 +427,15 @@ def run_convergence(
                     progress(f"{s.name} {n} spp (as {per_run * runs})")
                 continue
             sd = next(seeds)
-            result, secs, repeats = timed_render(renderer, scene, RenderRequest(spp=per_run, seed=sd,
-                                                                                settings=settings),
-                                                 min_timing_seconds)
+            try:
+                result, secs, repeats = timed_render(renderer, scene, RenderRequest(spp=per_run, seed=sd,
+                                                                                    settings=settings),
+                                                     min_timing_seconds)
+            except ExternalRendererError as err:
+                skipped.append({"spp": int(n), "reason": str(err)})
+                if progress is not None:
+                    progress(f"{s.name} {n} spp (refused)")
+                continue
             runs = _runs_per_spp(result, per_run)
             rendered.add(int(result.spp))
             resolved = result.settings
@@ -437,6 +453,10 @@ def run_convergence(
                                timing_repeats=1, seeds=merged.info["seeds"], **point))
             if progress is not None:
                 progress(f"{s.name} {budget:g} s")
+        if not points:
+            failed.append({"label": s.name, "renderer": s.renderer,
+                           "error": skipped[0]["reason"] if skipped else "no points"})
+            continue
         points.sort(key=lambda p: (p["spp"], p["seconds"]))
         fit_rmse = fit_convergence([p["spp"] for p in points], [p["rmse_corrected"] for p in points],
                                    expected_slope=-0.5, scatter=[p["scatter_log_rmse"] for p in points], k=k)
@@ -446,6 +466,7 @@ def run_convergence(
                                      expected_slope=-1.0, scatter=[p["scatter_log_relmse"] for p in points], k=k)
         out_series.append({"label": s.name, "renderer": s.renderer, "settings": dict(s.settings),
                            "resolved_settings": resolved, "points": points, "time_from": time_from,
+                           "skipped": skipped,
                            "fit_rmse": fit_rmse, "fit_relmse": fit_relmse})
     return {
         "scene": str(getattr(scene, "path", "")),
@@ -456,7 +477,7 @@ def run_convergence(
                          "path": str(getattr(ground_truth, "path", None)) if getattr(ground_truth, "path", None)
                          else None},
         "spp_ladder": [int(n) for n in spp], "seconds_ladder": [float(s) for s in seconds],
-        "k": k, "series": out_series,
+        "k": k, "series": out_series, "failed_series": failed,
         "comparisons": compare_series(out_series),
     }
 

@@ -61,8 +61,10 @@ class StudyOptions:
 
     convergence: bool = True
     convergence_spp: tuple[int, ...] = conv.DEFAULT_SPP_LADDER
-    #: besides the defaults, convergence curves of these `direct` strategies and (cached) Mitsuba
+    #: besides the defaults, convergence curves of these `direct` strategies and (cached) Mitsuba; in scenes with
+    #: a material that is not diffuse (the glossy engine: direct = area, mis, bsdf) those of the second tuple
     convergence_strategies: tuple[str, ...] = ("mis", "hemisphere-cosine", "global-area")
+    glossy_convergence_strategies: tuple[str, ...] = ("area", "bsdf")
     convergence_mitsuba: bool = True
     shadow_rays: bool = True
     shadow_ray_counts: tuple[int, ...] = studies.SHADOW_RAY_COUNTS
@@ -300,9 +302,13 @@ def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyO
                          items: list[StudyCase] = (), plots: _Plots | None = None) -> dict:
     section = {"spp_ladder": list(options.convergence_spp), "k": options.k, "scenes": []}
     others = {key: _other_renderers(list(items), key) for key in bases}
-    progress.add(sum(len(options.convergence_spp) * (1 + len(options.convergence_strategies)
+    def strategies(base: StudyCase) -> tuple[str, ...]:
+        glossy = base.scene is not None and base.scene.has_glossy_materials
+        return options.glossy_convergence_strategies if glossy else options.convergence_strategies
+
+    progress.add(sum(len(options.convergence_spp) * (1 + len(strategies(base))
                                                      + int(options.convergence_mitsuba) + len(others[key]))
-                     for key in bases))
+                     for key, base in bases.items()))
 
     def factory(name: str):
         if name == "mitsuba":
@@ -314,7 +320,7 @@ def _convergence_section(bases: dict[str, StudyCase], out: Path, options: StudyO
         try:
             series = [conv.Series("reference", {}, "reference (defaults)")]
             series += [conv.Series("reference", {"direct": d}, f"reference direct={d}")
-                       for d in options.convergence_strategies]
+                       for d in strategies(base)]
             if options.convergence_mitsuba:
                 series.append(conv.Series("mitsuba", {}, "mitsuba (path, cached)"))
             series += [conv.Series(str(o.record["renderer"]), {}, renderer_label(str(o.record["renderer"])))

@@ -46,9 +46,9 @@ def test_comparisons_go_at_most_2x_beyond_a_curve():
 
 @pytest.fixture()
 def fake_renderer(tmp_path):
-    # K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.2 s of sleep, and
-    # 0.02 s per spp of "rendering" at 8x8 pixels
-    return slow_start_renderer(tmp_path, startup=0.2, per_spp=0.02, noise=0.1)
+    # K = 2 runs per render (no variance channels); pixels 0.5 + N(0, 0.1^2 / spp); start-up 0.6 s of sleep (and
+    # the script's imports), and 0.02 s per spp of "rendering" at 8x8 pixels
+    return slow_start_renderer(tmp_path, startup=0.6, per_spp=0.02, noise=0.1)
 
 
 @pytest.mark.slow
@@ -63,10 +63,31 @@ def test_an_external_renderers_points_land_on_the_ladder(fake_renderer):
     assert [p["spp"] for p in series["points"]] == [2, 4]
     assert [p["budget"]["spp"] for p in series["points"]] == [1, 4]
     assert series["time_from"].startswith("start-up subtracted (") and "1x1 film" in series["time_from"]
-    # each render is 2 runs of 0.2 s sleep and the script's imports (about 0.5 s of wall time each) and at most
-    # 2 x 0.01 s of rendering: what is left is that and the scatter of process start, well below the 1 s of wall
-    # time; timed once
-    assert all(p["seconds"] < 0.3 and p["timing_repeats"] == 1 for p in series["points"]), series["points"]
+    # each render is 2 runs of 0.6 s sleep and the script's imports (about 0.9 s of wall time each) and at most
+    # 2 x 0.04 s of rendering: what is left is that and the scatter of process start on a loaded machine (0.5 s),
+    # well below the 1.8 s of wall time a render that subtracted nothing would read; timed once
+    assert all(p["seconds"] < 0.6 and p["timing_repeats"] == 1 for p in series["points"]), series["points"]
+
+
+def test_rungs_a_renderer_refuses_are_left_out_and_named(tmp_path):
+    """A renderer that exits with an error below 4 spp per run (as the Cycles adapter below 2) gets the points it
+    can render, and the study names the rungs it refused; one that refuses every rung is named with its reason."""
+    scene = load_scene(ROOT / "scenes" / "furnace.toml")
+    scene = dataclasses.replace(scene, film=Film(8, 8, "box"), max_depth=2)
+    gt = SimpleNamespace(image=np.full((8, 8, 3), 0.5, np.float32), variance=np.zeros((8, 8, 3), np.float32),
+                         source="closed form", spp=None)
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    picky = slow_start_renderer(tmp_path / "a", startup=0.0, per_spp=0.0, noise=0.1, min_spp=2, own_time=True)
+    refuses = slow_start_renderer(tmp_path / "b", startup=0.0, per_spp=0.0, noise=0.1, min_spp=100, own_time=True)
+    result = run_convergence(scene, gt, [Series(str(picky), {}, "picky"), Series(str(refuses), {}, "refuses")],
+                             spp=(1, 2, 4, 8), k=3.0, warmup=True, renderer_factory=get_renderer)
+    (series,) = result["series"]  # K = 2 runs per render: rung 4 is 2 x 2 spp, 8 is 2 x 4
+    assert series["label"] == "picky" and [p["spp"] for p in series["points"]] == [4, 8]
+    assert [k["spp"] for k in series["skipped"]] == [1, 2]
+    assert "expected at least 2, got 1" in series["skipped"][0]["reason"]
+    (failed,) = result["failed_series"]
+    assert failed["label"] == "refuses" and "expected at least 100" in failed["error"]
 
 
 @pytest.mark.slow
