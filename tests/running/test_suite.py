@@ -132,7 +132,7 @@ settings = { mutant = "energy-loss-2pct" }
 spp = 16
 film = { width = 16, height = 16 }
 ''')
-    code, stdout, _ = run_cli("run", str(path), "--out", str(tmp_path / "out"), "--quiet")
+    code, stdout, _ = run_cli("run", str(path), "--out", str(tmp_path / "out"), "--quiet", "--no-report")
     assert code == 1
     assert "unexpected: furnace/energy-loss" in stdout
     record = json.loads((tmp_path / "out" / "results.json").read_text())["cases"][0]
