@@ -15,6 +15,10 @@ import pytest
 
 from fake_renderers import slow_start_renderer
 from harness.renderers import get_renderer
+from harness.report import write_suite_report
+from harness.running.cases import load_suite
+from harness.running.schedule import run_suite
+from harness.studies.suite_studies import StudyOptions, write_suite_studies
 from harness.scene import load_scene
 from harness.studies.convergence import MAX_EXTRAPOLATION, Series, equal_error, equal_time, run_convergence
 from reference_impl import Film
@@ -95,10 +99,6 @@ def test_the_suite_studies_and_report_show_an_external_renderer(fake_renderer, t
     """A suite case rendered by a renderer file gets its own convergence curve, a line of its own beside the
     strategy rows (its efficiency from its case, with why it has no rows), and the report shows both with where
     its render time comes from."""
-    from harness.report import write_suite_report
-    from harness.running.cases import load_suite
-    from harness.running.schedule import run_suite
-    from harness.studies.suite_studies import StudyOptions, write_suite_studies
 
     suite = tmp_path / "suite.toml"
     suite.write_text(f'''name = "other"
