@@ -301,10 +301,13 @@ film = { width = 8, height = 8 }
 def test_run_writes_the_report_and_report_rewrites_it(tmp_path):
     suite = write_suite(tmp_path, ONE_CASE)
     out = tmp_path / "out"
-    code, stdout, stderr = run_cli("run", str(suite), "--out", str(out), "--quiet")
+    # a small ladder and no strategy rows: the studies' content is tested elsewhere, here that run writes them
+    code, stdout, stderr = run_cli("run", str(suite), "--out", str(out), "--quiet", "--convergence-spp", "1,2,4",
+                                   "--no-strategies")
     assert code == 0, stdout + stderr
     assert "report:" in stdout and (out / "index.html").is_file() and (out / "report.json").is_file()
     assert "studies:" in stdout and (out / "studies" / "studies.json").is_file()
+    assert json.loads((out / "report.json").read_text())["convergence"]["spp_ladder"] == [1, 2, 4]
     again = tmp_path / "again"
     code, stdout, stderr = run_cli("report", str(out / "results.json"), "--out", str(again), "--quiet", "--studies",
                                    "--convergence-spp", "1,2", "--no-strategies", "--no-shadow-rays")

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from conftest import ROOT
 
+from harness.cli import main
 from harness.core.errors import HarnessError
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
@@ -198,19 +199,20 @@ scene = "SCENES/furnace.toml"
     assert saved["summary"]["errors"] == 1 and saved["summary"]["unexpected"] == ["crashes"]
 
 
-def test_compare_cli(tmp_path):
-    """`harness compare` judges a render against a reference: exit 0 on pass, 1 on fail, JSON on request."""
+def test_compare_cli(tmp_path, capsys):
+    """`harness compare` judges a render against a reference: exit 0 on pass, 1 on fail, JSON on request. In this
+    process (the commands' subprocess paths are covered by tests/cli): three process starts fewer."""
     scene = str(ROOT / "scenes" / "furnace.toml")
     for name, seed, extra in (("a", 1, []), ("b", 2, []), ("bad", 3, ["--set", "mutant=energy-loss-2pct"])):
-        code, _, err = run_cli("render", scene, "--spp", "8", "--seed", str(seed), "--out", str(tmp_path / f"{name}.exr"), "--quiet", *extra)
-        assert code == 0, err
-    code, stdout, _ = run_cli("compare", str(tmp_path / "a.exr"), str(tmp_path / "b.exr"), "--json")
-    assert code == 0
-    report = json.loads(stdout)
+        assert main(["render", scene, "--spp", "8", "--seed", str(seed), "--out", str(tmp_path / f"{name}.exr"),
+                     "--quiet", *extra]) == 0
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "b.exr"), "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
     assert report["verdict"]["verdict"] == "pass" and "rmse" in report["metrics"]
-    code, stdout, _ = run_cli("compare", str(tmp_path / "bad.exr"), str(tmp_path / "b.exr"))
-    assert code == 1 and "verdict: fail" in stdout
-    code, _, stderr = run_cli("compare", str(tmp_path / "missing.exr"), str(tmp_path / "b.exr"))
+    assert main(["compare", str(tmp_path / "bad.exr"), str(tmp_path / "b.exr")]) == 1
+    assert "verdict: fail" in capsys.readouterr().out
+    code, stdout, stderr = run_cli("compare", str(tmp_path / "missing.exr"), str(tmp_path / "b.exr"))
     assert code == 2 and "missing.exr" in stderr and len(stderr.strip().splitlines()) == 1
 
 
