@@ -42,6 +42,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.core.jsonsafe import plain
 from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, exr_bytes, make_folders
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.renderers.mitsuba import (
@@ -54,7 +55,7 @@ from harness.renderers.mitsuba import (
     path_integrator,
     tessellates_spheres,
 )
-from harness.renderers.scene_json import FILTERS, scene_json
+from harness.renderers.scene_json import FILTERS, camera_to_world, scene_json
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 
@@ -273,17 +274,6 @@ def gltf_light(emitter) -> tuple[dict, dict]:
     return light, node
 
 
-def _plain(value):
-    """``value`` with numpy arrays and scalars turned into lists and Python numbers (for ``json``)."""
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 def _unique(name: str, taken: set[str]) -> str:
     """``name``, or ``name-2``, ``name-3``, ... if it is taken; the result is added to ``taken``."""
     out, n = name, 1
@@ -305,9 +295,7 @@ def gltf_camera(scene: Scene) -> tuple[dict, dict]:
     camera, film = scene.camera, scene.film
     _tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
     near, far = clip_planes(scene)
-    to_world = np.eye(4)
-    to_world[:3, :3] = camera.frame() * np.array([-1.0, 1.0, -1.0])
-    to_world[:3, 3] = camera.origin
+    to_world = camera_to_world(camera) @ np.diag([-1.0, 1.0, -1.0, 1.0])  # negate the x and z columns
     gltf = {"name": "camera", "type": "perspective",
             "perspective": {"yfov": 2.0 * math.atan(tan_y), "aspectRatio": film.width / film.height,
                             "znear": float(near), "zfar": float(far)}}
@@ -327,7 +315,7 @@ def _gltf_shape_material(shape, material) -> dict:
     shape ``emissiveFactor`` = emission / its largest channel with ``KHR_materials_emissive_strength`` = that
     channel (factor x strength = the radiance)."""
     factors, extensions = gltf_material(material)
-    entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": _plain(factors),
+    entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": plain(factors),
                    "doubleSided": bool(material.two_sided or material.is_dielectric)}
     extensions = dict(extensions)
     if shape.is_emitter:
@@ -387,7 +375,7 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
             {"attributes": {"POSITION": position}, "indices": indices, "mode": 4, "material": material_index[key]}]})
         extras: dict = {"material": shape.material, "reflectance": [float(x) for x in material.reflectance]}
         if not material.is_diffuse:
-            extras["bsdf"] = _plain(bsdf_dict(material))  # Mitsuba's plugin and parameters, for a reader wanting all
+            extras["bsdf"] = plain(bsdf_dict(material))  # Mitsuba's plugin and parameters, for a reader wanting all
         if shape.is_emitter:
             extras["emission"] = [float(x) for x in shape.emission]
         nodes.append({"name": name, "mesh": len(meshes) - 1, "extras": extras})

@@ -36,14 +36,21 @@ def _floats(values) -> list:
     return np.asarray(values, dtype=np.float64).tolist()
 
 
+def camera_to_world(camera) -> np.ndarray:
+    """The 4x4 camera-to-world matrix of Mitsuba's ``look_at``: columns +x (image left), +y (up), +z (forward)
+    and the eye."""
+    to_world = np.eye(4)
+    to_world[:3, :3] = camera.frame()
+    to_world[:3, 3] = camera.origin
+    return to_world
+
+
 def camera_json(scene: Scene) -> dict:
     """The perspective camera: its look-at, Mitsuba's ``fov`` / ``fov_axis``, the resolved full angles, the
     camera-to-world matrix (columns: +x = image left, +y = image up, +z = forward, origin) and the clip planes."""
     camera, film = scene.camera, scene.film
     tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
-    to_world = np.eye(4)
-    to_world[:3, :3] = camera.frame()
-    to_world[:3, 3] = camera.origin
+    to_world = camera_to_world(camera)
     near, far = clip_planes(scene)
     return {
         "type": "perspective",
