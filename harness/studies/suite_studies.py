@@ -44,6 +44,7 @@ from harness.studies import convergence as conv
 from harness.studies import figures
 from harness.studies import strategies as studies
 from harness.studies.regions import region_masks, region_variances
+from reference_impl.settings import GLOSSY_DIRECT
 
 #: the sections of studies.json, in the order the report shows them
 SECTIONS = ("convergence", "shadow_rays", "strategies")
@@ -64,7 +65,7 @@ class StudyOptions:
     #: besides the defaults, convergence curves of these `direct` strategies and (cached) Mitsuba; in scenes with
     #: a material that is not diffuse (the glossy engine: direct = area, mis, bsdf) those of the second tuple
     convergence_strategies: tuple[str, ...] = ("mis", "hemisphere-cosine", "global-area")
-    glossy_convergence_strategies: tuple[str, ...] = ("area", "bsdf")
+    glossy_convergence_strategies: tuple[str, ...] = tuple(d for d in GLOSSY_DIRECT if d != "mis")  # mis: default
     convergence_mitsuba: bool = True
     shadow_rays: bool = True
     shadow_ray_counts: tuple[int, ...] = studies.SHADOW_RAY_COUNTS

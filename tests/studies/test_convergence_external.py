@@ -132,3 +132,27 @@ expect = "fail"
     write_suite_report(out / "results.json", out)
     page = (out / "index.html").read_text()
     assert "start-up subtracted (" in page and "takes no settings" in page
+
+
+@pytest.mark.slow
+def test_a_glossy_scene_gets_the_glossy_engines_strategy_curves(tmp_path):
+    """The convergence study's extra curves of a scene with a mirror are the glossy engine's direct strategies
+    (area, bsdf), not the Lambertian ones it refuses (hemisphere-cosine failed the whole scene's study before)."""
+    suite = tmp_path / "suite.toml"
+    suite.write_text(f'''name = "glossy"
+[defaults]
+spp = 4
+film = {{ width = 8, height = 8 }}
+[[cases]]
+name = "white-furnace-mirror/reference"
+scene = "{ROOT / 'scenes' / 'white-furnace-mirror.toml'}"
+''')
+    out = tmp_path / "out"
+    results = run_suite(load_suite(suite), out)
+    options = StudyOptions(convergence_spp=(1, 2), convergence_mitsuba=False, shadow_rays=False, strategies=False,
+                           min_timing_seconds=0.0)
+    write_suite_studies(results, out, options)
+    (entry,) = json.loads((out / "studies" / "studies.json").read_text())["convergence"]["scenes"]
+    assert "error" not in entry, entry.get("error")
+    assert [s["label"] for s in entry["result"]["series"]] == [
+        "reference (defaults)", "reference direct=area", "reference direct=bsdf"]
