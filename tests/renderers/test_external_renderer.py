@@ -398,7 +398,8 @@ def test_bad_reported_values_fail_the_run_in_one_line(tmp_path, small_scene, ext
 def test_a_start_up_measured_too_long_is_measured_again(tmp_path, small_scene, monkeypatch):
     """A run that takes less than the start-up measured proves the probes were slowed (the machine's load): the
     start-up is measured once more and the smaller kept, instead of every later render reading 0 s."""
-    renderer = get_renderer(str(_timed_renderer(tmp_path, "slowprobe", "none", 0.3, 0.05)))
+    # 0.3 s per spp of rendering: a signal above the scatter of start-up, which 0.05 s drowned in (it read 0 s)
+    renderer = get_renderer(str(_timed_renderer(tmp_path, "slowprobe", "none", 0.3, 0.3)))
     monkeypatch.setitem(external._STARTUP, (renderer.spec, str(small_scene.path), small_scene.name,
                                             small_scene.max_depth, (6, 4)), (5.0, "a slowed probe"))
     result = renderer.render(small_scene, RenderRequest(spp=2, seed=1))
