@@ -18,7 +18,6 @@ import math
 from functools import lru_cache
 
 import numpy as np
-import trimesh
 
 from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
@@ -91,6 +90,7 @@ def unit_cube() -> tuple[np.ndarray, np.ndarray]:
 
 @lru_cache(maxsize=None)
 def _icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    import trimesh  # optional: 0.4 s (scipy, networkx) at every command's start; only meshes and spheres need it
     mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
     vertices = np.array(mesh.vertices, dtype=np.float64)
     vertices /= np.linalg.norm(vertices, axis=1, keepdims=True)  # exactly on the unit sphere

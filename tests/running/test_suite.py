@@ -102,7 +102,9 @@ def test_bad_suites_are_one_line_errors(tmp_path, body, where):
 def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path):
     cache = tmp_path / "cache"
     out = tmp_path / "out"
-    code, stdout, stderr = run_cli("run", str(SUITES / "smoke.toml"), "--out", str(out), "--quiet", env_cache=cache)
+    # the studies (30 s of timed renders here) are the report tests' part (tests/report/test_report.py)
+    code, stdout, stderr = run_cli("run", str(SUITES / "smoke.toml"), "--out", str(out), "--quiet", "--no-convergence",
+                                   "--no-strategies", "--no-shadow-rays", env_cache=cache)
     assert code == 0, stdout + stderr
     first = json.loads((out / "results.json").read_text())
     assert first["summary"]["ok"] == first["summary"]["cases"]
