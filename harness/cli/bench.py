@@ -61,8 +61,8 @@ def register(sub, common) -> None:
         "bench", help=summary,
         description=summary[0].upper() + summary[1:] + ". Contenders: the reference at its defaults (stratified "
                     "sampler), Mitsuba llvm_ad_rgb and scalar_rgb at theirs (independent sampler), Mitsuba llvm_ad_rgb "
-                    "with its ldsampler when spp is a power of 4 (and its stratified, multijitter and orthogonal samplers "
-                    "where they draw spp, on the scenes where a target compares with Mitsuba's best sampler), "
+                    "with its ldsampler when spp is a power of 4 (and its stratified, multijitter and orthogonal "
+                    "samplers where they draw spp, on the scenes where a target compares with Mitsuba's best sampler), "
                     "Embree's own rate on the rays the reference traces (the row 'embree (own rays)'), "
                     "and the reference's strategy rows (one setting "
                     "changed, e.g. sampler=independent); --renderer adds any other renderer (e.g. cycles, or a renderer file) at "

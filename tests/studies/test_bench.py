@@ -59,8 +59,10 @@ def test_efficiency_and_ratios():
     targets = bench.check_targets({"cornell-box": block, "veach-mis": {"ratios": {"efficiency_vs_mitsuba_best": 1.0},
                                                                        "rows": []}})
     assert [(t["name"], t["scene"], t["met"]) for t in targets] == [
-        ("efficiency_vs_llvm_ad_rgb_ldsampler", "cornell-box", False), ("efficiency_vs_mitsuba_best", "veach-mis", True),
-        ("paths_per_second_vs_llvm_ad_rgb", "cornell-box", False), ("cores_busy", "cornell-box", 2.0 >= 0.9 * os.cpu_count())]
+        ("efficiency_vs_llvm_ad_rgb_ldsampler", "cornell-box", False),
+        ("efficiency_vs_mitsuba_best", "veach-mis", True),
+        ("paths_per_second_vs_llvm_ad_rgb", "cornell-box", False),
+        ("cores_busy", "cornell-box", 2.0 >= 0.9 * os.cpu_count())]
     assert not bench.targets_met(targets) and bench.targets_met(targets[1:2])
     nan = {"ratios": {"efficiency_vs_mitsuba_best": math.nan}, "rows": []}
     assert [t["met"] for t in bench.check_targets({"veach-mis": nan})] == [None]
