@@ -389,8 +389,10 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     )
 
 
-def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict) -> np.ndarray:
-    """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16."""
+def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None) -> np.ndarray:
+    """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16. ``record``:
+    buffers for the glossy engine's rays (:mod:`reference_impl.kernels.record`, used by :mod:`reference_impl.replay`;
+    the other engines' rays are recorded from the wavefront's batched queries)."""
     kernels = _kernels()
     width, height = ctx.film.width, ctx.film.height
     tan_x, tan_y = ctx.tan_half_fov
@@ -419,7 +421,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     if ctx.glossy_engine:
         timing = np.zeros(2, np.int64)
         kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                    ctx.material_tables, ctx.config, radiance, counters, timing, ctx.emitter_tables)
+                                    ctx.material_tables, ctx.config, radiance, counters, timing, ctx.emitter_tables,
+                                    record)
         clock.seconds += timing[0] * 1e-9
     elif ctx.path_engine:
         timing = np.zeros(2, np.int64)

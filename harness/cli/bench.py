@@ -7,7 +7,6 @@ import argparse
 import json
 import re
 import sys
-from fractions import Fraction
 from pathlib import Path
 
 from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENES
@@ -25,12 +24,8 @@ MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measure
 
 
 def _targets_text() -> str:
-    """The targets ``--check`` tests (:data:`harness.studies.bench.TARGETS`), in words."""
-    parts = []
-    for name, minimum in bench.TARGETS:
-        what, _, contender = name.partition("_vs_")
-        parts.append(f"{what} >= {Fraction(minimum).limit_denominator(100)} x Mitsuba {contender}'s")
-    return ", ".join(parts)
+    """The targets ``--check`` tests (:func:`harness.studies.bench.targets`), in words."""
+    return "; ".join(t.words for t in bench.targets())
 
 
 def register(sub, common) -> None:
@@ -54,15 +49,22 @@ def register(sub, common) -> None:
     parser.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
     parser.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
                         help="also measure the peak RSS of a SIZE x SIZE render at SPP (default 1024x256)")
+    parser.add_argument("--no-embree-rate", action="store_true",
+                        help="skip the row 'embree (own rays)': Embree's own rate on the scene's rays, recorded "
+                             f"(at most about {bench.embree_rate.DEFAULT_MAX_RAYS // 10**6} M) and replayed")
     parser.add_argument("--check", action="store_true",
-                        help=f"exit 1 when a target is not met on cornell-box (when benched): the reference's "
-                             f"{_targets_text()} (docs/performance.md)")
+                        help=f"also race every scene a target needs ({', '.join(bench.target_scenes())}) and exit 1 "
+                             f"when a target is not met or not measured: the reference's {_targets_text()} "
+                             "(docs/performance.md)")
     parser.set_defaults(func=run)
     sub.add_parser(
         "bench", help=summary,
         description=summary[0].upper() + summary[1:] + ". Contenders: the reference at its defaults (stratified "
                     "sampler), Mitsuba llvm_ad_rgb and scalar_rgb at theirs (independent sampler), Mitsuba llvm_ad_rgb "
-                    "with its ldsampler when spp is a power of 4, and the reference's strategy rows (one setting "
+                    "with its ldsampler when spp is a power of 4 (and its stratified, multijitter and orthogonal "
+                    "samplers where they draw spp, on the scenes where a target compares with Mitsuba's best sampler), "
+                    "Embree's own rate on the rays the reference traces (the row 'embree (own rays)'), "
+                    "and the reference's strategy rows (one setting "
                     "changed, e.g. sampler=independent); --renderer adds any other renderer (e.g. cycles, or a renderer file) at "
                     "the same spp, timed without process start-up. Method and latest figures: docs/performance.md.",
         parents=[parser, common.out("also write the JSON result to this file (atomically)", file=True), common.json(),
@@ -95,6 +97,9 @@ def run(args: argparse.Namespace) -> int:
         if not out.parent.is_dir():
             raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
     scenes = args.scene or list(bench.BENCH_SCENES)
+    if args.check:  # the scenes the targets are checked on, after those asked for
+        given = {Path(name).stem for name in scenes}
+        scenes = scenes + [name for name in bench.target_scenes() if name not in given]
     resolved = []
     for name in scenes:
         path = Path(name) if Path(name).suffix else SCENES / f"{name}.toml"
@@ -111,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda text: print(f"  {text}", file=sys.stderr, flush=True)) if not args.quiet else None
     result = bench.run_bench(scenes=resolved, spp=args.spp, repeats=args.repeats, gt_spp=args.ground_truth_spp,
                              strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say,
-                             renderers=tuple(args.renderer))
+                             renderers=tuple(args.renderer), embree=not args.no_embree_rate)
     if args.scaling:
         result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
     if memory is not None:
@@ -120,6 +125,6 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         atomic_write_text(Path(args.out), text)
     print(text if args.json else bench.format_report(result))
-    if args.check and any(t["met"] is False for t in result.get("targets", [])):
+    if args.check and not bench.targets_met(result["targets"]):
         return EXIT_FAIL
     return EXIT_OK

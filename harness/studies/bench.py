@@ -19,6 +19,11 @@ Any other renderer (``harness bench --renderer NAME``: a renderer file, a ``rend
 races at the same spp: an external renderer run K times per render (no variance channels) is asked for spp / K per
 run, so that its image holds the same samples, and its time is its render time without process start-up
 (:mod:`harness.renderers.external`: its own ``render_seconds``, or the wall time less the start-up measured once).
+
+Each scene also gets the row "embree (own rays)": Embree's own rate on the rays the reference traces there, recorded
+once and replayed once per attempt (:mod:`harness.studies.embree_rate`), and the reference's rays per second as a
+fraction of it. The targets of the performance issue (:func:`targets`) are checked on the scenes benched
+(:func:`check_targets`).
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ from harness.renderers.groundtruth import ground_truth
 from harness.renderers.external import ExternalRendererError
 from harness.renderers.mitsuba import sampler_takes
 from harness.scene import load_scene
+from harness.studies import embree_rate
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
@@ -65,8 +71,45 @@ STRATEGIES: tuple[dict[str, str], ...] = (
     {"light_selection": "uniform"},
 )
 
-# The targets of the performance issue, as (ratio name, minimum).
-TARGETS = (("efficiency_vs_llvm_ad_rgb", 1.0 / 3.0), ("efficiency_vs_scalar_rgb", 3.0))
+# Mitsuba samplers raced besides independent and ldsampler on the scenes where a target compares with Mitsuba's best
+# sampler (each where it draws exactly the bench's spp: harness.renderers.mitsuba.sampler_takes).
+EXTRA_SAMPLERS = ("stratified", "multijitter", "orthogonal")
+
+
+@dataclass(frozen=True)
+class Target:
+    """A target of the performance issue: ``measure`` (a key of a scene's ``ratios``, or ``cores_busy``: the
+    reference row's) at least ``minimum`` on each of ``scenes``; ``words`` says it for ``--help``."""
+
+    measure: str
+    scenes: tuple[str, ...]
+    minimum: float
+    words: str
+
+
+def targets() -> tuple[Target, ...]:
+    """The targets of the performance issue, each checked from figures measured in the same run. The cores target
+    asks 0.9 of this machine's cores (1.8 on 2 cores) of the reference's Cornell box renders."""
+    cores = 0.9 * (os.cpu_count() or 1)
+    return (
+        Target("efficiency_vs_llvm_ad_rgb_ldsampler", ("cornell-box", "soft-shadows", "multi-light"), 1.0,
+               "efficiency >= 1 x Mitsuba llvm_ad_rgb ldsampler's on cornell-box, soft-shadows and multi-light"),
+        Target("efficiency_vs_mitsuba_best", ("veach-mis", "cornell-box-specular"), 1.0,
+               "efficiency >= 1 x Mitsuba's best sampler's on veach-mis and cornell-box-specular"),
+        Target("paths_per_second_vs_llvm_ad_rgb", ("cornell-box",), 0.8,
+               "paths/s >= 0.8 x Mitsuba llvm_ad_rgb's on cornell-box"),
+        Target("cores_busy", ("cornell-box",), cores, f"with >= {cores:.3g} cores busy there"),
+    )
+
+
+def target_scenes() -> list[str]:
+    """Every scene a target is checked on, in order."""
+    return list(dict.fromkeys(name for t in targets() for name in t.scenes))
+
+
+def best_sampler_scenes() -> set[str]:
+    """The scenes where a target compares with Mitsuba's best sampler (they race :data:`EXTRA_SAMPLERS` too)."""
+    return {name for t in targets() if t.measure == "efficiency_vs_mitsuba_best" for name in t.scenes}
 
 
 @dataclass(frozen=True)
@@ -78,10 +121,11 @@ class Contender:
     settings: dict[str, str] = field(default_factory=dict)
 
 
-def default_contenders(spp: int) -> list[Contender]:
+def default_contenders(spp: int, extra_samplers: bool = False) -> list[Contender]:
     """The reference at its defaults, Mitsuba's ``llvm_ad_rgb`` and ``scalar_rgb`` at theirs (one pass), and
     ``llvm_ad_rgb`` with its low-discrepancy sampler (``ldsampler``, a (0,2)-sequence: the like of the reference's
-    default sampler), so that the gain of stratification is seen on both sides."""
+    default sampler), so that the gain of stratification is seen on both sides; with ``extra_samplers``, also
+    ``llvm_ad_rgb`` with each of :data:`EXTRA_SAMPLERS` that draws exactly ``spp``."""
     plain = {"moments": "off", "chunk_spp": str(spp)}
     contenders = [
         Contender("reference", "reference"),
@@ -91,6 +135,10 @@ def default_contenders(spp: int) -> list[Contender]:
     if sampler_takes("ldsampler", spp):  # it draws powers of 4 only
         contenders.append(Contender("mitsuba llvm_ad_rgb ldsampler", "mitsuba",
                                     {**plain, "variant": "llvm_ad_rgb", "sampler": "ldsampler"}))
+    if extra_samplers:
+        contenders += [Contender(f"mitsuba llvm_ad_rgb {sampler}", "mitsuba",
+                                 {**plain, "variant": "llvm_ad_rgb", "sampler": sampler})
+                       for sampler in EXTRA_SAMPLERS if sampler_takes(sampler, spp)]
     return contenders
 
 
@@ -155,9 +203,12 @@ def bench_scene(
     gt,
     seed: int = 1,
     on_render: Callable[[str], None] | None = None,
+    between: Callable[[int], None] | None = None,
 ) -> list[Row]:
     """Race ``contenders`` on ``scene`` (a loaded Scene) at ``spp`` against ground truth ``gt``
-    (a :class:`harness.renderers.groundtruth.GroundTruth`). Renders alternate between contenders, repeat by repeat."""
+    (a :class:`harness.renderers.groundtruth.GroundTruth`). Renders alternate between contenders, repeat by repeat;
+    ``between(attempt)``, if given, runs after each attempt's renders (attempt 0: the warm-up), so that another
+    measurement takes its turn with them (the Embree replay: :mod:`harness.studies.embree_rate`)."""
     rows = [Row(scene.name, c.label, c.renderer, dict(c.settings), spp, scene.film.width, scene.film.height)
             for c in contenders]
     renderers = [get_renderer(c.renderer) for c in contenders]
@@ -202,6 +253,8 @@ def bench_scene(
                 share = result.stats["embree_microseconds"] / 1e6 / (result.seconds * threads)
                 row.embree_share = share if row.embree_share is None else row.embree_share + share
                 row.stats = {k: v for k, v in result.stats.items() if k != "embree_microseconds"}
+        if between is not None:
+            between(attempt)
     for i, row in enumerate(rows):
         if row.error or not row.seconds_all:
             continue
@@ -219,9 +272,16 @@ def bench_scene(
     return rows
 
 
+def best_mitsuba(rows: Sequence[Row]) -> Row | None:
+    """The Mitsuba row of highest efficiency (any variant and sampler raced), or None."""
+    raced = [r for r in rows if r.renderer == "mitsuba" and not r.error and math.isfinite(r.efficiency)]
+    return max(raced, key=lambda r: r.efficiency, default=None)
+
+
 def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
     """Efficiency and paths/s of row ``label`` over every Mitsuba row, keyed ``efficiency_vs_<variant>`` (with
-    ``_<sampler>`` added for a sampler other than Mitsuba's default)."""
+    ``_<sampler>`` added for a sampler other than Mitsuba's default), and its efficiency over the best Mitsuba
+    row's (:func:`best_mitsuba`), ``efficiency_vs_mitsuba_best``."""
     mine = next((r for r in rows if r.label == label), None)
     out: dict[str, float] = {}
     if mine is None:
@@ -234,6 +294,9 @@ def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
             variant += "_" + row.settings["sampler"]
         out[f"efficiency_vs_{variant}"] = mine.efficiency / row.efficiency
         out[f"paths_per_second_vs_{variant}"] = mine.paths_per_second / row.paths_per_second
+    best = best_mitsuba(rows)
+    if best is not None:
+        out["efficiency_vs_mitsuba_best"] = mine.efficiency / best.efficiency
     return out
 
 
@@ -257,11 +320,31 @@ def renderer_label(name: str) -> str:
     return Path(name).stem if name.endswith(".toml") or "/" in name else name
 
 
-def check_targets(cornell_ratios: dict[str, float]) -> list[dict]:
-    """Each target of the performance issue with the measured ratio and whether it is met (None: not measured)."""
-    return [{"ratio": name, "minimum": minimum, "measured": cornell_ratios.get(name),
-             "met": None if name not in cornell_ratios else bool(cornell_ratios[name] >= minimum)}
-            for name, minimum in TARGETS]
+def check_targets(scenes: dict[str, dict]) -> list[dict]:
+    """Each target of :func:`targets` on each of its scenes that was benched (``scenes``: the result's
+    ``scenes``, by name): {name, scene, ratio (the measure), minimum, measured, met}; ``measured`` None and ``met``
+    None where the figure is missing or not finite (a contender skipped, an MSE at the ground truth's noise)."""
+    out = []
+    for target in targets():
+        for name in target.scenes:
+            block = scenes.get(name)
+            if block is None:
+                continue
+            if target.measure == "cores_busy":
+                ref = next((r for r in block["rows"] if r["label"] == "reference" and not r.get("error")), None)
+                measured = ref["cores_busy"] if ref is not None else None
+            else:
+                measured = block["ratios"].get(target.measure)
+            if measured is not None and not math.isfinite(measured):
+                measured = None
+            out.append({"name": target.measure, "scene": name, "ratio": target.measure, "minimum": target.minimum,
+                        "measured": measured, "met": None if measured is None else bool(measured >= target.minimum)})
+    return out
+
+
+def targets_met(checked: Sequence[dict]) -> bool:
+    """Whether every checked target is met (one not measured is not)."""
+    return all(t["met"] is True for t in checked)
 
 
 def scaling(scene, *, spp_list=(8, 16, 32), sizes=(64, 128, 256), seed: int = 1,
@@ -326,8 +409,9 @@ def row_dict(row: Row) -> dict:
     return dataclasses.asdict(row)
 
 
-def format_table(rows: Sequence[Row]) -> str:
-    """A fixed-width table of the rows (one scene or several)."""
+def format_table(rows: Sequence[Row], replayed: dict | None = None) -> str:
+    """A fixed-width table of the rows (one scene or several), and ``replayed`` (a scene's ``embree_rate``) as its
+    last row: the replay's seconds (all phases), its combined rays per second and cores."""
     head = (f"{'scene':<13} {'contender':<34} {'seconds':>8} {'Mpaths/s':>9} {'Mrays/s':>8} {'cores':>5} "
             f"{'MSE':>10} {'efficiency':>11} {'embree':>6}")
     lines = [head, "-" * len(head)]
@@ -339,7 +423,29 @@ def format_table(rows: Sequence[Row]) -> str:
         embree = f"{r.embree_share:6.0%}" if r.embree_share is not None else f"{'':>6}"
         lines.append(f"{r.scene:<13} {r.label:<34} {r.seconds:8.3f} {r.paths_per_second / 1e6:9.3f} {rays} "
                      f"{r.cores_busy:5.2f} {r.mse:10.4g} {r.efficiency:11.4g} {embree}")
+    if replayed is not None:
+        scene = rows[0].scene if rows else ""
+        if replayed.get("error"):
+            lines.append(f"{scene:<13} {embree_rate.LABEL:<34} skipped: {replayed['error']}")
+        else:
+            seconds = sum(v for v in replayed["seconds"].values() if math.isfinite(v))
+            lines.append(f"{scene:<13} {embree_rate.LABEL:<34} {seconds:8.3f} {'n/a':>9} "
+                         f"{replayed['rays_per_second'] / 1e6:8.2f} {replayed['cores_busy']:5.2f}")
     return "\n".join(lines)
+
+
+def format_embree(embree: dict) -> str:
+    """The line under a scene's table that says what the Embree row replayed and the reference's fraction of it."""
+    if embree.get("error"):
+        return f"{embree_rate.LABEL}: skipped: {embree['error']}"
+    n = embree["rays"]
+    return (f"{embree_rate.LABEL}: {embree['recorded_rays'] / 1e6:.2f} M rays of {embree['recorded_paths']} paths "
+            f"recorded (camera {n['camera'] / 1e6:.2f} M, closest-hit {n['closest'] / 1e6:.2f} M, occlusion "
+            f"{n['occlusion'] / 1e6:.2f} M; {embree['rays_per_path']:.2f} rays per path), {embree['replays']} timed "
+            f"replays on {embree['threads']} threads, the same answers: closest-hit "
+            f"{embree['closest_hit_rays_per_second'] / 1e6:.2f} Mrays/s, occlusion "
+            f"{embree['occlusion_rays_per_second'] / 1e6:.2f} Mrays/s, combined {embree['rays_per_second'] / 1e6:.2f} "
+            f"Mrays/s; reference rays/s / Embree's = {embree['reference_fraction']:.2f}")
 
 
 def run_bench(
@@ -352,11 +458,15 @@ def run_bench(
     cache_dir=None,
     on_render: Callable[[str], None] | None = None,
     renderers: Sequence[str] = (),
+    embree: bool = True,
+    embree_rays: int = embree_rate.DEFAULT_MAX_RAYS,
 ) -> dict:
-    """The whole benchmark: per scene, the three contenders, each of ``renderers`` (any renderer name or file,
-    at the same spp, its render time without start-up) and (``strategies``) the reference's strategy variations;
-    the reference/Mitsuba ratios (and each other renderer's over the reference and Mitsuba); the targets checked
-    on the Cornell box."""
+    """The whole benchmark: per scene, the default contenders (:func:`default_contenders`, with the extra Mitsuba
+    samplers on :func:`best_sampler_scenes`), each of ``renderers`` (any renderer name or file, at the same spp, its
+    render time without start-up) and (``strategies``) the reference's strategy variations; the reference/Mitsuba
+    ratios (and each other renderer's over the reference and Mitsuba); with ``embree``, Embree's own rate on the
+    scene's rays (at most about ``embree_rays`` recorded: :mod:`harness.studies.embree_rate`), replayed once per
+    attempt; the targets (:func:`check_targets`) on the scenes benched."""
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
                     "scenes": {}}
     for name in scenes:
@@ -365,12 +475,28 @@ def run_bench(
             path = ROOT / "scenes" / f"{name}.toml"
         scene = load_scene(path)
         gt = ground_truth(scene, spp=gt_spp, cache_dir=cache_dir, use_closed_form=True)
-        contenders = default_contenders(spp)
+        contenders = default_contenders(spp, extra_samplers=scene.name in best_sampler_scenes())
         contenders += [Contender(renderer_label(name), name) for name in renderers]
         if strategies:
             contenders += [Contender("reference " + " ".join(f"{k}={v}" for k, v in s.items()), "reference", s)
                            for s in STRATEGIES[1:]]
-        rows = bench_scene(scene, contenders, spp=spp, repeats=repeats, gt=gt, on_render=on_render)
+        rate, rate_error = None, None
+        if embree:
+            try:
+                rate = embree_rate.EmbreeRate(scene, spp=spp, max_rays=embree_rays)
+            except HarnessError as err:
+                rate_error = f"{err.where}: {err.message}"
+
+        def between(attempt: int, rate=rate, scene=scene) -> None:
+            if attempt == 0:
+                rate.warm_up()
+            else:
+                rate.measure()
+            if on_render is not None:
+                on_render(f"{scene.name}: {embree_rate.LABEL}" + (" (warm-up)" if attempt == 0 else ""))
+
+        rows = bench_scene(scene, contenders, spp=spp, repeats=repeats, gt=gt, on_render=on_render,
+                           between=between if rate is not None else None)
         ref_rows = [r for r in rows if r.renderer == "reference" and not r.error]
         best = max(ref_rows, key=lambda r: r.efficiency if not math.isnan(r.efficiency) else -1.0)
         result["scenes"][scene.name] = {
@@ -382,9 +508,14 @@ def run_bench(
             "contenders": {renderer_label(name): contender_ratios(rows, renderer_label(name)) for name in renderers},
             "best_strategy": {"label": best.label, "settings": best.settings, "efficiency": best.efficiency,
                               "ratios": ratios(rows, best.label)},
+            "mitsuba_best": mitsuba.label if (mitsuba := best_mitsuba(rows)) is not None else None,
         }
-    if "cornell-box" in result["scenes"]:
-        result["targets"] = check_targets(result["scenes"]["cornell-box"]["ratios"])
+        if rate is not None or rate_error is not None:
+            ref = next((r for r in rows if r.label == "reference" and not r.error), None)
+            result["scenes"][scene.name]["embree_rate"] = (
+                rate.result(ref.rays_per_second if ref is not None else None) if rate is not None
+                else {"label": embree_rate.LABEL, "error": rate_error})
+    result["targets"] = check_targets(result["scenes"])
     return result
 
 
@@ -397,9 +528,12 @@ def format_report(result: dict) -> str:
         out.append(f"{name}: {rows[0].width}x{rows[0].height}, {result['spp']} spp, median of {result['repeats']} "
                    f"timed renders after a warm-up; ground truth: {gt['source']} {gt['spp'] or ''} spp "
                    f"{gt['variant'] or ''}".rstrip())
-        out.append(format_table(rows))
+        out.append(format_table(rows, block.get("embree_rate")))
+        if block.get("embree_rate") is not None:
+            out.append(format_embree(block["embree_rate"]))
         ratio_text = ", ".join(f"{k} {v:.2f}" for k, v in block["ratios"].items())
-        out.append(f"reference / Mitsuba: {ratio_text}")
+        out.append(f"reference / Mitsuba: {ratio_text}"
+                   + (f" (Mitsuba's best: {block['mitsuba_best']})" if block.get("mitsuba_best") else ""))
         for label, values in (block.get("contenders") or {}).items():
             row = next((r for r in rows if r.label == label), None)
             text = ", ".join(f"{k} {v:.3g}" for k, v in values.items() if isinstance(v, float) and math.isfinite(v))
@@ -411,8 +545,8 @@ def format_report(result: dict) -> str:
         out.append("")
     for target in result.get("targets", []):
         measured = "not measured" if target["measured"] is None else f"{target['measured']:.2f}"
-        state = {True: "met", False: "NOT met", None: "unknown"}[target["met"]]
-        out.append(f"target {target['ratio']} >= {target['minimum']:.2f}: {measured} ({state})")
+        state = "met" if target["met"] else "NOT met"
+        out.append(f"target {target['name']} on {target['scene']} >= {target['minimum']:.2f}: {measured} ({state})")
     if "scaling" in result:
         s = result["scaling"]
         out.append(f"scaling ({s['scene']}): microseconds per path by spp "

@@ -31,6 +31,8 @@ module              what it holds                                              n
 ``path``            whole paths, one at a time                                 the same bits as ``wavefront``
 ``glossy``          whole paths on scenes with materials that are not          (none: its checks are closed forms
                     Lambertian (BSDF sampling, MIS), and for direct = bsdf     and the other strategies)
+``record``          the glossy engine's rays and Embree's answers, recorded    (none: reference_impl.replay checks
+                    for replay (compiled out of a render)                      the replayed hits against them)
 ``film``            the samples' end: non-finite count, per-pixel sums         ``np.cumsum`` in sample order
 =================== ========================================================== ====================================
 

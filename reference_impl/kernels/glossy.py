@@ -46,6 +46,7 @@ from reference_impl.kernels.emitters import env_light_pdf, env_radiance, env_sam
 from reference_impl.kernels.light_sampling import point_on_triangle, search_within
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
+from reference_impl.kernels.record import record_camera, record_closest, record_occluded
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
@@ -147,11 +148,12 @@ def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1
 
 
 @njit(**JIT)
-def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, counters, timing, emitters):
+def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, counters, timing, emitters, record=None):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one at a time
     (module docstring). ``scene``, ``lights``, ``emitters`` (or None) as for :func:`.path.trace_paths`;
     ``materials`` = (kind, params) of :class:`reference_impl.Materials`, indexed by the scene's material ids.
-    ``timing`` as for trace_paths."""
+    ``timing`` as for trace_paths. ``record``: None in a render (compiled out), or buffers that receive every
+    query's ray and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     emission, light_id, tri_material = scene[4], scene[5], scene[6]
     mkind, mparams = materials
@@ -177,6 +179,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
         t_start = now_ns(ts)
         closest_prims_packets(scene_ptr, o32, d32, first_prim)
         packet_ns = now_ns(ts) - t_start
+        if record is not None:
+            record_camera(record, o32, d32, first_prim)
 
     count_back_face = 0
     count_escaped = 0
@@ -203,6 +207,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
             elif scene_ptr != 0:
                 p, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1,
                                                             o2, d0, d1, d2)
+                if record is not None:
+                    record_closest(record, o0, o1, o2, d0, d1, d2, p)
             else:
                 p = -1
             if p < 0:
@@ -294,6 +300,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
                                                                       sampled_ns, so0, so1, so2, r0, r1, r2,
                                                                       np.float32(tfar))
+                        if record is not None:
+                            record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
                     if not blocked:
                         tot0 += v0 * f0 * w
                         tot1 += v1 * f1 * w

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 
@@ -51,10 +52,21 @@ def test_efficiency_and_ratios():
     r = bench.ratios(rows)
     assert r == {"efficiency_vs_llvm_ad_rgb": 0.5, "paths_per_second_vs_llvm_ad_rgb": 0.5,
                  "efficiency_vs_scalar_rgb": 3.0, "paths_per_second_vs_scalar_rgb": 2.0,
-                 "efficiency_vs_llvm_ad_rgb_ldsampler": 0.25, "paths_per_second_vs_llvm_ad_rgb_ldsampler": 0.5}
-    targets = bench.check_targets(r)
-    assert [t["met"] for t in targets] == [True, True]
-    assert [t["met"] for t in bench.check_targets({"efficiency_vs_scalar_rgb": 2.9})] == [None, False]
+                 "efficiency_vs_llvm_ad_rgb_ldsampler": 0.25, "paths_per_second_vs_llvm_ad_rgb_ldsampler": 0.5,
+                 "efficiency_vs_mitsuba_best": 0.25}
+    assert bench.best_mitsuba(rows).label == "mitsuba llvm_ad_rgb ldsampler"
+    block = {"ratios": r, "rows": [bench.row_dict(row) | {"cores_busy": 2.0} for row in rows]}
+    targets = bench.check_targets({"cornell-box": block, "veach-mis": {"ratios": {"efficiency_vs_mitsuba_best": 1.0},
+                                                                       "rows": []}})
+    assert [(t["name"], t["scene"], t["met"]) for t in targets] == [
+        ("efficiency_vs_llvm_ad_rgb_ldsampler", "cornell-box", False),
+        ("efficiency_vs_mitsuba_best", "veach-mis", True),
+        ("paths_per_second_vs_llvm_ad_rgb", "cornell-box", False),
+        ("cores_busy", "cornell-box", 2.0 >= 0.9 * os.cpu_count())]
+    assert not bench.targets_met(targets) and bench.targets_met(targets[1:2])
+    nan = {"ratios": {"efficiency_vs_mitsuba_best": math.nan}, "rows": []}
+    assert [t["met"] for t in bench.check_targets({"veach-mis": nan})] == [None]
+    assert not bench.targets_met(bench.check_targets({"veach-mis": nan}))
 
 
 def test_bench_scene_races_contenders_against_a_closed_form():

@@ -1,0 +1,173 @@
+"""``harness bench``'s Embree row and its targets: the recorded rays are the render's, their replay gives the recorded
+answers at a positive rate, and ``--check`` exits 1 exactly when a target is not met (on fake rows: no real race).
+
+Rates are measurements, not tests (docs/performance.md); these tests check the counts, the answers and the shape."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from conftest import load_small, render_reference
+
+from harness.cli import main
+from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.groundtruth import GroundTruth
+from harness.scene import emitter_arrays, material_arrays, triangulate
+from harness.studies import bench, embree_rate
+from reference_impl import replay
+
+pytestmark = pytest.mark.slow  # renders: outside the inner loop (pytest -m "not slow")
+
+
+def _record(scene, spp, max_rays=10**9):
+    settings = get_renderer("reference").settings_for(scene, RenderRequest(spp=spp, seed=3))
+    return replay.record_rays(triangulate(scene), scene.camera, scene.film, settings, emitter_arrays(scene),
+                              material_arrays(scene), max_rays=max_rays)
+
+
+@pytest.mark.parametrize("name, room", [("cornell-box", None), ("cornell-box-specular", 0)])
+def test_the_recorded_rays_are_the_renders_and_replay_to_the_same_hits(name, room, monkeypatch):
+    """The whole film recorded: as many camera, closest-hit and occlusion queries as the render's counters say (the
+    Lambertian scene through the wavefront, the glossy one through its own engine's record, here with no room at
+    first, so that every batch is traced again with room for its queries); replayed on 1 and 2 threads, every
+    answer equals the recorded one, at a positive rate."""
+    if room is not None:
+        monkeypatch.setattr(replay, "ROOM_PER_PATH", room)
+    scene = load_small(name, 12)
+    log = _record(scene, 4)
+    stats = render_reference(scene, 4, seed=3).stats
+    assert log.paths == 12 * 12 * 4
+    assert log.count("camera") == stats["camera_rays"] == log.paths
+    assert log.count("closest") == stats["indirect_rays"] + stats["hemisphere_direct_rays"] > 0
+    assert log.count("occlusion") == stats["shadow_rays"] > 0
+    assert any(np.any(e[2] < 0) for e in log.closest) or any(np.any(e[2] < 0) for e in log.camera)  # misses too
+    assert any(np.any(e[3] == 1) for e in log.occlusion) and any(np.any(e[3] == 0) for e in log.occlusion)
+    for threads in (1, 2):
+        out = replay.replay_rays(log, threads=threads, repeats=1)
+        assert out["mismatches"] == {"camera": 0, "closest": 0, "occlusion": 0}
+        assert out["rays"] == {phase: log.count(phase) for phase in replay.PHASES}
+        assert out["threads"] == threads
+        for key in ("closest_hit_rays_per_second", "occlusion_rays_per_second", "rays_per_second"):
+            assert out[key] > 0 and math.isfinite(out[key])
+        total = sum(out["rays"].values()) / sum(out["seconds"].values())
+        assert out["rays_per_second"] == pytest.approx(total)
+
+
+def test_a_changed_answer_is_found(monkeypatch):
+    """The check can fail: one recorded hit changed is one mismatch, and the bench row is skipped, saying so."""
+    record = replay.record_rays
+
+    def changed(*args, **kwargs):
+        log = record(*args, **kwargs)
+        log.closest[0][2][0] = 10**6  # no such primitive
+        return log
+
+    monkeypatch.setattr(replay, "record_rays", changed)
+    rate = embree_rate.EmbreeRate(load_small("cornell-box", 8), spp=2)
+    rate.warm_up()
+    out = rate.result(1e6)
+    assert out["mismatches"] == {"camera": 0, "closest": 1, "occlusion": 0} and "closest 1" in out["error"]
+    assert "skipped: the replay's answers differ" in bench.format_table([], out)
+
+
+def test_recording_stops_near_its_budget():
+    """Runs of whole pixels (all their samples) until max_rays are recorded: past the budget by less than one batch
+    (here 12 pixels x 16 samples, at most 1 + 2 x max_depth = 17 queries a path), far fewer than the film's paths."""
+    scene = load_small("cornell-box", 64)
+    budget = 64 * 200  # batches of max(16, min(batch_size, budget // 64)) // 16 = 12 pixels
+    log = _record(scene, 16, max_rays=budget)
+    assert budget <= log.rays < budget + 12 * 16 * 17
+    assert log.paths % (12 * 16) == 0 and log.paths < 64 * 64 * 16 // 4
+
+
+def _fake_rows(values: dict[str, tuple[float, float, float]]):
+    """A bench_scene that returns a row per contender with (efficiency, paths per second, cores) from ``values``
+    (by label; missing: 1, 1, 1) and calls ``between`` as the real one does."""
+
+    def fake(scene, contenders, *, spp, repeats, gt, seed=1, on_render=None, between=None):
+        rows = []
+        for c in contenders:
+            eff, pps, cores = values.get(c.label, (1.0, 1.0, 1.0))
+            rows.append(bench.Row(scene.name, c.label, c.renderer, dict(c.settings), spp, scene.film.width,
+                                  scene.film.height, seconds=1.0, seconds_all=[1.0], paths_per_second=pps,
+                                  rays_per_second=5e6 if c.renderer == "reference" else None, cores_busy=cores,
+                                  mse=1.0 / eff, efficiency=eff))
+        for attempt in range(repeats + 1):
+            if between is not None:
+                between(attempt)
+        return rows
+
+    return fake
+
+
+def _fake_race(monkeypatch, values):
+    monkeypatch.setattr(bench, "bench_scene", _fake_rows(values))
+    monkeypatch.setattr(bench, "ground_truth", lambda scene, **kw: GroundTruth(
+        np.zeros((scene.film.height, scene.film.width, 3)), None, "closed-form", 0))
+
+
+def _all_met(cpus):
+    good = (10.0, 10.0, float(cpus))
+    return {"reference": good, "mitsuba llvm_ad_rgb ldsampler": (1.0, 1.0, 1.0)}
+
+
+def test_check_exits_1_with_a_target_not_met_and_0_when_all_are_met(monkeypatch, capsys):
+    """``--check`` races the five target scenes (from the default three: veach-mis and cornell-box-specular added,
+    with the extra Mitsuba samplers there), prints each target as ``target NAME on SCENE >= X: VALUE (met|NOT met)``
+    and exits 1 when one is not met."""
+    cpus = os.cpu_count() or 1
+    _fake_race(monkeypatch, _all_met(cpus))
+    assert main(["bench", "--check", "--quiet", "--no-embree-rate", "--no-strategies", "--repeats", "1"]) == 0
+    text = capsys.readouterr().out
+    lines = [line for line in text.splitlines() if line.startswith("target ")]
+    assert len(lines) == 3 + 2 + 1 + 1 and all(line.endswith("(met)") for line in lines), lines
+    assert "target efficiency_vs_mitsuba_best on veach-mis >= 1.00: 10.00 (met)" in lines
+    assert f"target cores_busy on cornell-box >= {0.9 * cpus:.2f}: {cpus:.2f} (met)" in lines
+    assert "mitsuba llvm_ad_rgb stratified" in text and "mitsuba llvm_ad_rgb multijitter" in text
+
+    # the best sampler on cornell-box-specular beats the reference there (multijitter: efficiency 20 > 10)
+    _fake_race(monkeypatch, _all_met(cpus) | {"mitsuba llvm_ad_rgb multijitter": (20.0, 1.0, 1.0)})
+    assert main(["bench", "--check", "--quiet", "--no-embree-rate", "--no-strategies", "--repeats", "1"]) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("target ")]
+    assert "target efficiency_vs_mitsuba_best on cornell-box-specular >= 1.00: 0.50 (NOT met)" in lines
+    assert sum(line.endswith("(NOT met)") for line in lines) == 2  # on both best-sampler scenes
+
+    # both cores not busy: the paths/s target alone is met
+    _fake_race(monkeypatch, _all_met(cpus) | {"reference": (10.0, 10.0, 0.5 * cpus)})
+    assert main(["bench", "--check", "--quiet", "--no-embree-rate", "--no-strategies", "--repeats", "1",
+                 "--scene", "cornell-box"]) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("target ")]
+    assert [line.endswith("(NOT met)") for line in lines] == [False, False, False, False, False, False, True]
+
+
+def test_the_json_holds_the_embree_rate_and_the_targets(monkeypatch, capsys, tmp_path):
+    """``scenes.<scene>.embree_rate`` (a real recording and replay of a small Cornell box, the renders faked) and
+    ``targets``: one entry per target and scene benched, with the old keys (ratio, minimum, measured, met)."""
+    _fake_race(monkeypatch, {})
+    small = tmp_path / "small.toml"
+    text = (bench.ROOT / "scenes" / "cornell-box.toml").read_text().replace("width = 256", "width = 16")
+    small.write_text(text.replace("height = 256", "height = 16"))
+    assert main(["bench", "--scene", str(small), "--spp", "4", "--repeats", "2", "--no-strategies", "--quiet",
+                 "--json", "--allow-outside-paths"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    block = result["scenes"]["cornell-box"]
+    rate = block["embree_rate"]
+    assert rate["label"] == "embree (own rays)" and rate["error"] is None and rate["replays"] == 2
+    assert rate["recorded_paths"] == 16 * 16 * 4 and rate["recorded_rays"] == sum(rate["rays"].values())
+    assert set(rate["rays"]) == set(rate["seconds"]) == {"camera", "closest", "occlusion"}
+    assert rate["mismatches"] == {"camera": 0, "closest": 0, "occlusion": 0}
+    assert rate["rays_per_second"] > 0 and rate["reference_rays_per_second"] == 5e6
+    assert rate["reference_fraction"] == pytest.approx(5e6 / rate["rays_per_second"])
+    targets = result["targets"]
+    assert [(t["name"], t["scene"]) for t in targets] == [
+        ("efficiency_vs_llvm_ad_rgb_ldsampler", "cornell-box"), ("paths_per_second_vs_llvm_ad_rgb", "cornell-box"),
+        ("cores_busy", "cornell-box")]
+    assert all(set(t) >= {"ratio", "minimum", "measured", "met"} for t in targets)
+    assert block["mitsuba_best"] is not None and "efficiency_vs_mitsuba_best" in block["ratios"]
+    assert main(["bench", "--scene", str(small), "--spp", "4", "--repeats", "1", "--no-strategies", "--quiet",
+                 "--json", "--allow-outside-paths", "--no-embree-rate"]) == 0
+    assert "embree_rate" not in json.loads(capsys.readouterr().out)["scenes"]["cornell-box"]
