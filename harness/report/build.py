@@ -1,6 +1,7 @@
-"""The report of a suite run. It formats (and renders nothing): the run's results.json, the EXRs of its cases (each
-render and the ground truth it was judged against, from the files results.json names) and its studies
-(``studies/studies.json`` with their images and plots, computed by ``harness run``:
+"""The report of a suite run. It formats (and renders nothing): the run's results.json, its cases' report images (made
+by ``harness run`` when it judged each case, :mod:`harness.files.report_images`; for a run by an older harness made
+here from the EXRs of its cases: each render and the ground truth it was judged against, from the files results.json
+names) and its studies (``studies/studies.json`` with their images and plots, computed by ``harness run``:
 :mod:`harness.studies.suite_studies`). It writes ``DIR/index.html`` (one self-contained page, from the Jinja2
 templates in ``harness/report/templates``), ``DIR/report.json`` (every number behind it), ``DIR/summary.md``, and
 every image as EXR + PNG under ``DIR/report/``. See docs/report.md."""
