@@ -230,6 +230,29 @@ def atomic_write_text(path: str | os.PathLike[str], text: str, encoding: str = "
     return atomic_write_bytes(path, text.encode(encoding))
 
 
+def link_or_copy(source: str | os.PathLike[str], dest: str | os.PathLike[str], data: bytes | None = None) -> Path:
+    """Atomically make ``dest`` hold the file ``source`` (a finished, durable file that is never rewritten in place:
+    the harness replaces files, it does not edit them); returns ``dest``.
+
+    A hard link where the file system allows it (no bytes copied, nothing to fsync): linked under a temporary name
+    beside ``dest``, then ``os.replace``'d over it. Where it does not (another file system, a file of another user,
+    a full disk), a copy with :func:`atomic_write_bytes` (of ``data`` when the caller has read the file already).
+    Errors as :func:`atomic_write_bytes`; an unreadable ``source`` is an ``OSError``."""
+    dest = Path(dest)
+    tmp = dest.parent / f".{dest.name}.{uuid.uuid4().hex[:12]}{dest.suffix}"
+    try:
+        os.link(source, tmp)
+    except OSError:
+        return atomic_write_bytes(dest, Path(source).read_bytes() if data is None else data)
+    try:
+        os.replace(tmp, dest)
+    except OSError as err:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise WriteError(str(dest), f"cannot write: {_write_reason(dest.parent, err)}") from None
+    return dest
+
+
 def make_folders(path: str | os.PathLike[str], where: str | None = None) -> list[Path]:
     """Create the folder ``path`` and its missing parents; returns the folders created, outermost first, so that
     :func:`remove_folders` can take them back when what follows fails (no empty folders left by a failed command).

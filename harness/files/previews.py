@@ -173,9 +173,11 @@ class ImageWriter:
         return ReportImage(key, title, encoded, exr, png, description, stats={"pixels": int(m.sum())})
 
 
-def error_images(writer: ImageWriter, test: np.ndarray, expected: np.ndarray) -> list[ReportImage]:
+def error_images(writer: ImageWriter, test: np.ndarray, expected: np.ndarray,
+                 flip: tuple[float, np.ndarray] | None = None) -> list[ReportImage]:
     """Signed error (diverging, symmetric limits), relative error and the FLIP map of ``test`` against ``expected``
-    (the ground truth)."""
+    (the ground truth). ``flip``: ``metrics.flip(test, expected, full=True)`` where the caller has it already (the
+    case's comparison computes it), else it is computed here."""
     signed = signed_error(test, expected)
     lim = robust_limit(signed)
     rel = relative_error(test, expected)
@@ -190,7 +192,7 @@ def error_images(writer: ImageWriter, test: np.ndarray, expected: np.ndarray) ->
             description=f"|render - ground truth| / (|ground truth| + {RELATIVE_EPS:g}), mean over R, G, B (the map's "
                         f"mean is MAPE); limits 0..{rel_lim:.3g} (the {LIMIT_PERCENTILE:g}th percentile)"),
     ]
-    flip_mean, flip_map = metrics.flip(test, expected, full=True)
+    flip_mean, flip_map = flip if flip is not None else metrics.flip(test, expected, full=True)
     images.append(writer.heatmap(
         "flip", "FLIP", flip_map, cmap=FLIP_CMAP, vmin=0.0, vmax=1.0,
         description=f"HDR-FLIP error map (flip-evaluator), 0..1; mean {flip_mean:.4g}"))

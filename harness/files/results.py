@@ -304,12 +304,22 @@ VERDICT = Obj({
 RENDER = Obj({"seconds": SECONDS, "spp": COUNT, "paths_per_second": NON_NEGATIVE, "rays": DictOf(COUNT),
               "nonfinite_pixels": COUNT, "settings": DictOf(ANY), "info": DictOf(ANY), "exr": STR})
 
+FILE_NAME = Scalar("a file name (no folder)", lambda v: isinstance(v, str) and v not in ("", ".", "..")
+                   and not any(c in v for c in "/\\\0"))
+
+REPORT_IMAGE = Obj({"key": NAME, "title": STR, "exr": FILE_NAME, "png": FILE_NAME, "description": STR,
+                    "legend": Nullable(Obj({"cmap": STR, "vmin": NUM_OR_NULL, "vmax": NUM_OR_NULL,
+                                            "stops": ListOf(STR), "unit": STR})),
+                    "stats": DictOf(NUM_OR_NULL)})
+
+REPORT_IMAGES = Obj({"folder": STR, "error_maps": DictOf(NUM_OR_NULL), "images": ListOf(REPORT_IMAGE)})
+
 CASE_ALWAYS = {"name": NAME, "scene": STR, "renderer": STR, "settings": DictOf(STR), "budget": BUDGET, "seed": COUNT,
                "expect": Enum("pass", "fail"), "against": AGAINST, "status": Enum("pass", "fail", "error"),
                "ok": BOOL, "reason": STR, "definition": STR, "wall_seconds": Nullable(SECONDS)}
 CASE_COMPARED = {"metrics": METRICS, "verdict": VERDICT, "thresholds": DictOf(NUMBER),
                  "thresholds_broken": ListOf(STR), "render": RENDER}  # required unless status is "error"
-CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR}
+CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES}
 
 
 class _Case(Spec):

@@ -77,7 +77,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy import stats
 
 __all__ = [
     "FAMILY_ALPHA",
@@ -278,6 +277,8 @@ def pooled_statistic(
 def _p_value(statistic: float, dof: int) -> float:
     if dof < 1:
         return float("nan")
+    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
     return float(stats.chi2.sf(statistic, dof))
 
 

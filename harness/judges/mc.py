@@ -52,7 +52,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
 __all__ = ["FALSE_ALARM", "FLOAT32_REL", "ImageMean", "image_mean", "z_critical", "z_scores", "tile_chi2"]
 
@@ -82,6 +81,8 @@ def z_critical(alpha: float, comparisons: int) -> float:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha!r}")
     if not (isinstance(comparisons, (int, np.integer)) and comparisons >= 1):
         raise ValueError(f"comparisons must be an integer >= 1, got {comparisons!r}")
+    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
     return float(stats.norm.isf(alpha / (2 * comparisons)))
 
 
@@ -199,5 +200,7 @@ def tile_chi2(diff: np.ndarray, var: np.ndarray, tile: int) -> tuple[float, int,
     z2 = d[ok] ** 2 / v[ok]
     dof = int(ok.sum())
     statistic = float(z2.sum())
+    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
     p = float(stats.chi2.sf(statistic, dof)) if dof else float("nan")
     return statistic, dof, p

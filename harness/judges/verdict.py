@@ -50,7 +50,6 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from harness.core.errors import HarnessError
 
@@ -126,9 +125,6 @@ def _tile_sum(x: np.ndarray, tile: int) -> np.ndarray:
     return x.reshape(th, tile, tw, tile, c).sum(axis=(1, 3))
 
 
-_LARGEST_NORMAL_Z = float(stats.norm.isf(np.finfo(float).tiny))
-
-
 def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
     """The normal quantile with the same tail probability as ``z`` under Student's t(dof).
 
@@ -140,11 +136,13 @@ def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
     out = z.copy()
     finite = np.isfinite(dof) & np.isfinite(z)
     if finite.any():
+        from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
         tail = stats.t.sf(np.abs(z[finite]), dof[finite])
         converted = stats.norm.isf(tail)
         # Where the t tail underflows to 0 the normal quantile is inf; report the largest finite one instead
         # (about 37.5: "at least this many standard deviations"), which is just as decisive and keeps sums finite.
-        converted = np.where(np.isfinite(converted), converted, _LARGEST_NORMAL_Z)
+        converted = np.where(np.isfinite(converted), converted, float(stats.norm.isf(np.finfo(float).tiny)))
         out[finite] = np.sign(z[finite]) * converted
     return out
 
@@ -288,6 +286,8 @@ def verdict(
     max :math:`p = 1 - (1 - 2\Phi(-\max|z|))^K`.  Fail if any p < alpha / 3,
     if a zero-variance tile differs, or if a test pixel is not finite.
     """
+    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
     test_name, expected_name = names
     if test_variance is None or expected_variance is None:
         which = test_name if test_variance is None else expected_name

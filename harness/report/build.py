@@ -1,6 +1,7 @@
-"""The report of a suite run. It formats (and renders nothing): the run's results.json, the EXRs of its cases (each
-render and the ground truth it was judged against, from the files results.json names) and its studies
-(``studies/studies.json`` with their images and plots, computed by ``harness run``:
+"""The report of a suite run. It formats (and renders nothing): the run's results.json, its cases' report images (made
+by ``harness run`` when it judged each case, :mod:`harness.files.report_images`; for a run by an older harness made
+here from the EXRs of its cases: each render and the ground truth it was judged against, from the files results.json
+names) and its studies (``studies/studies.json`` with their images and plots, computed by ``harness run``:
 :mod:`harness.studies.suite_studies`). It writes ``DIR/index.html`` (one self-contained page, from the Jinja2
 templates in ``harness/report/templates``), ``DIR/report.json`` (every number behind it), ``DIR/summary.md``, and
 every image as EXR + PNG under ``DIR/report/``. See docs/report.md."""
@@ -20,10 +21,10 @@ from harness.core import jsonsafe
 from harness.core.progress import Progress
 from harness.files.cases import GroundTruthImage, read_case_images, slug
 from harness.files.imageio import StagedFolder, WriteError, atomic_write_bytes, atomic_write_text, make_folders
-from harness.files.previews import ImageWriter, ReportImage, display_exposure, error_images
+from harness.files.previews import ReportImage
+from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, studies_folder, study_file
-from harness.judges.floor import error_point
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render
 from harness.studies import figures
 
@@ -141,8 +142,7 @@ def _suite_report(results: dict, results_path: Path | None, results_dir: Path, s
             used.add(name)
             item = ReportCase(record=record, index=index, slug=name)
             try:
-                _load_case(item, results_dir)
-                _case_images(item, out)
+                _case_images(item, results_dir, out)
             except WriteError:
                 raise
             except Exception as err:  # noqa: BLE001 - a broken case is reported in its section
@@ -181,28 +181,25 @@ def _load_case(item: ReportCase, results_dir: Path) -> None:
     item.problems.extend(images.problems)
 
 
-def _case_images(item: ReportCase, out: Path) -> None:
-    if item.render is None or item.gt is None:
-        return
-    writer = ImageWriter(out / "report" / item.slug, {"case": item.record["name"]})
-    gt = item.gt
-    exposure = display_exposure(gt.image)
-    item.images.append(writer.radiance("ground_truth", "Ground truth", gt.image, gt.variance,
-                                       description=f"{gt.source}" + (f", {gt.spp} spp" if gt.spp else ""),
-                                       exposure=exposure))
-    item.images.append(writer.radiance("render", "Render", item.render, item.render_variance,
-                                       description=f"{item.record.get('renderer')}, "
-                                                   f"{(item.record.get('render') or {}).get('spp')} spp",
-                                       exposure=exposure))
-    item.images.extend(error_images(writer, item.render, gt.image))
-    point = error_point(item.render, gt.image, gt.variance)
-    by_key = {im.key: im for im in item.images}
-    item.summary = {
-        "mse": point["mse"], "floor_mse": point["floor_mse"], "mse_corrected": point["mse_corrected"],
-        "mean_signed_error": by_key["error_signed"].stats.get("mean"),
-        "mean_relative_error": by_key["error_relative"].stats.get("mean"),
-        "flip_map_mean": by_key["flip"].stats.get("mean"),
-    }
+def _case_images(item: ReportCase, results_dir: Path, out: Path) -> None:
+    """The case's images in ``out/report/<case>`` and their numbers: those ``harness run`` made when it judged the
+    case (``report_images`` in its record, :mod:`harness.files.report_images`), linked or copied; for a run by an
+    older harness (or images gone missing), made here from the case's EXRs as the run makes them."""
+    folder = out / "report" / item.slug
+    stored = read_report_images(item.record, results_dir)
+    if stored is not None:
+        placed = stored.placed(folder)
+    else:
+        _load_case(item, results_dir)
+        if item.render is None or item.gt is None:
+            return
+        gt = item.gt
+        placed = make_report_images(folder, case=item.record["name"], renderer=item.record.get("renderer"),
+                                    spp=(item.record.get("render") or {}).get("spp"), render=item.render,
+                                    render_variance=item.render_variance, truth=gt.image, truth_variance=gt.variance,
+                                    truth_source=gt.source, truth_spp=gt.spp)
+    item.images.extend(placed.images)
+    item.summary = dict(placed.error_maps)
 
 
 def _add_study_problems(items: list[ReportCase], studies: dict | None) -> None:

@@ -44,7 +44,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError, read_user_text
@@ -281,6 +280,8 @@ def check_matches(doc: dict, path: str | Path, suite) -> None:
 
 
 def _z_one_sided(a: float) -> float:
+    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
     return float(stats.norm.isf(a))
 
 
@@ -323,7 +324,7 @@ def compare(base: dict, new: dict, tolerance: dict[str, float | str]) -> dict:
     rule = tolerance.get("bias", "off")
     if rule != "off" and bs.get("mean") and ns.get("mean"):
         if rule == "auto":
-            bound = float(stats.norm.isf(-math.expm1(math.log1p(-a) / 3) / 2))  # Šidák over 3 channels, two-sided
+            bound = _z_one_sided(-math.expm1(math.log1p(-a) / 3) / 2)  # Šidák over 3 channels, two-sided
         else:
             bound = float(rule)
         b_se, n_se = bs.get("mean_stderr") or [0.0] * 3, ns.get("mean_stderr") or [0.0] * 3

@@ -49,7 +49,8 @@ def _size(image: np.ndarray) -> str:
     return f"{image.shape[1]}x{image.shape[0]}"
 
 
-def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names: tuple[str, str]) -> dict:
+def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names: tuple[str, str],
+             maps: dict | None = None) -> dict:
     test_name, expected_name = names
     if test.image.shape != expected.image.shape:
         raise HarnessError(
@@ -77,6 +78,9 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
     nonfinite = {"test": metrics.count_nonfinite(t), "ground_truth": metrics.count_nonfinite(r)}
     finite_expected = r[mask]
     psnr_peak = float(finite_expected.max()) if finite_expected.size else float("nan")
+    flip_mean, flip_map = metrics.flip(t, r, full=True)
+    if maps is not None:
+        maps["flip"] = (flip_mean, flip_map)
     result = {
         "width": w,
         "height": h,
@@ -90,7 +94,7 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
             "mape": metrics.mape(t, r),
             "psnr": metrics.psnr(t, r),
             "ssim": metrics.ssim(t, r),
-            "flip": metrics.flip(t, r),
+            "flip": flip_mean,
         },
         "bias": metrics.bias(t, r, test.variance, expected.variance),
         "conventions": {
@@ -106,7 +110,8 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
     return plain(result)
 
 
-def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01) -> dict:
+def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,
+                   maps: dict | None = None) -> dict:
     """Every metric of ``test`` against ``expected`` (the ground truth), the statistical verdict and the statistics
     behind it.
 
@@ -126,10 +131,14 @@ def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: 
     ``zero_variance``, ``worst_tile``, ``variance_dof``).  Non-finite floats
     are None.
 
+    ``maps``: where given, a dict that receives the per-pixel maps computed on the way, for a caller that shows
+    them: ``"flip"``, the ``(mean, map)`` of :func:`harness.judges.metrics.flip` with ``full=True`` (FLIP is the
+    slowest metric; ``harness run`` draws the case's FLIP map from it instead of computing it again).
+
     Raises :class:`HarnessError` if the sizes differ, a variance is missing or
     invalid, or the expected image has non-finite pixels.
     """
-    return _compare(test, expected, tile, alpha, ("test image", "ground truth image"))
+    return _compare(test, expected, tile, alpha, ("test image", "ground truth image"), maps)
 
 
 def compare_files(

@@ -1,6 +1,7 @@
 """Judging one case: its ground truth (:func:`ground_truth_for`), its render within the budget
-(:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`) and its
-thresholds, as the case's record in ``results.json`` (``docs/results-schema.md``)."""
+(:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`), its thresholds and
+its report images (:mod:`harness.files.report_images`), as the case's record in ``results.json``
+(``docs/results-schema.md``)."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.files.cases import GROUND_TRUTH_FILE
 from harness.files import imageio
+from harness.files.report_images import IMAGES_FOLDER, ReportImages, make_report_images
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.renderers.external import variance_metadata
 from harness.renderers.validate import validate_result
@@ -105,10 +107,11 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
         gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+        maps: dict = {}
         comparison = compare_images(
             imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
             imageio.ExrImage(gt.image, gt.variance, gt_meta),
-            tile=case.tile, alpha=case.alpha,
+            tile=case.tile, alpha=case.alpha, maps=maps,
         )
         all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
         metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
@@ -125,6 +128,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
                     "rays": result.rays, "nonfinite_pixels": result.nonfinite_pixels, "settings": result.settings,
                     "info": result.info, "exr": str(folder / "render.exr")},
         )
+        images = report_images(case, folder, result, gt, maps.get("flip"))
+        if images is not None:
+            record["report_images"] = images.record()
     except HarnessError:
         raise
     except Exception as err:  # a renderer or adapter failure fails this case only
@@ -132,6 +138,29 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
                       traceback=traceback.format_exc(limit=8))
     record["wall_seconds"] = time.perf_counter() - start
     return record
+
+
+def report_images(case: Case, folder: Path, result, gt, flip) -> ReportImages | None:
+    """The case's report images, written into ``folder/images`` (:func:`harness.files.report_images.make_report_images`)
+    from the images as its EXRs hold them (float32); ``flip``: the comparison's FLIP ``(mean, map)``, used where it
+    was computed on those very arrays. None where they cannot be made for a reason of their own (the report then
+    tries again and names it in the case's section): the case's outcome stands. A file that cannot be written is a
+    WriteError, which stops the run as the render's would."""
+    render = np.asarray(result.image, np.float32)
+    truth = np.asarray(gt.image, np.float32)
+    try:
+        with imageio.removed_on_failure(imageio.make_folders(folder / IMAGES_FOLDER)):  # no empty folder left
+            return make_report_images(
+                folder / IMAGES_FOLDER, case=case.name, renderer=case.renderer, spp=result.spp, render=render,
+                render_variance=None if result.variance is None else np.asarray(result.variance, np.float32),
+                truth=truth, truth_variance=(np.zeros_like(truth) if gt.variance is None
+                                             else np.asarray(gt.variance, np.float32)),
+                truth_source=str(gt.source or "ground truth"), truth_spp=int(gt.spp or 0),
+                flip=flip if render is result.image and truth is gt.image else None)
+    except HarnessError:
+        raise
+    except Exception:  # noqa: BLE001 - a map that cannot be drawn is the report's to name, not the case's failure
+        return None
 
 
 def case_header(case: Case) -> dict[str, Any]:

@@ -20,7 +20,6 @@ import time
 from collections.abc import Callable
 
 import numpy as np
-from scipy import stats
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
@@ -131,6 +130,8 @@ def fireflies(image, variance, reference, reference_variance, k: float = DEFAULT
     more frequent than that; so are dark outliers, in pixels whose rare bright paths were not drawn (their sample
     variance underestimates the true one): the untransformed scene's row is the baseline to compare with.
     """
+    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
+
     t = np.asarray(image, np.float64)
     r = np.asarray(reference, np.float64)
     sigma = np.sqrt(np.asarray(variance, np.float64) + np.asarray(reference_variance, np.float64))

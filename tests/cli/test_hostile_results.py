@@ -112,6 +112,9 @@ HAND_PICKED = {
                    'cases[0].status: expected one of "pass", "fail", "error", got "passed"'),
     "bool-for-int": (lambda d: _set(d, ("summary", "cases"), True), "summary.cases: expected an integer >= 0, got true"),
     "schema-2": (lambda d: _set(d, ("schema",), 2), "schema: expected 1 (the schema this harness reads), got 2"),
+    "image-file-is-a-path": (lambda d: _set(d, ("cases", 0, "report_images", "images", 2, "png"), "../../x.png"),
+                             'cases[0].report_images.images[2].png: expected a file name (no folder), got '
+                             '"../../x.png"'),
     "odd-key": (lambda d: _set(d, ("cases", 0, "settings"), {"a\nb": 3}),
                 'cases[0].settings["a\\nb"]: expected a string, got 3'),
 }
@@ -329,7 +332,9 @@ def test_summary_md_escapes_every_user_string(real, tmp_path):
 
 class Disk:
     """A disk that fills up under ``root``: opening a file there for writing raises ENOSPC (after ``after``
-    successful opens, for files whose path contains ``name``), and with ``folders`` so does making a folder."""
+    successful opens, for files whose path contains ``name``), and with ``folders`` so does making a folder. A hard
+    link made there fails too (a new directory entry needs room), so a report that links the run's images falls back
+    to copying them, and each copy is an open that counts."""
 
     def __init__(self, monkeypatch, root: Path):
         self.root = str(root)
@@ -337,7 +342,7 @@ class Disk:
         self.after = 0
         self.folders = False
         self.full = False
-        real_open, real_mkdir = io.open, os.mkdir
+        real_open, real_mkdir, real_link = io.open, os.mkdir, os.link
 
         def fake_open(file, mode="r", *args, **kwargs):
             handle = real_open(file, mode, *args, **kwargs)
@@ -355,7 +360,13 @@ class Disk:
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), os.fspath(path))
             return real_mkdir(path, *args, **kwargs)
 
+        def fake_link(source, dest, *args, **kwargs):
+            if self.full and os.path.abspath(os.fspath(dest)).startswith(self.root):
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), os.fspath(dest))
+            return real_link(source, dest, *args, **kwargs)
+
         monkeypatch.setattr(io, "open", fake_open)
+        monkeypatch.setattr(os, "link", fake_link)
         monkeypatch.setattr(builtins, "open", fake_open)
         monkeypatch.setattr(os, "mkdir", fake_mkdir)
 
@@ -391,8 +402,9 @@ def test_a_failed_report_keeps_the_old_one(fail, real, tmp_path, disk, capfd):
     assert "index.html" in old and any(name.startswith("report/") for name in old)
     doc = copy.deepcopy(real["doc"])  # a new report that differs from the old one in every case's images
     doc["description"] = "the second report"
-    doc["cases"][0]["render"]["exr"], doc["cases"][1]["render"]["exr"] = (doc["cases"][1]["render"]["exr"],
-                                                                          doc["cases"][0]["render"]["exr"])
+    for key, inner in (("render", "exr"), ("report_images", "folder")):  # the run's images of the other case
+        doc["cases"][0][key][inner], doc["cases"][1][key][inner] = (doc["cases"][1][key][inner],
+                                                                    doc["cases"][0][key][inner])
     write_results(folder, doc)
     old["results.json"] = path.read_bytes()
     disk.fill(**fail)  # a file of the new report cannot be written

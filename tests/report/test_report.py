@@ -503,6 +503,86 @@ def test_the_ground_truth_shown_is_the_file_results_json_names(report_dir):
         np.testing.assert_array_equal(shown, read_exr(path).image)
 
 
+def _break_image_making(monkeypatch):
+    """Every function that makes a report image (previews, error maps, FLIP, the MSE point) raises."""
+    import harness.files.previews as previews
+    import harness.files.report_images as report_images
+    import harness.judges.metrics as metrics
+
+    def broken(*args, **kwargs):
+        raise AssertionError("the report made an image")
+
+    for module, name in ((report_images, "error_images"), (report_images, "error_point"),
+                         (report_images, "display_exposure"), (previews, "error_images"), (metrics, "flip")):
+        monkeypatch.setattr(module, name, broken)
+    for name in ("radiance", "heatmap"):
+        monkeypatch.setattr(previews.ImageWriter, name, broken)
+
+
+def test_the_run_makes_each_case_s_report_images_and_the_report_only_places_them(report_dir, monkeypatch, tmp_path):
+    """harness run writes each case's images into cases/<case>/images and describes them in results.json; the report
+    of the run makes none (previews, error maps and FLIP broken): it links or copies those files, byte for byte, and
+    takes their numbers from results.json."""
+    from harness.files.results import read_results
+    from harness.report import write_suite_report
+
+    results = read_results(report_dir / "results.json")  # the schema takes the new key
+    for record in results["cases"]:
+        images = record["report_images"]
+        assert Path(images["folder"]) == report_dir / "cases" / Path(images["folder"]).parent.name / "images"
+        assert [im["key"] for im in images["images"]] == ["ground_truth", "render", "error_signed",
+                                                           "error_relative", "flip"]
+    _break_image_making(monkeypatch)
+    write_suite_report(report_dir / "results.json", tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    for case, record in zip(report["cases"], results["cases"]):
+        assert case["problems"] == [] and case["error_maps"] == record["report_images"]["error_maps"]
+        stored = {im["key"]: im for im in record["report_images"]["images"]}
+        for im in case["images"]:
+            assert Path(im["png"]).parent == tmp_path / "report" / Path(im["png"]).parent.name
+            assert {k: v for k, v in im.items() if k not in ("exr", "png")} == \
+                {k: v for k, v in stored[im["key"]].items() if k not in ("exr", "png")}
+            for kind in ("exr", "png"):
+                source = Path(record["report_images"]["folder"]) / stored[im["key"]][kind]
+                assert Path(im[kind]).read_bytes() == source.read_bytes()
+    assert (tmp_path / "index.html").read_text().count("data:image/png;base64,") >= 5 * len(results["cases"])
+
+
+def test_an_older_results_json_without_report_images_is_reported_as_before(report_dir, tmp_path):
+    """A results.json of an older harness (no ``report_images``) or whose images folder is gone: the report makes
+    the images from the cases' EXRs itself, the same images and numbers the run made."""
+    from harness.report import write_suite_report
+
+    results = json.loads((report_dir / "results.json").read_text())
+    old = json.loads(json.dumps(results))
+    for record in old["cases"]:
+        record.pop("report_images")
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "results.json").write_text(json.dumps(old))
+    write_suite_report(run / "results.json", run)
+    report = json.loads((run / "report.json").read_text())
+    for case, record in zip(report["cases"], results["cases"]):
+        assert case["problems"] == [] and case["error_maps"] == record["report_images"]["error_maps"]
+        stored = {im["key"]: im for im in record["report_images"]["images"]}
+        assert [im["key"] for im in case["images"]] == list(stored)
+        for im in case["images"]:
+            assert im["stats"] == stored[im["key"]]["stats"] and im["legend"] == stored[im["key"]]["legend"]
+            source = Path(record["report_images"]["folder"]) / stored[im["key"]]["png"]
+            assert Path(im["png"]).read_bytes() == source.read_bytes()
+            assert Path(im["exr"]).stat().st_ino != (source.with_suffix(".exr")).stat().st_ino  # made, not linked
+    moved = tmp_path / "moved"  # report_images names a folder that is not there: made again too
+    moved.mkdir()
+    gone = json.loads(json.dumps(results))
+    for record in gone["cases"]:
+        record["report_images"]["folder"] = str(tmp_path / "nowhere")
+    (moved / "results.json").write_text(json.dumps(gone))
+    write_suite_report(moved / "results.json", moved)
+    again = json.loads((moved / "report.json").read_text())
+    assert [c["error_maps"] for c in again["cases"]] == [c["error_maps"] for c in report["cases"]]
+    assert all(len(c["images"]) == 5 and c["problems"] == [] for c in again["cases"])
+
+
 def test_a_run_without_studies_says_how_to_get_them(report_dir, tmp_path):
     from harness.report import write_suite_report
 
