@@ -120,8 +120,9 @@ class EntryStore:
     def store(self, key: str, meta: dict, files: dict[str, str | os.PathLike[str]], *, replace: bool = False) -> bool:
         """Store ``files`` (relative path in the entry: the file to copy) and ``meta`` (JSON) under ``key``. Without
         ``replace`` a valid entry another process stored first is kept; with it, the new entry takes its place.
-        Returns whether the entry now holds these files; a write that fails (a full disk, a file gone) leaves no
-        trace and returns False: a cache is never a reason for a run to fail."""
+        Returns whether these files were renamed into place (False also when another process's valid entry was
+        kept); a write that fails (a full disk, a file gone) leaves no trace and returns False: a cache is never a
+        reason for a run to fail."""
         if not all(_safe_relative(name) for name in files):
             raise ValueError(f"entry file names must be relative paths inside the entry: {sorted(files)}")
         tmp = self.root / f".tmp-{uuid.uuid4().hex}"

@@ -283,24 +283,34 @@ class CaseCache:
         entry = self.store.load(key.key) if key is not None else None
         if entry is None:
             return None
-        record, old_folder = entry.meta.get("record"), entry.meta.get("folder")
-        if not isinstance(record, dict) or record.get("name") != case.name or \
-                record.get("status") not in ("pass", "fail") or not isinstance(old_folder, str):
+        try:
+            record = self._outcome(entry.meta, case, key, folder)
+        except (TypeError, AttributeError, ValueError, KeyError):  # an entry of another shape: damaged
+            record = None
+        if record is None or self.store.copy_out(entry, folder) is None:
             self.store.discard(key.key)
             return None
-        if self.store.copy_out(entry, folder) is None:
+        record.update(cache_key=key.key, cached={"from": entry.meta.get("started"), "key": key.key},
+                      wall_seconds=time.perf_counter() - start)
+        return record
+
+    @staticmethod
+    def _outcome(meta: dict, case: Case, key: CaseKey, folder: Path) -> dict | None:
+        """The record an entry holds, moved to this run's case folder and with what a run that renders nothing
+        (every Mitsuba render in the ground-truth cache) records about its renders; None when it is not one."""
+        record, old_folder = meta.get("record"), meta.get("folder")
+        if not isinstance(record, dict) or record.get("name") != case.name or \
+                record.get("status") not in ("pass", "fail") or not isinstance(old_folder, str):
             return None
         record = _relocated(copy.deepcopy(record), old_folder, str(folder))
         gt = record.get("ground_truth")
-        if isinstance(gt, dict):  # as a run with every Mitsuba render in the ground-truth cache gives it
+        if isinstance(gt, dict):
             gt["renders"] = 0  # (schedule counts the chunks of a Mitsuba test render rendered ahead here too)
             if gt.get("source") == "mitsuba":
                 gt.update(cached=True, seconds=0.0, path=key.ground_truth_path)
         info = (record.get("render") or {}).get("info")
         if record.get("renderer") == "mitsuba" and isinstance(info, dict) and "mitsuba_renders" in info:
             info.update(cached=True, mitsuba_renders=0)
-        record.update(cache_key=key.key, cached={"from": entry.meta.get("started"), "key": key.key},
-                      wall_seconds=time.perf_counter() - start)
         return record
 
     def save(self, case: Case, record: dict, folder: Path, before: dict[str, tuple]) -> str | None:
