@@ -54,14 +54,18 @@ reflectance = [0.8, 0.8, 0.8]
 
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
-    """Every test (and every subprocess it starts) uses a fresh ground-truth cache, never the user's."""
-    previous = os.environ.get("HARNESS_CACHE_DIR")
+    """Every test (and every subprocess it starts) uses a fresh ground-truth cache, never the user's, and no
+    results cache (``HARNESS_RESULTS_CACHE=off``): a test that runs a suite, patches a renderer and runs it again
+    must see it render. tests/running/test_result_cache.py turns the results cache on, in a folder of its own."""
+    previous = {name: os.environ.get(name) for name in ("HARNESS_CACHE_DIR", "HARNESS_RESULTS_CACHE")}
     os.environ["HARNESS_CACHE_DIR"] = str(tmp_path_factory.mktemp("harness-cache"))
+    os.environ["HARNESS_RESULTS_CACHE"] = "off"
     yield
-    if previous is None:
-        os.environ.pop("HARNESS_CACHE_DIR", None)
-    else:
-        os.environ["HARNESS_CACHE_DIR"] = previous
+    for name, value in previous.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 @pytest.fixture(scope="session")

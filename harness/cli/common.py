@@ -77,9 +77,11 @@ class Common:
 
     @staticmethod
     def cache_dir() -> argparse.ArgumentParser:
-        """``--cache-dir``: the ground-truth cache (harness/renderers/groundtruth.py)."""
+        """``--cache-dir``: the ground-truth cache (harness/renderers/groundtruth.py), and the results cache of
+        ``harness run`` in its ``results/`` (harness/running/result_cache.py)."""
         return _parent("--cache-dir",
-                       help="ground-truth cache folder (default: $HARNESS_CACHE_DIR or the user cache dir)")
+                       help="ground-truth cache folder, and harness run's results cache in its results/ (default: "
+                       "$HARNESS_CACHE_DIR or the user cache dir)")
 
     @staticmethod
     def mitsuba_variant() -> argparse.ArgumentParser:

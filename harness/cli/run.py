@@ -12,7 +12,7 @@ from harness.cli import studies
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.report import write_suite_report
-from harness.running import baseline, executors, junit, runstate
+from harness.running import baseline, executors, junit, result_cache, runstate
 from harness.files import imageio
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
@@ -31,8 +31,13 @@ def register(sub, common) -> None:
     parser.add_argument("--timeout", type=options.seconds,
                         help="seconds before a case's worker is killed (default: the case's "
                         "timeout key, else 600 s for an spp budget, max(120 s, 20 x the budget) for a seconds budget)")
-    parser.add_argument("--fresh", action="store_true", help="ignore an earlier results.json in --out: run every "
-                        "case (default: resume, keeping the cases it finished)")
+    parser.add_argument("--fresh", action="store_true", help="render and measure everything again: ignore an earlier "
+                        "results.json in --out (default: resume, keeping the cases it finished) and the results "
+                        "cache (default: a case or study whose inputs, code and machine are unchanged is answered "
+                        "from <cache-dir>/results/, timings and all); what it renders replaces the cache's entries "
+                        "(docs/suites.md, \"The results cache\")")
+    parser.add_argument("--no-cache", action="store_true", help="neither read nor write the results cache "
+                        "(HARNESS_RESULTS_CACHE=off does the same); the ground-truth cache is used as always")
     parser.add_argument("--baseline", metavar="FILE", help="also fail a case whose metrics regressed against this "
                         "baseline (harness baseline save; docs/ci.md)")
     parser.add_argument("--baseline-tolerance", action="append", default=[], metavar="KEY=VALUE",
@@ -53,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the suite into ``--out`` (resuming an earlier run there unless ``--fresh``), print the summary, gate on
     ``--baseline``, write JUnit XML and the report."""
     suite = load_suite(args.suite)
+    cache_mode = result_cache.mode(fresh=args.fresh, no_cache=args.no_cache)
     executor = executors.make_executor(args.executor, args.workers)  # checked before anything is written
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
@@ -88,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
             with runstate.interruptible():
                 results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
                                     on_case=on_each, executor=executor, resume=not args.fresh, on_resume=on_resume,
-                                    timeout=args.timeout)
+                                    timeout=args.timeout, results_cache=cache_mode)
         except runstate.Interrupted as stop:
             if bar is not None:
                 bar.close()
@@ -103,7 +109,8 @@ def run(args: argparse.Namespace) -> int:
         summary = results["summary"]
         print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
               f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
-              f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; {out / 'results.json'}")
+              f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; "
+              f"{summary['from_cache']} cases from the cache; {out / 'results.json'}")
         for name in summary["unexpected"]:
             record = next(r for r in results["cases"] if r["name"] == name)
             print(f"  unexpected: {name}: {record['status']} (expected {record['expect']}) {record.get('reason', '')}")
@@ -112,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         if args.junit:
             print(f"junit: {junit.write(results, args.junit)}")
         if not args.no_report:
-            _write_report(args, out)
+            _write_report(args, out, cache_mode)
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
 
 
@@ -130,13 +137,13 @@ def _baseline_gate(args: argparse.Namespace, suite) -> baseline.Gate | None:
     return gate
 
 
-def _write_report(args: argparse.Namespace, out: Path) -> None:
+def _write_report(args: argparse.Namespace, out: Path, cache_mode: str = "off") -> None:
     """The studies and the report of a finished run (DIR/studies/, DIR/index.html, report.json, summary.md). A
     study or report that fails in its own code is one line on stderr and leaves the run's exit code alone; one
     that cannot be written (a full disk) is a WriteError: one line and exit code 2, the old files (if any) left as
-    they were."""
+    they were. The studies come from the results cache where ``cache_mode`` allows and their inputs are cached."""
     if not args.no_studies:
-        studies.write_studies(args, out / "results.json", out / "studies")
+        studies.write_studies(args, out / "results.json", out / "studies", cache=cache_mode)
     try:
         paths = write_suite_report(out / "results.json", out, studies.report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")

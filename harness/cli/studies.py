@@ -16,6 +16,7 @@ from harness.files.imageio import WriteError
 from harness.files.results import read_results
 from harness.report import ReportOptions
 from harness.studies.convergence import parse_ladder
+from harness.studies.study_cache import cached_suite_studies
 from harness.studies.suite_studies import StudyOptions, write_suite_studies
 
 #: the flags that change what the studies compute (not which sections the report shows)
@@ -59,21 +60,28 @@ def check_report_flags(args: argparse.Namespace) -> None:
                                      "computed; --studies computes them again first)")
 
 
-def write_studies(args: argparse.Namespace, results_path: Path, out_dir: Path) -> Path | None:
-    """Compute the studies of the run ``results_path`` into ``out_dir`` and print where they are. A study that
+def write_studies(args: argparse.Namespace, results_path: Path, out_dir: Path, cache: str = "off") -> Path | None:
+    """Compute the studies of the run ``results_path`` into ``out_dir`` and print where they are; ``cache`` (a mode
+    of :mod:`harness.running.result_cache`; ``harness run`` passes its own) lets them come from the results cache,
+    and the line says so ("measured <date>, cached"). A study that
     fails in its own code is one line on stderr (``harness: studies not written: ...``) and None (the report then
     says how to get them); one that cannot be written (a full disk) is a WriteError (one line and exit code 2)."""
     try:
         results = read_results(results_path)
-        paths = write_suite_studies(results, results_path.parent, study_options(args), out_dir=out_dir,
-                                    results_file=results_path)
+        if cache == "off":
+            paths = write_suite_studies(results, results_path.parent, study_options(args), out_dir=out_dir,
+                                        results_file=results_path)
+        else:
+            paths = cached_suite_studies(results, results_path.parent, study_options(args), mode=cache,
+                                         out_dir=out_dir, results_file=results_path)
     except (KeyboardInterrupt, WriteError, HarnessError):
         raise
     except Exception as err:  # noqa: BLE001 - the run's result and its report stand without the studies
         reason = " ".join(str(err).split()) or type(err).__name__
         print(f"harness: studies not written: {type(err).__name__}: {reason}"[:400], file=sys.stderr)
         return None
-    print(f"studies: {paths['studies_json']} ({paths['seconds']:.1f} s)")
+    cached = f"; measured {paths['cached']['from']}, cached" if paths.get("cached") else ""
+    print(f"studies: {paths['studies_json']} ({paths['seconds']:.1f} s{cached})")
     return paths["folder"]
 
 

@@ -480,6 +480,30 @@ def _chunk(scene: Scene, cache: Cache, base: dict, index: int, count: int):
     return _stored(cache, chunk_key, estimate), seconds, meta
 
 
+def entry_key(scene: Scene, *, spp: int, seed: int = 0, variant: str | None = None,
+              chunk_spp: int = DEFAULT_CHUNK_SPP) -> str:
+    """The key of the merged entry :func:`ground_truth` reads or writes for these arguments (``variant``
+    resolved as it resolves it)."""
+    return _key(dict(_base(scene, seed, choose_variant(variant)), spp=spp, chunk_spp=chunk_spp))
+
+
+def entry_checksum(key: str, cache_dir: Path | str | None = None) -> str | None:
+    """The SHA-256 of the estimate the entry ``key`` holds, every checksum of the entry verified; None when there
+    is no such entry or it is damaged (:meth:`Cache.load` removes it when it is next read). What an entry holds
+    is fixed once it is written (the first rename wins), so this names the image every reader of the key gets."""
+    folder = Cache(cache_dir).entry(key)
+    try:
+        meta = json.loads((folder / "meta.json").read_text())
+        checksums = meta["sha256"]
+        if checksums[META_CHECKSUM] != _meta_sha256(key, meta):
+            return None
+        if any(_sha256(folder / name) != checksums[name] for name in DATA_FILES):
+            return None
+        return str(checksums["estimate.npz"])
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+
+
 @dataclass(frozen=True)
 class ChunkJob:
     """One chunk of a Mitsuba ground truth, as a unit of work an executor can run anywhere that sees the cache:

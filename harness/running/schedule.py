@@ -1,6 +1,8 @@
 """Running a suite: its cases as tasks on an executor (:mod:`harness.running.executors`, handed
 :func:`harness.running.judge.run_case`), ``results.json`` rewritten atomically after each finished case, and
-resuming an earlier run (:mod:`harness.running.runstate`). Schema: ``docs/results-schema.md``."""
+resuming an earlier run (:mod:`harness.running.runstate`), and the results cache (:mod:`harness.running.result_cache`):
+cases whose outcome is cached are answered from it, before the rest are handed to the executor. Schema:
+``docs/results-schema.md``."""
 
 from __future__ import annotations
 
@@ -13,20 +15,26 @@ from typing import Any
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
 from harness.files.imageio import atomic_write_text
-from harness.running import executors, judge, runstate
-from harness.running.cases import Suite
+from harness.running import executors, judge, result_cache, runstate
+from harness.running.cases import Suite, slug
 
 
 def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
               on_case: Callable[[int, dict], None] | None = None, executor=None, resume: bool = False,
-              on_resume: Callable[[int, int], None] | None = None, timeout: float | None = None) -> dict:
+              on_resume: Callable[[int, int], None] | None = None, timeout: float | None = None,
+              results_cache: str = "off") -> dict:
     """Run every case on ``executor`` (default: in this process, in order; ``harness.running.executors``), rewriting
     ``results.json`` atomically after each finished case, records in suite order whatever order cases finish in
     (finished cases are never lost). With ``resume``, the finished records of an earlier run of this suite in
     ``out_dir`` whose case definitions are unchanged are kept (``"resumed": true``) and only the rest run
     (``harness.running.runstate``); ``on_resume(kept, total)`` is told how many. A task whose worker is killed (past
     ``timeout``, else the case's own, see ``executors.case_timeout``) or dies makes its case an error. Each case
-    runs through :func:`harness.running.judge.run_case`, handed to the executor with the tasks."""
+    runs through :func:`harness.running.judge.run_case`, handed to the executor with the tasks.
+
+    ``results_cache`` (:data:`harness.running.result_cache.MODES`): "use" answers every case whose outcome is
+    cached from the cache (``"cached": {"from", "key"}``; its files copied into its folder) and stores the outcome
+    of every other cacheable case; "refresh" renders every case and stores them all over the old entries; "off"
+    neither reads nor writes."""
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.time()
     results: dict[str, Any] = {
@@ -50,6 +58,25 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
             atomic_write_text(out_dir / "results.json", jsonsafe.dumps(results, indent=2))
 
     todo = [(i, case) for i, case in enumerate(suite.cases) if i not in records]
+    cache = result_cache.CaseCache(cache_dir, variant, results_cache, results["started"])
+    if cache.reads:
+        hits = []
+        for index, case in todo:
+            runstate.check()
+            record = cache.restore(case, out_dir / "cases" / slug(case.name))
+            if record is not None:
+                record["definition"] = digests[index]
+                records[index] = record
+                hits.append(index)
+        if hits:
+            write()  # once for them all: a hit costs milliseconds, rewriting results.json after each would not
+            for index in hits:
+                if on_case is not None:
+                    on_case(index, records[index])
+        todo = [(i, case) for i, case in todo if i not in records]
+    # what each case folder held before its case runs: the files it writes are the ones that change
+    before = {i: result_cache.snapshot(out_dir / "cases" / slug(case.name)) for i, case in todo
+              if cache.writes and result_cache.not_cacheable(case) is None}
     tasks = executors.plan(todo, out_dir, run_case=judge.run_case, case_scenes=judge.case_scenes, cache_dir=cache_dir,
                            variant=variant, timeout=timeout, chunks=executor.chunks)
     rendered: set[str] = set()  # chunk tasks that rendered, not yet counted in a case's record
@@ -76,6 +103,10 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
                 record = dict(judge.case_header(case), status="error", ok=False, reason=outcome[1],
                               wall_seconds=outcome[2] if len(outcome) > 2 else None)
             record["definition"] = digests[index]
+            if index in before:
+                key = cache.save(case, record, out_dir / "cases" / slug(case.name), before[index])
+                if key is not None:
+                    record["cache_key"] = key
             records[index] = record
             write()
             if on_case is not None:
@@ -101,6 +132,7 @@ def summarise(records: list[dict], wall: float) -> dict:
         "mitsuba_renders": sum(_mitsuba_renders(r) for r in records if not r.get("resumed")),  # by this run
         "resumed": sum(bool(r.get("resumed")) for r in records),
         "ground_truth_cached": sum(bool(r.get("ground_truth", {}).get("cached")) for r in records),
+        "from_cache": sum(bool(r.get("cached")) for r in records if not r.get("resumed")),  # by this run
         "wall_seconds": wall,
     }
 
