@@ -6,8 +6,8 @@ picking one of its pieces with probability area / A_k and a uniform point on tha
 every point of the light. A piece is a triangle, or, for a light of exactly two triangles that form a planar
 parallelogram (a rectangle light), the whole parallelogram (:func:`parallelogram_frame`):
 
-    triangle       y = c0 + b1 (c1 - c0) + b2 (c2 - c0),  b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1)  (pbrt-v4, 4.6.4;
-                   Shirley's warp)
+    triangle       y = c0 + b1 (c1 - c0) + b2 (c2 - c0),  b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1)
+                   (sampling.square_to_uniform_triangle)
     parallelogram  y = p0 + u1 e1 + u2 e2  (p0 one corner, e1 and e2 its two edges; Jacobian |e1 x e2| = A_k)
 
 One piece for a rectangle keeps a stratified (u1, u2) stratified over the whole rectangle: split into two triangles
