@@ -232,14 +232,8 @@ class _Context:
             c(g.emission), c(g.light_id), c(g.material), c(g.two_sided), c(self.reflectance),
             c(np.max(g.reflectance, axis=1)) if len(g.reflectance) else np.zeros(0),  # survival for rr = "albedo"
         )
-        if self.lights is not None:
-            lt = self.lights
-            self.light_tables = (c(lt.cdf, dtype=np.float64), c(lt.triangles, dtype=np.int64), c(lt.first, dtype=np.int64),
-                                 c(lt.count, dtype=np.int64), c(lt.within_cdf, dtype=np.float64),
-                                 c(lt.pmf, dtype=np.float64), c(lt.area, dtype=np.float64))
-        else:
-            empty_f, empty_i = np.zeros(0), np.zeros(0, np.int64)
-            self.light_tables = (empty_f, empty_i, empty_i, empty_i, empty_f, empty_f, empty_f)
+        self.light_tables = (self.lights.kernel_tables() if self.lights is not None
+                             else LightSampler.empty_kernel_tables())
         if self.all_surfaces is not None:
             self.surface_tables = (c(self.all_surfaces.triangles, dtype=np.int64), c(self.all_surfaces.cdf, dtype=np.float64))
             surface_pdf = 1.0 / self.all_surfaces.total_area

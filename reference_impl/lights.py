@@ -2,8 +2,16 @@
 and sampling points on all surfaces of the scene (global area sampling, Fig. 5.13).
 
 A light k is one emissive shape: a set of triangles sharing ``Geometry.light_id == k``. A point on it is drawn by
-picking one of its triangles with probability area / A_k and a uniform point on that triangle, so
-pdf(y | k) = 1 / A_k for every point of the light.
+picking one of its pieces with probability area / A_k and a uniform point on that piece, so pdf(y | k) = 1 / A_k for
+every point of the light. A piece is a triangle, or, for a light of exactly two triangles that form a planar
+parallelogram (a rectangle light), the whole parallelogram (:func:`parallelogram_frame`):
+
+    triangle       y = c0 + b1 (c1 - c0) + b2 (c2 - c0),  b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1)
+                   (sampling.square_to_uniform_triangle)
+    parallelogram  y = p0 + u1 e1 + u2 e2  (p0 one corner, e1 and e2 its two edges; Jacobian |e1 x e2| = A_k)
+
+One piece for a rectangle keeps a stratified (u1, u2) stratified over the whole rectangle: split into two triangles
+(one uniform picking the triangle, the sqrt warp in each) the strata of the net are folded and stretched.
 """
 
 from __future__ import annotations
@@ -37,6 +45,37 @@ def _uniform_point_on(geometry: Geometry, tri: np.ndarray, u1: np.ndarray, u2: n
     return c[:, 0] + b1[:, None] * (c[:, 1] - c[:, 0]) + b2[:, None] * (c[:, 2] - c[:, 0])
 
 
+PARALLELOGRAM_TOLERANCE = 1e-9  # relative: of the longest edge for the corners, absolute for the unit normals
+
+
+def parallelogram_frame(geometry: Geometry, t0: int, t1: int) -> np.ndarray | None:
+    """The frame (p0, e1, e2) of the parallelogram that triangles t0 and t1 form, or None where they do not form one.
+
+    They form one where they share a diagonal (two corners at exactly the same positions, the opposite corners o0 of
+    t0 and o1 of t1 distinct), |o0 + o1 - (s1 + s2)| <= 1e-9 x the longest edge (s1, s2 the shared corners: the
+    diagonals bisect each other), both have area > 0, the same emission and unit normals within 1e-9 (a planar
+    quad, not folded, both facing one way). Then p0 = o0, e1 = s1 - o0, e2 = s2 - o0, with (o0, s1, s2) in t0's
+    winding (e1 x e2 along t0's normal); the point p0 + a e1 + b e2 lies in t0 where a + b <= 1, else in t1."""
+    if not (geometry.area[t0] > 0 and geometry.area[t1] > 0):
+        return None
+    if not np.array_equal(geometry.emission[t0], geometry.emission[t1]):
+        return None
+    if not np.linalg.norm(geometry.normal[t0] - geometry.normal[t1]) <= PARALLELOGRAM_TOLERANCE:
+        return None
+    c0, c1 = geometry.corners[t0], geometry.corners[t1]
+    shared = [(i, j) for i in range(3) for j in range(3) if np.array_equal(c0[i], c1[j])]
+    if len(shared) != 2 or len({i for i, _ in shared}) != 2 or len({j for _, j in shared}) != 2:
+        return None
+    i0 = 3 - shared[0][0] - shared[1][0]  # the corner of t0 off the diagonal
+    j0 = 3 - shared[0][1] - shared[1][1]
+    o0, o1 = c0[i0], c1[j0]
+    s1, s2 = c0[(i0 + 1) % 3], c0[(i0 + 2) % 3]
+    longest = max(np.linalg.norm(a - b) for a, b in ((s1, o0), (s2, o0), (s1, s2), (s1, o1), (s2, o1)))
+    if not np.linalg.norm(o0 + o1 - (s1 + s2)) <= PARALLELOGRAM_TOLERANCE * longest:
+        return None
+    return np.array([o0, s1 - o0, s2 - o0])
+
+
 class TriangleAreaSampler:
     """Picks a triangle from a set with probability proportional to its area, then a uniform point on it."""
 
@@ -66,6 +105,11 @@ class LightSampler:
     """Light selection with pdf(k) ("power": proportional to Phi_k = pi A_k lum(Le_k); "uniform": 1 / N_L) and a
     point y on light k with pdf(y | k) = 1 / A_k. The combined density per unit area is pdf(k) / A_k.
 
+    Within light k the table has one entry per piece (``first[k]``, ``count[k]``, ``within_cdf``: a triangle, or a
+    whole parallelogram, :func:`parallelogram_frame`), each with a float64 frame (origin, edge 1, edge 2: c0, c1 - c0,
+    c2 - c0 for a triangle, p0, e1, e2 for a parallelogram), its flag ``parallelogram`` and the triangles it covers:
+    ``triangles`` (a triangle's own; the parallelogram's half a + b <= 1) and ``other`` (the same, or the other half).
+
     Lights k < ``num_area`` are the area lights (emissive shapes); with ``extra_power`` (the powers Phi of the
     emitters that are not surfaces, :meth:`reference_impl.emitters.Emitters.powers`) lights num_area + e follow, one
     per emitter e, chosen with the same pdf(k) (their points or directions are drawn by the integrator). Without
@@ -79,16 +123,34 @@ class LightSampler:
         emissive = np.flatnonzero(geometry.light_id >= 0)
         # Triangles sorted by light, then each light's cumulative-area table as one global array.
         order = emissive[np.argsort(geometry.light_id[emissive], kind="stable")]
-        self.triangles = order
         ids = geometry.light_id[order]
         self.area = np.bincount(ids, weights=geometry.area[order], minlength=num_area)  # A_k
-        self.first = np.searchsorted(ids, np.arange(num_area))  # first triangle of each light in `order`
-        self.count = np.bincount(ids, minlength=num_area)
-        within = np.zeros(len(order))
-        for k in range(num_area):  # one entry per light, not per ray
-            s = slice(self.first[k], self.first[k] + self.count[k])
-            within[s] = np.cumsum(geometry.area[order[s]]) / self.area[k]
-        self.within_cdf = within
+        entries, other, frames, flags, cdfs, first, count = [], [], [], [], [], [], []
+        for k in range(num_area):  # one pass per light, not per ray
+            tris = order[np.searchsorted(ids, k):np.searchsorted(ids, k, side="right")]
+            frame = parallelogram_frame(geometry, tris[0], tris[1]) if len(tris) == 2 else None
+            first.append(len(entries))
+            if frame is not None:
+                entries.append(tris[0])
+                other.append(tris[1])
+                frames.append(frame)
+                flags.append(True)
+                cdfs.append([(geometry.area[tris[0]] + geometry.area[tris[1]]) / self.area[k]])
+            else:
+                c = geometry.corners[tris]
+                entries.extend(tris)
+                other.extend(tris)
+                frames.extend(np.stack([c[:, 0], c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]], axis=1))
+                flags.extend([False] * len(tris))
+                cdfs.append(np.cumsum(geometry.area[tris]) / self.area[k])
+            count.append(len(entries) - first[-1])
+        self.triangles = np.array(entries, np.int64)  # per entry: the triangle (of a parallelogram: a + b <= 1)
+        self.other = np.array(other, np.int64)  # per entry: the triangle where a + b > 1
+        self.frames = np.array(frames, np.float64).reshape(-1, 3, 3)  # per entry: origin, edge 1, edge 2
+        self.parallelogram = np.array(flags, bool)
+        self.first = np.array(first, np.int64)  # first entry of each light
+        self.count = np.array(count, np.int64)  # entries of each light
+        self.within_cdf = np.concatenate(cdfs) if cdfs else np.zeros(0)
         if selection == "power":
             radiance = np.zeros(num_area)
             # A light's power: sum over its triangles of pi * area * lum(Le).
@@ -124,11 +186,12 @@ class LightSampler:
         return light, rescale_within(u, np.where(light > 0, self.cdf[light - 1], 0.0), self.cdf[light])
 
     def split_uniform(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """One uniform for the light, its triangle and the point (sample reuse, as pbrt-v4's light samplers do):
-        u_select = u picks light k; what is left of it inside k's cdf interval picks the triangle; what is left of
-        that inside the triangle's interval is u1 (:func:`rescale_within` each time). ``sample(*split_uniform(u), u2)``
-        is one 2D sample over all lights: a stratified (u, u2) stays stratified over the lights, not only within
-        each triangle. (Area lights only: a light k >= ``num_area`` has no triangles, see :meth:`select`.)"""
+        """One uniform for the light, its piece and the point (sample reuse, as pbrt-v4's light samplers do):
+        u_select = u picks light k; what is left of it inside k's cdf interval picks the piece (a triangle, or a
+        whole parallelogram: then the piece's interval is [0, 1) and u1 = u_tri); what is left of that inside the
+        piece's interval is u1 (:func:`rescale_within` each time). ``sample(*split_uniform(u), u2)`` is one 2D
+        sample over all lights: a stratified (u, u2) stays stratified over the lights, not only within each piece.
+        (Area lights only: a light k >= ``num_area`` has no pieces, see :meth:`select`.)"""
         u = np.asarray(u, dtype=np.float64)
         if self.num_lights > 1:
             light = sample_discrete(self.cdf, u)
@@ -140,14 +203,41 @@ class LightSampler:
         lo = np.where(local > 0, self.within_cdf[first + local - 1], 0.0)
         return u, u_tri, rescale_within(u_tri, lo, self.within_cdf[first + local])
 
+    def point_on_entry(self, entry: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A uniform point on each table entry, and the triangle it lies in: y = o + a e1 + b e2 of the entry's frame
+        (o, e1, e2), (a, b) = (u1, u2) on a parallelogram and the triangle's barycentrics (1 - sqrt(u1), u2 sqrt(u1))
+        otherwise (both computed, one selected by the flag, as in the kernels: kernels.light_sampling.point_on_light).
+        A parallelogram's point is in ``other[entry]`` where a + b > 1, else in ``triangles[entry]``."""
+        b1, b2 = square_to_uniform_triangle(u1, u2)
+        par = self.parallelogram[entry]
+        a = np.where(par, u1, b1)
+        b = np.where(par, u2, b2)
+        f = self.frames[entry]
+        pos = f[:, 0] + a[:, None] * f[:, 1] + b[:, None] * f[:, 2]
+        return np.where(a + b > 1.0, self.other[entry], self.triangles[entry]), pos
+
     def sample(self, u_select: np.ndarray, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray):
         """Light indices k and points y on them; pdf_area = pdf(k) pdf(y | k)."""
         light = sample_discrete(self.cdf, u_select) if self.num_lights > 1 else np.zeros(len(u_select), np.int64)
         first = self.first[light]
-        local = _search_within(self.within_cdf, first, self.count[light], u_tri)  # only within light k's triangles
-        tri = self.triangles[first + local]
-        pos = _uniform_point_on(self.geometry, tri, u1, u2)
+        local = _search_within(self.within_cdf, first, self.count[light], u_tri)  # only within light k's pieces
+        tri, pos = self.point_on_entry(first + local, u1, u2)
         return light, SurfacePoints(tri, pos, self.geometry.normal[tri], self.pdf_area(light))
+
+    def kernel_tables(self) -> tuple:
+        """The tables as the kernels take them (kernels.config, ``lights``): (cdf, triangles, first, count,
+        within_cdf, pmf, area, frames, parallelogram, other), contiguous, of the kernels' dtypes."""
+        c = np.ascontiguousarray
+        return (c(self.cdf, dtype=np.float64), c(self.triangles, dtype=np.int64), c(self.first, dtype=np.int64),
+                c(self.count, dtype=np.int64), c(self.within_cdf, dtype=np.float64), c(self.pmf, dtype=np.float64),
+                c(self.area, dtype=np.float64), c(self.frames, dtype=np.float64), c(self.parallelogram, dtype=np.bool_),
+                c(self.other, dtype=np.int64))
+
+    @staticmethod
+    def empty_kernel_tables() -> tuple:
+        """:meth:`kernel_tables` of a scene without lights."""
+        f, i = np.zeros(0), np.zeros(0, np.int64)
+        return (f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i)
 
 
 _BELOW_ONE = np.nextafter(1.0, 0.0)

@@ -97,7 +97,8 @@ class KernelConfig(NamedTuple):
 # The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
 #   scene    = (prim_to_tri, normal, v0, corners, emission, light_id, material, two_sided, f_r, albedo_max), per
 #              triangle (prim_to_tri per Embree primitive; f_r and albedo_max per material);
-#   lights   = (cdf, triangles, first, count, within_cdf, pmf, area) of lights.LightSampler;
+#   lights   = (cdf, triangles, first, count, within_cdf, pmf, area, frames, parallelogram, other) of
+#              lights.LightSampler (its kernel_tables(): per light, or per piece of a light);
 #   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface;
 #   and, only in scenes that have emitters which are not surfaces (None otherwise, which compiles every branch for
 #   them out of the engines: such scenes run exactly the code they ran before those emitters existed),

@@ -37,8 +37,8 @@ from reference_impl.emitters import ENV_CONSTANT, ENV_MAP
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
                                            JIT_BORROW, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET)
 from reference_impl.kernels.emitters import emitter_sample, split_light_uniform_all
-from reference_impl.kernels.light_sampling import (point_on_triangle, sample_light_point, sample_surface_point,
-                                                   search_within, split_light_uniform, split_surface_uniform)
+from reference_impl.kernels.light_sampling import (light_point, sample_light_point, sample_surface_point,
+                                                   split_light_uniform, split_surface_uniform)
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import sobol_point, uniform_2d
@@ -72,7 +72,7 @@ def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces)
     else:  # with one light there is nothing to choose (pdf(k) = 1) and nothing to draw
         u_select = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
         u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
-    light, tri, y0, y1, y2 = sample_light_point(lights, num_lights, corners, u_select, u_tri, u_a, u_b)
+    light, tri, y0, y1, y2 = sample_light_point(lights, num_lights, u_select, u_tri, u_a, u_b)
     light_pmf, light_area = lights[5], lights[6]
     if cfg.mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
         return num_lights > 1, tri, y0, y1, y2, 1.0 / light_area[light]
@@ -94,8 +94,7 @@ def light_sample_all(cfg, sob, seeds, index, j, key, depth, scene, lights, surfa
                                                                          ox1, ox2, f0, f1, f2, tri, y0, y1, y2,
                                                                          pdf_area)
         return False, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2
-    corners = scene[3]
-    cdf, triangles, first, count, within_cdf, light_pmf, light_area = lights
+    cdf, light_pmf, light_area = lights[0], lights[5], lights[6]
     num_lights = cfg.num_lights
     if sob:
         u_a, u_b = sobol_point(seeds, index * cfg.shadow_rays + j)
@@ -109,9 +108,7 @@ def light_sample_all(cfg, sob, seeds, index, j, key, depth, scene, lights, surfa
         u_dir = u_a
     pdf_select = 1.0 if cfg.mutant & M_LIGHT_PDF_IGNORED else light_pmf[light]  # mutant "light-pdf-ignored"
     if light < cfg.num_area_lights:
-        f = first[light]
-        tri = triangles[f + search_within(within_cdf, f, count[light], u_tri)]
-        y0, y1, y2 = point_on_triangle(corners, tri, u_a, u_b)
+        tri, y0, y1, y2 = light_point(lights, light, u_tri, u_a, u_b)
         needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0,
                                                                          ox1, ox2, f0, f1, f2, tri, y0, y1, y2,
                                                                          pdf_select / light_area[light])

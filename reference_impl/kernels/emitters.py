@@ -270,7 +270,7 @@ def split_light_uniform_all(lights, num_lights, num_area, u):
     """:func:`.light_sampling.split_light_uniform` over area lights and emitters: (light k, u_select, u_tri, u1);
     for an emitter (k >= num_area) u_tri is what is left of u inside k's interval (the first coordinate of its
     direction) and u1 is not used."""
-    cdf, _triangles, first, count, within_cdf, _pmf, _area = lights
+    cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
     light = 0
     u_tri = u
     if num_lights > 1:

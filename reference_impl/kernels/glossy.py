@@ -43,7 +43,7 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C
                                            M_POINT_NO_INVERSE_SQUARE, M_RR_NO_REWEIGHT, RR_ALBEDO, RR_FIXED, RR_OFF,
                                            RR_THROUGHPUT)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, env_sample, mat_vec, spot_falloff
-from reference_impl.kernels.light_sampling import point_on_triangle, search_within
+from reference_impl.kernels.light_sampling import light_point
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.record import record_camera, record_closest, record_occluded
@@ -83,11 +83,8 @@ def light_connection(cfg, scene, lights, emitters, light, pdf_select, u_tri, u1,
     the point y (or, for ``inf_ray``, none), cos_y (1 for an emitter that is not a surface))."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     if light < cfg.num_area_lights:
-        corners, tri_normal, emission = scene[3], scene[1], scene[4]
-        _cdf, triangles, first, count, within_cdf, _pmf, light_area = lights
-        f = first[light]
-        tri = triangles[f + search_within(within_cdf, f, count[light], u_tri)]
-        y0, y1, y2 = point_on_triangle(corners, tri, u1, u2)
+        tri_normal, emission, light_area = scene[1], scene[4], lights[6]
+        tri, y0, y1, y2 = light_point(lights, light, u_tri, u1, u2)
         l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
         dist2 = dot3(l0, l1, l2, l0, l1, l2)
         if not dist2 > 0:

@@ -1,13 +1,18 @@
 """Points on the lights and on all surfaces: :mod:`reference_impl.lights` for one sample, bit for bit.
 
     light k          pdf(k) = pi A_k lum(Le_k) / sum_j pi A_j lum(Le_j)  ("power"), or 1 / N_L ("uniform")  (Fig. 5.10)
-    triangle t of k  pdf(t | k) = A_t / A_k, so a point y uniform over k: pdf(y | k) = 1 / A_k            (Fig. 5.8)
-    point on t       y = c0 + b1 (c1 - c0) + b2 (c2 - c0),  b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1)
+    piece i of k     pdf(i | k) = A_i / A_k, so a point y uniform over k: pdf(y | k) = 1 / A_k            (Fig. 5.8)
+    point on i       y = o + a e1 + b e2 of the piece's frame (o, e1, e2):
+                       triangle (c0, c1 - c0, c2 - c0)   a = 1 - sqrt(u1), b = u2 sqrt(u1)
+                       parallelogram (p0, e1, e2)        a = u1, b = u2      (a rectangle light as one piece)
     global area      t with pdf A_t / A_scene over every surface: p(y) = 1 / A_scene                      (Fig. 5.13)
+                     y = c0 + b1 (c1 - c0) + b2 (c2 - c0), b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1)
 
-The stratified sampler draws one 2D point per light sample and reuses its first coordinate for the discrete choices:
-what is left of u1 inside k's interval of the cdf picks the triangle, and what is left of that is the point's first
-coordinate (``split_light_uniform``, pbrt-v4's sample reuse; ``lights.LightSampler.split_uniform``).
+The pieces of a light are its triangles, or the one parallelogram its two triangles form
+(lights.parallelogram_frame). The stratified sampler draws one 2D point per light sample and reuses its first
+coordinate for the discrete choices: what is left of u1 inside k's interval of the cdf picks the piece, and what is
+left of that is the point's first coordinate (``split_light_uniform``, pbrt-v4's sample reuse;
+``lights.LightSampler.split_uniform``); on a parallelogram the point is then the 2D point itself, still stratified.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from reference_impl.kernels.warps import rescale_within, sample_discrete
 
 @njit(**JIT_INLINE)
 def point_on_triangle(corners, tri, u1, u2):
-    """lights._uniform_point_on for one triangle: c0 + b1 (c1 - c0) + b2 (c2 - c0)."""
+    """lights._uniform_point_on for one triangle: c0 + b1 (c1 - c0) + b2 (c2 - c0) (global area sampling)."""
     s = math.sqrt(u1)
     b1 = 1.0 - s
     b2 = u2 * s
@@ -30,6 +35,32 @@ def point_on_triangle(corners, tri, u1, u2):
     p1 = corners[tri, 0, 1] + b1 * (corners[tri, 1, 1] - corners[tri, 0, 1]) + b2 * (corners[tri, 2, 1] - corners[tri, 0, 1])
     p2 = corners[tri, 0, 2] + b1 * (corners[tri, 1, 2] - corners[tri, 0, 2]) + b2 * (corners[tri, 2, 2] - corners[tri, 0, 2])
     return p0, p1, p2
+
+
+@njit(**JIT_INLINE)
+def point_on_light(lights, entry, u1, u2):
+    """LightSampler.point_on_entry for one entry of the light table: (the triangle y lies in, y). Both warps are
+    computed and the entry's flag selects one (no branch on the kind of piece): a triangle's barycentrics
+    (1 - sqrt(u1), u2 sqrt(u1)) or a parallelogram's (u1, u2); y = o + a e1 + b e2 of the entry's frame."""
+    triangles, frames, parallelogram, other = lights[1], lights[7], lights[8], lights[9]
+    s = math.sqrt(u1)
+    par = parallelogram[entry]
+    a = u1 if par else 1.0 - s
+    b = u2 if par else u2 * s
+    p0 = frames[entry, 0, 0] + a * frames[entry, 1, 0] + b * frames[entry, 2, 0]
+    p1 = frames[entry, 0, 1] + a * frames[entry, 1, 1] + b * frames[entry, 2, 1]
+    p2 = frames[entry, 0, 2] + a * frames[entry, 1, 2] + b * frames[entry, 2, 2]
+    tri = other[entry] if a + b > 1.0 else triangles[entry]
+    return tri, p0, p1, p2
+
+
+@njit(**JIT_INLINE)
+def light_point(lights, light, u_tri, u1, u2):
+    """A point of light k = ``light``: its piece from u_tri (within k's cdf), the point on it from (u1, u2):
+    (the triangle y lies in, y)."""
+    first, count, within_cdf = lights[2], lights[3], lights[4]
+    f = first[light]
+    return point_on_light(lights, f + search_within(within_cdf, f, count[light], u_tri), u1, u2)
 
 
 @njit(**JIT_INLINE)
@@ -47,13 +78,10 @@ def search_within(within_cdf, f, n, u):
 
 
 @njit(**JIT_INLINE)
-def sample_light_point(lights, num_lights, corners, u_select, u_tri, u1, u2):
+def sample_light_point(lights, num_lights, u_select, u_tri, u1, u2):
     """LightSampler.sample for one set of uniforms: (light k, triangle, point y)."""
-    cdf, triangles, first, count, within_cdf, _pmf, _area = lights
-    light = sample_discrete(cdf, u_select) if num_lights > 1 else 0
-    f = first[light]
-    tri = triangles[f + search_within(within_cdf, f, count[light], u_tri)]
-    p0, p1, p2 = point_on_triangle(corners, tri, u1, u2)
+    light = sample_discrete(lights[0], u_select) if num_lights > 1 else 0
+    tri, p0, p1, p2 = light_point(lights, light, u_tri, u1, u2)
     return light, tri, p0, p1, p2
 
 
@@ -71,7 +99,7 @@ def split_light_uniform(lights, num_lights, u):
     """LightSampler.split_uniform for one uniform: (u_select, u_tri, u1). (Handing on the light and triangle it
     finds, so that sample_light_point need not search again, measured 4-6 % slower on multi-light: numba's code
     for the path loop got worse.)"""
-    cdf, _triangles, first, count, within_cdf, _pmf, _area = lights
+    cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
     light = 0
     u_tri = u
     if num_lights > 1:

@@ -229,10 +229,20 @@ def light_geometry(lights: Sequence[tuple[PlanarLight, Sequence[float]]], floor:
 
 
 def rectangle_light() -> PlanarLight:
-    """A 0.7 x 0.3 rectangle (the unit square scaled), two triangles, tilted and rotated in 3D."""
+    """A 0.7 x 0.3 rectangle (the unit square scaled), two triangles, tilted and rotated in 3D (a parallelogram:
+    the light sampler takes it as one piece)."""
     poly = np.array([[0.0, 0.0], [0.7, 0.0], [0.7, 0.3], [0.0, 0.3]])
     tris = np.array([[0, 1, 2], [0, 2, 3]])
     return PlanarLight(poly, tris, rotation([0.4, -1.0, 0.7], 1.1), np.array([0.2, 1.5, 0.9]))
+
+
+def parallelogram_light() -> PlanarLight:
+    """A skewed parallelogram (edges 0.8 and 0.5 at 53 degrees, no edge along a bin line), split along its other
+    diagonal (1-3) than :func:`rectangle_light`'s, tilted and rotated in 3D: one piece for the light sampler."""
+    e1, e2 = np.array([0.8, 0.0]), 0.5 * np.array([np.cos(np.radians(53.0)), np.sin(np.radians(53.0))])
+    poly = np.array([[0.05, 0.02], [0.05, 0.02] + e1, [0.05, 0.02] + e1 + e2, [0.05, 0.02] + e2])
+    tris = np.array([[1, 2, 3], [1, 3, 0]])
+    return PlanarLight(poly, tris, rotation([-0.7, 0.3, 0.5], 0.8), np.array([-0.3, 0.4, 1.7]))
 
 
 def fan_light() -> PlanarLight:
@@ -266,10 +276,43 @@ def light_point_sampler(geometry, light: PlanarLight, seed: int, selection: str 
 
 
 def _light_points_case(name: str, light: PlanarLight, res, quadrature: str, order: int, seed: int,
-                       reuse: bool = False) -> Chi2Result:
+                       reuse: bool = False, pieces: int | None = None) -> Chi2Result:
     geom, _ = light_geometry([(light, (4.0, 3.0, 2.0))])
-    _, sample, pdf = light_point_sampler(geom, light, seed, reuse=reuse)
+    sampler, sample, pdf = light_point_sampler(geom, light, seed, reuse=reuse)
+    if pieces is not None:  # the case is about a light sampled as one parallelogram (or as its triangles)
+        assert sampler.count.tolist() == [pieces] and sampler.parallelogram.tolist() == [pieces == 1] * pieces
     return chi2_test_2d(sample, pdf, bbox(light.polygon), res, N_SAMPLES, name=name, quadrature=quadrature, order=order)
+
+
+def _parallelogram_reuse_case(name: str, seed: int) -> Chi2Result:
+    """The stratified sampler's one 2D sample per light sample, ``sample(*split_uniform(u1), u2)``, over
+    :func:`parallelogram_light` and a brighter single triangle: the points that land on the parallelogram (light 0,
+    chosen with pdf(0)) must be uniform over it, pdf(y | 0) = 1 / A_0, through both rescalings of u1."""
+    light = parallelogram_light()
+    other = PlanarLight(TRIANGLE_2D, np.array([[0, 1, 2]]), rotation([1, 0, 0], 0.4), np.array([0.5, -2.0, 1.0]))
+    geom, _ = light_geometry([(light, (4.0, 3.0, 2.0)), (other, (9.0, 9.0, 9.0))])
+    sampler = LightSampler(geom, "power")
+    assert sampler.count.tolist() == [1, 1] and sampler.parallelogram.tolist() == [True, False]
+    g = np.random.default_rng(seed)
+
+    def sample(n):
+        xs, ys, got = [], [], 0
+        while got < n:  # the points on light 0, in the order drawn, until there are n
+            u1, u2 = g.random(2 * n), g.random(2 * n)
+            k, pts = sampler.sample(*sampler.split_uniform(u1), u2)
+            x, y, z = light.to_plane(pts.position[k == 0])
+            if np.max(np.abs(z)) > 1e-9:
+                return np.full(n, np.nan), np.full(n, np.nan)
+            xs.append(x)
+            ys.append(y)
+            got += len(x)
+        return np.concatenate(xs)[:n], np.concatenate(ys)[:n]
+
+    def pdf(x, y):
+        return np.where(light.inside(x, y), 1.0 / sampler.area[0], 0.0)
+
+    return chi2_test_2d(sample, pdf, bbox(light.polygon), (48, 32), N_SAMPLES, name=name, quadrature="midpoint",
+                        order=24)
 
 
 def fan_triangle_choices(seed: int, n: int = N_SAMPLES, mutate: Callable | None = None) -> np.ndarray:
@@ -347,7 +390,13 @@ def standard_cases() -> dict[str, Callable[[], Chi2Result]]:
     cases["keyed_rng_film_square"] = lambda: _keyed_square_case("keyed_rng_film_square", 302)
     cases["uniform_triangle"] = lambda: _triangle_case("uniform_triangle", 401)
     cases["light_rectangle_points"] = lambda: _light_points_case(
-        "light_rectangle_points", rectangle_light(), (56, 24), "gauss", 2, 501
+        "light_rectangle_points", rectangle_light(), (56, 24), "gauss", 2, 501, pieces=1
+    )
+    cases["light_parallelogram_points"] = lambda: _light_points_case(
+        "light_parallelogram_points", parallelogram_light(), (48, 32), "midpoint", 24, 505, pieces=1
+    )
+    cases["light_parallelogram_points_reused_uniform"] = lambda: _parallelogram_reuse_case(
+        "light_parallelogram_points_reused_uniform", 506
     )
     cases["light_fan_points"] = lambda: _light_points_case(
         "light_fan_points", fan_light(), (48, 32), "midpoint", 24, 502

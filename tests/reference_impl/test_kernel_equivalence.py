@@ -91,9 +91,9 @@ def test_light_points_match_light_sampler(selection):
     sampler = LightSampler(geometry, selection)
     u = [_uniforms(10 + i) for i in range(4)]
     light, points = sampler.sample(*u)
-    tables = (sampler.cdf, sampler.triangles, sampler.first, sampler.count, sampler.within_cdf, sampler.pmf,
-              sampler.area)
-    got = [k_lights.sample_light_point(tables, sampler.num_lights, geometry.corners, *args) for args in zip(*u)]
+    assert sampler.count.tolist() == [1, 4, 4, 1] and sampler.parallelogram.tolist() == [False] * 9 + [True]  # a quad
+    tables = sampler.kernel_tables()
+    got = [k_lights.sample_light_point(tables, sampler.num_lights, *args) for args in zip(*u)]
     np.testing.assert_array_equal([g[0] for g in got], light)
     np.testing.assert_array_equal([g[1] for g in got], points.triangle)
     np.testing.assert_array_equal(np.array([g[2:] for g in got]), points.position)
@@ -120,8 +120,7 @@ def test_sample_reuse_matches_split_uniform(selection):
     lights[1] = (chi2_cases.fan_light(), lights[1][1])
     geometry, _ = chi2_cases.light_geometry(lights)
     sampler = LightSampler(geometry, selection)
-    tables = (sampler.cdf, sampler.triangles, sampler.first, sampler.count, sampler.within_cdf, sampler.pmf,
-              sampler.area)
+    tables = sampler.kernel_tables()
     u = _uniforms(40)
     want = sampler.split_uniform(u)
     got = np.array([k_lights.split_light_uniform(tables, sampler.num_lights, a) for a in u])

@@ -8,15 +8,16 @@ the cases and fixtures are in ``tests/reference_impl/chi2_cases.py``):
 * ``square_to_cosine_hemisphere`` / ``square_to_uniform_hemisphere`` vs their pdfs, in (cos theta, phi);
 * ``sample_hemisphere`` about non-axis normals (world frame), mapped back to each normal's local frame;
 * ``square_to_uniform_triangle`` on a skewed triangle vs 1 / area;
-* ``LightSampler.sample`` points on a rotated 0.7 x 0.3 rectangle light and on a fan of unequal triangles vs
-  ``pdf_area`` (on the fan also with one uniform reused for triangle and point, ``split_uniform``), and the fan's
-  triangle choice vs area / A;
+* ``LightSampler.sample`` points on a rotated 0.7 x 0.3 rectangle light and a skewed parallelogram light (each
+  one piece: y = p0 + u1 e1 + u2 e2) and on a fan of unequal triangles vs ``pdf_area`` (on the fan and the
+  parallelogram also with one uniform reused for piece and point, ``split_uniform``), and the fan's triangle choice
+  vs area / A;
 * ``LightSampler`` light selection ("power", "uniform") among 4 lights vs ``pdf_select``;
 * ``TriangleAreaSampler`` (global area sampling) choosing triangles in proportion to their areas;
 * ``PixelFilter.sample_1d`` ("tent", "gaussian") vs ``pdf_1d``.
 
 Significance: each chi^2 test of the standard set fails when p < alpha with
-alpha = 1 - (1 - 0.01)^(1/m) (Sidak, ~ 0.01 / m) for the m = len(cases.STANDARD_NAMES) = 20 tests, so the whole
+alpha = 1 - (1 - 0.01)^(1/m) (Sidak, ~ 0.01 / m) for the m = len(cases.STANDARD_NAMES) = 22 tests, so the whole
 file has a 1 % chance of a false alarm; the seeds are fixed, so a given tree passes or fails reproducibly. A test
 also fails hard, whatever p, if a sample lands where the pdf is 0, outside the binned domain, or if the pdf does not
 integrate to 1 (within 1e-3, the quadrature's accuracy).
@@ -56,7 +57,7 @@ def _report(result: chi2.Chi2Result) -> chi2.Chi2Result:
 
 
 def test_family_alpha():
-    m = 20
+    m = 22
     assert len(cases.STANDARD_NAMES) == m
     assert ALPHA == pytest.approx(1 - 0.99 ** (1 / m))
     assert 0.01 / m <= ALPHA <= 0.0101 / m
@@ -252,6 +253,21 @@ def test_rejects_fan_light_with_equal_triangle_probabilities():
     choice = cases.fan_triangle_choices(905, N_WRONG, mutate=_uniform_triangle_choice)
     r = _report(chi2.chi2_test_discrete(choice, areas / areas.sum(), name="wrong_fan_triangle_choice"))
     assert r.p_value < REJECT_P
+
+
+def test_rejects_parallelogram_sampled_as_its_first_triangle():
+    """The parallelogram's frame with the triangle warp (its flag cleared): every point in the half a + b <= 1, at
+    twice the density."""
+    light = cases.parallelogram_light()
+    geom, _ = cases.light_geometry([(light, (4.0, 3.0, 2.0))])
+    sampler, sample, pdf = cases.light_point_sampler(geom, light, seed=907)
+    assert sampler.parallelogram.tolist() == [True]
+    sampler.parallelogram = np.zeros(1, bool)
+    r = _report(chi2.chi2_test_2d(
+        sample, pdf, cases.bbox(light.polygon), (48, 32), N_WRONG, name="wrong_parallelogram_triangle_warp",
+        quadrature="midpoint", order=24,
+    ))
+    assert r.impossible == 0 and r.p_value < REJECT_P
 
 
 def test_rejects_uniform_selection_against_power_pmf():
