@@ -16,10 +16,9 @@ from numba import njit
 
 from reference_impl.kernels.config import FILTER_BOX, FILTER_GAUSSIAN, JIT
 from reference_impl.kernels.rng import dim_salt, path_key, pixel_key, uniform
-from reference_impl.kernels.sobol import sobol_point, sobol_seeds
+from reference_impl.kernels.sobol import sobol_points, sobol_seeds
 from reference_impl.rng import FILM_X, FILM_Y
 
-_ONE = np.uint64(1)
 
 
 @njit(**JIT)
@@ -48,8 +47,16 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
     n = len(pixel)
     salt_x = dim_salt(0, FILM_X, 0)
     salt_y = dim_salt(0, FILM_Y, 0)
-    seeds_pixel = -1
-    seeds = sobol_seeds(_ONE, salt_x, 1)
+    stratified = sobol and filter_kind != FILTER_GAUSSIAN
+    film_u = np.empty(n if stratified else 0)
+    film_v = np.empty(n if stratified else 0)
+    i = 0
+    while stratified and i < n:  # each pixel's run of consecutive samples at once (sobol_points)
+        m = 1
+        while i + m < n and pixel[i + m] == pixel[i] and sample[i + m] == sample[i] + m:
+            m += 1
+        sobol_points(sobol_seeds(pixel_key(seed_key, pixel[i]), salt_x, spp), sample[i], m, film_u, film_v, i)
+        i += m
     for i in range(n):
         k = path_key(seed_key, np.uint64(pixel[i]) * np.uint64(spp) + np.uint64(sample[i]))
         key[i] = k
@@ -57,10 +64,7 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
             dx, dy, w = pre_dx[i], pre_dy[i], pre_w[i]
         else:
             if sobol:
-                if pixel[i] != seeds_pixel:  # a pixel's samples come together: its seeds once
-                    seeds_pixel = pixel[i]
-                    seeds = sobol_seeds(pixel_key(seed_key, seeds_pixel), salt_x, spp)
-                ux, uy = sobol_point(seeds, sample[i])
+                ux, uy = film_u[i], film_v[i]
             else:
                 ux, uy = uniform(k, salt_x), uniform(k, salt_y)
             dx, wx = filter_sample(filter_kind, ux)

@@ -41,7 +41,7 @@ from reference_impl.kernels.light_sampling import (light_point, sample_light_poi
                                                    split_light_uniform, split_surface_uniform)
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
-from reference_impl.kernels.sobol import sobol_point, uniform_2d
+from reference_impl.kernels.sobol import pair_point, uniform_2d
 from reference_impl.kernels.surface import origin_offset, shadow_t_max
 from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
 from reference_impl.rng import (COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT,
@@ -56,7 +56,7 @@ def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces)
     for the discrete choices (lights.LightSampler.split_uniform); independent numbers need no reuse."""
     corners = scene[3]
     if sob:
-        u_a, u_b = sobol_point(seeds, index * cfg.shadow_rays + j)
+        u_a, u_b = pair_point(seeds, index * cfg.shadow_rays + j)
     else:
         u_a, u_b = uniform(key, dim_salt(depth, LIGHT_U1, j)), uniform(key, dim_salt(depth, LIGHT_U2, j))
     if cfg.direct == DIRECT_GLOBAL_AREA:
@@ -97,7 +97,7 @@ def light_sample_all(cfg, sob, seeds, index, j, key, depth, scene, lights, surfa
     cdf, light_pmf, light_area = lights[0], lights[5], lights[6]
     num_lights = cfg.num_lights
     if sob:
-        u_a, u_b = sobol_point(seeds, index * cfg.shadow_rays + j)
+        u_a, u_b = pair_point(seeds, index * cfg.shadow_rays + j)
         light, u_select, u_tri, u_a = split_light_uniform_all(lights, num_lights, cfg.num_area_lights, u_a)
         u_dir = u_tri
     else:

@@ -14,14 +14,14 @@ from numba import njit
 
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
                                            C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_GLOBAL_AREA,
-                                           DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, EMIT_MIS, EMIT_NONE, JIT,
+                                           DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, EMIT_MIS, EMIT_NONE, JIT, RR_OFF,
                                            SAMPLER_SOBOL)
 from reference_impl.kernels.direct import (complement_sample, hemisphere_sample, hemisphere_weight, light_sample,
                                            light_sample_all, shadow_ray)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
-from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
+from reference_impl.kernels.sobol import first_hit_seeds, held_point, longest_run, pixel_first_hit_points
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
@@ -47,9 +47,18 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
     hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
     sobol = cfg.sampler == SAMPLER_SOBOL
+    # The first hit's points of each pixel, computed ahead for its samples here, for the pairs these settings draw.
     fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
     fh_pixel = -1
     si = 0
+    size = longest_run(film_samples) * max(cfg.shadow_rays, cfg.indirect_rays) if sobol else 0
+    buffers = (np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size),
+               np.empty(size), np.empty(size))
+    lx, ly, dx, dy, rx, ry, ix, iy = buffers
+    nothing = (np.int64(0), np.int64(0))  # (base, count) of the points held: none yet
+    held = (nothing, nothing, nothing, nothing)
+    indirect_first = vertex_rules(cfg, 1)[2]
+    want_rr = indirect_first and cfg.rr != RR_OFF and cfg.rr_depth <= 1
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0
@@ -82,7 +91,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
         ray_pdf = pdf_dir[i]
         depth = 1
         if sobol:
-            fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
+            if film_samples[0][r] != fh_pixel:
+                fh, fh_pixel, held = pixel_first_hit_points(cfg, film_samples, r, buffers, not hemi_direct,
+                                                            hemi_direct, want_rr, indirect_first)
+            si = film_samples[1][r]
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
         if emitters is not None:
             nx0, nx1, nx2 = 0.0, 0.0, 1.0  # the previous vertex's normal, for the escape's MIS weight
@@ -128,11 +140,11 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             # independent arithmetic to overlap instead of a chain broken by every Embree call.
             go_on = allow_indirect
             if go_on:
-                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, fh[2], si, k, depth, b0, b1, b2)
+                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh[2], rx, ry, held[2], si), si, k, depth, b0, b1, b2)
                 if not go_on:
                     count_roulette += 1
             if go_on:
-                go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, fh[3], si, 0, k, depth, nx0,
+                go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, held_point(fh[3], ix, iy, held[3], si), si, 0, k, depth, nx0,
                                                                                  nx1, nx2, f0, f1, f2, q0, q1, q2)
                 if go_on:
                     count_indirect += 1
@@ -143,7 +155,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, fh[1], si, j, k, depth, nx0, nx1, nx2)
+                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, held_point(fh[1], dx, dy, held[1], si * nd + j), si, j, k, depth, nx0, nx1, nx2)
                     count_hemi_direct += 1
                     hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
                                                                  ox0, ox1, ox2, h0, h1, h2)
@@ -163,13 +175,13 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                     tot2 += emission[htri, 2] * f2 * weight
                     continue
                 if emitters is None:
-                    selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene,
+                    selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene,
                                                                         lights, surfaces)
                     needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                         cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
                 else:
                     selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                        cfg, sob, fh[0], si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1,
+                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1,
                         nx2, ox0, ox1, ox2, f0, f1, f2)
                 if selected:
                     count_light_select += 1

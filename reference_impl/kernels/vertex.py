@@ -25,7 +25,7 @@ from reference_impl.kernels.config import (DIRECT_MIS, EMIT_ALL, EMIT_MIS, EMIT_
                                            M_COSINE_PDF_PI, M_DOUBLE_EMISSION, M_NO_COSINE, M_RR_NO_REWEIGHT,
                                            RR_ALBEDO, RR_OFF)
 from reference_impl.kernels.rng import branch_salt, dim_salt, mix64, uniform
-from reference_impl.kernels.sobol import sobol_point, uniform_2d
+from reference_impl.kernels.sobol import pair_point, uniform_2d
 from reference_impl.kernels.surface import offset_origin
 from reference_impl.kernels.warps import PI, sample_hemisphere
 from reference_impl.rng import INDIRECT_U1, INDIRECT_U2, ROULETTE
@@ -92,7 +92,7 @@ def roulette(cfg, scene, material, sob, seeds, index, key, depth, b0, b1, b2):
     if not (cfg.rr != RR_OFF and depth >= cfg.rr_depth):
         return True, b0, b1, b2
     survival = scene[9][material] if cfg.rr == RR_ALBEDO else cfg.survival
-    u_rr = sobol_point(seeds, index)[0] if sob else uniform(key, dim_salt(depth, ROULETTE, 0))
+    u_rr = pair_point(seeds, index)[0] if sob else uniform(key, dim_salt(depth, ROULETTE, 0))
     if not (u_rr < survival):
         return False, b0, b1, b2
     if cfg.mutant & M_RR_NO_REWEIGHT:  # mutant "rr-no-reweight"

@@ -18,7 +18,7 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
 from reference_impl.kernels.direct import (complement_sample, hemisphere_sample, hemisphere_weight, light_sample,
                                            light_sample_all, shadow_ray)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance
-from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds
+from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds, spot_point
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
@@ -106,7 +106,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
         # Direct light: the rays of Nd samples, resolved by resolve_shadow / resolve_hemisphere.
         for j in range(nd):
             if hemi_direct:  # a closest-hit ray
-                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, fh[1], si, j, k, depth, nx0, nx1, nx2)
+                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, spot_point(fh[1]), si, j, k, depth, nx0, nx1, nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
                 s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
@@ -117,13 +117,13 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                 s += 1
                 continue
             if emitters is None:
-                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, fh[0], si, j, k, depth, scene, lights,
+                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh[0]), si, j, k, depth, scene, lights,
                                                                     surfaces)
                 needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                     cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
             else:
                 selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                    cfg, sob, fh[0], si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1, nx2,
+                    cfg, sob, spot_point(fh[0]), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1, nx2,
                     ox0, ox1, ox2, f0, f1, f2)
             if selected:
                 counters[C_LIGHT_SELECT] += 1
@@ -158,12 +158,12 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
         # Indirect light (Fig. 5.14), if the next vertex can still add anything.
         if not allow_indirect:
             continue
-        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, fh[2], si, k, depth, b0, b1, b2)
+        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, spot_point(fh[2]), si, k, depth, b0, b1, b2)
         if not alive:
             counters[C_ROULETTE] += 1
             continue
         for branch in range(ni):
-            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, fh[3], si, branch, k, depth, nx0,
+            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh[3]), si, branch, k, depth, nx0,
                                                                          nx1, nx2, f0, f1, f2, b0, b1, b2)
             if not carries:
                 counters[C_ROULETTE] += 1

@@ -161,6 +161,28 @@ def test_kernel_matches_rng_bit_for_bit():
             np.testing.assert_array_equal(got[:, 1], want_y)
 
 
+
+@pytest.mark.parametrize("n", [1, 6, 64, 1000])
+def test_points_computed_ahead_are_the_points_one_at_a_time(n):
+    """kernels.sobol.sobol_points (a pixel's run of points in one loop, the cycle-walk of n < 2^k in a second pass)
+    writes the bits sobol_point gives for each index, and only xs[at:at + count]; pair_point and held_point hand
+    back a held point or compute it on the spot, the same bits."""
+    seeds = tuple(np.uint64(v) for v in k_sobol.sobol_seeds(np.uint64(12345), np.uint64(k_rng.dim_salt(1, 2, 0)), n))
+    first, count, at = (n // 3, n - n // 3, 5)
+    xs, ys = np.full(count + 10, -1.0), np.full(count + 10, -1.0)
+    k_sobol.sobol_points(seeds, first, count, xs, ys, at)
+    want = np.array([k_sobol.sobol_point(seeds, first + i) for i in range(count)])
+    np.testing.assert_array_equal(xs[at:at + count], want[:, 0])
+    np.testing.assert_array_equal(ys[at:at + count], want[:, 1])
+    assert (xs[:at] == -1).all() and (xs[at + count:] == -1).all()
+    xs, ys = xs[at:], ys[at:]  # point first + o at o
+    held = (np.int64(first), np.int64(count))
+    for index in (first, first + count - 1, 0 if first > 0 else n + 3):
+        points = (seeds, *k_sobol.held_point(seeds, xs, ys, held, index)[1:])  # the seeds as the kernels type them
+        assert points[3] == (first <= index < first + count)
+        assert k_sobol.pair_point(points, index) == k_sobol.sobol_point(seeds, index)
+    assert k_sobol.pair_point((seeds, *k_sobol.spot_point(seeds)[1:]), 2) == k_sobol.sobol_point(seeds, 2)
+
 def test_settings_refuse_more_points_than_the_sequence_holds():
     from reference_impl import Settings
     from reference_impl.errors import SettingsError
