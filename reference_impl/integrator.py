@@ -71,7 +71,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, glossy, path, wavefront  # optional: numba-compiled; noqa: F401 (attributes of kernels)
+    from reference_impl.kernels import camera, config, film, glossy, packet, path, wavefront  # optional: numba-compiled; noqa: F401 (attributes of kernels)
 
     return kernels
 
@@ -256,7 +256,11 @@ class _Context:
                                    c(em.env_cell_pdf), c(em.env_row_cdf), c(em.env_col_cdf))
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
-        self.path_engine = (s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0)
+        self.path_engine = (s.engine in ("packet", "path") and s.indirect_rays == 1
+                            and self.intersector.scene_pointer != 0)
+        # The packet engine repeats the path engine's loop for point-sampling strategies without other emitters.
+        self.packet_engine = (self.path_engine and s.engine == "packet" and self.emitter_tables is None
+                              and s.direct not in ("hemisphere-cosine", "hemisphere-uniform"))
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         width, height = self.film.width, self.film.height
         self.tan_half_fov = self.camera.tan_half_fov(width, height)
@@ -417,6 +421,11 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                     ctx.material_tables, ctx.config, radiance, counters, timing, ctx.emitter_tables,
                                     record)
+        clock.seconds += timing[0] * 1e-9
+    elif ctx.packet_engine:
+        timing = np.zeros(2, np.int64)
+        kernels.packet.trace_packets(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
+                                     ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples)
         clock.seconds += timing[0] * 1e-9
     elif ctx.path_engine:
         timing = np.zeros(2, np.int64)

@@ -16,7 +16,7 @@ DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", 
 GLOSSY_DIRECT = ("area", "mis", "bsdf")
 HEMISPHERES = ("cosine", "uniform")
 ROULETTES = ("albedo", "fixed", "throughput", "off")
-ENGINES = ("path", "wavefront")
+ENGINES = ("packet", "path", "wavefront")
 SAMPLERS = ("sobol", "independent")
 
 
