@@ -58,7 +58,9 @@ class Settings:
     threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
     engine          how paths are traced (speed only: the same bits either way): "path", each path from its camera
                     ray to its end in one compiled loop that queries Embree itself (Ni = 1 only; with Ni > 1 the
-                    wavefront is used), or "wavefront", every bounce of a batch at once, queries in batches.
+                    wavefront is used); "packet", the same loop with up to 16 paths of a pixel stepped together and
+                    their rays queried as packets (kernels/packet.py; with other emitters or a hemisphere strategy,
+                    the path engine); or "wavefront", every bounce of a batch at once, queries in batches.
     mutant          name of a planted fault (see ``reference_impl.mutants``); "" = none. Never on by default.
     """
 

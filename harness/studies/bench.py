@@ -69,6 +69,7 @@ STRATEGIES: tuple[dict[str, str], ...] = (
     {"rr_depth": "5"},
     {"rr": "off"},
     {"light_selection": "uniform"},
+    {"engine": "packet"},
 )
 
 # Mitsuba samplers raced besides independent and ldsampler on the scenes where a target compares with Mitsuba's best
