@@ -44,7 +44,8 @@ formulas, operation for operation (same order of floating-point operations where
 the warps and samplers give the numpy functions' bits. (The shading arithmetic has since been reordered for speed,
 one division and three products where three divisions were, so images are no longer those of the numpy integrator
 of git 5dd5d08; the two engines agree bit for bit: ``tests/test_engines.py``.) The order of numpy's einsum sums and
-the last bits of sin/cos/sqrt come from the numpy build, the CPU and libm, so elsewhere the two may differ in last
+the last bits of sin/cos/sqrt come from the numpy build, the CPU and libm (the hemisphere warps' cos and sin are
+``sampling.unit_circle``'s polynomials, not libm's), so elsewhere the two may differ in last
 bits (each still deterministic). ``tests/test_kernel_equivalence.py`` checks the warps, light sampling and random
 numbers against the numpy functions, bit for bit; ``tests/reference_impl/test_image_checksums.py`` holds whole renders to stored
 bits.
@@ -68,7 +69,7 @@ except ImportError:
 
 _HERE = Path(__file__).resolve().parent
 # Besides this package, the kernels compile in constants and code of these modules.
-_ALSO_COMPILED_IN = ("embree_c.py", "rng.py", "emitters.py")
+_ALSO_COMPILED_IN = ("embree_c.py", "rng.py", "emitters.py", "sampling.py")
 _STAMP = "kernel-sources.sha256"
 
 

@@ -18,12 +18,16 @@ import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_INLINE
+from reference_impl.sampling import _COS, _HALF_PI, _SIN
 
 PI = np.pi
 INV_PI = 1.0 / np.pi  # the same constant as sampling.INV_PI
 TWO_PI = 2.0 * np.pi
 HALF_INV_PI = 0.5 * INV_PI
 _BELOW_ONE = np.nextafter(1.0, 0.0)
+HALF_PI = _HALF_PI
+_S0, _S1, _S2, _S3, _S4, _S5, _S6 = _SIN
+_C0, _C1, _C2, _C3, _C4, _C5, _C6, _C7 = _COS
 
 
 @njit(**JIT)
@@ -34,11 +38,43 @@ def dot3(a0, a1, a2, b0, b1, b2):
 
 
 @njit(**JIT)
+def unit_circle(u):
+    """sampling.unit_circle for one uniform: (cos 2 pi u, sin 2 pi u) from the quarter turn round(4u) and Taylor
+    polynomials of the angle left, in [-pi/4, pi/4]. (libm's ``sincos`` was 7 % of a Cornell box render.)"""
+    v = 4.0 * u
+    q = math.floor(v + 0.5)
+    a = (v - q) * HALF_PI
+    a2 = a * a
+    ps = _S6
+    ps = _S5 + a2 * ps
+    ps = _S4 + a2 * ps
+    ps = _S3 + a2 * ps
+    ps = _S2 + a2 * ps
+    ps = _S1 + a2 * ps
+    ps = _S0 + a2 * ps
+    sin_a = a + a * (a2 * ps)
+    pc = _C7
+    pc = _C6 + a2 * pc
+    pc = _C5 + a2 * pc
+    pc = _C4 + a2 * pc
+    pc = _C3 + a2 * pc
+    pc = _C2 + a2 * pc
+    pc = _C1 + a2 * pc
+    pc = _C0 + a2 * pc
+    cos_a = 1.0 + a2 * pc
+    k = np.int64(q)
+    odd = (k & 1) == 1  # a quarter or three quarters: cos and sin swap (selects, not branches: q is random)
+    x = sin_a if odd else cos_a
+    y = cos_a if odd else sin_a
+    return x * (1.0 - 2.0 * (((k + 1) >> 1) & 1)), y * (1.0 - 2.0 * ((k >> 1) & 1))
+
+
+@njit(**JIT)
 def cosine_hemisphere(u1, u2):
     """sampling.square_to_cosine_hemisphere for one pair of uniforms: local (x, y, z)."""
     r = math.sqrt(u1)
-    phi = TWO_PI * u2
-    return r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))
+    cos_phi, sin_phi = unit_circle(u2)  # phi = 2 pi u2
+    return r * cos_phi, r * sin_phi, math.sqrt(max(0.0, 1.0 - u1))
 
 
 @njit(**JIT)
@@ -46,8 +82,8 @@ def uniform_hemisphere(u1, u2):
     """sampling.square_to_uniform_hemisphere for one pair of uniforms."""
     z = u1
     r = math.sqrt(max(0.0, 1.0 - z * z))
-    phi = TWO_PI * u2
-    return r * math.cos(phi), r * math.sin(phi), z
+    cos_phi, sin_phi = unit_circle(u2)  # phi = 2 pi u2
+    return r * cos_phi, r * sin_phi, z
 
 
 @njit(**JIT)
