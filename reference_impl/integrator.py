@@ -420,7 +420,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         timing = np.zeros(2, np.int64)
         kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                     ctx.material_tables, ctx.config, radiance, counters, timing, ctx.emitter_tables,
-                                    record)
+                                    film_samples, record)
         clock.seconds += timing[0] * 1e-9
     elif ctx.packet_engine:
         timing = np.zeros(2, np.int64)

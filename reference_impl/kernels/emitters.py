@@ -290,5 +290,31 @@ def split_light_uniform_all(lights, num_lights, num_area, u):
     return light, u, u_tri, rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0, within_cdf[f + lo])
 
 
+@njit(**JIT_BORROW)
+def split_light_piece_all(lights, num_lights, num_area, u):
+    """:func:`split_light_uniform_all` handing on the piece it finds instead of u_tri: (light k, its piece (the
+    row of the light tables; -1 for an emitter), u1), so that the point need not search k's pieces again (on
+    veach-mis, whose sphere lights have hundreds of triangles, the second search cost the glossy engine 17 %)."""
+    cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
+    light = 0
+    u_tri = u
+    if num_lights > 1:
+        light = sample_discrete(cdf, u)
+        u_tri = rescale_within(u, cdf[light - 1] if light > 0 else 0.0, cdf[light])
+    if light >= num_area:
+        return light, np.int64(-1), u_tri
+    f = first[light]
+    lo = 0
+    hi = count[light] - 1
+    while lo < hi:  # light_sampling.search_within
+        mid = (lo + hi) // 2
+        if within_cdf[f + mid] <= u_tri:
+            lo = mid + 1
+        else:
+            hi = mid
+    return light, np.int64(f + lo), rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0,
+                                                   within_cdf[f + lo])
+
+
 __all__ = ["INV_FOUR_PI", "emitter_sample", "env_light_pdf", "env_pdf", "env_radiance", "env_sample",
            "split_light_uniform_all", "spot_falloff", "uniform_sphere"]

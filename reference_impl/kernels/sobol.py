@@ -22,7 +22,8 @@ from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_BORROW
 from reference_impl.kernels.rng import dim_salt, mix64, pixel_key, uniform
-from reference_impl.rng import _GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, DIRECT_DIR_U1, INDIRECT_U1, LIGHT_U1, ROULETTE
+from reference_impl.rng import (_GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, BSDF_LOBE, BSDF_U1, DIRECT_DIR_U1, INDIRECT_U1,
+                                LIGHT_U1, ROULETTE)
 
 _U32 = np.uint64(32)
 _ONE = np.uint64(1)
@@ -174,6 +175,17 @@ def first_hit_seeds(seed_key, pixel, spp, nd, ni):
     return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
             sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
             sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp), sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
+
+
+@njit(**JIT)
+def glossy_vertex_seeds(seed_key, pixel, spp, nd, depth):
+    """The ``sobol_seeds`` of a pixel's pairs at vertex ``depth`` in the glossy engine: (light sample, BSDF
+    direction, BSDF lobe and roulette); Np x Nd, Np and Np points. The light sample's choices of light and triangle
+    reuse its point's first coordinate (as :func:`first_hit_seeds`'); the lobe and the roulette number are the two
+    coordinates of one point. Every (depth, pair) has its own scramble and order: pbrt-v4's padded Sobol sampler."""
+    pk = pixel_key(seed_key, pixel)
+    return (sobol_seeds(pk, dim_salt(depth, LIGHT_U1, 0), spp * nd),
+            sobol_seeds(pk, dim_salt(depth, BSDF_U1, 0), spp), sobol_seeds(pk, dim_salt(depth, BSDF_LOBE, 0), spp))
 
 
 @njit(**JIT_BORROW)

@@ -141,6 +141,20 @@ def test_sample_reuse_matches_split_uniform(selection):
     for i in range(3):
         np.testing.assert_array_equal(got[:, i], want[i])
     assert np.all((want[2] >= 0) & (want[2] < 1))
+    # The glossy engine's split (kernels.emitters.split_light_piece_all): the same light and point coordinate, and
+    # the piece the light's table gives for its u_tri, found once; an emitter past the area lights has no piece.
+    from reference_impl.kernels import emitters as k_emitters
+
+    for a, u_select, u_tri, u1 in zip(u, *want):
+        light, piece, got_u1 = k_emitters.split_light_piece_all(tables, sampler.num_lights, sampler.num_area, a)
+        f = sampler.first[light]
+        assert (light, got_u1) == (k_lights.sample_light_point(tables, sampler.num_lights, u_select, u_tri, u1,
+                                                               0.5)[0], u1)
+        assert piece == f + k_lights.search_within(sampler.within_cdf, f, sampler.count[light], u_tri)
+    with_emitter = LightSampler(geometry, selection, extra_power=np.array([1.0]))  # light 4: a point light, say
+    light, piece, got_u1 = k_emitters.split_light_piece_all(with_emitter.kernel_tables(), with_emitter.num_lights,
+                                                            with_emitter.num_area, 0.9999999)
+    assert (light, piece) == (with_emitter.num_area, -1) and 0 <= got_u1 < 1
     surfaces = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     want = surfaces.split_uniform(u)
     got = np.array([k_lights.split_surface_uniform((surfaces.triangles, surfaces.cdf), a) for a in u])

@@ -212,8 +212,10 @@ def _seed_spread(scene, seeds: int, **settings):
 
 
 @pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
-@pytest.mark.parametrize("settings", [{"max_depth": 3}, {"max_depth": 4, "indirect_rays": 3, "shadow_rays": 2}],
-                         ids=["depth-3", "depth-4-Ni3-Nd2"])
+@pytest.mark.parametrize("settings", [{"max_depth": 3}, {"max_depth": 4, "indirect_rays": 3, "shadow_rays": 2},
+                                      {"max_depth": 3, "rr": "throughput", "rr_depth": 1, "shadow_rays": 2},
+                                      {"max_depth": 4, "direct": "bsdf"}],
+                         ids=["depth-3", "depth-4-Ni3-Nd2", "glossy-engine-Nd2", "glossy-engine-bsdf"])
 def test_sobol_renders_are_unbiased_on_the_furnace(settings):
     """The furnace's closed form (tests/reference_impl/test_estimators.py) against the mean of 24 seeds, each pixel's variance from
     the spread across seeds (honest for a stratified sampler, whose own variance is only an upper bound): the
@@ -229,6 +231,7 @@ def test_sobol_renders_are_unbiased_on_the_furnace(settings):
     se = np.sqrt(spread.reshape(-1, 3).sum(axis=0) / mean.shape[0] ** 2 / mean.shape[1] ** 2 / seeds)
     t_crit = stats.t.ppf(1 - 1e-3 / 6, seeds - 1)
     assert np.all(np.abs(got - want) < t_crit * se + 1e-9), (got, want, se)
+
 
 
 def test_reported_variance_is_an_upper_bound_with_sobol_and_right_without():
