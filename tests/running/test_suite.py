@@ -112,9 +112,10 @@ def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path, capfd):
         assert case["verdict"]["verdict"] in ("pass", "fail")
         assert case["render"]["seconds"] > 0 and Path(case["render"]["exr"]).is_file()
         assert "cached" in case["ground_truth"]
-    # the second run checks the cache and the verdicts only: the first one's studies and report are enough
+    # the second run checks the cache and the verdicts only: the first one's studies and report are enough, and
+    # its executor (the default, a local worker); this one renders in this process, whose kernels are loaded
     code, stdout, _ = run_cli(capfd, "run", SUITES / "smoke.toml", "--out", out, "--quiet", "--fresh",
-                              "--no-report", "--cache-dir", cache)
+                              "--no-report", "--cache-dir", cache, "--executor", "serial")
     assert code == 0
     second = json.loads((out / "results.json").read_text())
     assert second["summary"]["mitsuba_renders"] == 0, second["summary"]
