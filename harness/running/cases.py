@@ -111,12 +111,13 @@ def load_suite(path: str | Path) -> Suite:
     if "baseline" in doc:  # checked with or without --baseline: a broken table is an error now, not at a later gate
         check_table(label, baseline)
     cases, names, folders, scenes = [], set(), {}, {}
+    known = renderer_names()  # once per suite: it reads every installed package's entry points (2 ms)
     for i, entry in enumerate(entries):
         where = f"cases[{i}]"
         entry = _typed(label, where, entry, dict)
         _check_keys(label, entry, CASE_KEYS, where)
         merged = {**defaults, **entry}
-        case = _case(label, path.parent, where, merged)
+        case = _case(label, path.parent, where, merged, known)
         if case.name in names:
             raise HarnessError(f"{label}: {where}.name", f"duplicate case name {short(case.name)}")
         _check_folder_unique(label, where, case.name, folders)
@@ -128,7 +129,9 @@ def load_suite(path: str | Path) -> Suite:
     return Suite(name, description, path, tuple(cases), baseline)
 
 
-def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
+def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[str]) -> Case:
+    """One case of a suite; ``known``: the renderer names (:func:`harness.renderers.renderer_names`)."""
+
     def key(k: str) -> str:
         return f"{where}.{k}"
 
@@ -137,7 +140,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
     scene = _scene_path(label, key("scene"), folder, _typed(label, key("scene"), d["scene"], str))
     name = _case_name(label, key("name"), d.get("name", scene.stem), "name" not in d)
     renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
-    renderer = _renderer_known(label, key("renderer"), renderer, renderer_names(), folder)
+    renderer = _renderer_known(label, key("renderer"), renderer, known, folder)
     settings = _settings(label, key("settings"), d.get("settings", {}))
     spp = d.get("spp", None if "seconds" in d else 64)
     seconds = d.get("seconds")
@@ -147,7 +150,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any]) -> Case:
         spp = _at_least_two(label, key("spp"), spp)
     if seconds is not None:
         seconds = float(_positive(label, key("seconds"), seconds, (int, float)))
-    against = _against(label, key("against"), d.get("against", "ground-truth"), renderer_names(), folder)
+    against = _against(label, key("against"), d.get("against", "ground-truth"), known, folder)
     film = d.get("film")
     if film is not None:
         film = _typed(label, key("film"), film, dict)

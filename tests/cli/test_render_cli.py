@@ -22,6 +22,15 @@ def run_cli(*args, cwd=None):
     return proc.returncode, proc.stdout, proc.stderr
 
 
+def cli(capfd, *args):
+    """``harness ARGS`` in this process: (exit code, stdout, stderr) as the file descriptors saw them. The refusals
+    below come from the same ``main()`` a process runs; the process itself (its stdout holding only the JSON, a
+    closed stdout) is tested by test_render_writes_exr_with_variance_png_and_json and tests/cli/test_hostile_cli.py."""
+    code = main([str(a) for a in args])
+    out, err = capfd.readouterr()
+    return code, out, err
+
+
 def test_render_writes_exr_with_variance_png_and_json(tmp_path):
     out = tmp_path / "furnace.exr"
     code, stdout, stderr = run_cli("render", str(SCENES / "furnace.toml"), "--spp", "4", "--seed", "3",
@@ -98,26 +107,26 @@ def test_same_seed_same_file_bytes(tmp_path):
     (["--renderer", "nope"], "--renderer"),
     (["--set", "max_depth=-1", "--set", "rr=off"], "--set rr"),
 ])
-def test_bad_options_get_one_line_and_exit_2(tmp_path, args, names):
+def test_bad_options_get_one_line_and_exit_2(tmp_path, capfd, args, names):
     out = tmp_path / "x.exr"
     argv = ["render", str(SCENES / "furnace.toml"), "--out", str(out)]
     if "--spp" not in args:
         argv += ["--spp", "1"]
-    code, stdout, stderr = run_cli(*argv, *args)
+    code, stdout, stderr = cli(capfd, *argv, *args)
     assert code == 2
     assert len(stderr.strip().splitlines()) == 1, stderr
     assert names in stderr and "Traceback" not in stderr
     assert not out.exists() and not list(tmp_path.iterdir())
 
 
-def test_bad_scene_and_output_get_one_line_and_exit_2(tmp_path):
+def test_bad_scene_and_output_get_one_line_and_exit_2(tmp_path, capfd):
     bad = tmp_path / "bad.toml"
     bad.write_text('name = "x"\n[camera]\norigin = [0, 0]\n')
-    code, _, stderr = run_cli("render", str(bad), "--spp", "1", "--out", str(tmp_path / "x.exr"))
+    code, _, stderr = cli(capfd, "render", str(bad), "--spp", "1", "--out", str(tmp_path / "x.exr"))
     assert code == 2 and len(stderr.strip().splitlines()) == 1 and str(bad) in stderr
-    code, _, stderr = run_cli("render", str(SCENES / "furnace.toml"), "--spp", "1", "--out", str(tmp_path / "no" / "x.exr"))
+    code, _, stderr = cli(capfd, "render", str(SCENES / "furnace.toml"), "--spp", "1", "--out", str(tmp_path / "no" / "x.exr"))
     assert code == 2 and "--out" in stderr and len(stderr.strip().splitlines()) == 1
-    code, _, stderr = run_cli("render", str(tmp_path / "missing.toml"), "--spp", "1", "--out", str(tmp_path / "x.exr"))
+    code, _, stderr = cli(capfd, "render", str(tmp_path / "missing.toml"), "--spp", "1", "--out", str(tmp_path / "x.exr"))
     assert code == 2 and "missing.toml" in stderr
     assert not (tmp_path / "x.exr").exists()
 

@@ -28,9 +28,12 @@ EXAMPLE = ROOT / "examples" / "mitsuba_xml_renderer.py"
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
-# A fake renderer for the failure modes: no Mitsuba, fast. Pixel values N(mu, 0.1^2) seeded by --seed.
+# A fake renderer for the failure modes: no Mitsuba, fast. Pixel values N(mu, 0.1^2) seeded by --seed. It reports
+# its render time (<out>.json), so a render is its runs alone: no three 1-spp probe runs to measure its start-up
+# (the start-up path is _timed_renderer's, below).
 FAKE = r'''
 import os, subprocess, sys, time
+start = time.perf_counter()
 import numpy as np
 args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
 mode, out = args["--mode"], args["--out"]
@@ -54,6 +57,7 @@ if mode == "wrongsize":
 rng = np.random.default_rng(int(args["--seed"]))
 image = 0.5 + 0.1 * rng.standard_normal((h, w, 3))
 write_exr(out, image, np.full((h, w, 3), 0.01 / int(args["--spp"])) if mode == "variance" else None)
+open(out + ".json", "w").write('{"render_seconds": %r}' % (time.perf_counter() - start))
 '''
 
 

@@ -725,6 +725,17 @@ def run_cli(*args: str, env_cache: Path) -> subprocess.CompletedProcess:
                           cwd=ROOT, env=env, timeout=120)
 
 
+def in_process(capfd, *args: str) -> subprocess.CompletedProcess:
+    """``harness ground-truth ARGS`` through main() in this process (the default cache is isolated_default_cache's),
+    as run_cli's result: no interpreter to start, Mitsuba imported once. test_cli_closed_form keeps a process."""
+    from harness.cli import main
+
+    capfd.readouterr()
+    code = main(["ground-truth", *args])
+    out, err = capfd.readouterr()
+    return subprocess.CompletedProcess(["harness", "ground-truth", *args], code, out, err)
+
+
 def test_cli_closed_form(tmp_path):
     proc = run_cli("scenes/furnace.toml", "--json", env_cache=tmp_path / "default-cache")
     assert proc.returncode == 0, proc.stderr
@@ -734,17 +745,17 @@ def test_cli_closed_form(tmp_path):
     assert not (tmp_path / "default-cache").exists()
 
 
-def test_cli_mitsuba_ground_truth_and_cache(tmp_path):
+def test_cli_mitsuba_ground_truth_and_cache(tmp_path, capfd):
     scene = copy_scene("soft-shadows", tmp_path)
     cache = tmp_path / "cache"
     args = (str(scene), "--cache-dir", str(cache), "--spp", "8", "--chunk-spp", "4", "--json", "--quiet",
             "--mitsuba-variant", VARIANT)
-    first = run_cli(*args, env_cache=tmp_path / "default-cache")
+    first = in_process(capfd, *args)
     assert first.returncode == 0, first.stderr
     one = json.loads(first.stdout)
     assert one["source"] == "mitsuba" and one["renders"] == 2 and one["cached"] is False and one["spp"] == 8
 
-    second = run_cli(*args, env_cache=tmp_path / "default-cache")
+    second = in_process(capfd, *args)
     assert second.returncode == 0, second.stderr
     two = json.loads(second.stdout)
     assert two["renders"] == 0 and two["cached"] is True
@@ -763,17 +774,17 @@ def test_cli_mitsuba_ground_truth_and_cache(tmp_path):
     assert api.cached and str(api.path) == two["path"]
 
 
-def test_cli_missing_scene(tmp_path):
-    proc = run_cli(str(tmp_path / "nope.toml"), "--json", env_cache=tmp_path / "default-cache")
+def test_cli_missing_scene(tmp_path, capfd):
+    proc = in_process(capfd, str(tmp_path / "nope.toml"), "--json")
     assert proc.returncode == 2
     assert proc.stdout == ""
     lines = proc.stderr.strip("\n").split("\n")
     assert len(lines) == 1 and lines[0].startswith("harness: error:") and "nope.toml" in lines[0]
 
 
-def test_cli_bad_spp(tmp_path):
+def test_cli_bad_spp(tmp_path, capfd):
     scene = copy_scene("soft-shadows", tmp_path)
-    proc = run_cli(str(scene), "--cache-dir", str(tmp_path / "c"), "--spp", "0", env_cache=tmp_path / "d")
+    proc = in_process(capfd, str(scene), "--cache-dir", str(tmp_path / "c"), "--spp", "0")
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1 and "--spp" in proc.stderr
 
 

@@ -278,9 +278,15 @@ def test_parse_ladder():
 # ---- command line ------------------------------------------------------------------------------------------------
 
 
-def run_cli(*args):
-    proc = subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, timeout=300)
-    return proc.returncode, proc.stdout, proc.stderr
+def run_cli(capfd, *args):
+    """``harness ARGS`` in this process: (exit code, stdout, stderr) as the file descriptors saw them. What only a
+    process shows (stdout holding the JSON alone) is test_convergence_json_is_alone_on_stdout's; a process here
+    would spend its time importing trimesh, matplotlib and the harness again (2-3 s a run)."""
+    from harness.cli import main
+
+    code = main([str(a) for a in args])
+    out, err = capfd.readouterr()
+    return code, out, err
 
 
 def write_suite(tmp_path: Path, body: str) -> Path:
@@ -298,18 +304,19 @@ film = { width = 8, height = 8 }
 '''
 
 
-def test_run_writes_the_report_and_report_rewrites_it(tmp_path):
+def test_run_writes_the_report_and_report_rewrites_it(tmp_path, capfd):
     suite = write_suite(tmp_path, ONE_CASE)
     out = tmp_path / "out"
-    # a small ladder and no strategy rows: the studies' content is tested elsewhere, here that run writes them
-    code, stdout, stderr = run_cli("run", str(suite), "--out", str(out), "--quiet", "--convergence-spp", "1,2,4",
-                                   "--no-strategies")
+    # a small ladder and no strategy rows: the studies' content is tested elsewhere, here that run writes them; the
+    # case in this process (serial), not in a worker that would load the kernels again (1-2 s)
+    code, stdout, stderr = run_cli(capfd, "run", str(suite), "--out", str(out), "--quiet", "--convergence-spp", "1,2,4",
+                                   "--no-strategies", "--executor", "serial")
     assert code == 0, stdout + stderr
     assert "report:" in stdout and (out / "index.html").is_file() and (out / "report.json").is_file()
     assert "studies:" in stdout and (out / "studies" / "studies.json").is_file()
     assert json.loads((out / "report.json").read_text())["convergence"]["spp_ladder"] == [1, 2, 4]
     again = tmp_path / "again"
-    code, stdout, stderr = run_cli("report", str(out / "results.json"), "--out", str(again), "--quiet", "--studies",
+    code, stdout, stderr = run_cli(capfd, "report", str(out / "results.json"), "--out", str(again), "--quiet", "--studies",
                                    "--convergence-spp", "1,2", "--no-strategies", "--no-shadow-rays")
     assert code == 0, stdout + stderr
     report = json.loads((again / "report.json").read_text())
@@ -339,7 +346,7 @@ def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, mo
     else:
         monkeypatch.setattr(harness.cli.studies, "write_suite_studies", fail)
     suite = write_suite(tmp_path, ONE_CASE)
-    code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet"]
+    code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet", "--executor", "serial"]
                 + (["--no-studies"] if broken == "report" else []))
     err = capsys.readouterr().err
     assert code == 0
@@ -349,10 +356,10 @@ def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, mo
         assert not (tmp_path / "out" / "studies").exists()
 
 
-def test_convergence_command(tmp_path):
+def test_convergence_command(tmp_path, capfd):
     out = tmp_path / "conv"
     code, stdout, stderr = run_cli(
-        "convergence", str(ROOT / "scenes" / "furnace.toml"), "--film", "8x8", "--spp", "1,2,4,8",
+        capfd, "convergence", str(ROOT / "scenes" / "furnace.toml"), "--film", "8x8", "--spp", "1,2,4,8",
         "--renderer", "reference", "--renderer", "reference", "--set", "hemisphere=uniform", "--out", str(out),
         "--quiet")
     assert code == 0, stdout + stderr
@@ -362,7 +369,7 @@ def test_convergence_command(tmp_path):
     assert set(result["comparisons"]) == {"rmse_corrected", "relmse_corrected"}
     page = (out / "index.html").read_text()
     assert "data:image/png;base64," in page and "<script" not in page
-    code, _, stderr = run_cli("convergence", str(ROOT / "scenes" / "furnace.toml"), "--spp", "1,two")
+    code, _, stderr = run_cli(capfd, "convergence", str(ROOT / "scenes" / "furnace.toml"), "--spp", "1,two")
     assert code == 2 and "--spp" in stderr and len(stderr.strip().splitlines()) == 1
 
 

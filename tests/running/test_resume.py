@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+from harness.cli import main
 from harness.running import runstate
 from harness.running.executors import SerialExecutor
 from harness.renderers.groundtruth import Cache
@@ -78,7 +79,7 @@ def _cache_is_intact() -> None:
         assert Cache().load(name) is not None, f"cache entry {name} does not verify"
 
 
-def test_sigint_keeps_finished_cases_and_a_rerun_renders_only_the_rest(tmp_path):
+def test_sigint_keeps_finished_cases_and_a_rerun_renders_only_the_rest(tmp_path, capfd):
     path, out = _write_suite(tmp_path), tmp_path / "out"
     proc, first = _interrupt(path, out, signal.SIGINT, "local")
     done = len(first["cases"])
@@ -90,10 +91,13 @@ def test_sigint_keeps_finished_cases_and_a_rerun_renders_only_the_rest(tmp_path)
     _cache_is_intact()
     exr = {r["name"]: (out / "cases" / r["name"] / "render.exr").stat().st_mtime_ns for r in first["cases"]}
 
-    again = subprocess.run([str(HARNESS), "run", str(path), "--out", str(out), "--no-report"],
-                           capture_output=True, text=True, timeout=120)
-    assert again.returncode == 0, again.stderr
-    assert f"resuming: {done} of 4 cases done" in again.stderr
+    # the rerun needs no signal and no worker: the command in this process, its cases serially (a process start, a
+    # fork server's and a worker's fewer)
+    capfd.readouterr()
+    code = main(["run", str(path), "--out", str(out), "--no-report", "--executor", "serial"])
+    again = capfd.readouterr()
+    assert code == 0, again.err
+    assert f"resuming: {done} of 4 cases done" in again.err
     second = json.loads((out / "results.json").read_text())
     assert second["complete"] is True and [r["status"] for r in second["cases"]] == ["pass"] * 4
     for before, after in zip(first["cases"], second["cases"]):  # kept as they were, not rendered again

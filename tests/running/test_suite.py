@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -21,14 +19,13 @@ pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner 
 SUITES = ROOT / "suites"
 
 
-def run_cli(*args, env_cache: Path | None = None):
-    import os
-
-    env = dict(os.environ)
-    if env_cache is not None:
-        env["HARNESS_CACHE_DIR"] = str(env_cache)
-    proc = subprocess.run([sys.executable, "-m", "harness", *args], capture_output=True, text=True, env=env)
-    return proc.returncode, proc.stdout, proc.stderr
+def run_cli(capfd, *args):
+    """``harness ARGS`` in this process: (exit code, stdout, stderr) as the file descriptors saw them (library chatter
+    too). The process boundary itself (``python -m harness``, its exit codes, a closed stdout) is tested in
+    tests/cli; here each run saves a process start and, for ``harness run``, a fork server's."""
+    code = main([str(a) for a in args])
+    out, err = capfd.readouterr()
+    return code, out, err
 
 
 def write_suite(tmp_path: Path, body: str, name: str = "s.toml") -> Path:
@@ -89,22 +86,22 @@ def test_repository_suites_load():
     ('name = "x"\n', "cases"),
     ('[[cases]\n', "invalid TOML"),
 ])
-def test_bad_suites_are_one_line_errors(tmp_path, body, where):
+def test_bad_suites_are_one_line_errors(tmp_path, capfd, body, where):
     path = write_suite(tmp_path, body)
     with pytest.raises(HarnessError) as info:
         load_suite(path)
     assert str(path) in str(info.value) and where in str(info.value)
-    code, stdout, stderr = run_cli("run", str(path), "--out", str(tmp_path / "out"))
+    code, stdout, stderr = run_cli(capfd, "run", str(path), "--out", str(tmp_path / "out"))
     assert code == 2 and len(stderr.strip().splitlines()) == 1 and "Traceback" not in stderr
     assert not (tmp_path / "out" / "results.json").exists()
 
 
-def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path):
+def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path, capfd):
     cache = tmp_path / "cache"
     out = tmp_path / "out"
     # the studies (30 s of timed renders here) are the report tests' part (tests/report/test_report.py)
-    code, stdout, stderr = run_cli("run", str(SUITES / "smoke.toml"), "--out", str(out), "--quiet", "--no-convergence",
-                                   "--no-strategies", "--no-shadow-rays", env_cache=cache)
+    code, stdout, stderr = run_cli(capfd, "run", SUITES / "smoke.toml", "--out", out, "--quiet", "--no-convergence",
+                                   "--no-strategies", "--no-shadow-rays", "--cache-dir", cache)
     assert code == 0, stdout + stderr
     first = json.loads((out / "results.json").read_text())
     assert first["summary"]["ok"] == first["summary"]["cases"]
@@ -115,9 +112,10 @@ def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path):
         assert case["verdict"]["verdict"] in ("pass", "fail")
         assert case["render"]["seconds"] > 0 and Path(case["render"]["exr"]).is_file()
         assert "cached" in case["ground_truth"]
-    # the second run checks the cache and the verdicts only: the first one's studies and report are enough
-    code, stdout, _ = run_cli("run", str(SUITES / "smoke.toml"), "--out", str(out), "--quiet", "--fresh",
-                              "--no-report", env_cache=cache)
+    # the second run checks the cache and the verdicts only: the first one's studies and report are enough, and
+    # its executor (the default, a local worker); this one renders in this process, whose kernels are loaded
+    code, stdout, _ = run_cli(capfd, "run", SUITES / "smoke.toml", "--out", out, "--quiet", "--fresh",
+                              "--no-report", "--cache-dir", cache, "--executor", "serial")
     assert code == 0
     second = json.loads((out / "results.json").read_text())
     assert second["summary"]["mitsuba_renders"] == 0, second["summary"]
@@ -126,7 +124,7 @@ def test_smoke_suite_gates_and_second_run_renders_nothing(tmp_path):
     assert [c["verdict"]["verdict"] for c in first["cases"]] == [c["verdict"]["verdict"] for c in second["cases"]]
 
 
-def test_a_failing_case_makes_the_run_exit_1(tmp_path):
+def test_a_failing_case_makes_the_run_exit_1(tmp_path, capfd):
     path = write_suite(tmp_path, '''
 [[cases]]
 name = "furnace/energy-loss"
@@ -135,7 +133,7 @@ settings = { mutant = "energy-loss-2pct" }
 spp = 16
 film = { width = 16, height = 16 }
 ''')
-    code, stdout, _ = run_cli("run", str(path), "--out", str(tmp_path / "out"), "--quiet", "--no-report")
+    code, stdout, _ = run_cli(capfd, "run", path, "--out", tmp_path / "out", "--quiet", "--no-report")
     assert code == 1
     assert "unexpected: furnace/energy-loss" in stdout
     record = json.loads((tmp_path / "out" / "results.json").read_text())["cases"][0]
@@ -201,20 +199,20 @@ scene = "SCENES/furnace.toml"
     assert saved["summary"]["errors"] == 1 and saved["summary"]["unexpected"] == ["crashes"]
 
 
-def test_compare_cli(tmp_path, capsys):
+def test_compare_cli(tmp_path, capfd):
     """`harness compare` judges a render against a reference: exit 0 on pass, 1 on fail, JSON on request. In this
-    process (the commands' subprocess paths are covered by tests/cli): three process starts fewer."""
+    process (the commands' subprocess paths are covered by tests/cli): four process starts fewer."""
     scene = str(ROOT / "scenes" / "furnace.toml")
     for name, seed, extra in (("a", 1, []), ("b", 2, []), ("bad", 3, ["--set", "mutant=energy-loss-2pct"])):
         assert main(["render", scene, "--spp", "8", "--seed", str(seed), "--out", str(tmp_path / f"{name}.exr"),
                      "--quiet", *extra]) == 0
-    capsys.readouterr()
+    capfd.readouterr()
     assert main(["compare", str(tmp_path / "a.exr"), str(tmp_path / "b.exr"), "--json"]) == 0
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capfd.readouterr().out)
     assert report["verdict"]["verdict"] == "pass" and "rmse" in report["metrics"]
     assert main(["compare", str(tmp_path / "bad.exr"), str(tmp_path / "b.exr")]) == 1
-    assert "verdict: fail" in capsys.readouterr().out
-    code, stdout, stderr = run_cli("compare", str(tmp_path / "missing.exr"), str(tmp_path / "b.exr"))
+    assert "verdict: fail" in capfd.readouterr().out
+    code, stdout, stderr = run_cli(capfd, "compare", str(tmp_path / "missing.exr"), str(tmp_path / "b.exr"))
     assert code == 2 and "missing.exr" in stderr and len(stderr.strip().splitlines()) == 1
 
 
