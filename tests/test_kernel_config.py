@@ -67,6 +67,7 @@ def _package(tmp_path):
     (tmp_path / "embree_c.py").write_text("A = 1\n")
     (tmp_path / "rng.py").write_text("B = 2\n")
     (tmp_path / "emitters.py").write_text("C = 3\n")
+    (tmp_path / "sampling.py").write_text("D = 4\n")
     package = tmp_path / "kernels"
     package.mkdir()
     (package / "path.py").write_text("def f():\n    return 1\n")
