@@ -26,6 +26,7 @@ from reference_impl.kernels.config import (DIRECT_MIS, ENV_COSINE, ENV_IMPORTANC
                                            M_DIRECTIONAL_REVERSED, M_ENVMAP_MIRRORED_U, M_ENVMAP_PDF_NO_SIN,
                                            M_NO_COSINE, M_NO_RAY_OFFSET, M_POINT_NO_INVERSE_SQUARE,
                                            M_SPOT_IGNORES_BEAM_WIDTH)
+from reference_impl.kernels.light_sampling import search_within
 from reference_impl.kernels.surface import shadow_t_max
 from reference_impl.kernels.warps import (PI, TWO_PI, dot3, hemisphere_pdf, rescale_within, sample_discrete,
                                           sample_hemisphere)
@@ -266,10 +267,10 @@ def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2,
 
 
 @njit(**JIT_BORROW)
-def split_light_uniform_all(lights, num_lights, num_area, u):
-    """:func:`.light_sampling.split_light_uniform` over area lights and emitters: (light k, u_select, u_tri, u1);
-    for an emitter (k >= num_area) u_tri is what is left of u inside k's interval (the first coordinate of its
-    direction) and u1 is not used."""
+def _split_light(lights, num_lights, num_area, u):
+    """The choices one uniform u makes among area lights and emitters (pbrt-v4's sample reuse): (light k, what is
+    left of u inside k's interval of the cdf, the piece of k that picks (a row of the light tables; -1 for an
+    emitter), what is left of that inside the piece's interval)."""
     cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
     light = 0
     u_tri = u
@@ -277,44 +278,31 @@ def split_light_uniform_all(lights, num_lights, num_area, u):
         light = sample_discrete(cdf, u)
         u_tri = rescale_within(u, cdf[light - 1] if light > 0 else 0.0, cdf[light])
     if light >= num_area:
-        return light, u, u_tri, u_tri
+        return light, u_tri, np.int64(-1), u_tri
     f = first[light]
-    lo = 0
-    hi = count[light] - 1
-    while lo < hi:  # light_sampling.search_within
-        mid = (lo + hi) // 2
-        if within_cdf[f + mid] <= u_tri:
-            lo = mid + 1
-        else:
-            hi = mid
-    return light, u, u_tri, rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0, within_cdf[f + lo])
+    lo = search_within(within_cdf, f, count[light], u_tri)
+    return light, u_tri, np.int64(f + lo), rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0,
+                                                          within_cdf[f + lo])
+
+
+@njit(**JIT_BORROW)
+def split_light_uniform_all(lights, num_lights, num_area, u):
+    """:func:`.light_sampling.split_light_uniform` over area lights and emitters: (light k, u_select, u_tri, u1);
+    for an emitter (k >= num_area) u_tri is what is left of u inside k's interval (the first coordinate of its
+    direction) and u1 is not used."""
+    light, u_tri, _piece, u1 = _split_light(lights, num_lights, num_area, u)
+    return light, u, u_tri, u1
 
 
 @njit(**JIT_BORROW)
 def split_light_piece_all(lights, num_lights, num_area, u):
     """:func:`split_light_uniform_all` handing on the piece it finds instead of u_tri: (light k, its piece (the
-    row of the light tables; -1 for an emitter), u1), so that the point need not search k's pieces again (on
-    veach-mis, whose sphere lights have hundreds of triangles, the second search cost the glossy engine 17 %)."""
-    cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
-    light = 0
-    u_tri = u
-    if num_lights > 1:
-        light = sample_discrete(cdf, u)
-        u_tri = rescale_within(u, cdf[light - 1] if light > 0 else 0.0, cdf[light])
-    if light >= num_area:
-        return light, np.int64(-1), u_tri
-    f = first[light]
-    lo = 0
-    hi = count[light] - 1
-    while lo < hi:  # light_sampling.search_within
-        mid = (lo + hi) // 2
-        if within_cdf[f + mid] <= u_tri:
-            lo = mid + 1
-        else:
-            hi = mid
-    return light, np.int64(f + lo), rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0,
-                                                   within_cdf[f + lo])
+    row of the light tables; -1 for an emitter), u1, for an emitter what is left of u inside k's interval), so that
+    the point need not search k's pieces again (on veach-mis, whose sphere lights have hundreds of triangles, the
+    second search cost the glossy engine 17 %)."""
+    light, _u_tri, piece, u1 = _split_light(lights, num_lights, num_area, u)
+    return light, piece, u1
 
 
 __all__ = ["INV_FOUR_PI", "emitter_sample", "env_light_pdf", "env_pdf", "env_radiance", "env_sample",
-           "split_light_uniform_all", "spot_falloff", "uniform_sphere"]
+           "split_light_piece_all", "split_light_uniform_all", "spot_falloff", "uniform_sphere"]

@@ -68,12 +68,11 @@ def packet_buffer():
     return words, words.view(np.float32), valid
 
 
-@njit(**JIT)
-def closest_prims_coherent(scene_ptr, o32, d32, out, start, stop, words, floats, valid):
-    """Closest hits of rays ``start:stop`` (at most 16) with one packet query: for rays that start together and
-    point nearly the same way (one pixel's camera rays), Embree traverses its tree once for all of them. The hits
-    are the same as one query per ray (``closest_prim``)."""
-    n = stop - start
+@njit(**JIT_INLINE)
+def _set_packet(o32, d32, start, n, words, floats, valid):
+    """Fill an RTCRay16 with rays ``start:start + n`` (n <= 16) as :func:`_set_ray` fills one ray: float32 origins
+    and directions, tnear 0, every mask bit; the lanes past n invalid (a unit direction, all else 0). The caller
+    sets tfar."""
     for lane in range(embree_c.PACKET):
         if lane < n:
             i = start + lane
@@ -94,10 +93,20 @@ def closest_prims_coherent(scene_ptr, o32, d32, out, start, stop, words, floats,
             floats[96 + lane] = 1.0
         floats[48 + lane] = 0.0  # tnear
         floats[112 + lane] = 0.0  # time
-        floats[128 + lane] = np.inf  # tfar
         words[144 + lane] = embree_c.INVALID_ID  # mask
         words[160 + lane] = 0  # id
         words[176 + lane] = 0  # flags
+
+
+@njit(**JIT)
+def closest_prims_coherent(scene_ptr, o32, d32, out, start, stop, words, floats, valid):
+    """Closest hits of rays ``start:stop`` (at most 16) with one packet query: for rays that start together and
+    point nearly the same way (one pixel's camera rays), Embree traverses its tree once for all of them. The hits
+    are the same as one query per ray (``closest_prim``)."""
+    n = stop - start
+    _set_packet(o32, d32, start, n, words, floats, valid)
+    for lane in range(embree_c.PACKET):
+        floats[128 + lane] = np.inf  # tfar
         words[embree_c.P_GEOM_ID + lane] = embree_c.INVALID_ID
     embree_c.rtc_intersect16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
     for lane in range(n):
@@ -141,31 +150,9 @@ def occluded_coherent(scene_ptr, o32, d32, tfar, out, start, stop, words, floats
     that leave nearby points for the same light (one pixel's hits), Embree traverses its tree once for all of them.
     The answers are those of one query per ray (:func:`occluded`): 0 where blocked, -1 where not."""
     n = stop - start
+    _set_packet(o32, d32, start, n, words, floats, valid)
     for lane in range(embree_c.PACKET):
-        if lane < n:
-            i = start + lane
-            valid[lane] = -1
-            floats[lane] = o32[i, 0]
-            floats[16 + lane] = o32[i, 1]
-            floats[32 + lane] = o32[i, 2]
-            floats[64 + lane] = d32[i, 0]
-            floats[80 + lane] = d32[i, 1]
-            floats[96 + lane] = d32[i, 2]
-            floats[128 + lane] = tfar[i]
-        else:
-            valid[lane] = 0
-            floats[lane] = 0.0
-            floats[16 + lane] = 0.0
-            floats[32 + lane] = 0.0
-            floats[64 + lane] = 0.0
-            floats[80 + lane] = 0.0
-            floats[96 + lane] = 1.0
-            floats[128 + lane] = 0.0
-        floats[48 + lane] = 0.0  # tnear
-        floats[112 + lane] = 0.0  # time
-        words[144 + lane] = embree_c.INVALID_ID  # mask
-        words[160 + lane] = 0  # id
-        words[176 + lane] = 0  # flags
+        floats[128 + lane] = tfar[start + lane] if lane < n else 0.0  # tfar
     embree_c.rtc_occluded16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
     for lane in range(n):
         out[start + lane] = 0 if floats[128 + lane] < 0 else -1
