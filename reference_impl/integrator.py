@@ -71,7 +71,8 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, glossy, packet, path, wavefront  # optional: numba-compiled; noqa: F401 (attributes of kernels)
+    # optional: numba-compiled; noqa: F401 (attributes of kernels)
+    from reference_impl.kernels import camera, config, film, glossy, packet, path, wavefront
 
     return kernels
 

@@ -16,7 +16,7 @@ from numba import njit
 
 from reference_impl.kernels.config import FILTER_BOX, FILTER_GAUSSIAN, JIT
 from reference_impl.kernels.rng import dim_salt, path_key, pixel_key, uniform
-from reference_impl.kernels.sobol import sobol_points, sobol_seeds
+from reference_impl.kernels.sobol import pixel_run, sobol_points, sobol_seeds
 from reference_impl.rng import FILM_X, FILM_Y
 
 
@@ -52,9 +52,7 @@ def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filte
     film_v = np.empty(n if stratified else 0)
     i = 0
     while stratified and i < n:  # each pixel's run of consecutive samples at once (sobol_points)
-        m = 1
-        while i + m < n and pixel[i + m] == pixel[i] and sample[i + m] == sample[i] + m:
-            m += 1
+        m = pixel_run(pixel, sample, i)
         sobol_points(sobol_seeds(pixel_key(seed_key, pixel[i]), salt_x, spp), sample[i], m, film_u, film_v, i)
         i += m
     for i in range(n):

@@ -25,10 +25,11 @@ MAX_VERTICES vertices whatever max_depth says (a closed perfect mirror, whose we
 
 Random numbers past the camera are independent hashes ``uniform(key, dim_salt(depth, PURPOSE, j))``, except at
 the first hit with ``sampler = sobol``: there, as in the Lambertian engines, each pixel's light samples, BSDF
-directions and (BSDF lobe, roulette) pairs are stratified point sets (:func:`.sobol.glossy_vertex_seeds`), computed
-ahead for the pixel's run of samples, the light sample's choices of light and triangle reusing its point's first
-coordinate (:func:`.emitters.split_light_uniform_all`). (Stratifying vertices 1-16 too took 4 % off the MSE of
-cornell-box-specular, 2.275e-3 -> 2.189e-3 at 64 spp over 10 seeds, for 12 % more time: not kept.) Rays leave x from its origin offset along +N or -N, the
+directions and (BSDF lobe, roulette) pairs are stratified point sets (:func:`.sobol.glossy_first_hit_seeds`),
+computed ahead for the pixel's run of samples, the light sample's choices of light and piece reusing its point's
+first coordinate (:func:`.emitters.split_light_piece_all`). (Stratifying vertices 1-16 too took 4 % off the MSE of
+cornell-box-specular, 2.275e-3 -> 2.189e-3 at 64 spp over 10 seeds, for 12 % more time: not kept.)
+Rays leave x from its origin offset along +N or -N, the
 side the new direction leaves (a refraction from the other side).
 """
 
@@ -53,7 +54,7 @@ from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, c
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.record import record_camera, record_closest, record_occluded
 from reference_impl.kernels.rng import dim_salt, uniform
-from reference_impl.kernels.sobol import ahead, glossy_vertex_seeds, held_point, longest_run, pair_point, pixel_run
+from reference_impl.kernels.sobol import ahead, glossy_first_hit_seeds, held_point, longest_run, pair_point, pixel_run
 from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
 from reference_impl.materials import DIELECTRIC, P_TWO_SIDED, ROUGHDIELECTRIC
@@ -82,24 +83,22 @@ def power_weight(mutant, p_self, p_other, light_side):
 
 
 @njit(**JIT_BORROW)
-def light_connection(cfg, scene, lights, emitters, light, pdf_select, u_tri, u1, u2, x0, x1, x2, n0, n1, n2):
-    """Light sample of light k = ``light`` (chosen with ``pdf_select``) from x (front normal N), either side of x:
-    (whether it needs a shadow ray, unit direction wi from x, what it carries without f|cos_x|: Le G / (p cos_x),
-    the light samples' solid-angle density p_l of wi (Nd included; 0 for delta lights), and the shadow ray's end:
-    the point y (or, for ``inf_ray``, none), cos_y (1 for an emitter that is not a surface)). The piece of k is
-    the one u_tri picks (:func:`light_connection_on`)."""
-    piece = -1
-    if light < cfg.num_area_lights:
-        f = lights[2][light]
-        piece = f + search_within(lights[4], f, lights[3][light], u_tri)
-    return light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1,
-                               n2)
+def light_piece(cfg, lights, light, u_tri):
+    """The piece (a row of the light tables) of area light k = ``light`` that u_tri picks within k's cdf; -1 for
+    an emitter that is not a surface."""
+    if light >= cfg.num_area_lights:
+        return -1
+    f = lights[2][light]
+    return f + search_within(lights[4], f, lights[3][light], u_tri)
 
 
 @njit(**JIT_BORROW)
 def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2):
-    """:func:`light_connection` on a given ``piece`` of area light k (a row of the light tables; not used for an
-    emitter)."""
+    """Light sample of light k = ``light`` (chosen with ``pdf_select``) at its ``piece`` (:func:`light_piece`; not
+    used for an emitter) from x (front normal N), either side of x: (whether it needs a shadow ray, unit direction
+    wi from x, what it carries without f|cos_x|: Le G / (p cos_x), the light samples' solid-angle density p_l of wi
+    (Nd included; 0 for delta lights), and the shadow ray's end: the point y (or, for ``inf_ray``, none), cos_y (1
+    for an emitter that is not a surface))."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     if light < cfg.num_area_lights:
         tri_normal, emission, light_area = scene[1], scene[4], lights[6]
@@ -126,7 +125,7 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
 
 @njit(**JIT_BORROW)
 def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2):
-    """:func:`light_connection` for emitter e, which is not a surface."""
+    """:func:`light_connection_on` for emitter e, which is not a surface."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     kind, position, direction, intensity = emitters[0], emitters[1], emitters[2], emitters[3]
     k = kind[e]
@@ -185,7 +184,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     sobol = cfg.sampler == SAMPLER_SOBOL
     film_pixel, film_sample, seed_key = film_samples
     # The first hit's points of each pixel's run of samples, computed ahead (kernels.sobol.sobol_points).
-    fh = glossy_vertex_seeds(seed_key, 0, 1, 1, 1)
+    fh = glossy_first_hit_seeds(seed_key, 0, 1, 1)
     fh_pixel = -1
     si = 0
     size = longest_run(film_samples) * nd if sobol else 0
@@ -234,8 +233,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
         if sobol:
             if film_pixel[r] != fh_pixel:  # a pixel's samples come together: its seeds and points once
                 fh_pixel = film_pixel[r]
-                fh = glossy_vertex_seeds(seed_key, fh_pixel, cfg.spp, nd, 1)
-                first, m_run = film_sample[r], pixel_run(film_samples, r)
+                fh = glossy_first_hit_seeds(seed_key, fh_pixel, cfg.spp, nd)
+                first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
                 held = (ahead(fh[0], first * nd, m_run * nd, lx, ly, True), ahead(fh[1], first, m_run, bx, by, True),
                         ahead(fh[2], first, m_run, cx, cy, True))
             si = film_sample[r]
@@ -299,10 +298,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                             u1 = uniform(k, dim_salt(depth, LIGHT_U1, j))
                             u2 = uniform(k, dim_salt(depth, LIGHT_U2, j))
                             sel = sample_discrete(light_cdf, u_sel) if num_lights > 1 else 0
-                            piece = -1
-                            if sel < cfg.num_area_lights:  # the piece of k that u_tri picks
-                                f = lights[2][sel]
-                                piece = f + search_within(lights[4], f, lights[3][sel], u_tri)
+                            piece = light_piece(cfg, lights, sel, u_tri)
                         pdf_select = light_pmf[sel]
                         if num_lights > 1:
                             count_light_select += 1
@@ -367,7 +363,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
                 u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                 u2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
-                u_rr = uniform(k, dim_salt(depth, ROULETTE, 0))
+                u_rr = -1.0  # drawn below only where roulette is played
             ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(mkind, mparams, m, mutant, lo0, lo1, lo2, u_lobe,
                                                                     u1, u2)
             if not ok:
@@ -388,6 +384,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                     q = min(max(w0, w1, w2), 1.0)
                 else:
                     q = cfg.survival
+                if not sob:
+                    u_rr = uniform(k, dim_salt(depth, ROULETTE, 0))
                 if not (u_rr < q):
                     count_roulette += 1
                     break
@@ -424,4 +422,4 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     timing[1] += queries + n
 
 
-__all__ = ["MAX_VERTICES", "frame", "light_connection", "power_weight", "trace_glossy"]
+__all__ = ["MAX_VERTICES", "frame", "light_connection_on", "light_piece", "power_weight", "trace_glossy"]

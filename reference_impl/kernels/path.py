@@ -140,12 +140,14 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             # independent arithmetic to overlap instead of a chain broken by every Embree call.
             go_on = allow_indirect
             if go_on:
-                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh[2], rx, ry, held[2], si), si, k, depth, b0, b1, b2)
+                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh[2], rx, ry, held[2], si), si, k,
+                                             depth, b0, b1, b2)
                 if not go_on:
                     count_roulette += 1
             if go_on:
-                go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, held_point(fh[3], ix, iy, held[3], si), si, 0, k, depth, nx0,
-                                                                                 nx1, nx2, f0, f1, f2, q0, q1, q2)
+                go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(
+                    cfg, sob, held_point(fh[3], ix, iy, held[3], si), si, 0, k, depth, nx0, nx1, nx2, f0, f1, f2, q0,
+                    q1, q2)
                 if go_on:
                     count_indirect += 1
                 else:
@@ -155,7 +157,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, held_point(fh[1], dx, dy, held[1], si * nd + j), si, j, k, depth, nx0, nx1, nx2)
+                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, held_point(fh[1], dx, dy, held[1], si * nd + j), si,
+                                                          j, k, depth, nx0, nx1, nx2)
                     count_hemi_direct += 1
                     hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
                                                                  ox0, ox1, ox2, h0, h1, h2)
@@ -175,14 +178,15 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                     tot2 += emission[htri, 2] * f2 * weight
                     continue
                 if emitters is None:
-                    selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene,
-                                                                        lights, surfaces)
+                    selected, ltri, y0, y1, y2, pdf_area = light_sample(
+                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights,
+                        surfaces)
                     needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                         cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
                 else:
                     selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1,
-                        nx2, ox0, ox1, ox2, f0, f1, f2)
+                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights,
+                        surfaces, emitters, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
                 if selected:
                     count_light_select += 1
                 if not needed:

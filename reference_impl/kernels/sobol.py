@@ -22,8 +22,8 @@ from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_BORROW
 from reference_impl.kernels.rng import dim_salt, mix64, pixel_key, uniform
-from reference_impl.rng import (_GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, BSDF_LOBE, BSDF_U1, DIRECT_DIR_U1, INDIRECT_U1,
-                                LIGHT_U1, ROULETTE)
+from reference_impl.rng import (_GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, BSDF_LOBE, BSDF_U1, DIRECT_DIR_U1,
+                                INDIRECT_U1, LIGHT_U1, ROULETTE)
 
 _U32 = np.uint64(32)
 _ONE = np.uint64(1)
@@ -178,14 +178,14 @@ def first_hit_seeds(seed_key, pixel, spp, nd, ni):
 
 
 @njit(**JIT)
-def glossy_vertex_seeds(seed_key, pixel, spp, nd, depth):
-    """The ``sobol_seeds`` of a pixel's pairs at vertex ``depth`` in the glossy engine: (light sample, BSDF
-    direction, BSDF lobe and roulette); Np x Nd, Np and Np points. The light sample's choices of light and triangle
-    reuse its point's first coordinate (as :func:`first_hit_seeds`'); the lobe and the roulette number are the two
-    coordinates of one point. Every (depth, pair) has its own scramble and order: pbrt-v4's padded Sobol sampler."""
+def glossy_first_hit_seeds(seed_key, pixel, spp, nd):
+    """The ``sobol_seeds`` of a pixel's first-hit pairs in the glossy engine: (light sample, BSDF direction, BSDF
+    lobe and roulette); Np x Nd, Np and Np points. The light sample's choices of light and piece reuse its point's
+    first coordinate (as :func:`first_hit_seeds`'); the lobe and the roulette number are the two coordinates of one
+    point."""
     pk = pixel_key(seed_key, pixel)
-    return (sobol_seeds(pk, dim_salt(depth, LIGHT_U1, 0), spp * nd),
-            sobol_seeds(pk, dim_salt(depth, BSDF_U1, 0), spp), sobol_seeds(pk, dim_salt(depth, BSDF_LOBE, 0), spp))
+    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd), sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
+            sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
 
 
 @njit(**JIT_BORROW)
@@ -202,12 +202,11 @@ def pixel_first_hit_seeds(cfg, seeds, seeds_pixel, film_samples, r):
 
 
 @njit(**JIT)
-def pixel_run(film_samples, r):
-    """The camera samples r, r + 1, ... of one pixel with consecutive sample numbers: how many."""
-    film_pixel, film_sample, _seed_key = film_samples
+def pixel_run(pixel, sample, r):
+    """The camera samples r, r + 1, ... (``pixel``, ``sample``: their pixels and sample numbers) of one pixel with
+    consecutive sample numbers: how many."""
     m = 1
-    while (r + m < len(film_pixel) and film_pixel[r + m] == film_pixel[r]
-           and film_sample[r + m] == film_sample[r] + m):
+    while r + m < len(pixel) and pixel[r + m] == pixel[r] and sample[r + m] == sample[r] + m:
         m += 1
     return m
 
@@ -215,10 +214,10 @@ def pixel_run(film_samples, r):
 @njit(**JIT)
 def longest_run(film_samples):
     """The longest :func:`pixel_run` of the camera samples: what the buffers of points computed ahead must hold."""
-    film_pixel = film_samples[0]
+    film_pixel, film_sample = film_samples[0], film_samples[1]
     longest, r = 0, 0
     while r < len(film_pixel):
-        m = pixel_run(film_samples, r)
+        m = pixel_run(film_pixel, film_sample, r)
         longest = max(longest, m)
         r += m
     return longest
@@ -243,7 +242,7 @@ def pixel_first_hit_points(cfg, film_samples, r, buffers, want_light, want_direc
     film_pixel, film_sample, seed_key = film_samples
     pixel = film_pixel[r]
     nd, ni = cfg.shadow_rays, cfg.indirect_rays
-    first, m = film_sample[r], pixel_run(film_samples, r)
+    first, m = film_sample[r], pixel_run(film_pixel, film_sample, r)
     light, direction, rr, indirect = first_hit_seeds(seed_key, pixel, cfg.spp, nd, ni)
     lx, ly, dx, dy, rx, ry, ix, iy = buffers
     held = (ahead(light, first * nd, m * nd, lx, ly, want_light),

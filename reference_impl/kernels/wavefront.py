@@ -117,14 +117,14 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                 s += 1
                 continue
             if emitters is None:
-                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh[0]), si, j, k, depth, scene, lights,
-                                                                    surfaces)
+                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh[0]), si, j, k, depth, scene,
+                                                                    lights, surfaces)
                 needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                     cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
             else:
                 selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                    cfg, sob, spot_point(fh[0]), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0, nx1, nx2,
-                    ox0, ox1, ox2, f0, f1, f2)
+                    cfg, sob, spot_point(fh[0]), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0,
+                    nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
             if selected:
                 counters[C_LIGHT_SELECT] += 1
             if not needed:
@@ -163,8 +163,9 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
             counters[C_ROULETTE] += 1
             continue
         for branch in range(ni):
-            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh[3]), si, branch, k, depth, nx0,
-                                                                         nx1, nx2, f0, f1, f2, b0, b1, b2)
+            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh[3]), si, branch, k,
+                                                                         depth, nx0, nx1, nx2, f0, f1, f2, b0, b1,
+                                                                         b2)
             if not carries:
                 counters[C_ROULETTE] += 1
                 continue
