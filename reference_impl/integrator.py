@@ -71,8 +71,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    # optional: numba-compiled; noqa: F401 (attributes of kernels)
-    from reference_impl.kernels import camera, config, film, glossy, packet, path, wavefront
+    from reference_impl.kernels import camera, config, film, glossy, packet, path, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
