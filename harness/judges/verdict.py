@@ -47,19 +47,37 @@ References
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from harness.core.errors import HarnessError
 
-__all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "Verdict", "tile_z_scores", "verdict"]
+__all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "TileMaps", "Verdict", "tile_z_scores", "verdict"]
 
 CHANNELS: tuple[str, str, str] = ("R", "G", "B")
 #: Relative tolerance for values that carry no Monte Carlo noise: ~16 float32 ulps.
 ROUNDING_RTOL = 1e-6
 #: The sub-tests combined by Bonferroni.
 SUBTESTS: tuple[str, str, str] = ("global_bias", "omnibus", "max_z")
+
+
+@dataclass(frozen=True, eq=False)
+class TileMaps:
+    """The verdict's tiles as maps, one value per tile and channel (arrays of shape (ceil(H/tile), ceil(W/tile), 3)).
+
+    ``z``: the tile's z on the normal scale (``z_normal``: Student's t converted where dof are given; 0 where the
+    tile is not tested). ``p``: its two-sided p-value :math:`2\Phi(-|z|)` (1 where not tested; 0 for a differing
+    zero-variance tile). ``tested``: tiles with noise (those the three sub-tests use). ``failing``: tiles that fail
+    the verdict by themselves: their Šidák-corrected p-value :math:`1 - (1 - p)^K` (K tested tile-channels) is below
+    alpha / 3, the max-|z| sub-test's level, or they are zero-variance tiles that differ. Under the null the p-values
+    of the tested tiles are uniform on (0, 1) (Jung, Hanika and Dachsbacher, JCGT 2020, show their histogram)."""
+
+    z: np.ndarray
+    p: np.ndarray
+    tested: np.ndarray
+    failing: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -100,13 +118,17 @@ class Verdict:
     zero_variance: dict
     worst_tile: dict | None
     variance_dof: dict = field(default_factory=dict)
+    #: the tiles as maps (:class:`TileMaps`); not part of :meth:`to_dict`
+    tiles: TileMaps | None = field(default=None, compare=False, repr=False)
 
     @property
     def passed(self) -> bool:
         return self.verdict == "pass"
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        out = asdict(dataclasses.replace(self, tiles=None))
+        out.pop("tiles")
+        return out
 
 
 # ---------------------------------------------------------------------------
@@ -442,6 +464,11 @@ def verdict(
 
     # --- decision ------------------------------------------------------------
     threshold = alpha / len(SUBTESTS)
+    tile_p = np.where(random_tiles, 2.0 * stats.norm.sf(np.abs(z_norm)), 1.0)
+    tile_p = np.where(differing, 0.0, tile_p)
+    sidak = -np.expm1(count * np.log1p(-np.minimum(tile_p, 1.0))) if count else np.ones_like(tile_p)
+    tiles = TileMaps(z=z_norm, p=tile_p, tested=random_tiles,
+                     failing=differing | (random_tiles & (sidak < threshold)))
     failures: list[str] = []
     if nonfinite:
         failures.append(f"{nonfinite} non-finite pixels in the {test_name}")
@@ -494,4 +521,5 @@ def verdict(
         zero_variance=zero_variance,
         worst_tile=worst,
         variance_dof={"test": _dof_summary(test_dof), "ground_truth": _dof_summary(expected_dof)},
+        tiles=tiles,
     )

@@ -401,3 +401,24 @@ def test_verdict_is_unit_free(seed: int, scale: float, h: int, w: int, tile: int
     assert b.omnibus["statistic"] == pytest.approx(a.omnibus["statistic"], rel=1e-9, abs=1e-12)
     assert b.global_bias["z"] == pytest.approx(a.global_bias["z"], rel=1e-9, abs=1e-12)
     assert a.max_z["count"] == b.max_z["count"] == 3 * (-(-h // tile)) * (-(-w // tile))
+
+
+def test_tile_maps_are_the_tiles_the_max_z_test_judges():
+    """The verdict's tile maps: p = 2 Phi(-|z|) of the worst tile is the max-|z| test's p before Šidák; a tile is
+    marked failing exactly when the max-|z| sub-test fails on it; a planted error lights up its own tile only."""
+    rng = np.random.default_rng(5)
+    truth = np.full((32, 32, 3), 0.5)
+    var = np.full_like(truth, 1e-4)
+    test = truth + rng.normal(0.0, 1e-2, truth.shape)
+    quiet = verdict(test, var, truth, np.zeros_like(truth), tile=8, alpha=0.01)
+    assert quiet.tiles.z.shape == (4, 4, 3) and quiet.tiles.tested.all() and not quiet.tiles.failing.any()
+    assert "tiles" not in quiet.to_dict()
+    worst = float(quiet.tiles.p.min())
+    assert 1 - (1 - worst) ** quiet.max_z["count"] == pytest.approx(quiet.max_z["p_value"], rel=1e-9)
+    planted = test.copy()
+    planted[8:16, 16:24] += 0.05  # z = 0.05 * 64 / (8 * 1e-2) = 40 in tile (1, 2)
+    loud = verdict(planted, var, truth, np.zeros_like(truth), tile=8, alpha=0.01)
+    assert loud.verdict == "fail" and "max |z|" in loud.reason
+    expected = np.zeros((4, 4, 3), dtype=bool)
+    expected[1, 2] = True
+    np.testing.assert_array_equal(loud.tiles.failing, expected)
