@@ -65,7 +65,7 @@ SUBTESTS: tuple[str, str, str] = ("global_bias", "omnibus", "max_z")
 
 @dataclass(frozen=True, eq=False)
 class TileMaps:
-    """The verdict's tiles as maps, one value per tile and channel (arrays of shape (ceil(H/tile), ceil(W/tile), 3)).
+    r"""The verdict's tiles as maps, one value per tile and channel (arrays of shape (ceil(H/tile), ceil(W/tile), 3)).
 
     ``z``: the tile's z on the normal scale (``z_normal``: Student's t converted where dof are given; 0 where the
     tile is not tested). ``p``: its two-sided p-value :math:`2\Phi(-|z|)` (1 where not tested; 0 for a differing
@@ -466,7 +466,8 @@ def verdict(
     threshold = alpha / len(SUBTESTS)
     tile_p = np.where(random_tiles, 2.0 * stats.norm.sf(np.abs(z_norm)), 1.0)
     tile_p = np.where(differing, 0.0, tile_p)
-    sidak = -np.expm1(count * np.log1p(-np.minimum(tile_p, 1.0))) if count else np.ones_like(tile_p)
+    with np.errstate(divide="ignore"):  # p = 1 (log1p(-1) = -inf) gives 1, as it should
+        sidak = -np.expm1(count * np.log1p(-tile_p)) if count else np.ones_like(tile_p)
     tiles = TileMaps(z=z_norm, p=tile_p, tested=random_tiles,
                      failing=differing | (random_tiles & (sidak < threshold)))
     failures: list[str] = []
