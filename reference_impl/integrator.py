@@ -291,9 +291,9 @@ def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | 
         raise SettingsError("materials", f"expected one material per entry of the geometry's reflectance "
                                          f"({len(geometry.reflectance)}), got {len(materials)}")
     glossy = materials is not None and not materials.all_diffuse
-    if not (glossy or settings.direct == "bsdf" or settings.rr == "throughput"):
+    if not (glossy or settings.direct == "bsdf" or settings.rr in ("throughput", "pbrt")):
         return False, None
-    why = "with a material that is not diffuse" if glossy else f"with {'direct = bsdf' if settings.direct == 'bsdf' else 'rr = throughput'}"
+    why = "with a material that is not diffuse" if glossy else f"with {'direct = bsdf' if settings.direct == 'bsdf' else 'rr = ' + settings.rr}"
     if settings.direct not in GLOSSY_DIRECT:
         raise SettingsError("direct", f"the glossy engine (scenes {why}) takes direct = {', '.join(GLOSSY_DIRECT)} "
                                       f"or auto, got {settings.direct!r}")
@@ -318,12 +318,13 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     ``settings.seed``: not on ``batch_size`` or ``threads``. ``materials``: the scene's material table
     (:class:`Materials`, in the order ``geometry.material`` indexes), or None (all Lambertian, as
     ``geometry.reflectance`` says). None or all diffuse runs the Lambertian engines (``settings.engine``); a
-    material that is not diffuse, ``direct = bsdf`` or ``rr = throughput`` the glossy engine (kernels/glossy.py).
-    ``direct = auto`` is resolved here (:meth:`Settings.resolved_direct`); the output's settings hold the resolved one.
+    material that is not diffuse, ``direct = bsdf`` or ``rr = throughput`` or ``pbrt`` the glossy engine (kernels/glossy.py).
+    ``direct = auto`` and ``rr = auto`` are resolved here (:meth:`Settings.resolved_direct`, :meth:`Settings.resolved_rr`);
+    the output's settings hold the resolved ones.
     """
     glossy = materials is not None and not materials.all_diffuse
-    if settings.direct == "auto":
-        settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy))
+    if settings.direct == "auto" or settings.rr == "auto":
+        settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy), rr=settings.resolved_rr(glossy))
     ctx = _Context(geometry, camera, film, settings, emitters, materials)
     kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp

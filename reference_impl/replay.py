@@ -139,8 +139,8 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
     is). The rays are those of the render (same settings, seed and pixels). Single-threaded: the threads count
     only in the replay (``log.threads`` = the render's)."""
     glossy = materials is not None and not materials.all_diffuse
-    if settings.direct == "auto":
-        settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy))
+    if settings.direct == "auto" or settings.rr == "auto":
+        settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy), rr=settings.resolved_rr(glossy))
     ctx = integrator._Context(geometry, camera, film, settings, emitters, materials)
     log = RayLog(scene_pointer=ctx.intersector.scene_pointer, threads=settings.worker_threads(),
                  stats=dict.fromkeys(integrator.COUNTERS, 0) | {integrator.EMBREE_MICROSECONDS: 0},

@@ -15,7 +15,7 @@ DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", 
 #: the strategies the glossy engine (kernels/glossy.py, scenes with a non-diffuse material) runs
 GLOSSY_DIRECT = ("area", "mis", "bsdf")
 HEMISPHERES = ("cosine", "uniform")
-ROULETTES = ("albedo", "fixed", "throughput", "off")
+ROULETTES = ("auto", "albedo", "fixed", "throughput", "pbrt", "off")
 ENGINES = ("packet", "path", "wavefront")
 SAMPLERS = ("sobol", "independent")
 
@@ -49,7 +49,10 @@ class Settings:
     rr              Russian roulette: "albedo" (survival = max reflectance; in the glossy engine the largest
                     channel of the bounce's weight f cos / p, at most 1), "fixed" (absorption alpha, as the slides),
                     "throughput" (Mitsuba's: min(max channel of the throughput x eta^2, 0.95); the glossy engine
-                    only), "off".
+                    only), "pbrt" (pbrt-v4's: min(max channel of the throughput x eta^2, 1), so a path whose
+                    throughput is 1, as in a furnace of glass or mirrors, is never cut; the glossy engine only),
+                    "off", or "auto", the default: "albedo" on Lambertian-only scenes, "pbrt" where a material is
+                    not diffuse (:meth:`resolved_rr`).
     rr_depth        first path depth (camera hit = 1) at which roulette is played.
     absorption      alpha for rr = "fixed".
     max_depth       longest path in segments, Mitsuba's meaning (1 = emitters seen directly, 2 = plus direct light,
@@ -73,7 +76,7 @@ class Settings:
     env_sampling: str = "importance"
     indirect_rays: int = 1
     hemisphere: str = "cosine"
-    rr: str = "albedo"
+    rr: str = "auto"
     rr_depth: int = 3
     absorption: float = 0.2
     max_depth: int | None = None
@@ -138,6 +141,14 @@ class Settings:
         if self.direct == "auto":
             return "mis" if glossy else "area"
         return self.direct
+
+    def resolved_rr(self, glossy: bool) -> str:
+        """The roulette a render plays: ``rr``, or for "auto" "pbrt" on a scene with a non-diffuse material
+        (``glossy``: the glossy engine, where the throughput roulette of pbrt-v4 took cornell-box-specular's MSE
+        0.74x in 0.86x the time against "albedo") and "albedo" on a Lambertian-only one (the same bits as before)."""
+        if self.rr == "auto":
+            return "pbrt" if glossy else "albedo"
+        return self.rr
 
     def worker_threads(self) -> int:
         return self.threads or (os.cpu_count() or 1)

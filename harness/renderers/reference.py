@@ -27,8 +27,10 @@ class ReferenceRenderer:
         try:
             settings = reference_impl.Settings.from_strings(values)
             settings = dataclasses.replace(settings, spp=request.spp, seed=request.seed)
-            if settings.direct == "auto":  # resolved here, so that every reader of settings.direct sees the run one
-                settings = dataclasses.replace(settings, direct=settings.resolved_direct(scene_is_glossy(scene)))
+            if settings.direct == "auto" or settings.rr == "auto":  # resolved here: every reader sees the run ones
+                glossy = scene_is_glossy(scene)
+                settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy),
+                                               rr=settings.resolved_rr(glossy))
             if settings.max_depth is None:
                 settings = dataclasses.replace(settings, max_depth=scene.max_depth)
             settings.resolved_max_depth(settings.max_depth)
@@ -113,6 +115,7 @@ def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
         return 1.0 - settings.absorption
     if settings.rr == "throughput":
         return 0.95  # Mitsuba's cap (kernels/glossy.py)
+    # "albedo" and "pbrt" (whose survival, min(1, throughput), falls as fast as the reflectances multiply)
     return max((max(m.reflectance) for m in scene.materials.values()), default=0.0)
 
 

@@ -36,11 +36,12 @@ STRATEGIES: dict[str, tuple[str, ...]] = {
     "env_sampling": ("importance", "uniform", "cosine"),  # rows only on scenes with an environment
 }
 #: the same on scenes with a material that is not diffuse (the glossy engine: no hemisphere or global-area
-#: strategies, no hemisphere setting, no cosine sampling of an environment; direct = bsdf and rr = throughput beside)
+#: strategies, no hemisphere setting, no cosine sampling of an environment; direct = bsdf, rr = pbrt and throughput
+#: beside)
 GLOSSY_STRATEGIES: dict[str, tuple[str, ...]] = {
     "direct": ("area", "bsdf", "mis"),
     "light_selection": ("power", "uniform"),
-    "rr": ("albedo", "fixed", "throughput", "off"),
+    "rr": ("pbrt", "albedo", "fixed", "throughput", "off"),
     "env_sampling": ("importance", "uniform"),
 }
 FALLBACK_DEFAULTS = {"direct": "area", "light_selection": "power", "hemisphere": "cosine", "rr": "albedo",
@@ -60,13 +61,14 @@ TIE_FACTOR = 1.25
 
 def strategy_defaults(glossy: bool = False) -> dict[str, str]:
     """The reference renderer's default choice of each strategy key (read from its Settings) on a Lambertian-only
-    scene, or on one with a material that is not diffuse (``glossy``: direct = auto resolves to "mis" there)."""
+    scene, or on one with a material that is not diffuse (``glossy``: direct = auto resolves to "mis" there, rr =
+    auto to "pbrt")."""
     try:
         settings = Settings.from_strings({})
-        resolved = dict(settings.as_dict(), direct=settings.resolved_direct(glossy))
+        resolved = dict(settings.as_dict(), direct=settings.resolved_direct(glossy), rr=settings.resolved_rr(glossy))
         return {k: str(resolved.get(k, v)) for k, v in FALLBACK_DEFAULTS.items()}
     except Exception:  # noqa: BLE001 - fall back to the documented defaults
-        return dict(FALLBACK_DEFAULTS, direct="mis") if glossy else dict(FALLBACK_DEFAULTS)
+        return dict(FALLBACK_DEFAULTS, direct="mis", rr="pbrt") if glossy else dict(FALLBACK_DEFAULTS)
 
 
 def luminance(image: np.ndarray) -> np.ndarray:

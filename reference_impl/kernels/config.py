@@ -31,14 +31,15 @@ JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
  C_LIGHT_SELECT) = range(10)
 
 DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_BSDF = range(6)
-# "auto" never reaches a kernel: kernel_config resolves it (Settings.resolved_direct) to "area" or "mis".
+# "auto" never reaches a kernel: kernel_config resolves it (Settings.resolved_direct) to "area" or "mis" (and rr's
+# "auto", Settings.resolved_rr, to "albedo" or "pbrt").
 DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
                 "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM,
                 "bsdf": DIRECT_BSDF}
 HEMI_UNIFORM, HEMI_COSINE = 0, 1
 HEMISPHERE_MODES = {"uniform": HEMI_UNIFORM, "cosine": HEMI_COSINE}
-RR_OFF, RR_ALBEDO, RR_FIXED, RR_THROUGHPUT = 0, 1, 2, 3
-RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED, "throughput": RR_THROUGHPUT}
+RR_OFF, RR_ALBEDO, RR_FIXED, RR_THROUGHPUT, RR_PBRT = 0, 1, 2, 3, 4
+RR_MODES = {"off": RR_OFF, "albedo": RR_ALBEDO, "fixed": RR_FIXED, "throughput": RR_THROUGHPUT, "pbrt": RR_PBRT}
 SAMPLER_INDEPENDENT, SAMPLER_SOBOL = 0, 1
 SAMPLER_MODES = {"independent": SAMPLER_INDEPENDENT, "sobol": SAMPLER_SOBOL}
 FILTER_BOX, FILTER_TENT, FILTER_GAUSSIAN = 0, 1, 2
@@ -138,9 +139,11 @@ def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: f
     """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
     lights, the first ``num_area_lights`` of them area lights (all, by default), the environment light
     ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``).
-    ``direct = "auto"`` is resolved for a scene with (``glossy``) or without a non-diffuse material."""
-    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items() if slot != "direct"}
-    slots["direct"] = DIRECT_MODES[settings.resolved_direct(glossy)]
+    ``direct = "auto"`` and ``rr = "auto"`` are resolved for a scene with (``glossy``) or without a non-diffuse
+    material."""
+    resolved = {"direct": DIRECT_MODES[settings.resolved_direct(glossy)], "rr": RR_MODES[settings.resolved_rr(glossy)]}
+    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items() if slot not in resolved}
+    slots.update(resolved)
     area = int(num_lights if num_area_lights is None else num_area_lights)
     return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
                         surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light), **slots)

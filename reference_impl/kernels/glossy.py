@@ -17,7 +17,8 @@ vertex) the path adds
   no ray can find, get their own sample as if each were the only light (pdf(k) = 1).
 * the next ray: :func:`.bsdf.bsdf_sample`, beta *= its weight f|cos|/p (eta^2 radiance scaling included), then
   Russian roulette from ``rr_depth`` on: "throughput" q = min(max(beta) eta^2, 0.95) (Mitsuba's; eta the product of
-  the relative indices of the refractions so far), "albedo" q = min(1, max channel of the weight), "fixed" q = 1 - alpha.
+  the relative indices of the refractions so far), "pbrt" q = min(max(beta) eta^2, 1) (pbrt-v4's PathIntegrator;
+  a path of throughput 1 is never cut, so furnaces of glass or mirrors stay exact), "albedo" q = min(1, max channel of the weight), "fixed" q = 1 - alpha.
 
 Path lengths as the other engines (Mitsuba's max_depth): emission of vertex i counts for i <= max_depth, direct
 light at x_i when i + 1 <= max_depth, the next ray when its vertex can still add something. A path is cut after
@@ -46,7 +47,7 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C
                                            C_SHADOW, C_SHADOW_SKIPPED, DIRECT_AREA, DIRECT_BSDF, DIRECT_MIS, JIT,
                                            JIT_BORROW, M_DIRECTIONAL_REVERSED, M_MIS_WEIGHTS_NOT_ONE,
                                            M_POINT_NO_INVERSE_SQUARE, M_RR_NO_REWEIGHT, RR_ALBEDO, RR_FIXED, RR_OFF,
-                                           RR_THROUGHPUT, SAMPLER_SOBOL)
+                                           RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
 from reference_impl.kernels.emitters import (env_light_pdf, env_radiance, env_sample, mat_vec, spot_falloff,
                                              split_light_piece_all)
 from reference_impl.kernels.light_sampling import point_on_light, search_within
@@ -380,6 +381,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
             if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
                 if cfg.rr == RR_THROUGHPUT:
                     q = min(max(nb0, nb1, nb2) * eta2, RR_THROUGHPUT_CAP)
+                elif cfg.rr == RR_PBRT:
+                    q = min(max(nb0, nb1, nb2) * eta2, 1.0)
                 elif cfg.rr == RR_ALBEDO:
                     q = min(max(w0, w1, w2), 1.0)
                 else:

@@ -165,6 +165,20 @@ def test_mis_weights_that_do_not_sum_to_one_are_caught():
     assert _verdict(wrong, area, "mutant mis-weights-not-one vs area").verdict == "fail"
 
 
+def test_roulette_survivors_not_reweighted_are_caught_under_the_pbrt_roulette():
+    """The default roulette of the glossy engine (rr = auto: pbrt-v4's, q = min(1, max(beta) eta^2)) against the
+    planted fault "rr-no-reweight" (survivors not divided by q): on the Lambertian plate of reflectance 0.5, lit from
+    above, paths that reach depth 3 carry the second bounce; without the 1/q the image is darker. Both against
+    rr = off (no roulette, the same estimator otherwise)."""
+    scene = plate_scene(size=16, light_half=2.0, max_depth=5)
+    common = dict(spp=256, sampler="independent", direct="mis", rr_depth=1)
+    off = _render(scene, rr="off", **common)
+    right = _render(scene, rr="pbrt", **common)
+    wrong = _render(scene, rr="pbrt", mutant="rr-no-reweight", **common)
+    assert _verdict(right, off, "pbrt roulette vs none").verdict == "pass"
+    assert _verdict(wrong, off, "mutant rr-no-reweight vs none").verdict == "fail"
+
+
 # ------------------------------------------------------------------------------------------------ determinism, errors
 
 
@@ -191,19 +205,23 @@ def test_what_the_glossy_engine_does_not_do_is_refused(settings, key):
 
 def test_auto_resolves_to_area_without_a_glossy_material_and_to_mis_with_one():
     s = Settings()
-    assert s.direct == "auto"
+    assert s.direct == "auto" and s.rr == "auto"
     assert (s.resolved_direct(False), s.resolved_direct(True)) == ("area", "mis")
+    assert (s.resolved_rr(False), s.resolved_rr(True)) == ("albedo", "pbrt")
     assert Settings(direct="bsdf").resolved_direct(False) == "bsdf"
+    assert Settings(rr="throughput").resolved_rr(True) == "throughput"
 
 
 def test_the_harness_reads_the_resolved_strategy():
     """The adapter resolves direct = auto before anything reads it ("area" on a Lambertian scene: the settings a
     result records are those of before); the strategy tables' defaults and rows follow the scene's kind."""
     settings = ReferenceRenderer().settings_for(plate_scene(), RenderRequest(spp=1, seed=0, settings={}))
-    assert settings.direct == "area"
+    assert settings.direct == "area" and settings.rr == "albedo"
     assert strategies.strategy_defaults()["direct"] == "area"
     assert strategies.strategy_defaults(glossy=True)["direct"] == "mis"
+    assert strategies.strategy_defaults(glossy=True)["rr"] == "pbrt"
     glossy_rows = strategies.strategy_choices(strategies.strategy_defaults(glossy=True), True, glossy=True)
     assert ("direct", "bsdf") in glossy_rows and ("direct", "area") in glossy_rows
-    assert ("rr", "throughput") in glossy_rows and not any(k == "hemisphere" for k, _ in glossy_rows)
+    assert ("rr", "throughput") in glossy_rows and ("rr", "albedo") in glossy_rows
+    assert not any(k == "hemisphere" for k, _ in glossy_rows)
     assert ("direct", "bsdf") not in strategies.strategy_choices(strategies.strategy_defaults(), True)
