@@ -319,7 +319,10 @@ CASE_ALWAYS = {"name": NAME, "scene": STR, "renderer": STR, "settings": DictOf(S
                "ok": BOOL, "reason": STR, "definition": STR, "wall_seconds": Nullable(SECONDS)}
 CASE_COMPARED = {"metrics": METRICS, "verdict": VERDICT, "thresholds": DictOf(NUMBER),
                  "thresholds_broken": ListOf(STR), "render": RENDER}  # required unless status is "error"
-CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES}
+VERDICT_MAPS = Obj({"pvalue": NAME, "failing": NAME})
+
+CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
+                 "verdict_maps": VERDICT_MAPS}
 
 
 class _Case(Spec):
