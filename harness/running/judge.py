@@ -92,6 +92,7 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
     start = time.perf_counter()
     try:
         scene, gt_scene = case_scenes(case)
+        record["film"] = {"width": scene.film.width, "height": scene.film.height}  # as rendered (with its overrides)
         gt = ground_truth_for(case, gt_scene, cache_dir, variant, progress)
         record["ground_truth"] = {
             "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
@@ -177,4 +178,7 @@ def case_header(case: Case) -> dict[str, Any]:
         "name": case.name, "scene": str(case.scene), "renderer": case.renderer, "settings": case.settings,
         "budget": {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds},
         "seed": case.seed, "expect": case.expect, "against": dataclasses.asdict(case.against),
+        # the scene's changes a command that reproduces the case must repeat (absent where the case makes none)
+        **({"max_depth": case.max_depth} if case.max_depth is not None else {}),
+        **({"variant": case.variant} if case.variant is not None else {}),
     }
