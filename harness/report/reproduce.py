@@ -64,5 +64,8 @@ def reproduce(record: dict) -> dict | None:
     elif not gt.get("path"):
         notes.append("No ground-truth file is recorded for this case (an older run, or the case ended in an "
                      "error): only the render command is given.")
+    if not scene.startswith("/"):
+        notes.insert(0, f"The scene's path {scene} is relative: run the commands from the folder harness run was "
+                        "run in.")
     lines = [shlex.join(words)] + ([shlex.join(compare)] if compare else [])
     return {"render": words, "compare": compare, "text": "\n".join(lines), "notes": notes}
