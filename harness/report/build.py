@@ -617,6 +617,8 @@ def _summary_md(results, items, sections) -> str:
              "Mitsuba renders. Full report: `index.html`; numbers: `report.json`.", ""]
     if s.get("unexpected"):
         lines += ["**Not as expected:** " + ", ".join(_md(n) for n in s["unexpected"]), ""]
+    for note in machine_notes(results):  # a baseline or cached cases from another machine
+        lines += [f"**Another machine:** {_md(note)}", ""]
     lines += ["| case | status | expect | RMSE | relMSE | FLIP | time [s] |", "|---|---|---|---|---|---|---|"]
     for item in items:
         r = item.record

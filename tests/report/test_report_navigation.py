@@ -157,6 +157,7 @@ def test_cases_from_the_cache_of_another_machine_are_flagged(tmp_path, monkeypat
                                        "timings are that machine's: furnace/closed-form, furnace/mutant, "
                                        "furnace/unexpected."]
     assert "results cache of another machine (other-box)" in (tmp_path / "second" / "index.html").read_text()
+    assert "**Another machine:** 3 cases came from the results cache" in (tmp_path / "second" / "summary.md").read_text()
     # the same machine: no note
     results = run_suite(suite, tmp_path / "third", cache_dir=tmp_path / "cache2", results_cache="use")
     results = run_suite(suite, tmp_path / "fourth", cache_dir=tmp_path / "cache2", results_cache="use")
