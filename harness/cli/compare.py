@@ -9,6 +9,8 @@ import json
 from harness.cli.common import EXIT_FAIL, EXIT_OK
 from harness.core import options
 from harness.core.errors import HarnessError
+from harness.files import imageio
+from harness.files.verdict_maps import write_verdict_maps
 from harness.running.compare import compare_files
 
 MAX_TILE = 1024  # the verdict pads the image to whole tiles: a larger tile only costs memory
@@ -24,6 +26,9 @@ def register(sub, common) -> None:
                         help=f"tile size in pixels for the verdict, 1 to {MAX_TILE} (default 8)")
     parser.add_argument("--alpha", type=options.probability, default=0.001,
                         help="false-alarm probability of the verdict (default 0.001)")
+    parser.add_argument("--maps", metavar="DIR", help="also write the verdict's tile maps into DIR: pvalue.exr (each "
+                        "tile's two-sided p per channel) and failing.exr (1 in tiles that fail by themselves), as "
+                        "harness run writes beside each case")
     parser.set_defaults(func=run)
     sub.add_parser("compare", help="metrics and a statistical verdict for a render against its ground truth "
                    "(exit 1 on fail)", parents=[parser, common.json()])
@@ -35,7 +40,15 @@ def run(args: argparse.Namespace) -> int:
         raise HarnessError("--tile", f"expected an integer from 1 to {MAX_TILE} (pixels per tile side), got {args.tile}")
     if not 0 < args.alpha < 1:
         raise HarnessError("--alpha", f"expected a false-alarm probability in (0, 1), got {args.alpha}")
-    report = compare_files(args.test, args.ground_truth, tile=args.tile, alpha=args.alpha)
+    maps: dict | None = {} if args.maps else None
+    report = compare_files(args.test, args.ground_truth, tile=args.tile, alpha=args.alpha, maps=maps)
+    if maps is not None and maps.get("tiles") is not None:
+        v = report["verdict"]
+        with imageio.removed_on_failure(imageio.make_folders(args.maps, where="--maps")):  # no empty folder left
+            written = write_verdict_maps(args.maps, maps["tiles"], tile=v["tile"], alpha=v["alpha"],
+                                         threshold=v["threshold"], height=report["height"], width=report["width"],
+                                         metadata={"test": str(args.test), "ground_truth": str(args.ground_truth)})
+        report["verdict_maps"] = {key: str(path) for key, path in written.items()}
     if args.json:
         print(json.dumps(report, indent=2, default=float))
     else:
@@ -48,4 +61,6 @@ def run(args: argparse.Namespace) -> int:
         for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
             if key in m:
                 print(f"  {key:7s} {m[key]:.6g}" if m[key] is not None else f"  {key:7s} undefined{why}")
+        if "verdict_maps" in report:
+            print(f"wrote {report['verdict_maps']['pvalue']} and {report['verdict_maps']['failing']}")
     return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL

@@ -4,6 +4,7 @@ preview beside it."""
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -21,6 +22,7 @@ from harness.renderers import RenderRequest, get_renderer, renderer_names
 from harness.renderers.external import ExternalRendererError, variance_metadata
 from harness.renderers.validate import BadRenderError, validate_result
 from harness.scene import load_scene
+from reference_impl import Film
 
 
 def register(sub, common) -> None:
@@ -37,6 +39,10 @@ def register(sub, common) -> None:
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
              "(repeatable; see docs/reference-renderer.md)",
     )
+    parser.add_argument("--film", type=options.film_size, metavar="WxH",
+                        help="render at this resolution, e.g. 32x32 (default: the scene's), as a suite case's film does")
+    parser.add_argument("--max-depth", type=options.non_negative_int, metavar="N",
+                        help="the scene's max_depth replaced, as a suite case's max_depth does")
     parser.set_defaults(func=run)
     sub.add_parser(
         "render", help="render a scene to an OpenEXR file (plus a PNG preview)",
@@ -53,6 +59,11 @@ def run(args: argparse.Namespace) -> int:
     require_positive("--spp", args.spp)
     require_non_negative("--seed", args.seed)
     scene = load_scene(args.scene)
+    if args.film:
+        width, _, height = args.film.lower().partition("x")
+        scene = dataclasses.replace(scene, film=Film(int(width), int(height), scene.film.filter))
+    if args.max_depth is not None:
+        scene = dataclasses.replace(scene, max_depth=args.max_depth)
     check_cost(scene, args.spp, "--spp")
     renderer = get_renderer(args.renderer)
     settings = parse_set(args.set)

@@ -63,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
+    if gate is not None and gate.warning():
+        print(gate.warning(), file=sys.stderr)
     created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails
     out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
     # a second run into the same folder stops at the lock (one line naming the holder's pid)

@@ -319,7 +319,17 @@ CASE_ALWAYS = {"name": NAME, "scene": STR, "renderer": STR, "settings": DictOf(S
                "ok": BOOL, "reason": STR, "definition": STR, "wall_seconds": Nullable(SECONDS)}
 CASE_COMPARED = {"metrics": METRICS, "verdict": VERDICT, "thresholds": DictOf(NUMBER),
                  "thresholds_broken": ListOf(STR), "render": RENDER}  # required unless status is "error"
-CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES}
+MACHINE = {"node": STR, "cpu": Nullable(STR), "logical_cores": Nullable(POSITIVE_INT), "gpus": ListOf(STR)}
+SYSTEM = Obj({**MACHINE, "os": STR, "python": STR, "numpy": Nullable(STR), "numba": Nullable(STR),
+              "embreex": Nullable(STR), "embree": Nullable(STR),
+              "mitsuba": Obj({"version": Nullable(STR), "variant": Nullable(STR)}, {"variants_used": ListOf(STR)}),
+              "git": Nullable(Obj({"commit": NAME, "dirty": Nullable(BOOL)})), "seconds": SECONDS})
+CACHED = Obj({"from": Nullable(STR), "key": STR}, {"machine": Obj(optional=MACHINE)})
+
+VERDICT_MAPS = Obj({"pvalue": NAME, "failing": NAME})
+
+CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
+                 "verdict_maps": VERDICT_MAPS, "cached": CACHED}
 
 
 class _Case(Spec):
@@ -342,7 +352,7 @@ RESULTS = Obj({"schema": Scalar(f"{SCHEMA} (the schema this harness reads)", lam
                "suite": STR, "suite_file": STR, "description": STR, "started": STR,
                "host": Obj({"python": STR, "machine": STR, "node": STR}),
                "executor": STR, "complete": BOOL, "cases": ListOf(_Case()), "summary": SUMMARY},
-              {"baseline": DictOf(ANY)})
+              {"baseline": DictOf(ANY), "system": SYSTEM})
 
 
 # ---- reading ----------------------------------------------------------------------------------------------------

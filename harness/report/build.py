@@ -19,13 +19,15 @@ from markupsafe import escape
 
 from harness.core import jsonsafe
 from harness.core.progress import Progress
+from harness.core.system import MACHINE_KEYS, machine_differences, machine_line
 from harness.files.cases import GroundTruthImage, read_case_images, slug
 from harness.files.imageio import StagedFolder, WriteError, atomic_write_bytes, atomic_write_text, make_folders
 from harness.files.previews import ReportImage
 from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, studies_folder, study_file
-from harness.report.html import data_uri, figure_view, fmt, legend_view, render
+from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
+from harness.report.reproduce import reproduce
 from harness.studies import figures
 
 REPORT_SCHEMA = 1
@@ -356,6 +358,7 @@ def _case_json(item: ReportCase) -> dict:
         "render": {k: render.get(k) for k in ("seconds", "spp", "paths_per_second", "rays", "nonfinite_pixels",
                                              "exr")},
         "wall_seconds": r.get("wall_seconds"),
+        "cached": r.get("cached"), "verdict_maps": r.get("verdict_maps"), "reproduce": reproduce(r),
         "error_maps": {k: v for k, v in item.summary.items() if not k.startswith("_")},
         "images": [im.to_json() for im in item.images],
         "problems": item.problems,
@@ -373,6 +376,7 @@ def _report_json(results, results_path, items, sections, options, studies, why, 
         "results_file": str(results_path) if results_path else None,
         "suite": results.get("suite"), "suite_file": results.get("suite_file"),
         "description": results.get("description"), "started": results.get("started"), "host": results.get("host"),
+        "system": results.get("system"), "machine_notes": machine_notes(results),
         "summary": results.get("summary"),
         "note": "; ".join(notes) or None,
         "options": dict(study_options, convergence=options.convergence, shadow_rays=options.shadow_rays,
@@ -497,7 +501,7 @@ def _case_view(item: ReportCase) -> dict:
         "metrics_rows": _metrics_rows(r), "verdict": verdict.get("verdict", "?"),
         "verdict_rows": _verdict_rows(verdict),
         "settings_rows": _settings_rows(r), "resolved_json": json.dumps(resolved, indent=1) if resolved else None,
-        "traceback": r.get("traceback"),
+        "traceback": r.get("traceback"), "reproduce": reproduce(r),
     }
 
 
@@ -507,7 +511,64 @@ def _summary_row(item: ReportCase) -> dict:
     return {"anchor": f"case-{item.index}", "name": r.get("name"), "scene": Path(str(r.get("scene"))).stem,
             "renderer": r.get("renderer"), "status": r.get("status", "?"), "expect": r.get("expect"),
             "ok": r.get("ok"), "rmse": m.get("rmse"), "relmse": m.get("relmse"), "flip": m.get("flip"),
-            "seconds": (r.get("render") or {}).get("seconds"), "reason": (r.get("reason") or "")[:120]}
+            "seconds": (r.get("render") or {}).get("seconds"), "reason": (r.get("reason") or "")[:120],
+            "sort": {k: _sort_number(v) for k, v in (("rmse", m.get("rmse")), ("relmse", m.get("relmse")),
+                                                      ("flip", m.get("flip")),
+                                                      ("seconds", (r.get("render") or {}).get("seconds")))}}
+
+
+def _sort_number(value: Any) -> str:
+    """A number as summary.js sorts it (``data-sort``): its full repr, "" for none or a non-number."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value:
+        return ""
+    return repr(value)
+
+
+def machine_notes(results: dict) -> list[str]:
+    """Where the run's numbers come from another machine than its own (its ``system`` block): a baseline made
+    elsewhere (``baseline.other_machine``), cases answered from a results cache filled elsewhere
+    (``cached.machine``)."""
+    notes = []
+    base = results.get("baseline") if isinstance(results.get("baseline"), dict) else {}
+    if base.get("other_machine"):
+        notes.append(f"The baseline {base.get('file')} was made on another machine "
+                     f"({'; '.join(map(str, base['other_machine']))}): its timings are that machine's.")
+    system = results.get("system")
+    if isinstance(system, dict):
+        here = {k: system.get(k) for k in MACHINE_KEYS}
+        others: dict[str, list[str]] = {}
+        for record in results.get("cases") or []:
+            cached = record.get("cached") if isinstance(record, dict) else None
+            machine = cached.get("machine") if isinstance(cached, dict) else None
+            differences = machine_differences(machine, here)
+            if differences:
+                others.setdefault(machine_line(machine).split(" (")[0], []).append(str(record.get("name")))
+        for node, names in others.items():
+            notes.append(f"{len(names)} cases came from the results cache of another machine ({node}): their "
+                         f"timings are that machine's: {', '.join(names)}.")
+    return notes
+
+
+def _system_rows(system: Any) -> list[tuple]:
+    """The page's System table, from results.json's ``system`` block (none for a run by an older harness)."""
+    if not isinstance(system, dict):
+        return []
+    mitsuba = system.get("mitsuba") if isinstance(system.get("mitsuba"), dict) else {}
+    git = system.get("git")
+    if isinstance(git, dict):
+        commit = f"{git.get('commit')}" + (" (dirty: the tree had changes)" if git.get("dirty") else "")
+    else:
+        commit = "– (not a git checkout)"
+    used = ", ".join(mitsuba.get("variants_used") or []) or "none"
+    return [
+        ("machine", system.get("node")), ("CPU", system.get("cpu")), ("logical cores", system.get("logical_cores")),
+        ("GPUs", "; ".join(system.get("gpus") or []) or "none"), ("OS", system.get("os")),
+        ("Python", system.get("python")), ("numpy", system.get("numpy")), ("numba", system.get("numba")),
+        ("embreex / Embree", f"{system.get('embreex') or '–'} / {system.get('embree') or '–'}"),
+        ("Mitsuba", f"{mitsuba.get('version') or 'not installed'}; variant asked for: "
+                    f"{mitsuba.get('variant') or 'the default choice'}; used: {used}"),
+        ("harness commit", commit),
+    ]
 
 
 def _suite_html(results, results_path, items, wanted, sections_html, notes) -> str:
@@ -521,7 +582,9 @@ def _suite_html(results, results_path, items, wanted, sections_html, notes) -> s
         description=results.get("description") or "", nav=[(anchor, label) for _, anchor, _, label, _ in wanted],
         s=s, unexpected=", ".join(str(n) for n in s.get("unexpected") or []), notes=notes,
         summary_rows=[_summary_row(i) for i in items], cases=[_case_view(i) for i in items],
-        sections=sections_html, definitions=sorted(DEFINITIONS.items())))
+        sections=sections_html, definitions=sorted(DEFINITIONS.items()),
+        system_rows=_system_rows(results.get("system")), machine_notes=machine_notes(results),
+        summary_js=static_script("summary.js")))
 
 
 # ---- summary.md ------------------------------------------------------------------------------------------------
@@ -554,6 +617,8 @@ def _summary_md(results, items, sections) -> str:
              "Mitsuba renders. Full report: `index.html`; numbers: `report.json`.", ""]
     if s.get("unexpected"):
         lines += ["**Not as expected:** " + ", ".join(_md(n) for n in s["unexpected"]), ""]
+    for note in machine_notes(results):  # a baseline or cached cases from another machine
+        lines += [f"**Another machine:** {_md(note)}", ""]
     lines += ["| case | status | expect | RMSE | relMSE | FLIP | time [s] |", "|---|---|---|---|---|---|---|"]
     for item in items:
         r = item.record

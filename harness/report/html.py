@@ -1,5 +1,6 @@
 """The report's HTML, from Jinja2 templates (``harness/report/templates/*.html.j2``): one self-contained page, inline
-CSS, images as base64 PNG data URIs, no scripts, no external resources.
+CSS, images as base64 PNG data URIs, no external resources; the suite page's one script is the package's own
+``static/summary.js`` (the summary table's filters and sorting), inline (:func:`static_script`).
 
 Autoescape is on, and every value a template writes with ``{{ ... }}`` that is not markup made by a template is
 escaped by the engine with :func:`html.escape` (quotes too; None writes nothing): the templates never mark a string
@@ -9,9 +10,11 @@ from a suite, scene, results file or renderer as safe. Filters: ``fmt`` (numbers
 from __future__ import annotations
 
 import base64
+import functools
 import html
 import math
 import re
+from importlib import resources
 from typing import Any
 
 import jinja2
@@ -75,6 +78,16 @@ def render(template: str, **context: Any) -> Markup:
     """The template ``template`` (a name under templates/) rendered with ``context``: markup, safe to include in
     another template."""
     return Markup(ENV.get_template(template).render(**context))
+
+
+@functools.cache
+def static_script(name: str) -> Markup:
+    """The package's script ``static/<name>`` as markup for an inline ``<script>`` (a file of the package, never
+    of a run: nothing in it is escaped; it must not hold ``</script``)."""
+    text = resources.files("harness.report").joinpath("static", name).read_text(encoding="utf-8")
+    if "</script" in text.lower():
+        raise ValueError(f"static/{name} holds '</script': it cannot be inlined")
+    return Markup(text)
 
 
 def data_uri(png: bytes) -> str:

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.core import jsonsafe
+from harness.core import jsonsafe, system
 from harness.core.errors import HarnessError, read_user_text
 from harness.core.text import short
 from harness.files.imageio import atomic_write_text, read_exr
@@ -187,6 +187,8 @@ def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "
     doc = {
         "schema": SCHEMA, "version": VERSION, "suite": suite.name, "suite_file": str(suite.path),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "source": source, "tools": tool_versions(results),
+        # the machine of the run it was made from (that run's own block; a run by an older harness: this one)
+        "system": results.get("system") if isinstance(results.get("system"), dict) else system.gather(variant),
         "cases": cases,
     }
     return doc, notes
@@ -212,7 +214,7 @@ def load(path: str | Path) -> dict:
     if not isinstance(doc.get("cases"), dict) or not isinstance(doc.get("suite"), str):
         raise HarnessError(label, "not a baseline file: expected \"suite\" and a \"cases\" table")
     for key, kind, what in (("tools", dict, "a table of tool versions"), ("created", str, "a time stamp"),
-                            ("source", str, "a text")):
+                            ("source", str, "a text"), ("system", dict, "a table of the machine and software")):
         if key in doc and not isinstance(doc[key], kind):
             raise HarnessError(label, f"not a baseline file: {key}: expected {what}, got {short(doc[key])}; "
                                "save the baseline again")
@@ -378,10 +380,19 @@ class Gate:
         check_matches(self.doc, path, suite)
         self.tolerance = option_tolerances(tolerance_options or [], suite_tolerances(suite))
         self.cache_dir, self.variant = cache_dir, variant
+        #: what differs between the machine the baseline was made on and this one ([]: the same, or unknown)
+        self.other_machine = machine_differences(self.doc, system.gather(variant))
         self.missing: list[str] = []
         self.regressed: list[str] = []
         self.compared: list[str] = []
         self.checked: set[str] = set()
+
+    def warning(self) -> str | None:
+        """The one line to print before the run when the baseline was made on another machine, else None."""
+        if not self.other_machine:
+            return None
+        return (f"harness: warning: baseline {self.path} was made on another machine ({'; '.join(self.other_machine)})"
+                ": its timings are that machine's, and bits may differ with the CPU")
 
     def check(self, case, record: dict) -> None:
         """Compare a finished case with its baseline entry; a regression makes it ``ok = false`` with the reason
@@ -441,14 +452,27 @@ class Gate:
                    if base_tools.get(k) != now.get(k)]
         results["baseline"] = {"file": str(self.path), "created": self.doc.get("created"),
                                "tolerance": self.tolerance, "compared": self.compared, "regressed": self.regressed,
-                               "not_in_baseline": self.missing, "tools_changed": changed}
+                               "not_in_baseline": self.missing, "tools_changed": changed,
+                               "system": self.doc.get("system"), "other_machine": self.other_machine}
         atomic_write_text(out_dir / "results.json", jsonsafe.dumps(results, indent=2))
         lines = [f"baseline {self.path}: {len(self.compared)} cases compared, {len(self.regressed)} regressed"]
         if self.missing:
             lines.append(f"  not in the baseline (reported, not failed): {', '.join(self.missing)}")
         if changed:
             lines.append(f"  note: tools changed since the baseline: {'; '.join(changed)}")
+        if self.other_machine:
+            lines.append(f"  note: the baseline was made on another machine: {'; '.join(self.other_machine)}")
         return lines
+
+
+def machine_differences(doc: dict, now: dict) -> list[str]:
+    """What differs between the machine a baseline file was made on (its ``system`` block; a file saved by an
+    older harness: the ``node`` of its ``tools``) and ``now`` (:func:`harness.core.system.machine_differences`)."""
+    before = doc.get("system")
+    if not isinstance(before, dict):
+        tools = doc.get("tools") if isinstance(doc.get("tools"), dict) else {}
+        before = {"node": tools["node"]} if isinstance(tools.get("node"), str) else None
+    return system.machine_differences(before, now)
 
 
 # ---- a results.json as the source of a baseline ---------------------------------------------------------

@@ -81,6 +81,7 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
     flip_mean, flip_map = metrics.flip(t, r, full=True)
     if maps is not None:
         maps["flip"] = (flip_mean, flip_map)
+        maps["tiles"] = outcome.tiles
     result = {
         "width": w,
         "height": h,
@@ -133,7 +134,9 @@ def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: 
 
     ``maps``: where given, a dict that receives the per-pixel maps computed on the way, for a caller that shows
     them: ``"flip"``, the ``(mean, map)`` of :func:`harness.judges.metrics.flip` with ``full=True`` (FLIP is the
-    slowest metric; ``harness run`` draws the case's FLIP map from it instead of computing it again).
+    slowest metric; ``harness run`` draws the case's FLIP map from it instead of computing it again), and ``"tiles"``,
+    the verdict's :class:`harness.judges.verdict.TileMaps` (per-tile z, two-sided p, tested, failing: the maps of
+    :mod:`harness.files.verdict_maps`).
 
     Raises :class:`HarnessError` if the sizes differ, a variance is missing or
     invalid, or the expected image has non-finite pixels.
@@ -146,7 +149,7 @@ def compare_files(
 ) -> dict:
     """:func:`compare_images` on two EXR files read with :func:`harness.files.imageio.read_exr`.
 
-    Keyword arguments (``tile``, ``alpha``) are passed on.  Errors name the
+    Keyword arguments (``tile``, ``alpha``, ``maps``) are passed on.  Errors name the
     files: a size mismatch raises ``HarnessError`` naming both files and both
     sizes; a file without variance channels raises one naming that file.
     """
@@ -154,6 +157,7 @@ def compare_files(
     expected = read_exr(expected_path)
     tile = kw.pop("tile", 8)
     alpha = kw.pop("alpha", 0.01)
+    maps = kw.pop("maps", None)
     if kw:
         raise TypeError(f"unexpected keyword arguments: {', '.join(sorted(kw))}")
-    return _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)))
+    return _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)), maps)

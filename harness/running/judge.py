@@ -1,6 +1,7 @@
 """Judging one case: its ground truth (:func:`ground_truth_for`), its render within the budget
-(:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`), its thresholds and
-its report images (:mod:`harness.files.report_images`), as the case's record in ``results.json``
+(:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`), its thresholds,
+the verdict's tile maps (``pvalue.exr``, ``failing.exr``: :mod:`harness.files.verdict_maps`) and its report images
+(:mod:`harness.files.report_images`), as the case's record in ``results.json``
 (``docs/results-schema.md``)."""
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from harness.core.errors import HarnessError
 from harness.files.cases import GROUND_TRUTH_FILE
 from harness.files import imageio
 from harness.files.report_images import IMAGES_FOLDER, ReportImages, make_report_images
+from harness.files.verdict_maps import write_verdict_maps
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.renderers.external import variance_metadata
 from harness.renderers.validate import validate_result
@@ -90,6 +92,7 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
     start = time.perf_counter()
     try:
         scene, gt_scene = case_scenes(case)
+        record["film"] = {"width": scene.film.width, "height": scene.film.height}  # as rendered (with its overrides)
         gt = ground_truth_for(case, gt_scene, cache_dir, variant, progress)
         record["ground_truth"] = {
             "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
@@ -128,6 +131,12 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
                     "rays": result.rays, "nonfinite_pixels": result.nonfinite_pixels, "settings": result.settings,
                     "info": result.info, "exr": str(folder / "render.exr")},
         )
+        tiles = maps.get("tiles")
+        if tiles is not None:  # every judged case, pass or fail: the report's viewer shows them for all
+            written = write_verdict_maps(folder, tiles, tile=verdict["tile"], alpha=verdict["alpha"],
+                                         threshold=verdict["threshold"], height=scene.film.height,
+                                         width=scene.film.width, metadata={"case": case.name})
+            record["verdict_maps"] = {key: str(path) for key, path in written.items()}
         images = report_images(case, folder, result, gt, maps.get("flip"))
         if images is not None:
             record["report_images"] = images.record()
@@ -169,4 +178,7 @@ def case_header(case: Case) -> dict[str, Any]:
         "name": case.name, "scene": str(case.scene), "renderer": case.renderer, "settings": case.settings,
         "budget": {"spp": case.spp} if case.spp is not None else {"seconds": case.seconds},
         "seed": case.seed, "expect": case.expect, "against": dataclasses.asdict(case.against),
+        # the scene's changes a command that reproduces the case must repeat (absent where the case makes none)
+        **({"max_depth": case.max_depth} if case.max_depth is not None else {}),
+        **({"variant": case.variant} if case.variant is not None else {}),
     }

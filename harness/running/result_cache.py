@@ -211,9 +211,11 @@ def _relocated(value, old: str, new: str):
 
 class CaseCache:
     """The results cache of one run: ``cache_dir`` and ``variant`` as the run's cases get them, ``mode`` one of
-    :data:`MODES`, ``started`` the run's start (recorded with the entries it stores)."""
+    :data:`MODES`, ``started`` the run's start and ``machine`` its machine (:data:`harness.core.system.MACHINE_KEYS`
+    of its system block), both recorded with the entries it stores and given back in a hit's ``cached``."""
 
-    def __init__(self, cache_dir=None, variant: str | None = None, mode: str = "use", started: str = ""):
+    def __init__(self, cache_dir=None, variant: str | None = None, mode: str = "use", started: str = "",
+                 machine: dict | None = None):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         # resolved as executors.plan resolves it for the cases, so that paths into it read as a fresh run's
@@ -221,6 +223,7 @@ class CaseCache:
         self.variant = variant
         self.mode = mode
         self.started = started
+        self.machine = machine
         self.store = store_for(self.cache_dir)
 
     @property
@@ -290,8 +293,10 @@ class CaseCache:
         if record is None or self.store.copy_out(entry, folder) is None:
             self.store.discard(key.key)
             return None
-        record.update(cache_key=key.key, cached={"from": entry.meta.get("started"), "key": key.key},
-                      wall_seconds=time.perf_counter() - start)
+        cached = {"from": entry.meta.get("started"), "key": key.key}
+        if isinstance(entry.meta.get("machine"), dict):  # the machine that rendered it (its timings are that one's)
+            cached["machine"] = entry.meta["machine"]
+        record.update(cache_key=key.key, cached=cached, wall_seconds=time.perf_counter() - start)
         return record
 
     @staticmethod
@@ -324,5 +329,7 @@ class CaseCache:
             return None
         outcome = json.loads(jsonsafe.dumps({k: v for k, v in record.items() if k not in RUN_FIELDS}))
         meta = {"kind": "case", "case": case.name, "record": outcome, "folder": str(folder), "started": self.started}
+        if self.machine is not None:
+            meta["machine"] = self.machine
         self.store.store(key.key, meta, written_since(folder, before), replace=self.mode == "refresh")
         return key.key

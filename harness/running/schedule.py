@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from harness.core import jsonsafe
+from harness.core import jsonsafe, system
 from harness.core.errors import HarnessError
 from harness.files.imageio import atomic_write_text
 from harness.running import executors, judge, result_cache, runstate
@@ -41,6 +41,7 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
         "schema": 1, "suite": suite.name, "suite_file": str(suite.path), "description": suite.description,
         "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
         "host": {"python": platform.python_version(), "machine": platform.machine(), "node": platform.node()},
+        "system": system.gather(variant),  # once per run (a few ms): docs/results-schema.md
         "cases": [],
     }
     executor = executor or executors.SerialExecutor()
@@ -54,11 +55,13 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
         results["cases"] = [records[i] for i in sorted(records)]
         results["complete"] = len(records) == len(suite.cases)
         results["summary"] = summarise(results["cases"], time.time() - started)
+        results["system"]["mitsuba"]["variants_used"] = mitsuba_variants(results["cases"])
         with runstate.no_interrupts():  # a signal waits until the file is renamed into place
             atomic_write_text(out_dir / "results.json", jsonsafe.dumps(results, indent=2))
 
     todo = [(i, case) for i, case in enumerate(suite.cases) if i not in records]
-    cache = result_cache.CaseCache(cache_dir, variant, results_cache, results["started"])
+    cache = result_cache.CaseCache(cache_dir, variant, results_cache, results["started"],
+                                   machine={k: results["system"][k] for k in system.MACHINE_KEYS})
     if cache.reads:
         hits = []
         for index, case in todo:
@@ -135,6 +138,16 @@ def summarise(records: list[dict], wall: float) -> dict:
         "from_cache": sum(bool(r.get("cached")) for r in records if not r.get("resumed")),  # by this run
         "wall_seconds": wall,
     }
+
+
+def mitsuba_variants(records: list[dict]) -> list[str]:
+    """The Mitsuba variants the records used: their ground truths' and their Mitsuba renders'."""
+    used = set()
+    for record in records:
+        used.add((record.get("ground_truth") or {}).get("variant"))
+        if record.get("renderer") == "mitsuba":
+            used.add(((record.get("render") or {}).get("info") or {}).get("variant"))
+    return sorted(v for v in used if isinstance(v, str))
 
 
 def _mitsuba_renders(record: dict) -> int:

@@ -234,3 +234,39 @@ def test_bad_baselines_are_one_line_errors(tmp_path, capsys, saved, change, wher
     assert code == 2, out + err
     assert len(err.strip().splitlines()) == 1 and where in err and "Traceback" not in err
     assert not (out_dir / "results.json").exists()
+
+
+@pytest.mark.slow
+def test_a_baseline_of_another_machine_is_flagged(tmp_path, capsys, saved):
+    """The baseline keeps the system block of the run it was made from; a baseline made elsewhere is a one-line
+    warning before the run, a note after it and ``baseline.other_machine`` in results.json (the report shows it)."""
+    suite, base = saved
+    doc = json.loads(base.read_text())
+    run0 = json.loads((tmp_path / "run0" / "results.json").read_text())
+    assert doc["system"] == run0["system"] and doc["system"]["node"] and doc["system"]["logical_cores"] >= 1
+    code, out, err = cli(capsys, "run", suite, "--baseline", base, "--out", tmp_path / "same", "--executor", "serial",
+                         "--no-report", "--quiet")
+    assert code == 0 and "another machine" not in out + err
+    assert json.loads((tmp_path / "same" / "results.json").read_text())["baseline"]["other_machine"] == []
+    doc["system"].update(node="build-box-7", cpu="Some Other CPU")
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps(doc))
+    code, out, err = cli(capsys, "run", suite, "--baseline", other, "--out", tmp_path / "other", "--executor",
+                         "serial", "--no-report", "--quiet")
+    assert code == 0, out + err
+    warning = [line for line in err.splitlines() if "another machine" in line]
+    assert len(warning) == 1 and warning[0].startswith("harness: warning: baseline ") and "build-box-7 ->" in warning[0]
+    assert "cpu Some Other CPU ->" in warning[0]
+    results = json.loads((tmp_path / "other" / "results.json").read_text())
+    assert results["baseline"]["other_machine"][0].startswith("node build-box-7 -> ")
+    # a baseline saved by an older harness has no system block: its tools' node is compared
+    del doc["system"]
+    doc["tools"]["node"] = "old-box"
+    other.write_text(json.dumps(doc))
+    assert baseline.Gate(other, baseline_suite(suite)).other_machine[0].startswith("node old-box -> ")
+
+
+def baseline_suite(path):
+    from harness.running.cases import load_suite
+
+    return load_suite(path)

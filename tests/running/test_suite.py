@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -10,6 +11,8 @@ from conftest import ROOT
 
 from harness.cli import main
 from harness.core.errors import HarnessError
+from harness.files.imageio import read_exr
+from harness.files.results import read_results
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 from reference_impl.mutants import ALL_MUTANTS
@@ -138,6 +141,15 @@ film = { width = 16, height = 16 }
     assert "unexpected: furnace/energy-loss" in stdout
     record = json.loads((tmp_path / "out" / "results.json").read_text())["cases"][0]
     assert record["status"] == "fail" and record["verdict"]["verdict"] == "fail"
+    # the verdict's tile maps beside the render, named in the record, and read back by the schema check
+    folder = tmp_path / "out" / "cases" / "furnace_energy-loss"
+    assert record["verdict_maps"] == {"pvalue": str(folder / "pvalue.exr"), "failing": str(folder / "failing.exr")}
+    read_results(tmp_path / "out" / "results.json")
+    p = read_exr(folder / "pvalue.exr").image
+    worst = record["verdict"]["worst_tile"]
+    assert p.shape == (16, 16, 3)
+    assert p[worst["y"], worst["x"], "RGB".index(worst["channel"])] == pytest.approx(
+        math.erfc(abs(worst["z_normal"]) / math.sqrt(2)), rel=1e-5)
 
 
 def test_thresholds_fail_a_case(tmp_path):
