@@ -98,14 +98,15 @@ def test_run_that_fails_after_a_case_keeps_it_and_resumes(folder, disk, capfd): 
     out = folder / "run"
     disk.fill(name=str(out / "cases" / "b"))  # case a is written, case b's render is not
     assert_one_line(*cli(capfd, *run_argv(folder, out)), "No space left on device")
-    assert listing(out) == ["cases", "cases/a", "cases/a/ground_truth.exr", *images("cases/a"), "cases/a/render.exr",
-                            "cases/a/render.png", "results.json"]  # the closed form judged against is kept beside it
+    assert listing(out) == ["cases", "cases/a", "cases/a/failing.exr", "cases/a/ground_truth.exr", *images("cases/a"),
+                            "cases/a/pvalue.exr", "cases/a/render.exr", "cases/a/render.png", "results.json"]  # the closed form judged against is kept beside it
     assert [r["name"] for r in read_results(out / "results.json")["cases"]] == ["a"]
     disk.full = False
     code, stdout, err = cli(capfd, *run_argv(folder, out))
     assert code == 0 and "resuming: 1 of 2 cases done" in err, err
-    assert listing(out / "cases") == ["a", "a/ground_truth.exr", *images("a"), "a/render.exr", "a/render.png",
-                                      "b", "b/ground_truth.exr", *images("b"), "b/render.exr", "b/render.png"]
+    assert listing(out / "cases") == [
+        "a", "a/failing.exr", "a/ground_truth.exr", *images("a"), "a/pvalue.exr", "a/render.exr", "a/render.png",
+        "b", "b/failing.exr", "b/ground_truth.exr", *images("b"), "b/pvalue.exr", "b/render.exr", "b/render.png"]
 
 
 def images(case: str) -> list[str]:
