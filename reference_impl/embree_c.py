@@ -34,9 +34,9 @@ RAY_WORDS = 32  # room for an RTCRayHit (at most 96 bytes with instance ids), in
 W_TFAR, W_MASK, W_ID, W_FLAGS = 8, 9, 10, 11
 W_PRIM_ID, W_GEOM_ID = 12 + 5, 12 + 6
 # RTCRayHit16: field f of lane l at word 16 f + l; the ray's 12 fields, then the hit's (primID, geomID 6th and 7th).
-PACKET = 16
+PACKET = 16  # the widest packet (RTCRayHit16): a packet of width w has field f of lane l at word f * w + l
 PACKET_WORDS = 16 * 24  # up to 12 ray fields and 12 hit fields
-P_PRIM_ID, P_GEOM_ID = 16 * (12 + 5), 16 * (12 + 6)
+P_PRIM_ID, P_GEOM_ID = 12 + 5, 12 + 6  # fields of the hit, after the ray's 12
 
 
 @functools.cache
@@ -78,6 +78,9 @@ def library() -> ctypes.CDLL:
 
 
 _DEVICE_PROPERTY_VERSION = 0  # RTC_DEVICE_PROPERTY_VERSION (rtcore_device.h): major * 10000 + minor * 100 + patch
+# RTC_DEVICE_PROPERTY_NATIVE_RAY{4,8,16}_SUPPORTED: whether packets of that width run on the processor's own vector
+# width (else Embree emulates them: 16-wide packets on an AVX2 processor took 1.3-1.4x the time of one query per ray)
+_NATIVE_WIDTH_PROPERTIES = ((16, 34), (8, 33), (4, 32))
 
 
 @functools.cache
@@ -98,6 +101,17 @@ def device_version() -> str:
     return f"{number // 10000}.{number // 100 % 100}.{number % 100}"
 
 
+def native_packet_width(device) -> int:
+    """The widest packet (16, 8 or 4 rays) that ``device`` traces natively, 1 if none: the packet width the kernels
+    use (``rtcIntersect{4,8,16}``, ``rtcOccluded{4,8,16}``)."""
+    get = library().rtcGetDeviceProperty
+    get.restype, get.argtypes = ctypes.c_ssize_t, [ctypes.c_void_p, ctypes.c_int]
+    for width, prop in _NATIVE_WIDTH_PROPERTIES:
+        if get(device, prop) == 1:
+            return width
+    return 1
+
+
 library()  # before any kernel that calls Embree is compiled or loaded from numba's cache
 
 # void rtcIntersect1(RTCScene, RTCRayHit*, RTCIntersectArguments*); void rtcOccluded1(RTCScene, RTCRay*, ...);
@@ -111,6 +125,11 @@ rtc_intersect16 = types.ExternalFunction("rtcIntersect16",
 # void rtcOccluded16(const int* valid, RTCScene, RTCRay16*, RTCOccludedArguments*): tfar of a blocked lane -> -inf.
 rtc_occluded16 = types.ExternalFunction("rtcOccluded16",
                                         types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+# The same for packets of 8 and 4 rays (RTCRayHit8 / RTCRayHit4: the same layout, 8 or 4 lanes per field).
+rtc_intersect8 = types.ExternalFunction("rtcIntersect8", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+rtc_occluded8 = types.ExternalFunction("rtcOccluded8", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+rtc_intersect4 = types.ExternalFunction("rtcIntersect4", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+rtc_occluded4 = types.ExternalFunction("rtcOccluded4", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
 # int clock_gettime(clockid_t, struct timespec*): samples of the time spent in queries.
 clock_gettime = types.ExternalFunction("clock_gettime", types.int32(types.int32, types.uintp))
 CLOCK_MONOTONIC = 1
@@ -146,6 +165,7 @@ class TriangleScene:
         if error:
             raise RuntimeError(f"Embree: scene build failed (error {error})")
         self.pointer = int(self._scene)
+        self.packet_width = native_packet_width(self._device)
 
     def __del__(self):
         lib = getattr(self, "_lib", None)

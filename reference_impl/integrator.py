@@ -244,7 +244,8 @@ class _Context:
         em = self.emitters
         env_light = self.geometry.num_lights + em.env if em is not None and em.env >= 0 else -1
         self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
-                                                   num_area_lights=self.geometry.num_lights, env_light=env_light)
+                                                   num_area_lights=self.geometry.num_lights, env_light=env_light,
+                                                   packet_width=self.intersector.packet_width)
         self.material_tables = None
         if self.glossy_engine:
             self.material_tables = (c(self.materials.kind, dtype=np.int64), c(self.materials.params, dtype=np.float64))

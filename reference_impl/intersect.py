@@ -44,6 +44,12 @@ class Intersector:
         return self._embree.pointer if self._embree is not None else 0
 
     @property
+    def packet_width(self) -> int:
+        """Rays per packet query: the widest packet Embree traces natively on this processor (16, 8 or 4; 1: none,
+        or nothing to hit). :mod:`reference_impl.embree_c`."""
+        return self._embree.packet_width if self._embree is not None else 1
+
+    @property
     def prim_to_tri(self) -> np.ndarray:
         """Triangle index of each Embree primitive (the usable triangles, in order)."""
         return self._prim_to_tri if self._embree is not None else np.zeros(0, np.int64)
@@ -59,9 +65,15 @@ class Intersector:
         return self._query("closest_prims", origins, directions)
 
     def closest_prims_coherent(self, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
-        """:meth:`closest_prims` for rays that come in runs of 16 travelling together (one pixel's camera rays):
-        one packet query per 16 rays. The same hits."""
-        return self._query("closest_prims_packets", origins, directions)
+        """:meth:`closest_prims` for rays that come in runs travelling together (one pixel's camera rays): one
+        packet query per :attr:`packet_width` rays. The same hits."""
+        n = len(origins)
+        out = np.full(n, -1, np.int32)
+        if self._embree is not None and n:
+            from reference_impl.kernels import queries  # optional: numba-compiled; loaded only when a scene is queried
+
+            queries.closest_prims_packets(self._embree.pointer, self.packet_width, origins, directions, out)
+        return out
 
     def occluders(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
         """Embree's any-hit query on float32 rays with float32 ``tfar``: >= 0 where something blocks the segment,

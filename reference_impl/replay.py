@@ -56,6 +56,7 @@ class RayLog:
     """
 
     scene_pointer: int = 0
+    packet_width: int = 16
     threads: int = 1
     camera: list = field(default_factory=list)
     closest: list = field(default_factory=list)
@@ -142,7 +143,8 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
     if settings.direct == "auto" or settings.rr == "auto":
         settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy), rr=settings.resolved_rr(glossy))
     ctx = integrator._Context(geometry, camera, film, settings, emitters, materials)
-    log = RayLog(scene_pointer=ctx.intersector.scene_pointer, threads=settings.worker_threads(),
+    log = RayLog(scene_pointer=ctx.intersector.scene_pointer, packet_width=ctx.intersector.packet_width,
+                 threads=settings.worker_threads(),
                  stats=dict.fromkeys(integrator.COUNTERS, 0) | {integrator.EMBREE_MICROSECONDS: 0},
                  owner=ctx.intersector)
     if not ctx.has_lights or log.scene_pointer == 0:  # the render traces no ray at all
@@ -219,7 +221,7 @@ class Replay:
         ptr, log = self.log.scene_pointer, self.log
         for index in share:
             o, d, _ = log.camera[index]
-            self._queries.closest_prims_packets(ptr, o, d, self._camera_out[index])
+            self._queries.closest_prims_packets(ptr, log.packet_width, o, d, self._camera_out[index])
 
     def _closest_share(self, bounds):
         a, b = bounds

@@ -93,6 +93,7 @@ class KernelConfig(NamedTuple):
     env_sampling: int  # ENV_*: how light samples draw directions toward an environment
     num_area_lights: int  # N_A: lights 0 .. N_A - 1 are area lights, N_A .. N_L - 1 the emitters that are not
     env_light: int  # the light index k of the environment, -1 without one
+    packet_width: int  # rays per packet query: the widest Embree traces natively here (16, 8 or 4; 1: no packets)
 
 
 # The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
@@ -123,7 +124,7 @@ FROM_SETTINGS = {
     "env_sampling": ("env_sampling", ENV_SAMPLING_MODES.__getitem__),
 }
 # The slots the render fills from the scene (integrator._Context), and depth per wavefront bounce.
-FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf", "num_area_lights", "env_light")
+FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf", "num_area_lights", "env_light", "packet_width")
 # The Settings fields that fill no slot, and where they go instead.
 NOT_SLOTS = {
     "seed": "seed_key = mix64(seed ^ golden), an argument of camera_paths and of the engines (film_samples)",
@@ -135,10 +136,12 @@ NOT_SLOTS = {
 
 
 def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float,
-                  num_area_lights: int | None = None, env_light: int = -1, glossy: bool = False) -> KernelConfig:
+                  num_area_lights: int | None = None, env_light: int = -1, glossy: bool = False,
+                  packet_width: int = 1) -> KernelConfig:
     """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
     lights, the first ``num_area_lights`` of them area lights (all, by default), the environment light
-    ``env_light`` (-1: none); ``depth`` 0 (a wavefront bounce sets its own: ``config._replace(depth=...)``).
+    ``env_light`` (-1: none), Embree's packets of ``packet_width`` rays (1: one query per ray); ``depth`` 0 (a
+    wavefront bounce sets its own: ``config._replace(depth=...)``).
     ``direct = "auto"`` and ``rr = "auto"`` are resolved for a scene with (``glossy``) or without a non-diffuse
     material."""
     resolved = {"direct": DIRECT_MODES[settings.resolved_direct(glossy)], "rr": RR_MODES[settings.resolved_rr(glossy)]}
@@ -146,4 +149,5 @@ def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: f
     slots.update(resolved)
     area = int(num_lights if num_area_lights is None else num_area_lights)
     return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
-                        surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light), **slots)
+                        surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light),
+                        packet_width=int(packet_width), **slots)

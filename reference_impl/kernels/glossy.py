@@ -207,7 +207,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     packet_ns = 0
     if scene_ptr != 0:
         t_start = now_ns(ts)
-        closest_prims_packets(scene_ptr, o32, d32, first_prim)
+        closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim)
         packet_ns = now_ns(ts) - t_start
         if record is not None:
             record_camera(record, o32, d32, first_prim)

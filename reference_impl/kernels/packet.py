@@ -60,7 +60,7 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
     n = len(root)
     first_prim = np.empty(n, np.int32)
     t_start = now_ns(ts)
-    closest_prims_packets(scene_ptr, o32, d32, first_prim)
+    closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim)
     embree_ns = now_ns(ts) - t_start
     rays = n
 
@@ -134,7 +134,8 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
                             q_d32[q, c] = ray[lane, 3 + c]
                         q += 1
                 t_start = now_ns(ts)
-                closest_prims_coherent(scene_ptr, q_o32, q_d32, q_prim, 0, q, words, floats, valid)
+                closest_prims_coherent(scene_ptr, cfg.packet_width, q_o32, q_d32, q_prim, 0, q, words, floats,
+                                       valid)
                 embree_ns += now_ns(ts) - t_start
                 rays += q
                 for a in range(q):
@@ -212,9 +213,8 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
                     ns += 1
             if ns > 0:  # 3. the shadow rays, 16 per packet query
                 t_start = now_ns(ts)
-                for start in range(0, ns, PACKET):
-                    occluded_coherent(scene_ptr, s_o32, s_d32, s_tfar, s_hit, start, min(ns, start + PACKET), words,
-                                      floats, valid)
+                occluded_coherent(scene_ptr, cfg.packet_width, s_o32, s_d32, s_tfar, s_hit, 0, ns, words, floats,
+                                  valid)
                 embree_ns += now_ns(ts) - t_start
                 rays += ns
             live = 0

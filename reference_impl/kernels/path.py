@@ -71,7 +71,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
     n = len(root)
     first_prim = np.empty(n, np.int32)
     t_start = now_ns(ts)
-    closest_prims_packets(scene_ptr, o32, d32, first_prim)
+    closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim)
     packet_ns = now_ns(ts) - t_start
 
     count_back_face = 0

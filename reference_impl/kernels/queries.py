@@ -16,6 +16,8 @@ from reference_impl.kernels.config import JIT, JIT_BORROW, JIT_INLINE
 # One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
 # clock read (measured at the start of each call), times the stride.
 TIMING_STRIDE = 64
+# Packet queries (4, 8 or 16 rays each) are timed one in PACKET_STRIDE.
+PACKET_STRIDE = 4
 
 
 @njit(**JIT)
@@ -60,7 +62,8 @@ def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar):
 
 @njit(**JIT)
 def packet_buffer():
-    """A 64-byte aligned RTCRayHit16 (uint32 words), its float32 view, and the 16 lanes' valid flags (int32)."""
+    """A 64-byte aligned RTCRayHit16 (uint32 words; room for a packet of any width), its float32 view, and the 16
+    lanes' valid flags (int32)."""
     raw = np.empty(embree_c.PACKET_WORDS + 16 + 32, np.uint32)
     skip = ((64 - raw.ctypes.data % 64) % 64) // 4
     words = raw[skip:skip + embree_c.PACKET_WORDS]
@@ -69,60 +72,95 @@ def packet_buffer():
 
 
 @njit(**JIT_INLINE)
-def _set_packet(o32, d32, start, n, words, floats, valid):
-    """Fill an RTCRay16 with rays ``start:start + n`` (n <= 16) as :func:`_set_ray` fills one ray: float32 origins
-    and directions, tnear 0, every mask bit; the lanes past n invalid (a unit direction, all else 0). The caller
-    sets tfar."""
-    for lane in range(embree_c.PACKET):
-        if lane < n:
-            i = start + lane
-            valid[lane] = -1
-            floats[lane] = o32[i, 0]
-            floats[16 + lane] = o32[i, 1]
-            floats[32 + lane] = o32[i, 2]
-            floats[64 + lane] = d32[i, 0]
-            floats[80 + lane] = d32[i, 1]
-            floats[96 + lane] = d32[i, 2]
+def packet_lane(words, floats, valid, width, lane, o0, o1, o2, d0, d1, d2, tfar):
+    """Fill lane ``lane`` of a packet of ``width`` rays (RTCRayHit4/8/16: field f of lane l at word f * width + l,
+    :func:`packet_buffer`) as :func:`_set_ray` fills one ray: float32 origin and direction (rounded as numpy's
+    astype rounds), tnear 0, ``tfar``, every mask bit; the lane valid."""
+    valid[lane] = -1
+    floats[lane], floats[width + lane], floats[2 * width + lane] = o0, o1, o2
+    floats[3 * width + lane] = 0.0  # tnear
+    floats[4 * width + lane], floats[5 * width + lane], floats[6 * width + lane] = d0, d1, d2
+    floats[7 * width + lane] = 0.0  # time
+    floats[8 * width + lane] = tfar
+    words[9 * width + lane] = embree_c.INVALID_ID  # mask
+    words[10 * width + lane] = 0  # id
+    words[11 * width + lane] = 0  # flags
+
+
+@njit(**JIT_INLINE)
+def packet_rest(words, floats, valid, width, m):
+    """Lanes m, ..., width - 1 of a packet invalid (a unit direction, all else 0), after lanes 0 .. m - 1 were
+    filled with :func:`packet_lane`."""
+    for lane in range(m, width):
+        packet_lane(words, floats, valid, width, lane, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+        valid[lane] = 0
+
+
+@njit(**JIT_INLINE)
+def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at):
+    """Closest hits of the m rays a packet of ``width`` holds (:func:`packet_lane`, :func:`packet_rest`), one query
+    (``rtcIntersect16``, ``8`` or ``4``): out[at + lane] = the primitive id, -1 for a miss. The hits of one query
+    per ray (:func:`closest_prim`)."""
+    geom, prim = embree_c.P_GEOM_ID * width, embree_c.P_PRIM_ID * width
+    for lane in range(width):
+        words[geom + lane] = embree_c.INVALID_ID
+    if width == 16:
+        embree_c.rtc_intersect16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    elif width == 8:
+        embree_c.rtc_intersect8(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    else:
+        embree_c.rtc_intersect4(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    for lane in range(m):
+        if words[geom + lane] == embree_c.INVALID_ID:
+            out[at + lane] = -1
         else:
-            valid[lane] = 0
-            floats[lane] = 0.0
-            floats[16 + lane] = 0.0
-            floats[32 + lane] = 0.0
-            floats[64 + lane] = 0.0
-            floats[80 + lane] = 0.0
-            floats[96 + lane] = 1.0
-        floats[48 + lane] = 0.0  # tnear
-        floats[112 + lane] = 0.0  # time
-        words[144 + lane] = embree_c.INVALID_ID  # mask
-        words[160 + lane] = 0  # id
-        words[176 + lane] = 0  # flags
+            out[at + lane] = np.int64(words[prim + lane])
+
+
+@njit(**JIT_INLINE)
+def occlude_packet(scene_ptr, width, words, floats, valid, m, out, at):
+    """Any-hit queries of the m segments a packet of ``width`` holds, one query (``rtcOccluded16``, ``8`` or ``4``):
+    out[at + lane] = True where something blocks lane ``lane``'s segment. The answers of one query per ray
+    (:func:`occluded`)."""
+    if width == 16:
+        embree_c.rtc_occluded16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    elif width == 8:
+        embree_c.rtc_occluded8(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    else:
+        embree_c.rtc_occluded4(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
+    tfar = 8 * width
+    for lane in range(m):
+        out[at + lane] = floats[tfar + lane] < 0
 
 
 @njit(**JIT)
-def closest_prims_coherent(scene_ptr, o32, d32, out, start, stop, words, floats, valid):
-    """Closest hits of rays ``start:stop`` (at most 16) with one packet query: for rays that start together and
-    point nearly the same way (one pixel's camera rays), Embree traverses its tree once for all of them. The hits
-    are the same as one query per ray (``closest_prim``)."""
-    n = stop - start
-    _set_packet(o32, d32, start, n, words, floats, valid)
-    for lane in range(embree_c.PACKET):
-        floats[128 + lane] = np.inf  # tfar
-        words[embree_c.P_GEOM_ID + lane] = embree_c.INVALID_ID
-    embree_c.rtc_intersect16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
-    for lane in range(n):
-        if words[embree_c.P_GEOM_ID + lane] == embree_c.INVALID_ID:
-            out[start + lane] = -1
-        else:
-            out[start + lane] = np.int64(words[embree_c.P_PRIM_ID + lane])
+def closest_prims_coherent(scene_ptr, width, o32, d32, out, start, stop, words, floats, valid):
+    """Closest hits of rays ``start:stop``, ``width`` per packet query (:func:`intersect_packet`; one query per ray
+    where ``width`` is 1): for rays that start together and point nearly the same way (one pixel's camera rays),
+    Embree traverses its tree once for a packet. The same hits as one query per ray (:func:`closest_prim`)."""
+    if width == 1:
+        for i in range(start, stop):
+            out[i] = closest_prim(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                                  d32[i, 2])
+        return
+    hits = np.empty(embree_c.PACKET, np.int64)
+    for s0 in range(start, stop, width):
+        m = min(width, stop - s0)
+        for lane in range(m):
+            i = s0 + lane
+            packet_lane(words, floats, valid, width, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                        d32[i, 2], np.inf)
+        packet_rest(words, floats, valid, width, m)
+        intersect_packet(scene_ptr, width, words, floats, valid, m, hits, 0)
+        for lane in range(m):
+            out[s0 + lane] = hits[lane]
 
 
 @njit(**JIT)
-def closest_prims_packets(scene_ptr, o32, d32, out):
-    """Closest hits of a batch of camera rays, 16 consecutive rays per packet query."""
+def closest_prims_packets(scene_ptr, width, o32, d32, out):
+    """Closest hits of a batch of camera rays, ``width`` consecutive rays per packet query."""
     words, floats, valid = packet_buffer()
-    n = o32.shape[0]
-    for start in range(0, n, embree_c.PACKET):
-        closest_prims_coherent(scene_ptr, o32, d32, out, start, min(n, start + embree_c.PACKET), words, floats, valid)
+    closest_prims_coherent(scene_ptr, width, o32, d32, out, 0, o32.shape[0], words, floats, valid)
 
 
 @njit(**JIT)
@@ -145,26 +183,36 @@ def occluders(scene_ptr, o32, d32, tfar, out):
 
 
 @njit(**JIT)
-def occluded_coherent(scene_ptr, o32, d32, tfar, out, start, stop, words, floats, valid):
-    """Any-hit queries of rays ``start:stop`` (at most 16) as one packet query (``rtcOccluded16``): for shadow rays
-    that leave nearby points for the same light (one pixel's hits), Embree traverses its tree once for all of them.
-    The answers are those of one query per ray (:func:`occluded`): 0 where blocked, -1 where not."""
-    n = stop - start
-    _set_packet(o32, d32, start, n, words, floats, valid)
-    for lane in range(embree_c.PACKET):
-        floats[128 + lane] = tfar[start + lane] if lane < n else 0.0  # tfar
-    embree_c.rtc_occluded16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
-    for lane in range(n):
-        out[start + lane] = 0 if floats[128 + lane] < 0 else -1
+def occluded_coherent(scene_ptr, width, o32, d32, tfar, out, start, stop, words, floats, valid):
+    """Any-hit queries of rays ``start:stop``, ``width`` per packet query (:func:`occlude_packet`; one query per ray
+    where ``width`` is 1): for shadow rays that leave nearby points for the same light (one pixel's hits), Embree
+    traverses its tree once for a packet. The answers of one query per ray (:func:`occluded`): 0 where blocked, -1
+    where not."""
+    if width == 1:
+        for i in range(start, stop):
+            blocked = occluded(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                               d32[i, 2], tfar[i])
+            out[i] = 0 if blocked else -1
+        return
+    blocked = np.empty(embree_c.PACKET, np.bool_)
+    for s0 in range(start, stop, width):
+        m = min(width, stop - s0)
+        for lane in range(m):
+            i = s0 + lane
+            packet_lane(words, floats, valid, width, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
+                        d32[i, 2], tfar[i])
+        packet_rest(words, floats, valid, width, m)
+        occlude_packet(scene_ptr, width, words, floats, valid, m, blocked, 0)
+        for lane in range(m):
+            out[s0 + lane] = 0 if blocked[lane] else -1
 
 
 @njit(**JIT)
-def occluders_packets(scene_ptr, o32, d32, tfar, out):
-    """:func:`occluders` with 16 consecutive rays per packet query (:func:`occluded_coherent`). The same answers."""
+def occluders_packets(scene_ptr, width, o32, d32, tfar, out):
+    """:func:`occluders` with ``width`` consecutive rays per packet query (:func:`occluded_coherent`). The same
+    answers."""
     words, floats, valid = packet_buffer()
-    n = o32.shape[0]
-    for start in range(0, n, embree_c.PACKET):
-        occluded_coherent(scene_ptr, o32, d32, tfar, out, start, min(n, start + embree_c.PACKET), words, floats, valid)
+    occluded_coherent(scene_ptr, width, o32, d32, tfar, out, 0, o32.shape[0], words, floats, valid)
 
 
 @njit(**JIT_INLINE)
