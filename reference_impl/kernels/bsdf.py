@@ -64,8 +64,8 @@ import math
 import numpy as np
 from numba import njit
 
-from reference_impl.kernels.config import (JIT, M_CONDUCTOR_FRESNEL_ONE, M_MICROFACET_PDF_NO_JACOBIAN,
-                                           M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED)
+from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCTOR_FRESNEL_ONE,
+                                           M_MICROFACET_PDF_NO_JACOBIAN, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED)
 from reference_impl.kernels.warps import cosine_hemisphere
 from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, P_ALPHA, P_DISTRIBUTION, P_ETA, P_IOR,
                                       P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE, P_TWO_SIDED,
@@ -131,7 +131,7 @@ def fresnel_conductor(cos_theta_i, eta, k):
     return 0.5 * (r_s + r_p)
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _conductor_fresnel3(params, m, mutant, cos_theta_i):
     """F_c per channel for material m (1 for a mirror, and under "conductor-fresnel-one")."""
     if params[m, P_MIRROR] != 0.0 or (mutant & M_CONDUCTOR_FRESNEL_ONE):  # mutant "conductor-fresnel-one"
@@ -315,7 +315,7 @@ def mf_sample(ggx, alpha, visible, mutant, wx, wy, wz, u1, u2):
     return hx, hy, hz, mf_pdf(ggx, alpha, visible, wx, wy, wz, hx, hy, hz)
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _alpha(params, m):
     return max(params[m, P_ALPHA], MIN_ALPHA)
 
@@ -323,7 +323,7 @@ def _alpha(params, m):
 # ----------------------------------------------------------------------------------------- the models, one each
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _side(params, m, woz, wiz):
     """For the reflection-only kinds (diffuse, conductors): (ok, sign) with sign flipping both directions to the
     front when the material is two-sided and wo is behind (Mitsuba's ``twosided``); ok False when wo is behind a
@@ -335,7 +335,7 @@ def _side(params, m, woz, wiz):
     return False, 1.0
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz <= 0.0 or wiz <= 0.0:
         return 0.0, 0.0, 0.0
@@ -354,7 +354,7 @@ def _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
             v * f2 * params[m, P_REFLECTANCE + 2])
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz <= 0.0 or wiz <= 0.0:
         return 0.0
@@ -372,7 +372,7 @@ def _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     return p / (4.0 * wi_h)
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _roughdielectric_half(params, m, wox, woy, woz, wix, wiy, wiz):
     """(ok, reflect, eta_side, hx, hy, hz): the (generalised) half vector of wo, wi, flipped to h_z > 0, and the
     relative index eta of the side wo is on (int/ext outside, ext/int inside)."""
@@ -390,7 +390,7 @@ def _roughdielectric_half(params, m, wox, woy, woz, wix, wiy, wiz):
     return True, reflect, eta_side, hx * inv, hy * inv, hz * inv
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _roughdielectric_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz == 0.0 or wiz == 0.0:
         return 0.0, 0.0, 0.0
@@ -421,7 +421,7 @@ def _roughdielectric_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
             v * params[m, P_TRANSMITTANCE + 2])
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _roughdielectric_sample_alpha(params, m, woz):
     """The alpha the rough dielectric samples h with: Walter's 1.2 - 0.2 sqrt(|cos theta_o|) scaling without
     visible-normal sampling."""
@@ -431,7 +431,7 @@ def _roughdielectric_sample_alpha(params, m, woz):
     return alpha
 
 
-@njit(**JIT)
+@njit(**JIT_NONRT)
 def _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz == 0.0 or wiz == 0.0:
         return 0.0
@@ -454,7 +454,7 @@ def _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     return p * (1.0 - f) * abs(eta * eta * wi_h / (denom * denom))
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def bsdf_eval(kind, params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     """f(wo, wi) |cos theta_i| of material m, per channel (v0, v1, v2); 0 for delta BSDFs and impossible pairs.
 
@@ -476,7 +476,7 @@ def bsdf_eval(kind, params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     return 0.0, 0.0, 0.0
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def bsdf_pdf(kind, params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     """Density of :func:`bsdf_sample`'s wi per unit solid angle; 0 for delta BSDFs and impossible pairs."""
     k = kind[m]
@@ -499,7 +499,7 @@ def is_delta(kind):
     return kind == CONDUCTOR or kind == DIELECTRIC
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def sample_eta(kind, params, m, woz, wiz):
     """The relative index of refraction of a sampled (wo, wi) in the direction of travel (Mitsuba's ``bs.eta``, for
     the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1."""
@@ -510,7 +510,7 @@ def sample_eta(kind, params, m, woz, wiz):
     return 1.0
 
 
-@njit(**JIT)
+@njit(**JIT_BORROW)
 def bsdf_sample(kind, params, m, mutant, wox, woy, woz, u_lobe, u1, u2):
     """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta).
 
