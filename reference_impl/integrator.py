@@ -146,6 +146,13 @@ class _Workspace:
         self._hit_capacity = -1
         self.hits = self.total = self.rays = self.crays = None
         self._radiance = None
+        self._samples = None
+
+    def samples(self, n: int) -> tuple[np.ndarray, np.ndarray]:
+        """Room for the (pixel, sample) of ``n`` camera samples (valid until this thread's next batch)."""
+        if self._samples is None or len(self._samples[0]) < n:
+            self._samples = (np.empty(n, np.int64), np.empty(n, np.int64))
+        return self._samples[0][:n], self._samples[1][:n]
 
     def radiance(self, n: int) -> np.ndarray:
         """Zeroed room for ``n`` camera samples' radiance (valid until this thread's next batch)."""
@@ -344,17 +351,20 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     stats[EMBREE_MICROSECONDS] = 0
     start = time.perf_counter()
 
+    scale = 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0
+
     def run_unit(unit):
         p0, p1 = unit
         unit_stats = dict.fromkeys(COUNTERS, 0)
         unit_stats[EMBREE_MICROSECONDS] = 0
         for s0 in range(0, spp, samples_per_chunk):
             s1 = min(spp, s0 + samples_per_chunk)
-            pixel = np.repeat(np.arange(p0, p1, dtype=np.int64), s1 - s0)
-            sample = np.tile(np.arange(s0, s1, dtype=np.int64), p1 - p0)
-            values = _trace_camera_paths(ctx, pixel, sample, unit_stats)
+            pixel, sample = ctx.workspace().samples((p1 - p0) * (s1 - s0))
+            kernels.film.unit_samples(p0, p1, s0, s1, pixel, sample)
+            values = _trace_camera_paths(ctx, pixel, sample, unit_stats, finish=False)
             # Sequential sums in sample order, so chunking cannot change a single bit.
-            kernels.film.accumulate(total, total_sq, p0, values, s1 - s0)
+            unit_stats["nonfinite_samples"] += kernels.film.finish_and_accumulate(total, total_sq, p0, values,
+                                                                                s1 - s0, scale)
         return (p1 - p0) * spp, unit_stats
 
     done = 0
@@ -389,10 +399,13 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     )
 
 
-def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None) -> np.ndarray:
+def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None,
+                        finish: bool = True) -> np.ndarray:
     """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16. ``record``:
     buffers for the glossy engine's rays (:mod:`reference_impl.kernels.record`, used by :mod:`reference_impl.replay`;
-    the other engines' rays are recorded from the wavefront's batched queries)."""
+    the other engines' rays are recorded from the wavefront's batched queries). ``finish`` = False leaves the
+    planted fault "energy-loss-2pct" and the count of non-finite samples to the caller
+    (:func:`kernels.film.finish_and_accumulate`, in the same pass as the pixel sums)."""
     kernels = _kernels()
     width, height = ctx.film.width, ctx.film.height
     tan_x, tan_y = ctx.tan_half_fov
@@ -437,7 +450,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
-    counters[kernels.config.C_NONFINITE] += kernels.film.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
+    if finish:
+        counters[kernels.config.C_NONFINITE] += kernels.film.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
     for name, count in zip(COUNTERS, counters.tolist()):
         stats[name] += count
     stats[EMBREE_MICROSECONDS] += int(round(clock.seconds * 1e6))
