@@ -86,8 +86,20 @@ def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
     return broken
 
 
-def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None) -> dict:
-    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
+def judged_images(result, gt) -> tuple[imageio.ExrImage, imageio.ExrImage]:
+    """A case's render and its ground truth as the verdict takes them: images, variances and the metadata that
+    gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp``)."""
+    gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+    return (imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
+            imageio.ExrImage(gt.image, gt.variance, gt_meta))
+
+
+def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None,
+             keep: dict | None = None) -> dict:
+    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite.
+    ``keep``: where given, a dict that receives the judged images (``test``, ``ground_truth``: ExrImage), the
+    render's RenderResult (``result``) and the GroundTruth (``gt``), for a caller that judges the render again
+    (harness calibrate)."""
     record = case_header(case)
     start = time.perf_counter()
     try:
@@ -109,13 +121,11 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
             if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
-        gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         maps: dict = {}
-        comparison = compare_images(
-            imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
-            imageio.ExrImage(gt.image, gt.variance, gt_meta),
-            tile=case.tile, alpha=case.alpha, maps=maps,
-        )
+        test_image, truth_image = judged_images(result, gt)
+        comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
+        if keep is not None:  # harness calibrate plants errors into this very render
+            keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
         all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
         metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
         broken = check_thresholds(all_metrics, case.thresholds)
