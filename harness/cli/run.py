@@ -74,6 +74,13 @@ def run(args: argparse.Namespace) -> int:
         def on_case(index: int, record: dict) -> None:
             if gate is not None:
                 gate.check(suite.cases[index], record)
+            warning = (record.get("ground_truth_noise") or {}).get("warning")
+            if warning:  # once per case; above the bar where there is one
+                line = f"warning: {record['name']}: {warning}"
+                if bar is not None:
+                    bar.write(line, file=sys.stderr)
+                else:
+                    print(line, file=sys.stderr)
             if bar is not None:
                 bar.set_postfix_str(f"{record['name']}: {record['status']}")
                 bar.update(1)

@@ -328,8 +328,11 @@ CACHED = Obj({"from": Nullable(STR), "key": STR}, {"machine": Obj(optional=MACHI
 
 VERDICT_MAPS = Obj({"pvalue": NAME, "failing": NAME})
 
+GROUND_TRUTH_NOISE = Obj({"ratio": NON_NEGATIVE, "limit": POSITIVE, "ground_truth_spp": COUNT,
+                          "suggested_spp": Nullable(POSITIVE_INT), "warning": Nullable(STR)})
+
 CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
-                 "verdict_maps": VERDICT_MAPS, "cached": CACHED}
+                 "verdict_maps": VERDICT_MAPS, "cached": CACHED, "ground_truth_noise": GROUND_TRUTH_NOISE}
 
 
 class _Case(Spec):

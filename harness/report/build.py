@@ -27,6 +27,7 @@ from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, studies_folder, study_file
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
+from harness.report.notes import case_notes
 from harness.report.reproduce import reproduce
 from harness.studies import figures
 
@@ -496,7 +497,7 @@ def _case_view(item: ReportCase) -> dict:
     verdict = r.get("verdict") or {}
     return {
         "anchor": f"case-{item.index}", "name": r.get("name"), "status": r.get("status", "?"), "ok": r.get("ok"),
-        "expect": r.get("expect"), "reason": r.get("reason"), "problems": item.problems,
+        "expect": r.get("expect"), "reason": r.get("reason"), "problems": item.problems + case_notes(r),
         "figures": [figure_view(im, link_base=f"report/{item.slug}/") for im in item.images],
         "metrics_rows": _metrics_rows(r), "verdict": verdict.get("verdict", "?"),
         "verdict_rows": _verdict_rows(verdict),

@@ -19,6 +19,7 @@ from harness.files.cases import GROUND_TRUTH_FILE
 from harness.files import imageio
 from harness.files.report_images import IMAGES_FOLDER, ReportImages, make_report_images
 from harness.files.verdict_maps import write_verdict_maps
+from harness.judges.floor import GROUND_TRUTH_SHARE_LIMIT, ground_truth_share, spp_for_share
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.renderers.external import variance_metadata
 from harness.renderers.validate import validate_result
@@ -86,6 +87,27 @@ def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
     return broken
 
 
+def ground_truth_noise(case: Case, result, gt) -> dict | None:
+    """How much the ground truth's own noise blunts the case's verdict (the record's ``ground_truth_noise``): the
+    ratio of its mean variance to the test render's (:func:`harness.judges.floor.ground_truth_share`), and where it
+    exceeds 1/4 a ``warning`` and the ``suggested_spp`` that would bring it under (docs/suites.md, "A ground truth
+    that does not blunt the test"). None where either image has no variance or the test's is 0."""
+    if result.variance is None or gt.variance is None:
+        return None
+    share = ground_truth_share(result.variance, gt.variance)
+    if share is None:
+        return None
+    out = {"ratio": share, "limit": GROUND_TRUTH_SHARE_LIMIT, "ground_truth_spp": int(gt.spp or 0),
+           "suggested_spp": None, "warning": None}
+    if share > GROUND_TRUTH_SHARE_LIMIT and gt.spp:
+        key = "against.spp" if case.against.kind == "renderer" else "ground_truth_spp"
+        out["suggested_spp"] = spp_for_share(int(gt.spp), share)
+        out["warning"] = (f"the ground truth's mean variance is {share:.2f} x the test render's (over 1/4): its noise, "
+                          f"not the test's budget, limits what the verdict can see; {key} = "
+                          f"{out['suggested_spp']} would bring it under 1/4")
+    return out
+
+
 def judged_images(result, gt) -> tuple[imageio.ExrImage, imageio.ExrImage]:
     """A case's render and its ground truth as the verdict takes them: images, variances and the metadata that
     gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp``)."""
@@ -126,6 +148,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
         if keep is not None:  # harness calibrate plants errors into this very render
             keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
+        noise = ground_truth_noise(case, result, gt)
+        if noise is not None:
+            record["ground_truth_noise"] = noise
         all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
         metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
         broken = check_thresholds(all_metrics, case.thresholds)
