@@ -27,6 +27,7 @@ from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, studies_folder, study_file
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
+from harness.report import repeats
 from harness.report.notes import case_notes
 from harness.report.reproduce import reproduce
 from harness.studies import figures
@@ -678,18 +679,22 @@ def write_convergence_report(result: dict, out_dir: str | Path, *, title: str = 
     name = result.get("scene_name") or Path(str(result.get("scene"))).stem
     title = title or f"Convergence: {name}"
     png = figures.convergence_figure(result, title=title)
+    spectrum_png = figures.spectrum_figure(result, title=title)  # None without spectra
     plot = out / "convergence.png"
     with StagedFolder(out, "--out") as stage:
-        _write_convergence_files(result, stage.root, title, png, plot)
+        _write_convergence_files(result, stage.root, title, png, plot, spectrum_png)
         stage.commit(last=("index.html",))
     return {"index": out / "index.html", "report_json": out / "convergence.json", "summary": out / "summary.md",
-            "plot": plot}
+            "plot": plot, **({"spectrum": out / "spectrum.png"} if spectrum_png else {})}
 
 
-def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes, plot: Path) -> None:
+def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes, plot: Path,
+                             spectrum_png: bytes | None = None) -> None:
     """The files of :func:`write_convergence_report` written into ``folder``; ``plot`` is where the plot will be."""
     make_folders(folder)
     atomic_write_bytes(folder / plot.name, png)
+    if spectrum_png:
+        atomic_write_bytes(folder / "spectrum.png", spectrum_png)
     doc = dict(result, schema=REPORT_SCHEMA, kind="convergence", generated=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                plot=str(plot), definitions={k: DEFINITIONS[k] for k in ("mse_corrected", "convergence_fit",
                                                                          "equal_time", "equal_error")})
@@ -697,7 +702,9 @@ def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes,
                   spp_ladder=", ".join(str(n) for n in result["spp_ladder"]),
                   seconds_ladder=", ".join(fmt(s) for s in result.get("seconds_ladder") or []),
                   fit_definition=DEFINITIONS["convergence_fit"], plot_uri=data_uri(png),
-                  definitions=sorted(doc["definitions"].items()))
+                  definitions=sorted(doc["definitions"].items()), repeat_headers=repeats.HEADERS,
+                  repeat_rows=repeats.repeat_rows(result),
+                  spectrum_uri=data_uri(spectrum_png) if spectrum_png else None)
     atomic_write_text(folder / "index.html", str(page))
     atomic_write_text(folder / "convergence.json", jsonsafe.dumps(doc, indent=2))
     lines = [f"# {_md(title)}", "", "| series | slope (RMSE) | slope (relMSE) | flattens from spp |", "|---|---|---|---|"]
