@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
         baseline_lines = gate.finish(results, out) if gate is not None else []
         summary = results["summary"]
         print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
-              f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
+              f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors"
+              f"{', ' + str(summary['skipped']) + ' skipped' if summary.get('skipped') else ''}) in "
               f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; "
               f"{summary['from_cache']} cases from the cache; {out / 'results.json'}")
         for name in summary["unexpected"]:

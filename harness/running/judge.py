@@ -22,6 +22,7 @@ from harness.files.verdict_maps import write_verdict_maps
 from harness.judges.floor import GROUND_TRUTH_SHARE_LIMIT, ground_truth_share, spp_for_share
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.renderers.external import variance_metadata
+from harness.renderers.mitsuba import resolve_variant
 from harness.renderers.validate import validate_result
 from harness.running.budget import render_with_budget
 from harness.running.cases import HIGHER_IS_BETTER, Case, slug, with_case_overrides
@@ -108,6 +109,17 @@ def ground_truth_noise(case: Case, result, gt) -> dict | None:
     return out
 
 
+def unmet_requirement(case: Case) -> str | None:
+    """Why the case cannot run here (a Mitsuba variant it ``requires`` is not usable: no CUDA GPU, no libLLVM),
+    as the reason of its "skipped" record; None where every requirement is met."""
+    for variant in case.requires:
+        try:
+            resolve_variant(variant)
+        except HarnessError as err:
+            return f"skipped: needs Mitsuba {variant}: {err.message}"
+    return None
+
+
 def judged_images(result, gt) -> tuple[imageio.ExrImage, imageio.ExrImage]:
     """A case's render and its ground truth as the verdict takes them: images, variances and the metadata that
     gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp``)."""
@@ -124,6 +136,10 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
     (harness calibrate)."""
     record = case_header(case)
     start = time.perf_counter()
+    missing = unmet_requirement(case)
+    if missing is not None:  # nothing judged: not a failure of the renderer, not a pass
+        record.update(status="skipped", ok=True, reason=missing, wall_seconds=time.perf_counter() - start)
+        return record
     try:
         scene, gt_scene = case_scenes(case)
         record["film"] = {"width": scene.film.width, "height": scene.film.height}  # as rendered (with its overrides)
@@ -216,4 +232,5 @@ def case_header(case: Case) -> dict[str, Any]:
         # the scene's changes a command that reproduces the case must repeat (absent where the case makes none)
         **({"max_depth": case.max_depth} if case.max_depth is not None else {}),
         **({"variant": case.variant} if case.variant is not None else {}),
+        **({"requires": list(case.requires)} if case.requires else {}),
     }
