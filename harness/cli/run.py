@@ -14,6 +14,7 @@ from harness.core.errors import HarnessError
 from harness.report import write_suite_report
 from harness.running import baseline, executors, junit, result_cache, runstate
 from harness.files import imageio
+from harness.files.calibration import read_calibration
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
@@ -63,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
+    if getattr(args, "calibration", None) and not args.no_report:
+        read_calibration(args.calibration)  # a bad --calibration: one line now, not after the suite
     if gate is not None and gate.warning():
         print(gate.warning(), file=sys.stderr)
     created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails

@@ -24,7 +24,7 @@ from typing import Any
 
 from harness.core.errors import HarnessError, read_user_text
 
-__all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "read_results"]
+__all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "check_spec", "read_results"]
 
 SCHEMA = 1
 #: deepest nesting accepted anywhere (harness run writes at most 6 levels)
@@ -361,6 +361,15 @@ RESULTS = Obj({"schema": Scalar(f"{SCHEMA} (the schema this harness reads)", lam
 
 
 # ---- reading ----------------------------------------------------------------------------------------------------
+
+
+def check_spec(spec: Spec, doc: Any, where: str) -> None:
+    """``doc`` checked against ``spec`` (another file of the harness's own, checked the same way: calibration.json);
+    the first malformation is a one-line HarnessError at ``where`` and its JSON path."""
+    try:
+        spec.check(doc, ())
+    except _Bad as bad:
+        raise HarnessError(f"{where}: {format_path(bad.path)}", bad.message) from None
 
 
 def check_results(doc: Any, where: str, hint: str = "") -> dict:

@@ -29,6 +29,7 @@ from harness.files.studies import read_studies, studies_folder, study_file
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
 from harness.report import repeats
 from harness.report.notes import case_notes
+from harness.report.power import power_json, power_view
 from harness.report.reproduce import reproduce
 from harness.studies import figures
 
@@ -55,6 +56,7 @@ class ReportOptions:
     shadow_rays: bool = True
     strategies: bool = True
     progress: bool = False
+    calibration: Path | None = None  # a calibration.json whose power table the definitions show (harness.report.power)
 
 
 @dataclass
@@ -94,6 +96,7 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
     section."""
     options = options or ReportOptions()
     start = time.perf_counter()
+    power = power_view(options.calibration)  # a bad --calibration: one line, before anything is written
     if isinstance(results, dict):
         if out_dir is None:
             raise ValueError("out_dir is required when results are given as a dict")
@@ -108,7 +111,7 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
         if results_path is not None:
             results = load_results(results_path)
         page_html, doc, summary_md = _suite_report(results, results_path, results_dir, studies, stage.root, options,
-                                                   start)
+                                                   start, power)
         atomic_write_text(stage.root / "report.json", jsonsafe.dumps(_relocate(doc, stage), indent=2))
         atomic_write_text(stage.root / "summary.md", stage.relocate(summary_md))
         atomic_write_text(stage.root / "index.html", stage.relocate(page_html).replace(str(escape(stage.root)),
@@ -130,7 +133,7 @@ def _relocate(value: Any, stage) -> Any:
 
 
 def _suite_report(results: dict, results_path: Path | None, results_dir: Path, studies_dir: Path, out: Path,
-                  options: ReportOptions, start: float) -> tuple[str, dict, str]:
+                  options: ReportOptions, start: float, power: dict | None = None) -> tuple[str, dict, str]:
     """The report's images written under ``out`` (the cases' maps, copies of the studies' files); returns the page,
     report.json's content and summary.md."""
     records = results.get("cases", [])
@@ -174,7 +177,9 @@ def _suite_report(results: dict, results_path: Path | None, results_dir: Path, s
     notes = [studies["note"]] if studies is not None and isinstance(studies.get("note"), str) else []
     doc = _report_json(results, results_path, items, sections_json, options, studies, why, studies_dir, timings,
                        notes)
-    page_html = _suite_html(results, results_path, items, wanted, sections_html, notes)
+    power = power or power_view(None)
+    doc["power"] = power_json(power)
+    page_html = _suite_html(results, results_path, items, wanted, sections_html, notes, power)
     return page_html, doc, _summary_md(results, items, sections_json)
 
 
@@ -573,7 +578,7 @@ def _system_rows(system: Any) -> list[tuple]:
     ]
 
 
-def _suite_html(results, results_path, items, wanted, sections_html, notes) -> str:
+def _suite_html(results, results_path, items, wanted, sections_html, notes, power) -> str:
     s = results.get("summary") or {}
     host = results.get("host") or {}
     subtitle = (f"suite file {results.get('suite_file')} · started {results.get('started')} · host "
@@ -586,7 +591,7 @@ def _suite_html(results, results_path, items, wanted, sections_html, notes) -> s
         summary_rows=[_summary_row(i) for i in items], cases=[_case_view(i) for i in items],
         sections=sections_html, definitions=sorted(DEFINITIONS.items()),
         system_rows=_system_rows(results.get("system")), machine_notes=machine_notes(results),
-        summary_js=static_script("summary.js")))
+        summary_js=static_script("summary.js"), power=power))
 
 
 # ---- summary.md ------------------------------------------------------------------------------------------------

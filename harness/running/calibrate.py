@@ -25,6 +25,7 @@ from pathlib import Path
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
+from harness.files.calibration import PLANTS, POWER_HEADERS, power_caption, power_table
 from harness.files.imageio import ExrImage, atomic_write_text
 from harness.judges import power
 from harness.running.budget import render_with_budget
@@ -35,10 +36,6 @@ from harness.running.judge import case_scene, case_scenes, ground_truth_for, jud
 from harness.renderers.validate import validate_result
 
 RENDER_OVERHEAD_SECONDS = 0.02  # a case's fixed cost beyond its paths (scene load, verdict, EXR writes): measured >= 0.05
-#: the planted errors, as calibration.json names them
-PLANTS = ("bias", "region_aligned", "region_off_grid")
-PLANT_TITLES = {"bias": "uniform bias b", "region_aligned": "region on the grid d",
-                "region_off_grid": "region off the grid d"}
 DEFAULT_REGION_SIZE = 16
 
 
@@ -348,47 +345,6 @@ def case_lines(result: dict) -> list[str]:
             lines.append(f"{row['case']}: {'caught' if row['caught'] else 'MISSED'}; global-bias z = {_fmt(z)}, "
                          f"omnibus chi2 = {_fmt(chi2)}, max |z| = {_fmt(mz.get('statistic'))}")
     return lines
-
-
-def power_caption(result: dict) -> str:
-    """One line saying what the power table holds and how it was measured."""
-    p = result.get("power") or {}
-    return (f"power: the smallest error the verdict catches in {_pct(p.get('quantile'))} of {result.get('seeds')} "
-            f"seeds (in brackets: {_pct(p.get('confidence'))} interval; b: render x (1 - b); d: one "
-            f"{p.get('region_size')}x{p.get('region_size')} region x (1 + d), on the tile grid / half a tile off); "
-            f"each seed's threshold by bisection to {_pct(p.get('precision'))}")
-
-
-POWER_HEADERS = ("case", "budget", "spp", "render s", "false alarms", "bias b", "region on grid d",
-                 "region off grid d")
-
-
-def power_table(result: dict) -> list[tuple[str, ...]]:
-    """The power table's rows (as text): one per expect-pass case and budget factor, :data:`POWER_HEADERS`."""
-    rows = []
-    for row in result.get("cases", []):
-        for b in (row.get("power") or {}).get("budgets", []):
-            spp = b.get("spp")
-            rows.append((row["case"], f"{b['factor']:g}x", "–" if spp is None else str(spp),
-                         _fmt(b.get("seconds"), 3), f"{b['false_alarms']}/{b['runs']}",
-                         *(_size(b[plant]) for plant in PLANTS)))
-    return rows
-
-
-def _size(summary: dict) -> str:
-    """A quantile and its interval as percentages: ``0.21% [0.19, 0.24]``; "> max" where fewer than the quantile's
-    fraction of seeds were caught at all."""
-    value = summary.get("value")
-    if value is None:
-        return "not caught"
-    low, high = summary.get("interval") or [None, None]
-    return f"{_pct(value, 3)} [{_pct(low, 3, unit='')}, {'–' if high is None else _pct(high, 3, unit='')}]"
-
-
-def _pct(value, digits: int = 2, unit: str = "%") -> str:
-    if not isinstance(value, (int, float)):
-        return "–"
-    return f"{100.0 * value:.{digits}g}{unit}"
 
 
 def _fmt(v, digits: int = 4) -> str:

@@ -116,7 +116,7 @@ def unmet_requirement(case: Case) -> str | None:
         try:
             resolve_variant(variant)
         except HarnessError as err:
-            return f"skipped: needs Mitsuba {variant}: {err.message}"
+            return f"needs Mitsuba {variant}: {err.message}"
     return None
 
 

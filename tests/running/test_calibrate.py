@@ -37,11 +37,28 @@ def suite(tmp_path):
     return path
 
 
-def test_calibrate_measures_power_at_each_budget(tmp_path, suite, capfd):
-    out = tmp_path / "cal"
-    code, stdout, _ = cli(capfd, "calibrate", suite, "--seeds", 3, "--budgets", "0.5,2", "--region-size", 8,
-                          "--out", out, "--quiet")
+@pytest.fixture(scope="module")
+def calibrated(tmp_path_factory):
+    """One calibration (3 seeds at 0.5, 1 and 2 x the budget) for the tests that read it: (folder, its stdout)."""
+    folder = tmp_path_factory.mktemp("calibrated")
+    suite = folder / "s.toml"
+    suite.write_text(SUITE)
+    out = folder / "cal"
+    with pytest.MonkeyPatch.context():
+        from harness.cli import main
+        import contextlib
+        import io
+
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            code = main(["calibrate", str(suite), "--seeds", "3", "--budgets", "0.5,2", "--region-size", "8",
+                         "--out", str(out), "--quiet"])
     assert code == 0
+    return out, printed.getvalue()
+
+
+def test_calibrate_measures_power_at_each_budget(calibrated):
+    out, stdout = calibrated
     doc = json.loads((out / "calibration.json").read_text())
     assert doc["power"]["budgets"] == [0.5, 1.0, 2.0] and doc["power"]["region_size"] == 8
     row, fault = doc["cases"]
@@ -64,6 +81,36 @@ def test_calibrate_measures_power_at_each_budget(tmp_path, suite, capfd):
     assert "## Power" in md and "| furnace/reference | 0.5x | 4 |" in md
     assert "power: the smallest error the verdict catches in 90% of 3 seeds" in stdout
     assert stdout.count("furnace/reference  ") == 3  # the table's rows
+
+
+def test_the_report_shows_the_power_table_in_its_definitions(tmp_path, calibrated, capfd):
+    out, _ = calibrated
+    suite = tmp_path / "run.toml"
+    suite.write_text(SUITE.split("[[cases]]\nname = \"furnace/mutant\"")[0])
+    run = tmp_path / "run"
+    code, _, stderr = cli(capfd, "run", suite, "--out", run, "--executor", "serial", "--no-studies", "--calibration",
+                          out / "calibration.json")
+    assert code == 0, stderr
+    page = (run / "index.html").read_text()
+    definitions = page[page.index('<section id="definitions">'):]
+    assert "Validation power" in definitions and "<td>furnace/reference</td><td>0.5x</td><td>4</td>" in definitions
+    power = json.loads((run / "report.json").read_text())["power"]
+    assert len(power["rows"]) == 3 and power["suite"] == "s"
+    # without a calibration the section says how to measure it
+    code, _, _ = cli(capfd, "report", run / "results.json", "--out", tmp_path / "plain")
+    assert code == 0 and "not measured for this page: `harness calibrate SUITE" in (tmp_path / "plain" /
+                                                                                    "index.html").read_text()
+
+
+def test_a_bad_calibration_file_is_one_line_before_the_run(tmp_path, suite, capfd):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"suite": "s", "seeds": 3, "cases": [{"case": "x", "expect": "pass",
+                                                                     "power": {"budgets": [{"factor": -1}]}}]}))
+    assert_one_line(*cli(capfd, "run", suite, "--out", tmp_path / "run", "--calibration", bad),
+                    f"--calibration: {bad}: cases[0].power.budgets[0].runs: missing; expected an integer >= 0")
+    assert not (tmp_path / "run").exists()
+    assert_one_line(*cli(capfd, "report", tmp_path / "missing.json", "--calibration", tmp_path / "none.json"),
+                    "no such")
 
 
 def test_no_power_counts_false_alarms_only(tmp_path, suite, capfd):

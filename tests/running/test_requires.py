@@ -79,12 +79,12 @@ def test_a_case_whose_requirement_is_not_met_is_skipped(tmp_path, capfd, monkeyp
     results = read_results(out / "results.json")
     skipped = results["cases"][0]
     assert skipped["status"] == "skipped" and skipped["ok"] is True and skipped["requires"] == ["cuda_ad_rgb"]
-    assert skipped["reason"] == "skipped: needs Mitsuba cuda_ad_rgb: cuda_ad_rgb is not usable here: no working CUDA GPU"
+    assert skipped["reason"] == "needs Mitsuba cuda_ad_rgb: cuda_ad_rgb is not usable here: no working CUDA GPU"
     assert "render" not in skipped and results["summary"]["skipped"] == 1
     suite = ET.parse(tmp_path / "junit.xml").getroot().find("testsuite")
     assert suite.get("skipped") == "1" and suite.get("failures") == "0" and suite.get("errors") == "0"
-    assert suite.find("testcase/skipped").get("message").startswith("skipped: needs Mitsuba cuda_ad_rgb")
-    assert "skipped: needs Mitsuba cuda_ad_rgb" in (out / "index.html").read_text()
+    assert suite.find("testcase/skipped").get("message").startswith("needs Mitsuba cuda_ad_rgb")
+    assert "needs Mitsuba cuda_ad_rgb" in (out / "index.html").read_text()
     # a rerun into the same folder does not keep the skip: the machine may have what it lacked
     monkeypatch.setattr(judge, "resolve_variant", lambda variant: None)
     code, stdout, _ = cli(capfd, "run", tmp_path / "s.toml", "--out", out, "--executor", "serial", "--no-studies",
