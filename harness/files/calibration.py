@@ -52,8 +52,9 @@ def power_caption(result: dict) -> str:
     p = result.get("power") or {}
     return (f"power: the smallest error the verdict catches in {_pct(p.get('quantile'))} of {result.get('seeds')} "
             f"seeds (in brackets: {_pct(p.get('confidence'))} interval; b: render x (1 - b); d: one "
-            f"{p.get('region_size')}x{p.get('region_size')} region x (1 + d), on the tile grid / half a tile off); "
-            f"each seed's threshold by bisection to {_pct(p.get('precision'))}")
+            f"{p.get('region_size')}x{p.get('region_size')} region of median brightness x (1 + d), on the tile grid / "
+            f"half a tile off; exact: caught by the exact comparison of noiseless tiles); each seed's threshold by "
+            f"bisection to {_pct(p.get('precision'))}")
 
 
 POWER_HEADERS = ("case", "budget", "spp", "render s", "false alarms", "bias b", "region on grid d",
@@ -79,7 +80,10 @@ def _size(summary: dict) -> str:
     if value is None:
         return "not caught"
     low, high = summary.get("interval") or [None, None]
-    return f"{_pct(value, 3)} [{_pct(low, 3, unit='')}, {'–' if high is None else _pct(high, 3, unit='')}]"
+    caught_by = summary.get("caught_by") or {}
+    exact = caught_by.get("other", 0) * 2 > sum(caught_by.values())  # noiseless tiles compared exactly
+    return (f"{_pct(value, 3)} [{_pct(low, 3, unit='')}, {'–' if high is None else _pct(high, 3, unit='')}]"
+            + (" exact" if exact else ""))
 
 
 def _pct(value, digits: int = 2, unit: str = "%") -> str:

@@ -6,7 +6,8 @@ judged by the real verdict against the real ground truth. Two kinds of error:
 * a uniform relative **bias** b: the render becomes :math:`T (1 - b)` (an energy loss of b), its variance
   :math:`V_T (1 - b)^2` (what a renderer with that fault would report);
 * a relative error d in one **region** of ``size`` x ``size`` pixels: there :math:`T (1 + d)` and
-  :math:`V_T (1 + d)^2`, the rest unchanged.
+  :math:`V_T (1 + d)^2`, the rest unchanged. The region is one of typical brightness on the verdict's tile grid
+  (:func:`typical_region`), and the same half a tile off the grid, the worst placement (:func:`centre_region`).
 
 For one render (one seed) :func:`smallest_caught` finds the smallest size caught, by doubling (or halving) from a
 guess until the verdict's outcome changes, then bisecting in log(size) until the bracket's ratio is at most
@@ -40,7 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["DEFAULT_PRECISION", "DEFAULT_QUANTILE", "MAX_BIAS", "MAX_REGION_ERROR", "Region", "Threshold",
-           "centre_region", "detection_quantile", "first_guess", "plant_bias", "plant_region", "smallest_caught"]
+           "centre_region", "detection_quantile", "first_guess", "plant_bias", "plant_region", "smallest_caught",
+           "typical_region"]
 
 #: the detection probability the calibration reports the size for
 DEFAULT_QUANTILE = 0.9
@@ -93,6 +95,35 @@ def centre_region(height: int, width: int, size: int, tile: int, offset: int = 0
         return max(0, min(start + int(offset), extent - size))
 
     return Region(corner(height), corner(width), size)
+
+
+def typical_region(truth: np.ndarray, size: int, tile: int, offset: int = 0) -> Region:
+    """The ``size`` x ``size`` region of typical brightness: among the positions on the verdict's tile grid (corner
+    at multiples of ``tile``, wholly inside the image) the one whose mean ``truth`` (over its pixels and channels)
+    is the median of all of them (the lower median; ties: nearest the image's centre), moved by ``offset`` pixels
+    down and right (``tile // 2``: the worst placement, :func:`centre_region`), kept inside the image.
+
+    Notes
+    -----
+    A region at a fixed place can fall where the image is black (the umbra on soft-shadows): a relative error of
+    a zero radiance is zero, never caught, and says nothing of the verdict. The median region is a typical part of
+    the image, chosen from the ground truth alone, so the same for every seed.
+    """
+    t = np.nan_to_num(np.asarray(truth, np.float64))
+    height, width = t.shape[:2]
+    size = max(1, min(int(size), height, width))
+    centre = centre_region(height, width, size, tile)
+    candidates = []
+    for y in range(0, height - size + 1, tile):
+        for x in range(0, width - size + 1, tile):
+            distance = (y - centre.y) ** 2 + (x - centre.x) ** 2
+            candidates.append((float(t[y:y + size, x:x + size].mean()), distance, y, x))
+    if not candidates:
+        return centre_region(height, width, size, tile, offset)
+    by_mean = sorted(candidates)
+    median = by_mean[(len(by_mean) - 1) // 2][0]
+    _, _, y, x = min((c for c in candidates if c[0] == median), key=lambda c: c[1])
+    return Region(min(y + int(offset), height - size), min(x + int(offset), width - size), size)
 
 
 def plant_bias(image: np.ndarray, variance: np.ndarray, b: float) -> tuple[np.ndarray, np.ndarray]:

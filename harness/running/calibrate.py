@@ -7,7 +7,8 @@ A case with ``expect = "pass"`` is rerun with seeds 0 .. N-1 (its ground truth c
 once); with the verdict's alpha = 0.001 about N / 1000 false alarms are expected, and the count is binomial. Into
 each of those correct renders errors are then planted and judged by the same verdict against the same ground truth
 (:mod:`harness.judges.power`): a uniform relative bias b (the render times 1 - b) and a relative error d in one
-16 x 16 region (times 1 + d), on the tile grid at the image's centre and half a tile off it (the worst placement);
+16 x 16 region (times 1 + d), on the tile grid where the ground truth has its median brightness and half a tile
+off it (the worst placement);
 each seed's smallest caught b and d is found by bisection to 2 %, and the size caught in 90 % of the seeds is the
 0.9-quantile of those thresholds, with a 90 % distribution-free interval. ``budgets`` repeats the measurement with
 the case's budget (spp or seconds) times each factor, so the table reads power against the test render's time.
@@ -104,16 +105,23 @@ def check_cost(cases: list[Case], seeds: int, option: str = "--seeds", budgets: 
 # ---- power -----------------------------------------------------------------------------------------------------
 
 
+def regions_for(truth: ExrImage, case: Case, options: PowerOptions) -> dict[str, power.Region]:
+    """The planted regions of a case: the region of typical brightness of its ground truth on the tile grid
+    (:func:`harness.judges.power.typical_region`) and the same half a tile off it; the same for every seed."""
+    return {"region_aligned": power.typical_region(truth.image, options.region_size, case.tile),
+            "region_off_grid": power.typical_region(truth.image, options.region_size, case.tile,
+                                                    offset=case.tile // 2)}
+
+
 def seed_power(test: ExrImage, truth: ExrImage, case: Case, options: PowerOptions,
-               guesses: dict[str, float] | None = None) -> dict[str, power.Threshold]:
+               guesses: dict[str, float] | None = None,
+               regions: dict[str, power.Region] | None = None) -> dict[str, power.Threshold]:
     """One correct render's threshold of each planted error (:data:`PLANTS`), judged by the case's verdict (its
     tile and alpha, the images' degrees of freedom) against its ground truth. ``guesses``: where each search starts
-    (default: :func:`harness.judges.power.first_guess`)."""
+    (default: :func:`harness.judges.power.first_guess`); ``regions``: where the region errors go (default:
+    :func:`regions_for`)."""
     guesses = guesses or {}
-    height, width = test.image.shape[:2]
-    regions = {"region_aligned": power.centre_region(height, width, options.region_size, case.tile),
-               "region_off_grid": power.centre_region(height, width, options.region_size, case.tile,
-                                                      offset=case.tile // 2)}
+    regions = regions or regions_for(truth, case, options)
 
     def judged(image, variance):
         return judge(ExrImage(image, variance, test.metadata), truth, tile=case.tile, alpha=case.alpha)
@@ -132,21 +140,13 @@ def seed_power(test: ExrImage, truth: ExrImage, case: Case, options: PowerOption
     return out
 
 
-def regions_of(case: Case, film: dict, options: PowerOptions) -> dict:
-    """Where the regions of :func:`seed_power` lie on the case's film (for calibration.json)."""
-    height, width = film["height"], film["width"]
-    return {"size": power.centre_region(height, width, options.region_size, case.tile).size,
-            "aligned": power.centre_region(height, width, options.region_size, case.tile).to_dict(),
-            "off_grid": power.centre_region(height, width, options.region_size, case.tile,
-                                            offset=case.tile // 2).to_dict()}
-
-
 class _BudgetPower:
     """The thresholds of every seed at one budget factor, and their summary."""
 
     def __init__(self, case: Case, factor: float):
         self.case = with_budget(case, factor)
         self.factor = factor
+        self.regions: dict[str, power.Region] | None = None  # from the first ground truth: the same for all seeds
         self.seeds: list[dict] = []
         self.seconds: list[float] = []
         self.errors = 0
@@ -161,7 +161,8 @@ class _BudgetPower:
         return out
 
     def add(self, seed: int, test: ExrImage, truth: ExrImage, seconds: float, options: PowerOptions) -> dict:
-        thresholds = seed_power(test, truth, self.case, options, self.guesses())
+        self.regions = self.regions or regions_for(truth, self.case, options)
+        thresholds = seed_power(test, truth, self.case, options, self.guesses(), self.regions)
         entry = {"seed": seed, "seconds": seconds, **{k: t.to_dict() for k, t in thresholds.items()}}
         self.seeds.append(entry)
         self.seconds.append(seconds)
@@ -236,8 +237,8 @@ def calibrate(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | 
 
 
 METHOD = ("into each seed's correct render: a uniform bias b (render x (1 - b), variance x (1 - b)^2) and a relative "
-          "error d in one square region (x (1 + d), variance x (1 + d)^2), on the tile grid at the image's centre and "
-          "half a tile off it (the worst placement); each judged by the case's verdict against its ground truth. Per "
+          "error d in one square region (x (1 + d), variance x (1 + d)^2), on the tile grid where the ground truth has "
+          "its median brightness and half a tile off it (the worst placement); each judged by the case's verdict against its ground truth. Per "
           "seed the smallest caught size by bracketing and bisection in log(size) to the stated precision (the "
           "bracket's upper end); over the seeds the quantile of those thresholds (the size caught in that fraction "
           "of the seeds) with a distribution-free interval from the order statistics")
@@ -249,7 +250,7 @@ def _calibrate_pass(case: Case, out_dir: Path, seeds: int, cache_dir, variant, o
     verdict and thresholds), and with power, the thresholds of each render, then the other budget factors."""
     verdicts, stats_seen = [], []
     at_budget = _BudgetPower(case, 1.0)
-    truth_gt, film = None, None
+    truth_gt = None
     for seed in range(seeds):
         keep: dict = {}
         record = run_case(dataclasses.replace(case, seed=seed), out_dir, cache_dir=cache_dir, variant=variant,
@@ -262,7 +263,6 @@ def _calibrate_pass(case: Case, out_dir: Path, seeds: int, cache_dir, variant, o
             "omnibus_p": v.get("omnibus", {}).get("p_value"),
             "max_z_p": v.get("max_z", {}).get("p_value"),
         }
-        film = record.get("film", film)
         if options.enabled and "test" in keep and keep["test"].variance is not None:
             entry = at_budget.add(seed, keep["test"], keep["ground_truth"], keep["result"].seconds, options)
             seen.update({plant: entry[plant]["size"] for plant in PLANTS})
@@ -307,7 +307,12 @@ def _calibrate_pass(case: Case, out_dir: Path, seeds: int, cache_dir, variant, o
             if on_progress:
                 on_progress(f"{case.name} x{factor:g}", seed)
         budgets.append(measured.summary(options))
-    row["power"] = {"region": regions_of(case, film, options) if film else None, "budgets": budgets}
+    regions = at_budget.regions
+    row["power"] = {"region": None if regions is None else {
+        "size": regions["region_aligned"].size, "aligned": regions["region_aligned"].to_dict(),
+        "off_grid": regions["region_off_grid"].to_dict(),
+        "placement": "median ground-truth brightness on the tile grid; off grid: half a tile down and right"},
+        "budgets": budgets}
     return row
 
 

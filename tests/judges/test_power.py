@@ -125,6 +125,17 @@ def test_regions_lie_on_the_grid_at_the_centre_and_half_a_tile_off() -> None:
     assert power.centre_region(12, 40, 16, 8) == power.Region(0, 8, 12)  # cut to the image
 
 
+def test_the_typical_region_has_the_median_brightness_and_is_never_the_black_part() -> None:
+    truth = np.zeros((64, 64, 3))
+    truth[:, 32:] = np.arange(32)[None, :, None] + 1.0  # left half black, right half brightening to the right
+    region = power.typical_region(truth, 16, 8)
+    # 7 x 7 positions; by column: x = 0, 8, 16 black, then brighter; the median (25th of 49) is at x = 24, and of
+    # the seven rows there the one nearest the centre (y = 24)
+    assert region == power.Region(24, 24, 16) and truth[24:40, 24:40].mean() > 0
+    assert power.typical_region(truth, 16, 8, offset=4) == power.Region(28, 28, 16)
+    assert power.centre_region(64, 64, 16, 8) == power.Region(24, 24, 16)
+
+
 def test_planting_scales_the_image_and_its_variance_and_nothing_else() -> None:
     image, variance = np.full((8, 8, 3), 2.0), np.full((8, 8, 3), 0.5)
     biased, v = power.plant_bias(image, variance, 0.1)

@@ -63,8 +63,10 @@ def test_calibrate_measures_power_at_each_budget(calibrated):
     assert doc["power"]["budgets"] == [0.5, 1.0, 2.0] and doc["power"]["region_size"] == 8
     row, fault = doc["cases"]
     assert row["false_alarms"] + row["passes"] == 3 and fault["caught"] is True
-    assert row["power"]["region"] == {"size": 8, "aligned": {"y": 8, "x": 8, "size": 8},
-                                      "off_grid": {"y": 12, "x": 12, "size": 8}}
+    region = row["power"]["region"]
+    aligned, off = region["aligned"], region["off_grid"]
+    assert region["size"] == 8 and aligned["y"] % 8 == 0 and aligned["x"] % 8 == 0
+    assert (off["y"], off["x"]) == (aligned["y"] + 4, aligned["x"] + 4)
     budgets = row["power"]["budgets"]
     assert [b["spp"] for b in budgets] == [4, 8, 16] and all(b["runs"] == 3 for b in budgets)
     for b in budgets:
