@@ -17,8 +17,9 @@ judges the case (beside its render, ``OUT/cases/<case>/``) and linked into the r
   "zero"}``. See docs/report.md, "The comparison viewer".
 * ``thumbnail.png``: the render at the report's display exposure, box-filtered down to at most
   :data:`THUMBNAIL_SIDE` pixels a side (in linear radiance, before tone mapping).
-* ``pvalue_thumbnail.png``: at the thumbnail's size, each tile's :math:`-\log_{10} p` (the smallest p over R, G, B; ``magma``
-  from 0 to :data:`PVALUE_TOP`), untested tiles grey, the tiles that fail by themselves outlined in cyan.
+* ``pvalue_thumbnail.png``: at the thumbnail's size, each tile's :math:`-\log_{10} p` (the smallest p over R, G,
+  B; ``magma`` from 0 to :data:`PVALUE_TOP`), untested tiles grey, the tiles that fail by themselves outlined in
+  cyan.
 
 With them, the histogram of the tested tile-channels' p-values (:func:`p_histogram`), kept in the case's record:
 under the null hypothesis the p-values are uniform on (0, 1), so the bars are level; a render that differs piles

@@ -96,6 +96,7 @@ def _shoot(driver, root, name: str) -> None:
 
 def test_the_viewer_in_a_real_browser(smoke_report, browser):
     from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
     from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
     from selenium.webdriver.support.ui import WebDriverWait
@@ -170,9 +171,23 @@ def test_the_viewer_in_a_real_browser(smoke_report, browser):
     at = _canvas(driver, root)[int(centre["y"]), int(centre["x"])]
     want = tonemap_srgb8(render.image[y:y + 1, x:x + 1], ev)[0, 0]
     assert np.abs(at.astype(int) - want).max() <= 1, (at, want)
-    for _ in range(2):
-        root.find_element(By.CSS_SELECTOR, '[data-action="zoom-in"]').click()
+    # the wheel zooms about the cursor: the probed pixel stays under it
+    scale = driver.execute_script("return arguments[0].harnessViewer.view.scale;", root)
+    origin = ScrollOrigin.from_element(canvas, int(centre["x"] - canvas.size["width"] / 2),
+                                       int(centre["y"] - canvas.size["height"] / 2))
+    ActionChains(driver).scroll_from_origin(origin, 0, -100).perform()
+    zoomed = driver.execute_script("return arguments[0].harnessViewer.view.scale;", root)
+    moved = driver.execute_script("return arguments[0].harnessViewer.pixelCenter(arguments[1], arguments[2]);",
+                                  root, x, y)
+    assert zoomed > scale and abs(moved["x"] - centre["x"]) <= zoomed and abs(moved["y"] - centre["y"]) <= zoomed
     _shoot(driver, root, "zoomed-probe")
+    # swap on hover: the ground truth while the pointer is over the image
+    root.find_element(By.CSS_SELECTOR, '[data-option="hover-swap"]').click()
+    ActionChains(driver).move_to_element(canvas).perform()
+    assert root.get_attribute("data-shown") == "truth"
+    ActionChains(driver).move_to_element(table).perform()
+    assert root.get_attribute("data-shown") == "render"
+    root.find_element(By.CSS_SELECTOR, '[data-option="hover-swap"]').click()
 
     # every other mode draws something of its own
     seen = {}

@@ -1,6 +1,6 @@
 /* The comparison viewer's data (docs/report.md, "The comparison viewer"). Each case's report/<case>/viewer.js,
    written by harness.files.viewer_data, is one call HarnessViewer.register({...}); HarnessViewer.load(key, src, done)
-   adds the <script src> tag that runs it (a page opened from file:// may load scripts beside it, not fetch files)
+   adds the script element (src) that runs it (a page opened from file:// may load scripts beside it, not fetch files)
    and calls done(error, data). HarnessViewer.decodePlane turns a plane (base64 little-endian half floats scaled by
    2^exponent, float32, bytes, or all zeros) into a Float64Array. */
 window.HarnessViewer = window.HarnessViewer || {};
@@ -15,7 +15,7 @@ window.HarnessViewer = window.HarnessViewer || {};
     callbacks.forEach(function (done) { done(error, data); });
   }
 
-  /* Called by a viewer.js: its data is kept under the key of the <script> tag that loaded it (else its name). */
+  /* Called by a viewer.js: its data is kept under the key of the script element that loaded it (else its name). */
   HV.register = function (data) {
     var script = document.currentScript;
     var key = script && script.getAttribute("data-viewer-key");

@@ -32,7 +32,9 @@ window.HarnessViewer = window.HarnessViewer || {};
     return limit > 0 ? limit : 1;
   };
 
-  function fmt(v) { return Math.abs(v) >= 1e4 || (v !== 0 && Math.abs(v) < 1e-3) ? v.toExponential(2) : +v.toPrecision(3) + ""; }
+  function fmt(v) {
+    return Math.abs(v) >= 1e4 || (v !== 0 && Math.abs(v) < 1e-3) ? v.toExponential(2) : String(+v.toPrecision(3));
+  }
 
   function perPixel(images, compute) {
     var n = images.width * images.height, out = new Float64Array(n);
@@ -57,11 +59,13 @@ window.HarnessViewer = window.HarnessViewer || {};
       title: "Signed error", needs: ["truth"],
       compute: function (im) {
         var r = im.render, t = im.truth;
-        var values = perPixel(im, function (i) { return ((r[i] - t[i]) + (r[i + 1] - t[i + 1]) + (r[i + 2] - t[i + 2])) / 3; });
+        var values = perPixel(im, function (i) {
+          return ((r[i] - t[i]) + (r[i + 1] - t[i + 1]) + (r[i + 2] - t[i + 2])) / 3;
+        });
         var lim = HV.robustLimit(values, 99);
         return {values: values, low: -lim, high: lim, cmap: "RdBu_r", ticks: [fmt(-lim), "0", fmt(lim)],
-                description: "render - ground truth, mean over R, G, B; red: render brighter; limits \u00b1" + fmt(lim) +
-                             " (the 99th percentile of |error|)"};
+                description: "render - ground truth, mean over R, G, B; red: render brighter; limits \u00b1" +
+                             fmt(lim) + " (the 99th percentile of |error|)"};
       }
     },
     error_relative: {
@@ -92,8 +96,8 @@ window.HarnessViewer = window.HarnessViewer || {};
         });
         return {values: values, low: -lim, high: lim, cmap: "RdBu_r", missing: GREY,
                 ticks: [String(-lim), "0", String(lim)],
-                description: "each " + t.size + " x " + t.size + " tile's Welch z in its channel of largest |z| (red: " +
-                             "render brighter); a tile fails by itself beyond |z| = " + fmt(crit) +
+                description: "each " + t.size + " x " + t.size + " tile's Welch z in its channel of largest |z| " +
+                             "(red: render brighter); a tile fails by itself beyond |z| = " + fmt(crit) +
                              " (" + t.count + " tested tile-channels); grey: not tested"};
       }
     },
@@ -108,8 +112,8 @@ window.HarnessViewer = window.HarnessViewer || {};
         });
         return {values: values, low: 0, high: PVALUE_TOP, cmap: "magma", missing: GREY,
                 ticks: ["p = 1", "1e-4", "\u2264 1e-8"],
-                description: "-log10 of each tile's two-sided p-value (the smallest over R, G, B); uniform p when the " +
-                             "images agree, so most tiles stay dark; grey: not tested"};
+                description: "-log10 of each tile's two-sided p-value (the smallest over R, G, B); uniform p " +
+                             "when the images agree, so most tiles stay dark; grey: not tested"};
       }
     },
     flip_map: {

@@ -3,12 +3,12 @@
 
    Each case's "Open the comparison viewer" button ([data-open-viewer], hidden without scripts) names its data file
    (data-viewer-src) and the slot it opens in (aria-controls); the first click clones the page's
-   <template id="harness-viewer-template"> into the slot and loads the data with a <script src> tag. A button with
+   <template id="harness-viewer-template"> into the slot and loads the data with a script element (src). A button with
    data-autoopen opens at load (harness view's page).
 
    Stable hooks (docs/report.md): the viewer's root [data-viewer] has data-state ("loading" | "ready" | "error"),
-   data-current-mode (the mode's key), data-shown (what the canvas shows: "render", "truth", "side" or the map's key) and the
-   instance as its harnessViewer property (pixelCenter(x, y) gives an image pixel's centre in CSS pixels of the
+   data-current-mode (the mode's key), data-shown (what the canvas shows: "render", "truth", "side" or the map's
+   key) and the instance as its harnessViewer property (pixelCenter(x, y) gives an image pixel's centre in CSS pixels of the
    canvas); buttons [data-mode=KEY] and [data-action="flip" | "fit" | "one" | "zoom-in" | "zoom-out"], the inputs
    [data-control="ev"] (a range, stops) and [data-control="curve"] ("clamp" | "filmic"), the checkboxes
    [data-option="hover-swap" | "outline"], the canvas [data-canvas] and the probe's cells [data-probe=KEY]. */
