@@ -37,9 +37,10 @@ def assets() -> dict:
 
 
 def histogram_view(histogram: dict | None) -> dict | None:
-    """The p-value histogram (:func:`harness.files.viewer_data.p_histogram`) as SVG geometry for the templates: a
-    bar per bin (the first, p < 1/bins, marked), the level a uniform histogram would have (``tested / bins``),
-    the axes' labels."""
+    """The p-value histogram (:func:`harness.files.viewer_data.p_histogram`) as SVG geometry for the templates: the
+    bars as one path (``bars``) but the first (p < 1/bins, ``low``), drawn apart, the level a uniform histogram would
+    have (``tested / bins``), the axes' labels. One path, not a rectangle per bar: the page has a histogram per
+    case, and each value a template writes is escaped."""
     if not isinstance(histogram, dict):
         return None
     counts = [c for c in histogram.get("counts") or [] if isinstance(c, int) and not isinstance(c, bool)]
@@ -55,12 +56,14 @@ def histogram_view(histogram: dict | None) -> dict | None:
     def y(value: float) -> float:
         return round(box["bottom"] - height * value / top, 2)
 
-    bars = [{"x": round(box["left"] + i * width + 0.5, 2), "y": y(c), "w": round(width - 1, 2),
-             "h": round(box["bottom"] - y(c), 2), "low": i == 0, "count": c,
-             "range": f"p in [{i / len(counts):.2f}, {(i + 1) / len(counts):.2f})"} for i, c in enumerate(counts)]
-    return {"box": box, "bars": bars, "expected_y": y(expected), "expected": round(expected, 1), "top": int(top),
-            "tested": tested, "failing": histogram.get("failing"), "bins": len(counts),
-            "near_zero": counts[0], "near_zero_share": counts[0] / tested}
+    def bar(i: int, count: int) -> str:
+        left = round(box["left"] + i * width + 0.5, 2)
+        return f"M{left} {box['bottom']}V{y(count)}H{round(left + width - 1, 2)}V{box['bottom']}Z"
+
+    return {"box": box, "low": bar(0, counts[0]), "bars": "".join(bar(i, c) for i, c in enumerate(counts) if i),
+            "counts": ", ".join(map(str, counts)), "expected_y": y(expected), "expected": round(expected, 1),
+            "top": int(top), "tested": tested, "failing": histogram.get("failing"), "bins": len(counts),
+            "near_zero": counts[0]}
 
 
 def case_view(viewer: ViewerData | None, *, key: str, slot: str, link_base: str, images: list[ReportImage],

@@ -128,8 +128,11 @@ def test_the_page_s_colour_maps_are_matplotlib_s():
 def test_the_histogram_view_draws_what_it_counts():
     view = report_viewer.histogram_view({"bins": 4, "counts": [8, 0, 2, 2], "tested": 12, "failing": 1})
     box = view["box"]
-    assert [b["count"] for b in view["bars"]] == [8, 0, 2, 2] and view["bars"][0]["low"]
-    assert view["bars"][0]["y"] == box["top"] and view["bars"][1]["h"] == 0  # the tallest bar fills the box
-    assert box["top"] < view["expected_y"] < box["bottom"] and view["expected"] == 3.0
+    bars = [re.fullmatch(r"M([\d.]+) ([\d.]+)V([\d.]+)H([\d.]+)V([\d.]+)", b).groups()
+            for b in (view["low"] + view["bars"]).split("Z")[:-1]]
+    heights = [float(b[1]) - float(b[2]) for b in bars]
+    assert len(bars) == 4 and heights[0] == box["bottom"] - box["top"]  # the tallest bar fills the box
+    assert heights[1] == 0 and heights[2] == heights[3] == pytest.approx(heights[0] / 4)
+    assert box["top"] < view["expected_y"] < box["bottom"] and view["expected"] == 3.0 and view["counts"] == "8, 0, 2, 2"
     assert report_viewer.histogram_view(None) is None
     assert report_viewer.histogram_view({"counts": [1, "x"], "tested": 0}) is None
