@@ -328,8 +328,12 @@ CACHED = Obj({"from": Nullable(STR), "key": STR}, {"machine": Obj(optional=MACHI
 
 VERDICT_MAPS = Obj({"pvalue": NAME, "failing": NAME})
 
+VIEWER = Obj({"folder": STR, "data": FILE_NAME, "thumbnail": FILE_NAME, "pvalue": Nullable(FILE_NAME),
+              "p_histogram": Nullable(Obj({"bins": POSITIVE_INT, "counts": ListOf(COUNT), "tested": COUNT,
+                                           "failing": COUNT}))})
+
 CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
-                 "verdict_maps": VERDICT_MAPS, "cached": CACHED}
+                 "verdict_maps": VERDICT_MAPS, "viewer": VIEWER, "cached": CACHED}
 
 
 class _Case(Spec):
