@@ -108,11 +108,14 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         folder = out_dir / "cases" / slug(case.name)
         with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
             imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
-                                           metadata={"renderer": result.renderer, "case": case.name})
+                                           metadata={"renderer": result.renderer, "case": case.name,
+                                                     **variance_metadata(result)})
             if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
         gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+        if gt.info.get("variance_dof") is not None:  # another renderer's render with replicates
+            gt_meta["variance_dof"] = str(int(gt.info["variance_dof"]))
         maps: dict = {}
         comparison = compare_images(
             imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
