@@ -331,9 +331,13 @@ VERDICT_MAPS = Obj({"pvalue": NAME, "failing": NAME})
 GROUND_TRUTH_NOISE = Obj({"ratio": NON_NEGATIVE, "limit": POSITIVE, "ground_truth_spp": COUNT,
                           "suggested_spp": Nullable(POSITIVE_INT), "warning": Nullable(STR)})
 
+VIEWER = Obj({"folder": STR, "data": FILE_NAME, "thumbnail": FILE_NAME, "pvalue": Nullable(FILE_NAME),
+              "p_histogram": Nullable(Obj({"bins": POSITIVE_INT, "counts": ListOf(COUNT), "tested": COUNT,
+                                           "failing": COUNT}))})
+
 CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
-                 "verdict_maps": VERDICT_MAPS, "cached": CACHED, "ground_truth_noise": GROUND_TRUTH_NOISE,
-                 "requires": ListOf(STR)}
+                 "verdict_maps": VERDICT_MAPS, "viewer": VIEWER, "cached": CACHED,
+                 "ground_truth_noise": GROUND_TRUTH_NOISE, "requires": ListOf(STR)}
 
 
 class _Case(Spec):

@@ -26,6 +26,8 @@ from harness.files.previews import ReportImage
 from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, studies_folder, study_file
+from harness.files.viewer_data import ViewerData
+from harness.report import viewer
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
 from harness.report import repeats
 from harness.report.notes import case_notes
@@ -72,6 +74,8 @@ class ReportCase:
     images: list[ReportImage] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
     summary: dict = field(default_factory=dict)
+    viewer: ViewerData | None = None
+    verdict_maps: list[tuple[str, str]] = field(default_factory=list)  # (label, link from the page)
 
 
 def load_results(path: str | Path) -> dict:
@@ -209,6 +213,26 @@ def _case_images(item: ReportCase, results_dir: Path, out: Path) -> None:
                                     truth_source=gt.source, truth_spp=gt.spp)
     item.images.extend(placed.images)
     item.summary = dict(placed.error_maps)
+    _case_viewer(item, results_dir, out)
+
+
+def _case_viewer(item: ReportCase, results_dir: Path, out: Path) -> None:
+    """The case's comparison-viewer files (and its verdict maps) in ``out/report/<case>``: those ``harness run``
+    made (``viewer`` in its record), linked or copied; for a run by an older harness, made here from the case's
+    EXRs (:func:`harness.report.viewer.make_case_viewer`)."""
+    folder = out / "report" / item.slug
+    run_folder = slug(str(item.record.get("name", "")))
+    item.verdict_maps = viewer.place_verdict_maps(item.record, results_dir, folder, run_folder,
+                                                  f"report/{item.slug}/")
+    placed = viewer.place_case_viewer(item.record, results_dir, folder, run_folder)
+    if placed is None:
+        if item.render is None:
+            _load_case(item, results_dir)
+        if item.render is None or item.gt is None:
+            return
+        placed = viewer.make_case_viewer(folder, item.record, item.render, item.render_variance, item.gt,
+                                         item.images)
+    item.viewer = placed
 
 
 def _add_study_problems(items: list[ReportCase], studies: dict | None) -> None:
@@ -368,6 +392,7 @@ def _case_json(item: ReportCase) -> dict:
         "cached": r.get("cached"), "verdict_maps": r.get("verdict_maps"), "reproduce": reproduce(r),
         "error_maps": {k: v for k, v in item.summary.items() if not k.startswith("_")},
         "images": [im.to_json() for im in item.images],
+        "viewer": item.viewer.to_json() if item.viewer is not None else None,
         "problems": item.problems,
         "traceback": r.get("traceback"),
     }
@@ -504,7 +529,12 @@ def _case_view(item: ReportCase) -> dict:
     return {
         "anchor": f"case-{item.index}", "name": r.get("name"), "status": r.get("status", "?"), "ok": r.get("ok"),
         "expect": r.get("expect"), "reason": r.get("reason"), "problems": item.problems + case_notes(r),
-        "figures": [figure_view(im, link_base=f"report/{item.slug}/") for im in item.images],
+        # the images themselves only where the case has no viewer (its data could not be made): else a thumbnail
+        "figures": ([figure_view(im, link_base=f"report/{item.slug}/") for im in item.images]
+                    if item.viewer is None else []),
+        "viewer": viewer.case_view(item.viewer, key=item.slug, slot=f"viewer-{item.index}",
+                                   link_base=f"report/{item.slug}/", images=item.images,
+                                   verdict_maps=item.verdict_maps),
         "metrics_rows": _metrics_rows(r), "verdict": verdict.get("verdict", "?"),
         "verdict_rows": _verdict_rows(verdict),
         "settings_rows": _settings_rows(r), "resolved_json": json.dumps(resolved, indent=1) if resolved else None,
@@ -591,7 +621,7 @@ def _suite_html(results, results_path, items, wanted, sections_html, notes, powe
         summary_rows=[_summary_row(i) for i in items], cases=[_case_view(i) for i in items],
         sections=sections_html, definitions=sorted(DEFINITIONS.items()),
         system_rows=_system_rows(results.get("system")), machine_notes=machine_notes(results),
-        summary_js=static_script("summary.js"), power=power))
+        summary_js=static_script("summary.js"), power=power, viewer=viewer.assets()))
 
 
 # ---- summary.md ------------------------------------------------------------------------------------------------

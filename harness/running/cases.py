@@ -45,6 +45,10 @@ MAX_NAME_LENGTH = 200  # a case name becomes a folder name (slug), and file syst
 #: overrides), line and paragraph separators, surrogates. Names are printed one per line and become folder names.
 UNSAFE_NAME_CATEGORIES = ("Cc", "Cf", "Zl", "Zp", "Cs")
 MIN_SPP = 2  # the verdict needs each pixel's sample variance: one sample per pixel gives none
+#: A suite judges the reference renderer's stratified sampler with its samples as this many independent replicates
+#: (``--set replicates``), so that the variance it reports is unbiased rather than an upper bound
+#: (docs/suites.md, "Honest variances"); a case that sets ``replicates`` or another sampler keeps its own.
+SUITE_REPLICATES = 2
 
 
 @dataclass(frozen=True)
@@ -142,7 +146,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[s
     name = _case_name(label, key("name"), d.get("name", scene.stem), "name" not in d)
     renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
     renderer = _renderer_known(label, key("renderer"), renderer, known, folder)
-    settings = _settings(label, key("settings"), d.get("settings", {}))
+    settings = judged_settings(renderer, _settings(label, key("settings"), d.get("settings", {})))
     spp = d.get("spp", None if "seconds" in d else 64)
     seconds = d.get("seconds")
     if spp is not None and seconds is not None:
@@ -378,8 +382,16 @@ def _against(label: str, key: str, value: Any, renderers: list[str], folder: Pat
     return Against(
         "renderer", renderer, spp,
         _non_negative(label, f"{key}.seed", table.get("seed", 1_000_003)),
-        settings,
+        judged_settings(renderer, settings),
     )
+
+
+def judged_settings(renderer: str, settings: dict[str, str]) -> dict[str, str]:
+    """A case's renderer settings as the suite runs them: the reference's stratified sampler with
+    :data:`SUITE_REPLICATES` replicates unless the case says otherwise (another sampler, or ``replicates``)."""
+    if renderer != "reference" or "replicates" in settings or settings.get("sampler", "sobol") != "sobol":
+        return settings
+    return {**settings, "replicates": str(SUITE_REPLICATES)}
 
 
 def _renderer_known(label: str, key: str, name: str, known: list[str], folder: Path | None = None) -> str:

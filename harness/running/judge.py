@@ -1,7 +1,8 @@
 """Judging one case: its ground truth (:func:`ground_truth_for`), its render within the budget
 (:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`), its thresholds,
-the verdict's tile maps (``pvalue.exr``, ``failing.exr``: :mod:`harness.files.verdict_maps`) and its report images
-(:mod:`harness.files.report_images`), as the case's record in ``results.json``
+the verdict's tile maps (``pvalue.exr``, ``failing.exr``: :mod:`harness.files.verdict_maps`), its report images
+(:mod:`harness.files.report_images`) and the data of the report's comparison viewer
+(:mod:`harness.files.viewer_data`), as the case's record in ``results.json``
 (``docs/results-schema.md``)."""
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.files.cases import GROUND_TRUTH_FILE
 from harness.files import imageio
+from harness.files.previews import display_exposure
 from harness.files.report_images import IMAGES_FOLDER, ReportImages, make_report_images
+from harness.files.viewer_data import ViewerData, make_viewer_data
 from harness.files.verdict_maps import write_verdict_maps
 from harness.judges.floor import GROUND_TRUTH_SHARE_LIMIT, ground_truth_share, spp_for_share
 from harness.renderers import RenderRequest, get_renderer, groundtruth
@@ -122,8 +125,10 @@ def unmet_requirement(case: Case) -> str | None:
 
 def judged_images(result, gt) -> tuple[imageio.ExrImage, imageio.ExrImage]:
     """A case's render and its ground truth as the verdict takes them: images, variances and the metadata that
-    gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp``)."""
+    gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp`` or ``variance_dof``)."""
     gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+    if gt.info.get("variance_dof") is not None:  # another renderer's render with replicates
+        gt_meta["variance_dof"] = str(int(gt.info["variance_dof"]))
     return (imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
             imageio.ExrImage(gt.image, gt.variance, gt_meta))
 
@@ -155,7 +160,8 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         folder = out_dir / "cases" / slug(case.name)
         with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
             imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
-                                           metadata={"renderer": result.renderer, "case": case.name})
+                                           metadata={"renderer": result.renderer, "case": case.name,
+                                                     **variance_metadata(result)})
             if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
@@ -191,6 +197,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         images = report_images(case, folder, result, gt, maps.get("flip"))
         if images is not None:
             record["report_images"] = images.record()
+        viewer = viewer_files(case, folder, result, gt, maps, verdict)
+        if viewer is not None:
+            record["viewer"] = viewer.record()
     except HarnessError:
         raise
     except Exception as err:  # a renderer or adapter failure fails this case only
@@ -220,6 +229,30 @@ def report_images(case: Case, folder: Path, result, gt, flip) -> ReportImages | 
     except HarnessError:
         raise
     except Exception:  # noqa: BLE001 - a map that cannot be drawn is the report's to name, not the case's failure
+        return None
+
+
+def viewer_files(case: Case, folder: Path, result, gt, maps: dict, verdict: dict) -> ViewerData | None:
+    """The data of the report's comparison viewer, written into ``folder`` (``viewer.js`` and the thumbnails:
+    :func:`harness.files.viewer_data.make_viewer_data`) from the images as their EXRs hold them, the comparison's
+    FLIP map and the verdict's tiles (``maps``). None where they cannot be made for a reason of their own (the report
+    then makes them, and names what fails): the case's outcome stands. A file that cannot be written is a
+    WriteError, which stops the run as the render's would."""
+    render = np.asarray(result.image, np.float32)
+    truth = np.asarray(gt.image, np.float32)
+    flip = maps.get("flip")
+    try:
+        return make_viewer_data(
+            folder, name=case.name, render=render,
+            render_variance=None if result.variance is None else np.asarray(result.variance, np.float32),
+            truth=truth, truth_variance=None if gt.variance is None else np.asarray(gt.variance, np.float32),
+            flip=flip[1] if flip is not None else None, tiles=maps.get("tiles"), tile=verdict.get("tile"),
+            alpha=verdict.get("alpha"), threshold=verdict.get("threshold"), exposure=display_exposure(truth),
+            labels={"render": f"{case.renderer}, {result.spp} spp",
+                    "truth": f"{gt.source or 'ground truth'}" + (f", {gt.spp} spp" if gt.spp else "")})
+    except HarnessError:
+        raise
+    except Exception:  # noqa: BLE001 - data the viewer cannot have is the report's to name, not the case's failure
         return None
 
 

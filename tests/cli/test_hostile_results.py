@@ -115,6 +115,10 @@ HAND_PICKED = {
     "image-file-is-a-path": (lambda d: _set(d, ("cases", 0, "report_images", "images", 2, "png"), "../../x.png"),
                              'cases[0].report_images.images[2].png: expected a file name (no folder), got '
                              '"../../x.png"'),
+    "viewer-file-is-a-path": (lambda d: _set(d, ("cases", 1, "viewer", "data"), "../../x.js"),
+                              'cases[1].viewer.data: expected a file name (no folder), got "../../x.js"'),
+    "viewer-histogram-counts": (lambda d: _set(d, ("cases", 0, "viewer", "p_histogram", "counts"), [1, -2]),
+                                "cases[0].viewer.p_histogram.counts[1]: expected an integer >= 0, got -2"),
     "odd-key": (lambda d: _set(d, ("cases", 0, "settings"), {"a\nb": 3}),
                 'cases[0].settings["a\\nb"]: expected a string, got 3'),
 }
