@@ -206,6 +206,18 @@ def spp_ladder(text: str) -> str:
     return text
 
 
+MAX_BUDGET_FACTOR = 64.0  # harness calibrate --budgets: 64 x a case's budget is already a day on some cases
+
+
+def budget_factors(text: str) -> str:
+    """An argparse ``type=`` for ``harness calibrate --budgets``: comma-separated factors of a case's budget,
+    strictly increasing, each > 0 and at most :data:`MAX_BUDGET_FACTOR`; the text is returned as given."""
+    values = parse_ladder(text, float)
+    if values[-1] > MAX_BUDGET_FACTOR:
+        raise argparse.ArgumentTypeError(f"expected factors of at most {MAX_BUDGET_FACTOR:g}, got {values[-1]:g}")
+    return text
+
+
 def seconds_ladder(text: str) -> str:
     """An argparse ``type=`` for a comma-separated ladder of seconds (strictly increasing, finite, > 0); an empty
     one is refused (it has no default to stand for)."""

@@ -32,7 +32,7 @@ SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseli
 CASE_KEYS = (
     "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
     "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth", "timeout",
-    "variant",
+    "variant", "requires",
 )
 DEFAULT_KEYS = tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
 AGAINST_KEYS = ("renderer", "spp", "seed", "settings")
@@ -84,6 +84,7 @@ class Case:
     ground_truth_spp: int = 1024
     timeout: float | None = None  # seconds before a worker running the case is killed (None: derived, executors.py)
     variant: str | None = None  # a transformed scene (harness/scene/variants.py), e.g. "scale=1e3"
+    requires: tuple[str, ...] = ()  # Mitsuba variants that must work here, else the case is skipped (REQUIREMENTS)
 
 
 @dataclass(frozen=True)
@@ -188,7 +189,26 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[s
         ground_truth_spp=_at_least_two(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024)),
         timeout=(None if d.get("timeout") is None else _timeout(label, key("timeout"), d["timeout"])),
         variant=_stress_variant(label, key("variant"), d.get("variant")),
+        requires=_requires(label, key("requires"), d.get("requires", [])),
     )
+
+
+#: what a case may require (``requires``): a Mitsuba variant, usable where the harness runs (cuda_ad_rgb needs a
+#: working CUDA GPU, llvm_ad_rgb a libLLVM >= 16); where one is not, the case is skipped with the reason
+REQUIREMENTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+
+
+def _requires(label: str, key: str, value: Any) -> tuple[str, ...]:
+    """A case's ``requires``: a list of :data:`REQUIREMENTS` (a single string is taken as a list of one)."""
+    items = [value] if isinstance(value, str) else _typed(label, key, value, list)
+    out = []
+    for i, item in enumerate(items):
+        item = _typed(label, f"{key}[{i}]", item, str)
+        if item not in REQUIREMENTS:
+            raise HarnessError(f"{label}: {key}[{i}]", f"unknown requirement {short(item)}{hint(item, REQUIREMENTS)}; "
+                               f"expected one of {', '.join(REQUIREMENTS)} (a Mitsuba variant that must work here)")
+        out.append(item)
+    return tuple(dict.fromkeys(out))
 
 
 def _timeout(label: str, key: str, value: Any) -> float:
@@ -353,10 +373,16 @@ def _against(label: str, key: str, value: Any, renderers: list[str], folder: Pat
     if spp < 2:
         raise HarnessError(f"{label}: {key}.spp", f"expected at least 2 (the reference render's variance comes from "
                            f"its samples; one sample per pixel gives none), got {spp}")
+    settings = _settings(label, f"{key}.settings", table.get("settings", {}))
+    extra = sorted(set(settings) - {"variant"}) if renderer == "mitsuba" else []
+    if extra:  # a Mitsuba render to judge against goes through the ground-truth cache, which keys the variant only
+        raise HarnessError(f"{label}: {key}.settings.{toml_key(extra[0])}", "a Mitsuba render compared against "
+                           "takes only variant (it is rendered through the ground-truth cache, with the moment "
+                           "integrator and the independent sampler)")
     return Against(
         "renderer", renderer, spp,
         _non_negative(label, f"{key}.seed", table.get("seed", 1_000_003)),
-        judged_settings(renderer, _settings(label, f"{key}.settings", table.get("settings", {}))),
+        judged_settings(renderer, settings),
     )
 
 

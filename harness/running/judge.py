@@ -22,8 +22,10 @@ from harness.files.previews import display_exposure
 from harness.files.report_images import IMAGES_FOLDER, ReportImages, make_report_images
 from harness.files.viewer_data import ViewerData, make_viewer_data
 from harness.files.verdict_maps import write_verdict_maps
+from harness.judges.floor import GROUND_TRUTH_SHARE_LIMIT, ground_truth_share, spp_for_share
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.renderers.external import variance_metadata
+from harness.renderers.mitsuba import resolve_variant
 from harness.renderers.validate import validate_result
 from harness.running.budget import render_with_budget
 from harness.running.cases import HIGHER_IS_BETTER, Case, slug, with_case_overrides
@@ -89,10 +91,60 @@ def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
     return broken
 
 
-def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None) -> dict:
-    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
+def ground_truth_noise(case: Case, result, gt) -> dict | None:
+    """How much the ground truth's own noise blunts the case's verdict (the record's ``ground_truth_noise``): the
+    ratio of its mean variance to the test render's (:func:`harness.judges.floor.ground_truth_share`), and where it
+    exceeds 1/4 a ``warning`` and the ``suggested_spp`` that would bring it under (docs/suites.md, "A ground truth
+    that does not blunt the test"). None where either image has no variance or the test's is 0."""
+    if result.variance is None or gt.variance is None:
+        return None
+    share = ground_truth_share(result.variance, gt.variance)
+    if share is None:
+        return None
+    out = {"ratio": share, "limit": GROUND_TRUTH_SHARE_LIMIT, "ground_truth_spp": int(gt.spp or 0),
+           "suggested_spp": None, "warning": None}
+    if share > GROUND_TRUTH_SHARE_LIMIT and gt.spp:
+        key = "against.spp" if case.against.kind == "renderer" else "ground_truth_spp"
+        out["suggested_spp"] = spp_for_share(int(gt.spp), share)
+        out["warning"] = (f"the ground truth's mean variance is {share:.2f} x the test render's (over 1/4): its noise, "
+                          f"not the test's budget, limits what the verdict can see; {key} = "
+                          f"{out['suggested_spp']} would bring it under 1/4")
+    return out
+
+
+def unmet_requirement(case: Case) -> str | None:
+    """Why the case cannot run here (a Mitsuba variant it ``requires`` is not usable: no CUDA GPU, no libLLVM),
+    as the reason of its "skipped" record; None where every requirement is met."""
+    for variant in case.requires:
+        try:
+            resolve_variant(variant)
+        except HarnessError as err:
+            return f"needs Mitsuba {variant}: {err.message}"
+    return None
+
+
+def judged_images(result, gt) -> tuple[imageio.ExrImage, imageio.ExrImage]:
+    """A case's render and its ground truth as the verdict takes them: images, variances and the metadata that
+    gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp`` or ``variance_dof``)."""
+    gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+    if gt.info.get("variance_dof") is not None:  # another renderer's render with replicates
+        gt_meta["variance_dof"] = str(int(gt.info["variance_dof"]))
+    return (imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
+            imageio.ExrImage(gt.image, gt.variance, gt_meta))
+
+
+def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None,
+             keep: dict | None = None) -> dict:
+    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite.
+    ``keep``: where given, a dict that receives the judged images (``test``, ``ground_truth``: ExrImage), the
+    render's RenderResult (``result``) and the GroundTruth (``gt``), for a caller that judges the render again
+    (harness calibrate)."""
     record = case_header(case)
     start = time.perf_counter()
+    missing = unmet_requirement(case)
+    if missing is not None:  # nothing judged: not a failure of the renderer, not a pass
+        record.update(status="skipped", ok=True, reason=missing, wall_seconds=time.perf_counter() - start)
+        return record
     try:
         scene, gt_scene = case_scenes(case)
         record["film"] = {"width": scene.film.width, "height": scene.film.height}  # as rendered (with its overrides)
@@ -113,15 +165,14 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
             if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
-        gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
-        if gt.info.get("variance_dof") is not None:  # another renderer's render with replicates
-            gt_meta["variance_dof"] = str(int(gt.info["variance_dof"]))
         maps: dict = {}
-        comparison = compare_images(
-            imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
-            imageio.ExrImage(gt.image, gt.variance, gt_meta),
-            tile=case.tile, alpha=case.alpha, maps=maps,
-        )
+        test_image, truth_image = judged_images(result, gt)
+        comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
+        if keep is not None:  # harness calibrate plants errors into this very render
+            keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
+        noise = ground_truth_noise(case, result, gt)
+        if noise is not None:
+            record["ground_truth_noise"] = noise
         all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
         metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
         broken = check_thresholds(all_metrics, case.thresholds)
@@ -214,4 +265,5 @@ def case_header(case: Case) -> dict[str, Any]:
         # the scene's changes a command that reproduces the case must repeat (absent where the case makes none)
         **({"max_depth": case.max_depth} if case.max_depth is not None else {}),
         **({"variant": case.variant} if case.variant is not None else {}),
+        **({"requires": list(case.requires)} if case.requires else {}),
     }

@@ -109,7 +109,7 @@ HAND_PICKED = {
     "bias-not-three": (lambda d: _set(d, ("cases", 0, "verdict", "global_bias", "z"), [1, 2]),
                        "cases[0].verdict.global_bias.z: expected a list of 3, got a list of 2"),
     "bad-status": (lambda d: _set(d, ("cases", 0, "status"), "passed"),
-                   'cases[0].status: expected one of "pass", "fail", "error", got "passed"'),
+                   'cases[0].status: expected one of "pass", "fail", "error", "skipped", got "passed"'),
     "bool-for-int": (lambda d: _set(d, ("summary", "cases"), True), "summary.cases: expected an integer >= 0, got true"),
     "schema-2": (lambda d: _set(d, ("schema",), 2), "schema: expected 1 (the schema this harness reads), got 2"),
     "image-file-is-a-path": (lambda d: _set(d, ("cases", 0, "report_images", "images", 2, "png"), "../../x.png"),
