@@ -35,6 +35,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 import dataclasses
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -87,6 +88,8 @@ class RenderOutput:
     stats    counters (see ``COUNTERS``) plus ``paths`` (camera paths traced) and ``embree_microseconds`` (time in
              Embree queries, summed over threads).
     seconds  wall time of the render alone (no scene loading, no file writing).
+    variance_dof  degrees of freedom of ``variance``: R - 1 with R > 1 replicates (``Settings.replicates``), else
+             Np - 1; None when Np = 1.
     """
 
     image: np.ndarray
@@ -94,6 +97,17 @@ class RenderOutput:
     stats: dict[str, int]
     seconds: float
     settings: Settings = field(repr=False, default=None)
+    variance_dof: int | None = None
+
+
+class _Sampling(NamedTuple):
+    """Where a pass over the pixels draws its numbers: its samples per pixel, its seed, ``seed_key = mix64(seed ^
+    golden)`` and the kernels' configuration with that spp. The render itself, or one of its replicates."""
+
+    spp: int
+    seed: int
+    seed_key: np.uint64
+    config: tuple
 
 
 @dataclass
@@ -275,10 +289,12 @@ class _Context:
         self.camera_frame = c(self.camera.frame(), dtype=np.float64)
         self.eye = np.asarray(self.camera.origin, dtype=np.float64)
         self.seed_key = np.uint64(rng._mix64_int(s.seed ^ int(rng._GOLDEN)))
+        self.sampling = _Sampling(s.spp, s.seed, self.seed_key, self.config)
 
-    def bounce_config(self, depth: int):
-        """The kernels' configuration for the hits of vertex ``depth`` (a wavefront bounce)."""
-        return self.config._replace(depth=depth)
+    def replicate(self, r: int, spp: int) -> _Sampling:
+        """Replicate ``r`` of ``spp`` samples per pixel: a render of its own seed (``Settings.replicate_seed``)."""
+        seed = self.settings.replicate_seed(r)
+        return _Sampling(spp, seed, np.uint64(rng._mix64_int(seed ^ int(rng._GOLDEN))), self.config._replace(spp=spp))
 
 
 class _Clock:
@@ -345,6 +361,8 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     samples_per_chunk = max(1, min(spp, settings.batch_size // pixels_per_unit))
     units = [(p0, min(num_pixels, p0 + pixels_per_unit)) for p0 in range(0, num_pixels, pixels_per_unit)]
 
+    sizes = settings.replicate_sizes()
+    passes = [ctx.sampling] if len(sizes) == 1 else [ctx.replicate(r, n) for r, n in enumerate(sizes)]
     total = np.zeros((num_pixels, 3))
     total_sq = np.zeros((num_pixels, 3))
     stats = dict.fromkeys(COUNTERS, 0)
@@ -353,18 +371,37 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
 
     scale = 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0
 
+    def run_pass(unit, sampling, sums, sums_sq, offset, unit_stats):
+        """Every sample of ``sampling`` (one replicate, or the render) of the unit's pixels, summed into
+        ``sums[offset + p]`` in sample order."""
+        p0, p1 = unit
+        for s0 in range(0, sampling.spp, samples_per_chunk):
+            s1 = min(sampling.spp, s0 + samples_per_chunk)
+            pixel, sample = ctx.workspace().samples((p1 - p0) * (s1 - s0))
+            kernels.film.unit_samples(p0, p1, s0, s1, pixel, sample)
+            values = _trace_camera_paths(ctx, pixel, sample, unit_stats, sampling=sampling, finish=False)
+            # Sequential sums in sample order, so chunking cannot change a single bit.
+            unit_stats["nonfinite_samples"] += kernels.film.finish_and_accumulate(sums, sums_sq, offset, values,
+                                                                                s1 - s0, scale)
+
     def run_unit(unit):
         p0, p1 = unit
         unit_stats = dict.fromkeys(COUNTERS, 0)
         unit_stats[EMBREE_MICROSECONDS] = 0
-        for s0 in range(0, spp, samples_per_chunk):
-            s1 = min(spp, s0 + samples_per_chunk)
-            pixel, sample = ctx.workspace().samples((p1 - p0) * (s1 - s0))
-            kernels.film.unit_samples(p0, p1, s0, s1, pixel, sample)
-            values = _trace_camera_paths(ctx, pixel, sample, unit_stats, finish=False)
-            # Sequential sums in sample order, so chunking cannot change a single bit.
-            unit_stats["nonfinite_samples"] += kernels.film.finish_and_accumulate(total, total_sq, p0, values,
-                                                                                s1 - s0, scale)
+        if len(passes) == 1:
+            run_pass(unit, passes[0], total, total_sq, p0, unit_stats)
+        else:
+            # The replicates' means, combined one by one (Welford): total <- their mean, total_sq <- the sum of
+            # their squared deviations from it.
+            sums, sums_sq = np.empty((p1 - p0, 3)), np.empty((p1 - p0, 3))
+            mean, m2 = total[p0:p1], total_sq[p0:p1]
+            for r, sampling in enumerate(passes):
+                sums.fill(0.0)
+                run_pass(unit, sampling, sums, sums_sq, 0, unit_stats)
+                value = sums / sampling.spp
+                delta = value - mean
+                mean += delta / (r + 1)
+                m2 += delta * (value - mean)
         return (p1 - p0) * spp, unit_stats
 
     done = 0
@@ -381,9 +418,20 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
                 progress(done, num_pixels * spp)
     seconds = time.perf_counter() - start
 
-    mean = total / spp
+    replicates = len(passes)
+    if replicates > 1:  # the mean of the replicate means; the variance of that mean from their spread
+        mean = total
+        var_of_mean = total_sq / (replicates - 1) / replicates
+        if ctx.mutant == "replicates-ddof0":  # planted fault: the biased variance of the replicate means
+            var_of_mean = total_sq / replicates / replicates
+        dof = replicates - 1
+    else:
+        mean = total / spp
+        dof = spp - 1 if spp > 1 else None
     if not ctx.has_lights:
         var_of_mean = np.zeros_like(mean)
+    elif replicates > 1:
+        pass
     elif spp > 1:
         sample_var = np.maximum(total_sq - total * total / spp, 0.0) / (spp - 1)
         var_of_mean = sample_var / spp
@@ -396,35 +444,39 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
         stats=stats,
         seconds=seconds,
         settings=settings,
+        variance_dof=dof,
     )
 
 
 def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None,
-                        finish: bool = True) -> np.ndarray:
+                        sampling: _Sampling | None = None, finish: bool = True) -> np.ndarray:
     """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16. ``record``:
     buffers for the glossy engine's rays (:mod:`reference_impl.kernels.record`, used by :mod:`reference_impl.replay`;
-    the other engines' rays are recorded from the wavefront's batched queries). ``finish`` = False leaves the
-    planted fault "energy-loss-2pct" and the count of non-finite samples to the caller
-    (:func:`kernels.film.finish_and_accumulate`, in the same pass as the pixel sums)."""
+    the other engines' rays are recorded from the wavefront's batched queries). ``sampling``: the pass the samples
+    belong to (a replicate), by default the render's own. ``finish`` = False leaves the planted fault
+    "energy-loss-2pct" and the count of non-finite samples to the caller (:func:`kernels.film.finish_and_accumulate`,
+    in the same pass as the pixel sums)."""
     kernels = _kernels()
+    sampling = sampling or ctx.sampling
+    config, seed, seed_key, spp = sampling.config, sampling.seed, sampling.seed_key, sampling.spp
     width, height = ctx.film.width, ctx.film.height
     tan_x, tan_y = ctx.tan_half_fov
     n = len(pixel)
-    sobol = ctx.config.sampler == kernels.config.SAMPLER_SOBOL
+    sobol = config.sampler == kernels.config.SAMPLER_SOBOL
     if ctx.filter_kind == kernels.config.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
         if sobol:
-            ux, uy = rng.sobol_2d(rng.pixel_keys(ctx.settings.seed, pixel), sample, ctx.settings.spp, rng.dimension(0, rng.FILM_X))
+            ux, uy = rng.sobol_2d(rng.pixel_keys(seed, pixel), sample, spp, rng.dimension(0, rng.FILM_X))
         else:
-            keys = rng.path_keys(ctx.settings.seed, pixel.astype(np.uint64) * np.uint64(ctx.settings.spp) + sample.astype(np.uint64))
+            keys = rng.path_keys(seed, pixel.astype(np.uint64) * np.uint64(spp) + sample.astype(np.uint64))
             ux, uy = rng.uniform(keys, rng.dimension(0, rng.FILM_X)), rng.uniform(keys, rng.dimension(0, rng.FILM_Y))
         filter_samples = ctx.filter.sample(ux, uy)
     else:
         filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
     first = _view(ctx.workspace().state(0, n), n)
-    film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), ctx.seed_key)
-    half_pixel = (ctx.config.mutant & kernels.config.M_CAMERA_HALF_PIXEL) != 0  # mutant "camera-half-pixel"
+    film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), seed_key)
+    half_pixel = (config.mutant & kernels.config.M_CAMERA_HALF_PIXEL) != 0  # mutant "camera-half-pixel"
     kernels.camera.camera_paths(
-        film_samples[0], film_samples[1], ctx.seed_key, ctx.config.spp, width, height, ctx.filter_kind,
+        film_samples[0], film_samples[1], seed_key, config.spp, width, height, ctx.filter_kind,
         filter_samples, half_pixel, tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
     )
     radiance = ctx.workspace().radiance(n)
@@ -434,22 +486,22 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     if ctx.glossy_engine:
         timing = np.zeros(2, np.int64)
         kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                    ctx.material_tables, ctx.config, radiance, counters, timing, ctx.emitter_tables,
+                                    ctx.material_tables, config, radiance, counters, timing, ctx.emitter_tables,
                                     film_samples, record)
         clock.seconds += timing[0] * 1e-9
     elif ctx.packet_engine:
         timing = np.zeros(2, np.int64)
         kernels.packet.trace_packets(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                     ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples)
+                                     ctx.surface_tables, config, radiance, counters, timing, film_samples)
         clock.seconds += timing[0] * 1e-9
     elif ctx.path_engine:
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                 ctx.surface_tables, ctx.config, radiance, counters, timing, film_samples,
+                                 ctx.surface_tables, config, radiance, counters, timing, film_samples,
                                  ctx.emitter_tables)
         clock.seconds += timing[0] * 1e-9
     else:
-        _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples)
+        _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)
     if finish:
         counters[kernels.config.C_NONFINITE] += kernels.film.finish_samples(radiance, 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0)
     for name, count in zip(COUNTERS, counters.tolist()):
@@ -459,7 +511,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
 
 
 def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock,
-           film_samples: tuple) -> None:
+           film_samples: tuple, config) -> None:
     """Advance the wavefront until every path has ended. With Ni = 1 it never grows: it lives in the thread's
     workspace, the next wavefront written into the other half of it. With Ni > 1 it grows; each next wavefront is
     new memory, and a wavefront is split at camera-sample boundaries, so each sample's contributions are still
@@ -468,7 +520,8 @@ def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, c
         ws = ctx.workspace()
         current = 0  # state is in wavefront buffer 0 (the camera rays)
         while len(state):
-            state = _bounce(ctx, state, depth, radiance, counters, clock, ws.state(1 - current, len(state)), film_samples)
+            state = _bounce(ctx, state, depth, radiance, counters, clock, ws.state(1 - current, len(state)), film_samples,
+                            config)
             current = 1 - current
             depth += 1
         return
@@ -478,16 +531,16 @@ def _trace(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, c
             if mid == 0:
                 mid = np.searchsorted(state.root, state.root[0], side="right")
             if mid < len(state):
-                _trace(ctx, state.take(slice(0, mid)), depth, radiance, counters, clock, film_samples)
-                _trace(ctx, state.take(slice(mid, None)), depth, radiance, counters, clock, film_samples)
+                _trace(ctx, state.take(slice(0, mid)), depth, radiance, counters, clock, film_samples, config)
+                _trace(ctx, state.take(slice(mid, None)), depth, radiance, counters, clock, film_samples, config)
                 return
         state = _bounce(ctx, state, depth, radiance, counters, clock, _alloc_state(len(state) * ctx.settings.indirect_rays),
-                        film_samples)
+                        film_samples, config)
         depth += 1
 
 
 def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, counters: np.ndarray, clock: _Clock,
-            out: tuple, film_samples: tuple) -> _PathState:
+            out: tuple, film_samples: tuple, config) -> _PathState:
     """Find the hits x of the current rays (vertex number ``depth``), add their contributions and return the rays
     of the next wavefront (written into ``out``, room for Ni rows per current row)."""
     kernels = _kernels()
@@ -502,7 +555,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     hits, total, rays = ws.direct(len(state))
     crays = ws.complement_rays()
     m, s, n_next, c = kernels.wavefront.bounce(
-        state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.bounce_config(depth),
+        state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, config._replace(depth=depth),
         radiance, counters, hits, rays, out, film_samples, ctx.emitter_tables, crays,
     )
     if m:
@@ -515,7 +568,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             clock.seconds += time.perf_counter() - t0
             kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
                                        s_prim, ctx.scene_tables[0], ctx.scene_tables[1], ctx.scene_tables[4],
-                                       total, radiance, ctx.config, ctx.emitter_tables)
+                                       total, radiance, config, ctx.emitter_tables)
         else:
             t0 = time.perf_counter()
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])

@@ -8,8 +8,8 @@ are not surfaces (point, spot, directional, environments), ``BSDF_MUTANTS`` thos
 accepts.
 
 They exist so that tests and the harness's verdict can prove that they catch real mistakes: a verdict that passes
-one of these at its default budget is not sharp enough. None runs by default. "energy-loss-2pct" lives in
-``reference_impl/integrator.py`` (guarded by ``_Context.mutant``), the others in the compiled kernels of
+one of these at its default budget is not sharp enough. None runs by default. "energy-loss-2pct" and
+"replicates-ddof0" live in ``reference_impl/integrator.py`` (guarded by ``_Context.mutant``), the others in the compiled kernels of
 ``reference_impl/kernels/``, as bits of ``kernels.config.MUTANT_BITS`` in the kernels' configuration; every place a
 fault changes is marked with a comment naming it.
 """
@@ -26,6 +26,10 @@ MUTANTS: dict[str, str] = {
     "camera-half-pixel": "viewing rays shifted by half a pixel (right and down)",
     "no-ray-offset": "shadow rays start exactly on the surface (no self-intersection offset)",
     "energy-loss-2pct": "every camera sample's radiance scaled by 0.98 (a 2 % energy loss)",
+    "replicates-ddof0": (
+        "with replicates > 1, the variance of the pixel mean taken as the replicate means' squared deviations / R^2 "
+        "(the biased variance, numpy's ddof = 0) instead of / (R (R - 1)): half the true variance at R = 2"
+    ),
 }
 
 EMITTER_MUTANTS: dict[str, str] = {

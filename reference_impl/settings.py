@@ -10,6 +10,7 @@ from reference_impl.emitters import ENV_SAMPLINGS
 from reference_impl.errors import SettingsError
 from reference_impl.lights import LIGHT_SELECTIONS
 from reference_impl.mutants import ALL_MUTANTS
+from reference_impl.rng import _mix64_int
 
 DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis", "bsdf")
 #: the strategies the glossy engine (kernels/glossy.py, scenes with a non-diffuse material) runs
@@ -32,7 +33,15 @@ class Settings:
                     dimensions, Burley 2020; deeper vertices as "independent"), or "independent" (every uniform an
                     independent hash of the path, the dimension and the seed: the slides' plain Monte Carlo). Each
                     sample is uniform either way (unbiased). With "sobol" a pixel's samples are not independent: its
-                    sample variance / Np over-estimates the variance of its mean (a conservative verdict).
+                    sample variance / Np over-estimates the variance of its mean (a conservative verdict), unless
+                    ``replicates`` > 1.
+    replicates      [R] independent randomised replicates of each pixel's Np samples (beyond the slides): the
+                    samples are split into R groups of Np / R (sizes differing by at most one), each an
+                    independently seeded render of its own (its own scrambles and random streams); the pixel's
+                    estimate is the mean of the R group means and its variance the sample variance of the group
+                    means / R, an unbiased estimate with R - 1 degrees of freedom whatever the sampler (Owen 1997;
+                    L'Ecuyer and Lemieux 2002). 1, the default, is one point set per pixel: the lowest error, and
+                    with "sobol" a variance that is only an upper bound. R > Np is taken as Np.
     shadow_rays     [Nd] direct-light samples per hit.
     direct          how they are drawn: "area" (pick light k with pdf(k), a point y with pdf(y|k); Fig. 5.7, 5.8,
                     5.10), "hemisphere-cosine" / "hemisphere-uniform" (Fig. 5.12), "global-area" (Fig. 5.13), "mis"
@@ -70,6 +79,7 @@ class Settings:
     spp: int = 16
     seed: int = 0
     sampler: str = "sobol"
+    replicates: int = 1
     shadow_rays: int = 1
     direct: str = "auto"
     light_selection: str = "power"
@@ -87,6 +97,7 @@ class Settings:
 
     def __post_init__(self) -> None:
         _positive_int(self, "spp")
+        _positive_int(self, "replicates")
         _positive_int(self, "shadow_rays")
         _positive_int(self, "indirect_rays")
         _positive_int(self, "rr_depth")
@@ -149,6 +160,20 @@ class Settings:
         if self.rr == "auto":
             return "pbrt" if glossy else "albedo"
         return self.rr
+
+    def replicate_sizes(self) -> tuple[int, ...]:
+        """The samples per pixel of each of the ``min(replicates, spp)`` replicates: ``spp`` split as evenly as
+        possible, the larger ones first."""
+        count = min(self.replicates, self.spp)
+        base, extra = divmod(self.spp, count)
+        return tuple(base + (1 if r < extra else 0) for r in range(count))
+
+    def replicate_seed(self, r: int) -> int:
+        """The seed of replicate ``r``: ``seed`` itself for r = 0 (so one replicate is the render it always was),
+        else a 63-bit hash of (seed, r), independent of it."""
+        if r == 0:
+            return self.seed
+        return _mix64_int(_mix64_int(self.seed ^ 0x5851F42D4C957F2D) + r * 0x9E3779B97F4A7C15) >> 1
 
     def worker_threads(self) -> int:
         return self.threads or (os.cpu_count() or 1)

@@ -19,10 +19,11 @@ from harness.cli import (
     report,
     run,
     stress,
+    view,
 )
 
 #: The commands in the order ``harness --help`` lists them.
-COMMANDS = (render, ground_truth, compare, run, baseline, report, convergence, calibrate, export, bench, stress)
+COMMANDS = (render, ground_truth, compare, run, baseline, report, view, convergence, calibrate, export, bench, stress)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -9,13 +9,17 @@ import sys
 from pathlib import Path
 
 from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, progress_bar
+from harness.core.limits import render_seconds
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
 from harness.renderers import RenderRequest, get_renderer, groundtruth, renderer_names
 from harness.report import write_convergence_report
 from harness.scene import load_scene
-from harness.studies.convergence import Series, parse_ladder, replace_film, run_convergence
+from harness.studies.convergence import Series, parse_ladder, replace_film, run_convergence, spectrum_balance
+
+
+MAX_REPEATS = 1000  # the spread of 1000 runs is known to 2 %: more would measure nothing new
 
 
 class _SeriesAction(argparse.Action):
@@ -52,6 +56,9 @@ def register(sub, common) -> None:
                         help="Mitsuba ground-truth spp (default 1024)")
     parser.add_argument("--seed", type=options.non_negative_int, default=1,
                         help="first seed; every render gets its own (default 1)")
+    parser.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, what=f"an integer from 1 to {MAX_REPEATS}"),
+                        default=1, help="independent renders (distinct seeds) per rung: E[MSE], its spread and the error "
+                        "spectrum ensemble over them (default 1)")
     parser.add_argument("--k", type=options.positive_number, default=3.0,
                         help="multiple of the expected scatter that flags bias (default 3)")
     parser.set_defaults(func=run, series=None, common_settings={})
@@ -95,12 +102,13 @@ def run(args: argparse.Namespace) -> int:
     if seconds:  # each rung renders chunks until its seconds are spent, per curve: at most a budget's 24 h
         check_cost(scene, None, "--seconds", seconds=max(seconds))
     _check_series(scene, series, ([max(spp)] if spp else []) + ([args.chunk_spp] if seconds else []), args.seed)
+    check_cost(scene, None, "--repeats", seconds=_ladder_seconds(scene, spp, seconds, args.repeats * len(series)))
     bar = progress_bar(args, f"convergence {scene.name}", "render", total=len(series) * (len(spp) + len(seconds)))
     try:
         gt = groundtruth.ground_truth(scene, spp=args.ground_truth_spp, cache_dir=args.cache_dir,
                                       variant=args.mitsuba_variant)
         result = run_convergence(scene, gt, series, spp=spp, seconds=seconds, seed=args.seed, chunk_spp=args.chunk_spp,
-                                 k=args.k, variant=args.mitsuba_variant,
+                                 k=args.k, variant=args.mitsuba_variant, repeats=args.repeats, spectrum=True,
                                  progress=(lambda _: bar.update(1)) if bar is not None else None)
     finally:
         if bar is not None:
@@ -114,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
         flag = f"; flattens from {fit['departure_spp']:g} spp (bias?)" if fit.get("biased") else ""
         timing = f"; render time: {s['time_from']}" if s.get("time_from") else ""
         print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}{timing}", file=human)
+        for line in _rung_lines(s["points"]):
+            print(f"  {line}", file=human)
     comparison = (result.get("comparisons") or {}).get("rmse_corrected")
     if comparison and comparison["equal_time"].get("time"):
         et = comparison["equal_time"]
@@ -129,6 +139,37 @@ def run(args: argparse.Namespace) -> int:
         print(Path(paths["report_json"]).read_text())
     print(f"wrote {paths['index']} and {paths['report_json']}", file=human)
     return EXIT_OK
+
+
+def _ladder_seconds(scene, spp: list[int], seconds: list[float], runs: int) -> float:
+    """The estimated render time of every rung, ``runs`` times (K repeats of every curve): a --repeats whose
+    whole study breaks the 24 h limit is refused before anything renders."""
+    return runs * (sum(render_seconds(scene.film.width, scene.film.height, n) for n in spp) + sum(seconds))
+
+
+def _rung_lines(points: list[dict]) -> list[str]:
+    """Per rung: E[MSE] (corrected) with its spread over the repeats, and where the error's power lies."""
+    lines = []
+    for p in points:
+        budget = p["budget"]
+        where = f"{budget['spp']} spp" if "spp" in budget else f"{budget['seconds']:g} s"
+        text = f"{where}: MSE {_num(p.get('mse_corrected'))}"
+        spread = p.get("repeats")
+        if spread:
+            band = spread.get("mse_corrected_band") or [None, None]
+            text = (f"{where}: E[MSE] {_num(p.get('mse_corrected'))} over {spread['k']} runs (sd "
+                    f"{_num(spread.get('mse_corrected_std'))}, 10-90 % {_num(band[0])} .. {_num(band[1])})")
+        spectrum = p.get("spectrum")
+        if spectrum:
+            low, high = spectrum_balance(spectrum)
+            text += (f"; error spectrum: lowest tenth of frequencies {_num(low)}, upper half {_num(high)} "
+                     f"(floor {_num(spectrum['floor'])} removed; the render's own variance {_num(spectrum.get('render_variance'))})")
+        lines.append(text)
+    return lines
+
+
+def _num(value) -> str:
+    return "n/a" if value is None else f"{value:.3g}"
 
 
 def _missing(comparison: dict, label: str) -> str:

@@ -9,9 +9,10 @@ import json
 
 from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
 from harness.core import options
-from harness.core.options import require_non_negative, require_positive
+from harness.core.errors import HarnessError
+from harness.core.options import parse_set, require_non_negative, require_positive
 from harness.files import imageio
-from harness.renderers import groundtruth
+from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.scene import load_scene
 
 
@@ -19,7 +20,15 @@ def register(sub, common) -> None:
     """Add ``ground-truth`` to the subparsers ``sub``."""
     parser = common.own()
     parser.add_argument("scene", help=SCENE_HELP)
-    parser.add_argument("--spp", type=options.positive_int, default=1024, help="samples per pixel (default 1024)")
+    parser.add_argument("--spp", type=_spp_or_auto, default=1024,
+                        help="samples per pixel (default 1024), or auto: enough that the ground truth's variance is at "
+                        "most 1/4 of a test render's at --test-spp (pilot renders of both renderers)")
+    parser.add_argument("--test-spp", type=options.positive_int, default=64,
+                        help="with --spp auto: the test render's spp (default 64, the suites' default case budget)")
+    parser.add_argument("--test-renderer", default="reference",
+                        help="with --spp auto: the renderer judged against this ground truth (default reference)")
+    parser.add_argument("--test-set", action="append", default=[], metavar="KEY=VALUE",
+                        help="with --spp auto: a setting of the test renderer (repeatable)")
     parser.add_argument("--seed", type=options.non_negative_int, default=0,
                         help="seed every chunk's seed is derived from (default 0; part of the cache key)")
     parser.add_argument("--chunk-spp", type=options.positive_int, default=256,
@@ -36,13 +45,47 @@ def register(sub, common) -> None:
                  common.allow_outside_paths()])
 
 
+def _spp_or_auto(text: str) -> int | str:
+    """``--spp``: a positive integer or ``auto``."""
+    return "auto" if str(text).strip().lower() == "auto" else options.positive_int(text)
+
+
 def run(args: argparse.Namespace) -> int:
     """Fetch or render the ground truth; print its source and path (or, with ``--json``, a summary)."""
-    require_positive("--spp", args.spp)
+    auto = args.spp == "auto"
+    if not auto:
+        require_positive("--spp", args.spp)
+        for option, given in (("--test-set", args.test_set), ("--test-renderer", args.test_renderer != "reference"),
+                              ("--test-spp", args.test_spp != 64)):
+            if given:
+                raise HarnessError(option, "applies only with --spp auto")
     require_positive("--chunk-spp", args.chunk_spp)
     require_non_negative("--seed", args.seed)
     out = exr_out_path(args.out) if args.out is not None else None
     scene = load_scene(args.scene)
+    test_settings = parse_set(args.test_set)
+    if auto:
+        check_cost(scene, args.test_spp, "--test-spp")
+        try:
+            renderer = get_renderer(args.test_renderer)
+        except HarnessError as err:
+            raise HarnessError("--test-renderer", err.message) from None
+        check = getattr(renderer, "check", None) if args.test_renderer in ("reference", "mitsuba") else None
+        if check is not None:  # its settings checked before any pilot renders
+            try:
+                check(scene, RenderRequest(spp=args.test_spp, settings=test_settings))
+            except HarnessError as err:
+                where = err.where.replace("--set ", "--test-set ") if err.where.startswith("--set ") else err.where
+                raise HarnessError(where, err.message) from None
+    chosen = None
+    if auto and not (scene.closed_form and not args.no_closed_form):
+        chosen = groundtruth.auto_spp(scene, test_spp=args.test_spp, test_renderer=args.test_renderer,
+                                      test_settings=test_settings, variant=args.mitsuba_variant, seed=args.seed)
+        args.spp = chosen.spp
+        if not args.json:
+            print(f"{scene.name}: --spp auto chose {chosen.reason()}")
+    elif auto:
+        args.spp = 1  # a closed form: nothing to render
     for option, value in (("--spp", args.spp), ("--chunk-spp", args.chunk_spp)):
         check_cost(scene, value, option)  # with a closed form too: a budget no render could meet is a typo
     bar, progress = path_progress(args, f"ground truth {scene.name}")
@@ -62,6 +105,7 @@ def run(args: argparse.Namespace) -> int:
         "scene": str(scene.path), "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
         "seconds": gt.seconds, "path": str(gt.path) if gt.path else None, "out": str(out) if out else None,
         "mean_radiance": [float(v) for v in gt.image.astype(float).mean(axis=(0, 1))], "info": gt.info,
+        **({"auto": chosen.to_dict()} if chosen is not None else {}),
     }
     if args.json:
         print(json.dumps(summary, indent=2))

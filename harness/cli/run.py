@@ -14,6 +14,7 @@ from harness.core.errors import HarnessError
 from harness.report import write_suite_report
 from harness.running import baseline, executors, junit, result_cache, runstate
 from harness.files import imageio
+from harness.files.calibration import read_calibration
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
 
@@ -63,6 +64,8 @@ def run(args: argparse.Namespace) -> int:
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
+    if getattr(args, "calibration", None) and not args.no_report:
+        read_calibration(args.calibration)  # a bad --calibration: one line now, not after the suite
     if gate is not None and gate.warning():
         print(gate.warning(), file=sys.stderr)
     created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails
@@ -74,6 +77,13 @@ def run(args: argparse.Namespace) -> int:
         def on_case(index: int, record: dict) -> None:
             if gate is not None:
                 gate.check(suite.cases[index], record)
+            warning = (record.get("ground_truth_noise") or {}).get("warning")
+            if warning:  # once per case; above the bar where there is one
+                line = f"warning: {record['name']}: {warning}"
+                if bar is not None:
+                    bar.write(line, file=sys.stderr)
+                else:
+                    print(line, file=sys.stderr)
             if bar is not None:
                 bar.set_postfix_str(f"{record['name']}: {record['status']}")
                 bar.update(1)
@@ -110,7 +120,8 @@ def run(args: argparse.Namespace) -> int:
         baseline_lines = gate.finish(results, out) if gate is not None else []
         summary = results["summary"]
         print(f"{suite.name}: {summary['ok']}/{summary['cases']} cases as expected "
-              f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors) in "
+              f"({summary['passed']} passed, {summary['failed']} failed, {summary['errors']} errors"
+              f"{', ' + str(summary['skipped']) + ' skipped' if summary.get('skipped') else ''}) in "
               f"{summary['wall_seconds']:.1f} s; {summary['mitsuba_renders']} Mitsuba renders; "
               f"{summary['from_cache']} cases from the cache; {out / 'results.json'}")
         for name in summary["unexpected"]:

@@ -47,7 +47,8 @@ def study_options(args: argparse.Namespace) -> StudyOptions:
 def report_options(args: argparse.Namespace) -> ReportOptions:
     """The report's options: which studies' sections the page shows."""
     return ReportOptions(convergence=not args.no_convergence, shadow_rays=not args.no_shadow_rays,
-                         strategies=not args.no_strategies, progress=_progress(args))
+                         strategies=not args.no_strategies, progress=_progress(args),
+                         calibration=Path(args.calibration) if getattr(args, "calibration", None) else None)
 
 
 def check_report_flags(args: argparse.Namespace) -> None:
@@ -102,3 +103,5 @@ def add_flags(parser: argparse.ArgumentParser, command: str) -> None:
     parser.add_argument("--no-strategies", action="store_true", help=f"{leave} the strategy comparison{also}")
     parser.add_argument("--no-strategy-renders", action="store_true",
                         help=f"compare only strategies the suite's cases cover{with_studies}")
+    parser.add_argument("--calibration", type=options.path_type("a calibration.json"), metavar="FILE",
+                        help="a calibration.json of harness calibrate: the page's definitions show its power table")

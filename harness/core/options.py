@@ -206,8 +206,33 @@ def spp_ladder(text: str) -> str:
     return text
 
 
+MAX_BUDGET_FACTOR = 64.0  # harness calibrate --budgets: 64 x a case's budget is already a day on some cases
+
+
+def budget_factors(text: str) -> str:
+    """An argparse ``type=`` for ``harness calibrate --budgets``: comma-separated factors of a case's budget,
+    strictly increasing, each > 0 and at most :data:`MAX_BUDGET_FACTOR`; the text is returned as given."""
+    values = parse_ladder(text, float)
+    if values[-1] > MAX_BUDGET_FACTOR:
+        raise argparse.ArgumentTypeError(f"expected factors of at most {MAX_BUDGET_FACTOR:g}, got {values[-1]:g}")
+    return text
+
+
 def seconds_ladder(text: str) -> str:
     """An argparse ``type=`` for a comma-separated ladder of seconds (strictly increasing, finite, > 0); an empty
     one is refused (it has no default to stand for)."""
     parse_ladder(text, float)
     return text
+
+
+_HOST_PORT = re.compile(r"(?:\[([0-9A-Fa-f:.]+)\]|([A-Za-z0-9.-]+)):([0-9]{1,5})")
+
+
+def host_port(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (a name or IPv4 address, or an IPv6 address in brackets, ``[::1]:14158``; the port 1 to 65535)
+    as (host, port)."""
+    match = _HOST_PORT.fullmatch(text) if isinstance(text, str) else None
+    if not match or not 1 <= int(match[3]) <= 65535:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT with a port from 1 to 65535, e.g. 127.0.0.1:14158, "
+                                         f"got {short(text)}")
+    return (match[1] or match[2], int(match[3]))

@@ -65,6 +65,9 @@ def read_case_images(record: dict, results_dir: Path) -> CaseImages:
     Paths in results.json are as ``harness run`` was given them; a file that moved with its results folder is
     found under ``results_dir/cases/<slug>/`` (``render.exr``, ``ground_truth.exr``)."""
     out = CaseImages()
+    if record.get("status") == "skipped":
+        out.problems.append(f"no render: {record.get('reason') or 'the case was skipped'}")
+        return out
     if record.get("status") == "error" or not record.get("render"):
         out.problems.append("no render: the case ended in an error")
         return out

@@ -111,7 +111,7 @@ def read_report_images(record: dict, results_dir: Path) -> ReportImages | None:
     ``results_dir/cases/<case>/images`` (a results folder that moved). The record's file names are names, never
     paths (the schema checks it; checked here too, for records given as a dict)."""
     entry = record.get("report_images")
-    if record.get("status") == "error" or not isinstance(entry, dict):
+    if record.get("status") in ("error", "skipped") or not isinstance(entry, dict):
         return None
     specs = entry.get("images")
     if not isinstance(specs, list) or [s.get("key") if isinstance(s, dict) else None for s in specs] != list(KEYS):

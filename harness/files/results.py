@@ -24,7 +24,7 @@ from typing import Any
 
 from harness.core.errors import HarnessError, read_user_text
 
-__all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "read_results"]
+__all__ = ["MAX_DEPTH", "SCHEMA", "check_results", "check_spec", "read_results"]
 
 SCHEMA = 1
 #: deepest nesting accepted anywhere (harness run writes at most 6 levels)
@@ -315,10 +315,10 @@ REPORT_IMAGE = Obj({"key": NAME, "title": STR, "exr": FILE_NAME, "png": FILE_NAM
 REPORT_IMAGES = Obj({"folder": STR, "error_maps": DictOf(NUM_OR_NULL), "images": ListOf(REPORT_IMAGE)})
 
 CASE_ALWAYS = {"name": NAME, "scene": STR, "renderer": STR, "settings": DictOf(STR), "budget": BUDGET, "seed": COUNT,
-               "expect": Enum("pass", "fail"), "against": AGAINST, "status": Enum("pass", "fail", "error"),
+               "expect": Enum("pass", "fail"), "against": AGAINST, "status": Enum("pass", "fail", "error", "skipped"),
                "ok": BOOL, "reason": STR, "definition": STR, "wall_seconds": Nullable(SECONDS)}
 CASE_COMPARED = {"metrics": METRICS, "verdict": VERDICT, "thresholds": DictOf(NUMBER),
-                 "thresholds_broken": ListOf(STR), "render": RENDER}  # required unless status is "error"
+                 "thresholds_broken": ListOf(STR), "render": RENDER}  # required unless status is error or skipped
 MACHINE = {"node": STR, "cpu": Nullable(STR), "logical_cores": Nullable(POSITIVE_INT), "gpus": ListOf(STR)}
 SYSTEM = Obj({**MACHINE, "os": STR, "python": STR, "numpy": Nullable(STR), "numba": Nullable(STR),
               "embreex": Nullable(STR), "embree": Nullable(STR),
@@ -328,8 +328,16 @@ CACHED = Obj({"from": Nullable(STR), "key": STR}, {"machine": Obj(optional=MACHI
 
 VERDICT_MAPS = Obj({"pvalue": NAME, "failing": NAME})
 
+GROUND_TRUTH_NOISE = Obj({"ratio": NON_NEGATIVE, "limit": POSITIVE, "ground_truth_spp": COUNT,
+                          "suggested_spp": Nullable(POSITIVE_INT), "warning": Nullable(STR)})
+
+VIEWER = Obj({"folder": STR, "data": FILE_NAME, "thumbnail": FILE_NAME, "pvalue": Nullable(FILE_NAME),
+              "p_histogram": Nullable(Obj({"bins": POSITIVE_INT, "counts": ListOf(COUNT), "tested": COUNT,
+                                           "failing": COUNT}))})
+
 CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
-                 "verdict_maps": VERDICT_MAPS, "cached": CACHED}
+                 "verdict_maps": VERDICT_MAPS, "viewer": VIEWER, "cached": CACHED,
+                 "ground_truth_noise": GROUND_TRUTH_NOISE, "requires": ListOf(STR)}
 
 
 class _Case(Spec):
@@ -340,13 +348,14 @@ class _Case(Spec):
     errored = Obj(CASE_ALWAYS, {**CASE_COMPARED, **CASE_OPTIONAL})
 
     def check(self, value: Any, path: JsonPath) -> None:
-        spec = self.errored if isinstance(value, dict) and value.get("status") == "error" else self.compared
+        judged = not isinstance(value, dict) or value.get("status") not in ("error", "skipped")
+        spec = self.compared if judged else self.errored
         spec.check(value, path)
 
 
 SUMMARY = Obj({"cases": COUNT, "ok": COUNT, "passed": COUNT, "failed": COUNT, "errors": COUNT,
                "unexpected": ListOf(STR), "mitsuba_renders": COUNT, "resumed": COUNT, "ground_truth_cached": COUNT,
-               "wall_seconds": SECONDS})
+               "wall_seconds": SECONDS}, {"skipped": COUNT, "from_cache": COUNT})
 
 RESULTS = Obj({"schema": Scalar(f"{SCHEMA} (the schema this harness reads)", lambda v: _is_int(v) and v == SCHEMA),
                "suite": STR, "suite_file": STR, "description": STR, "started": STR,
@@ -356,6 +365,15 @@ RESULTS = Obj({"schema": Scalar(f"{SCHEMA} (the schema this harness reads)", lam
 
 
 # ---- reading ----------------------------------------------------------------------------------------------------
+
+
+def check_spec(spec: Spec, doc: Any, where: str) -> None:
+    """``doc`` checked against ``spec`` (another file of the harness's own, checked the same way: calibration.json);
+    the first malformation is a one-line HarnessError at ``where`` and its JSON path."""
+    try:
+        spec.check(doc, ())
+    except _Bad as bad:
+        raise HarnessError(f"{where}: {format_path(bad.path)}", bad.message) from None
 
 
 def check_results(doc: Any, where: str, hint: str = "") -> dict:

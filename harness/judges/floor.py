@@ -15,7 +15,11 @@ import numpy as np
 
 from harness.judges.metrics import RELMSE_EPS
 
-__all__ = ["error_point"]
+#: the most of the test render's variance a ground truth's own variance may be: beyond it the verdict's noise is
+#: more than 1.25 x the test's alone, and the ground truth, not the test's budget, limits what it can see
+GROUND_TRUTH_SHARE_LIMIT = 0.25
+
+__all__ = ["GROUND_TRUTH_SHARE_LIMIT", "error_point", "ground_truth_share", "spp_for_share"]
 
 
 def error_point(image: np.ndarray, expected: np.ndarray, expected_variance: np.ndarray | None,
@@ -64,3 +68,30 @@ def error_point(image: np.ndarray, expected: np.ndarray, expected_variance: np.n
         relmse_corrected=relmse_c, rmse=math.sqrt(mse), rmse_corrected=math.sqrt(mse_c) if mse_c > 0 else None,
         scatter_log_rmse=s_rmse, scatter_log_relmse=None if s_rel is None else 2.0 * s_rel,
     )
+
+
+def ground_truth_share(test_variance: np.ndarray, expected_variance: np.ndarray) -> float | None:
+    r"""The ground truth's mean per-pixel variance over the test render's, :math:`\bar V_{gt} / \bar V_T`, over the
+    pixels and channels where both are finite; None where the test's is 0 (a noiseless test: no ratio).
+
+    Notes
+    -----
+    The verdict divides each difference by :math:`\sqrt{V_T + V_{gt}}`: a ground truth with variance r V_T makes
+    every z smaller by :math:`\sqrt{1 + r}` than the test's own noise allows, so an error the test's budget could
+    reveal is hidden. At r <= 1/4 (:data:`GROUND_TRUTH_SHARE_LIMIT`) the loss is at most 1 - 1/sqrt(1.25) = 11 %
+    of every z.
+    """
+    t = np.asarray(test_variance, dtype=np.float64)
+    g = np.asarray(expected_variance, dtype=np.float64)
+    ok = np.isfinite(t) & np.isfinite(g)
+    if not ok.any():
+        return None
+    test_mean, truth_mean = float(t[ok].mean()), float(g[ok].mean())
+    return truth_mean / test_mean if test_mean > 0 else None
+
+
+def spp_for_share(spp: int, share: float, limit: float = GROUND_TRUTH_SHARE_LIMIT) -> int:
+    """The spp that brings a ground truth rendered at ``spp`` with variance ratio ``share`` to at most ``limit``
+    (its variance falls as 1 / spp), rounded up to a power of two; at least ``spp``."""
+    need = max(float(spp), spp * share / limit)
+    return max(int(spp), 1 << max(0, math.ceil(math.log2(need) - 1e-12)))

@@ -31,8 +31,11 @@ explains the choices, the false-alarm rate, the power and the assumptions.
 When the variances are themselves estimated from few samples, the degrees of
 freedom of each pixel's variance estimate (spp - 1) may be given: a tile's z
 is then referred to Student's t with Welch-Satterthwaite degrees of freedom
-and converted to the normal quantile of equal tail probability before the
-sub-tests.  Without them, variances are taken as exact (z ~ N(0, 1)).
+nu = (sum_p v_p)^2 / sum_p v_p^2 / (nu_p + 2) (the plug-in v_p^2 / nu_p
+over-states sigma_p^4 / nu_p by 1 + 2 / nu_p, threefold for the one degree of
+freedom of two replicates) and converted to the normal quantile of equal tail
+probability before the sub-tests.  Without them, variances are taken as
+exact (z ~ N(0, 1)).
 
 References
 ----------
@@ -354,7 +357,7 @@ def verdict(
     v_raw = vt + vr
     scale = np.where(m, np.maximum(np.abs(np.where(m, t, 0.0)), np.abs(r)), 0.0)
     v_eff = v_raw + (rtol * scale) ** 2
-    welch = vt**2 / nu_t + vr**2 / nu_r  # sum_p v_p^2 / nu_p; the rounding floor has nu = inf
+    welch = vt**2 / (nu_t + 2) + vr**2 / (nu_r + 2)  # sum_p sigma_p^4 / nu_p, estimated; the rounding floor: nu = inf
 
     # --- tiles -------------------------------------------------------------
     n = _tile_sum(m.astype(np.float64), tile)

@@ -33,6 +33,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
+from harness.judges.floor import spp_for_share
 from harness.judges.moments import Estimate, merge
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.mitsuba import choose_variant
@@ -442,6 +443,72 @@ def ground_truth(
     merged = _stored(cache, full_key, merged)
     return GroundTruth(merged.mean.astype(np.float32), merged.variance.astype(np.float32), "mitsuba", spp,
                        info=meta, cached=renders == 0, renders=renders, seconds=seconds, path=path)
+
+
+#: samples per pixel of each pilot render of :func:`auto_spp`
+PILOT_SPP = 16
+
+
+@dataclass(frozen=True)
+class AutoSpp:
+    """The ground truth's spp chosen by :func:`auto_spp`, and why: ``ratio`` is the ground-truth renderer's
+    per-sample variance over the test renderer's (means over pixels and channels, from ``pilot_spp`` pilots)."""
+
+    spp: int
+    test_spp: int
+    ratio: float
+    test_per_sample: float
+    ground_truth_per_sample: float
+    pilot_spp: int
+    test_renderer: str
+    variant: str
+
+    def reason(self) -> str:
+        need = 4.0 * self.test_spp * self.ratio
+        return (f"{self.spp} spp: the ground truth's variance at most 1/4 of the test's needs 4 x {self.test_spp} "
+                f"(test spp) x {self.ratio:.3g} (per-sample variance of Mitsuba {self.variant}, "
+                f"{self.ground_truth_per_sample:.3g}, over {self.test_renderer}'s, {self.test_per_sample:.3g}; "
+                f"{self.pilot_spp}-spp pilots) = {need:.4g} spp, rounded up to a power of 2")
+
+    def to_dict(self) -> dict:
+        return {"spp": self.spp, "test_spp": self.test_spp, "ratio": self.ratio,
+                "test_per_sample_variance": self.test_per_sample,
+                "ground_truth_per_sample_variance": self.ground_truth_per_sample, "pilot_spp": self.pilot_spp,
+                "test_renderer": self.test_renderer, "variant": self.variant, "reason": self.reason()}
+
+
+def auto_spp(scene: Scene, *, test_spp: int, test_renderer: str = "reference", test_settings: dict | None = None,
+             variant: str | None = None, pilot_spp: int = PILOT_SPP, seed: int = 0) -> AutoSpp:
+    r"""The spp of a Mitsuba ground truth whose variance is at most 1/4 of a test render's at ``test_spp``
+    (:data:`harness.judges.floor.GROUND_TRUTH_SHARE_LIMIT`): a pilot render of each renderer at ``pilot_spp`` gives
+    its per-sample variance :math:`\sigma^2 = \bar V \cdot n` (the variance of the mean times the samples), and
+    :math:`spp_{gt} \ge 4\, spp_{test}\, \sigma^2_{gt} / \sigma^2_{test}`, rounded up to a power of two, and
+    at least ``test_spp``.
+
+    Notes
+    -----
+    A variance of the mean falls as 1 / spp for independent samples; a stratified test renderer's falls faster, so
+    the ratio taken at the pilot's spp errs on the side of more ground-truth samples. The pilots are not cached.
+    """
+    variant = choose_variant(variant)
+    test = get_renderer(test_renderer).render(scene, RenderRequest(spp=pilot_spp, seed=seed,
+                                                                   settings=dict(test_settings or {})))
+    truth = get_renderer("mitsuba").render(scene, RenderRequest(spp=pilot_spp, seed=seed + 1,
+                                                                settings={"variant": variant}))
+    if test.variance is None:
+        raise HarnessError("--test-renderer", f"{test_renderer} wrote no variance: --spp auto needs its per-pixel "
+                                              "variance (a renderer file with repeats gives one)")
+    per_sample = []
+    for result in (test, truth):
+        v = np.asarray(result.variance, np.float64)
+        ok = np.isfinite(v)
+        per_sample.append(float(v[ok].mean()) * result.spp if ok.any() else 0.0)
+    if per_sample[0] <= 0:
+        raise HarnessError("--spp", f"auto: the {test_renderer} pilot has no variance (a noiseless render): any "
+                                    "ground truth spp is enough; give --spp N")
+    ratio = per_sample[1] / per_sample[0]
+    spp = spp_for_share(test_spp, ratio) if ratio > 0 else 1
+    return AutoSpp(spp, test_spp, ratio, per_sample[0], per_sample[1], pilot_spp, test_renderer, variant)
 
 
 def _base(scene: Scene, seed: int, variant: str) -> dict:

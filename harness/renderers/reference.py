@@ -77,8 +77,19 @@ class ReferenceRenderer:
             rays=rays,
             stats=stats,
             settings=settings.as_dict(),
-            info={"threads": settings.worker_threads(), "triangles": int(len(geometry.triangles))},
+            info=_info(settings, geometry, out),
         )
+
+
+def _info(settings: reference_impl.Settings, geometry, out) -> dict:
+    """The render's ``info``: threads and triangles, and with replicates (``--set replicates``) their number and
+    ``variance_dof`` = R - 1, which tells the verdict how many degrees of freedom the variance has (written to the
+    EXR by ``variance_metadata``)."""
+    info = {"threads": settings.worker_threads(), "triangles": int(len(geometry.triangles))}
+    replicates = len(settings.replicate_sizes())
+    if replicates > 1:
+        info.update(replicates=replicates, variance_dof=out.variance_dof)
+    return info
 
 
 def scene_is_glossy(scene: Scene) -> bool:

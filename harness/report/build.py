@@ -26,7 +26,12 @@ from harness.files.previews import ReportImage
 from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, studies_folder, study_file
+from harness.files.viewer_data import ViewerData
+from harness.report import viewer
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
+from harness.report import repeats
+from harness.report.notes import case_notes
+from harness.report.power import power_json, power_view
 from harness.report.reproduce import reproduce
 from harness.studies import figures
 
@@ -53,6 +58,7 @@ class ReportOptions:
     shadow_rays: bool = True
     strategies: bool = True
     progress: bool = False
+    calibration: Path | None = None  # a calibration.json whose power table the definitions show (harness.report.power)
 
 
 @dataclass
@@ -68,6 +74,8 @@ class ReportCase:
     images: list[ReportImage] = field(default_factory=list)
     problems: list[str] = field(default_factory=list)
     summary: dict = field(default_factory=dict)
+    viewer: ViewerData | None = None
+    verdict_maps: list[tuple[str, str]] = field(default_factory=list)  # (label, link from the page)
 
 
 def load_results(path: str | Path) -> dict:
@@ -92,6 +100,7 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
     section."""
     options = options or ReportOptions()
     start = time.perf_counter()
+    power = power_view(options.calibration)  # a bad --calibration: one line, before anything is written
     if isinstance(results, dict):
         if out_dir is None:
             raise ValueError("out_dir is required when results are given as a dict")
@@ -106,7 +115,7 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
         if results_path is not None:
             results = load_results(results_path)
         page_html, doc, summary_md = _suite_report(results, results_path, results_dir, studies, stage.root, options,
-                                                   start)
+                                                   start, power)
         atomic_write_text(stage.root / "report.json", jsonsafe.dumps(_relocate(doc, stage), indent=2))
         atomic_write_text(stage.root / "summary.md", stage.relocate(summary_md))
         atomic_write_text(stage.root / "index.html", stage.relocate(page_html).replace(str(escape(stage.root)),
@@ -128,7 +137,7 @@ def _relocate(value: Any, stage) -> Any:
 
 
 def _suite_report(results: dict, results_path: Path | None, results_dir: Path, studies_dir: Path, out: Path,
-                  options: ReportOptions, start: float) -> tuple[str, dict, str]:
+                  options: ReportOptions, start: float, power: dict | None = None) -> tuple[str, dict, str]:
     """The report's images written under ``out`` (the cases' maps, copies of the studies' files); returns the page,
     report.json's content and summary.md."""
     records = results.get("cases", [])
@@ -172,7 +181,9 @@ def _suite_report(results: dict, results_path: Path | None, results_dir: Path, s
     notes = [studies["note"]] if studies is not None and isinstance(studies.get("note"), str) else []
     doc = _report_json(results, results_path, items, sections_json, options, studies, why, studies_dir, timings,
                        notes)
-    page_html = _suite_html(results, results_path, items, wanted, sections_html, notes)
+    power = power or power_view(None)
+    doc["power"] = power_json(power)
+    page_html = _suite_html(results, results_path, items, wanted, sections_html, notes, power)
     return page_html, doc, _summary_md(results, items, sections_json)
 
 
@@ -202,6 +213,26 @@ def _case_images(item: ReportCase, results_dir: Path, out: Path) -> None:
                                     truth_source=gt.source, truth_spp=gt.spp)
     item.images.extend(placed.images)
     item.summary = dict(placed.error_maps)
+    _case_viewer(item, results_dir, out)
+
+
+def _case_viewer(item: ReportCase, results_dir: Path, out: Path) -> None:
+    """The case's comparison-viewer files (and its verdict maps) in ``out/report/<case>``: those ``harness run``
+    made (``viewer`` in its record), linked or copied; for a run by an older harness, made here from the case's
+    EXRs (:func:`harness.report.viewer.make_case_viewer`)."""
+    folder = out / "report" / item.slug
+    run_folder = slug(str(item.record.get("name", "")))
+    item.verdict_maps = viewer.place_verdict_maps(item.record, results_dir, folder, run_folder,
+                                                  f"report/{item.slug}/")
+    placed = viewer.place_case_viewer(item.record, results_dir, folder, run_folder)
+    if placed is None:
+        if item.render is None:
+            _load_case(item, results_dir)
+        if item.render is None or item.gt is None:
+            return
+        placed = viewer.make_case_viewer(folder, item.record, item.render, item.render_variance, item.gt,
+                                         item.images)
+    item.viewer = placed
 
 
 def _add_study_problems(items: list[ReportCase], studies: dict | None) -> None:
@@ -361,6 +392,7 @@ def _case_json(item: ReportCase) -> dict:
         "cached": r.get("cached"), "verdict_maps": r.get("verdict_maps"), "reproduce": reproduce(r),
         "error_maps": {k: v for k, v in item.summary.items() if not k.startswith("_")},
         "images": [im.to_json() for im in item.images],
+        "viewer": item.viewer.to_json() if item.viewer is not None else None,
         "problems": item.problems,
         "traceback": r.get("traceback"),
     }
@@ -496,8 +528,13 @@ def _case_view(item: ReportCase) -> dict:
     verdict = r.get("verdict") or {}
     return {
         "anchor": f"case-{item.index}", "name": r.get("name"), "status": r.get("status", "?"), "ok": r.get("ok"),
-        "expect": r.get("expect"), "reason": r.get("reason"), "problems": item.problems,
-        "figures": [figure_view(im, link_base=f"report/{item.slug}/") for im in item.images],
+        "expect": r.get("expect"), "reason": r.get("reason"), "problems": item.problems + case_notes(r),
+        # the images themselves only where the case has no viewer (its data could not be made): else a thumbnail
+        "figures": ([figure_view(im, link_base=f"report/{item.slug}/") for im in item.images]
+                    if item.viewer is None else []),
+        "viewer": viewer.case_view(item.viewer, key=item.slug, slot=f"viewer-{item.index}",
+                                   link_base=f"report/{item.slug}/", images=item.images,
+                                   verdict_maps=item.verdict_maps),
         "metrics_rows": _metrics_rows(r), "verdict": verdict.get("verdict", "?"),
         "verdict_rows": _verdict_rows(verdict),
         "settings_rows": _settings_rows(r), "resolved_json": json.dumps(resolved, indent=1) if resolved else None,
@@ -571,7 +608,7 @@ def _system_rows(system: Any) -> list[tuple]:
     ]
 
 
-def _suite_html(results, results_path, items, wanted, sections_html, notes) -> str:
+def _suite_html(results, results_path, items, wanted, sections_html, notes, power) -> str:
     s = results.get("summary") or {}
     host = results.get("host") or {}
     subtitle = (f"suite file {results.get('suite_file')} · started {results.get('started')} · host "
@@ -584,7 +621,7 @@ def _suite_html(results, results_path, items, wanted, sections_html, notes) -> s
         summary_rows=[_summary_row(i) for i in items], cases=[_case_view(i) for i in items],
         sections=sections_html, definitions=sorted(DEFINITIONS.items()),
         system_rows=_system_rows(results.get("system")), machine_notes=machine_notes(results),
-        summary_js=static_script("summary.js")))
+        summary_js=static_script("summary.js"), power=power, viewer=viewer.assets()))
 
 
 # ---- summary.md ------------------------------------------------------------------------------------------------
@@ -677,18 +714,22 @@ def write_convergence_report(result: dict, out_dir: str | Path, *, title: str = 
     name = result.get("scene_name") or Path(str(result.get("scene"))).stem
     title = title or f"Convergence: {name}"
     png = figures.convergence_figure(result, title=title)
+    spectrum_png = figures.spectrum_figure(result, title=title)  # None without spectra
     plot = out / "convergence.png"
     with StagedFolder(out, "--out") as stage:
-        _write_convergence_files(result, stage.root, title, png, plot)
+        _write_convergence_files(result, stage.root, title, png, plot, spectrum_png)
         stage.commit(last=("index.html",))
     return {"index": out / "index.html", "report_json": out / "convergence.json", "summary": out / "summary.md",
-            "plot": plot}
+            "plot": plot, **({"spectrum": out / "spectrum.png"} if spectrum_png else {})}
 
 
-def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes, plot: Path) -> None:
+def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes, plot: Path,
+                             spectrum_png: bytes | None = None) -> None:
     """The files of :func:`write_convergence_report` written into ``folder``; ``plot`` is where the plot will be."""
     make_folders(folder)
     atomic_write_bytes(folder / plot.name, png)
+    if spectrum_png:
+        atomic_write_bytes(folder / "spectrum.png", spectrum_png)
     doc = dict(result, schema=REPORT_SCHEMA, kind="convergence", generated=time.strftime("%Y-%m-%dT%H:%M:%S%z"),
                plot=str(plot), definitions={k: DEFINITIONS[k] for k in ("mse_corrected", "convergence_fit",
                                                                          "equal_time", "equal_error")})
@@ -696,7 +737,9 @@ def _write_convergence_files(result: dict, folder: Path, title: str, png: bytes,
                   spp_ladder=", ".join(str(n) for n in result["spp_ladder"]),
                   seconds_ladder=", ".join(fmt(s) for s in result.get("seconds_ladder") or []),
                   fit_definition=DEFINITIONS["convergence_fit"], plot_uri=data_uri(png),
-                  definitions=sorted(doc["definitions"].items()))
+                  definitions=sorted(doc["definitions"].items()), repeat_headers=repeats.HEADERS,
+                  repeat_rows=repeats.repeat_rows(result),
+                  spectrum_uri=data_uri(spectrum_png) if spectrum_png else None)
     atomic_write_text(folder / "index.html", str(page))
     atomic_write_text(folder / "convergence.json", jsonsafe.dumps(doc, indent=2))
     lines = [f"# {_md(title)}", "", "| series | slope (RMSE) | slope (relMSE) | flattens from spp |", "|---|---|---|---|"]

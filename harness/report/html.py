@@ -1,6 +1,8 @@
 """The report's HTML, from Jinja2 templates (``harness/report/templates/*.html.j2``): one self-contained page, inline
-CSS, images as base64 PNG data URIs, no external resources; the suite page's one script is the package's own
-``static/summary.js`` (the summary table's filters and sorting), inline (:func:`static_script`).
+CSS, images as base64 PNG data URIs, no external resources; the suite page's scripts are the package's own,
+inline (:func:`static_script`): ``static/summary.js`` (the summary table's filters and sorting) and the comparison
+viewer's ``static/viewer_*.js`` (:mod:`harness.report.viewer`), with its style ``static/viewer.css``
+(:func:`static_style`). The viewer loads each case's data from ``report/<case>/viewer.js`` when it is opened.
 
 Autoescape is on, and every value a template writes with ``{{ ... }}`` that is not markup made by a template is
 escaped by the engine with :func:`html.escape` (quotes too; None writes nothing): the templates never mark a string
@@ -87,6 +89,16 @@ def static_script(name: str) -> Markup:
     text = resources.files("harness.report").joinpath("static", name).read_text(encoding="utf-8")
     if "</script" in text.lower():
         raise ValueError(f"static/{name} holds '</script': it cannot be inlined")
+    return Markup(text)
+
+
+@functools.cache
+def static_style(name: str) -> Markup:
+    """The package's style sheet ``static/<name>`` as markup for an inline ``<style>`` (a file of the package: nothing
+    in it is escaped; it must not hold ``</style``)."""
+    text = resources.files("harness.report").joinpath("static", name).read_text(encoding="utf-8")
+    if "</style" in text.lower():
+        raise ValueError(f"static/{name} holds '</style': it cannot be inlined")
     return Markup(text)
 
 

@@ -55,8 +55,22 @@ def render_for_seconds(renderer, scene, seconds: float, chunk_spp: int, seeds, s
         seconds=spent, spp=merged.n,
         rays={k: sum(r.rays.get(k, 0) for r in results) for k in first.rays},
         stats={k: sum(r.stats.get(k, 0) for r in results) for k in first.stats},
-        info=dict(first.info, chunks=len(results), seeds=used),
+        info=dict(first.info, chunks=len(results), seeds=used, **_merged_dof(results)),
     )
+
+
+def _merged_dof(results) -> dict:
+    """``variance_dof`` of the merged chunks where a chunk's variance has other than spp - 1 degrees of freedom
+    (replicates), else nothing (spp - 1 of the whole). The merge (:func:`harness.judges.moments.merge`) pools the
+    chunks' variances, each weighted n (n - 1), with the spread of their means (K - 1 dof, weight n); for K chunks
+    of n samples whose variances have nu degrees of freedom, Welch and Satterthwaite's approximation gives
+    (N - 1)^2 / (K (n - 1)^2 / nu + K - 1), which is N - 1 when nu = n - 1 and nu when K = 1."""
+    if all(r.info.get("variance_dof") is None for r in results):
+        return {}
+    total = sum(r.spp for r in results)
+    within = sum((r.spp - 1) ** 2 / max(r.info.get("variance_dof") or r.spp - 1, 1) for r in results)
+    dof = (total - 1) ** 2 / (within + len(results) - 1)
+    return {"variance_dof": max(1, int(dof))}
 
 
 def wall_limit(seconds: float) -> float:

@@ -1,30 +1,62 @@
-"""Calibration of the verdict on a suite: how often a correct render passes (quiet) over many seeds, and how
-decisively each planted fault fails (sharp).
+"""Calibration of the verdict on a suite: how often a correct render passes (quiet) over many seeds, how small an
+error it catches in a correct render (power), and how decisively each planted fault fails (sharp).
 
-    harness calibrate suites/canonical.toml --seeds 50 --cases '*/reference'
+    harness calibrate suites/canonical.toml --seeds 50 --cases '*/reference' [--budgets 0.5,1,2,4]
 
 A case with ``expect = "pass"`` is rerun with seeds 0 .. N-1 (its ground truth comes from the cache, rendered
-once); with the verdict's alpha = 0.01 about N / 100 false alarms are expected, and the count is binomial. A case
-with ``expect = "fail"`` is run once and its statistics are reported.
+once); with the verdict's alpha = 0.001 about N / 1000 false alarms are expected, and the count is binomial. Into
+each of those correct renders errors are then planted and judged by the same verdict against the same ground truth
+(:mod:`harness.judges.power`): a uniform relative bias b (the render times 1 - b) and a relative error d in one
+16 x 16 region (times 1 + d), on the tile grid where the ground truth has its median brightness and half a tile
+off it (the worst placement);
+each seed's smallest caught b and d is found by bisection to 2 %, and the size caught in 90 % of the seeds is the
+0.9-quantile of those thresholds, with a 90 % distribution-free interval. ``budgets`` repeats the measurement with
+the case's budget (spp or seconds) times each factor, so the table reads power against the test render's time.
+A case with ``expect = "fail"`` is run once and its statistics are reported.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import fnmatch
-import json
+import statistics
 import time
+from dataclasses import dataclass
 from pathlib import Path
-
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
-from harness.files.imageio import atomic_write_text
-from harness.running.cases import Case, Suite
+from harness.files.calibration import PLANTS, POWER_HEADERS, power_caption, power_table
+from harness.files.imageio import ExrImage, atomic_write_text
+from harness.judges import power
+from harness.running.budget import render_with_budget
+from harness.running.cases import MIN_SPP, Case, Suite
 from harness.core.limits import MAX_SECONDS, format_seconds, render_seconds
-from harness.running.judge import case_scene, run_case
+from harness.running.compare import judge
+from harness.running.judge import case_scene, case_scenes, ground_truth_for, judged_images, run_case
+from harness.renderers.validate import validate_result
 
 RENDER_OVERHEAD_SECONDS = 0.02  # a case's fixed cost beyond its paths (scene load, verdict, EXR writes): measured >= 0.05
+DEFAULT_REGION_SIZE = 16
+
+
+@dataclass(frozen=True)
+class PowerOptions:
+    """What ``harness calibrate`` measures of the verdict's power: at each budget factor (1: the case's own budget,
+    always measured), the smallest bias and region error caught with probability ``quantile``, each seed's
+    threshold found to ``precision`` (relative), in a region of ``region_size`` pixels. ``enabled`` False: false
+    alarms only (the calibration of earlier harnesses)."""
+
+    enabled: bool = True
+    budgets: tuple[float, ...] = (1.0,)
+    region_size: int = DEFAULT_REGION_SIZE
+    quantile: float = power.DEFAULT_QUANTILE
+    precision: float = power.DEFAULT_PRECISION
+    confidence: float = power.DEFAULT_CONFIDENCE
+
+    def factors(self) -> tuple[float, ...]:
+        """The budget factors measured: ``budgets`` and 1 (the case's own budget), ascending."""
+        return tuple(sorted(set(self.budgets) | {1.0}))
 
 
 def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
@@ -40,55 +72,151 @@ def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
     return [c for c in suite.cases if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
 
 
-def check_cost(cases: list[Case], seeds: int, option: str = "--seeds") -> None:
+def with_budget(case: Case, factor: float) -> Case:
+    """The case with its budget times ``factor``: ``seconds`` scaled, or ``spp`` scaled and rounded (at least
+    :data:`MIN_SPP`, the verdict's least)."""
+    if factor == 1.0:
+        return case
+    if case.seconds is not None:
+        return dataclasses.replace(case, seconds=case.seconds * factor)
+    return dataclasses.replace(case, spp=max(MIN_SPP, int(round(case.spp * factor))))
+
+
+def check_cost(cases: list[Case], seeds: int, option: str = "--seeds", budgets: tuple[float, ...] = (1.0,)) -> None:
     """Refuse a calibration whose estimated time breaks the 24 h limit of a render (harness/core/limits.py): each
-    ``expect = "pass"`` case renders ``seeds`` times, each render its budget (``seconds``, or its pixels times
-    ``spp`` at the estimate's paths per second) plus :data:`RENDER_OVERHEAD_SECONDS`."""
+    ``expect = "pass"`` case renders ``seeds`` times at each budget factor, each render its budget (``seconds``, or
+    its pixels times ``spp`` at the estimate's paths per second) plus :data:`RENDER_OVERHEAD_SECONDS`."""
     total = 0.0
     for case in cases:
-        runs = seeds if case.expect == "pass" else 1
-        if case.seconds is not None:
-            each = case.seconds
-        else:
-            scene = case_scene(case)
-            each = render_seconds(scene.film.width, scene.film.height, case.spp)
-        total += runs * (each + RENDER_OVERHEAD_SECONDS)
+        for factor in (budgets if case.expect == "pass" else (1.0,)):
+            runs = seeds if case.expect == "pass" else 1
+            budget = with_budget(case, factor)
+            if budget.seconds is not None:
+                each = budget.seconds
+            else:
+                scene = case_scene(budget)
+                each = render_seconds(scene.film.width, scene.film.height, budget.spp)
+            total += runs * (each + RENDER_OVERHEAD_SECONDS)
     if total > MAX_SECONDS:
         raise HarnessError(option, f"{seeds} seeds of {len(cases)} cases need about {format_seconds(total)}, more "
                            f"than the {format_seconds(MAX_SECONDS)} limit; lower {option} or choose fewer --cases")
 
 
+# ---- power -----------------------------------------------------------------------------------------------------
+
+
+def regions_for(truth: ExrImage, case: Case, options: PowerOptions) -> dict[str, power.Region]:
+    """The planted regions of a case: the region of typical brightness of its ground truth on the tile grid
+    (:func:`harness.judges.power.typical_region`) and the same half a tile off it; the same for every seed."""
+    return {"region_aligned": power.typical_region(truth.image, options.region_size, case.tile),
+            "region_off_grid": power.typical_region(truth.image, options.region_size, case.tile,
+                                                    offset=case.tile // 2)}
+
+
+def seed_power(test: ExrImage, truth: ExrImage, case: Case, options: PowerOptions,
+               guesses: dict[str, float] | None = None,
+               regions: dict[str, power.Region] | None = None) -> dict[str, power.Threshold]:
+    """One correct render's threshold of each planted error (:data:`PLANTS`), judged by the case's verdict (its
+    tile and alpha, the images' degrees of freedom) against its ground truth. ``guesses``: where each search starts
+    (default: :func:`harness.judges.power.first_guess`); ``regions``: where the region errors go (default:
+    :func:`regions_for`)."""
+    guesses = guesses or {}
+    regions = regions or regions_for(truth, case, options)
+
+    def judged(image, variance):
+        return judge(ExrImage(image, variance, test.metadata), truth, tile=case.tile, alpha=case.alpha)
+
+    out = {}
+    for plant in PLANTS:
+        region = regions.get(plant)
+        if region is None:
+            plant_at = lambda size: judged(*power.plant_bias(test.image, test.variance, size))  # noqa: E731
+            upper = power.MAX_BIAS
+        else:
+            plant_at = lambda size, r=region: judged(*power.plant_region(test.image, test.variance, size, r))  # noqa: E731
+            upper = power.MAX_REGION_ERROR
+        guess = guesses.get(plant) or power.first_guess(test.image, test.variance, truth.variance, region)
+        out[plant] = power.smallest_caught(plant_at, guess=guess, upper=upper, precision=options.precision)
+    return out
+
+
+class _BudgetPower:
+    """The thresholds of every seed at one budget factor, and their summary."""
+
+    def __init__(self, case: Case, factor: float):
+        self.case = with_budget(case, factor)
+        self.factor = factor
+        self.regions: dict[str, power.Region] | None = None  # from the first ground truth: the same for all seeds
+        self.seeds: list[dict] = []
+        self.seconds: list[float] = []
+        self.errors = 0
+
+    def guesses(self) -> dict[str, float]:
+        """Each search starts at the median of the thresholds found so far (they vary little between seeds)."""
+        out = {}
+        for plant in PLANTS:
+            found = [s[plant]["size"] for s in self.seeds if s[plant]["size"]]
+            if found:
+                out[plant] = statistics.median(found)
+        return out
+
+    def add(self, seed: int, test: ExrImage, truth: ExrImage, seconds: float, options: PowerOptions) -> dict:
+        self.regions = self.regions or regions_for(truth, self.case, options)
+        thresholds = seed_power(test, truth, self.case, options, self.guesses(), self.regions)
+        entry = {"seed": seed, "seconds": seconds, **{k: t.to_dict() for k, t in thresholds.items()}}
+        self.seeds.append(entry)
+        self.seconds.append(seconds)
+        return entry
+
+    def summary(self, options: PowerOptions) -> dict:
+        row = {"factor": self.factor, "runs": len(self.seeds), "errors": self.errors,
+               # the median: a first render's time may hold the renderer's one-off compilation
+               "seconds": statistics.median(self.seconds) if self.seconds else None,
+               **({"seconds_budget": self.case.seconds} if self.case.seconds is not None else {"spp": self.case.spp})}
+        row["false_alarms"] = sum(s["bias"]["size"] == 0.0 for s in self.seeds)
+        for plant in PLANTS:
+            sizes = [s[plant]["size"] for s in self.seeds]
+            summary = power.detection_quantile(sizes, options.quantile, options.confidence)
+            caught_by: dict[str, int] = {}
+            for s in self.seeds:
+                for name in s[plant]["caught_by"]:
+                    caught_by[name] = caught_by.get(name, 0) + 1
+            summary["caught_by"] = caught_by
+            # seeds whose verdict passed again at twice their threshold: the bisection's assumption broken there
+            summary["not_monotone"] = sum(s[plant]["caught_at_double"] is False for s in self.seeds)
+            summary["verdicts"] = sum(s[plant]["verdicts"] for s in self.seeds)
+            row[plant] = summary
+        row["seeds"] = self.seeds
+        return row
+
+
+def _render_and_judge(case: Case, truth_gt, variant, cache_dir):
+    """A render of ``case`` at its budget and the images the verdict takes (no files written)."""
+    scene = case_scenes(case)[0]
+    result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
+    validate_result(result, scene.film.width, scene.film.height)
+    test, truth = judged_images(result, truth_gt)
+    return result, test, truth
+
+
+# ---- the calibration -------------------------------------------------------------------------------------------
+
+
 def calibrate(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | None, cache_dir=None, variant=None,
-              on_progress=None) -> dict:
+              on_progress=None, power_options: PowerOptions | None = None) -> dict:
+    """Calibrate the suite's cases (those matching ``patterns``): false alarms of each expect-pass case over
+    ``seeds`` seeds and, with ``power_options`` enabled (the default), the verdict's power at each budget factor;
+    each expect-fail case once. Returns calibration.json's content (docs/verdict.md, "Power, measured")."""
     from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
 
+    options = power_options or PowerOptions()
     cases = select_cases(suite, patterns)
     rows = []
     for case in cases:
         start = time.perf_counter()
         if case.expect == "pass":
-            verdicts, stats_seen = [], []
-            for seed in range(seeds):
-                record = run_case(dataclasses.replace(case, seed=seed), out_dir, cache_dir=cache_dir, variant=variant)
-                verdicts.append(record.get("status"))
-                v = record.get("verdict", {})
-                stats_seen.append({
-                    "seed": seed, "status": record.get("status"), "reason": record.get("reason", ""),
-                    "global_bias_p": v.get("global_bias", {}).get("p_value"),
-                    "omnibus_p": v.get("omnibus", {}).get("p_value"),
-                    "max_z_p": v.get("max_z", {}).get("p_value"),
-                })
-                if on_progress:
-                    on_progress(case.name, seed)
-            failures = sum(s != "pass" for s in verdicts)
-            alpha = case.alpha
-            rows.append({
-                "case": case.name, "expect": "pass", "runs": seeds, "passes": seeds - failures,
-                "false_alarms": failures, "alpha": alpha,
-                # P(at least this many false alarms | the verdict's false-alarm rate is alpha)
-                "p_value_of_count": float(stats.binom.sf(failures - 1, seeds, alpha)) if failures else 1.0,
-                "runs_detail": stats_seen, "seconds": time.perf_counter() - start,
-            })
+            rows.append(_calibrate_pass(case, out_dir, seeds, cache_dir, variant, on_progress, options, stats))
+            rows[-1]["seconds"] = time.perf_counter() - start
         else:
             record = run_case(case, out_dir, cache_dir=cache_dir, variant=variant)
             v = record.get("verdict", {})
@@ -100,10 +228,114 @@ def calibrate(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | 
             })
             if on_progress:
                 on_progress(case.name, 0)
-    return {"suite": suite.name, "seeds": seeds, "cases": rows}
+    out = {"suite": suite.name, "seeds": seeds, "cases": rows}
+    if options.enabled:
+        out["power"] = {"quantile": options.quantile, "precision": options.precision,
+                        "confidence": options.confidence, "region_size": options.region_size,
+                        "budgets": list(options.factors()), "method": METHOD}
+    return out
+
+
+METHOD = ("into each seed's correct render: a uniform bias b (render x (1 - b), variance x (1 - b)^2) and a relative "
+          "error d in one square region (x (1 + d), variance x (1 + d)^2), on the tile grid where the ground truth has "
+          "its median brightness and half a tile off it (the worst placement); each judged by the case's verdict against its ground truth. Per "
+          "seed the smallest caught size by bracketing and bisection in log(size) to the stated precision (the "
+          "bracket's upper end); over the seeds the quantile of those thresholds (the size caught in that fraction "
+          "of the seeds) with a distribution-free interval from the order statistics")
+
+
+def _calibrate_pass(case: Case, out_dir: Path, seeds: int, cache_dir, variant, on_progress, options: PowerOptions,
+                    stats) -> dict:
+    """An expect-pass case: ``seeds`` runs at its budget through :func:`run_case` (the suite's very outcome:
+    verdict and thresholds), and with power, the thresholds of each render, then the other budget factors."""
+    verdicts, stats_seen = [], []
+    at_budget = _BudgetPower(case, 1.0)
+    truth_gt = None
+    for seed in range(seeds):
+        keep: dict = {}
+        record = run_case(dataclasses.replace(case, seed=seed), out_dir, cache_dir=cache_dir, variant=variant,
+                          keep=keep)
+        verdicts.append(record.get("status"))
+        v = record.get("verdict", {})
+        seen = {
+            "seed": seed, "status": record.get("status"), "reason": record.get("reason", ""),
+            "global_bias_p": v.get("global_bias", {}).get("p_value"),
+            "omnibus_p": v.get("omnibus", {}).get("p_value"),
+            "max_z_p": v.get("max_z", {}).get("p_value"),
+        }
+        if options.enabled and "test" in keep and keep["test"].variance is not None:
+            entry = at_budget.add(seed, keep["test"], keep["ground_truth"], keep["result"].seconds, options)
+            seen.update({plant: entry[plant]["size"] for plant in PLANTS})
+            truth_gt = truth_gt or keep["gt"]
+        elif options.enabled:
+            at_budget.errors += 1
+        stats_seen.append(seen)
+        if on_progress:
+            on_progress(case.name, seed)
+    failures = sum(s != "pass" for s in verdicts)
+    alpha = case.alpha
+    row = {
+        "case": case.name, "expect": "pass", "runs": seeds, "passes": seeds - failures,
+        "false_alarms": failures, "alpha": alpha,
+        # P(at least this many false alarms | the verdict's false-alarm rate is alpha)
+        "p_value_of_count": float(stats.binom.sf(failures - 1, seeds, alpha)) if failures else 1.0,
+        "runs_detail": stats_seen,
+    }
+    if not options.enabled:
+        return row
+    budgets = []
+    for factor in options.factors():
+        if factor == 1.0:
+            budgets.append(at_budget.summary(options))
+            continue
+        measured = _BudgetPower(case, factor)
+        for seed in range(seeds):
+            seeded = dataclasses.replace(measured.case, seed=seed)
+            try:
+                gt = truth_gt or _ground_truth(seeded, cache_dir, variant)
+                result, test, truth = _render_and_judge(seeded, gt, variant, cache_dir)
+            except HarnessError:
+                raise
+            except Exception:  # noqa: BLE001 - a renderer failure loses this seed, as run_case would
+                measured.errors += 1
+                continue
+            truth_gt = truth_gt or gt
+            if test.variance is None:
+                measured.errors += 1
+                continue
+            measured.add(seed, test, truth, result.seconds, options)
+            if on_progress:
+                on_progress(f"{case.name} x{factor:g}", seed)
+        budgets.append(measured.summary(options))
+    regions = at_budget.regions
+    row["power"] = {"region": None if regions is None else {
+        "size": regions["region_aligned"].size, "aligned": regions["region_aligned"].to_dict(),
+        "off_grid": regions["region_off_grid"].to_dict(),
+        "placement": "median ground-truth brightness on the tile grid; off grid: half a tile down and right"},
+        "budgets": budgets}
+    return row
+
+
+def _ground_truth(case: Case, cache_dir, variant):
+    """The ground truth a case is judged against (:func:`harness.running.judge.ground_truth_for`)."""
+    return ground_truth_for(case, case_scenes(case)[1], cache_dir, variant)
+
+
+# ---- output ----------------------------------------------------------------------------------------------------
 
 
 def summary_lines(result: dict) -> list[str]:
+    """What ``harness calibrate`` prints: a line per case (false alarms, or how a fault failed), then the power
+    table."""
+    lines = case_lines(result)
+    table = power_table(result)
+    if table:
+        lines += ["", power_caption(result), *_plain_table(table)]
+    return lines
+
+
+def case_lines(result: dict) -> list[str]:
+    """One line per case: an expect-pass case's false alarms, an expect-fail case's statistics."""
     lines = []
     for row in result["cases"]:
         if row["expect"] == "pass":
@@ -120,8 +352,26 @@ def summary_lines(result: dict) -> list[str]:
     return lines
 
 
-def _fmt(v) -> str:
-    return f"{v:.4g}" if isinstance(v, (int, float)) else str(v)
+def _fmt(v, digits: int = 4) -> str:
+    return f"{v:.{digits}g}" if isinstance(v, (int, float)) else str(v)
+
+
+def _plain_table(rows: list[tuple[str, ...]]) -> list[str]:
+    widths = [max(len(str(r[i])) for r in [POWER_HEADERS, *rows]) for i in range(len(POWER_HEADERS))]
+    return ["  ".join(str(cell).ljust(w) for cell, w in zip(r, widths)).rstrip() for r in [POWER_HEADERS, *rows]]
+
+
+def markdown(result: dict) -> str:
+    """calibration.md: the false alarms, the faults caught and the power table, as Markdown."""
+    lines = [f"# Calibration: {result.get('suite')}", "", f"{result.get('seeds')} seeds per expect-pass case.", ""]
+    lines += [f"- {line}" for line in case_lines(result)]
+    table = power_table(result)
+    if table:
+        lines += ["", "## Power", "", power_caption(result) + ".", "",
+                  "| " + " | ".join(POWER_HEADERS) + " |", "|" + "---|" * len(POWER_HEADERS)]
+        lines += ["| " + " | ".join(cell.replace("|", "\\|") for cell in r) + " |" for r in table]
+        lines += ["", "Method: " + str((result.get("power") or {}).get("method", "")) + "."]
+    return "\n".join(lines) + "\n"
 
 
 def write(result: dict, path: Path) -> None:

@@ -32,7 +32,7 @@ SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseli
 CASE_KEYS = (
     "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
     "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth", "timeout",
-    "variant",
+    "variant", "requires",
 )
 DEFAULT_KEYS = tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
 AGAINST_KEYS = ("renderer", "spp", "seed", "settings")
@@ -45,6 +45,10 @@ MAX_NAME_LENGTH = 200  # a case name becomes a folder name (slug), and file syst
 #: overrides), line and paragraph separators, surrogates. Names are printed one per line and become folder names.
 UNSAFE_NAME_CATEGORIES = ("Cc", "Cf", "Zl", "Zp", "Cs")
 MIN_SPP = 2  # the verdict needs each pixel's sample variance: one sample per pixel gives none
+#: A suite judges the reference renderer's stratified sampler with its samples as this many independent replicates
+#: (``--set replicates``), so that the variance it reports is unbiased rather than an upper bound
+#: (docs/suites.md, "Honest variances"); a case that sets ``replicates`` or another sampler keeps its own.
+SUITE_REPLICATES = 2
 
 
 @dataclass(frozen=True)
@@ -80,6 +84,7 @@ class Case:
     ground_truth_spp: int = 1024
     timeout: float | None = None  # seconds before a worker running the case is killed (None: derived, executors.py)
     variant: str | None = None  # a transformed scene (harness/scene/variants.py), e.g. "scale=1e3"
+    requires: tuple[str, ...] = ()  # Mitsuba variants that must work here, else the case is skipped (REQUIREMENTS)
 
 
 @dataclass(frozen=True)
@@ -141,7 +146,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[s
     name = _case_name(label, key("name"), d.get("name", scene.stem), "name" not in d)
     renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
     renderer = _renderer_known(label, key("renderer"), renderer, known, folder)
-    settings = _settings(label, key("settings"), d.get("settings", {}))
+    settings = judged_settings(renderer, _settings(label, key("settings"), d.get("settings", {})))
     spp = d.get("spp", None if "seconds" in d else 64)
     seconds = d.get("seconds")
     if spp is not None and seconds is not None:
@@ -184,7 +189,26 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[s
         ground_truth_spp=_at_least_two(label, key("ground_truth_spp"), d.get("ground_truth_spp", 1024)),
         timeout=(None if d.get("timeout") is None else _timeout(label, key("timeout"), d["timeout"])),
         variant=_stress_variant(label, key("variant"), d.get("variant")),
+        requires=_requires(label, key("requires"), d.get("requires", [])),
     )
+
+
+#: what a case may require (``requires``): a Mitsuba variant, usable where the harness runs (cuda_ad_rgb needs a
+#: working CUDA GPU, llvm_ad_rgb a libLLVM >= 16); where one is not, the case is skipped with the reason
+REQUIREMENTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+
+
+def _requires(label: str, key: str, value: Any) -> tuple[str, ...]:
+    """A case's ``requires``: a list of :data:`REQUIREMENTS` (a single string is taken as a list of one)."""
+    items = [value] if isinstance(value, str) else _typed(label, key, value, list)
+    out = []
+    for i, item in enumerate(items):
+        item = _typed(label, f"{key}[{i}]", item, str)
+        if item not in REQUIREMENTS:
+            raise HarnessError(f"{label}: {key}[{i}]", f"unknown requirement {short(item)}{hint(item, REQUIREMENTS)}; "
+                               f"expected one of {', '.join(REQUIREMENTS)} (a Mitsuba variant that must work here)")
+        out.append(item)
+    return tuple(dict.fromkeys(out))
 
 
 def _timeout(label: str, key: str, value: Any) -> float:
@@ -349,11 +373,25 @@ def _against(label: str, key: str, value: Any, renderers: list[str], folder: Pat
     if spp < 2:
         raise HarnessError(f"{label}: {key}.spp", f"expected at least 2 (the reference render's variance comes from "
                            f"its samples; one sample per pixel gives none), got {spp}")
+    settings = _settings(label, f"{key}.settings", table.get("settings", {}))
+    extra = sorted(set(settings) - {"variant"}) if renderer == "mitsuba" else []
+    if extra:  # a Mitsuba render to judge against goes through the ground-truth cache, which keys the variant only
+        raise HarnessError(f"{label}: {key}.settings.{toml_key(extra[0])}", "a Mitsuba render compared against "
+                           "takes only variant (it is rendered through the ground-truth cache, with the moment "
+                           "integrator and the independent sampler)")
     return Against(
         "renderer", renderer, spp,
         _non_negative(label, f"{key}.seed", table.get("seed", 1_000_003)),
-        _settings(label, f"{key}.settings", table.get("settings", {})),
+        judged_settings(renderer, settings),
     )
+
+
+def judged_settings(renderer: str, settings: dict[str, str]) -> dict[str, str]:
+    """A case's renderer settings as the suite runs them: the reference's stratified sampler with
+    :data:`SUITE_REPLICATES` replicates unless the case says otherwise (another sampler, or ``replicates``)."""
+    if renderer != "reference" or "replicates" in settings or settings.get("sampler", "sobol") != "sobol":
+        return settings
+    return {**settings, "replicates": str(SUITE_REPLICATES)}
 
 
 def _renderer_known(label: str, key: str, name: str, known: list[str], folder: Path | None = None) -> str:

@@ -25,7 +25,7 @@ from harness.files.imageio import ExrImage, read_exr
 from harness.judges import metrics
 from harness.judges.verdict import verdict
 
-__all__ = ["compare_files", "compare_images"]
+__all__ = ["compare_files", "compare_images", "judge"]
 
 
 def _variance_dof(image: ExrImage) -> int | None:
@@ -58,19 +58,8 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
             f"size {_size(test.image)} differs from the reference {expected_name} ({_size(expected.image)}); "
             "expected images of the same size",
         )
-    test_dof, expected_dof = _variance_dof(test), _variance_dof(expected)
     # The verdict first: it checks that both variances exist and the expected image is finite.
-    outcome = verdict(
-        test.image,
-        test.variance,
-        expected.image,
-        expected.variance,
-        tile=tile,
-        alpha=alpha,
-        test_dof=test_dof,
-        expected_dof=expected_dof,
-        names=names,
-    )
+    outcome = judge(test, expected, tile=tile, alpha=alpha, names=names)
     t, r = test.image, expected.image
     h, w = t.shape[:2]
     mask = metrics.finite_mask(t, r)
@@ -109,6 +98,16 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
         "verdict": outcome.to_dict(),
     }
     return plain(result)
+
+
+def judge(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,
+          names: tuple[str, str] = ("test image", "ground truth image")):
+    """The statistical verdict alone (:func:`harness.judges.verdict.verdict`) of ``test`` against ``expected``, with
+    the degrees of freedom of each variance taken from the images' metadata as :func:`compare_images` takes them
+    (``variance_dof``, else ``spp`` - 1): what a case is judged by, without the metrics (``harness calibrate``
+    judges thousands of planted images with it). Returns the :class:`harness.judges.verdict.Verdict`."""
+    return verdict(test.image, test.variance, expected.image, expected.variance, tile=tile, alpha=alpha,
+                   test_dof=_variance_dof(test), expected_dof=_variance_dof(expected), names=names)
 
 
 def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,

@@ -130,7 +130,10 @@ def _chunk_jobs(case, cache_dir, variant, case_scenes: Callable[[Any], tuple]) -
         needs.append((scene, case.spp, case.seed, settings.get("variant", variant)))
     jobs = []
     for needed, spp, seed, var in needs:
-        jobs += groundtruth.missing_chunks(needed, spp=spp, seed=seed, cache_dir=cache_dir, variant=var)
+        try:
+            jobs += groundtruth.missing_chunks(needed, spp=spp, seed=seed, cache_dir=cache_dir, variant=var)
+        except HarnessError:  # a variant not usable here (no GPU): the case itself says so, skipped or an error
+            continue
     return jobs
 
 

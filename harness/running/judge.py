@@ -1,7 +1,8 @@
 """Judging one case: its ground truth (:func:`ground_truth_for`), its render within the budget
 (:mod:`harness.running.budget`), the comparison (:func:`harness.running.compare.compare_images`), its thresholds,
-the verdict's tile maps (``pvalue.exr``, ``failing.exr``: :mod:`harness.files.verdict_maps`) and its report images
-(:mod:`harness.files.report_images`), as the case's record in ``results.json``
+the verdict's tile maps (``pvalue.exr``, ``failing.exr``: :mod:`harness.files.verdict_maps`), its report images
+(:mod:`harness.files.report_images`) and the data of the report's comparison viewer
+(:mod:`harness.files.viewer_data`), as the case's record in ``results.json``
 (``docs/results-schema.md``)."""
 
 from __future__ import annotations
@@ -17,10 +18,14 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.files.cases import GROUND_TRUTH_FILE
 from harness.files import imageio
+from harness.files.previews import display_exposure
 from harness.files.report_images import IMAGES_FOLDER, ReportImages, make_report_images
+from harness.files.viewer_data import ViewerData, make_viewer_data
 from harness.files.verdict_maps import write_verdict_maps
+from harness.judges.floor import GROUND_TRUTH_SHARE_LIMIT, ground_truth_share, spp_for_share
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.renderers.external import variance_metadata
+from harness.renderers.mitsuba import resolve_variant
 from harness.renderers.validate import validate_result
 from harness.running.budget import render_with_budget
 from harness.running.cases import HIGHER_IS_BETTER, Case, slug, with_case_overrides
@@ -86,10 +91,60 @@ def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
     return broken
 
 
-def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None) -> dict:
-    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite."""
+def ground_truth_noise(case: Case, result, gt) -> dict | None:
+    """How much the ground truth's own noise blunts the case's verdict (the record's ``ground_truth_noise``): the
+    ratio of its mean variance to the test render's (:func:`harness.judges.floor.ground_truth_share`), and where it
+    exceeds 1/4 a ``warning`` and the ``suggested_spp`` that would bring it under (docs/suites.md, "A ground truth
+    that does not blunt the test"). None where either image has no variance or the test's is 0."""
+    if result.variance is None or gt.variance is None:
+        return None
+    share = ground_truth_share(result.variance, gt.variance)
+    if share is None:
+        return None
+    out = {"ratio": share, "limit": GROUND_TRUTH_SHARE_LIMIT, "ground_truth_spp": int(gt.spp or 0),
+           "suggested_spp": None, "warning": None}
+    if share > GROUND_TRUTH_SHARE_LIMIT and gt.spp:
+        key = "against.spp" if case.against.kind == "renderer" else "ground_truth_spp"
+        out["suggested_spp"] = spp_for_share(int(gt.spp), share)
+        out["warning"] = (f"the ground truth's mean variance is {share:.2f} x the test render's (over 1/4): its noise, "
+                          f"not the test's budget, limits what the verdict can see; {key} = "
+                          f"{out['suggested_spp']} would bring it under 1/4")
+    return out
+
+
+def unmet_requirement(case: Case) -> str | None:
+    """Why the case cannot run here (a Mitsuba variant it ``requires`` is not usable: no CUDA GPU, no libLLVM),
+    as the reason of its "skipped" record; None where every requirement is met."""
+    for variant in case.requires:
+        try:
+            resolve_variant(variant)
+        except HarnessError as err:
+            return f"needs Mitsuba {variant}: {err.message}"
+    return None
+
+
+def judged_images(result, gt) -> tuple[imageio.ExrImage, imageio.ExrImage]:
+    """A case's render and its ground truth as the verdict takes them: images, variances and the metadata that
+    gives their degrees of freedom (the render's ``spp`` or ``variance_dof``; the ground truth's ``spp`` or ``variance_dof``)."""
+    gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
+    if gt.info.get("variance_dof") is not None:  # another renderer's render with replicates
+        gt_meta["variance_dof"] = str(int(gt.info["variance_dof"]))
+    return (imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
+            imageio.ExrImage(gt.image, gt.variance, gt_meta))
+
+
+def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progress=None,
+             keep: dict | None = None) -> dict:
+    """Run one case; a renderer that fails makes the case an "error" with the reason, never stops the suite.
+    ``keep``: where given, a dict that receives the judged images (``test``, ``ground_truth``: ExrImage), the
+    render's RenderResult (``result``) and the GroundTruth (``gt``), for a caller that judges the render again
+    (harness calibrate)."""
     record = case_header(case)
     start = time.perf_counter()
+    missing = unmet_requirement(case)
+    if missing is not None:  # nothing judged: not a failure of the renderer, not a pass
+        record.update(status="skipped", ok=True, reason=missing, wall_seconds=time.perf_counter() - start)
+        return record
     try:
         scene, gt_scene = case_scenes(case)
         record["film"] = {"width": scene.film.width, "height": scene.film.height}  # as rendered (with its overrides)
@@ -105,17 +160,19 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         folder = out_dir / "cases" / slug(case.name)
         with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
             imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
-                                           metadata={"renderer": result.renderer, "case": case.name})
+                                           metadata={"renderer": result.renderer, "case": case.name,
+                                                     **variance_metadata(result)})
             if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
                 record["ground_truth"]["path"] = str(imageio.write_exr(
                     folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
-        gt_meta = {"spp": str(gt.spp)} if gt.spp else {}
         maps: dict = {}
-        comparison = compare_images(
-            imageio.ExrImage(result.image, result.variance, variance_metadata(result)),
-            imageio.ExrImage(gt.image, gt.variance, gt_meta),
-            tile=case.tile, alpha=case.alpha, maps=maps,
-        )
+        test_image, truth_image = judged_images(result, gt)
+        comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
+        if keep is not None:  # harness calibrate plants errors into this very render
+            keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
+        noise = ground_truth_noise(case, result, gt)
+        if noise is not None:
+            record["ground_truth_noise"] = noise
         all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
         metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
         broken = check_thresholds(all_metrics, case.thresholds)
@@ -140,6 +197,9 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         images = report_images(case, folder, result, gt, maps.get("flip"))
         if images is not None:
             record["report_images"] = images.record()
+        viewer = viewer_files(case, folder, result, gt, maps, verdict)
+        if viewer is not None:
+            record["viewer"] = viewer.record()
     except HarnessError:
         raise
     except Exception as err:  # a renderer or adapter failure fails this case only
@@ -172,6 +232,30 @@ def report_images(case: Case, folder: Path, result, gt, flip) -> ReportImages | 
         return None
 
 
+def viewer_files(case: Case, folder: Path, result, gt, maps: dict, verdict: dict) -> ViewerData | None:
+    """The data of the report's comparison viewer, written into ``folder`` (``viewer.js`` and the thumbnails:
+    :func:`harness.files.viewer_data.make_viewer_data`) from the images as their EXRs hold them, the comparison's
+    FLIP map and the verdict's tiles (``maps``). None where they cannot be made for a reason of their own (the report
+    then makes them, and names what fails): the case's outcome stands. A file that cannot be written is a
+    WriteError, which stops the run as the render's would."""
+    render = np.asarray(result.image, np.float32)
+    truth = np.asarray(gt.image, np.float32)
+    flip = maps.get("flip")
+    try:
+        return make_viewer_data(
+            folder, name=case.name, render=render,
+            render_variance=None if result.variance is None else np.asarray(result.variance, np.float32),
+            truth=truth, truth_variance=None if gt.variance is None else np.asarray(gt.variance, np.float32),
+            flip=flip[1] if flip is not None else None, tiles=maps.get("tiles"), tile=verdict.get("tile"),
+            alpha=verdict.get("alpha"), threshold=verdict.get("threshold"), exposure=display_exposure(truth),
+            labels={"render": f"{case.renderer}, {result.spp} spp",
+                    "truth": f"{gt.source or 'ground truth'}" + (f", {gt.spp} spp" if gt.spp else "")})
+    except HarnessError:
+        raise
+    except Exception:  # noqa: BLE001 - data the viewer cannot have is the report's to name, not the case's failure
+        return None
+
+
 def case_header(case: Case) -> dict[str, Any]:
     """The fields every record of a case starts with, whatever its outcome."""
     return {
@@ -181,4 +265,5 @@ def case_header(case: Case) -> dict[str, Any]:
         # the scene's changes a command that reproduces the case must repeat (absent where the case makes none)
         **({"max_depth": case.max_depth} if case.max_depth is not None else {}),
         **({"variant": case.variant} if case.variant is not None else {}),
+        **({"requires": list(case.requires)} if case.requires else {}),
     }

@@ -11,6 +11,8 @@ One ``<testsuite>`` (inside ``<testsuites>``) per run, one ``<testcase>`` per ca
   not as expected: the verdict or a threshold failed a ``pass`` case, only the baseline regressed, or a planted
   fault passed.
 - ``<error type="<exception name>">`` for a case whose renderer raised (status ``error``), the traceback as text.
+- ``<skipped message="...">`` for a case this machine cannot run (status ``skipped``: a Mitsuba variant it
+  ``requires`` is not usable here), the reason as ``message``.
 - ``<properties>``: status, expect, verdict, the global-bias z per channel, the omnibus and max |z| p-values, the
   worst tile's z, relMSE and RMSE, and the baseline ratios where compared (pytest's xunit1 places testcase
   properties the same way; GitLab ignores them, Jenkins shows them).
@@ -76,7 +78,7 @@ def _case_properties(record: dict) -> list[tuple[str, object]]:
 
 def _failure(record: dict) -> tuple[str, str] | None:
     """(type, message) of a case not as expected whose status is pass or fail."""
-    if record.get("ok") or record.get("status") == "error":
+    if record.get("ok") or record.get("status") in ("error", "skipped"):
         return None
     if record.get("expect") == "fail" and record.get("status") == "pass":
         return "planted-fault-not-caught", "expected the verdict to fail (a planted fault), but it passed"
@@ -91,8 +93,9 @@ def build(results: dict) -> ET.ElementTree:
     records = results.get("cases", [])
     failures = sum(1 for r in records if _failure(r) is not None)
     errors = sum(1 for r in records if r.get("status") == "error")
+    skipped = sum(1 for r in records if r.get("status") == "skipped")
     total_time = sum(float(r.get("wall_seconds") or 0.0) for r in records)
-    counts = {"tests": str(len(records)), "failures": str(failures), "errors": str(errors), "skipped": "0",
+    counts = {"tests": str(len(records)), "failures": str(failures), "errors": str(errors), "skipped": str(skipped),
               "time": f"{total_time:.3f}"}
     root = ET.Element("testsuites", name="harness", **counts)
     started = str(results.get("started", ""))[:19]  # ISO 8601 without the zone, as the JUnit schema wants
@@ -110,7 +113,9 @@ def build(results: dict) -> ET.ElementTree:
                            file=_text(record.get("scene", "")), time=f"{float(record.get('wall_seconds') or 0.0):.3f}")
         _properties(tc, _case_properties(record))
         failure = _failure(record)
-        if record.get("status") == "error":
+        if record.get("status") == "skipped":
+            ET.SubElement(tc, "skipped", message=_text(record.get("reason", "skipped")))
+        elif record.get("status") == "error":
             reason = record.get("reason", "error")
             el = ET.SubElement(tc, "error", message=_text(reason), type=_text(reason.split(":")[0] or "error"))
             el.text = _text(record.get("traceback", reason))

@@ -131,6 +131,7 @@ def summarise(records: list[dict], wall: float) -> dict:
         "passed": sum(r.get("status") == "pass" for r in records),
         "failed": sum(r.get("status") == "fail" for r in records),
         "errors": sum(r.get("status") == "error" for r in records),
+        "skipped": sum(r.get("status") == "skipped" for r in records),
         "unexpected": [r["name"] for r in records if not r["ok"]],
         "mitsuba_renders": sum(_mitsuba_renders(r) for r in records if not r.get("resumed")),  # by this run
         "resumed": sum(bool(r.get("resumed")) for r in records),

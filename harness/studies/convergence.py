@@ -24,6 +24,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.judges.floor import error_point
+from harness.judges.spectrum import ensemble_spectrum
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.external import ExternalRendererError
 from harness.running.budget import render_for_seconds
@@ -378,6 +379,8 @@ def run_convergence(
     min_timing_seconds: float = MIN_TIMING_SECONDS,
     progress: Callable[[str], None] | None = None,
     renderer_factory: Callable[[str], Any] | None = None,
+    repeats: int = 1,
+    spectrum: bool = False,
 ) -> dict[str, Any]:
     """Render ``scene`` with each series at every rung of the spp ladder (and of the seconds ladder: chunks of
     ``chunk_spp`` until the time is spent), every render with its own seed, and measure each against ``ground_truth``
@@ -395,7 +398,13 @@ def run_convergence(
     the spp its image holds (``render.spp``), and the series says where its times come from (``time_from``:
     the renderer's own clock, or its wall time less the start-up). A rung an external renderer refuses (it exits
     with an error, e.g. the Cycles adapter at 1 spp, which needs two batches for its variance) is left out and
-    named in the series' ``skipped``; a series with no point at all is named in ``failed_series``."""
+    named in the series' ``skipped``; a series with no point at all is named in ``failed_series``.
+
+    ``repeats`` K > 1 renders every rung K times with distinct seeds (the error of the error, Celarek et al. 2019):
+    the point's errors are then the means over the K runs (E[MSE], the curves and fits use them) and its
+    ``repeats`` holds each run's corrected MSE and relMSE with their standard deviation and 10-90 % band
+    (:func:`repeat_point`). ``spectrum``: each point also gets the error spectrum ensemble of its runs
+    (:func:`harness.judges.spectrum.ensemble_spectrum`, the ground truth's noise floor subtracted)."""
     if not series:
         raise HarnessError("--renderer", "expected at least one renderer")
     seeds = iter(range(seed, seed + 10**9))
@@ -426,31 +435,43 @@ def run_convergence(
                 if progress is not None:
                     progress(f"{s.name} {n} spp (as {per_run * runs})")
                 continue
-            sd = next(seeds)
+            results, times, used = [], [], []
             try:
-                result, secs, repeats = timed_render(renderer, scene, RenderRequest(spp=per_run, seed=sd,
-                                                                                    settings=settings),
-                                                     min_timing_seconds)
+                for index in range(repeats):
+                    sd = next(seeds)
+                    request = RenderRequest(spp=per_run, seed=sd, settings=settings)
+                    if index == 0:
+                        result, secs, timing_repeats = timed_render(renderer, scene, request, min_timing_seconds)
+                    else:  # timed once each: the mean over the K runs is the point's time
+                        result = renderer.render(scene, request)
+                        secs = float(result.seconds)
+                    results.append(result)
+                    times.append(secs)
+                    used.append(sd)
             except ExternalRendererError as err:
                 skipped.append({"spp": int(n), "reason": str(err)})
                 if progress is not None:
                     progress(f"{s.name} {n} spp (refused)")
                 continue
+            result = results[0]
             runs = _runs_per_spp(result, per_run)
             rendered.add(int(result.spp))
             resolved = result.settings
             time_from = result.info.get("time_from", time_from)
-            point = error_point(result.image, ground_truth.image, ground_truth.variance)
-            points.append(dict(budget={"spp": int(n)}, spp=int(result.spp), seconds=secs, timing_repeats=repeats,
-                               seeds=[sd], **point))
+            point = repeat_point(results, ground_truth, spectrum)
+            points.append(dict(budget={"spp": int(n)}, spp=int(result.spp), seconds=float(np.mean(times)),
+                               timing_repeats=timing_repeats, seeds=used, **point))
             if progress is not None:
                 progress(f"{s.name} {n} spp")
         for budget in seconds:
-            merged = render_for_seconds(renderer, scene, budget, chunk_spp, seeds, settings)
+            merged_runs = [render_for_seconds(renderer, scene, budget, chunk_spp, seeds, settings)
+                           for _ in range(repeats)]
+            merged = merged_runs[0]
             resolved = merged.settings
-            point = error_point(merged.image, ground_truth.image, ground_truth.variance)
-            points.append(dict(budget={"seconds": float(budget)}, spp=int(merged.spp), seconds=float(merged.seconds),
-                               timing_repeats=1, seeds=merged.info["seeds"], **point))
+            point = repeat_point(merged_runs, ground_truth, spectrum)
+            points.append(dict(budget={"seconds": float(budget)}, spp=int(merged.spp),
+                               seconds=float(np.mean([m.seconds for m in merged_runs])), timing_repeats=1,
+                               seeds=[sd for m in merged_runs for sd in m.info["seeds"]], **point))
             if progress is not None:
                 progress(f"{s.name} {budget:g} s")
         if not points:
@@ -476,10 +497,77 @@ def run_convergence(
         "ground_truth": {"source": ground_truth.source, "spp": ground_truth.spp,
                          "path": str(getattr(ground_truth, "path", None)) if getattr(ground_truth, "path", None)
                          else None},
-        "spp_ladder": [int(n) for n in spp], "seconds_ladder": [float(s) for s in seconds],
+        "spp_ladder": [int(n) for n in spp], "seconds_ladder": [float(s) for s in seconds], "repeats": int(repeats),
         "k": k, "series": out_series, "failed_series": failed,
         "comparisons": compare_series(out_series),
     }
+
+
+def repeat_point(results: Sequence, ground_truth, spectrum: bool = False) -> dict[str, Any]:
+    """The errors of one rung from its K renders (:func:`harness.judges.floor.error_point` each): with K = 1 that
+    render's point; with K > 1 the means over the runs (``mse``, ``relmse``, their corrected values: E[MSE], and
+    the RMSE of the mean MSE), ``repeats`` = {``k``, each run's ``mse_corrected`` and ``relmse_corrected``, their
+    sample standard deviations (``*_std``, ddof 1) and 10-90 % bands (``*_band``, linear quantiles of the K
+    values)}, and the expected scatter of log RMSE (log relMSE) from the runs' spread: the relative standard error
+    of the mean, std / (mean sqrt K), halved for the root, never below the in-image estimate over sqrt K. With
+    ``spectrum``, ``spectrum``: the error spectrum ensemble of the runs (:func:`ensemble_spectrum`, floor: the
+    mean of the ground truth's variance per channel) and ``render_variance``, the mean of the renders' own
+    variance estimates (where a render without a bias would sit: white noise at that level)."""
+    points = [error_point(r.image, ground_truth.image, ground_truth.variance) for r in results]
+    k = len(points)
+    if k == 1:
+        point = dict(points[0])
+    else:
+        point = {"pixels": points[0]["pixels"]}
+        for key in ("mse", "relmse", "floor_mse", "floor_relmse", "mse_corrected", "relmse_corrected"):
+            values = [p[key] for p in points if p[key] is not None]
+            point[key] = float(np.mean(values)) if len(values) == k else None
+        point["rmse"] = math.sqrt(point["mse"]) if point["mse"] is not None else None
+        mse_c = point["mse_corrected"]
+        point["rmse_corrected"] = math.sqrt(mse_c) if mse_c is not None and mse_c > 0 else None
+        spread: dict[str, Any] = {"k": k}
+        for key, scatter_key, half in (("mse_corrected", "scatter_log_rmse", 0.5),
+                                       ("relmse_corrected", "scatter_log_relmse", 1.0)):
+            values = np.array([p[key] for p in points if p[key] is not None], dtype=float)
+            spread[key] = [float(v) for v in values]
+            std = float(np.std(values, ddof=1)) if len(values) > 1 else None
+            spread[f"{key}_std"] = std
+            spread[f"{key}_band"] = ([float(np.quantile(values, 0.1)), float(np.quantile(values, 0.9))]
+                                     if len(values) else None)
+            inner = [p[scatter_key] for p in points if p[scatter_key] is not None]
+            mean = point[key]
+            between = half * std / (mean * math.sqrt(k)) if std is not None and mean and mean > 0 else None
+            within = float(np.mean(inner)) / math.sqrt(k) if inner else None
+            candidates = [v for v in (between, within) if v is not None]
+            point[scatter_key] = max(candidates) if candidates else None
+        point["repeats"] = spread
+    if spectrum:
+        truth = np.asarray(ground_truth.image, np.float64)
+        floor = (np.zeros(3) if ground_truth.variance is None else
+                 np.nanmean(np.asarray(ground_truth.variance, np.float64), axis=(0, 1)))
+        point["spectrum"] = ensemble_spectrum([np.asarray(r.image, np.float64) - truth for r in results], floor)
+        own = [_finite_mean(r.variance) for r in results if r.variance is not None]
+        own = [v for v in own if v is not None]  # 1 spp: the reference reports no variance (NaN)
+        point["spectrum"]["render_variance"] = float(np.mean(own)) if own else None
+    return point
+
+
+def _finite_mean(values) -> float | None:
+    v = np.asarray(values, np.float64)
+    ok = np.isfinite(v)
+    return float(v[ok].mean()) if ok.any() else None
+
+
+def spectrum_balance(spectrum: dict) -> tuple[float | None, float | None]:
+    """Where an error spectrum's power lies: the mean corrected power of its lowest tenth of rings (at least one)
+    and of its upper half. Equal for white noise; the first far above the second for structured (low-frequency)
+    error."""
+    power = spectrum.get("power_corrected") or []
+    if not power:
+        return None, None
+    low = power[: max(1, len(power) // 10)]
+    high = power[len(power) // 2:] or power
+    return float(np.mean(low)), float(np.mean(high))
 
 
 def _runs_per_spp(result, spp: int) -> int:

@@ -19,10 +19,22 @@ def _figure(width: float, height: float, layout: str | None = None):
     return fig
 
 
+#: colours of a plot's PNG: a palette of 256 (lines, markers, text and their anti-aliasing fit; the report embeds
+#: every plot, and a palette PNG is about a quarter of the RGBA one: 3.4 -> 0.8 MB over the canonical run's plots)
+PLOT_COLOURS = 256
+
+
 def to_png(fig) -> bytes:
+    """The figure as a palette PNG (:data:`PLOT_COLOURS`, Pillow's fast octree quantizer, no dithering)."""
+    from PIL import Image  # optional: Pillow (matplotlib's own dependency), loaded only to write a plot
+
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
-    return buffer.getvalue()
+    rgb = Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
+    palette = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    out = io.BytesIO()
+    palette.save(out, format="PNG", compress_level=9)
+    return out.getvalue()
 
 
 def _colour(index: int):
@@ -73,6 +85,7 @@ def convergence_figure(conv: dict, title: str = "") -> bytes:
             if xkey == "spp" and fit.get("slope") is not None and math.isfinite(fit["slope"]):
                 label += f" (slope {fit['slope']:.3f})"
             ax.plot(xs, ys, "o-", color=colour, label=label, markersize=4)
+            _repeat_band(ax, pts, xkey, ykey, colour)
             if xkey == "spp" and fit.get("points", 0) >= 1:
                 fx = np.asarray(fit["spp"], dtype=float)
                 stop = fit["departure_index"] if fit.get("departure_index") is not None else len(fx)
@@ -108,6 +121,75 @@ def convergence_figure(conv: dict, title: str = "") -> bytes:
             ax.legend(fontsize=8)
     fig.suptitle((title + ": " if title else "") + "errors with the ground truth's own noise removed")
     return to_png(fig)
+
+
+def _repeat_band(ax, points: list[dict], xkey: str, ykey: str, colour) -> None:
+    """The 10-90 % band of the K runs of each point (``repeats``: harness convergence --repeats), shaded: of RMSE
+    (the root of each run's corrected MSE) or of relMSE."""
+    source = "mse_corrected_band" if ykey == "rmse_corrected" else "relmse_corrected_band"
+    xs, lows, highs = [], [], []
+    for p in points:
+        band = (p.get("repeats") or {}).get(source)
+        x = p.get(xkey)
+        if not band or x is None or not x > 0 or band[0] is None or band[1] is None:
+            continue
+        low, high = band
+        if ykey == "rmse_corrected":
+            low, high = math.sqrt(max(low, 0.0)), math.sqrt(max(high, 0.0))
+        if high > 0:
+            xs.append(float(x))
+            lows.append(max(low, high * 1e-3))  # a log axis: a band reaching 0 is drawn to 1/1000 of its top
+            highs.append(high)
+    if len(xs) >= 2:
+        order = np.argsort(xs)
+        ax.fill_between(np.asarray(xs)[order], np.asarray(lows)[order], np.asarray(highs)[order], color=colour,
+                        alpha=0.18, linewidth=0)
+
+
+def spectrum_figure(conv: dict, title: str = "") -> bytes | None:
+    """The error spectrum ensemble (harness convergence): for each series a panel of power against spatial
+    frequency (log-log), one curve per rung (the mean over its runs and R, G, B), with the ground truth's own white
+    noise (its floor, dashed grey) and the level of the renders' own variance estimate (dotted, per rung). None
+    where no point has a spectrum."""
+    series = [s for s in conv.get("series", []) if any(p.get("spectrum") for p in s.get("points", []))]
+    if not series:
+        return None
+    fig = _figure(5.6 * min(len(series), 3), 4.4 * math.ceil(len(series) / 3), layout="constrained")
+    axes = np.atleast_1d(fig.subplots(math.ceil(len(series) / 3), min(len(series), 3))).ravel()
+    for ax, s in zip(axes, series):
+        floor = None
+        points = [p for p in s["points"] if p.get("spectrum")]
+        for i, p in enumerate(points):
+            spec = p["spectrum"]
+            xs, ys = _valid(spec["frequency"], spec["power"])
+            budget = p["budget"]
+            label = f"{budget['spp']} spp" if "spp" in budget else f"{budget['seconds']:g} s"
+            colour = matplotlib_colour(i, len(points))
+            ax.plot(xs, ys, "-", color=colour, label=f"{label} (K = {spec['renders']})", linewidth=1.2)
+            if spec.get("render_variance"):
+                ax.axhline(spec["render_variance"], color=colour, linestyle=":", linewidth=0.8)
+            floor = spec.get("floor")
+        if floor:
+            ax.axhline(floor, color="grey", linestyle="--", linewidth=1, label="ground-truth noise (floor)")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("spatial frequency [cycles / pixel]")
+        ax.set_ylabel("error power (mean over runs, R, G, B)")
+        ax.set_title(s["label"], fontsize=10)
+        ax.grid(True, which="both", alpha=0.25)
+        ax.legend(fontsize=7)
+    for ax in axes[len(series):]:
+        ax.set_axis_off()
+    fig.suptitle((title + ": " if title else "") + "error spectrum ensemble\n(flat: white noise; "
+                 "rising to the left: structured error)", fontsize=10)
+    return to_png(fig)
+
+
+def matplotlib_colour(index: int, count: int):
+    """A colour of the viridis map, from dark (first rung) to light (last)."""
+    import matplotlib  # optional: heavy matplotlib, loaded to draw
+
+    return matplotlib.colormaps["viridis"](0.85 * index / max(count - 1, 1))
 
 
 def panel_figure(tiles: list[tuple[str, np.ndarray]], columns: int = 4, title: str = "") -> bytes:

@@ -38,7 +38,7 @@ from harness.judges.floor import error_point
 from harness.renderers import get_renderer
 from harness.renderers.reference import scene_is_glossy
 from harness.renderers.cached import CachedMitsubaRenderer
-from harness.running.cases import Case, load_suite
+from harness.running.cases import SUITE_REPLICATES, Case, judged_settings, load_suite
 from harness.running.judge import case_scene
 from harness.studies import convergence as conv
 from harness.studies import figures
@@ -393,7 +393,7 @@ def _case_rows(items: list[StudyCase], key: str, base: StudyCase, masks: dict | 
         if (h, w) != tuple(base.render.shape[:2]):
             # per-pixel MSE depends on the pixel size (edges, lights): compare strategies at one film only
             continue
-        rows.append({"case": rec["name"], "source": "case", "settings": dict(rec.get("settings") or {}),
+        rows.append({"case": rec["name"], "source": "case", "settings": _strategy_settings(rec.get("settings") or {}),
                      "mse": float(mse), "floor_mse": item.point.get("floor_mse") or 0.0,
                      "variance": studies.mean_variance(item.render_variance),
                      "seconds": float(rec["render"]["seconds"]), "pixels": int(h * w),
@@ -401,6 +401,12 @@ def _case_rows(items: list[StudyCase], key: str, base: StudyCase, masks: dict | 
                      "timing": "the case's own", "_scene": item.scene,
                      "variance_regions": region_variances(item.render_variance, masks or {})})
     return rows
+
+
+def _strategy_settings(settings: dict) -> dict:
+    """A case's settings as a strategy row names them: without the replicates every suite case of the reference
+    has (:func:`harness.running.cases.judged_settings`), which are not a strategy."""
+    return {k: v for k, v in settings.items() if not (k == "replicates" and v == str(SUITE_REPLICATES))}
 
 
 def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out: Path, options: StudyOptions,
@@ -423,8 +429,10 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
         seeds = iter(range(20_000, 30_000))
 
         def render(settings, scene=base.scene, gt=base.gt, masks=masks):
-            row = studies.measure_render(scene, gt, settings, options.strategy_spp, next(seeds),
-                                         min_seconds=options.strategy_min_seconds, masks=masks)
+            # rendered as the suite renders its cases (its replicates), so that they compare with the cases' rows
+            row = studies.measure_render(scene, gt, judged_settings("reference", settings), options.strategy_spp,
+                                         next(seeds), min_seconds=options.strategy_min_seconds, masks=masks)
+            row["settings"] = dict(settings)
             progress.step("strategy " + " ".join(f"{k}={v}" for k, v in settings.items()))
             return row
 

@@ -137,6 +137,7 @@ NOT_SLOTS = {
     "batch_size": "how many camera samples the integrator hands to a kernel at once",
     "threads": "the integrator's thread pool",
     "engine": "which engine the integrator runs",
+    "replicates": "the integrator's passes: each replicate its own seed_key and an spp slot of its own size",
 }
 
 

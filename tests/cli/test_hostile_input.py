@@ -509,8 +509,9 @@ def test_bad_renderers_fail_their_cases_and_the_suite_goes_on(bad_run):
 def test_report_escapes_scene_suite_and_case_strings(bad_run):
     _, out, evil = bad_run
     page = (out / "index.html").read_text()
-    # the page's one script is the package's own summary table script (harness/report/static/summary.js)
-    assert page.count("<script") == 1 and "alert(" not in page.split("<script>", 1)[1].split("</script>", 1)[0]
+    # the page's scripts are the package's own: the summary table's and the comparison viewer's (harness/report/static)
+    scripts = re.findall(r"<script>(.*?)</script>", page, re.S)
+    assert page.count("<script") == len(scripts) == 8 and not any("alert(" in script for script in scripts)
     assert "<script>alert" not in page and "<u>" not in page and "<i>suite</i>" not in page
     assert html.escape(evil, quote=True) in page  # a case name
     assert html.escape("evil<u>\"q'", quote=True) in page  # the scene file's name

@@ -109,12 +109,16 @@ HAND_PICKED = {
     "bias-not-three": (lambda d: _set(d, ("cases", 0, "verdict", "global_bias", "z"), [1, 2]),
                        "cases[0].verdict.global_bias.z: expected a list of 3, got a list of 2"),
     "bad-status": (lambda d: _set(d, ("cases", 0, "status"), "passed"),
-                   'cases[0].status: expected one of "pass", "fail", "error", got "passed"'),
+                   'cases[0].status: expected one of "pass", "fail", "error", "skipped", got "passed"'),
     "bool-for-int": (lambda d: _set(d, ("summary", "cases"), True), "summary.cases: expected an integer >= 0, got true"),
     "schema-2": (lambda d: _set(d, ("schema",), 2), "schema: expected 1 (the schema this harness reads), got 2"),
     "image-file-is-a-path": (lambda d: _set(d, ("cases", 0, "report_images", "images", 2, "png"), "../../x.png"),
                              'cases[0].report_images.images[2].png: expected a file name (no folder), got '
                              '"../../x.png"'),
+    "viewer-file-is-a-path": (lambda d: _set(d, ("cases", 1, "viewer", "data"), "../../x.js"),
+                              'cases[1].viewer.data: expected a file name (no folder), got "../../x.js"'),
+    "viewer-histogram-counts": (lambda d: _set(d, ("cases", 0, "viewer", "p_histogram", "counts"), [1, -2]),
+                                "cases[0].viewer.p_histogram.counts[1]: expected an integer >= 0, got -2"),
     "odd-key": (lambda d: _set(d, ("cases", 0, "settings"), {"a\nb": 3}),
                 'cases[0].settings["a\\nb"]: expected a string, got 3'),
 }

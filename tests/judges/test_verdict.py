@@ -94,6 +94,26 @@ def _naive_pixel_test(t, vt, r, vr, alpha: float) -> bool:
 # ---------------------------------------------------------------------------
 
 
+def test_omnibus_is_calibrated_with_variances_of_one_degree_of_freedom() -> None:
+    """Two replicates per pixel (the reference in a suite): each pixel's variance has one degree of freedom, and
+    the tiles' Welch-Satterthwaite dof must be estimated from sum_p sigma_p^4 / nu_p, which v_p^2 / nu_p
+    over-states threefold at nu = 1 (E[v^2] = sigma^4 (1 + 2 / nu)): the t correction then over-corrects and the
+    omnibus statistic falls to 0.93 of its dof. With v_p^2 / (nu_p + 2) (unbiased for sigma_p^4 / nu_p) its mean
+    over 200 renders is 1 within 4.5 standard errors (each render's statistic / dof has sd ~ sqrt(2 / 64))."""
+    rng = np.random.default_rng(20261203)
+    h = w = 64
+    truth = np.ones((h, w, 3)) * np.linspace(0.5, 2.0, w)[None, :, None]
+    sigma = 0.05 * truth * (1 + 3 * (np.arange(h)[:, None, None] % 16 < 4))  # uneven variances within tiles
+    ratios = []
+    for _ in range(200):
+        reps = truth + sigma * math.sqrt(2) * rng.standard_normal((2, h, w, 1))  # two replicate means
+        out = verdict(reps.mean(0), reps.var(0, ddof=1) / 2, truth, np.zeros_like(truth), tile=8, alpha=0.001,
+                      test_dof=1).to_dict()
+        ratios.append(np.mean(np.divide(out["omnibus"]["statistic"], out["omnibus"]["dof"])))
+    se = np.std(ratios, ddof=1) / math.sqrt(len(ratios))
+    assert abs(np.mean(ratios) - 1.0) < 4.5 * se, (np.mean(ratios), se)
+
+
 @pytest.mark.parametrize("noisy_ref", [False, True], ids=["exact-reference", "noisy-reference"])
 def test_false_alarm_rate_is_at_most_alpha(noisy_ref: bool) -> None:
     verdicts = [_run(seed, noisy_ref=noisy_ref) for seed in range(SEEDS)]

@@ -20,6 +20,7 @@ import pytest
 from conftest import ROOT
 
 import harness.report
+from harness.report import viewer as report_viewer
 from harness.studies.convergence import (
     equal_error,
     equal_time,
@@ -96,15 +97,19 @@ def test_report_files_exist(report_dir):
 
 def test_page_is_self_contained(report_dir):
     page = (report_dir / "index.html").read_text()
-    # one script: the package's summary.js, inline (the table's filters and sorting)
+    # the package's own scripts, inline: summary.js (the table's filters and sorting), then the comparison viewer's
+    static = Path(harness.report.__file__).parent / "static"
     scripts = re.findall(r"<script[^>]*>(.*?)</script>", page, re.S | re.I)
-    assert scripts == [(Path(harness.report.__file__).parent / "static" / "summary.js").read_text()]
+    assert scripts == [(static / name).read_text() for name in ("summary.js", *report_viewer.SCRIPTS)]
+    # the viewer loads each case's data from a file of the report, beside the page
+    sources = re.findall(r'data-viewer-src="([^"]*)"', page)
+    assert len(sources) == 3 and all(s.startswith("report/") and (report_dir / s).is_file() for s in sources)
     lowered = re.sub(r"<script>.*?</script>", "", page, flags=re.S).lower()
     for bad in ('src="http', "src='http", 'href="http', "href='http", "url(http", "@import", "<link", "<script",
                 "<iframe", 'src="//', 'href="//'):
         assert bad not in lowered, bad
     sources = re.findall(r'<img[^>]*\ssrc="([^"]*)"', page)
-    assert len(sources) >= 15
+    assert len(sources) >= 6 + 14  # each case's two thumbnails; the studies' plots and shadow-ray images
     assert all(s.startswith("data:image/png;base64,") for s in sources)
     # links only to anchors in the page and to the report's own files beside it
     for href in re.findall(r'href="([^"]*)"', page):
@@ -556,7 +561,8 @@ def test_the_run_makes_each_case_s_report_images_and_the_report_only_places_them
             for kind in ("exr", "png"):
                 source = Path(record["report_images"]["folder"]) / stored[im["key"]][kind]
                 assert Path(im[kind]).read_bytes() == source.read_bytes()
-    assert (tmp_path / "index.html").read_text().count("data:image/png;base64,") >= 5 * len(results["cases"])
+    page = (tmp_path / "index.html").read_text()  # each case's thumbnail and tile p-values, its viewer's data file
+    assert page.count('alt="render of ') == page.count("data-viewer-src=") == len(results["cases"])
 
 
 def test_an_older_results_json_without_report_images_is_reported_as_before(report_dir, tmp_path):

@@ -36,7 +36,7 @@ scene = "SCENES/furnace.toml"
 settings = { direct = "mis", rr_depth = "3" }
 film = { width = 12, height = 10 }
 max_depth = 4
-seed = 7
+seed = 8
 
 [[cases]]
 name = "furnace/mutant"
@@ -130,7 +130,7 @@ def test_the_printed_commands_reproduce_the_case(run_dir, tmp_path, monkeypatch,
         assert shlex.quote(record["ground_truth"]["path"]) in page
     first = report["cases"][0]["reproduce"]["render"]
     assert first[first.index("--film") + 1] == "12x10" and first[first.index("--max-depth") + 1] == "4"
-    assert first[first.index("--seed") + 1] == "7" and "direct=mis" in first and "rr_depth=3" in first
+    assert first[first.index("--seed") + 1] == "8" and "direct=mis" in first and "rr_depth=3" in first
     assert page.count('<div class="reproduce"><h4>Reproduce</h4>') == 3
 
 

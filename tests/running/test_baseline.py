@@ -160,7 +160,8 @@ def test_save_then_gate(tmp_path, capsys, saved):
     record = results["cases"][0]
     assert record["status"] == "pass" and record["ok"] is False
     assert record["reason"].startswith("baseline: ") and "baseline: relmse " in record["reason"]
-    assert record["baseline"]["changed"]["settings"]["now"] == {"rr_depth": "5", "direct": "hemisphere-uniform"}
+    assert record["baseline"]["changed"]["settings"]["now"] == {"rr_depth": "5", "direct": "hemisphere-uniform",
+                                                            "replicates": "2"}
     assert results["summary"]["unexpected"] == ["furnace/reference"]
     assert results["baseline"]["regressed"] == ["furnace/reference"]
 

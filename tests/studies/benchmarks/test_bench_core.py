@@ -75,7 +75,7 @@ def _run_bounce_kernel(c, radiance, counters):
     ctx, ws = c["ctx"], c["ws"]
     hits, _, rays = ws.direct(N_RAYS)
     return wavefront.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                            ctx.bounce_config(1), radiance, counters, hits, rays, ws.state(1, N_RAYS),
+                            ctx.config._replace(depth=1), radiance, counters, hits, rays, ws.state(1, N_RAYS),
                             c["film_samples"], ctx.emitter_tables, ws.complement_rays())
 
 
@@ -120,7 +120,8 @@ def test_bounce_with_queries(benchmark, cornell):
 
     ctx, ws, state = cornell["ctx"], cornell["ws"], cornell["state"]
     radiance, counters, clock = np.zeros((N_RAYS, 3)), _counters(), integrator._Clock()
-    benchmark(integrator._bounce, ctx, state, 1, radiance, counters, clock, ws.state(1, N_RAYS), cornell["film_samples"])
+    benchmark(integrator._bounce, ctx, state, 1, radiance, counters, clock, ws.state(1, N_RAYS), cornell["film_samples"],
+              ctx.config)
     benchmark.extra_info["paths_per_second"] = _per_second(benchmark, N_RAYS)
 
 
