@@ -344,7 +344,7 @@ def test_report_of_a_missing_file_is_one_line(tmp_path, capsys):
 @pytest.mark.parametrize("broken", ["report", "studies"])
 def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, monkeypatch, capsys):
     import harness.cli.run
-    import harness.cli.studies
+    import harness.cli.study_compute
     from harness.cli import main
 
     def fail(*args, **kwargs):
@@ -353,7 +353,7 @@ def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, mo
     if broken == "report":
         monkeypatch.setattr(harness.cli.run, "write_suite_report", fail)
     else:
-        monkeypatch.setattr(harness.cli.studies, "write_suite_studies", fail)
+        monkeypatch.setattr(harness.cli.study_compute, "write_suite_studies", fail)
     suite = write_suite(tmp_path, ONE_CASE)
     code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet", "--executor", "serial"]
                 + (["--no-studies"] if broken == "report" else []))
