@@ -66,7 +66,7 @@ def _escape(value: Any) -> Any:
 class _TemplateCache(jinja2.FileSystemBytecodeCache):
     """Jinja2's cache of compiled templates, in its folder of the user's temporary folder (made private by Jinja2),
     each entry under the template's name and checked against the SHA-1 of its source: the report's templates are
-    compiled once, not on every ``harness report`` (a fifth of its own time, docs/performance.md). It only speeds:
+    compiled once, not on every ``harness report`` (a tenth of its own time, docs/performance.md). It only speeds:
     an entry that cannot be read is a miss, one that cannot be written is not kept, never an error."""
 
     def load_bytecode(self, bucket: jinja2.bccache.Bucket) -> None:
