@@ -26,6 +26,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("harness.cli", "harness.pytest_plugin", "harness.__main__"),
 )
 UNLAYERED = ("harness",)  # the package itself: a docstring, imports nothing
+# The modules that import others by name (importlib.import_module: a command's module only when it runs), and the
+# top-level table in each that names them (docs/architecture.md, "Modules loaded by name"): the table's strings that
+# name a project module count as that module's imports, for the layers and the circles alike.
+LOADED_BY_NAME = {"harness.cli": "COMMANDS", "harness.cli.report": "STUDY_COMPUTE"}
 
 
 def module_name(path: Path) -> str:
@@ -85,8 +89,35 @@ def imports(path: Path, name: str, known: dict[str, Path]) -> list[tuple[str, in
                 base = ".".join(up + ([base] if base else []))
             self._add(node, [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names])
 
-    Visitor().visit(ast.parse(source))
+    tree = ast.parse(source)
+    Visitor().visit(tree)
+    if name in LOADED_BY_NAME:
+        for target, line in loaded_by_name(tree, LOADED_BY_NAME[name]):
+            found.append((resolve(target) or target, line, False, lines[line - 1]))
     return found
+
+
+def loaded_by_name(tree: ast.Module, table: str) -> list[tuple[str, int]]:
+    """(module, line) for every string naming a module of the project in the top-level assignment ``table``."""
+    out = []
+    for node in tree.body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            if any(isinstance(t, ast.Name) and t.id == table for t in targets):
+                out += [(c.value, c.lineno) for c in ast.walk(node.value) if isinstance(c, ast.Constant)
+                        and isinstance(c.value, str) and c.value.split(".")[0] in PACKAGES and "." in c.value]
+    return out
+
+
+def calls_import_by_name(tree: ast.Module) -> bool:
+    """Whether the module calls ``importlib.import_module`` or ``__import__``."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            if (isinstance(func, ast.Attribute) and func.attr == "import_module") or \
+                    (isinstance(func, ast.Name) and func.id in ("import_module", "__import__")):
+                return True
+    return False
 
 
 def nested_imports(path: Path) -> list[tuple[int, str]]:
@@ -194,8 +225,25 @@ def test_imports_inside_functions_are_optional_heavy_dependencies_and_say_so():
     assert not bad, "imports inside functions without '# optional: why':\n" + "\n".join(bad)
 
 
+def test_modules_loaded_by_name_are_declared_and_exist():
+    """A module that imports by name declares what in its table (else the layer and circle checks would not see
+    it), and every module a table names exists (a misspelt command module fails here, not when a user runs it)."""
+    known = modules()
+    undeclared = [n for n, p in known.items()
+                  if calls_import_by_name(ast.parse(p.read_text(encoding="utf-8"))) and n not in LOADED_BY_NAME]
+    assert not undeclared, f"modules importing by name without a table in LOADED_BY_NAME: {undeclared}"
+    for name, table in LOADED_BY_NAME.items():
+        named = loaded_by_name(ast.parse(known[name].read_text(encoding="utf-8")), table)
+        assert named, f"{name}.{table} names no module"
+        missing = [target for target, _ in named if target not in known]
+        assert not missing, f"{name}.{table} names modules that do not exist: {missing}"
+    assert "harness.cli.report" in graph()["harness.cli"]
+
+
 def test_the_checks_can_fail():
     """The cycle finder and the layer table on a planted graph: a circle and an upward arrow are seen."""
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert layer_of("harness.cli.run") > layer_of("harness.running.cases") > layer_of("harness.core.errors")
     assert layer_of("harness.report.build") > layer_of("harness.studies.convergence")
+    planted = ast.parse('import importlib\nT = (("a", "harness.cli.nope", "help"),)\nimportlib.import_module("x")\n')
+    assert loaded_by_name(planted, "T") == [("harness.cli.nope", 2)] and calls_import_by_name(planted)

@@ -19,7 +19,7 @@ from harness.running.schedule import run_suite
 
 def register(sub, common) -> None:
     """Add ``baseline`` (and its ``save``) to the subparsers ``sub``."""
-    bl = sub.add_parser("baseline", help="save a suite's metrics as a baseline that harness run --baseline gates on")
+    bl = sub.add_parser("baseline")
     bl_sub = bl.add_subparsers(dest="baseline_command", required=True, parser_class=Parser)
     save = common.own()
     save.add_argument("suite", help=SUITE_HELP)

@@ -30,8 +30,6 @@ def _targets_text() -> str:
 
 def register(sub, common) -> None:
     """Add ``bench`` to the subparsers ``sub``."""
-    summary = ("the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, "
-               "MSE against ground truth, efficiency 1/(MSE x s) and their ratios")
     parser = common.own()
     parser.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
                                                         "cornell-box, soft-shadows, multi-light)")
@@ -58,8 +56,10 @@ def register(sub, common) -> None:
                              "(docs/performance.md)")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "bench", help=summary,
-        description=summary[0].upper() + summary[1:] + ". Contenders: the reference at its defaults (stratified "
+        "bench",
+        description="The reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, "
+                    "MSE against ground truth, efficiency 1/(MSE x s) and their ratios. Contenders: the reference at "
+                    "its defaults (stratified "
                     "sampler), Mitsuba llvm_ad_rgb and scalar_rgb at theirs (independent sampler), Mitsuba llvm_ad_rgb "
                     "with its ldsampler when spp is a power of 4 (and its stratified, multijitter and orthogonal "
                     "samplers where they draw spp, on the scenes where a target compares with Mitsuba's best sampler), "

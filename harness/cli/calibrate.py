@@ -36,8 +36,7 @@ def register(sub, common) -> None:
     parser.add_argument("--no-power", action="store_true", help="count false alarms only; plant no errors")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "calibrate", help="false alarms of the verdict over many seeds, and how planted faults fail",
-        parents=[parser, common.out("output folder (default reports/<suite>-calibration)"), common.quiet(),
+        "calibrate", parents=[parser, common.out("output folder (default reports/<suite>-calibration)"), common.quiet(),
                  common.cache_dir(), common.mitsuba_variant(), common.allow_outside_paths()])
 
 

@@ -15,10 +15,9 @@ from pathlib import Path
 from tqdm import tqdm
 
 from harness.core import options
-from harness.core.errors import HarnessError
+from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError
 from harness.core.options import Parser  # noqa: F401 - the shell's parser class, used as common.Parser
 from harness.core.limits import check_render_cost
-from harness.scene.load import ALLOW_OUTSIDE_ENV
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 # A closed stdout (``harness ... | head``): what a shell reports for a command killed by SIGPIPE, 128 + 13. Python

@@ -30,8 +30,7 @@ def register(sub, common) -> None:
                         "tile's two-sided p per channel) and failing.exr (1 in tiles that fail by themselves), as "
                         "harness run writes beside each case")
     parser.set_defaults(func=run)
-    sub.add_parser("compare", help="metrics and a statistical verdict for a render against its ground truth "
-                   "(exit 1 on fail)", parents=[parser, common.json()])
+    sub.add_parser("compare", parents=[parser, common.json()])
 
 
 def run(args: argparse.Namespace) -> int:

@@ -63,9 +63,7 @@ def register(sub, common) -> None:
                         help="multiple of the expected scatter that flags bias (default 3)")
     parser.set_defaults(func=run, series=None, common_settings={})
     sub.add_parser(
-        "convergence", help="error against spp and time for one or more renderers/settings, with the fitted slope, "
-        "bias detection and equal-time / equal-error comparisons",
-        parents=[parser, common.out("output folder (default reports/convergence/<scene>)"),
+        "convergence", parents=[parser, common.out("output folder (default reports/convergence/<scene>)"),
                  common.json("also print convergence.json (on stdout, the other lines then on stderr)"),
                  common.quiet(), common.cache_dir(), common.mitsuba_variant(), common.allow_outside_paths()])
 

@@ -26,9 +26,7 @@ def register(sub, common) -> None:
                         help="mitsuba-xml: default of the $seed parameter (default 0)")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "export", help="write a scene as Mitsuba 3 XML (+ PLY meshes), scene.json (+ PLY meshes; docs/scene-json.md), "
-        "PLY, OBJ or glTF for other renderers (docs/external-renderers.md)",
-        parents=[parser, common.out("output folder (created if needed)", required=True),
+        "export", parents=[parser, common.out("output folder (created if needed)", required=True),
                  common.json("print the files written as JSON"), common.allow_outside_paths()])
 
 

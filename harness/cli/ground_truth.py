@@ -37,8 +37,7 @@ def register(sub, common) -> None:
                         help="render with Mitsuba even if the scene has a closed form")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "ground-truth", help="render (or fetch from the cache) a scene's ground truth and print where it is",
-        parents=[parser,
+        "ground-truth", parents=[parser,
                  common.out("also write it to this .exr (R, G, B and variance.R/G/B; the closed form's variance is 0) "
                             "with a .png preview beside it", file=True),
                  common.json(), common.quiet(), common.cache_dir(), common.mitsuba_variant(),

@@ -45,8 +45,7 @@ def register(sub, common) -> None:
                         help="the scene's max_depth replaced, as a suite case's max_depth does")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "render", help="render a scene to an OpenEXR file (plus a PNG preview)",
-        parents=[parser,
+        "render", parents=[parser,
                  common.out("output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it", file=True,
                             required=True),
                  common.json("print one JSON object with timings and counters"), common.quiet(),

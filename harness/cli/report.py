@@ -4,12 +4,17 @@ formatted from results.json, the case EXRs and the studies the run computed (``-
 from __future__ import annotations
 
 import argparse
+import importlib
 from pathlib import Path
 
 from harness.cli import studies
 from harness.cli.common import EXIT_OK
 from harness.files.studies import studies_folder
 from harness.report import write_suite_report
+
+#: What computes the studies (``--studies``), imported by name only then: it imports the renderers and the suite
+#: runner, which formatting a report does not need (docs/architecture.md, "Modules loaded by name").
+STUDY_COMPUTE = "harness.cli.study_compute"
 
 
 def register(sub, common) -> None:
@@ -22,8 +27,7 @@ def register(sub, common) -> None:
     studies.add_flags(parser, "report")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "report", help="write the HTML report of a suite run (index.html, report.json, summary.md)",
-        parents=[parser, common.out("output folder (default: the results file's folder)"), common.quiet(),
+        "report", parents=[parser, common.out("output folder (default: the results file's folder)"), common.quiet(),
                  common.cache_dir(), common.mitsuba_variant(), common.allow_outside_paths()])
 
 
@@ -35,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else results.parent
     studies_dir = studies_folder(out) if args.studies else None  # None: the studies beside results.json
     if args.studies:
-        studies.write_studies(args, results, studies_dir)
+        importlib.import_module(STUDY_COMPUTE).write_studies(args, results, studies_dir)
     paths = write_suite_report(results, out, studies.report_options(args), studies_dir=studies_dir)
     print(f"wrote {paths['index']}, {paths['report_json']} and {paths['summary']} in {paths['seconds']:.1f} s")
     return EXIT_OK

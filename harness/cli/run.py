@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from harness.cli.common import EXIT_FAIL, EXIT_OK, SUITE_HELP, progress_bar
-from harness.cli import studies
+from harness.cli import studies, study_compute
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.report import write_suite_report
@@ -50,8 +50,7 @@ def register(sub, common) -> None:
     studies.add_flags(parser, "run")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "run", help="run a suite: exit 0 when every case is as expected, 1 when not, 2 on bad input",
-        parents=[parser, common.out("output folder (default reports/<suite name>)"), common.quiet(),
+        "run", parents=[parser, common.out("output folder (default reports/<suite name>)"), common.quiet(),
                  common.cache_dir(), common.mitsuba_variant(), common.allow_outside_paths()])
 
 
@@ -156,7 +155,7 @@ def _write_report(args: argparse.Namespace, out: Path, cache_mode: str = "off") 
     that cannot be written (a full disk) is a WriteError: one line and exit code 2, the old files (if any) left as
     they were. The studies come from the results cache where ``cache_mode`` allows and their inputs are cached."""
     if not args.no_studies:
-        studies.write_studies(args, out / "results.json", out / "studies", cache=cache_mode)
+        study_compute.write_studies(args, out / "results.json", out / "studies", cache=cache_mode)
     try:
         paths = write_suite_report(out / "results.json", out, studies.report_options(args))
         print(f"report: {paths['index']} ({paths['seconds']:.1f} s)")

@@ -47,9 +47,7 @@ def register(sub, common) -> None:
                         help="verdict false-alarm probability (default 0.001)")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "stress", help="numerical-stability stress table: scaled, translated and strained variants of a scene, per "
-        "renderer (exit 0 when every invariant variant of the reference ends as expected)",
-        parents=[parser, common.out("folder for stress.json and stress.md"), common.json(), common.quiet(),
+        "stress", parents=[parser, common.out("folder for stress.json and stress.md"), common.json(), common.quiet(),
                  common.cache_dir(), common.mitsuba_variant(), common.allow_outside_paths()])
 
 

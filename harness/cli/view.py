@@ -40,8 +40,7 @@ def register(sub, common) -> None:
     parser.add_argument("--no-tev", action="store_true", help="write the page even where tev listens")
     parser.add_argument("--open", action="store_true", help="open the page in a web browser")
     parser.set_defaults(func=run)
-    sub.add_parser("view", help="show one or two EXR images in tev, or in the report's comparison viewer",
-                   parents=[parser, common.out("folder for the viewer page (default: a new temporary folder)"),
+    sub.add_parser("view", parents=[parser, common.out("folder for the viewer page (default: a new temporary folder)"),
                             common.quiet()])
 
 

@@ -10,6 +10,9 @@ import tomllib
 #: the most a TOML or JSON file the user names may hold: far beyond any real scene, suite or results file, and a
 #: bound on what a wrong path (a device, a log, an image) can make the harness read and parse
 MAX_TEXT_BYTES = 64 * 2**20
+#: ``1``: a scene file may name mesh and map files outside its own folder (``harness.scene.load``); the CLI's
+#: ``--allow-outside-paths`` sets it for the command's duration, so that worker processes follow the choice
+ALLOW_OUTSIDE_ENV = "HARNESS_ALLOW_OUTSIDE_PATHS"
 
 _KINDS = ((stat.S_ISDIR, "a directory"), (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"),
           (stat.S_ISFIFO, "a named pipe"), (stat.S_ISSOCK, "a socket"))

@@ -234,11 +234,19 @@ def link_or_copy(source: str | os.PathLike[str], dest: str | os.PathLike[str], d
     """Atomically make ``dest`` hold the file ``source`` (a finished, durable file that is never rewritten in place:
     the harness replaces files, it does not edit them); returns ``dest``.
 
-    A hard link where the file system allows it (no bytes copied, nothing to fsync): linked under a temporary name
-    beside ``dest``, then ``os.replace``'d over it. Where it does not (another file system, a file of another user,
-    a full disk), a copy with :func:`atomic_write_bytes` (of ``data`` when the caller has read the file already).
-    Errors as :func:`atomic_write_bytes`; an unreadable ``source`` is an ``OSError``."""
+    A hard link where the file system allows it (no bytes copied, nothing to fsync): made at ``dest`` itself where
+    no file is there yet, else linked under a temporary name beside ``dest``, then ``os.replace``'d over it. Where
+    it does not (another file system, a file of another user, a full disk), a copy with :func:`atomic_write_bytes`
+    (of ``data`` when the caller has read the file already). Errors as :func:`atomic_write_bytes`; an unreadable
+    ``source`` is an ``OSError``."""
     dest = Path(dest)
+    try:
+        os.link(source, dest)  # a new name (a report's staging folder) is whole as soon as it exists
+        return dest
+    except FileExistsError:
+        pass  # replaced atomically below
+    except OSError:
+        return atomic_write_bytes(dest, Path(source).read_bytes() if data is None else data)
     tmp = dest.parent / f".{dest.name}.{uuid.uuid4().hex[:12]}{dest.suffix}"
     try:
         os.link(source, tmp)

@@ -116,24 +116,13 @@ def write_suite_report(results: str | Path | dict, out_dir: str | Path | None = 
             results = load_results(results_path)
         page_html, doc, summary_md = _suite_report(results, results_path, results_dir, studies, stage.root, options,
                                                    start, power)
-        atomic_write_text(stage.root / "report.json", jsonsafe.dumps(_relocate(doc, stage), indent=2))
+        atomic_write_text(stage.root / "report.json", jsonsafe.dumps(doc, stage.relocate, indent=2))
         atomic_write_text(stage.root / "summary.md", stage.relocate(summary_md))
         atomic_write_text(stage.root / "index.html", stage.relocate(page_html).replace(str(escape(stage.root)),
                                                                                        str(escape(out))))
         stage.commit(last=("index.html",))  # the page last: whoever opens it finds every file it names
     return {"index": out / "index.html", "report_json": out / "report.json", "summary": out / "summary.md",
             "seconds": time.perf_counter() - start}
-
-
-def _relocate(value: Any, stage) -> Any:
-    """``value`` (report.json's content) with every staged path replaced by the path it is meant for."""
-    if isinstance(value, dict):
-        return {k: _relocate(v, stage) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_relocate(v, stage) for v in value]
-    if isinstance(value, str):
-        return stage.relocate(value)
-    return value
 
 
 def _suite_report(results: dict, results_path: Path | None, results_dir: Path, studies_dir: Path, out: Path,

@@ -46,7 +46,6 @@ from importlib import metadata
 from pathlib import Path
 
 import reference_impl
-from reference_impl import embree_c
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
@@ -136,6 +135,7 @@ def _cpu() -> dict:
 
 
 def _embree_library() -> str | None:
+    from reference_impl import embree_c  # optional: it imports numba (a few tenths of a second), only keys need it
     try:
         return os.path.basename(embree_c.library_path())
     except ImportError:

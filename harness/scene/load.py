@@ -20,7 +20,7 @@ import numpy as np
 from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 
-from harness.core.errors import HarnessError, not_regular, read_user_bytes
+from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError, not_regular, read_user_bytes
 from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
 from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.files.imageio import read_exr
@@ -125,8 +125,6 @@ _OBJ_INDEX = re.compile(rb"[-+]?[0-9]+")
 _TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
 _TOML_END = "(at end of document)"
 
-
-ALLOW_OUTSIDE_ENV = "HARNESS_ALLOW_OUTSIDE_PATHS"
 
 
 def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> Scene:

@@ -344,7 +344,7 @@ def test_report_of_a_missing_file_is_one_line(tmp_path, capsys):
 @pytest.mark.parametrize("broken", ["report", "studies"])
 def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, monkeypatch, capsys):
     import harness.cli.run
-    import harness.cli.studies
+    import harness.cli.study_compute
     from harness.cli import main
 
     def fail(*args, **kwargs):
@@ -353,7 +353,7 @@ def test_a_failing_report_does_not_change_the_run_exit_code(broken, tmp_path, mo
     if broken == "report":
         monkeypatch.setattr(harness.cli.run, "write_suite_report", fail)
     else:
-        monkeypatch.setattr(harness.cli.studies, "write_suite_studies", fail)
+        monkeypatch.setattr(harness.cli.study_compute, "write_suite_studies", fail)
     suite = write_suite(tmp_path, ONE_CASE)
     code = main(["run", str(suite), "--out", str(tmp_path / "out"), "--quiet", "--executor", "serial"]
                 + (["--no-studies"] if broken == "report" else []))
@@ -692,3 +692,39 @@ def test_the_report_layer_imports_nothing_that_renders_and_writes_no_html_in_pyt
     assert report_html.ENV.autoescape is True
     templates = sorted((ROOT / "harness" / "report" / "templates").glob("*.html.j2"))
     assert len(templates) >= 5 and not any("|safe" in t.read_text() for t in templates)
+
+
+# ---- start-up ------------------------------------------------------------------------------------------------------
+
+#: what formatting a report never needs: the compiler and Embree of the reference tracer, Mitsuba, Dask, the renderers
+#: (importing them was most of `harness report`'s start-up, docs/performance.md, "The harness's own time")
+NOT_FOR_A_REPORT = ("numba", "llvmlite", "embreex", "mitsuba", "drjit", "dask", "harness.renderers",
+                    "harness.running.schedule", "harness.studies.suite_studies")
+
+
+def _imported(argv: list[str]) -> tuple[int, list[str]]:
+    """Run ``harness ARGV`` in a fresh interpreter: its exit code and which of :data:`NOT_FOR_A_REPORT` it imported."""
+    script = ("import json, sys\nfrom harness.cli import main\ntry:\n    code = main(sys.argv[1:])\n"
+              "except SystemExit as end:\n    code = end.code\n"
+              f"print(json.dumps([code, sorted(m for m in {NOT_FOR_A_REPORT!r} if m in sys.modules)]))")
+    done = subprocess.run([sys.executable, "-c", script, *argv], capture_output=True, text=True, timeout=120,
+                          check=False)
+    return tuple(json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def test_harness_report_imports_no_renderer_numba_or_mitsuba(report_dir, tmp_path):
+    """``harness report`` (the whole command: its parser, reading results.json, the cases' images and viewer data,
+    the page) imports none of them, and neither do ``harness --help`` or ``compare`` and ``view``'s parsers."""
+    code, heavy = _imported(["report", str(report_dir / "results.json"), "--out", str(tmp_path), "--quiet"])
+    assert code == 0 and (tmp_path / "index.html").is_file()
+    assert heavy == []
+    for argv in (["--help"], ["compare", "--help"], ["view", "--help"]):
+        assert _imported(argv) == (0, []), argv
+
+
+def test_harness_run_still_imports_what_it_runs():
+    """The check above can fail: the command that renders (its module loaded by name) imports the renderers."""
+    script = ("import sys\nfrom harness.cli import build_parser\nbuild_parser('run')\n"
+              "print('harness.renderers' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
+    assert done.stdout.strip() == "True"
