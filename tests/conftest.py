@@ -33,6 +33,31 @@ def fuzz_examples(count: int) -> int:
     return count * LONG_FUZZ_FACTOR if FUZZ_LONG else count
 
 
+_WARMUP_SECONDS = pytest.StashKey[float]()
+
+
+def pytest_sessionstart(session):
+    """Fill numba's cache with the reference renderer's kernels before any test (or xdist worker) starts, when it
+    is cold (a clean clone: CI). In the controlling process only: xdist starts its workers after this hook, so they
+    and the ``harness`` subprocesses of the tests load the kernels instead of each compiling them again
+    (tests/warm_kernels.py; ``HARNESS_TEST_WARMUP=off`` skips it, docs/ci.md)."""
+    if os.environ.get("PYTEST_XDIST_WORKER") or os.environ.get("HARNESS_TEST_WARMUP", "") == "off":
+        return
+    import warm_kernels
+
+    if not warm_kernels.cache_is_warm():
+        seconds = warm_kernels.warm_in_parallel()
+        session.config.stash[_WARMUP_SECONDS] = seconds
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    seconds = config.stash.get(_WARMUP_SECONDS, None)
+    if seconds is not None:
+        terminalreporter.write_line(f"numba's cache was cold: the kernels were compiled before the tests in "
+                                    f"{seconds:.1f} s (tests/warm_kernels.py)")
+
+
+
 # A small valid scene file: a camera, a 16 x 16 film and one white material, no shapes. Tests add shapes to it.
 MINIMAL_SCENE = """\
 name = "minimal"
@@ -52,13 +77,26 @@ reflectance = [0.8, 0.8, 0.8]
 """
 
 
+def _session_cache_dir(tmp_path_factory) -> Path:
+    """This run's ground-truth cache: one folder for all pytest-xdist workers of the run (the parent of their base
+    temporary folders is the run's own), so that a Mitsuba ground truth is rendered once per run, not once per
+    worker; the cache is content-addressed and safe for concurrent processes (tests/renderers/test_groundtruth.py,
+    ``test_two_processes_fill_the_same_entries``). Without xdist, a folder of the run's base temporary folder."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        folder = tmp_path_factory.getbasetemp().parent / "harness-cache"
+        folder.mkdir(exist_ok=True)
+        return folder
+    return tmp_path_factory.mktemp("harness-cache")
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _private_cache(tmp_path_factory):
-    """Every test (and every subprocess it starts) uses a fresh ground-truth cache, never the user's, and no
+    """Every test (and every subprocess it starts) uses a ground-truth cache fresh for this run (shared by its
+    xdist workers, :func:`_session_cache_dir`), never the user's, and no
     results cache (``HARNESS_RESULTS_CACHE=off``): a test that runs a suite, patches a renderer and runs it again
     must see it render. tests/running/test_result_cache.py turns the results cache on, in a folder of its own."""
     previous = {name: os.environ.get(name) for name in ("HARNESS_CACHE_DIR", "HARNESS_RESULTS_CACHE")}
-    os.environ["HARNESS_CACHE_DIR"] = str(tmp_path_factory.mktemp("harness-cache"))
+    os.environ["HARNESS_CACHE_DIR"] = str(_session_cache_dir(tmp_path_factory))
     os.environ["HARNESS_RESULTS_CACHE"] = "off"
     yield
     for name, value in previous.items():

@@ -6,6 +6,7 @@ inside a function except of an optional heavy dependency, marked at that line wi
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -50,10 +51,26 @@ def layer_of(name: str) -> int | None:
     return None
 
 
+@functools.cache
+def parsed(path: Path) -> tuple[list[str], ast.Module, list[tuple[ast.stmt, bool]]]:
+    """A module's lines, syntax tree and import statements (each with: inside a function?), read once per process:
+    every test here looks at all modules (the trees are only read)."""
+    source = path.read_text(encoding="utf-8")
+    tree = ast.parse(source)
+    found = []
+    stack = [(tree, False)]
+    while stack:  # one pass over the tree, each node once (not once per enclosing function)
+        node, inside = stack.pop()
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            found.append((node, inside))
+        inside = inside or isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+        stack.extend((child, inside) for child in ast.iter_child_nodes(node))
+    return source.splitlines(), tree, found
+
+
 def imports(path: Path, name: str, known: dict[str, Path]) -> list[tuple[str, int, bool, str]]:
     """(imported module, line, inside a function?, the line's text) for every import of a project module."""
-    source = path.read_text(encoding="utf-8")
-    lines = source.splitlines()
+    lines, tree, statements = parsed(path)
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found = []
 
@@ -62,39 +79,24 @@ def imports(path: Path, name: str, known: dict[str, Path]) -> list[tuple[str, in
             target = target.rpartition(".")[0]
         return target or None
 
-    class Visitor(ast.NodeVisitor):
-        depth = 0
-
-        def visit_FunctionDef(self, node):
-            self.depth += 1
-            self.generic_visit(node)
-            self.depth -= 1
-
-        visit_AsyncFunctionDef = visit_FunctionDef
-
-        def _add(self, node, targets):
-            for target in targets:
-                if target.split(".")[0] in PACKAGES:
-                    resolved = resolve(target)
-                    if resolved and resolved != name:
-                        found.append((resolved, node.lineno, self.depth > 0, lines[node.lineno - 1]))
-
-        def visit_Import(self, node):
-            self._add(node, [a.name for a in node.names])
-
-        def visit_ImportFrom(self, node):
+    for node, inside in statements:
+        if isinstance(node, ast.Import):
+            targets = [a.name for a in node.names]
+        else:
             base = node.module or ""
             if node.level:
                 up = package.split(".")[: len(package.split(".")) - node.level + 1]
                 base = ".".join(up + ([base] if base else []))
-            self._add(node, [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names])
-
-    tree = ast.parse(source)
-    Visitor().visit(tree)
+            targets = [f"{base}.{a.name}" if f"{base}.{a.name}" in known else base for a in node.names]
+        for target in targets:
+            if target.split(".")[0] in PACKAGES:
+                resolved = resolve(target)
+                if resolved and resolved != name:
+                    found.append((resolved, node.lineno, inside, lines[node.lineno - 1]))
     if name in LOADED_BY_NAME:
         for target, line in loaded_by_name(tree, LOADED_BY_NAME[name]):
             found.append((resolve(target) or target, line, False, lines[line - 1]))
-    return found
+    return sorted(found, key=lambda item: item[1])
 
 
 def loaded_by_name(tree: ast.Module, table: str) -> list[tuple[str, int]]:
@@ -122,15 +124,8 @@ def calls_import_by_name(tree: ast.Module) -> bool:
 
 def nested_imports(path: Path) -> list[tuple[int, str]]:
     """Every import statement inside a function (of any module, project or not), with its line's text."""
-    source = path.read_text(encoding="utf-8")
-    lines = source.splitlines()
-    out = []
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-            for inner in ast.walk(node):
-                if isinstance(inner, (ast.Import, ast.ImportFrom)):
-                    out.append((inner.lineno, lines[inner.lineno - 1]))
-    return sorted(set(out))
+    lines, _, statements = parsed(path)
+    return sorted({(node.lineno, lines[node.lineno - 1]) for node, inside in statements if inside})
 
 
 def graph() -> dict[str, set[str]]:
@@ -205,8 +200,7 @@ def test_no_module_imports_a_layer_above_it():
 def test_reference_impl_imports_neither_harness_nor_mitsuba():
     for name, path in modules().items():
         if name.startswith("reference_impl"):
-            tree = ast.parse(path.read_text(encoding="utf-8"))
-            for node in ast.walk(tree):
+            for node in ast.walk(parsed(path)[1]):
                 if isinstance(node, ast.Import):
                     roots = [a.name.split(".")[0] for a in node.names]
                 elif isinstance(node, ast.ImportFrom) and not node.level:
@@ -230,10 +224,10 @@ def test_modules_loaded_by_name_are_declared_and_exist():
     it), and every module a table names exists (a misspelt command module fails here, not when a user runs it)."""
     known = modules()
     undeclared = [n for n, p in known.items()
-                  if calls_import_by_name(ast.parse(p.read_text(encoding="utf-8"))) and n not in LOADED_BY_NAME]
+                  if calls_import_by_name(parsed(p)[1]) and n not in LOADED_BY_NAME]
     assert not undeclared, f"modules importing by name without a table in LOADED_BY_NAME: {undeclared}"
     for name, table in LOADED_BY_NAME.items():
-        named = loaded_by_name(ast.parse(known[name].read_text(encoding="utf-8")), table)
+        named = loaded_by_name(parsed(known[name])[1], table)
         assert named, f"{name}.{table} names no module"
         missing = [target for target, _ in named if target not in known]
         assert not missing, f"{name}.{table} names modules that do not exist: {missing}"

@@ -51,6 +51,16 @@ scene = "SCENES/multi-light.toml"
 """
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _own_ground_truth_cache(tmp_path_factory):
+    """A ground-truth cache of this module's own: :func:`_cache_is_intact` looks at every entry of the cache, and the
+    run's cache is shared with the other xdist workers (tests/conftest.py), whose writes in flight it would see."""
+    previous = os.environ["HARNESS_CACHE_DIR"]
+    os.environ["HARNESS_CACHE_DIR"] = str(tmp_path_factory.mktemp("resume-cache"))
+    yield
+    os.environ["HARNESS_CACHE_DIR"] = previous
+
+
 def _write_suite(tmp_path: Path, text: str = SUITE) -> Path:
     path = tmp_path / "resume.toml"
     path.write_text(text.replace("SCENES", str(SCENES)))
