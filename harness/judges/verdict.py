@@ -383,10 +383,11 @@ def verdict(
     # --- tiles -------------------------------------------------------------
     n = _tile_sum(m.astype(np.float64), tile)
     d_sum = _tile_sum(diff, tile)
-    v_raw_sum = _tile_sum(v_raw, tile)
+    vt_sum = _tile_sum(vt, tile)
+    vr_sum = _tile_sum(vr, tile)
+    v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
     v_sum = _tile_sum(v_eff, tile)
-    dof_tiles = np.minimum(_welch_dof(_tile_sum(vt, tile), _tile_sum(welch_t, tile)),
-                           _welch_dof(_tile_sum(vr, tile), _tile_sum(welch_r, tile)))
+    dof_tiles = np.minimum(_welch_dof(vt_sum, _tile_sum(welch_t, tile)), _welch_dof(vr_sum, _tile_sum(welch_r, tile)))
     zero_tiles = (n > 0) & (v_raw_sum == 0)
     random_tiles = (n > 0) & (v_raw_sum > 0)
     bad_pixel = m & (v_raw == 0) & (np.abs(diff) > rtol * scale)

@@ -105,16 +105,6 @@ def no_interrupts():
         check()
 
 
-def finished_cases(folder: Path) -> int:
-    """How many cases the run in ``folder`` has kept: the records of its results.json (0 without a readable one).
-    What an interrupted run reports, since the signal can land after a case is written and before it is counted
-    (``no_interrupts`` raises as the write ends)."""
-    try:
-        return len(json.loads((Path(folder) / "results.json").read_text(encoding="utf-8"))["cases"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return 0
-
-
 def case_digest(case) -> str:
     """SHA-256 of what a case's result depends on: its definition (but ``timeout``) and its scene file's bytes."""
     fields = {k: v for k, v in dataclasses.asdict(case).items() if k != "timeout"}

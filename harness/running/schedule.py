@@ -72,10 +72,11 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
                 records[index] = record
                 hits.append(index)
         if hits:
-            write()  # once for them all: a hit costs milliseconds, rewriting results.json after each would not
-            for index in hits:
-                if on_case is not None:
-                    on_case(index, records[index])
+            with runstate.no_interrupts():  # written and reported as one step (a signal waits for both)
+                write()  # once for them all: a hit costs milliseconds, rewriting results.json after each would not
+                for index in hits:
+                    if on_case is not None:
+                        on_case(index, records[index])
         todo = [(i, case) for i, case in todo if i not in records]
     # what each case folder held before its case runs: the files it writes are the ones that change
     before = {i: result_cache.snapshot(out_dir / "cases" / slug(case.name)) for i, case in todo
@@ -111,9 +112,12 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
                 if key is not None:
                     record["cache_key"] = key
             records[index] = record
-            write()
-            if on_case is not None:
-                on_case(index, record)
+            # written and reported as one step: a signal that lands between the two would stop the run with the
+            # case kept in results.json but not counted in "interrupted after N of M cases"
+            with runstate.no_interrupts():
+                write()
+                if on_case is not None:
+                    on_case(index, record)
             runstate.check()
     finally:
         outcomes.close()  # stops the workers, whatever ended the loop
