@@ -44,9 +44,12 @@ def register(sub, common) -> None:
                  common.allow_outside_paths()])
 
 
+_SPP = options.int_type(1, what="a positive integer or auto")
+
+
 def _spp_or_auto(text: str) -> int | str:
     """``--spp``: a positive integer or ``auto``."""
-    return "auto" if str(text).strip().lower() == "auto" else options.positive_int(text)
+    return "auto" if str(text).strip().lower() == "auto" else _SPP(text)
 
 
 def run(args: argparse.Namespace) -> int:
