@@ -34,6 +34,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from harness.core import srgb
+
 __all__ = [
     "MAPE_EPS",
     "RELMSE_EPS",
@@ -102,15 +104,13 @@ def count_nonfinite(image: np.ndarray) -> int:
 
 
 def srgb_encode(image: np.ndarray) -> np.ndarray:
-    """Linear radiance -> display sRGB in [0, 1]: ``cctf_encoding(clip(image, 0, 1), "sRGB")``.
+    """Linear radiance -> display sRGB in [0, 1]: ``srgb.encode(clip(image, 0, 1))``.
 
-    The sRGB transfer function [4] from colour-science, applied at exposure 0
+    The sRGB transfer function [4] (:func:`harness.core.srgb.encode`), applied at exposure 0
     (as the harness's PNG previews are), float64 out.
     """
-    import colour  # optional: slow to import; only the display metrics need it
-
     clipped = np.clip(np.asarray(image, dtype=np.float64), 0.0, 1.0)
-    return np.asarray(colour.cctf_encoding(clipped, function="sRGB"), dtype=np.float64)
+    return srgb.encode(clipped)
 
 
 # ---------------------------------------------------------------------------
