@@ -2,7 +2,7 @@
 0.5-0.9 s of every process and that these commands do not need (docs/performance.md, "Imports at every start"):
 colour-science (the sRGB curve is harness.core.srgb), trimesh (the icosphere is harness.scene.triangulate's; meshes
 still load it), scipy.stats (p-values come from scipy.special through harness.judges.distributions; PSNR is
-computed in harness.judges.metrics), matplotlib where nothing is coloured, and tqdm where no bar is shown."""
+computed in harness.judges.metrics), and matplotlib where nothing is coloured."""
 
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 #: the heavy libraries watched, and one that the comparison does need (so that the probe is seen to see imports)
-WATCHED = ("colour", "trimesh", "networkx", "scipy.stats", "matplotlib", "tqdm", "skimage", "numba")
-NEVER = {"colour", "trimesh", "networkx", "scipy.stats", "tqdm"}
+WATCHED = ("colour", "trimesh", "networkx", "scipy.stats", "matplotlib", "skimage", "numba")
+NEVER = {"colour", "trimesh", "networkx", "scipy.stats"}
 
 pytestmark = pytest.mark.slow
 
@@ -68,7 +68,7 @@ def test_a_closed_form_ground_truth_imports_none_of_them(tmp_path):
 
 def test_a_suite_case_imports_matplotlib_for_its_maps_and_nothing_else_heavy(tmp_path):
     """One case judged in this process (the serial executor runs it as a worker would): its report images colour
-    error maps with matplotlib's colormaps; no colour-science, trimesh, scipy.stats or tqdm."""
+    error maps with matplotlib's colormaps; no colour-science, trimesh or scipy.stats."""
     suite = tmp_path / "one.toml"
     suite.write_text('name = "one"\n[defaults]\nspp = 2\nfilm = { width = 8, height = 8 }\n'
                      '[[cases]]\nname = "furnace/reference"\nscene = "furnace"\n', encoding="utf-8")
