@@ -1,6 +1,6 @@
 """The sRGB transfer function: linear values in [0, 1] to the display values of an sRGB image.
 
-Written here rather than imported from colour-science: importing ``colour`` took 0.74 s of every harness process
+Written here rather than imported from colour-science: importing ``colour`` took 0.7-1.9 s of every harness process
 (it loads matplotlib's pyplot for its plotting module) for this two-line formula, which the PNG previews
 (:func:`harness.files.imageio.tonemap_srgb8`) and the display metrics (:func:`harness.judges.metrics.srgb_encode`)
 are the only users of. tests/core/test_srgb.py checks that it gives colour-science's ``cctf_encoding(x,
