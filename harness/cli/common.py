@@ -11,15 +11,13 @@ import select
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+
+from tqdm import tqdm
 
 from harness.core import options
 from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError
 from harness.core.options import Parser  # noqa: F401 - the shell's parser class, used as common.Parser
 from harness.core.limits import check_render_cost
-
-if TYPE_CHECKING:
-    from tqdm import tqdm
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 # A closed stdout (``harness ... | head``): what a shell reports for a command killed by SIGPIPE, 128 + 13. Python
@@ -105,8 +103,6 @@ def progress_bar(args: argparse.Namespace, description: str, unit: str, *, total
     """A tqdm bar on stderr, or None with ``--quiet`` or when stderr is not a terminal."""
     if args.quiet or not sys.stderr.isatty():
         return None
-    from tqdm import tqdm  # optional: 0.1-0.2 s (importlib.metadata) at every start; only a shown bar needs it
-
     return tqdm(total=total, desc=description, unit=unit, unit_scale=unit_scale, file=sys.stderr, leave=leave)
 
 

@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import sys
 
+from tqdm import tqdm
+
 
 class Progress:
     """Steps of a long task (the studies of a run, the cases of a report); ``add`` grows the total as the task
     learns how much is left."""
 
     def __init__(self, enabled: bool, total: int, desc: str):
-        self.bar = None
-        if enabled:
-            from tqdm import tqdm  # optional: 0.1-0.2 s (importlib.metadata) at every start; only a shown bar needs it
-
-            self.bar = tqdm(total=total, desc=desc, unit="step", file=sys.stderr, leave=False)
+        self.bar = tqdm(total=total, desc=desc, unit="step", file=sys.stderr, leave=False) if enabled else None
 
     def add(self, n: int) -> None:
         if self.bar is not None:
