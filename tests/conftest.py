@@ -51,6 +51,8 @@ def pytest_sessionstart(session):
         return
     import warm_kernels
 
+    warm_kernels.compile_bytecode()
+
     if not warm_kernels.cache_is_warm():
         seconds = warm_kernels.warm_in_parallel()
         session.config.stash[_WARMUP_SECONDS] = seconds

@@ -31,6 +31,19 @@ UNLAYERED = ("harness",)  # the package itself: a docstring, imports nothing
 # top-level table in each that names them (docs/architecture.md, "Modules loaded by name"): the table's strings that
 # name a project module count as that module's imports, for the layers and the circles alike.
 LOADED_BY_NAME = {"harness.cli": "COMMANDS", "harness.cli.report": "STUDY_COMPUTE"}
+# Heavy libraries (0.5-0.9 s to import, each) and the only modules that may import them, inside the function that
+# needs them, so that a command that does not call it does not pay (docs/performance.md, "Imports at every start";
+# tests/cli/test_start_up_imports.py checks the commands themselves). colour-science: the sRGB curve is
+# harness.core.srgb; trimesh: mesh files only (the icosphere is harness.scene.triangulate's); scipy.stats: the
+# binomials of calibrate (p-values come from scipy.special, harness.judges.distributions); matplotlib: colormaps and
+# the studies' plots.
+HEAVY_ONLY_IN = {
+    "colour": (),
+    "trimesh": ("harness.scene.load", "harness.renderers.meshfiles"),
+    "scipy.stats": ("harness.judges.power", "harness.running.calibrate"),
+    "matplotlib": ("harness.files.previews", "harness.studies.figures"),
+    "skimage": ("harness.judges.metrics",),
+}
 
 
 def module_name(path: Path) -> str:
@@ -57,6 +70,11 @@ def parsed(path: Path) -> tuple[list[str], ast.Module, list[tuple[ast.stmt, bool
     every test here looks at all modules (the trees are only read)."""
     source = path.read_text(encoding="utf-8")
     tree = ast.parse(source)
+    return source.splitlines(), tree, import_statements(tree)
+
+
+def import_statements(tree: ast.Module) -> list[tuple[ast.stmt, bool]]:
+    """Every import statement of a syntax tree, with: inside a function?"""
     found = []
     stack = [(tree, False)]
     while stack:  # one pass over the tree, each node once (not once per enclosing function)
@@ -65,7 +83,7 @@ def parsed(path: Path) -> tuple[list[str], ast.Module, list[tuple[ast.stmt, bool
             found.append((node, inside))
         inside = inside or isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
         stack.extend((child, inside) for child in ast.iter_child_nodes(node))
-    return source.splitlines(), tree, found
+    return found
 
 
 def imports(path: Path, name: str, known: dict[str, Path]) -> list[tuple[str, int, bool, str]]:
@@ -219,6 +237,32 @@ def test_imports_inside_functions_are_optional_heavy_dependencies_and_say_so():
     assert not bad, "imports inside functions without '# optional: why':\n" + "\n".join(bad)
 
 
+def heavy_imports(statements: list[tuple[ast.stmt, bool]]) -> list[tuple[str, int, bool]]:
+    """(library of :data:`HEAVY_ONLY_IN`, line, inside a function?) for every import of one."""
+    found = []
+    for node, inside in statements:
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif not node.level:
+            names = [node.module or ""] + [f"{node.module}.{a.name}" for a in node.names]  # from scipy import stats
+        else:
+            continue
+        for heavy in HEAVY_ONLY_IN:
+            if any(n == heavy or n.startswith(heavy + ".") for n in names):
+                found.append((heavy, node.lineno, inside))
+    return found
+
+
+def test_heavy_libraries_are_imported_only_where_needed_and_inside_a_function():
+    bad = []
+    for name, path in modules().items():
+        for heavy, line, inside in heavy_imports(parsed(path)[2]):
+            if name not in HEAVY_ONLY_IN[heavy] or not inside:
+                bad.append(f"{path.relative_to(ROOT)}:{line}: {heavy} ({'' if inside else 'at the top, '}allowed "
+                           f"only inside functions of {', '.join(HEAVY_ONLY_IN[heavy]) or 'no module'})")
+    assert not bad, "heavy imports outside their places:\n" + "\n".join(bad)
+
+
 def test_modules_loaded_by_name_are_declared_and_exist():
     """A module that imports by name declares what in its table (else the layer and circle checks would not see
     it), and every module a table names exists (a misspelt command module fails here, not when a user runs it)."""
@@ -241,3 +285,5 @@ def test_the_checks_can_fail():
     assert layer_of("harness.report.build") > layer_of("harness.studies.convergence")
     planted = ast.parse('import importlib\nT = (("a", "harness.cli.nope", "help"),)\nimportlib.import_module("x")\n')
     assert loaded_by_name(planted, "T") == [("harness.cli.nope", 2)] and calls_import_by_name(planted)
+    planted = ast.parse("from scipy import stats\nimport numpy\ndef f():\n    import colour.models\n")
+    assert sorted(heavy_imports(import_statements(planted))) == [("colour", 4, True), ("scipy.stats", 1, False)]

@@ -43,6 +43,7 @@ import imageio.v3 as iio  # the imageio package (absolute import), not this modu
 import numpy as np
 import OpenEXR
 
+from harness.core import srgb
 from harness.core.errors import HarnessError, not_regular
 from harness.core.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
 
@@ -751,18 +752,16 @@ def tonemap_srgb8(image: np.ndarray, exposure: float = 0.0) -> np.ndarray:
     """Linear RGB (H, W, 3) -> sRGB uint8 (H, W, 3), as used by previews.
 
     The image is scaled by ``2**exposure``, clipped to [0, 1], encoded with
-    the sRGB transfer function (colour-science) and rounded to 8 bit.
+    the sRGB transfer function (:func:`harness.core.srgb.encode`) and rounded to 8 bit.
     Pixels with any NaN channel become magenta; otherwise pixels with any
     +Inf channel become white (-Inf clips to 0).
     """
-    import colour  # optional: colour-science takes seconds to import and only previews need it
-
     img = _check_rgb_array("image", image).astype(np.float64)
     nan = np.isnan(img).any(axis=-1)
     pos_inf = np.isposinf(img).any(axis=-1) & ~nan
     with np.errstate(invalid="ignore", over="ignore"):
         scaled = np.clip(np.nan_to_num(img * 2.0 ** float(exposure), nan=0.0), 0.0, 1.0)
-    encoded = np.asarray(colour.cctf_encoding(scaled, function="sRGB"), dtype=np.float64)
+    encoded = srgb.encode(scaled)
     out = np.round(np.clip(encoded, 0.0, 1.0) * 255.0).astype(np.uint8)
     out[pos_inf] = _POS_INF_COLOUR
     out[nan] = _NAN_COLOUR

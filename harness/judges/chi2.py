@@ -78,6 +78,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from harness.judges.distributions import chi2_sf
+
 __all__ = [
     "FAMILY_ALPHA",
     "MIN_EXPECTED",
@@ -277,9 +279,7 @@ def pooled_statistic(
 def _p_value(statistic: float, dof: int) -> float:
     if dof < 1:
         return float("nan")
-    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
-
-    return float(stats.chi2.sf(statistic, dof))
+    return float(chi2_sf(statistic, dof))
 
 
 def _nodes(quadrature: str, order: int) -> tuple[np.ndarray, np.ndarray]:

@@ -53,6 +53,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from harness.judges.distributions import chi2_sf, normal_isf
+
 __all__ = ["FALSE_ALARM", "FLOAT32_REL", "ImageMean", "image_mean", "z_critical", "z_scores", "tile_chi2"]
 
 #: Probability that a correct renderer fails a single test function (over all its comparisons).
@@ -81,9 +83,7 @@ def z_critical(alpha: float, comparisons: int) -> float:
         raise ValueError(f"alpha must lie in (0, 1), got {alpha!r}")
     if not (isinstance(comparisons, (int, np.integer)) and comparisons >= 1):
         raise ValueError(f"comparisons must be an integer >= 1, got {comparisons!r}")
-    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
-
-    return float(stats.norm.isf(alpha / (2 * comparisons)))
+    return float(normal_isf(alpha / (2 * comparisons)))
 
 
 @dataclass
@@ -200,7 +200,5 @@ def tile_chi2(diff: np.ndarray, var: np.ndarray, tile: int) -> tuple[float, int,
     z2 = d[ok] ** 2 / v[ok]
     dof = int(ok.sum())
     statistic = float(z2.sum())
-    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
-
-    p = float(stats.chi2.sf(statistic, dof)) if dof else float("nan")
+    p = float(chi2_sf(statistic, dof)) if dof else float("nan")
     return statistic, dof, p

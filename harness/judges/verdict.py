@@ -66,6 +66,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.judges.distributions import chi2_sf, normal_isf, normal_sf, student_t_sf
 
 __all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "TileMaps", "Verdict", "tile_z_scores", "verdict"]
 
@@ -171,15 +172,11 @@ def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
     out = z.copy()
     finite = np.isfinite(dof) & np.isfinite(z)
     if finite.any():
-        from scipy import special  # optional: 0.2 s at every command's start; only its p-values and quantiles need it
-
-        # scipy.stats' t.sf and norm.isf are these functions (stdtr(dof, -|z|) and -ndtri(tail)) behind argument
-        # checks that cost more than the arithmetic on a verdict's few hundred tiles
-        tail = special.stdtr(dof[finite], -np.abs(z[finite]))
-        converted = -special.ndtri(tail)
+        tail = student_t_sf(np.abs(z[finite]), dof[finite])
+        converted = normal_isf(tail)
         # Where the t tail underflows to 0 the normal quantile is inf; report the largest finite one instead
         # (about 37.5: "at least this many standard deviations"), which is just as decisive and keeps sums finite.
-        converted = np.where(np.isfinite(converted), converted, float(-special.ndtri(np.finfo(float).tiny)))
+        converted = np.where(np.isfinite(converted), converted, float(normal_isf(np.finfo(float).tiny)))
         out[finite] = np.sign(z[finite]) * converted
     return out
 
@@ -332,9 +329,6 @@ def verdict(
     max :math:`p = 1 - (1 - 2\Phi(-\max|z|))^K`.  Fail if any p < alpha / 3,
     if a zero-variance tile differs, or if a test pixel is not finite.
     """
-    # scipy.stats' norm.sf(x) and chi2.sf(x, k) are ndtr(-x) and chdtrc(k, x) behind argument checks (for x >= 0)
-    from scipy import special  # optional: 0.2 s at every command's start; only its p-values and quantiles need it
-
     test_name, expected_name = names
     if test_variance is None or expected_variance is None:
         which = test_name if test_variance is None else expected_name
@@ -417,7 +411,7 @@ def verdict(
             g_z[c] = g_d[c] / np.sqrt(g_v[c])
             g_dof[c] = g_nu[c]
             zc = float(_to_normal(np.array([g_z[c]]), np.array([g_dof[c]]))[0])
-            g_p[c] = 2.0 * special.ndtr(-abs(zc))
+            g_p[c] = 2.0 * normal_sf(abs(zc))
     n_active = int(g_active.sum())
     g_pvalue = _sidak(float(g_p.min()), n_active) if n_active else 1.0
     g_worst = int(np.argmin(g_p)) if n_active else 0
@@ -434,7 +428,7 @@ def verdict(
     # --- 2. omnibus chi-square per channel -----------------------------------
     o_stat = np.array([float(np.sum(z_norm[..., c][random_tiles[..., c]] ** 2)) for c in range(3)])
     o_dof = np.array([int(random_tiles[..., c].sum()) for c in range(3)])
-    o_p = np.array([float(special.chdtrc(o_dof[c], o_stat[c])) if o_dof[c] > 0 else 1.0 for c in range(3)])
+    o_p = np.array([float(chi2_sf(o_stat[c], o_dof[c])) if o_dof[c] > 0 else 1.0 for c in range(3)])
     o_active = int(np.count_nonzero(o_dof))
     o_pvalue = min(1.0, o_active * float(o_p.min())) if o_active else 1.0
     omnibus = {
@@ -450,7 +444,7 @@ def verdict(
     if count:
         flat = int(np.argmax(abs_z))
         zmax = float(abs_z.flat[flat])
-        m_pvalue = _sidak(float(2.0 * special.ndtr(-zmax)), count)
+        m_pvalue = _sidak(float(2.0 * normal_sf(zmax)), count)
     else:
         flat, zmax, m_pvalue = -1, 0.0, 1.0
     max_z = {"statistic": zmax, "count": count, "p_value": float(m_pvalue)}
@@ -493,7 +487,7 @@ def verdict(
 
     # --- decision ------------------------------------------------------------
     threshold = alpha / len(SUBTESTS)
-    tile_p = np.where(random_tiles, 2.0 * special.ndtr(-np.abs(z_norm)), 1.0)
+    tile_p = np.where(random_tiles, 2.0 * normal_sf(np.abs(z_norm)), 1.0)
     tile_p = np.where(differing, 0.0, tile_p)
     with np.errstate(divide="ignore"):  # p = 1 (log1p(-1) = -inf) gives 1, as it should
         sidak = -np.expm1(count * np.log1p(-tile_p)) if count else np.ones_like(tile_p)

@@ -18,7 +18,7 @@ def safe_name(name: str) -> str:
 def ply_bytes(vertices: np.ndarray, triangles: np.ndarray) -> bytes:
     """A binary PLY of the triangles, written by trimesh without merging or reordering: vertices as float32 (the
     float64 positions rounded to nearest), faces as int32."""
-    import trimesh  # optional: 0.4 s (scipy, networkx) at every command's start; only meshes and spheres need it
+    import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
     mesh = trimesh.Trimesh(vertices=np.asarray(vertices, np.float64), faces=np.asarray(triangles, np.int64),
                            process=False, validate=False)
     return mesh.export(file_type="ply", encoding="binary")

@@ -50,6 +50,7 @@ from harness.core.errors import HarnessError, read_user_text
 from harness.core.text import short
 from harness.files.imageio import atomic_write_text, read_exr
 from harness.files.results import read_results
+from harness.judges.distributions import normal_isf
 from harness.judges.metrics import MAPE_EPS, RELMSE_EPS
 from harness.renderers.groundtruth import scene_digest
 from harness.running.judge import case_scene, ground_truth_for
@@ -282,9 +283,7 @@ def check_matches(doc: dict, path: str | Path, suite) -> None:
 
 
 def _z_one_sided(a: float) -> float:
-    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
-
-    return float(stats.norm.isf(a))
+    return float(normal_isf(a))
 
 
 def _worse(new: float, bound: float) -> bool:

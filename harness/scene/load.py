@@ -645,7 +645,7 @@ class _SceneReader:
             if problem:
                 raise self.error(file_key, f"mesh {name!r}: {problem}")
         try:
-            import trimesh  # optional: 0.4 s (scipy, networkx) at every command's start; only meshes and spheres need it
+            import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
             mesh = trimesh.load(path, force="mesh", process=False)
             vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
             triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)

@@ -88,21 +88,103 @@ def unit_cube() -> tuple[np.ndarray, np.ndarray]:
     return np.array(vertices), np.array(triangles)
 
 
+#: The regular icosahedron the icosphere starts from: its 12 vertices (the cyclic permutations of (0, +-a, +-b), a
+#: and b = 1 and the golden ratio scaled onto the unit sphere) and 20 faces wound outward. These are the numbers
+#: trimesh ships (its creation.json), to the last bit and in its order (b has only 14 digits there), so that
+#: :func:`unit_sphere` gives the triangles the images and their checksums were made with (trimesh.creation.icosphere's;
+#: tests/scene/test_icosphere.py compares the two at every level).
+ICOSAHEDRON_VERTICES = (
+    (-0.5257311121191336, 0.85065080835204, 0.0), (0.5257311121191336, 0.85065080835204, 0.0),
+    (-0.5257311121191336, -0.85065080835204, 0.0), (0.5257311121191336, -0.85065080835204, 0.0),
+    (0.0, -0.5257311121191336, 0.85065080835204), (0.0, 0.5257311121191336, 0.85065080835204),
+    (0.0, -0.5257311121191336, -0.85065080835204), (0.0, 0.5257311121191336, -0.85065080835204),
+    (0.85065080835204, 0.0, -0.5257311121191336), (0.85065080835204, 0.0, 0.5257311121191336),
+    (-0.85065080835204, 0.0, -0.5257311121191336), (-0.85065080835204, 0.0, 0.5257311121191336),
+)
+ICOSAHEDRON_TRIANGLES = (
+    (0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2), (10, 7, 6),
+    (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7),
+    (9, 8, 1),
+)
+
+
+def _onto_sphere(vertices: np.ndarray) -> np.ndarray:
+    """Each vertex moved along its direction by 1 - |v|: ``v + (v / |v|) (1 - |v|)``, as trimesh does it (not
+    ``v / |v|``, which rounds differently). |v| comes from ``np.dot`` with a vector of ones, the reduction trimesh
+    uses (through BLAS), so that the sums, and the bits, are the same."""
+    length = np.sqrt(np.dot(vertices * vertices, np.ones(3)))
+    return vertices + vertices / length[:, None] * (1.0 - length)[:, None]
+
+
+def _subdivide(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each triangle (a, b, c) split in four at its edges' midpoints m_ab, m_bc, m_ca: (a, m_ab, m_ca),
+    (m_ab, b, m_bc), (m_ca, m_bc, c), (m_ab, m_bc, m_ca), in that order, triangle after triangle (the winding is
+    kept). An edge shared by two triangles gets one midpoint, ``(v_lo + v_hi) / 2``; the midpoints follow the old
+    vertices, ordered by (larger index, smaller index) of their edge (the order trimesh's subdivision gives)."""
+    count = len(vertices)
+    edges = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)  # (a, b), (b, c), (c, a) of each triangle
+    low, high = edges.min(axis=1), edges.max(axis=1)
+    _, first, which = np.unique(high * count + low, return_index=True, return_inverse=True)
+    midpoints = (vertices[low[first]] + vertices[high[first]]) / 2.0
+    ab, bc, ca = (which.reshape(-1, 3) + count).T
+    a, b, c = triangles.T
+    split = np.stack([a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca], axis=1).reshape(-1, 3)
+    return np.concatenate([vertices, midpoints]), split
+
+
+def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    """``trimesh.creation.icosphere(subdivisions, radius=1)``'s vertices (float64) and faces (int64), the same
+    arrays to the last bit (:func:`unit_sphere` divides the vertices by their norms)."""
+    vertices = np.array(ICOSAHEDRON_VERTICES, dtype=np.float64)
+    triangles = np.array(ICOSAHEDRON_TRIANGLES, dtype=np.int64)
+    if subdivisions <= 0:
+        vertices = _onto_sphere(vertices)
+    for _ in range(subdivisions):
+        vertices, triangles = _subdivide(vertices, triangles)
+        vertices = _onto_sphere(vertices)
+    return vertices, triangles
+
+
 @lru_cache(maxsize=None)
-def _icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
-    import trimesh  # optional: 0.4 s (scipy, networkx) at every command's start; only meshes and spheres need it
-    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=1.0)
-    vertices = np.array(mesh.vertices, dtype=np.float64)
+def _unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    vertices, triangles = icosphere(subdivisions)
     vertices /= np.linalg.norm(vertices, axis=1, keepdims=True)  # exactly on the unit sphere
-    triangles = np.array(mesh.faces, dtype=np.int64)
     vertices.setflags(write=False)
     triangles.setflags(write=False)
     return vertices, triangles
 
 
 def unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
-    """The unit sphere as an icosphere (20 * 4**subdivisions triangles) facing outward, vertices on the sphere."""
-    return _icosphere(int(subdivisions))
+    """The unit sphere as an icosphere (20 * 4**subdivisions triangles) facing outward, vertices on the sphere.
+
+    Parameters
+    ----------
+    subdivisions : int
+        How many times the icosahedron is subdivided (0 to 7 in a scene file).
+
+    Returns
+    -------
+    vertices : numpy.ndarray
+        (10 * 4**subdivisions + 2, 3) float64, read-only, each of norm 1 (to rounding).
+    triangles : numpy.ndarray
+        (20 * 4**subdivisions, 3) int64, read-only, wound outward.
+
+    Notes
+    -----
+    Midpoint subdivision of the regular icosahedron (not Loop's scheme: nothing is smoothed): each level splits
+    every triangle in four at its edges' midpoints and moves every vertex onto the sphere,
+    :math:`v \\leftarrow v + \\hat v (1 - |v|)`; at the end every vertex is divided by its norm. The
+    construction, the order of the vertices and triangles and every bit are those of
+    ``trimesh.creation.icosphere`` (followed by that division), which the harness called before (importing trimesh
+    took 0.6 s of every command that loads a sphere); tests/scene/test_icosphere.py checks them against trimesh for
+    every level a scene may ask for.
+
+    References
+    ----------
+    .. [1] trimesh, ``trimesh.creation.icosphere`` and ``trimesh.remesh.subdivide`` (MIT licence),
+           https://github.com/mikedh/trimesh.
+    """
+    return _unit_sphere(int(subdivisions))
 
 
 # --------------------------------------------------------------------------------------------------------------------

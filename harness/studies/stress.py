@@ -24,6 +24,7 @@ import numpy as np
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
 from harness.files.imageio import ExrImage
+from harness.judges.distributions import normal_sf, student_t_sf
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.running.compare import compare_images
 from harness.scene.model import Scene
@@ -130,8 +131,6 @@ def fireflies(image, variance, reference, reference_variance, k: float = DEFAULT
     more frequent than that; so are dark outliers, in pixels whose rare bright paths were not drawn (their sample
     variance underestimates the true one): the untransformed scene's row is the baseline to compare with.
     """
-    from scipy import stats  # optional: 0.5 s at every command's start; only its p-values and quantiles need it
-
     t = np.asarray(image, np.float64)
     r = np.asarray(reference, np.float64)
     sigma = np.sqrt(np.asarray(variance, np.float64) + np.asarray(reference_variance, np.float64))
@@ -140,7 +139,7 @@ def fireflies(image, variance, reference, reference_variance, k: float = DEFAULT
         usable = np.isfinite(diff) & np.isfinite(sigma)
         bright = usable & (diff > k * sigma)
         dark = usable & (-diff > k * sigma)
-    tail = stats.norm.sf(k) if dof is None else stats.t.sf(k, dof)
+    tail = normal_sf(k) if dof is None else student_t_sf(k, dof)
     return {"count": int(np.count_nonzero(np.any(bright, axis=2))), "dark": int(np.count_nonzero(np.any(dark, axis=2))),
             "k": float(k), "expected": float(t.shape[0] * t.shape[1] * t.shape[2] * tail)}
 

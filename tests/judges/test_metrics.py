@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from skimage.metrics import structural_similarity
+from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from harness.judges import metrics
 
@@ -60,6 +60,21 @@ def test_psnr_exact_on_linear_radiance_with_reference_peak() -> None:
     # MSE = 1/6, peak = max(reference) = 4
     assert metrics.psnr(t, r) == pytest.approx(10 * math.log10(16 / (1 / 6)), rel=1e-12)
     assert metrics.psnr(t, r, data_range=1.0) == pytest.approx(10 * math.log10(6.0), rel=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_psnr_is_scikit_images_bit_for_bit(seed) -> None:
+    """metrics.psnr computes what skimage.metrics.peak_signal_noise_ratio does (it no longer calls it: that module
+    imports scipy.stats), on float32 renders of HDR radiance with NaN pixels, with the default and a given peak."""
+    rng = np.random.default_rng(seed)
+    r = (rng.lognormal(0.0, 1.5, (23 + seed, 31, 3))).astype(np.float32)
+    t = (r * rng.normal(1.0, 0.2, r.shape)).astype(np.float32)
+    t[seed, 3, 1] = np.nan
+    mask = np.all(np.isfinite(t), axis=-1)
+    tm, rm = t[mask].astype(np.float64), r[mask].astype(np.float64)
+    for peak in (None, 1.0, 123.456):
+        theirs = peak_signal_noise_ratio(rm, tm, data_range=float(rm.max()) if peak is None else peak)
+        assert metrics.psnr(t, r, data_range=peak) == float(theirs)
 
 
 def test_psnr_identical_is_inf_and_black_reference_is_nan() -> None:
