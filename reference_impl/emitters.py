@@ -401,10 +401,12 @@ def sample_envmap(emitters: Emitters, u1: np.ndarray, u2: np.ndarray):
     rows, cols = emitters.env_cell_pdf.shape
     i = sample_discrete(emitters.env_row_cdf, u1)
     fv = rescale_within(u1, np.where(i > 0, emitters.env_row_cdf[i - 1], 0.0), emitters.env_row_cdf[i])
-    cdf = emitters.env_col_cdf[i]  # (n, W)
-    j = np.minimum(np.sum(cdf <= u2[:, None], axis=1), cols - 1)
-    lo = np.where(j > 0, cdf[np.arange(len(j)), j - 1], 0.0)
-    fu = rescale_within(u2, lo, cdf[np.arange(len(j)), j])
+    j = np.empty(len(u2), np.int64)
+    for row in np.flatnonzero(np.bincount(i)):  # sample_discrete in each chosen row's cdf (not an (n, W) gather)
+        here = i == row
+        j[here] = sample_discrete(emitters.env_col_cdf[row], u2[here])
+    lo = np.where(j > 0, emitters.env_col_cdf[i, j - 1], 0.0)
+    fu = rescale_within(u2, lo, emitters.env_col_cdf[i, j])
     v = (i + fv) / rows
     u = (j + fu) / cols + 0.5 / cols
     u = np.where(u >= 1.0, u - 1.0, u)

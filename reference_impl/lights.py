@@ -212,8 +212,10 @@ class LightSampler:
         par = self.parallelogram[entry]
         a = np.where(par, u1, b1)
         b = np.where(par, u2, b2)
-        f = self.frames[entry]
-        pos = f[:, 0] + a[:, None] * f[:, 1] + b[:, None] * f[:, 2]
+        pos = np.empty((len(entry), 3))
+        for c in range(3):  # o + a e1 + b e2 per coordinate, from (entries,) columns (no (n, 3, 3) gather)
+            f = self.frames[:, :, c]
+            pos[:, c] = f[entry, 0] + a * f[entry, 1] + b * f[entry, 2]
         return np.where(a + b > 1.0, self.other[entry], self.triangles[entry]), pos
 
     def sample(self, u_select: np.ndarray, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray):

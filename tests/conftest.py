@@ -5,8 +5,14 @@ import os
 import sys
 from pathlib import Path
 
-import pytest
-from hypothesis import settings
+# One OpenBLAS thread per test process (and the processes it starts), set before numpy loads OpenBLAS: the tests'
+# matrix products are (n, 3) @ (3, 3), too small to share, and on two cores already busy with two xdist workers
+# OpenBLAS's second thread only spins (tests/reference_impl and tests/judges' statistical files: 47 -> 42
+# CPU-seconds; docs/performance.md). An explicit setting in the environment wins.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+from hypothesis import settings  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"

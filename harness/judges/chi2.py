@@ -313,6 +313,7 @@ def bin_integrals(
     jacobian: Callable[..., np.ndarray] | None = None,
     quadrature: str = "gauss",
     order: int = 6,
+    open_grid: bool = False,
 ) -> np.ndarray:
     """Integral of ``pdf_fn * jacobian`` over every bin of a regular grid on a box.
 
@@ -330,6 +331,12 @@ def bin_integrals(
         Gauss-Legendre (for smooth pdfs) or the midpoint rule (for pdfs with edges inside bins).
     order : int, optional
         Nodes per axis inside every bin (a tensor product over the axes).
+    open_grid : bool, optional
+        If true, ``pdf_fn`` and ``jacobian`` get the nodes as an open grid (``numpy.meshgrid(..., sparse=True)``:
+        axis ``i``'s ``res[i] * order`` nodes along dimension ``i``, length 1 along the others) and must return
+        arrays that broadcast to the full grid's shape. A density that is a product of per-axis factors, or that
+        maps each axis separately first (a chart of the sphere), then computes those on the distinct node values
+        only; the nodes, weights and the integral are those of the flat call, value for value.
 
     Returns
     -------
@@ -354,11 +361,15 @@ def bin_integrals(
         widths.append(h)
     if np.prod([len(p) for p in pts], dtype=float) > _MAX_NODES:
         raise ValueError("res * order too large; lower the quadrature order or the resolution")
-    grid = np.meshgrid(*pts, indexing="ij")
-    flat = [g.ravel() for g in grid]
-    f = np.broadcast_to(np.asarray(pdf_fn(*flat), float), flat[0].shape)
+    if open_grid:  # (r0 q, 1, ...), (1, r1 q, ...), ...: the caller broadcasts
+        args = np.meshgrid(*pts, indexing="ij", sparse=True)
+        shape = tuple(len(p) for p in pts)
+    else:
+        args = [g.ravel() for g in np.meshgrid(*pts, indexing="ij")]
+        shape = args[0].shape
+    f = np.broadcast_to(np.asarray(pdf_fn(*args), float), shape)
     if jacobian is not None:
-        f = f * np.asarray(jacobian(*flat), float)
+        f = f * np.asarray(jacobian(*args), float)
     f = f.reshape([x for r in res for x in (r, order)])
     # Contract the node axes with the weights: (r0, q, r1, q, ...) -> (r0, r1, ...).
     letters = "abcdefghijkl"

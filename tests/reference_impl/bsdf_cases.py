@@ -80,10 +80,17 @@ def _to_chart(d, frame):
 
 
 def _from_chart(g, phi, frame):
+    """Directions (..., 3) at chart coordinates ``g``, ``phi`` (arrays that broadcast: flat, or an open grid)."""
     axis, t1, t2 = frame
     c = np.sign(g) * (1.0 - (1.0 - np.abs(g)) ** 4)
     s = np.sqrt(np.maximum(0.0, 1.0 - c * c))
-    return (c[:, None] * axis + (s * np.cos(phi))[:, None] * t1 + (s * np.sin(phi))[:, None] * t2)
+    sc, ss = s * np.cos(phi), s * np.sin(phi)
+    d = np.empty((3,) + np.broadcast_shapes(np.shape(c), sc.shape))
+    for k in range(3):  # c axis + s cos(phi) t1 + s sin(phi) t2, one component at a time (no (..., 3) temporaries)
+        np.multiply(c, axis[k], out=d[k])
+        d[k] += sc * t1[k]
+        d[k] += ss * t2[k]
+    return np.moveaxis(d, 0, -1)
 
 
 @dataclass(frozen=True)
@@ -119,13 +126,15 @@ def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = ""
     for chart, frame in enumerate(frames):
         want_same = chart == 0
 
-        def pdf(g, phi, frame=frame, want_same=want_same):
+        def pdf(g, phi, frame=frame, want_same=want_same):  # g (m, 1), phi (1, k): an open grid
             d = _from_chart(g, phi, frame)
-            p = bsdf.eval_pdf(materials, 0, wo, d, mutant=pdf_mutant)[1]
-            return np.where((d[:, 2] * wo[2] > 0) == want_same, p, 0.0)
+            keep = (d[..., 2] * wo[2] > 0) == want_same  # the pdf counts on this chart's side only
+            p = np.zeros(keep.shape)
+            p[keep] = bsdf.pdf(materials, 0, wo, d[keep], mutant=pdf_mutant)
+            return p
 
         probs = bin_integrals(pdf, domain, RES, jacobian=lambda g, phi: 4.0 * (1.0 - np.abs(g)) ** 3,
-                              quadrature="midpoint", order=ORDER)
+                              quadrature="midpoint", order=ORDER, open_grid=True)
         integral += probs.sum()
         g, phi = _to_chart(wi[same == want_same], frame)
         counts, _, _ = np.histogram2d(g, phi, bins=RES, range=domain)
@@ -136,7 +145,7 @@ def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = ""
     expected.append(np.array([max(0.0, n * (1.0 - integral))]))
     statistic, dof, _, _ = pooled_statistic(np.concatenate(observed), np.concatenate(expected))
     p_value = float(stats.chi2.sf(statistic, dof)) if dof >= 1 else float("nan")
-    pdf_at = bsdf.eval_pdf(materials, 0, wo, wi, mutant=pdf_mutant)[1]
+    pdf_at = bsdf.pdf(materials, 0, wo, wi, mutant=pdf_mutant)
     impossible = int(np.count_nonzero(~(pdf_at > 0)) + np.count_nonzero(np.abs(np.linalg.norm(wi, axis=1) - 1) > 1e-9))
     return BsdfChi2(name, p_value, statistic, dof, float(integral), fails / n, impossible)
 
