@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import socket
 import subprocess
 import sys
 import time
@@ -123,19 +124,21 @@ def test_bad_executor_is_one_line(tmp_path, capsys):
     assert not (tmp_path / "o").exists()  # nothing written
 
 
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
 def _comparable(record: dict) -> dict:
     return {k: record.get(k) for k in ("name", "status", "ok", "reason", "metrics", "verdict", "thresholds_broken")}
 
 
 @pytest.mark.slow
 def test_dask_cluster_on_loopback_matches_local_run(tmp_path):
-    """A scheduler and two worker processes on 127.0.0.1; the suite renders its ground-truth chunks there (fresh
-    cache), then the same suite runs serially in this process from that cache: same statuses, verdicts and metrics,
-    bit for bit (the reference is seeded; both read the same ground truth). The scheduler runs in this process (a
-    thread of its own, as ``LocalCluster`` starts it; only routing goes through it): the workers, which import and
-    run the cases, are ``dask worker`` processes, as on a cluster."""
-    from distributed import Client, LocalCluster
-
+    """A scheduler and two workers on 127.0.0.1; the suite renders its ground-truth chunks there (fresh cache),
+    then the same suite runs serially in this process from that cache: same statuses, verdicts and metrics, bit
+    for bit (the reference is seeded; both read the same ground truth)."""
     bin_dir = Path(sys.executable).parent
     cache = tmp_path / "cache"
     env = dict(os.environ, HARNESS_CACHE_DIR=str(cache))
@@ -159,30 +162,30 @@ scene = "SCENES/furnace.toml"
 settings = { mutant = "double-emission" }
 expect = "fail"
 """, name="dask-check")
-    procs = []
-    with LocalCluster(n_workers=0, processes=False, host="127.0.0.1", scheduler_port=0, protocol="tcp://",
-                      dashboard_address=None) as cluster:
-        address = cluster.scheduler_address
-        assert address.startswith("tcp://127.0.0.1:")
-        try:
-            for i in range(2):
-                procs.append(subprocess.Popen(
-                    [str(bin_dir / "dask"), "worker", address, "--nthreads", "1", "--no-dashboard", "--no-nanny",
-                     "--host", "127.0.0.1", "--name", f"w{i}"], env=env, stdout=subprocess.DEVNULL,
-                    stderr=subprocess.DEVNULL))
-            with Client(address, timeout="20s") as client:
-                client.wait_for_workers(2, timeout=30)
-            runs = {}
-            args = [str(path), "--no-report", "--quiet", "--cache-dir", str(cache)]
-            # the command in this process (the Client above already is): the cluster's processes are the ones that
-            # count
-            assert main(["run", *args, "--out", str(tmp_path / "dask"), "--executor", address]) == 0
-            runs["dask"] = json.loads((tmp_path / "dask" / "results.json").read_text())
-        finally:
-            for proc in procs:  # a worker sent SIGTERM closes gracefully, 1-2 s; nothing here needs that
-                proc.kill()
-            for proc in procs:
-                proc.wait(10)
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([str(bin_dir / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    try:
+        for i in range(2):
+            procs.append(subprocess.Popen(
+                [str(bin_dir / "dask"), "worker", address, "--nthreads", "1", "--no-dashboard", "--no-nanny",
+                 "--host", "127.0.0.1", "--name", f"w{i}"], env=env, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout="20s") as client:
+            client.wait_for_workers(2, timeout=30)
+        runs = {}
+        args = [str(path), "--no-report", "--quiet", "--cache-dir", str(cache)]
+        # the command in this process (the Client above already is): the cluster's processes are the ones that count
+        assert main(["run", *args, "--out", str(tmp_path / "dask"), "--executor", address]) == 0
+        runs["dask"] = json.loads((tmp_path / "dask" / "results.json").read_text())
+    finally:
+        for proc in procs:  # a worker sent SIGTERM closes gracefully, 1-2 s; nothing here needs that
+            proc.kill()
+        for proc in procs:
+            proc.wait(10)
     assert main(["run", *args, "--out", str(tmp_path / "serial"), "--executor", "serial"]) == 0
     dask_run = runs["dask"]
     local_run = json.loads((tmp_path / "serial" / "results.json").read_text())
