@@ -128,7 +128,7 @@ def test_the_benchmark_suite_runs():
 
 
 
-def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, capfd):
+def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, capfd, monkeypatch):
     """``harness bench --renderer FILE``: the renderer's row holds the same spp as the others' (K = 2 runs of
     spp / 2), its time is the render time alone (0.6 s of "rendering" per render, without the 0.6 s+ of its two
     start-ups), and its ratios to the reference are in the result and the text."""
@@ -153,9 +153,13 @@ def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, ca
     assert ratios["efficiency_vs_reference"] == pytest.approx(fake.efficiency / ref.efficiency)
     assert "fake" in bench.format_table(rows)
     # a missing renderer file: main() in this process, as the other refusals (the command's process is
-    # test_bench_command_writes_json_and_refuses_bad_options's)
+    # test_bench_command_writes_json_and_refuses_bad_options's), refused before anything is raced
     from harness.cli import main
 
+    def raced(*args, **kwargs):
+        raise AssertionError("bench raced before refusing the missing renderer file")
+
+    monkeypatch.setattr(bench, "run_bench", raced)
     capfd.readouterr()
     assert main(["bench", "--renderer", str(tmp_path / "missing.toml"), "--quiet"]) == 2
     stderr = capfd.readouterr().err
