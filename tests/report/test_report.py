@@ -461,12 +461,16 @@ def test_convergence_json_is_alone_on_stdout(tmp_path):
 def test_studies_made_again_render_no_mitsuba_image(report_dir, monkeypatch, tmp_path):
     """The convergence curves' Mitsuba rungs come from the ground-truth cache the first studies filled."""
     from harness.renderers.mitsuba import MitsubaRenderer
+    from harness.studies import suite_studies
     from harness.studies.suite_studies import write_suite_studies
 
     def no_render(self, scene, request):
         raise AssertionError("Mitsuba rendered although its images are cached")
 
     monkeypatch.setattr(MitsubaRenderer, "render", no_render)
+    # no plots (matplotlib: seconds), which are drawn from the curves after every render; the report_dir fixture's
+    # studies draw them
+    monkeypatch.setattr(suite_studies._Plots, "draw", lambda self: None)
     results = json.loads((report_dir / "results.json").read_text())
     write_suite_studies(results, report_dir, fast_options(shadow_rays=False, strategies=False), out_dir=tmp_path / "s")
     studies = json.loads((tmp_path / "s" / "studies.json").read_text())

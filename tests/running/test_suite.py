@@ -136,7 +136,9 @@ settings = { mutant = "energy-loss-2pct" }
 spp = 16
 film = { width = 16, height = 16 }
 ''')
-    code, stdout, _ = run_cli(capfd, "run", path, "--out", tmp_path / "out", "--quiet", "--no-report")
+    # in this process (serial): the default executor's fork server and worker are the smoke run's to start
+    code, stdout, _ = run_cli(capfd, "run", path, "--out", tmp_path / "out", "--quiet", "--no-report", "--executor",
+                              "serial")
     assert code == 1
     assert "unexpected: furnace/energy-loss" in stdout
     record = json.loads((tmp_path / "out" / "results.json").read_text())["cases"][0]

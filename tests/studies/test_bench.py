@@ -128,7 +128,7 @@ def test_the_benchmark_suite_runs():
 
 
 
-def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path):
+def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, capfd, monkeypatch):
     """``harness bench --renderer FILE``: the renderer's row holds the same spp as the others' (K = 2 runs of
     spp / 2), its time is the render time alone (0.6 s of "rendering" per render, without the 0.6 s+ of its two
     start-ups), and its ratios to the reference are in the result and the text."""
@@ -152,6 +152,15 @@ def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path):
     ratios = bench.contender_ratios(rows, "fake")
     assert ratios["efficiency_vs_reference"] == pytest.approx(fake.efficiency / ref.efficiency)
     assert "fake" in bench.format_table(rows)
-    proc = subprocess.run([sys.executable, "-m", "harness", "bench", "--renderer", str(tmp_path / "missing.toml"),
-                           "--quiet"], capture_output=True, text=True, cwd=ROOT, timeout=120)
-    assert proc.returncode == 2 and "--renderer" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+    # a missing renderer file: main() in this process, as the other refusals (the command's process is
+    # test_bench_command_writes_json_and_refuses_bad_options's), refused before anything is raced
+    from harness.cli import main
+
+    def raced(*args, **kwargs):
+        raise AssertionError("bench raced before refusing the missing renderer file")
+
+    monkeypatch.setattr(bench, "run_bench", raced)
+    capfd.readouterr()
+    assert main(["bench", "--renderer", str(tmp_path / "missing.toml"), "--quiet"]) == 2
+    stderr = capfd.readouterr().err
+    assert "--renderer" in stderr and "missing.toml" in stderr and len(stderr.strip().splitlines()) == 1

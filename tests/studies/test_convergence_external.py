@@ -18,6 +18,7 @@ from harness.renderers import get_renderer
 from harness.report import write_suite_report
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
+from harness.studies import suite_studies
 from harness.studies.suite_studies import StudyOptions, write_suite_studies
 from harness.scene import load_scene
 from harness.studies.convergence import MAX_EXTRAPOLATION, Series, equal_error, equal_time, run_convergence
@@ -94,8 +95,15 @@ def test_rungs_a_renderer_refuses_are_left_out_and_named(tmp_path):
     assert failed["label"] == "refuses" and "expected at least 100" in failed["error"]
 
 
+@pytest.fixture()
+def no_plots(monkeypatch):
+    """The studies' plots are not drawn (matplotlib, about a second a plot, in forked processes): they are drawn from
+    the curves after every render, and tests/report/test_report.py's studies draw them."""
+    monkeypatch.setattr(suite_studies._Plots, "draw", lambda self: None)
+
+
 @pytest.mark.slow
-def test_the_suite_studies_and_report_show_an_external_renderer(tmp_path):
+def test_the_suite_studies_and_report_show_an_external_renderer(tmp_path, no_plots):
     """A suite case rendered by a renderer file gets its own convergence curve, a line of its own beside the
     strategy rows (its efficiency from its case, with why it has no rows), and the report shows both with where
     its render time comes from."""
@@ -138,7 +146,7 @@ expect = "fail"
 
 
 @pytest.mark.slow
-def test_a_glossy_scene_gets_the_glossy_engines_strategy_curves(tmp_path):
+def test_a_glossy_scene_gets_the_glossy_engines_strategy_curves(tmp_path, no_plots):
     """The convergence study's extra curves of a scene with a mirror are the glossy engine's direct strategies
     (area, bsdf), not the Lambertian ones it refuses (hemisphere-cosine failed the whole scene's study before)."""
     suite = tmp_path / "suite.toml"
