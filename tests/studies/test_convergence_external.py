@@ -108,8 +108,9 @@ def test_the_suite_studies_and_report_show_an_external_renderer(tmp_path, no_plo
     strategy rows (its efficiency from its case, with why it has no rows), and the report shows both with where
     its render time comes from."""
     # nothing here reads how much start-up was subtracted (the ladder test does): a 0.1 s sleep, not 0.6 s, in each
-    # of its 14 runs
-    fake_renderer = slow_start_renderer(tmp_path, startup=0.1, per_spp=0.02, noise=0.1)
+    # of its 14 runs. Its case's runs render 2 spp each: at 0.02 s per spp (0.04 s a run) the start-up's scatter
+    # under a loaded machine left no render time after subtraction once (efficiency None); 0.1 s per spp, 0.2 s a run
+    fake_renderer = slow_start_renderer(tmp_path, startup=0.1, per_spp=0.1, noise=0.1)
 
     suite = tmp_path / "suite.toml"
     suite.write_text(f'''name = "other"
