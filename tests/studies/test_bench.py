@@ -144,10 +144,12 @@ def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, ca
     # 2 runs x 0.3 s of rendering; unsubtracted, 2 x (0.5 + 0.3) s and the interpreter's start: 1.6 s and more.
     # Between the start-up probes and the timed runs the other tests' load can change each run's start by
     # 0.25 s or so (under pytest -n 2 it has: 0.95 and 1.04 s with a 0.3 s start-up; 1.13 s on a machine at load 8),
-    # so the upper bound sits at 1.3 s, below the unsubtracted 1.6 s.
+    # so the upper bound sits at 1.3 s, below the unsubtracted 1.6 s. Probes slowed the same way read 0.113 s of
+    # the 0.6 s once (at load 8), so the lower bound only says that something is left (subtracting the start-up
+    # twice leaves nothing).
     startup = float(fake.time_from.split("(")[1].split(" s ")[0])
     assert startup >= 0.5, fake.time_from  # the sleep alone
-    assert all(0.3 < s < 1.3 for s in fake.seconds_all), fake.seconds_all  # unsubtracted: 1.6 s and more
+    assert all(0.05 < s < 1.3 for s in fake.seconds_all), fake.seconds_all  # unsubtracted: 1.6 s and more
     assert fake.paths_per_second == pytest.approx(8 * 8 * 4 / fake.seconds)
     ratios = bench.contender_ratios(rows, "fake")
     assert ratios["efficiency_vs_reference"] == pytest.approx(fake.efficiency / ref.efficiency)
