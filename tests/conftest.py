@@ -45,8 +45,8 @@ _WARMUP_SECONDS = pytest.StashKey[float]()
 def pytest_configure(config):
     """Keep bytecode in this process even where ``PYTHONDONTWRITEBYTECODE`` is set (as on the shared machines here):
     pytest then keeps each test module's rewritten bytecode in ``__pycache__`` (git-ignored) and every xdist worker
-    of a later run reads it instead of rewriting the asserts of ~290 modules again (a worker's collection: 10.6 s
-    without, 6.9 s with, docs/ci.md). ``HARNESS_TEST_WARMUP=off`` leaves the interpreter's setting alone."""
+    of a later run reads it instead of rewriting the asserts of ~290 modules again (a worker's collection: 10.2 s
+    without, 4.9 s with, docs/ci.md). ``HARNESS_TEST_WARMUP=off`` leaves the interpreter's setting alone."""
     if os.environ.get("HARNESS_TEST_WARMUP", "") != "off":
         sys.dont_write_bytecode = False
 
@@ -59,8 +59,6 @@ def pytest_sessionstart(session):
     if os.environ.get("PYTEST_XDIST_WORKER") or os.environ.get("HARNESS_TEST_WARMUP", "") == "off":
         return
     import warm_kernels
-
-    warm_kernels.compile_bytecode()
 
     if not warm_kernels.cache_is_warm():
         seconds = warm_kernels.warm_in_parallel()

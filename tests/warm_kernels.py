@@ -45,24 +45,6 @@ def cache_is_warm() -> bool:
     return all(any(n.startswith(prefix) for n in names) for prefix in INDEX_PREFIXES)
 
 
-def compile_bytecode(packages=("harness", "reference_impl")) -> None:
-    """Compile the project's own modules to bytecode (``__pycache__/*.pyc`` beside them, git-ignored) when the
-    interpreter does not write it itself.
-
-    With ``PYTHONDONTWRITEBYTECODE`` set (as on the shared machines here) Python reads bytecode but never writes it,
-    and the project is installed editable, so no ``pip install`` compiled it: each of the ~170 processes a test run
-    starts (``harness`` commands, executor workers, dask workers) compiled the ~150 modules it imports from source
-    again, about 0.4 s each (29 CPU-s a run, py-spy). ``compileall`` writes what is missing or stale, once, as
-    ``pip install`` does for a non-editable package; a tree whose bytecode is current costs a look at each file.
-    """
-    if not sys.dont_write_bytecode:
-        return  # every process writes what it compiles: the first import pays, once
-    import compileall
-
-    for package in packages:
-        compileall.compile_dir(ROOT / package, quiet=1)
-
-
 def warm(groups=tuple(GROUPS)) -> None:
     """Render each case of ``groups`` once, in this process, so that numba compiles and caches its kernels."""
     from harness.renderers import RenderRequest, get_renderer
