@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
-import imageio.v3 as iio  # the imageio package (absolute import), not this module
 import numpy as np
 import OpenEXR
 
@@ -782,7 +781,21 @@ def write_png_preview(
 
 
 def _png_bytes(image: np.ndarray, exposure: float = 0.0) -> bytes:
-    return iio.imwrite("<bytes>", tonemap_srgb8(image, exposure), extension=".png")
+    return encode_png(tonemap_srgb8(image, exposure))
+
+
+def encode_png(pixels: np.ndarray) -> bytes:
+    """uint8 (H, W, 3|4) -> PNG bytes (through the imageio package).
+
+    Notes
+    -----
+    imageio is imported here, not with this module: it costs about 70 ms of every process's start (its own import
+    and ``importlib.metadata``), and most processes that read or write EXR files (renderers' workers, external
+    renderers) write no PNG (docs/performance.md, "Imports at every start").
+    """
+    import imageio.v3 as iio  # the imageio package (absolute import), not this module
+
+    return iio.imwrite("<bytes>", np.ascontiguousarray(pixels), extension=".png")
 
 
 def write_exr_with_preview(

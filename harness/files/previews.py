@@ -11,7 +11,6 @@ import base64
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import imageio.v3 as iio
 import numpy as np
 
 from harness.files import imageio
@@ -50,8 +49,8 @@ class ReportImage:
 
 
 def png_bytes(pixels: np.ndarray) -> bytes:
-    """uint8 (H, W, 3|4) -> PNG bytes."""
-    return iio.imwrite("<bytes>", np.ascontiguousarray(pixels), extension=".png")
+    """uint8 (H, W, 3|4) -> PNG bytes (:func:`harness.files.imageio.encode_png`)."""
+    return imageio.encode_png(pixels)
 
 
 def _cmap(name: str):

@@ -571,3 +571,19 @@ def test_make_folders_takes_a_folder_another_process_made_meanwhile(tmp_path, mo
     monkeypatch.setattr(Path, "is_dir", racing_is_dir)
     assert hio.make_folders(target) == []
     assert real_is_dir(target)
+
+
+def test_exr_files_alone_do_not_import_the_png_encoder(tmp_path: Path) -> None:
+    """A process that only writes and reads EXR files (an external renderer, a worker) does not import the imageio
+    package (about 70 ms of its start, docs/performance.md); a PNG preview then loads it."""
+    import subprocess
+    import sys
+
+    script = ("import sys\nimport numpy as np\nfrom harness.files.imageio import read_exr, write_exr, write_png_preview\n"
+              "path = sys.argv[1]\nwrite_exr(path + '.exr', np.ones((2, 3, 3), np.float32))\n"
+              "assert read_exr(path + '.exr').image.shape == (2, 3, 3)\nbefore = 'imageio' in sys.modules\n"
+              "write_png_preview(path + '.png', np.ones((2, 3, 3), np.float32))\n"
+              "print(before, 'imageio' in sys.modules)")
+    done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "a")], capture_output=True, text=True,
+                          timeout=120, check=True)
+    assert done.stdout.split() == ["False", "True"]
