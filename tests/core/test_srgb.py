@@ -5,7 +5,6 @@ same 8-bit previews and PNG bytes."""
 
 from __future__ import annotations
 
-import colour
 import imageio.v3 as iio
 import numpy as np
 import pytest
@@ -15,6 +14,10 @@ from harness.files import imageio as hio
 
 
 def colours(values: np.ndarray) -> np.ndarray:
+    # imported here, not at the top: colour-science takes about 2 s to import, which every pytest-xdist worker would
+    # pay while collecting this file; only the worker that runs these tests pays it this way
+    import colour
+
     return np.asarray(colour.cctf_encoding(values, function="sRGB"), dtype=np.float64)
 
 
