@@ -32,6 +32,8 @@ References
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from harness.core import srgb
@@ -283,8 +285,7 @@ def flip(test: np.ndarray, expected: np.ndarray, *, full: bool = False):
     if np.array_equal(tf, rf):
         emap = np.zeros(mask.shape)
     else:
-        import flip_evaluator  # optional: a compiled extension, slow to import; only FLIP needs it
-
+        flip_evaluator = flip_module()
         parameters: dict = {}
         scale = float(rf.max())
         if not scale > 0.0:
@@ -298,6 +299,35 @@ def flip(test: np.ndarray, expected: np.ndarray, *, full: bool = False):
         emap = np.asarray(result[0], dtype=np.float64).reshape(mask.shape)
     mean = float(np.mean(emap[mask]))
     return (mean, emap) if full else mean
+
+
+def flip_module():
+    """NVIDIA's ``flip_evaluator`` package, imported with its OpenMP threads set to sleep, not spin, while they wait.
+
+    Returns
+    -------
+    module
+        ``flip_evaluator``.
+
+    Notes
+    -----
+    The package runs on its own copy of GNU OpenMP (``flip_evaluator.libs/libgomp-*.so``), which reads
+    ``OMP_WAIT_POLICY`` once, when it is loaded. Its default, threads that spin at every barrier, costs about 0.3 s
+    of each evaluation when the other cores are busy (the harness's parallel workers, a parallel test run): a 32 x 32
+    image took 0.34 s (0.22 s of CPU) that way and 0.004 s with ``OMP_WAIT_POLICY=passive``, and a 256 x 256 one
+    0.84 s against 0.43 s, the same error map (docs/performance.md). So the variable is ``passive`` while the
+    package loads, unless the user set it, and is then put back as it was: no other library or child process sees
+    it. Imported on first use: a compiled extension, slow to import, that only FLIP needs.
+    """
+    previous = os.environ.get("OMP_WAIT_POLICY")
+    if previous is None:
+        os.environ["OMP_WAIT_POLICY"] = "passive"
+    try:
+        import flip_evaluator
+    finally:
+        if previous is None:
+            os.environ.pop("OMP_WAIT_POLICY", None)
+    return flip_evaluator
 
 
 # ---------------------------------------------------------------------------

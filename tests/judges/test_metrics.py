@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+import sys
 
 import numpy as np
 import pytest
@@ -178,7 +180,7 @@ def test_flip_identical_is_zero_and_different_is_positive() -> None:
 
 
 def test_flip_mean_is_the_packages_mean() -> None:
-    import flip_evaluator
+    flip_evaluator = metrics.flip_module()
 
     ref = _smooth().astype(np.float32)
     test = (ref * 0.9).astype(np.float32)
@@ -239,3 +241,17 @@ def test_all_nonfinite_gives_nan_not_an_exception() -> None:
     for f in (metrics.rmse, metrics.relmse, metrics.mape, metrics.psnr, metrics.ssim, metrics.flip):
         assert math.isnan(f(test, ref)), f.__name__
     assert math.isnan(metrics.bias(test, ref)["overall"])
+
+
+def test_flip_is_loaded_with_sleeping_openmp_threads_and_leaves_the_environment_alone(tmp_path, monkeypatch) -> None:
+    """``flip_module`` imports the package while ``OMP_WAIT_POLICY`` is ``passive`` (its OpenMP runtime reads it once,
+    at load), keeps a value the user set, and leaves ``os.environ`` as it found it. A stand-in package records what
+    it saw at import."""
+    (tmp_path / "flip_evaluator.py").write_text("import os\nSEEN = os.environ.get('OMP_WAIT_POLICY')\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "flip_evaluator", raising=False)
+    monkeypatch.delenv("OMP_WAIT_POLICY", raising=False)
+    assert metrics.flip_module().SEEN == "passive" and "OMP_WAIT_POLICY" not in os.environ
+    monkeypatch.delitem(sys.modules, "flip_evaluator")
+    monkeypatch.setenv("OMP_WAIT_POLICY", "active")
+    assert metrics.flip_module().SEEN == "active" and os.environ["OMP_WAIT_POLICY"] == "active"
