@@ -10,6 +10,9 @@ from pathlib import Path
 # OpenBLAS's second thread only spins (tests/reference_impl and tests/judges' statistical files: 47 -> 42
 # CPU-seconds; docs/performance.md). An explicit setting in the environment wins.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# Files are written atomically but not forced to the disk (harness.files.imageio._durable): a run writes thousands,
+# at about 3.5 ms of fsync each here. tests/files/test_imageio.py turns fsync back on where it tests it.
+os.environ.setdefault("HARNESS_FSYNC", "off")
 
 import pytest  # noqa: E402
 from hypothesis import settings  # noqa: E402

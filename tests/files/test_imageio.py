@@ -407,6 +407,7 @@ def test_failure_inside_the_write_keeps_old_content(
 ) -> None:
     path = tmp_path / "r.json"
     hio.atomic_write_text(path, "old")
+    monkeypatch.setenv("HARNESS_FSYNC", "on")  # the test suite turns fsync off (tests/conftest.py)
 
     def failing_fsync(fd: int) -> None:
         raise OSError(5, "Input/output error")
@@ -587,3 +588,22 @@ def test_exr_files_alone_do_not_import_the_png_encoder(tmp_path: Path) -> None:
     done = subprocess.run([sys.executable, "-c", script, str(tmp_path / "a")], capture_output=True, text=True,
                           timeout=120, check=True)
     assert done.stdout.split() == ["False", "True"]
+
+
+@pytest.mark.parametrize("setting, synced", [(None, True), ("on", True), ("off", False)])
+def test_writes_are_fsynced_unless_the_setting_is_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, setting,
+                                                      synced) -> None:
+    """Each file and its folder are fsynced by default; ``HARNESS_FSYNC=off`` (the test suite's setting) skips that
+    and the write is still whole, with no temporary file left."""
+    if setting is None:
+        monkeypatch.delenv("HARNESS_FSYNC", raising=False)
+    else:
+        monkeypatch.setenv("HARNESS_FSYNC", setting)
+    calls: list[int] = []
+    real = os.fsync
+    monkeypatch.setattr(hio.os, "fsync", lambda fd: (calls.append(fd), real(fd))[1])
+    hio.atomic_write_text(tmp_path / "a.txt", "whole")
+    hio.write_exr(tmp_path / "b.exr", _image())
+    assert (len(calls) >= 4) == synced and (not calls) == (not synced)
+    assert (tmp_path / "a.txt").read_text() == "whole" and hio.read_exr(tmp_path / "b.exr").image.shape == (7, 11, 3)
+    assert sorted(os.listdir(tmp_path)) == ["a.txt", "b.exr"]
