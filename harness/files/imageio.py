@@ -805,7 +805,7 @@ def encode_png(pixels: np.ndarray) -> bytes:
     and ``importlib.metadata``), and most processes that read or write EXR files (renderers' workers, external
     renderers) write no PNG (docs/performance.md, "Imports at every start").
     """
-    import imageio.v3 as iio  # the imageio package (absolute import), not this module
+    import imageio.v3 as iio  # optional: ~70 ms to import, PNGs only (the imageio package, not this module)
 
     return iio.imwrite("<bytes>", np.ascontiguousarray(pixels), extension=".png")
 

@@ -323,7 +323,7 @@ def flip_module():
     if previous is None:
         os.environ["OMP_WAIT_POLICY"] = "passive"
     try:
-        import flip_evaluator
+        import flip_evaluator  # optional: a compiled extension, slow to import; only FLIP needs it
     finally:
         if previous is None:
             os.environ.pop("OMP_WAIT_POLICY", None)
