@@ -7,6 +7,7 @@ soft-shadows case compares against a reference render.
 
 from __future__ import annotations
 
+import dataclasses
 import html
 import json
 import re
@@ -313,11 +314,20 @@ film = { width = 8, height = 8 }
 '''
 
 
-def test_run_writes_the_report_and_report_rewrites_it(tmp_path, capfd):
+def test_run_writes_the_report_and_report_rewrites_it(tmp_path, capfd, monkeypatch):
+    from harness.cli import study_compute
+    from harness.studies import suite_studies
+
     suite = write_suite(tmp_path, ONE_CASE)
     out = tmp_path / "out"
     # a small ladder and no strategy rows: the studies' content is tested elsewhere, here that run writes them; the
-    # case in this process (serial), not in a worker that would load the kernels again (1-2 s)
+    # case in this process (serial), not in a worker that would load the kernels again (1-2 s). Nothing here reads
+    # the plots (drawn after the renders, 1.4 CPU-s; the report_dir fixture's are checked) or the times of the
+    # convergence renders (repeated to 0.05 s each for their timing: 2.9 CPU-s; the convergence tests time them)
+    monkeypatch.setattr(suite_studies._Plots, "draw", lambda self: None)
+    options = study_compute.study_options
+    monkeypatch.setattr(study_compute, "study_options",
+                        lambda args: dataclasses.replace(options(args), min_timing_seconds=0.0))
     code, stdout, stderr = run_cli(capfd, "run", str(suite), "--out", str(out), "--quiet", "--convergence-spp", "1,2,4",
                                    "--no-strategies", "--executor", "serial")
     assert code == 0, stdout + stderr
