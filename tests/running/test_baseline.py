@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -124,13 +125,22 @@ def test_bad_tolerances_are_one_line_errors(item, where):
 # ---- the gate end to end ---------------------------------------------------------------------------------------
 
 
+@pytest.fixture(scope="module")
+def saved_once(tmp_path_factory) -> Path:
+    """A folder with the tiny suite, its baseline (base.json) and the run it was saved from (run0/), made once for
+    the module (the same renders, seeded, in every test)."""
+    folder = tmp_path_factory.mktemp("saved")
+    suite = write_suite(folder / "tiny.toml")
+    assert main(["baseline", "save", str(suite), "--out", str(folder / "base.json"),
+                 "--run-out", str(folder / "run0"), "--quiet"]) == 0
+    return folder
+
+
 @pytest.fixture
-def saved(tmp_path, capsys):
-    suite = write_suite(tmp_path / "tiny.toml")
-    code, out, err = cli(capsys, "baseline", "save", suite, "--out", tmp_path / "base.json",
-                         "--run-out", tmp_path / "run0", "--quiet")
-    assert code == 0, err
-    return suite, tmp_path / "base.json"
+def saved(tmp_path, saved_once):
+    """The suite and its baseline, copied into the test's own folder (with run0/) for it to use and change."""
+    shutil.copytree(saved_once, tmp_path, dirs_exist_ok=True)
+    return tmp_path / "tiny.toml", tmp_path / "base.json"
 
 
 @pytest.mark.slow  # over 0.5 s: outside the inner loop (pytest -m "not slow")
