@@ -51,9 +51,16 @@ def test_render_imports_the_tracer_and_no_heavy_library(tmp_path):
 
 def test_compare_imports_scikit_image_but_not_scipy_stats(tmp_path):
     """The verdict's p-values and the metrics: scikit-image for SSIM (seen: the probe works), not scipy.stats,
-    matplotlib, numba or colour-science."""
-    first, _ = render(tmp_path, "furnace", "a", seed=1)
-    second, _ = render(tmp_path, "furnace", "b", seed=2)
+    matplotlib, numba or colour-science. Its inputs (8 x 8 images with variance channels, as a render writes) are
+    written here: only the comparison's process is watched."""
+    import numpy as np
+
+    from harness.files.imageio import write_exr
+
+    first, second = tmp_path / "a.exr", tmp_path / "b.exr"
+    for path, seed in ((first, 1), (second, 2)):
+        rng = np.random.default_rng(seed)
+        write_exr(path, 0.5 + 0.05 * rng.standard_normal((8, 8, 3)), np.full((8, 8, 3), 0.05**2))
     code, modules = imported(["compare", str(first), str(second)])
     assert code in (0, 1)
     assert modules == {"skimage"}
