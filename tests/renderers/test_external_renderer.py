@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
+from fake_exr import copy_beside, gaussian_image
 from harness.cli import main
 from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer, renderer_names
@@ -28,13 +29,13 @@ EXAMPLE = ROOT / "examples" / "mitsuba_xml_renderer.py"
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
-# A fake renderer for the failure modes: no Mitsuba, fast. Pixel values N(mu, 0.1^2) seeded by --seed. It reports
-# its render time (<out>.json), so a render is its runs alone: no three 1-spp probe runs to measure its start-up
-# (the start-up path is _timed_renderer's, below).
+# A fake renderer for the failure modes: no Mitsuba, fast. Pixel values N(0.5, 0.1^2) seeded by --seed
+# (fake_exr.gaussian_image). It reports its render time (<out>.json), so a render is its runs alone: no three 1-spp
+# probe runs to measure its start-up (the start-up path is _timed_renderer's, below). Neither numpy nor the harness
+# (tests/fake_exr.py): a run is the interpreter's start.
 FAKE = r'''
 import os, subprocess, sys, time
 start = time.perf_counter()
-import numpy as np
 args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
 mode, out = args["--mode"], args["--out"]
 w, h = int(args["--width"]), int(args["--height"])
@@ -50,13 +51,12 @@ if mode == "noexr":
 if mode == "garbage":
     open(out, "wb").write(b"not an exr")
     sys.exit(0)
-from harness.files.imageio import write_exr
+from fake_exr import constant_image, gaussian_image, write_exr
 
 if mode == "wrongsize":
     w += 1
-rng = np.random.default_rng(int(args["--seed"]))
-image = 0.5 + 0.1 * rng.standard_normal((h, w, 3))
-write_exr(out, image, np.full((h, w, 3), 0.01 / int(args["--spp"])) if mode == "variance" else None)
+image = gaussian_image(int(args["--seed"]), w, h, 0.5, 0.1)
+write_exr(out, image, constant_image(0.01 / int(args["--spp"]), w, h) if mode == "variance" else None)
 open(out + ".json", "w").write('{"render_seconds": %r}' % (time.perf_counter() - start))
 '''
 
@@ -64,6 +64,7 @@ open(out + ".json", "w").write('{"render_seconds": %r}' % (time.perf_counter() -
 def _renderer_file(folder: Path, name: str, mode: str, timeout: float = 60, repeats: int = 4, extra=()) -> Path:
     script = folder / "fake_renderer.py"
     script.write_text(FAKE)
+    copy_beside(script)
     path = folder / f"{name}.toml"
     command = ["{python}", str(script), "--mode", mode, "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}",
                "--width", "{width}", "--height", "{height}", *extra]
@@ -176,10 +177,9 @@ def test_fake_renderer_repeats_and_variance_channels(tmp_path, small_scene):
         small_scene, RenderRequest(spp=3, seed=11))
     assert runs.spp == 12 and runs.info["runs"] == 4 and runs.info["variance_dof"] == 3
     assert len(set(runs.info["seeds"])) == 4 and runs.info["seeds"][0] == 11
-    images = []
-    for seed in runs.info["seeds"]:  # what the fake renderer drew for each seed
-        rng = np.random.default_rng(seed)
-        images.append(0.5 + 0.1 * rng.standard_normal((4, 6, 3)))
+    # what the fake renderer drew for each seed (and wrote as float32)
+    images = [np.array(gaussian_image(seed, 6, 4, 0.5, 0.1), np.float32).astype(np.float64)
+              for seed in runs.info["seeds"]]
     mean, var, _ = combine_repeats(images)
     np.testing.assert_allclose(runs.image, mean, rtol=1e-6)
     np.testing.assert_allclose(runs.variance, var, rtol=1e-5)
@@ -334,15 +334,13 @@ TIMED = r'''
 import json, sys, time
 args = dict(zip(sys.argv[1::2], sys.argv[2::2]))
 time.sleep(float(args["--startup"]))
-import numpy as np
-from harness.files.imageio import write_exr
+from fake_exr import constant_image, gaussian_image, write_exr
 w, h, spp = int(args["--width"]), int(args["--height"]), int(args["--spp"])
 work = float(args["--work"]) * spp * w * h / 24
 time.sleep(work)
-rng = np.random.default_rng(int(args["--seed"]))
-image = 0.5 + 0.1 * rng.standard_normal((h, w, 3))
+image = gaussian_image(int(args["--seed"]), w, h, 0.5, 0.1)
 own = {"render_seconds": args.get("--claim", str(work)), "variance_dof": args.get("--dof", str(spp - 1))}
-write_exr(args["--out"], image, np.full((h, w, 3), 0.01 / spp), own if args["--report"] == "header" else None)
+write_exr(args["--out"], image, constant_image(0.01 / spp, w, h), own if args["--report"] == "header" else None)
 if args["--report"] == "json":
     open(args["--out"] + ".json", "w").write(json.dumps({k: float(v) for k, v in own.items()}))
 '''
@@ -351,6 +349,7 @@ if args["--report"] == "json":
 def _timed_renderer(folder: Path, name: str, report: str, startup: float, work: float, extra=()) -> Path:
     script = folder / "timed_renderer.py"
     script.write_text(TIMED)
+    copy_beside(script)
     path = folder / f"{name}.toml"
     command = ["{python}", str(script), "--report", report, "--startup", str(startup), "--work", str(work),
                "--out", "{out}", "--seed", "{seed}", "--spp", "{spp}", "--width", "{width}", "--height", "{height}",
