@@ -90,9 +90,11 @@ def test_bench_scene_races_contenders_against_a_closed_form():
 
 def test_bench_command_writes_json_and_refuses_bad_options(tmp_path, capfd):
     out = tmp_path / "bench.json"
+    # --no-embree-rate: the Embree row's replay (1 CPU-s) and its place in the JSON are
+    # tests/studies/test_embree_rate.py's (test_the_json_holds_the_embree_rate_and_the_targets)
     proc = subprocess.run(
         [sys.executable, "-m", "harness", "bench", "--scene", str(SCENES / "furnace.toml"), "--spp", "1",
-         "--repeats", "1", "--no-strategies", "--json", "--quiet", "--out", str(out)],
+         "--repeats", "1", "--no-strategies", "--no-embree-rate", "--json", "--quiet", "--out", str(out)],
         capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout)
