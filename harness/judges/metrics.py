@@ -33,6 +33,7 @@ References
 from __future__ import annotations
 
 import os
+import sys
 
 import numpy as np
 
@@ -319,6 +320,9 @@ def flip_module():
     package loads, unless the user set it, and is then put back as it was: no other library or child process sees
     it. Imported on first use: a compiled extension, slow to import, that only FLIP needs.
     """
+    loaded = sys.modules.get("flip_evaluator")
+    if loaded is not None:  # the environment is touched once, at the import, not at every evaluation
+        return loaded
     previous = os.environ.get("OMP_WAIT_POLICY")
     if previous is None:
         os.environ["OMP_WAIT_POLICY"] = "passive"
