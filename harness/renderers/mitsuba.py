@@ -255,7 +255,16 @@ def reset_variant_cache() -> None:
 
 
 def available_variants() -> list[str]:
-    """The variants this Mitsuba build has (importing Mitsuba runs no JIT backend, so this is safe)."""
+    """The variants this Mitsuba build has (importing Mitsuba runs no JIT backend, so this is safe).
+
+    Raises HarnessError (``DRJIT_LIBLLVM_PATH``) where that variable names no file: Dr.Jit reads it when Mitsuba is
+    first imported, so a later choice of library could not replace it, and its llvm variants would fail with a
+    traceback."""
+    libllvm = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if libllvm and not os.path.isfile(libllvm):
+        raise HarnessError("DRJIT_LIBLLVM_PATH", f"no file {libllvm!r}: expected the path of a libLLVM >= "
+                                                 f"{MIN_LLVM_VERSION} (e.g. /usr/lib/x86_64-linux-gnu/libLLVM-19.so), "
+                                                 "or the variable unset")
     try:
         import mitsuba  # optional: Mitsuba takes seconds to import and only Mitsuba renders need it
     except ImportError as err:
@@ -322,6 +331,7 @@ def import_mitsuba(variant: str):
 
     For llvm variants the library comes from :func:`resolve_variant` (probing if not done yet).
     """
+    given = os.environ.get("DRJIT_LIBLLVM_PATH")
     if variant.startswith("llvm"):
         known = [c for c in _CHOICES.values() if c.variant == variant]
         choice = known[0] if known else resolve_variant(variant)
@@ -330,7 +340,16 @@ def import_mitsuba(variant: str):
     import mitsuba as mi  # optional: Mitsuba takes seconds to import and only Mitsuba renders need it
 
     if mi.variant() != variant:
-        mi.set_variant(variant)
+        try:
+            mi.set_variant(variant)
+        except ImportError as err:
+            if not variant.startswith("llvm") or not given:
+                raise
+            # Dr.Jit read the user's library when Mitsuba was first imported here (to list its variants), before
+            # the probed one could replace it: the variable is what is wrong
+            raise HarnessError("DRJIT_LIBLLVM_PATH", f"{variant} cannot load {given!r} "
+                                                     f"({str(err).splitlines()[0][:120]}): expected the path of a "
+                                                     f"libLLVM >= {MIN_LLVM_VERSION}, or the variable unset") from None
     return mi
 
 

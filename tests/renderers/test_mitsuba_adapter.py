@@ -364,6 +364,29 @@ def test_libllvm_search_order(monkeypatch, tmp_path):
     assert mts.libllvm_version("/usr/lib/llvm-18/lib/libLLVM.so") == 18
 
 
+@pytest.mark.parametrize("value", ["missing", "not-a-library"])
+def test_a_bad_drjit_libllvm_path_is_one_line_naming_it(tmp_path, value):
+    """``DRJIT_LIBLLVM_PATH`` naming no file, or a file that is no libLLVM, ends a Mitsuba ground truth with exit code
+    2 and a last line naming the variable and what was expected (it was a traceback): Dr.Jit reads the variable when
+    Mitsuba is first imported, before the harness could pass it the library its probe found."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "libLLVM.so"
+    if value == "not-a-library":
+        if not mts.find_libllvm_candidates():  # without a working libLLVM the harness renders with scalar_rgb
+            pytest.skip("no libLLVM >= 16 on this machine")
+        path.write_text("not a library\n")
+    done = subprocess.run([sys.executable, "-m", "harness", "ground-truth", str(SCENES / "furnace.toml"), "--spp",
+                           "2", "--no-closed-form", "--out", str(tmp_path / "gt.exr"), "--quiet"],
+                          env={**os.environ, "DRJIT_LIBLLVM_PATH": str(path)}, capture_output=True, text=True,
+                          timeout=300, check=False)
+    last = done.stderr.strip().splitlines()[-1]
+    assert done.returncode == 2 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert last.startswith("harness: error: DRJIT_LIBLLVM_PATH: ") and "expected the path of a libLLVM >= 16" in last
+    assert not (tmp_path / "gt.exr").exists()
+
+
 def test_probe_survives_a_crashing_variant():
     """A variant whose process dies or fails is just 'not usable': Dr.Jit 1.5 aborts the process on LLVM 15."""
     assert mts.probe_variant("no_such_variant") is False
