@@ -48,11 +48,6 @@ class ReportImage:
                 "legend": self.legend, "stats": self.stats}
 
 
-def png_bytes(pixels: np.ndarray) -> bytes:
-    """uint8 (H, W, 3|4) -> PNG bytes (:func:`harness.files.imageio.encode_png`)."""
-    return imageio.encode_png(pixels)
-
-
 def _cmap(name: str):
     import matplotlib  # optional: heavy matplotlib, loaded to colour a map
 
@@ -136,7 +131,7 @@ class ImageWriter:
         png = self.folder / f"{key}.png"
         meta = dict(self.metadata, **{k: str(v) for k, v in extra_meta.items()})
         imageio.write_exr(exr, data, variance, metadata=meta)
-        encoded = png_bytes(pixels)
+        encoded = imageio.encode_png(pixels)
         imageio.atomic_write_bytes(png, encoded)
         return encoded, exr, png
 

@@ -40,7 +40,7 @@ from statistics import NormalDist
 import numpy as np
 
 from harness.files import imageio
-from harness.files.previews import colorize, png_bytes
+from harness.files.previews import colorize
 from harness.judges.verdict import TileMaps
 
 __all__ = ["DATA_FILE", "PVALUE_FILE", "THUMBNAIL_FILE", "ViewerData", "encode_plane", "make_viewer_data",
@@ -205,7 +205,7 @@ def render_thumbnail(render: np.ndarray, exposure: float) -> bytes:
         counts = np.isfinite(blocks).sum(axis=(1, 3))
         sums = np.nansum(blocks, axis=(1, 3))
         image = np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
-    return png_bytes(imageio.tonemap_srgb8(image.astype(np.float32), exposure))
+    return imageio.encode_png(imageio.tonemap_srgb8(image.astype(np.float32), exposure))
 
 
 def pvalue_thumbnail(tiles: TileMaps, tile: int, height: int, width: int) -> bytes:
@@ -231,7 +231,7 @@ def pvalue_thumbnail(tiles: TileMaps, tile: int, height: int, width: int) -> byt
     edge[:, 1:] |= xs[None, 1:] != xs[None, :-1]
     edge[:, :-1] |= xs[None, :-1] != xs[None, 1:]
     pixels[failing & edge] = OUTLINE_COLOUR
-    return png_bytes(pixels)
+    return imageio.encode_png(pixels)
 
 
 # ---- making and reading ------------------------------------------------------------------------------------------
