@@ -37,6 +37,16 @@ class Parser(argparse.ArgumentParser):
             raise HarnessError(max(names, key=len), match[2])
         raise HarnessError(self.prog, message)
 
+#: the values of an on/off environment variable that turn its feature off (any case, spaces around ignored)
+OFF_WORDS = ("off", "0", "no", "false")
+
+
+def switched_off(variable: str) -> bool:
+    """Whether the environment variable ``variable`` turns its feature off (:data:`OFF_WORDS`); unset, empty or any
+    other value leaves it on (``HARNESS_RESULTS_CACHE``, ``HARNESS_FSYNC``)."""
+    return os.environ.get(variable, "").strip().lower() in OFF_WORDS
+
+
 def require_positive(option: str, value: int) -> int:
     """``value`` if it is >= 1, else the user error "OPTION: expected a positive integer, got VALUE"."""
     if value < 1:

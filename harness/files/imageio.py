@@ -45,6 +45,7 @@ import OpenEXR
 from harness.core import srgb
 from harness.core.errors import HarnessError, not_regular
 from harness.core.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
+from harness.core.options import switched_off
 
 __all__ = [
     "ExrImage",
@@ -213,11 +214,11 @@ def _fsync_folder(folder: Path) -> None:
 
 def _durable() -> bool:
     """Whether writes are forced to the disk (``os.fsync`` of each file and of its folder after the rename): always,
-    unless ``HARNESS_FSYNC=off``, the test suite's setting (tests/conftest.py). A write then stays atomic (a
-    complete temporary file renamed over the destination: no reader sees half a file) but may be lost if the
-    machine stops, as under ``eatmydata`` or SQLite's ``synchronous = OFF``: about 3.5 ms less a file here, and a
-    test run writes thousands (docs/ci.md)."""
-    return os.environ.get("HARNESS_FSYNC", "") != "off"
+    unless ``HARNESS_FSYNC=off`` (or 0, no, false: :func:`harness.core.options.switched_off`), the test suite's
+    setting (tests/conftest.py). A write then stays atomic (a complete temporary file renamed over the destination:
+    no reader sees half a file) but may be lost if the machine stops, as under ``eatmydata`` or SQLite's
+    ``synchronous = OFF``: about 3.5 ms less a file here, and a test run writes thousands (docs/ci.md)."""
+    return not switched_off("HARNESS_FSYNC")
 
 
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:

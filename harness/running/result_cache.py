@@ -49,6 +49,7 @@ import reference_impl
 
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
+from harness.core.options import switched_off
 from harness.files.entries import EntryStore
 from harness.renderers import groundtruth
 from harness.running import judge
@@ -71,7 +72,7 @@ RUN_FIELDS = ("wall_seconds", "definition", "resumed", "cached", "cache_key")
 def mode(*, fresh: bool = False, no_cache: bool = False) -> str:
     """The cache mode of a run: "off" with ``no_cache`` or ``$HARNESS_RESULTS_CACHE=off``, "refresh" when
     ``fresh``, else "use"."""
-    if no_cache or os.environ.get(ENV, "").strip().lower() in ("off", "0", "no", "false"):
+    if no_cache or switched_off(ENV):
         return "off"
     return "refresh" if fresh else "use"
 

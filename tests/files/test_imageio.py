@@ -590,7 +590,7 @@ def test_exr_files_alone_do_not_import_the_png_encoder(tmp_path: Path) -> None:
     assert done.stdout.split() == ["False", "True"]
 
 
-@pytest.mark.parametrize("setting, synced", [(None, True), ("on", True), ("off", False)])
+@pytest.mark.parametrize("setting, synced", [(None, True), ("on", True), ("off", False), (" False ", False)])
 def test_writes_are_fsynced_unless_the_setting_is_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, setting,
                                                       synced) -> None:
     """Each file and its folder are fsynced by default; ``HARNESS_FSYNC=off`` (the test suite's setting) skips that
