@@ -580,8 +580,8 @@ def test_exr_files_alone_do_not_import_the_png_encoder(tmp_path: Path) -> None:
     import subprocess
     import sys
 
-    script = ("import sys\nimport numpy as np\nfrom harness.files.imageio import read_exr, write_exr, write_png_preview\n"
-              "path = sys.argv[1]\nwrite_exr(path + '.exr', np.ones((2, 3, 3), np.float32))\n"
+    script = ("import sys\nimport numpy as np\n"
+              "from harness.files.imageio import read_exr, write_exr, write_png_preview\npath = sys.argv[1]\nwrite_exr(path + '.exr', np.ones((2, 3, 3), np.float32))\n"
               "assert read_exr(path + '.exr').image.shape == (2, 3, 3)\nbefore = 'imageio' in sys.modules\n"
               "write_png_preview(path + '.png', np.ones((2, 3, 3), np.float32))\n"
               "print(before, 'imageio' in sys.modules)")

@@ -71,8 +71,9 @@ def test_an_external_renderers_points_land_on_the_ladder(fake_renderer):
     assert [p["budget"]["spp"] for p in series["points"]] == [1, 4]
     assert series["time_from"].startswith("start-up subtracted (") and "1x1 film" in series["time_from"]
     # each render is 2 runs of 0.6 s sleep and the interpreter's start (about 0.65 s of wall time each; 0.9 s when
-    # the script imported numpy and the harness) and at most 2 x 0.04 s of rendering: what is left is that and the scatter of process start on a loaded machine (0.5 s),
-    # well below the 1.8 s of wall time a render that subtracted nothing would read; timed once
+    # the script imported numpy and the harness) and at most 2 x 0.04 s of rendering: what is left is that and the
+    # scatter of process start on a loaded machine (0.5 s), well below the 1.8 s of wall time a render that
+    # subtracted nothing would read; timed once
     assert all(p["seconds"] < 0.6 and p["timing_repeats"] == 1 for p in series["points"]), series["points"]
 
 
