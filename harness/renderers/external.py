@@ -57,7 +57,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError, read_user_toml
 from harness.core.limits import MAX_TIMEOUT_SECONDS
-from harness.core.text import printable, short
+from harness.core.text import printable, short, toml_key
 from harness.files.imageio import read_exr
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.renderers.export import scene_files
@@ -73,6 +73,9 @@ SCENE_EXPORTS = {"scene_xml": ("mitsuba-xml", "scene", "scene.xml"), "scene_json
                  "mesh_dir": ("json", "json", "meshes"), "scene_gltf": ("gltf", "gltf", "scene.gltf")}
 FILE_KEYS = ("name", "description", "command", "timeout", "repeats")
 DEFAULT_TIMEOUT_S = 600.0
+#: the shortest ``timeout``: starting a process (an interpreter, its imports) alone takes up to a second on a loaded
+#: machine, so a shorter timeout fails runs for the machine's load rather than the renderer's
+MIN_TIMEOUT_S = 1.0
 DEFAULT_REPEATS = 4
 STDERR_TAIL_LINES = 3
 _PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
@@ -112,20 +115,26 @@ def load_spec(path: str | Path) -> ExternalSpec:
     doc = read_user_toml(path, missing="no such renderer file; expected a TOML file with command = [...]")
     for key in doc:
         if key not in FILE_KEYS:
-            raise HarnessError(f"{label}: {key}", f"unknown key; expected one of {', '.join(FILE_KEYS)}")
+            shown = toml_key(key) if len(key) <= 60 else short(key, 60)
+            raise HarnessError(f"{label}: {shown}", f"unknown key; expected one of {', '.join(FILE_KEYS)}")
     command = doc.get("command")
     if not isinstance(command, list) or not command or not all(isinstance(a, str) for a in command):
-        raise HarnessError(f"{label}: command", f"expected a non-empty list of strings, got {command!r}")
-    for arg in command:
+        raise HarnessError(f"{label}: command", f"expected a non-empty list of strings, got {short(command, 80)}")
+    for index, arg in enumerate(command):
+        if "\0" in arg:
+            raise HarnessError(f"{label}: command", f"argument {index} holds a NUL character, which no program's "
+                               f"argument can: {short(arg, 60)}")
         for name in _PLACEHOLDER.findall(arg):
             if name not in PLACEHOLDERS:
-                raise HarnessError(f"{label}: command", f"unknown placeholder {{{name}}} in {arg!r}; expected "
-                                   + ", ".join(f"{{{p}}}" for p in PLACEHOLDERS))
+                raise HarnessError(f"{label}: command", f"unknown placeholder {short('{' + name + '}', 40)} "
+                                   f"in {short(arg, 60)}; expected " + ", ".join(f"{{{p}}}" for p in PLACEHOLDERS))
     if not any("{out}" in arg for arg in command):
         raise HarnessError(f"{label}: command", "expected an argument with {out} (the EXR the renderer writes)")
     timeout = doc.get("timeout", DEFAULT_TIMEOUT_S)
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (0 < timeout <= MAX_TIMEOUT_SECONDS):
-        raise HarnessError(f"{label}: timeout", f"expected a positive number of seconds of at most "
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (
+            MIN_TIMEOUT_S <= timeout <= MAX_TIMEOUT_SECONDS):
+        raise HarnessError(f"{label}: timeout", f"expected a number of seconds of at least {MIN_TIMEOUT_S:g} "
+                           f"(starting a process alone can take that long on a loaded machine) and at most "
                            f"{MAX_TIMEOUT_SECONDS:g} (a week), got {short(timeout, 60)}")
     repeats = doc.get("repeats", DEFAULT_REPEATS)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or not 2 <= repeats <= MAX_REPEATS:
