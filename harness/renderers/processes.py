@@ -76,7 +76,8 @@ class Watchdog:
             self._send(f"-{group}\n")
 
     def pid(self) -> int | None:
-        """The watchdog's process id (for tests), None where it could not be started."""
+        """The watchdog's process id (for tests), None before this process's first command or where it could not
+        be started."""
         with self._lock:
             return self._pid if self._fd is not None and self._owner == os.getpid() else None
 
@@ -90,7 +91,7 @@ class Watchdog:
             except OSError:
                 pass
             self._fd = None
-        self._groups = set()
+        self._groups, self._pid = set(), None
 
     def _send(self, line: str) -> None:
         for _ in range(2):  # a watchdog that was killed is started again, with every group still running
@@ -101,12 +102,12 @@ class Watchdog:
             try:
                 os.write(self._fd, line.encode())
                 return
-            except OSError:
+            except OSError:  # gone (EPIPE), or stopped with a full pipe (EAGAIN): another takes over
                 os.close(self._fd)
                 self._fd = None
                 try:  # reap the watchdog that died, where it was this process's
                     os.waitpid(self._pid, os.WNOHANG)
-                except (ChildProcessError, TypeError):
+                except ChildProcessError:
                     pass
 
     def _start(self) -> bool:
@@ -124,6 +125,7 @@ class Watchdog:
             return False
         finally:
             os.close(read)
+        os.set_blocking(write, False)  # a stopped watchdog must not block the harness (lines are atomic writes)
         self._fd, self._owner = write, os.getpid()
         return True
 
