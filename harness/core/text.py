@@ -1,4 +1,5 @@
-"""Text for one-line messages: the did-you-mean hint, a value cut short after "got", a key as TOML spells it."""
+"""Text for one-line messages: the did-you-mean hint, a value cut short after "got", a key as TOML spells it,
+another program's text made safe to print."""
 
 from __future__ import annotations
 
@@ -22,6 +23,16 @@ def short(value: Any, limit: int = 80) -> str:
     except ValueError:  # an integer with more digits than Python prints
         text = "a huge integer"
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable written as its Python escape (``\\x1b``, ``\\n``,
+    ``\\u202e``): controls (C0, DEL, C1), format characters (the bidirectional overrides and isolates
+    U+202A-202E and U+2066-2069, the marks U+200E/F, zero-width characters), line and paragraph separators and
+    surrogates. For text written by another program (a renderer's stderr): printed, it stays on one line, moves no
+    terminal's cursor, sets no title and reverses nothing after it."""
+    return "".join(ch if ch.isprintable() else ch.encode("unicode_escape", "backslashreplace").decode("ascii")
+                   for ch in text)
 
 
 def toml_key(name: str) -> str:

@@ -13,7 +13,8 @@ Placeholders in ``command``: ``{scene_xml}`` (the scene exported as Mitsuba XML,
 folder of scene.json's PLY meshes): each the case's resolved scene, written only when the command names it;
 ``{scene_toml}`` (the scene file as written), ``{spp}``, ``{seed}``, ``{width}``, ``{height}``, ``{max_depth}``,
 ``{out}`` (the EXR to write), ``{here}`` (the renderer file's folder) and ``{python}`` (this Python). The command
-runs without a shell, in a fresh temporary folder, stdout and stderr captured.
+runs without a shell, in a fresh temporary folder, in a process group of its own that is killed after the run and
+when the harness dies (:mod:`harness.renderers.processes`); stdout is discarded and the last 64 KiB of stderr kept.
 
 The EXR is read with :func:`harness.files.imageio.read_exr`: channels R, G, B and, optionally, variance.R/G/B (the
 variance of each pixel's estimate, i.e. of the mean; spp - 1 degrees of freedom). Without variance channels the
@@ -31,9 +32,10 @@ attributes or in ``<out>.json`` (:func:`reported_values`); otherwise each run's 
 measured once per renderer and scene with 1-spp runs on a 1 x 1 film (:meth:`ExternalRenderer.startup_seconds`).
 ``RenderResult.info["time_from"]`` says which.
 
-A non-zero exit, a timeout (the whole process group is killed), a missing or unreadable EXR, or one of the wrong
-size raises :class:`ExternalRendererError`, which a suite records as the case's ``error`` with the reason. A
-missing or invalid renderer file is a user error (:class:`~harness.core.errors.HarnessError`).
+A non-zero exit, a timeout, a missing or unreadable EXR, or one of the wrong size raises
+:class:`ExternalRendererError` (its message with every control and bidirectional character escaped), which a suite
+records as the case's ``error`` with the reason. A missing or invalid renderer file is a user error
+(:class:`~harness.core.errors.HarnessError`).
 """
 
 from __future__ import annotations
@@ -46,11 +48,8 @@ import math
 import os
 import re
 import shlex
-import signal
-import subprocess
 import sys
 import tempfile
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -58,10 +57,11 @@ import numpy as np
 
 from harness.core.errors import HarnessError, read_user_toml
 from harness.core.limits import MAX_TIMEOUT_SECONDS
-from harness.core.text import short
+from harness.core.text import printable, short, toml_key
 from harness.files.imageio import read_exr
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.renderers.export import scene_files
+from harness.renderers.processes import CommandStartError, CommandTimeout, run_group
 from harness.renderers.mitsuba import pass_seed
 from harness.scene import Scene
 
@@ -73,6 +73,9 @@ SCENE_EXPORTS = {"scene_xml": ("mitsuba-xml", "scene", "scene.xml"), "scene_json
                  "mesh_dir": ("json", "json", "meshes"), "scene_gltf": ("gltf", "gltf", "scene.gltf")}
 FILE_KEYS = ("name", "description", "command", "timeout", "repeats")
 DEFAULT_TIMEOUT_S = 600.0
+#: the shortest ``timeout``: starting a process (an interpreter, its imports) alone takes up to a second on a loaded
+#: machine, so a shorter timeout fails runs for the machine's load rather than the renderer's
+MIN_TIMEOUT_S = 1.0
 DEFAULT_REPEATS = 4
 STDERR_TAIL_LINES = 3
 _PLACEHOLDER = re.compile(r"\{([^{}]*)\}")
@@ -85,7 +88,12 @@ SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9 ._+-]{0,63}")
 class ExternalRendererError(RuntimeError):
     """A run of an external renderer failed (exit code, timeout, missing/unreadable/wrong-size EXR).
 
-    Not a :class:`HarnessError`: a suite records it as the case's error and goes on."""
+    Not a :class:`HarnessError`: a suite records it as the case's error and goes on. The message quotes the
+    renderer's own text, so every character that is not printable is escaped (:func:`~harness.core.text.printable`):
+    it reaches the terminal, results.json and the report as one line with no terminal controls."""
+
+    def __init__(self, message: str):
+        super().__init__(printable(str(message)))
 
 
 @dataclass(frozen=True)
@@ -107,20 +115,26 @@ def load_spec(path: str | Path) -> ExternalSpec:
     doc = read_user_toml(path, missing="no such renderer file; expected a TOML file with command = [...]")
     for key in doc:
         if key not in FILE_KEYS:
-            raise HarnessError(f"{label}: {key}", f"unknown key; expected one of {', '.join(FILE_KEYS)}")
+            shown = toml_key(key) if len(key) <= 60 else short(key, 60)
+            raise HarnessError(f"{label}: {shown}", f"unknown key; expected one of {', '.join(FILE_KEYS)}")
     command = doc.get("command")
     if not isinstance(command, list) or not command or not all(isinstance(a, str) for a in command):
-        raise HarnessError(f"{label}: command", f"expected a non-empty list of strings, got {command!r}")
-    for arg in command:
+        raise HarnessError(f"{label}: command", f"expected a non-empty list of strings, got {short(command, 80)}")
+    for index, arg in enumerate(command):
+        if "\0" in arg:
+            raise HarnessError(f"{label}: command", f"argument {index} holds a NUL character, which no program's "
+                               f"argument can: {short(arg, 60)}")
         for name in _PLACEHOLDER.findall(arg):
             if name not in PLACEHOLDERS:
-                raise HarnessError(f"{label}: command", f"unknown placeholder {{{name}}} in {arg!r}; expected "
-                                   + ", ".join(f"{{{p}}}" for p in PLACEHOLDERS))
+                raise HarnessError(f"{label}: command", f"unknown placeholder {short('{' + name + '}', 40)} "
+                                   f"in {short(arg, 60)}; expected " + ", ".join(f"{{{p}}}" for p in PLACEHOLDERS))
     if not any("{out}" in arg for arg in command):
         raise HarnessError(f"{label}: command", "expected an argument with {out} (the EXR the renderer writes)")
     timeout = doc.get("timeout", DEFAULT_TIMEOUT_S)
-    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (0 < timeout <= MAX_TIMEOUT_SECONDS):
-        raise HarnessError(f"{label}: timeout", f"expected a positive number of seconds of at most "
+    if isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or not (
+            MIN_TIMEOUT_S <= timeout <= MAX_TIMEOUT_SECONDS):
+        raise HarnessError(f"{label}: timeout", f"expected a number of seconds of at least {MIN_TIMEOUT_S:g} "
+                           f"(starting a process alone can take that long on a loaded machine) and at most "
                            f"{MAX_TIMEOUT_SECONDS:g} (a week), got {short(timeout, 60)}")
     repeats = doc.get("repeats", DEFAULT_REPEATS)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or not 2 <= repeats <= MAX_REPEATS:
@@ -167,38 +181,30 @@ def combine_repeats(images: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, i
 
 
 def _tail(text: str, lines: int = STDERR_TAIL_LINES) -> str:
-    kept = [line.strip() for line in text.strip().splitlines() if line.strip()][-lines:]
+    """The last ``lines`` non-blank lines of ``text``, each escaped (:func:`printable`), joined by " | " and cut to
+    their last 400 characters: the part of a renderer's stderr an error message quotes."""
+    kept = [printable(line.strip()) for line in text.strip().splitlines() if line.strip()][-lines:]
     return " | ".join(kept)[-400:]
 
 
 def _run(argv: list[str], cwd: Path, timeout: float, name: str) -> tuple[float, str]:
-    """Run ``argv`` without a shell in its own process group; returns (seconds, stderr). Raises
-    ExternalRendererError on a non-zero exit or a timeout (after killing the whole group)."""
-    start = time.perf_counter()
+    """Run ``argv`` without a shell in its own process group, stdout discarded, killed with its whole group when it
+    exits (:func:`~harness.renderers.processes.run_group`); returns (seconds, the end of its stderr). Raises
+    ExternalRendererError when it cannot start, exits non-zero or times out."""
     try:
-        proc = subprocess.Popen(argv, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, errors="replace", start_new_session=True)
-    except OSError as err:
-        raise ExternalRendererError(f"renderer {name!r} could not start {argv[0]!r}: {err.strerror or err}") from None
-    try:
-        _, stderr = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        try:  # a descendant that left the group may hold the pipes open: do not wait for it forever
-            proc.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            pass
+        code, seconds, stderr = run_group(argv, cwd, timeout)
+    except CommandStartError as err:
+        raise ExternalRendererError(f"renderer {name!r} could not start {short(argv[0], 200)}: {err}") from None
+    except CommandTimeout:
+        command = shlex.join(argv)
         raise ExternalRendererError(f"renderer {name!r} timed out after {timeout:g} s (killed): "
-                                    f"{shlex.join(argv)}") from None
-    seconds = time.perf_counter() - start
-    if proc.returncode != 0:
-        tail = _tail(stderr)
-        raise ExternalRendererError(f"renderer {name!r} exited with code {proc.returncode}"
+                                    + (command if len(command) <= 400 else command[:397] + "...")) from None
+    text = stderr.decode("utf-8", "replace")
+    if code != 0:
+        tail = _tail(text)
+        raise ExternalRendererError(f"renderer {name!r} exited with code {code}"
                                     + (f": {tail}" if tail else " (no stderr)"))
-    return seconds, stderr
+    return seconds, text
 
 
 #: runs of the start-up probe (:meth:`ExternalRenderer.startup_seconds`); their median counts (the probe follows

@@ -26,11 +26,12 @@ def validate_result(result, width: int, height: int, *, for_verdict: bool = True
     * ``spp``: an integer >= 1; ``seconds``: a finite number >= 0.
 
     With ``for_verdict=False`` (``harness render``, which only writes what it got and counts non-finite pixels)
-    only the structure is checked: shapes, types, spp and seconds; the variance may be absent.
+    only the structure is checked: shapes, types, spp, seconds and a finite pixel (an image that is NaN everywhere
+    is a failed render there too); the variance may be absent.
     """
     expected = (height, width, 3)
     image = _array(result, "image", expected)
-    if for_verdict and not np.isfinite(image).all(axis=-1).any():
+    if not np.isfinite(image).all(axis=-1).any():
         raise BadRenderError(f"the image is NaN or infinite at every one of its {width * height} pixels")
     if not for_verdict:
         if getattr(result, "variance", None) is not None:

@@ -1114,7 +1114,7 @@ def renderer_document(rng: random.Random, assets: Assets) -> tuple[str, list[str
         for key in rng.sample(sorted(RENDERER_VALID), rng.randint(0, 2)):
             doc[key] = rng.choice(RENDERER_VALID[key])
         if doc["command"][0] == "sleep":
-            doc["timeout"] = 0.5
+            doc["timeout"] = 1  # the shortest a renderer file may set
         return to_toml(doc), [], True
     if roll < 0.65:
         key = rng.choice(sorted(RENDERER_BAD))
