@@ -11,11 +11,11 @@ is written by an atomic rename anyway, and the ground-truth cache only ever rena
 an interrupted run leaves both valid.
 
 Output folders: :func:`output_folder` checks an ``--out`` before anything runs (not empty, created, a real file
-written and removed in it), and :func:`locked` holds ``OUT/.lock`` (``fcntl.flock``, exclusive) for a run, so a
-second run into the same folder stops at once with one line naming the process that holds it. The kernel drops
-the lock when its process dies, so a lock file left by a killed run blocks nothing; the lock file is opened
-without following a link, and anything at ``OUT/.lock`` that is not a lock file is refused, never written through
-or removed.
+written and removed in it), :func:`refuse_links` names a symbolic link planted where the run writes inside it, and
+:func:`locked` holds ``OUT/.lock`` (``fcntl.flock``, exclusive) for a run, so a second run into the same folder
+stops at once with one line naming the process that holds it. The kernel drops the lock when its process dies, so
+a lock file left by a killed run blocks nothing; the lock file is opened without following a link, and anything at
+``OUT/.lock`` that is not a lock file is refused, never written through or removed.
 """
 
 from __future__ import annotations
@@ -33,7 +33,9 @@ import tempfile
 from pathlib import Path
 
 from harness.core.errors import HarnessError, file_kind
+from harness.files.cases import slug
 from harness.files.imageio import make_folders, remove_folders
+from harness.files.report_images import IMAGES_FOLDER
 from harness.files.results import read_results
 
 _pending: list[int] = []  # signals received and not raised yet
@@ -155,7 +157,10 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
         probe_writable(folder, option)
         for name in subfolders:
             sub = folder / name
-            if sub.exists() or sub.is_symlink():
+            if sub.is_symlink():  # not even probed: the probe would write through it
+                raise HarnessError(option, f"{str(sub)!r} is a symbolic link (to {_link_target(sub)!r}); the run "
+                                   "writes only inside its output folder and follows no link there: remove it")
+            if sub.exists():
                 if not sub.is_dir():
                     raise HarnessError(option, f"{str(sub)!r} is not a folder; expected a folder the run writes in")
                 probe_writable(sub, option)
@@ -165,6 +170,21 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
     if created is not None:
         created.extend(made)
     return folder
+
+
+def refuse_links(folder: Path, cases) -> None:
+    """A one-line HarnessError naming the first symbolic link found where a run writes inside ``folder`` (its
+    ``cases/``, each of ``cases``' folder and its ``images/``, ``studies/``), before anything runs: a link planted
+    there would carry the run's files outside its folder. (The writers follow no link there either:
+    :func:`harness.files.imageio.make_real_folders`; this names the link before the first render.)"""
+    names = ["cases"]
+    for case in cases:
+        names += [f"cases/{slug(case.name)}", f"cases/{slug(case.name)}/{IMAGES_FOLDER}"]
+    for name in [*names, "studies"]:
+        path = Path(folder) / name
+        if path.is_symlink():
+            raise HarnessError(str(path), f"is a symbolic link (to {_link_target(path)!r}); the run writes only "
+                               "inside its output folder and follows no link there: remove it")
 
 
 def probe_writable(folder: Path, option: str) -> None:
