@@ -173,8 +173,9 @@ def _staged_write(dest: Path, fill: Callable[[BinaryIO], None]) -> str:
                 tmp.flush()
                 if _durable():
                     os.fsync(tmp.fileno())
-            try:
-                mode = dest.stat().st_mode & 0o7777
+            try:  # a link at dest lends no mode (its target's could be anything): the rename replaces the link
+                found = os.stat(dest, follow_symlinks=False)
+                mode = found.st_mode & 0o7777 if stat.S_ISREG(found.st_mode) else _FILE_MODE
             except OSError:
                 mode = _FILE_MODE
             os.chmod(tmp_name, mode)

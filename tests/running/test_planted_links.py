@@ -215,3 +215,13 @@ def test_a_staged_folder_replaces_a_link_at_its_target_when_asked(folder):
         stage.commit()
     untouched(folder)
     assert not target.is_symlink() and listing(target) == ["studies.json"]
+
+
+def test_a_file_written_over_a_link_takes_no_mode_from_its_target(folder):
+    out = folder / "out"
+    out.mkdir()
+    (folder / "victim.txt").chmod(0o4750)  # setuid: not a mode for a results file
+    (out / "results.json").symlink_to(folder / "victim.txt")
+    imageio.atomic_write_text(out / "results.json", "{}")
+    untouched(folder)
+    assert not (out / "results.json").is_symlink() and (out / "results.json").stat().st_mode & 0o7000 == 0
