@@ -120,6 +120,18 @@ def test_a_link_where_the_run_writes_is_refused_before_the_first_render(folder, 
     assert listing(out) == before  # no results.json, no case folder: nothing ran
 
 
+@pytest.mark.slow  # on a harness that follows the link the suite renders
+@pytest.mark.parametrize("command", ["calibrate", "baseline"])
+def test_calibrate_and_baseline_refuse_a_link_at_a_case_folder(folder, capfd, command):
+    out = folder / "out"
+    (out / "cases").mkdir(parents=True)
+    (out / "cases" / "b").symlink_to(folder / "outside", target_is_directory=True)
+    argv = [a.format(suite=folder / "two.toml", out=out, base=folder / "base.json") for a in COMMANDS[command]]
+    assert_one_line(*cli(capfd, *argv), str(out / "cases" / "b"), "symbolic link")
+    untouched(folder)
+    assert listing(out) == ["cases", "cases/b"]
+
+
 @pytest.mark.slow  # renders
 @pytest.mark.parametrize("link", ["cases", "cases/b"])
 def test_a_link_planted_during_the_run_is_not_followed(folder, capfd, monkeypatch, link):
