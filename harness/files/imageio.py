@@ -55,6 +55,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "exr_bytes",
+    "link_target",
     "make_folders",
     "make_real_folders",
     "preview_path",
@@ -367,14 +368,15 @@ def _refuse_link(path: Path, where: str | None) -> None:
     except OSError as err:
         raise WriteError(where or str(path), f"cannot create {str(path)!r}: {_os_reason(err)}") from None
     if stat.S_ISLNK(mode):
-        raise WriteError(where or str(path), f"{str(path)!r} is a symbolic link (to {_link_text(path)!r}); expected "
-                         "a folder: nothing is written through a link inside the output folder, remove it")
+        named = "" if where is None else f"{str(path)!r} "  # the error starts with the path itself by default
+        raise WriteError(where or str(path), f"{named}is a symbolic link (to {link_target(path)!r}); expected a "
+                         "folder: nothing is written through a link inside the output folder, remove it")
     if not stat.S_ISDIR(mode):
         raise WriteError(where or str(path), f"cannot create {str(path)!r}: it is not a folder")
 
 
-def _link_text(path: Path) -> str:
-    """Where the symbolic link ``path`` points ("?" when it cannot be read)."""
+def link_target(path: str | os.PathLike[str]) -> str:
+    """Where the symbolic link ``path`` points, as the link reads ("?" when it cannot be read): for messages."""
     try:
         return os.readlink(path)
     except OSError:
@@ -409,8 +411,8 @@ class StagedFolder:
 
     Used as a context manager: leaving it without :meth:`commit` (an exception) removes the staging folder and
     every folder it made, and a :class:`WriteError` naming a staged path is raised again naming the path it was
-    meant for. Errors are one-line WriteErrors at ``where`` (e.g. ``--out``). ``tag`` names the staging folder
-    (``.staging-<random>`` inside ``target``, ``.<target>.staging-<random>`` beside it): a hidden name.
+    meant for. Errors are one-line WriteErrors at ``where`` (e.g. ``--out``). ``tag`` names the staging folder, a
+    hidden one: ``.<tag>-<random>`` inside ``target``, ``.<target's name>.<tag>-<random>`` beside it.
     """
 
     def __init__(self, target: str | os.PathLike[str], where: str, replace_link: bool = False, tag: str = "staging"):

@@ -34,7 +34,7 @@ from pathlib import Path
 
 from harness.core.errors import HarnessError, file_kind
 from harness.files.cases import slug
-from harness.files.imageio import make_folders, remove_folders
+from harness.files.imageio import link_target, make_folders, remove_folders
 from harness.files.report_images import IMAGES_FOLDER
 from harness.files.results import read_results
 
@@ -158,7 +158,7 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
         for name in subfolders:
             sub = folder / name
             if sub.is_symlink():  # not even probed: the probe would write through it
-                raise HarnessError(option, f"{str(sub)!r} is a symbolic link (to {_link_target(sub)!r}); the run "
+                raise HarnessError(option, f"{str(sub)!r} is a symbolic link (to {link_target(sub)!r}); the run "
                                    "writes only inside its output folder and follows no link there: remove it")
             if sub.exists():
                 if not sub.is_dir():
@@ -183,7 +183,7 @@ def refuse_links(folder: Path, cases) -> None:
     for name in [*names, "studies"]:
         path = Path(folder) / name
         if path.is_symlink():
-            raise HarnessError(str(path), f"is a symbolic link (to {_link_target(path)!r}); the run writes only "
+            raise HarnessError(str(path), f"is a symbolic link (to {link_target(path)!r}); the run writes only "
                                "inside its output folder and follows no link there: remove it")
 
 
@@ -266,7 +266,7 @@ def _refuse_odd_lock(path: Path, option: str, found: os.stat_result | None) -> N
     if found is None or (stat.S_ISREG(found.st_mode) and found.st_nlink <= 1):
         return
     if stat.S_ISLNK(found.st_mode):
-        what = f"a symbolic link (to {_link_target(path)!r})"
+        what = f"a symbolic link (to {link_target(path)!r})"
     elif stat.S_ISREG(found.st_mode):
         what = f"a file with {found.st_nlink} names (a hard link)"
     else:
@@ -281,14 +281,6 @@ def _lstat(path: Path) -> os.stat_result | None:
         return os.stat(path, follow_symlinks=False)
     except OSError:
         return None
-
-
-def _link_target(path: Path) -> str:
-    """Where the symbolic link ``path`` points, as it reads ("?" when it cannot be read)."""
-    try:
-        return os.readlink(path)
-    except OSError:
-        return "?"
 
 
 def _same_file(fd: int, path: Path) -> bool:
