@@ -31,6 +31,7 @@ import os
 import re
 import sys
 import shutil
+import stat
 import tempfile
 import threading
 import uuid
@@ -54,11 +55,14 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "exr_bytes",
+    "link_target",
     "make_folders",
+    "make_real_folders",
     "preview_path",
     "read_exr",
     "remove_folders",
     "removed_on_failure",
+    "staged_inside",
     "write_exr",
     "write_exr_with_preview",
     "write_png_preview",
@@ -170,8 +174,9 @@ def _staged_write(dest: Path, fill: Callable[[BinaryIO], None]) -> str:
                 tmp.flush()
                 if _durable():
                     os.fsync(tmp.fileno())
-            try:
-                mode = dest.stat().st_mode & 0o7777
+            try:  # a link at dest lends no mode (its target's could be anything): the rename replaces the link
+                found = os.stat(dest, follow_symlinks=False)
+                mode = found.st_mode & 0o7777 if stat.S_ISREG(found.st_mode) else _FILE_MODE
             except OSError:
                 mode = _FILE_MODE
             os.chmod(tmp_name, mode)
@@ -329,6 +334,67 @@ def removed_on_failure(created: list[Path]):
         raise
 
 
+def make_real_folders(root: str | os.PathLike[str], relative: str | os.PathLike[str],
+                      where: str | None = None) -> list[Path]:
+    """Create ``root / relative`` folder by folder below ``root``, following no symbolic link there: a link (or a
+    file) in the way is a ``WriteError`` naming it, so that what is written into the folder cannot land outside
+    ``root`` through a link planted in it (``root`` itself is made as :func:`make_folders` makes it, and may be a
+    link: it is the caller's choice). Each folder is looked at with ``lstat`` after it is made or found. Returns the
+    folders created, outermost first (for :func:`remove_folders`); on an error the ones made so far are removed.
+    ``where`` names the error (default: the path in the way)."""
+    created = make_folders(root, where)
+    path = Path(root)
+    try:
+        for name in Path(relative).parts:
+            path = path / name
+            try:
+                os.mkdir(path)
+                created.append(path)
+            except FileExistsError:
+                pass
+            except OSError as err:
+                raise WriteError(where or str(path), f"cannot create {str(path)!r}: {_os_reason(err)}") from None
+            _refuse_link(path, where)
+    except WriteError:
+        remove_folders(created)
+        raise
+    return created
+
+
+def _refuse_link(path: Path, where: str | None) -> None:
+    """A ``WriteError`` unless ``path`` itself (not what a link there names) is a folder."""
+    try:
+        mode = os.stat(path, follow_symlinks=False).st_mode
+    except OSError as err:
+        raise WriteError(where or str(path), f"cannot create {str(path)!r}: {_os_reason(err)}") from None
+    if stat.S_ISLNK(mode):
+        named = "" if where is None else f"{str(path)!r} "  # the error starts with the path itself by default
+        raise WriteError(where or str(path), f"{named}is a symbolic link (to {link_target(path)!r}); expected a "
+                         "folder: nothing is written through a link inside the output folder, remove it")
+    if not stat.S_ISDIR(mode):
+        raise WriteError(where or str(path), f"cannot create {str(path)!r}: it is not a folder")
+
+
+def link_target(path: str | os.PathLike[str]) -> str:
+    """Where the symbolic link ``path`` points, as the link reads ("?" when it cannot be read): for messages."""
+    try:
+        return os.readlink(path)
+    except OSError:
+        return "?"
+
+
+@contextlib.contextmanager
+def staged_inside(root: str | os.PathLike[str], relative: str | os.PathLike[str], where: str | None = None):
+    """A :class:`StagedFolder` for the folder ``root / relative``, made first with :func:`make_real_folders` (no
+    link below ``root`` followed): the caller writes into its ``root`` and calls ``commit()``, which moves the files
+    into place together. Leaving the block with an exception (a full disk, an interrupt) removes the staging
+    folder and the folders made for it: nothing half-written is left."""
+    target = Path(root, relative)
+    made = make_real_folders(root, relative, where)
+    with removed_on_failure(made), StagedFolder(target, where or str(target), tag="writing") as stage:
+        yield stage
+
+
 class StagedFolder:
     """The files of an output folder ``target``, written into a private staging folder first and moved into place
     together by :meth:`commit`, so that a failure halfway (a full disk, an interrupt) leaves nothing half-written.
@@ -339,25 +405,32 @@ class StagedFolder:
     folder by renaming the old one aside, the new one in, and removing the old one, so every entry is either
     old or new, never partial; :meth:`commit` moves the names in ``last`` last (a report's index.html).
 
+    A symbolic link at an entry's name in ``target`` is replaced by the entry, never written through. With
+    ``replace_link`` (a folder the harness names inside its output, such as ``studies/``), so is a link at ``target``
+    itself: :meth:`commit` puts the new folder in the link's place.
+
     Used as a context manager: leaving it without :meth:`commit` (an exception) removes the staging folder and
     every folder it made, and a :class:`WriteError` naming a staged path is raised again naming the path it was
-    meant for. Errors are one-line WriteErrors at ``where`` (e.g. ``--out``).
+    meant for. Errors are one-line WriteErrors at ``where`` (e.g. ``--out``). ``tag`` names the staging folder, a
+    hidden one: ``.<tag>-<random>`` inside ``target``, ``.<target's name>.<tag>-<random>`` beside it.
     """
 
-    def __init__(self, target: str | os.PathLike[str], where: str):
+    def __init__(self, target: str | os.PathLike[str], where: str, replace_link: bool = False, tag: str = "staging"):
         self.target = Path(target)
         self.where = where
         self.committed = False
-        if self.target.is_dir():
+        self.replace_link = replace_link
+        linked = replace_link and self.target.is_symlink()  # replaced by commit(), never followed
+        if self.target.is_dir() and not linked:
             self._created: list[Path] = []
             self.fresh = False
-            self.root = self.target / f".staging-{uuid.uuid4().hex[:12]}"
+            self.root = self.target / f".{tag}-{uuid.uuid4().hex[:12]}"
         else:
-            if self.target.exists() or self.target.is_symlink():
+            if (self.target.exists() or self.target.is_symlink()) and not linked:
                 raise WriteError(where, f"cannot create {str(self.target)!r}: it is not a folder")
             self._created = make_folders(self.target.parent, where)
             self.fresh = True
-            self.root = self.target.parent / f".{self.target.name}.staging-{uuid.uuid4().hex[:12]}"
+            self.root = self.target.parent / f".{self.target.name}.{tag}-{uuid.uuid4().hex[:12]}"
         try:
             self.root.mkdir()
         except OSError as err:
@@ -386,11 +459,15 @@ class StagedFolder:
     def commit(self, last: tuple[str, ...] = ()) -> Path:
         """Move the staged files into ``target``; returns ``target``."""
         if self.fresh:
+            if self.replace_link and self.target.is_symlink():
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(self.target)  # the link itself: what it names is left alone
             try:
                 os.rename(self.root, self.target)
                 self.committed = True
             except OSError:
-                if not self.target.is_dir():  # else someone made it meanwhile: move the entries into it
+                linked = self.replace_link and self.target.is_symlink()
+                if linked or not self.target.is_dir():  # else someone made it meanwhile: move the entries into it
                     self.discard()
                     raise WriteError(self.where, f"cannot create {str(self.target)!r}") from None
         if not self.committed:
@@ -417,6 +494,8 @@ class StagedFolder:
                     raise
                 shutil.rmtree(old, ignore_errors=True)
             else:
+                if source.is_dir() and dest.is_symlink():  # a rename over a link fails: the link itself goes
+                    os.unlink(dest)
                 os.replace(source, dest)
         except OSError as err:
             self.discard()

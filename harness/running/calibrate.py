@@ -34,6 +34,7 @@ from harness.running.cases import MIN_SPP, Case, Suite
 from harness.core.limits import MAX_SECONDS, format_seconds, render_seconds
 from harness.running.compare import judge
 from harness.running.judge import case_scene, case_scenes, ground_truth_for, judged_images, run_case
+from harness.running import runstate
 from harness.renderers.validate import validate_result
 
 RENDER_OVERHEAD_SECONDS = 0.02  # a case's fixed cost beyond its paths (scene load, verdict, EXR writes): measured >= 0.05
@@ -211,6 +212,7 @@ def calibrate(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | 
 
     options = power_options or PowerOptions()
     cases = select_cases(suite, patterns)
+    runstate.refuse_links(out_dir, cases)  # a link planted in out_dir: one line, before the first render
     rows = []
     for case in cases:
         start = time.perf_counter()

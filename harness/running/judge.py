@@ -158,48 +158,11 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
         result = render_with_budget(case, scene, variant, cache_dir=cache_dir)
         validate_result(result, scene.film.width, scene.film.height)  # a bad image: this case's error, before writing
         folder = out_dir / "cases" / slug(case.name)
-        with imageio.removed_on_failure(imageio.make_folders(folder)):  # a full disk leaves no empty case folder
-            imageio.write_exr_with_preview(folder / "render.exr", result.image, result.variance,
-                                           metadata={"renderer": result.renderer, "case": case.name,
-                                                     **variance_metadata(result)})
-            if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
-                record["ground_truth"]["path"] = str(imageio.write_exr(
-                    folder / GROUND_TRUTH_FILE, gt.image, gt.variance, metadata={"case": case.name, "source": gt.source}))
-        maps: dict = {}
-        test_image, truth_image = judged_images(result, gt)
-        comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
-        if keep is not None:  # harness calibrate plants errors into this very render
-            keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
-        noise = ground_truth_noise(case, result, gt)
-        if noise is not None:
-            record["ground_truth_noise"] = noise
-        all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
-        metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
-        broken = check_thresholds(all_metrics, case.thresholds)
-        verdict = comparison["verdict"]
-        outcome = "pass" if verdict["verdict"] == "pass" and not broken else "fail"
-        reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""
-        if broken:
-            reason = "; ".join(filter(None, [reason, "threshold: " + ", ".join(broken)]))
-        record.update(
-            status=outcome, reason=reason, ok=outcome == case.expect, metrics=metrics, verdict=verdict,
-            thresholds=case.thresholds, thresholds_broken=broken,
-            render={"seconds": result.seconds, "spp": result.spp, "paths_per_second": result.paths / max(result.seconds, 1e-12),
-                    "rays": result.rays, "nonfinite_pixels": result.nonfinite_pixels, "settings": result.settings,
-                    "info": result.info, "exr": str(folder / "render.exr")},
-        )
-        tiles = maps.get("tiles")
-        if tiles is not None:  # every judged case, pass or fail: the report's viewer shows them for all
-            written = write_verdict_maps(folder, tiles, tile=verdict["tile"], alpha=verdict["alpha"],
-                                         threshold=verdict["threshold"], height=scene.film.height,
-                                         width=scene.film.width, metadata={"case": case.name})
-            record["verdict_maps"] = {key: str(path) for key, path in written.items()}
-        images = report_images(case, folder, result, gt, maps.get("flip"))
-        if images is not None:
-            record["report_images"] = images.record()
-        viewer = viewer_files(case, folder, result, gt, maps, verdict)
-        if viewer is not None:
-            record["viewer"] = viewer.record()
+        # every file of the case is written into a staging folder inside its folder and moved into place at the end
+        # (a full disk leaves nothing half-written, and no empty case folder); no link inside out_dir is followed
+        with imageio.staged_inside(out_dir, Path("cases", slug(case.name))) as stage:
+            _judge_into(stage, case, scene, result, gt, record, keep)
+            stage.commit()
     except HarnessError:
         raise
     except Exception as err:  # a renderer or adapter failure fails this case only
@@ -207,6 +170,55 @@ def run_case(case: Case, out_dir: Path, *, cache_dir=None, variant=None, progres
                       traceback=traceback.format_exc(limit=8))
     record["wall_seconds"] = time.perf_counter() - start
     return record
+
+
+def _judge_into(stage: imageio.StagedFolder, case: Case, scene, result, gt, record: dict, keep: dict | None) -> None:
+    """Judge the case's render ``result`` against its ground truth ``gt``: its files (the render, the ground truth
+    judged against where no cache holds it, the verdict maps, the report images, the viewer's data) written into
+    ``stage.root``, and ``record`` filled in, with their paths as they will be once ``stage`` is committed."""
+    staged, folder = stage.root, stage.target
+    imageio.write_exr_with_preview(staged / "render.exr", result.image, result.variance, metadata={
+        "renderer": result.renderer, "case": case.name, **variance_metadata(result)})
+    if gt.path is None:  # a closed form or another renderer's image: kept, so the report reads what was judged
+        imageio.write_exr(staged / GROUND_TRUTH_FILE, gt.image, gt.variance,
+                          metadata={"case": case.name, "source": gt.source})
+        record["ground_truth"]["path"] = str(folder / GROUND_TRUTH_FILE)
+    maps: dict = {}
+    test_image, truth_image = judged_images(result, gt)
+    comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
+    if keep is not None:  # harness calibrate plants errors into this very render
+        keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
+    noise = ground_truth_noise(case, result, gt)
+    if noise is not None:
+        record["ground_truth_noise"] = noise
+    all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
+    metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
+    broken = check_thresholds(all_metrics, case.thresholds)
+    verdict = comparison["verdict"]
+    outcome = "pass" if verdict["verdict"] == "pass" and not broken else "fail"
+    reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""
+    if broken:
+        reason = "; ".join(filter(None, [reason, "threshold: " + ", ".join(broken)]))
+    record.update(
+        status=outcome, reason=reason, ok=outcome == case.expect, metrics=metrics, verdict=verdict,
+        thresholds=case.thresholds, thresholds_broken=broken,
+        render={"seconds": result.seconds, "spp": result.spp,
+                "paths_per_second": result.paths / max(result.seconds, 1e-12), "rays": result.rays,
+                "nonfinite_pixels": result.nonfinite_pixels, "settings": result.settings, "info": result.info,
+                "exr": str(folder / "render.exr")},
+    )
+    tiles = maps.get("tiles")
+    if tiles is not None:  # every judged case, pass or fail: the report's viewer shows them for all
+        written = write_verdict_maps(staged, tiles, tile=verdict["tile"], alpha=verdict["alpha"],
+                                     threshold=verdict["threshold"], height=scene.film.height,
+                                     width=scene.film.width, metadata={"case": case.name})
+        record["verdict_maps"] = {key: str(folder / path.name) for key, path in written.items()}
+    images = report_images(case, staged, result, gt, maps.get("flip"))
+    if images is not None:
+        record["report_images"] = dict(images.record(), folder=str(folder / IMAGES_FOLDER))
+    viewer = viewer_files(case, staged, result, gt, maps, verdict)
+    if viewer is not None:
+        record["viewer"] = dict(viewer.record(), folder=str(folder))
 
 
 def report_images(case: Case, folder: Path, result, gt, flip) -> ReportImages | None:

@@ -50,6 +50,7 @@ import reference_impl
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
 from harness.core.options import switched_off
+from harness.files import imageio
 from harness.files.entries import EntryStore
 from harness.renderers import groundtruth
 from harness.running import judge
@@ -291,7 +292,7 @@ class CaseCache:
             record = self._outcome(entry.meta, case, key, folder)
         except (TypeError, AttributeError, ValueError, KeyError):  # an entry of another shape: damaged
             record = None
-        if record is None or self.store.copy_out(entry, folder) is None:
+        if record is None or not self._copy_out(entry, folder):
             self.store.discard(key.key)
             return None
         cached = {"from": entry.meta.get("started"), "key": key.key}
@@ -299,6 +300,17 @@ class CaseCache:
             cached["machine"] = entry.meta["machine"]
         record.update(cache_key=key.key, cached=cached, wall_seconds=time.perf_counter() - start)
         return record
+
+    def _copy_out(self, entry, folder: Path) -> bool:
+        """Write the entry's files into the case's ``folder`` (``OUT/cases/<slug>``) as a run writes them: staged and
+        moved into place together, no link inside OUT followed (:func:`harness.files.imageio.staged_inside`);
+        False when the entry is damaged (nothing written)."""
+        folder = Path(folder)
+        with imageio.staged_inside(folder.parents[1], Path(*folder.parts[-2:])) as stage:
+            if self.store.copy_out(entry, stage.root) is None:
+                return False
+            stage.commit()
+        return True
 
     @staticmethod
     def _outcome(meta: dict, case: Case, key: CaseKey, folder: Path) -> dict | None:

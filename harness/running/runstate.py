@@ -11,9 +11,11 @@ is written by an atomic rename anyway, and the ground-truth cache only ever rena
 an interrupted run leaves both valid.
 
 Output folders: :func:`output_folder` checks an ``--out`` before anything runs (not empty, created, a real file
-written and removed in it), and :func:`locked` holds ``OUT/.lock`` (``fcntl.flock``, exclusive) for a run, so a
-second run into the same folder stops at once with one line naming the process that holds it. The kernel drops
-the lock when its process dies, so a lock file left by a killed run blocks nothing.
+written and removed in it), :func:`refuse_links` names a symbolic link planted where the run writes inside it, and
+:func:`locked` holds ``OUT/.lock`` (``fcntl.flock``, exclusive) for a run, so a second run into the same folder
+stops at once with one line naming the process that holds it. The kernel drops the lock when its process dies, so
+a lock file left by a killed run blocks nothing; the lock file is opened without following a link, and anything at
+``OUT/.lock`` that is not a lock file is refused, never written through or removed.
 """
 
 from __future__ import annotations
@@ -26,11 +28,14 @@ import hashlib
 import json
 import os
 import signal
+import stat
 import tempfile
 from pathlib import Path
 
-from harness.core.errors import HarnessError
-from harness.files.imageio import make_folders, remove_folders
+from harness.core.errors import HarnessError, file_kind
+from harness.files.cases import slug
+from harness.files.imageio import link_target, make_folders, remove_folders
+from harness.files.report_images import IMAGES_FOLDER
 from harness.files.results import read_results
 
 _pending: list[int] = []  # signals received and not raised yet
@@ -152,7 +157,10 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
         probe_writable(folder, option)
         for name in subfolders:
             sub = folder / name
-            if sub.exists() or sub.is_symlink():
+            if sub.is_symlink():  # not even probed: the probe would write through it
+                raise HarnessError(option, f"{str(sub)!r} is a symbolic link (to {link_target(sub)!r}); the run "
+                                   "writes only inside its output folder and follows no link there: remove it")
+            if sub.exists():
                 if not sub.is_dir():
                     raise HarnessError(option, f"{str(sub)!r} is not a folder; expected a folder the run writes in")
                 probe_writable(sub, option)
@@ -162,6 +170,21 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
     if created is not None:
         created.extend(made)
     return folder
+
+
+def refuse_links(folder: Path, cases) -> None:
+    """A one-line HarnessError naming the first symbolic link found where a run writes inside ``folder`` (its
+    ``cases/``, each of ``cases``' folder and its ``images/``, ``studies/``), before anything runs: a link planted
+    there would carry the run's files outside its folder. (The writers follow no link there either:
+    :func:`harness.files.imageio.make_real_folders`; this names the link before the first render.)"""
+    names = ["cases"]
+    for case in cases:
+        names += [f"cases/{slug(case.name)}", f"cases/{slug(case.name)}/{IMAGES_FOLDER}"]
+    for name in [*names, "studies"]:
+        path = Path(folder) / name
+        if path.is_symlink():
+            raise HarnessError(str(path), f"is a symbolic link (to {link_target(path)!r}); the run writes only "
+                               "inside its output folder and follows no link there: remove it")
 
 
 def probe_writable(folder: Path, option: str) -> None:
@@ -202,12 +225,23 @@ def locked(folder: Path, option: str = "--out"):
 
 
 def _acquire(path: Path, option: str) -> int:
-    """An open descriptor of ``path`` locked by this process, with this process's pid written in it."""
+    """An open descriptor of ``path`` locked by this process, with this process's pid written in it. ``path`` is
+    opened without following a symbolic link, and anything there that is not a lock file (a link, a folder, a
+    device, a file with a second name: writing the pid would truncate what it names) is a one-line HarnessError at
+    ``option``: it is neither written through nor removed."""
     while True:
+        _refuse_odd_lock(path, option, _lstat(path))
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC | os.O_NOFOLLOW | os.O_NONBLOCK, 0o644)
         except OSError as err:
+            if err.errno == errno.ELOOP:  # a link planted since the look above
+                _refuse_odd_lock(path, option, _lstat(path))
             raise HarnessError(option, f"cannot create the lock file {str(path)!r}: {err.strerror or err}") from None
+        try:
+            _refuse_odd_lock(path, option, os.fstat(fd))
+        except HarnessError:
+            os.close(fd)
+            raise
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as err:
@@ -225,9 +259,34 @@ def _acquire(path: Path, option: str) -> int:
     return fd
 
 
-def _same_file(fd: int, path: Path) -> bool:
+def _refuse_odd_lock(path: Path, option: str, found: os.stat_result | None) -> None:
+    """A one-line HarnessError at ``option`` when ``found`` (what is at ``path``: its lstat, or the opened file's
+    fstat; None: nothing there) is not a lock file the harness could have made: a regular file with one name (or
+    none left: its holder removed it as the run ended, and the caller looks again)."""
+    if found is None or (stat.S_ISREG(found.st_mode) and found.st_nlink <= 1):
+        return
+    if stat.S_ISLNK(found.st_mode):
+        what = f"a symbolic link (to {link_target(path)!r})"
+    elif stat.S_ISREG(found.st_mode):
+        what = f"a file with {found.st_nlink} names (a hard link)"
+    else:
+        what = f"not a regular file ({file_kind(found.st_mode)})"
+    raise HarnessError(option, f"{str(path)!r} is {what}, not a lock file of the harness; nothing is written "
+                       "through it: remove it")
+
+
+def _lstat(path: Path) -> os.stat_result | None:
+    """What is at ``path`` itself (a link, not what it names), or None when nothing is."""
     try:
-        here, there = os.fstat(fd), os.stat(path)
+        return os.stat(path, follow_symlinks=False)
+    except OSError:
+        return None
+
+
+def _same_file(fd: int, path: Path) -> bool:
+    """Whether ``path`` itself (not what a link there names) is the file open at ``fd``."""
+    try:
+        here, there = os.fstat(fd), os.stat(path, follow_symlinks=False)
     except OSError:
         return False
     return (here.st_dev, here.st_ino) == (there.st_dev, there.st_ino)

@@ -36,6 +36,7 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
     of every other cacheable case; "refresh" renders every case and stores them all over the old entries; "off"
     neither reads nor writes."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    runstate.refuse_links(out_dir, suite.cases)  # a link planted in out_dir: one line, before the first render
     started = time.time()
     results: dict[str, Any] = {
         "schema": 1, "suite": suite.name, "suite_file": str(suite.path), "description": suite.description,

@@ -93,7 +93,7 @@ def _restore(store: EntryStore, key: str, results: dict, target: Path, results_f
             "them again)")
     doc.update(started=results.get("started"), results_file=str(results_file) if results_file else None,
                cached=cached, note="; ".join(n for n in (doc.get("note"), note) if isinstance(n, str) and n))
-    with StagedFolder(target, str(target)) as stage:
+    with StagedFolder(target, str(target), replace_link=True) as stage:  # a link at studies/ is not followed
         for name, data in sorted(contents.items()):
             if name != STUDIES_FILE:
                 path = Path(stage.root, *PurePosixPath(name).parts)

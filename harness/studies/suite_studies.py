@@ -113,7 +113,7 @@ def write_suite_studies(results: dict, results_dir: str | Path, options: StudyOp
     options = options or StudyOptions()
     start = time.perf_counter()
     target = Path(out_dir) if out_dir is not None else studies_folder(results_dir)
-    with StagedFolder(target, str(target)) as stage:
+    with StagedFolder(target, str(target), replace_link=True) as stage:  # a link at studies/ is not followed
         doc = _studies(results, Path(results_dir), stage.root, options)
         doc.update(results_file=str(results_file) if results_file else None,
                    timings=dict(doc["timings"], total=time.perf_counter() - start))
