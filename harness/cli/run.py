@@ -12,6 +12,7 @@ from harness.cli import studies, study_compute
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.renderers import groundtruth
+from harness.renderers.mitsuba import check_user_libllvm
 from harness.report import write_suite_report
 from harness.running import baseline, executors, junit, result_cache, runstate
 from harness.files import imageio
@@ -65,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
     # the cache folder checked (a real write) and swept of what killed writers left, before anything renders
     args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir()))
+    check_user_libllvm()  # a DRJIT_LIBLLVM_PATH no Mitsuba render could use: one line before anything is written
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
     if getattr(args, "calibration", None) and not args.no_report:
         read_calibration(args.calibration)  # a bad --calibration: one line now, not after the suite

@@ -67,6 +67,23 @@ def test_the_good_libllvm_still_renders(tmp_path):
     assert (tmp_path / "gt.exr").is_file()
 
 
+def test_run_refuses_a_bad_libllvm_before_writing_anything(tmp_path):
+    """``harness run`` checks the variable before its output folder is made (it left ``cases/`` behind)."""
+    lib = BAD["libllvm-15"]
+    if not lib.is_file():
+        pytest.skip("no libLLVM 15 on this machine")
+    suite = tmp_path / "tiny.toml"
+    suite.write_text(f'name = "tiny"\n[[cases]]\nname = "f"\nscene = "{SCENES / "furnace.toml"}"\nrenderer = '
+                     '"mitsuba"\nspp = 2\nagainst = "closed-form"\nfilm = { width = 8, height = 8 }\n')
+    env = {**os.environ, "DRJIT_LIBLLVM_PATH": str(lib), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    done = subprocess.run([sys.executable, "-m", "harness", "run", str(suite), "--out", str(tmp_path / "out"),
+                           "--quiet", "--no-report"], env=env, capture_output=True, text=True, timeout=300)
+    lines = done.stderr.splitlines()
+    assert done.returncode == 2 and len(lines) == 1, done.stderr[-3000:]
+    assert lines[0].startswith(f"harness: error: DRJIT_LIBLLVM_PATH: {str(lib)!r}"), lines[0]
+    assert not (tmp_path / "out").exists()
+
+
 def test_the_probe_runs_once_per_file(tmp_path, monkeypatch):
     """A second check of the same file (another command: a fresh process) reads the cached answer."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
