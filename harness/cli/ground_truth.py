@@ -106,8 +106,9 @@ def run(args: argparse.Namespace) -> int:
             except HarnessError as err:
                 where = err.where.replace("--set ", "--test-set ") if err.where.startswith("--set ") else err.where
                 raise HarnessError(where, err.message) from None
+    created: list = []  # the cache folders made for it: removed (where empty) when it fails
     if not (scene.closed_form and not args.no_closed_form):  # Mitsuba renders: the cache checked before any
-        args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir()))
+        args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir(), created))
     bar, progress = path_progress(args, f"ground truth {scene.name}")
     done = [0, 0]  # samples per pixel done, of how many
 
@@ -118,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         runstate.check()
 
     try:
-        with runstate.interruptible():
+        with imageio.removed_on_failure(created), runstate.interruptible():
             chosen, gt = _compute(args, scene, auto, test_settings, safe_point)
             runstate.check()
     except runstate.Interrupted as stop:

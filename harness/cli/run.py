@@ -64,16 +64,19 @@ def run(args: argparse.Namespace) -> int:
     executor = executors.make_executor(args.executor, args.workers)  # checked before anything is written
     if args.timeout is not None and not args.timeout > 0:
         raise HarnessError("--timeout", f"expected a positive number of seconds, got {args.timeout}")
-    # the cache folder checked (a real write) and swept of what killed writers left, before anything renders
-    args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir()))
-    check_user_libllvm()  # a DRJIT_LIBLLVM_PATH no Mitsuba render could use: one line before anything is written
     gate = _baseline_gate(args, suite)  # --baseline / --junit checked before anything runs (harness/running/baseline.py)
     if getattr(args, "calibration", None) and not args.no_report:
         read_calibration(args.calibration)  # a bad --calibration: one line now, not after the suite
     if gate is not None and gate.warning():
         print(gate.warning(), file=sys.stderr)
     created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails
-    out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
+    with imageio.removed_on_failure(created):
+        # the cache folder checked (a real write) and swept of what killed writers left, before anything renders
+        args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir(), created))
+        check_user_libllvm()  # a DRJIT_LIBLLVM_PATH no Mitsuba render could use: one line before anything is written
+        out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
+    if gate is not None:
+        gate.cache_dir = args.cache_dir
     # a second run into the same folder stops at the lock (one line naming the holder's pid)
     with imageio.removed_on_failure(created), runstate.locked(out):
         bar = progress_bar(args, suite.name, "case", total=len(suite.cases), leave=True)

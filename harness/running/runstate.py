@@ -174,13 +174,14 @@ CACHE_ENV = "HARNESS_CACHE_DIR"
 CACHE_SUBFOLDERS = ("groundtruth", "results")
 
 
-def cache_folder(value: str | None, default: Path) -> Path:
+def cache_folder(value: str | None, default: Path, created: list[Path] | None = None) -> Path:
     """The cache folder of a command: ``value`` (``--cache-dir``) if given, else ``default`` (``$HARNESS_CACHE_DIR``
     or the user cache folder, :func:`harness.renderers.groundtruth.default_cache_dir`), checked before anything
     renders as :func:`output_folder` checks ``--out`` (a path the file system takes, created, a real file written
     and removed in it and in those of :data:`CACHE_SUBFOLDERS` that exist), or a one-line HarnessError naming
-    ``--cache-dir`` or ``HARNESS_CACHE_DIR``. The private folders that killed writers left in its caches are
-    removed (:func:`harness.files.entries.sweep_stale`)."""
+    ``--cache-dir`` or ``HARNESS_CACHE_DIR``. The folders made for it are added to ``created`` (for
+    :func:`harness.files.imageio.removed_on_failure`). The private folders that killed writers left in its caches
+    are removed (:func:`harness.files.entries.sweep_stale`)."""
     if value is not None:
         where, text = "--cache-dir", value
     elif os.environ.get(CACHE_ENV):
@@ -190,7 +191,7 @@ def cache_folder(value: str | None, default: Path) -> Path:
     problem = path_problem(text) if text.strip() else None
     if problem:
         raise HarnessError(where, f"expected a folder path, got {short(text)}: {problem}")
-    folder = output_folder(text, Path(text), option=where, subfolders=CACHE_SUBFOLDERS)
+    folder = output_folder(text, Path(text), option=where, subfolders=CACHE_SUBFOLDERS, created=created)
     for name in CACHE_SUBFOLDERS:
         sweep_stale(folder / name)
     return folder
