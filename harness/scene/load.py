@@ -132,10 +132,9 @@ def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> 
 
     Mesh and environment-map files are read here too (relative to the scene file's folder), so a returned
     :class:`Scene` always triangulates and holds its maps' pixels. A file a scene names (a mesh, an envmap) must
-    resolve, after symlinks, inside the scene file's folder unless
-    ``allow_outside_paths``; None (the default) takes it from the environment variable
-    ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed; :func:`outside_paths_allowed`), which the CLI's ``--allow-outside-paths`` sets, so that worker
-    processes follow the command's choice.
+    resolve, after symlinks, inside the scene file's folder unless ``allow_outside_paths``; None (the default) takes
+    it from the environment variable ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed; :func:`outside_paths_allowed`),
+    which the CLI's ``--allow-outside-paths`` sets, so that worker processes follow the command's choice.
     """
     path = Path(path)
     if allow_outside_paths is None:

@@ -267,7 +267,8 @@ def test_allow_outside_paths_takes_the_on_off_words(outside_scene, monkeypatch, 
 def test_allow_outside_paths_refuses_another_value_in_one_line(outside_scene, tmp_path, monkeypatch, capfd, value):
     monkeypatch.setenv("HARNESS_ALLOW_OUTSIDE_PATHS", value)
     line = assert_one_line(*cli(capfd, "export", outside_scene, "--format", "obj", "--out", tmp_path / "x"))
-    assert line.startswith("harness: error: HARNESS_ALLOW_OUTSIDE_PATHS: expected one of 1, on, yes, true (on) or "), line
+    expected = "harness: error: HARNESS_ALLOW_OUTSIDE_PATHS: expected one of 1, on, yes, true (on) or "
+    assert line.startswith(expected), line
     assert repr(value) in line and not (tmp_path / "x").exists()
 
 
