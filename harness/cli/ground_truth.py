@@ -1,11 +1,17 @@
 """``harness ground-truth SCENE [--out FILE.exr]``: a scene's ground truth, from its closed form or rendered by
 Mitsuba in cached chunks, and where it is; with ``--out``, also written as OpenEXR (R, G, B and variance.R/G/B, the
-closed form's variance 0) with its PNG preview, for ``harness compare`` by hand."""
+closed form's variance 0) with its PNG preview, for ``harness compare`` by hand.
+
+SIGINT and SIGTERM stop it as they stop ``harness run`` (:mod:`harness.running.runstate`): after the Mitsuba pass
+in progress (a second signal: at once), with one line and exit code 130 / 143; the chunks finished are cached, the
+private folder of an entry being written is removed."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import sys
 
 from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
 from harness.core import options
@@ -13,6 +19,7 @@ from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
 from harness.files import imageio
 from harness.renderers import RenderRequest, get_renderer, groundtruth
+from harness.running import runstate
 from harness.scene import load_scene
 
 
@@ -52,6 +59,26 @@ def _spp_or_auto(text: str) -> int | str:
     return "auto" if str(text).strip().lower() == "auto" else _SPP(text)
 
 
+def _compute(args: argparse.Namespace, scene, auto: bool, test_settings: dict, progress):
+    """``--spp auto``'s choice (None without it) and the ground truth; ``progress(done, total)`` after every pass."""
+    chosen = None
+    if auto and not (scene.closed_form and not args.no_closed_form):
+        chosen = groundtruth.auto_spp(scene, test_spp=args.test_spp, test_renderer=args.test_renderer,
+                                      test_settings=test_settings, variant=args.mitsuba_variant, seed=args.seed)
+        args.spp = chosen.spp
+        if not args.json:
+            print(f"{scene.name}: --spp auto chose {chosen.reason()}")
+    elif auto:
+        args.spp = 1  # a closed form: nothing to render
+    for option, value in (("--spp", args.spp), ("--chunk-spp", args.chunk_spp)):
+        check_cost(scene, value, option)  # with a closed form too: a budget no render could meet is a typo
+    gt = groundtruth.ground_truth(
+        scene, spp=args.spp, seed=args.seed, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
+        chunk_spp=args.chunk_spp, use_closed_form=not args.no_closed_form, progress=progress,
+    )
+    return chosen, gt
+
+
 def run(args: argparse.Namespace) -> int:
     """Fetch or render the ground truth; print its source and path (or, with ``--json``, a summary)."""
     auto = args.spp == "auto"
@@ -79,23 +106,34 @@ def run(args: argparse.Namespace) -> int:
             except HarnessError as err:
                 where = err.where.replace("--set ", "--test-set ") if err.where.startswith("--set ") else err.where
                 raise HarnessError(where, err.message) from None
-    chosen = None
-    if auto and not (scene.closed_form and not args.no_closed_form):
-        chosen = groundtruth.auto_spp(scene, test_spp=args.test_spp, test_renderer=args.test_renderer,
-                                      test_settings=test_settings, variant=args.mitsuba_variant, seed=args.seed)
-        args.spp = chosen.spp
-        if not args.json:
-            print(f"{scene.name}: --spp auto chose {chosen.reason()}")
-    elif auto:
-        args.spp = 1  # a closed form: nothing to render
-    for option, value in (("--spp", args.spp), ("--chunk-spp", args.chunk_spp)):
-        check_cost(scene, value, option)  # with a closed form too: a budget no render could meet is a typo
+    created: list = []  # the cache folders made for it: removed (where empty) when it fails
+    if not (scene.closed_form and not args.no_closed_form):  # Mitsuba renders: the cache checked before any
+        args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir(), created))
     bar, progress = path_progress(args, f"ground truth {scene.name}")
+    done = [0, 0]  # samples per pixel done, of how many
+
+    def safe_point(now: int, total: int) -> None:
+        done[:] = now, total
+        if progress is not None:
+            progress(now, total)
+        runstate.check()
+
     try:
-        gt = groundtruth.ground_truth(
-            scene, spp=args.spp, seed=args.seed, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
-            chunk_spp=args.chunk_spp, use_closed_form=not args.no_closed_form, progress=progress,
-        )
+        with imageio.removed_on_failure(created), runstate.interruptible():
+            chosen, gt = _compute(args, scene, auto, test_settings, safe_point)
+            runstate.check()
+    except runstate.Interrupted as stop:
+        if bar is not None:
+            bar.close()
+            bar = None
+        if isinstance(args.spp, int):  # else --spp auto's pilots were rendering
+            chunks = math.ceil(args.spp / args.chunk_spp)
+            finished = chunks if done[1] and done[0] >= done[1] else done[0] // args.chunk_spp
+            print(f"harness: interrupted after {finished} of {chunks} chunks; run again to resume (finished chunks "
+                  "are cached)", file=sys.stderr)
+        else:
+            print("harness: interrupted during --spp auto's pilot renders", file=sys.stderr)
+        return stop.exit_code
     finally:
         if bar is not None:
             bar.close()

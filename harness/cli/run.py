@@ -11,6 +11,8 @@ from harness.cli.common import EXIT_FAIL, EXIT_OK, SUITE_HELP, progress_bar
 from harness.cli import studies, study_compute
 from harness.core import options
 from harness.core.errors import HarnessError
+from harness.renderers import groundtruth
+from harness.renderers.mitsuba import check_user_libllvm
 from harness.report import write_suite_report
 from harness.running import baseline, executors, junit, result_cache, runstate
 from harness.files import imageio
@@ -68,7 +70,13 @@ def run(args: argparse.Namespace) -> int:
     if gate is not None and gate.warning():
         print(gate.warning(), file=sys.stderr)
     created: list[Path] = []  # the folders made for the run: removed (where empty) when it fails
-    out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
+    with imageio.removed_on_failure(created):
+        # the cache folder checked (a real write) and swept of what killed writers left, before anything renders
+        args.cache_dir = str(runstate.cache_folder(args.cache_dir, groundtruth.default_cache_dir(), created))
+        check_user_libllvm()  # a DRJIT_LIBLLVM_PATH no Mitsuba render could use: one line before anything is written
+        out = runstate.output_folder(args.out, Path("reports") / suite.name, created=created)  # before any render
+    if gate is not None:
+        gate.cache_dir = args.cache_dir
     # a second run into the same folder stops at the lock (one line naming the holder's pid)
     with imageio.removed_on_failure(created), runstate.locked(out):
         bar = progress_bar(args, suite.name, "case", total=len(suite.cases), leave=True)

@@ -47,6 +47,23 @@ def switched_off(variable: str) -> bool:
     return os.environ.get(variable, "").strip().lower() in OFF_WORDS
 
 
+#: the values of an on/off environment variable that turn its feature on (:func:`env_switch`)
+ON_WORDS = ("1", "on", "yes", "true")
+
+
+def env_switch(variable: str, default: bool = False) -> bool:
+    """The environment variable ``variable`` read as a strict switch: :data:`ON_WORDS` on, :data:`OFF_WORDS` off
+    (any case, spaces around ignored), unset or empty ``default``; any other value is a HarnessError naming the
+    variable (``HARNESS_ALLOW_OUTSIDE_PATHS``: a typo must not decide what a scene may read)."""
+    text = os.environ.get(variable, "").strip().lower()
+    if not text:
+        return default
+    if text in ON_WORDS or text in OFF_WORDS:
+        return text in ON_WORDS
+    raise HarnessError(variable, f"expected one of {', '.join(ON_WORDS)} (on) or {', '.join(OFF_WORDS)} (off), or "
+                                 f"the variable unset, got {short(os.environ[variable])}")
+
+
 def require_positive(option: str, value: int) -> int:
     """``value`` if it is >= 1, else the user error "OPTION: expected a positive integer, got VALUE"."""
     if value < 1:

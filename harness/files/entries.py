@@ -7,6 +7,10 @@ content with the key: an edited ``entry.json``, or an entry copied under another
 and ``files/<relative path>``. Every read checks the checksums of what it reads: a missing, partial, edited or
 corrupt entry is a miss (``None``), never an exception, and is removed. When two processes store the same key, the
 first rename wins; :meth:`EntryStore.store` with ``replace`` puts a fresh entry over an old one.
+
+Private folders (an entry being written, ``.tmp-*``; one being removed, ``.bad-*``) are named for their writer
+(:func:`private_name`: host, pid, a random part), so that :func:`sweep_stale` can remove those a killed process
+left behind: its pid is gone on this host, or the folder is older than :data:`STALE_SECONDS`.
 """
 
 from __future__ import annotations
@@ -14,7 +18,11 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import shutil
+import socket
+import stat
+import time
 import uuid
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
@@ -26,6 +34,66 @@ ENTRY_FILE = "entry.json"
 FILES = "files"
 #: what reading a damaged entry can raise (all of them make the entry a miss)
 _DAMAGE = (OSError, ValueError, KeyError, TypeError, AttributeError, RecursionError)
+#: the prefixes of private folders: an entry being written, one being removed
+PRIVATE_PREFIXES = (".tmp-", ".bad-")
+#: a private folder older than this is left over whoever wrote it (writing one takes seconds)
+STALE_SECONDS = 6 * 3600
+
+
+def _host() -> str:
+    """This machine's name as a private folder's name holds it (letters, digits and dots, at most 64)."""
+    return re.sub(r"[^A-Za-z0-9.]", "_", socket.gethostname())[:64] or "host"
+
+
+def private_name(prefix: str) -> str:
+    """A name for a private folder (``prefix`` one of :data:`PRIVATE_PREFIXES`) that no other writer takes and
+    that says whose it is: ``PREFIX<host>-<pid>-<random hex>``."""
+    return f"{prefix}{_host()}-{os.getpid()}-{uuid.uuid4().hex}"
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists on this machine (one we may not signal exists too)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def _writer_gone(name: str, age: float) -> bool:
+    """Whether the private folder ``name``, ``age`` seconds old, has no writer any more: older than
+    :data:`STALE_SECONDS`, or named by :func:`private_name` on this host for a process that is gone. A name of
+    another host, or of no known form (an older harness's), is kept until it is old."""
+    if age > STALE_SECONDS:
+        return True
+    host, _, rest = name.partition("-")[2].partition("-")  # after the prefix: host-pid-hex
+    pid, _, tail = rest.partition("-")
+    return host == _host() and pid.isdigit() and bool(tail) and not _alive(int(pid))
+
+
+def sweep_stale(folder: str | os.PathLike[str]) -> list[Path]:
+    """Remove the private folders (``.tmp-*``, ``.bad-*``) in ``folder`` whose writer is gone (:func:`_writer_gone`):
+    what a process killed while it wrote or removed an entry leaves behind. Returns those removed; a folder that
+    cannot be listed or removed is left alone (a cache is never a reason for a command to fail)."""
+    removed: list[Path] = []
+    now = time.time()
+    try:
+        listing = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for item in listing:
+        if not item.name.startswith(PRIVATE_PREFIXES):
+            continue
+        try:
+            info = item.stat(follow_symlinks=False)
+        except OSError:
+            continue
+        if stat.S_ISDIR(info.st_mode) and _writer_gone(item.name, now - info.st_mtime):
+            shutil.rmtree(item.path, ignore_errors=True)
+            removed.append(Path(item.path))
+    return removed
 
 
 @dataclass(frozen=True)
@@ -125,7 +193,7 @@ class EntryStore:
         reason for a run to fail."""
         if not all(_safe_relative(name) for name in files):
             raise ValueError(f"entry file names must be relative paths inside the entry: {sorted(files)}")
-        tmp = self.root / f".tmp-{uuid.uuid4().hex}"
+        tmp = self.root / private_name(".tmp-")
         try:
             make_folders(self.root)
             tmp.mkdir()
@@ -162,7 +230,7 @@ class EntryStore:
 
     def discard(self, key: str) -> None:
         """Remove the entry of ``key`` (renamed aside first, so no reader sees it half removed)."""
-        trash = self.root / f".bad-{uuid.uuid4().hex}"
+        trash = self.root / private_name(".bad-")
         try:
             os.rename(self.entry(key), trash)
         except OSError:

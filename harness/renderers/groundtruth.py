@@ -22,7 +22,6 @@ import math
 import os
 import shutil
 import time
-import uuid
 import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -32,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.files.entries import private_name
 from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
 from harness.judges.floor import spp_for_share
 from harness.judges.moments import Estimate, merge
@@ -335,7 +335,7 @@ class Cache:
         """Write an entry atomically; if another process stored it first, keep theirs. A failed write (a full disk)
         is a one-line WriteError naming the cache, and leaves neither the entry nor folders made for it."""
         created: list[Path] = []
-        tmp = self.folder / f".tmp-{uuid.uuid4().hex}"
+        tmp = self.folder / private_name(".tmp-")
         failure: OSError | None = None
         try:
             created = make_folders(self.folder)
@@ -372,7 +372,7 @@ class Cache:
         return self.entry(key) / "image.exr"
 
     def _discard(self, folder: Path) -> None:
-        trash = self.folder / f".bad-{uuid.uuid4().hex}"
+        trash = self.folder / private_name(".bad-")
         try:
             os.rename(folder, trash)
             shutil.rmtree(trash, ignore_errors=True)
@@ -427,7 +427,8 @@ def ground_truth(
     render_seconds = 0.0  # the chunks' own render times, whenever they were rendered (by this call or before)
     done = 0
     for index, count in enumerate(counts):
-        estimate, rendered, chunk_meta = _chunk(scene, cache, base, index, count)
+        estimate, rendered, chunk_meta = _chunk(scene, cache, base, index, count,
+                                                progress=_within(progress, done, count, spp))
         if rendered is not None:
             seconds += rendered
             renders += 1
@@ -528,9 +529,24 @@ def _counts(spp: int, chunk_spp: int) -> list[int]:
     return [chunk_spp] * (spp // chunk_spp) + ([spp % chunk_spp] if spp % chunk_spp else [])
 
 
-def _chunk(scene: Scene, cache: Cache, base: dict, index: int, count: int):
-    """Chunk ``index`` of ``count`` samples from the cache, else rendered and stored: (estimate, None, meta) when
-    it was cached, (estimate, seconds spent now, meta) when it was rendered now."""
+def _within(progress: Callable[[int, int], None] | None, before: int, count: int, spp: int):
+    """The ``progress(done, total)`` of one chunk's render (paths of its passes) as the ground truth's (samples
+    per pixel of all its chunks, ``before`` of them done): the caller hears of every pass but the chunk's last,
+    which :func:`ground_truth` reports once the chunk is stored (a caller that stops there keeps the chunk)."""
+    if progress is None:
+        return None
+
+    def report(done: int, total: int) -> None:
+        if done < total:
+            progress(before + (count * done) // max(total, 1), spp)
+
+    return report
+
+
+def _chunk(scene: Scene, cache: Cache, base: dict, index: int, count: int, progress=None):
+    """Chunk ``index`` of ``count`` samples from the cache, else rendered (``progress(done, total)`` after each
+    pass) and stored: (estimate, None, meta) when it was cached, (estimate, seconds spent now, meta) when it was
+    rendered now."""
     chunk_key = _key(dict(base, chunk=index, chunk_spp=count))
     found = cache.load(chunk_key)
     if found is not None:
@@ -538,7 +554,7 @@ def _chunk(scene: Scene, cache: Cache, base: dict, index: int, count: int):
     chunk_seed = int(hashlib.sha256(f"{base['seed']}/{index}".encode()).hexdigest()[:8], 16)
     start = time.perf_counter()
     result = get_renderer("mitsuba").render(
-        scene, RenderRequest(spp=count, seed=chunk_seed, settings={"variant": base["variant"]}))
+        scene, RenderRequest(spp=count, seed=chunk_seed, settings={"variant": base["variant"]}, progress=progress))
     seconds = time.perf_counter() - start
     info = dict(result.info)
     estimate = Estimate(result.image, result.variance, count)

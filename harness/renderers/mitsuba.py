@@ -254,17 +254,44 @@ def reset_variant_cache() -> None:
     _CHOICES.clear()
 
 
+_EXPECTED_LIBLLVM = (f"expected the path of a libLLVM >= {MIN_LLVM_VERSION} (e.g. "
+                     "/usr/lib/x86_64-linux-gnu/libLLVM-19.so), or the variable unset")
+
+
+def check_user_libllvm() -> None:
+    """Refuse a ``$DRJIT_LIBLLVM_PATH`` that is no working libLLVM, before this process imports Mitsuba.
+
+    Dr.Jit reads the variable when Mitsuba is first imported, so the harness cannot replace a bad one later; on
+    some libraries (LLVM 15) its LLVM backend aborts the whole process, on others it prints its own errors. The
+    library is therefore tried in a child process (:func:`probe_variant`: ``llvm_ad_rgb``, a 4 x 4 render, its
+    output captured, with a timeout), its answer remembered per file (path, size, mtime; :func:`_probe_cached`).
+    A missing file, or a child that fails, crashes or prints no success: HarnessError at ``DRJIT_LIBLLVM_PATH``
+    (one line, nothing of Dr.Jit's output shown). Unset or empty: nothing to check.
+    """
+    libllvm = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if not libllvm:
+        return
+    if not os.path.isfile(libllvm):
+        raise HarnessError("DRJIT_LIBLLVM_PATH", f"no file {libllvm!r}: {_EXPECTED_LIBLLVM}")
+    if libllvm in _USER_LIBLLVM_OK:
+        return
+    if not _probe_cached("llvm_ad_rgb", libllvm):
+        version = libllvm_version(libllvm) or libllvm_version(os.path.realpath(libllvm))
+        named = f" (its name says LLVM {version})" if version is not None else ""
+        raise HarnessError("DRJIT_LIBLLVM_PATH", f"{libllvm!r}{named} failed a test render of llvm_ad_rgb in a "
+                                                 f"separate process: {_EXPECTED_LIBLLVM}")
+    _USER_LIBLLVM_OK.add(libllvm)
+
+
+_USER_LIBLLVM_OK: set[str] = set()  # values of $DRJIT_LIBLLVM_PATH this process found working
+
+
 def available_variants() -> list[str]:
     """The variants this Mitsuba build has (importing Mitsuba runs no JIT backend, so this is safe).
 
-    Raises HarnessError (``DRJIT_LIBLLVM_PATH``) where that variable names no file: Dr.Jit reads it when Mitsuba is
-    first imported, so a later choice of library could not replace it, and its llvm variants would fail with a
-    traceback."""
-    libllvm = os.environ.get("DRJIT_LIBLLVM_PATH")
-    if libllvm and not os.path.isfile(libllvm):
-        raise HarnessError("DRJIT_LIBLLVM_PATH", f"no file {libllvm!r}: expected the path of a libLLVM >= "
-                                                 f"{MIN_LLVM_VERSION} (e.g. /usr/lib/x86_64-linux-gnu/libLLVM-19.so), "
-                                                 "or the variable unset")
+    Raises HarnessError (``DRJIT_LIBLLVM_PATH``) where that variable names no working libLLVM
+    (:func:`check_user_libllvm`), before Mitsuba is imported here."""
+    check_user_libllvm()
     try:
         import mitsuba  # optional: Mitsuba takes seconds to import and only Mitsuba renders need it
     except ImportError as err:
@@ -332,6 +359,8 @@ def import_mitsuba(variant: str):
     For llvm variants the library comes from :func:`resolve_variant` (probing if not done yet).
     """
     given = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if "mitsuba" not in sys.modules:
+        check_user_libllvm()
     if variant.startswith("llvm"):
         known = [c for c in _CHOICES.values() if c.variant == variant]
         choice = known[0] if known else resolve_variant(variant)

@@ -15,7 +15,9 @@ written and removed in it), :func:`refuse_links` names a symbolic link planted w
 :func:`locked` holds ``OUT/.lock`` (``fcntl.flock``, exclusive) for a run, so a second run into the same folder
 stops at once with one line naming the process that holds it. The kernel drops the lock when its process dies, so
 a lock file left by a killed run blocks nothing; the lock file is opened without following a link, and anything at
-``OUT/.lock`` that is not a lock file is refused, never written through or removed.
+``OUT/.lock`` that is not a lock file is refused, never written through or removed. :func:`cache_folder` checks
+the cache folder (``--cache-dir``, ``$HARNESS_CACHE_DIR``) the same way before the first render, and sweeps the
+private folders killed writers left in it.
 """
 
 from __future__ import annotations
@@ -33,7 +35,10 @@ import tempfile
 from pathlib import Path
 
 from harness.core.errors import HarnessError, file_kind
+from harness.core.options import path_problem
+from harness.core.text import short
 from harness.files.cases import slug
+from harness.files.entries import sweep_stale
 from harness.files.imageio import link_target, make_folders, remove_folders
 from harness.files.report_images import IMAGES_FOLDER
 from harness.files.results import read_results
@@ -185,6 +190,34 @@ def refuse_links(folder: Path, cases) -> None:
         if path.is_symlink():
             raise HarnessError(str(path), f"is a symbolic link (to {link_target(path)!r}); the run writes only "
                                "inside its output folder and follows no link there: remove it")
+
+
+CACHE_ENV = "HARNESS_CACHE_DIR"
+#: the caches under a cache folder: Mitsuba ground truths (harness/renderers/groundtruth.py), run results
+CACHE_SUBFOLDERS = ("groundtruth", "results")
+
+
+def cache_folder(value: str | None, default: Path, created: list[Path] | None = None) -> Path:
+    """The cache folder of a command: ``value`` (``--cache-dir``) if given, else ``default`` (``$HARNESS_CACHE_DIR``
+    or the user cache folder, :func:`harness.renderers.groundtruth.default_cache_dir`), checked before anything
+    renders as :func:`output_folder` checks ``--out`` (a path the file system takes, created, a real file written
+    and removed in it and in those of :data:`CACHE_SUBFOLDERS` that exist), or a one-line HarnessError naming
+    ``--cache-dir`` or ``HARNESS_CACHE_DIR``. The folders made for it are added to ``created`` (for
+    :func:`harness.files.imageio.removed_on_failure`). The private folders that killed writers left in its caches
+    are removed (:func:`harness.files.entries.sweep_stale`)."""
+    if value is not None:
+        where, text = "--cache-dir", value
+    elif os.environ.get(CACHE_ENV):
+        where, text = CACHE_ENV, os.environ[CACHE_ENV]
+    else:
+        where, text = "cache folder (the default; choose one with --cache-dir or HARNESS_CACHE_DIR)", str(default)
+    problem = path_problem(text) if text.strip() else None
+    if problem:
+        raise HarnessError(where, f"expected a folder path, got {short(text)}: {problem}")
+    folder = output_folder(text, Path(text), option=where, subfolders=CACHE_SUBFOLDERS, created=created)
+    for name in CACHE_SUBFOLDERS:
+        sweep_stale(folder / name)
+    return folder
 
 
 def probe_writable(folder: Path, option: str) -> None:

@@ -9,7 +9,6 @@ from __future__ import annotations
 import datetime
 import json
 import math
-import os
 import re
 import tomllib
 from pathlib import Path
@@ -22,6 +21,7 @@ from reference_impl.errors import SettingsError
 
 from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError, not_regular, read_user_bytes
 from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
+from harness.core.options import env_switch
 from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.files.imageio import read_exr
 from harness.scene.model import (
@@ -132,10 +132,9 @@ def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> 
 
     Mesh and environment-map files are read here too (relative to the scene file's folder), so a returned
     :class:`Scene` always triangulates and holds its maps' pixels. A file a scene names (a mesh, an envmap) must
-    resolve, after symlinks, inside the scene file's folder unless
-    ``allow_outside_paths``; None (the default) takes it from the environment variable
-    ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed), which the CLI's ``--allow-outside-paths`` sets, so that worker
-    processes follow the command's choice.
+    resolve, after symlinks, inside the scene file's folder unless ``allow_outside_paths``; None (the default) takes
+    it from the environment variable ``HARNESS_ALLOW_OUTSIDE_PATHS`` (``1``: allowed; :func:`outside_paths_allowed`),
+    which the CLI's ``--allow-outside-paths`` sets, so that worker processes follow the command's choice.
     """
     path = Path(path)
     if allow_outside_paths is None:
@@ -145,8 +144,10 @@ def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> 
 
 
 def outside_paths_allowed() -> bool:
-    """The process-wide default of ``load_scene(allow_outside_paths=...)``: ``$HARNESS_ALLOW_OUTSIDE_PATHS``."""
-    return os.environ.get(ALLOW_OUTSIDE_ENV, "").strip().lower() in ("1", "true", "yes")
+    """The process-wide default of ``load_scene(allow_outside_paths=...)``: ``$HARNESS_ALLOW_OUTSIDE_PATHS``, read
+    by :func:`harness.core.options.env_switch` (``1``, ``on``, ``yes``, ``true`` allow; ``0``, ``off``, ``no``,
+    ``false``, empty or unset refuse; anything else is a HarnessError naming the variable)."""
+    return env_switch(ALLOW_OUTSIDE_ENV)
 
 
 def _read_toml(path: Path) -> dict[str, Any]:
