@@ -184,6 +184,38 @@ def test_symlinks_inside_the_run_folder_that_lead_outside_are_not_followed(run):
     assert not (out / "report" / CASE / "pvalue.exr").exists()
 
 
+def test_render_and_ground_truth_paths_outside_the_run_folder_are_not_read(run):
+    """A record without report images or viewer (an older run's): the report reads the case's EXRs, only the run's
+    own; the ground truth may be a ground-truth cache entry's image elsewhere."""
+    import numpy as np
+
+    from harness.files.imageio import read_exr, write_exr
+
+    outside = run.parent / "outside"
+    planted = np.full((8, 8, 3), 123.0, np.float32)
+    write_exr(outside / "render.exr", planted, planted)
+    write_exr(outside / "truth.exr", planted, planted)
+    entry = outside / "cache" / "groundtruth" / "k"  # a ground-truth cache entry: allowed
+    entry.mkdir(parents=True)
+    shutil.copy(run / "cases" / CASE / "ground_truth.exr", entry / "image.exr")
+    (entry / "meta.json").write_text("{}")
+    doc = results(run)
+    for record in doc["cases"]:
+        record.pop("report_images")
+        record.pop("viewer")
+    doc["cases"][0]["render"]["exr"] = str(outside / "render.exr")
+    doc["cases"][0]["ground_truth"]["path"] = str(outside / "truth.exr")
+    doc["cases"][1]["ground_truth"]["path"] = str(entry / "image.exr")
+    save(run, doc)
+    out, rep = report(run)
+    assert "render.exr names" in problems(rep) and "ground_truth.path names" in problems(rep)
+    assert problems(rep, 1) == ""
+    for name in (CASE, "furnace_b"):  # made from the run's own render and ground truth
+        for image in ("render.exr", "ground_truth.exr"):
+            assert float(read_exr(out / "report" / name / image).image.max()) < 100
+    assert_clean(out)
+
+
 def test_a_symlink_that_stays_inside_the_run_folder_is_followed(run):
     case = run / "cases" / CASE
     (run / "elsewhere").mkdir()
