@@ -6,6 +6,7 @@ renderer's image)."""
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -13,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.files.confined import inside, outside_note
 from harness.files.imageio import read_exr
 
 #: the name of a case's ground-truth file in its folder, where the ground truth is not a cache entry
@@ -50,11 +52,34 @@ class CaseImages:
     problems: list[str] = field(default_factory=list)
 
 
-def existing_file(*candidates: Path | str | None) -> Path | None:
-    """The first candidate that is a file (None if none is)."""
-    for candidate in candidates:
-        if candidate and Path(candidate).is_file():
-            return Path(candidate)
+def cache_entry_image(path: Path | str | None) -> Path | None:
+    """The real path of ``path`` where it is the image of a ground-truth cache entry (``<cache>/groundtruth/<key>/
+    image.exr`` beside its ``meta.json``, :mod:`harness.renderers.groundtruth`), the one file a case's record names
+    outside its run folder; else None."""
+    if not isinstance(path, (str, Path)) or not str(path) or "\0" in str(path):
+        return None
+    real = Path(os.path.realpath(path))
+    if real.name != "image.exr" or real.parent.parent.name != "groundtruth" or not real.is_file():
+        return None
+    return real if (real.parent / "meta.json").is_file() else None
+
+
+def _confined(results_dir: Path, what: str, named, default: Path, problems: list[str],
+              cache_entry: bool = False) -> Path | None:
+    """The file a record names (``named``), where it is one inside the run folder ``results_dir`` (or, with
+    ``cache_entry``, a ground-truth cache entry's image), else ``default`` (where harness run writes it) where that
+    is a file inside the run folder; None otherwise. A path named outside the run folder that exists is a problem
+    of the case (not read)."""
+    if cache_entry and cache_entry_image(named) is not None:
+        return cache_entry_image(named)
+    note = outside_note(what, named, results_dir)
+    if note is not None:
+        problems.append(note)
+    for candidate in (named, default):
+        if isinstance(candidate, (str, Path)) and str(candidate) and "\0" not in str(candidate):
+            real = inside(results_dir, candidate)
+            if real is not None and real.is_file():
+                return real
     return None
 
 
@@ -63,7 +88,9 @@ def read_case_images(record: dict, results_dir: Path) -> CaseImages:
     result, never raised (an EXR that cannot be read is a problem of its case).
 
     Paths in results.json are as ``harness run`` was given them; a file that moved with its results folder is
-    found under ``results_dir/cases/<slug>/`` (``render.exr``, ``ground_truth.exr``)."""
+    found under ``results_dir/cases/<slug>/`` (``render.exr``, ``ground_truth.exr``). Only files inside the run
+    folder are read (after symlinks, :func:`harness.files.confined.inside`), and for the ground truth the image of
+    a ground-truth cache entry (:func:`cache_entry_image`)."""
     out = CaseImages()
     if record.get("status") == "skipped":
         out.problems.append(f"no render: {record.get('reason') or 'the case was skipped'}")
@@ -72,7 +99,8 @@ def read_case_images(record: dict, results_dir: Path) -> CaseImages:
         out.problems.append("no render: the case ended in an error")
         return out
     folder = Path(results_dir) / "cases" / slug(str(record.get("name", "")))
-    exr_path = existing_file(record["render"].get("exr"), folder / "render.exr")
+    exr_path = _confined(results_dir, "render.exr", record["render"].get("exr"), folder / "render.exr",
+                         out.problems)
     if exr_path is None:
         out.problems.append(f"render EXR not found ({record['render'].get('exr')})")
         return out
@@ -83,7 +111,8 @@ def read_case_images(record: dict, results_dir: Path) -> CaseImages:
         return out
     out.render, out.render_variance = exr.image, exr.variance
     gt = record.get("ground_truth") or {}
-    gt_path = existing_file(gt.get("path"), folder / GROUND_TRUTH_FILE)
+    gt_path = _confined(results_dir, "ground_truth.path", gt.get("path"), folder / GROUND_TRUTH_FILE, out.problems,
+                        cache_entry=True)
     if gt_path is None:
         named = gt.get("path")
         out.problems.append("ground truth unavailable: " + (f"{named} not found" if named else

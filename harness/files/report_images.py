@@ -15,15 +15,13 @@ docs/results-schema.md), :func:`read_report_images` reads that description back 
 from __future__ import annotations
 
 import dataclasses
-import os
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from harness.core.errors import HarnessError, read_user_bytes
 from harness.files import imageio
+from harness.files.confined import EXR_MAGIC, Refused, copy_inside, inside, outside_note, read_inside
 from harness.files.cases import slug
 from harness.files.previews import ImageWriter, ReportImage, display_exposure, error_images
 from harness.judges.floor import error_point
@@ -36,8 +34,6 @@ IMAGES_FOLDER = "images"
 KEYS = ("ground_truth", "render", "error_signed", "error_relative", "flip")
 #: the numbers of ``error_maps``
 ERROR_MAP_KEYS = ("mse", "floor_mse", "mse_corrected", "mean_signed_error", "mean_relative_error", "flip_map_mean")
-#: the first bytes of the files (OpenEXR's magic number; PNG's signature): a file that lacks them is not read back
-_MAGIC = {".exr": b"\x76\x2f\x31\x01", ".png": b"\x89PNG\r\n\x1a\n"}
 #: the largest PNG read back into a page (a film at the harness's limits is far smaller)
 _MAX_PNG_BYTES = 64 * 2**20
 
@@ -50,6 +46,7 @@ class ReportImages:
     folder: Path
     images: list[ReportImage]
     error_maps: dict
+    root: Path | None = None  # the run folder the files were read in (read back: :func:`read_report_images`)
 
     def record(self) -> dict:
         """The description results.json keeps in the case's record (``report_images``): the folder as written, the
@@ -58,13 +55,16 @@ class ReportImages:
                 "images": [dict(im.to_json(), exr=im.exr.name, png=im.png_path.name) for im in self.images]}
 
     def placed(self, folder: Path) -> ReportImages:
-        """These images in ``folder`` (a report's ``report/<case>``): each file hard-linked where the file system
-        allows, else copied (:func:`harness.files.imageio.link_or_copy`); nothing is encoded again."""
+        """These images in ``folder`` (a report's ``report/<case>``): each file copied, read again inside the run
+        folder (``root``) and checked as an OpenEXR file or PNG (:func:`harness.files.confined.copy_inside`); never
+        a hard link (the report's files are its own); nothing is encoded again."""
+        if self.root is None:
+            raise ValueError("report images without their run folder; read_report_images reads them")
         imageio.make_folders(folder)
         moved = []
         for im in self.images:
-            exr = imageio.link_or_copy(im.exr, folder / im.exr.name)
-            png = imageio.link_or_copy(im.png_path, folder / im.png_path.name, data=im.png)
+            exr = copy_inside(self.root, im.exr, folder / im.exr.name, kind="exr")
+            png = copy_inside(self.root, im.png_path, folder / im.png_path.name, kind="png", data=im.png)
             moved.append(dataclasses.replace(im, exr=exr, png_path=png))
         return ReportImages(Path(folder), moved, dict(self.error_maps))
 
@@ -102,14 +102,16 @@ def make_report_images(folder: Path, *, case: str, renderer: str, spp: int, rend
     return ReportImages(Path(folder), images, error_maps)
 
 
-def read_report_images(record: dict, results_dir: Path) -> ReportImages | None:
+def read_report_images(record: dict, results_dir: Path, notes: list[str] | None = None) -> ReportImages | None:
     """The report images a case's record describes (``report_images``), their PNGs read; None where it describes
     none (a run by an older harness, a case that ended in an error) or a file it names is missing or not the kind
     its name says (the report then makes them again from the case's EXRs, :func:`make_report_images`).
 
     The folder is looked for where the record says (as ``harness run`` was given it), then in
-    ``results_dir/cases/<case>/images`` (a results folder that moved). The record's file names are names, never
-    paths (the schema checks it; checked here too, for records given as a dict)."""
+    ``results_dir/cases/<case>/images`` (a results folder that moved); only inside the run folder ``results_dir``
+    (:mod:`harness.files.confined`: a folder elsewhere, a file that is not an OpenEXR file or PNG, is not read, and
+    ``notes`` says so). The record's file names are names, never paths (the schema checks it; checked here too, for
+    records given as a dict)."""
     entry = record.get("report_images")
     if record.get("status") in ("error", "skipped") or not isinstance(entry, dict):
         return None
@@ -125,11 +127,20 @@ def read_report_images(record: dict, results_dir: Path) -> ReportImages | None:
     for candidate in candidates:
         if not isinstance(candidate, (str, Path)) or not str(candidate):
             continue
+        note = outside_note("report_images.folder", candidate, results_dir)
+        if note is not None or inside(results_dir, candidate) is None:  # a note where something is there
+            _note(notes, note)
+            continue
         folder = Path(candidate)
-        images = _read_images(folder, specs)
+        images = _read_images(folder, specs, Path(results_dir), notes)
         if images is not None:
-            return ReportImages(folder, images, {k: error_maps.get(k) for k in ERROR_MAP_KEYS})
+            return ReportImages(folder, images, {k: error_maps.get(k) for k in ERROR_MAP_KEYS}, Path(results_dir))
     return None
+
+
+def _note(notes: list[str] | None, note: str | None) -> None:
+    if notes is not None and note is not None and note not in notes:
+        notes.append(note)
 
 
 def _is_name(value, suffix: str) -> bool:
@@ -138,19 +149,20 @@ def _is_name(value, suffix: str) -> bool:
             and "\\" not in value and "\0" not in value)
 
 
-def _read_images(folder: Path, specs: list[dict]) -> list[ReportImage] | None:
-    """The images ``specs`` names in ``folder``, their PNGs read; None if a file is missing or not an EXR / PNG."""
+def _read_images(folder: Path, specs: list[dict], root: Path, notes: list[str] | None) -> list[ReportImage] | None:
+    """The images ``specs`` names in ``folder``, their PNGs read, inside the run folder ``root``; None if a file is
+    missing or not an OpenEXR file / PNG (a note, but for a missing file)."""
     images = []
     for spec in specs:
         exr, png = folder / spec["exr"], folder / spec["png"]
-        if not _has_magic(exr):
-            return None
         try:
-            data = read_user_bytes(png, missing="missing", limit=_MAX_PNG_BYTES)
-        except HarnessError:
-            return None
-        if not data.startswith(_MAGIC[".png"]):
-            return None
+            read_inside(root, exr, kind="exr", head=len(EXR_MAGIC))  # read whole (and checked again) by placed()
+        except Refused as why:
+            return _refused(notes, exr, why)
+        try:
+            data = read_inside(root, png, kind="png", limit=_MAX_PNG_BYTES)
+        except Refused as why:
+            return _refused(notes, png, why)
         legend = spec.get("legend")
         stats = spec.get("stats")
         images.append(ReportImage(str(spec["key"]), str(spec.get("title") or spec["key"]), data, exr, png,
@@ -159,13 +171,7 @@ def _read_images(folder: Path, specs: list[dict]) -> list[ReportImage] | None:
     return images
 
 
-def _has_magic(path: Path) -> bool:
-    """``path`` is a regular file that starts with the magic number of its kind (its suffix)."""
-    magic = _MAGIC[path.suffix]
-    try:
-        if not stat.S_ISREG(os.stat(path).st_mode):
-            return False
-        with open(path, "rb") as handle:
-            return handle.read(len(magic)) == magic
-    except (OSError, ValueError):
-        return False
+def _refused(notes: list[str] | None, path: Path, why: Refused) -> None:
+    """A note for a report image not used, but where it is simply missing (made again from the case's EXRs)."""
+    if str(why) != "not found":
+        _note(notes, f"report image {str(path)!r}: {why}: not used")

@@ -39,12 +39,14 @@ from statistics import NormalDist
 
 import numpy as np
 
+from harness.core.limits import MAX_FILM_PIXELS
 from harness.files import imageio
+from harness.files.confined import Refused, inside, outside_note, read_inside
 from harness.files.previews import colorize
 from harness.judges.verdict import TileMaps
 
 __all__ = ["DATA_FILE", "PVALUE_FILE", "THUMBNAIL_FILE", "ViewerData", "encode_plane", "make_viewer_data",
-           "p_histogram", "read_viewer_data", "viewer_script"]
+           "p_histogram", "parse_viewer_script", "read_viewer_data", "viewer_script"]
 
 DATA_FILE = "viewer.js"
 THUMBNAIL_FILE = "thumbnail.png"
@@ -79,6 +81,7 @@ class ViewerData:
     pvalue: Path | None = None
     pvalue_png: bytes | None = None
     histogram: dict | None = None
+    script: str | None = None  # viewer.js as the harness writes it, for :meth:`placed` (read back: re-serialised)
 
     def record(self) -> dict:
         """What results.json keeps in the case's record (``viewer``): the folder as written, the files' names in it,
@@ -92,13 +95,15 @@ class ViewerData:
                 "pvalue": str(self.pvalue) if self.pvalue is not None else None, "p_histogram": self.histogram}
 
     def placed(self, folder: Path) -> ViewerData:
-        """These files in ``folder`` (a report's ``report/<case>``), hard-linked where the file system allows, else
-        copied (:func:`harness.files.imageio.link_or_copy`)."""
+        """These files in ``folder`` (a report's ``report/<case>``), written there: viewer.js as the harness writes
+        it from the checked payload (``script``), the thumbnails' checked bytes. Never a link into the run folder."""
+        if self.script is None:
+            raise ValueError("viewer data read without its checked script; read_viewer_data reads it")
         imageio.make_folders(folder)
-        data = imageio.link_or_copy(self.data, folder / self.data.name)
-        thumbnail = imageio.link_or_copy(self.thumbnail, folder / self.thumbnail.name, data=self.thumbnail_png)
-        pvalue = (imageio.link_or_copy(self.pvalue, folder / self.pvalue.name, data=self.pvalue_png)
-                  if self.pvalue is not None else None)
+        data = imageio.atomic_write_text(folder / DATA_FILE, self.script)
+        thumbnail = imageio.atomic_write_bytes(folder / THUMBNAIL_FILE, self.thumbnail_png)
+        pvalue = (imageio.atomic_write_bytes(folder / PVALUE_FILE, self.pvalue_png)
+                  if self.pvalue_png is not None else None)
         return dataclasses.replace(self, folder=Path(folder), data=data, thumbnail=thumbnail, pvalue=pvalue)
 
 
@@ -143,12 +148,17 @@ def encode_plane(values: np.ndarray, encoding: str = "f16") -> dict:
 _SCRIPT_SAFE = str.maketrans({"<": "\\u003c", ">": "\\u003e", "&": "\\u0026"})
 
 
+#: what a viewer.js holds around its JSON payload
+_SCRIPT_HEAD = ("/* A case's data for the report's comparison viewer (harness.files.viewer_data; docs/report.md). */\n"
+                "HarnessViewer.register(")
+_SCRIPT_TAIL = ");\n"
+
+
 def viewer_script(payload: dict) -> str:
     """The text of a ``viewer.js``: one call ``HarnessViewer.register(<payload as JSON>)``. The JSON is ASCII, with
     ``<``, ``>`` and ``&`` escaped (``\\u003c`` ...), so a case name from a suite file stays a string."""
     text = json.dumps(payload, ensure_ascii=True, allow_nan=False, separators=(",", ":")).translate(_SCRIPT_SAFE)
-    return ("/* A case's data for the report's comparison viewer (harness.files.viewer_data; docs/report.md). */\n"
-            f"HarnessViewer.register({text});\n")
+    return f"{_SCRIPT_HEAD}{text}{_SCRIPT_TAIL}"
 
 
 def critical_z(threshold: float | None, count: int) -> float | None:
@@ -288,18 +298,25 @@ def make_viewer_data(folder: Path, *, name: str, render: np.ndarray, render_vari
     return ViewerData(folder, data, thumbnail, thumb_png, pvalue, pvalue_png, histogram)
 
 
-#: the first bytes of a PNG file and of a viewer.js
-_PNG = b"\x89PNG\r\n\x1a\n"
-_SCRIPT = b"/* A case's data"
+#: the largest viewer.js read back: every plane of the largest film the harness renders, in base64 (13 channels of
+#: half floats, 4/3 bytes a byte), and its tiles
+MAX_SCRIPT_BYTES = MAX_FILM_PIXELS * 36 + 2**20
 #: the largest thumbnail read back into a page
 _MAX_PNG_BYTES = 4 * 2**20
+#: the planes a payload may hold, with their channels and encodings (encode_plane: images as f16, tiles f32 / u8)
+_IMAGE_PLANES = {"render": 3, "render_sd": 3, "truth": 3, "truth_sd": 3, "flip": 1}
+_BYTES = {"f16": 2, "f32": 4, "u8": 1}
 
 
-def read_viewer_data(record: dict, results_dir: Path, case_folder: str) -> ViewerData | None:
-    """The viewer files a case's record describes (``viewer``), their thumbnails read; None where it describes none
-    (a run by an older harness, a case that ended in an error) or a file is missing or not what its name says (the
+def read_viewer_data(record: dict, results_dir: Path, case_folder: str,
+                     notes: list[str] | None = None) -> ViewerData | None:
+    """The viewer files a case's record describes (``viewer``), read and checked; None where it describes none (a
+    run by an older harness, a case that ended in an error) or a file is missing or not what its name says (the
     report then makes them again). The folder is looked for where the record says, then in
-    ``results_dir/cases/<case_folder>`` (a results folder that moved)."""
+    ``results_dir/cases/<case_folder>`` (a results folder that moved); only inside the run folder ``results_dir``
+    (:mod:`harness.files.confined`). viewer.js is parsed (:func:`parse_viewer_script`) and written again
+    (``script``), never used as it was found. ``notes``: why a file there was not used (outside the run folder, not
+    a PNG, not a viewer.js of the harness), for the report."""
     entry = record.get("viewer")
     if record.get("status") == "error" or not isinstance(entry, dict):
         return None
@@ -310,32 +327,140 @@ def read_viewer_data(record: dict, results_dir: Path, case_folder: str) -> Viewe
     for candidate in (entry.get("folder"), Path(results_dir) / "cases" / case_folder):
         if not isinstance(candidate, (str, Path)) or not str(candidate):
             continue
-        folder = Path(candidate)
-        data = folder / entry["data"]
-        thumb = _read_png(folder / entry["thumbnail"])
-        pvalue = folder / entry["pvalue"] if entry.get("pvalue") else None
-        pvalue_png = _read_png(pvalue) if pvalue is not None else None
-        if thumb is None or not _starts_with(data, _SCRIPT) or (pvalue is not None and pvalue_png is None):
+        note = outside_note("viewer.folder", candidate, results_dir)
+        if note is not None or inside(results_dir, candidate) is None:  # a note where something is there
+            _note(notes, note)
             continue
-        return ViewerData(folder, data, folder / entry["thumbnail"], thumb, pvalue, pvalue_png, histogram)
+        found = _read_folder(Path(candidate), entry, results_dir, notes)
+        if found is not None:
+            script, thumb, pvalue_png = found
+            folder = Path(candidate)
+            pvalue = folder / entry["pvalue"] if entry.get("pvalue") else None
+            return ViewerData(folder, folder / entry["data"], folder / entry["thumbnail"], thumb, pvalue,
+                              pvalue_png, histogram, script)
     return None
 
 
-def _starts_with(path: Path, magic: bytes) -> bool:
+def _read_folder(folder: Path, entry: dict, root: Path, notes: list[str] | None
+                 ) -> tuple[str, bytes, bytes | None] | None:
+    """(viewer.js written again, the thumbnail, the p-value thumbnail) of the viewer files in ``folder``, each read
+    inside the run folder ``root`` and checked; None where one is missing or refused (a note but for a missing
+    file)."""
+    what = f"viewer files in {str(folder)!r}"
     try:
-        if not path.is_file():
-            return False
-        with open(path, "rb") as handle:
-            return handle.read(len(magic)) == magic
-    except OSError:
-        return False
-
-
-def _read_png(path: Path) -> bytes | None:
-    try:
-        if not path.is_file() or path.stat().st_size > _MAX_PNG_BYTES:
-            return None
-        data = path.read_bytes()
-    except OSError:
+        thumb = read_inside(root, folder / entry["thumbnail"], kind="png", limit=_MAX_PNG_BYTES)
+        pvalue_png = (read_inside(root, folder / entry["pvalue"], kind="png", limit=_MAX_PNG_BYTES)
+                      if entry.get("pvalue") else None)
+        raw = read_inside(root, folder / entry["data"], limit=MAX_SCRIPT_BYTES)
+    except Refused as why:
+        if str(why) != "not found":
+            _note(notes, f"{what}: {why}: not used")
         return None
-    return data if data.startswith(_PNG) else None
+    try:
+        payload = parse_viewer_script(raw)
+    except ValueError as why:
+        _note(notes, f"{what}: {entry['data']} is not a viewer.js of the harness ({why}): not used")
+        return None
+    return viewer_script(payload), thumb, pvalue_png
+
+
+def _note(notes: list[str] | None, note: str | None) -> None:
+    if notes is not None and note is not None and note not in notes:
+        notes.append(note)
+
+
+def _refuse_constant(text: str) -> None:
+    raise ValueError(f"{text} is not JSON")
+
+
+def parse_viewer_script(raw: bytes) -> dict:
+    """The payload of a viewer.js (its bytes) checked: exactly the text :func:`viewer_script` writes around strict
+    JSON (no NaN or Infinity), the payload's keys and types, each plane's encoding, channels and size for the
+    film. Returns the payload rebuilt from the keys it knows (for :func:`viewer_script` to write again); a
+    ValueError saying what is wrong otherwise."""
+    try:
+        text = raw.decode("ascii")
+    except UnicodeDecodeError:
+        raise ValueError("not ASCII text") from None
+    if not text.startswith(_SCRIPT_HEAD) or not text.endswith(_SCRIPT_TAIL):
+        raise ValueError("not the one call HarnessViewer.register(JSON) the harness writes")
+    try:
+        doc = json.loads(text[len(_SCRIPT_HEAD):-len(_SCRIPT_TAIL)], parse_constant=_refuse_constant)
+    except RecursionError:
+        raise ValueError("JSON nested too deeply") from None
+    except ValueError as err:
+        raise ValueError(f"not JSON: {' '.join(str(err).split())[:80]}") from None
+    return _payload(doc)
+
+
+def _need(ok: bool, what: str) -> None:
+    if not ok:
+        raise ValueError(what)
+
+
+def _is_int(value, low: int = 0) -> bool:
+    return type(value) is int and value >= low
+
+
+def _is_number(value) -> bool:
+    return type(value) in (int, float) and math.isfinite(value)
+
+
+def _payload(doc) -> dict:
+    """The payload of :func:`make_viewer_data` checked and rebuilt from the keys it has."""
+    _need(isinstance(doc, dict) and doc.get("format") == FORMAT, f"expected an object of format {FORMAT}")
+    width, height = doc.get("width"), doc.get("height")
+    _need(_is_int(width, 1) and _is_int(height, 1) and width * height <= MAX_FILM_PIXELS, "width, height")
+    _need(isinstance(doc.get("name"), str) and _is_number(doc.get("exposure")), "name, exposure")
+    labels = doc.get("labels")
+    _need(isinstance(labels, dict) and all(isinstance(v, str) for v in labels.values()), "labels")
+    _need(doc.get("note") is None or isinstance(doc.get("note"), str), "note")
+    planes = doc.get("planes")
+    _need(isinstance(planes, dict) and "render" in planes and set(planes) <= set(_IMAGE_PLANES), "planes")
+    pixels = width * height
+    checked = {key: _plane(planes[key], key, pixels, channels, ("f16",))
+               for key, channels in _IMAGE_PLANES.items() if key in planes}
+    return {"format": FORMAT, "name": doc["name"], "width": width, "height": height, "exposure": doc["exposure"],
+            "labels": dict(labels), "planes": checked, "tiles": _tiles(doc.get("tiles"), width, height),
+            "note": doc.get("note")}
+
+
+def _plane(plane, key: str, pixels: int, channels: int, encodings: tuple[str, ...]) -> dict:
+    """A plane (:func:`encode_plane`) of ``pixels`` x ``channels`` values checked and rebuilt."""
+    _need(isinstance(plane, dict) and plane.get("channels") == channels, f"plane {key}: channels")
+    encoding = plane.get("encoding")
+    if encoding == "zero":
+        return {"encoding": "zero", "channels": channels}
+    _need(encoding in encodings, f"plane {key}: encoding")
+    data = plane.get("data")
+    _need(isinstance(data, str), f"plane {key}: data")
+    try:
+        size = len(base64.b64decode(data, validate=True))
+    except ValueError:
+        raise ValueError(f"plane {key}: data is not base64") from None
+    _need(size == pixels * channels * _BYTES[encoding], f"plane {key}: {size} bytes for the film")
+    out = {"encoding": encoding, "channels": channels}
+    if encoding == "f16":
+        _need(_is_int(plane.get("exponent"), -2000) and plane["exponent"] <= 2000, f"plane {key}: exponent")
+        out["exponent"] = plane["exponent"]
+    out["data"] = data
+    return out
+
+
+def _tiles(tiles, width: int, height: int) -> dict | None:
+    """The verdict's tiles of a payload (:func:`_tiles_payload`) checked and rebuilt; None for none."""
+    if tiles is None:
+        return None
+    _need(isinstance(tiles, dict) and _is_int(tiles.get("size"), 1), "tiles: size")
+    size = tiles["size"]
+    rows, cols = tiles.get("rows"), tiles.get("cols")
+    _need(rows == math.ceil(height / size) and cols == math.ceil(width / size), "tiles: rows, cols")
+    _need(_is_int(tiles.get("count")) and isinstance(tiles.get("recomputed"), bool), "tiles: count, recomputed")
+    for key in ("alpha", "threshold", "z_critical"):
+        _need(tiles.get(key) is None or _is_number(tiles.get(key)), f"tiles: {key}")
+    cells = rows * cols
+    planes = {key: _plane(tiles.get(key), f"tiles.{key}", cells, 3, (encoding,))
+              for key, encoding in (("z", "f32"), ("p", "f32"), ("tested", "u8"), ("failing", "u8"))}
+    return {"size": size, "rows": rows, "cols": cols, **planes, "alpha": tiles.get("alpha"),
+            "threshold": tiles.get("threshold"), "count": tiles["count"], "z_critical": tiles.get("z_critical"),
+            "recomputed": tiles["recomputed"]}

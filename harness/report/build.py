@@ -25,7 +25,7 @@ from harness.files.imageio import StagedFolder, WriteError, atomic_write_bytes, 
 from harness.files.previews import ReportImage
 from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
-from harness.files.studies import read_studies, studies_folder, study_file
+from harness.files.studies import read_studies, read_study_file, studies_folder
 from harness.files.viewer_data import ViewerData
 from harness.report import viewer
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
@@ -185,10 +185,11 @@ def _load_case(item: ReportCase, results_dir: Path) -> None:
 
 def _case_images(item: ReportCase, results_dir: Path, out: Path) -> None:
     """The case's images in ``out/report/<case>`` and their numbers: those ``harness run`` made when it judged the
-    case (``report_images`` in its record, :mod:`harness.files.report_images`), linked or copied; for a run by an
-    older harness (or images gone missing), made here from the case's EXRs as the run makes them."""
+    case (``report_images`` in its record, :mod:`harness.files.report_images`), checked and copied from inside the
+    run folder; for a run by an older harness (or images gone missing or refused), made here from the case's EXRs as
+    the run makes them."""
     folder = out / "report" / item.slug
-    stored = read_report_images(item.record, results_dir)
+    stored = read_report_images(item.record, results_dir, item.problems)
     if stored is not None:
         placed = stored.placed(folder)
     else:
@@ -207,13 +208,14 @@ def _case_images(item: ReportCase, results_dir: Path, out: Path) -> None:
 
 def _case_viewer(item: ReportCase, results_dir: Path, out: Path) -> None:
     """The case's comparison-viewer files (and its verdict maps) in ``out/report/<case>``: those ``harness run``
-    made (``viewer`` in its record), linked or copied; for a run by an older harness, made here from the case's
-    EXRs (:func:`harness.report.viewer.make_case_viewer`)."""
+    made (``viewer`` in its record), checked and copied from inside the run folder (viewer.js parsed and written
+    again); for a run by an older harness (or files refused), made here from the case's EXRs
+    (:func:`harness.report.viewer.make_case_viewer`)."""
     folder = out / "report" / item.slug
     run_folder = slug(str(item.record.get("name", "")))
     item.verdict_maps = viewer.place_verdict_maps(item.record, results_dir, folder, run_folder,
-                                                  f"report/{item.slug}/")
-    placed = viewer.place_case_viewer(item.record, results_dir, folder, run_folder)
+                                                  f"report/{item.slug}/", item.problems)
+    placed = viewer.place_case_viewer(item.record, results_dir, folder, run_folder, item.problems)
     if placed is None:
         if item.render is None:
             _load_case(item, results_dir)
@@ -264,11 +266,11 @@ def _missing(anchor: str, heading: str, why: str):
 
 def _copy_study_file(studies_dir: Path, relative: Any, out: Path) -> tuple[Path | None, str | None, bytes | None]:
     """A file the studies wrote, copied into the report (``out/report/<relative>``): (its path there, its link
-    from the page, its bytes); (None, None, None) when studies.json names no such file in the studies' folder."""
-    source = study_file(studies_dir, relative)
-    if source is None:
+    from the page, its bytes); (None, None, None) when studies.json names no such file in the studies' folder (in
+    the run folder, a PNG or OpenEXR file: :func:`harness.files.studies.read_study_file`)."""
+    data = read_study_file(studies_dir, relative)
+    if data is None:
         return None, None, None
-    data = source.read_bytes()
     parts = PurePosixPath(relative).parts
     dest = out / "report" / Path(*parts)
     make_folders(dest.parent)

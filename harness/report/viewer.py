@@ -13,6 +13,7 @@ import numpy as np
 
 from harness.files import imageio
 from harness.files.cases import GroundTruthImage
+from harness.files.confined import first_inside
 from harness.files.previews import ReportImage, display_exposure
 from harness.files.viewer_data import PVALUE_TOP, THUMBNAIL_SIDE, ViewerData, make_viewer_data, read_viewer_data
 from harness.judges import metrics
@@ -87,27 +88,30 @@ def case_view(viewer: ViewerData | None, *, key: str, slot: str, link_base: str,
 # ---- a case's viewer files in the report ---------------------------------------------------------------------------
 
 
-def place_case_viewer(record: dict, results_dir: Path, folder: Path, case_folder: str) -> ViewerData | None:
-    """The viewer files ``harness run`` made for the case (``viewer`` in its record), linked or copied into
-    ``folder`` (``report/<case>``); None where the record names none that are there."""
-    stored = read_viewer_data(record, results_dir, case_folder)
+def place_case_viewer(record: dict, results_dir: Path, folder: Path, case_folder: str,
+                      notes: list[str] | None = None) -> ViewerData | None:
+    """The viewer files ``harness run`` made for the case (``viewer`` in its record), checked and copied into
+    ``folder`` (``report/<case>``): viewer.js parsed and written again by the harness
+    (:func:`harness.files.viewer_data.read_viewer_data`), nothing from the run folder shipped as a script. None where
+    the record names none that are there and sound (``notes`` says why, where it is not a plain absence)."""
+    stored = read_viewer_data(record, results_dir, case_folder, notes)
     return stored.placed(folder) if stored is not None else None
 
 
 def place_verdict_maps(record: dict, results_dir: Path, folder: Path, case_folder: str,
-                       link_base: str) -> list[tuple[str, str]]:
+                       link_base: str, notes: list[str] | None = None) -> list[tuple[str, str]]:
     """The case's ``pvalue.exr`` and ``failing.exr`` (``verdict_maps`` in its record, or beside its render in
-    ``results_dir/cases/<case>``) linked or copied into ``folder``: [(label, link from the page)]."""
+    ``results_dir/cases/<case>``) copied into ``folder``: [(label, link from the page)]. Only an OpenEXR file inside
+    the run folder is copied (:func:`harness.files.confined.first_inside`); a path outside it is a note."""
     names = record.get("verdict_maps") if isinstance(record.get("verdict_maps"), dict) else {}
     placed = []
     for key in ("pvalue", "failing"):
         candidates = [names.get(key), Path(results_dir) / "cases" / case_folder / f"{key}.exr"]
-        source = next((Path(c) for c in candidates if isinstance(c, (str, Path)) and str(c) and Path(c).is_file()),
-                      None)
-        if source is None:
+        found = first_inside(results_dir, candidates, kind="exr", what=f"verdict_maps.{key}", notes=notes)
+        if found is None:
             continue
         imageio.make_folders(folder)
-        imageio.link_or_copy(source, folder / f"{key}.exr")
+        imageio.atomic_write_bytes(folder / f"{key}.exr", found[1])
         placed.append((f"{key}.exr", f"{link_base}{key}.exr"))
     return placed
 

@@ -37,7 +37,8 @@ from pathlib import Path
 from harness.core.errors import HarnessError, file_kind
 from harness.core.options import path_problem
 from harness.core.text import short
-from harness.files.cases import slug
+from harness.files.cases import cache_entry_image, slug
+from harness.files.confined import inside
 from harness.files.entries import sweep_stale
 from harness.files.imageio import link_target, make_folders, remove_folders
 from harness.files.report_images import IMAGES_FOLDER
@@ -139,9 +140,36 @@ def reusable(results_path: Path, suite_name: str, cases, digests: list[str]) -> 
     kept = {}
     for index, (case, digest) in enumerate(zip(cases, digests)):
         record = by_name.get(case.name)
-        if record and record.get("definition") == digest and record.get("status") in ("pass", "fail"):
+        if (record and record.get("definition") == digest and record.get("status") in ("pass", "fail")
+                and stays_inside(record, Path(results_path).parent)):
             kept[index] = dict(record, resumed=True)
     return kept
+
+
+def recorded_paths(record: dict) -> list:
+    """The paths a case record names (its render, verdict maps, report images' and viewer's folders), as found:
+    anything results.json holds there, for :func:`stays_inside` to judge. The ground truth is apart (it may be a
+    cache entry)."""
+    def get(*keys):
+        value = record
+        for key in keys:
+            value = value.get(key) if isinstance(value, dict) else None
+        return value
+    return [get("render", "exr"), get("verdict_maps", "pvalue"), get("verdict_maps", "failing"),
+            get("report_images", "folder"), get("viewer", "folder")]
+
+
+def stays_inside(record: dict, out_dir: Path) -> bool:
+    """Every path a record names lies inside the run folder ``out_dir`` after symlinks (its ground truth: there or
+    a ground-truth cache entry's image), so that a results.json planted in ``--out`` cannot make the run keep a
+    record whose files the report would then look for elsewhere: such a record is not resumed (its case runs
+    again)."""
+    named = [p for p in recorded_paths(record) if p is not None]
+    if not all(isinstance(p, str) and p and "\0" not in p and inside(out_dir, p) is not None for p in named):
+        return False
+    truth = (record.get("ground_truth") or {}).get("path")
+    return (truth is None or (isinstance(truth, str) and "\0" not in truth and truth != ""
+                              and (inside(out_dir, truth) is not None or cache_entry_image(truth) is not None)))
 
 
 # ---- output folders ----------------------------------------------------------------------------------------------

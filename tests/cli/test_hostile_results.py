@@ -16,6 +16,7 @@ import json
 import os
 import random
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -400,11 +401,13 @@ def test_report_that_cannot_write_index_html_exits_2_and_leaves_nothing(real, tm
 @pytest.mark.parametrize("fail", [{"after": 3}, {"after": 9}, {"name": "index.html"}], ids=["4th", "10th", "index"])
 def test_a_failed_report_keeps_the_old_one(fail, real, tmp_path, disk, capfd):
     folder = tmp_path / "in"
-    path = write_results(folder, raw=real["text"])
+    shutil.copytree(real["dir"] / "cases", folder / "cases")  # the report reads only files in the run folder
+    text = real["text"].replace(str(real["dir"]), str(folder))
+    path = write_results(folder, raw=text)
     assert cli(capfd, "report", path, *NO_STUDIES)[0] == 0
     old = _files(folder)
     assert "index.html" in old and any(name.startswith("report/") for name in old)
-    doc = copy.deepcopy(real["doc"])  # a new report that differs from the old one in every case's images
+    doc = json.loads(text)  # a new report that differs from the old one in every case's images
     doc["description"] = "the second report"
     for key, inner in (("render", "exr"), ("report_images", "folder")):  # the run's images of the other case
         doc["cases"][0][key][inner], doc["cases"][1][key][inner] = (doc["cases"][1][key][inner],
@@ -414,8 +417,8 @@ def test_a_failed_report_keeps_the_old_one(fail, real, tmp_path, disk, capfd):
     disk.fill(**fail)  # a file of the new report cannot be written
     assert_one_line(*cli(capfd, "report", path, *NO_STUDIES), "No space left on device")
     assert _files(folder) == old  # every file of the old report, byte for byte
-    assert sorted(p.name for p in folder.iterdir()) == ["index.html", "report", "report.json", "results.json",
-                                                        "summary.md"]  # and no staging folder
+    assert sorted(p.name for p in folder.iterdir()) == ["cases", "index.html", "report", "report.json",
+                                                        "results.json", "summary.md"]  # and no staging folder
     disk.full = False
     assert cli(capfd, "report", path, *NO_STUDIES)[0] == 0  # the new report, whole
     new = _files(folder)

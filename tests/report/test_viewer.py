@@ -50,7 +50,7 @@ def run_dir(tmp_path_factory) -> Path:
     return out
 
 
-def test_the_run_writes_the_viewer_files_and_the_report_links_them(run_dir):
+def test_the_run_writes_the_viewer_files_and_the_report_copies_them(run_dir):
     results = read_results(run_dir / "results.json")  # the schema takes the record's "viewer"
     report = json.loads((run_dir / "report.json").read_text())
     page = (run_dir / "index.html").read_text()
@@ -61,10 +61,11 @@ def test_the_run_writes_the_viewer_files_and_the_report_links_them(run_dir):
         payload = read_script((folder / entry["data"]).read_text())
         assert payload["name"] == record["name"] and (payload["width"], payload["height"]) == (24, 16)
         assert sum(entry["p_histogram"]["counts"]) == entry["p_histogram"]["tested"] > 0
-        for key in ("data", "thumbnail", "pvalue"):  # hard links into report/<case>/
+        for key in ("data", "thumbnail", "pvalue"):  # checked copies in report/<case>/ (viewer.js written again)
             placed = Path(case["viewer"][key])
             assert placed.parent == run_dir / "report" / placed.parent.name
-            assert placed.stat().st_ino == (folder / entry[key]).stat().st_ino
+            assert placed.read_bytes() == (folder / entry[key]).read_bytes()
+            assert placed.stat().st_ino != (folder / entry[key]).stat().st_ino
         assert case["viewer"]["p_histogram"] == entry["p_histogram"]
         src = f"report/{Path(case['viewer']['data']).parent.name}/viewer.js"
         assert f'data-viewer-src="{src}"' in page
@@ -85,9 +86,8 @@ def test_an_older_results_json_gets_viewer_files_made_by_the_report(run_dir, tmp
     for record in results["cases"]:
         record.pop("viewer")
     old = tmp_path / "old"
-    old.mkdir()
-    (old / "results.json").write_text(json.dumps(results))
-    write_suite_report(old / "results.json", old)
+    (run_dir / "results-older.json").write_text(json.dumps(results))  # in the run folder, whose files it names
+    write_suite_report(run_dir / "results-older.json", old)
     report = json.loads((old / "report.json").read_text())
     for record, case in zip(json.loads((run_dir / "results.json").read_text())["cases"], report["cases"]):
         assert case["problems"] == [] and case["viewer"] is not None
