@@ -56,6 +56,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "exr_bytes",
+    "exr_size",
     "make_folders",
     "preview_path",
     "read_exr",
@@ -636,7 +637,7 @@ def _open_exr(path: str, **options):
 def _check_claimed_size(path: str, header: dict, max_pixels: int | None = None, part: str = "") -> tuple[int, int]:
     """Refuse a header whose data window or channel count is beyond the harness's limits (and, when given, whose
     data window has more than ``max_pixels`` pixels), before pixels are read. ``part``: "part 1: " and so on in the
-    messages of a multi-part file. Returns (pixels, channels) claimed."""
+    messages of a multi-part file. Returns (width, height, channels) claimed."""
     try:
         low, high = (np.asarray(corner, dtype=np.int64) for corner in header["dataWindow"])
         width, height = int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
@@ -657,24 +658,29 @@ def _check_claimed_size(path: str, header: dict, max_pixels: int | None = None, 
     if len(channels) > MAX_READ_CHANNELS:
         raise HarnessError(path, f"{part}has {len(channels)} channels; expected at most {MAX_READ_CHANNELS} "
                                  "(corrupted?)")
-    return width * height, len(channels)
+    return width, height, len(channels)
 
 
-def _check_parts(path: str, headers: list[dict], max_pixels: int | None = None) -> None:
+def _check_parts(path: str, headers: list[dict], max_pixels: int | None = None) -> tuple[int, int]:
     """Refuse a file any of whose parts claims more than :func:`_check_claimed_size` allows, or whose parts
     together claim more pixels or channels than one part may (the binding reads every part's pixels), and a
-    count attribute of part 0 (:data:`COUNT_ATTRIBUTES`) that is not a sane number; all on the headers alone."""
+    count attribute of part 0 (:data:`COUNT_ATTRIBUTES`) that is not a sane number; all on the headers alone.
+    Returns part 0's (width, height)."""
     pixels = channels = 0
+    sizes = []
     for index, header in enumerate(headers):
         part = f"part {index}: " if len(headers) > 1 else ""
-        claimed = _check_claimed_size(path, header, max_pixels, part)
-        pixels, channels = pixels + claimed[0], channels + claimed[1]
+        width, height, count = _check_claimed_size(path, header, max_pixels, part)
+        pixels, channels = pixels + width * height, channels + count
+        sizes.append((width, height))
     if pixels > MAX_FILM_PIXELS or channels > MAX_READ_CHANNELS:
         raise HarnessError(path, (
             f"has {len(headers)} parts claiming {pixels} pixels and {channels} channels in all; expected at most "
             f"2^26 pixels and {MAX_READ_CHANNELS} channels over all parts (corrupted header?)"))
-    if headers:
-        _check_count_attributes(path, headers[0])
+    if not headers:
+        raise HarnessError(path, "cannot read OpenEXR file (corrupted?): no part")
+    _check_count_attributes(path, headers[0])
+    return sizes[0]
 
 
 def _check_count_attributes(path: str, header: dict) -> None:
@@ -694,13 +700,19 @@ def _check_count_attributes(path: str, header: dict) -> None:
                                      "2^53 (corrupted header?)")
 
 
-def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, object]]:
-    """All channel arrays and the header of part 0, or HarnessError (one line, nothing printed) if unreadable.
+def exr_size(path: str | os.PathLike[str], *, max_pixels: int | None = None) -> tuple[int, int]:
+    """(width, height) of an OpenEXR file's part 0, from its headers alone, after every check :func:`read_exr`
+    makes on them (so a caller can refuse what the pixels would cost before reading them). HarnessError (one line)
+    as :func:`read_exr`."""
+    where = str(path)
+    _check_magic(where)
+    with _open_exr(where, header_only=True) as exr:
+        headers = [dict(part.header) for part in exr.parts]
+    return _check_parts(where, headers, max_pixels)
 
-    The headers of every part are read first and their claimed sizes and part 0's count attributes checked
-    (:func:`_check_parts`), so a corrupted header cannot make the reader allocate more than a film the harness
-    renders would need, nor hand the verdict a count that overflows.
-    """
+
+def _check_magic(path: str) -> None:
+    """Refuse a path that is no regular file or does not start with OpenEXR's magic number (one line)."""
     irregular = None if os.path.isdir(path) else not_regular(path)  # a device or pipe: reading it never ends
     if irregular is not None:
         raise HarnessError(path, f"{irregular.message}; expected an OpenEXR image file")
@@ -716,9 +728,16 @@ def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, 
     if magic != _EXR_MAGIC:
         raise HarnessError(path, "not an OpenEXR file (bad magic number)")
 
+
+def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """All channel arrays and the header of part 0, or HarnessError (one line, nothing printed) if unreadable.
+
+    The headers of every part are read first and their claimed sizes and part 0's count attributes checked
+    (:func:`exr_size`), so a corrupted header cannot make the reader allocate more than a film the harness
+    renders would need, nor hand the verdict a count that overflows.
+    """
+    exr_size(path, max_pixels=max_pixels)
     broken = "cannot read OpenEXR file (corrupted or truncated?)"
-    with _open_exr(path, header_only=True) as exr:
-        _check_parts(path, [dict(part.header) for part in exr.parts], max_pixels)
     exr = _open_exr(path, separate_channels=True)
     try:
         with exr:

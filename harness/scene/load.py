@@ -22,9 +22,9 @@ from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 
 from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError, read_user_bytes
-from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
+from harness.core.limits import MAX_FILM_SIDE, envmap_problem, estimate_text, film_problem
 from harness.core.text import hint as suggestion  # `hint` is a local name here
-from harness.files.imageio import read_exr
+from harness.files.imageio import exr_size, read_exr
 from harness.scene.model import (
     DEFAULT_ALPHA,
     DEFAULT_EXT_IOR,
@@ -812,9 +812,12 @@ class _SceneReader:
             raise self.expected(file_key, "an .exr file name (OpenEXR, linear RGB)", file_name)
         path = self.file_path(file_name, file_key, "envmap")
         try:
-            image = read_exr(path, max_pixels=MAX_ENVMAP_PIXELS).image
+            problem = envmap_problem(*exr_size(path, max_pixels=MAX_ENVMAP_PIXELS))  # on the header alone
+            image = None if problem else read_exr(path, max_pixels=MAX_ENVMAP_PIXELS).image
         except HarnessError as err:
             raise self.error(file_key, f"envmap file {file_name!r}: {err.message}") from None
+        if problem:
+            raise self.error(file_key, f"envmap file {file_name!r}: {problem}")
         what = "a finite number > 0"
         scale = self.number(table.get("scale", 1.0), f"{key}.scale", what)
         if scale <= 0:
