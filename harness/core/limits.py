@@ -53,7 +53,7 @@ from harness.core.errors import HarnessError
 MAX_FILM_SIDE = 16384
 MAX_FILM_PIXELS = 2**26
 BYTES_PER_PIXEL = 2 * 24 + 3 * 24 + 2 * 12 + 2 * 12
-ENVMAP_BYTES_PER_TEXEL = 128  # 12 + 24 + 5 * 8 + 3 * 24 = 148 summed over every array; 124 measured at the peak
+ENVMAP_BYTES_PER_TEXEL = 128  # the map and the reference's tables of it at their peak: 124 B measured (above)
 PATHS_PER_SECOND = 1e6
 MAX_SECONDS = 24 * 3600.0
 MEMORY_FRACTION = 0.5
