@@ -83,7 +83,8 @@ def _check_costs(scene, args: argparse.Namespace) -> None:
     harness/core/limits.py's (absurd even where a closed form makes the ground truth free)."""
     for option, spp in (("--spp", args.spp), ("--ground-truth-spp", args.ground_truth_spp)):
         check_render_cost(scene.film.width, scene.film.height, spp, film_where=f"{scene.path}: film",
-                          spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option)
+                          spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option,
+                          envmap=scene.envmap_size, envmap_where=scene.envmap_key)
 
 
 def run(args: argparse.Namespace) -> int:

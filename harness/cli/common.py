@@ -138,7 +138,7 @@ def check_cost(scene, spp: int | None, option: str, *, seconds: float | None = N
     time estimate is absurd (harness/core/limits.py)."""
     check_render_cost(scene.film.width, scene.film.height, spp, film_where=f"{scene.path}: film",
                       spp_where=option, film_keys=f"film.width / film.height in {scene.path}", spp_name=option,
-                      seconds=seconds)
+                      seconds=seconds, envmap=scene.envmap_size, envmap_where=scene.envmap_key)
 
 
 @contextlib.contextmanager

@@ -9,6 +9,11 @@ machine (``harness.scene.load``). Where the samples per pixel are known too (``h
   (sum and sum of squares, 24 B each) for the whole render, forms the mean, the sample variance and one temporary
   in float64 at the end (3 x 24 B), returns float32 image and variance (2 x 12 B) and the EXR writer copies both
   into channel planes (2 x 12 B). The batch buffers (``batch_size`` paths) do not grow with the film.
+  A scene's environment map adds ``texels * ENVMAP_BYTES_PER_TEXEL`` (128 B), whatever the film: the reference
+  builds its tables (``reference_impl.emitters.Emitters``) from the float32 map the scene holds (12 B per texel):
+  the texels in float64 (24 B), the luminance, the cells' corners, weights, pdf and conditional cdf (8 B each) and,
+  at the peak, the float64 temporaries of the cells' mean colour (3 x 24 B); tracemalloc measures 124 B per texel
+  (tests/scene/test_envmap_cost.py). An 8192 x 4096 map costs about 4 GiB however small the film.
 * time: ``pixels * spp / PATHS_PER_SECOND`` above ``MAX_SECONDS`` (24 h). ``PATHS_PER_SECOND`` = 1e6 is the order
   of the reference path tracer on a 2-core machine (0.4 to 0.7 M paths/s measured on the Cornell box and
   multi-light scenes with other work running; up to about 2 M/s unloaded); it is an order-of-magnitude estimate,
@@ -48,6 +53,7 @@ from harness.core.errors import HarnessError
 MAX_FILM_SIDE = 16384
 MAX_FILM_PIXELS = 2**26
 BYTES_PER_PIXEL = 2 * 24 + 3 * 24 + 2 * 12 + 2 * 12
+ENVMAP_BYTES_PER_TEXEL = 128  # the map and the reference's tables of it at their peak: 124 B measured (above)
 PATHS_PER_SECOND = 1e6
 MAX_SECONDS = 24 * 3600.0
 MEMORY_FRACTION = 0.5
@@ -64,6 +70,24 @@ DEPTH_SUM_TERMS = 100_000  # an unbounded depth's sums stop here (or when their 
 def memory_bytes(width: int, height: int) -> float:
     """Estimated peak memory of a render's per-pixel buffers in bytes: ``width * height * BYTES_PER_PIXEL``."""
     return float_or_inf(width) * float_or_inf(height) * BYTES_PER_PIXEL
+
+
+def envmap_bytes(width: int, height: int) -> float:
+    """Estimated peak memory of a render's environment map of ``width x height`` texels in bytes (the map and the
+    reference's tables of it): ``width * height * ENVMAP_BYTES_PER_TEXEL``."""
+    return float_or_inf(width) * float_or_inf(height) * ENVMAP_BYTES_PER_TEXEL
+
+
+def envmap_problem(width: int, height: int) -> str | None:
+    """Why an environment map of ``width x height`` texels cannot be rendered on this machine (its tables alone
+    need more than ``MEMORY_FRACTION`` of the physical memory), or None; checked on the file's header, before any
+    pixel is read."""
+    memory, available = envmap_bytes(width, height), machine_memory()
+    if available is None or memory <= MEMORY_FRACTION * available:
+        return None
+    return (f"a {width} x {height} map needs about {format_bytes(memory)} of memory to render "
+            f"({ENVMAP_BYTES_PER_TEXEL} B per texel: the map and the reference's sampling tables), more than "
+            f"{MEMORY_FRACTION:.0%} of this machine's {format_bytes(available)}; expected a smaller map")
 
 
 def render_seconds(width: int, height: int, spp: int) -> float:
@@ -131,19 +155,30 @@ def film_problem(width: int, height: int) -> str | None:
 
 def check_render_cost(width: int, height: int, spp: int | None, *, film_where: str, spp_where: str,
                       film_keys: str = "the film's width / height", spp_name: str = "spp",
-                      seconds: float | None = None) -> None:
+                      seconds: float | None = None, envmap: tuple[int, int] | None = None,
+                      envmap_where: str | None = None) -> None:
     """Refuse a render of ``width x height`` pixels at ``spp`` samples per pixel (or for ``seconds`` of rendering,
     a time budget) whose estimated memory or time breaks the limits above.
 
     ``film_where`` / ``spp_where`` are the HarnessError locations blamed for memory / time (e.g.
     ``"scenes/x.toml: film"``, ``"--spp"``); ``film_keys`` and ``spp_name`` name what to lower in the message.
+    ``envmap``: the (width, height) of the scene's environment map, whose tables count too; the memory is blamed on
+    ``envmap_where`` (its ``file`` key) when they cost more than the film.
     """
     memory, available = memory_bytes(width, height), machine_memory()
+    texels = envmap_bytes(*envmap) if envmap is not None else 0.0
     budget_spp = spp if seconds is None else None
-    if available is not None and memory > MEMORY_FRACTION * available:
-        raise HarnessError(film_where, (
-            f"{width} x {height} pixels need {estimate_text(width, height, budget_spp)}, more than "
-            f"{MEMORY_FRACTION:.0%} of this machine's {format_bytes(available)}; lower {film_keys}"))
+    if available is not None and memory + texels > MEMORY_FRACTION * available:
+        if envmap is None:
+            raise HarnessError(film_where, (
+                f"{width} x {height} pixels need {estimate_text(width, height, budget_spp)}, more than "
+                f"{MEMORY_FRACTION:.0%} of this machine's {format_bytes(available)}; lower {film_keys}"))
+        where = envmap_where if texels > memory and envmap_where else film_where
+        raise HarnessError(where, (
+            f"{width} x {height} pixels with a {envmap[0]} x {envmap[1]} environment map need about "
+            f"{format_bytes(memory + texels)} of memory ({BYTES_PER_PIXEL} B per pixel, {ENVMAP_BYTES_PER_TEXEL} B "
+            f"per texel of the map), more than {MEMORY_FRACTION:.0%} of this machine's {format_bytes(available)}; "
+            f"lower {film_keys} or use a smaller map"))
     if seconds is not None:
         if seconds > MAX_SECONDS:
             raise HarnessError(spp_where, (
@@ -197,10 +232,12 @@ def _depth_terms(indirect_rays: int, survival: float, rr_depth: int, bounces: fl
 
 def reference_cost(width: int, height: int, spp: int, *, shadow_rays: int = 1, indirect_rays: int = 1,
                    max_depth: int = -1, survival: float = 1.0, rr_depth: int = 3, mis: bool = False,
-                   hemisphere_direct: bool = False, batch_size: int = 1 << 15, threads: int = 1) -> ReferenceCost:
+                   hemisphere_direct: bool = False, batch_size: int = 1 << 15, threads: int = 1,
+                   envmap: tuple[int, int] | None = None) -> ReferenceCost:
     """Memory and time estimates of a reference render with these settings (module docstring).
 
-    ``survival``: Russian roulette's survival probability (1.0 for rr = off); ``threads``: the resolved count.
+    ``survival``: Russian roulette's survival probability (1.0 for rr = off); ``threads``: the resolved count;
+    ``envmap``: the (width, height) of the scene's environment map, whose tables count too.
     """
     pixels = int(width) * int(height)
     n, busy = _batch(pixels, spp, batch_size, threads)
@@ -220,7 +257,7 @@ def reference_cost(width: int, height: int, spp: int, *, shadow_rays: int = 1, i
         rows, hits = max(bounced) * indirect_rays, max(bounced)
         per_thread = (n * (WAVEFRONT_ROW_BYTES + CAMERA_SAMPLE_BYTES) + sum(bounced) * indirect_rays
                       * WAVEFRONT_ROW_BYTES + max(bounced) * shadow_rays * direct_row)
-    memory = memory_bytes(width, height) + busy * per_thread
+    memory = memory_bytes(width, height) + busy * per_thread + (envmap_bytes(*envmap) if envmap else 0.0)
     return ReferenceCost(memory, render_seconds(width, height, spp) * relative, relative, rows, hits * shadow_rays)
 
 
@@ -239,10 +276,12 @@ def check_reference_cost(width: int, height: int, spp: int, *, where: str, setti
             "indirect_rays"))
     available = machine_memory()
     if available is not None and cost.memory > MEMORY_FRACTION * available:
+        envmap = settings.get("envmap")
+        tables = f"; {format_bytes(envmap_bytes(*envmap))} of it the environment map's tables" if envmap else ""
         raise HarnessError(where, (
             f"{head} need about {format_bytes(cost.memory)} of memory (per worker thread: wavefronts of up to "
-            f"{cost.wavefront_rows:.3g} paths and {cost.direct_rows:.3g} direct-light rays), more than {MEMORY_FRACTION:.0%} of this machine's "
-            f"{format_bytes(available)}; lower {lower}"))
+            f"{cost.wavefront_rows:.3g} paths and {cost.direct_rows:.3g} direct-light rays{tables}), more than "
+            f"{MEMORY_FRACTION:.0%} of this machine's {format_bytes(available)}; lower {lower}"))
     if cost.seconds > MAX_SECONDS:
         raise HarnessError(where, (
             f"{head} need about {format_seconds(cost.seconds)} ({cost.relative_work:.3g} x the rays per path of the "

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import io
+import math
 import os
 import re
 import sys
@@ -47,6 +48,7 @@ from harness.core import srgb
 from harness.core.errors import HarnessError, not_regular
 from harness.core.limits import MAX_FILM_PIXELS, MAX_FILM_SIDE, estimate_text
 from harness.core.options import switched_off
+from harness.core.text import short
 
 __all__ = [
     "ExrImage",
@@ -55,6 +57,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "exr_bytes",
+    "exr_size",
     "link_target",
     "make_folders",
     "make_real_folders",
@@ -621,8 +624,14 @@ def _exr_fill(image: np.ndarray, variance: np.ndarray | None, metadata: Mapping[
 
 
 # Limits on what a file may claim before its pixels are read (a corrupted header can claim terabytes): the film
-# limits of harness/core/limits.py, and a generous number of channels.
+# limits of harness/core/limits.py, and a generous number of channels; for a multi-part file, over all its parts
+# (the OpenEXR binding reads every part, though only part 0 is used).
 MAX_READ_CHANNELS = 64
+#: String header attributes the harness reads as counts (the degrees of freedom of a file's variance:
+#: ``variance_dof``, else ``spp`` - 1, in :mod:`harness.running.compare`). A number there must be finite and within
+#: 0 .. ``MAX_COUNT_ATTRIBUTE`` (integers up to 2^53 are exact as floats), checked with the header.
+COUNT_ATTRIBUTES = ("spp", "variance_dof")
+MAX_COUNT_ATTRIBUTE = 2**53
 
 _CAPTURE_LOCK = threading.Lock()
 _LIBRARY_MESSAGE = re.compile(r"\((EXR_ERR_[A-Z_]+)\)\s*(.*)")
@@ -704,34 +713,85 @@ def _open_exr(path: str, **options):
     return exr
 
 
-def _check_claimed_size(path: str, header: dict, max_pixels: int | None = None) -> None:
+def _check_claimed_size(path: str, header: dict, max_pixels: int | None = None, part: str = "") -> tuple[int, int]:
     """Refuse a header whose data window or channel count is beyond the harness's limits (and, when given, whose
-    data window has more than ``max_pixels`` pixels), before pixels are read."""
+    data window has more than ``max_pixels`` pixels), before pixels are read. ``part``: "part 1: " and so on in the
+    messages of a multi-part file. Returns (width, height, channels) claimed."""
     try:
         low, high = (np.asarray(corner, dtype=np.int64) for corner in header["dataWindow"])
         width, height = int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
     except (KeyError, TypeError, ValueError, IndexError) as err:
-        raise HarnessError(path, f"cannot read OpenEXR file (corrupted?): bad dataWindow ({_one_line(str(err))})") \
-            from None
+        raise HarnessError(path, f"cannot read OpenEXR file (corrupted?): {part}bad dataWindow "
+                                 f"({_one_line(str(err))})") from None
     if width < 1 or height < 1:
-        raise HarnessError(path, f"data window is {width} x {height} pixels; expected a non-empty image (corrupted?)")
+        raise HarnessError(path, f"{part}data window is {width} x {height} pixels; expected a non-empty image "
+                                 "(corrupted?)")
     if max(width, height) > MAX_FILM_SIDE or width * height > MAX_FILM_PIXELS:
         raise HarnessError(path, (
-            f"data window is {width} x {height} pixels ({estimate_text(width, height)}); expected at most "
+            f"{part}data window is {width} x {height} pixels ({estimate_text(width, height)}); expected at most "
             f"{MAX_FILM_SIDE} per side and 2^26 pixels (a film the harness renders; corrupted header?)"))
     if max_pixels is not None and width * height > max_pixels:
-        raise HarnessError(path, f"is {width} x {height} = {width * height} pixels; expected at most {max_pixels}")
+        raise HarnessError(path, f"{part}is {width} x {height} = {width * height} pixels; expected at most "
+                                 f"{max_pixels}")
     channels = header.get("channels") or []
     if len(channels) > MAX_READ_CHANNELS:
-        raise HarnessError(path, f"has {len(channels)} channels; expected at most {MAX_READ_CHANNELS} (corrupted?)")
+        raise HarnessError(path, f"{part}has {len(channels)} channels; expected at most {MAX_READ_CHANNELS} "
+                                 "(corrupted?)")
+    return width, height, len(channels)
 
 
-def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, object]]:
-    """All channel arrays and the header of part 0, or HarnessError (one line, nothing printed) if unreadable.
+def _check_parts(path: str, headers: list[dict], max_pixels: int | None = None) -> tuple[int, int]:
+    """Refuse a file any of whose parts claims more than :func:`_check_claimed_size` allows, or whose parts
+    together claim more pixels or channels than one part may (the binding reads every part's pixels), and a
+    count attribute of part 0 (:data:`COUNT_ATTRIBUTES`) that is not a sane number; all on the headers alone.
+    Returns part 0's (width, height)."""
+    pixels = channels = 0
+    sizes = []
+    for index, header in enumerate(headers):
+        part = f"part {index}: " if len(headers) > 1 else ""
+        width, height, count = _check_claimed_size(path, header, max_pixels, part)
+        pixels, channels = pixels + width * height, channels + count
+        sizes.append((width, height))
+    if pixels > MAX_FILM_PIXELS or channels > MAX_READ_CHANNELS:
+        raise HarnessError(path, (
+            f"has {len(headers)} parts claiming {pixels} pixels and {channels} channels in all; expected at most "
+            f"2^26 pixels and {MAX_READ_CHANNELS} channels over all parts (corrupted header?)"))
+    if not headers:
+        raise HarnessError(path, "cannot read OpenEXR file (corrupted?): no part")
+    _check_count_attributes(path, headers[0])
+    return sizes[0]
 
-    The header is read first and its claimed size checked (:func:`_check_claimed_size`), so a corrupted header
-    cannot make the reader allocate more than a film the harness renders would need.
-    """
+
+def _check_count_attributes(path: str, header: dict) -> None:
+    """Refuse a count attribute (:data:`COUNT_ATTRIBUTES`) holding a number that is not finite or lies outside
+    0 .. 2^53: a 400-digit ``variance_dof`` would overflow the verdict's floats. Text that is no number at all is left
+    to the reader, which ignores it."""
+    for key in COUNT_ATTRIBUTES:
+        raw = header.get(key)
+        if not isinstance(raw, str):
+            continue
+        try:
+            number = float(raw)
+        except ValueError:
+            continue
+        if not (math.isfinite(number) and 0 <= number <= MAX_COUNT_ATTRIBUTE):
+            raise HarnessError(path, f"header attribute {key} = {short(raw, 40)}; expected a count from 0 to "
+                                     "2^53 (corrupted header?)")
+
+
+def exr_size(path: str | os.PathLike[str], *, max_pixels: int | None = None) -> tuple[int, int]:
+    """(width, height) of an OpenEXR file's part 0, from its headers alone, after every check :func:`read_exr`
+    makes on them (so a caller can refuse what the pixels would cost before reading them). HarnessError (one line)
+    as :func:`read_exr`."""
+    where = str(path)
+    _check_magic(where)
+    with _open_exr(where, header_only=True) as exr:
+        headers = [dict(part.header) for part in exr.parts]
+    return _check_parts(where, headers, max_pixels)
+
+
+def _check_magic(path: str) -> None:
+    """Refuse a path that is no regular file or does not start with OpenEXR's magic number (one line)."""
     irregular = None if os.path.isdir(path) else not_regular(path)  # a device or pipe: reading it never ends
     if irregular is not None:
         raise HarnessError(path, f"{irregular.message}; expected an OpenEXR image file")
@@ -747,9 +807,16 @@ def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, 
     if magic != _EXR_MAGIC:
         raise HarnessError(path, "not an OpenEXR file (bad magic number)")
 
+
+def _read_channels(path: str, max_pixels: int | None = None) -> tuple[dict[str, np.ndarray], dict[str, object]]:
+    """All channel arrays and the header of part 0, or HarnessError (one line, nothing printed) if unreadable.
+
+    The headers of every part are read first and their claimed sizes and part 0's count attributes checked
+    (:func:`exr_size`), so a corrupted header cannot make the reader allocate more than a film the harness
+    renders would need, nor hand the verdict a count that overflows.
+    """
+    exr_size(path, max_pixels=max_pixels)
     broken = "cannot read OpenEXR file (corrupted or truncated?)"
-    with _open_exr(path, header_only=True) as exr:
-        _check_claimed_size(path, dict(exr.header()), max_pixels)
     exr = _open_exr(path, separate_channels=True)
     try:
         with exr:
@@ -786,12 +853,14 @@ def read_exr(path: str | os.PathLike[str], *, max_pixels: int | None = None) -> 
     ``ExrImage.variance``; other channels (``A``, depth, AOVs) are ignored,
     so files from Mitsuba and other renderers are accepted.  Pixels are
     returned as float32, row 0 at the top.  ``metadata`` holds the header's
-    string attributes.  Only the first part of a multi-part file is read.
+    string attributes.  Only the first part of a multi-part file is used.
 
     Raises ``HarnessError(str(path), ...)`` (one line) if the file is missing,
     not an OpenEXR file, corrupted or truncated, lacks R/G/B, has only some
-    of the variance channels, or has channels of inconsistent sizes; and, when ``max_pixels`` is given, if its data
-    window has more pixels than that (checked on the header, before any pixel is read).
+    of the variance channels, or has channels of inconsistent sizes; and, checked on the headers before any pixel is
+    read, if any part claims more than a film the harness renders (or, when ``max_pixels`` is given, more pixels than
+    that), the parts together claim more than one part may, or a count attribute (``spp``, ``variance_dof``) holds a
+    number that is not finite or lies outside 0 .. 2^53.
     """
     where = str(path)
     channels, header = _read_channels(where, max_pixels)

@@ -155,4 +155,4 @@ def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:
         max_depth=settings.max_depth,
         survival=_survival(scene, settings), rr_depth=settings.rr_depth, mis=settings.direct in ("mis", "bsdf"),
         hemisphere_direct=settings.direct in ("hemisphere-cosine", "hemisphere-uniform"),
-        batch_size=settings.batch_size, threads=settings.worker_threads())
+        batch_size=settings.batch_size, threads=settings.worker_threads(), envmap=scene.envmap_size)

@@ -306,7 +306,8 @@ def _check_case_cost(label: str, where: str, case: Case, scenes: dict) -> None:
     budgets.append((case.ground_truth_spp, None, "ground_truth_spp"))
     for spp, seconds, key in budgets:
         check_render_cost(width, height, spp, seconds=seconds, film_where=film_where,
-                          spp_where=f"{label}: {where}.{key}", film_keys=film_keys, spp_name=f"{where}.{key}")
+                          spp_where=f"{label}: {where}.{key}", film_keys=film_keys, spp_name=f"{where}.{key}",
+                          envmap=scene.envmap_size, envmap_where=scene.envmap_key)
 
 
 def _check_case_variant(label: str, where: str, case: Case, scene) -> None:

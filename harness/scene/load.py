@@ -7,6 +7,7 @@ Every problem with the file raises :class:`HarnessError` whose ``where`` is ``"<
 from __future__ import annotations
 
 import datetime
+import io
 import json
 import math
 import re
@@ -19,11 +20,11 @@ import numpy as np
 from reference_impl.camera import Camera, Film
 from reference_impl.errors import SettingsError
 
-from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError, not_regular, read_user_bytes
-from harness.core.limits import MAX_FILM_SIDE, estimate_text, film_problem
+from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError, read_user_bytes
+from harness.core.limits import MAX_FILM_SIDE, envmap_problem, estimate_text, film_problem
 from harness.core.options import env_switch
 from harness.core.text import hint as suggestion  # `hint` is a local name here
-from harness.files.imageio import read_exr
+from harness.files.imageio import exr_size, read_exr
 from harness.scene.model import (
     DEFAULT_ALPHA,
     DEFAULT_EXT_IOR,
@@ -43,6 +44,12 @@ from harness.scene.model import (
     Scene,
     Shape,
     SpotLight,
+)
+from harness.scene.mesh_files import (
+    MAX_MESH_BYTES,
+    ConfinedResolver,
+    confined_path,
+    ply_count_problem,
 )
 from harness.scene.triangulate import (
     object_to_world,
@@ -117,7 +124,6 @@ MAX_SUBDIVISIONS = 7  # 327 680 triangles
 # Radiance per channel: a path's sample is emission times weights that reach 1e6 and more near small lights, and
 # the variance squares it; both must stay far inside float32 (3.4e38), the type of every image and EXR.
 MAX_EMISSION = 1e12
-MAX_MESH_BYTES = 2**30  # a mesh file is read whole (and an OBJ scanned line by line) before trimesh parses it
 INT32_MAX = 2**31 - 1
 
 _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
@@ -630,7 +636,8 @@ class _SceneReader:
         return {"center": center, "radius": radius, "subdivisions": subdivisions}
 
     def mesh(self, table: dict, key: str) -> dict[str, Any]:
-        """The mesh file's absolute path and its triangles, read with trimesh."""
+        """The mesh file's absolute path and its triangles, read with trimesh from the bytes read here (its
+        materials and textures skipped: it opens no file the mesh names; harness.scene.mesh_files)."""
         file_key = f"{key}.file"
         name = self.string(self.require(table, "file", key, "a PLY or OBJ file name"), file_key)
         if not name.lower().endswith(MESH_SUFFIXES):
@@ -640,16 +647,26 @@ class _SceneReader:
         if size > MAX_MESH_BYTES:
             raise self.error(file_key, f"mesh file {name!r} is {size / 2**20:.0f} MiB; expected at most "
                                        f"{MAX_MESH_BYTES / 2**30:g} GiB")
-        if path.suffix.lower() == ".obj":
-            problem = obj_face_problem(read_user_bytes(path, missing="no such mesh file", where=file_key,
-                                                       limit=MAX_MESH_BYTES))
+        where = f"{self.label}: {file_key}"
+        data = read_user_bytes(path, missing="no such mesh file", where=where, limit=MAX_MESH_BYTES)
+        file_type = name.lower().rsplit(".", 1)[-1]  # the name's suffix: a symlink's target may have another
+        if file_type == "obj":
+            problem = obj_face_problem(data)
             if problem:
                 raise self.error(file_key, f"mesh {name!r}: {problem}")
+        else:
+            problem = ply_count_problem(data)
+            if problem:
+                raise self.error(file_key, f"cannot read the mesh file {name!r}: {problem}")
+        resolver = ConfinedResolver(self.folder, path.parent, where, allow_outside=self.allow_outside)
         try:
             import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
-            mesh = trimesh.load(path, force="mesh", process=False)
+            mesh = trimesh.load(io.BytesIO(data), file_type=file_type, resolver=resolver, force="mesh",
+                                process=False, skip_materials=True)
             vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
             triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+        except HarnessError:
+            raise
         except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
             reason = " ".join(str(err).split()) or type(err).__name__
             raise self.error(file_key, f"cannot read the mesh file {name!r}: {reason[:300]}") from None
@@ -662,28 +679,12 @@ class _SceneReader:
         return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles}
 
     def file_path(self, name: str, key: str, what: str) -> Path:
-        """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist
-        and, unless ``allow_outside``, lie inside the scene file's folder. Every file a scene names goes through
-        here (meshes now; textures, should the format grow them)."""
-        try:
-            path = (self.folder / name).resolve()
-            folder = self.folder.resolve()
-        except (OSError, ValueError, RuntimeError) as err:
-            raise self.error(key, f"cannot resolve the {what} file name {name!r}: {err}") from None
-        if not self.allow_outside and not path.is_relative_to(folder):
-            raise self.error(key, (
-                f"{what} file {name!r} resolves to {str(path)!r}, outside the scene's folder {str(folder)!r}; "
-                "expected a file inside it (--allow-outside-paths allows others)"))
-        irregular = not_regular(path, key)
-        if irregular is not None:
-            raise self.error(key, f"{what} file {name!r} is {irregular.message}") from None
-        try:
-            exists = path.is_file()
-        except (OSError, ValueError):
-            exists = False
-        if not exists:
-            raise self.error(key, f"no such {what} file: {name!r} (relative to {str(self.folder)!r})")
-        return path
+        """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist,
+        be a regular file and, unless ``allow_outside``, lie inside the scene file's folder. Every file a scene names
+        goes through here, and every file such a file names through the same
+        :func:`harness.scene.mesh_files.confined_path`."""
+        return confined_path(self.folder, name, what, f"{self.label}: {key}" if key else self.label,
+                             allow_outside=self.allow_outside)
 
     def check_placed_shape(self, shape: Shape, key: str, placement_key: str) -> None:
         """Refuse singular or overflowing placements, non-uniformly scaled spheres and zero-area lights."""
@@ -812,9 +813,12 @@ class _SceneReader:
             raise self.expected(file_key, "an .exr file name (OpenEXR, linear RGB)", file_name)
         path = self.file_path(file_name, file_key, "envmap")
         try:
-            image = read_exr(path, max_pixels=MAX_ENVMAP_PIXELS).image
+            problem = envmap_problem(*exr_size(path, max_pixels=MAX_ENVMAP_PIXELS))  # on the header alone
+            image = None if problem else read_exr(path, max_pixels=MAX_ENVMAP_PIXELS).image
         except HarnessError as err:
             raise self.error(file_key, f"envmap file {file_name!r}: {err.message}") from None
+        if problem:
+            raise self.error(file_key, f"envmap file {file_name!r}: {problem}")
         what = "a finite number > 0"
         scale = self.number(table.get("scale", 1.0), f"{key}.scale", what)
         if scale <= 0:

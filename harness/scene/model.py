@@ -244,6 +244,23 @@ class Scene:
         return any(not m.is_diffuse for m in self.materials.values())
 
     @property
+    def envmap_size(self) -> tuple[int, int] | None:
+        """(width, height) of the scene's environment map, or None: its tables count in a render's memory
+        (harness.core.limits.envmap_bytes)."""
+        for emitter in self.emitters:
+            if isinstance(emitter, EnvironmentMap):
+                return int(emitter.image.shape[1]), int(emitter.image.shape[0])
+        return None
+
+    @property
+    def envmap_key(self) -> str | None:
+        """``"FILE: emitters[i].file"``, the key that names the scene's environment map, or None."""
+        for emitter in self.emitters:
+            if isinstance(emitter, EnvironmentMap):
+                return f"{self.path}: emitters[{emitter.index}].file"
+        return None
+
+    @property
     def lights(self) -> list[Shape]:
         """The emissive shapes, in light-id order (light k is ``lights[k]``)."""
         return [shape for shape in self.shapes if shape.is_emitter]
