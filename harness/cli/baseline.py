@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
     if args.from_results:
         results = read_suite_results(args.from_results, suite)
         source = str(args.from_results)
+        run_dir = Path(args.from_results).parent
     else:
         created: list[Path] = []  # removed (where empty) when the run fails
         run_dir = runstate.output_folder(args.run_out, Path("reports") / f"{suite.name}-baseline", "--run-out",
@@ -70,7 +71,8 @@ def run(args: argparse.Namespace) -> int:
               "is a known-good state (--allow-unexpected writes it anyway)", file=sys.stderr)
         return 1
     try:
-        doc, notes = build(suite, results, cache_dir=args.cache_dir, variant=args.mitsuba_variant, source=source)
+        doc, notes = build(suite, results, cache_dir=args.cache_dir, variant=args.mitsuba_variant, source=source,
+                           run_dir=run_dir if args.from_results else None)
     except (KeyError, TypeError, AttributeError, IndexError) as err:
         if not args.from_results:
             raise

@@ -37,6 +37,7 @@ import dataclasses
 import hashlib
 import json
 import math
+import os
 import platform
 import time
 from importlib import metadata
@@ -48,6 +49,8 @@ import numpy as np
 from harness.core import jsonsafe, system
 from harness.core.errors import HarnessError, read_user_text
 from harness.core.text import short
+from harness.files.cases import slug
+from harness.files.confined import inside
 from harness.files.imageio import atomic_write_text, read_exr
 from harness.files.results import read_results
 from harness.judges.distributions import normal_isf
@@ -117,20 +120,41 @@ def image_statistics(test: np.ndarray, test_variance: np.ndarray | None, expecte
     return out
 
 
-def record_statistics(case, record: dict, *, cache_dir=None, variant=None) -> dict:
-    """:func:`image_statistics` of a finished case: its render (``record["render"]["exr"]``) against its
-    ground truth, fetched again through :func:`harness.running.judge.ground_truth_for` (the closed form, or the
-    cache for Mitsuba; a ground truth made by another non-Mitsuba renderer is rendered again, seeded, so
-    identical)."""
-    exr = Path(record["render"]["exr"])
-    if not exr.is_file():
-        raise HarnessError(str(exr), f"case {record['name']!r}: its render is gone; expected the EXR the run wrote")
-    test = read_exr(exr)
+def render_file(record: dict, run_dir: Path | None) -> Path:
+    """The render EXR of a finished case's record. ``run_dir`` None: the record is this process's own (``harness
+    run --baseline``), its path as written. Otherwise the record comes from a results.json in ``run_dir`` (``baseline
+    save --from``), maybe written by someone else: the path it names is read only where it lies inside ``run_dir``
+    after symlinks, else where harness run writes it there (``cases/<slug>/render.exr``: a run folder that was moved
+    or copied); nothing outside the run folder is read. Neither: a one-line HarnessError."""
+    named = record["render"]["exr"]
+    if run_dir is None:
+        exr = Path(named)
+        if not exr.is_file():
+            raise HarnessError(str(exr), f"case {record['name']!r}: its render is gone; expected the EXR the run "
+                               "wrote")
+        return exr
+    usable = isinstance(named, str) and named and "\0" not in named
+    exr = inside(run_dir, named) if usable else None
+    if exr is None or not exr.is_file():
+        exr = inside(run_dir, Path(run_dir) / "cases" / slug(str(record["name"])) / "render.exr")
+    if exr is None or not exr.is_file():
+        why = ("names a file outside the run folder (not read)" if usable and os.path.lexists(named)
+               else "is gone")
+        raise HarnessError(short(str(named), 300), f"case {record['name']!r}: its render {why}; expected the EXR "
+                           f"harness run wrote inside the run folder {str(run_dir)!r}")
+    return exr
+
+
+def record_statistics(case, record: dict, *, cache_dir=None, variant=None, run_dir: Path | None = None) -> dict:
+    """:func:`image_statistics` of a finished case: its render (:func:`render_file`) against its ground truth,
+    fetched again through :func:`harness.running.judge.ground_truth_for` (the closed form, or the cache for Mitsuba;
+    a ground truth made by another non-Mitsuba renderer is rendered again, seeded, so identical)."""
+    test = read_exr(render_file(record, run_dir))
     gt = ground_truth_for(case, case_scene(case, for_ground_truth=True), cache_dir, variant)  # as run_case does
     return image_statistics(test.image, test.variance, gt.image)
 
 
-def case_entry(case, record: dict, *, cache_dir=None, variant=None) -> dict:
+def case_entry(case, record: dict, *, cache_dir=None, variant=None, run_dir: Path | None = None) -> dict:
     """What a baseline keeps of one finished case (only cases with a render: status pass or fail)."""
     v = record["verdict"]
     worst = v.get("worst_tile") or {}
@@ -150,7 +174,7 @@ def case_entry(case, record: dict, *, cache_dir=None, variant=None) -> dict:
         "render": {"seconds": render["seconds"], "spp": render["spp"], "paths_per_second": render["paths_per_second"]},
         "ground_truth": {k: record.get("ground_truth", {}).get(k) for k in ("source", "spp", "variant",
                                                                              "mitsuba_version")},
-        "statistics": record_statistics(case, record, cache_dir=cache_dir, variant=variant),
+        "statistics": record_statistics(case, record, cache_dir=cache_dir, variant=variant, run_dir=run_dir),
     }
 
 
@@ -172,8 +196,11 @@ def tool_versions(results: dict | None = None) -> dict:
 # ---- saving and loading ----------------------------------------------------------------------------------------
 
 
-def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "run") -> tuple[dict, list[str]]:
-    """The baseline document of a finished run of ``suite``, and notes on cases left out (no render)."""
+def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "run",
+          run_dir: Path | None = None) -> tuple[dict, list[str]]:
+    """The baseline document of a finished run of ``suite``, and notes on cases left out (no render); ``run_dir``:
+    the folder of a results.json read back (``--from``), whose renders are read only inside it
+    (:func:`render_file`)."""
     records = {r["name"]: r for r in results.get("cases", [])}
     cases, notes = {}, []
     for case in suite.cases:
@@ -184,7 +211,7 @@ def build(suite, results: dict, *, cache_dir=None, variant=None, source: str = "
         if record.get("status") not in ("pass", "fail") or "render" not in record:
             notes.append(f"{case.name}: status {record.get('status')} ({record.get('reason', '')}); left out")
             continue
-        cases[case.name] = case_entry(case, record, cache_dir=cache_dir, variant=variant)
+        cases[case.name] = case_entry(case, record, cache_dir=cache_dir, variant=variant, run_dir=run_dir)
     doc = {
         "schema": SCHEMA, "version": VERSION, "suite": suite.name, "suite_file": str(suite.path),
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "source": source, "tools": tool_versions(results),
