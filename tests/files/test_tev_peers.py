@@ -17,7 +17,8 @@ from harness.files.imageio import write_exr
 
 class Peer:
     """One connection on 127.0.0.1, treated as ``behaviour`` says: ``http`` reads a request's worth and answers
-    400, ``close`` closes at once, ``quiet`` reads until the client closes (as tev does)."""
+    400, ``close`` closes at once, ``hangup`` reads what came and closes, ``quiet`` reads until the client closes (as
+    tev does)."""
 
     def __init__(self, behaviour: str):
         self.behaviour = behaviour
@@ -37,6 +38,8 @@ class Peer:
             if self.behaviour == "http":
                 conn.recv(4096)
                 conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\nConnection: close\r\n\r\n")
+            elif self.behaviour == "hangup":
+                conn.recv(4096)
             elif self.behaviour == "quiet":
                 while chunk := conn.recv(1 << 16):
                     self.received += len(chunk)
@@ -60,12 +63,13 @@ def peer():
 
 
 @pytest.mark.parametrize("behaviour, says", [("http", "it answered b'HTTP/1.1 400 Bad Request"),
-                                             ("close", "it closed the connection")])
+                                             ("close", "it closed the connection"),
+                                             ("hangup", "it closed the connection")])
 def test_confirm_refuses_a_peer_that_answers_or_closes(peer, behaviour, says):
     listener = peer(behaviour)
     with tev.TevClient(("127.0.0.1", listener.port)) as client:
-        if behaviour == "http":
-            client.send(tev.close_image("x"))  # the HTTP server answers what it reads
+        if behaviour != "close":
+            client.send(tev.close_image("x"))  # what the HTTP server answers, what the other reads before closing
         with pytest.raises(tev.NotTev, match=says.removeprefix("it ")):
             client.confirm(wait=2.0)
 
@@ -78,7 +82,7 @@ def test_confirm_passes_a_quiet_peer(peer):
 
 
 @pytest.mark.slow  # writes the viewer page
-@pytest.mark.parametrize("behaviour", ["http", "close"])
+@pytest.mark.parametrize("behaviour", ["http", "close", "hangup"])
 def test_view_does_not_claim_tev_got_the_image_from_a_peer_that_is_not_tev(tmp_path, capsys, peer, behaviour):
     write_exr(tmp_path / "a.exr", np.full((6, 5, 3), 0.5, np.float32))
     listener = peer(behaviour)
