@@ -1,9 +1,9 @@
 """``harness view A.exr [B.exr]``: the images in tev where a tev instance listens (``--tev HOST:PORT``, default
 127.0.0.1:14158; :mod:`harness.files.tev`), else the report's comparison viewer for them, written as a page into a
 folder (``--out``, default a new temporary folder) whose path is printed. A peer that answers or closes the
-connection is not tev: the page is written then too. With two images the first plays the
-render and the second the ground truth: error maps, FLIP and, where both have variance channels, the verdict's
-tiles (docs/report.md, "harness view")."""
+connection is not tev: the page is written then too. With two images the first plays the render and the second the
+ground truth: error maps, FLIP and, where both have variance channels, the verdict's tiles (docs/report.md,
+"harness view")."""
 
 from __future__ import annotations
 
