@@ -28,7 +28,8 @@ def register(sub, common) -> None:
     parser.add_argument("--no-report", action="store_true",
                         help="do not write the studies or the report (studies/, index.html, report.json)")
     parser.add_argument("--executor", default="local", help="where cases run: local (a process pool, the default), "
-                        "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler)")
+                        "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler, "
+                        "which has 10 s to answer Dask's handshake)")
     parser.add_argument("--workers", type=options.positive_int,
                         help="worker processes of local (default 1) or dask (default 2)")
     parser.add_argument("--timeout", type=options.seconds,

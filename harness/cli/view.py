@@ -1,8 +1,9 @@
 """``harness view A.exr [B.exr]``: the images in tev where a tev instance listens (``--tev HOST:PORT``, default
 127.0.0.1:14158; :mod:`harness.files.tev`), else the report's comparison viewer for them, written as a page into a
-folder (``--out``, default a new temporary folder) whose path is printed. With two images the first plays the
-render and the second the ground truth: error maps, FLIP and, where both have variance channels, the verdict's
-tiles (docs/report.md, "harness view")."""
+folder (``--out``, default a new temporary folder) whose path is printed. A peer that answers or closes the
+connection is not tev: the page is written then too. With two images the first plays the render and the second the
+ground truth: error maps, FLIP and, where both have variance channels, the verdict's tiles (docs/report.md,
+"harness view")."""
 
 from __future__ import annotations
 
@@ -52,7 +53,8 @@ def _channels(image: ExrImage):
 
 
 def _to_tev(address: tuple[str, int], images: list[tuple[str, ExrImage]]) -> bool:
-    """Send the images to tev at ``address``; False where nothing listens there, or the connection breaks."""
+    """Send the images to tev at ``address``; False where nothing listens there, the connection breaks, or the peer
+    answers or closes the connection (:meth:`harness.files.tev.TevClient.confirm`: not tev)."""
     try:
         client = tev.TevClient(address, timeout=CONNECT_TIMEOUT)
     except OSError:
@@ -62,9 +64,13 @@ def _to_tev(address: tuple[str, int], images: list[tuple[str, ExrImage]]) -> boo
             for index, (name, image) in enumerate(images):
                 pixels, channels = _channels(image)
                 tev.send_image(client, name, pixels, channels, grab_focus=index == 0)
+            client.confirm()
+    except tev.NotTev as err:
+        print(f"harness: {address[0]}:{address[1]} is not tev: it {err}; writing the page instead", file=sys.stderr)
+        return False
     except OSError as err:
-        print(f"harness: tev at {address[0]}:{address[1]} broke the connection ({err}); writing the page instead",
-              file=sys.stderr)
+        print(f"harness: {address[0]}:{address[1]} broke the connection ({err.strerror or err}); writing the page "
+              "instead", file=sys.stderr)
         return False
     return True
 
@@ -106,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
     images = [(str(args.first), first)] + ([(str(args.second), second)] if second is not None else [])
     if not args.no_tev and _to_tev(args.tev, images):
         host, port = args.tev
-        print(f"sent {' and '.join(name for name, _ in images)} to tev at {host}:{port}")
+        print(f"sent {' and '.join(name for name, _ in images)} to {host}:{port} (tev sends no acknowledgement)")
         return EXIT_OK
     page = _page(args, first, second)
     print(page)

@@ -5,8 +5,10 @@ used).
 The protocol: a client connects to tev's IPC address (``127.0.0.1:14158`` unless tev was started with another
 ``--hostname``) and writes packets. A packet is its length in bytes (a little-endian uint32 that counts the whole
 packet, these four bytes included), then a type byte, then the type's fields: integers little-endian, booleans one
-byte, strings UTF-8 ended by a NUL byte, floats little-endian IEEE float32. tev answers nothing. The types used
-here (:class:`Packet`):
+byte, strings UTF-8 ended by a NUL byte, floats little-endian IEEE float32. tev answers nothing and keeps the
+connection open until the client closes it, so a peer that sends bytes back or closes first is not tev
+(:meth:`TevClient.confirm`); a quiet peer may be tev, and that is all a client can know. The types used here
+(:class:`Packet`):
 
 * ``OpenImage`` (7, tev's "OpenImageV2"): grab focus (bool), the image's path (tev reads the file itself, so only
   where tev runs on the same machine), a channel selector (string, empty for all);
@@ -30,13 +32,17 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["DEFAULT_ADDRESS", "Packet", "TevClient", "close_image", "create_image", "open_image", "send_image",
-           "update_image"]
+from harness.core.text import short
+
+__all__ = ["DEFAULT_ADDRESS", "NotTev", "Packet", "TevClient", "close_image", "create_image", "open_image",
+           "send_image", "update_image"]
 
 #: where tev listens unless told otherwise (its --hostname option's default)
 DEFAULT_ADDRESS = ("127.0.0.1", 14158)
 #: the largest float payload of one UpdateImage packet (whole rows; at least one row)
 UPDATE_BYTES = 8 * 2**20
+#: seconds :meth:`TevClient.confirm` waits for a peer that is not tev to answer or close the connection
+REPLY_WAIT = 0.2
 
 
 class Packet(enum.IntEnum):
@@ -90,9 +96,14 @@ def update_image(name: str, channels: Sequence[str], x: int, y: int, pixels: np.
                    data.tobytes())
 
 
+class NotTev(OSError):
+    """The peer sent bytes back or closed the connection: tev does neither."""
+
+
 class TevClient:
-    """A connection to a tev instance at ``address`` (host, port); :meth:`send` writes packets. Opening it raises
-    ``OSError`` where nothing listens there (within ``timeout`` seconds)."""
+    """A connection to a tev instance at ``address`` (host, port); :meth:`send` writes packets, :meth:`confirm`
+    checks that the peer behaved as tev does. Opening it raises ``OSError`` where nothing listens there (within
+    ``timeout`` seconds)."""
 
     def __init__(self, address: tuple[str, int] = DEFAULT_ADDRESS, timeout: float = 1.0):
         self.address = address
@@ -100,6 +111,21 @@ class TevClient:
 
     def send(self, packet: bytes) -> None:
         self.socket.sendall(packet)
+
+    def confirm(self, wait: float = REPLY_WAIT) -> None:
+        """Raise :class:`NotTev` where the peer, within ``wait`` seconds, sends anything (an HTTP server's "400 Bad
+        Request") or closes the connection: tev does neither. Nothing more can be known: tev sends no
+        acknowledgement."""
+        self.socket.settimeout(wait)
+        try:
+            data = self.socket.recv(64)
+        except TimeoutError:
+            return  # quiet and open: as tev
+        except OSError as err:
+            raise NotTev(f"closed the connection ({err.strerror or err})") from None
+        if not data:
+            raise NotTev("closed the connection")
+        raise NotTev(f"answered {short(data)}")
 
     def close(self) -> None:
         self.socket.close()

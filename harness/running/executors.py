@@ -18,7 +18,10 @@ Executors (``harness run --executor``):
 ``dask``         a ``distributed.LocalCluster`` (processes, ``workers`` x 1 thread), or ``tcp://HOST:PORT``: an
                  existing Dask scheduler. Workers must see the ground-truth cache and the output folder at the same
                  paths (one machine, or a shared file system). A worker that dies is retried by Dask, then the
-                 task fails with Dask's reason; per-task timeouts are not enforced on Dask.
+                 task fails with Dask's reason; per-task timeouts are not enforced on Dask. Before Dask is
+                 handed an address, :func:`check_scheduler` connects with a plain socket and reads the peer's
+                 answer to Dask's handshake (:data:`CONNECT_TIMEOUT` seconds, at most :data:`HANDSHAKE_LIMIT`
+                 bytes): a peer that is not a Dask scheduler is one line, not Dask's own reading of its bytes.
 
 Every executor yields ``(task, outcome)`` as tasks finish; ``outcome`` is ``("ok", value)``,
 ``("harness-error", where, message)`` (a user error: the run stops with exit code 2) or ``("failed", reason)``.
@@ -26,9 +29,15 @@ Every executor yields ``(task, outcome)`` as tasks finish; ``outcome`` is ``("ok
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
+import pickle
 import re
 import signal
+import socket
+import struct
+import sys
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator, Sequence
@@ -37,7 +46,10 @@ from multiprocessing import connection
 from pathlib import Path
 from typing import Any
 
+import msgpack
+
 from harness.core.errors import HarnessError
+from harness.core.text import short
 from harness.renderers import groundtruth
 from harness.running import runstate
 
@@ -45,6 +57,11 @@ CHUNK_TIMEOUT = 600.0  # seconds for one Mitsuba ground-truth chunk (256 spp by 
 SPP_CASE_TIMEOUT = 600.0  # seconds for a case with an spp budget
 MIN_SECONDS_TIMEOUT, SECONDS_FACTOR = 120.0, 20.0  # a case with a seconds budget: max(120 s, 20 x the budget)
 DEFAULT_WORKERS = 1  # measured in docs/robustness.md ("Executors")
+#: seconds a Dask scheduler named by ``--executor tcp://HOST:PORT`` has to accept the connection and answer Dask's
+#: handshake (:func:`check_scheduler`), and Dask's own connection timeout after it
+CONNECT_TIMEOUT = 10.0
+#: the most bytes read from a peer for its handshake (a scheduler's is about 60 bytes)
+HANDSHAKE_LIMIT = 4096
 #: Modules the local workers' fork server imports once; the modules of the tasks' ``run_case`` functions are added.
 PRELOAD = ["harness.renderers", "harness.renderers.groundtruth"]
 
@@ -292,26 +309,31 @@ class DaskExecutor:
     name = "dask"
     chunks = True
 
-    def __init__(self, address: str | None = None, workers: int = 2, threads: int = 1):
+    def __init__(self, address: str | None = None, workers: int = 2, threads: int = 1,
+                 timeout: float | None = None):
         self.address = address
         self.workers = workers
         self.threads = threads
+        self.timeout = CONNECT_TIMEOUT if timeout is None else timeout  # seconds to connect to ``address``
 
     def run(self, tasks: Sequence[Task]) -> Iterator[tuple[Task, tuple]]:
+        if self.address is not None:
+            with runstate.waiting():  # only waiting for the peer: SIGINT / SIGTERM stop the run at once
+                check_scheduler(self.address, self.timeout)
         from distributed import Client, LocalCluster, as_completed  # optional: heavy, only the dask executor uses it
 
         cluster = None
-        try:
-            if self.address is None:
+        if self.address is not None:
+            client = _connect(Client, self.address, self.timeout)
+        else:
+            try:
                 cluster = LocalCluster(n_workers=self.workers, threads_per_worker=self.threads, processes=True,
                                        dashboard_address=None)
                 client = Client(cluster)
-            else:
-                client = Client(self.address, timeout="10s")
-        except OSError as err:
-            if cluster is not None:
-                cluster.close()
-            raise HarnessError("--executor", f"cannot reach the Dask scheduler {self.address}: {err}") from None
+            except OSError as err:
+                if cluster is not None:
+                    cluster.close()
+                raise HarnessError("--executor", f"cannot start a Dask LocalCluster: {err}") from None
         run_id = uuid.uuid4().hex[:8]
         try:
             futures, owner = {}, {}
@@ -337,6 +359,153 @@ class DaskExecutor:
             client.close()
             if cluster is not None:
                 cluster.close()
+
+
+class _Deadline(KeyboardInterrupt):
+    """Raised in the main thread by SIGALRM past the connection's deadline (:func:`_within`). A KeyboardInterrupt,
+    because that is what makes Dask's ``distributed.utils.sync`` cancel the connection it waits for."""
+
+
+@contextlib.contextmanager
+def _within(seconds: float):
+    """Raise ``_Deadline`` in the block after ``seconds`` (a SIGALRM timer; in the main thread only, elsewhere
+    nothing is bounded)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def alarm(_signum, _frame):
+        raise _Deadline
+
+    previous = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, signal.SIG_DFL if previous is None else previous)  # None: not set from Python
+
+
+def _connect(client_type, address: str, timeout: float):
+    """Dask's ``client_type`` (``distributed.Client``) connected to ``address`` within ``timeout`` seconds in all:
+    Dask's own timeout leaves out its handshake, which a peer that answered :func:`check_scheduler` could still
+    withhold from this second connection. Any failure is a one-line HarnessError at ``--executor``."""
+    try:
+        with runstate.waiting(), _within(timeout):
+            return client_type(address, timeout=f"{timeout}s")
+    except _Deadline:
+        raise HarnessError("--executor", f"cannot reach the Dask scheduler {address}: it answered the handshake but "
+                           f"Dask did not connect within {timeout:g} s") from None
+    except Exception as err:  # noqa: BLE001 - whatever Dask raises on connecting is the peer's doing
+        reason = str(err) if isinstance(err, OSError) else f"{type(err).__name__}: {err}"
+        raise HarnessError("--executor", f"cannot reach the Dask scheduler {address}: {reason[:300]}") from None
+
+
+class _NotDask(Exception):
+    """The peer's answer is not Dask's handshake; the message says what came instead."""
+
+
+def check_scheduler(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """A one-line HarnessError at ``--executor`` unless the peer at ``address`` (``tcp://HOST:PORT``) accepts a
+    connection and answers Dask's handshake within ``timeout`` seconds.
+
+    It is read with a plain socket, at most :data:`HANDSHAKE_LIMIT` bytes, and decoded with msgpack alone (no
+    pickle), because Dask trusts its peer: it reads a message's length from its first 8 bytes and allocates that
+    much (3 EiB for an HTTP server's answer), and waits for the handshake without a time limit. Like Dask's client,
+    it writes its own handshake first and then reads the scheduler's: 8 bytes of length, then the frame count and
+    each frame's length (8 bytes each, native order, as Dask's ``struct.pack("Q", ...)``), then the frames, the
+    first a msgpack map with ``compression``, ``python`` and ``pickle-protocol``."""
+    host, port = _host_port(address)
+    expected = "expected a Dask scheduler's handshake"
+    deadline = time.monotonic() + timeout
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout)
+    except TimeoutError:
+        raise HarnessError("--executor", f"cannot reach the Dask scheduler {address}: no connection within "
+                           f"{timeout:g} s") from None
+    except OSError as err:
+        raise HarnessError("--executor", f"cannot reach the Dask scheduler {address}: {err.strerror or err}") \
+            from None
+    received = bytearray()
+    try:
+        with sock:
+            sock.sendall(_dask_message(_HANDSHAKE))
+            _read_handshake(sock, received, deadline)
+    except _NotDask as err:
+        raise HarnessError("--executor", f"{address} {err}; {expected}") from None
+    except TimeoutError:
+        said = f"sent only {short(bytes(received[:40]))}" if received else "sent nothing"
+        raise HarnessError("--executor", f"{address} {said} within {timeout:g} s; {expected}") from None
+    except OSError as err:  # reset by the peer
+        raise HarnessError("--executor", f"{address} closed the connection {_so_far(received)} "
+                           f"({err.strerror or err}); {expected}") from None
+
+
+#: this side's handshake, as Dask's ``Comm.handshake_info`` (no compression: the connection only says hello)
+_HANDSHAKE = {"compression": None, "python": tuple(sys.version_info[:3]), "pickle-protocol": pickle.HIGHEST_PROTOCOL}
+_HANDSHAKE_KEYS = ("compression", "python", "pickle-protocol")
+
+
+def _dask_message(message: dict) -> bytes:
+    """``message`` as Dask writes it on TCP: total length, frame count, frame length, the msgpack frame."""
+    frame = msgpack.packb(message, use_bin_type=True)
+    body = struct.pack("=QQ", 1, len(frame)) + frame
+    return struct.pack("=Q", len(body)) + body
+
+
+def _read_handshake(sock: socket.socket, received: bytearray, deadline: float) -> None:
+    """Read and check the peer's handshake into ``received``; raise ``_NotDask`` saying what came instead."""
+    _read(sock, received, 8, deadline)
+    (total,) = struct.unpack("=Q", received[:8])
+    if not 16 <= total <= HANDSHAKE_LIMIT - 8:
+        sock.settimeout(0.0)
+        try:
+            received += sock.recv(32)  # what is already there, for the message
+        except OSError:
+            pass
+        raise _NotDask(f"answered {short(bytes(received[:40]))}, whose first 8 bytes claim a message of {total} "
+                       f"bytes (a handshake has 16 to {HANDSHAKE_LIMIT - 8})")
+    _read(sock, received, 8 + total, deadline)
+    body = bytes(received[8:])
+    (count,) = struct.unpack_from("=Q", body)
+    if not 1 <= count <= (total - 8) // 8:
+        raise _NotDask(f"answered {short(body[:40])}: {count} frames in a message of {total} bytes")
+    lengths = struct.unpack_from(f"={count}Q", body, 8)
+    start = 8 + 8 * count
+    if start + sum(lengths) != total:
+        raise _NotDask(f"answered a message of {total} bytes whose frame lengths add up to {start + sum(lengths)}")
+    try:
+        message = msgpack.unpackb(body[start:start + lengths[0]], raw=False)
+    except (ValueError, msgpack.UnpackException) as err:
+        raise _NotDask(f"answered {short(body[start:start + 40])}, which is not msgpack ({err})") from None
+    if not isinstance(message, dict) or not all(key in message for key in _HANDSHAKE_KEYS):
+        got = f"a map of {short(list(message), 120)}" if isinstance(message, dict) else type(message).__name__
+        raise _NotDask(f"answered msgpack ({got}), not a handshake (a map of {', '.join(_HANDSHAKE_KEYS)})")
+
+
+def _read(sock: socket.socket, received: bytearray, count: int, deadline: float) -> None:
+    """Read from ``sock`` into ``received`` until it holds ``count`` bytes; TimeoutError past ``deadline``,
+    ``_NotDask`` where the peer closes the connection first."""
+    while len(received) < count:
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError
+        sock.settimeout(left)
+        chunk = sock.recv(count - len(received))
+        if not chunk:
+            raise _NotDask(f"closed the connection {_so_far(received)}")
+        received += chunk
+
+
+def _so_far(received: bytearray) -> str:
+    """What a peer that closed the connection had sent, for the message."""
+    return f"after sending {short(bytes(received[:40]))}" if received else "before sending anything"
+
+
+def _host_port(address: str) -> tuple[str, int]:
+    """(host, port) of ``tcp://HOST:PORT`` (an IPv6 host in brackets: without them)."""
+    host, _, port = address.removeprefix("tcp://").rpartition(":")
+    return host.removeprefix("[").removesuffix("]"), int(port)
 
 
 _TCP_ADDRESS = re.compile(r"tcp://(?:[A-Za-z0-9._-]+|\[[0-9A-Fa-f:.]+\]):([0-9]{1,5})")
