@@ -469,11 +469,13 @@ def test_ground_truth_on_a_full_disk_leaves_no_cache_folder(tmp_path, disk, capf
 
 
 def test_baseline_save_on_a_full_disk_is_one_line(real, tmp_path, disk, capfd):
+    shutil.copytree(real["dir"] / "cases", tmp_path / "in" / "cases")  # --from reads renders in its folder only
     path = write_results(tmp_path / "in", raw=real["text"])
+    before = listing(tmp_path)
     disk.fill(name="base.json")
     assert_one_line(*cli(capfd, "baseline", "save", real["suite"], "--from", path, "--out", tmp_path / "base.json"),
                     "base.json: cannot write: No space left on device")
-    assert listing(tmp_path) == ["in", "in/results.json"]
+    assert listing(tmp_path) == before
 
 
 def test_staged_folder_replaces_an_old_folder_whole(tmp_path):
