@@ -15,6 +15,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.files.confined import inside, outside_note
+from harness.files.entries import cache_folders
 from harness.files.imageio import read_exr
 
 #: the name of a case's ground-truth file in its folder, where the ground truth is not a cache entry
@@ -54,12 +55,15 @@ class CaseImages:
 
 def cache_entry_image(path: Path | str | None) -> Path | None:
     """The real path of ``path`` where it is the image of a ground-truth cache entry (``<cache>/groundtruth/<key>/
-    image.exr`` beside its ``meta.json``, :mod:`harness.renderers.groundtruth`), the one file a case's record names
-    outside its run folder; else None."""
+    image.exr`` beside its ``meta.json``, :mod:`harness.renderers.groundtruth`) in one of this process's cache
+    folders (:func:`harness.files.entries.cache_folders`: ``$HARNESS_CACHE_DIR`` or the user's, and a
+    ``--cache-dir`` given): the one file a case's record may name outside its run folder; else None."""
     if not isinstance(path, (str, Path)) or not str(path) or "\0" in str(path):
         return None
     real = Path(os.path.realpath(path))
     if real.name != "image.exr" or real.parent.parent.name != "groundtruth" or not real.is_file():
+        return None
+    if real.parent.parent.parent not in cache_folders():
         return None
     return real if (real.parent / "meta.json").is_file() else None
 

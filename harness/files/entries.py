@@ -29,6 +29,31 @@ from pathlib import Path, PurePosixPath
 
 from harness.files.imageio import WriteError, atomic_write_bytes, make_folders
 
+_GIVEN_CACHE_FOLDERS: list[Path] = []  # the cache folders this process was given (--cache-dir), besides the default
+
+
+def default_cache_dir() -> Path:
+    """``$HARNESS_CACHE_DIR``, else ``$XDG_CACHE_HOME/rendering-harness``, else ``~/.cache/rendering-harness``."""
+    if os.environ.get("HARNESS_CACHE_DIR"):
+        return Path(os.environ["HARNESS_CACHE_DIR"])
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return base / "rendering-harness"
+
+
+def use_cache_folder(folder: str | os.PathLike[str]) -> None:
+    """Record ``folder`` (a ``--cache-dir`` the user gave and the harness checked) as one of this process's cache
+    folders (:func:`cache_folders`)."""
+    real = Path(os.path.realpath(folder))
+    if real not in _GIVEN_CACHE_FOLDERS:
+        _GIVEN_CACHE_FOLDERS.append(real)
+
+
+def cache_folders() -> list[Path]:
+    """The cache folders of this process: :func:`default_cache_dir` and those given with :func:`use_cache_folder`
+    (real paths). A record of a results.json may name a ground truth in one of them, and nowhere else outside its
+    run folder (:func:`harness.files.cases.cache_entry_image`)."""
+    return [Path(os.path.realpath(default_cache_dir())), *_GIVEN_CACHE_FOLDERS]
+
 FORMAT = 1
 ENTRY_FILE = "entry.json"
 FILES = "files"

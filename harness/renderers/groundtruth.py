@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
-from harness.files.entries import private_name
+from harness.files.entries import default_cache_dir, private_name
 from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
 from harness.judges.floor import spp_for_share
 from harness.judges.moments import Estimate, merge
@@ -61,14 +61,6 @@ class GroundTruth:
     renders: int = 0  # Mitsuba renders performed to produce it (0 when cached or closed form)
     seconds: float = 0.0  # render time spent now
     path: Path | None = None  # the cache entry's EXR
-
-
-def default_cache_dir() -> Path:
-    """``$HARNESS_CACHE_DIR``, else ``$XDG_CACHE_HOME/rendering-harness``, else ``~/.cache/rendering-harness``."""
-    if os.environ.get("HARNESS_CACHE_DIR"):
-        return Path(os.environ["HARNESS_CACHE_DIR"])
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    return base / "rendering-harness"
 
 
 # ---- closed forms ----------------------------------------------------------------------------------------------

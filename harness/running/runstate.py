@@ -39,7 +39,7 @@ from harness.core.options import path_problem
 from harness.core.text import short
 from harness.files.cases import cache_entry_image, slug
 from harness.files.confined import inside
-from harness.files.entries import sweep_stale
+from harness.files.entries import sweep_stale, use_cache_folder
 from harness.files.imageio import link_target, make_folders, remove_folders
 from harness.files.report_images import IMAGES_FOLDER
 from harness.files.results import read_results
@@ -245,6 +245,7 @@ def cache_folder(value: str | None, default: Path, created: list[Path] | None = 
     folder = output_folder(text, Path(text), option=where, subfolders=CACHE_SUBFOLDERS, created=created)
     for name in CACHE_SUBFOLDERS:
         sweep_stale(folder / name)
+    use_cache_folder(folder)  # its ground truths may be named by this run's records (files.cases.cache_entry_image)
     return folder
 
 

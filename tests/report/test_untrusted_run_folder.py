@@ -184,9 +184,18 @@ def test_symlinks_inside_the_run_folder_that_lead_outside_are_not_followed(run):
     assert not (out / "report" / CASE / "pvalue.exr").exists()
 
 
-def test_render_and_ground_truth_paths_outside_the_run_folder_are_not_read(run):
+def _cache_entry(cache: Path, image: Path) -> Path:
+    """A ground-truth cache entry under ``cache`` holding ``image``: its image.exr."""
+    entry = cache / "groundtruth" / "k"
+    entry.mkdir(parents=True)
+    shutil.copy(image, entry / "image.exr")
+    (entry / "meta.json").write_text("{}")
+    return entry / "image.exr"
+
+
+def test_render_and_ground_truth_paths_outside_the_run_folder_are_not_read(run, monkeypatch):
     """A record without report images or viewer (an older run's): the report reads the case's EXRs, only the run's
-    own; the ground truth may be a ground-truth cache entry's image elsewhere."""
+    own; the ground truth may be a ground-truth cache entry's image in this process's cache folder."""
     import numpy as np
 
     from harness.files.imageio import read_exr, write_exr
@@ -195,17 +204,15 @@ def test_render_and_ground_truth_paths_outside_the_run_folder_are_not_read(run):
     planted = np.full((8, 8, 3), 123.0, np.float32)
     write_exr(outside / "render.exr", planted, planted)
     write_exr(outside / "truth.exr", planted, planted)
-    entry = outside / "cache" / "groundtruth" / "k"  # a ground-truth cache entry: allowed
-    entry.mkdir(parents=True)
-    shutil.copy(run / "cases" / CASE / "ground_truth.exr", entry / "image.exr")
-    (entry / "meta.json").write_text("{}")
+    monkeypatch.setenv("HARNESS_CACHE_DIR", str(outside / "cache"))
+    entry = _cache_entry(outside / "cache", run / "cases" / CASE / "ground_truth.exr")  # in the cache: allowed
     doc = results(run)
     for record in doc["cases"]:
         record.pop("report_images")
         record.pop("viewer")
     doc["cases"][0]["render"]["exr"] = str(outside / "render.exr")
     doc["cases"][0]["ground_truth"]["path"] = str(outside / "truth.exr")
-    doc["cases"][1]["ground_truth"]["path"] = str(entry / "image.exr")
+    doc["cases"][1]["ground_truth"]["path"] = str(entry)
     save(run, doc)
     out, rep = report(run)
     assert "render.exr names" in problems(rep) and "ground_truth.path names" in problems(rep)
@@ -213,6 +220,29 @@ def test_render_and_ground_truth_paths_outside_the_run_folder_are_not_read(run):
     for name in (CASE, "furnace_b"):  # made from the run's own render and ground truth
         for image in ("render.exr", "ground_truth.exr"):
             assert float(read_exr(out / "report" / name / image).image.max()) < 100
+    assert_clean(out)
+
+
+def test_a_ground_truth_shaped_like_a_cache_entry_outside_the_cache_folders_is_not_read(run):
+    """Only the cache folders of this process ($HARNESS_CACHE_DIR or the user's, a --cache-dir given) hold ground
+    truths a record may name outside its run folder: a planted <x>/groundtruth/<key>/image.exr elsewhere is not."""
+    import numpy as np
+
+    from harness.files.imageio import read_exr, write_exr
+
+    planted = np.full((8, 8, 3), 123.0, np.float32)
+    write_exr(run.parent / "truth.exr", planted, planted)
+    entry = _cache_entry(run.parent / "elsewhere", run.parent / "truth.exr")
+    doc = results(run)
+    for record in doc["cases"]:  # no images made by the run: the report reads the EXRs
+        record.pop("report_images")
+        record.pop("viewer")
+    doc["cases"][1]["ground_truth"]["path"] = str(entry)
+    save(run, doc)
+    out, rep = report(run)
+    assert "ground_truth.path names" in problems(rep, 1)
+    shown = out / "report" / "furnace_b" / "ground_truth.exr"  # the run's own ground truth, not the planted one
+    assert not shown.exists() or float(read_exr(shown).image.max()) < 100
     assert_clean(out)
 
 
