@@ -8,35 +8,19 @@ from pathlib import Path
 
 import pytest
 from test_hostile_input import SCENE, assert_one_line, cli, listing
-from test_hostile_leftovers import case_files
+from test_hostile_leftovers import SUITE, case_files
 from test_hostile_results import disk  # noqa: F401 - a fixture (a disk that fills up)
 
 from harness.files.results import read_results
 
 pytestmark = pytest.mark.slow  # renders: outside the inner loop (pytest -m "not slow")
 
-SUITE = """
-name = "two"
-[defaults]
-spp = 2
-against = { renderer = "reference", spp = 16 }
-
-[[cases]]
-name = "a"
-scene = "scene.toml"
-
-[[cases]]
-name = "b"
-scene = "scene.toml"
-seed = {seed}
-"""
-
 
 @pytest.fixture
 def folder(tmp_path) -> Path:
     """tmp/scene.toml (a valid 16 x 16 scene) and tmp/two.toml (a suite of two cases of it)."""
     (tmp_path / "scene.toml").write_text(SCENE)
-    (tmp_path / "two.toml").write_text(SUITE.replace("{seed}", "3"))
+    (tmp_path / "two.toml").write_text(SUITE)
     return tmp_path
 
 
@@ -67,7 +51,7 @@ def test_a_case_run_again_on_a_full_disk_keeps_its_old_files(folder, disk, capfd
     out = folder / "run"
     assert cli(capfd, *run_argv(folder, out))[0] == 0
     old, names = files(out), listing(out)
-    (folder / "two.toml").write_text(SUITE.replace("{seed}", "5"))  # case b changed: it runs again
+    (folder / "two.toml").write_text(SUITE.replace("seed = 3", "seed = 5"))  # case b changed: it runs again
     disk.fill(name=str(out / "cases" / "b"), after=4)
     code, _, err = cli(capfd, *run_argv(folder, out))
     assert code == 2 and err.splitlines() == ["resuming: 1 of 2 cases done", err.splitlines()[-1]], err

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 from test_hostile_input import SCENE, assert_one_line, cli, listing
+from test_hostile_leftovers import SUITE  # two cases of one small scene, a reference ground truth
 
 from harness.core.errors import HarnessError
 from harness.files import imageio
@@ -18,21 +19,6 @@ from harness.files.imageio import StagedFolder, WriteError
 from harness.running import runstate
 from harness.running.cases import load_suite
 
-SUITE = """
-name = "two"
-[defaults]
-spp = 2
-against = { renderer = "reference", spp = 16 }
-
-[[cases]]
-name = "a"
-scene = "scene.toml"
-
-[[cases]]
-name = "b"
-scene = "scene.toml"
-seed = 3
-"""
 VICTIM = "the victim's own bytes\n"
 NO_STUDIES = ("--no-convergence", "--no-shadow-rays", "--no-strategies")
 
