@@ -1,15 +1,29 @@
 """The long fuzzing mode (docs/robustness.md, "Fuzzing"): generated inputs through every loader and every command.
 
-    python tests/cli/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 20 min on 2 cores)
+    python tests/cli/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 25 min on 2 cores)
     python tests/cli/fuzz.py --inputs 300 --only compare,render      # some entry points only
     python tests/cli/fuzz.py --replay /tmp/fuzz/failures/render-00042 # one saved failing input again, in this process
     HARNESS_FUZZ=long pytest tests/cli/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
 
 Each input is a folder of files (a scene, a suite, a renderer file, a results.json, a baseline, EXR files, meshes,
-environment maps) and one call: a command line for ``harness.cli.main`` or a loader (``load_scene``, ``load_suite``,
-``external.load_spec``). It runs in a child forked from this process, which has imported the harness and compiled
-the reference renderer's kernels once, so an input costs milliseconds, not the ~1 s of a fresh interpreter. The
-child works in the input's folder, its stdout and stderr go to files, its address space is capped
+environment maps; links and named pipes where it plants them) and one call: a command line for ``harness.cli.main``
+or a loader (``load_scene``, ``load_suite``, ``external.load_spec``). The folder ``WORK/ID/input`` has a sibling
+``WORK/ID/outside`` that nothing may reach: canary secrets (``secret.txt``, and behind a PNG's and an EXR's magic
+number, each holding a random token), a victim file and a victim folder. The untrusted-input families plant what
+would lead there: ``results_paths`` (``report`` and a resumed ``run`` over a results.json whose path fields name
+files outside, ``/proc/self/environ``, links in the run folder, named pipes, /dev/zero; a viewer.js carrying a
+script), ``planted_links`` (``run``, ``calibrate``, ``baseline save --run-out``, ``report`` writing into an output
+folder with links to the victim at ``.lock``, ``cases``, ``cases/<case>``, ``images``, ``studies``, results.json, the
+report's files), ``hostile_peers`` (``run --executor tcp://`` and ``view --tev`` against listeners this process
+starts: garbage, an HTTP answer, silence, a close at once, a huge frame length, nothing listening),
+``misbehaving_renderers`` (a renderer that floods its output, writes terminal escapes, leaves a grandchild running,
+writes NaN everywhere or an EXR that lies, outsleeps its timeout, ignores SIGTERM; a NUL in the command, a
+subnormal timeout) and ``mesh_references`` (OBJ ``mtllib`` and MTL ``map_Kd`` naming named pipes, devices, files
+outside, links out; PLYs whose header counts lie; an 8192 x 4096 environment map).
+
+Each input runs in a child forked from this process, which has imported the harness and compiled the reference
+renderer's kernels once, so an input costs milliseconds, not the ~1 s of a fresh interpreter. The child works in
+the input's folder, its stdout and stderr go to files, its address space is capped
 (``RLIMIT_AS``, ``--memory-gib``), the files it writes too (``RLIMIT_FSIZE``, 256 MiB), and it is killed after
 ``--timeout`` seconds. Mitsuba is not importable in the child (``--mitsuba`` allows it): the inputs exercise the
 harness's handling of them, and a Mitsuba JIT compile per input would cost seconds; commands that need Mitsuba end
@@ -21,17 +35,34 @@ Every input ends in exactly one outcome:
 ``error``       exit 2 with one line on stderr, ``harness: error: ...``, and nothing on stdout (a loader: a one-line
                 HarnessError naming the file it read or a file that file names)
 ``traceback``   an exception escaped (the child records it), or "Traceback" in the output
-``messy``       exit 2 but not one clean line, or another exit code
+``messy``       exit 2 but not one clean line, or another exit code; or not exit 0 where the input works (a
+                renderer that floods its stdout but writes its EXR), or output showing the harness failed at its
+                job (memory exhausted by a renderer's output)
 ``crash``       the child died of a signal (not the time limit)
 ``hang``        still running after ``--timeout`` seconds (killed with its process group)
 ``silent``      an input the generator knows is bad (a negative --spp, an unknown key, NaN where a number must be
-                finite, ...) ended in exit 0 or 1
+                finite, ...) ended in exit 0 or 1; or exit 0 where only a failure is right (a renderer that wrote NaN
+                everywhere), or a false claim on stdout ("sent ... to tev" to a peer that is not tev)
 
-``refused_valid`` counts inputs built from valid parts only that were refused anyway (a hint, not a failure), and
-``wrote_on_error`` refusals that left files behind in the input's folder (a hint: "nothing written" on bad input).
+``link_write``  a file or folder outside changed or appeared through a link the input planted (OUT/.lock -> victim)
+``escape``      anything else outside the input's folder created, changed or removed, a planted link turned to
+                another target, or a secret outside read (its access time moves: it lies before its change time)
+``copied``      a file the call wrote in the folder holds a canary token (the secret's, the environment's, raw or in
+                base64, or the run folder's script payload), or a link it wrote leads outside the folder
+``leftover_process`` a process the input started (its environment holds the input's canary, ``FUZZ_CANARY``) still
+                alive after the call ended, outside the child's process tree (a renderer's grandchild); killed
+``raw_escape``  stdout or stderr holds a raw ESC or a bidirectional override (a renderer's output reaching a terminal)
 
-Failing inputs (traceback, messy, crash, hang, silent) are kept in ``OUT/failures/ENTRY-NNNNN/``: the files, the
-call (``input.json``), what it printed and ``replay.sh``; ``--replay FOLDER`` runs one again in this process, so its
+The first four are what an input reached; they win over what the call printed (a run that wrote through a link and
+exited 0 is ``link_write``). Every outcome but ``pass`` and ``error`` is a failure. ``refused_valid`` counts inputs
+built from valid parts only that were refused anyway (a hint, not a failure), and
+``wrote_on_error`` refusals that left files behind in the input's folder (a hint: "nothing written" on bad input),
+``removed_link`` inputs whose planted links the call removed or replaced by its own file (a hint: nothing outside
+changed). The script starts its interpreter again with a run-wide canary in its environment (``FUZZ_RUN_CANARY``),
+so that a copy of a child's own /proc/self/environ shows too.
+
+Failing inputs are kept in ``OUT/failures/ENTRY-NNNNN/``: the files (``input/``, ``outside/``), the call
+(``input.json``), what it printed and ``replay.sh``; ``--replay FOLDER`` runs one again in this process, so its
 traceback shows. ``OUT/summary.json`` holds the counts per entry point and every failure; a table is printed at the
 end. Inputs come from ``random.Random(f"{seed}:{entry}:{index}")``: the same seed gives the same inputs.
 """
@@ -226,6 +257,8 @@ class Input:
     fifos: list[str] = dataclasses.field(default_factory=list)  # named pipes made in the folder
     lies: list[str] = dataclasses.field(default_factory=list)  # text on stdout that would be a false claim
     fails: list[str] = dataclasses.field(default_factory=list)  # why exit 0 would be wrong (exit 1 is right)
+    succeeds: str = ""  # why anything but exit 0 would be wrong (a renderer that works, however it behaves)
+    symptoms: list[str] = dataclasses.field(default_factory=list)  # output that shows the harness failed at its job
 
     @property
     def id(self) -> str:
@@ -235,7 +268,7 @@ class Input:
         return {"entry": self.entry, "index": self.index, "call": self.call, "bad": self.bad, "valid": self.valid,
                 "names": self.names, "dirs": self.dirs, "copies": self.copies, "files": sorted(self.files),
                 "links": self.links, "fifos": self.fifos, "lies": self.lies,
-                "fails": self.fails}
+                "fails": self.fails, "succeeds": self.succeeds, "symptoms": self.symptoms}
 
 
 class Assets:
@@ -1621,6 +1654,7 @@ def gen_results_paths(rng, assets, index) -> Input:
                                                          assets.blobs["good.exr"], b"", b"\x89PNG\r\n\x1a\n"])
     if helpers:
         _plant_outside_helpers(inp)
+    _settle(inp)
     inp.files["run/results.json"] = json.dumps(doc).encode()
     if rng.random() < 0.7:
         argv = ["report", "run/results.json", "--no-convergence", "--no-shadow-rays", "--no-strategies", "--quiet"]
@@ -1637,6 +1671,15 @@ def gen_results_paths(rng, assets, index) -> Input:
 def _up(name: str) -> str:
     """The relative target of a link at ``name`` (in the input's folder) that leads to the outside folder."""
     return "../" * (name.count("/") + 1) + "outside/"
+
+
+def _settle(inp: Input) -> None:
+    """One thing at each path: a planted link wins over what lies at or below it, a named pipe over a file."""
+    def covered(name: str, by) -> bool:
+        return any(name == other or name.startswith(other + "/") for other in by)
+
+    inp.fifos = sorted({f for f in inp.fifos if not covered(f, inp.links)})
+    inp.files = {n: d for n, d in inp.files.items() if not covered(n, inp.links) and n not in inp.fifos}
 
 
 def _plant_link(inp: Input, name: str, target: str) -> None:
@@ -1756,6 +1799,8 @@ MISBEHAVIOURS = {  # kind: (the renderer script's body after `out, here = sys.ar
     "nul-command": ("shutil.copy(os.path.join(here, 'good.exr'), out)\n", True),
     "tiny-timeout": ("shutil.copy(os.path.join(here, 'good.exr'), out)\n", True),
 }
+#: misbehaviours after which the renderer still writes its EXR: the render must succeed
+WORKING_MISBEHAVIOURS = ("flood-stdout", "escapes-ok", "grandchild", "grandchild-group")
 SCRIPT_HEAD = ("import os, shutil, signal, subprocess, sys, time\nout, here = sys.argv[1:3]\n"
                "QUIET = dict(stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)\n")
 
@@ -1803,6 +1848,8 @@ def gen_misbehaving_renderers(rng, assets, index) -> Input:
     inp.files["good.exr"] = assets.blobs["good.exr"]
     inp.files.update(lying_exrs(assets))
     inp.files["r.py"] = (SCRIPT_HEAD + body).encode()
+    if kind.startswith("flood"):  # its output must be kept to a bounded tail, not held whole
+        inp.symptoms += ["Cannot allocate memory", "MemoryError", "Unable to allocate"]
     script = "{here}/r.py\\u0000x" if kind == "nul-command" else "{here}/r.py"
     timeout = {"sleep": "0.5", "ignore-term": "0.5", "tiny-timeout": "5e-324"}.get(kind, "10")
     inp.files["renderer.toml"] = (f'name = "misbehaving"\ncommand = ["{{python}}", "{script}", "{{out}}", "{{here}}"]\n'
@@ -1814,6 +1861,8 @@ def gen_misbehaving_renderers(rng, assets, index) -> Input:
             inp.bad.append(f"the renderer file is bad: {kind}")
         elif bad:  # the render fails (exit 1, one line), or the command refuses it
             inp.fails.append(f"the renderer misbehaves: {kind}")
+        elif kind in WORKING_MISBEHAVIOURS:
+            inp.succeeds = f"the renderer works ({kind})"
     else:
         doc = tomllib.loads(assets.texts["suite.toml"])
         doc["cases"] = [dict(c, renderer="renderer.toml") for c in doc["cases"] if c["name"] == "tiny"]
@@ -2372,7 +2421,11 @@ def _child(inp: Input, folder: Path, capture: Path, limits: Limits, canary: Cana
             print(result["exception"], file=sys.stderr, end="")  # as the interpreter would
         sys.stdout.flush()
         sys.stderr.flush()
-        _kill_descendants(os.getpid())  # a worker pool's forkserver has its own process group and would stay
+        gc.collect()  # what the call left (a renderer's output held in memory) may fill the address space
+        try:
+            _kill_descendants(os.getpid())  # a worker pool's forkserver has its own process group and would stay
+        except OSError:  # /proc unreadable for want of memory: the run's own cleanup (the group) still follows
+            pass
         capture.with_suffix(".json").write_text(json.dumps(result))
         status = 0
     except BaseException:  # noqa: BLE001
@@ -2397,6 +2450,9 @@ def classify(inp: Input, result: dict | None, stdout: str, stderr: str, *, timed
     text = stdout + stderr
     if "Traceback (most recent call last)" in text:
         return "traceback", next((line for line in reversed(stderr.splitlines()) if line.strip()), "Traceback")
+    symptoms = [symptom for symptom in inp.symptoms if symptom in text]
+    if symptoms:
+        return "messy", f"the output shows {symptoms[0]!r}: {text.strip()[-200:]}"
     escapes = raw_escapes(text)
     if escapes:
         where = "stderr" if raw_escapes(stderr) else "stdout"
@@ -2412,6 +2468,8 @@ def classify(inp: Input, result: dict | None, stdout: str, stderr: str, *, timed
     if "loaded" in result:
         return ("silent", "; ".join(inp.bad)) if inp.bad else ("pass", result["loaded"])
     rc = result["rc"]
+    if inp.succeeds and rc != 0:
+        return "messy", f"exit {rc} where {inp.succeeds}: {text.strip()[-200:]}"
     if rc == 2:
         lines = stderr.splitlines()
         if len(lines) != 1 or not lines[0].startswith("harness: error: ") or stdout.strip():

@@ -67,7 +67,10 @@ def planted_main(argv: list[str]) -> int:
         print("done \u202eevil")
     elif what == "claim":
         print("sent good.exr to tev at 127.0.0.1:1")
-    elif what == "exit-1":
+    elif what in ("exit-1", "works-but-1"):
+        return 1
+    elif what == "out-of-memory":
+        print("harness: render failed: r: OSError: [Errno 12] Cannot allocate memory", file=sys.stderr)
         return 1
     return 0
 
@@ -76,7 +79,7 @@ PLANTED = {"ok": "pass", "error": "error", "write-outside": "escape", "create-ou
            "read-outside": "escape", "through-link": "link_write", "turn-link": "escape", "remove-link": "pass",
            "copy-secret": "copied", "copy-base64": "copied", "copy-environ": "copied", "link-out": "copied",
            "leave-process": "leftover_process", "print-esc": "raw_escape", "print-bidi": "raw_escape",
-           "claim": "silent", "exit-1": "pass"}
+           "claim": "silent", "exit-1": "pass", "works-but-1": "messy", "out-of-memory": "messy"}
 
 
 def _planted_input(index: int, what: str) -> fuzz.Input:
@@ -87,6 +90,10 @@ def _planted_input(index: int, what: str) -> fuzz.Input:
         inp.lies.append("to tev at")
     if what == "exit-1":
         inp.fails.append("exit 0 would be wrong")
+    if what == "works-but-1":
+        inp.succeeds = "the renderer works"
+    if what == "out-of-memory":
+        inp.symptoms.append("Cannot allocate memory")
     return inp
 
 
@@ -117,7 +124,8 @@ def light_assets(tmp_path_factory) -> fuzz.Assets:
 def test_the_new_oracles_on_planted_outcomes(tmp_path, light_assets, monkeypatch):
     """Each way of reaching outside is its own outcome (a write through a planted link, a change or a read outside,
     a canary copied in raw, in base64 or from /proc/self/environ, a link out shipped, a process left running, a
-    terminal escape printed, a false claim); a planted link the call removed is a hint, not a failure."""
+    terminal escape printed, a false claim, a working input failed, memory exhausted); a planted link the call
+    removed is a hint, not a failure."""
     monkeypatch.setattr(cli, "main", planted_main)
     inputs = [_planted_input(i, what) for i, what in enumerate(PLANTED)]
     runner = fuzz.Runner(tmp_path / "out", light_assets, fuzz.Limits(timeout=20), jobs=2)
