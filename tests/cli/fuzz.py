@@ -1,6 +1,6 @@
 """The long fuzzing mode (docs/robustness.md, "Fuzzing"): generated inputs through every loader and every command.
 
-    python tests/cli/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 25 min on 2 cores)
+    python tests/cli/fuzz.py --inputs 10000 --out /tmp/fuzz         # the long mode (about 20 min on 2 cores)
     python tests/cli/fuzz.py --inputs 300 --only compare,render      # some entry points only
     python tests/cli/fuzz.py --replay /tmp/fuzz/failures/render-00042 # one saved failing input again, in this process
     HARNESS_FUZZ=long pytest tests/cli/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
