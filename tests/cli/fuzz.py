@@ -1385,8 +1385,12 @@ class ExrMaker:
 
 
 def gen_compare(rng, assets, index) -> Input:
+    """``harness compare`` (and now and then ``harness view --no-tev``) of two EXR files: valid, corrupted,
+    truncated, synthesised, lying (a data window of 200000 pixels, 400-digit variance_dof and spp attributes, a
+    second part claiming 100000 x 100000 pixels), special paths."""
     maker = _EXR_MAKERS.setdefault(id(assets), ExrMaker(assets))
     inp = cli_input("compare", index, ["compare"])
+    inp.symptoms += OUT_OF_MEMORY  # a header's claims believed: the size must be checked before allocating
     paths = []
     same = rng.random() < 0.05  # one file as both test and reference
     for role in (("test", "reference"),) if same else ("test", "reference"):
@@ -1409,6 +1413,9 @@ def gen_compare(rng, assets, index) -> Input:
     argv += flags(rng, "--json")
     maybe_unknown_option(rng, inp, argv)
     inp.call += argv
+    if rng.random() < 0.15:  # harness view reads the same files (its page, not tev): nothing marked, no traceback
+        inp.call = ["cli", "view", *paths, "--no-tev", "--out", "v", "--quiet"]
+        inp.bad, inp.valid = [], False
     return inp
 
 
@@ -1799,6 +1806,8 @@ MISBEHAVIOURS = {  # kind: (the renderer script's body after `out, here = sys.ar
     "nul-command": ("shutil.copy(os.path.join(here, 'good.exr'), out)\n", True),
     "tiny-timeout": ("shutil.copy(os.path.join(here, 'good.exr'), out)\n", True),
 }
+#: what the output shows where the harness ran out of memory (on the address-space cap of the child)
+OUT_OF_MEMORY = ["Cannot allocate memory", "MemoryError", "Unable to allocate"]
 #: misbehaviours after which the renderer still writes its EXR: the render must succeed
 WORKING_MISBEHAVIOURS = ("flood-stdout", "escapes-ok", "grandchild", "grandchild-group")
 SCRIPT_HEAD = ("import os, shutil, signal, subprocess, sys, time\nout, here = sys.argv[1:3]\n"
@@ -1848,8 +1857,7 @@ def gen_misbehaving_renderers(rng, assets, index) -> Input:
     inp.files["good.exr"] = assets.blobs["good.exr"]
     inp.files.update(lying_exrs(assets))
     inp.files["r.py"] = (SCRIPT_HEAD + body).encode()
-    if kind.startswith("flood"):  # its output must be kept to a bounded tail, not held whole
-        inp.symptoms += ["Cannot allocate memory", "MemoryError", "Unable to allocate"]
+    inp.symptoms += OUT_OF_MEMORY  # a flood held whole, or a lying EXR header believed
     script = "{here}/r.py\\u0000x" if kind == "nul-command" else "{here}/r.py"
     timeout = {"sleep": "0.5", "ignore-term": "0.5", "tiny-timeout": "5e-324"}.get(kind, "10")
     inp.files["renderer.toml"] = (f'name = "misbehaving"\ncommand = ["{{python}}", "{script}", "{{out}}", "{{here}}"]\n'
