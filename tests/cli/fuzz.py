@@ -37,7 +37,8 @@ Every input ends in exactly one outcome:
 ``traceback``   an exception escaped (the child records it), or "Traceback" in the output
 ``messy``       exit 2 but not one clean line, or another exit code; or not exit 0 where the input works (a
                 renderer that floods its stdout but writes its EXR), or output showing the harness failed at its
-                job (memory exhausted by a renderer's output)
+                job (memory exhausted by a renderer's output or a lying EXR header), or more memory used than the
+                input allows (its peak resident size over the parent's: a 16 x 16 render of an 8192 x 4096 map)
 ``crash``       the child died of a signal (not the time limit)
 ``hang``        still running after ``--timeout`` seconds (killed with its process group)
 ``silent``      an input the generator knows is bad (a negative --spp, an unknown key, NaN where a number must be
@@ -259,6 +260,7 @@ class Input:
     fails: list[str] = dataclasses.field(default_factory=list)  # why exit 0 would be wrong (exit 1 is right)
     succeeds: str = ""  # why anything but exit 0 would be wrong (a renderer that works, however it behaves)
     symptoms: list[str] = dataclasses.field(default_factory=list)  # output that shows the harness failed at its job
+    max_mib: int = 0  # where set: the most memory the call may add (its peak resident size over the parent's)
 
     @property
     def id(self) -> str:
@@ -268,7 +270,8 @@ class Input:
         return {"entry": self.entry, "index": self.index, "call": self.call, "bad": self.bad, "valid": self.valid,
                 "names": self.names, "dirs": self.dirs, "copies": self.copies, "files": sorted(self.files),
                 "links": self.links, "fifos": self.fifos, "lies": self.lies,
-                "fails": self.fails, "succeeds": self.succeeds, "symptoms": self.symptoms}
+                "fails": self.fails, "succeeds": self.succeeds, "symptoms": self.symptoms,
+                "max_mib": self.max_mib}
 
 
 class Assets:
@@ -1789,7 +1792,8 @@ MISBEHAVIOURS = {  # kind: (the renderer script's body after `out, here = sys.ar
                      "shutil.copy(os.path.join(here, 'good.exr'), out)\n", False),
     "flood-stderr": ("chunk = b'y' * 2**20 + b'\\n'\nfor _ in range(1400):\n    os.write(2, chunk)\nsys.exit(3)\n",
                      True),
-    "escapes-fail": ("sys.stderr.write('\\x1b[2J\\x1b]0;pwned\\x07 \\u202eevil\\u202c done \\x1b[31m\\n')\nsys.exit(4)\n",
+    "escapes-fail": ("sys.stderr.write('\\x1b[2J\\x1b]0;pwned\\x07 \\u202eevil\\u202c done \\x1b[31m\\n')\n"
+                     "sys.exit(4)\n",
                      True),
     "escapes-ok": ("print('\\x1b[31mred\\x1b[0m \\u2067x\\u2069')\nsys.stderr.write('\\x1b[2K\\u202e\\n')\n"
                    "shutil.copy(os.path.join(here, 'good.exr'), out)\n", False),
@@ -1950,6 +1954,7 @@ def gen_mesh_references(rng, assets, index) -> Input:
             _HUGE_ENVMAPS[HUGE_ENVMAP] = _exr(np.ones((*HUGE_ENVMAP, 3), np.float32))
         inp.files["huge.exr"] = _HUGE_ENVMAPS[HUGE_ENVMAP]
         inp.files["scene.toml"] = assets.texts["sky.toml"].replace('"sky.exr"', '"huge.exr"').encode()
+        inp.max_mib = 256  # a 16 x 16 render: the map is refused, or its cost bounded, not 400 MB of floats
     what = rng.random()
     if what < 0.55:
         inp.call = ["load_scene", "scene.toml"]
@@ -2344,6 +2349,12 @@ def materialize(inp: Input, folder: Path, assets: Assets, canary: Canary | None 
             target.write_bytes(assets.blobs[asset])
 
 
+def _resident_mib() -> float:
+    """This process's resident size in MiB (a forked child starts with it)."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
 def _address_space() -> int:
     """This process's address-space size in bytes (what RLIMIT_AS limits)."""
     with open("/proc/self/statm") as f:
@@ -2579,22 +2590,23 @@ class Runner:
                     os.setpgid(pid, pid)
                 except OSError:  # the child did it first
                     pass
-                running[pid] = (inp, time.monotonic(), folder, capture, (before, watch))
+                running[pid] = (inp, time.monotonic(), folder, capture, (before, watch, _resident_mib()))
             finished = []
             for pid, (inp, start, folder, capture, before) in running.items():
-                done, status = os.waitpid(pid, os.WNOHANG)
+                done, status, usage = os.wait4(pid, os.WNOHANG)
                 timed_out = False
                 if not done and time.monotonic() - start > self.limits.timeout:
                     _kill_descendants(pid)
                     _kill_group(pid)
-                    done, status = os.waitpid(pid, 0)
+                    done, status, usage = os.wait4(pid, 0)
                     timed_out = True
                 if done:
                     leftovers = leftover_processes(before[1].canary)  # before its process group goes
                     _kill_group(pid)  # leftovers: worker pools, renderer processes
                     finished.append(pid)
+                    added = usage.ru_maxrss / 1024 - before[2]  # the child's peak over what it shared at its fork
                     records.append(self._finish(inp, status, timed_out, time.monotonic() - start, folder, capture,
-                                                before, leftovers))
+                                                before[:2], leftovers, added))
                     if on_record:
                         on_record(records[-1])
             for pid in finished:
@@ -2603,7 +2615,7 @@ class Runner:
                 time.sleep(0.003)
         return records
 
-    def _finish(self, inp, status, timed_out, seconds, folder, capture, before, leftovers=()) -> Record:
+    def _finish(self, inp, status, timed_out, seconds, folder, capture, before, leftovers=(), added_mib=0.0) -> Record:
         paths = {kind: capture.with_suffix(f".{kind}") for kind in ("stdout", "stderr", "json")}
         stdout = _read(paths["stdout"])
         stderr = _read(paths["stderr"])
@@ -2614,6 +2626,8 @@ class Runner:
         signalled = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
         before, watch = before
         outcome, detail = classify(inp, result, stdout, stderr, timed_out=timed_out, signalled=signalled)
+        if inp.max_mib and added_mib > inp.max_mib and outcome in ("pass", "error", "silent"):
+            outcome, detail = "messy", f"used {added_mib:.0f} MiB, over its {inp.max_mib} MiB ({outcome}, {detail})"
         findings = watch.findings(stdout, stderr)
         findings["leftover_process"] = [f"still running: {name}" for name in leftovers]
         outcome, detail = reach(outcome, detail, findings)

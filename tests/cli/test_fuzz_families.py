@@ -69,6 +69,9 @@ def planted_main(argv: list[str]) -> int:
         print("sent good.exr to tev at 127.0.0.1:1")
     elif what in ("exit-1", "works-but-1"):
         return 1
+    elif what == "memory-hog":
+        hog = b"x" * (200 * 2**20)  # resident: written, not only mapped
+        return len(hog) - len(hog)
     elif what == "out-of-memory":
         print("harness: render failed: r: OSError: [Errno 12] Cannot allocate memory", file=sys.stderr)
         return 1
@@ -79,7 +82,8 @@ PLANTED = {"ok": "pass", "error": "error", "write-outside": "escape", "create-ou
            "read-outside": "escape", "through-link": "link_write", "turn-link": "escape", "remove-link": "pass",
            "copy-secret": "copied", "copy-base64": "copied", "copy-environ": "copied", "link-out": "copied",
            "leave-process": "leftover_process", "print-esc": "raw_escape", "print-bidi": "raw_escape",
-           "claim": "silent", "exit-1": "pass", "works-but-1": "messy", "out-of-memory": "messy"}
+           "claim": "silent", "exit-1": "pass", "works-but-1": "messy", "out-of-memory": "messy",
+           "memory-hog": "messy"}
 
 
 def _planted_input(index: int, what: str) -> fuzz.Input:
@@ -92,6 +96,8 @@ def _planted_input(index: int, what: str) -> fuzz.Input:
         inp.fails.append("exit 0 would be wrong")
     if what == "works-but-1":
         inp.succeeds = "the renderer works"
+    if what == "memory-hog":
+        inp.max_mib = 100
     if what == "out-of-memory":
         inp.symptoms.append("Cannot allocate memory")
     return inp
@@ -124,8 +130,8 @@ def light_assets(tmp_path_factory) -> fuzz.Assets:
 def test_the_new_oracles_on_planted_outcomes(tmp_path, light_assets, monkeypatch):
     """Each way of reaching outside is its own outcome (a write through a planted link, a change or a read outside,
     a canary copied in raw, in base64 or from /proc/self/environ, a link out shipped, a process left running, a
-    terminal escape printed, a false claim, a working input failed, memory exhausted); a planted link the call
-    removed is a hint, not a failure."""
+    terminal escape printed, a false claim, a working input failed, memory exhausted or more used than the input
+    allows); a planted link the call removed is a hint, not a failure."""
     monkeypatch.setattr(cli, "main", planted_main)
     inputs = [_planted_input(i, what) for i, what in enumerate(PLANTED)]
     runner = fuzz.Runner(tmp_path / "out", light_assets, fuzz.Limits(timeout=20), jobs=2)
@@ -136,6 +142,7 @@ def test_the_new_oracles_on_planted_outcomes(tmp_path, light_assets, monkeypatch
     assert "the environment canary" in records["copy-environ"].detail
     assert "sleep 29" in records["leave-process"].detail
     assert records["remove-link"].removed_links == ["out/.lock"]
+    assert "MiB, over its 100 MiB" in records["memory-hog"].detail
     assert not fuzz.marked_processes("env-"), "a leftover process was not killed"
     summary = fuzz.summarize(list(records.values()), 1.0, {})
     assert summary["total"]["link_write"] == 1 and summary["total"]["removed_link"] == 1
