@@ -2037,8 +2037,8 @@ RUN_CANARY_VARIABLE = "FUZZ_RUN_CANARY"
 #: terminal escapes: ESC and the bidirectional overrides and isolates (a renderer's output must not reach a terminal
 #: raw)
 RAW_ESCAPES = ("\x1b", *map(chr, range(0x202a, 0x202f)), *map(chr, range(0x2066, 0x206a)))
-#: the most bytes of one written file, and the most files, searched for canary tokens
-SCAN_BYTES, SCAN_FILES = 8 * 2**20, 400
+#: the most bytes of one written file, the most files, and the most bytes in all searched for canary tokens
+SCAN_BYTES, SCAN_FILES, SCAN_TOTAL = 4 * 2**20, 400, 64 * 2**20
 #: the listeners an input's call may name as ``@PEER:KIND@`` (ports filled in by :func:`start_peers`)
 PEERS: dict[str, int] = {}
 PEER_KINDS = ("garbage", "http", "silent", "close", "huge", "refused")
@@ -2170,8 +2170,10 @@ class Watch:
                     found["copied"].append(f"{rel}: a link written to {entry[3]}, outside the folder")
         written = [rel for rel, entry in inside.items() if entry[0] == stat.S_IFREG and self.inside.get(rel) != entry]
         tokens = self.canary.tokens()
+        budget = SCAN_TOTAL
         for rel in sorted(written)[:SCAN_FILES]:
-            data = _read_bytes(self.folder / rel, SCAN_BYTES)
+            data = _read_bytes(self.folder / rel, min(SCAN_BYTES, budget))
+            budget -= len(data)
             found["copied"] += [f"{rel} holds {what}" for what, token in tokens.items()
                                 if any(form in data for form in _forms(token))]
         for stream, text in (("stdout", stdout), ("stderr", stderr)):

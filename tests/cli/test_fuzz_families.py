@@ -143,7 +143,6 @@ def test_the_new_oracles_on_planted_outcomes(tmp_path, light_assets, monkeypatch
     assert "sleep 29" in records["leave-process"].detail
     assert records["remove-link"].removed_links == ["out/.lock"]
     assert "MiB, over its 100 MiB" in records["memory-hog"].detail
-    assert not fuzz.marked_processes("env-"), "a leftover process was not killed"
     summary = fuzz.summarize(list(records.values()), 1.0, {})
     assert summary["total"]["link_write"] == 1 and summary["total"]["removed_link"] == 1
     table = fuzz.format_table(summary)
