@@ -2735,6 +2735,12 @@ def replay(folder: Path) -> int:
         for name in ("input", "outside"):
             if (folder / name).exists():
                 shutil.copytree(folder / name, Path(tmp) / name, symlinks=True, copy_function=_copy_entry)
+        saved = str(folder.resolve())
+        for link in [p for p in Path(tmp).rglob("*") if p.is_symlink()]:  # links into the saved copy: into this one
+            target = os.readlink(link)
+            if target == saved or target.startswith(saved + os.sep):
+                link.unlink()
+                os.symlink(tmp + target[len(saved):], link)
         cwd = os.getcwd()
         os.chdir(work)
         try:
