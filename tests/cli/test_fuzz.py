@@ -431,7 +431,7 @@ def test_long_fuzz(tmp_path):
     failing inputs go to HARNESS_FUZZ_OUT (default: a temporary folder)."""
     out = Path(os.environ.get("HARNESS_FUZZ_OUT") or tmp_path / "fuzz")
     # its own process: the children it forks must not inherit thread pools this one started (fuzz.py, top)
-    subprocess.run([sys.executable, str(ROOT / "tests" / "fuzz.py"), "--out", str(out), "--quiet", "--inputs",
+    subprocess.run([sys.executable, str(ROOT / "tests" / "cli" / "fuzz.py"), "--out", str(out), "--quiet", "--inputs",
                     os.environ.get("HARNESS_FUZZ_INPUTS", "10000")], check=False, timeout=4 * 3600)
     summary = json.loads((out / "summary.json").read_text())
     print(fuzz.format_table(summary))
