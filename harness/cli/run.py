@@ -112,6 +112,8 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             with runstate.interruptible():
+                if isinstance(executor, executors.DaskExecutor):
+                    executor.check()  # a tcp:// peer that is no Dask scheduler: one line before anything is written
                 results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
                                     on_case=on_each, executor=executor, resume=not args.fresh, on_resume=on_resume,
                                     timeout=args.timeout, results_cache=cache_mode)

@@ -315,11 +315,18 @@ class DaskExecutor:
         self.workers = workers
         self.threads = threads
         self.timeout = CONNECT_TIMEOUT if timeout is None else timeout  # seconds to connect to ``address``
+        self._checked = False
 
-    def run(self, tasks: Sequence[Task]) -> Iterator[tuple[Task, tuple]]:
-        if self.address is not None:
+    def check(self) -> None:
+        """:func:`check_scheduler` on ``address`` (once), so that a run can refuse a peer that is not a Dask
+        scheduler before it writes anything; SIGINT / SIGTERM stop the wait at once."""
+        if self.address is not None and not self._checked:
             with runstate.waiting():  # only waiting for the peer: SIGINT / SIGTERM stop the run at once
                 check_scheduler(self.address, self.timeout)
+            self._checked = True
+
+    def run(self, tasks: Sequence[Task]) -> Iterator[tuple[Task, tuple]]:
+        self.check()
         from distributed import Client, LocalCluster, as_completed  # optional: heavy, only the dask executor uses it
 
         cluster = None

@@ -144,6 +144,22 @@ def test_a_peer_that_is_not_a_dask_scheduler_is_one_line(tmp_path, capsys, monke
     assert not out.exists()  # the folder made for the run is removed again
 
 
+def test_a_refused_peer_writes_nothing_even_where_the_results_cache_answers(tmp_path, capsys, monkeypatch, peer):
+    """Cases the results cache answers are written before any is handed to the executor: the peer is checked
+    before that, so a run refused for its peer leaves no case files (and no folder) behind."""
+    monkeypatch.setattr(executors, "CONNECT_TIMEOUT", TIMEOUT, raising=False)
+    monkeypatch.setenv("HARNESS_RESULTS_CACHE", "on")
+    monkeypatch.setenv("HARNESS_CACHE_DIR", str(tmp_path / "cache"))
+    suite = _suite(tmp_path)
+    assert main(["run", str(suite), "--out", str(tmp_path / "first"), "--no-report", "--quiet",
+                 "--executor", "serial"]) == 0  # fills the results cache
+    out = tmp_path / "out"
+    code = main(["run", str(suite), "--out", str(out), "--no-report", "--quiet", "--executor",
+                 peer("garbage").address])
+    assert code == 2, capsys.readouterr().err
+    assert not out.exists()
+
+
 def test_the_handshake_check_passes_dask_and_reads_at_most_its_limit(peer):
     """A peer that answers Dask's handshake passes; one that streams a claimed 2^60 bytes is refused on the 8 bytes
     of its header (nothing allocated, nothing more read)."""
