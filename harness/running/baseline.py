@@ -274,7 +274,7 @@ def _entry_problem(entry) -> str | None:
         if not isinstance(entry.get(key), dict):
             return f".{key}: expected a table"
     for key, value in entry["metrics"].items():
-        if not (value is None or isinstance(value, dict) or _finite(value)):
+        if not (value is None or (isinstance(value, dict) and key == "bias") or _finite(value)):
             return f".metrics.{key}: expected a finite number, got {value!r:.40}"
     statistics = entry["statistics"]
     for key in ("mse", "relmse", "mape"):

@@ -131,7 +131,19 @@ def load_suite(path: str | Path) -> Suite:
         _check_case_settings(label, where, case, with_case_overrides(scenes[case.scene], case))
         names.add(case.name)
         cases.append(case)
+    if "settings" in defaults and all("settings" in entry for entry in entries):
+        _check_unused_default_settings(label, path.parent, defaults, entries[0], known)
     return Suite(name, description, path, tuple(cases), baseline)
+
+
+def _check_unused_default_settings(label: str, folder: Path, defaults: dict, entry: dict, known) -> None:
+    """``defaults.settings`` that every case replaces with its own, checked all the same (as the first case would
+    use them), so that a typo there is one line naming ``defaults.settings.KEY`` rather than silently unused."""
+    merged = {**defaults, **{k: v for k, v in entry.items() if k != "settings"}}
+    case = _case(label, folder, "defaults", merged, known)
+    scenes: dict = {}
+    _check_case_cost(label, "defaults", case, scenes)
+    _check_case_settings(label, "defaults", case, with_case_overrides(scenes[case.scene], case))
 
 
 def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[str]) -> Case:

@@ -325,6 +325,16 @@ def test_an_unused_ground_truth_spp_is_checked_too(tmp_path):
         load_suite(suite)
 
 
+def test_default_settings_every_case_replaces_are_checked_too(tmp_path):
+    """``[defaults.settings] direct = "nope"`` loaded silently when every case had settings of its own (a case's
+    settings replace the defaults' whole): found by the fuzzer, seed 7."""
+    suite = tmp_path / "s.toml"
+    suite.write_text(f'[defaults.settings]\ndirect = "nope"\n[[cases]]\nname = "c"\nscene = "{FURNACE}"\n'
+                     'settings = { rr_depth = 5 }\n')
+    with pytest.raises(HarnessError, match=r"defaults\.settings\.direct: expected one of"):
+        load_suite(suite)
+
+
 def test_stress_checks_costs_and_writes_nothing_on_bad_input(tmp_path, capfd):
     """harness stress had no cost check (an absurd --spp, --ground-truth-spp or --film ran for ever), and created
     --out before finding the scene broken."""
@@ -365,6 +375,8 @@ def baseline_file(tmp_path: Path, entry) -> Path:
     ("x", "cases.c: expected a table, got str"),
     (lambda e: {**e, "definition": 5}, "cases.c.definition: expected the case's SHA-256"),
     (lambda e: {**e, "metrics": {"relmse": "x"}}, "cases.c.metrics.relmse: expected a finite number, got 'x'"),
+    # a table where a number belongs was taken for the bias table, and the run compared nothing (fuzzer, seed 7)
+    (lambda e: {**e, "metrics": {"relmse": {}}}, "cases.c.metrics.relmse: expected a finite number, got {}"),
     (lambda e: {**e, "statistics": {"mse": {"value": math.nan}}}, "cases.c.statistics.mse: expected"),
     (lambda e: {**e, "statistics": {"mean": [1, 2]}}, "cases.c.statistics.mean: expected 3 finite numbers"),
     (lambda e: {k: v for k, v in e.items() if k != "render"}, "cases.c.render: expected a table"),
