@@ -2331,18 +2331,31 @@ def materialize(inp: Input, folder: Path, assets: Assets, canary: Canary | None 
             shutil.rmtree(path)
     folder.mkdir(parents=True)
     make_outside(folder, canary or Canary.new())
+    # a path the input makes a file, a named pipe or a link holds nothing below it (a generator that replaced a
+    # run's folder by one of these may have left that folder's files in the input)
+    leaves = {*inp.files, *inp.fifos, *inp.links}
+    shadowed = {name for name in (*inp.dirs, *inp.files, *inp.fifos, *inp.links)
+                if any(str(parent) in leaves for parent in Path(name).parents)}
     for name in inp.dirs:
+        if name in shadowed:
+            continue
         (folder / name).mkdir(parents=True, exist_ok=True)
     for name, data in inp.files.items():
+        if name in shadowed:
+            continue
         path = folder / name
         path.parent.mkdir(parents=True, exist_ok=True)
         if b"@OUTSIDE@" in data or b"@INPUT@" in data:
             data = resolve(data.decode("utf-8", "surrogateescape"), folder).encode("utf-8", "surrogateescape")
         path.write_bytes(data)
     for name in inp.fifos:
+        if name in shadowed:
+            continue
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
         os.mkfifo(folder / name)
     for name, target in inp.links.items():
+        if name in shadowed:
+            continue
         (folder / name).parent.mkdir(parents=True, exist_ok=True)
         os.symlink(resolve(target, folder), folder / name)
     for name, asset in inp.copies.items():

@@ -212,3 +212,17 @@ def test_the_new_families_are_planned():
     counts = {name: sum(1 for n, _ in jobs if n == name) for name in FAMILIES}
     assert counts == {name: fuzz.GENERATORS[name][1] for name in FAMILIES}
     assert sum(counts.values()) >= 1500
+
+
+def test_a_path_replaced_by_a_file_a_pipe_or_a_link_holds_nothing_below_it(tmp_path, light_assets):
+    """An input that makes a run's case folder a file, a named pipe or a link out, while its generator left that
+    folder's files in the input, is written (the materialising raised FileExistsError, ending the whole fuzz run:
+    seed 11)."""
+    inp = fuzz.Input("results_paths", 0, ["cli", "report", "run/results.json"],
+                     files={"run/cases/a": b"x", "run/cases/a/render.exr": b"y", "run/cases/c/render.exr": b"z"},
+                     dirs=["run/cases/b/images"], fifos=["run/cases/b"], links={"run/cases/c": "@OUTSIDE@"})
+    folder = tmp_path / "in" / "input"
+    fuzz.materialize(inp, folder, light_assets)
+    assert (folder / "run/cases/a").read_bytes() == b"x"
+    assert stat.S_ISFIFO(os.lstat(folder / "run/cases/b").st_mode)
+    assert (folder / "run/cases/c").is_symlink()
