@@ -96,8 +96,8 @@ def diagnosis_lines(diagnosis: dict) -> list[str]:
                      f"the image as it is; mean weighted squared difference {shift['mse']:.4g}, as it is "
                      f"{shift['mse_identity']:.4g})")
     else:
-        lines.append(f"  shift   none: no shift of up to {shift['max_shift']} pixels and no mirror fits better than the "
-                     "image as it is (beyond its noise)")
+        lines.append(f"  shift   none: no shift of up to {shift['max_shift']} pixels and no mirror fits better "
+                     "than the image as it is (beyond its noise)")
     if scale["scale"] is None:
         lines.append("  scale   undefined (the ground truth is 0 everywhere)")
     else:
@@ -106,8 +106,8 @@ def diagnosis_lines(diagnosis: dict) -> list[str]:
         lines.append(f"  scale   test = {scale['scale']:.4g} x ground truth ({interval}): {what}")
     if bright["share"] is not None:
         where = "concentrated there" if bright["concentrated"] else "not concentrated there"
-        lines.append(f"  bright  the brightest {bright['top']:.0%} of the ground truth's pixels ({bright['pixels']}) hold "
-                     f"{bright['share']:.0%} of the squared difference (noise alone would put "
+        lines.append(f"  bright  the brightest {bright['top']:.0%} of the ground truth's pixels ({bright['pixels']}) "
+                     f"hold {bright['share']:.0%} of the squared difference (noise alone would put "
                      f"{bright['noise_share']:.0%} there): {where}")
     return lines
 

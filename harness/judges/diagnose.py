@@ -94,8 +94,9 @@ def best_shift(test: np.ndarray, expected: np.ndarray, variance: np.ndarray | No
     :data:`PRODUCT_MAD` times its standard deviation; :math:`\hat\sigma_d` = MAD(d) / :data:`PRODUCT_MAD`, which
     a few pixels at a moved edge (huge d) do not inflate as they inflate the sample standard deviation.
 
-    Returns ``dx``, ``dy``, ``mirror``, ``mse`` (the best candidate's), ``mse_identity``, ``z`` (None for the
-    identity), ``significant``, ``candidates`` and ``max_shift``; where nothing is significant, (0, 0, "none").
+    Returns ``dx``, ``dy``, ``mirror``, ``mse`` (the chosen candidate's), ``mse_identity``, ``z`` (the best other
+    candidate's; None when none beats the identity), ``significant``, ``candidates`` and ``max_shift`` (the window
+    used); where the best is not significant, (0, 0, "none") with the identity's ``mse``.
     """
     ok, (t, g, v) = _finite(test, expected, variance)
     ok_pixel = np.all(ok, axis=2)
