@@ -9,6 +9,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from fake_renderers import slow_start_renderer
 from harness.renderers import RenderRequest, RenderResult, get_renderer
@@ -26,6 +27,7 @@ def _furnace(size: int = 4):
     return scene, gt
 
 
+@pytest.mark.slow
 def test_a_renderer_without_variance_gets_every_rung_at_its_label(tmp_path):
     """The fake writes no variance channels (so a render that needs a variance runs it K = 4 times); every rung of
     the ladder 1, 2, 4, 8 is one run at the rung's spp, and every point says so."""
