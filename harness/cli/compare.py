@@ -29,6 +29,11 @@ def register(sub, common) -> None:
     parser.add_argument("--maps", metavar="DIR", help="also write the verdict's tile maps into DIR: pvalue.exr (each "
                         "tile's two-sided p per channel) and failing.exr (1 in tiles that fail by themselves), as "
                         "harness run writes beside each case")
+    parser.add_argument("--diagnose", action="store_true",
+                        help="also say why the images differ: the best integer shift (up to 4 pixels) and mirror, the "
+                        "global scale factor with its 99 %% interval (named when it is 1, pi, 2 pi or 4 pi, or their "
+                        "inverse) and the share of the squared difference in the brightest 1 %% of pixels (with "
+                        "--json: its \"diagnosis\" section)")
     parser.set_defaults(func=run)
     sub.add_parser("compare", parents=[parser, common.json()])
 
@@ -40,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
     if not 0 < args.alpha < 1:
         raise HarnessError("--alpha", f"expected a false-alarm probability in (0, 1), got {args.alpha}")
     maps: dict | None = {} if args.maps else None
-    report = compare_files(args.test, args.ground_truth, tile=args.tile, alpha=args.alpha, maps=maps)
+    report = compare_files(args.test, args.ground_truth, tile=args.tile, alpha=args.alpha, maps=maps,
+                           diagnose=args.diagnose)
     if maps is not None and maps.get("tiles") is not None:
         v = report["verdict"]
         with imageio.removed_on_failure(imageio.make_folders(args.maps, where="--maps")):  # no empty folder left
@@ -60,6 +66,59 @@ def run(args: argparse.Namespace) -> int:
         for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
             if key in m:
                 print(f"  {key:7s} {m[key]:.6g}" if m[key] is not None else f"  {key:7s} undefined{why}")
+        if "diagnosis" in report:
+            for line in diagnosis_lines(report["diagnosis"]):
+                print(line)
         if "verdict_maps" in report:
             print(f"wrote {report['verdict_maps']['pvalue']} and {report['verdict_maps']['failing']}")
     return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL
+
+
+def diagnosis_lines(diagnosis: dict) -> list[str]:
+    """The ``--diagnose`` section: a headline, then the shift, the scale and the brightest pixels, a line each."""
+    shift, scale, bright = diagnosis["shift"], diagnosis["scale"], diagnosis["bright"]
+    moved = shift["significant"]
+    named = scale.get("named")
+    headline = []
+    if not moved:
+        headline.append("no shift")
+    if named == "1":
+        headline.append("scale 1 within its interval")
+    elif named:
+        headline.append(f"scale about {named}")
+    elif scale["scale"] is not None:
+        headline.append(f"scale {scale['scale']:.4g}")
+    if moved:
+        headline.insert(0, _shift_words(shift))
+    lines = ["diagnosis: " + ", ".join(headline)]
+    if moved:
+        lines.append(f"  shift   the test matches the ground truth {_shift_words(shift)} (z = {shift['z']:.3g} against "
+                     f"the image as it is; mean weighted squared difference {shift['mse']:.4g}, as it is "
+                     f"{shift['mse_identity']:.4g})")
+    else:
+        lines.append(f"  shift   none: no shift of up to {shift['max_shift']} pixels and no mirror fits better "
+                     "than the image as it is (beyond its noise)")
+    if scale["scale"] is None:
+        lines.append("  scale   undefined (the ground truth is 0 everywhere)")
+    else:
+        interval = f"{scale['level']:.0%} interval {scale['low']:.4g} .. {scale['high']:.4g}"
+        what = {None: "no factor of pi", "1": "1 lies within it"}.get(named, f"about {named}")
+        lines.append(f"  scale   test = {scale['scale']:.4g} x ground truth ({interval}): {what}")
+    if bright["share"] is not None:
+        where = "concentrated there" if bright["concentrated"] else "not concentrated there"
+        lines.append(f"  bright  the brightest {bright['top']:.0%} of the ground truth's pixels ({bright['pixels']}) "
+                     f"hold {bright['share']:.0%} of the squared difference (noise alone would put "
+                     f"{bright['noise_share']:.0%} there): {where}")
+    return lines
+
+
+def _shift_words(shift: dict) -> str:
+    """How the test shows the ground truth: "moved 1 pixel down", "mirrored left-right", ..."""
+    parts = []
+    if shift["mirror"] != "none":
+        parts.append("mirrored " + {"horizontal": "left-right", "vertical": "top-bottom"}[shift["mirror"]])
+    steps = [f"{abs(d)} pixel{'s' if abs(d) != 1 else ''} {more if d > 0 else less}"
+             for d, more, less in ((shift["dx"], "right", "left"), (shift["dy"], "down", "up")) if d]
+    if steps:
+        parts.append("moved " + " and ".join(steps))
+    return " and ".join(parts)

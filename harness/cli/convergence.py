@@ -122,6 +122,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"{s['label']}: slope of log RMSE vs log spp {slope}{flag}{timing}", file=human)
         for line in _rung_lines(s["points"]):
             print(f"  {line}", file=human)
+        for warning in s.get("warnings", []):
+            print(f"harness: warning: {warning}", file=sys.stderr)
     comparison = (result.get("comparisons") or {}).get("rmse_corrected")
     if comparison and comparison["equal_time"].get("time"):
         et = comparison["equal_time"]

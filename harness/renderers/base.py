@@ -14,12 +14,16 @@ from harness.scene import Scene
 @dataclass(frozen=True)
 class RenderRequest:
     """What to render: samples per pixel, seed, renderer-specific ``key=value`` settings, a progress callback
-    ``progress(done, total)``."""
+    ``progress(done, total)``, and whether the caller uses the render's variance (``variance``): a caller that
+    measures the image against a ground truth alone (the convergence study) says False, so that a renderer that
+    repeats its program only to estimate a variance (an external renderer without variance channels) runs it once
+    and its image holds exactly ``spp`` samples per pixel."""
 
     spp: int
     seed: int = 0
     settings: dict[str, str] = field(default_factory=dict)
     progress: Callable[[int, int], None] | None = None
+    variance: bool = True
 
 
 @dataclass

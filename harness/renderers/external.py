@@ -24,7 +24,9 @@ renderer is run K = ``repeats`` times with independent seeds s_1..s_K and the ha
     variance = 1/(K (K-1)) sum_k (I_k - image)^2     (the sample variance of the K images over K)
 
 per pixel and channel: an unbiased estimate of the variance of ``image`` with K - 1 degrees of freedom, which the
-verdict's t-correction takes from ``RenderResult.info["variance_dof"]``.
+verdict's t-correction takes from ``RenderResult.info["variance_dof"]``. A request that uses no variance
+(``RenderRequest.variance`` False: the convergence study) runs the command once, so that the image holds exactly the
+spp asked for; its variance is None.
 
 Render time excludes process start-up (docs/external-renderers.md, "Timing"): a run may report its own
 ``render_seconds`` (and ``variance_dof``, the degrees of freedom of its variance channels) as EXR string header
@@ -326,7 +328,7 @@ class ExternalRenderer:
                                f"its command, {self.spec.path})")
         if request.spp < 1:
             raise HarnessError("--spp", f"expected a positive integer, got {request.spp}")
-        runs = self._runs(scene, request)
+        runs = self._runs(scene, request, max_runs=None if request.variance else 1)
         seconds, time_from, startup = self._render_seconds(scene, runs)
         images, variance, seeds, argvs = runs.images, runs.variance, runs.seeds, runs.argvs
         width, height = scene.film.width, scene.film.height
@@ -334,6 +336,9 @@ class ExternalRenderer:
             image, var, spp = images[0], variance.astype(np.float64), request.spp
             dof = runs.reported[0].get("variance_dof", request.spp - 1)
             source = "the renderer's variance channels"
+        elif len(images) == 1:  # the caller asked for no variance (RenderRequest.variance): one run, none estimated
+            image, var, dof, spp = images[0], None, None, request.spp
+            source = "none (one run: the caller uses no variance)"
         else:
             image, var, dof = combine_repeats(images)
             spp = request.spp * len(images)
@@ -342,7 +347,8 @@ class ExternalRenderer:
                 "variance_from": source, "variance_dof": dof, "spp_per_run": request.spp,
                 "time_from": time_from, "wall_seconds": float(sum(runs.wall)), "startup_seconds": startup}
         return RenderResult(
-            renderer=self.name, image=image.astype(np.float32), variance=var.astype(np.float32), seconds=seconds,
+            renderer=self.name, image=image.astype(np.float32),
+            variance=None if var is None else var.astype(np.float32), seconds=seconds,
             spp=spp, rays={"camera": width * height * spp}, stats={"runs": len(images)},
             settings={"spp": request.spp, "seed": request.seed, "repeats": self.spec.repeats,
                       "timeout": self.spec.timeout, "command": list(self.spec.command)},

@@ -23,6 +23,7 @@ from harness.core.errors import HarnessError
 from harness.core.jsonsafe import plain
 from harness.files.imageio import ExrImage, read_exr
 from harness.judges import metrics
+from harness.judges.diagnose import diagnose as diagnose_images
 from harness.judges.verdict import verdict
 
 __all__ = ["compare_files", "compare_images", "judge"]
@@ -50,7 +51,7 @@ def _size(image: np.ndarray) -> str:
 
 
 def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names: tuple[str, str],
-             maps: dict | None = None) -> dict:
+             maps: dict | None = None, diagnose: bool = False) -> dict:
     test_name, expected_name = names
     if test.image.shape != expected.image.shape:
         raise HarnessError(
@@ -97,6 +98,8 @@ def _compare(test: ExrImage, expected: ExrImage, tile: int, alpha: float, names:
         },
         "verdict": outcome.to_dict(),
     }
+    if diagnose:
+        result["diagnosis"] = diagnose_images(t, r, test.variance, expected.variance)
     return plain(result)
 
 
@@ -111,7 +114,7 @@ def judge(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0
 
 
 def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,
-                   maps: dict | None = None) -> dict:
+                   maps: dict | None = None, diagnose: bool = False) -> dict:
     """Every metric of ``test`` against ``expected`` (the ground truth), the statistical verdict and the statistics
     behind it.
 
@@ -137,10 +140,14 @@ def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: 
     the verdict's :class:`harness.judges.verdict.TileMaps` (per-tile z, two-sided p, tested, failing: the maps of
     :mod:`harness.files.verdict_maps`).
 
+    ``diagnose``: also ``diagnosis``, why the images differ (:func:`harness.judges.diagnose.diagnose`: the best
+    integer shift and mirror, the global scale factor with its interval and the factor of pi it may be, and the
+    share of the squared difference in the brightest pixels).
+
     Raises :class:`HarnessError` if the sizes differ, a variance is missing or
     invalid, or the expected image has non-finite pixels.
     """
-    return _compare(test, expected, tile, alpha, ("test image", "ground truth image"), maps)
+    return _compare(test, expected, tile, alpha, ("test image", "ground truth image"), maps, diagnose)
 
 
 def compare_files(
@@ -148,7 +155,7 @@ def compare_files(
 ) -> dict:
     """:func:`compare_images` on two EXR files read with :func:`harness.files.imageio.read_exr`.
 
-    Keyword arguments (``tile``, ``alpha``, ``maps``) are passed on.  Errors name the
+    Keyword arguments (``tile``, ``alpha``, ``maps``, ``diagnose``) are passed on.  Errors name the
     files: a size mismatch raises ``HarnessError`` naming both files and both
     sizes; a file without variance channels raises one naming that file.
     """
@@ -157,6 +164,7 @@ def compare_files(
     tile = kw.pop("tile", 8)
     alpha = kw.pop("alpha", 0.01)
     maps = kw.pop("maps", None)
+    diagnose = bool(kw.pop("diagnose", False))
     if kw:
         raise TypeError(f"unexpected keyword arguments: {', '.join(sorted(kw))}")
-    return _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)), maps)
+    return _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)), maps, diagnose)

@@ -392,13 +392,16 @@ def run_convergence(
     ``progress(description)`` is called after every rung. ``renderer_factory(name)`` builds each series'
     renderer (default: :func:`harness.renderers.get_renderer`).
 
-    A renderer whose image holds more samples than asked (an external renderer run K times with distinct seeds
-    holds K x spp) is asked for spp / K per run, so that its points land on the ladder; K is learnt from its
-    first render (the warm-up), and a rung it cannot reach (below K) is rendered at K, once. Every point sits at
-    the spp its image holds (``render.spp``), and the series says where its times come from (``time_from``:
-    the renderer's own clock, or its wall time less the start-up). A rung an external renderer refuses (it exits
-    with an error, e.g. the Cycles adapter at 1 spp, which needs two batches for its variance) is left out and
-    named in the series' ``skipped``; a series with no point at all is named in ``failed_series``.
+    Every render asks for the rung's spp with ``RenderRequest.variance`` False (the errors are measured against the
+    ground truth; the render's own variance is not used), so an external renderer without variance channels runs
+    its program once per render and its image holds exactly the rung's spp: a point of the ``n``-spp rung is an
+    ``n``-spp image, not K runs of n / K (which a stratified sampler converges differently from). A render that
+    holds another count all the same (a sampler that rounds it) is kept at the spp its image holds
+    (``render.spp``; ``budget.spp`` is the rung), flagged ``on_rung`` False and named in the series' ``warnings``
+    (:func:`off_rung`). The series says where its times come from (``time_from``: the renderer's own clock, or its
+    wall time less the start-up). A rung an external renderer refuses (it exits with an error, e.g. the Cycles
+    adapter at 1 spp, which needs two batches for its variance) is left out and named in the series' ``skipped``;
+    a series with no point at all is named in ``failed_series``.
 
     ``repeats`` K > 1 renders every rung K times with distinct seeds (the error of the error, Celarek et al. 2019):
     the point's errors are then the means over the K runs (E[MSE], the curves and fits use them) and its
@@ -417,29 +420,23 @@ def run_convergence(
             settings["variant"] = variant
         points = []
         resolved: dict = {}
-        runs = 1  # samples the image holds per spp asked (K for an external renderer's K runs)
         time_from = None
         skipped: list[dict] = []  # rungs an external renderer refused (e.g. too few samples for its variance)
+        warnings: list[str] = []  # rungs rendered at another spp than their label
         if warmup:
             for n in (1, *spp):  # the smallest spp the renderer takes
                 try:
-                    warm = renderer.render(scene, RenderRequest(spp=int(n), seed=next(seeds), settings=settings))
+                    renderer.render(scene, RenderRequest(spp=int(n), seed=next(seeds), settings=settings,
+                                                         variance=False))
                 except ExternalRendererError:
                     continue
-                runs = _runs_per_spp(warm, int(n))
                 break
-        rendered: set[int] = set()
         for n in spp:
-            per_run = max(1, int(round(int(n) / runs)))
-            if runs > 1 and per_run * runs in rendered:  # a rung below K lands where another did
-                if progress is not None:
-                    progress(f"{s.name} {n} spp (as {per_run * runs})")
-                continue
             results, times, used = [], [], []
             try:
                 for index in range(repeats):
                     sd = next(seeds)
-                    request = RenderRequest(spp=per_run, seed=sd, settings=settings)
+                    request = RenderRequest(spp=int(n), seed=sd, settings=settings, variance=False)
                     if index == 0:
                         result, secs, timing_repeats = timed_render(renderer, scene, request, min_timing_seconds)
                     else:  # timed once each: the mean over the K runs is the point's time
@@ -454,13 +451,14 @@ def run_convergence(
                     progress(f"{s.name} {n} spp (refused)")
                 continue
             result = results[0]
-            runs = _runs_per_spp(result, per_run)
-            rendered.add(int(result.spp))
             resolved = result.settings
             time_from = result.info.get("time_from", time_from)
             point = repeat_point(results, ground_truth, spectrum)
-            points.append(dict(budget={"spp": int(n)}, spp=int(result.spp), seconds=float(np.mean(times)),
-                               timing_repeats=timing_repeats, seeds=used, **point))
+            off = off_rung(int(n), [int(r.spp) for r in results])
+            if off is not None:
+                warnings.append(f"{s.name}: {off}")
+            points.append(dict(budget={"spp": int(n)}, spp=int(result.spp), on_rung=off is None,
+                               seconds=float(np.mean(times)), timing_repeats=timing_repeats, seeds=used, **point))
             if progress is not None:
                 progress(f"{s.name} {n} spp")
         for budget in seconds:
@@ -487,7 +485,7 @@ def run_convergence(
                                      expected_slope=-1.0, scatter=[p["scatter_log_relmse"] for p in points], k=k)
         out_series.append({"label": s.name, "renderer": s.renderer, "settings": dict(s.settings),
                            "resolved_settings": resolved, "points": points, "time_from": time_from,
-                           "skipped": skipped,
+                           "skipped": skipped, "warnings": warnings,
                            "fit_rmse": fit_rmse, "fit_relmse": fit_relmse})
     return {
         "scene": str(getattr(scene, "path", "")),
@@ -570,12 +568,16 @@ def spectrum_balance(spectrum: dict) -> tuple[float | None, float | None]:
     return float(np.mean(low)), float(np.mean(high))
 
 
-def _runs_per_spp(result, spp: int) -> int:
-    """K for a render that holds K x ``spp`` samples because it is K runs (an external renderer's repeats, which
-    says so with ``info["spp_per_run"]``); 1 for every other renderer, whatever its sampler rounds to."""
-    if result.info.get("spp_per_run") is None:
-        return 1
-    return max(1, int(result.spp) // max(1, int(spp)))
+def off_rung(rung: int, rendered: Sequence[int]) -> str | None:
+    """Why a point of the ``rung``-spp rung is not at its label: None when every render of it (``rendered``, their
+    ``RenderResult.spp``) holds exactly ``rung`` samples per pixel, else a sentence saying what they held (a
+    renderer whose sampler rounds the count, or one that repeats runs although asked for no variance). Such a
+    point is kept at the spp it holds, flagged (``on_rung`` False) and named in the series' ``warnings``."""
+    wrong = sorted({n for n in rendered if n != rung})
+    if not wrong:
+        return None
+    return (f"the {rung}-spp rung was rendered at {', '.join(str(n) for n in wrong)} spp per pixel; the point sits "
+            f"at the spp its image holds, not at its label")
 
 
 def compare_series(series: list[dict]) -> dict:

@@ -1,7 +1,6 @@
 """Convergence with any renderer (docs/report.md): equal-time and equal-error figures are read at most 2x beyond
-a curve's measured times ("out of range" further out), and an external renderer run K times per render gets its
-per-run spp chosen so that its points land on the ladder, each at the spp its image holds, its times without
-process start-up."""
+a curve's measured times ("out of range" further out), and an external renderer without variance channels runs
+once per render, so that its points land on the ladder at their labels, its times without process start-up."""
 
 from __future__ import annotations
 
@@ -61,24 +60,24 @@ def test_an_external_renderers_points_land_on_the_ladder(fake_renderer):
     scene = load_scene(ROOT / "scenes" / "furnace.toml")
     scene = dataclasses.replace(scene, film=Film(4, 4, "box"))
     gt = SimpleNamespace(image=np.full((4, 4, 3), 0.5, np.float32), variance=None, source="constant", spp=None)
-    # no warm-up render (2 runs of 0.6 s): K is learnt from rung 1's render instead; the suite's studies below (and
-    # the refusing renderer's test) go through the warm-up and land on the same points
+    # no warm-up render (a run of 0.6 s); the suite's studies below (and the refusing renderer's test) go through
+    # the warm-up and land on the same points
     result = run_convergence(scene, gt, [Series(str(fake_renderer), {}, "fake")], spp=(1, 2, 4), seed=3,
                              renderer_factory=get_renderer, warmup=False)
     series = result["series"][0]
-    # K = 2: rung 1 cannot be reached (it lands at 2, rendered once), 2 is 2 runs x 1 spp, 4 is 2 runs x 2 spp
-    assert [p["spp"] for p in series["points"]] == [2, 4]
-    assert [p["budget"]["spp"] for p in series["points"]] == [1, 4]
+    # one run per render (the study uses no variance of the render's own): every rung at its own spp
+    assert [p["spp"] for p in series["points"]] == [1, 2, 4]
+    assert [p["budget"]["spp"] for p in series["points"]] == [1, 2, 4]
     assert series["time_from"].startswith("start-up subtracted (") and "1x1 film" in series["time_from"]
-    # each render is 2 runs of 0.6 s sleep and the interpreter's start (about 0.65 s of wall time each; 0.9 s when
-    # the script imported numpy and the harness) and at most 2 x 0.04 s of rendering: what is left is that and the
-    # scatter of process start on a loaded machine (0.5 s), well below the 1.8 s of wall time a render that
-    # subtracted nothing would read; timed once
+    # each render is a run of 0.6 s sleep and the interpreter's start (about 0.65 s of wall time; 0.9 s when the
+    # script imported numpy and the harness) and at most 0.08 s of rendering: what is left is that and the scatter
+    # of process start on a loaded machine (0.5 s), below the 0.65 s or more of wall time a render that subtracted
+    # nothing would read; timed once
     assert all(p["seconds"] < 0.6 and p["timing_repeats"] == 1 for p in series["points"]), series["points"]
 
 
 def test_rungs_a_renderer_refuses_are_left_out_and_named(tmp_path):
-    """A renderer that exits with an error below 4 spp per run (as the Cycles adapter below 2) gets the points it
+    """A renderer that exits with an error below 2 spp per run (as the Cycles adapter) gets the points it
     can render, and the study names the rungs it refused; one that refuses every rung is named with its reason."""
     scene = load_scene(ROOT / "scenes" / "furnace.toml")
     scene = dataclasses.replace(scene, film=Film(8, 8, "box"), max_depth=2)
@@ -90,9 +89,9 @@ def test_rungs_a_renderer_refuses_are_left_out_and_named(tmp_path):
     refuses = slow_start_renderer(tmp_path / "b", startup=0.0, per_spp=0.0, noise=0.1, min_spp=100, own_time=True)
     result = run_convergence(scene, gt, [Series(str(picky), {}, "picky"), Series(str(refuses), {}, "refuses")],
                              spp=(1, 2, 4, 8), k=3.0, warmup=True, renderer_factory=get_renderer)
-    (series,) = result["series"]  # K = 2 runs per render: rung 4 is 2 x 2 spp, 8 is 2 x 4
-    assert series["label"] == "picky" and [p["spp"] for p in series["points"]] == [4, 8]
-    assert [k["spp"] for k in series["skipped"]] == [1, 2]
+    (series,) = result["series"]  # one run per render: rung 1 refused, the others at their spp
+    assert series["label"] == "picky" and [p["spp"] for p in series["points"]] == [2, 4, 8]
+    assert [k["spp"] for k in series["skipped"]] == [1]
     assert "expected at least 2, got 1" in series["skipped"][0]["reason"]
     (failed,) = result["failed_series"]
     assert failed["label"] == "refuses" and "expected at least 100" in failed["error"]
@@ -140,7 +139,7 @@ expect = "fail"
     studies = json.loads((out / "studies" / "studies.json").read_text())
     series = studies["convergence"]["scenes"][0]["result"]["series"]
     assert [s["label"] for s in series] == ["reference (defaults)", "fake"]
-    assert [p["spp"] for p in series[1]["points"]] == [2, 4]
+    assert [p["spp"] for p in series[1]["points"]] == [1, 2, 4]
     other = studies["strategies"]["scenes"][0]["other_renderers"]
     assert [o["renderer"] for o in other] == ["fake"] and "takes no settings" in other[0]["note"]
     assert other[0]["efficiency"] > 0 and other[0]["relative_efficiency"] > 0, (other, studies["strategies"])
