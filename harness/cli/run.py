@@ -80,6 +80,8 @@ def run(args: argparse.Namespace) -> int:
         gate.cache_dir = args.cache_dir
     # a second run into the same folder stops at the lock (one line naming the holder's pid)
     with imageio.removed_on_failure(created), runstate.locked(out):
+        if not args.quiet:
+            print(plan(args, suite), file=sys.stderr, flush=True)
         bar = progress_bar(args, suite.name, "case", total=len(suite.cases), leave=True)
 
         def on_case(index: int, record: dict) -> None:
@@ -144,6 +146,23 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_report:
             _write_report(args, out, cache_mode)
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
+
+
+def plan(args: argparse.Namespace, suite) -> str:
+    """The line ``harness run`` starts with: how many cases, which studies follow them (they can take longer than
+    the cases) and the flag that skips them."""
+    count = len(suite.cases)
+    cases = f"{suite.name}: {count} case{'' if count == 1 else 's'}"
+    if args.no_report:
+        return f"{cases}; no studies and no report (--no-report)"
+    if args.no_studies:
+        return f"{cases}, then the report; no studies (--no-studies)"
+    names = [name for name, off in (("convergence", args.no_convergence), ("shadow rays", args.no_shadow_rays),
+                                    ("strategies", args.no_strategies)) if not off]
+    if not names:
+        return f"{cases}, then the report; no studies"
+    return (f"{cases}, then the studies of their scenes ({', '.join(names)}; they can take longer than the cases: "
+            "--no-studies skips them) and the report")
 
 
 def _baseline_gate(args: argparse.Namespace, suite) -> baseline.Gate | None:
