@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
+from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress, with_film
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
@@ -21,8 +21,7 @@ from harness.files import imageio
 from harness.renderers import RenderRequest, get_renderer, renderer_names
 from harness.renderers.external import ExternalRendererError, variance_metadata
 from harness.renderers.validate import BadRenderError, validate_result
-from harness.scene import load_scene
-from reference_impl import Film
+from harness.scene import load_scene, scene_argument
 
 
 def register(sub, common) -> None:
@@ -39,13 +38,11 @@ def register(sub, common) -> None:
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
              "(repeatable; see docs/reference-renderer.md)",
     )
-    parser.add_argument("--film", type=options.film_size, metavar="WxH",
-                        help="render at this resolution, e.g. 32x32 (default: the scene's), as a suite case's film does")
     parser.add_argument("--max-depth", type=options.non_negative_int, metavar="N",
                         help="the scene's max_depth replaced, as a suite case's max_depth does")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "render", parents=[parser,
+        "render", parents=[parser, common.film(),
                  common.out("output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it", file=True,
                             required=True),
                  common.json("print one JSON object with timings and counters"), common.quiet(),
@@ -57,10 +54,7 @@ def run(args: argparse.Namespace) -> int:
     out = exr_out_path(args.out)
     require_positive("--spp", args.spp)
     require_non_negative("--seed", args.seed)
-    scene = load_scene(args.scene)
-    if args.film:
-        width, _, height = args.film.lower().partition("x")
-        scene = dataclasses.replace(scene, film=Film(int(width), int(height), scene.film.filter))
+    scene = with_film(load_scene(scene_argument(args.scene)), args.film)
     if args.max_depth is not None:
         scene = dataclasses.replace(scene, max_depth=args.max_depth)
     check_cost(scene, args.spp, "--spp")
