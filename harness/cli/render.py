@@ -9,6 +9,7 @@ import json
 import os
 import platform
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -96,17 +97,29 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"{result.renderer}: {scene.name} {scene.film.width}x{scene.film.height}, {result.spp} spp in "
-            f"{result.seconds:.2f} s ({summary['paths_per_second'] / 1e6:.3f} M paths/s, "
-            f"{summary['rays_per_second'] / 1e6:.2f} M rays/s); {summary['nonfinite_pixels']} non-finite pixels\n"
+            f"{result.seconds:.2f} s ({_rates_text(summary)}); {summary['nonfinite_pixels']} non-finite pixels\n"
             f"wrote {out} and {preview}"
         )
     return EXIT_OK
 
 
+#: the shortest render time a rate is computed from: the resolution of the clocks render times are measured with
+CLOCK_RESOLUTION = max(time.get_clock_info(name).resolution for name in ("perf_counter", "monotonic"))
+
+
+def _rates_text(summary: dict) -> str:
+    """The rates of the human line, or why there are none (a command-line renderer whose time was all start-up)."""
+    if summary["paths_per_second"] is None:
+        return "paths/s and rays/s n/a: no render time left once the start-up was subtracted"
+    return f"{summary['paths_per_second'] / 1e6:.3f} M paths/s, {summary['rays_per_second'] / 1e6:.2f} M rays/s"
+
+
 def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
-    """What ``--json`` prints: the render's timings, counters and files."""
+    """What ``--json`` prints: the render's timings, counters and files. The rates are None (null) where the render
+    time is not above :data:`CLOCK_RESOLUTION` (all of an external renderer's time was its start-up): a rate divided
+    by nothing is no measurement."""
     total_rays = sum(result.rays.values())
-    seconds = max(result.seconds, 1e-12)
+    seconds = result.seconds if result.seconds > CLOCK_RESOLUTION else None
     return {
         "renderer": result.renderer,
         "scene": str(scene.path),
@@ -116,9 +129,9 @@ def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
         "seed": seed,
         "seconds": result.seconds,
         "paths": result.paths,
-        "paths_per_second": result.paths / seconds,
+        "paths_per_second": result.paths / seconds if seconds else None,
         "rays": dict(result.rays, total=total_rays),
-        "rays_per_second": total_rays / seconds,
+        "rays_per_second": total_rays / seconds if seconds else None,
         "nonfinite_pixels": result.nonfinite_pixels,
         "mean_radiance": [float(v) for v in np.mean(result.image.astype(np.float64), axis=(0, 1))],
         "settings": result.settings,
