@@ -80,8 +80,6 @@ def run(args: argparse.Namespace) -> int:
         gate.cache_dir = args.cache_dir
     # a second run into the same folder stops at the lock (one line naming the holder's pid)
     with imageio.removed_on_failure(created), runstate.locked(out):
-        if not args.quiet:
-            print(plan(args, suite), file=sys.stderr, flush=True)
         bar = progress_bar(args, suite.name, "case", total=len(suite.cases), leave=True)
 
         def on_case(index: int, record: dict) -> None:
@@ -104,6 +102,14 @@ def run(args: argparse.Namespace) -> int:
 
         done = [0]
 
+        def on_start() -> None:
+            if args.quiet:
+                return
+            if bar is not None:  # above the bar
+                bar.write(plan(args, suite), file=sys.stderr)
+            else:
+                print(plan(args, suite), file=sys.stderr, flush=True)
+
         def on_resume(kept: int, total: int) -> None:
             done[0] = kept
             print(f"resuming: {kept} of {total} cases done", file=sys.stderr)
@@ -118,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
                     executor.check()  # a tcp:// peer that is no Dask scheduler: one line before anything is written
                 results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
                                     on_case=on_each, executor=executor, resume=not args.fresh, on_resume=on_resume,
-                                    timeout=args.timeout, results_cache=cache_mode)
+                                    timeout=args.timeout, results_cache=cache_mode, on_start=on_start)
         except runstate.Interrupted as stop:
             if bar is not None:
                 bar.close()

@@ -266,6 +266,10 @@ def test_run_says_at_the_start_what_will_run_and_how_to_skip_the_studies(tmp_pat
     assert code == 0 and err.splitlines()[0] == "tiny: 1 case, then the report; no studies (--no-studies)", err
     code, out, err = cli(capfd, *argv, "--out", tmp_path / "d", "--quiet")
     assert code == 0 and err == "", err
+    (tmp_path / "e").mkdir()  # a user error found by the run itself is still the only line: the plan comes after
+    (tmp_path / "e" / "results.json").write_text("{")
+    line = one_line(*cli(capfd, *argv, "--out", tmp_path / "e"))
+    assert line.startswith(f"harness: error: {tmp_path / 'e' / 'results.json'}"), line
 
 
 # ---- harness render: no rate without render time -------------------------------------------------------------------
