@@ -9,7 +9,7 @@ import re
 import sys
 from pathlib import Path
 
-from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENES
+from harness.cli.common import EXIT_FAIL, EXIT_OK, film_pixels, with_film
 from harness.core import options
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
@@ -17,7 +17,7 @@ from harness.core.limits import check_render_cost
 from harness.core.options import require_positive
 from harness.files.imageio import atomic_write_text
 from harness.renderers import get_renderer
-from harness.scene import load_scene
+from harness.scene import load_scene, scene_argument
 from harness.studies import bench
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
@@ -31,8 +31,8 @@ def _targets_text() -> str:
 def register(sub, common) -> None:
     """Add ``bench`` to the subparsers ``sub``."""
     parser = common.own()
-    parser.add_argument("--scene", action="append", help="a canonical scene name or a scene file (repeatable; default "
-                                                        "cornell-box, soft-shadows, multi-light)")
+    parser.add_argument("--scene", action="append", help="a scene name (as a suite's scene names it) or a scene "
+                        "file (repeatable; default cornell-box, soft-shadows, multi-light)")
     parser.add_argument("--spp", type=options.positive_int, default=64,
                         help="samples per pixel of every render (default 64)")
     parser.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"),
@@ -67,8 +67,8 @@ def register(sub, common) -> None:
                     "and the reference's strategy rows (one setting "
                     "changed, e.g. sampler=independent); --renderer adds any other renderer (e.g. cycles, or a renderer file) at "
                     "the same spp, timed without process start-up. Method and latest figures: docs/performance.md.",
-        parents=[parser, common.out("also write the JSON result to this file (atomically)", file=True), common.json(),
-                 common.quiet(), common.cache_dir(), common.allow_outside_paths()])
+        parents=[parser, common.film(), common.out("also write the JSON result to this file (atomically)", file=True),
+                 common.json(), common.quiet(), common.cache_dir(), common.allow_outside_paths()])
 
 
 def _memory_option(text: str) -> tuple[int, int]:
@@ -103,12 +103,12 @@ def run(args: argparse.Namespace) -> int:
         scenes = scenes + [name for name in bench.target_scenes() if name not in given]
     resolved = []
     for name in scenes:
-        path = Path(name) if Path(name).suffix else SCENES / f"{name}.toml"
+        path = scene_argument(name, "--scene")
         if not path.is_file():
-            raise HarnessError("--scene", f"expected a canonical scene name or a scene file, got {name!r}")
+            raise HarnessError("--scene", f"expected a scene name or a scene file, got {name!r}")
         resolved.append(str(path))
     for path in resolved:  # absurd budgets refused before the first render, as harness render does
-        _check_costs(load_scene(path), args)
+        _check_costs(with_film(load_scene(path), args.film), args)
     if memory is not None:
         check_render_cost(memory[0], memory[0], memory[1], film_where="--memory", spp_where="--memory",
                           film_keys="SIZE in --memory", spp_name="SPP in --memory")
@@ -117,7 +117,8 @@ def run(args: argparse.Namespace) -> int:
     say = (lambda text: print(f"  {text}", file=sys.stderr, flush=True)) if not args.quiet else None
     result = bench.run_bench(scenes=resolved, spp=args.spp, repeats=args.repeats, gt_spp=args.ground_truth_spp,
                              strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say,
-                             renderers=tuple(args.renderer), embree=not args.no_embree_rate)
+                             renderers=tuple(args.renderer), embree=not args.no_embree_rate,
+                             film=film_pixels(args.film))
     if args.scaling:
         result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
     if memory is not None:

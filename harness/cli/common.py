@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import os
 import select
 import sys
@@ -16,8 +17,8 @@ from tqdm import tqdm
 
 from harness.core import options
 from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError
-from harness.core.options import Parser  # noqa: F401 - the shell's parser class, used as common.Parser
-from harness.core.limits import check_render_cost
+from harness.core.options import Parser  # the shell's parser class (common.Parser), its parents' too
+from harness.core.limits import MAX_FILM_SIDE, check_render_cost, film_problem
 
 EXIT_OK, EXIT_FAIL, EXIT_USAGE = 0, 1, 2
 # A closed stdout (``harness ... | head``): what a shell reports for a command killed by SIGPIPE, 128 + 13. Python
@@ -27,7 +28,8 @@ EXIT_INTERRUPTED = 130
 
 #: The canonical scenes of a checkout (``scenes/NAME.toml``), which commands also take by NAME.
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
-SCENE_HELP = "scene file (TOML, see docs/scene-format.md)"
+SCENE_HELP = ("scene file (TOML, see docs/scene-format.md), or a scene NAME as a suite's scene names it: "
+              "scenes/NAME.toml here or in this checkout, e.g. furnace")
 SUITE_HELP = "suite file (TOML, see docs/suites.md)"
 
 
@@ -39,7 +41,7 @@ SHARED_TITLE = "common options"
 
 
 def _parent(flag: str, **kwargs) -> argparse.ArgumentParser:
-    parent = argparse.ArgumentParser(add_help=False)
+    parent = Parser(add_help=False)
     parent.add_argument_group(SHARED_TITLE).add_argument(flag, **kwargs)
     return parent
 
@@ -54,7 +56,17 @@ class Common:
     @staticmethod
     def own() -> argparse.ArgumentParser:
         """An empty parent parser for the command's own arguments (and its ``set_defaults``)."""
-        return argparse.ArgumentParser(add_help=False)
+        return Parser(add_help=False)
+
+    @staticmethod
+    def film() -> argparse.ArgumentParser:
+        """``--film WxH``: the scene rendered (or exported) at another resolution, as a suite case's ``film`` does
+        (:func:`with_film`); listed with the command's own options, right after :meth:`own`."""
+        parent = Parser(add_help=False)
+        parent.add_argument("--film", type=options.film_size, metavar="WxH",
+                            help="the scene's film replaced by WIDTHxHEIGHT pixels, e.g. 32x32 (its filter kept), as "
+                            "a suite case's film does (default: the scene's)")
+        return parent
 
     @staticmethod
     def out(help: str, *, required: bool = False, metavar: str | None = None, file: bool = False
@@ -131,6 +143,30 @@ def exr_out_path(text: str) -> Path:
     if not os.access(out.parent, os.W_OK):
         raise HarnessError("--out", f"folder {str(out.parent)!r} is not writable")
     return out
+
+
+def film_pixels(film: str | None) -> tuple[int, int] | None:
+    """``--film``'s WIDTHxHEIGHT as (width, height), None without ``--film``; a film beyond the scene format's
+    limits is a HarnessError at ``--film``."""
+    if not film:
+        return None
+    width, _, height = film.lower().partition("x")
+    width, height = int(width), int(height)
+    if max(width, height) > MAX_FILM_SIDE:
+        raise HarnessError("--film", f"expected at most {MAX_FILM_SIDE} pixels per side, got {film!r}")
+    problem = film_problem(width, height)
+    if problem:
+        raise HarnessError("--film", problem)
+    return width, height
+
+
+def with_film(scene, film: str | None):
+    """``scene`` with its film replaced by ``--film``'s WIDTHxHEIGHT (:func:`film_pixels`; its filter kept); as it
+    is without ``--film``."""
+    pixels = film_pixels(film)
+    if pixels is None:
+        return scene
+    return dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=pixels[0], height=pixels[1]))
 
 
 def check_cost(scene, spp: int | None, option: str, *, seconds: float | None = None) -> None:

@@ -5,8 +5,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
-from harness.cli.common import EXIT_FAIL, EXIT_OK
+from harness.cli.common import EXIT_FAIL, EXIT_OK, one_line
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.files import imageio
@@ -66,11 +67,15 @@ def run(args: argparse.Namespace) -> int:
         for key in ("rmse", "relmse", "mape", "psnr", "ssim", "flip"):
             if key in m:
                 print(f"  {key:7s} {m[key]:.6g}" if m[key] is not None else f"  {key:7s} undefined{why}")
+        for key, label in (("test", "test image:  "), ("ground_truth", "ground truth:")):
+            print(f"{label} {_facts_text(report['images'][key])}")
         if "diagnosis" in report:
             for line in diagnosis_lines(report["diagnosis"]):
                 print(line)
         if "verdict_maps" in report:
             print(f"wrote {report['verdict_maps']['pvalue']} and {report['verdict_maps']['failing']}")
+    if report["images"]["warning"]:
+        print(f"harness: warning: {one_line(report['images']['warning'])}", file=sys.stderr)
     return EXIT_OK if report["verdict"]["verdict"] == "pass" else EXIT_FAIL
 
 
@@ -122,3 +127,11 @@ def _shift_words(shift: dict) -> str:
     if steps:
         parts.append("moved " + " and ".join(steps))
     return " and ".join(parts)
+
+
+def _facts_text(facts: dict) -> str:
+    """One image's line: its path, spp and mean variance, as far as its file says."""
+    spp = f"{facts['spp']} spp" if facts["spp"] is not None else "spp not recorded"
+    variance = (f"mean variance {facts['mean_variance']:.3g}" if facts["mean_variance"] is not None
+                else "no variance channels")
+    return f"{facts['path']} ({spp}, {variance})"

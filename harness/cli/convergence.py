@@ -15,7 +15,7 @@ from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
 from harness.renderers import RenderRequest, get_renderer, groundtruth, renderer_names
 from harness.report import write_convergence_report
-from harness.scene import load_scene
+from harness.scene import load_scene, scene_argument
 from harness.studies.convergence import Series, parse_ladder, replace_film, run_convergence, spectrum_balance
 
 
@@ -92,7 +92,7 @@ def run(args: argparse.Namespace) -> int:
         if spec["renderer"] not in renderer_names() and not spec["renderer"].endswith(".toml"):
             raise HarnessError("--renderer", f"expected one of {', '.join(renderer_names())}, got {spec['renderer']!r}")
         series.append(Series(spec["renderer"], {**args.common_settings, **spec["settings"]}))
-    scene = replace_film(load_scene(args.scene), width, height)
+    scene = replace_film(load_scene(scene_argument(args.scene)), width, height)
     if spp:
         check_cost(scene, max(spp), "--spp")
     for option, value in (("--ground-truth-spp", args.ground_truth_spp), ("--chunk-spp", args.chunk_spp)):

@@ -7,12 +7,12 @@ import argparse
 import json
 import sys
 
-from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost
+from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, with_film
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import require_non_negative, require_positive
 from harness.renderers.export import FORMATS, export_losses, export_scene
-from harness.scene import load_scene
+from harness.scene import load_scene, scene_argument
 
 
 def register(sub, common) -> None:
@@ -26,7 +26,7 @@ def register(sub, common) -> None:
                         help="mitsuba-xml: default of the $seed parameter (default 0)")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "export", parents=[parser, common.out("output folder (created if needed)", required=True),
+        "export", parents=[parser, common.film(), common.out("output folder (created if needed)", required=True),
                  common.json("print the files written as JSON"), common.allow_outside_paths()])
 
 
@@ -36,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {args.format!r}")
     require_positive("--spp", args.spp)
     require_non_negative("--seed", args.seed)
-    scene = load_scene(args.scene)
+    scene = with_film(load_scene(scene_argument(args.scene)), args.film)
     check_cost(scene, args.spp, "--spp")  # the $spp an exported Mitsuba scene renders at by default
     files = export_scene(scene, args.format, args.out, spp=args.spp, seed=args.seed)
     for loss in export_losses(scene, args.format):

@@ -13,14 +13,14 @@ import json
 import math
 import sys
 
-from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
+from harness.cli.common import EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress, with_film
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
 from harness.files import imageio
 from harness.renderers import RenderRequest, get_renderer, groundtruth
 from harness.running import runstate
-from harness.scene import load_scene
+from harness.scene import load_scene, scene_argument
 
 
 def register(sub, common) -> None:
@@ -44,7 +44,7 @@ def register(sub, common) -> None:
                         help="render with Mitsuba even if the scene has a closed form")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "ground-truth", parents=[parser,
+        "ground-truth", parents=[parser, common.film(),
                  common.out("also write it to this .exr (R, G, B and variance.R/G/B; the closed form's variance is 0) "
                             "with a .png preview beside it", file=True),
                  common.json(), common.quiet(), common.cache_dir(), common.mitsuba_variant(),
@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     require_positive("--chunk-spp", args.chunk_spp)
     require_non_negative("--seed", args.seed)
     out = exr_out_path(args.out) if args.out is not None else None
-    scene = load_scene(args.scene)
+    scene = with_film(load_scene(scene_argument(args.scene)), args.film)
     test_settings = parse_set(args.test_set)
     if auto:
         check_cost(scene, args.test_spp, "--test-spp")
@@ -142,7 +142,8 @@ def run(args: argparse.Namespace) -> int:
                     "info": json.dumps(gt.info, sort_keys=True, default=str)}
         imageio.write_exr_with_preview(out, gt.image, gt.variance, metadata=metadata)
     summary = {
-        "scene": str(scene.path), "source": gt.source, "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
+        "scene": str(scene.path), "width": scene.film.width, "height": scene.film.height, "source": gt.source,
+        "spp": gt.spp, "cached": gt.cached, "renders": gt.renders,
         "seconds": gt.seconds, "path": str(gt.path) if gt.path else None, "out": str(out) if out else None,
         "mean_radiance": [float(v) for v in gt.image.astype(float).mean(axis=(0, 1))], "info": gt.info,
         **({"auto": chosen.to_dict()} if chosen is not None else {}),

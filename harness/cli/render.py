@@ -9,11 +9,12 @@ import json
 import os
 import platform
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
 
-from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress
+from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, check_cost, exr_out_path, path_progress, with_film
 from harness.core import options
 from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
@@ -21,8 +22,7 @@ from harness.files import imageio
 from harness.renderers import RenderRequest, get_renderer, renderer_names
 from harness.renderers.external import ExternalRendererError, variance_metadata
 from harness.renderers.validate import BadRenderError, validate_result
-from harness.scene import load_scene
-from reference_impl import Film
+from harness.scene import load_scene, scene_argument
 
 
 def register(sub, common) -> None:
@@ -39,13 +39,11 @@ def register(sub, common) -> None:
         help="a renderer setting, e.g. direct=global-area, shadow_rays=4, rr=off, max_depth=3, sampler=independent "
              "(repeatable; see docs/reference-renderer.md)",
     )
-    parser.add_argument("--film", type=options.film_size, metavar="WxH",
-                        help="render at this resolution, e.g. 32x32 (default: the scene's), as a suite case's film does")
     parser.add_argument("--max-depth", type=options.non_negative_int, metavar="N",
                         help="the scene's max_depth replaced, as a suite case's max_depth does")
     parser.set_defaults(func=run)
     sub.add_parser(
-        "render", parents=[parser,
+        "render", parents=[parser, common.film(),
                  common.out("output .exr (R, G, B and variance.R/G/B); a .png preview is written beside it", file=True,
                             required=True),
                  common.json("print one JSON object with timings and counters"), common.quiet(),
@@ -57,10 +55,7 @@ def run(args: argparse.Namespace) -> int:
     out = exr_out_path(args.out)
     require_positive("--spp", args.spp)
     require_non_negative("--seed", args.seed)
-    scene = load_scene(args.scene)
-    if args.film:
-        width, _, height = args.film.lower().partition("x")
-        scene = dataclasses.replace(scene, film=Film(int(width), int(height), scene.film.filter))
+    scene = with_film(load_scene(scene_argument(args.scene)), args.film)
     if args.max_depth is not None:
         scene = dataclasses.replace(scene, max_depth=args.max_depth)
     check_cost(scene, args.spp, "--spp")
@@ -102,17 +97,29 @@ def run(args: argparse.Namespace) -> int:
     else:
         print(
             f"{result.renderer}: {scene.name} {scene.film.width}x{scene.film.height}, {result.spp} spp in "
-            f"{result.seconds:.2f} s ({summary['paths_per_second'] / 1e6:.3f} M paths/s, "
-            f"{summary['rays_per_second'] / 1e6:.2f} M rays/s); {summary['nonfinite_pixels']} non-finite pixels\n"
+            f"{result.seconds:.2f} s ({_rates_text(summary)}); {summary['nonfinite_pixels']} non-finite pixels\n"
             f"wrote {out} and {preview}"
         )
     return EXIT_OK
 
 
+#: the shortest render time a rate is computed from: the resolution of the clocks render times are measured with
+CLOCK_RESOLUTION = max(time.get_clock_info(name).resolution for name in ("perf_counter", "monotonic"))
+
+
+def _rates_text(summary: dict) -> str:
+    """The rates of the human line, or why there are none (a command-line renderer whose time was all start-up)."""
+    if summary["paths_per_second"] is None:
+        return "paths/s and rays/s n/a: no render time left once the start-up was subtracted"
+    return f"{summary['paths_per_second'] / 1e6:.3f} M paths/s, {summary['rays_per_second'] / 1e6:.2f} M rays/s"
+
+
 def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
-    """What ``--json`` prints: the render's timings, counters and files."""
+    """What ``--json`` prints: the render's timings, counters and files. The rates are None (null) where the render
+    time is not above :data:`CLOCK_RESOLUTION` (all of an external renderer's time was its start-up): a rate divided
+    by nothing is no measurement."""
     total_rays = sum(result.rays.values())
-    seconds = max(result.seconds, 1e-12)
+    seconds = result.seconds if result.seconds > CLOCK_RESOLUTION else None
     return {
         "renderer": result.renderer,
         "scene": str(scene.path),
@@ -122,9 +129,9 @@ def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
         "seed": seed,
         "seconds": result.seconds,
         "paths": result.paths,
-        "paths_per_second": result.paths / seconds,
+        "paths_per_second": result.paths / seconds if seconds else None,
         "rays": dict(result.rays, total=total_rays),
-        "rays_per_second": total_rays / seconds,
+        "rays_per_second": total_rays / seconds if seconds else None,
         "nonfinite_pixels": result.nonfinite_pixels,
         "mean_radiance": [float(v) for v in np.mean(result.image.astype(np.float64), axis=(0, 1))],
         "settings": result.settings,

@@ -102,6 +102,14 @@ def run(args: argparse.Namespace) -> int:
 
         done = [0]
 
+        def on_start() -> None:
+            if args.quiet:
+                return
+            if bar is not None:  # above the bar
+                bar.write(plan(args, suite), file=sys.stderr)
+            else:
+                print(plan(args, suite), file=sys.stderr, flush=True)
+
         def on_resume(kept: int, total: int) -> None:
             done[0] = kept
             print(f"resuming: {kept} of {total} cases done", file=sys.stderr)
@@ -116,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
                     executor.check()  # a tcp:// peer that is no Dask scheduler: one line before anything is written
                 results = run_suite(suite, out, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
                                     on_case=on_each, executor=executor, resume=not args.fresh, on_resume=on_resume,
-                                    timeout=args.timeout, results_cache=cache_mode)
+                                    timeout=args.timeout, results_cache=cache_mode, on_start=on_start)
         except runstate.Interrupted as stop:
             if bar is not None:
                 bar.close()
@@ -144,6 +152,23 @@ def run(args: argparse.Namespace) -> int:
         if not args.no_report:
             _write_report(args, out, cache_mode)
     return EXIT_OK if not summary["unexpected"] else EXIT_FAIL
+
+
+def plan(args: argparse.Namespace, suite) -> str:
+    """The line ``harness run`` starts with: how many cases, which studies follow them (they can take longer than
+    the cases) and the flag that skips them."""
+    count = len(suite.cases)
+    cases = f"{suite.name}: {count} case{'' if count == 1 else 's'}"
+    if args.no_report:
+        return f"{cases}; no studies and no report (--no-report)"
+    if args.no_studies:
+        return f"{cases}, then the report; no studies (--no-studies)"
+    names = [name for name, off in (("convergence", args.no_convergence), ("shadow rays", args.no_shadow_rays),
+                                    ("strategies", args.no_strategies)) if not off]
+    if not names:
+        return f"{cases}, then the report; no studies"
+    return (f"{cases}, then the studies of their scenes ({', '.join(names)}; they can take longer than the cases: "
+            "--no-studies skips them) and the report")
 
 
 def _baseline_gate(args: argparse.Namespace, suite) -> baseline.Gate | None:

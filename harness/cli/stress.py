@@ -9,7 +9,7 @@ import math
 import sys
 from pathlib import Path
 
-from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENES, progress_bar
+from harness.cli.common import EXIT_FAIL, EXIT_OK, SCENE_HELP, progress_bar
 from harness.core import jsonsafe, options
 from harness.core.errors import HarnessError
 from harness.core.limits import MAX_FILM_SIDE, check_render_cost, film_problem
@@ -18,7 +18,7 @@ from harness.files.imageio import atomic_write_text
 from harness.renderers import RenderRequest, renderer_names
 from harness.renderers.reference import ReferenceRenderer
 from harness.running.runstate import output_folder
-from harness.scene import Scene, load_scene
+from harness.scene import Scene, load_scene, scene_argument
 from harness.scene.variants import parse_variant
 from harness.studies import stress
 from reference_impl import Film
@@ -27,7 +27,7 @@ from reference_impl import Film
 def register(sub, common) -> None:
     """Add ``stress`` to the subparsers ``sub``."""
     parser = common.own()
-    parser.add_argument("scene", help="scene file or name in scenes/")
+    parser.add_argument("scene", help=SCENE_HELP)
     parser.add_argument("--renderer", action="append", help="renderer (repeatable; default: reference and mitsuba)")
     parser.add_argument("--variant", action="append", metavar="KIND[=VALUE]",
                         help=f"a variant (repeatable; default: all of {', '.join(stress.DEFAULT_VARIANTS)})")
@@ -52,14 +52,8 @@ def register(sub, common) -> None:
 
 
 def _resolve_scene(text: str) -> Scene:
-    """The scene file ``text``, or the canonical scene of that name (in ./scenes, then in the checkout's)."""
-    path = Path(text)
-    if not path.is_file() and "/" not in text and not text.endswith(".toml"):
-        for candidate in (Path("scenes") / f"{text}.toml", SCENES / f"{text}.toml"):
-            if candidate.is_file():
-                path = candidate
-                break
-    return load_scene(path)
+    """The scene file ``text``, or the scene of that name as a suite names it (:func:`harness.scene.find_scene`)."""
+    return load_scene(scene_argument(text))
 
 
 def _check_costs(width: int, height: int, args) -> None:

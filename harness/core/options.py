@@ -18,7 +18,7 @@ import re
 
 from harness.core.errors import HarnessError
 from harness.core.limits import MAX_TIMEOUT_SECONDS
-from harness.core.text import short
+from harness.core.text import hint, short
 
 _OPTION_MESSAGE = re.compile(r"argument (-[^\s:]*): (.*)", re.S)
 _INTEGER = re.compile(r"-?[0-9]+")
@@ -28,9 +28,53 @@ _SIZE = re.compile(r"([0-9]+)[xX]([0-9]+)")
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line naming the option (and exit code 2)."""
+    """argparse, but an option is taken only by its whole name (``--sp`` is not ``--spp``: a prefix that names one
+    option today names two after the next option is added), and a usage error is one line naming the option (and
+    exit code 2): an unknown option names itself, with the closest option of its command."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
+
+    def parse_args(self, args=None, namespace=None):  # noqa: D102 - argparse's signature
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            command = self._command_run(parsed)
+            command._refuse_unknown(extras)
+            raise HarnessError(command.prog, f"unrecognized arguments: {' '.join(extras)}")
+        return parsed
+
+    def parse_known_args(self, args=None, namespace=None):  # noqa: D102 - argparse's signature
+        self._words = list(args) if args is not None else None  # for error(): an unknown option among them
+        return super().parse_known_args(args, namespace)
+
+    def _command_run(self, parsed: argparse.Namespace) -> argparse.ArgumentParser:
+        """The (sub)command whose options count: the one ``parsed`` ran (nested: ``baseline save``)."""
+        command = self
+        action = next((a for a in self._actions if isinstance(a, argparse._SubParsersAction)), None)
+        while action is not None:
+            chosen = action.choices.get(getattr(parsed, action.dest, None) or "")
+            if chosen is None:
+                break
+            command = chosen
+            action = next((a for a in chosen._actions if isinstance(a, argparse._SubParsersAction)), None)
+        return command
+
+    def _refuse_unknown(self, words: list[str]) -> None:
+        """The one line for the first of ``words`` that looks like an option this parser does not have, with the
+        closest one it has; nothing when there is none."""
+        known = [flag for action in self._actions for flag in action.option_strings]
+        for word in words:
+            if word == "--":
+                return
+            name = word.partition("=")[0]
+            if word.startswith("-") and len(word) > 1 and not _NUMBER.fullmatch(word) and name not in known:
+                raise HarnessError(name, f"unknown option of {self.prog}{hint(name, known)}")
 
     def error(self, message: str) -> None:  # noqa: D401 - argparse's signature
+        if message.startswith("the following arguments are required") and getattr(self, "_words", None):
+            # "--spp is required" after ``--sp 4``: the typo is the news
+            self._refuse_unknown(self._words)
         match = _OPTION_MESSAGE.fullmatch(message)
         if match:  # "argument -s/--spp: expected ..." -> "--spp: expected ..."
             names = match[1].split("/")

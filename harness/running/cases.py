@@ -25,6 +25,7 @@ from harness.core.text import hint, short, toml_key
 from harness.renderers import RenderRequest, external, get_renderer, renderer_names
 from harness.running.tolerances import check_table
 from harness.scene import load_scene
+from harness.scene.load import find_scene
 from harness.scene.variants import check_variant_scene, parse_variant
 from reference_impl import Film
 
@@ -154,7 +155,7 @@ def _case(label: str, folder: Path, where: str, d: dict[str, Any], known: list[s
 
     if "scene" not in d:
         raise HarnessError(f"{label}: {key('scene')}", "missing: expected a scene name or a path to a scene file")
-    scene = _scene_path(label, key("scene"), folder, _typed(label, key("scene"), d["scene"], str))
+    scene = find_scene(_typed(label, key("scene"), d["scene"], str), f"{label}: {key('scene')}", folder)
     name = _case_name(label, key("name"), d.get("name", scene.stem), "name" not in d)
     renderer = _typed(label, key("renderer"), d.get("renderer", "reference"), str)
     renderer = _renderer_known(label, key("renderer"), renderer, known, folder)
@@ -350,24 +351,6 @@ def _check_case_settings(label: str, where: str, case: Case, scene) -> None:
             if not err.where.startswith("--set "):
                 raise
             raise HarnessError(f"{label}: {key}.{err.where[len('--set '):]}", err.message) from None
-
-
-def _scene_path(label: str, key: str, folder: Path, value: str) -> Path:
-    candidates = [folder / value]
-    if "/" not in value and not value.endswith(".toml"):
-        # A bare name: a scene beside the suite's folder, in ./scenes, or one of this checkout's canonical scenes.
-        canonical = Path(__file__).resolve().parents[2] / "scenes" / f"{value}.toml"
-        candidates += [folder.parent / "scenes" / f"{value}.toml", Path("scenes") / f"{value}.toml", canonical]
-        candidates = list(dict.fromkeys(candidates))
-    for c in candidates:
-        try:
-            if c.is_file():
-                return c
-        except OSError as err:  # a name too long for the file system, a loop of symbolic links, ...
-            raise HarnessError(f"{label}: {key}", f"cannot look for the scene file {short(str(c))}: "
-                               f"{err.strerror or err}") from None
-    raise HarnessError(f"{label}: {key}", f"no scene {short(value)} (looked for "
-                       f"{', '.join(short(str(c)) for c in candidates)})")
 
 
 def _against(label: str, key: str, value: Any, renderers: list[str], folder: Path | None = None) -> Against:

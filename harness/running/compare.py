@@ -26,7 +26,7 @@ from harness.judges import metrics
 from harness.judges.diagnose import diagnose as diagnose_images
 from harness.judges.verdict import verdict
 
-__all__ = ["compare_files", "compare_images", "judge"]
+__all__ = ["compare_files", "compare_images", "image_facts", "judge", "swapped_warning"]
 
 
 def _variance_dof(image: ExrImage) -> int | None:
@@ -150,14 +150,40 @@ def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: 
     return _compare(test, expected, tile, alpha, ("test image", "ground truth image"), maps, diagnose)
 
 
+def image_facts(image: ExrImage, path: str | os.PathLike[str]) -> dict:
+    """What an EXR file says of itself, to tell which of two is the ground truth: its ``path``, ``spp`` (its
+    ``spp`` attribute, as ``harness render`` and ``harness ground-truth`` write it; None without one), ``renderer``
+    and ``source`` attributes, and ``mean_variance``, the mean of its variance channels over their finite values
+    (None without variance channels)."""
+    raw = image.metadata.get("spp") if image.metadata else None
+    spp = int(raw.strip()) if isinstance(raw, str) and raw.strip().isdigit() and len(raw.strip()) < 19 else None
+    mean_variance = None
+    if image.variance is not None:
+        finite = image.variance[np.isfinite(image.variance)].astype(np.float64)
+        mean_variance = float(finite.mean()) if finite.size else None
+    return {"path": str(path), "spp": spp, "renderer": (image.metadata or {}).get("renderer"),
+            "source": (image.metadata or {}).get("source"), "mean_variance": mean_variance}
+
+
+def swapped_warning(test: dict, ground_truth: dict) -> str | None:
+    """A warning when the image given as the ground truth is noisier than the test image (its mean variance the
+    larger): likelier the two files swapped than a ground truth worth judging against; None otherwise."""
+    mine, theirs = ground_truth["mean_variance"], test["mean_variance"]
+    if mine is None or theirs is None or not mine > theirs:
+        return None
+    return (f"the ground truth {ground_truth['path']} is noisier than the test image {test['path']} (mean variance "
+            f"{mine:.3g} against {theirs:.3g}): are they swapped? harness compare takes TEST, then GROUND_TRUTH")
+
+
 def compare_files(
     test_path: str | os.PathLike[str], expected_path: str | os.PathLike[str], **kw: Any
 ) -> dict:
     """:func:`compare_images` on two EXR files read with :func:`harness.files.imageio.read_exr`.
 
-    Keyword arguments (``tile``, ``alpha``, ``maps``, ``diagnose``) are passed on.  Errors name the
-    files: a size mismatch raises ``HarnessError`` naming both files and both
-    sizes; a file without variance channels raises one naming that file.
+    Keyword arguments (``tile``, ``alpha``, ``maps``, ``diagnose``) are passed on. The result also holds ``images``:
+    each file's :func:`image_facts` (``test``, ``ground_truth``) and ``warning``, :func:`swapped_warning` (or None).
+    Errors name the files: a size mismatch raises ``HarnessError`` naming both files and both sizes; a file without
+    variance channels raises one naming that file.
     """
     test = read_exr(test_path)
     expected = read_exr(expected_path)
@@ -167,4 +193,7 @@ def compare_files(
     diagnose = bool(kw.pop("diagnose", False))
     if kw:
         raise TypeError(f"unexpected keyword arguments: {', '.join(sorted(kw))}")
-    return _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)), maps, diagnose)
+    result = _compare(test, expected, tile, alpha, (str(test_path), str(expected_path)), maps, diagnose)
+    facts = {"test": image_facts(test, test_path), "ground_truth": image_facts(expected, expected_path)}
+    facts["warning"] = swapped_warning(facts["test"], facts["ground_truth"])
+    return {**result, "images": plain(facts)}

@@ -22,14 +22,15 @@ from harness.running.cases import Suite, slug
 def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
               on_case: Callable[[int, dict], None] | None = None, executor=None, resume: bool = False,
               on_resume: Callable[[int, int], None] | None = None, timeout: float | None = None,
-              results_cache: str = "off") -> dict:
+              results_cache: str = "off", on_start: Callable[[], None] | None = None) -> dict:
     """Run every case on ``executor`` (default: in this process, in order; ``harness.running.executors``), rewriting
     ``results.json`` atomically after each finished case, records in suite order whatever order cases finish in
     (finished cases are never lost). With ``resume``, the finished records of an earlier run of this suite in
     ``out_dir`` whose case definitions are unchanged are kept (``"resumed": true``) and only the rest run
-    (``harness.running.runstate``); ``on_resume(kept, total)`` is told how many. A task whose worker is killed (past
-    ``timeout``, else the case's own, see ``executors.case_timeout``) or dies makes its case an error. Each case
-    runs through :func:`harness.running.judge.run_case`, handed to the executor with the tasks.
+    (``harness.running.runstate``); ``on_resume(kept, total)`` is told how many; ``on_start()`` is called once the
+    input is checked (a link planted in ``out_dir``, an earlier results.json), before the first case. A task whose
+    worker is killed (past ``timeout``, else the case's own, see ``executors.case_timeout``) or dies makes its case
+    an error. Each case runs through :func:`harness.running.judge.run_case`, handed to the executor with the tasks.
 
     ``results_cache`` (:data:`harness.running.result_cache.MODES`): "use" answers every case whose outcome is
     cached from the cache (``"cached": {"from", "key"}``; its files copied into its folder) and stores the outcome
@@ -63,6 +64,8 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
     todo = [(i, case) for i, case in enumerate(suite.cases) if i not in records]
     cache = result_cache.CaseCache(cache_dir, variant, results_cache, results["started"],
                                    machine={k: results["system"][k] for k in system.MACHINE_KEYS})
+    if on_start is not None:
+        on_start()
     if cache.reads:
         hits = []
         for index, case in todo:

@@ -2,9 +2,10 @@
 for the core, and stress variants (transformed copies of a scene, :mod:`harness.scene.variants`)."""
 
 from harness.scene.emitter_arrays import emitter_arrays
-from harness.scene.load import load_scene
+from harness.scene.load import find_scene, load_scene, scene_argument
 from harness.scene.material_arrays import material_arrays
 from harness.scene.model import Material, Scene, Shape
 from harness.scene.triangulate import triangulate
 
-__all__ = ["Material", "Scene", "Shape", "emitter_arrays", "load_scene", "material_arrays", "triangulate"]
+__all__ = ["Material", "Scene", "Shape", "emitter_arrays", "find_scene", "load_scene", "material_arrays",
+           "scene_argument", "triangulate"]

@@ -10,6 +10,7 @@ import datetime
 import io
 import json
 import math
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -24,6 +25,7 @@ from harness.core.errors import ALLOW_OUTSIDE_ENV, HarnessError, read_user_bytes
 from harness.core.limits import MAX_FILM_SIDE, envmap_problem, estimate_text, film_problem
 from harness.core.options import env_switch
 from harness.core.text import hint as suggestion  # `hint` is a local name here
+from harness.core.text import short
 from harness.files.imageio import exr_size, read_exr
 from harness.scene.model import (
     DEFAULT_ALPHA,
@@ -147,6 +149,44 @@ def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> 
         allow_outside_paths = outside_paths_allowed()
     document = _read_toml(path)
     return _SceneReader(str(path), path.parent, allow_outside_paths).scene(document, path)
+
+
+#: This checkout's canonical scenes (``scenes/NAME.toml``), where a bare scene NAME is looked for last.
+CANONICAL_SCENES = Path(__file__).resolve().parents[2] / "scenes"
+
+
+def find_scene(value: str, where: str, folder: str | Path = ".") -> Path:
+    """The scene file that a suite's ``scene`` key or a command's SCENE argument names: ``value`` relative to
+    ``folder`` (the suite's folder; the current one on the command line) or, for a bare NAME (no ``/``, no
+    ``.toml``), the first file of ``scenes/NAME.toml`` beside ``folder``, in the current folder and among this
+    checkout's canonical scenes (``scenes = "furnace"`` and ``harness render furnace`` alike). None found is a
+    HarnessError at ``where`` saying where it looked, with the closest scene name there."""
+    folder = Path(folder)
+    candidates = [folder / value]
+    searched = []
+    if "/" not in value and not value.endswith(".toml"):
+        searched = list(dict.fromkeys([folder.parent / "scenes", Path("scenes"), CANONICAL_SCENES]))
+        candidates += [scenes / f"{value}.toml" for scenes in searched]
+        candidates = list(dict.fromkeys(candidates))
+    for candidate in candidates:
+        try:
+            if candidate.is_file():
+                return candidate
+        except OSError as err:  # a name too long for the file system, a loop of symbolic links, ...
+            raise HarnessError(where, f"cannot look for the scene file {short(str(candidate))}: "
+                               f"{err.strerror or err}") from None
+    names = sorted({p.stem for scenes in searched if scenes.is_dir() for p in scenes.glob("*.toml")})
+    raise HarnessError(where, f"no scene {short(value)} (looked for {', '.join(short(str(c)) for c in candidates)})"
+                       f"{suggestion(value, names)}")
+
+
+def scene_argument(text: str, where: str = "scene") -> Path:
+    """A command's SCENE: a path as given (:func:`load_scene` says what is wrong with it), or a bare NAME resolved
+    as a suite's ``scene`` is (:func:`find_scene`: a near miss gets a did-you-mean, at ``where``)."""
+    path = Path(text)
+    if path.suffix or "/" in text or os.sep in text or path.exists():
+        return path
+    return find_scene(text, where)
 
 
 def outside_paths_allowed() -> bool:

@@ -461,20 +461,24 @@ def run_bench(
     renderers: Sequence[str] = (),
     embree: bool = True,
     embree_rays: int = embree_rate.DEFAULT_MAX_RAYS,
+    film: tuple[int, int] | None = None,
 ) -> dict:
     """The whole benchmark: per scene, the default contenders (:func:`default_contenders`, with the extra Mitsuba
     samplers on :func:`best_sampler_scenes`), each of ``renderers`` (any renderer name or file, at the same spp, its
     render time without start-up) and (``strategies``) the reference's strategy variations; the reference/Mitsuba
     ratios (and each other renderer's over the reference and Mitsuba); with ``embree``, Embree's own rate on the
     scene's rays (at most about ``embree_rays`` recorded: :mod:`harness.studies.embree_rate`), replayed once per
-    attempt; the targets (:func:`check_targets`) on the scenes benched."""
+    attempt; the targets (:func:`check_targets`) on the scenes benched. ``film``: (width, height) replacing every
+    scene's film (``--film``; its filter kept), recorded in the result."""
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
-                    "scenes": {}}
+                    **({"film": list(film)} if film else {}), "scenes": {}}
     for name in scenes:
         path = Path(name)
         if not path.suffix:
             path = ROOT / "scenes" / f"{name}.toml"
         scene = load_scene(path)
+        if film:
+            scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=film[0], height=film[1]))
         gt = ground_truth(scene, spp=gt_spp, cache_dir=cache_dir, use_closed_form=True)
         contenders = default_contenders(spp, extra_samplers=scene.name in best_sampler_scenes())
         contenders += [Contender(renderer_label(name), name) for name in renderers]

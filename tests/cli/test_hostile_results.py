@@ -289,7 +289,7 @@ def test_compare_prints_undefined_metrics(test, reference, verdict, undefined, t
     assert code == (0 if verdict == "pass" else 1) and err == "", (out, err)
     lines = out.splitlines()
     assert lines[0].startswith(f"verdict: {verdict}")
-    shown = {line.split()[0]: line.split(None, 1)[1] for line in lines[1:]}
+    shown = {line.split()[0]: line.split(None, 1)[1] for line in lines[1:] if line.startswith("  ")}  # the metrics
     assert sorted(k for k, v in shown.items() if v.startswith("undefined")) == sorted(undefined), out
     for key, value in shown.items():
         if key not in undefined:

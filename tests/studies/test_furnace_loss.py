@@ -40,7 +40,7 @@ def test_reference_and_mitsuba_lose_the_same_energy():
     (["--alphas", "2"], "--alphas: expected roughnesses in (0, 1]"),
     (["--distributions", "phong"], "--distributions: expected ggx or beckmann, got 'phong'"),
     (["--spp", "0"], "--spp: expected a positive integer"),
-    (["--sizee", "4"], "unrecognized arguments: --sizee"),
+    (["--sizee", "4"], "--sizee: unknown option of python -m harness.studies.furnace_loss; did you mean '--size'?"),
 ])
 def test_bad_input_is_one_line(capsys, argv, fragment):
     assert main(argv) == 2
