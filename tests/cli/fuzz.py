@@ -2370,6 +2370,15 @@ def _resident_mib() -> float:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
+def _peak_resident_mib() -> float:
+    """This process's peak resident size in MiB (VmHWM), 0 where the kernel does not say."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    return 0.0
+
+
 def _address_space() -> int:
     """This process's address-space size in bytes (what RLIMIT_AS limits)."""
     with open("/proc/self/statm") as f:
@@ -2448,11 +2457,13 @@ def _child(inp: Input, folder: Path, capture: Path, limits: Limits, canary: Cana
         # in every worker, from the input's folder, as `python -m harness` never does
         sys.modules["__main__"] = types.ModuleType("__main__")
         faulthandler.dump_traceback_later(max(1.0, limits.timeout - 2), file=sys.stderr)  # where a hang hangs
+        resident = _resident_mib()  # what this child shares with its parent at the start: not the call's
         try:
             result = call([resolve(arg, folder) for arg in inp.call])
         except BaseException:  # noqa: BLE001 - whatever escapes is the finding
             result = {"exception": traceback.format_exc()}
             print(result["exception"], file=sys.stderr, end="")  # as the interpreter would
+        result["added_mib"] = _peak_resident_mib() - resident
         sys.stdout.flush()
         sys.stderr.flush()
         gc.collect()  # what the call left (a renderer's output held in memory) may fill the address space
@@ -2641,6 +2652,9 @@ class Runner:
         signalled = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
         before, watch = before
         outcome, detail = classify(inp, result, stdout, stderr, timed_out=timed_out, signalled=signalled)
+        if isinstance(result, dict) and isinstance(result.get("added_mib"), (int, float)):
+            added_mib = max(added_mib, result["added_mib"])  # the child's own peak over its start: its parent's
+            # history (a test process whose peak came from an earlier test) does not hide it
         if inp.max_mib and added_mib > inp.max_mib and outcome in ("pass", "error", "silent"):
             outcome, detail = "messy", f"used {added_mib:.0f} MiB, over its {inp.max_mib} MiB ({outcome}, {detail})"
         findings = watch.findings(stdout, stderr)

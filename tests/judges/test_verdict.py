@@ -379,7 +379,7 @@ def test_compare_files_pass_and_fail(tmp_path: Path) -> None:
     json.dumps(result, allow_nan=False)
     assert set(result) == {
         "width", "height", "pixels", "nonfinite_pixels", "metric_pixels", "metric_note",
-        "metrics", "bias", "conventions", "verdict",
+        "metrics", "bias", "conventions", "verdict", "images",
     }
     assert set(result["metrics"]) == {"rmse", "relmse", "mape", "psnr", "ssim", "flip"}
     assert result["verdict"]["verdict"] == "pass", result["verdict"]["reason"]
