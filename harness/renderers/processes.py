@@ -64,7 +64,11 @@ REPORT_BYTES = 256
 
 #: the supervisor's program (run as ``python -I -S -c SUPERVISOR CONTROL_FD COMMAND...``; see the module docstring)
 SUPERVISOR = r"""
-import os, select, signal, sys
+import os, select, sys
+try:
+    import _signal as signal  # the signal module without its enums: a third of this program's start-up
+except ImportError:
+    import signal
 try:
     import ctypes
 except ImportError:
@@ -141,6 +145,11 @@ def clean(command, wake):  # kill the command's group, then every child (orphans
     me, mine = os.getpid(), os.getpgid(0)
     kill(command, group=True)
     while True:
+        try:  # a descendant alive or dying has an ancestor that is a child of this process: none left, none alive
+            while os.waitpid(-1, os.WNOHANG)[0]:
+                pass
+        except ChildProcessError:
+            return
         for pid in children(me):
             kill(pid)
             try:
@@ -149,11 +158,6 @@ def clean(command, wake):  # kill the command's group, then every child (orphans
                 continue
             if group != mine:
                 kill(group, group=True)
-        try:
-            while os.waitpid(-1, os.WNOHANG)[0]:
-                pass
-        except ChildProcessError:
-            return
         if select.select([wake], [], [], 0.01)[0]:
             os.read(wake, 4096)
 
