@@ -10,12 +10,14 @@ interrupted, every process it started is killed (SIGKILL), however far it went:
   PR_SET_CHILD_SUBREAPER)``): every descendant of the command that is orphaned, including one that started a session
   of its own (``setsid``, a daemon's double fork), is re-parented to the supervisor rather than to init. The
   supervisor starts the command in a session of its own (``posix_spawnp``, which reports an exec failure as the
-  OS's error), waits for it, then kills its session's group, and then, round after round until it has no child
-  left, kills and reaps each of its children and that child's group: a killed process's orphans become its
-  children for the next round. Only then does it exit, so the run is over only when nothing of it is left. Processes
-  start in no order the rounds could miss: a process is either a child of the supervisor or has a living ancestor
-  that is, and killing that one hands its children to the supervisor. What escapes it is only what the command has
-  another program start for it (a service manager, ``at``): that takes a cgroup or a container to catch.
+  OS's error; with the environment the supervisor was given, not the one Python changed for itself, PEP 538), waits
+  for it, then kills its session's group, and then, round after round until it has no child left, kills and reaps
+  each of its children (``/proc``) and that child's group: a killed process's orphans become its children for the
+  next round. Only then does it exit, so the run is over only when nothing of it is left. No order in which
+  processes fork or die lets one slip between rounds: every living descendant is a child of the supervisor or has
+  an ancestor that is, so the supervisor has a child while anything of the run lives, and killing that child hands
+  its children over. What escapes is only what the command has another program start for it (a service manager,
+  ``at``, a daemon it talks to): that takes a cgroup or a container to catch.
 - **The protocol.** The supervisor reads a *control pipe* whose writing end only the harness holds (close-on-exec,
   and closed in a child the harness forks): its end, because the harness closed it (the run timed out or was
   interrupted) or because the harness died however it died, makes the supervisor kill everything and exit; so does
