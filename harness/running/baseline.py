@@ -263,6 +263,12 @@ def _finite(value) -> bool:
         return False
 
 
+#: the largest relative standard error a baseline's mean of per-pixel errors can have, with room for rounding: for
+#: n >= 2 non-negative values the sample standard deviation is at most sqrt(n) times their mean (equality: one
+#: value non-zero), so std / sqrt(n) / mean <= 1; a larger one is a damaged file (and overflowed the noise bound)
+MAX_REL_SE = 1.0 + 1e-6
+
+
 def _entry_problem(entry) -> str | None:
     """What is wrong with one case entry of a baseline file, as ``.KEY: expected ...`` (None: nothing): every
     value :func:`compare` reads must be there with its type, so a damaged file is refused before the run."""
@@ -282,6 +288,10 @@ def _entry_problem(entry) -> str | None:
         if not isinstance(item, dict) or not all(item.get(k) is None or _finite(item.get(k)) for k in ("value",
                                                                                                         "rel_se")):
             return f".statistics.{key}: expected {{value, rel_se}} finite numbers"
+        rel_se = item.get("rel_se")
+        if rel_se is not None and not 0 <= rel_se <= MAX_REL_SE:
+            return (f".statistics.{key}.rel_se: expected a relative standard error from 0 to {MAX_REL_SE:g}, got "
+                    f"{rel_se!r:.40}")
     for key in ("mean", "mean_stderr", "reference_mean"):
         value = statistics.get(key)
         if value is not None and not (isinstance(value, list) and len(value) == len(CHANNELS)

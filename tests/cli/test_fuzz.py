@@ -379,6 +379,12 @@ def baseline_file(tmp_path: Path, entry) -> Path:
     (lambda e: {**e, "metrics": {"relmse": {}}}, "cases.c.metrics.relmse: expected a finite number, got {}"),
     (lambda e: {**e, "statistics": {"mse": {"value": math.nan}}}, "cases.c.statistics.mse: expected"),
     (lambda e: {**e, "statistics": {"mean": [1, 2]}}, "cases.c.statistics.mean: expected 3 finite numbers"),
+    # a relative standard error no mean of non-negative errors has: exp() of its noise bound overflowed in the
+    # run --baseline gate (OverflowError: math range error; the long fuzz run, seed 0, baseline-00238)
+    (lambda e: {**e, "statistics": {"mse": {"value": 0.01, "rel_se": 22201}}},
+     "cases.c.statistics.mse.rel_se: expected a relative standard error from 0 to 1"),
+    (lambda e: {**e, "statistics": {"mse": {"value": 0.01, "rel_se": -0.5}}},
+     "cases.c.statistics.mse.rel_se: expected a relative standard error"),
     (lambda e: {k: v for k, v in e.items() if k != "render"}, "cases.c.render: expected a table"),
     (lambda e: {**e, "render": {"seconds": None}}, "cases.c.render.seconds: expected a finite number"),
     (lambda e: {**e, "render": {"seconds": 10**400}}, "cases.c.render.seconds: expected a finite number"),
