@@ -406,7 +406,8 @@ def _region_views(entry: dict) -> list[dict]:
         cells = []
         for name in regions.get("names", []):
             interval = (regions.get("intervals") or {}).get(name, {}).get(row["label"])
-            text = interval_text(interval) if interval else fmt(regions["relative_efficiency"][name].get(row["label"]))
+            value = regions["relative_efficiency"][name].get(row["label"])
+            text = interval_text(interval) if interval else fmt(value)
             cells.append({"text": text, "best": regions["best"].get(name) == row["label"]})
         out.append({"label": row["label"], "cells": cells})
     return out
@@ -738,7 +739,8 @@ def _summary_md(results, items, sections) -> str:
                          f"{_mdf(r['seconds'], 3)} |")
     st = sections.get("strategies")
     if st:
-        lines += ["", "## Best strategy per scene (efficiency at equal time relative to the default, 95 % intervals)", ""]
+        lines += ["", "## Best strategy per scene (efficiency at equal time relative to the default, 95 % intervals)",
+                  ""]
         for e in st["scenes"]:
             if e.get("error"):
                 lines.append(f"- {_md(e['scene'])}: failed ({_md(e['error'])})")

@@ -247,7 +247,8 @@ def shadow_rays_figure(study: dict) -> bytes:
 
 def strategies_figure(rows: list[dict], title: str = "", best: str | None = None) -> bytes:
     """Efficiency relative to the default, one horizontal bar per strategy (log scale) with its confidence interval
-    where the row has one (``relative_efficiency_interval``), the ``best`` one (told apart from the others) highlighted."""
+    where the row has one (``relative_efficiency_interval``), the ``best`` one (told apart from the others)
+    highlighted."""
     usable = [r for r in rows if r.get("relative_efficiency") and r["relative_efficiency"] > 0]
     height = 0.42 * max(len(usable), 1) + 1.3
     fig = _figure(8.5, height)

@@ -12,7 +12,8 @@ import numpy as np
 
 from harness.files.imageio import tonemap_srgb8
 from harness.files.previews import ImageWriter, ReportImage, display_exposure
-from harness.judges.efficiency import LEVEL, best_separated, efficiency_interval, efficiency_ratio, ratio_interval, shown_mse
+from harness.judges.efficiency import (LEVEL, best_separated, efficiency_interval, efficiency_ratio, ratio_interval,
+                                       shown_mse)
 from harness.judges.floor import error_point
 from harness.renderers import RenderRequest, get_renderer
 from harness.studies import figures
