@@ -343,12 +343,13 @@ def mse_text(value: float | None, bound: float | None) -> str:
 def _strategy_row_view(row: dict, best: Any) -> dict:
     if "skipped" in row:
         return {"label": row["label"], "skipped": row["skipped"]}
-    view = dict({k: row.get(k) for k in ("mse_estimate", "seconds_per_megapixel", "efficiency", "mse_slope")},
+    view = dict({k: row.get(k) for k in ("mse_estimate", "seconds_per_megapixel", "efficiency")},
                 label=row["label"], skipped=None, best=row["label"] == best, seconds=row["seconds"],
                 mse_measured=mse_text(row.get("mse_corrected"), row.get("mse_bound")))
     if row.get("case"):  # a table from the suite's cases alone: one render each, unranked
         view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp", source=f"case {row['case']}",
                     relative_mse="–", relative_time="–", relative_mse_equal_time="–", equal_time_spp="–",
+                    mse_slope="–",
                     efficiency_text=fmt(row.get("efficiency")), relative_efficiency="–")
         return view
     view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp",
@@ -356,6 +357,7 @@ def _strategy_row_view(row: dict, best: Any) -> dict:
                 relative_mse=interval_text(row.get("relative_mse_interval")),
                 relative_time=interval_text(row.get("relative_time_interval")),
                 equal_time_spp=row.get("equal_time_spp"),
+                mse_slope=interval_text(row.get("mse_slope")) if row.get("mse_slope") else "–",
                 relative_mse_equal_time=interval_text(row.get("relative_mse_equal_time")),
                 efficiency_text=interval_text(row.get("efficiency_interval"), 4),
                 relative_efficiency=interval_text(row.get("relative_efficiency_interval")))

@@ -305,7 +305,7 @@ def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> d
                    mse_bound=measured["bound"], seconds=float(np.mean(s["seconds"])),
                    seconds_per_megapixel=float(np.mean(s["seconds_per_megapixel"])),
                    equal_time_spp=t["spp"], equal_time_seconds=float(np.mean(t["seconds"])),
-                   equal_time_mse=float(np.mean(t["mse"])), mse_slope=_slope(s, t))
+                   equal_time_mse=float(np.mean(t["mse"])), mse_slope=_slope(s, t, level))
         row["efficiency_interval"] = efficiency_interval(t["mse"], t["seconds_per_megapixel"], level)
         row["efficiency"] = row["efficiency_interval"]["value"]
         if row is default:
@@ -341,13 +341,18 @@ def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> d
     return table
 
 
-def _slope(at_spp: dict, at_time: dict) -> float | None:
+def _slope(at_spp: dict, at_time: dict, level: float) -> dict | None:
     """The log-log slope of the mean MSE between a row's two budgets (-1 for an estimator whose MSE falls as
-    1 / spp), where their spp differ."""
-    a, b = float(np.mean(at_spp["mse"])), float(np.mean(at_time["mse"]))
-    if at_spp["spp"] == at_time["spp"] or a <= 0 or b <= 0:
+    1 / spp), where their spp differ, with its interval: that of the MSE ratio (:func:`ratio_interval`) over the log
+    of the spp ratio. Between close budgets it is wide: the MSE ratio's noise over a small log."""
+    if at_spp["spp"] == at_time["spp"]:
         return None
-    return math.log(b / a) / math.log(at_time["spp"] / at_spp["spp"])
+    ratio = ratio_interval((at_time["mse"],), (at_spp["mse"],), level)
+    if ratio["value"] is None:
+        return None
+    span = math.log(at_time["spp"] / at_spp["spp"])
+    ends = sorted(math.log(v) / span for v in (ratio["low"], ratio["high"])) if ratio["low"] is not None else [None] * 2
+    return dict(ratio, value=math.log(ratio["value"]) / span, low=ends[0], high=ends[1])
 
 
 def _region_efficiencies(rows: list[dict], default: dict | None, level: float) -> dict | None:

@@ -61,6 +61,9 @@ def test_equal_spp_rows_are_at_one_spp_and_equal_time_rows_at_the_defaults_time(
     for row in rows.values():
         assert row["equal_time_seconds"] == pytest.approx(base, rel=0.25)
     assert table["equal_spp"] == 16 and table["comparison"] == "repeats"
+    # the rate between a row's two budgets, with its interval: the planted MSE falls as 1 / spp
+    slope = rows["hemisphere=uniform"]["mse_slope"]
+    assert slope["low"] <= -1.0 <= slope["high"] and rows["default"]["mse_slope"] is None
 
 
 def test_every_ratio_to_the_default_carries_an_interval_that_holds_the_planted_one():
