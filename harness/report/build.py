@@ -27,6 +27,7 @@ from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, read_study_file, studies_folder
 from harness.files.viewer_data import ViewerData
+from harness.judges.efficiency import shown_mse
 from harness.report import viewer
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
 from harness.report import repeats
@@ -320,8 +321,11 @@ def _shadow_rays(study: dict, studies_dir: Path, out: Path) -> tuple[dict, Any]:
 
 def interval_text(interval: dict | None, digits: int = 3) -> str:
     """A ratio or efficiency with its confidence interval, "1.33 [0.99, 1.80]"; the default's own ratio "1
-    (reference)"; the value alone where there is no interval (fewer than 2 seeds); '–' for none."""
-    if not interval or interval.get("value") is None:
+    (reference)"; the value alone where there is no interval (fewer than 2 seeds, or a bare number from an older
+    harness); '–' for none."""
+    if isinstance(interval, (int, float)) and not isinstance(interval, bool):
+        return fmt(float(interval), digits)
+    if not isinstance(interval, dict) or interval.get("value") is None:
         return "–"
     if interval.get("reference"):
         return "1 (reference)"
@@ -331,10 +335,15 @@ def interval_text(interval: dict | None, digits: int = 3) -> str:
     return text
 
 
-def mse_text(value: float | None, bound: float | None) -> str:
-    """A measured MSE with the ground truth's noise removed: the number, or "< bound" (its value) where it lies
-    below the ground truth's own variance contribution (:func:`harness.judges.efficiency.shown_mse`): never a
-    negative MSE."""
+def mse_text(row: dict) -> str:
+    """A row's measured MSE with the ground truth's noise removed: the number, or "< bound" (its value) where it
+    lies below the ground truth's own variance contribution (:func:`harness.judges.efficiency.shown_mse`; a row of an
+    older harness, which kept a negative number, is judged here): never a negative MSE."""
+    if "mse_bound" in row:
+        value, bound = row.get("mse_corrected"), row.get("mse_bound")
+    else:
+        shown = shown_mse(row.get("mse_corrected"), row.get("floor_mse"))
+        value, bound = shown["value"], shown["bound"]
     if bound is not None:
         return f"< {fmt(bound, 2)} (bound)" if bound > 0 else "< bound (0)"
     return fmt(value)
@@ -345,9 +354,10 @@ def _strategy_row_view(row: dict, best: Any) -> dict:
         return {"label": row["label"], "skipped": row["skipped"]}
     view = dict({k: row.get(k) for k in ("mse_estimate", "seconds_per_megapixel", "efficiency")},
                 label=row["label"], skipped=None, best=row["label"] == best, seconds=row["seconds"],
-                mse_measured=mse_text(row.get("mse_corrected"), row.get("mse_bound")))
-    if row.get("case"):  # a table from the suite's cases alone: one render each, unranked
-        view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp", source=f"case {row['case']}",
+                mse_measured=mse_text(row))
+    if "equal_spp" not in row:  # one render per strategy (the suite's cases alone, or an older harness): unranked
+        source = f"case {row['case']}" if row.get("case") else f"rendered ({row.get('spp')} spp)"
+        view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp", source=source,
                     relative_mse="–", relative_time="–", relative_mse_equal_time="–", equal_time_spp="–",
                     mse_slope="–",
                     efficiency_text=fmt(row.get("efficiency")), relative_efficiency="–")
@@ -357,6 +367,7 @@ def _strategy_row_view(row: dict, best: Any) -> dict:
                 relative_mse=interval_text(row.get("relative_mse_interval")),
                 relative_time=interval_text(row.get("relative_time_interval")),
                 equal_time_spp=row.get("equal_time_spp"),
+                seconds_per_megapixel=row.get("equal_time_seconds_per_megapixel", row.get("seconds_per_megapixel")),
                 mse_slope=interval_text(row.get("mse_slope")) if row.get("mse_slope") else "–",
                 relative_mse_equal_time=interval_text(row.get("relative_mse_equal_time")),
                 efficiency_text=interval_text(row.get("efficiency_interval"), 4),
@@ -368,6 +379,9 @@ def _best_line(entry: dict) -> str:
     """What the table says about the best strategy: named with its interval where told apart, else why not."""
     if entry.get("comparison") == "cases":
         return "Not ranked: " + str(entry.get("unranked"))
+    if entry.get("comparison") is None:
+        return ("Not ranked: a table of an older harness (one render per strategy, at different spp, no intervals); "
+                "run the studies again (harness report --studies)")
     if entry.get("best"):
         return (f"Best: {entry['best']} (efficiency at equal time {interval_text(entry.get('best_interval'))} x the "
                 f"default; told apart from every other strategy at {fmt(100 * entry['level'], 3)} % jointly)")
@@ -410,7 +424,8 @@ def _region_views(entry: dict) -> list[dict]:
             interval = (regions.get("intervals") or {}).get(name, {}).get(row["label"])
             value = regions["relative_efficiency"][name].get(row["label"])
             text = interval_text(interval) if interval else fmt(value)
-            cells.append({"text": text, "best": regions["best"].get(name) == row["label"]})
+            ranked = entry.get("comparison") == "repeats"  # an older harness's region best had no interval
+            cells.append({"text": text, "best": ranked and regions["best"].get(name) == row["label"]})
         out.append({"label": row["label"], "cells": cells})
     return out
 

@@ -305,6 +305,7 @@ def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> d
                    mse_bound=measured["bound"], seconds=float(np.mean(s["seconds"])),
                    seconds_per_megapixel=float(np.mean(s["seconds_per_megapixel"])),
                    equal_time_spp=t["spp"], equal_time_seconds=float(np.mean(t["seconds"])),
+                   equal_time_seconds_per_megapixel=float(np.mean(t["seconds_per_megapixel"])),
                    equal_time_mse=float(np.mean(t["mse"])), mse_slope=_slope(s, t, level))
         row["efficiency_interval"] = efficiency_interval(t["mse"], t["seconds_per_megapixel"], level)
         row["efficiency"] = row["efficiency_interval"]["value"]
