@@ -490,6 +490,8 @@ def _other_strategy_rows(items: list[StudyCase], key: str, base: StudyCase, tabl
             row["note"] += f"; its film ({w}x{h}) is not the table's, so its efficiency is not compared"
         elif default is not None and row["efficiency"]:
             row["relative_efficiency"] = row["efficiency"] / default["efficiency"]
+            row["note"] += ("; its efficiency is one render's at its case's spp, beside the default's at equal time: "
+                            "no interval, not ranked")
         rows.append(row)
     return rows
 
