@@ -27,6 +27,7 @@ from harness.files.report_images import make_report_images, read_report_images
 from harness.files.results import read_results
 from harness.files.studies import read_studies, read_study_file, studies_folder
 from harness.files.viewer_data import ViewerData
+from harness.judges.efficiency import shown_mse
 from harness.report import viewer
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
 from harness.report import repeats
@@ -318,20 +319,77 @@ def _shadow_rays(study: dict, studies_dir: Path, out: Path) -> tuple[dict, Any]:
     return dict(study, plots=plots, images=images), render("shadow_rays.html.j2", study=view)
 
 
+def interval_text(interval: dict | None, digits: int = 3) -> str:
+    """A ratio or efficiency with its confidence interval, "1.33 [0.99, 1.80]"; the default's own ratio "1
+    (reference)"; the value alone where there is no interval (fewer than 2 seeds, or a bare number from an older
+    harness); '–' for none."""
+    if isinstance(interval, (int, float)) and not isinstance(interval, bool):
+        return fmt(float(interval), digits)
+    if not isinstance(interval, dict) or interval.get("value") is None:
+        return "–"
+    if interval.get("reference"):
+        return "1 (reference)"
+    text = fmt(interval["value"], digits)
+    if interval.get("low") is not None and interval.get("high") is not None:
+        text += f" [{fmt(interval['low'], digits)}, {fmt(interval['high'], digits)}]"
+    return text
+
+
+def mse_text(row: dict) -> str:
+    """A row's measured MSE with the ground truth's noise removed: the number, or "< bound" (its value) where it
+    lies below the ground truth's own variance contribution (:func:`harness.judges.efficiency.shown_mse`; a row of an
+    older harness, which kept a negative number, is judged here): never a negative MSE."""
+    if "mse_bound" in row:
+        value, bound = row.get("mse_corrected"), row.get("mse_bound")
+    else:
+        shown = shown_mse(row.get("mse_corrected"), row.get("floor_mse"))
+        value, bound = shown["value"], shown["bound"]
+    if bound is not None:
+        return f"< {fmt(bound, 2)} (bound)" if bound > 0 else "< bound (0)"
+    return fmt(value)
+
+
 def _strategy_row_view(row: dict, best: Any) -> dict:
     if "skipped" in row:
         return {"label": row["label"], "skipped": row["skipped"]}
-    if row.get("case"):
-        source = f"case {row['case']}"
-        if row.get("case_seconds") is not None:
-            source += f"; time measured again (the case's own: {fmt(row['case_seconds'], 3)} s)"
-    else:
-        source = f"rendered ({row['spp']} spp)"
-    keys = ("mse_estimate", "mse_corrected", "relative_mse", "seconds_per_megapixel", "efficiency",
-            "relative_efficiency")
-    return dict({k: row.get(k) for k in keys}, label=row["label"], skipped=None, best=row["label"] == best,
-                seconds=row["seconds"], film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp",
-                source=source)
+    view = dict({k: row.get(k) for k in ("mse_estimate", "seconds_per_megapixel", "efficiency")},
+                label=row["label"], skipped=None, best=row["label"] == best, seconds=row["seconds"],
+                mse_measured=mse_text(row))
+    if "equal_spp" not in row:  # one render per strategy (the suite's cases alone, or an older harness): unranked
+        source = f"case {row['case']}" if row.get("case") else f"rendered ({row.get('spp')} spp)"
+        view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp", source=source,
+                    relative_mse="–", relative_time="–", relative_mse_equal_time="–", equal_time_spp="–",
+                    mse_slope="–",
+                    efficiency_text=fmt(row.get("efficiency")), relative_efficiency="–")
+        return view
+    view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp",
+                source=f"rendered, {row['equal_spp']['seeds']} seeds per budget",
+                relative_mse=interval_text(row.get("relative_mse_interval")),
+                relative_time=interval_text(row.get("relative_time_interval")),
+                equal_time_spp=row.get("equal_time_spp"),
+                seconds_per_megapixel=row.get("equal_time_seconds_per_megapixel", row.get("seconds_per_megapixel")),
+                mse_slope=interval_text(row.get("mse_slope")) if row.get("mse_slope") else "–",
+                relative_mse_equal_time=interval_text(row.get("relative_mse_equal_time")),
+                efficiency_text=interval_text(row.get("efficiency_interval"), 4),
+                relative_efficiency=interval_text(row.get("relative_efficiency_interval")))
+    return view
+
+
+def _best_line(entry: dict) -> str:
+    """What the table says about the best strategy: named with its interval where told apart, else why not."""
+    if entry.get("comparison") == "cases":
+        return "Not ranked: " + str(entry.get("unranked"))
+    if entry.get("comparison") is None:
+        return ("Not ranked: a table of an older harness (one render per strategy, at different spp, no intervals); "
+                "run the studies again (harness report --studies)")
+    if entry.get("best"):
+        return (f"Best: {entry['best']} (efficiency at equal time {interval_text(entry.get('best_interval'))} x the "
+                f"default; told apart from every other strategy at {fmt(100 * entry['level'], 3)} % jointly)")
+    if entry.get("leader"):
+        tied = [n for n in entry.get("near_best") or [] if n != entry["leader"]]
+        return (f"Best: not told apart at this budget (highest efficiency: {entry['leader']}; its interval over "
+                f"{', '.join(tied)} reaches 1)")
+    return "Best: none measured"
 
 
 def _strategies(section: dict, studies_dir: Path, out: Path) -> tuple[dict, Any]:
@@ -342,7 +400,8 @@ def _strategies(section: dict, studies_dir: Path, out: Path) -> tuple[dict, Any]
         if not entry.get("error"):
             dest, _, png = _copy_study_file(studies_dir, entry.get("plot"), out)
             view["plot_uri"] = data_uri(png) if png else None
-            view["near"] = ", ".join(str(n) for n in entry.get("near_best") or [] if n != entry["best"])
+            view["best_line"] = _best_line(entry)
+            view["region_rows"] = _region_views(entry)
             view["rows"] = [_strategy_row_view(r, entry.get("best")) for r in entry["rows"]]
             entry["plot"] = str(dest) if dest else None
         scenes.append(entry)
@@ -350,6 +409,25 @@ def _strategies(section: dict, studies_dir: Path, out: Path) -> tuple[dict, Any]
     defaults = " ".join(f"{k}={v}" for k, v in section["defaults"].items())
     html = render("strategies.html.j2", section=section, defaults=defaults, scenes=views)
     return dict(section, scenes=scenes), html
+
+
+def _region_views(entry: dict) -> list[dict]:
+    """The region table's rows: per row label, each region's efficiency / default with its interval, and whether
+    it is that region's best (told apart: :func:`harness.judges.efficiency.best_separated`)."""
+    regions = entry.get("regions") or {}
+    out = []
+    for row in entry.get("rows") or []:
+        if "skipped" in row:
+            continue
+        cells = []
+        for name in regions.get("names", []):
+            interval = (regions.get("intervals") or {}).get(name, {}).get(row["label"])
+            value = regions["relative_efficiency"][name].get(row["label"])
+            text = interval_text(interval) if interval else fmt(value)
+            ranked = entry.get("comparison") == "repeats"  # an older harness's region best had no interval
+            cells.append({"text": text, "best": ranked and regions["best"].get(name) == row["label"]})
+        out.append({"label": row["label"], "cells": cells})
+    return out
 
 
 FORMATTERS = {"convergence": _convergence, "shadow_rays": _shadow_rays, "strategies": _strategies}
@@ -428,8 +506,9 @@ DEFINITIONS = {
                        "sqrt(sum e^4 / (sum e^2)^2 - 1/N) / 2, at least 2 %",
     "penumbra": "ground-truth luminance strictly between 5 % and 95 % of the fully lit level: per pixel the scene "
                 "rendered without its occluder, leaving out pixels that see the occluder",
-    "efficiency": "1 / (MSE x render seconds per megapixel), relative to the default settings; MSE is the render's "
-                  "own variance estimate (mean per-pixel variance of the mean), else the measured MSE_corrected",
+    "efficiency": "1 / (MSE x render seconds per megapixel) at equal time, relative to the default settings, with "
+                  "its 95 % interval over independent seeds (delta method); MSE is the render's own variance "
+                  "estimate (mean per-pixel variance of the mean), else the measured MSE_corrected",
     "equal_time": "the error each curve reaches at the longest time all curves cover (log-log interpolation; "
                   "outside a curve's range, along its log-log least-squares line, flagged as extrapolated, up to 2x "
                   "beyond its measured times; further: out of range)",
@@ -677,20 +756,19 @@ def _summary_md(results, items, sections) -> str:
                          f"{_mdf(r['seconds'], 3)} |")
     st = sections.get("strategies")
     if st:
-        lines += ["", "## Best strategy per scene (efficiency relative to the default)", ""]
+        lines += ["", "## Best strategy per scene (efficiency at equal time relative to the default, 95 % intervals)",
+                  ""]
         for e in st["scenes"]:
             if e.get("error"):
                 lines.append(f"- {_md(e['scene'])}: failed ({_md(e['error'])})")
             else:
-                near = [n for n in e.get("near_best") or [] if n != e.get("best")]
-                lines.append(f"- {_md(e['scene'])}: {_md(e.get('best'))} "
-                             f"({_mdf(e.get('best_relative_efficiency'), 3)} x the default)"
-                             + (f"; within {_mdf(e.get('tie_factor'))} x: {_md(', '.join(near))}" if near else ""))
+                lines.append(f"- {_md(e['scene'])}: {_md(_best_line(e))}")
                 regions = e.get("regions") or {}
                 for name in regions.get("names", []):
-                    row = regions["relative_efficiency"][name]
-                    lines.append(f"  - {_md(name)}: best {_md(regions['best'][name])}; "
-                                 + ", ".join(f"{_md(k)} {_mdf(v, 3)}" for k, v in row.items()))
+                    row = (regions.get("intervals") or {}).get(name) or {}
+                    best = regions["best"].get(name) or "not told apart at this budget"
+                    lines.append(f"  - {_md(name)}: best {_md(best)}; "
+                                 + ", ".join(f"{_md(k)} {_md(interval_text(v))}" for k, v in row.items()))
     return "\n".join(lines) + "\n"
 
 

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.judges.efficiency import best_separated, efficiency_ratio, shown_mse
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import ground_truth
 from harness.renderers.external import ExternalRendererError
@@ -273,6 +274,30 @@ def bench_scene(
     return rows
 
 
+def strategy_verdict(rows: Sequence[Row]) -> dict:
+    """The reference's strategy rows (one setting changed from the defaults, the same spp), each one's efficiency
+    over the defaults' ("reference") with its 95 % interval over the repeats (per-seed MSE and seconds:
+    :func:`harness.judges.efficiency.efficiency_ratio`; the contenders share each attempt's seed, which makes the
+    intervals conservative), and the best named only when told apart from every other row
+    (:func:`harness.judges.efficiency.best_separated`). A row whose MSE is not above the ground truth's noise in
+    some repeat has no efficiency.
+
+    Returns {"label": the best | None, "leader", "settings", "efficiency" (the leader's), "tied": [labels not told
+    apart from it], "relative_efficiency": {label: interval}}."""
+    ref_rows = [r for r in rows if r.renderer == "reference" and not r.error and r.mse_all
+                and all(m > 0 for m in r.mse_all) and all(t > 0 for t in r.seconds_all)]
+    samples = {r.label: (r.mse_all, r.seconds_all) for r in ref_rows}
+    decision = best_separated(samples)
+    base = samples.get("reference")
+    relative = {label: efficiency_ratio(*sample, *base) for label, sample in samples.items()
+                if base is not None and label != "reference"}
+    leader = next((r for r in ref_rows if r.label == decision["leader"]), None)
+    return {"label": decision["best"], "leader": decision["leader"],
+            "settings": leader.settings if leader is not None else None,
+            "efficiency": leader.efficiency if leader is not None else None, "tied": decision["tied"],
+            "relative_efficiency": relative}
+
+
 def best_mitsuba(rows: Sequence[Row]) -> Row | None:
     """The Mitsuba row of highest efficiency (any variant and sampler raced), or None."""
     raced = [r for r in rows if r.renderer == "mitsuba" and not r.error and math.isfinite(r.efficiency)]
@@ -422,8 +447,12 @@ def format_table(rows: Sequence[Row], replayed: dict | None = None) -> str:
             continue
         rays = f"{r.rays_per_second / 1e6:8.2f}" if r.rays_per_second else f"{'n/a':>8}"
         embree = f"{r.embree_share:6.0%}" if r.embree_share is not None else f"{'':>6}"
+        floor = r.mse_raw - r.mse if math.isfinite(r.mse_raw) and math.isfinite(r.mse) else 0.0
+        shown = shown_mse(r.mse, floor)
+        bound = "< " + format(shown["bound"] or 0.0, ".2g")
+        mse = f"{shown['value']:10.4g}" if shown["value"] is not None else f"{bound:>10}"
         lines.append(f"{r.scene:<13} {r.label:<34} {r.seconds:8.3f} {r.paths_per_second / 1e6:9.3f} {rays} "
-                     f"{r.cores_busy:5.2f} {r.mse:10.4g} {r.efficiency:11.4g} {embree}")
+                     f"{r.cores_busy:5.2f} {mse} {r.efficiency:11.4g} {embree}")
     if replayed is not None:
         scene = rows[0].scene if rows else ""
         if replayed.get("error"):
@@ -433,6 +462,30 @@ def format_table(rows: Sequence[Row], replayed: dict | None = None) -> str:
             lines.append(f"{scene:<13} {embree_rate.LABEL:<34} {seconds:8.3f} {'n/a':>9} "
                          f"{replayed['rays_per_second'] / 1e6:8.2f} {replayed['cores_busy']:5.2f}")
     return "\n".join(lines)
+
+
+def _interval_text(interval: dict) -> str:
+    """"1.33 [0.99, 1.80]", or the value alone without an interval (one repeat)."""
+    if interval.get("low") is None:
+        return f"{interval['value']:.3g}"
+    return f"{interval['value']:.3g} [{interval['low']:.3g}, {interval['high']:.3g}]"
+
+
+def format_best_strategy(best: dict) -> str:
+    """The line that names the best reference strategy with its efficiency over the defaults' and its interval,
+    or says that none is told apart at this budget; then every strategy's efficiency / the defaults'."""
+    relative = best.get("relative_efficiency") or {}
+    listing = "; ".join(f"{label.removeprefix('reference ')} {_interval_text(v)}" for label, v in relative.items()
+                        if v.get("value") is not None)
+    tail = f"\nefficiency / the defaults' (95 % intervals over the repeats, same spp): {listing}" if listing else ""
+    if best.get("label"):
+        ratio = relative.get(best["label"])
+        text = f" (efficiency / the defaults' {_interval_text(ratio)})" if ratio else ""
+        return f"best reference strategy: {best['label']}{text}, told apart from every other{tail}"
+    if best.get("leader"):
+        return (f"best reference strategy: not told apart at this budget (highest efficiency: {best['leader']}; "
+                f"not told apart from {', '.join(best.get('tied') or [])}){tail}")
+    return "best reference strategy: none measured"
 
 
 def format_embree(embree: dict) -> str:
@@ -502,8 +555,7 @@ def run_bench(
 
         rows = bench_scene(scene, contenders, spp=spp, repeats=repeats, gt=gt, on_render=on_render,
                            between=between if rate is not None else None)
-        ref_rows = [r for r in rows if r.renderer == "reference" and not r.error]
-        best = max(ref_rows, key=lambda r: r.efficiency if not math.isnan(r.efficiency) else -1.0)
+        best = strategy_verdict(rows)
         result["scenes"][scene.name] = {
             "scene_file": str(path),
             "ground_truth": {"source": gt.source, "spp": gt.spp, "variant": gt.info.get("variant")
@@ -511,8 +563,7 @@ def run_bench(
             "rows": [row_dict(r) for r in rows],
             "ratios": ratios(rows),
             "contenders": {renderer_label(name): contender_ratios(rows, renderer_label(name)) for name in renderers},
-            "best_strategy": {"label": best.label, "settings": best.settings, "efficiency": best.efficiency,
-                              "ratios": ratios(rows, best.label)},
+            "best_strategy": dict(best, ratios=ratios(rows, best["leader"]) if best["leader"] else {}),
             "mitsuba_best": mitsuba.label if (mitsuba := best_mitsuba(rows)) is not None else None,
         }
         if rate is not None or rate_error is not None:
@@ -544,9 +595,7 @@ def format_report(result: dict) -> str:
             text = ", ".join(f"{k} {v:.3g}" for k, v in values.items() if isinstance(v, float) and math.isfinite(v))
             timing = f" (render time: {row.time_from})" if row is not None and row.time_from else ""
             out.append(f"{label} / reference and Mitsuba: {text or 'not measured'}{timing}")
-        best = block["best_strategy"]
-        out.append(f"best reference strategy: {best['label']} (efficiency {best['efficiency']:.4g}; "
-                   + ", ".join(f"{k} {v:.2f}" for k, v in best["ratios"].items() if k.startswith("efficiency")) + ")")
+        out.append(format_best_strategy(block["best_strategy"]))
         out.append("")
     for target in result.get("targets", []):
         measured = "not measured" if target["measured"] is None else f"{target['measured']:.2f}"

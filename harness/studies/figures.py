@@ -245,8 +245,10 @@ def shadow_rays_figure(study: dict) -> bytes:
     return to_png(fig)
 
 
-def strategies_figure(rows: list[dict], title: str = "") -> bytes:
-    """Efficiency relative to the default, one horizontal bar per strategy (log scale), the best one highlighted."""
+def strategies_figure(rows: list[dict], title: str = "", best: str | None = None) -> bytes:
+    """Efficiency relative to the default, one horizontal bar per strategy (log scale) with its confidence interval
+    where the row has one (``relative_efficiency_interval``), the ``best`` one (told apart from the others)
+    highlighted."""
     usable = [r for r in rows if r.get("relative_efficiency") and r["relative_efficiency"] > 0]
     height = 0.42 * max(len(usable), 1) + 1.3
     fig = _figure(8.5, height)
@@ -256,18 +258,21 @@ def strategies_figure(rows: list[dict], title: str = "") -> bytes:
         ax.text(0.5, 0.5, "no strategy could be measured", ha="center", va="center")
         ax.set_axis_off()
         return to_png(fig)
-    best = max(usable, key=lambda r: r["relative_efficiency"])
     labels = [r["label"] for r in usable]
     values = [r["relative_efficiency"] for r in usable]
-    colours = ["#d62728" if r is best else ("#7f7f7f" if r.get("is_default") else "#1f77b4") for r in usable]
+    colours = ["#d62728" if r["label"] == best else ("#7f7f7f" if r.get("is_default") else "#1f77b4") for r in usable]
     y = np.arange(len(usable))
     ax.barh(y, values, color=colours)
+    bounds = [(r.get("relative_efficiency_interval") or {}) for r in usable]
+    ends = [(v - b["low"], b["high"] - v) if b.get("low") is not None and b.get("high") is not None else (0.0, 0.0)
+            for v, b in zip(values, bounds)]
+    ax.errorbar(values, y, xerr=np.array(ends).T, fmt="none", ecolor="black", elinewidth=0.8, capsize=2)
     ax.set_yticks(y, labels, fontsize=9)
     ax.invert_yaxis()
     ax.set_xscale("log")
     _plain_log_ticks(ax, "x")
     ax.axvline(1.0, color="black", linewidth=0.8)
-    ax.set_xlabel("efficiency 1 / (MSE x time) relative to the default (log scale)")
+    ax.set_xlabel("efficiency 1 / (MSE x time) at equal time relative to the default, 95 % interval (log scale)")
     for yi, v in zip(y, values):
         ax.annotate(f"{v:.3g}", (v, yi), textcoords="offset points", xytext=(3, -3), fontsize=8)
     if title:

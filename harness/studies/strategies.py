@@ -12,6 +12,8 @@ import numpy as np
 
 from harness.files.imageio import tonemap_srgb8
 from harness.files.previews import ImageWriter, ReportImage, display_exposure
+from harness.judges.efficiency import (LEVEL, best_separated, efficiency_interval, efficiency_ratio, ratio_interval,
+                                       shown_mse)
 from harness.judges.floor import error_point
 from harness.renderers import RenderRequest, get_renderer
 from harness.studies import figures
@@ -54,9 +56,13 @@ DEFAULT_STRATEGY_SPP = 16
 #: a strategy render shorter than this is redone at 4x the spp (up to MAX_STRATEGY_SPP): shorter times are noise
 MIN_STRATEGY_SECONDS = 0.05
 MAX_STRATEGY_SPP = 1024
-#: strategies whose efficiency is within this factor of the best are listed with it: timings on a shared machine
-#: and variance estimates scatter by about this much, so they are not told apart
-TIE_FACTOR = 1.25
+#: independent renders (seeds) of each strategy at each budget: their spread gives the intervals
+STRATEGY_REPEATS = 4
+#: a strategy whose time per path is within this factor of the default's is taken at the equal-spp renders for the
+#: equal-time comparison too (its efficiency, 1 / (MSE x time), corrects what is left)
+EQUAL_TIME_TOLERANCE = 1.25
+#: a strategy's equal-time spp stays within this factor of the equal-spp budget
+MAX_EQUAL_TIME_FACTOR = 16
 
 
 def strategy_defaults(glossy: bool = False) -> dict[str, str]:
@@ -203,153 +209,230 @@ def strategy_label(key: str, value: str) -> str:
     return f"{key}={value}"
 
 
-def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict[str, str]], dict] | None,
-                  bounded: bool, defaults: dict[str, str], retime: Callable[[dict], dict] | None = None,
-                  environment: bool = False, glossy: bool = False) -> dict:
-    """Assemble a scene's strategy table.
+def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict[str, str], int, int], dict] | None,
+                  bounded: bool, defaults: dict[str, str], environment: bool = False, glossy: bool = False, *,
+                  spp: int = DEFAULT_STRATEGY_SPP, repeats: int = STRATEGY_REPEATS,
+                  min_seconds: float = MIN_STRATEGY_SECONDS, spp_step: int = 1, level: float = LEVEL) -> dict:
+    """Assemble a scene's strategy table: every strategy at equal spp and at equal time, ``repeats`` seeds each.
 
-    ``case_rows``: measurements from the suite's cases of this scene, each {"case", "settings", "mse", "floor_mse",
-    "variance", "seconds", "pixels", "spp", "film"} (variance: :func:`mean_variance` of the render).
-    ``render(settings)`` measures a strategy no case covers (same keys, no "case"); None: leave it out.
-    ``bounded``: the scene's max_depth is finite (rr=off allowed). ``retime(row)``: the case row chosen for a
-    strategy with its time measured again under the report's conditions (see :func:`time_per_path`).
-    ``environment``: the scene has a constant or envmap emitter (the :data:`ENVIRONMENT_KEYS` rows apply).
-    ``glossy``: a material of the scene is not diffuse (the rows of :data:`GLOSSY_STRATEGIES`).
+    ``render(settings, spp, index)`` renders the strategy ``settings`` once at exactly ``spp`` (a new seed each call;
+    ``index`` counts the repeats) and measures it: {"mse", "floor_mse", "variance", "seconds", "pixels", "spp",
+    "film", "variance_regions"} (variance: :func:`mean_variance` of the render). The equal-spp budget is ``spp``,
+    quadrupled (up to MAX_STRATEGY_SPP) while the default's render takes under ``min_seconds``; each strategy's
+    equal-time budget is the spp at which its time per path gives the default's time (a multiple of ``spp_step``),
+    the equal-spp renders again where that is within :data:`EQUAL_TIME_TOLERANCE`. Every ratio to the default and
+    every efficiency carries a ``level`` interval over the seeds (:mod:`harness.judges.efficiency`); "best" names a
+    strategy only when its efficiency is told apart from every other's (:func:`best_separated`).
+
+    ``render`` None: the rows are the suite's cases ``case_rows`` (each {"case", "settings", "mse", "floor_mse",
+    "variance", "seconds", "pixels", "spp", "film"}), one render each at its own spp: shown, never ranked.
+    ``bounded``: the scene's max_depth is finite (rr=off allowed). ``environment``: the scene has a constant or
+    envmap emitter (the :data:`ENVIRONMENT_KEYS` rows apply). ``glossy``: a material of the scene is not diffuse
+    (the rows of :data:`GLOSSY_STRATEGIES`).
     """
-    by_strategy: dict[Any, dict] = {}
-    for row in case_rows:
-        kind = classify(row["settings"], defaults)
-        if kind is None:
-            continue
-        current = by_strategy.get(kind)
-        if current is None or len(row["settings"]) < len(current["settings"]):
-            by_strategy[kind] = row
     wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment, glossy)]
-    rows = []
+    if render is None:
+        return _case_table(scene_name, case_rows, wanted, bounded, defaults)
+    rows: list[dict] = []
+    budget = spp
+    try:
+        first = render({}, budget, 0)
+        while first["seconds"] < min_seconds and budget * 4 <= MAX_STRATEGY_SPP:
+            budget *= 4
+            first = render({}, budget, 0)
+        base = [first] + [render({}, budget, i) for i in range(1, repeats)]
+    except Exception as err:  # noqa: BLE001 - without the default nothing compares
+        return {"scene": scene_name, "rows": [], "error": f"the default failed: {type(err).__name__}: {err}"[:300]}
+    base_seconds = float(np.mean([m["seconds"] for m in base]))
     for kind in wanted:
         label = "default" if kind == "default" else strategy_label(*kind)
-        if kind != "default" and kind == ("rr", "off") and not bounded:
-            rows.append({"label": label, "strategy": list(kind), "skipped": "max_depth is unbounded: rr=off would "
+        strategy = None if kind == "default" else list(kind)
+        if kind == ("rr", "off") and not bounded:
+            rows.append({"label": label, "strategy": strategy, "skipped": "max_depth is unbounded: rr=off would "
                          "never end a path"})
             continue
-        row = by_strategy.get(kind)
-        if row is not None and retime is not None:
-            try:
-                row = retime(row)
-            except Exception as err:  # noqa: BLE001 - keep the case's own time
-                row = dict(row, timing=f"the case's own (re-timing failed: {type(err).__name__}: {err})"[:200])
-        if row is None:
-            if render is None:
-                rows.append({"label": label, "strategy": None if kind == "default" else list(kind),
-                             "skipped": "no case and rendering disabled"})
-                continue
-            settings = {} if kind == "default" else {kind[0]: kind[1]}
-            try:
-                row = render(settings)
-            except Exception as err:  # noqa: BLE001 - one strategy's failure is reported in its row
-                rows.append({"label": label, "strategy": None if kind == "default" else list(kind),
-                             "skipped": f"render failed: {type(err).__name__}: {err}".splitlines()[0]})
-                continue
-        row = dict(row, label=label, is_default=kind == "default",
-                   strategy=None if kind == "default" else list(kind))
-        rows.append(row)
+        settings = {} if kind == "default" else {kind[0]: kind[1]}
+        try:
+            at_spp = base if kind == "default" else [render(settings, budget, i) for i in range(repeats)]
+            seconds = float(np.mean([m["seconds"] for m in at_spp]))
+            target = budget * base_seconds / seconds if seconds > 0 else budget
+            equal = max(spp_step, min(int(round(target / spp_step)) * spp_step, budget * MAX_EQUAL_TIME_FACTOR))
+            if equal == budget or abs(math.log(target / budget)) <= math.log(EQUAL_TIME_TOLERANCE):
+                at_time = at_spp
+            else:
+                at_time = [render(settings, equal, i) for i in range(repeats)]
+        except Exception as err:  # noqa: BLE001 - one strategy's failure is reported in its row
+            rows.append({"label": label, "strategy": strategy,
+                         "skipped": f"render failed: {type(err).__name__}: {err}".splitlines()[0][:300]})
+            continue
+        rows.append({"label": label, "strategy": strategy, "is_default": kind == "default", "case": None,
+                     "source": "rendered", "settings": settings, "film": at_spp[0]["film"],
+                     "pixels": at_spp[0]["pixels"], "spp": budget,
+                     "equal_spp": _budget(at_spp), "equal_time": _budget(at_time)})
+    return _compare(scene_name, rows, level, repeats)
+
+
+def _budget(measurements: list[dict]) -> dict:
+    """The per-seed numbers of a strategy's renders at one budget: the MSE the efficiency uses (the render's own
+    variance estimate where it has one: the expected MSE of an unbiased estimator, free of the ground truth's
+    noise; else the measured MSE minus the ground truth's floor), the measured MSE, seconds, seconds per megapixel
+    and each region's mean variance."""
+    def estimate(m):
+        v = m.get("variance")
+        return v if v is not None and math.isfinite(v) and v > 0 else m["mse"] - (m.get("floor_mse") or 0.0)
+
+    return {"spp": int(measurements[0]["spp"]), "seeds": len(measurements),
+            "mse": [float(estimate(m)) for m in measurements],
+            "mse_source": "render variance" if all(m.get("variance") for m in measurements) else "measured",
+            "mse_measured": [float(m["mse"] - (m.get("floor_mse") or 0.0)) for m in measurements],
+            "floor_mse": float(np.mean([m.get("floor_mse") or 0.0 for m in measurements])),
+            "seconds": [float(m["seconds"]) for m in measurements],
+            "seconds_per_megapixel": [float(m["seconds"]) / m["pixels"] * 1e6 for m in measurements],
+            "variance_regions": [m.get("variance_regions") or {} for m in measurements]}
+
+
+def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> dict:
+    """Each row's numbers and intervals against the default's (see :func:`strategy_rows`), and the best."""
+    default = next((r for r in rows if r.get("is_default")), None)
+    d_spp, d_time = default["equal_spp"], default["equal_time"]
+    samples = {}
     for row in rows:
         if "skipped" in row:
             continue
-        row["mse_corrected"] = row["mse"] - row.get("floor_mse", 0.0)
-        # The estimator's MSE: its own variance estimate where the render has one (precise, and free of the ground
-        # truth's noise; every strategy is unbiased, as the suite's verdicts check), else the measured MSE.
-        variance = row.get("variance")
-        estimate = variance if variance is not None and math.isfinite(variance) and variance > 0 else row["mse_corrected"]
-        row["mse_estimate"] = estimate
-        row["mse_source"] = "render variance" if estimate is variance else "measured"
-        row["seconds_per_megapixel"] = row["seconds"] / row["pixels"] * 1e6
-        row["efficiency"] = (1.0 / (estimate * row["seconds_per_megapixel"])
-                             if estimate > 0 and row["seconds"] > 0 else None)
-    default = next((r for r in rows if r.get("is_default") and r.get("efficiency")), None)
-    for row in rows:
-        if "skipped" in row:
-            continue
-        row["relative_efficiency"] = (row["efficiency"] / default["efficiency"]
-                                      if default is not None and row.get("efficiency") else None)
-        row["relative_mse"] = (row["mse_estimate"] / default["mse_estimate"]
-                               if default is not None and default["mse_estimate"] > 0 else None)
-        row["relative_time"] = (row["seconds_per_megapixel"] / default["seconds_per_megapixel"]
-                                if default is not None else None)
-    measured = [r for r in rows if r.get("relative_efficiency")]
-    best = max(measured, key=lambda r: r["relative_efficiency"]) if measured else None
-    near = [r["label"] for r in measured if best and r["relative_efficiency"] * TIE_FACTOR >= best["relative_efficiency"]]
-    table = {"scene": scene_name, "rows": rows, "best": best["label"] if best else None,
-             "best_relative_efficiency": best["relative_efficiency"] if best else None,
-             "near_best": near, "tie_factor": TIE_FACTOR}
-    regions = _region_efficiencies(rows, default)
+        s, t = row["equal_spp"], row["equal_time"]
+        measured = shown_mse(float(np.mean(s["mse_measured"])), s["floor_mse"])
+        row.update(mse_estimate=float(np.mean(s["mse"])), mse_source=s["mse_source"], mse_corrected=measured["value"],
+                   mse_bound=measured["bound"], seconds=float(np.mean(s["seconds"])),
+                   seconds_per_megapixel=float(np.mean(s["seconds_per_megapixel"])),
+                   equal_time_spp=t["spp"], equal_time_seconds=float(np.mean(t["seconds"])),
+                   equal_time_seconds_per_megapixel=float(np.mean(t["seconds_per_megapixel"])),
+                   equal_time_mse=float(np.mean(t["mse"])), mse_slope=_slope(s, t, level))
+        row["efficiency_interval"] = efficiency_interval(t["mse"], t["seconds_per_megapixel"], level)
+        row["efficiency"] = row["efficiency_interval"]["value"]
+        if row is default:
+            one = {"value": 1.0, "low": None, "high": None, "level": level, "dof": None, "seeds": [], "reference": True}
+            row.update(relative_mse_interval=one, relative_time_interval=one, relative_mse_equal_time=one,
+                       relative_efficiency_interval=one)
+        else:
+            row.update(relative_mse_interval=ratio_interval((s["mse"],), (d_spp["mse"],), level),
+                       relative_time_interval=ratio_interval((s["seconds_per_megapixel"],),
+                                                             (d_spp["seconds_per_megapixel"],), level),
+                       relative_mse_equal_time=ratio_interval((t["mse"],), (d_time["mse"],), level),
+                       relative_efficiency_interval=efficiency_ratio(t["mse"], t["seconds_per_megapixel"],
+                                                                     d_time["mse"], d_time["seconds_per_megapixel"],
+                                                                     level))
+        row["relative_mse"] = row["relative_mse_interval"]["value"]
+        row["relative_time"] = row["relative_time_interval"]["value"]
+        row["relative_efficiency"] = row["relative_efficiency_interval"]["value"]
+        if row["efficiency"] is not None:
+            samples[row["label"]] = (t["mse"], t["seconds_per_megapixel"])
+    decision = best_separated(samples, level)
+    leader = next((r for r in rows if r["label"] == decision["leader"]), None)
+    table = {"scene": scene_name, "rows": rows, "comparison": "repeats", "repeats": repeats, "level": level,
+             "equal_spp": d_spp["spp"], "equal_time_seconds": float(np.mean(d_time["seconds"])),
+             "equal_time_tolerance": EQUAL_TIME_TOLERANCE,
+             "best": decision["best"], "leader": decision["leader"],
+             "best_relative_efficiency": leader["relative_efficiency"] if decision["best"] and leader else None,
+             "best_interval": leader["relative_efficiency_interval"] if decision["best"] and leader else None,
+             "near_best": [decision["leader"]] + decision["tied"] if decision["leader"] and decision["tied"] else [],
+             "separation": {"level": decision["level"], "leader_over": decision["comparisons"]}}
+    regions = _region_efficiencies(rows, default, level)
     if regions:
         table["regions"] = regions
     return table
 
 
-def _region_efficiencies(rows: list[dict], default: dict | None) -> dict | None:
-    """Per region (the scene's ``regions``): each row's efficiency 1 / (region variance x seconds per megapixel)
-    relative to the default's over the same region, and the best row there. Rows carry ``variance_regions``
-    ({region: mean variance over its pixels}, :func:`harness.studies.regions.region_variances`)."""
-    names = [n for r in rows for n in (r.get("variance_regions") or {})]
-    names = list(dict.fromkeys(names))
-    if not names:
+def _slope(at_spp: dict, at_time: dict, level: float) -> dict | None:
+    """The log-log slope of the mean MSE between a row's two budgets (-1 for an estimator whose MSE falls as
+    1 / spp), where their spp differ, with its interval: that of the MSE ratio (:func:`ratio_interval`) over the log
+    of the spp ratio. Between close budgets it is wide: the MSE ratio's noise over a small log."""
+    if at_spp["spp"] == at_time["spp"]:
         return None
+    ratio = ratio_interval((at_time["mse"],), (at_spp["mse"],), level)
+    if ratio["value"] is None:
+        return None
+    span = math.log(at_time["spp"] / at_spp["spp"])
+    ends = sorted(math.log(v) / span for v in (ratio["low"], ratio["high"])) if ratio["low"] is not None else [None] * 2
+    return dict(ratio, value=math.log(ratio["value"]) / span, low=ends[0], high=ends[1])
 
-    def efficiency(row, name):
-        v = (row.get("variance_regions") or {}).get(name)
-        return 1.0 / (v * row["seconds_per_megapixel"]) if v and v > 0 and row.get("seconds", 0) > 0 else None
 
-    out: dict = {"names": names, "relative_efficiency": {}, "best": {}}
+def _region_efficiencies(rows: list[dict], default: dict | None, level: float) -> dict | None:
+    """Per region (the scene's ``regions``): each row's efficiency 1 / (region variance x seconds per megapixel) at
+    equal time, relative to the default's over the same region, with its interval over the seeds, and the best row
+    there when it is told apart (:func:`best_separated`). Rows carry per-seed ``variance_regions`` ({region: mean
+    variance over its pixels}, :func:`harness.studies.regions.region_variances`)."""
+    live = [r for r in rows if "skipped" not in r]
+    names = list(dict.fromkeys(n for r in live for m in r["equal_time"]["variance_regions"] for n in m))
+    if not names or default is None:
+        return None
+    out: dict = {"names": names, "relative_efficiency": {}, "intervals": {}, "best": {}, "leader": {}, "level": level}
     for name in names:
-        base = efficiency(default, name) if default is not None else None
-        values = {}
-        for row in rows:
-            if "skipped" in row:
-                continue
-            e = efficiency(row, name)
-            values[row["label"]] = e / base if e is not None and base else None
-        out["relative_efficiency"][name] = values
-        scored = [(v, k) for k, v in values.items() if v]
-        out["best"][name] = max(scored)[1] if scored else None
+        samples = {}
+        for row in live:
+            t = row["equal_time"]
+            values = [m.get(name) for m in t["variance_regions"]]
+            if all(v is not None and v > 0 for v in values):
+                samples[row["label"]] = (values, t["seconds_per_megapixel"])
+        base = samples.get(default["label"])
+        intervals = {label: (efficiency_ratio(*sample, *base, level=level) if label != default["label"] else
+                             {"value": 1.0, "low": None, "high": None, "level": level, "reference": True})
+                     for label, sample in samples.items()} if base else {}
+        out["intervals"][name] = intervals
+        out["relative_efficiency"][name] = {r["label"]: (intervals.get(r["label"]) or {}).get("value") for r in live}
+        decision = best_separated(samples, level)
+        out["best"][name], out["leader"][name] = decision["best"], decision["leader"]
     return out
 
 
-def _warm_render(scene, settings: dict[str, str], spp: int, seed: int, min_seconds: float):
-    """The reference renderer with ``settings``: an untimed 1-spp warm-up, then ``spp``, quadrupled (up to
-    MAX_STRATEGY_SPP) while the render takes less than ``min_seconds``."""
+def _case_table(scene_name: str, case_rows: list[dict], wanted: list[Any], bounded: bool,
+                defaults: dict[str, str]) -> dict:
+    """The strategy table from the suite's cases alone (no renders): one measurement per strategy at the case's own
+    spp, shown with its efficiency but neither ranked nor given an interval (no repeats; different spp)."""
+    by_strategy: dict[Any, dict] = {}
+    for row in case_rows:
+        kind = classify(row["settings"], defaults)
+        if kind is not None and (kind not in by_strategy or len(row["settings"]) < len(by_strategy[kind]["settings"])):
+            by_strategy[kind] = row
+    rows = []
+    for kind in wanted:
+        label = "default" if kind == "default" else strategy_label(*kind)
+        strategy = None if kind == "default" else list(kind)
+        if kind == ("rr", "off") and not bounded:
+            rows.append({"label": label, "strategy": strategy, "skipped": "max_depth is unbounded: rr=off would "
+                         "never end a path"})
+        elif kind not in by_strategy:
+            rows.append({"label": label, "strategy": strategy, "skipped": "no case and rendering disabled"})
+        else:
+            row = {k: v for k, v in by_strategy[kind].items() if k != "variance_regions"}
+            measured = shown_mse(row["mse"] - row.get("floor_mse", 0.0), row.get("floor_mse", 0.0))
+            variance = row.get("variance")
+            estimate = variance if variance is not None and math.isfinite(variance) and variance > 0 else None
+            spm = row["seconds"] / row["pixels"] * 1e6
+            rows.append(dict(row, label=label, strategy=strategy, is_default=kind == "default",
+                             mse_corrected=measured["value"], mse_bound=measured["bound"], mse_estimate=estimate,
+                             seconds_per_megapixel=spm,
+                             efficiency=1.0 / (estimate * spm) if estimate and spm > 0 else None,
+                             relative_efficiency=None, relative_mse=None, relative_time=None))
+    return {"scene": scene_name, "rows": rows, "comparison": "cases", "best": None, "leader": None,
+            "best_relative_efficiency": None, "near_best": [],
+            "unranked": "the suite's cases only (rendering disabled): one render per strategy at its case's own spp, "
+                        "so neither ranked nor compared with the default"}
+
+
+def measure_render(scene, gt, settings: dict[str, str], spp: int, seed: int, *, warm_up: bool = False,
+                   masks: dict | None = None) -> dict:
+    """Render one strategy of the reference renderer at exactly ``spp`` and measure it against ``gt`` (the
+    ``render`` of :func:`strategy_rows`): its MSE, the ground truth's floor, its mean variance (also over each of
+    ``masks``' regions) and its render seconds; ``warm_up``: an untimed 1-spp render first (compilation, one-off
+    costs of the first render of these settings)."""
     renderer = get_renderer("reference")
-    renderer.render(scene, RenderRequest(spp=1, seed=seed + 500_000, settings=dict(settings)))
-    while True:
-        result = renderer.render(scene, RenderRequest(spp=spp, seed=seed, settings=dict(settings)))
-        if result.seconds >= min_seconds or spp * 4 > MAX_STRATEGY_SPP:
-            return result
-        spp *= 4
-
-
-def time_per_path(scene, settings: dict[str, str], spp: int, seed: int,
-                  min_seconds: float = MIN_STRATEGY_SECONDS) -> tuple[float, int]:
-    """Render seconds per path (pixel sample) of the reference renderer with ``settings`` on ``scene``: an untimed
-    1-spp warm-up, then ``spp``, quadrupled while the render takes less than ``min_seconds``. Returns (seconds per
-    path, spp of the timed render).
-
-    A suite's case times include one-off costs when the case is the first of its kind in the run (compilation,
-    acceleration structures: several times the render itself at small films), so the strategy table times every
-    row alike with this, and takes only the MSE from the case."""
-    result = _warm_render(scene, settings, spp, seed, min_seconds)
-    return float(result.seconds) / (result.image.shape[0] * result.image.shape[1] * result.spp), int(result.spp)
-
-
-def measure_render(scene, gt, settings: dict[str, str], spp: int, seed: int,
-                   min_seconds: float = MIN_STRATEGY_SECONDS, masks: dict | None = None) -> dict:
-    """Render one strategy and measure it against ``gt`` (for :func:`strategy_rows`): an untimed 1-spp warm-up,
-    then ``spp``, quadrupled while the render takes less than ``min_seconds``."""
-    result = _warm_render(scene, settings, spp, seed, min_seconds)
+    if warm_up:
+        renderer.render(scene, RenderRequest(spp=1, seed=seed + 500_000, settings=dict(settings)))
+    result = renderer.render(scene, RenderRequest(spp=spp, seed=seed, settings=dict(settings)))
     point = error_point(result.image, gt.image, gt.variance)
     h, w = result.image.shape[:2]
     return {"case": None, "source": "rendered", "settings": dict(settings), "mse": point["mse"],
             "variance": mean_variance(result.variance),
             "floor_mse": point["floor_mse"], "seconds": float(result.seconds), "pixels": int(h * w),
-            "spp": int(result.spp), "film": [w, h], "seed": seed, "timing": "rendered by the report (warm)",
+            "spp": int(result.spp), "film": [w, h], "seed": seed, "timing": "rendered by the studies (warm)",
             "variance_regions": region_variances(result.variance, masks or {})}

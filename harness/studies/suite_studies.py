@@ -72,6 +72,8 @@ class StudyOptions:
     strategies: bool = True
     render_strategies: bool = True  # render the strategies no case covers
     strategy_spp: int = studies.DEFAULT_STRATEGY_SPP
+    #: independent renders (seeds) of each strategy at each budget (equal spp, equal time)
+    strategy_repeats: int = studies.STRATEGY_REPEATS
     k: float = conv.DEFAULT_K
     #: renders shorter than this are repeated for their timing (convergence, shadow rays); strategy renders this
     #: short are redone at 4x the spp
@@ -412,7 +414,8 @@ def _strategy_settings(settings: dict) -> dict:
 def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out: Path, options: StudyOptions,
                         progress, plots: _Plots | None = None) -> dict:
     defaults = studies.strategy_defaults()
-    section: dict[str, Any] = {"defaults": defaults, "strategy_spp": options.strategy_spp, "scenes": []}
+    section: dict[str, Any] = {"defaults": defaults, "strategy_spp": options.strategy_spp,
+                               "strategy_repeats": options.strategy_repeats, "scenes": []}
     lambertian_defaults = defaults
     for key, base in bases.items():
         glossy = scene_is_glossy(base.scene)  # direct = auto is "mis" there, and the rows are the glossy engine's
@@ -420,41 +423,34 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
         masks = region_masks(base.scene, tuple(base.render.shape[:2])) if base.scene.regions else {}
         case_rows = _case_rows(items, key, base, masks)
         note = None
-        if case_rows and all(studies.classify(r["settings"], defaults) in (None, "default") for r in case_rows) \
-                and options.render_strategies:
-            # no strategy case: render every row, the default too, so that all are timed alike
-            case_rows = []
-            note = "no case of this scene covers a strategy: every row, the default too, is rendered alike"
         bounded = base.scene.max_depth != -1
-        seeds = iter(range(20_000, 30_000))
+        seeds = iter(range(20_000, 40_000))
+        warmed: set = set()
 
-        def render(settings, scene=base.scene, gt=base.gt, masks=masks):
-            # rendered as the suite renders its cases (its replicates), so that they compare with the cases' rows
-            row = studies.measure_render(scene, gt, judged_settings("reference", settings), options.strategy_spp,
-                                         next(seeds), min_seconds=options.strategy_min_seconds, masks=masks)
+        def render(settings, spp, index, scene=base.scene, gt=base.gt, masks=masks):
+            # rendered as the suite renders its cases (its replicates); a fresh seed for every render, so that the
+            # repeats (and the strategies) are independent
+            judged = judged_settings("reference", settings)
+            key_ = tuple(sorted(judged.items()))
+            row = studies.measure_render(scene, gt, judged, spp, next(seeds), warm_up=key_ not in warmed, masks=masks)
+            warmed.add(key_)
             row["settings"] = dict(settings)
-            progress.step("strategy " + " ".join(f"{k}={v}" for k, v in settings.items()))
+            if index == options.strategy_repeats - 1:
+                progress.step("strategy " + (" ".join(f"{k}={v}" for k, v in settings.items()) or "default"))
             return row
-
-        def retime(row):
-            if row.get("_scene") is None:
-                return row
-            per_path, spp = studies.time_per_path(row["_scene"], row["settings"], options.strategy_spp, next(seeds),
-                                                  options.strategy_min_seconds)
-            progress.step("timing " + str(row.get("case")))
-            return dict(row, case_seconds=row["seconds"], seconds=per_path * row["pixels"] * row["spp"],
-                        timing=f"measured again by the studies ({spp} spp, warm), scaled to the case's spp and film")
 
         environment = any(e.type in ("constant", "envmap") for e in base.scene.emitters)
         wanted = 1 + len(studies.strategy_choices(defaults, environment, glossy))
-        progress.add(wanted if options.render_strategies else 0)
+        progress.add(2 * wanted if options.render_strategies else 0)
         try:
             table = studies.strategy_rows(Path(key).stem, case_rows, render if options.render_strategies else None,
-                                          bounded, defaults, retime=retime if options.render_strategies else None,
-                                          environment=environment, glossy=glossy)
+                                          bounded, defaults, environment=environment, glossy=glossy,
+                                          spp=options.strategy_spp, repeats=options.strategy_repeats,
+                                          min_seconds=options.strategy_min_seconds,
+                                          spp_step=int(judged_settings("reference", {}).get("replicates", 1)))
             plot = f"strategies/{slug(Path(key).stem)}.png"
             _plot(plots, out / plot, table, figures.strategies_figure, table["rows"],
-                  title=f"{Path(key).stem}: efficiency relative to default")
+                  title=f"{Path(key).stem}: efficiency relative to default", best=table.get("best"))
             table.update(scene_path=key, film=[base.scene.film.width, base.scene.film.height], plot=plot, note=note)
             others = _other_strategy_rows(items, key, base, table)
             if others:
@@ -494,6 +490,8 @@ def _other_strategy_rows(items: list[StudyCase], key: str, base: StudyCase, tabl
             row["note"] += f"; its film ({w}x{h}) is not the table's, so its efficiency is not compared"
         elif default is not None and row["efficiency"]:
             row["relative_efficiency"] = row["efficiency"] / default["efficiency"]
+            row["note"] += ("; its efficiency is one render's at its case's spp, beside the default's at equal time: "
+                            "no interval, not ranked")
         rows.append(row)
     return rows
 

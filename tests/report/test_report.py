@@ -156,10 +156,11 @@ def test_report_json_holds_the_numbers(report_dir):
     strategies = {s["scene"]: s for s in report["strategies"]["scenes"]}
     assert set(strategies) == {"furnace", "soft-shadows"}
     furnace = {r["label"]: r for r in strategies["furnace"]["rows"]}
-    assert furnace["direct=mis"]["case"] == EVIL  # a case's measurement is used where one exists
+    # every row rendered alike by the studies (not the cases' own spp), several seeds at each budget
+    assert furnace["direct=mis"]["case"] is None and furnace["direct=mis"]["equal_spp"]["seeds"] >= 2
     assert "skipped" in furnace["rr=off"]  # unbounded max_depth
     assert furnace["default"]["relative_efficiency"] == pytest.approx(1.0)
-    assert strategies["furnace"]["best"] in furnace
+    assert strategies["furnace"]["best"] is None or strategies["furnace"]["best"] in furnace
 
 
 def test_every_image_has_exr_and_png(report_dir):

@@ -35,17 +35,23 @@ def test_region_variance_is_the_mean_over_the_region():
 
 
 def test_each_region_has_its_own_best_strategy():
-    def row(label, settings, variances):
-        return {"case": label, "settings": settings, "mse": 1.0, "floor_mse": 0.0, "variance": 1.0,
-                "seconds": 1.0, "pixels": 100, "spp": 1, "film": [10, 10], "variance_regions": variances}
-    rows = [row("d", {}, {"smooth": 1.0, "rough": 1.0}),
-            row("a", {"direct": "area"}, {"smooth": 4.0, "rough": 0.5}),
-            row("b", {"direct": "global-area"}, {"smooth": 0.25, "rough": 8.0})]
-    table = strategy_rows("x", rows, None, True, {"direct": "mis"})
+    variances = {"default": {"smooth": 1.0, "rough": 1.0}, "direct=area": {"smooth": 4.0, "rough": 0.5},
+                 "direct=global-area": {"smooth": 0.25, "rough": 8.0}}
+    rng = np.random.default_rng(5)
+
+    def render(settings, spp, index):
+        label = "default" if not settings else "{}={}".format(*next(iter(settings.items())))
+        regions = {k: v * rng.normal(1.0, 0.02) for k, v in variances.get(label, {"smooth": 1, "rough": 1}).items()}
+        return {"mse": 1.0, "floor_mse": 0.0, "variance": 1.0, "seconds": rng.normal(1.0, 0.02), "pixels": 100,
+                "spp": spp, "film": [10, 10], "variance_regions": regions}
+
+    table = strategy_rows("x", [], render, True, {"direct": "mis"}, spp=16, repeats=4, min_seconds=0.0)
     regions = table["regions"]
     assert regions["best"] == {"smooth": "direct=global-area", "rough": "direct=area"}
-    assert regions["relative_efficiency"]["smooth"]["direct=global-area"] == pytest.approx(4.0)
-    assert regions["relative_efficiency"]["rough"]["direct=area"] == pytest.approx(2.0)
+    assert regions["relative_efficiency"]["smooth"]["direct=global-area"] == pytest.approx(4.0, rel=0.1)
+    assert regions["relative_efficiency"]["rough"]["direct=area"] == pytest.approx(2.0, rel=0.1)
+    smooth = regions["intervals"]["smooth"]["direct=global-area"]
+    assert smooth["low"] < 4.0 < smooth["high"]
 
 
 @pytest.mark.parametrize("value, fragment", [
