@@ -19,21 +19,25 @@ def _figure(width: float, height: float, layout: str | None = None):
     return fig
 
 
-#: colours of a plot's PNG: a palette of 256 (lines, markers, text and their anti-aliasing fit; the report embeds
-#: every plot, and a palette PNG is about a quarter of the RGBA one: 3.4 -> 0.8 MB over the canonical run's plots)
+#: colours of a line plot's PNG: a palette of 256 (lines, markers, text and their anti-aliasing fit; the report
+#: embeds every plot, and a palette PNG is about a quarter of the RGBA one: 3.4 -> 0.8 MB over the canonical run's
+#: plots). Never for a figure that shows images: 256 colours turn a render's smooth shading into bands.
 PLOT_COLOURS = 256
 
 
-def to_png(fig) -> bytes:
-    """The figure as a palette PNG (:data:`PLOT_COLOURS`, Pillow's fast octree quantizer, no dithering)."""
+def to_png(fig, *, palette: bool = True) -> bytes:
+    """The figure as PNG bytes: with ``palette`` (line plots) a palette PNG of :data:`PLOT_COLOURS` (Pillow's fast
+    octree quantizer, no dithering); without it (any figure that shows images) full-colour RGB, losslessly
+    compressed, every grey level of the images kept."""
     from PIL import Image  # optional: Pillow (matplotlib's own dependency), loaded only to write a plot
 
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     rgb = Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
-    palette = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    if palette:
+        rgb = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     out = io.BytesIO()
-    palette.save(out, format="PNG", compress_level=9)
+    rgb.save(out, format="PNG", compress_level=9)
     return out.getvalue()
 
 
@@ -208,7 +212,7 @@ def panel_figure(tiles: list[tuple[str, np.ndarray]], columns: int = 4, title: s
         ax.set_axis_off()
     if title:
         fig.suptitle(title)
-    return to_png(fig)
+    return to_png(fig, palette=False)  # images: full colour (a palette would band their shading)
 
 
 def shadow_rays_figure(study: dict) -> bytes:
