@@ -27,17 +27,35 @@ PLOT_COLOURS = 256
 
 def to_png(fig, *, palette: bool = True) -> bytes:
     """The figure as PNG bytes: with ``palette`` (line plots) a palette PNG of :data:`PLOT_COLOURS` (Pillow's fast
-    octree quantizer, no dithering); without it (any figure that shows images) full-colour RGB, losslessly
-    compressed, every grey level of the images kept."""
+    octree quantizer, no dithering); without it (any figure that shows images) lossless: :func:`lossless_png`."""
     from PIL import Image  # optional: Pillow (matplotlib's own dependency), loaded only to write a plot
 
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     rgb = Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
-    if palette:
-        rgb = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    if not palette:
+        return lossless_png(np.asarray(rgb))
+    quantized = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     out = io.BytesIO()
-    rgb.save(out, format="PNG", compress_level=9)
+    quantized.save(out, format="PNG", compress_level=9)
+    return out.getvalue()
+
+
+def lossless_png(pixels: np.ndarray) -> bytes:
+    """``pixels`` (uint8 RGB) as a PNG that keeps every pixel: a palette of exactly its colours where it has at most
+    256 (a grey panel: about 3/4 the size of full colour), else full-colour RGB."""
+    from PIL import Image  # optional: Pillow (matplotlib's own dependency), loaded only to write a plot
+
+    pixels = np.ascontiguousarray(pixels[..., :3], dtype=np.uint8)
+    packed = (pixels[..., 0].astype(np.uint32) << 16) | (pixels[..., 1].astype(np.uint32) << 8) | pixels[..., 2]
+    colours, index = np.unique(packed.ravel(), return_inverse=True)
+    if len(colours) <= 256:
+        image = Image.fromarray(index.reshape(packed.shape).astype(np.uint8), mode="P")
+        image.putpalette(np.stack([colours >> 16, colours >> 8, colours], axis=1).astype(np.uint8).ravel().tolist())
+    else:
+        image = Image.fromarray(pixels, mode="RGB")
+    out = io.BytesIO()
+    image.save(out, format="PNG", compress_level=9, optimize=True)
     return out.getvalue()
 
 

@@ -28,7 +28,17 @@ def test_panel_keeps_every_grey_level_of_a_smooth_gradient():
     levels = _grey_levels(png)
     missing = sorted(set(range(256)) - levels)
     assert not missing, f"{len(missing)} of the gradient's 256 grey levels lost (e.g. {missing[:8]})"
-    assert Image.open(io.BytesIO(png)).mode == "RGB"
+
+
+def test_a_colour_panel_keeps_every_colour():
+    """A tile of 4096 colours (more than any palette holds) comes back pixel for pixel: full-colour RGB."""
+    r, g = np.meshgrid(np.arange(64, dtype=np.uint8) * 4, np.arange(64, dtype=np.uint8) * 4)
+    tile = np.stack([r, g, 255 - r], axis=2)
+    png = figures.lossless_png(tile)
+    back = np.asarray(Image.open(io.BytesIO(png)).convert("RGB"))
+    assert np.array_equal(back, tile)
+    grey = figures.lossless_png(np.repeat(np.arange(256, dtype=np.uint8).reshape(16, 16)[:, :, None], 3, axis=2))
+    assert Image.open(io.BytesIO(grey)).mode == "P" and len(_grey_levels(grey)) == 256  # exact palette
 
 
 def test_line_plots_stay_palette_pngs():
