@@ -8,7 +8,6 @@ need)."""
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
 from harness.core import options
@@ -23,8 +22,9 @@ DEFAULT_STRATEGY_SPP = 16
 
 
 def progress(args: argparse.Namespace) -> bool:
-    """Whether the studies and the report show progress: not ``--quiet`` and stderr a terminal."""
-    return not getattr(args, "quiet", False) and sys.stderr.isatty()
+    """Whether the studies and the report show progress (not ``--quiet``): a bar on a terminal, else a line now and
+    then (:class:`harness.core.progress.Progress`)."""
+    return not getattr(args, "quiet", False)
 
 
 def report_options(args: argparse.Namespace) -> ReportOptions:

@@ -28,7 +28,7 @@ from harness.files.results import read_results
 from harness.files.studies import read_studies, read_study_file, studies_folder
 from harness.files.viewer_data import ViewerData
 from harness.judges.efficiency import shown_mse
-from harness.report import viewer
+from harness.report import labels, viewer
 from harness.report.html import data_uri, figure_view, fmt, legend_view, render, static_script
 from harness.report import repeats
 from harness.report.notes import case_notes
@@ -615,10 +615,13 @@ def _case_view(item: ReportCase) -> dict:
 def _summary_row(item: ReportCase) -> dict:
     r = item.record
     m = r.get("metrics") or {}
+    renderer, reason = labels.renderer_label(r.get("renderer")), labels.clip(r.get("reason"))
     return {"anchor": f"case-{item.index}", "name": r.get("name"), "scene": Path(str(r.get("scene"))).stem,
-            "renderer": r.get("renderer"), "status": r.get("status", "?"), "expect": r.get("expect"),
+            "renderer": renderer, "renderer_title": labels.title_of(r.get("renderer"), renderer),
+            "status": r.get("status", "?"), "expect": r.get("expect"),
             "ok": r.get("ok"), "rmse": m.get("rmse"), "relmse": m.get("relmse"), "flip": m.get("flip"),
-            "seconds": (r.get("render") or {}).get("seconds"), "reason": (r.get("reason") or "")[:120],
+            "seconds": (r.get("render") or {}).get("seconds"), "reason": reason,
+            "reason_title": labels.title_of(r.get("reason"), reason),
             "sort": {k: _sort_number(v) for k, v in (("rmse", m.get("rmse")), ("relmse", m.get("relmse")),
                                                       ("flip", m.get("flip")),
                                                       ("seconds", (r.get("render") or {}).get("seconds")))}}

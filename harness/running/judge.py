@@ -91,11 +91,13 @@ def check_thresholds(metrics: dict, thresholds: dict[str, float]) -> list[str]:
     return broken
 
 
-def ground_truth_noise(case: Case, result, gt) -> dict | None:
+def ground_truth_noise(case: Case, result, gt, outcome: str | None = None) -> dict | None:
     """How much the ground truth's own noise blunts the case's verdict (the record's ``ground_truth_noise``): the
     ratio of its mean variance to the test render's (:func:`harness.judges.floor.ground_truth_share`), and where it
     exceeds 1/4 a ``warning`` and the ``suggested_spp`` that would bring it under (docs/suites.md, "A ground truth
-    that does not blunt the test"). None where either image has no variance or the test's is 0."""
+    that does not blunt the test"). A case that expects "fail" and failed (``outcome``: its planted fault was
+    caught through that noise) gets the ratio and the suggestion but no warning: the noise hid nothing the case is
+    for. None where either image has no variance or the test's is 0."""
     if result.variance is None or gt.variance is None:
         return None
     share = ground_truth_share(result.variance, gt.variance)
@@ -106,6 +108,8 @@ def ground_truth_noise(case: Case, result, gt) -> dict | None:
     if share > GROUND_TRUTH_SHARE_LIMIT and gt.spp:
         key = "against.spp" if case.against.kind == "renderer" else "ground_truth_spp"
         out["suggested_spp"] = spp_for_share(int(gt.spp), share)
+        if case.expect == "fail" and outcome == "fail":
+            return out
         out["warning"] = (f"the ground truth's mean variance is {share:.2f} x the test render's (over 1/4): its noise, "
                           f"not the test's budget, limits what the verdict can see; {key} = "
                           f"{out['suggested_spp']} would bring it under 1/4")
@@ -188,14 +192,14 @@ def _judge_into(stage: imageio.StagedFolder, case: Case, scene, result, gt, reco
     comparison = compare_images(test_image, truth_image, tile=case.tile, alpha=case.alpha, maps=maps)
     if keep is not None:  # harness calibrate plants errors into this very render
         keep.update(test=test_image, ground_truth=truth_image, result=result, gt=gt)
-    noise = ground_truth_noise(case, result, gt)
-    if noise is not None:
-        record["ground_truth_noise"] = noise
     all_metrics = dict(comparison["metrics"], bias=comparison["bias"])
     metrics = {k: all_metrics[k] for k in case.metrics if k in all_metrics}
     broken = check_thresholds(all_metrics, case.thresholds)
     verdict = comparison["verdict"]
     outcome = "pass" if verdict["verdict"] == "pass" and not broken else "fail"
+    noise = ground_truth_noise(case, result, gt, outcome)
+    if noise is not None:
+        record["ground_truth_noise"] = noise
     reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""
     if broken:
         reason = "; ".join(filter(None, [reason, "threshold: " + ", ".join(broken)]))

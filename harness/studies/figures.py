@@ -19,21 +19,43 @@ def _figure(width: float, height: float, layout: str | None = None):
     return fig
 
 
-#: colours of a plot's PNG: a palette of 256 (lines, markers, text and their anti-aliasing fit; the report embeds
-#: every plot, and a palette PNG is about a quarter of the RGBA one: 3.4 -> 0.8 MB over the canonical run's plots)
+#: colours of a line plot's PNG: a palette of 256 (lines, markers, text and their anti-aliasing fit; the report
+#: embeds every plot, and a palette PNG is about a quarter of the RGBA one: 3.4 -> 0.8 MB over the canonical run's
+#: plots). Never for a figure that shows images: 256 colours turn a render's smooth shading into bands.
 PLOT_COLOURS = 256
 
 
-def to_png(fig) -> bytes:
-    """The figure as a palette PNG (:data:`PLOT_COLOURS`, Pillow's fast octree quantizer, no dithering)."""
+def to_png(fig, *, palette: bool = True) -> bytes:
+    """The figure as PNG bytes: with ``palette`` (line plots) a palette PNG of :data:`PLOT_COLOURS` (Pillow's fast
+    octree quantizer, no dithering); without it (any figure that shows images) lossless: :func:`lossless_png`."""
     from PIL import Image  # optional: Pillow (matplotlib's own dependency), loaded only to write a plot
 
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI)
     rgb = Image.open(io.BytesIO(buffer.getvalue())).convert("RGB")
-    palette = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
+    if not palette:
+        return lossless_png(np.asarray(rgb))
+    quantized = rgb.quantize(colors=PLOT_COLOURS, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
     out = io.BytesIO()
-    palette.save(out, format="PNG", compress_level=9)
+    quantized.save(out, format="PNG", compress_level=9)
+    return out.getvalue()
+
+
+def lossless_png(pixels: np.ndarray) -> bytes:
+    """``pixels`` (uint8 RGB) as a PNG that keeps every pixel: a palette of exactly its colours where it has at most
+    256 (a grey panel: about 3/4 the size of full colour), else full-colour RGB."""
+    from PIL import Image  # optional: Pillow (matplotlib's own dependency), loaded only to write a plot
+
+    pixels = np.ascontiguousarray(pixels[..., :3], dtype=np.uint8)
+    packed = (pixels[..., 0].astype(np.uint32) << 16) | (pixels[..., 1].astype(np.uint32) << 8) | pixels[..., 2]
+    colours, index = np.unique(packed.ravel(), return_inverse=True)
+    if len(colours) <= 256:
+        image = Image.fromarray(index.reshape(packed.shape).astype(np.uint8), mode="P")
+        image.putpalette(np.stack([colours >> 16, colours >> 8, colours], axis=1).astype(np.uint8).ravel().tolist())
+    else:
+        image = Image.fromarray(pixels, mode="RGB")
+    out = io.BytesIO()
+    image.save(out, format="PNG", compress_level=9, optimize=True)
     return out.getvalue()
 
 
@@ -208,7 +230,7 @@ def panel_figure(tiles: list[tuple[str, np.ndarray]], columns: int = 4, title: s
         ax.set_axis_off()
     if title:
         fig.suptitle(title)
-    return to_png(fig)
+    return to_png(fig, palette=False)  # images: full colour (a palette would band their shading)
 
 
 def shadow_rays_figure(study: dict) -> bytes:
