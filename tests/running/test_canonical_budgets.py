@@ -157,19 +157,15 @@ NO_RATIO = {
     "white-furnace-glass/direct-area",
 }
 
-#: Cases that still break the rule, and why they are not fixed by their budgets: the ground truth they need costs
-#: more Mitsuba time than the README's first command can pay on a fresh 2-core machine (10 minutes), and their
-#: spp is the strategy table's. Each must stay over the limit (remove it here when its budgets are fixed).
-OVER_BUDGET = {
-    # 64 x 64, 256 spp: k 14-22 (the reference's stratified samples against Mitsuba's independent ones); 32768 spp
-    # would cost 124 chunks of 256 spp at about 1.0 s each
-    "cornell-box/direct-mis", "cornell-box/light-selection-uniform", "cornell-box/hemisphere-uniform",
-    "cornell-box/rr-fixed", "cornell-box/rr-off",
-    # k = 256: the two delta lights reached without noise by every hemisphere strategy; 131072 spp: 508 chunks
-    "point-spot/direct-hemisphere-cosine", "point-spot/direct-hemisphere-uniform", "point-spot/direct-global-area",
-    # k = 165-185; 65536 spp: 240 chunks
-    "sun-sky/direct-hemisphere-cosine", "sun-sky/direct-hemisphere-uniform",
-}
+#: Cases expected to pass that break the rule, each of which must stay over the limit while listed. Where the ground
+#: truth the rule asks for costs more Mitsuba time than the README's first command can pay on a fresh 2-core
+#: machine (10 minutes), a case is sized to its ground truth instead (cornell-box's 64 x 64 strategy cases at 64 spp
+#: against 8192, sun-sky's hemisphere cases at 16 spp against 16384). Point-spot's hemisphere and global-area cases
+#: (k = 256) cannot be: against a sharper ground truth a correct render of its hard shadows fails the tile
+#: statistic now and then (8 spp against 16384: direct-global-area failed, max |z| 6.8), the wrong tail of issue 33's
+#: section 5; they stay at 64 spp against 1024, and warn, until that is fixed.
+OVER_BUDGET = {"point-spot/direct-hemisphere-cosine", "point-spot/direct-hemisphere-uniform",
+               "point-spot/direct-global-area"}
 
 
 def share(case) -> float:
