@@ -7,7 +7,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import subprocess
 import sys
 import threading
 import time
@@ -20,7 +19,7 @@ from harness.cli import main
 from harness.renderers import RenderRequest, get_renderer, processes
 from harness.renderers.external import ExternalRendererError
 from harness.renderers.processes import CommandStartError, CommandTimeout, run_group
-from test_misbehaving_renderers import FURNACE, HARNESS, ROOT, _gone, _kill_quietly, _wait_gone, small_scene
+from test_misbehaving_renderers import FURNACE, _kill_quietly, _wait_gone, assert_killing_the_harness_kills, small_scene
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the supervisor runs on Linux only")
 assert small_scene  # a fixture, used by name
@@ -122,24 +121,7 @@ def test_a_harness_killed_outright_takes_the_escaped_descendants_along(tmp_path)
     """A harness process renders with a renderer that hangs after its child left the group; SIGKILL the harness:
     the renderer and that child die within two seconds (the supervisor sees its control pipe end)."""
     path, pidfile = _escaper(tmp_path, "setsid", "hang")
-    harness = subprocess.Popen([sys.executable, "-c", HARNESS, str(FURNACE), str(path)],
-                               env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL)
-    pids: list[int] = []
-    try:
-        deadline = time.monotonic() + 60
-        while not pidfile.exists() and harness.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert pidfile.exists(), f"the renderer never started (harness exit {harness.poll()})"
-        pids = [int(p) for p in pidfile.read_text().split()]
-        assert len(pids) == 2 and not any(_gone(p) for p in pids)  # both run while the harness does
-        harness.kill()
-        harness.wait()
-        left = _wait_gone(pids, 2.0)
-        assert not left, f"processes {left} of the renderer outlived the harness killed by SIGKILL"
-    finally:
-        harness.kill()
-        harness.wait()
-        _kill_quietly(pids)
+    assert_killing_the_harness_kills(path, pidfile)
 
 
 @pytest.mark.slow

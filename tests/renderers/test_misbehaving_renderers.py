@@ -180,6 +180,12 @@ def test_a_harness_killed_outright_takes_its_renderer_and_its_children_along(tmp
     the renderer and its child die within two seconds (the watchdog sees the harness's pipe close)."""
     pidfile = tmp_path / "pids"
     renderer = _renderer_file(tmp_path, "hang", "--pidfile", str(pidfile))
+    assert_killing_the_harness_kills(renderer, pidfile)
+
+
+def assert_killing_the_harness_kills(renderer: Path, pidfile: Path) -> None:
+    """Render the furnace in a harness process with ``renderer`` (which writes its pid and its child's to
+    ``pidfile``, then hangs), SIGKILL the harness once both run: both are gone within two seconds."""
     harness = subprocess.Popen([sys.executable, "-c", HARNESS, str(FURNACE), str(renderer)],
                                env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL)
     pids: list[int] = []
