@@ -68,7 +68,7 @@ def cache_entry_image(path: Path | str | None) -> Path | None:
     return real if (real.parent / "meta.json").is_file() else None
 
 
-def _confined(results_dir: Path, what: str, named, default: Path, problems: list[str],
+def confined_file(results_dir: Path, what: str, named, default: Path, problems: list[str],
               cache_entry: bool = False) -> Path | None:
     """The file a record names (``named``), where it is one inside the run folder ``results_dir`` (or, with
     ``cache_entry``, a ground-truth cache entry's image), else ``default`` (where harness run writes it) where that
@@ -103,7 +103,7 @@ def read_case_images(record: dict, results_dir: Path) -> CaseImages:
         out.problems.append("no render: the case ended in an error")
         return out
     folder = Path(results_dir) / "cases" / slug(str(record.get("name", "")))
-    exr_path = _confined(results_dir, "render.exr", record["render"].get("exr"), folder / "render.exr",
+    exr_path = confined_file(results_dir, "render.exr", record["render"].get("exr"), folder / "render.exr",
                          out.problems)
     if exr_path is None:
         out.problems.append(f"render EXR not found ({record['render'].get('exr')})")
@@ -115,7 +115,7 @@ def read_case_images(record: dict, results_dir: Path) -> CaseImages:
         return out
     out.render, out.render_variance = exr.image, exr.variance
     gt = record.get("ground_truth") or {}
-    gt_path = _confined(results_dir, "ground_truth.path", gt.get("path"), folder / GROUND_TRUTH_FILE, out.problems,
+    gt_path = confined_file(results_dir, "ground_truth.path", gt.get("path"), folder / GROUND_TRUTH_FILE, out.problems,
                         cache_entry=True)
     if gt_path is None:
         named = gt.get("path")

@@ -37,7 +37,6 @@ import dataclasses
 import hashlib
 import json
 import math
-import os
 import platform
 import time
 from importlib import metadata
@@ -49,8 +48,7 @@ import numpy as np
 from harness.core import jsonsafe, system
 from harness.core.errors import HarnessError, read_user_text
 from harness.core.text import short
-from harness.files.cases import slug
-from harness.files.confined import inside
+from harness.files.cases import confined_file, slug
 from harness.files.imageio import atomic_write_text, read_exr
 from harness.files.results import read_results
 from harness.judges.distributions import normal_isf
@@ -133,13 +131,11 @@ def render_file(record: dict, run_dir: Path | None) -> Path:
             raise HarnessError(str(exr), f"case {record['name']!r}: its render is gone; expected the EXR the run "
                                "wrote")
         return exr
-    usable = isinstance(named, str) and named and "\0" not in named
-    exr = inside(run_dir, named) if usable else None
-    if exr is None or not exr.is_file():
-        exr = inside(run_dir, Path(run_dir) / "cases" / slug(str(record["name"])) / "render.exr")
-    if exr is None or not exr.is_file():
-        why = ("names a file outside the run folder (not read)" if usable and os.path.lexists(named)
-               else "is gone")
+    problems: list[str] = []  # a note where the path it names lies outside the run folder
+    written = Path(run_dir) / "cases" / slug(str(record["name"])) / "render.exr"  # where harness run writes it
+    exr = confined_file(run_dir, "render.exr", named, written, problems)
+    if exr is None:
+        why = "names a file outside the run folder (not read)" if problems else "is gone"
         raise HarnessError(short(str(named), 300), f"case {record['name']!r}: its render {why}; expected the EXR "
                            f"harness run wrote inside the run folder {str(run_dir)!r}")
     return exr

@@ -191,8 +191,7 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
         for name in subfolders:
             sub = folder / name
             if sub.is_symlink():  # not even probed: the probe would write through it
-                raise HarnessError(option, f"{str(sub)!r} is a symbolic link (to {link_target(sub)!r}); the run "
-                                   "writes only inside its output folder and follows no link there: remove it")
+                raise HarnessError(option, f"{str(sub)!r} {_link_refused(sub)}")
             if sub.exists():
                 if not sub.is_dir():
                     raise HarnessError(option, f"{str(sub)!r} is not a folder; expected a folder the run writes in")
@@ -203,6 +202,12 @@ def output_folder(value: str | None, default: Path, option: str = "--out", subfo
     if created is not None:
         created.extend(made)
     return folder
+
+
+def _link_refused(path: Path) -> str:
+    """What is said of a symbolic link where the run would write (``--out``'s folders)."""
+    return (f"is a symbolic link (to {link_target(path)!r}); the run writes only inside its output folder and "
+            "follows no link there: remove it")
 
 
 def refuse_links(folder: Path, cases) -> None:
@@ -216,8 +221,7 @@ def refuse_links(folder: Path, cases) -> None:
     for name in [*names, "studies"]:
         path = Path(folder) / name
         if path.is_symlink():
-            raise HarnessError(str(path), f"is a symbolic link (to {link_target(path)!r}); the run writes only "
-                               "inside its output folder and follows no link there: remove it")
+            raise HarnessError(str(path), _link_refused(path))
 
 
 CACHE_ENV = "HARNESS_CACHE_DIR"
