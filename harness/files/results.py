@@ -299,7 +299,8 @@ VERDICT = Obj({
                                 "channel": Enum("R", "G", "B"), "pixels": COUNT, "difference": NUM_OR_NULL,
                                 "stderr": NON_NEGATIVE, "z": NUM_OR_NULL, "z_normal": NUM_OR_NULL,
                                 "dof": NON_NEGATIVE})),
-    "variance_dof": Obj({"test": DOF}, {"ground_truth": DOF, "reference": DOF})})  # "reference": its older name
+    "variance_dof": Obj({"test": DOF}, {"ground_truth": DOF, "reference": DOF})},  # "reference": its older name
+    {"variance_floor": Obj({"neighbourhood": COUNT, "tiles": COUNT})})  # absent in runs by older harnesses
 
 RENDER = Obj({"seconds": SECONDS, "spp": COUNT, "paths_per_second": NON_NEGATIVE, "rays": DictOf(COUNT),
               "nonfinite_pixels": COUNT, "settings": DictOf(ANY), "info": DictOf(ANY), "exr": STR})

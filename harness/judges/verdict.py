@@ -44,6 +44,14 @@ time in twenty) makes the other image look dominant and its many degrees of
 freedom make the tile's z look normal, while it is nearly Cauchy.  Without
 them, variances are taken as exact (z ~ N(0, 1)).
 
+Before z is formed, each tile's test variance is floored by its neighbourhood's
+(:func:`_neighbourhood_floor`): at least the test's variance per pixel over
+the 5 x 5 tiles around it, or, where less, the ground truth's variance in the
+tile times the ratio of the two images' variances over those tiles.  Where a renderer's variance is carried by rare, large
+samples, most tiles of a render hold none of them and their own variance
+estimate is far below its mean; the floor keeps those tiles' z near their
+true scale (docs/verdict.md, "Heavy-tailed estimators").
+
 References
 ----------
 .. [1] B. L. Welch, "The generalization of 'Student's' problem when several
@@ -75,6 +83,9 @@ CHANNELS: tuple[str, str, str] = ("R", "G", "B")
 ROUNDING_RTOL = 1e-6
 #: The sub-tests combined by Bonferroni.
 SUBTESTS: tuple[str, str, str] = ("global_bias", "omnibus", "max_z")
+#: Radius in tiles of the neighbourhood whose variances floor each tile's test variance (``_neighbourhood_floor``):
+#: 2 is the 5 x 5 tiles around it (docs/verdict.md, "Heavy-tailed estimators: the neighbourhood floor").
+NEIGHBOURHOOD = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,6 +129,8 @@ class Verdict:
     use), ``dof``; None if there is no tile.
     ``variance_dof``: the degrees of freedom of the variance estimates used
     (None: taken as exact).
+    ``variance_floor``: ``neighbourhood`` (its radius in tiles) and ``tiles``
+    (tile-channels whose test variance the neighbourhood raised).
     """
 
     verdict: str
@@ -132,6 +145,7 @@ class Verdict:
     zero_variance: dict
     worst_tile: dict | None
     variance_dof: dict = field(default_factory=dict)
+    variance_floor: dict = field(default_factory=dict)
     #: the tiles as maps (:class:`TileMaps`); not part of :meth:`to_dict`
     tiles: TileMaps | None = field(default=None, compare=False, repr=False)
 
@@ -159,6 +173,43 @@ def _tile_sum(x: np.ndarray, tile: int) -> np.ndarray:
         padded[:h, :w] = x
         x = padded
     return x.reshape(th, tile, tw, tile, c).sum(axis=(1, 3))
+
+
+def _box(x: np.ndarray, radius: int) -> np.ndarray:
+    """Sums over the (2 radius + 1)^2 tiles around each tile (those inside the grid), per channel."""
+    h, w = x.shape[:2]
+    padded = np.zeros((h + 2 * radius, w + 2 * radius) + x.shape[2:], dtype=np.float64)
+    padded[radius:radius + h, radius:radius + w] = x
+    out = np.zeros(x.shape, dtype=np.float64)
+    for dy in range(2 * radius + 1):
+        for dx in range(2 * radius + 1):
+            out += padded[dy:dy + h, dx:dx + w]
+    return out
+
+
+def _neighbourhood_floor(vt_sum: np.ndarray, vr_sum: np.ndarray, n: np.ndarray, radius: int) -> np.ndarray:
+    r"""Each tile's test variance as its neighbourhood says it may be: with N(j) the tiles within ``radius`` tiles
+    of tile j (inside the grid), :math:`V^T_N = \sum_{k \in N(j)} V^T_k`, likewise :math:`V^R_N` and the pixel
+    count :math:`n_N`,
+
+    .. math:: \hat V^T_j = \min\left(n_j \frac{V^T_N}{n_N},\; V^R_j \frac{V^T_N}{V^R_N}\right),
+
+    the neighbourhood's test variance per pixel, but no more than the ground truth's variance in the tile times the
+    neighbourhood's ratio of the two (where the ground truth's variance falls, at an edge of the image's noise,
+    the floor falls with it). 0 where the neighbourhood's ground truth has no variance (an exact one) or ``radius``
+    is 0.
+
+    An estimator whose variance is carried by rare, large samples (a path that reaches a point light from close by,
+    a caustic) draws them in only some tiles of a render: in the others the tile's variance estimate is far below
+    its mean, and its z far too large although the image is right. The neighbourhood holds (2 radius + 1)^2 times
+    the samples."""
+    if radius <= 0:
+        return np.zeros_like(vt_sum)
+    nb_t, nb_r, nb_n = _box(vt_sum, radius), _box(vr_sum, radius), _box(n, radius)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        shaped = np.where(nb_r > 0, vr_sum * nb_t / nb_r, 0.0)
+        even = np.where(nb_n > 0, n * nb_t / nb_n, 0.0)
+    return np.minimum(even, shaped)
 
 
 def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
@@ -282,6 +333,7 @@ def verdict(
     expected_dof: float | np.ndarray | None = None,
     rtol: float = ROUNDING_RTOL,
     names: tuple[str, str] = ("test image", "ground truth image"),
+    neighbourhood: int = NEIGHBOURHOOD,
 ) -> Verdict:
     r"""Decide whether ``test`` and ``expected`` (the ground truth) estimate the same image.
 
@@ -314,6 +366,9 @@ def verdict(
         :math:`(rtol \cdot \max(|T_p|, |R_p|))^2`.
     names : (str, str)
         How error messages name the two images (e.g. their file paths).
+    neighbourhood : int
+        Radius in tiles of the variance floor (default :data:`NEIGHBOURHOOD`; 0: none): a tile's test variance is
+        at least what the tiles within that radius say (``_neighbourhood_floor``), with their Welch dof.
 
     Returns
     -------
@@ -341,6 +396,8 @@ def verdict(
         raise ValueError(f"tile must be a positive integer, got {tile!r}")
     if not (0.0 < float(alpha) < 1.0):
         raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    if not isinstance(neighbourhood, (int, np.integer)) or isinstance(neighbourhood, bool) or neighbourhood < 0:
+        raise ValueError(f"neighbourhood must be an integer >= 0, got {neighbourhood!r}")
     tile = int(tile)
     alpha = float(alpha)
     t = np.asarray(test, dtype=np.float64)
@@ -384,7 +441,14 @@ def verdict(
     vr_sum = _tile_sum(vr, tile)
     v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
     v_sum = _tile_sum(v_eff, tile)
-    dof_tiles = np.minimum(_welch_dof(vt_sum, _tile_sum(welch_t, tile)), _welch_dof(vr_sum, _tile_sum(welch_r, tile)))
+    wt_sum, wr_sum = _tile_sum(welch_t, tile), _tile_sum(welch_r, tile)
+    dof_tiles = np.minimum(_welch_dof(vt_sum, wt_sum), _welch_dof(vr_sum, wr_sum))
+    floored = _neighbourhood_floor(vt_sum, vr_sum, n, neighbourhood)
+    wider = floored > vt_sum
+    v_sum = np.where(wider, v_sum + (floored - vt_sum), v_sum)
+    # a floored tile's test variance is the neighbourhood's: its Welch dof over the neighbourhood's pixels
+    nb_dof = _welch_dof(_box(vt_sum, neighbourhood), _box(wt_sum, neighbourhood))
+    dof_tiles = np.where(wider, np.minimum(nb_dof, _welch_dof(vr_sum, wr_sum)), dof_tiles)
     zero_tiles = (n > 0) & (v_raw_sum == 0)
     random_tiles = (n > 0) & (v_raw_sum > 0)
     bad_pixel = m & (v_raw == 0) & (np.abs(diff) > rtol * scale)
@@ -545,5 +609,6 @@ def verdict(
         zero_variance=zero_variance,
         worst_tile=worst,
         variance_dof={"test": _dof_summary(test_dof), "ground_truth": _dof_summary(expected_dof)},
+        variance_floor={"neighbourhood": int(neighbourhood), "tiles": int((wider & random_tiles).sum())},
         tiles=tiles,
     )
