@@ -325,7 +325,7 @@ def film_list(text: str) -> tuple:
             raise argparse.ArgumentTypeError(f"expected comma-separated films (scene, half, double or WxH, e.g. "
                                              f"64x64), got {short(item)}{hint(item, list(FILM_WORDS))}")
         else:
-            width, height = int(match[1]), int(match[2])
+            width, height = parse_int(match[1], "film sides"), parse_int(match[2], "film sides")
             if not MIN_SWEEP_SIDE <= min(width, height) <= max(width, height) <= MAX_FILM_SIDE:
                 raise argparse.ArgumentTypeError(f"expected film sides from {MIN_SWEEP_SIDE} to {MAX_FILM_SIDE} "
                                                  f"pixels, got {item}")
