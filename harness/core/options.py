@@ -17,7 +17,7 @@ import os
 import re
 
 from harness.core.errors import HarnessError
-from harness.core.limits import MAX_TIMEOUT_SECONDS
+from harness.core.limits import MAX_FILM_SIDE, MAX_TIMEOUT_SECONDS, film_problem
 from harness.core.text import hint, short
 
 _OPTION_MESSAGE = re.compile(r"argument (-[^\s:]*): (.*)", re.S)
@@ -287,6 +287,53 @@ def budget_factors(text: str) -> str:
     if values[-1] > MAX_BUDGET_FACTOR:
         raise argparse.ArgumentTypeError(f"expected factors of at most {MAX_BUDGET_FACTOR:g}, got {values[-1]:g}")
     return text
+
+
+def int_list(minimum: int, what: str):
+    """An argparse ``type=`` for a strictly increasing comma-separated list of integers, each >= ``minimum``
+    (``harness calibrate --spp 16,64,256``, ``--replicates 1,2,4``), as a tuple; ``what`` says why the least."""
+
+    def convert(text: str) -> tuple[int, ...]:
+        values = parse_ladder(text, int)
+        if values[0] < minimum:
+            raise argparse.ArgumentTypeError(f"expected comma-separated integers >= {minimum} ({what}), "
+                                             f"got {values[0]} in {short(text)}")
+        return tuple(values)
+
+    convert.__name__ = "integers"
+    return convert
+
+
+#: the words of ``harness calibrate --films``: the case's own film, and it halved and doubled
+FILM_WORDS = ("scene", "half", "double")
+MIN_SWEEP_SIDE = 8  # a film side of a sweep: one verdict tile of the default 8 pixels
+
+
+def film_list(text: str) -> tuple:
+    """An argparse ``type=`` for ``harness calibrate --films``: comma-separated :data:`FILM_WORDS` or ``WxH``
+    (each side from :data:`MIN_SWEEP_SIDE` to the film limit), as a tuple of words and (width, height) pairs; the
+    words are resolved against each case's film by the calibration."""
+    items = [item.strip() for item in str(text).split(",")]
+    if not any(items):
+        raise argparse.ArgumentTypeError(f"expected comma-separated films (scene, half, double or WxH), got {text!r}")
+    films = []
+    for item in filter(None, items):
+        match = _SIZE.fullmatch(item)
+        if item in FILM_WORDS:
+            films.append(item)
+        elif not match:
+            raise argparse.ArgumentTypeError(f"expected comma-separated films (scene, half, double or WxH, e.g. "
+                                             f"64x64), got {short(item)}{hint(item, list(FILM_WORDS))}")
+        else:
+            width, height = parse_int(match[1], "film sides"), parse_int(match[2], "film sides")
+            if not MIN_SWEEP_SIDE <= min(width, height) <= max(width, height) <= MAX_FILM_SIDE:
+                raise argparse.ArgumentTypeError(f"expected film sides from {MIN_SWEEP_SIDE} to {MAX_FILM_SIDE} "
+                                                 f"pixels, got {item}")
+            problem = film_problem(width, height)
+            if problem:
+                raise argparse.ArgumentTypeError(problem)
+            films.append((width, height))
+    return tuple(films)
 
 
 def seconds_ladder(text: str) -> str:

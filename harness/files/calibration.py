@@ -2,7 +2,8 @@
 by ``harness calibrate``, in calibration.md and in the report), and the file read back for the report
 (``harness report --calibration FILE``), checked like results.json (:mod:`harness.files.results`): a malformed file
 is one line naming it and the JSON path of the bad key. Only what the report shows is checked; other keys are
-scanned (no NaN, no absurd nesting)."""
+scanned (no NaN, no absurd nesting). A false-alarm sweep (``harness calibrate --films/--spp/--replicates``) holds
+its configurations under ``sweep``: :func:`sweep_table` and :func:`sweep_total_line` are its text."""
 
 from __future__ import annotations
 
@@ -12,7 +13,8 @@ from harness.core.errors import HarnessError, read_user_text
 from harness.files.results import (COUNT, NAME, NUMBER, POSITIVE, STR, ListOf, Nullable, Obj, Scalar, check_spec,
                                    parse)
 
-__all__ = ["PLANTS", "POWER_HEADERS", "power_caption", "power_table", "read_calibration"]
+__all__ = ["PLANTS", "POWER_HEADERS", "SWEEP_HEADERS", "power_caption", "power_table", "read_calibration",
+           "sweep_table", "sweep_total_line"]
 
 #: the planted errors, as calibration.json names them (harness.running.calibrate)
 PLANTS = ("bias", "region_aligned", "region_off_grid")
@@ -26,9 +28,19 @@ BUDGET = Obj({"factor": POSITIVE, "runs": COUNT, "false_alarms": COUNT, "seconds
              {"spp": Nullable(COUNT), "seconds_budget": POSITIVE})
 POWER = Obj({"budgets": ListOf(BUDGET)})
 CASE = Obj({"case": NAME, "expect": STR}, {"power": POWER, "runs": COUNT, "false_alarms": COUNT})
+_P = Scalar("a probability from 0 to 1", lambda v: isinstance(v, (int, float)) and not isinstance(v, bool)
+           and 0 <= v <= 1)
+SWEEP_CONFIG = Obj({"film": ListOf(COUNT, 2), "runs": COUNT, "false_alarms": COUNT, "alpha": _P,
+                    "p_value_of_count": _P},
+                   {"spp": Nullable(COUNT), "seconds": Nullable(POSITIVE), "replicates": Nullable(COUNT),
+                    "ground_truth_spp": Nullable(COUNT), "ground_truth_source": Nullable(STR), "errors": COUNT})
+SWEEP = Obj({"cases": ListOf(Obj({"case": NAME, "configs": ListOf(SWEEP_CONFIG)})),
+             "total": Obj({"runs": COUNT, "false_alarms": COUNT, "expected": Nullable(NUMBER), "p_value": _P})},
+            {"skipped": ListOf(STR)})
 CALIBRATION = Obj({"suite": STR, "seeds": COUNT, "cases": ListOf(CASE)},
                   {"power": Obj({"quantile": POSITIVE, "precision": POSITIVE, "confidence": POSITIVE,
-                                 "region_size": COUNT, "method": STR})})
+                                 "region_size": COUNT, "method": STR}),
+                   "sweep": SWEEP})
 
 
 def read_calibration(path: str | Path, where: str = "--calibration") -> dict:
@@ -90,3 +102,36 @@ def _pct(value, digits: int = 2, unit: str = "%") -> str:
     if not isinstance(value, (int, float)):
         return "–"
     return f"{100.0 * value:.{digits}g}{unit}"
+
+
+# ---- the false-alarm sweep ------------------------------------------------------------------------------------
+
+SWEEP_HEADERS = ("case", "film", "spp", "replicates", "GT spp", "false alarms", "p of count")
+
+
+def sweep_table(result: dict) -> list[tuple[str, ...]]:
+    """The sweep's rows (as text): one per case and configuration, :data:`SWEEP_HEADERS`; none without a sweep."""
+    rows = []
+    for case in (result.get("sweep") or {}).get("cases", []):
+        for c in case["configs"]:
+            budget = (f"{c['seconds']:g} s" if c.get("seconds") is not None else
+                      "–" if c.get("spp") is None else str(c["spp"]))
+            truth = ("closed form" if c.get("ground_truth_source") == "closed-form" else
+                     "–" if c.get("ground_truth_spp") is None else str(c["ground_truth_spp"]))
+            alarms = f"{c['false_alarms']}/{c['runs']}" + (f" ({c['errors']} errors)" if c.get("errors") else "")
+            rows.append((case["case"], f"{c['film'][0]}x{c['film'][1]}", budget,
+                         "–" if c.get("replicates") is None else str(c["replicates"]), truth, alarms,
+                         f"{c['p_value_of_count']:.3g}"))
+    return rows
+
+
+def sweep_total_line(result: dict) -> str:
+    """The sweep's totals in one line: correct renders, false alarms, how many alpha leads one to expect and the
+    probability of at least that many; empty without a sweep."""
+    total = (result.get("sweep") or {}).get("total")
+    if not total:
+        return ""
+    expected = total.get("expected")
+    return (f"{total['runs']} correct renders, {total['false_alarms']} false alarms, "
+            f"{'–' if expected is None else f'{expected:.3g}'} expected at alpha; "
+            f"P(>= {total['false_alarms']}) = {total['p_value']:.3g}")

@@ -7,7 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from harness.files.calibration import POWER_HEADERS, power_caption, power_table, read_calibration
+from harness.files.calibration import (POWER_HEADERS, SWEEP_HEADERS, power_caption, power_table, read_calibration,
+                                       sweep_table, sweep_total_line)
 
 HOW_TO = ("not measured for this page: `harness calibrate SUITE --seeds 50 [--budgets 0.5,1,2,4]` writes "
           "DIR/calibration.json; `harness report RESULTS.json --calibration DIR/calibration.json` (or `harness run "
@@ -16,18 +17,27 @@ HOW_TO = ("not measured for this page: `harness calibrate SUITE --seeds 50 [--bu
 
 def power_view(path: str | Path | None) -> dict[str, Any]:
     """What the page's power section shows: the table's ``headers`` and ``rows``, its ``caption``, the calibration
-    ``file`` and ``suite``, or only a ``note`` saying how to measure it. A bad file is a one-line HarnessError
+    ``file`` and ``suite``, or only a ``note`` saying how to measure it; a false-alarm sweep's table as ``sweep``
+    (``headers``, ``rows``, ``total``: its line of totals), None without one. A bad file is a one-line HarnessError
     (``--calibration``) before anything is written."""
     if path is None:
-        return {"rows": [], "headers": POWER_HEADERS, "caption": "", "file": None, "suite": None, "note": HOW_TO}
+        return {"rows": [], "headers": POWER_HEADERS, "caption": "", "file": None, "suite": None, "note": HOW_TO,
+                "sweep": None}
     doc = read_calibration(path)
     rows = power_table(doc)
-    note = "" if rows else "the calibration holds no power measurement (run without --no-power)"
+    sweep = ({"headers": SWEEP_HEADERS, "rows": sweep_table(doc), "total": sweep_total_line(doc)}
+             if "sweep" in doc else None)
+    note = ("" if rows else "the calibration is a false-alarm sweep: it measured no power" if sweep else
+            "the calibration holds no power measurement (run without --no-power)")
     return {"rows": rows, "headers": POWER_HEADERS, "caption": power_caption(doc) if rows else "", "file": str(path),
-            "suite": doc.get("suite"), "note": note, "method": (doc.get("power") or {}).get("method")}
+            "suite": doc.get("suite"), "note": note, "method": (doc.get("power") or {}).get("method"),
+            "sweep": sweep}
 
 
 def power_json(view: dict[str, Any]) -> dict[str, Any]:
-    """report.json's ``power``: the same table as lists."""
+    """report.json's ``power``: the same tables as lists."""
+    sweep = view.get("sweep")
     return {"file": view["file"], "suite": view["suite"], "caption": view["caption"], "note": view["note"],
-            "headers": list(view["headers"]), "rows": [list(r) for r in view["rows"]]}
+            "headers": list(view["headers"]), "rows": [list(r) for r in view["rows"]],
+            "sweep": None if sweep is None else {"headers": list(sweep["headers"]),
+                                                 "rows": [list(r) for r in sweep["rows"]], "total": sweep["total"]}}

@@ -13,25 +13,35 @@ each seed's smallest caught b and d is found by bisection to 2 %, and the size c
 0.9-quantile of those thresholds, with a 90 % distribution-free interval. ``budgets`` repeats the measurement with
 the case's budget (spp or seconds) times each factor, so the table reads power against the test render's time.
 A case with ``expect = "fail"`` is run once and its statistics are reported.
+
+    harness calibrate suites/canonical.toml --seeds 8 --films scene,half,double --spp 16,64,256 --replicates 1,2,4
+
+is a false-alarm sweep instead (:func:`sweep`): every expect-pass case at every combination of film, spp and the
+reference's replicates, each render judged as the suite judges it; no power is measured.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import fnmatch
+import itertools
 import statistics
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from harness.core import jsonsafe
 from harness.core.errors import HarnessError
-from harness.files.calibration import PLANTS, POWER_HEADERS, power_caption, power_table
+from harness.files.calibration import (PLANTS, POWER_HEADERS, SWEEP_HEADERS, power_caption, power_table,
+                                       sweep_table, sweep_total_line)
 from harness.files.imageio import ExrImage, atomic_write_text
 from harness.judges import power
 from harness.running.budget import render_with_budget
 from harness.running.cases import MIN_SPP, Case, Suite
-from harness.core.limits import MAX_SECONDS, format_seconds, render_seconds
+from harness.core.limits import MAX_FILM_SIDE, MAX_SECONDS, film_problem, format_seconds, render_seconds
+from harness.core.options import MIN_SWEEP_SIDE
 from harness.running.compare import judge
 from harness.running.judge import case_scene, case_scenes, ground_truth_for, judged_images, run_case
 from harness.running import runstate
@@ -60,6 +70,19 @@ class PowerOptions:
         return tuple(sorted(set(self.budgets) | {1.0}))
 
 
+@dataclass(frozen=True)
+class SweepOptions:
+    """A false-alarm sweep of ``harness calibrate``: every expect-pass case at each combination of ``films``
+    (``scene``: the case's own film, ``half``, ``double``, or a (width, height)), ``spp`` and the reference's
+    ``replicates``; None keeps the case's own value. ``ground_truth_spp``: the ground truth's spp instead of the
+    case's (a sharper ground truth must never make a correct render fail, so a sweep may ask for one)."""
+
+    films: tuple = ("scene",)
+    spp: tuple[int, ...] | None = None
+    replicates: tuple[int, ...] | None = None
+    ground_truth_spp: int | None = None
+
+
 def select_cases(suite: Suite, patterns: list[str] | None) -> list[Case]:
     """The cases whose name matches any of the ``--cases`` globs (every case without any); a pattern that matches
     no case (a typo would calibrate nothing, or less than asked) is a one-line HarnessError at ``--cases``."""
@@ -83,15 +106,21 @@ def with_budget(case: Case, factor: float) -> Case:
     return dataclasses.replace(case, spp=max(MIN_SPP, int(round(case.spp * factor))))
 
 
-def check_cost(cases: list[Case], seeds: int, option: str = "--seeds", budgets: tuple[float, ...] = (1.0,)) -> None:
+def check_cost(cases: list[Case], seeds: int, option: str = "--seeds", budgets: tuple[float, ...] = (1.0,),
+               sweep_options: SweepOptions | None = None) -> None:
     """Refuse a calibration whose estimated time breaks the 24 h limit of a render (harness/core/limits.py): each
-    ``expect = "pass"`` case renders ``seeds`` times at each budget factor, each render its budget (``seconds``, or
-    its pixels times ``spp`` at the estimate's paths per second) plus :data:`RENDER_OVERHEAD_SECONDS`."""
+    ``expect = "pass"`` case renders ``seeds`` times at each budget factor (or, with ``sweep_options``, at each of
+    its sweep's configurations, :func:`sweep_configs`, and expect-fail cases not at all), each render its budget
+    (``seconds``, or its pixels times ``spp`` at the estimate's paths per second) plus
+    :data:`RENDER_OVERHEAD_SECONDS`."""
     total = 0.0
     for case in cases:
-        for factor in (budgets if case.expect == "pass" else (1.0,)):
+        if sweep_options is not None:
+            variants = sweep_configs(case, sweep_options) if case.expect == "pass" else []
+        else:
+            variants = [with_budget(case, f) for f in (budgets if case.expect == "pass" else (1.0,))]
+        for budget in variants:
             runs = seeds if case.expect == "pass" else 1
-            budget = with_budget(case, factor)
             if budget.seconds is not None:
                 each = budget.seconds
             else:
@@ -99,8 +128,9 @@ def check_cost(cases: list[Case], seeds: int, option: str = "--seeds", budgets: 
                 each = render_seconds(scene.film.width, scene.film.height, budget.spp)
             total += runs * (each + RENDER_OVERHEAD_SECONDS)
     if total > MAX_SECONDS:
+        lower = f"{option}, --films or --spp" if sweep_options is not None else option
         raise HarnessError(option, f"{seeds} seeds of {len(cases)} cases need about {format_seconds(total)}, more "
-                           f"than the {format_seconds(MAX_SECONDS)} limit; lower {option} or choose fewer --cases")
+                           f"than the {format_seconds(MAX_SECONDS)} limit; lower {lower} or choose fewer --cases")
 
 
 # ---- power -----------------------------------------------------------------------------------------------------
@@ -323,17 +353,165 @@ def _ground_truth(case: Case, cache_dir, variant):
     return ground_truth_for(case, case_scenes(case)[1], cache_dir, variant)
 
 
+# ---- the false-alarm sweep -------------------------------------------------------------------------------------
+
+
+def sweep_film(case: Case, item, film) -> tuple[int, int]:
+    """The (width, height) of one ``--films`` item for a case whose own film is ``film``: ``scene`` that film,
+    ``half`` / ``double`` its sides halved / doubled (at least :data:`MIN_SWEEP_SIDE`), a pair itself; a doubled
+    film over the film limits is a one-line HarnessError at ``--films``."""
+    if isinstance(item, tuple):
+        return item
+    factor = {"scene": 1.0, "half": 0.5, "double": 2.0}[item]
+    width, height = (max(MIN_SWEEP_SIDE, int(side * factor)) for side in (film.width, film.height))
+    problem = (f"expected at most {MAX_FILM_SIDE} pixels per side" if max(width, height) > MAX_FILM_SIDE
+               else film_problem(width, height))
+    if problem:
+        raise HarnessError("--films", f"{item} of case {case.name!r}'s {film.width}x{film.height} film is "
+                           f"{width}x{height}: {problem}; leave {item} out or choose other --cases")
+    return width, height
+
+
+def check_replicates(case: Case, options: SweepOptions) -> None:
+    """Refuse ``--replicates`` for a case whose renderer is not the reference (the setting is the reference's),
+    unless the list is just the case's own ``replicates`` setting: one line at ``--replicates``."""
+    if options.replicates is None or case.renderer == "reference":
+        return
+    if [str(r) for r in options.replicates] != [case.settings.get("replicates")]:
+        raise HarnessError("--replicates", f"is a setting of the reference renderer; case {case.name!r} renders with "
+                           f"{case.renderer!r} (leave --replicates out or choose --cases of the reference)")
+
+
+def sweep_configs(case: Case, options: SweepOptions) -> list[Case]:
+    """The case at each configuration of the sweep (the product of its films, spp and replicates, in that order;
+    a configuration that comes twice, such as ``half`` of an 8-pixel film, once): its film set explicitly, its spp
+    (its ``seconds`` dropped) and its ``replicates`` setting (1 included: a suite gives the reference two unless
+    told) where the sweep gives them, its ground truth's spp where the sweep gives one."""
+    check_replicates(case, options)
+    film = case_scene(case).film
+    films = [sweep_film(case, item, film) for item in options.films]
+    spps = options.spp or (None,)
+    replicates = options.replicates if options.replicates and case.renderer == "reference" else (None,)
+    configs, seen = [], set()
+    for (width, height), spp, r in itertools.product(films, spps, replicates):
+        changes: dict = {"film": {"width": width, "height": height}}
+        if spp is not None:
+            changes.update(spp=spp, seconds=None)
+        if r is not None:
+            changes["settings"] = {**case.settings, "replicates": str(r)}
+        if options.ground_truth_spp is not None:
+            changes["ground_truth_spp"] = options.ground_truth_spp
+        config = dataclasses.replace(case, **changes)
+        key = (width, height, config.spp, config.seconds, config.settings.get("replicates"))
+        if key not in seen:
+            seen.add(key)
+            configs.append(config)
+    return configs
+
+
+def config_label(config: Case) -> str:
+    """A configuration as the progress lines name it: ``cornell-box/reference 128x128 64 spp R=2``."""
+    budget = f"{config.seconds:g} s" if config.seconds is not None else f"{config.spp} spp"
+    replicates = config.settings.get("replicates")
+    return (f"{config.name} {config.film['width']}x{config.film['height']} {budget}"
+            + (f" R={replicates}" if replicates is not None else ""))
+
+
+def _count_p(failures: int, runs: int, alpha: float, stats) -> float:
+    """P(at least ``failures`` false alarms in ``runs`` | each one's probability is ``alpha``)."""
+    return float(stats.binom.sf(failures - 1, runs, alpha)) if failures else 1.0
+
+
+def _sweep_config(config: Case, out_dir: Path, seeds: int, cache_dir, variant, on_progress, stats) -> dict:
+    """One configuration of a case: ``seeds`` renders through :func:`run_case` (the suite's very verdict and
+    thresholds), their false alarms (status "fail") and errors, and each run's sub-tests' p-values."""
+    detail, truth = [], {}
+    for seed in range(seeds):
+        record = run_case(dataclasses.replace(config, seed=seed), out_dir, cache_dir=cache_dir, variant=variant)
+        truth = truth or record.get("ground_truth") or {}
+        v = record.get("verdict") or {}
+        detail.append({
+            "seed": seed, "status": record.get("status"), "reason": str(record.get("reason") or "")[:200],
+            "global_bias_p": (v.get("global_bias") or {}).get("p_value"),
+            "omnibus_p": (v.get("omnibus") or {}).get("p_value"),
+            "max_z_p": (v.get("max_z") or {}).get("p_value"),
+        })
+        if on_progress:
+            on_progress(config_label(config), seed)
+    false_alarms = sum(d["status"] == "fail" for d in detail)
+    runs = sum(d["status"] in ("pass", "fail") for d in detail)  # an error or a skip judged nothing
+    replicates = config.settings.get("replicates")
+    return {
+        "film": [config.film["width"], config.film["height"]], "spp": config.spp, "seconds": config.seconds,
+        "replicates": int(replicates) if replicates is not None and replicates.isdigit() else None,
+        # the ground truth's own spp where it has one (a Mitsuba render, another renderer's), None for a closed form
+        "ground_truth_spp": (truth.get("spp") or config.ground_truth_spp) if truth.get("source") != "closed-form"
+        else None,
+        "ground_truth_source": truth.get("source"),
+        "runs": runs, "errors": seeds - runs, "false_alarms": false_alarms, "alpha": config.alpha,
+        "p_value_of_count": _count_p(false_alarms, runs, config.alpha, stats), "runs_detail": detail,
+    }
+
+
+def sweep(suite: Suite, out_dir: Path, *, seeds: int, patterns: list[str] | None, options: SweepOptions,
+          cache_dir=None, variant=None, on_progress=None) -> dict:
+    """The false-alarm sweep: each expect-pass case (those matching ``patterns``) at each configuration of
+    :func:`sweep_configs`, ``seeds`` renders each (seeds 0 .. N-1), judged as the suite judges it; expect-fail
+    cases are skipped (named under ``skipped``). Returns calibration.json's content: per case its runs and false
+    alarms over all configurations (``cases``, as an unswept calibration has them) and ``sweep``: each
+    configuration's count and the binomial probability of at least that many, and the totals (the probability of
+    the total is that of the sum of each configuration's binomial count)."""
+    from scipy import stats  # optional: 0.9 s; only calibrate's binomial tail (Boost's; scipy.special.bdtr differs)
+
+    cases = select_cases(suite, patterns)
+    runstate.refuse_links(out_dir, cases)  # a link planted in out_dir: one line, before the first render
+    passing = [c for c in cases if c.expect == "pass"]
+    planned = [(case, sweep_configs(case, options)) for case in passing]  # a bad option: one line, before rendering
+    rows, swept, total_pmf = [], [], np.ones(1)
+    for case, configs in planned:
+        done = [_sweep_config(c, out_dir, seeds, cache_dir, variant, on_progress, stats) for c in configs]
+        swept.append({"case": case.name, "renderer": case.renderer, "configs": done})
+        runs, alarms = sum(c["runs"] for c in done), sum(c["false_alarms"] for c in done)
+        rows.append({"case": case.name, "expect": "pass", "runs": runs, "passes": runs - alarms,
+                     "false_alarms": alarms, "errors": sum(c["errors"] for c in done), "alpha": case.alpha,
+                     "p_value_of_count": _count_p(alarms, runs, case.alpha, stats)})
+        for c in done:  # the total's distribution: the sum of the configurations' binomial counts
+            total_pmf = np.convolve(total_pmf, stats.binom.pmf(np.arange(c["runs"] + 1), c["runs"], c["alpha"]))
+    runs = sum(r["runs"] for r in rows)
+    alarms = sum(r["false_alarms"] for r in rows)
+    expected = sum(c["runs"] * c["alpha"] for s in swept for c in s["configs"])
+    p_total = min(1.0, float(total_pmf[alarms:].sum())) if alarms else 1.0
+    return {"suite": suite.name, "seeds": seeds, "cases": rows, "sweep": {
+        "films": ["x".join(map(str, f)) if isinstance(f, tuple) else f for f in options.films],
+        "spp": list(options.spp) if options.spp else None,
+        "replicates": list(options.replicates) if options.replicates else None,
+        "ground_truth_spp": options.ground_truth_spp,
+        "skipped": [f"{c.name} (expect = fail)" for c in cases if c.expect != "pass"],
+        "cases": swept, "total": {"runs": runs, "false_alarms": alarms, "expected": expected, "p_value": p_total}}}
+
+
 # ---- output ----------------------------------------------------------------------------------------------------
 
 
 def summary_lines(result: dict) -> list[str]:
     """What ``harness calibrate`` prints: a line per case (false alarms, or how a fault failed), then the power
-    table."""
+    table, or a sweep's table, its skipped cases and its totals."""
     lines = case_lines(result)
     table = power_table(result)
     if table:
         lines += ["", power_caption(result), *_plain_table(table)]
+    table = sweep_table(result)
+    if "sweep" in result:
+        lines += ["", sweep_caption(result), *_plain_table(table, SWEEP_HEADERS), sweep_total_line(result)]
     return lines
+
+
+def sweep_caption(result: dict) -> str:
+    """One line saying what the sweep's table holds, and which cases it skipped."""
+    skipped = (result.get("sweep") or {}).get("skipped") or []
+    return (f"false-alarm sweep: {result.get('seeds')} seeds per configuration, each render judged as the suite "
+            f"judges it (GT spp: the ground truth's)"
+            + (f"; skipped: {', '.join(skipped)}" if skipped else ""))
 
 
 def case_lines(result: dict) -> list[str]:
@@ -358,14 +536,15 @@ def _fmt(v, digits: int = 4) -> str:
     return f"{v:.{digits}g}" if isinstance(v, (int, float)) else str(v)
 
 
-def _plain_table(rows: list[tuple[str, ...]]) -> list[str]:
-    widths = [max(len(str(r[i])) for r in [POWER_HEADERS, *rows]) for i in range(len(POWER_HEADERS))]
-    return ["  ".join(str(cell).ljust(w) for cell, w in zip(r, widths)).rstrip() for r in [POWER_HEADERS, *rows]]
+def _plain_table(rows: list[tuple[str, ...]], headers: tuple[str, ...] = POWER_HEADERS) -> list[str]:
+    widths = [max(len(str(r[i])) for r in [headers, *rows]) for i in range(len(headers))]
+    return ["  ".join(str(cell).ljust(w) for cell, w in zip(r, widths)).rstrip() for r in [headers, *rows]]
 
 
 def markdown(result: dict) -> str:
     """calibration.md: the false alarms, the faults caught and the power table, as Markdown."""
-    lines = [f"# Calibration: {result.get('suite')}", "", f"{result.get('seeds')} seeds per expect-pass case.", ""]
+    per = "configuration of each expect-pass case" if "sweep" in result else "expect-pass case"
+    lines = [f"# Calibration: {result.get('suite')}", "", f"{result.get('seeds')} seeds per {per}.", ""]
     lines += [f"- {line}" for line in case_lines(result)]
     table = power_table(result)
     if table:
@@ -373,7 +552,15 @@ def markdown(result: dict) -> str:
                   "| " + " | ".join(POWER_HEADERS) + " |", "|" + "---|" * len(POWER_HEADERS)]
         lines += ["| " + " | ".join(cell.replace("|", "\\|") for cell in r) + " |" for r in table]
         lines += ["", "Method: " + str((result.get("power") or {}).get("method", "")) + "."]
+    if "sweep" in result:
+        lines += ["", "## False-alarm sweep", "", sweep_caption(result) + ".", "",
+                  *_markdown_table(sweep_table(result), SWEEP_HEADERS), "", sweep_total_line(result) + "."]
     return "\n".join(lines) + "\n"
+
+
+def _markdown_table(rows: list[tuple[str, ...]], headers: tuple[str, ...]) -> list[str]:
+    return ["| " + " | ".join(headers) + " |", "|" + "---|" * len(headers),
+            *("| " + " | ".join(cell.replace("|", "\\|") for cell in r) + " |" for r in rows)]
 
 
 def write(result: dict, path: Path) -> None:
