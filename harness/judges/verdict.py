@@ -44,10 +44,10 @@ time in twenty) makes the other image look dominant and its many degrees of
 freedom make the tile's z look normal, while it is nearly Cauchy.  Without
 them, variances are taken as exact (z ~ N(0, 1)).
 
-Before z is formed, each tile's test variance is floored by its neighbourhood's
-(:func:`_neighbourhood_floor`): at least the test's variance per pixel over
-the 5 x 5 tiles around it, or, where less, the ground truth's variance in the
-tile times the ratio of the two images' variances over those tiles.  Where a renderer's variance is carried by rare, large
+Before z is formed, each image's variance in a tile is floored by its
+neighbourhood's (:func:`_neighbourhood_floor`): at least its variance per
+pixel over the 5 x 5 tiles around it, or, where less, the other image's
+variance in the tile times the ratio of the two images' variances there.  Where a renderer's variance is carried by rare, large
 samples, most tiles of a render hold none of them and their own variance
 estimate is far below its mean; the floor keeps those tiles' z near their
 true scale (docs/verdict.md, "Heavy-tailed estimators").
@@ -83,7 +83,7 @@ CHANNELS: tuple[str, str, str] = ("R", "G", "B")
 ROUNDING_RTOL = 1e-6
 #: The sub-tests combined by Bonferroni.
 SUBTESTS: tuple[str, str, str] = ("global_bias", "omnibus", "max_z")
-#: Radius in tiles of the neighbourhood whose variances floor each tile's test variance (``_neighbourhood_floor``):
+#: Radius in tiles of the neighbourhood whose variances floor each tile's (``_neighbourhood_floor``):
 #: 2 is the 5 x 5 tiles around it (docs/verdict.md, "Heavy-tailed estimators: the neighbourhood floor").
 NEIGHBOURHOOD = 2
 
@@ -130,7 +130,7 @@ class Verdict:
     ``variance_dof``: the degrees of freedom of the variance estimates used
     (None: taken as exact).
     ``variance_floor``: ``neighbourhood`` (its radius in tiles) and ``tiles``
-    (tile-channels whose test variance the neighbourhood raised).
+    (tile-channels where the neighbourhood raised either image's variance).
     """
 
     verdict: str
@@ -187,28 +187,27 @@ def _box(x: np.ndarray, radius: int) -> np.ndarray:
     return out
 
 
-def _neighbourhood_floor(vt_sum: np.ndarray, vr_sum: np.ndarray, n: np.ndarray, radius: int) -> np.ndarray:
-    r"""Each tile's test variance as its neighbourhood says it may be: with N(j) the tiles within ``radius`` tiles
-    of tile j (inside the grid), :math:`V^T_N = \sum_{k \in N(j)} V^T_k`, likewise :math:`V^R_N` and the pixel
-    count :math:`n_N`,
+def _neighbourhood_floor(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, radius: int) -> np.ndarray:
+    r"""One image's variance in each tile as its neighbourhood says it may be: with N(j) the tiles within ``radius``
+    tiles of tile j (inside the grid), :math:`V_N = \sum_{k \in N(j)} V_k` (``v_sum``), likewise the other image's
+    :math:`W_N` (``other_sum``) and the pixel count :math:`n_N`,
 
-    .. math:: \hat V^T_j = \min\left(n_j \frac{V^T_N}{n_N},\; V^R_j \frac{V^T_N}{V^R_N}\right),
+    .. math:: \hat V_j = \min\left(n_j \frac{V_N}{n_N},\; W_j \frac{V_N}{W_N}\right),
 
-    the neighbourhood's test variance per pixel, but no more than the ground truth's variance in the tile times the
-    neighbourhood's ratio of the two (where the ground truth's variance falls, at an edge of the image's noise,
-    the floor falls with it). 0 where the neighbourhood's ground truth has no variance (an exact one) or ``radius``
-    is 0.
+    the neighbourhood's variance per pixel, but no more than the other image's variance in the tile times the
+    neighbourhood's ratio of the two (where the other's variance falls, at an edge of the image's noise, the floor
+    falls with it). 0 where the other image has no variance in the neighbourhood (an exact image) or ``radius`` is 0.
 
     An estimator whose variance is carried by rare, large samples (a path that reaches a point light from close by,
     a caustic) draws them in only some tiles of a render: in the others the tile's variance estimate is far below
-    its mean, and its z far too large although the image is right. The neighbourhood holds (2 radius + 1)^2 times
+    its mean, and its z far too large although the images agree. The neighbourhood holds (2 radius + 1)^2 times
     the samples."""
     if radius <= 0:
-        return np.zeros_like(vt_sum)
-    nb_t, nb_r, nb_n = _box(vt_sum, radius), _box(vr_sum, radius), _box(n, radius)
+        return np.zeros_like(v_sum)
+    nb_v, nb_w, nb_n = _box(v_sum, radius), _box(other_sum, radius), _box(n, radius)
     with np.errstate(divide="ignore", invalid="ignore"):
-        shaped = np.where(nb_r > 0, vr_sum * nb_t / nb_r, 0.0)
-        even = np.where(nb_n > 0, n * nb_t / nb_n, 0.0)
+        shaped = np.where(nb_w > 0, other_sum * nb_v / nb_w, 0.0)
+        even = np.where(nb_n > 0, n * nb_v / nb_n, 0.0)
     return np.minimum(even, shaped)
 
 
@@ -367,8 +366,8 @@ def verdict(
     names : (str, str)
         How error messages name the two images (e.g. their file paths).
     neighbourhood : int
-        Radius in tiles of the variance floor (default :data:`NEIGHBOURHOOD`; 0: none): a tile's test variance is
-        at least what the tiles within that radius say (``_neighbourhood_floor``), with their Welch dof.
+        Radius in tiles of the variance floor (default :data:`NEIGHBOURHOOD`; 0: none): each image's variance in a
+        tile is at least what the tiles within that radius say (``_neighbourhood_floor``), with their Welch dof.
 
     Returns
     -------
@@ -442,13 +441,18 @@ def verdict(
     v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
     v_sum = _tile_sum(v_eff, tile)
     wt_sum, wr_sum = _tile_sum(welch_t, tile), _tile_sum(welch_r, tile)
-    dof_tiles = np.minimum(_welch_dof(vt_sum, wt_sum), _welch_dof(vr_sum, wr_sum))
-    floored = _neighbourhood_floor(vt_sum, vr_sum, n, neighbourhood)
-    wider = floored > vt_sum
-    v_sum = np.where(wider, v_sum + (floored - vt_sum), v_sum)
-    # a floored tile's test variance is the neighbourhood's: its Welch dof over the neighbourhood's pixels
-    nb_dof = _welch_dof(_box(vt_sum, neighbourhood), _box(wt_sum, neighbourhood))
-    dof_tiles = np.where(wider, np.minimum(nb_dof, _welch_dof(vr_sum, wr_sum)), dof_tiles)
+    # each image's variance in a tile at least what its neighbourhood says (the other image giving the shape);
+    # a floored tile takes the neighbourhood's Welch dof for that image
+    floor_t = _neighbourhood_floor(vt_sum, vr_sum, n, neighbourhood)
+    floor_r = _neighbourhood_floor(vr_sum, vt_sum, n, neighbourhood)
+    raised_t, raised_r = floor_t > vt_sum, floor_r > vr_sum
+    v_sum = v_sum + np.where(raised_t, floor_t - vt_sum, 0.0) + np.where(raised_r, floor_r - vr_sum, 0.0)
+    dof_t = np.where(raised_t, _welch_dof(_box(vt_sum, neighbourhood), _box(wt_sum, neighbourhood)),
+                     _welch_dof(vt_sum, wt_sum))
+    dof_r = np.where(raised_r, _welch_dof(_box(vr_sum, neighbourhood), _box(wr_sum, neighbourhood)),
+                     _welch_dof(vr_sum, wr_sum))
+    dof_tiles = np.minimum(dof_t, dof_r)
+    wider = raised_t | raised_r
     zero_tiles = (n > 0) & (v_raw_sum == 0)
     random_tiles = (n > 0) & (v_raw_sum > 0)
     bad_pixel = m & (v_raw == 0) & (np.abs(diff) > rtol * scale)

@@ -164,8 +164,7 @@ NO_RATIO = {
 #: (k = 256) cannot be: against a sharper ground truth a correct render of its hard shadows fails the tile
 #: statistic now and then (8 spp against 16384: direct-global-area failed, max |z| 6.8), the wrong tail of issue 33's
 #: section 5; they stay at 64 spp against 1024, and warn, until that is fixed.
-OVER_BUDGET = {"point-spot/direct-hemisphere-cosine", "point-spot/direct-hemisphere-uniform",
-               "point-spot/direct-global-area"}
+OVER_BUDGET: set[str] = set()
 
 
 def share(case) -> float:
