@@ -44,10 +44,11 @@ time in twenty) makes the other image look dominant and its many degrees of
 freedom make the tile's z look normal, while it is nearly Cauchy.  Without
 them, variances are taken as exact (z ~ N(0, 1)).
 
-Before z is formed, each image's variance in a tile is floored by its
-neighbourhood's (:func:`_neighbourhood_floor`): at least its variance per
-pixel over the 5 x 5 tiles around it, or, where less, the other image's
-variance in the tile times the ratio of the two images' variances there.  Where a renderer's variance is carried by rare, large
+Before z is formed, each image's variance in a tile is raised to its
+neighbourhood's (:func:`_neighbourhood_floor`) where it is more than
+:data:`FLOOR_RATIO` below it: its variance per pixel over the 5 x 5 tiles
+around it, or, where less, the other image's variance in the tile times the
+ratio of the two images' variances there.  Where a renderer's variance is carried by rare, large
 samples, most tiles of a render hold none of them and their own variance
 estimate is far below its mean; the floor keeps those tiles' z near their
 true scale (docs/verdict.md, "Heavy-tailed estimators").
@@ -86,6 +87,9 @@ SUBTESTS: tuple[str, str, str] = ("global_bias", "omnibus", "max_z")
 #: Radius in tiles of the neighbourhood whose variances floor each tile's (``_neighbourhood_floor``):
 #: 2 is the 5 x 5 tiles around it (docs/verdict.md, "Heavy-tailed estimators: the neighbourhood floor").
 NEIGHBOURHOOD = 2
+#: A tile's variance is raised to its neighbourhood's only where it is more than this factor below it: ordinary
+#: sampling noise of a variance estimate stays within it, a tile that drew none of the rare samples falls far below.
+FLOOR_RATIO = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -367,7 +371,8 @@ def verdict(
         How error messages name the two images (e.g. their file paths).
     neighbourhood : int
         Radius in tiles of the variance floor (default :data:`NEIGHBOURHOOD`; 0: none): each image's variance in a
-        tile is at least what the tiles within that radius say (``_neighbourhood_floor``), with their Welch dof.
+        tile more than :data:`FLOOR_RATIO` below what the tiles within that radius say (``_neighbourhood_floor``) is
+        raised to it, with their Welch dof.
 
     Returns
     -------
@@ -441,11 +446,11 @@ def verdict(
     v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
     v_sum = _tile_sum(v_eff, tile)
     wt_sum, wr_sum = _tile_sum(welch_t, tile), _tile_sum(welch_r, tile)
-    # each image's variance in a tile at least what its neighbourhood says (the other image giving the shape);
-    # a floored tile takes the neighbourhood's Welch dof for that image
+    # each image's variance in a tile raised to what its neighbourhood says (the other image giving the shape) where
+    # it is more than FLOOR_RATIO below that; a raised tile takes the neighbourhood's Welch dof for that image
     floor_t = _neighbourhood_floor(vt_sum, vr_sum, n, neighbourhood)
     floor_r = _neighbourhood_floor(vr_sum, vt_sum, n, neighbourhood)
-    raised_t, raised_r = floor_t > vt_sum, floor_r > vr_sum
+    raised_t, raised_r = floor_t > FLOOR_RATIO * vt_sum, floor_r > FLOOR_RATIO * vr_sum
     v_sum = v_sum + np.where(raised_t, floor_t - vt_sum, 0.0) + np.where(raised_r, floor_r - vr_sum, 0.0)
     dof_t = np.where(raised_t, _welch_dof(_box(vt_sum, neighbourhood), _box(wt_sum, neighbourhood)),
                      _welch_dof(vt_sum, wt_sum))
