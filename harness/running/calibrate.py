@@ -310,7 +310,7 @@ def _calibrate_pass(case: Case, out_dir: Path, seeds: int, cache_dir, variant, o
         "case": case.name, "expect": "pass", "runs": seeds, "passes": seeds - failures,
         "false_alarms": failures, "alpha": alpha,
         # P(at least this many false alarms | the verdict's false-alarm rate is alpha)
-        "p_value_of_count": float(stats.binom.sf(failures - 1, seeds, alpha)) if failures else 1.0,
+        "p_value_of_count": _count_p(failures, seeds, alpha, stats),
         "runs_detail": stats_seen,
     }
     if not options.enabled:
