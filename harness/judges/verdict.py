@@ -44,11 +44,11 @@ time in twenty) makes the other image look dominant and its many degrees of
 freedom make the tile's z look normal, while it is nearly Cauchy.  Without
 them, variances are taken as exact (z ~ N(0, 1)).
 
-Before z is formed, each image's variance in a tile is raised to its
-neighbourhood's (:func:`_neighbourhood_floor`) where it is more than
-:data:`FLOOR_RATIO` below it: its variance per pixel over the 5 x 5 tiles
-around it, or, where less, the other image's variance in the tile times the
-ratio of the two images' variances there.  Where a renderer's variance is carried by rare, large
+Before z is formed, each image's variance in a tile is raised to what its
+neighbourhood says (:func:`_neighbourhood_floor`) where it is more than
+:data:`FLOOR_RATIO` below that: the other image's variance in the tile times
+the ratio of the two images' variances over the 5 x 5 tiles around it whose
+other image's variance is alike (within :data:`GUIDE_FACTOR`).  Where a renderer's variance is carried by rare, large
 samples, most tiles of a render hold none of them and their own variance
 estimate is far below its mean; the floor keeps those tiles' z near their
 true scale (docs/verdict.md, "Heavy-tailed estimators").
@@ -90,6 +90,10 @@ NEIGHBOURHOOD = 2
 #: A tile's variance is raised to its neighbourhood's only where it is more than this factor below it: ordinary
 #: sampling noise of a variance estimate stays within it, a tile that drew none of the rare samples falls far below.
 FLOOR_RATIO = 4.0
+#: The neighbourhood counts the tiles whose other image's variance per pixel is within this factor of the tile's:
+#: the same kind of place (not the quiet sky beside a noisy ground, 1e4 apart), while the rare samples' tiles and
+#: their neighbours, whose ground truth varies smoothly, stay in.
+GUIDE_FACTOR = 100.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,40 +183,56 @@ def _tile_sum(x: np.ndarray, tile: int) -> np.ndarray:
     return x.reshape(th, tile, tw, tile, c).sum(axis=(1, 3))
 
 
-def _box(x: np.ndarray, radius: int) -> np.ndarray:
-    """Sums over the (2 radius + 1)^2 tiles around each tile (those inside the grid), per channel."""
-    h, w = x.shape[:2]
-    padded = np.zeros((h + 2 * radius, w + 2 * radius) + x.shape[2:], dtype=np.float64)
-    padded[radius:radius + h, radius:radius + w] = x
-    out = np.zeros(x.shape, dtype=np.float64)
-    for dy in range(2 * radius + 1):
-        for dx in range(2 * radius + 1):
-            out += padded[dy:dy + h, dx:dx + w]
+def _box(arrays: tuple[np.ndarray, ...], radius: int, guide: np.ndarray, factor: float) -> list[np.ndarray]:
+    """Sums of each of ``arrays`` over the (2 radius + 1)^2 tiles around each tile (those inside the grid), per
+    channel, counting only the tiles whose ``guide`` lies within ``factor`` of the centre tile's (either way)."""
+    h, w = guide.shape[:2]
+
+    def pad(x):
+        padded = np.full((h + 2 * radius, w + 2 * radius) + x.shape[2:], np.nan if x is guide else 0.0)
+        padded[radius:radius + h, radius:radius + w] = x
+        return padded
+
+    padded, padded_guide = [pad(x) for x in arrays], pad(guide)
+    out = [np.zeros(guide.shape) for _ in arrays]
+    with np.errstate(invalid="ignore"):
+        for dy in range(2 * radius + 1):
+            for dx in range(2 * radius + 1):
+                g = padded_guide[dy:dy + h, dx:dx + w]
+                alike = (g * factor >= guide) & (g <= guide * factor)  # NaN (outside the grid): False
+                for total, x in zip(out, padded):
+                    total += np.where(alike, x[dy:dy + h, dx:dx + w], 0.0)
     return out
 
 
-def _neighbourhood_floor(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, radius: int) -> np.ndarray:
-    r"""One image's variance in each tile as its neighbourhood says it may be: with N(j) the tiles within ``radius``
-    tiles of tile j (inside the grid), :math:`V_N = \sum_{k \in N(j)} V_k` (``v_sum``), likewise the other image's
-    :math:`W_N` (``other_sum``) and the pixel count :math:`n_N`,
+def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray,
+                         radius: int) -> tuple[np.ndarray, np.ndarray]:
+    r"""One image's variance in each tile as its neighbourhood says it may be, and that estimate's Welch dof.
 
-    .. math:: \hat V_j = \min\left(n_j \frac{V_N}{n_N},\; W_j \frac{V_N}{W_N}\right),
+    N(j): the tiles within ``radius`` tiles of tile j, inside the grid, whose other image's variance per pixel
+    :math:`W_k / n_k` (``other_sum``, ``n``) lies within :data:`GUIDE_FACTOR` of tile j's (the same kind of place:
+    not the quiet sky beside a noisy ground); :math:`V_N = \sum_{k \in N(j)} V_k` (``v_sum``), likewise
+    :math:`W_N`. The estimate is
 
-    the neighbourhood's variance per pixel, but no more than the other image's variance in the tile times the
-    neighbourhood's ratio of the two (where the other's variance falls, at an edge of the image's noise, the floor
-    falls with it). 0 where the other image has no variance in the neighbourhood (an exact image) or ``radius`` is 0.
+    .. math:: \hat V_j = W_j \, V_N / W_N,
+
+    the other image's variance in the tile times the neighbourhood's ratio of the two; its dof Welch's over the
+    neighbourhood's pixels (``welch_sum``: their :math:`\sum_p v_p^2 / (\nu_p + 2)`). 0 (and inf) where the other
+    image has no variance (an exact one) or ``radius`` is 0.
 
     An estimator whose variance is carried by rare, large samples (a path that reaches a point light from close by,
     a caustic) draws them in only some tiles of a render: in the others the tile's variance estimate is far below
-    its mean, and its z far too large although the images agree. The neighbourhood holds (2 radius + 1)^2 times
-    the samples."""
+    its mean, and its z far too large although the images agree. The neighbourhood holds up to (2 radius + 1)^2
+    times the samples."""
     if radius <= 0:
-        return np.zeros_like(v_sum)
-    nb_v, nb_w, nb_n = _box(v_sum, radius), _box(other_sum, radius), _box(n, radius)
+        return np.zeros_like(v_sum), np.full(v_sum.shape, np.inf)
     with np.errstate(divide="ignore", invalid="ignore"):
-        shaped = np.where(nb_w > 0, other_sum * nb_v / nb_w, 0.0)
-        even = np.where(nb_n > 0, n * nb_v / nb_n, 0.0)
-    return np.minimum(even, shaped)
+        guide = np.where(n > 0, other_sum / n, 0.0)
+    guide = np.where(guide > 0, guide, np.nan)  # no variance: nothing to scale, and like no other tile
+    nb_v, nb_w, nb_welch = _box((v_sum, other_sum, welch_sum), radius, guide, GUIDE_FACTOR)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        floor = np.where(nb_w > 0, other_sum * nb_v / nb_w, 0.0)
+    return floor, _welch_dof(nb_v, nb_welch)
 
 
 def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
@@ -448,14 +468,12 @@ def verdict(
     wt_sum, wr_sum = _tile_sum(welch_t, tile), _tile_sum(welch_r, tile)
     # each image's variance in a tile raised to what its neighbourhood says (the other image giving the shape) where
     # it is more than FLOOR_RATIO below that; a raised tile takes the neighbourhood's Welch dof for that image
-    floor_t = _neighbourhood_floor(vt_sum, vr_sum, n, neighbourhood)
-    floor_r = _neighbourhood_floor(vr_sum, vt_sum, n, neighbourhood)
+    floor_t, nb_dof_t = _neighbourhood_floor(vt_sum, wt_sum, vr_sum, n, neighbourhood)
+    floor_r, nb_dof_r = _neighbourhood_floor(vr_sum, wr_sum, vt_sum, n, neighbourhood)
     raised_t, raised_r = floor_t > FLOOR_RATIO * vt_sum, floor_r > FLOOR_RATIO * vr_sum
     v_sum = v_sum + np.where(raised_t, floor_t - vt_sum, 0.0) + np.where(raised_r, floor_r - vr_sum, 0.0)
-    dof_t = np.where(raised_t, _welch_dof(_box(vt_sum, neighbourhood), _box(wt_sum, neighbourhood)),
-                     _welch_dof(vt_sum, wt_sum))
-    dof_r = np.where(raised_r, _welch_dof(_box(vr_sum, neighbourhood), _box(wr_sum, neighbourhood)),
-                     _welch_dof(vr_sum, wr_sum))
+    dof_t = np.where(raised_t, nb_dof_t, _welch_dof(vt_sum, wt_sum))
+    dof_r = np.where(raised_r, nb_dof_r, _welch_dof(vr_sum, wr_sum))
     dof_tiles = np.minimum(dof_t, dof_r)
     wider = raised_t | raised_r
     zero_tiles = (n > 0) & (v_raw_sum == 0)
