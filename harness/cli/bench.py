@@ -65,8 +65,10 @@ def register(sub, common) -> None:
                     "samplers where they draw spp, on the scenes where a target compares with Mitsuba's best sampler), "
                     "Embree's own rate on the rays the reference traces (the row 'embree (own rays)'), "
                     "and the reference's strategy rows (one setting "
-                    "changed, e.g. sampler=independent); --renderer adds any other renderer (e.g. cycles, or a renderer file) at "
-                    "the same spp, timed without process start-up. Method and latest figures: docs/performance.md.",
+                    "changed, e.g. sampler=independent; also rendered at equal time, the spp that takes the "
+                    "defaults' time, where the best is decided); --renderer adds any other renderer (e.g. cycles, "
+                    "or a renderer file) at the same spp, timed without process start-up. Method and latest "
+                    "figures: docs/performance.md.",
         parents=[parser, common.film(), common.out("also write the JSON result to this file (atomically)", file=True),
                  common.json(), common.quiet(), common.cache_dir(), common.allow_outside_paths()])
 

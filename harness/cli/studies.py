@@ -1,7 +1,7 @@
 """The studies' flags of a suite run from the command line: ``harness run`` computes the studies after its suite
 (before the report), ``harness report --studies`` before formatting; the report itself only formats them. The flags
-(``--convergence-spp``, ``--strategy-spp``, ``--no-convergence``, ``--no-shadow-rays``, ``--no-strategies``,
-``--no-strategy-renders``) mean the same on both commands. Computing the studies is
+(``--convergence-spp``, ``--strategy-spp``, ``--strategy-repeats``, ``--no-convergence``, ``--no-shadow-rays``,
+``--no-strategies``, ``--no-strategy-renders``) mean the same on both commands. Computing the studies is
 :mod:`harness.cli.study_compute` (it imports the renderers, which ``harness report`` without ``--studies`` does not
 need)."""
 
@@ -16,9 +16,13 @@ from harness.report import ReportOptions
 
 #: the flags that change what the studies compute (not which sections the report shows)
 COMPUTING_FLAGS = (("convergence_spp", "--convergence-spp"), ("strategy_spp", "--strategy-spp"),
-                   ("no_strategy_renders", "--no-strategy-renders"))
+                   ("strategy_repeats", "--strategy-repeats"), ("no_strategy_renders", "--no-strategy-renders"))
 DEFAULT_CONVERGENCE_SPP = "1,2,4,8,16"
 DEFAULT_STRATEGY_SPP = 16
+#: independent seeds of each strategy at each budget (harness.studies.strategies.STRATEGY_REPEATS, which this
+#: module does not import: harness report imports no renderer); an interval needs at least 2
+DEFAULT_STRATEGY_REPEATS = 4
+MIN_STRATEGY_REPEATS, MAX_STRATEGY_REPEATS = 2, 100
 
 
 def progress(args: argparse.Namespace) -> bool:
@@ -54,6 +58,13 @@ def add_flags(parser: argparse.ArgumentParser, command: str) -> None:
     parser.add_argument("--strategy-spp", type=options.positive_int,
                         default=None if command == "report" else DEFAULT_STRATEGY_SPP,
                         help=f"spp of strategy renders no case covers{with_studies} (default 16)")
+    parser.add_argument("--strategy-repeats", metavar="N",
+                        default=None if command == "report" else DEFAULT_STRATEGY_REPEATS,
+                        type=options.int_type(MIN_STRATEGY_REPEATS, MAX_STRATEGY_REPEATS,
+                                              f"an integer from {MIN_STRATEGY_REPEATS} to {MAX_STRATEGY_REPEATS}"),
+                        help=f"independent seeds of each strategy at each budget (equal spp, equal time): their "
+                             f"spread gives the strategy table's intervals{with_studies} (default "
+                             f"{DEFAULT_STRATEGY_REPEATS}; {MIN_STRATEGY_REPEATS} to {MAX_STRATEGY_REPEATS})")
     leave, also = ("leave out", " (with --studies: and do not compute it)") if command == "report" else ("skip", "")
     parser.add_argument("--no-convergence", action="store_true",
                         help=f"{leave} the convergence {'section' if command == 'report' else 'study'}{also}")

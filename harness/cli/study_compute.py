@@ -7,7 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from harness.cli.studies import DEFAULT_CONVERGENCE_SPP, DEFAULT_STRATEGY_SPP, progress
+from harness.cli.studies import (DEFAULT_CONVERGENCE_SPP, DEFAULT_STRATEGY_REPEATS, DEFAULT_STRATEGY_SPP,
+                                 MAX_STRATEGY_REPEATS, MIN_STRATEGY_REPEATS, progress)
 from harness.core.errors import HarnessError
 from harness.core.options import require_positive
 from harness.files.imageio import WriteError
@@ -22,11 +23,17 @@ def study_options(args: argparse.Namespace) -> StudyOptions:
     spp = getattr(args, "strategy_spp", None)
     spp = DEFAULT_STRATEGY_SPP if spp is None else spp
     require_positive("--strategy-spp", spp)
+    repeats = getattr(args, "strategy_repeats", None)
+    repeats = DEFAULT_STRATEGY_REPEATS if repeats is None else repeats
+    if not MIN_STRATEGY_REPEATS <= repeats <= MAX_STRATEGY_REPEATS:  # a caller past the parser
+        raise HarnessError("--strategy-repeats", f"expected an integer from {MIN_STRATEGY_REPEATS} to "
+                                                 f"{MAX_STRATEGY_REPEATS}, got {repeats}")
     ladder = getattr(args, "convergence_spp", None) or DEFAULT_CONVERGENCE_SPP
     return StudyOptions(
         convergence=not args.no_convergence, shadow_rays=not args.no_shadow_rays, strategies=not args.no_strategies,
         render_strategies=not args.no_strategy_renders,
         convergence_spp=tuple(parse_ladder(ladder, "--convergence-spp")), strategy_spp=spp,
+        strategy_repeats=repeats,
         cache_dir=getattr(args, "cache_dir", None), variant=getattr(args, "mitsuba_variant", None),
         progress=progress(args))
 

@@ -19,9 +19,17 @@ from scipy.special import stdtrit
 
 #: the confidence level of every interval the strategy tables show
 LEVEL = 0.95
+#: a strategy whose target equal-time spp is within this factor of the equal-spp budget is taken at the equal-spp
+#: renders for the equal-time comparison too (its efficiency, 1 / (MSE x time), corrects what is left)
+EQUAL_TIME_TOLERANCE = 1.25
+#: a strategy's equal-time spp stays within this factor of the equal-spp budget
+MAX_EQUAL_TIME_FACTOR = 16
+#: the relative resolution of a float32 image (2^-23): what rounding alone leaves of an exact estimate
+FLOAT32_EPS = float(np.finfo(np.float32).eps)
 
-__all__ = ["LEVEL", "log_mean_product", "ratio_interval", "efficiency_interval", "efficiency_ratio",
-           "best_separated", "shown_mse"]
+__all__ = ["LEVEL", "EQUAL_TIME_TOLERANCE", "MAX_EQUAL_TIME_FACTOR", "FLOAT32_EPS", "log_mean_product",
+           "ratio_interval", "efficiency_interval", "efficiency_ratio", "best_separated", "shown_mse",
+           "equal_time_spp", "float_resolution", "zero_variance"]
 
 
 def log_mean_product(*columns: Sequence[float]) -> tuple[float, float, int]:
@@ -134,3 +142,35 @@ def shown_mse(mse_corrected: float | None, bound: float | None) -> dict:
     if mse_corrected <= 0 or mse_corrected < limit:
         return {"value": None, "bound": limit}
     return {"value": float(mse_corrected), "bound": None}
+
+
+def equal_time_spp(spp: int, seconds: float, reference_seconds: float, *, step: int = 1,
+                   max_factor: float = MAX_EQUAL_TIME_FACTOR, tolerance: float = EQUAL_TIME_TOLERANCE) -> int:
+    r"""The spp at which a strategy whose renders at ``spp`` took ``seconds`` (their mean) take the reference
+    strategy's ``reference_seconds``: :math:`s^* = spp \cdot t_{ref} / t`, rounded to a multiple of ``step`` (at
+    least ``step``), at most ``max_factor`` x ``spp``. Where :math:`s^*` lies within ``tolerance`` x of ``spp``
+    (or ``seconds`` is not positive) it is ``spp`` itself: the renders at ``spp`` then serve for the equal-time
+    comparison too, the efficiency's 1 / (MSE x time) correcting the rest."""
+    target = spp * reference_seconds / seconds if seconds > 0 and reference_seconds > 0 else float(spp)
+    equal = max(step, min(int(round(target / step)) * step, int(spp * max_factor)))
+    if equal == spp or abs(math.log(target / spp)) <= math.log(tolerance):
+        return int(spp)
+    return int(equal)
+
+
+def float_resolution(level: float | None) -> float:
+    r"""The squared error rounding alone leaves in a float32 image of mean absolute level L (e.g. the ground
+    truth's mean over pixels and channels): :math:`(\epsilon_{32} L)^2`, with :math:`\epsilon_{32} = 2^{-23}`;
+    0 where no level is known."""
+    if level is None or not math.isfinite(level) or level <= 0:
+        return 0.0
+    return (FLOAT32_EPS * float(level)) ** 2
+
+
+def zero_variance(estimates: Sequence[float | None], resolution: float = 0.0) -> bool:
+    """Whether an estimator is exact here: every seed's own variance estimate (the mean per-pixel variance of its
+    mean; where a render has none, its measured MSE, the ground truth's noise not removed) is at most
+    ``resolution`` (:func:`float_resolution`: rounding). Its efficiency 1 / (MSE x time) would be rounding's
+    inverse, not a number to rank: a table shows "zero variance" and leaves it out of the ranking."""
+    values = list(estimates)
+    return bool(values) and all(v is not None and math.isfinite(v) and v <= resolution for v in values)

@@ -349,6 +349,10 @@ def mse_text(row: dict) -> str:
     return fmt(value)
 
 
+#: the efficiency cell of an exact estimator (every seed's variance at most float32 rounding)
+ZERO_VARIANCE = "zero variance"
+
+
 def _strategy_row_view(row: dict, best: Any) -> dict:
     if "skipped" in row:
         return {"label": row["label"], "skipped": row["skipped"]}
@@ -361,6 +365,8 @@ def _strategy_row_view(row: dict, best: Any) -> dict:
                     relative_mse="–", relative_time="–", relative_mse_equal_time="–", equal_time_spp="–",
                     mse_slope="–",
                     efficiency_text=fmt(row.get("efficiency")), relative_efficiency="–")
+        if row.get("zero_variance"):
+            view.update(efficiency_text=ZERO_VARIANCE)
         return view
     view.update(film_spp=f"{row['film'][0]}x{row['film'][1]}, {row['spp']} spp",
                 source=f"rendered, {row['equal_spp']['seeds']} seeds per budget",
@@ -372,11 +378,21 @@ def _strategy_row_view(row: dict, best: Any) -> dict:
                 relative_mse_equal_time=interval_text(row.get("relative_mse_equal_time")),
                 efficiency_text=interval_text(row.get("efficiency_interval"), 4),
                 relative_efficiency=interval_text(row.get("relative_efficiency_interval")))
+    if row.get("zero_variance"):  # an exact estimator: 1 / (MSE x time) would be rounding's inverse, not ranked
+        view.update(efficiency_text=ZERO_VARIANCE, relative_efficiency=ZERO_VARIANCE)
     return view
 
 
 def _best_line(entry: dict) -> str:
-    """What the table says about the best strategy: named with its interval where told apart, else why not."""
+    """What the table says about the best strategy: named with its interval where told apart, else why not; and
+    the rows of zero variance, left out of the ranking."""
+    zero = entry.get("zero_variance") or []
+    if not zero:
+        return _best_named(entry)
+    return (f"{_best_named(entry)}. Zero variance (exact here; no efficiency, not ranked): {', '.join(zero)}")
+
+
+def _best_named(entry: dict) -> str:
     if entry.get("comparison") == "cases":
         return "Not ranked: " + str(entry.get("unranked"))
     if entry.get("comparison") is None:

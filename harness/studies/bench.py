@@ -20,6 +20,11 @@ races at the same spp: an external renderer run K times per render (no variance 
 run, so that its image holds the same samples, and its time is its render time without process start-up
 (:mod:`harness.renderers.external`: its own ``render_seconds``, or the wall time less the start-up measured once).
 
+The reference's strategy rows (one setting changed from the defaults) are compared with the defaults at the same
+spp and at equal time: each renders ``repeats`` times more at the spp that takes the defaults' time
+(:func:`equal_time_renders`); "best" is decided at equal time, named only when told apart (:func:`strategy_verdict`);
+an exact estimator reads "zero variance", without an efficiency (:func:`is_exact`).
+
 Each scene also gets the row "embree (own rays)": Embree's own rate on the rays the reference traces there, recorded
 once and replayed once per attempt (:mod:`harness.studies.embree_rate`), and the reference's rays per second as a
 fraction of it. The targets of the performance issue (:func:`targets`) are checked on the scenes benched
@@ -44,7 +49,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
-from harness.judges.efficiency import best_separated, efficiency_ratio, shown_mse
+from harness.judges.efficiency import (best_separated, efficiency_ratio, equal_time_spp, float_resolution, shown_mse,
+                                       zero_variance)
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import ground_truth
 from harness.renderers.external import ExternalRendererError
@@ -72,6 +78,9 @@ STRATEGIES: tuple[dict[str, str], ...] = (
     {"light_selection": "uniform"},
     {"engine": "packet"},
 )
+
+#: the two comparisons of the strategy rows, as the table, the lines and the JSON name them
+SAME_SPP, EQUAL_TIME = "same spp", "equal time"
 
 # Mitsuba samplers raced besides independent and ldsampler on the scenes where a target compares with Mitsuba's best
 # sampler (each where it draws exactly the bench's spp: harness.renderers.mitsuba.sampler_takes).
@@ -171,6 +180,17 @@ class Row:
     error: str | None = None
     #: where the render time comes from, for a renderer that does not time itself in-process (an external one)
     time_from: str | None = None
+    #: per repeat, the render's own mean per-pixel variance (of the mean), where the renderer gives one
+    variance_all: list[float] = field(default_factory=list)
+    #: an exact estimator here: every repeat's own variance (or MSE) at most float32 rounding; no efficiency
+    zero_variance: bool = False
+    #: a reference strategy row at equal time: the spp that takes the defaults' time, its repeats' MSE and
+    #: seconds, and its efficiency 1 / (mean MSE x median seconds) (:func:`equal_time_renders`)
+    equal_time_spp: int | None = None
+    equal_time_mse_all: list[float] = field(default_factory=list)
+    equal_time_seconds_all: list[float] = field(default_factory=list)
+    equal_time_efficiency: float = math.nan
+    equal_time_error: str | None = None
 
 
 def mse_against(image: np.ndarray, gt_image: np.ndarray, gt_variance: np.ndarray | None) -> tuple[float, float]:
@@ -178,6 +198,16 @@ def mse_against(image: np.ndarray, gt_image: np.ndarray, gt_variance: np.ndarray
     raw = float(np.mean((image.astype(np.float64) - gt_image.astype(np.float64)) ** 2))
     gt_var = float(np.mean(gt_variance)) if gt_variance is not None else 0.0
     return raw - gt_var, raw
+
+
+def is_exact(variances: Sequence[float], mse: Sequence[float], gt) -> bool:
+    """Whether a row's estimator is exact here (:func:`harness.judges.efficiency.zero_variance`): every repeat's
+    own variance (the render's mean per-pixel variance; without one, its raw MSE against the ground truth ``gt``) at
+    most float32 rounding of the ground truth's mean absolute level."""
+    gt_var = float(np.mean(gt.variance)) if gt.variance is not None else 0.0
+    own = list(variances) if len(variances) == len(mse) else [m + gt_var for m in mse]
+    level = np.abs(np.asarray(gt.image, dtype=np.float64))
+    return zero_variance(own, float_resolution(float(level[np.isfinite(level)].mean()) if level.size else None))
 
 
 def efficiency(mse: float, seconds: float) -> float:
@@ -244,6 +274,8 @@ def bench_scene(
             row.seconds_all.append(result.seconds)
             mse, raw = mse_against(result.image, gt.image, gt.variance)
             row.mse_all.append(mse)
+            if result.variance is not None:
+                row.variance_all.append(float(np.mean(result.variance)))
             row.mse_raw = raw if math.isnan(row.mse_raw) else row.mse_raw + raw
             row.variant = result.info.get("variant")
             if result.rays and set(result.rays) >= {"camera", "shadow", "indirect"}:
@@ -267,35 +299,99 @@ def bench_scene(
             row.rays_per_second = row.rays_per_path * row.paths_per_second
         row.mse = float(np.mean(row.mse_all))
         row.mse_raw /= n
-        row.efficiency = efficiency(row.mse, row.seconds)
+        row.zero_variance = is_exact(row.variance_all, row.mse_all, gt)
+        row.efficiency = math.nan if row.zero_variance else efficiency(row.mse, row.seconds)
         row.cores_busy = cpu[i] / wall[i] if wall[i] > 0 else math.nan
         if row.embree_share is not None:
             row.embree_share /= n
     return rows
 
 
-def strategy_verdict(rows: Sequence[Row]) -> dict:
-    """The reference's strategy rows (one setting changed from the defaults, the same spp), each one's efficiency
-    over the defaults' ("reference") with its 95 % interval over the repeats (per-seed MSE and seconds:
-    :func:`harness.judges.efficiency.efficiency_ratio`; the contenders share each attempt's seed, which makes the
-    intervals conservative), and the best named only when told apart from every other row
-    (:func:`harness.judges.efficiency.best_separated`). A row whose MSE is not above the ground truth's noise in
-    some repeat has no efficiency.
+def equal_time_renders(scene, rows: Sequence[Row], *, repeats: int, gt, seed: int = 1,
+                       on_render: Callable[[str], None] | None = None) -> None:
+    """The reference's strategy rows again at equal time: each at the spp that takes the defaults' ("reference"
+    row's) mean render time, from its own same-spp renders (:func:`harness.judges.efficiency.equal_time_spp`:
+    s* = spp x t_defaults / t, rounded, at most 16 x spp; where s* is within 1.25 x of spp the same-spp renders
+    serve), ``repeats`` renders each, the rows taking turns, with seeds of their own (independent of the defaults'
+    renders). The defaults' equal-time renders are its same-spp ones. Fills the rows' ``equal_time_*`` fields; a
+    render that fails leaves the row's same-spp figures and says why in ``equal_time_error``."""
+    base = next((r for r in rows if r.label == "reference" and r.renderer == "reference" and not r.error
+                 and r.seconds_all), None)
+    if base is None:
+        return
+    base_seconds = float(np.mean(base.seconds_all))
+    todo = []
+    for row in rows:
+        if row.renderer != "reference" or row.error or not row.seconds_all:
+            continue
+        row.equal_time_spp = (row.spp if row is base
+                              else equal_time_spp(row.spp, float(np.mean(row.seconds_all)), base_seconds))
+        if row.equal_time_spp == row.spp:
+            row.equal_time_mse_all, row.equal_time_seconds_all = list(row.mse_all), list(row.seconds_all)
+        else:
+            todo.append(row)
+    renderer = get_renderer("reference")
+    for attempt in range(1, repeats + 1):
+        for row in todo:
+            if row.equal_time_error:
+                continue
+            request = RenderRequest(spp=row.equal_time_spp, seed=seed + repeats + attempt, settings=dict(row.settings))
+            try:
+                result = renderer.render(scene, request)
+            except HarnessError as err:
+                row.equal_time_error = f"{err.where}: {err.message}"
+                continue
+            row.equal_time_seconds_all.append(result.seconds)
+            row.equal_time_mse_all.append(mse_against(result.image, gt.image, gt.variance)[0])
+            if on_render is not None:
+                on_render(f"{scene.name}: {row.label} at equal time ({row.equal_time_spp} spp)")
+    for row in rows:
+        if row.equal_time_error:
+            row.equal_time_mse_all, row.equal_time_seconds_all = [], []
+        elif row.equal_time_seconds_all and not row.zero_variance:
+            row.equal_time_efficiency = efficiency(float(np.mean(row.equal_time_mse_all)),
+                                                   statistics.median(row.equal_time_seconds_all))
 
-    Returns {"label": the best | None, "leader", "settings", "efficiency" (the leader's), "tied": [labels not told
-    apart from it], "relative_efficiency": {label: interval}}."""
-    ref_rows = [r for r in rows if r.renderer == "reference" and not r.error and r.mse_all
-                and all(m > 0 for m in r.mse_all) and all(t > 0 for t in r.seconds_all)]
-    samples = {r.label: (r.mse_all, r.seconds_all) for r in ref_rows}
-    decision = best_separated(samples)
-    base = samples.get("reference")
-    relative = {label: efficiency_ratio(*sample, *base) for label, sample in samples.items()
+
+def strategy_verdict(rows: Sequence[Row]) -> dict:
+    """The reference's strategy rows (one setting changed from the defaults), each one's efficiency over the
+    defaults' ("reference") with its 95 % interval over the repeats (per-seed MSE and seconds:
+    :func:`harness.judges.efficiency.efficiency_ratio`), at the same spp and at equal time (each row at the spp that
+    takes the defaults' time: :func:`equal_time_renders`); the best, decided at equal time (at the same spp where
+    no row was rendered at equal time), named only when told apart from every other row
+    (:func:`harness.judges.efficiency.best_separated`). At the same spp the contenders share each attempt's seed,
+    which makes those intervals conservative. A row whose MSE is not above the ground truth's noise in some repeat
+    has no efficiency; a row of zero variance (:func:`is_exact`) has none either and is left out of the ranking.
+
+    Returns {"comparison": "equal time" | "same spp" (the one "label", "leader" and "tied" are decided on),
+    "label": the best | None, "leader", "settings", "tied": [labels not told apart from it], "efficiency_same_spp"
+    and "efficiency_equal_time" (the leader's), "relative_efficiency": {"equal time": {label: interval}, "same spp":
+    {label: interval}}, "equal_time_spp": {label: spp}, "zero_variance": [labels]}."""
+    ref_rows = [r for r in rows if r.renderer == "reference" and not r.error and r.mse_all]
+    live = [r for r in ref_rows if not r.zero_variance]
+
+    def usable(mse: Sequence[float], seconds: Sequence[float]) -> bool:
+        return bool(mse) and all(m > 0 for m in mse) and all(t > 0 for t in seconds)
+
+    same = {r.label: (r.mse_all, r.seconds_all) for r in live if usable(r.mse_all, r.seconds_all)}
+    timed = {r.label: (r.equal_time_mse_all, r.equal_time_seconds_all) for r in live
+             if r.equal_time_spp is not None and usable(r.equal_time_mse_all, r.equal_time_seconds_all)}
+    comparison = EQUAL_TIME if "reference" in timed else SAME_SPP
+    decision = best_separated(timed if comparison == EQUAL_TIME else same)
+
+    def relative(samples: dict) -> dict:
+        base = samples.get("reference")
+        return {label: efficiency_ratio(*sample, *base) for label, sample in samples.items()
                 if base is not None and label != "reference"}
+
     leader = next((r for r in ref_rows if r.label == decision["leader"]), None)
-    return {"label": decision["best"], "leader": decision["leader"],
+    return {"comparison": comparison, "label": decision["best"], "leader": decision["leader"],
             "settings": leader.settings if leader is not None else None,
-            "efficiency": leader.efficiency if leader is not None else None, "tied": decision["tied"],
-            "relative_efficiency": relative}
+            "efficiency_same_spp": leader.efficiency if leader is not None else None,
+            "efficiency_equal_time": leader.equal_time_efficiency if leader is not None else None,
+            "tied": decision["tied"], "relative_efficiency": {EQUAL_TIME: relative(timed), SAME_SPP: relative(same)},
+            "equal_time_spp": {r.label: r.equal_time_spp for r in ref_rows if r.equal_time_spp is not None},
+            "zero_variance": [r.label for r in ref_rows if r.zero_variance]}
 
 
 def best_mitsuba(rows: Sequence[Row]) -> Row | None:
@@ -437,9 +533,11 @@ def row_dict(row: Row) -> dict:
 
 def format_table(rows: Sequence[Row], replayed: dict | None = None) -> str:
     """A fixed-width table of the rows (one scene or several), and ``replayed`` (a scene's ``embree_rate``) as its
-    last row: the replay's seconds (all phases), its combined rays per second and cores."""
+    last row: the replay's seconds (all phases), its combined rays per second and cores. Every figure is at the same
+    spp but the last two columns: a reference strategy row's spp that takes the defaults' time and its efficiency
+    there (:func:`equal_time_renders`). A row of zero variance shows "zero variance" for its efficiencies."""
     head = (f"{'scene':<13} {'contender':<34} {'seconds':>8} {'Mpaths/s':>9} {'Mrays/s':>8} {'cores':>5} "
-            f"{'MSE':>10} {'efficiency':>11} {'embree':>6}")
+            f"{'MSE':>10} {'eff. same spp':>13} {'embree':>6} {'equal-time spp':>14} {'eff. equal time':>15}")
     lines = [head, "-" * len(head)]
     for r in rows:
         if r.error:
@@ -451,8 +549,15 @@ def format_table(rows: Sequence[Row], replayed: dict | None = None) -> str:
         shown = shown_mse(r.mse, floor)
         bound = "< " + format(shown["bound"] or 0.0, ".2g")
         mse = f"{shown['value']:10.4g}" if shown["value"] is not None else f"{bound:>10}"
+        eff = f"{'zero variance':>13}" if r.zero_variance else f"{r.efficiency:13.4g}"
+        timed = ""
+        if r.equal_time_error:
+            timed = f" {'failed':>14} {'':>15}"
+        elif r.equal_time_spp is not None:
+            timed = f" {r.equal_time_spp:14d} " + (f"{'zero variance':>15}" if r.zero_variance
+                                                   else f"{r.equal_time_efficiency:15.4g}")
         lines.append(f"{r.scene:<13} {r.label:<34} {r.seconds:8.3f} {r.paths_per_second / 1e6:9.3f} {rays} "
-                     f"{r.cores_busy:5.2f} {mse} {r.efficiency:11.4g} {embree}")
+                     f"{r.cores_busy:5.2f} {mse} {eff} {embree}{timed}".rstrip())
     if replayed is not None:
         scene = rows[0].scene if rows else ""
         if replayed.get("error"):
@@ -472,20 +577,33 @@ def _interval_text(interval: dict) -> str:
 
 
 def format_best_strategy(best: dict) -> str:
-    """The line that names the best reference strategy with its efficiency over the defaults' and its interval,
-    or says that none is told apart at this budget; then every strategy's efficiency / the defaults'."""
+    """The line that names the best reference strategy (at equal time) with its efficiency over the defaults' and
+    its interval, or says that none is told apart at this budget; then every strategy's efficiency / the defaults'
+    at equal time (with the spp that took the defaults' time) and at the same spp, and the rows of zero
+    variance."""
+    comparison = best.get("comparison", SAME_SPP)
     relative = best.get("relative_efficiency") or {}
-    listing = "; ".join(f"{label.removeprefix('reference ')} {_interval_text(v)}" for label, v in relative.items()
-                        if v.get("value") is not None)
-    tail = f"\nefficiency / the defaults' (95 % intervals over the repeats, same spp): {listing}" if listing else ""
+    spp = best.get("equal_time_spp") or {}
+    tail = ""
+    for kind, words in ((EQUAL_TIME, "at equal time (each at the spp that takes the defaults' time)"),
+                        (SAME_SPP, "at the same spp")):
+        listing = "; ".join(f"{label.removeprefix('reference ')} {_interval_text(v)}"
+                            + (f" at {spp[label]} spp" if kind == EQUAL_TIME and label in spp else "")
+                            for label, v in (relative.get(kind) or {}).items() if v.get("value") is not None)
+        if listing:
+            tail += f"\nefficiency / the defaults' {words}, 95 % intervals over the repeats: {listing}"
+    if best.get("zero_variance"):
+        tail += ("\nzero variance (exact here: no efficiency, not ranked): "
+                 + ", ".join(best["zero_variance"]))
+    head = f"best reference strategy at {comparison}"
     if best.get("label"):
-        ratio = relative.get(best["label"])
+        ratio = (relative.get(comparison) or {}).get(best["label"])
         text = f" (efficiency / the defaults' {_interval_text(ratio)})" if ratio else ""
-        return f"best reference strategy: {best['label']}{text}, told apart from every other{tail}"
+        return f"{head}: {best['label']}{text}, told apart from every other{tail}"
     if best.get("leader"):
-        return (f"best reference strategy: not told apart at this budget (highest efficiency: {best['leader']}; "
+        return (f"{head}: not told apart at this budget (highest efficiency: {best['leader']}; "
                 f"not told apart from {', '.join(best.get('tied') or [])}){tail}")
-    return "best reference strategy: none measured"
+    return f"{head}: none measured{tail}"
 
 
 def format_embree(embree: dict) -> str:
@@ -555,6 +673,8 @@ def run_bench(
 
         rows = bench_scene(scene, contenders, spp=spp, repeats=repeats, gt=gt, on_render=on_render,
                            between=between if rate is not None else None)
+        if strategies:
+            equal_time_renders(scene, rows, repeats=repeats, gt=gt, on_render=on_render)
         best = strategy_verdict(rows)
         result["scenes"][scene.name] = {
             "scene_file": str(path),

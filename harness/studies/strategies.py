@@ -12,8 +12,9 @@ import numpy as np
 
 from harness.files.imageio import tonemap_srgb8
 from harness.files.previews import ImageWriter, ReportImage, display_exposure
-from harness.judges.efficiency import (LEVEL, best_separated, efficiency_interval, efficiency_ratio, ratio_interval,
-                                       shown_mse)
+from harness.judges.efficiency import (EQUAL_TIME_TOLERANCE, LEVEL, MAX_EQUAL_TIME_FACTOR, best_separated,
+                                       efficiency_interval, efficiency_ratio, equal_time_spp, float_resolution,
+                                       ratio_interval, shown_mse, zero_variance)
 from harness.judges.floor import error_point
 from harness.renderers import RenderRequest, get_renderer
 from harness.studies import figures
@@ -58,11 +59,6 @@ MIN_STRATEGY_SECONDS = 0.05
 MAX_STRATEGY_SPP = 1024
 #: independent renders (seeds) of each strategy at each budget: their spread gives the intervals
 STRATEGY_REPEATS = 4
-#: a strategy whose time per path is within this factor of the default's is taken at the equal-spp renders for the
-#: equal-time comparison too (its efficiency, 1 / (MSE x time), corrects what is left)
-EQUAL_TIME_TOLERANCE = 1.25
-#: a strategy's equal-time spp stays within this factor of the equal-spp budget
-MAX_EQUAL_TIME_FACTOR = 16
 
 
 def strategy_defaults(glossy: bool = False) -> dict[str, str]:
@@ -197,6 +193,16 @@ def mean_variance(variance: np.ndarray | None) -> float | None:
     return float(v.mean()) if v.size else None
 
 
+def image_level(image: np.ndarray | None) -> float | None:
+    """The mean absolute value of an image's finite pixels and channels (the scale of its float32 rounding,
+    :func:`harness.judges.efficiency.float_resolution`); None for none."""
+    if image is None:
+        return None
+    values = np.abs(np.asarray(image, dtype=np.float64))
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if finite.size else None
+
+
 def strategy_choices(defaults: dict[str, str], environment: bool, glossy: bool = False) -> list[tuple[str, str]]:
     """Every (key, value) of :data:`STRATEGIES` (:data:`GLOSSY_STRATEGIES` on a scene with a material that is not
     diffuse) but the defaults: the rows of a strategy table besides "default" (the environment's keys only where
@@ -245,41 +251,48 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
         return {"scene": scene_name, "rows": [], "error": f"the default failed: {type(err).__name__}: {err}"[:300]}
     base_seconds = float(np.mean([m["seconds"] for m in base]))
     for kind in wanted:
-        label = "default" if kind == "default" else strategy_label(*kind)
-        strategy = None if kind == "default" else list(kind)
         if kind == ("rr", "off") and not bounded:
-            rows.append({"label": label, "strategy": strategy, "skipped": "max_depth is unbounded: rr=off would "
-                         "never end a path"})
+            rows.append(_row_head(kind, skipped="max_depth is unbounded: rr=off would never end a path"))
             continue
         settings = {} if kind == "default" else {kind[0]: kind[1]}
         try:
             at_spp = base if kind == "default" else [render(settings, budget, i) for i in range(repeats)]
-            seconds = float(np.mean([m["seconds"] for m in at_spp]))
-            target = budget * base_seconds / seconds if seconds > 0 else budget
-            equal = max(spp_step, min(int(round(target / spp_step)) * spp_step, budget * MAX_EQUAL_TIME_FACTOR))
-            if equal == budget or abs(math.log(target / budget)) <= math.log(EQUAL_TIME_TOLERANCE):
-                at_time = at_spp
-            else:
-                at_time = [render(settings, equal, i) for i in range(repeats)]
+            equal = equal_time_spp(budget, float(np.mean([m["seconds"] for m in at_spp])), base_seconds,
+                                   step=spp_step, max_factor=MAX_EQUAL_TIME_FACTOR, tolerance=EQUAL_TIME_TOLERANCE)
+            at_time = at_spp if equal == budget else [render(settings, equal, i) for i in range(repeats)]
         except Exception as err:  # noqa: BLE001 - one strategy's failure is reported in its row
-            rows.append({"label": label, "strategy": strategy,
-                         "skipped": f"render failed: {type(err).__name__}: {err}".splitlines()[0][:300]})
+            rows.append(_row_head(kind, skipped=f"render failed: {type(err).__name__}: {err}".splitlines()[0][:300]))
             continue
-        rows.append({"label": label, "strategy": strategy, "is_default": kind == "default", "case": None,
-                     "source": "rendered", "settings": settings, "film": at_spp[0]["film"],
-                     "pixels": at_spp[0]["pixels"], "spp": budget,
-                     "equal_spp": _budget(at_spp), "equal_time": _budget(at_time)})
+        rows.append(dict(_row_head(kind), is_default=kind == "default", case=None, source="rendered",
+                         settings=settings, film=at_spp[0]["film"], pixels=at_spp[0]["pixels"], spp=budget,
+                         equal_spp=_budget(at_spp), equal_time=_budget(at_time)))
     return _compare(scene_name, rows, level, repeats)
+
+
+def _row_head(kind: Any, skipped: str | None = None) -> dict:
+    """A strategy row's label and strategy ("default", or ("key", "value")), and why it was skipped, if it was."""
+    head = {"label": "default" if kind == "default" else strategy_label(*kind),
+            "strategy": None if kind == "default" else list(kind)}
+    return dict(head, skipped=skipped) if skipped is not None else head
 
 
 def _budget(measurements: list[dict]) -> dict:
     """The per-seed numbers of a strategy's renders at one budget: the MSE the efficiency uses (the render's own
     variance estimate where it has one: the expected MSE of an unbiased estimator, free of the ground truth's
-    noise; else the measured MSE minus the ground truth's floor), the measured MSE, seconds, seconds per megapixel
-    and each region's mean variance."""
+    noise; else the measured MSE minus the ground truth's floor), the measured MSE, seconds, seconds per megapixel,
+    each region's mean variance, and whether the estimator is exact here (``zero_variance``: every seed's own
+    variance at most the float32 rounding of the ground truth's level ``level``,
+    :func:`harness.judges.efficiency.zero_variance`)."""
     def estimate(m):
         v = m.get("variance")
         return v if v is not None and math.isfinite(v) and v > 0 else m["mse"] - (m.get("floor_mse") or 0.0)
+
+    def own(m):  # the seed's own variance: the render's estimate, else its measured MSE (the floor in it)
+        v = m.get("variance")
+        return v if v is not None else m["mse"]
+
+    levels = [m["level"] for m in measurements if m.get("level") is not None]
+    resolution = float_resolution(float(np.mean(levels)) if levels else None)
 
     return {"spp": int(measurements[0]["spp"]), "seeds": len(measurements),
             "mse": [float(estimate(m)) for m in measurements],
@@ -288,18 +301,24 @@ def _budget(measurements: list[dict]) -> dict:
             "floor_mse": float(np.mean([m.get("floor_mse") or 0.0 for m in measurements])),
             "seconds": [float(m["seconds"]) for m in measurements],
             "seconds_per_megapixel": [float(m["seconds"]) / m["pixels"] * 1e6 for m in measurements],
-            "variance_regions": [m.get("variance_regions") or {} for m in measurements]}
+            "variance_regions": [m.get("variance_regions") or {} for m in measurements],
+            "zero_variance": zero_variance([own(m) for m in measurements], resolution)}
 
 
 def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> dict:
-    """Each row's numbers and intervals against the default's (see :func:`strategy_rows`), and the best."""
+    """Each row's numbers and intervals against the default's (see :func:`strategy_rows`), and the best. A row
+    whose estimator is exact here (``zero_variance`` at both budgets) has no efficiency, no MSE ratio and no place
+    in the ranking; ratios to an exact default are none."""
     default = next((r for r in rows if r.get("is_default")), None)
     d_spp, d_time = default["equal_spp"], default["equal_time"]
+    d_zero = d_spp["zero_variance"] and d_time["zero_variance"]
+    none = {"value": None, "low": None, "high": None, "level": level, "dof": None, "seeds": []}
     samples = {}
     for row in rows:
         if "skipped" in row:
             continue
         s, t = row["equal_spp"], row["equal_time"]
+        row["zero_variance"] = zero = s["zero_variance"] and t["zero_variance"]
         measured = shown_mse(float(np.mean(s["mse_measured"])), s["floor_mse"])
         row.update(mse_estimate=float(np.mean(s["mse"])), mse_source=s["mse_source"], mse_corrected=measured["value"],
                    mse_bound=measured["bound"], seconds=float(np.mean(s["seconds"])),
@@ -321,6 +340,11 @@ def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> d
                        relative_efficiency_interval=efficiency_ratio(t["mse"], t["seconds_per_megapixel"],
                                                                      d_time["mse"], d_time["seconds_per_megapixel"],
                                                                      level))
+        if zero or (d_zero and row is not default):
+            row.update(relative_mse_interval=dict(none), relative_mse_equal_time=dict(none),
+                       relative_efficiency_interval=dict(none))
+        if zero:
+            row.update(efficiency_interval=dict(none), efficiency=None, mse_slope=None)
         row["relative_mse"] = row["relative_mse_interval"]["value"]
         row["relative_time"] = row["relative_time_interval"]["value"]
         row["relative_efficiency"] = row["relative_efficiency_interval"]["value"]
@@ -335,7 +359,8 @@ def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> d
              "best_relative_efficiency": leader["relative_efficiency"] if decision["best"] and leader else None,
              "best_interval": leader["relative_efficiency_interval"] if decision["best"] and leader else None,
              "near_best": [decision["leader"]] + decision["tied"] if decision["leader"] and decision["tied"] else [],
-             "separation": {"level": decision["level"], "leader_over": decision["comparisons"]}}
+             "separation": {"level": decision["level"], "leader_over": decision["comparisons"]},
+             "zero_variance": [r["label"] for r in rows if r.get("zero_variance")]}
     regions = _region_efficiencies(rows, default, level)
     if regions:
         table["regions"] = regions
@@ -361,7 +386,7 @@ def _region_efficiencies(rows: list[dict], default: dict | None, level: float) -
     equal time, relative to the default's over the same region, with its interval over the seeds, and the best row
     there when it is told apart (:func:`best_separated`). Rows carry per-seed ``variance_regions`` ({region: mean
     variance over its pixels}, :func:`harness.studies.regions.region_variances`)."""
-    live = [r for r in rows if "skipped" not in r]
+    live = [r for r in rows if "skipped" not in r and not r.get("zero_variance")]
     names = list(dict.fromkeys(n for r in live for m in r["equal_time"]["variance_regions"] for n in m))
     if not names or default is None:
         return None
@@ -395,26 +420,28 @@ def _case_table(scene_name: str, case_rows: list[dict], wanted: list[Any], bound
             by_strategy[kind] = row
     rows = []
     for kind in wanted:
-        label = "default" if kind == "default" else strategy_label(*kind)
-        strategy = None if kind == "default" else list(kind)
         if kind == ("rr", "off") and not bounded:
-            rows.append({"label": label, "strategy": strategy, "skipped": "max_depth is unbounded: rr=off would "
-                         "never end a path"})
+            rows.append(_row_head(kind, skipped="max_depth is unbounded: rr=off would never end a path"))
         elif kind not in by_strategy:
-            rows.append({"label": label, "strategy": strategy, "skipped": "no case and rendering disabled"})
+            rows.append(_row_head(kind, skipped="no case and rendering disabled"))
         else:
             row = {k: v for k, v in by_strategy[kind].items() if k != "variance_regions"}
             measured = shown_mse(row["mse"] - row.get("floor_mse", 0.0), row.get("floor_mse", 0.0))
             variance = row.get("variance")
+            exact = zero_variance([variance if variance is not None else row["mse"]],
+                                  float_resolution(row.get("level")))
             estimate = variance if variance is not None and math.isfinite(variance) and variance > 0 else None
+            estimate = None if exact else estimate
             spm = row["seconds"] / row["pixels"] * 1e6
-            rows.append(dict(row, label=label, strategy=strategy, is_default=kind == "default",
+            rows.append(dict(row, **_row_head(kind), is_default=kind == "default",
                              mse_corrected=measured["value"], mse_bound=measured["bound"], mse_estimate=estimate,
+                             zero_variance=exact,
                              seconds_per_megapixel=spm,
                              efficiency=1.0 / (estimate * spm) if estimate and spm > 0 else None,
                              relative_efficiency=None, relative_mse=None, relative_time=None))
     return {"scene": scene_name, "rows": rows, "comparison": "cases", "best": None, "leader": None,
             "best_relative_efficiency": None, "near_best": [],
+            "zero_variance": [r["label"] for r in rows if r.get("zero_variance")],
             "unranked": "the suite's cases only (rendering disabled): one render per strategy at its case's own spp, "
                         "so neither ranked nor compared with the default"}
 
@@ -435,4 +462,5 @@ def measure_render(scene, gt, settings: dict[str, str], spp: int, seed: int, *, 
             "variance": mean_variance(result.variance),
             "floor_mse": point["floor_mse"], "seconds": float(result.seconds), "pixels": int(h * w),
             "spp": int(result.spp), "film": [w, h], "seed": seed, "timing": "rendered by the studies (warm)",
-            "variance_regions": region_variances(result.variance, masks or {})}
+            "variance_regions": region_variances(result.variance, masks or {}),
+            "level": image_level(gt.image)}

@@ -398,6 +398,7 @@ def _case_rows(items: list[StudyCase], key: str, base: StudyCase, masks: dict | 
         rows.append({"case": rec["name"], "source": "case", "settings": _strategy_settings(rec.get("settings") or {}),
                      "mse": float(mse), "floor_mse": item.point.get("floor_mse") or 0.0,
                      "variance": studies.mean_variance(item.render_variance),
+                     "level": studies.image_level(item.gt.image),
                      "seconds": float(rec["render"]["seconds"]), "pixels": int(h * w),
                      "spp": int(rec["render"].get("spp") or 0), "film": [w, h],
                      "timing": "the case's own", "_scene": item.scene,

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from harness.judges.efficiency import (best_separated, efficiency_interval, efficiency_ratio, ratio_interval,
-                                       shown_mse)
+from harness.judges.efficiency import (best_separated, efficiency_interval, efficiency_ratio, equal_time_spp,
+                                       float_resolution, ratio_interval, shown_mse, zero_variance)
 
 #: draws per coverage check; the count of intervals that cover the truth is Binomial(DRAWS, level)
 DRAWS = 300
@@ -85,3 +85,18 @@ def test_best_is_named_only_when_its_interval_separates():
 def test_mse_below_the_ground_truths_noise_is_a_bound_never_negative(corrected, floor, value, bound):
     shown = shown_mse(corrected, floor)
     assert shown == {"value": value, "bound": bound}
+
+
+def test_the_equal_time_budget_is_the_spp_that_takes_the_reference_time():
+    assert equal_time_spp(16, 3.0, 1.0, step=2) == 6  # 16 / 3 = 5.3, a multiple of 2
+    assert equal_time_spp(16, 0.5, 1.0) == 32 and equal_time_spp(16, 0.01, 1.0) == 256  # at most 16 x
+    assert equal_time_spp(16, 1.2, 1.0) == 16  # within 1.25 x: the same-spp renders serve
+    assert equal_time_spp(16, 0.0, 1.0) == 16 and equal_time_spp(1, 100.0, 1.0) == 1
+
+
+def test_zero_variance_is_every_seed_at_most_float32_rounding():
+    cut = float_resolution(0.93)
+    assert cut == pytest.approx((2.0**-23 * 0.93) ** 2) and float_resolution(None) == 0.0
+    assert zero_variance([2.6e-17, 0.0, 1e-30], cut) and zero_variance([0.0, 0.0])
+    assert not zero_variance([2.6e-17, 1e-6], cut) and not zero_variance([], cut)
+    assert not zero_variance([None, 0.0], cut) and not zero_variance([1e-20])

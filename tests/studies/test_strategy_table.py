@@ -128,3 +128,38 @@ def test_a_region_best_is_named_only_when_told_apart():
 
     table = strategy_rows("x", [], render, True, DEFAULTS, spp=16, repeats=4, min_seconds=0.0)
     assert table["regions"]["best"] == {"plate": None} and table["regions"]["leader"]["plate"] is not None
+
+
+def test_a_zero_variance_strategy_shows_no_efficiency_and_is_left_out_of_the_ranking(tmp_path):
+    """An exact estimator (white furnace, env_sampling=cosine: every sample the answer) has an MSE of rounding
+    alone; 1 / (MSE x time) would read ~1e29. Its row says "zero variance", its efficiency is null and the best is
+    decided among the others."""
+    planted = Planted({"direct=mis": 0.1}, {}, noise=0.02)
+
+    def render(settings, spp, index):
+        m = planted(settings, spp, index)
+        if settings == {"hemisphere": "uniform"}:  # exact: variance below float32 rounding of a level-1 image
+            return dict(m, mse=1e-30, floor_mse=0.0, variance=2.6e-17, level=0.93)
+        return dict(m, level=0.93)
+
+    table = strategy_rows("planted", [], render, True, DEFAULTS, spp=16, repeats=4, min_seconds=0.0, spp_step=2)
+    rows = _rows(table)
+    exact = rows["hemisphere=uniform"]
+    assert exact["zero_variance"] is True and exact["efficiency"] is None
+    assert exact["relative_efficiency_interval"]["value"] is None and exact["relative_mse"] is None
+    assert not any(r["zero_variance"] for label, r in rows.items() if label != "hemisphere=uniform")
+    assert table["zero_variance"] == ["hemisphere=uniform"] and table["best"] == "direct=mis"
+    assert "hemisphere=uniform" not in table["separation"]["leader_over"]
+    line = _best_line(table)
+    assert line.startswith("Best: direct=mis") and "Zero variance (exact here; no efficiency, not ranked): " \
+        "hemisphere=uniform" in line
+    html = _page(table, tmp_path)
+    row_html = re.search(r"<tr><td>hemisphere=uniform</td>(.*?)</tr>", html).group(1)
+    assert "zero variance" in row_html and "e+2" not in row_html and "e+1" not in row_html
+    # the same row from the suite's cases alone (no renders): no efficiency either
+    case = {"case": "c", "settings": {"hemisphere": "uniform"}, "mse": 0.0, "floor_mse": 0.0, "variance": 2.6e-17,
+            "level": 0.93, "seconds": 1.0, "pixels": 100, "spp": 16, "film": [10, 10]}
+    cases = strategy_rows("planted", [case], None, True, DEFAULTS)
+    only = _rows(cases)["hemisphere=uniform"]
+    assert only["zero_variance"] is True and only["efficiency"] is None
+    assert cases["zero_variance"] == ["hemisphere=uniform"]
