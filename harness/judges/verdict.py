@@ -92,8 +92,8 @@ NEIGHBOURHOOD = 2
 FLOOR_RATIO = 4.0
 #: The neighbourhood counts the tiles whose other image's variance per pixel is within this factor of the tile's:
 #: the same kind of place (not the quiet sky beside a noisy ground, 1e4 apart), while the rare samples' tiles and
-#: their neighbours, whose ground truth varies smoothly, stay in.
-GUIDE_FACTOR = 100.0
+#: their neighbours, whose ground truth varies smoothly (up to 200 x across point-spot's floor), stay in.
+GUIDE_FACTOR = 300.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,8 +217,9 @@ def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np
     .. math:: \hat V_j = W_j \, V_N / W_N,
 
     the other image's variance in the tile times the neighbourhood's ratio of the two; its dof Welch's over the
-    neighbourhood's pixels (``welch_sum``: their :math:`\sum_p v_p^2 / (\nu_p + 2)`). 0 (and inf) where the other
-    image has no variance (an exact one) or ``radius`` is 0.
+    neighbourhood's pixels (``welch_sum``: their :math:`\sum_p v_p^2 / (\nu_p + 2)`). A tile alike no other
+    within the radius (a small light among black pixels) takes the ratio over the whole image. 0 (and inf) where
+    the other image has no variance (an exact one) or ``radius`` is 0.
 
     An estimator whose variance is carried by rare, large samples (a path that reaches a point light from close by,
     a caustic) draws them in only some tiles of a render: in the others the tile's variance estimate is far below
@@ -229,7 +230,13 @@ def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np
     with np.errstate(divide="ignore", invalid="ignore"):
         guide = np.where(n > 0, other_sum / n, 0.0)
     guide = np.where(guide > 0, guide, np.nan)  # no variance: nothing to scale, and like no other tile
-    nb_v, nb_w, nb_welch = _box((v_sum, other_sum, welch_sum), radius, guide, GUIDE_FACTOR)
+    nb_v, nb_w, nb_welch, alike = _box((v_sum, other_sum, welch_sum, np.ones_like(v_sum)), radius, guide,
+                                       GUIDE_FACTOR)
+    # a tile alike no other around it (a small light among black pixels) takes the image's ratio of the two
+    counted = np.isfinite(guide)
+    lone = alike <= 1
+    nb_v, nb_w, nb_welch = (np.where(lone, np.where(counted, x, 0.0).sum(axis=(0, 1)), nb)
+                            for x, nb in ((v_sum, nb_v), (other_sum, nb_w), (welch_sum, nb_welch)))
     with np.errstate(divide="ignore", invalid="ignore"):
         floor = np.where(nb_w > 0, other_sum * nb_v / nb_w, 0.0)
     return floor, _welch_dof(nb_v, nb_welch)
@@ -490,7 +497,7 @@ def verdict(
     npix = int(ok.sum())
     g_d = diff.sum(axis=(0, 1))
     g_vraw = v_raw.sum(axis=(0, 1))
-    g_v = v_eff.sum(axis=(0, 1))
+    g_v = v_sum.sum(axis=(0, 1))  # the tiles' variances, raised where their neighbourhood says
     g_nu = np.minimum(_welch_dof(vt.sum(axis=(0, 1)), welch_t.sum(axis=(0, 1))),
                       _welch_dof(vr.sum(axis=(0, 1)), welch_r.sum(axis=(0, 1))))
     g_active = g_vraw > 0

@@ -101,3 +101,36 @@ def test_rare_large_samples_in_the_ground_truth_are_floored_too() -> None:
 
     assert sum(fails(seed) for seed in range(SEEDS)) <= 2
     assert sum(fails(seed, neighbourhood=0) for seed in range(5)) == 5
+
+
+def test_a_tile_alike_no_neighbour_takes_the_images_ratio() -> None:
+    """A small light among black pixels: its tile's ground-truth variance is unlike every neighbour's (they have
+    none), so its floor comes from the two images' ratio over the whole image (32 tiles at 50 and 1 and the light
+    itself at 0 and 10): the render's replicates agreed there (variance 0) though elsewhere its variance is 50 x
+    the ground truth's."""
+    from harness.judges.verdict import _neighbourhood_floor
+
+    shape = (8, 8, 3)
+    truth_var = np.zeros(shape)
+    truth_var[:, :4] = 1.0  # a noisy left half
+    truth_var[2, 6] = 10.0  # the light, among black tiles
+    test_var = 50.0 * truth_var
+    test_var[2, 6] = 0.0
+    n = np.full(shape, 64.0)
+    floor, dof = _neighbourhood_floor(test_var, test_var**2 / 3, truth_var, n, 2)
+    assert np.allclose(floor[2, 6], 10.0 * (32 * 50.0) / (32 * 1.0 + 10.0))
+    assert np.allclose(floor[:, :4], 50.0) and np.all(np.isfinite(dof[:, :4]))
+
+
+def test_the_global_sub_test_uses_the_raised_variances() -> None:
+    """The image-wide bias test sums the tiles' variances as the floor left them: where it raised tiles, the
+    global standard error is larger than the raw one (a render without its rare samples is low everywhere)."""
+    q = 0.5 / (64 * SPP)
+    rng = np.random.default_rng(3)
+    truth, truth_var = _ground_truth(rng, q, 100.0)
+    test, test_var = _render(rng, q, 100.0)
+    kwargs = {"alpha": ALPHA, "test_dof": 1, "expected_dof": GT_SPP - 1}
+    with_floor = verdict(test, test_var, truth, truth_var, **kwargs)
+    without = verdict(test, test_var, truth, truth_var, neighbourhood=0, **kwargs)
+    assert with_floor.variance_floor["tiles"] > 0
+    assert all(a > b for a, b in zip(with_floor.global_bias["stderr"], without.global_bias["stderr"]))
