@@ -13,6 +13,7 @@ import shlex
 
 import pytest
 from conftest import ROOT
+from test_calibrate import SUITE  # the furnace at 32 x 32 and its double-emission fault
 from test_hostile_input import assert_one_line, cli
 
 from harness.cli import build_parser, main
@@ -23,21 +24,7 @@ from harness.report.power import power_json, power_view
 from harness.running import calibrate
 from harness.running.cases import load_suite
 
-SUITE = """
-[[cases]]
-name = "furnace/reference"
-scene = "furnace"
-film = { width = 32, height = 32 }
-spp = 8
 
-[[cases]]
-name = "furnace/mutant"
-scene = "furnace"
-film = { width = 32, height = 32 }
-spp = 8
-settings = { mutant = "double-emission" }
-expect = "fail"
-"""
 
 SWEEP = ("--films", "scene,half", "--spp", "4,8", "--replicates", "1,2")
 
