@@ -24,8 +24,6 @@ from harness.report.power import power_json, power_view
 from harness.running import calibrate
 from harness.running.cases import load_suite
 
-
-
 SWEEP = ("--films", "scene,half", "--spp", "4,8", "--replicates", "1,2")
 
 
