@@ -85,18 +85,24 @@ def test_calibrate_measures_power_at_each_budget(calibrated):
     assert stdout.count("furnace/reference  ") == 3  # the table's rows
 
 
-def test_the_report_shows_the_power_table_in_its_definitions(tmp_path, calibrated, capfd):
-    out, _ = calibrated
+def report_with(calibration, tmp_path, capfd) -> tuple[str, dict, object]:
+    """A run of the furnace case (no fault) whose report reads ``calibration``: its page's definitions section, its
+    report.json and its folder."""
     suite = tmp_path / "run.toml"
     suite.write_text(SUITE.split("[[cases]]\nname = \"furnace/mutant\"")[0])
     run = tmp_path / "run"
     code, _, stderr = cli(capfd, "run", suite, "--out", run, "--executor", "serial", "--no-studies", "--calibration",
-                          out / "calibration.json")
+                          calibration)
     assert code == 0, stderr
     page = (run / "index.html").read_text()
-    definitions = page[page.index('<section id="definitions">'):]
+    return page[page.index('<section id="definitions">'):], json.loads((run / "report.json").read_text()), run
+
+
+def test_the_report_shows_the_power_table_in_its_definitions(tmp_path, calibrated, capfd):
+    out, _ = calibrated
+    definitions, report, run = report_with(out / "calibration.json", tmp_path, capfd)
     assert "Validation power" in definitions and "<td>furnace/reference</td><td>0.5x</td><td>4</td>" in definitions
-    power = json.loads((run / "report.json").read_text())["power"]
+    power = report["power"]
     assert len(power["rows"]) == 3 and power["suite"] == "s"
     # without a calibration the section says how to measure it
     code, _, _ = cli(capfd, "report", run / "results.json", "--out", tmp_path / "plain")

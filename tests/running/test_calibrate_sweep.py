@@ -13,7 +13,7 @@ import shlex
 
 import pytest
 from conftest import ROOT
-from test_calibrate import SUITE  # the furnace at 32 x 32 and its double-emission fault
+from test_calibrate import SUITE, report_with, suite  # noqa: F401 - suite: the fixture writing SUITE
 from test_hostile_input import assert_one_line, cli
 
 from harness.cli import build_parser, main
@@ -25,13 +25,6 @@ from harness.running import calibrate
 from harness.running.cases import load_suite
 
 SWEEP = ("--films", "scene,half", "--spp", "4,8", "--replicates", "1,2")
-
-
-@pytest.fixture
-def suite(tmp_path):
-    path = tmp_path / "s.toml"
-    path.write_text(SUITE)
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -103,16 +96,9 @@ def test_the_report_reads_a_sweep_and_shows_its_table(swept, tmp_path, capfd):
     assert view["rows"] == [] and "false-alarm sweep" in view["note"]
     assert len(view["sweep"]["rows"]) == 8 and view["sweep"]["total"].startswith("16 correct renders")
     assert power_json(view)["sweep"]["headers"][0] == "case"
-    suite = tmp_path / "run.toml"
-    suite.write_text(SUITE.split("[[cases]]\nname = \"furnace/mutant\"")[0])
-    run = tmp_path / "run"
-    code, _, stderr = cli(capfd, "run", suite, "--out", run, "--executor", "serial", "--no-studies", "--calibration",
-                          out / "calibration.json")
-    assert code == 0, stderr
-    page = (run / "index.html").read_text()
-    definitions = page[page.index('<section id="definitions">'):]
+    definitions, report, run = report_with(out / "calibration.json", tmp_path, capfd)
     assert "False-alarm sweep" in definitions and "<td>furnace/reference</td><td>16x16</td><td>8</td>" in definitions
-    assert json.loads((run / "report.json").read_text())["power"]["sweep"]["total"] == view["sweep"]["total"]
+    assert report["power"]["sweep"]["total"] == view["sweep"]["total"]
     # a sweep of the wrong shape is one line naming its JSON path
     bad = tmp_path / "bad.json"
     broken = dict(doc, sweep=dict(doc["sweep"], total={"runs": -1}))
