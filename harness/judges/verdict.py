@@ -48,10 +48,11 @@ Before z is formed, each image's variance in a tile is raised to what its
 neighbourhood says (:func:`_neighbourhood_floor`) where it is more than
 :data:`FLOOR_RATIO` below that: the other image's variance in the tile times
 the ratio of the two images' variances over the 5 x 5 tiles around it whose
-other image's variance is alike (within :data:`GUIDE_FACTOR`).  Where a renderer's variance is carried by rare, large
-samples, most tiles of a render hold none of them and their own variance
-estimate is far below its mean; the floor keeps those tiles' z near their
-true scale (docs/verdict.md, "Heavy-tailed estimators").
+other image's variance is alike (within :data:`GUIDE_FACTOR`).  Where a
+renderer's variance is carried by rare, large samples, most tiles of a render
+hold none of them and their own variance estimate is far below its mean; the
+floor keeps those tiles' z near their true scale (docs/verdict.md,
+"Heavy-tailed estimators").
 
 References
 ----------
@@ -188,12 +189,12 @@ def _box(arrays: tuple[np.ndarray, ...], radius: int, guide: np.ndarray, factor:
     channel, counting only the tiles whose ``guide`` lies within ``factor`` of the centre tile's (either way)."""
     h, w = guide.shape[:2]
 
-    def pad(x):
-        padded = np.full((h + 2 * radius, w + 2 * radius) + x.shape[2:], np.nan if x is guide else 0.0)
+    def pad(x, fill):
+        padded = np.full((h + 2 * radius, w + 2 * radius) + x.shape[2:], fill)
         padded[radius:radius + h, radius:radius + w] = x
         return padded
 
-    padded, padded_guide = [pad(x) for x in arrays], pad(guide)
+    padded, padded_guide = [pad(x, 0.0) for x in arrays], pad(guide, np.nan)
     out = [np.zeros(guide.shape) for _ in arrays]
     with np.errstate(invalid="ignore"):
         for dy in range(2 * radius + 1):
