@@ -21,8 +21,8 @@ run, so that its image holds the same samples, and its time is its render time w
 (:mod:`harness.renderers.external`: its own ``render_seconds``, or the wall time less the start-up measured once).
 
 The reference's strategy rows (one setting changed from the defaults) are compared with the defaults at the same
-spp and at equal time: each renders ``repeats`` times more at the spp that takes the defaults' time
-(:func:`equal_time_renders`); "best" is decided at equal time, named only when told apart (:func:`strategy_verdict`);
+spp and at equal time: each, the defaults too, renders ``repeats`` times more at the spp that takes the defaults'
+time, the rows taking turns (:func:`equal_time_renders`); "best" is decided at equal time, named only when told apart (:func:`strategy_verdict`);
 an exact estimator reads "zero variance", without an efficiency (:func:`is_exact`).
 
 Each scene also gets the row "embree (own rays)": Embree's own rate on the rays the reference traces there, recorded
@@ -311,25 +311,21 @@ def equal_time_renders(scene, rows: Sequence[Row], *, repeats: int, gt, seed: in
                        on_render: Callable[[str], None] | None = None) -> None:
     """The reference's strategy rows again at equal time: each at the spp that takes the defaults' ("reference"
     row's) mean render time, from its own same-spp renders (:func:`harness.judges.efficiency.equal_time_spp`:
-    s* = spp x t_defaults / t, rounded, at most 16 x spp; where s* is within 1.25 x of spp the same-spp renders
-    serve), ``repeats`` renders each, the rows taking turns, with seeds of their own (independent of the defaults'
-    renders). The defaults' equal-time renders are its same-spp ones. Fills the rows' ``equal_time_*`` fields; a
-    render that fails leaves the row's same-spp figures and says why in ``equal_time_error``."""
+    s* = spp x t_defaults / t, rounded, at most 16 x spp; the same spp where s* is within 1.25 x of it), ``repeats``
+    renders each with seeds of their own. Every reference row renders again, the defaults included, the rows taking
+    turns within each repeat: the equal-time ratios are measured in one interleaved phase, so that the machine's
+    drift between the race and this phase cannot move them. Fills the rows' ``equal_time_*`` fields; a render that
+    fails leaves the row's same-spp figures and says why in ``equal_time_error``."""
     base = next((r for r in rows if r.label == "reference" and r.renderer == "reference" and not r.error
                  and r.seconds_all), None)
     if base is None:
         return
     base_seconds = float(np.mean(base.seconds_all))
-    todo = []
-    for row in rows:
-        if row.renderer != "reference" or row.error or not row.seconds_all:
-            continue
+    todo = [r for r in rows if r.renderer == "reference" and not r.error and r.seconds_all]
+    for row in todo:
         row.equal_time_spp = (row.spp if row is base
                               else equal_time_spp(row.spp, float(np.mean(row.seconds_all)), base_seconds))
-        if row.equal_time_spp == row.spp:
-            row.equal_time_mse_all, row.equal_time_seconds_all = list(row.mse_all), list(row.seconds_all)
-        else:
-            todo.append(row)
+        row.equal_time_mse_all, row.equal_time_seconds_all = [], []
     renderer = get_renderer("reference")
     for attempt in range(1, repeats + 1):
         for row in todo:
