@@ -53,6 +53,14 @@ def _claim(data: bytes, occurrence: int, x_max: int, y_max: int) -> bytes:
     return data[:start] + struct.pack("<4i", x_min, y_min, x_max, y_max) + data[start + 16:]
 
 
+def _spy_on_opens(monkeypatch) -> list[dict]:
+    """The options of every OpenEXR open the reader makes from now on (``header_only``: no pixel read)."""
+    opened: list[dict] = []
+    real = hio._open_exr
+    monkeypatch.setattr(hio, "_open_exr", lambda p, **options: opened.append(options) or real(p, **options))
+    return opened
+
+
 def _one_line(code: int, out: str, err: str, *fragments: str) -> str:
     assert code == 2, (code, out, err)
     assert "Traceback" not in err and err.count("\n") == 1, err
@@ -76,9 +84,7 @@ def test_a_400_digit_count_is_one_line_in_compare_and_view(tmp_path, capfd, key,
 @pytest.mark.parametrize("value", ["9" * 400, "1e400", "inf", "-inf", "nan", "-1", str(2**53 + 2), "1e300"])
 def test_a_count_attribute_outside_its_range_is_refused_before_the_pixels(tmp_path, monkeypatch, value):
     path = hio.write_exr(tmp_path / "a.exr", ONES, ONES, metadata={"variance_dof": value})
-    opened = []
-    real = hio._open_exr
-    monkeypatch.setattr(hio, "_open_exr", lambda p, **options: opened.append(options) or real(p, **options))
+    opened = _spy_on_opens(monkeypatch)
     with pytest.raises(HarnessError) as caught:
         hio.read_exr(path)
     assert caught.value.where == str(path)
@@ -103,9 +109,7 @@ def test_a_later_part_claiming_100000_squared_is_refused_on_its_header(tmp_path,
     """Only part 0's header was checked: part 1 claiming 100000 x 100000 made the reader allocate 37 GiB."""
     path = tmp_path / "parts.exr"
     path.write_bytes(_claim(_parts(path, (3, 3)).read_bytes(), 1, 99999, 99999))
-    opened = []
-    real = hio._open_exr
-    monkeypatch.setattr(hio, "_open_exr", lambda p, **options: opened.append(options) or real(p, **options))
+    opened = _spy_on_opens(monkeypatch)
     with pytest.raises(HarnessError) as caught:
         hio.read_exr(path)
     assert caught.value.where == str(path)

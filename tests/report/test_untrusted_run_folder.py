@@ -17,45 +17,16 @@ from pathlib import Path
 
 import pytest
 from conftest import ROOT
+from test_hostile_results import real  # noqa: F401 - the fixture: one real run of the two-furnace suite
 
 from harness.files import viewer_data
 from harness.report import write_suite_report
 
 pytestmark = pytest.mark.slow  # renders once, and one test starts a process
 
-SUITE = """
-name = "untrusted"
-[defaults]
-spp = 2
-film = { width = 8, height = 8 }
-
-[[cases]]
-name = "furnace/a"
-scene = "SCENES/furnace.toml"
-
-[[cases]]
-name = "furnace/b"
-scene = "SCENES/furnace.toml"
-seed = 7
-"""
-
 SECRET = b"SECRET-7f3a9c-do-not-leak"
 EXR_MAGIC = b"\x76\x2f\x31\x01"
 CASE = "furnace_a"  # the first case's folder
-
-
-@pytest.fixture(scope="module")
-def real(tmp_path_factory) -> dict:
-    """{"suite": the suite file, "dir": the run's folder}: a real run, never changed by a test."""
-    from harness.running.cases import load_suite
-    from harness.running.executors import SerialExecutor
-    from harness.running.schedule import run_suite
-
-    folder = tmp_path_factory.mktemp("real")
-    suite = folder / "untrusted.toml"
-    suite.write_text(SUITE.replace("SCENES", str(ROOT / "scenes")))
-    run_suite(load_suite(suite), folder / "run", executor=SerialExecutor())
-    return {"suite": suite, "dir": folder / "run"}
 
 
 @pytest.fixture
