@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import SCENES
+from conftest import MINIMAL_SCENE, SCENES
 from test_hostile_input import assert_one_line, cli
 
 from harness.core.errors import HarnessError
@@ -222,17 +222,8 @@ def test_an_empty_cache_dir_option_is_refused(tmp_path, suite, capfd):
 # ---- HARNESS_ALLOW_OUTSIDE_PATHS read by one rule (nit) --------------------------------------------------------
 
 
-OUTSIDE_SCENE = """
-[camera]
-origin = [0, 0, 3]
-target = [0, 0, 0]
-up = [0, 1, 0]
-fov = 40
-[film]
-width = 8
-height = 8
-[materials.white]
-reflectance = [0.5, 0.5, 0.5]
+# conftest's minimal scene with a glowing triangle from a mesh file outside the scene's folder
+OUTSIDE_SCENE = MINIMAL_SCENE + """
 [[shapes]]
 type = "mesh"
 file = "../outside/tri.obj"
