@@ -95,6 +95,9 @@ FLOOR_RATIO = 4.0
 #: the same kind of place (not the quiet sky beside a noisy ground, 1e4 apart), while the rare samples' tiles and
 #: their neighbours, whose ground truth varies smoothly (up to 200 x across point-spot's floor), stay in.
 GUIDE_FACTOR = 300.0
+#: A tile is judged only where each image's estimate of it holds at least this many effective samples,
+#: :math:`M^2 / S^2` (``_sparse_tiles``); below it the tile's mean is a count of a few rare samples, not normal.
+MIN_SAMPLES = 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,6 +143,8 @@ class Verdict:
     (None: taken as exact).
     ``variance_floor``: ``neighbourhood`` (its radius in tiles) and ``tiles``
     (tile-channels where the neighbourhood raised either image's variance).
+    ``sparse``: ``min_samples`` (:data:`MIN_SAMPLES`), ``tiles`` (noisy tile-channels left out of the sub-tests:
+    fewer effective samples than that) and ``share`` (their part of the noisy tiles' summed brightness).
     """
 
     verdict: str
@@ -155,6 +160,7 @@ class Verdict:
     worst_tile: dict | None
     variance_dof: dict = field(default_factory=dict)
     variance_floor: dict = field(default_factory=dict)
+    sparse: dict = field(default_factory=dict)
     #: the tiles as maps (:class:`TileMaps`); not part of :meth:`to_dict`
     tiles: TileMaps | None = field(default=None, compare=False, repr=False)
 
@@ -241,6 +247,30 @@ def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np
     with np.errstate(divide="ignore", invalid="ignore"):
         floor = np.where(nb_w > 0, other_sum * nb_v / nb_w, 0.0)
     return floor, _welch_dof(nb_v, nb_welch)
+
+
+def _sparse_tiles(mean_sum: np.ndarray, vt_sum: np.ndarray, vr_sum: np.ndarray, test_spp: float | None,
+                  expected_spp: float | None) -> np.ndarray:
+    r"""The tiles too sparse to judge: where either image's estimate of the tile holds fewer than
+    :data:`MIN_SAMPLES` effective samples,
+
+    .. math:: n_{\mathrm{eff}} = M^2 / \max(V_X, \; V_Y \, n_Y / n_X),
+
+    M the larger of the two images' tile sums, :math:`V_X` an image's tile variance (its floor applied),
+    :math:`V_Y n_Y / n_X` the other image's variance brought to this image's spp n (where both spp are known): what
+    the other's estimator predicts for it. For a non-negative estimator :math:`M^2 / V` is the Kish effective
+    sample size, :math:`n / \mathrm{CV}^2`; where a tile's value comes from a few rare, large samples it is about
+    their expected number (a Bernoulli event of probability q in n samples: :math:`n q / (1 - q)`), and a
+    render that drew none of them has a variance estimate near 0 and a mean too low, whatever floor is put under
+    it. Such a tile's z is not normal at any budget the render could not resolve; it is left out of the three
+    sub-tests (counted in ``Verdict.sparse``) rather than judged on a normal tail it does not have."""
+    vt_eff, vr_eff = vt_sum, vr_sum
+    if test_spp and expected_spp:
+        vt_eff = np.maximum(vt_sum, vr_sum * (expected_spp / test_spp))
+        vr_eff = np.maximum(vr_sum, vt_sum * (test_spp / expected_spp))
+    worst = np.maximum(vt_eff, vr_eff)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return (worst > 0) & (mean_sum**2 < MIN_SAMPLES * worst)
 
 
 def _to_normal(z: np.ndarray, dof: np.ndarray) -> np.ndarray:
@@ -365,6 +395,8 @@ def verdict(
     rtol: float = ROUNDING_RTOL,
     names: tuple[str, str] = ("test image", "ground truth image"),
     neighbourhood: int = NEIGHBOURHOOD,
+    test_spp: float | None = None,
+    expected_spp: float | None = None,
 ) -> Verdict:
     r"""Decide whether ``test`` and ``expected`` (the ground truth) estimate the same image.
 
@@ -401,6 +433,10 @@ def verdict(
         Radius in tiles of the variance floor (default :data:`NEIGHBOURHOOD`; 0: none): each image's variance in a
         tile more than :data:`FLOOR_RATIO` below what the tiles within that radius say (``_neighbourhood_floor``) is
         raised to it, with their Welch dof.
+    test_spp, expected_spp : float, optional
+        Samples per pixel of each image. With both, a tile is left out of the sub-tests where the other image's
+        variance brought to this one's spp predicts fewer than :data:`MIN_SAMPLES` effective samples
+        (``_sparse_tiles``); without, only each image's own variance says so.
 
     Returns
     -------
@@ -485,7 +521,12 @@ def verdict(
     dof_tiles = np.minimum(dof_t, dof_r)
     wider = raised_t | raised_r
     zero_tiles = (n > 0) & (v_raw_sum == 0)
-    random_tiles = (n > 0) & (v_raw_sum > 0)
+    noisy = (n > 0) & (v_raw_sum > 0)
+    # tiles whose estimate holds too few effective samples to be normal are left out of the sub-tests
+    mean_sum = np.maximum(np.abs(_tile_sum(np.where(m, t, 0.0), tile)), np.abs(_tile_sum(r * m, tile)))
+    sparse = noisy & _sparse_tiles(mean_sum, np.maximum(vt_sum, np.where(raised_t, floor_t, 0.0)),
+                                   np.maximum(vr_sum, np.where(raised_r, floor_r, 0.0)), test_spp, expected_spp)
+    random_tiles = noisy & ~sparse
     bad_pixel = m & (v_raw == 0) & (np.abs(diff) > rtol * scale)
     differing = zero_tiles & (_tile_sum(bad_pixel.astype(np.float64), tile) > 0)
 
@@ -495,10 +536,10 @@ def verdict(
     z_norm = np.where(random_tiles, _to_normal(z, dof), 0.0)
 
     # --- 1. global bias ----------------------------------------------------
-    npix = int(ok.sum())
-    g_d = diff.sum(axis=(0, 1))
-    g_vraw = v_raw.sum(axis=(0, 1))
-    g_v = v_sum.sum(axis=(0, 1))  # the tiles' variances, raised where their neighbourhood says
+    npix = np.where(sparse, 0.0, n).sum(axis=(0, 1))  # per channel: the pixels of the judged and the exact tiles
+    g_d = np.where(sparse, 0.0, d_sum).sum(axis=(0, 1))  # the judged tiles' (and the exact ones')
+    g_vraw = np.where(random_tiles, v_raw_sum, 0.0).sum(axis=(0, 1))
+    g_v = np.where(sparse, 0.0, v_sum).sum(axis=(0, 1))  # the tiles' variances, raised where their neighbourhood says
     g_nu = np.minimum(_welch_dof(vt.sum(axis=(0, 1)), welch_t.sum(axis=(0, 1))),
                       _welch_dof(vr.sum(axis=(0, 1)), welch_r.sum(axis=(0, 1))))
     g_active = g_vraw > 0
@@ -515,8 +556,8 @@ def verdict(
     g_pvalue = _sidak(float(g_p.min()), n_active) if n_active else 1.0
     g_worst = int(np.argmin(g_p)) if n_active else 0
     global_bias = {
-        "difference": [float(x / npix) if npix else float("nan") for x in g_d],
-        "stderr": [float(np.sqrt(x) / npix) if npix else float("nan") for x in g_v],
+        "difference": [float(x / k) if k else float("nan") for x, k in zip(g_d, npix)],
+        "stderr": [float(np.sqrt(x) / k) if k else float("nan") for x, k in zip(g_v, npix)],
         "z": [float(x) for x in g_z],
         "dof": [None if not np.isfinite(x) else float(x) for x in g_dof],
         "p_values": [float(x) for x in g_p],
@@ -593,6 +634,10 @@ def verdict(
     tiles = TileMaps(z=z_norm, p=tile_p, tested=random_tiles,
                      failing=differing | (random_tiles & (sidak < threshold)))
     failures: list[str] = []
+    n_sparse = int(sparse.sum())
+    if n_sparse and not count:
+        failures.append(f"too few samples to judge: each of the {n_sparse} noisy tile-channels holds fewer than "
+                        f"{MIN_SAMPLES:g} effective samples (render more samples per pixel)")
     if nonfinite:
         failures.append(f"{nonfinite} non-finite pixels in the {test_name}")
     if n_differing:
@@ -630,6 +675,11 @@ def verdict(
         )
         if zero_variance["tiles"]:
             reason += f"; {zero_variance['tiles']} zero-variance tile-channels match exactly"
+    bright = float(np.where(noisy, mean_sum, 0.0).sum())
+    share = float(np.where(sparse, mean_sum, 0.0).sum()) / bright if bright > 0 else 0.0
+    if n_sparse and count:
+        reason += (f"; {n_sparse} tile-channels ({100 * share:.2g} % of the brightness) not judged: fewer than "
+                   f"{MIN_SAMPLES:g} effective samples")
 
     return Verdict(
         verdict=outcome,
@@ -645,5 +695,6 @@ def verdict(
         worst_tile=worst,
         variance_dof={"test": _dof_summary(test_dof), "ground_truth": _dof_summary(expected_dof)},
         variance_floor={"neighbourhood": int(neighbourhood), "tiles": int((wider & random_tiles).sum())},
+        sparse={"min_samples": MIN_SAMPLES, "tiles": n_sparse, "share": share},
         tiles=tiles,
     )

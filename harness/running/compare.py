@@ -46,6 +46,15 @@ def _variance_dof(image: ExrImage) -> int | None:
     return spp - 1 if spp >= 2 else None
 
 
+def _spp(image: ExrImage) -> int | None:
+    """The file's ``spp`` metadata (samples per pixel) if present and >= 1, else None."""
+    try:
+        spp = int(str((image.metadata or {}).get("spp")).strip())
+    except ValueError:
+        return None
+    return spp if spp >= 1 else None
+
+
 def _size(image: np.ndarray) -> str:
     return f"{image.shape[1]}x{image.shape[0]}"
 
@@ -110,7 +119,8 @@ def judge(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0
     (``variance_dof``, else ``spp`` - 1): what a case is judged by, without the metrics (``harness calibrate``
     judges thousands of planted images with it). Returns the :class:`harness.judges.verdict.Verdict`."""
     return verdict(test.image, test.variance, expected.image, expected.variance, tile=tile, alpha=alpha,
-                   test_dof=_variance_dof(test), expected_dof=_variance_dof(expected), names=names)
+                   test_dof=_variance_dof(test), expected_dof=_variance_dof(expected), names=names,
+                   test_spp=_spp(test), expected_spp=_spp(expected))
 
 
 def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,
