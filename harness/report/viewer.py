@@ -121,9 +121,10 @@ def _dof(value) -> float | None:
 
 
 def tiles_again(render: np.ndarray, render_variance: np.ndarray | None, truth: GroundTruthImage,
-                record_verdict: dict | None) -> TileMaps | None:
+                record_verdict: dict | None, spp: object = None) -> TileMaps | None:
     """The verdict's tiles computed again from a case's images (for a run by an older harness, which kept none),
-    with the tile, alpha and variance degrees of freedom its record names (per-pixel degrees of freedom,
+    with the tile, alpha and variance degrees of freedom its record names, the render's ``spp`` and the ground
+    truth's (which tiles are too sparse to judge; per-pixel degrees of freedom,
     ``{"min", "max"}``, are taken as exact: the tiles' z then differ a little from the run's). None without a
     render variance or a verdict."""
     if render_variance is None or not isinstance(record_verdict, dict) or not record_verdict.get("tile"):
@@ -131,7 +132,8 @@ def tiles_again(render: np.ndarray, render_variance: np.ndarray | None, truth: G
     dof = record_verdict.get("variance_dof") if isinstance(record_verdict.get("variance_dof"), dict) else {}
     outcome = verdict(render, render_variance, truth.image, truth.variance, tile=int(record_verdict["tile"]),
                       alpha=float(record_verdict.get("alpha") or 0.001), test_dof=_dof(dof.get("test")),
-                      expected_dof=_dof(dof.get("ground_truth", dof.get("reference"))))
+                      expected_dof=_dof(dof.get("ground_truth", dof.get("reference"))), test_spp=_dof(spp),
+                      expected_spp=float(truth.spp) if truth.spp and truth.source != "closed-form" else None)
     return outcome.tiles
 
 
@@ -147,8 +149,8 @@ def make_case_viewer(folder: Path, record: dict, render: np.ndarray, render_vari
     if flip is None or flip.shape != render.shape[:2]:
         flip = metrics.flip(render, truth.image, full=True)[1]
     v = record.get("verdict") if isinstance(record.get("verdict"), dict) else {}
-    tiles = tiles_again(render, render_variance, truth, v)
     spp = (record.get("render") or {}).get("spp")
+    tiles = tiles_again(render, render_variance, truth, v, spp)
     imageio.make_folders(folder)
     return make_viewer_data(
         folder, name=str(record.get("name", "")), render=render, render_variance=render_variance, truth=truth.image,
