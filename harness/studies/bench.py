@@ -246,13 +246,16 @@ def bench_scene(
     renderers = [get_renderer(c.renderer) for c in contenders]
     cpu = [0.0] * len(contenders)
     wall = [0.0] * len(contenders)
-    per_run = [spp] * len(contenders)  # the spp asked of each contender: spp / K for K runs per render
     for attempt in range(repeats + 1):  # attempt 0 is the warm-up
         for i, (contender, renderer, row) in enumerate(zip(contenders, renderers, rows)):
             if row.error:
                 continue
-            request = RenderRequest(spp=per_run[i], seed=seed + attempt, settings=dict(contender.settings))
             external = not getattr(renderer, "cheap_to_repeat", True)
+            # the race measures MSE against the ground truth, not the render's variance: an external renderer
+            # without variance channels runs once at spp (not K times at spp / K, which for a stratified sampler
+            # is another estimator)
+            request = RenderRequest(spp=spp, seed=seed + attempt, settings=dict(contender.settings),
+                                    variance=not external)
             cpu0, wall0 = _cpu_seconds(external), time.perf_counter()
             try:
                 result = renderer.render(scene, request)
@@ -263,9 +266,6 @@ def bench_scene(
             if on_render is not None:
                 on_render(f"{scene.name}: {contender.label}" + (" (warm-up)" if attempt == 0 else ""))
             if attempt == 0:
-                if result.info.get("spp_per_run") is not None:  # K runs per render: spp / K each
-                    runs = max(1, int(result.spp) // per_run[i])
-                    per_run[i] = max(1, int(round(spp / runs)))
                 continue
             row.spp = int(result.spp)
             row.time_from = result.info.get("time_from", row.time_from)

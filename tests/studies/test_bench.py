@@ -18,6 +18,7 @@ from conftest import ROOT, SCENES, load_small
 from fake_renderers import slow_start_renderer
 
 from harness.studies import bench
+from harness.renderers import external
 from harness.renderers.groundtruth import closed_form
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
@@ -131,29 +132,36 @@ def test_the_benchmark_suite_runs():
 
 
 def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, capfd, monkeypatch):
-    """``harness bench --renderer FILE``: the renderer's row holds the same spp as the others' (K = 2 runs of
-    spp / 2), its time is the render time alone (0.6 s of "rendering" per render, without the 0.6 s+ of its two
-    start-ups), and its ratios to the reference are in the result and the text."""
-    # 0.5 s of start-up, 0.15 s per spp of "rendering" at 8x8 (0.3 s per run: well above the scatter of start-up,
-    # which a smaller signal drowns in, reading 0 s); no variance channels, so K = 2 runs per render
-    renderer = slow_start_renderer(tmp_path, startup=0.5, per_spp=0.15, noise=0.05)
+    """``harness bench --renderer FILE``: the renderer's row holds the same spp as the others', rendered in one run
+    at that spp (not K = 2 runs of spp / 2: the race needs no variance, and for a stratified sampler K runs at
+    spp / K are another estimator), its time is the render time alone (0.4 s of "rendering" per render, without
+    its 0.8 s start-up), and its ratios to the reference are in the result and the text."""
+    # 0.8 s of start-up, 0.1 s per spp of "rendering" at 8x8 (0.4 s per render: well above the scatter of start-up,
+    # which a smaller signal drowns in, reading 0 s); no variance channels
+    renderer = slow_start_renderer(tmp_path, startup=0.8, per_spp=0.1, noise=0.05)
     scene = load_small("furnace", 8)
     contenders = [bench.Contender("reference", "reference"), bench.Contender("fake", str(renderer))]
-    # one timed render after the warm-up (each is 2 runs, 1.7 s and more): the repeats' bookkeeping is
+    asked = []
+    real_render = external.ExternalRenderer.render
+
+    def spy(self, scene, request):
+        asked.append((request.spp, request.variance))
+        return real_render(self, scene, request)
+
+    monkeypatch.setattr(external.ExternalRenderer, "render", spy)
+    # one timed render after the warm-up: the repeats' bookkeeping is
     # test_bench_scene_races_contenders_against_a_closed_form's
     rows = bench.bench_scene(scene, contenders, spp=4, repeats=1, gt=closed_form(scene))
     ref, fake = rows
+    assert asked == [(4, False), (4, False)]  # the warm-up and the timed render, one run each
     assert fake.error is None and fake.spp == ref.spp == 4 and len(fake.seconds_all) == 1
     assert fake.time_from.startswith("start-up subtracted (")
-    # 2 runs x 0.3 s of rendering; unsubtracted, 2 x (0.5 + 0.3) s and the interpreter's start: 1.6 s and more.
-    # Between the start-up probes and the timed runs the other tests' load can change each run's start by
-    # 0.25 s or so (under pytest -n 2 it has: 0.95 and 1.04 s with a 0.3 s start-up; 1.13 s on a machine at load 8),
-    # so the upper bound sits at 1.3 s, below the unsubtracted 1.6 s. Probes slowed the same way read 0.113 s of
-    # the 0.6 s once (at load 8), so the lower bound only says that something is left (subtracting the start-up
-    # twice leaves nothing).
+    # 0.4 s of rendering; unsubtracted, 0.8 + 0.4 s and the interpreter's start: 1.2 s and more. Between the
+    # start-up probes and the timed run the other tests' load can change a run's start by 0.25 s or so, so the
+    # upper bound sits at 1.0 s, below the unsubtracted 1.2 s; the lower bound only says that something is left.
     startup = float(fake.time_from.split("(")[1].split(" s ")[0])
-    assert startup >= 0.5, fake.time_from  # the sleep alone
-    assert all(0.05 < s < 1.3 for s in fake.seconds_all), fake.seconds_all  # unsubtracted: 1.6 s and more
+    assert startup >= 0.8, fake.time_from  # the sleep alone
+    assert all(0.05 < s < 1.0 for s in fake.seconds_all), fake.seconds_all  # unsubtracted: 1.2 s and more
     assert fake.paths_per_second == pytest.approx(8 * 8 * 4 / fake.seconds)
     ratios = bench.contender_ratios(rows, "fake")
     assert ratios["efficiency_vs_reference"] == pytest.approx(fake.efficiency / ref.efficiency)
