@@ -52,7 +52,10 @@ other image's variance is alike (within :data:`GUIDE_FACTOR`).  Where a
 renderer's variance is carried by rare, large samples, most tiles of a render
 hold none of them and their own variance estimate is far below its mean; the
 floor keeps those tiles' z near their true scale (docs/verdict.md,
-"Heavy-tailed estimators").
+"Heavy-tailed estimators"). A tile whose estimate, in either image, holds
+fewer than :data:`MIN_SAMPLES` effective samples (:func:`_sparse_tiles`) is
+left out of the three sub-tests and counted: its mean is a count of a few
+rare samples, not normal (docs/verdict.md, "Tiles too sparse to judge").
 
 References
 ----------
