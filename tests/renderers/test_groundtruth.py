@@ -361,8 +361,9 @@ def test_missing_mesh_file_is_a_harness_error(tmp_path):
     write_floor(folder / "floor.ply")
     scene = load_scene(folder / "mesh.toml")
     (folder / "floor.ply").unlink()
-    with pytest.raises(HarnessError, match="ground-truth key"):
+    with pytest.raises(HarnessError, match="content key") as error:
         gt(scene, tmp_path / "cache")
+    assert error.value.where == str((folder / "floor.ply").resolve())
 
 
 # --------------------------------------------------------------------------------------------------------------------
