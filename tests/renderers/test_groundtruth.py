@@ -232,9 +232,11 @@ def test_second_call_comes_from_the_cache(tmp_path, renders):
     assert second.info["variant"] == VARIANT and second.info["spp"] == 4
 
 
-def test_scene_path_does_not_matter_only_its_bytes(tmp_path, renders):
-    """The key is over the file's content: a byte-identical copy elsewhere hits the same entry."""
-    copy = tmp_path / "copy.toml"
+def test_scene_folder_does_not_matter_only_its_bytes(tmp_path, renders):
+    """The key is over the file's content (its bytes and its name): a byte-identical copy in another folder hits the
+    same entry."""
+    copy = tmp_path / "elsewhere" / "soft-shadows.toml"
+    copy.parent.mkdir()
     copy.write_bytes((SCENES / "soft-shadows.toml").read_bytes())
     original = small()
     first = gt(original, tmp_path / "cache")
