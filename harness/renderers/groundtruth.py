@@ -3,8 +3,9 @@
 Cache layout (``<cache>/groundtruth/<key>/``): ``estimate.npz`` (mean, variance of the mean, spp), ``image.exr``
 (the same as an OpenEXR file for viewers) and ``meta.json`` (what was rendered, how, and the SHA-256 of both data
 files and of meta.json's own content with the entry's key, so that an edited ``spp`` or ``chunks``, or an entry
-copied under another key, is damage like any other). The key is a SHA-256 over everything that determines the image: the scene file and every file it
-references (bytes), the film (size, filter), max_depth, Mitsuba's version, the variant, spp, seed and chunking.
+copied under another key, is damage like any other). The key is a SHA-256 over everything that determines the
+image: the scene's content key (:func:`scene_digest`: every field of the loaded scene and the bytes of every file
+the loader read), the film (size, filter), max_depth, Mitsuba's version, the variant, spp, seed and chunking.
 
 Long renders are split into chunks of ``chunk_spp`` samples, each its own cache entry, merged exactly
 (``harness.judges.moments``): an interrupted ground truth resumes where it stopped.
@@ -24,7 +25,7 @@ import shutil
 import time
 import zipfile
 from collections.abc import Callable
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from importlib import metadata
 from pathlib import Path
 
@@ -38,9 +39,10 @@ from harness.judges.moments import Estimate, merge
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
+from harness.scene.content_key import content_key
 from harness.scene.triangulate import object_to_world, shape_triangles
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
 DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
@@ -195,75 +197,12 @@ CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "
 
 
 def scene_digest(scene: Scene) -> str:
-    """SHA-256 of the scene file's bytes, of every file it references (meshes, environment maps), and of the loaded
-    scene itself.
-
-    The loaded content (camera, materials, every shape's placement, emission and mesh arrays, every emitter's
-    parameters and an environment map's pixels) is hashed too, so a scene changed in memory after loading (a
-    suite's resolution or depth override, a test's edit) or a file edited between loading and rendering can never
-    be served another scene's entry.
-    """
-    h = hashlib.sha256()
-    try:
-        h.update(Path(scene.path).read_bytes())
-        for shape in scene.shapes:
-            if shape.file is not None:
-                h.update(str(shape.file.name).encode())
-                h.update(Path(shape.file).read_bytes())
-        for emitter in scene.emitters:
-            if emitter.type == "envmap":
-                h.update(str(emitter.file.name).encode())
-                h.update(Path(emitter.file).read_bytes())
-    except OSError as err:
-        raise HarnessError(str(scene.path), f"cannot read for the ground-truth key: {err.strerror}") from None
-    h.update(_loaded_content(scene))
-    return h.hexdigest()
-
-
-def _loaded_content(scene: Scene) -> bytes:
-    cam = scene.camera
-    parts = [repr((tuple(cam.origin), tuple(cam.target), tuple(cam.up), float(cam.fov), cam.fov_axis)),
-             repr((scene.film.width, scene.film.height, scene.film.filter, scene.max_depth, scene.closed_form))]
-    for name, m in scene.materials.items():
-        parts.append(_material_content(name, m))
-    for shape in scene.shapes:
-        parts.append(repr((shape.type, shape.material, shape.emission, shape.flip_normals, tuple(shape.center),
-                           shape.radius, shape.subdivisions)))
-        parts.append(np.asarray(shape.to_world, np.float64).tobytes().hex())
-        for array in (shape.mesh_vertices, shape.mesh_triangles):
-            if array is not None:
-                parts.append(hashlib.sha256(np.ascontiguousarray(array).tobytes()).hexdigest())
-    for emitter in scene.emitters:
-        parts.append(_emitter_content(emitter))
-    return "\n".join(parts).encode()
-
-
-def _material_content(name: str, material) -> str:
-    """A material as the key holds it: a Lambertian one as it always was (so their cache entries stay valid), any
-    other type with every field it has (type, eta, k, alpha, ...) after those."""
-    text = repr((name, tuple(material.reflectance), material.two_sided))
-    if material.is_diffuse:
-        return text
-    extra = [f"{field_.name}={getattr(material, field_.name)!r}" for field_ in fields(material)
-             if field_.name not in ("name", "reflectance", "two_sided")]
-    return " ".join([text, *extra])
-
-
-def _emitter_content(emitter) -> str:
-    """Every field of an ``[[emitters]]`` entry but its index and name (which change no image): numbers as repr,
-    arrays by their bytes (an environment map's pixels by a SHA-256 of them, with their shape and type)."""
-    items = [emitter.type]
-    for field_ in fields(emitter):
-        if field_.name in ("index", "name"):
-            continue
-        value = getattr(emitter, field_.name)
-        if isinstance(value, np.ndarray):
-            array = np.ascontiguousarray(value)
-            value = (array.shape, str(array.dtype), hashlib.sha256(array.tobytes()).hexdigest())
-        elif isinstance(value, Path):
-            value = value.name
-        items.append(f"{field_.name}={value!r}")
-    return " ".join(items)
+    """The scene's content key (:func:`harness.scene.content_key.content_key`): every field of the loaded scene,
+    camera, film, materials, shapes and emitters (arrays by their bytes), and the bytes of every file the loader
+    read (:attr:`Scene.files`: the scene file, its meshes, its environment maps). A scene changed in memory after
+    loading (a suite's resolution or depth override, a test's edit) or a file edited since is never served another
+    scene's entry."""
+    return content_key(scene)
 
 
 def mitsuba_version() -> str:

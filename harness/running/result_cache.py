@@ -6,8 +6,9 @@ The key of a case (:meth:`CaseCache.key`) is a SHA-256 over
 
 * the case as loaded (every key but ``timeout``: name, scene path, renderer, settings, budget, seed, expect,
   against, film, max_depth, metrics, thresholds, tile, alpha, ground_truth_spp, variant);
-* the scene it renders and the scene of its ground truth as :func:`harness.renderers.groundtruth.scene_digest`
-  hashes them (the scene file's bytes, every file it references, the loaded content after the case's overrides);
+* the scene it renders and the scene of its ground truth, after the case's overrides, by their content keys
+  (:func:`harness.renderers.groundtruth.scene_digest`: every field of the loaded scene and the bytes of every file
+  the loader read);
 * for a Mitsuba ground truth (or a Mitsuba test render, which goes through the same cache) the ground-truth
   entry's key and the SHA-256 of the estimate it holds: Mitsuba is not always bit-reproducible
   (docs/robustness.md), so the key names the very image the case was judged against; no entry yet, no key;

@@ -43,6 +43,7 @@ from harness.files.entries import sweep_stale, use_cache_folder
 from harness.files.imageio import link_target, make_folders, remove_folders
 from harness.files.report_images import IMAGES_FOLDER
 from harness.files.results import read_results
+from harness.scene.content_key import content_key
 
 _pending: list[int] = []  # signals received and not raised yet
 _critical = 0  # depth of no_interrupts() blocks
@@ -116,15 +117,17 @@ def no_interrupts():
         check()
 
 
-def case_digest(case) -> str:
-    """SHA-256 of what a case's result depends on: its definition (but ``timeout``) and its scene file's bytes."""
+def case_digest(case, case_scenes) -> str:
+    """SHA-256 of what a case's result depends on: its definition (but ``timeout``) and the content keys
+    (:func:`harness.scene.content_key.content_key`: every field, the bytes of every file the loader read) of the
+    scenes ``case_scenes(case)`` gives, the one it renders and the one of its ground truth. A case whose scenes do
+    not load has its definition alone: it reports why when it runs, and a case that ended in an error is never kept."""
     fields = {k: v for k, v in dataclasses.asdict(case).items() if k != "timeout"}
-    h = hashlib.sha256(json.dumps(fields, sort_keys=True, default=str).encode())
     try:
-        h.update(Path(case.scene).read_bytes())
-    except OSError:
-        pass  # the case itself reports the unreadable scene
-    return h.hexdigest()
+        fields["scenes"] = [content_key(scene) for scene in case_scenes(case)]
+    except (HarnessError, OSError, ValueError):
+        fields["scenes"] = None
+    return hashlib.sha256(json.dumps(fields, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def reusable(results_path: Path, suite_name: str, cases, digests: list[str]) -> dict[int, dict]:

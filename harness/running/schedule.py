@@ -48,7 +48,7 @@ def run_suite(suite: Suite, out_dir: Path, *, cache_dir=None, variant=None,
     }
     executor = executor or executors.SerialExecutor()
     results["executor"] = executor.name
-    digests = [runstate.case_digest(case) for case in suite.cases]
+    digests = [runstate.case_digest(case, judge.case_scenes) for case in suite.cases]
     records = runstate.reusable(out_dir / "results.json", suite.name, suite.cases, digests) if resume else {}
     if records and on_resume is not None:
         on_resume(len(records), len(suite.cases))

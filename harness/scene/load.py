@@ -147,8 +147,8 @@ def load_scene(path: str | Path, *, allow_outside_paths: bool | None = None) -> 
     path = Path(path)
     if allow_outside_paths is None:
         allow_outside_paths = outside_paths_allowed()
-    document = _read_toml(path)
-    return _SceneReader(str(path), path.parent, allow_outside_paths).scene(document, path)
+    reader = _SceneReader(str(path), path.parent, allow_outside_paths)
+    return reader.scene(_read_toml(reader.opened(path)), path)
 
 
 #: This checkout's canonical scenes (``scenes/NAME.toml``), where a bare scene NAME is looked for last.
@@ -282,13 +282,21 @@ class _SceneReader:
     """Turns a parsed TOML document into a :class:`Scene`, raising :class:`HarnessError` on the first problem.
 
     ``label`` is the file path shown in messages; ``folder`` is where mesh file names are relative to and, unless
-    ``allow_outside``, the folder they must stay in.
+    ``allow_outside``, the folder they must stay in. ``files`` lists every file read for the scene, in the order
+    read (:meth:`opened`; :attr:`Scene.files`).
     """
 
     def __init__(self, label: str, folder: Path, allow_outside: bool = False):
         self.label = label
         self.folder = folder
         self.allow_outside = allow_outside
+        self.files: list[Path] = []
+
+    def opened(self, path: Path) -> Path:
+        """``path``, recorded among the files the scene is read from: every file the loader reads passes through
+        here (the scene file, :meth:`file_path`, the resolver of the files a mesh names)."""
+        self.files.append(path)
+        return path
 
     # ---- errors and generic value readers ------------------------------------------------------------------------
 
@@ -397,7 +405,7 @@ class _SceneReader:
             closed_form = self.choice(document["closed_form"], "closed_form", CLOSED_FORMS)
         regions = self.regions(document, shapes)
         return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form,
-                     emitters=emitters, regions=regions)
+                     emitters=emitters, regions=regions, files=tuple(dict.fromkeys(self.files)))
 
     def regions(self, document: dict, shapes: list[Shape]) -> tuple[str, ...]:
         """``regions``: names of shapes whose pixels the strategy table measures apart (docs/scene-format.md)."""
@@ -698,7 +706,8 @@ class _SceneReader:
             problem = ply_count_problem(data)
             if problem:
                 raise self.error(file_key, f"cannot read the mesh file {name!r}: {problem}")
-        resolver = ConfinedResolver(self.folder, path.parent, where, allow_outside=self.allow_outside)
+        resolver = ConfinedResolver(self.folder, path.parent, where, allow_outside=self.allow_outside,
+                                    opened=self.opened)
         try:
             import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
             mesh = trimesh.load(io.BytesIO(data), file_type=file_type, resolver=resolver, force="mesh",
@@ -721,10 +730,10 @@ class _SceneReader:
     def file_path(self, name: str, key: str, what: str) -> Path:
         """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist,
         be a regular file and, unless ``allow_outside``, lie inside the scene file's folder. Every file a scene names
-        goes through here, and every file such a file names through the same
+        goes through here (and is recorded, :meth:`opened`), and every file such a file names through the same
         :func:`harness.scene.mesh_files.confined_path`."""
-        return confined_path(self.folder, name, what, f"{self.label}: {key}" if key else self.label,
-                             allow_outside=self.allow_outside)
+        return self.opened(confined_path(self.folder, name, what, f"{self.label}: {key}" if key else self.label,
+                                         allow_outside=self.allow_outside))
 
     def check_placed_shape(self, shape: Shape, key: str, placement_key: str) -> None:
         """Refuse singular or overflowing placements, non-uniformly scaled spheres and zero-area lights."""

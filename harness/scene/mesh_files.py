@@ -12,6 +12,7 @@ the open, a device never ends the read); the scene's own ``file`` keys go throug
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -79,13 +80,16 @@ class ConfinedResolver:
     """A trimesh resolver (``get``, ``resolver[name]``) for the files a mesh file names, each read through
     :func:`confined_path`: relative to the mesh file's folder, inside the scene's folder unless outside paths are
     allowed, a regular file, at most :data:`MAX_MESH_BYTES`. Anything else is a :class:`HarnessError` at ``where``
-    (the scene file and the mesh's ``file`` key). It writes nothing and lists nothing."""
+    (the scene file and the mesh's ``file`` key). It writes nothing and lists nothing; ``opened``, when given, is
+    called with each path before it is read (the loader's record of the files a scene is read from)."""
 
-    def __init__(self, folder: Path, base: Path, where: str, *, allow_outside: bool = False):
+    def __init__(self, folder: Path, base: Path, where: str, *, allow_outside: bool = False,
+                 opened: Callable[[Path], Path] | None = None):
         self.folder = Path(folder)
         self.base = Path(base)
         self.where = where
         self.allow_outside = allow_outside
+        self.opened = opened
 
     def get(self, name: str) -> bytes:
         """The bytes of the file ``name`` names (relative to the mesh file's folder)."""
@@ -93,6 +97,8 @@ class ConfinedResolver:
             raise HarnessError(self.where, f"expected a file name, got {name!r}")
         path = confined_path(self.folder, name.strip(), "referenced", self.where, allow_outside=self.allow_outside,
                              base=self.base)
+        if self.opened is not None:
+            self.opened(path)
         return read_user_bytes(path, missing=f"no such file: {name!r}", where=self.where, limit=MAX_MESH_BYTES)
 
     def __getitem__(self, name: str) -> bytes:
@@ -108,7 +114,8 @@ class ConfinedResolver:
 
     def namespaced(self, namespace: str) -> ConfinedResolver:
         """The same confinement for names relative to the subfolder ``namespace`` of the mesh file's folder."""
-        return ConfinedResolver(self.folder, self.base / namespace, self.where, allow_outside=self.allow_outside)
+        return ConfinedResolver(self.folder, self.base / namespace, self.where, allow_outside=self.allow_outside,
+                                opened=self.opened)
 
 
 def ply_count_problem(data: bytes) -> str | None:

@@ -222,7 +222,9 @@ class Scene:
     ``materials`` keeps the file's order (``Geometry.material`` indexes materials in that order); ``shapes`` keeps
     the file's order (light ids number the emissive shapes in that order). ``path`` is the scene file's path as it
     was given to :func:`load_scene`. ``closed_form`` names a known analytic solution of the scene ("furnace"), or
-    None.
+    None. ``files`` is every file the loader read to build the scene, once each in the order read: the scene file
+    first, then each file it names (meshes, environment maps, any file a later key names); the content key
+    (:mod:`harness.scene.content_key`) hashes their bytes.
     """
 
     name: str
@@ -236,6 +238,7 @@ class Scene:
     closed_form: str | None = None
     emitters: tuple[Emitter, ...] = ()  # [[emitters]] in the file's order; emitting shapes are in ``shapes``
     regions: tuple[str, ...] = ()  # shape names: the strategy table's per-region efficiencies (their pixels)
+    files: tuple[Path, ...] = ()  # every file read to load the scene (the scene file first)
 
     @property
     def has_glossy_materials(self) -> bool:

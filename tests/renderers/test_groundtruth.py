@@ -232,9 +232,11 @@ def test_second_call_comes_from_the_cache(tmp_path, renders):
     assert second.info["variant"] == VARIANT and second.info["spp"] == 4
 
 
-def test_scene_path_does_not_matter_only_its_bytes(tmp_path, renders):
-    """The key is over the file's content: a byte-identical copy elsewhere hits the same entry."""
-    copy = tmp_path / "copy.toml"
+def test_scene_folder_does_not_matter_only_its_bytes(tmp_path, renders):
+    """The key is over the file's content (its bytes and its name): a byte-identical copy in another folder hits the
+    same entry."""
+    copy = tmp_path / "elsewhere" / "soft-shadows.toml"
+    copy.parent.mkdir()
     copy.write_bytes((SCENES / "soft-shadows.toml").read_bytes())
     original = small()
     first = gt(original, tmp_path / "cache")
@@ -361,8 +363,9 @@ def test_missing_mesh_file_is_a_harness_error(tmp_path):
     write_floor(folder / "floor.ply")
     scene = load_scene(folder / "mesh.toml")
     (folder / "floor.ply").unlink()
-    with pytest.raises(HarnessError, match="ground-truth key"):
+    with pytest.raises(HarnessError, match="content key") as error:
         gt(scene, tmp_path / "cache")
+    assert error.value.where == str((folder / "floor.ply").resolve())
 
 
 # --------------------------------------------------------------------------------------------------------------------

