@@ -78,7 +78,6 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from harness.core.errors import HarnessError
 from harness.judges.distributions import chi2_sf, normal_isf, normal_sf, student_t_sf
 
 __all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "TileMaps", "Verdict", "tile_z_scores", "verdict"]
@@ -330,9 +329,10 @@ def _dof_array(name: str, dof: object, shape: tuple[int, ...]) -> np.ndarray:
     return arr
 
 
-def _image_error(name: str, message: str) -> HarnessError:
-    """A problem in one image's own arrays, the image named as ``verdict``'s ``names`` name it."""
-    return HarnessError(name, message)
+def _image_error(name: str, message: str) -> ValueError:
+    """A problem in one image's own arrays, ``"<name>: <message>"``, the image named as ``verdict``'s ``names``
+    name it."""
+    return ValueError(f"{name}: {message}" if name else message)
 
 
 def _check_variance(name: str, variance: np.ndarray, image_ok: np.ndarray) -> None:
@@ -803,10 +803,10 @@ def verdict(
     test, expected : (H, W, 3) arrays
         Per-pixel estimates (linear radiance).  Non-finite test pixels make the
         verdict fail and are left out of the statistics; a non-finite
-        expected pixel raises :class:`HarnessError`.
+        expected pixel raises ``ValueError``.
     test_variance, expected_variance : (H, W, 3) arrays
         Variance of each pixel's estimate (of the mean); zeros for an exact
-        (closed-form) image.  None raises :class:`HarnessError`: the verdict
+        (closed-form) image.  None raises ``ValueError``: the verdict
         needs the variance channels.
     tile : int
         Tile side in pixels (default 8).
@@ -840,6 +840,14 @@ def verdict(
     -------
     Verdict
         See :class:`Verdict`.
+
+    Raises
+    ------
+    ValueError
+        Where an image's own arrays cannot be judged: a variance missing (None), NaN, infinite or negative at a pixel
+        whose value is finite, or a non-finite expected pixel (the message begins with the image's name in
+        ``names``, e.g. ``"ground truth image: 1 non-finite (NaN/Inf) pixels; ..."``); arrays not all of one (H, W,
+        3) shape; a ``tile``, ``alpha``, ``neighbourhood``, ``test_dof`` or ``expected_dof`` out of its range.
 
     Notes
     -----
