@@ -476,8 +476,9 @@ def _pixel_terms(t: np.ndarray, vt: np.ndarray, r: np.ndarray, vr: np.ndarray, n
               v_p = V^T_p + V^R_p + \left(\mathrm{rtol} \, \max(|T_p|, |R_p|)\right)^2, \qquad
               w_p = \frac{(V_p)^2}{\nu_p + 2}
 
-    the last for each image: the estimate of :math:`\sigma_p^4 / \nu_p` in Welch's form of Satterthwaite's
-    formula [1]_ (:math:`E[V^2] = \sigma^4 (1 + 2 / \nu)`); the rounding floor is exact (:math:`\nu = \infty`)."""
+    the last for each image: the estimate of :math:`\sigma_p^4 / \nu_p` in Welch's form of Satterthwaite's formula
+    (Welch 1947, Satterthwaite 1946: the module's [1]), since :math:`E[V^2] = \sigma^4 (1 + 2 / \nu)`; the rounding
+    floor is exact (:math:`\nu = \infty`)."""
     ok = np.all(np.isfinite(t), axis=-1)
     m = np.broadcast_to(ok[..., None], t.shape)
     vt = np.where(m, vt, 0.0)
@@ -521,9 +522,10 @@ def _tile_statistics(pixels: _Pixels, tile: int, rtol: float, neighbourhood: int
               + (\hat V^R - V^R)[\mathrm{raised}_R], \qquad \nu = \min(\nu_T, \nu_R)
 
     each image's variance raised to its neighbourhood floor where :func:`_floored` says (the other image giving the
-    shape), :math:`\nu` the smaller of the two images' Welch dof (Scheffé's conservative solution of the
-    Behrens-Fisher problem [3]_); the noisy tiles too sparse to judge (:func:`_sparse_tiles`, each image's variance
-    with its floor) left out of ``tested``; the zero-variance tiles that differ (:func:`_differing_tiles`)."""
+    shape), :math:`\nu` the smaller of the two images' Welch dof (the conservative solution of the Behrens-Fisher
+    problem, Scheffé 1970: the module's [3]); the noisy tiles too sparse to judge (:func:`_sparse_tiles`, each
+    image's variance with its floor) left out of ``tested``; the zero-variance tiles that differ
+    (:func:`_differing_tiles`)."""
     p = pixels
     n = _tile_sum(p.mask.astype(np.float64), tile)
     vt_sum, vr_sum = _tile_sum(p.vt, tile), _tile_sum(p.vr, tile)
@@ -552,8 +554,8 @@ def _tile_z(tiles: _Tiles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     .. math:: z = D / S = \frac{\sum_p \Delta_p}{\sqrt{n^2 S^2}}, \qquad
               z_{\mathrm{normal}} = \operatorname{sign}(z) \, \Phi^{-1}\!\left(1 - F_{t,\nu}(-|z|)\right)
 
-    (Welch [1]_; :func:`_to_normal`: the normal quantile of equal tail probability under Student's t with the tile's
-    :math:`\nu`). Untested tiles: z = 0, dof = inf."""
+    (Welch 1947: the module's [1]; :func:`_to_normal`: the normal quantile of equal tail probability under
+    Student's t with the tile's :math:`\nu`). Untested tiles: z = 0, dof = inf."""
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(tiles.tested, tiles.d_sum / np.sqrt(tiles.v_sum), 0.0)
         dof = np.where(tiles.tested, tiles.dof, np.inf)
@@ -567,8 +569,8 @@ def _global_bias(tiles: _Tiles) -> dict:
               p_c = 2 \Phi(-|z_c|), \qquad p = 1 - (1 - \min_c p_c)^{C}
 
     (the variances as the neighbourhood floor left them; :math:`z_c` referred to Student's t with the image-wide
-    :math:`\min(\nu_T, \nu_R)` first, :func:`_to_normal`; Šidák [2]_ over the C channels with noise in a tested
-    tile). Returns :attr:`Verdict.global_bias`."""
+    :math:`\min(\nu_T, \nu_R)` first, :func:`_to_normal`; Šidák 1967, the module's [2], over the C channels with
+    noise in a tested tile). Returns :attr:`Verdict.global_bias`."""
     npix = np.where(tiles.sparse, 0.0, tiles.n).sum(axis=(0, 1))  # per channel: the judged and the exact tiles
     g_d = np.where(tiles.sparse, 0.0, tiles.d_sum).sum(axis=(0, 1))
     g_vraw = np.where(tiles.tested, tiles.v_raw_sum, 0.0).sum(axis=(0, 1))
@@ -617,7 +619,8 @@ def _max_z(z_normal: np.ndarray, tested: np.ndarray) -> tuple[dict, int]:
 
     .. math:: p = 1 - \left(1 - 2 \Phi(-\max |z_{\mathrm{normal}}|)\right)^K
 
-    (Šidák [2]_). Returns :attr:`Verdict.max_z` and the flat index of that tile-channel (-1 where none is tested)."""
+    (Šidák 1967: the module's [2]). Returns :attr:`Verdict.max_z` and the flat index of that tile-channel (-1
+    where none is tested)."""
     count = int(tested.sum())
     if not count:
         return {"statistic": 0.0, "count": 0, "p_value": 1.0}, -1
@@ -817,8 +820,9 @@ def verdict(
         Degrees of freedom of each pixel's variance estimate (spp - 1 for the
         sample variance of spp samples).  None: the variance is taken as exact.
         With them each tile's z is referred to Student's t with
-        Welch-Satterthwaite degrees of freedom
-        :math:`\nu = (\sum_p v_p)^2 / \sum_p (v_p^2 / \nu_p)`.
+        :math:`\nu = \min(\nu_T, \nu_R)` (Scheffé 1970), each image's from
+        Welch's form of Satterthwaite's formula (Welch 1947),
+        :math:`\nu = (\sum_p v_p)^2 / \sum_p (v_p^2 / (\nu_p + 2)) - 2`.
     rtol : float
         Values that carry no noise are equal if they agree to ``rtol``
         relatively (default 1e-6, ~16 float32 ulps).  Zero-variance tiles are
