@@ -78,7 +78,6 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from harness.core.errors import HarnessError
 from harness.judges.distributions import chi2_sf, normal_isf, normal_sf, student_t_sf
 
 __all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "TileMaps", "Verdict", "tile_z_scores", "verdict"]
@@ -330,11 +329,18 @@ def _dof_array(name: str, dof: object, shape: tuple[int, ...]) -> np.ndarray:
     return arr
 
 
+def _image_error(name: str, message: str) -> ValueError:
+    """A problem in one image's own arrays, ``"<name>: <message>"``, the image named as ``verdict``'s ``names``
+    name it."""
+    return ValueError(f"{name}: {message}" if name else message)
+
+
 def _check_variance(name: str, variance: np.ndarray, image_ok: np.ndarray) -> None:
+    """Raise where ``variance`` is NaN, infinite or negative at a pixel of ``image_ok``, naming the image ``name``."""
     bad = ~(np.isfinite(variance) & (variance >= 0)) & image_ok[..., None]
     if bad.any():
         pixels = int(np.count_nonzero(bad.any(axis=-1)))
-        raise HarnessError(
+        raise _image_error(
             name,
             f"variance is NaN, infinite or negative at {pixels} pixels with a finite value; expected the "
             "variance of each pixel's estimate, >= 0 (one sample per pixel gives no variance: render >= 2 spp)",
@@ -350,6 +356,398 @@ def _dof_summary(dof: object) -> float | dict | None:
 
 def _fmt_p(p: float) -> str:
     return f"{p:.3g}"
+
+
+# ---------------------------------------------------------------------------
+# The verdict's parts, in the order verdict() calls them
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class _Pixels:
+    r"""The per-pixel terms of the test, over the finite test pixels (0 at the others).
+
+    ``mask``: the finite test pixels, broadcast to (H, W, 3); ``diff``: :math:`\Delta_p = T_p - R_p`; ``vt``, ``vr``:
+    :math:`V^T_p`, :math:`V^R_p`; ``v_raw``: :math:`V^T_p + V^R_p`; ``scale``: :math:`\max(|T_p|, |R_p|)`; ``v_eff``:
+    :math:`v_p`, ``v_raw`` plus the rounding floor; ``welch_t``, ``welch_r``: each image's
+    :math:`(V_p)^2 / (\nu_p + 2)`; ``t``, ``r``: the two images as given; ``nonfinite``: the count of test pixels with
+    a non-finite channel."""
+
+    mask: np.ndarray
+    diff: np.ndarray
+    vt: np.ndarray
+    vr: np.ndarray
+    v_raw: np.ndarray
+    scale: np.ndarray
+    v_eff: np.ndarray
+    welch_t: np.ndarray
+    welch_r: np.ndarray
+    t: np.ndarray
+    r: np.ndarray
+    nonfinite: int
+
+
+@dataclass(frozen=True, eq=False)
+class _Tiles:
+    r"""The per-tile sums the sub-tests use, arrays of shape (ceil(H/tile), ceil(W/tile), 3).
+
+    ``n``: the tile's finite test pixels; ``d_sum``: :math:`n D = \sum_p \Delta_p`; ``v_sum``: :math:`n^2 S^2`, the
+    tile's :math:`\sum_p v_p` raised by the neighbourhood floor; ``v_raw_sum``: :math:`\sum_p (V^T_p + V^R_p)`;
+    ``dof``: the tile's :math:`\nu = \min(\nu_T, \nu_R)`; ``zero``: tiles with pixels and no variance at all;
+    ``noisy``: tiles with pixels and some variance; ``sparse``: noisy tiles too sparse to judge; ``tested``: the
+    noisy tiles the sub-tests use (not sparse); ``differing``: zero-variance tiles whose images differ beyond
+    rounding; ``raised``: tiles where the floor raised either image's variance; ``mean_sum``: the larger of the two
+    images' tile sums, :math:`M`. ``image_dof``: per channel, :math:`\min(\nu_T, \nu_R)` over the whole image."""
+
+    n: np.ndarray
+    d_sum: np.ndarray
+    v_sum: np.ndarray
+    v_raw_sum: np.ndarray
+    dof: np.ndarray
+    zero: np.ndarray
+    noisy: np.ndarray
+    sparse: np.ndarray
+    tested: np.ndarray
+    differing: np.ndarray
+    raised: np.ndarray
+    mean_sum: np.ndarray
+    image_dof: np.ndarray
+
+
+def _require_variances(test_variance: np.ndarray | None, expected_variance: np.ndarray | None,
+                       names: tuple[str, str]) -> None:
+    """Raise ``ValueError`` naming the image (by ``names``) that has no variance."""
+    if test_variance is None or expected_variance is None:
+        which = names[0] if test_variance is None else names[1]
+        raise _image_error(
+            which,
+            "has no variance channels (variance.R, variance.G, variance.B); the statistical verdict needs the "
+            "variance of each pixel's estimate (harness render writes them; use zeros for an exact reference)",
+        )
+
+
+def _check_parameters(tile: object, alpha: object, neighbourhood: object) -> tuple[int, float]:
+    """``tile`` (an integer >= 1) and ``alpha`` (in (0, 1)) as int and float, ``neighbourhood`` checked (an integer
+    >= 0); ``ValueError`` otherwise."""
+    if not isinstance(tile, (int, np.integer)) or isinstance(tile, bool) or tile < 1:
+        raise ValueError(f"tile must be a positive integer, got {tile!r}")
+    if not (0.0 < float(alpha) < 1.0):
+        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
+    if not isinstance(neighbourhood, (int, np.integer)) or isinstance(neighbourhood, bool) or neighbourhood < 0:
+        raise ValueError(f"neighbourhood must be an integer >= 0, got {neighbourhood!r}")
+    return int(tile), float(alpha)
+
+
+def _checked_images(test: np.ndarray, test_variance: np.ndarray, expected: np.ndarray,
+                    expected_variance: np.ndarray, test_dof: object, expected_dof: object,
+                    names: tuple[str, str]) -> tuple[np.ndarray, ...]:
+    """The images as float64 arrays, checked: ``(t, vt, r, vr, nu_t, nu_r)``, ``nu`` each pixel's degrees of
+    freedom (inf: exact).
+
+    Raises ``ValueError``, in this order, where ``test`` is not (H, W, 3), another array not of its shape, an
+    expected pixel not finite, a variance NaN, infinite or negative at a pixel whose value is finite (every expected
+    pixel), or a dof not > 0; an error in an image's own values begins with its name in ``names``."""
+    test_name, expected_name = names
+    t = np.asarray(test, dtype=np.float64)
+    r = np.asarray(expected, dtype=np.float64)
+    vt = np.asarray(test_variance, dtype=np.float64)
+    vr = np.asarray(expected_variance, dtype=np.float64)
+    if t.ndim != 3 or t.shape[2] != 3 or t.shape[0] < 1 or t.shape[1] < 1:
+        raise ValueError(f"test must have shape (H, W, 3), got {t.shape}")
+    for label, arr in (("test_variance", vt), ("expected", r), ("expected_variance", vr)):
+        if arr.shape != t.shape:
+            raise ValueError(f"{label} has shape {arr.shape}, expected {t.shape} like test")
+    expected_bad = ~np.all(np.isfinite(r), axis=-1)
+    if expected_bad.any():
+        raise _image_error(
+            expected_name,
+            f"{int(expected_bad.sum())} non-finite (NaN/Inf) pixels; a reference must be finite everywhere",
+        )
+    _check_variance(expected_name, vr, np.ones(expected_bad.shape, dtype=bool))
+    _check_variance(test_name, vt, np.all(np.isfinite(t), axis=-1))
+    return t, vt, r, vr, _dof_array("test_dof", test_dof, t.shape), _dof_array("expected_dof", expected_dof, t.shape)
+
+
+def _pixel_terms(t: np.ndarray, vt: np.ndarray, r: np.ndarray, vr: np.ndarray, nu_t: np.ndarray,
+                 nu_r: np.ndarray, rtol: float) -> _Pixels:
+    r"""The per-pixel terms of the test (:class:`_Pixels`), over the pixels whose test value is finite:
+
+    .. math:: \Delta_p = T_p - R_p, \qquad
+              v_p = V^T_p + V^R_p + \left(\mathrm{rtol} \, \max(|T_p|, |R_p|)\right)^2, \qquad
+              w_p = \frac{(V_p)^2}{\nu_p + 2}
+
+    the last for each image: the estimate of :math:`\sigma_p^4 / \nu_p` in Welch's form of Satterthwaite's formula
+    (Welch 1947, Satterthwaite 1946: the module's [1]), since :math:`E[V^2] = \sigma^4 (1 + 2 / \nu)`; the rounding
+    floor is exact (:math:`\nu = \infty`)."""
+    ok = np.all(np.isfinite(t), axis=-1)
+    m = np.broadcast_to(ok[..., None], t.shape)
+    vt = np.where(m, vt, 0.0)
+    vr = vr * m
+    v_raw = vt + vr
+    scale = np.where(m, np.maximum(np.abs(np.where(m, t, 0.0)), np.abs(r)), 0.0)
+    return _Pixels(mask=m, diff=np.where(m, t - r, 0.0), vt=vt, vr=vr, v_raw=v_raw, scale=scale,
+                   v_eff=v_raw + (rtol * scale) ** 2, welch_t=vt**2 / (nu_t + 2), welch_r=vr**2 / (nu_r + 2),
+                   t=t, r=r, nonfinite=int(np.count_nonzero(~ok)))
+
+
+def _floored(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray,
+             radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r"""One image's tile variances under the neighbourhood floor: ``(floor, raised, dof)``.
+
+    With :math:`\hat V_j` the floor of :func:`_neighbourhood_floor` (``floor``), the tile's variance is raised to it
+    where
+
+    .. math:: \hat V_j > \mathrm{FLOOR\_RATIO} \cdot V_j
+
+    (``raised``, :data:`FLOOR_RATIO`); the tile's degrees of freedom (``dof``) are then the neighbourhood's Welch
+    dof, else its own, :math:`\nu = (\sum_p v_p)^2 / \sum_p w_p - 2` (:func:`_welch_dof`)."""
+    floor, nb_dof = _neighbourhood_floor(v_sum, welch_sum, other_sum, n, radius)
+    raised = floor > FLOOR_RATIO * v_sum
+    return floor, raised, np.where(raised, nb_dof, _welch_dof(v_sum, welch_sum))
+
+
+def _differing_tiles(pixels: _Pixels, zero: np.ndarray, rtol: float, tile: int) -> np.ndarray:
+    r"""The zero-variance tiles (``zero``) whose images differ: some pixel p with :math:`V^T_p + V^R_p = 0` and
+
+    .. math:: |T_p - R_p| > \mathrm{rtol} \cdot \max(|T_p|, |R_p|)."""
+    bad_pixel = pixels.mask & (pixels.v_raw == 0) & (np.abs(pixels.diff) > rtol * pixels.scale)
+    return zero & (_tile_sum(bad_pixel.astype(np.float64), tile) > 0)
+
+
+def _tile_statistics(pixels: _Pixels, tile: int, rtol: float, neighbourhood: int, test_spp: float | None,
+                     expected_spp: float | None) -> _Tiles:
+    r"""The tiles of :class:`_Tiles`: per tile and channel
+
+    .. math:: n D = \sum_p \Delta_p, \qquad n^2 S^2 = \sum_p v_p + (\hat V^T - V^T)[\mathrm{raised}_T]
+              + (\hat V^R - V^R)[\mathrm{raised}_R], \qquad \nu = \min(\nu_T, \nu_R)
+
+    each image's variance raised to its neighbourhood floor where :func:`_floored` says (the other image giving the
+    shape), :math:`\nu` the smaller of the two images' Welch dof (the conservative solution of the Behrens-Fisher
+    problem, Scheffé 1970: the module's [3]); the noisy tiles too sparse to judge (:func:`_sparse_tiles`, each
+    image's variance with its floor) left out of ``tested``; the zero-variance tiles that differ
+    (:func:`_differing_tiles`)."""
+    p = pixels
+    n = _tile_sum(p.mask.astype(np.float64), tile)
+    vt_sum, vr_sum = _tile_sum(p.vt, tile), _tile_sum(p.vr, tile)
+    wt_sum, wr_sum = _tile_sum(p.welch_t, tile), _tile_sum(p.welch_r, tile)
+    v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
+    floor_t, raised_t, dof_t = _floored(vt_sum, wt_sum, vr_sum, n, neighbourhood)
+    floor_r, raised_r, dof_r = _floored(vr_sum, wr_sum, vt_sum, n, neighbourhood)
+    v_sum = (_tile_sum(p.v_eff, tile) + np.where(raised_t, floor_t - vt_sum, 0.0)
+             + np.where(raised_r, floor_r - vr_sum, 0.0))
+    zero = (n > 0) & (v_raw_sum == 0)
+    noisy = (n > 0) & (v_raw_sum > 0)
+    mean_sum = np.maximum(np.abs(_tile_sum(np.where(p.mask, p.t, 0.0), tile)), np.abs(_tile_sum(p.r * p.mask, tile)))
+    sparse = noisy & _sparse_tiles(mean_sum, np.maximum(vt_sum, np.where(raised_t, floor_t, 0.0)),
+                                   np.maximum(vr_sum, np.where(raised_r, floor_r, 0.0)), test_spp, expected_spp)
+    image_dof = np.minimum(_welch_dof(p.vt.sum(axis=(0, 1)), p.welch_t.sum(axis=(0, 1))),
+                           _welch_dof(p.vr.sum(axis=(0, 1)), p.welch_r.sum(axis=(0, 1))))
+    return _Tiles(n=n, d_sum=_tile_sum(p.diff, tile), v_sum=v_sum, v_raw_sum=v_raw_sum,
+                  dof=np.minimum(dof_t, dof_r), zero=zero, noisy=noisy, sparse=sparse, tested=noisy & ~sparse,
+                  differing=_differing_tiles(p, zero, rtol, tile), raised=raised_t | raised_r, mean_sum=mean_sum,
+                  image_dof=image_dof)
+
+
+def _tile_z(tiles: _Tiles) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r"""Welch's statistic of each tested tile and its value on the normal scale: ``(z, dof, z_normal)``,
+
+    .. math:: z = D / S = \frac{\sum_p \Delta_p}{\sqrt{n^2 S^2}}, \qquad
+              z_{\mathrm{normal}} = \operatorname{sign}(z) \, \Phi^{-1}\!\left(1 - F_{t,\nu}(-|z|)\right)
+
+    (Welch 1947: the module's [1]; :func:`_to_normal`: the normal quantile of equal tail probability under
+    Student's t with the tile's :math:`\nu`). Untested tiles: z = 0, dof = inf."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(tiles.tested, tiles.d_sum / np.sqrt(tiles.v_sum), 0.0)
+        dof = np.where(tiles.tested, tiles.dof, np.inf)
+    return z, dof, np.where(tiles.tested, _to_normal(z, dof), 0.0)
+
+
+def _global_bias(tiles: _Tiles) -> dict:
+    r"""Sub-test 1, the global bias: per channel c, over the tiles not left out as sparse,
+
+    .. math:: z_c = \frac{\sum_p \Delta_{pc}}{\sqrt{\sum_p v_{pc}}}, \qquad
+              p_c = 2 \Phi(-|z_c|), \qquad p = 1 - (1 - \min_c p_c)^{C}
+
+    (the variances as the neighbourhood floor left them; :math:`z_c` referred to Student's t with the image-wide
+    :math:`\min(\nu_T, \nu_R)` first, :func:`_to_normal`; Šidák 1967, the module's [2], over the C channels with
+    noise in a tested tile). Returns :attr:`Verdict.global_bias`."""
+    npix = np.where(tiles.sparse, 0.0, tiles.n).sum(axis=(0, 1))  # per channel: the judged and the exact tiles
+    g_d = np.where(tiles.sparse, 0.0, tiles.d_sum).sum(axis=(0, 1))
+    g_vraw = np.where(tiles.tested, tiles.v_raw_sum, 0.0).sum(axis=(0, 1))
+    g_v = np.where(tiles.sparse, 0.0, tiles.v_sum).sum(axis=(0, 1))
+    active = g_vraw > 0
+    g_z, g_dof, g_p = np.zeros(3), np.full(3, np.inf), np.ones(3)
+    for c in range(3):
+        if active[c]:
+            g_z[c] = g_d[c] / np.sqrt(g_v[c])
+            g_dof[c] = tiles.image_dof[c]
+            zc = float(_to_normal(np.array([g_z[c]]), np.array([g_dof[c]]))[0])
+            g_p[c] = 2.0 * normal_sf(abs(zc))
+    n_active = int(active.sum())
+    return {
+        "difference": [float(x / k) if k else float("nan") for x, k in zip(g_d, npix)],
+        "stderr": [float(np.sqrt(x) / k) if k else float("nan") for x, k in zip(g_v, npix)],
+        "z": [float(x) for x in g_z],
+        "dof": [None if not np.isfinite(x) else float(x) for x in g_dof],
+        "p_values": [float(x) for x in g_p],
+        "channels": n_active,
+        "p_value": float(_sidak(float(g_p.min()), n_active) if n_active else 1.0),
+    }
+
+
+def _omnibus(z_normal: np.ndarray, tested: np.ndarray) -> dict:
+    r"""Sub-test 2, the omnibus chi-square: per channel c, over its :math:`k_c` tested tiles,
+
+    .. math:: X_c = \sum_{\mathrm{tiles}} z_{\mathrm{normal}}^2 \sim \chi^2(k_c), \qquad
+              p = \min(1, C \min_c P(\chi^2(k_c) \ge X_c))
+
+    (Bonferroni over the C channels with a tested tile). Returns :attr:`Verdict.omnibus`."""
+    o_stat = np.array([float(np.sum(z_normal[..., c][tested[..., c]] ** 2)) for c in range(3)])
+    o_dof = np.array([int(tested[..., c].sum()) for c in range(3)])
+    o_p = np.array([float(chi2_sf(o_stat[c], o_dof[c])) if o_dof[c] > 0 else 1.0 for c in range(3)])
+    o_active = int(np.count_nonzero(o_dof))
+    return {
+        "statistic": [float(x) for x in o_stat],
+        "dof": [int(x) for x in o_dof],
+        "p_values": [float(x) for x in o_p],
+        "p_value": float(min(1.0, o_active * float(o_p.min())) if o_active else 1.0),
+    }
+
+
+def _max_z(z_normal: np.ndarray, tested: np.ndarray) -> tuple[dict, int]:
+    r"""Sub-test 3, the largest tile: over the K tested tile-channels,
+
+    .. math:: p = 1 - \left(1 - 2 \Phi(-\max |z_{\mathrm{normal}}|)\right)^K
+
+    (Šidák 1967: the module's [2]). Returns :attr:`Verdict.max_z` and the flat index of that tile-channel (-1
+    where none is tested)."""
+    count = int(tested.sum())
+    if not count:
+        return {"statistic": 0.0, "count": 0, "p_value": 1.0}, -1
+    abs_z = np.where(tested, np.abs(z_normal), -1.0)
+    flat = int(np.argmax(abs_z))
+    zmax = float(abs_z.flat[flat])
+    return {"statistic": zmax, "count": count, "p_value": float(_sidak(float(2.0 * normal_sf(zmax)), count))}, flat
+
+
+def _describe_tile(tiles: _Tiles, index: tuple[int, int, int], tile: int, shape: tuple[int, int], z_value: float,
+                   z_normal: float, dof_value: float) -> dict:
+    r"""One tile-channel as :attr:`Verdict.worst_tile` holds it: its place and size in pixels, its channel,
+    :math:`D = \sum_p \Delta_p / n`, :math:`S = \sqrt{n^2 S^2} / n`, z and dof (None where exact)."""
+    i, j, c = index
+    y, x = i * tile, j * tile
+    n_ij = float(tiles.n[i, j, c])
+    return {
+        "row": i,
+        "col": j,
+        "y": y,
+        "x": x,
+        "height": min(tile, shape[0] - y),
+        "width": min(tile, shape[1] - x),
+        "channel": CHANNELS[c],
+        "pixels": int(n_ij),
+        "difference": float(tiles.d_sum[i, j, c] / n_ij),
+        "stderr": float(np.sqrt(tiles.v_sum[i, j, c]) / n_ij),
+        "z": z_value,
+        "z_normal": z_normal,
+        "dof": None if not np.isfinite(dof_value) else float(dof_value),
+    }
+
+
+def _worst_tile(tiles: _Tiles, z: np.ndarray, z_normal: np.ndarray, dof: np.ndarray, flat: int, tile: int,
+                shape: tuple[int, int]) -> dict | None:
+    r""":attr:`Verdict.worst_tile`: the first differing zero-variance tile-channel (z = ±inf, S = 0, the sign of its
+    D), else the tested one of largest :math:`|z_{\mathrm{normal}}|` (``flat``, from :func:`_max_z`); None if there
+    is neither."""
+    if tiles.differing.any():
+        first = tuple(int(k) for k in np.argwhere(tiles.differing)[0])
+        sign = float(np.sign(tiles.d_sum[first])) or 1.0
+        worst = _describe_tile(tiles, first, tile, shape, sign * float("inf"), sign * float("inf"), float("inf"))
+        worst["stderr"] = 0.0
+        return worst
+    if flat < 0:
+        return None
+    idx = tuple(int(k) for k in np.unravel_index(flat, z.shape))
+    return _describe_tile(tiles, idx, tile, shape, float(z[idx]), float(z_normal[idx]), float(dof[idx]))
+
+
+def _tile_maps(tiles: _Tiles, z_normal: np.ndarray, threshold: float) -> TileMaps:
+    r""":class:`TileMaps`: per tested tile :math:`p = 2 \Phi(-|z_{\mathrm{normal}}|)` (1 where untested, 0 where a
+    zero-variance tile differs); failing where a zero-variance tile differs or a tested tile's Šidák-corrected
+    :math:`1 - (1 - p)^K` is below ``threshold`` (K the tested tile-channels)."""
+    count = int(tiles.tested.sum())
+    tile_p = np.where(tiles.tested, 2.0 * normal_sf(np.abs(z_normal)), 1.0)
+    tile_p = np.where(tiles.differing, 0.0, tile_p)
+    with np.errstate(divide="ignore"):  # p = 1 (log1p(-1) = -inf) gives 1, as it should
+        sidak = -np.expm1(count * np.log1p(-tile_p)) if count else np.ones_like(tile_p)
+    return TileMaps(z=z_normal, p=tile_p, tested=tiles.tested,
+                    failing=tiles.differing | (tiles.tested & (sidak < threshold)))
+
+
+def _sparse_summary(tiles: _Tiles) -> dict:
+    r""":attr:`Verdict.sparse`: :data:`MIN_SAMPLES`, the count of sparse tile-channels and their share of the noisy
+    tiles' brightness, :math:`\sum_{\mathrm{sparse}} M / \sum_{\mathrm{noisy}} M` (0 without brightness)."""
+    bright = float(np.where(tiles.noisy, tiles.mean_sum, 0.0).sum())
+    share = float(np.where(tiles.sparse, tiles.mean_sum, 0.0).sum()) / bright if bright > 0 else 0.0
+    return {"min_samples": MIN_SAMPLES, "tiles": int(tiles.sparse.sum()), "share": share}
+
+
+def _failures(global_bias: dict, omnibus: dict, max_z: dict, zero_variance: dict, worst: dict | None,
+              sparse: dict, nonfinite: int, threshold: float, test_name: str) -> list[str]:
+    """Every cause of a fail, one phrase each: nothing left to judge (every noisy tile sparse), non-finite test
+    pixels, a differing zero-variance tile, and each sub-test with p < ``threshold`` (alpha / 3, Bonferroni over
+    the three)."""
+    failures: list[str] = []
+    if sparse["tiles"] and not max_z["count"]:
+        failures.append(f"too few samples to judge: each of the {sparse['tiles']} noisy tile-channels holds fewer "
+                        f"than {MIN_SAMPLES:g} effective samples (render more samples per pixel)")
+    if nonfinite:
+        failures.append(f"{nonfinite} non-finite pixels in the {test_name}")
+    if zero_variance["differing"]:
+        assert worst is not None
+        failures.append(
+            f"zero-variance tile differs ({zero_variance['differing']} tile-channels; first at y={worst['y']}, "
+            f"x={worst['x']}, channel {worst['channel']}, mean difference {worst['difference']:.3g})"
+        )
+    if global_bias["p_value"] < threshold:
+        c = int(np.argmin(global_bias["p_values"]))
+        failures.append(
+            f"global bias: z = {global_bias['z'][c]:.2f} in {CHANNELS[c]} (mean difference "
+            f"{global_bias['difference'][c]:.3g} +- {global_bias['stderr'][c]:.2g}), p = "
+            f"{_fmt_p(global_bias['p_value'])} < {_fmt_p(threshold)}"
+        )
+    if omnibus["p_value"] < threshold:
+        c = int(np.argmin(omnibus["p_values"]))
+        failures.append(
+            f"omnibus: chi2 = {omnibus['statistic'][c]:.1f} on {omnibus['dof'][c]} tiles in {CHANNELS[c]}, p = "
+            f"{_fmt_p(omnibus['p_value'])} < {_fmt_p(threshold)}"
+        )
+    if max_z["p_value"] < threshold and worst is not None:
+        failures.append(
+            f"max |z| = {max_z['statistic']:.2f} at tile y={worst['y']}, x={worst['x']} in {worst['channel']} "
+            f"(of {max_z['count']}), p = {_fmt_p(max_z['p_value'])} < {_fmt_p(threshold)}"
+        )
+    return failures
+
+
+def _decision(failures: list[str], global_bias: dict, omnibus: dict, max_z: dict, zero_variance: dict,
+              sparse: dict, threshold: float) -> tuple[str, str]:
+    """``("fail", the failures joined)`` if there is any, else ``("pass", the smallest sub-test p-value)``; on a
+    pass the exact zero-variance tiles, and where some tiles are tested, the sparse ones left out, are added."""
+    if failures:
+        outcome, reason = "fail", "; ".join(failures)
+    else:
+        ps = {"global bias": global_bias["p_value"], "omnibus": omnibus["p_value"], "max |z|": max_z["p_value"]}
+        smallest = min(ps, key=ps.__getitem__)
+        outcome = "pass"
+        reason = (f"every sub-test has p >= alpha/3 = {_fmt_p(threshold)} (smallest: {smallest} p = "
+                  f"{_fmt_p(ps[smallest])})")
+        if zero_variance["tiles"]:
+            reason += f"; {zero_variance['tiles']} zero-variance tile-channels match exactly"
+    if sparse["tiles"] and max_z["count"]:
+        reason += (f"; {sparse['tiles']} tile-channels ({100 * sparse['share']:.2g} % of the brightness) not judged: "
+                   f"fewer than {MIN_SAMPLES:g} effective samples")
+    return outcome, reason
 
 
 # ---------------------------------------------------------------------------
@@ -408,10 +806,10 @@ def verdict(
     test, expected : (H, W, 3) arrays
         Per-pixel estimates (linear radiance).  Non-finite test pixels make the
         verdict fail and are left out of the statistics; a non-finite
-        expected pixel raises :class:`HarnessError`.
+        expected pixel raises ``ValueError``.
     test_variance, expected_variance : (H, W, 3) arrays
         Variance of each pixel's estimate (of the mean); zeros for an exact
-        (closed-form) image.  None raises :class:`HarnessError`: the verdict
+        (closed-form) image.  None raises ``ValueError``: the verdict
         needs the variance channels.
     tile : int
         Tile side in pixels (default 8).
@@ -422,8 +820,9 @@ def verdict(
         Degrees of freedom of each pixel's variance estimate (spp - 1 for the
         sample variance of spp samples).  None: the variance is taken as exact.
         With them each tile's z is referred to Student's t with
-        Welch-Satterthwaite degrees of freedom
-        :math:`\nu = (\sum_p v_p)^2 / \sum_p (v_p^2 / \nu_p)`.
+        :math:`\nu = \min(\nu_T, \nu_R)` (Scheffé 1970), each image's from
+        Welch's form of Satterthwaite's formula (Welch 1947),
+        :math:`\nu = (\sum_p v_p)^2 / \sum_p (v_p^2 / (\nu_p + 2)) - 2`.
     rtol : float
         Values that carry no noise are equal if they agree to ``rtol``
         relatively (default 1e-6, ~16 float32 ulps).  Zero-variance tiles are
@@ -446,6 +845,14 @@ def verdict(
     Verdict
         See :class:`Verdict`.
 
+    Raises
+    ------
+    ValueError
+        Where an image's own arrays cannot be judged: a variance missing (None), NaN, infinite or negative at a pixel
+        whose value is finite, or a non-finite expected pixel (the message begins with the image's name in
+        ``names``, e.g. ``"ground truth image: 1 non-finite (NaN/Inf) pixels; ..."``); arrays not all of one (H, W,
+        3) shape; a ``tile``, ``alpha``, ``neighbourhood``, ``test_dof`` or ``expected_dof`` out of its range.
+
     Notes
     -----
     With :math:`\Delta = T - R` and :math:`v = V^T + V^R` (plus the rounding
@@ -455,249 +862,36 @@ def verdict(
     max :math:`p = 1 - (1 - 2\Phi(-\max|z|))^K`.  Fail if any p < alpha / 3,
     if a zero-variance tile differs, or if a test pixel is not finite.
     """
-    test_name, expected_name = names
-    if test_variance is None or expected_variance is None:
-        which = test_name if test_variance is None else expected_name
-        raise HarnessError(
-            which,
-            "has no variance channels (variance.R, variance.G, variance.B); the statistical verdict needs the "
-            "variance of each pixel's estimate (harness render writes them; use zeros for an exact reference)",
-        )
-    if not isinstance(tile, (int, np.integer)) or isinstance(tile, bool) or tile < 1:
-        raise ValueError(f"tile must be a positive integer, got {tile!r}")
-    if not (0.0 < float(alpha) < 1.0):
-        raise ValueError(f"alpha must be in (0, 1), got {alpha!r}")
-    if not isinstance(neighbourhood, (int, np.integer)) or isinstance(neighbourhood, bool) or neighbourhood < 0:
-        raise ValueError(f"neighbourhood must be an integer >= 0, got {neighbourhood!r}")
-    tile = int(tile)
-    alpha = float(alpha)
-    t = np.asarray(test, dtype=np.float64)
-    r = np.asarray(expected, dtype=np.float64)
-    vt = np.asarray(test_variance, dtype=np.float64)
-    vr = np.asarray(expected_variance, dtype=np.float64)
-    if t.ndim != 3 or t.shape[2] != 3 or t.shape[0] < 1 or t.shape[1] < 1:
-        raise ValueError(f"test must have shape (H, W, 3), got {t.shape}")
-    for label, arr in (("test_variance", vt), ("expected", r), ("expected_variance", vr)):
-        if arr.shape != t.shape:
-            raise ValueError(f"{label} has shape {arr.shape}, expected {t.shape} like test")
-
-    expected_bad = ~np.all(np.isfinite(r), axis=-1)
-    if expected_bad.any():
-        raise HarnessError(
-            expected_name,
-            f"{int(expected_bad.sum())} non-finite (NaN/Inf) pixels; a reference must be finite everywhere",
-        )
-    _check_variance(expected_name, vr, np.ones(expected_bad.shape, dtype=bool))
-    ok = np.all(np.isfinite(t), axis=-1)
-    nonfinite = int(np.count_nonzero(~ok))
-    _check_variance(test_name, vt, ok)
-    nu_t = _dof_array("test_dof", test_dof, t.shape)
-    nu_r = _dof_array("expected_dof", expected_dof, t.shape)
-
-    m = np.broadcast_to(ok[..., None], t.shape)
-    diff = np.where(m, t - r, 0.0)
-    vt = np.where(m, vt, 0.0)
-    vr = vr * m
-    v_raw = vt + vr
-    scale = np.where(m, np.maximum(np.abs(np.where(m, t, 0.0)), np.abs(r)), 0.0)
-    v_eff = v_raw + (rtol * scale) ** 2
-    # sum_p sigma_p^4 / nu_p of each image, estimated (Welch's nu_p + 2); the rounding floor has nu = inf
-    welch_t = vt**2 / (nu_t + 2)
-    welch_r = vr**2 / (nu_r + 2)
-
-    # --- tiles -------------------------------------------------------------
-    n = _tile_sum(m.astype(np.float64), tile)
-    d_sum = _tile_sum(diff, tile)
-    vt_sum = _tile_sum(vt, tile)
-    vr_sum = _tile_sum(vr, tile)
-    v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
-    v_sum = _tile_sum(v_eff, tile)
-    wt_sum, wr_sum = _tile_sum(welch_t, tile), _tile_sum(welch_r, tile)
-    # each image's variance in a tile raised to what its neighbourhood says (the other image giving the shape) where
-    # it is more than FLOOR_RATIO below that; a raised tile takes the neighbourhood's Welch dof for that image
-    floor_t, nb_dof_t = _neighbourhood_floor(vt_sum, wt_sum, vr_sum, n, neighbourhood)
-    floor_r, nb_dof_r = _neighbourhood_floor(vr_sum, wr_sum, vt_sum, n, neighbourhood)
-    raised_t, raised_r = floor_t > FLOOR_RATIO * vt_sum, floor_r > FLOOR_RATIO * vr_sum
-    v_sum = v_sum + np.where(raised_t, floor_t - vt_sum, 0.0) + np.where(raised_r, floor_r - vr_sum, 0.0)
-    dof_t = np.where(raised_t, nb_dof_t, _welch_dof(vt_sum, wt_sum))
-    dof_r = np.where(raised_r, nb_dof_r, _welch_dof(vr_sum, wr_sum))
-    dof_tiles = np.minimum(dof_t, dof_r)
-    wider = raised_t | raised_r
-    zero_tiles = (n > 0) & (v_raw_sum == 0)
-    noisy = (n > 0) & (v_raw_sum > 0)
-    # tiles whose estimate holds too few effective samples to be normal are left out of the sub-tests
-    mean_sum = np.maximum(np.abs(_tile_sum(np.where(m, t, 0.0), tile)), np.abs(_tile_sum(r * m, tile)))
-    sparse = noisy & _sparse_tiles(mean_sum, np.maximum(vt_sum, np.where(raised_t, floor_t, 0.0)),
-                                   np.maximum(vr_sum, np.where(raised_r, floor_r, 0.0)), test_spp, expected_spp)
-    random_tiles = noisy & ~sparse
-    bad_pixel = m & (v_raw == 0) & (np.abs(diff) > rtol * scale)
-    differing = zero_tiles & (_tile_sum(bad_pixel.astype(np.float64), tile) > 0)
-
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = np.where(random_tiles, d_sum / np.sqrt(v_sum), 0.0)
-        dof = np.where(random_tiles, dof_tiles, np.inf)
-    z_norm = np.where(random_tiles, _to_normal(z, dof), 0.0)
-
-    # --- 1. global bias ----------------------------------------------------
-    npix = np.where(sparse, 0.0, n).sum(axis=(0, 1))  # per channel: the pixels of the judged and the exact tiles
-    g_d = np.where(sparse, 0.0, d_sum).sum(axis=(0, 1))  # the judged tiles' (and the exact ones')
-    g_vraw = np.where(random_tiles, v_raw_sum, 0.0).sum(axis=(0, 1))
-    g_v = np.where(sparse, 0.0, v_sum).sum(axis=(0, 1))  # the tiles' variances, raised where their neighbourhood says
-    g_nu = np.minimum(_welch_dof(vt.sum(axis=(0, 1)), welch_t.sum(axis=(0, 1))),
-                      _welch_dof(vr.sum(axis=(0, 1)), welch_r.sum(axis=(0, 1))))
-    g_active = g_vraw > 0
-    g_z = np.zeros(3)
-    g_dof = np.full(3, np.inf)
-    g_p = np.ones(3)
-    for c in range(3):
-        if g_active[c]:
-            g_z[c] = g_d[c] / np.sqrt(g_v[c])
-            g_dof[c] = g_nu[c]
-            zc = float(_to_normal(np.array([g_z[c]]), np.array([g_dof[c]]))[0])
-            g_p[c] = 2.0 * normal_sf(abs(zc))
-    n_active = int(g_active.sum())
-    g_pvalue = _sidak(float(g_p.min()), n_active) if n_active else 1.0
-    g_worst = int(np.argmin(g_p)) if n_active else 0
-    global_bias = {
-        "difference": [float(x / k) if k else float("nan") for x, k in zip(g_d, npix)],
-        "stderr": [float(np.sqrt(x) / k) if k else float("nan") for x, k in zip(g_v, npix)],
-        "z": [float(x) for x in g_z],
-        "dof": [None if not np.isfinite(x) else float(x) for x in g_dof],
-        "p_values": [float(x) for x in g_p],
-        "channels": n_active,
-        "p_value": float(g_pvalue),
-    }
-
-    # --- 2. omnibus chi-square per channel -----------------------------------
-    o_stat = np.array([float(np.sum(z_norm[..., c][random_tiles[..., c]] ** 2)) for c in range(3)])
-    o_dof = np.array([int(random_tiles[..., c].sum()) for c in range(3)])
-    o_p = np.array([float(chi2_sf(o_stat[c], o_dof[c])) if o_dof[c] > 0 else 1.0 for c in range(3)])
-    o_active = int(np.count_nonzero(o_dof))
-    o_pvalue = min(1.0, o_active * float(o_p.min())) if o_active else 1.0
-    omnibus = {
-        "statistic": [float(x) for x in o_stat],
-        "dof": [int(x) for x in o_dof],
-        "p_values": [float(x) for x in o_p],
-        "p_value": float(o_pvalue),
-    }
-
-    # --- 3. max |z| ----------------------------------------------------------
-    count = int(random_tiles.sum())
-    abs_z = np.where(random_tiles, np.abs(z_norm), -1.0)
-    if count:
-        flat = int(np.argmax(abs_z))
-        zmax = float(abs_z.flat[flat])
-        m_pvalue = _sidak(float(2.0 * normal_sf(zmax)), count)
-    else:
-        flat, zmax, m_pvalue = -1, 0.0, 1.0
-    max_z = {"statistic": zmax, "count": count, "p_value": float(m_pvalue)}
-
-    # --- worst tile ----------------------------------------------------------
-    h, w = t.shape[:2]
-
-    def describe(index: tuple[int, int, int], z_value: float, z_normal: float, dof_value: float) -> dict:
-        i, j, c = index
-        y, x = i * tile, j * tile
-        n_ij = float(n[i, j, c])
-        return {
-            "row": i,
-            "col": j,
-            "y": y,
-            "x": x,
-            "height": min(tile, h - y),
-            "width": min(tile, w - x),
-            "channel": CHANNELS[c],
-            "pixels": int(n_ij),
-            "difference": float(d_sum[i, j, c] / n_ij),
-            "stderr": float(np.sqrt(v_sum[i, j, c]) / n_ij),
-            "z": z_value,
-            "z_normal": z_normal,
-            "dof": None if not np.isfinite(dof_value) else float(dof_value),
-        }
-
-    n_differing = int(differing.sum())
-    if n_differing:
-        first = tuple(int(k) for k in np.argwhere(differing)[0])
-        sign = float(np.sign(d_sum[first])) or 1.0
-        worst = describe(first, sign * float("inf"), sign * float("inf"), float("inf"))
-        worst["stderr"] = 0.0
-    elif count:
-        idx = tuple(int(k) for k in np.unravel_index(flat, z.shape))
-        worst = describe(idx, float(z[idx]), float(z_norm[idx]), float(dof[idx]))
-    else:
-        worst = None
-    zero_variance = {"tiles": int(zero_tiles.sum()), "differing": n_differing}
-
-    # --- decision ------------------------------------------------------------
+    _require_variances(test_variance, expected_variance, names)
+    tile, alpha = _check_parameters(tile, alpha, neighbourhood)
+    t, vt, r, vr, nu_t, nu_r = _checked_images(test, test_variance, expected, expected_variance, test_dof,
+                                               expected_dof, names)
+    pixels = _pixel_terms(t, vt, r, vr, nu_t, nu_r, rtol)
+    tiles = _tile_statistics(pixels, tile, rtol, neighbourhood, test_spp, expected_spp)
+    z, dof, z_normal = _tile_z(tiles)
+    max_z, flat = _max_z(z_normal, tiles.tested)
+    worst = _worst_tile(tiles, z, z_normal, dof, flat, tile, t.shape[:2])
     threshold = alpha / len(SUBTESTS)
-    tile_p = np.where(random_tiles, 2.0 * normal_sf(np.abs(z_norm)), 1.0)
-    tile_p = np.where(differing, 0.0, tile_p)
-    with np.errstate(divide="ignore"):  # p = 1 (log1p(-1) = -inf) gives 1, as it should
-        sidak = -np.expm1(count * np.log1p(-tile_p)) if count else np.ones_like(tile_p)
-    tiles = TileMaps(z=z_norm, p=tile_p, tested=random_tiles,
-                     failing=differing | (random_tiles & (sidak < threshold)))
-    failures: list[str] = []
-    n_sparse = int(sparse.sum())
-    if n_sparse and not count:
-        failures.append(f"too few samples to judge: each of the {n_sparse} noisy tile-channels holds fewer than "
-                        f"{MIN_SAMPLES:g} effective samples (render more samples per pixel)")
-    if nonfinite:
-        failures.append(f"{nonfinite} non-finite pixels in the {test_name}")
-    if n_differing:
-        assert worst is not None
-        failures.append(
-            f"zero-variance tile differs ({n_differing} tile-channels; first at y={worst['y']}, x={worst['x']}, "
-            f"channel {worst['channel']}, mean difference {worst['difference']:.3g})"
-        )
-    if g_pvalue < threshold:
-        c = g_worst
-        failures.append(
-            f"global bias: z = {g_z[c]:.2f} in {CHANNELS[c]} (mean difference {global_bias['difference'][c]:.3g} "
-            f"+- {global_bias['stderr'][c]:.2g}), p = {_fmt_p(g_pvalue)} < {_fmt_p(threshold)}"
-        )
-    if o_pvalue < threshold:
-        c = int(np.argmin(o_p))
-        failures.append(
-            f"omnibus: chi2 = {o_stat[c]:.1f} on {o_dof[c]} tiles in {CHANNELS[c]}, p = {_fmt_p(o_pvalue)} "
-            f"< {_fmt_p(threshold)}"
-        )
-    if m_pvalue < threshold and worst is not None:
-        failures.append(
-            f"max |z| = {zmax:.2f} at tile y={worst['y']}, x={worst['x']} in {worst['channel']} "
-            f"(of {count}), p = {_fmt_p(m_pvalue)} < {_fmt_p(threshold)}"
-        )
-    if failures:
-        outcome, reason = "fail", "; ".join(failures)
-    else:
-        ps = {"global bias": g_pvalue, "omnibus": o_pvalue, "max |z|": m_pvalue}
-        smallest = min(ps, key=ps.__getitem__)
-        outcome = "pass"
-        reason = (
-            f"every sub-test has p >= alpha/3 = {_fmt_p(threshold)} (smallest: {smallest} p = "
-            f"{_fmt_p(ps[smallest])})"
-        )
-        if zero_variance["tiles"]:
-            reason += f"; {zero_variance['tiles']} zero-variance tile-channels match exactly"
-    bright = float(np.where(noisy, mean_sum, 0.0).sum())
-    share = float(np.where(sparse, mean_sum, 0.0).sum()) / bright if bright > 0 else 0.0
-    if n_sparse and count:
-        reason += (f"; {n_sparse} tile-channels ({100 * share:.2g} % of the brightness) not judged: fewer than "
-                   f"{MIN_SAMPLES:g} effective samples")
-
+    global_bias, omnibus = _global_bias(tiles), _omnibus(z_normal, tiles.tested)
+    zero_variance = {"tiles": int(tiles.zero.sum()), "differing": int(tiles.differing.sum())}
+    sparse = _sparse_summary(tiles)
+    failures = _failures(global_bias, omnibus, max_z, zero_variance, worst, sparse, pixels.nonfinite, threshold,
+                         names[0])
+    outcome, reason = _decision(failures, global_bias, omnibus, max_z, zero_variance, sparse, threshold)
     return Verdict(
         verdict=outcome,
         reason=reason,
         alpha=alpha,
         threshold=threshold,
         tile=tile,
-        nonfinite_pixels=nonfinite,
+        nonfinite_pixels=pixels.nonfinite,
         global_bias=global_bias,
         omnibus=omnibus,
         max_z=max_z,
         zero_variance=zero_variance,
         worst_tile=worst,
         variance_dof={"test": _dof_summary(test_dof), "ground_truth": _dof_summary(expected_dof)},
-        variance_floor={"neighbourhood": int(neighbourhood), "tiles": int((wider & random_tiles).sum())},
-        sparse={"min_samples": MIN_SAMPLES, "tiles": n_sparse, "share": share},
-        tiles=tiles,
+        variance_floor={"neighbourhood": int(neighbourhood), "tiles": int((tiles.raised & tiles.tested).sum())},
+        sparse=sparse,
+        tiles=_tile_maps(tiles, z_normal, threshold),
     )

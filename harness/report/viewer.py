@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.core.errors import image_error
 from harness.files import imageio
 from harness.files.cases import GroundTruthImage
 from harness.files.confined import first_inside
@@ -126,14 +127,23 @@ def tiles_again(render: np.ndarray, render_variance: np.ndarray | None, truth: G
     with the tile, alpha and variance degrees of freedom its record names, the render's ``spp`` and the ground
     truth's (which tiles are too sparse to judge; per-pixel degrees of freedom,
     ``{"min", "max"}``, are taken as exact: the tiles' z then differ a little from the run's). None without a
-    render variance or a verdict."""
+    render variance or a verdict. The verdict's ``ValueError`` about an image's own arrays (a NaN variance, a
+    non-finite ground truth) is raised as the HarnessError naming that image."""
     if render_variance is None or not isinstance(record_verdict, dict) or not record_verdict.get("tile"):
         return None
     dof = record_verdict.get("variance_dof") if isinstance(record_verdict.get("variance_dof"), dict) else {}
-    outcome = verdict(render, render_variance, truth.image, truth.variance, tile=int(record_verdict["tile"]),
-                      alpha=float(record_verdict.get("alpha") or 0.001), test_dof=_dof(dof.get("test")),
-                      expected_dof=_dof(dof.get("ground_truth", dof.get("reference"))), test_spp=_dof(spp),
-                      expected_spp=float(truth.spp) if truth.spp and truth.source != "closed-form" else None)
+    names = ("test image", "ground truth image")
+    try:
+        outcome = verdict(render, render_variance, truth.image, truth.variance, tile=int(record_verdict["tile"]),
+                          alpha=float(record_verdict.get("alpha") or 0.001), test_dof=_dof(dof.get("test")),
+                          expected_dof=_dof(dof.get("ground_truth", dof.get("reference"))), test_spp=_dof(spp),
+                          expected_spp=float(truth.spp) if truth.spp and truth.source != "closed-form" else None,
+                          names=names)
+    except ValueError as err:
+        user = image_error(err, names)
+        if user is None:
+            raise
+        raise user from None
     return outcome.tiles
 
 

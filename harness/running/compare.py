@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from harness.core.errors import HarnessError
+from harness.core.errors import HarnessError, image_error
 from harness.core.jsonsafe import plain
 from harness.files.imageio import ExrImage, read_exr
 from harness.judges import metrics
@@ -117,10 +117,19 @@ def judge(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0
     """The statistical verdict alone (:func:`harness.judges.verdict.verdict`) of ``test`` against ``expected``, with
     the degrees of freedom of each variance taken from the images' metadata as :func:`compare_images` takes them
     (``variance_dof``, else ``spp`` - 1): what a case is judged by, without the metrics (``harness calibrate``
-    judges thousands of planted images with it). Returns the :class:`harness.judges.verdict.Verdict`."""
-    return verdict(test.image, test.variance, expected.image, expected.variance, tile=tile, alpha=alpha,
-                   test_dof=_variance_dof(test), expected_dof=_variance_dof(expected), names=names,
-                   test_spp=_spp(test), expected_spp=_spp(expected))
+    judges thousands of planted images with it). Returns the :class:`harness.judges.verdict.Verdict`.
+
+    The verdict's ``ValueError`` about an image's own arrays (a variance missing, NaN, infinite or negative, a
+    non-finite ground truth) is raised as the :class:`HarnessError` naming that image (``names``), with its text."""
+    try:
+        return verdict(test.image, test.variance, expected.image, expected.variance, tile=tile, alpha=alpha,
+                       test_dof=_variance_dof(test), expected_dof=_variance_dof(expected), names=names,
+                       test_spp=_spp(test), expected_spp=_spp(expected))
+    except ValueError as err:
+        user = image_error(err, names)
+        if user is None:
+            raise
+        raise user from None
 
 
 def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,

@@ -331,24 +331,46 @@ def test_nonfinite_test_pixels_fail_but_statistics_are_computed() -> None:
 def test_missing_or_invalid_inputs_raise_clear_errors() -> None:
     r = TRUTH
     zero = np.zeros_like(r)
-    with pytest.raises(HarnessError, match="variance"):
+    with pytest.raises(ValueError, match="^test image: has no variance"):
         verdict(r, None, r, zero)
-    with pytest.raises(HarnessError, match="ground truth image.*variance"):
+    with pytest.raises(ValueError, match="^ground truth image: has no variance"):
         verdict(r, zero, r, None)
     bad = r.copy()
     bad[0, 0, 0] = np.nan
-    with pytest.raises(HarnessError, match="ground truth image: 1 non-finite"):
+    with pytest.raises(ValueError, match="^ground truth image: 1 non-finite"):
         verdict(r, zero, bad, zero)
+    with pytest.raises(ValueError, match="^render.exr: 1 non-finite"):
+        verdict(r, zero, bad, zero, names=("test.exr", "render.exr"))
     nan_var = zero.copy()
     nan_var[1, 1, 1] = np.nan
-    with pytest.raises(HarnessError, match="2 spp"):
+    with pytest.raises(ValueError, match="^test image: variance is NaN.*2 spp"):
         verdict(r, nan_var, r, zero)
-    with pytest.raises(HarnessError, match="negative"):
+    with pytest.raises(ValueError, match="negative"):
         verdict(r, zero - 1.0, r, zero)
     with pytest.raises(ValueError, match="tile"):
         verdict(r, zero, r, zero, tile=0)
     with pytest.raises(ValueError, match="alpha"):
         verdict(r, zero, r, zero, alpha=1.5)
+
+
+def test_compare_images_raises_the_verdicts_image_errors_as_harness_errors() -> None:
+    """compare_images (and harness compare through it) turns the verdict's ValueError about an image's own arrays
+    into the HarnessError naming that image, with the same text; a bad tile stays a ValueError."""
+    zero = np.zeros_like(TRUTH)
+    bad, nan_var = TRUTH.copy(), zero.copy()
+    bad[0, 0, 0] = np.nan
+    nan_var[1, 1, 1] = np.nan
+    for test, expected, where in ((ExrImage(TRUTH, None), ExrImage(TRUTH, zero), "test image"),
+                                  (ExrImage(TRUTH, zero), ExrImage(bad, zero), "ground truth image"),
+                                  (ExrImage(TRUTH, nan_var), ExrImage(TRUTH, zero), "test image"),
+                                  (ExrImage(TRUTH, zero), ExrImage(TRUTH, zero - 1.0), "ground truth image")):
+        with pytest.raises(ValueError) as raw:
+            verdict(test.image, test.variance, expected.image, expected.variance)
+        with pytest.raises(HarnessError) as info:
+            compare_images(test, expected)
+        assert info.value.where == where and str(info.value) == str(raw.value)
+    with pytest.raises(ValueError, match="tile"):
+        compare_images(ExrImage(TRUTH, zero), ExrImage(TRUTH, zero), tile=0)
 
 
 def test_verdict_to_dict_is_json() -> None:

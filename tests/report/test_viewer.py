@@ -136,3 +136,24 @@ def test_the_histogram_view_draws_what_it_counts():
     assert box["top"] < view["expected_y"] < box["bottom"] and view["expected"] == 3.0 and view["counts"] == "8, 0, 2, 2"
     assert report_viewer.histogram_view(None) is None
     assert report_viewer.histogram_view({"counts": [1, "x"], "tested": 0}) is None
+
+
+def test_tiles_again_raises_the_verdicts_image_errors_as_harness_errors():
+    """A run folder's render with a NaN variance, or a ground truth with a NaN pixel: the verdict's ValueError about
+    that image reaches the report as the HarnessError naming it, with the same text; a bad tile stays a ValueError."""
+    from harness.core.errors import HarnessError
+    from harness.files.cases import GroundTruthImage
+
+    image, zero = np.ones((16, 24, 3)), np.zeros((16, 24, 3))
+    nan_var, bad = zero.copy(), image.copy()
+    nan_var[2, 3, 1], bad[4, 5, 0] = np.nan, np.nan
+    record = {"tile": 8, "alpha": 0.001}
+    with pytest.raises(HarnessError, match=r"^test image: variance is NaN, infinite or negative at 1 pixels") as info:
+        report_viewer.tiles_again(image, nan_var, GroundTruthImage(image, zero, "closed-form", 0), record)
+    assert info.value.where == "test image"
+    with pytest.raises(HarnessError, match=r"^ground truth image: 1 non-finite \(NaN/Inf\) pixels") as info:
+        report_viewer.tiles_again(image, zero, GroundTruthImage(bad, zero, "mitsuba", 64), record)
+    assert info.value.where == "ground truth image"
+    with pytest.raises(ValueError, match="tile must be a positive integer"):
+        report_viewer.tiles_again(image, zero, GroundTruthImage(image, zero, "closed-form", 0), {"tile": -8})
+    assert report_viewer.tiles_again(image, zero, GroundTruthImage(image, zero, "closed-form", 0), record) is not None
