@@ -1,16 +1,13 @@
 """Export a scene in formats other renderers load: Mitsuba 3 XML (with PLY meshes), scene.json, PLY, OBJ and glTF.
 
-* ``mitsuba-xml``: ``scene.xml`` describing exactly the scene :func:`harness.renderers.mitsuba.scene_to_mitsuba_dict`
-  builds (same shapes and placements, BSDFs, area emitters, camera with its clip planes, film and pixel filter,
-  ``path`` integrator with the scene's ``max_depth`` and ``rr_depth`` 5), so Mitsuba renders the same image from it.
-  Rectangles, cubes and spheres stay Mitsuba's analytic shapes; ``mesh`` shapes become ``meshes/<shape>.ply`` (world
-  space, wound to face their front side, loaded with ``face_normals``), and so do spheres in a scene with a material
-  that is not diffuse (the reference's icosphere, as the adapter: ``tessellates_spheres``). The sampler's ``sample_count`` and ``seed``
-  are the XML parameters ``$spp`` and ``$seed``, so ``mi.load_file(path, spp=64, seed=3)`` (or ``mitsuba -D
-  spp=64``) overrides them.
-  ``[[emitters]]`` become Mitsuba's emitters of the same names and parameters (:func:`~harness.renderers.mitsuba.
-  light_spec`); an envmap's image is written as ``textures/<index>-<name>.exr`` (the pixels the scene holds, float32
-  RGB) and named by ``filename``.
+* ``mitsuba-xml``: ``scene.xml``, the scene's Mitsuba plugins that the adapter renders
+  (:func:`harness.renderers.mitsuba_spec.scene_spec`: shapes and placements, BSDFs, emitters, camera with its clip
+  planes, film and pixel filter, ``path`` integrator) written as XML (:mod:`harness.renderers.mitsuba_xml`), so
+  Mitsuba renders the same image from it. Shapes that the adapter passes as triangles become
+  ``meshes/<index>-<name>.ply`` (world space, wound to face their front side, loaded with ``face_normals``), an
+  envmap's pixels ``textures/<index>-<name>.exr`` (float32 RGB), each named by ``filename``. The sampler's
+  ``sample_count`` and ``seed`` are the XML parameters ``$spp`` and ``$seed``, so ``mi.load_file(path, spp=64,
+  seed=3)`` (or ``mitsuba -D spp=64``) overrides them.
 * ``json``: ``scene.json``, the resolved scene for renderers without a TOML parser
   (:func:`harness.renderers.scene_json.scene_json`, docs/scene-json.md), with ``meshes/<index>-<name>.ply`` for
   every shape and ``textures/<index>-<name>.exr`` for every environment map.
@@ -37,27 +34,18 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.core.jsonsafe import plain
-from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, exr_bytes, make_folders
-from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
-from harness.renderers.mitsuba import (
-    RR_DEPTH,
-    bsdf_dict,
-    clip_planes,
-    emitter_dict,
-    film_dict,
-    light_spec,
-    path_integrator,
-    tessellates_spheres,
-)
+from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
+from harness.renderers.meshfiles import ply_bytes, safe_name
+from harness.renderers.mitsuba_spec import RR_DEPTH, Parameter, bsdf_dict, clip_planes, scene_spec
+from harness.renderers.mitsuba_xml import spec_xml
 from harness.renderers.scene_json import FILTERS, camera_to_world, scene_json
 from harness.scene import Scene
-from harness.scene.triangulate import object_to_world, shape_triangles
+from harness.scene.triangulate import shape_triangles
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
 #: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
@@ -67,132 +55,16 @@ GLTF_LIGHTS = "KHR_lights_punctual"
 GLTF_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
 PUNCTUAL_TYPES = ("point", "spot", "directional")
 
-# Plugin-valued keys of the adapter's dicts and the XML tag of each.
-_PLUGIN_TAGS = {"film": "film", "rfilter": "rfilter", "sampler": "sampler", "bsdf": "bsdf", "emitter": "emitter",
-                "integrator": "integrator"}
-# 3-vector parameters of the emitters and their XML tag (a point transforms with translation, a vector without).
-_VECTOR_TAGS = {"position": "point", "direction": "vector"}
 
-
-def _num(value: float) -> str:
-    """Shortest repr that round-trips (the XML holds exactly the adapter's float64 numbers)."""
-    return repr(float(value))
-
-
-def _vec(values) -> str:
-    return ", ".join(_num(v) for v in values)
-
-
-def _plugin_xml(tag: str, spec: dict, indent: str, name: str | None = None, plugin_id: str | None = None) -> list[str]:
-    """One Mitsuba plugin dict (``{"type": ..., key: value}``) as XML lines. Values: bool, int, float, str, an
-    ``{"type": "rgb", "value": [...]}`` colour, or a nested plugin dict."""
-    attrs = f'type={quoteattr(spec["type"])}'
-    if name is not None:
-        attrs += f" name={quoteattr(name)}"
-    if plugin_id is not None:
-        attrs += f" id={quoteattr(plugin_id)}"
-    lines = [f"{indent}<{tag} {attrs}>"]
-    inner = indent + "    "
-    for key, value in spec.items():
-        if key == "type":
-            continue
-        if isinstance(value, dict) and value.get("type") == "rgb" and "value" in value:
-            lines.append(f'{inner}<rgb name={quoteattr(key)} value="{_vec(value["value"])}"/>')
-        elif key == "to_world" and isinstance(value, np.ndarray):
-            lines += _matrix_xml(value, inner)
-        elif key in _VECTOR_TAGS and isinstance(value, (list, tuple)):
-            lines.append(f'{inner}<{_VECTOR_TAGS[key]} name={quoteattr(key)} value="{_vec(value)}"/>')
-        elif isinstance(value, dict) and key in _PLUGIN_TAGS:
-            lines += _plugin_xml(_PLUGIN_TAGS[key], value, inner)
-        elif isinstance(value, bool):
-            lines.append(f'{inner}<boolean name={quoteattr(key)} value="{str(value).lower()}"/>')
-        elif isinstance(value, (int, np.integer)):
-            lines.append(f'{inner}<integer name={quoteattr(key)} value="{int(value)}"/>')
-        elif isinstance(value, (float, np.floating)):
-            lines.append(f'{inner}<float name={quoteattr(key)} value="{_num(value)}"/>')
-        elif isinstance(value, str):
-            lines.append(f"{inner}<string name={quoteattr(key)} value={quoteattr(value)}/>")
-        else:
-            raise TypeError(f"cannot write {key!r} = {value!r} as Mitsuba XML")
-    lines.append(f"{indent}</{tag}>")
-    return lines
-
-
-def _matrix_xml(matrix: np.ndarray, indent: str) -> list[str]:
-    values = " ".join(_num(v) for v in np.asarray(matrix, dtype=np.float64).ravel())
-    return [f'{indent}<transform name="to_world">', f'{indent}    <matrix value="{values}"/>', f"{indent}</transform>"]
-
-
-def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0, mesh_dir: str = MESH_DIR,
-                texture_dir: str = TEXTURE_DIR) -> tuple[str, dict[str, bytes]]:
+def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0) -> tuple[str, dict[str, bytes]]:
     """The scene as Mitsuba 3 XML text, and the PLY and EXR files it refers to (``{relative path: bytes}``).
 
-    ``spp`` and ``seed`` are the defaults of the XML parameters ``$spp`` and ``$seed``.
+    The scene's Mitsuba plugins (:func:`harness.renderers.mitsuba_spec.scene_spec`, what the adapter renders)
+    written by :func:`harness.renderers.mitsuba_xml.spec_xml`; ``spp`` and ``seed`` are the defaults of the XML
+    parameters ``$spp`` and ``$seed``.
     """
-    near, far = clip_planes(scene)
-    camera = scene.camera
-    lines = [
-        '<?xml version="1.0" encoding="utf-8"?>',
-        f"<!-- {scene.name}: exported by rendering-harness (harness export) from {scene.path} -->",
-        '<scene version="3.0.0">',
-        f'    <default name="spp" value="{int(spp)}"/>',
-        f'    <default name="seed" value="{int(seed)}"/>',
-    ]
-    integrator = path_integrator(scene.max_depth)
-    assert integrator["rr_depth"] == RR_DEPTH
-    lines += _plugin_xml("integrator", integrator, "    ")
-    film = _plugin_xml("film", film_dict(scene), "        ")
-    lines += [
-        '    <sensor type="perspective">',
-        f'        <float name="fov" value="{_num(camera.fov)}"/>',
-        f'        <string name="fov_axis" value={quoteattr(camera.fov_axis)}/>',
-        f'        <float name="near_clip" value="{_num(near)}"/>',
-        f'        <float name="far_clip" value="{_num(far)}"/>',
-        '        <transform name="to_world">',
-        f'            <lookat origin="{_vec(camera.origin)}" target="{_vec(camera.target)}" up="{_vec(camera.up)}"/>',
-        "        </transform>",
-        '        <sampler type="independent">',
-        '            <integer name="sample_count" value="$spp"/>',
-        '            <integer name="seed" value="$seed"/>',
-        "        </sampler>",
-        *film,
-        "    </sensor>",
-    ]
-    material_key = {}
-    for j, (name, material) in enumerate(scene.materials.items()):
-        material_key[name] = f"bsdf_{j}"
-        lines.append(f"    <!-- material {name} -->")
-        lines += _plugin_xml("bsdf", bsdf_dict(material), "    ", plugin_id=f"bsdf_{j}")
-    meshes: dict[str, bytes] = {}
-    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
-    for shape in scene.shapes:
-        key = f"shape_{shape.index}"
-        lines.append(f"    <!-- shape {shape.index}: {shape.name} -->")
-        if shape.type in as_mesh:
-            rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
-            meshes[rel] = ply_bytes(*shape_triangles(shape))  # world space, wound to face the front side
-            lines += [f'    <shape type="ply" id="{key}">',
-                      f"        <string name=\"filename\" value={quoteattr(rel)}/>",
-                      '        <boolean name="face_normals" value="true"/>']
-        else:
-            lines.append(f'    <shape type="{shape.type}" id="{key}">')
-            lines += _matrix_xml(object_to_world(shape), "        ")
-            if shape.flip_normals:
-                lines.append('        <boolean name="flip_normals" value="true"/>')
-        lines.append(f'        <ref id="{material_key[shape.material]}"/>')
-        if shape.is_emitter:
-            lines += _plugin_xml("emitter", emitter_dict(shape), "        ")
-        lines.append("    </shape>")
-    for emitter in scene.emitters:
-        lines.append(f"    <!-- emitter {emitter.index}: {emitter.name} -->")
-        spec = light_spec(emitter)
-        if emitter.type == "envmap":
-            rel = f"{texture_dir}/{emitter.index}-{safe_name(emitter.name)}.exr"
-            meshes[rel] = exr_bytes(emitter.image)  # the pixels the scene holds, as the adapter's bitmap
-            spec = {"type": "envmap", "filename": rel, **{k: v for k, v in spec.items() if k != "type"}}
-        lines += _plugin_xml("emitter", spec, "    ", plugin_id=f"emitter_{emitter.index}")
-    lines.append("</scene>")
-    return "\n".join(lines) + "\n", meshes
+    spec = scene_spec(scene, spp=Parameter("spp", int(spp)), seed=Parameter("seed", int(seed)))
+    return spec_xml(spec, f"{scene.name}: exported by rendering-harness (harness export) from {scene.path}")
 
 
 def normal_incidence_reflectance(eta, k) -> list[float]:

@@ -6,8 +6,8 @@ Three parts:
   libLLVM >= 16 can be found, else ``scalar_rgb``. Each candidate is tried in a *subprocess* (a 4 x 4 render),
   because Dr.Jit's LLVM backend aborts the whole process on some LLVM versions (15), which no ``try`` can catch.
   ``DRJIT_LIBLLVM_PATH`` is set to the library that passed before Mitsuba runs anything in this process.
-* **Scene conversion** (:func:`scene_to_mitsuba_dict`): the same shapes, placements, materials, lights, camera,
-  film and integrator as a Mitsuba scene dict.
+* **Scene conversion** (:func:`scene_to_mitsuba_dict`): the scene's Mitsuba plugins
+  (:mod:`harness.renderers.mitsuba_spec`) in the form ``mi.load_dict`` takes (:func:`load_dict_form`).
 * **Rendering in passes** (:class:`MitsubaRenderer`): independent passes with distinct seeds, each through Mitsuba's
   ``moment`` integrator, so every pixel's variance comes from all of its samples; passes are merged by adding
   float64 sums (:func:`merge_moments`).
@@ -38,15 +38,24 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.judges.moments import Estimate
 from harness.renderers.base import RenderRequest, RenderResult
+from harness.renderers.mitsuba_spec import (
+    RR_DEPTH,
+    ImageFile,
+    LookAt,
+    MeshFile,
+    MitsubaSpec,
+    Parameter,
+    Point,
+    Vector,
+    scene_spec,
+)
 from harness.scene import Scene
-from harness.scene.triangulate import object_to_world, shape_triangles
 from reference_impl.filters import make_filter
 
 # Variants in order of preference. Only RGB variants: the scene format is RGB (spectral variants would upsample the
 # colours, mono ones would collapse them), so any other variant would render a different image.
 VARIANT_ORDER = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 MIN_LLVM_VERSION = 16  # Dr.Jit 1.5's LLVM backend aborts the process on LLVM 15 ("Cannot select: fminimum")
-RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
 DEFAULT_CHUNK_SPP = 64
 MAX_PASS_SAMPLES = 2**31  # camera samples per pass at most (Mitsuba's wavefront index is 32-bit)
 SETTING_KEYS = ("chunk_spp", "max_depth", "moments", "sampler", "variant")
@@ -69,8 +78,6 @@ def sampler_takes(sampler: str, count: int) -> bool:
         return root >= 2 and all(root % d for d in range(2, math.isqrt(root) + 1))
     return True
 PROBE_TIMEOUT_S = 300.0
-NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
-FAR_MARGIN = 1.1  # far_clip = this factor times the distance to the farthest corner of the scene's bounding box
 
 _LIBLLVM_GLOBS = (
     "/usr/lib/*-linux-gnu/libLLVM*.so*",
@@ -386,175 +393,81 @@ def import_mitsuba(variant: str):
 # Scene conversion
 
 
-def _point_triangle_distances(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Distance from point ``p`` to each triangle (a[i], b[i], c[i])."""
+def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4,
+                          sampler: str = "independent") -> dict:
+    """The scene as a Mitsuba 3 scene dict for ``variant`` (which this makes the active variant).
 
-    def segment(u, v):
-        d = v - u
-        dd = np.einsum("ij,ij->i", d, d)
-        t = np.clip(np.einsum("ij,ij->i", p - u, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-        return np.linalg.norm(p - (u + t[:, None] * d), axis=1)
+    Parameters
+    ----------
+    scene : Scene
+        The loaded scene.
+    variant : str
+        Mitsuba's variant.
+    max_depth : int, optional
+        The integrator's ``max_depth``; the scene's where None.
+    spp : int
+        The sampler's ``sample_count``.
+    sampler : str
+        Mitsuba's sampler plugin.
 
-    ab, ac, ap = b - a, c - a, p - a
-    d00, d01, d11 = (np.einsum("ij,ij->i", x, y) for x, y in ((ab, ab), (ab, ac), (ac, ac)))
-    d20, d21 = np.einsum("ij,ij->i", ap, ab), np.einsum("ij,ij->i", ap, ac)
-    denom = d00 * d11 - d01 * d01
-    ok = denom > 0
-    safe = np.where(ok, denom, 1.0)
-    s = (d11 * d20 - d01 * d21) / safe
-    t = (d00 * d21 - d01 * d20) / safe
-    inside = ok & (s >= 0) & (t >= 0) & (s + t <= 1)
-    normal = np.cross(ab, ac)
-    plane = np.abs(np.einsum("ij,ij->i", ap, normal)) / np.sqrt(np.where(ok, denom, 1.0))
-    edges = np.minimum(np.minimum(segment(a, b), segment(b, c)), segment(c, a))
-    return np.where(inside, plane, edges)
-
-
-def clip_planes(scene: Scene) -> tuple[float, float]:
-    """``near_clip``, ``far_clip`` for the scene's camera.
-
-    near = :data:`NEAR_FRACTION` of the distance from the eye to the nearest surface (spheres exactly, other shapes
-    by their triangles), far = :data:`FAR_MARGIN` times the distance to the farthest corner of the scene's bounding
-    box. Mitsuba's defaults (0.01, 10000) would clip away a scene scaled down or up far enough.
+    Returns
+    -------
+    dict
+        :func:`harness.renderers.mitsuba_spec.scene_spec` in the form ``mi.load_dict`` takes
+        (:func:`load_dict_form`).
     """
-    eye = np.asarray(scene.camera.origin, dtype=np.float64)
-    nearest, corners = math.inf, []
-    with np.errstate(all="ignore"):
-        for shape in scene.shapes:
-            if shape.type == "sphere":
-                matrix = object_to_world(shape)
-                centre, radius = matrix[:3, 3], float(np.linalg.norm(matrix[:3, 0]))
-                nearest = min(nearest, abs(float(np.linalg.norm(eye - centre)) - radius))
-                corners += [centre - radius, centre + radius]
-                continue
-            vertices, triangles = shape_triangles(shape)
-            corners += [vertices.min(axis=0), vertices.max(axis=0)]
-            t = vertices[triangles]
-            distances = _point_triangle_distances(eye[None, :], t[:, 0], t[:, 1], t[:, 2])
-            if distances.size:
-                nearest = min(nearest, float(np.nanmin(distances)))
-    if not corners:
-        return 1e-3, 1e4  # nothing to see: anything valid will do
-    lo, hi = np.min(corners, axis=0), np.max(corners, axis=0)
-    box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
-    farthest = float(np.max(np.linalg.norm(box - eye, axis=1)))
-    far = FAR_MARGIN * farthest + 1e-6 * max(farthest, 1e-30)
-    if not (math.isfinite(nearest) and nearest > 0):
-        nearest = 1e-3 * farthest  # the eye lies on a surface: a tiny near plane anyway
-    near = max(NEAR_FRACTION * nearest, 1e-7 * farthest)
-    if not (math.isfinite(near) and near > 0):
-        near = 1e-6
-    far = max(far, 2.0 * near)
-    return float(near), float(far)
+    mi = import_mitsuba(variant)
+    return load_dict_form(mi, scene_spec(scene, max_depth=max_depth, spp=spp, sampler=sampler))
 
 
-def bsdf_dict(material) -> dict:
-    """Mitsuba's dict of ``material``: its plugin (``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
-    ``roughdielectric``) with every parameter written out (so Mitsuba's defaults never decide), inside ``twosided``
-    when two-sided. A conductor with eta = 0, k = 1 is written as Mitsuba's ``material = "none"``."""
-    if material.is_diffuse:
-        spec = {"type": "diffuse", "reflectance": _rgb(material.reflectance)}
-    else:
-        spec = {"type": material.type}
-        if material.is_conductor:
-            if material.mirror:
-                spec["material"] = "none"
-            else:
-                spec["eta"], spec["k"] = _rgb(material.eta), _rgb(material.k)
-        else:
-            spec["int_ior"], spec["ext_ior"] = float(material.int_ior), float(material.ext_ior)
-        spec["specular_reflectance"] = _rgb(material.specular_reflectance)
-        if material.is_dielectric:
-            spec["specular_transmittance"] = _rgb(material.specular_transmittance)
-        if material.is_rough:
-            spec.update(alpha=float(material.alpha), distribution=material.distribution,
-                        sample_visible=bool(material.sample_visible))
-    return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
+def load_dict_form(mi, spec: MitsubaSpec) -> dict:
+    """The spec as ``mi.load_dict`` takes it: transforms as ``mi.ScalarTransform4f``, points and vectors as lists,
+    parameters as their defaults, and the files held in memory: a mesh as an ``mi.Mesh`` (:func:`_mesh_object`),
+    an envmap's pixels as its ``bitmap``, so Mitsuba renders exactly the arrays the scene holds (and the
+    ground-truth key hashes), never a file read again."""
+    return _load_dict_value(mi, spec.plugins, spec.plugins)
 
 
-def emitter_dict(shape) -> dict:
-    """Mitsuba's ``area`` emitter dict of an emitting shape (its RGB radiance)."""
-    return {"type": "area", "radiance": {"type": "rgb", "value": [float(x) for x in shape.emission]}}
-
-
-def _rgb(values) -> dict:
-    return {"type": "rgb", "value": [float(x) for x in values]}
-
-
-def light_spec(emitter) -> dict:
-    """Mitsuba's plugin of an ``[[emitters]]`` entry (docs/mitsuba.md), in plain values: lists, floats, ``rgb``
-    dicts and, for ``to_world``, the 4x4 float64 array. An envmap's image is not in it: :func:`light_dict` adds a
-    ``bitmap``, the XML export a ``filename``."""
-    kind = emitter.type
-    if kind == "point":
-        return {"type": "point", "position": [float(x) for x in emitter.position],
-                "intensity": _rgb(emitter.intensity)}
-    if kind == "spot":
-        return {"type": "spot", "to_world": np.asarray(emitter.to_world, dtype=np.float64),
-                "intensity": _rgb(emitter.intensity), "cutoff_angle": float(emitter.cutoff_angle),
-                "beam_width": float(emitter.beam_width)}
-    if kind == "directional":
-        return {"type": "directional", "direction": [float(x) for x in emitter.direction],
-                "irradiance": _rgb(emitter.irradiance)}
-    if kind == "constant":
-        return {"type": "constant", "radiance": _rgb(emitter.radiance)}
-    if kind == "envmap":
-        return {"type": "envmap", "scale": float(emitter.scale),
-                "to_world": np.asarray(emitter.to_world, dtype=np.float64)}
-    raise ValueError(f"unknown emitter type {kind!r}")
-
-
-def light_dict(mi, emitter) -> dict:
-    """:func:`light_spec` for ``mi.load_dict``: ``to_world`` as a ``ScalarTransform4f``; an envmap's ``bitmap`` made
-    from the image already loaded (float32 linear RGB, row 0 = the map's top), so Mitsuba renders exactly the pixels
-    the scene holds (and the ground-truth key hashes)."""
-    spec = light_spec(emitter)
-    if "to_world" in spec:
-        spec["to_world"] = mi.ScalarTransform4f(spec["to_world"].tolist())
-    if emitter.type == "envmap":
+def _load_dict_value(mi, value, plugins: dict):
+    """One value of the spec in ``mi.load_dict``'s form (``plugins``: the top level, which references name)."""
+    if isinstance(value, dict):
+        if isinstance(value.get("filename"), MeshFile):
+            return _mesh_object(mi, value, plugins)
+        return {("bitmap" if isinstance(item, ImageFile) else key): _load_dict_value(mi, item, plugins)
+                for key, item in value.items()}
+    if isinstance(value, np.ndarray):
+        return mi.ScalarTransform4f(np.asarray(value, dtype=np.float64).tolist())
+    if isinstance(value, LookAt):
+        return mi.ScalarTransform4f.look_at(origin=list(value.origin), target=list(value.target), up=list(value.up))
+    if isinstance(value, (Point, Vector)):
+        return list(value.xyz)
+    if isinstance(value, Parameter):
+        return value.default
+    if isinstance(value, ImageFile):
         # a writable copy: Mitsuba's binding refuses read-only arrays (the scene's image is read-only)
-        spec["bitmap"] = mi.Bitmap(np.array(emitter.image, dtype=np.float32, order="C"), mi.Bitmap.PixelFormat.RGB)
-    return spec
+        return mi.Bitmap(np.array(value.image, dtype=np.float32, order="C"), mi.Bitmap.PixelFormat.RGB)
+    return value
 
 
-def _mesh_object(mi, shape, material) -> object:
-    """A ``mi.Mesh`` from the triangles already loaded (world space, wound to face the front side, flat normals)."""
-    vertices, triangles = shape_triangles(shape)  # object_to_world applied; flip_normals by the winding
+def _mesh_object(mi, plugin: dict, plugins: dict) -> object:
+    """An ``mi.Mesh`` of a ``ply`` plugin whose file is a :class:`MeshFile`, built from its triangles (float32
+    positions, flat normals), with the plugin's other properties (its BSDF, a reference resolved, loaded anew)."""
+    mesh = plugin["filename"]
     props = mi.Properties()
-    props["face_normals"] = True
-    props["bsdf"] = mi.load_dict(bsdf_dict(material))
-    if shape.is_emitter:
-        props["emitter"] = mi.load_dict(emitter_dict(shape))
-    mesh = mi.Mesh(shape.name, len(vertices), len(triangles), props=props,
-                   has_vertex_normals=False, has_vertex_texcoords=False)
-    params = mi.traverse(mesh)
-    params["vertex_positions"] = np.ascontiguousarray(vertices, dtype=np.float32).ravel()
-    params["faces"] = np.ascontiguousarray(triangles, dtype=np.uint32).ravel()
+    for key, value in plugin.items():
+        if key in ("type", "filename"):
+            continue
+        if isinstance(value, dict) and value["type"] == "ref":
+            value = plugins[value["id"]]
+        value = _load_dict_value(mi, value, plugins)
+        props[key] = mi.load_dict(value) if isinstance(value, dict) else value
+    shape = mi.Mesh(mesh.name, len(mesh.vertices), len(mesh.triangles), props=props,
+                    has_vertex_normals=False, has_vertex_texcoords=False)
+    params = mi.traverse(shape)
+    params["vertex_positions"] = np.ascontiguousarray(mesh.vertices, dtype=np.float32).ravel()
+    params["faces"] = np.ascontiguousarray(mesh.triangles, dtype=np.uint32).ravel()
     params.update()
-    return mesh
-
-
-def film_dict(scene: Scene) -> dict:
-    """Mitsuba's ``hdrfilm``: the scene's size and filter (always explicit: Mitsuba's default is the Gaussian).
-
-    ``sample_border`` is on for tent and Gaussian filters, so that border pixels also receive samples from outside
-    the image, as the reference's (filter-importance-sampled) border pixels do.
-    """
-    rfilter = {"box": {"type": "box"}, "tent": {"type": "tent", "radius": 1.0},
-               "gaussian": {"type": "gaussian", "stddev": 0.5}}[scene.film.filter]
-    return {
-        "type": "hdrfilm",
-        "width": int(scene.film.width),
-        "height": int(scene.film.height),
-        "rfilter": rfilter,
-        "pixel_format": "rgb",
-        "component_format": "float32",
-        "sample_border": scene.film.filter != "box",
-    }
-
-
-def path_integrator(max_depth: int) -> dict:
-    return {"type": "path", "max_depth": int(max_depth), "rr_depth": RR_DEPTH}
+    return shape
 
 
 def moment_integrator(nested: dict) -> dict:
@@ -565,67 +478,6 @@ def moment_integrator(nested: dict) -> dict:
     (and A) AOV channels, whose moments ``moment`` then adds (see :func:`moment_channels`).
     """
     return {"type": "moment", "rgb": {"type": "aov", "aovs": "", "path": nested}}
-
-
-def tessellates_spheres(scene: Scene) -> bool:
-    """Whether Mitsuba gets the scene's spheres as the reference's icospheres (flat-shaded meshes) instead of analytic
-    spheres: in scenes with a material that is not diffuse (conductors and dielectrics mirror or refract the facets;
-    a Lambertian scene keeps its analytic spheres, and the ground truth it always had)."""
-    return scene.has_glossy_materials
-
-
-def scene_to_mitsuba_dict(scene: Scene, variant: str, *, max_depth: int | None = None, spp: int = 4,
-                          sampler: str = "independent") -> dict:
-    """The scene as a Mitsuba 3 scene dict for ``variant`` (which this makes the active variant).
-
-    Shapes keep their type (analytic sphere) and placement matrix; meshes become ``mi.Mesh`` objects built from the
-    arrays already loaded. In a scene with a material that is not diffuse, spheres too become the reference's
-    icosphere as a mesh with flat normals (:func:`tessellates_spheres`): what a mirror or a glass ball shows
-    depends on its facets, so both renderers must trace the same ones. Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i (each
-    object's id), ``emitter_<k>`` for ``[[emitters]]`` entry k (:func:`light_dict`); the integrator is ``path`` with the scene's ``max_depth`` (or ``max_depth``) and ``rr_depth`` 5.
-    """
-    mi = import_mitsuba(variant)
-    near, far = clip_planes(scene)
-    camera = scene.camera
-    out: dict = {
-        "type": "scene",
-        "integrator": path_integrator(scene.max_depth if max_depth is None else max_depth),
-        "sensor": {
-            "type": "perspective",
-            "to_world": mi.ScalarTransform4f.look_at(
-                origin=[float(x) for x in camera.origin], target=[float(x) for x in camera.target],
-                up=[float(x) for x in camera.up]),
-            "fov": float(camera.fov),
-            "fov_axis": camera.fov_axis,
-            "near_clip": near,
-            "far_clip": far,
-            "film": film_dict(scene),
-            "sampler": {"type": sampler, "sample_count": int(spp)},
-        },
-    }
-    material_key = {}
-    for j, (name, material) in enumerate(scene.materials.items()):
-        material_key[name] = f"bsdf_{j}"
-        out[f"bsdf_{j}"] = bsdf_dict(material)
-    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
-    for shape in scene.shapes:
-        key = f"shape_{shape.index}"
-        if shape.type in as_mesh:
-            out[key] = _mesh_object(mi, shape, scene.materials[shape.material])
-            continue
-        entry = {
-            "type": shape.type,
-            "to_world": mi.ScalarTransform4f(np.asarray(object_to_world(shape), dtype=np.float64).tolist()),
-            "bsdf": {"type": "ref", "id": material_key[shape.material]},
-        }
-        if shape.flip_normals:
-            entry["flip_normals"] = True
-        if shape.is_emitter:
-            entry["emitter"] = emitter_dict(shape)
-        out[key] = entry
-    for emitter in scene.emitters:
-        out[f"emitter_{emitter.index}"] = light_dict(mi, emitter)
-    return out
 
 
 # --------------------------------------------------------------------------------------------------------------------

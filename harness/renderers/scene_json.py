@@ -20,7 +20,7 @@ import numpy as np
 
 from harness.files.imageio import exr_bytes
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
-from harness.renderers.mitsuba import RR_DEPTH, clip_planes, tessellates_spheres
+from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes, tessellates_spheres
 from harness.scene import Scene
 from harness.scene.triangulate import object_to_world, shape_triangles
 

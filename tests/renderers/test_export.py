@@ -15,7 +15,7 @@ import trimesh
 
 from harness.cli import main
 from harness.renderers.export import FORMATS, export_scene
-from harness.renderers.mitsuba import tessellates_spheres
+from harness.renderers.mitsuba_spec import tessellates_spheres
 from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles, triangle_areas
 from reference_impl import Film

@@ -21,7 +21,7 @@ from harness.files.imageio import read_exr
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.export import export_scene, normal_incidence_reflectance
 from harness.renderers.meshfiles import safe_name
-from harness.renderers.mitsuba import RR_DEPTH, bsdf_dict, clip_planes
+from harness.renderers.mitsuba_spec import RR_DEPTH, bsdf_dict, clip_planes
 from harness.renderers.scene_json import FILTERS
 from harness.running.cases import load_suite
 from harness.running.judge import case_scene

@@ -15,6 +15,7 @@ import trimesh
 from conftest import MINIMAL_SCENE
 import harness.renderers.mitsuba as mts
 from harness.renderers.export import export_losses, export_scene
+from harness.renderers.mitsuba_spec import bsdf_dict
 from harness.scene import load_scene
 from harness.scene.load import CU_ETA, CU_K
 from harness.scene.model import Material
@@ -72,9 +73,9 @@ def bsdf_text(bsdf) -> str:
 
 
 def test_lambertian_dicts_are_what_they_were():
-    assert mts.bsdf_dict(Material("a", (0.2, 0.4, 0.6))) == {
+    assert bsdf_dict(Material("a", (0.2, 0.4, 0.6))) == {
         "type": "diffuse", "reflectance": {"type": "rgb", "value": [0.2, 0.4, 0.6]}}
-    assert mts.bsdf_dict(Material("a", (0.2, 0.4, 0.6), True)) == {
+    assert bsdf_dict(Material("a", (0.2, 0.4, 0.6), True)) == {
         "type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.2, 0.4, 0.6]}}}
 
 
@@ -82,7 +83,7 @@ def test_lambertian_dicts_are_what_they_were():
 def test_every_material_loads_and_renders_in_mitsuba(mi, tmp_path, name):
     scene = scene_with(tmp_path, MATERIALS[name])
     material = scene.materials["m"]
-    spec = mts.bsdf_dict(material)
+    spec = bsdf_dict(material)
     assert (spec["type"] == "twosided") == material.two_sided
     loaded = mi.load_dict(mts.scene_to_mitsuba_dict(scene, "scalar_rgb", spp=2))
     params = mi.traverse(loaded)
@@ -141,13 +142,13 @@ def test_mitsubas_defaults_are_the_loaders(mi):
     defaults = {kind: Material("m", (1.0, 1.0, 1.0), type=kind)
                 for kind in ("conductor", "roughconductor", "dielectric", "roughdielectric")}
     for kind, material in defaults.items():
-        ours = mi.traverse(mi.load_dict(mts.bsdf_dict(material)))
+        ours = mi.traverse(mi.load_dict(bsdf_dict(material)))
         theirs = mi.traverse(mi.load_dict({"type": kind}))
         for key in theirs.keys():
             np.testing.assert_allclose(np.ravel(np.array(ours[key])) * np.ones(3),
                                        np.ravel(np.array(theirs[key])) * np.ones(3), rtol=1e-7, err_msg=key)
         if material.is_rough:
-            for text in (bsdf_text(mi.load_dict(mts.bsdf_dict(material))), bsdf_text(mi.load_dict({"type": kind}))):
+            for text in (bsdf_text(mi.load_dict(bsdf_dict(material))), bsdf_text(mi.load_dict({"type": kind}))):
                 assert "distribution = beckmann" in text and "sample_visible = 1" in text
 
 

@@ -15,6 +15,7 @@ from harness.judges.mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_
 import harness.renderers.mitsuba as mts
 from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer
+from harness.renderers.mitsuba_spec import clip_planes, tessellates_spheres
 from harness.scene import load_scene
 from harness.scene.triangulate import (
     object_to_world,
@@ -57,7 +58,7 @@ def test_canonical_scene_dicts_load(name):
     # Mitsuba merges non-emitting meshes that share a BSDF, so count triangles and area rather than shape objects.
     shapes = loaded.shapes()
     # spheres are analytic, except in scenes with a glossy or glass material (the reference's icosphere, as a mesh)
-    analytic = () if mts.tessellates_spheres(scene) else ("sphere",)
+    analytic = () if tessellates_spheres(scene) else ("sphere",)
     spheres = [s for s in scene.shapes if s.type in analytic]
     assert sum(not s.is_mesh() for s in shapes) == len(spheres)
     expected_triangles = sum(len(shape_triangles(s)[1]) for s in scene.shapes if s.type not in analytic)
@@ -94,7 +95,7 @@ def test_clip_planes_follow_the_scene_scale(variant):
                                  target=tuple(1e-3 * np.array(scene.camera.target)))
     shapes = [dataclasses.replace(s, to_world=shrink @ s.to_world) for s in scene.shapes]
     small = dataclasses.replace(scene, camera=camera, shapes=shapes)
-    near, far = mts.clip_planes(small)
+    near, far = clip_planes(small)
     assert near < 2.9e-3 * 1e-2 and 3e-3 < far < 1e-2
     a = render_mitsuba(scene, spp=16, seed=4, variant=variant)
     b = render_mitsuba(small, spp=16, seed=4, variant=variant)

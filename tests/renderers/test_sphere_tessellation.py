@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from conftest import SCENES
 
-from harness.renderers.mitsuba import scene_to_mitsuba_dict, tessellates_spheres
+from harness.renderers.mitsuba import scene_to_mitsuba_dict
+from harness.renderers.mitsuba_spec import tessellates_spheres
 from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles
 

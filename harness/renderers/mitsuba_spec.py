@@ -1,0 +1,349 @@
+"""The scene as Mitsuba 3 plugins: one nested dict in ``mi.load_dict``'s form, built from the loaded scene.
+
+The Mitsuba adapter hands it to ``mi.load_dict`` (:func:`harness.renderers.mitsuba.load_dict_form`) and the export
+writes it as XML (:func:`harness.renderers.mitsuba_xml.spec_xml`), so both describe the same scene. A plugin is a
+dict with a ``type``; its properties are bools, ints, floats, strings, ``{"type": "rgb", "value": [r, g, b]}``
+colours, ``{"type": "ref", "id": key}`` references to a top-level plugin, nested plugins, and these neutral values,
+which each form writes its own way:
+
+* a 4x4 float64 ``numpy`` array: a transform (``to_world``);
+* :class:`LookAt`: the camera's look-at transform;
+* :class:`Point`, :class:`Vector`: a position and a direction;
+* :class:`Parameter`: a value the XML leaves to its reader (``$spp``), with its default;
+* :class:`MeshFile`, :class:`ImageFile`: a mesh's triangles and an environment map's pixels, with the file each
+  becomes in an export.
+
+Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i, ``emitter_<k>`` for ``[[emitters]]``
+entry k (docs/mitsuba.md, "Scene conversion").
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, safe_name
+from harness.scene import Scene
+from harness.scene.triangulate import object_to_world, shape_triangles
+
+RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
+NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
+FAR_MARGIN = 1.1  # far_clip = this factor times the distance to the farthest corner of the scene's bounding box
+
+
+@dataclass(frozen=True)
+class LookAt:
+    """A camera's look-at transform: its eye, the point it looks at and its up direction."""
+
+    origin: tuple[float, ...]
+    target: tuple[float, ...]
+    up: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Point:
+    """A position (a light's ``position``): transformed with translation."""
+
+    xyz: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Vector:
+    """A direction (a light's ``direction``): transformed without translation."""
+
+    xyz: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A value the XML names as ``$name`` and whose reader may override it; ``default`` where nobody does."""
+
+    name: str
+    default: int
+
+
+@dataclass(frozen=True, eq=False)
+class MeshFile:
+    """A shape's triangles (world space, wound to face the front side) and the PLY file they become in an export.
+
+    Attributes
+    ----------
+    name : str
+        The shape's name.
+    path : str
+        The file's path relative to the exported scene file.
+    vertices, triangles : numpy.ndarray
+        (V, 3) float64 positions and (T, 3) vertex indices.
+    """
+
+    name: str
+    path: str
+    vertices: np.ndarray
+    triangles: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ImageFile:
+    """An environment map's pixels (float32 linear RGB, row 0 the top) and the EXR file they become in an export."""
+
+    path: str
+    image: np.ndarray
+
+
+@dataclass(frozen=True)
+class MitsubaSpec:
+    """The scene as Mitsuba plugins.
+
+    Attributes
+    ----------
+    plugins : dict
+        ``{"type": "scene", key: plugin, ...}``, in ``mi.load_dict``'s form with the neutral values above.
+    comments : dict
+        What each top-level key stands for in the scene file (``"shape 3: floor"``), for a reader of the XML.
+    """
+
+    plugins: dict
+    comments: dict = field(default_factory=dict)
+
+
+def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Parameter = 4,
+               seed: Parameter | None = None, sampler: str = "independent") -> MitsubaSpec:
+    """The scene as Mitsuba plugins: ``path`` integrator, perspective sensor, one BSDF per material, one shape per
+    shape, one emitter per ``[[emitters]]`` entry.
+
+    Rectangles, cubes and spheres keep their plugin and placement matrix; meshes are the loaded triangles, and so
+    are spheres in a scene with a material that is not diffuse (:func:`tessellates_spheres`: what a mirror or a
+    glass ball shows depends on its facets, so Mitsuba must trace the reference's icosphere).
+
+    Parameters
+    ----------
+    scene : Scene
+        The loaded scene.
+    max_depth : int, optional
+        The integrator's ``max_depth``; the scene's where None.
+    spp : int or Parameter
+        The sampler's ``sample_count``.
+    seed : Parameter, optional
+        The sampler's ``seed``; left to Mitsuba where None (a render passes its own).
+    sampler : str
+        Mitsuba's sampler plugin.
+
+    Returns
+    -------
+    MitsubaSpec
+        The plugins and a comment per material, shape and emitter.
+    """
+    plugins: dict = {
+        "type": "scene",
+        "integrator": path_integrator(scene.max_depth if max_depth is None else max_depth),
+        "sensor": sensor_plugin(scene, spp, seed, sampler),
+    }
+    comments: dict = {}
+    material_key = {}
+    for j, (name, material) in enumerate(scene.materials.items()):
+        material_key[name] = f"bsdf_{j}"
+        plugins[f"bsdf_{j}"], comments[f"bsdf_{j}"] = bsdf_dict(material), f"material {name}"
+    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
+    for shape in scene.shapes:
+        key = f"shape_{shape.index}"
+        plugins[key] = shape_plugin(shape, material_key[shape.material], shape.type in as_mesh)
+        comments[key] = f"shape {shape.index}: {shape.name}"
+    for emitter in scene.emitters:
+        plugins[f"emitter_{emitter.index}"] = light_spec(emitter)
+        comments[f"emitter_{emitter.index}"] = f"emitter {emitter.index}: {emitter.name}"
+    return MitsubaSpec(plugins, comments)
+
+
+def sensor_plugin(scene: Scene, spp: int | Parameter, seed: Parameter | None, sampler: str) -> dict:
+    """The ``perspective`` sensor: the camera's look-at, ``fov``, ``fov_axis`` and clip planes
+    (:func:`clip_planes`), its sampler and film (:func:`film_dict`)."""
+    camera = scene.camera
+    near, far = clip_planes(scene)
+    samples = {"type": sampler, "sample_count": spp if isinstance(spp, Parameter) else int(spp)}
+    if seed is not None:
+        samples["seed"] = seed
+    return {
+        "type": "perspective",
+        "fov": float(camera.fov),
+        "fov_axis": camera.fov_axis,
+        "near_clip": near,
+        "far_clip": far,
+        "to_world": LookAt(_xyz(camera.origin), _xyz(camera.target), _xyz(camera.up)),
+        "sampler": samples,
+        "film": film_dict(scene),
+    }
+
+
+def shape_plugin(shape, bsdf_key: str, as_mesh: bool) -> dict:
+    """One shape: its plugin and placement matrix, or (``as_mesh``) its triangles as a ``ply`` with flat normals;
+    its BSDF by reference, an emitting shape's ``area`` emitter."""
+    if as_mesh:
+        vertices, triangles = shape_triangles(shape)  # world space; flip_normals is in the winding
+        mesh = MeshFile(shape.name, f"{MESH_DIR}/{shape.index}-{safe_name(shape.name)}.ply", vertices, triangles)
+        plugin = {"type": "ply", "filename": mesh, "face_normals": True}
+    else:
+        plugin = {"type": shape.type, "to_world": np.asarray(object_to_world(shape), dtype=np.float64)}
+        if shape.flip_normals:
+            plugin["flip_normals"] = True
+    plugin["bsdf"] = {"type": "ref", "id": bsdf_key}
+    if shape.is_emitter:
+        plugin["emitter"] = emitter_dict(shape)
+    return plugin
+
+
+def _point_triangle_distances(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Distance from point ``p`` to each triangle (a[i], b[i], c[i])."""
+
+    def segment(u, v):
+        d = v - u
+        dd = np.einsum("ij,ij->i", d, d)
+        t = np.clip(np.einsum("ij,ij->i", p - u, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        return np.linalg.norm(p - (u + t[:, None] * d), axis=1)
+
+    ab, ac, ap = b - a, c - a, p - a
+    d00, d01, d11 = (np.einsum("ij,ij->i", x, y) for x, y in ((ab, ab), (ab, ac), (ac, ac)))
+    d20, d21 = np.einsum("ij,ij->i", ap, ab), np.einsum("ij,ij->i", ap, ac)
+    denom = d00 * d11 - d01 * d01
+    ok = denom > 0
+    safe = np.where(ok, denom, 1.0)
+    s = (d11 * d20 - d01 * d21) / safe
+    t = (d00 * d21 - d01 * d20) / safe
+    inside = ok & (s >= 0) & (t >= 0) & (s + t <= 1)
+    normal = np.cross(ab, ac)
+    plane = np.abs(np.einsum("ij,ij->i", ap, normal)) / np.sqrt(np.where(ok, denom, 1.0))
+    edges = np.minimum(np.minimum(segment(a, b), segment(b, c)), segment(c, a))
+    return np.where(inside, plane, edges)
+
+
+def clip_planes(scene: Scene) -> tuple[float, float]:
+    """``near_clip``, ``far_clip`` for the scene's camera.
+
+    near = :data:`NEAR_FRACTION` of the distance from the eye to the nearest surface (spheres exactly, other shapes
+    by their triangles), far = :data:`FAR_MARGIN` times the distance to the farthest corner of the scene's bounding
+    box. Mitsuba's defaults (0.01, 10000) would clip away a scene scaled down or up far enough.
+    """
+    eye = np.asarray(scene.camera.origin, dtype=np.float64)
+    nearest, corners = math.inf, []
+    with np.errstate(all="ignore"):
+        for shape in scene.shapes:
+            if shape.type == "sphere":
+                matrix = object_to_world(shape)
+                centre, radius = matrix[:3, 3], float(np.linalg.norm(matrix[:3, 0]))
+                nearest = min(nearest, abs(float(np.linalg.norm(eye - centre)) - radius))
+                corners += [centre - radius, centre + radius]
+                continue
+            vertices, triangles = shape_triangles(shape)
+            corners += [vertices.min(axis=0), vertices.max(axis=0)]
+            t = vertices[triangles]
+            distances = _point_triangle_distances(eye[None, :], t[:, 0], t[:, 1], t[:, 2])
+            if distances.size:
+                nearest = min(nearest, float(np.nanmin(distances)))
+    if not corners:
+        return 1e-3, 1e4  # nothing to see: anything valid will do
+    lo, hi = np.min(corners, axis=0), np.max(corners, axis=0)
+    box = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    farthest = float(np.max(np.linalg.norm(box - eye, axis=1)))
+    far = FAR_MARGIN * farthest + 1e-6 * max(farthest, 1e-30)
+    if not (math.isfinite(nearest) and nearest > 0):
+        nearest = 1e-3 * farthest  # the eye lies on a surface: a tiny near plane anyway
+    near = max(NEAR_FRACTION * nearest, 1e-7 * farthest)
+    if not (math.isfinite(near) and near > 0):
+        near = 1e-6
+    far = max(far, 2.0 * near)
+    return float(near), float(far)
+
+
+def bsdf_dict(material) -> dict:
+    """Mitsuba's dict of ``material``: its plugin (``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
+    ``roughdielectric``) with every parameter written out (so Mitsuba's defaults never decide), inside ``twosided``
+    when two-sided. A conductor with eta = 0, k = 1 is written as Mitsuba's ``material = "none"``."""
+    if material.is_diffuse:
+        spec = {"type": "diffuse", "reflectance": _rgb(material.reflectance)}
+    else:
+        spec = {"type": material.type}
+        if material.is_conductor:
+            if material.mirror:
+                spec["material"] = "none"
+            else:
+                spec["eta"], spec["k"] = _rgb(material.eta), _rgb(material.k)
+        else:
+            spec["int_ior"], spec["ext_ior"] = float(material.int_ior), float(material.ext_ior)
+        spec["specular_reflectance"] = _rgb(material.specular_reflectance)
+        if material.is_dielectric:
+            spec["specular_transmittance"] = _rgb(material.specular_transmittance)
+        if material.is_rough:
+            spec.update(alpha=float(material.alpha), distribution=material.distribution,
+                        sample_visible=bool(material.sample_visible))
+    return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
+
+
+def emitter_dict(shape) -> dict:
+    """Mitsuba's ``area`` emitter dict of an emitting shape (its RGB radiance)."""
+    return {"type": "area", "radiance": _rgb(shape.emission)}
+
+
+def _rgb(values) -> dict:
+    return {"type": "rgb", "value": _floats(values)}
+
+
+def _floats(values) -> list[float]:
+    return [float(x) for x in values]
+
+
+def _xyz(values) -> tuple[float, ...]:
+    return tuple(float(x) for x in values)
+
+
+def light_spec(emitter) -> dict:
+    """Mitsuba's plugin of an ``[[emitters]]`` entry (docs/mitsuba.md, "Emitters"): its parameters written out,
+    colours as ``rgb``, an envmap's pixels as an :class:`ImageFile`."""
+    kind = emitter.type
+    if kind == "point":
+        return {"type": "point", "position": Point(_xyz(emitter.position)), "intensity": _rgb(emitter.intensity)}
+    if kind == "spot":
+        return {"type": "spot", "to_world": np.asarray(emitter.to_world, dtype=np.float64),
+                "intensity": _rgb(emitter.intensity), "cutoff_angle": float(emitter.cutoff_angle),
+                "beam_width": float(emitter.beam_width)}
+    if kind == "directional":
+        return {"type": "directional", "direction": Vector(_xyz(emitter.direction)),
+                "irradiance": _rgb(emitter.irradiance)}
+    if kind == "constant":
+        return {"type": "constant", "radiance": _rgb(emitter.radiance)}
+    if kind == "envmap":
+        image = ImageFile(f"{TEXTURE_DIR}/{emitter.index}-{safe_name(emitter.name)}.exr", emitter.image)
+        return {"type": "envmap", "filename": image, "scale": float(emitter.scale),
+                "to_world": np.asarray(emitter.to_world, dtype=np.float64)}
+    raise ValueError(f"unknown emitter type {kind!r}")
+
+
+def film_dict(scene: Scene) -> dict:
+    """Mitsuba's ``hdrfilm``: the scene's size and filter (always explicit: Mitsuba's default is the Gaussian).
+
+    ``sample_border`` is on for tent and Gaussian filters, so that border pixels also receive samples from outside
+    the image, as the reference's (filter-importance-sampled) border pixels do.
+    """
+    rfilter = {"box": {"type": "box"}, "tent": {"type": "tent", "radius": 1.0},
+               "gaussian": {"type": "gaussian", "stddev": 0.5}}[scene.film.filter]
+    return {
+        "type": "hdrfilm",
+        "width": int(scene.film.width),
+        "height": int(scene.film.height),
+        "rfilter": rfilter,
+        "pixel_format": "rgb",
+        "component_format": "float32",
+        "sample_border": scene.film.filter != "box",
+    }
+
+
+def path_integrator(max_depth: int) -> dict:
+    """Mitsuba's ``path`` integrator with ``max_depth`` and ``rr_depth`` :data:`RR_DEPTH`."""
+    return {"type": "path", "max_depth": int(max_depth), "rr_depth": RR_DEPTH}
+
+
+def tessellates_spheres(scene: Scene) -> bool:
+    """Whether Mitsuba gets the scene's spheres as the reference's icospheres (flat-shaded meshes) instead of analytic
+    spheres: in scenes with a material that is not diffuse (conductors and dielectrics mirror or refract the facets;
+    a Lambertian scene keeps its analytic spheres, and the ground truth it always had)."""
+    return scene.has_glossy_materials
