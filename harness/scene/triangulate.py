@@ -60,6 +60,30 @@ def rotate_matrix(axis, angle_degrees: float) -> np.ndarray:
     return matrix
 
 
+def frame_to_world(origin, axis) -> np.ndarray:
+    """A 4x4 rigid transform whose local +z is the unit vector ``axis`` and whose origin is ``origin``; the other
+    two axes by Duff et al. (2017), Mitsuba's ``coordinate_system`` (any choice gives a spot light the same cone)."""
+    x, y, z = (float(v) for v in axis)
+    sign = math.copysign(1.0, z)
+    a = -1.0 / (sign + z)
+    b = x * y * a
+    s = np.array([1.0 + sign * x * x * a, sign * b, -sign * x])
+    t = np.array([b, sign + y * y * a, -y])
+    matrix = np.eye(4)
+    matrix[:3, 0], matrix[:3, 1], matrix[:3, 2], matrix[:3, 3] = s, t, (x, y, z), origin
+    return matrix + 0.0  # no -0.0 entries
+
+
+def is_similarity(linear: np.ndarray, tolerance: float = 1e-6) -> bool:
+    """True if the 3x3 matrix is a rotation (or reflection) times a uniform scale."""
+    with np.errstate(all="ignore"):
+        gram = linear.T @ linear
+        scale2 = np.trace(gram) / 3.0
+        if not (np.isfinite(scale2) and scale2 > 0):
+            return False
+        return bool(np.max(np.abs(gram / scale2 - np.eye(3))) <= tolerance)
+
+
 # --------------------------------------------------------------------------------------------------------------------
 # Unit shapes in object space, front side = cross(v1 - v0, v2 - v0).
 
