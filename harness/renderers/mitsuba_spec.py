@@ -32,6 +32,7 @@ from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, safe_name
 from harness.scene import Scene
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's values, importable from here)
     ImageFile,
     LookAt,
@@ -102,10 +103,12 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
         plugins[f"bsdf_{j}"], comments[f"bsdf_{j}"] = bsdf_dict(material), f"material {name}"
-    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
+    tessellated = tessellates_spheres(scene)
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
-        plugins[key] = shape_plugin(shape, material_key[shape.material], shape.type in as_mesh)
+        kind = SHAPES[shape.type]
+        as_mesh = not kind.analytic or (kind.curved and tessellated)
+        plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh)
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:
         plugins[f"emitter_{emitter.index}"] = light_spec(emitter)
@@ -185,9 +188,9 @@ def clip_planes(scene: Scene) -> tuple[float, float]:
     nearest, corners = math.inf, []
     with np.errstate(all="ignore"):
         for shape in scene.shapes:
-            if shape.type == "sphere":
-                matrix = object_to_world(shape)
-                centre, radius = matrix[:3, 3], float(np.linalg.norm(matrix[:3, 0]))
+            sphere = SHAPES[shape.type].sphere
+            if sphere is not None:
+                centre, radius = sphere(shape)
                 nearest = min(nearest, abs(float(np.linalg.norm(eye - centre)) - radius))
                 corners += [centre - radius, centre + radius]
                 continue

@@ -24,6 +24,7 @@ from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes, tessellates_sp
 from harness.scene import Scene
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.shapes import SHAPES
 from harness.scene.triangulate import object_to_world, shape_triangles
 
 FORMAT = "rendering-harness scene"
@@ -92,13 +93,11 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
                        "emission": None if shape.emission is None else _floats(shape.emission),
                        "mesh": rel, "triangles": int(len(triangles))}
-        if shape.type != "mesh":
+        kind = SHAPES[shape.type]
+        if kind.analytic:
             entry["to_world"] = _floats(object_to_world(shape))
             entry["flip_normals"] = bool(shape.flip_normals)
-        if shape.type == "sphere":
-            matrix = object_to_world(shape)
-            entry.update(center=_floats(matrix[:3, 3]), radius=float(np.linalg.norm(matrix[:3, 0])),
-                         subdivisions=int(shape.subdivisions))
+        entry.update(kind.json(shape))
         shapes.append(entry)
     emitters = []
     for emitter in scene.emitters:

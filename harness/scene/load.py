@@ -29,7 +29,8 @@ from harness.core.text import short
 from harness.files.imageio import exr_size, read_exr
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
-from harness.scene.model import SHAPE_TYPES, Emitter, Material, Scene, Shape
+from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
+from harness.scene.model import Emitter, Material, Scene, Shape
 from harness.scene.mesh_files import (
     MAX_MESH_BYTES,
     ConfinedResolver,
@@ -58,16 +59,12 @@ SHAPE_KEYS = (
     "file", "center", "radius", "subdivisions",
 )  # fmt: skip
 ROTATE_KEYS = ("axis", "angle")
-# Keys that only make sense for one shape type.
-KEYS_OF_ONE_TYPE = {"file": "mesh", "center": "sphere", "radius": "sphere", "subdivisions": "sphere"}
 MESH_SUFFIXES = (".ply", ".obj")
 # An environment map is held in memory as float32 RGB (12 B per pixel) and handed to Mitsuba (another copy and its
 # sampling tables): 8192 x 4096 (an "8K" lat-long map, 384 MiB as float32) at most.
 MAX_ENVMAP_PIXELS = 2**25
 
 DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
-DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
-MAX_SUBDIVISIONS = 7  # 327 680 triangles
 # Radiance per channel: a path's sample is emission times weights that reach 1e6 and more near small lights, and
 # the variance squares it; both must stay far inside float32 (3.4e38), the type of every image and EXR.
 MAX_EMISSION = 1e12
@@ -441,10 +438,12 @@ class _SceneReader:
         key = f"shapes[{index}]"
         table = self.table(entry, key)
         self.check_keys(table, SHAPE_KEYS, key)
-        shape_type = self.choice(self.require(table, "type", key, "a shape type"), f"{key}.type", SHAPE_TYPES)
-        for name, only_type in KEYS_OF_ONE_TYPE.items():
-            if name in table and shape_type != only_type:
-                message = f"key {name!r} applies only to shapes of type {only_type!r}, not {shape_type!r}"
+        shape_type = self.choice(self.require(table, "type", key, "a shape type"), f"{key}.type", tuple(SHAPES))
+        kind = SHAPES[shape_type]
+        for name in ONE_TYPE_KEYS:
+            if name in table and name not in kind.keys:
+                owners = " or ".join(repr(t) for t, other in SHAPES.items() if name in other.keys)
+                message = f"key {name!r} applies only to shapes of type {owners}, not {shape_type!r}"
                 raise self.error(f"{key}.{name}", message)
         fields: dict[str, Any] = {
             "index": index,
@@ -456,10 +455,7 @@ class _SceneReader:
         fields["to_world"], placement_key = self.placement(table, key)
         if "emission" in table:
             fields["emission"] = self.emission(table["emission"], f"{key}.emission")
-        if shape_type == "sphere":
-            fields.update(self.sphere(table, key))
-        if shape_type == "mesh":
-            fields.update(self.mesh(table, key))
+        fields.update(kind.read(self, table, key))
         shape = Shape(**fields)
         self.check_placed_shape(shape, key, placement_key)
         return shape
@@ -526,17 +522,6 @@ class _SceneReader:
         factor = self.number(value, key, what)
         return (factor, factor, factor)
 
-    def sphere(self, table: dict, key: str) -> dict[str, Any]:
-        center = self.vector3(table.get("center", [0.0, 0.0, 0.0]), f"{key}.center")
-        radius = self.number(table.get("radius", 1.0), f"{key}.radius", "a finite number > 0")
-        if radius <= 0:
-            raise self.expected(f"{key}.radius", "a finite number > 0", table["radius"])
-        what = f"an integer from 0 to {MAX_SUBDIVISIONS}"
-        subdivisions = self.integer(table.get("subdivisions", DEFAULT_SUBDIVISIONS), f"{key}.subdivisions", what)
-        if not 0 <= subdivisions <= MAX_SUBDIVISIONS:
-            raise self.expected(f"{key}.subdivisions", what, subdivisions)
-        return {"center": center, "radius": radius, "subdivisions": subdivisions}
-
     def mesh(self, table: dict, key: str) -> dict[str, Any]:
         """The mesh file's absolute path and its triangles, read with trimesh from the bytes read here (its
         materials and textures skipped: it opens no file the mesh names; harness.scene.mesh_files)."""
@@ -600,7 +585,7 @@ class _SceneReader:
             light = "; a light needs positive area" if shape.is_emitter else ""
             message = f"expected an invertible placement, got a singular matrix (a zero scale){light}"
             raise self.error(placement_key, message)
-        if shape.type == "sphere" and not is_similarity(shape.to_world[:3, :3]):
+        if SHAPES[shape.type].similarity_only and not is_similarity(shape.to_world[:3, :3]):
             raise self.error(
                 placement_key,
                 "expected a placement without non-uniform scale or shear for a sphere (Mitsuba's sphere allows "

@@ -18,7 +18,7 @@ from reference_impl.emitters import BEAM_WIDTH_FRACTION, DEFAULT_CUTOFF_ANGLE, D
 from harness.scene.kinds.mitsuba_values import ImageFile, Point, Vector, matrix, rgb, xyz
 from harness.scene.model import (EMITTER_TYPES, ConstantEnvironment, DirectionalLight, Emitter, EnvironmentMap,
                                  PointLight, SpotLight)
-from harness.scene.triangulate import frame_to_world, is_similarity
+from harness.scene.primitives import frame_to_world, is_similarity
 
 ENVMAP_SUFFIXES = (".exr",)
 MAX_CUTOFF_ANGLE = 90.0
