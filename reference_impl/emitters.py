@@ -66,6 +66,11 @@ KINDS = {"point": POINT, "spot": SPOT, "directional": DIRECTIONAL, "constant": E
 DELTA_KINDS = (POINT, SPOT, DIRECTIONAL)
 ENV_KINDS = (ENV_CONSTANT, ENV_MAP)
 ENV_SAMPLINGS = ("importance", "uniform", "cosine")
+#: Mitsuba's ``spot`` defaults: a cutoff of 20 degrees, a beam width of 3/4 of the cutoff.
+DEFAULT_CUTOFF_ANGLE = 20.0
+BEAM_WIDTH_FRACTION = 0.75
+DEFAULT_BEAM_WIDTH = BEAM_WIDTH_FRACTION * DEFAULT_CUTOFF_ANGLE
+DEFAULT_SCALE = 1.0  # an envmap's
 
 # Luminance weights of linear sRGB / Rec. 709 primaries (the same as lights._LUMINANCE).
 _LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -91,8 +96,8 @@ class Spot:
 
     to_world: np.ndarray
     intensity: tuple
-    cutoff_angle: float = 20.0
-    beam_width: float = 15.0
+    cutoff_angle: float = DEFAULT_CUTOFF_ANGLE
+    beam_width: float = DEFAULT_BEAM_WIDTH
 
 
 @dataclass(frozen=True)
@@ -117,7 +122,7 @@ class EnvMap:
 
     image: np.ndarray
     to_world: np.ndarray
-    scale: float = 1.0
+    scale: float = DEFAULT_SCALE
 
 
 def _vector3(key: str, value, positive: bool = False, nonnegative: bool = False) -> np.ndarray:

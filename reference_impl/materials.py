@@ -35,10 +35,17 @@ P_TWO_SIDED = 16  # 1: Mitsuba's twosided wrapper (diffuse and conductors only)
 P_MIRROR = 17  # 1: conductor with material = "none" (Fresnel = 1)
 NUM_PARAMS = 20  # 18-19 spare
 
-#: Mitsuba's defaults (its plugins' constructors): alpha 0.1, int_ior "bk7", ext_ior "air".
+#: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
+#: visible-normal sampling, int_ior "bk7" = 1.5046, ext_ior "air" = 1.000277, specular_* = 1; a conductor's material
+#: "none" (eta = 0, k = 1: Fresnel = 1, a perfect mirror).
 DEFAULT_ALPHA = 0.1
+DEFAULT_DISTRIBUTION = "beckmann"
+DEFAULT_SAMPLE_VISIBLE = True
 DEFAULT_INT_IOR = 1.5046
 DEFAULT_EXT_IOR = 1.000277
+DEFAULT_SPECULAR = (1.0, 1.0, 1.0)
+MIRROR_ETA = (0.0, 0.0, 0.0)
+MIRROR_K = (1.0, 1.0, 1.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,9 +103,10 @@ class Materials:
         return len(self.kind)
 
 
-def material_row(kind: int, *, reflectance=(1.0, 1.0, 1.0), eta=(0.0, 0.0, 0.0), k=(1.0, 1.0, 1.0),
-                 transmittance=(1.0, 1.0, 1.0), alpha: float = DEFAULT_ALPHA, distribution: int = BECKMANN,
-                 sample_visible: bool = True, int_ior: float = DEFAULT_INT_IOR, ext_ior: float = DEFAULT_EXT_IOR,
+def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=MIRROR_K,
+                 transmittance=DEFAULT_SPECULAR, alpha: float = DEFAULT_ALPHA,
+                 distribution: int = DISTRIBUTIONS[DEFAULT_DISTRIBUTION],
+                 sample_visible: bool = DEFAULT_SAMPLE_VISIBLE, int_ior: float = DEFAULT_INT_IOR, ext_ior: float = DEFAULT_EXT_IOR,
                  two_sided: bool = False, mirror: bool = False) -> np.ndarray:
     """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
 

@@ -53,7 +53,6 @@ FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
 LUMENS_PER_WATT = 683.0
 GLTF_LIGHTS = "KHR_lights_punctual"
 GLTF_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
-PUNCTUAL_TYPES = ("point", "spot", "directional")
 
 
 def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0) -> tuple[str, dict[str, bytes]]:
@@ -129,21 +128,34 @@ def gltf_light(emitter) -> tuple[dict, dict]:
     ramp in cos), not Mitsuba's ramp linear in the angle. glTF lights have no size and fall off with 1/r^2, as
     Mitsuba's.
     """
-    color, intensity = _gltf_colour(getattr(emitter, {"point": "intensity", "spot": "intensity",
-                                                       "directional": "irradiance"}[emitter.type]))
+    quantity, place = GLTF_PUNCTUAL[emitter.type]
+    color, intensity = _gltf_colour(getattr(emitter, quantity))
     light = {"name": emitter.name, "type": emitter.type, "color": color, "intensity": intensity}
     node: dict = {"name": safe_name(emitter.name)}
-    if emitter.type == "point":
-        node["translation"] = [float(x) for x in emitter.position]
-    elif emitter.type == "spot":
-        outer = math.radians(emitter.cutoff_angle)
-        inner = min(math.radians(emitter.beam_width), math.nextafter(outer, 0.0))
-        light["spot"] = {"innerConeAngle": inner, "outerConeAngle": outer}
-        node["translation"] = [float(x) for x in emitter.position]
-        node["rotation"] = _rotation_from_minus_z(emitter.axis)
-    else:
-        node["rotation"] = _rotation_from_minus_z(emitter.direction)
+    place(emitter, light, node)
     return light, node
+
+
+def _place_point(emitter, light: dict, node: dict) -> None:
+    node["translation"] = [float(x) for x in emitter.position]
+
+
+def _place_spot(emitter, light: dict, node: dict) -> None:
+    outer = math.radians(emitter.cutoff_angle)
+    inner = min(math.radians(emitter.beam_width), math.nextafter(outer, 0.0))
+    light["spot"] = {"innerConeAngle": inner, "outerConeAngle": outer}
+    node["translation"] = [float(x) for x in emitter.position]
+    node["rotation"] = _rotation_from_minus_z(emitter.axis)
+
+
+def _place_directional(emitter, light: dict, node: dict) -> None:
+    node["rotation"] = _rotation_from_minus_z(emitter.direction)
+
+
+#: The emitter types of ``KHR_lights_punctual``: the field that holds each one's W/sr (W/m^2) and how its light and
+#: node are placed; glTF has no environment light.
+GLTF_PUNCTUAL = {"point": ("intensity", _place_point), "spot": ("intensity", _place_spot),
+                 "directional": ("irradiance", _place_directional)}
 
 
 def _unique(name: str, taken: set[str]) -> str:
@@ -255,7 +267,7 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
     nodes.append(camera_node)
     lights = []
     for emitter in scene.emitters:
-        if emitter.type in PUNCTUAL_TYPES:
+        if emitter.type in GLTF_PUNCTUAL:
             light, node = gltf_light(emitter)
             node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
             lights.append(light)
@@ -330,7 +342,7 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
         losses.append("OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials " + ", ".join(
             f"{m.name} ({m.type})" for m in glossy) + " written with Kd = their glTF base colour")
     if fmt == "gltf":
-        lost = [e for e in scene.emitters if e.type not in PUNCTUAL_TYPES]
+        lost = [e for e in scene.emitters if e.type not in GLTF_PUNCTUAL]
         if lost:
             losses.append(f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has "
                           "point, spot and directional lights only)")

@@ -13,6 +13,10 @@ which each form writes its own way:
 * :class:`MeshFile`, :class:`ImageFile`: a mesh's triangles and an environment map's pixels, with the file each
   becomes in an export.
 
+These values live in :mod:`harness.scene.kinds.mitsuba_values` (the scene's registries write their plugins with
+them) and are importable from here. A material's and an emitter's plugin are their type's entry's
+(:data:`harness.scene.kinds.materials.MATERIALS`, :data:`harness.scene.kinds.emitters.EMITTERS`).
+
 Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i, ``emitter_<k>`` for ``[[emitters]]``
 entry k (docs/mitsuba.md, "Scene conversion").
 """
@@ -26,70 +30,24 @@ import numpy as np
 
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, safe_name
 from harness.scene import Scene
+from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.shapes import SHAPES
+from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's values, importable from here)
+    ImageFile,
+    LookAt,
+    MeshFile,
+    Parameter,
+    Point,
+    Vector,
+    rgb,
+    xyz,
+)
 from harness.scene.triangulate import object_to_world, shape_triangles
 
 RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
 NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
 FAR_MARGIN = 1.1  # far_clip = this factor times the distance to the farthest corner of the scene's bounding box
-
-
-@dataclass(frozen=True)
-class LookAt:
-    """A camera's look-at transform: its eye, the point it looks at and its up direction."""
-
-    origin: tuple[float, ...]
-    target: tuple[float, ...]
-    up: tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class Point:
-    """A position (a light's ``position``): transformed with translation."""
-
-    xyz: tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class Vector:
-    """A direction (a light's ``direction``): transformed without translation."""
-
-    xyz: tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """A value the XML names as ``$name`` and whose reader may override it; ``default`` where nobody does."""
-
-    name: str
-    default: int
-
-
-@dataclass(frozen=True, eq=False)
-class MeshFile:
-    """A shape's triangles (world space, wound to face the front side) and the PLY file they become in an export.
-
-    Attributes
-    ----------
-    name : str
-        The shape's name.
-    path : str
-        The file's path relative to the exported scene file.
-    vertices, triangles : numpy.ndarray
-        (V, 3) float64 positions and (T, 3) vertex indices.
-    """
-
-    name: str
-    path: str
-    vertices: np.ndarray
-    triangles: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
-class ImageFile:
-    """An environment map's pixels (float32 linear RGB, row 0 the top) and the EXR file they become in an export."""
-
-    path: str
-    image: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -145,10 +103,12 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
         plugins[f"bsdf_{j}"], comments[f"bsdf_{j}"] = bsdf_dict(material), f"material {name}"
-    as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)
+    tessellated = tessellates_spheres(scene)
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
-        plugins[key] = shape_plugin(shape, material_key[shape.material], shape.type in as_mesh)
+        kind = SHAPES[shape.type]
+        as_mesh = not kind.analytic or (kind.curved and tessellated)
+        plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh)
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:
         plugins[f"emitter_{emitter.index}"] = light_spec(emitter)
@@ -170,7 +130,7 @@ def sensor_plugin(scene: Scene, spp: int | Parameter, seed: Parameter | None, sa
         "fov_axis": camera.fov_axis,
         "near_clip": near,
         "far_clip": far,
-        "to_world": LookAt(_xyz(camera.origin), _xyz(camera.target), _xyz(camera.up)),
+        "to_world": LookAt(xyz(camera.origin), xyz(camera.target), xyz(camera.up)),
         "sampler": samples,
         "film": film_dict(scene),
     }
@@ -228,9 +188,9 @@ def clip_planes(scene: Scene) -> tuple[float, float]:
     nearest, corners = math.inf, []
     with np.errstate(all="ignore"):
         for shape in scene.shapes:
-            if shape.type == "sphere":
-                matrix = object_to_world(shape)
-                centre, radius = matrix[:3, 3], float(np.linalg.norm(matrix[:3, 0]))
+            sphere = SHAPES[shape.type].sphere
+            if sphere is not None:
+                centre, radius = sphere(shape)
                 nearest = min(nearest, abs(float(np.linalg.norm(eye - centre)) - radius))
                 corners += [centre - radius, centre + radius]
                 continue
@@ -259,63 +219,26 @@ def bsdf_dict(material) -> dict:
     """Mitsuba's dict of ``material``: its plugin (``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
     ``roughdielectric``) with every parameter written out (so Mitsuba's defaults never decide), inside ``twosided``
     when two-sided. A conductor with eta = 0, k = 1 is written as Mitsuba's ``material = "none"``."""
-    if material.is_diffuse:
-        spec = {"type": "diffuse", "reflectance": _rgb(material.reflectance)}
-    else:
-        spec = {"type": material.type}
-        if material.is_conductor:
-            if material.mirror:
-                spec["material"] = "none"
-            else:
-                spec["eta"], spec["k"] = _rgb(material.eta), _rgb(material.k)
-        else:
-            spec["int_ior"], spec["ext_ior"] = float(material.int_ior), float(material.ext_ior)
-        spec["specular_reflectance"] = _rgb(material.specular_reflectance)
-        if material.is_dielectric:
-            spec["specular_transmittance"] = _rgb(material.specular_transmittance)
-        if material.is_rough:
-            spec.update(alpha=float(material.alpha), distribution=material.distribution,
-                        sample_visible=bool(material.sample_visible))
-    return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
+    return MATERIALS[material.type].to_mitsuba(material)
 
 
 def emitter_dict(shape) -> dict:
     """Mitsuba's ``area`` emitter dict of an emitting shape (its RGB radiance)."""
-    return {"type": "area", "radiance": _rgb(shape.emission)}
+    return {"type": "area", "radiance": rgb(shape.emission)}
 
 
-def _rgb(values) -> dict:
-    return {"type": "rgb", "value": _floats(values)}
-
-
-def _floats(values) -> list[float]:
-    return [float(x) for x in values]
-
-
-def _xyz(values) -> tuple[float, ...]:
-    return tuple(float(x) for x in values)
+def texture_path(emitter) -> str | None:
+    """The file an ``[[emitters]]`` entry's image becomes in an export (``textures/<index>-<name>.exr``), or None
+    for a type without one."""
+    if not EMITTERS[emitter.type].textured:
+        return None
+    return f"{TEXTURE_DIR}/{emitter.index}-{safe_name(emitter.name)}.exr"
 
 
 def light_spec(emitter) -> dict:
     """Mitsuba's plugin of an ``[[emitters]]`` entry (docs/mitsuba.md, "Emitters"): its parameters written out,
     colours as ``rgb``, an envmap's pixels as an :class:`ImageFile`."""
-    kind = emitter.type
-    if kind == "point":
-        return {"type": "point", "position": Point(_xyz(emitter.position)), "intensity": _rgb(emitter.intensity)}
-    if kind == "spot":
-        return {"type": "spot", "to_world": np.asarray(emitter.to_world, dtype=np.float64),
-                "intensity": _rgb(emitter.intensity), "cutoff_angle": float(emitter.cutoff_angle),
-                "beam_width": float(emitter.beam_width)}
-    if kind == "directional":
-        return {"type": "directional", "direction": Vector(_xyz(emitter.direction)),
-                "irradiance": _rgb(emitter.irradiance)}
-    if kind == "constant":
-        return {"type": "constant", "radiance": _rgb(emitter.radiance)}
-    if kind == "envmap":
-        image = ImageFile(f"{TEXTURE_DIR}/{emitter.index}-{safe_name(emitter.name)}.exr", emitter.image)
-        return {"type": "envmap", "filename": image, "scale": float(emitter.scale),
-                "to_world": np.asarray(emitter.to_world, dtype=np.float64)}
-    raise ValueError(f"unknown emitter type {kind!r}")
+    return EMITTERS[emitter.type].to_mitsuba(emitter, texture_path(emitter))
 
 
 def film_dict(scene: Scene) -> dict:

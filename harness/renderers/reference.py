@@ -10,6 +10,7 @@ from harness.core.errors import HarnessError
 from harness.core.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
 from harness.scene import Scene, emitter_arrays, material_arrays, triangulate
+from harness.scene.kinds.emitters import EMITTERS
 
 
 class ReferenceRenderer:
@@ -133,11 +134,11 @@ def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
 def _complement_rays(scene: Scene, settings: reference_impl.Settings) -> int:
     """Shadow rays per hit for the emitters the direct strategy cannot find (docs/reference-renderer.md, "What a
     strategy cannot find"): delta lights under hemisphere sampling, and the environment too under global area."""
-    findable = {"hemisphere-cosine": ("constant", "envmap"), "hemisphere-uniform": ("constant", "envmap"),
-                "global-area": ()}
-    if settings.direct not in findable:
+    finds_environment = {"hemisphere-cosine": True, "hemisphere-uniform": True, "global-area": False}
+    if settings.direct not in finds_environment:
         return 0
-    return sum(1 for e in scene.emitters if e.type not in findable[settings.direct])
+    return sum(1 for e in scene.emitters
+               if not (finds_environment[settings.direct] and EMITTERS[e.type].environment))
 
 
 def _check_cost(scene: Scene, settings: reference_impl.Settings) -> None:

@@ -22,6 +22,9 @@ from harness.files.imageio import exr_bytes
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes, tessellates_spheres
 from harness.scene import Scene
+from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.shapes import SHAPES
 from harness.scene.triangulate import object_to_world, shape_triangles
 
 FORMAT = "rendering-harness scene"
@@ -65,43 +68,12 @@ def camera_json(scene: Scene) -> dict:
 
 def material_json(material) -> dict:
     """One material with every parameter of its Mitsuba plugin (``two_sided`` for diffuse and conductors)."""
-    out: dict = {"type": material.type}
-    if material.is_diffuse:
-        out["reflectance"] = _floats(material.reflectance)
-    if material.is_conductor:
-        out.update(eta=_floats(material.eta), k=_floats(material.k),
-                   specular_reflectance=_floats(material.specular_reflectance))
-    if material.is_dielectric:
-        out.update(int_ior=float(material.int_ior), ext_ior=float(material.ext_ior),
-                   specular_reflectance=_floats(material.specular_reflectance),
-                   specular_transmittance=_floats(material.specular_transmittance))
-    if material.is_rough:
-        out.update(alpha=float(material.alpha), distribution=material.distribution,
-                   sample_visible=bool(material.sample_visible))
-    if not material.is_dielectric:
-        out["two_sided"] = bool(material.two_sided)
-    return out
+    return MATERIALS[material.type].to_scene_json(material)
 
 
 def emitter_json(emitter, texture: str | None = None) -> dict:
     """One ``[[emitters]]`` entry with its Mitsuba parameters (plain numbers; matrices 4x4 row-major)."""
-    out: dict = {"index": emitter.index, "name": emitter.name, "type": emitter.type}
-    if emitter.type == "point":
-        out.update(position=_floats(emitter.position), intensity=_floats(emitter.intensity))
-    elif emitter.type == "spot":
-        out.update(to_world=_floats(emitter.to_world), position=_floats(emitter.position),
-                   axis=_floats(emitter.axis), intensity=_floats(emitter.intensity),
-                   cutoff_angle=float(emitter.cutoff_angle), beam_width=float(emitter.beam_width))
-    elif emitter.type == "directional":
-        out.update(direction=_floats(emitter.direction), irradiance=_floats(emitter.irradiance))
-    elif emitter.type == "constant":
-        out.update(radiance=_floats(emitter.radiance))
-    elif emitter.type == "envmap":
-        out.update(filename=texture, scale=float(emitter.scale), to_world=_floats(emitter.to_world),
-                   width=int(emitter.image.shape[1]), height=int(emitter.image.shape[0]))
-    else:
-        raise ValueError(f"unknown emitter type {emitter.type!r}")
-    return out
+    return EMITTERS[emitter.type].to_scene_json(emitter, texture)
 
 
 def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEXTURE_DIR) -> tuple[dict, dict]:
@@ -121,18 +93,16 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
                        "emission": None if shape.emission is None else _floats(shape.emission),
                        "mesh": rel, "triangles": int(len(triangles))}
-        if shape.type != "mesh":
+        kind = SHAPES[shape.type]
+        if kind.analytic:
             entry["to_world"] = _floats(object_to_world(shape))
             entry["flip_normals"] = bool(shape.flip_normals)
-        if shape.type == "sphere":
-            matrix = object_to_world(shape)
-            entry.update(center=_floats(matrix[:3, 3]), radius=float(np.linalg.norm(matrix[:3, 0])),
-                         subdivisions=int(shape.subdivisions))
+        entry.update(kind.json(shape))
         shapes.append(entry)
     emitters = []
     for emitter in scene.emitters:
         texture = None
-        if emitter.type == "envmap":
+        if EMITTERS[emitter.type].textured:
             texture = f"{texture_dir}/{emitter.index}-{safe_name(emitter.name)}.exr"
             files[texture] = exr_bytes(emitter.image)
         emitters.append(emitter_json(emitter, texture))

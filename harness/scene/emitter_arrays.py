@@ -4,32 +4,18 @@ triangles of :func:`harness.scene.triangulate`)."""
 
 from __future__ import annotations
 
-import numpy as np
-
 import reference_impl
 from reference_impl.errors import SettingsError
 
 from harness.core.errors import HarnessError
-from harness.scene.model import (ConstantEnvironment, DirectionalLight, Emitter, EnvironmentMap, PointLight, Scene,
-                                 SpotLight)
+from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.model import Emitter, Scene
 
 
 def core_record(emitter: Emitter):
-    """The core's record of one emitter of the scene model (same parameters, Mitsuba's meaning)."""
-    if isinstance(emitter, PointLight):
-        return reference_impl.Point(position=emitter.position, intensity=emitter.intensity)
-    if isinstance(emitter, SpotLight):
-        return reference_impl.Spot(to_world=np.asarray(emitter.to_world, dtype=np.float64),
-                                   intensity=emitter.intensity, cutoff_angle=emitter.cutoff_angle,
-                                   beam_width=emitter.beam_width)
-    if isinstance(emitter, DirectionalLight):
-        return reference_impl.Directional(direction=emitter.direction, irradiance=emitter.irradiance)
-    if isinstance(emitter, ConstantEnvironment):
-        return reference_impl.Constant(radiance=emitter.radiance)
-    if isinstance(emitter, EnvironmentMap):
-        return reference_impl.EnvMap(image=emitter.image, to_world=np.asarray(emitter.to_world, dtype=np.float64),
-                                     scale=emitter.scale)
-    raise TypeError(f"not an emitter of the scene model: {type(emitter).__name__}")
+    """The core's record of one emitter of the scene model (its type's
+    :attr:`~harness.scene.kinds.emitters.EmitterKind.to_core`)."""
+    return EMITTERS[emitter.type].to_core(emitter)
 
 
 def emitter_arrays(scene: Scene) -> reference_impl.Emitters | None:

@@ -27,33 +27,19 @@ from harness.core.options import env_switch
 from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.core.text import short
 from harness.files.imageio import exr_size, read_exr
-from harness.scene.model import (
-    DEFAULT_ALPHA,
-    DEFAULT_EXT_IOR,
-    DEFAULT_INT_IOR,
-    DISTRIBUTIONS,
-    EMITTER_TYPES,
-    MATERIAL_TYPES,
-    MIRROR_ETA,
-    MIRROR_K,
-    SHAPE_TYPES,
-    ConstantEnvironment,
-    DirectionalLight,
-    Emitter,
-    EnvironmentMap,
-    Material,
-    PointLight,
-    Scene,
-    Shape,
-    SpotLight,
-)
+from harness.scene.kinds.emitters import read_emitters
+from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
+from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
+from harness.scene.model import Emitter, Material, Scene, Shape
 from harness.scene.mesh_files import (
     MAX_MESH_BYTES,
     ConfinedResolver,
     confined_path,
     ply_count_problem,
 )
-from harness.scene.triangulate import (
+from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's frame, read by the tests)
+    frame_to_world,
+    is_similarity,
     object_to_world,
     rotate_matrix,
     scale_matrix,
@@ -68,61 +54,17 @@ CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLO
 CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
-# [materials.NAME]: the keys of each type (Mitsuba's parameter names), and all of them (for did-you-mean hints).
-_CONDUCTOR_KEYS = ("type", "material", "eta", "k", "specular_reflectance", "two_sided")
-_DIELECTRIC_KEYS = ("type", "int_ior", "ext_ior", "specular_reflectance", "specular_transmittance")
-_ROUGH_KEYS = ("alpha", "distribution", "sample_visible")
-MATERIAL_KEYS_OF_TYPE = {
-    "diffuse": ("type", "reflectance", "two_sided"),
-    "conductor": _CONDUCTOR_KEYS,
-    "roughconductor": _CONDUCTOR_KEYS + _ROUGH_KEYS,
-    "dielectric": _DIELECTRIC_KEYS,
-    "roughdielectric": _DIELECTRIC_KEYS + _ROUGH_KEYS,
-}
-assert tuple(MATERIAL_KEYS_OF_TYPE) == MATERIAL_TYPES
-MATERIAL_KEYS = tuple(dict.fromkeys(key for keys in MATERIAL_KEYS_OF_TYPE.values() for key in keys))
-CONDUCTOR_MATERIALS = ("none",)  # Mitsuba's named conductors but "none" (a perfect mirror) are refused
-# Mitsuba 3.9.1's "Cu" in its RGB variants (mi.load_dict({"type": "conductor", "material": "Cu"}) in scalar_rgb),
-# quoted by the refusal of named materials so that a user can type them.
-CU_ETA = (0.201005, 0.92375, 1.10222)
-CU_K = (3.91326, 2.45305, 2.14209)
-# Ranges the reference's BSDFs are tested over (docs/scene-format.md): alpha from near-specular to very rough;
-# indices and extinction coefficients of every real material, with room to spare.
-MIN_ALPHA, MAX_ALPHA = 1e-4, 1.0
-MIN_IOR, MAX_IOR = 0.01, 100.0
-MAX_CONDUCTOR_INDEX = 100.0
 SHAPE_KEYS = (
     "name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
     "file", "center", "radius", "subdivisions",
 )  # fmt: skip
 ROTATE_KEYS = ("axis", "angle")
-# Keys that only make sense for one shape type.
-KEYS_OF_ONE_TYPE = {"file": "mesh", "center": "sphere", "radius": "sphere", "subdivisions": "sphere"}
 MESH_SUFFIXES = (".ply", ".obj")
-# [[emitters]]: the keys of each type (Mitsuba's parameter names), and all of them (for did-you-mean hints).
-EMITTER_KEYS_OF_TYPE = {
-    "point": ("name", "type", "position", "intensity"),
-    "spot": ("name", "type", "position", "target", "to_world", "intensity", "cutoff_angle", "beam_width"),
-    "directional": ("name", "type", "direction", "irradiance"),
-    "constant": ("name", "type", "radiance"),
-    "envmap": ("name", "type", "file", "scale", "to_world", "rotate"),
-}
-assert tuple(EMITTER_KEYS_OF_TYPE) == EMITTER_TYPES
-EMITTER_KEYS = tuple(dict.fromkeys(key for keys in EMITTER_KEYS_OF_TYPE.values() for key in keys))
-ENVIRONMENT_TYPES = ("constant", "envmap")  # Mitsuba takes one environment emitter per scene
-ENVMAP_SUFFIXES = (".exr",)
-DEFAULT_CUTOFF_ANGLE = 20.0  # degrees, Mitsuba's spot default
-BEAM_WIDTH_FRACTION = 0.75  # Mitsuba's spot default beam_width: 3/4 of cutoff_angle
-MAX_CUTOFF_ANGLE = 90.0
 # An environment map is held in memory as float32 RGB (12 B per pixel) and handed to Mitsuba (another copy and its
 # sampling tables): 8192 x 4096 (an "8K" lat-long map, 384 MiB as float32) at most.
 MAX_ENVMAP_PIXELS = 2**25
-MIN_ENVMAP_SIZE = (2, 3)  # width, height: Mitsuba pads smaller maps (repeating edges), which would move the texels
-ORTHONORMAL_TOLERANCE = 1e-5  # an envmap's to_world: |M^T M - I| at most this (entries typed with 6 digits pass)
 
 DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
-DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
-MAX_SUBDIVISIONS = 7  # 327 680 triangles
 # Radiance per channel: a path's sample is emission times weights that reach 1e6 and more near small lights, and
 # the variance squares it; both must stay far inside float32 (3.4e38), the type of every image and EXR.
 MAX_EMISSION = 1e12
@@ -286,6 +228,10 @@ class _SceneReader:
     read (:meth:`opened`; :attr:`Scene.files`).
     """
 
+    max_emission = MAX_EMISSION  # radiance per channel, at most (shapes' emission, emitters, envmaps)
+    show = staticmethod(_show)  # a parsed value in a message
+    join = staticmethod(_join)  # a key path
+
     def __init__(self, label: str, folder: Path, allow_outside: bool = False):
         self.label = label
         self.folder = folder
@@ -362,6 +308,13 @@ class _SceneReader:
             hint = suggestion(value, choices) if isinstance(value, str) else ""
             raise self.error(key, f"expected one of {', '.join(choices)}, got {_show(value)}{hint}")
         return value
+
+    def colour_or_number(self, value: Any, key: str, what: str) -> tuple[float, float, float]:
+        """One finite number (the same in every channel, as Mitsuba takes it) or a list of 3."""
+        if isinstance(value, list):
+            return self.vector3(value, key, what)
+        number = self.number(value, key, what)
+        return (number, number, number)
 
     def matrix4(self, value: Any, key: str) -> np.ndarray:
         what = "a 4x4 nested list of finite numbers (row-major)"
@@ -463,109 +416,7 @@ class _SceneReader:
 
     def materials(self, document: dict) -> dict[str, Material]:
         table = self.table(document.get("materials", {}), "materials")
-        return {name: self.material(name, entry) for name, entry in table.items()}
-
-    def material(self, name: str, entry: Any) -> Material:
-        """One ``[materials.NAME]`` table: its type (default diffuse) and that type's parameters."""
-        key = _join("materials", name)
-        entry = self.table(entry, key)
-        self.check_keys(entry, MATERIAL_KEYS, key)
-        kind = self.choice(entry.get("type", "diffuse"), f"{key}.type", MATERIAL_TYPES)
-        if kind in ("dielectric", "roughdielectric") and "two_sided" in entry:
-            raise self.error(f"{key}.two_sided", (
-                f"a {kind} has no two_sided: light crosses it from either side (Mitsuba's twosided wrapper takes no "
-                "transmitting BSDF); int_ior is the index behind the front side, ext_ior the one in front"))
-        for item in entry:
-            if item not in MATERIAL_KEYS_OF_TYPE[kind]:
-                owners = " or ".join(repr(t) for t, keys in MATERIAL_KEYS_OF_TYPE.items() if item in keys)
-                raise self.error(f"{key}.{item}", f"key {item!r} applies only to materials of type {owners}, "
-                                                  f"not {kind!r}")
-        two_sided = self.boolean(entry.get("two_sided", False), f"{key}.two_sided")
-        if kind == "diffuse":
-            what = "a list of 3 numbers in [0, 1]"
-            raw = self.require(entry, "reflectance", key, what)
-            reflectance = self.vector3(raw, f"{key}.reflectance", what)
-            if not all(0.0 <= channel <= 1.0 for channel in reflectance):
-                raise self.expected(f"{key}.reflectance", what, raw)
-            return Material(name, reflectance, two_sided)
-        fields: dict[str, Any] = {"type": kind, "two_sided": two_sided,
-                                  "specular_reflectance": self.unit_colour(entry, "specular_reflectance", key)}
-        if kind in ("conductor", "roughconductor"):
-            fields.update(self.complex_index(entry, key))
-            bound = fields["specular_reflectance"]
-        else:
-            fields["specular_transmittance"] = self.unit_colour(entry, "specular_transmittance", key)
-            for item, default in (("int_ior", DEFAULT_INT_IOR), ("ext_ior", DEFAULT_EXT_IOR)):
-                fields[item] = self.index_of_refraction(entry.get(item, default), f"{key}.{item}")
-            bound = tuple(max(r, t) for r, t in zip(fields["specular_reflectance"], fields["specular_transmittance"]))
-            if kind == "roughdielectric" and np.float32(fields["int_ior"]) == np.float32(fields["ext_ior"]):
-                item = "int_ior" if "int_ior" in entry else "ext_ior"
-                raise self.error(f"{key}.{item}", (
-                    f"expected int_ior != ext_ior for a roughdielectric (Mitsuba refuses an index-matched rough "
-                    f"interface), got both {fields['int_ior']:g}; an invisible surface is a dielectric"))
-        if kind in ("roughconductor", "roughdielectric"):
-            what = f"a finite number in [{MIN_ALPHA:g}, {MAX_ALPHA:g}] (the microfacets' roughness)"
-            alpha = self.number(entry.get("alpha", DEFAULT_ALPHA), f"{key}.alpha", what)
-            if not MIN_ALPHA <= alpha <= MAX_ALPHA:
-                raise self.expected(f"{key}.alpha", what, entry["alpha"])
-            fields["alpha"] = alpha
-            fields["distribution"] = self.choice(entry.get("distribution", "beckmann"), f"{key}.distribution",
-                                                 DISTRIBUTIONS)
-            fields["sample_visible"] = self.boolean(entry.get("sample_visible", True), f"{key}.sample_visible")
-        return Material(name, bound, **fields)
-
-    def unit_colour(self, entry: dict, item: str, key: str) -> tuple[float, float, float]:
-        """``specular_reflectance`` / ``specular_transmittance``: a number or [r, g, b], each in [0, 1]; default 1."""
-        what = "a number or a list of 3 numbers, each in [0, 1]"
-        colour = self.colour_or_number(entry.get(item, 1.0), f"{key}.{item}", what)
-        if not all(0.0 <= channel <= 1.0 for channel in colour):
-            raise self.expected(f"{key}.{item}", what, entry[item])
-        return colour
-
-    def colour_or_number(self, value: Any, key: str, what: str) -> tuple[float, float, float]:
-        """One finite number (the same in every channel, as Mitsuba takes it) or a list of 3."""
-        if isinstance(value, list):
-            return self.vector3(value, key, what)
-        number = self.number(value, key, what)
-        return (number, number, number)
-
-    def complex_index(self, entry: dict, key: str) -> dict[str, tuple[float, float, float]]:
-        """A conductor's ``eta`` and ``k`` (Mitsuba's defaults 0 and 1), or ``material = "none"`` (the same: a
-        perfect mirror); other named materials are refused."""
-        if "material" in entry:
-            material = entry["material"]
-            if material not in CONDUCTOR_MATERIALS:
-                raise self.error(f"{key}.material", (
-                    f'expected "none" (a perfect mirror), got {_show(material)}: named conductors are not supported; '
-                    f"give eta and k (Mitsuba 3.9.1's RGB Cu: eta = [{', '.join(map(str, CU_ETA))}], "
-                    f"k = [{', '.join(map(str, CU_K))}])"))
-            given = [item for item in ("eta", "k") if item in entry]
-            if given:
-                raise self.error(f"{key}.material",
-                                 f'expected either material = "none" or eta / k, not both (found {", ".join(given)})')
-        what = f"a number or a list of 3 numbers, each in [0, {MAX_CONDUCTOR_INDEX:g}]"
-        values = {}
-        for item, default in (("eta", MIRROR_ETA), ("k", MIRROR_K)):
-            values[item] = self.colour_or_number(entry.get(item, list(default)), f"{key}.{item}", what)
-            if not all(0.0 <= channel <= MAX_CONDUCTOR_INDEX for channel in values[item]):
-                raise self.expected(f"{key}.{item}", what, entry[item])
-        for channel, (eta, k) in enumerate(zip(values["eta"], values["k"])):
-            if eta == 0 and k == 0:
-                where = f"{key}.eta" if "eta" in entry else f"{key}.k"
-                raise self.error(where, (
-                    f"eta and k are both 0 in channel {'RGB'[channel]}: a complex index of 0 has no Fresnel "
-                    "reflectance; expected eta > 0 or k > 0 in every channel"))
-        return values
-
-    def index_of_refraction(self, value: Any, key: str) -> float:
-        what = f"a finite number in [{MIN_IOR:g}, {MAX_IOR:g}] (an index of refraction)"
-        if isinstance(value, str):
-            raise self.error(key, f"expected {what}, got {_show(value)}: named indices are not supported; give "
-                                  "the number")
-        ior = self.number(value, key, what)
-        if not MIN_IOR <= ior <= MAX_IOR:
-            raise self.expected(key, what, value)
-        return ior
+        return {name: read_material(self, name, entry) for name, entry in table.items()}
 
     # ---- shapes --------------------------------------------------------------------------------------------------
 
@@ -587,10 +438,12 @@ class _SceneReader:
         key = f"shapes[{index}]"
         table = self.table(entry, key)
         self.check_keys(table, SHAPE_KEYS, key)
-        shape_type = self.choice(self.require(table, "type", key, "a shape type"), f"{key}.type", SHAPE_TYPES)
-        for name, only_type in KEYS_OF_ONE_TYPE.items():
-            if name in table and shape_type != only_type:
-                message = f"key {name!r} applies only to shapes of type {only_type!r}, not {shape_type!r}"
+        shape_type = self.choice(self.require(table, "type", key, "a shape type"), f"{key}.type", tuple(SHAPES))
+        kind = SHAPES[shape_type]
+        for name in ONE_TYPE_KEYS:
+            if name in table and name not in kind.keys:
+                owners = " or ".join(repr(t) for t, other in SHAPES.items() if name in other.keys)
+                message = f"key {name!r} applies only to shapes of type {owners}, not {shape_type!r}"
                 raise self.error(f"{key}.{name}", message)
         fields: dict[str, Any] = {
             "index": index,
@@ -602,10 +455,7 @@ class _SceneReader:
         fields["to_world"], placement_key = self.placement(table, key)
         if "emission" in table:
             fields["emission"] = self.emission(table["emission"], f"{key}.emission")
-        if shape_type == "sphere":
-            fields.update(self.sphere(table, key))
-        if shape_type == "mesh":
-            fields.update(self.mesh(table, key))
+        fields.update(kind.read(self, table, key))
         shape = Shape(**fields)
         self.check_placed_shape(shape, key, placement_key)
         return shape
@@ -672,17 +522,6 @@ class _SceneReader:
         factor = self.number(value, key, what)
         return (factor, factor, factor)
 
-    def sphere(self, table: dict, key: str) -> dict[str, Any]:
-        center = self.vector3(table.get("center", [0.0, 0.0, 0.0]), f"{key}.center")
-        radius = self.number(table.get("radius", 1.0), f"{key}.radius", "a finite number > 0")
-        if radius <= 0:
-            raise self.expected(f"{key}.radius", "a finite number > 0", table["radius"])
-        what = f"an integer from 0 to {MAX_SUBDIVISIONS}"
-        subdivisions = self.integer(table.get("subdivisions", DEFAULT_SUBDIVISIONS), f"{key}.subdivisions", what)
-        if not 0 <= subdivisions <= MAX_SUBDIVISIONS:
-            raise self.expected(f"{key}.subdivisions", what, subdivisions)
-        return {"center": center, "radius": radius, "subdivisions": subdivisions}
-
     def mesh(self, table: dict, key: str) -> dict[str, Any]:
         """The mesh file's absolute path and its triangles, read with trimesh from the bytes read here (its
         materials and textures skipped: it opens no file the mesh names; harness.scene.mesh_files)."""
@@ -746,7 +585,7 @@ class _SceneReader:
             light = "; a light needs positive area" if shape.is_emitter else ""
             message = f"expected an invertible placement, got a singular matrix (a zero scale){light}"
             raise self.error(placement_key, message)
-        if shape.type == "sphere" and not _is_similarity(shape.to_world[:3, :3]):
+        if SHAPES[shape.type].similarity_only and not is_similarity(shape.to_world[:3, :3]):
             raise self.error(
                 placement_key,
                 "expected a placement without non-uniform scale or shear for a sphere (Mitsuba's sphere allows "
@@ -766,172 +605,20 @@ class _SceneReader:
     # ---- emitters that are not shapes ----------------------------------------------------------------------------
 
     def emitters(self, document: dict) -> tuple[Emitter, ...]:
-        entries = document.get("emitters", [])
-        if not isinstance(entries, list):
-            raise self.expected("emitters", "an array of tables ([[emitters]])", entries)
-        emitters: list[Emitter] = []
-        for index, entry in enumerate(entries):
-            emitter = self.emitter(index, entry)
-            for other in emitters:
-                if other.name == emitter.name:
-                    message = f"duplicate emitter name {emitter.name!r} (also emitters[{other.index}])"
-                    raise self.error(f"emitters[{index}].name", message)
-                if emitter.type in ENVIRONMENT_TYPES and other.type in ENVIRONMENT_TYPES:
-                    raise self.error(f"emitters[{index}].type", (
-                        f"a second environment emitter ({emitter.type!r}; emitters[{other.index}] is a {other.type!r}); "
-                        "expected at most one constant or envmap per scene, as in Mitsuba"))
-            emitters.append(emitter)
-        return tuple(emitters)
+        return read_emitters(self, document)
 
-    def emitter(self, index: int, entry: Any) -> Emitter:
-        key = f"emitters[{index}]"
-        table = self.table(entry, key)
-        self.check_keys(table, EMITTER_KEYS, key)
-        kind = self.choice(self.require(table, "type", key, "an emitter type"), f"{key}.type", EMITTER_TYPES)
-        for name in table:
-            if name not in EMITTER_KEYS_OF_TYPE[kind]:
-                owners = " or ".join(repr(t) for t, keys in EMITTER_KEYS_OF_TYPE.items() if name in keys)
-                message = f"key {name!r} applies only to emitters of type {owners}, not {kind!r}"
-                raise self.error(f"{key}.{name}", message)
-        name = self.string(table.get("name", f"emitter{index}"), f"{key}.name")
-        if kind == "point":
-            position = self.vector3(self.require(table, "position", key, "a point"), f"{key}.position")
-            return PointLight(index, name, position, self.colour(table, "intensity", key, "W/sr"))
-        if kind == "spot":
-            return self.spot(index, name, table, key)
-        if kind == "directional":
-            direction = self.direction(self.require(table, "direction", key, "the direction light travels"),
-                                       f"{key}.direction")
-            return DirectionalLight(index, name, direction, self.colour(table, "irradiance", key, "W/m^2"))
-        if kind == "constant":
-            return ConstantEnvironment(index, name, self.colour(table, "radiance", key, "W/(m^2 sr)"))
-        return self.envmap(index, name, table, key)
-
-    def colour(self, table: dict, name: str, key: str, unit: str) -> tuple[float, float, float]:
-        """A required [r, g, b] of an emitter: finite, >= 0, not all 0, at most MAX_EMISSION (as shapes' emission)."""
-        return self.emission(self.require(table, name, key, f"[r, g, b] in {unit}"), f"{key}.{name}")
-
-    def direction(self, value: Any, key: str) -> tuple[float, float, float]:
-        """A non-zero vector, normalised."""
-        what = "a list of 3 finite numbers, not all 0"
-        vector = np.array(self.vector3(value, key, what), dtype=np.float64)
-        with np.errstate(all="ignore"):
-            length = float(np.linalg.norm(vector))
-        if not (0.0 < length < math.inf):
-            raise self.expected(key, what, value)
-        return tuple(float(x) for x in vector / length)
-
-    def spot(self, index: int, name: str, table: dict, key: str) -> SpotLight:
-        if "to_world" in table:
-            given = [k for k in ("position", "target") if k in table]
-            if given:
-                raise self.error(f"{key}.to_world",
-                                 f"expected either to_world or position / target, not both (found {', '.join(given)})")
-            to_world = self.matrix4(table["to_world"], f"{key}.to_world")
-            if not _is_similarity(to_world[:3, :3]):
-                raise self.error(f"{key}.to_world", (
-                    "expected a rotation, a uniform scale and a translation (the spot's cone is the local +z axis; "
-                    "a non-uniform scale, a shear or a zero scale would distort or lose it)"))
-        else:
-            what = "a point, or give to_world"
-            position = self.vector3(self.require(table, "position", key, what), f"{key}.position")
-            target = self.vector3(self.require(table, "target", key, "a point the cone's axis passes through"),
-                                  f"{key}.target")
-            with np.errstate(all="ignore"):
-                axis = np.subtract(target, position)
-                length = float(np.linalg.norm(axis))
-            if not (0.0 < length < math.inf):
-                raise self.error(f"{key}.target", f"expected a point other than position (the cone's axis runs from "
-                                                  f"position to target), got {_show(table['target'])}")
-            to_world = frame_to_world(position, axis / length)
-        intensity = self.colour(table, "intensity", key, "W/sr")
-        what = f"an angle in degrees in (0, {MAX_CUTOFF_ANGLE:g}]"
-        cutoff = self.number(table.get("cutoff_angle", DEFAULT_CUTOFF_ANGLE), f"{key}.cutoff_angle", what)
-        if not 0.0 < cutoff <= MAX_CUTOFF_ANGLE:
-            raise self.expected(f"{key}.cutoff_angle", what, table["cutoff_angle"])
-        what = f"an angle in degrees in (0, cutoff_angle = {cutoff:g}]"
-        beam = self.number(table.get("beam_width", BEAM_WIDTH_FRACTION * cutoff), f"{key}.beam_width", what)
-        if not 0.0 < beam <= cutoff:
-            raise self.expected(f"{key}.beam_width", what, table["beam_width"])
-        return SpotLight(index, name, to_world, intensity, cutoff, beam)
-
-    def envmap(self, index: int, name: str, table: dict, key: str) -> EnvironmentMap:
-        file_key = f"{key}.file"
-        file_name = self.string(self.require(table, "file", key, "an OpenEXR lat-long image"), file_key)
-        if not file_name.lower().endswith(ENVMAP_SUFFIXES):
-            raise self.expected(file_key, "an .exr file name (OpenEXR, linear RGB)", file_name)
-        path = self.file_path(file_name, file_key, "envmap")
+    def envmap_image(self, name: str, key: str) -> tuple[Path, np.ndarray]:
+        """The path and pixels of the environment map ``name`` (at ``key``), after its header's size and cost
+        (:func:`harness.core.limits.envmap_problem`, :data:`MAX_ENVMAP_PIXELS`)."""
+        path = self.file_path(name, key, "envmap")
         try:
             problem = envmap_problem(*exr_size(path, max_pixels=MAX_ENVMAP_PIXELS))  # on the header alone
             image = None if problem else read_exr(path, max_pixels=MAX_ENVMAP_PIXELS).image
         except HarnessError as err:
-            raise self.error(file_key, f"envmap file {file_name!r}: {err.message}") from None
+            raise self.error(key, f"envmap file {name!r}: {err.message}") from None
         if problem:
-            raise self.error(file_key, f"envmap file {file_name!r}: {problem}")
-        what = "a finite number > 0"
-        scale = self.number(table.get("scale", 1.0), f"{key}.scale", what)
-        if scale <= 0:
-            raise self.expected(f"{key}.scale", what, table["scale"])
-        self.check_envmap_pixels(image, file_name, file_key, scale, f"{key}.scale")
-        image.setflags(write=False)
-        if "to_world" in table:
-            if "rotate" in table:
-                raise self.error(f"{key}.to_world", "expected either to_world or rotate, not both")
-            to_world = self.matrix4(table["to_world"], f"{key}.to_world")
-            linear = to_world[:3, :3]
-            if np.any(to_world[:3, 3] != 0):
-                raise self.error(f"{key}.to_world", (
-                    "expected no translation (last column [0, 0, 0, 1]): an environment map is infinitely far, "
-                    "Mitsuba ignores it"))
-            with np.errstate(all="ignore"):
-                deviation = float(np.max(np.abs(linear.T @ linear - np.eye(3))))
-                determinant = float(np.linalg.det(linear)) if math.isfinite(deviation) else math.nan
-            if not (deviation <= ORTHONORMAL_TOLERANCE and determinant > 0):
-                raise self.error(f"{key}.to_world", (
-                    f"expected a rotation (orthonormal within {ORTHONORMAL_TOLERANCE:g}, determinant +1)"
-                    .replace("e-0", "e-") + ": Mitsuba maps directions with it without normalising them, so a "
-                    "scale or shear would move the map"))
-        else:
-            to_world = self.rotation(table.get("rotate", []), f"{key}.rotate")
-        return EnvironmentMap(index, name, path, image, to_world, scale)
-
-    def check_envmap_pixels(self, image: np.ndarray, name: str, key: str, scale: float, scale_key: str) -> None:
-        """Refuse maps too small for Mitsuba's mapping and pixels that are not finite radiances >= 0."""
-        height, width = image.shape[:2]
-        if width < MIN_ENVMAP_SIZE[0] or height < MIN_ENVMAP_SIZE[1]:
-            raise self.error(key, (
-                f"envmap file {name!r} is {width} x {height} pixels; expected at least {MIN_ENVMAP_SIZE[0]} x "
-                f"{MIN_ENVMAP_SIZE[1]} (Mitsuba pads smaller maps by repeating their edges)"))
-        bad = ~np.isfinite(image) | (image < 0)
-        if bad.any():
-            row, column, channel = (int(i) for i in np.argwhere(bad)[0])
-            value = float(image[row, column, channel])
-            count = int(bad.sum())
-            raise self.error(key, (
-                f"envmap file {name!r} has {count} bad value{'s' if count > 1 else ''}, the first at row {row}, "
-                f"column {column}: {'RGB'[channel]} = {_show(value)}; expected finite radiances >= 0"))
-        peak = float(image.max())
-        if peak == 0:
-            raise self.error(key, f"envmap file {name!r} is black (every pixel 0); expected some emission")
-        if peak * scale > MAX_EMISSION:
-            where = scale_key if scale != 1.0 else key
-            raise self.error(where, (
-                f"envmap file {name!r} times scale {scale:g} reaches {peak * scale:.3g}; expected radiances of at "
-                f"most {MAX_EMISSION:g}".replace("e+", "e")))
-
-
-def frame_to_world(origin, axis) -> np.ndarray:
-    """A 4x4 rigid transform whose local +z is the unit vector ``axis`` and whose origin is ``origin``; the other
-    two axes by Duff et al. (2017), Mitsuba's ``coordinate_system`` (any choice gives a spot light the same cone)."""
-    x, y, z = (float(v) for v in axis)
-    sign = math.copysign(1.0, z)
-    a = -1.0 / (sign + z)
-    b = x * y * a
-    s = np.array([1.0 + sign * x * x * a, sign * b, -sign * x])
-    t = np.array([b, sign + y * y * a, -y])
-    matrix = np.eye(4)
-    matrix[:3, 0], matrix[:3, 1], matrix[:3, 2], matrix[:3, 3] = s, t, (x, y, z), origin
-    return matrix + 0.0  # no -0.0 entries
+            raise self.error(key, f"envmap file {name!r}: {problem}")
+        return path, image
 
 
 def obj_face_problem(data: bytes) -> str | None:
@@ -994,13 +681,3 @@ def _finite_float(value: Any) -> float | None:
     except OverflowError:
         return None
     return number if math.isfinite(number) else None
-
-
-def _is_similarity(linear: np.ndarray, tolerance: float = 1e-6) -> bool:
-    """True if the 3x3 matrix is a rotation (or reflection) times a uniform scale."""
-    with np.errstate(all="ignore"):
-        gram = linear.T @ linear
-        scale2 = np.trace(gram) / 3.0
-        if not (np.isfinite(scale2) and scale2 > 0):
-            return False
-        return bool(np.max(np.abs(gram / scale2 - np.eye(3))) <= tolerance)

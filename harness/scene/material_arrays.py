@@ -11,27 +11,20 @@ from reference_impl import materials as core
 from reference_impl.errors import SettingsError
 
 from harness.core.errors import HarnessError
+from harness.scene.kinds.materials import MATERIALS
 from harness.scene.model import Material, Scene
-
-KINDS = {"diffuse": core.DIFFUSE, "conductor": core.CONDUCTOR, "roughconductor": core.ROUGHCONDUCTOR,
-         "dielectric": core.DIELECTRIC, "roughdielectric": core.ROUGHDIELECTRIC}
 
 
 def material_row(material: Material) -> np.ndarray:
-    """The core's parameter row of one material of the scene model (same parameters, Mitsuba's meaning)."""
-    if material.is_diffuse:
-        return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
-    return core.material_row(
-        KINDS[material.type], reflectance=material.specular_reflectance, eta=material.eta, k=material.k,
-        transmittance=material.specular_transmittance, alpha=material.alpha,
-        distribution=core.DISTRIBUTIONS[material.distribution], sample_visible=material.sample_visible,
-        int_ior=material.int_ior, ext_ior=material.ext_ior, two_sided=material.two_sided, mirror=material.mirror)
+    """The core's parameter row of one material of the scene model (its type's
+    :meth:`~harness.scene.kinds.materials.MaterialKind.to_core`)."""
+    return MATERIALS[material.type].to_core(material)
 
 
 def material_table(scene: Scene) -> reference_impl.Materials:
     """Every material of ``scene`` as the core's table, in file order."""
     materials = list(scene.materials.values())
-    kind = np.array([KINDS[m.type] for m in materials], dtype=np.int64)
+    kind = np.array([MATERIALS[m.type].core_kind for m in materials], dtype=np.int64)
     params = np.array([material_row(m) for m in materials], dtype=np.float64).reshape(-1, core.NUM_PARAMS)
     try:
         return reference_impl.Materials(kind, params)

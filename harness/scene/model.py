@@ -12,6 +12,10 @@ from pathlib import Path
 import numpy as np
 
 from reference_impl.camera import Camera, Film
+from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DEFAULT_SCALE
+from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
+                                      DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR, MIRROR_ETA, MIRROR_K)
+from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
 
 SHAPE_TYPES = ("rectangle", "cube", "sphere", "mesh")
 EMITTER_TYPES = ("point", "spot", "directional", "constant", "envmap")
@@ -23,14 +27,8 @@ MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "rough
 CONDUCTOR_TYPES = ("conductor", "roughconductor")
 DIELECTRIC_TYPES = ("dielectric", "roughdielectric")
 ROUGH_TYPES = ("roughconductor", "roughdielectric")
-DISTRIBUTIONS = ("beckmann", "ggx")  # Mitsuba's microfacet distributions; beckmann is its default
-# Mitsuba 3.9.1's defaults (src/bsdfs/*.cpp): a conductor's material is "none" (eta = 0, k = 1: Fresnel = 1, a
-# perfect mirror), alpha 0.1, int_ior "bk7" = 1.5046, ext_ior "air" = 1.000277, specular_* = 1.
-MIRROR_ETA = (0.0, 0.0, 0.0)
-MIRROR_K = (1.0, 1.0, 1.0)
-DEFAULT_ALPHA = 0.1
-DEFAULT_INT_IOR = 1.5046
-DEFAULT_EXT_IOR = 1.000277
+DISTRIBUTIONS = tuple(CORE_DISTRIBUTIONS)  # Mitsuba's microfacet distributions
+# The defaults of the fields below are the core's (reference_impl.materials, reference_impl.emitters): Mitsuba's.
 
 
 @dataclass(frozen=True)
@@ -53,11 +51,11 @@ class Material:
     type: str = "diffuse"
     eta: Vector3 = MIRROR_ETA  # conductors: the real part of the complex index of refraction, per channel
     k: Vector3 = MIRROR_K  # conductors: its imaginary part (the extinction coefficient)
-    specular_reflectance: Vector3 = (1.0, 1.0, 1.0)
-    specular_transmittance: Vector3 = (1.0, 1.0, 1.0)  # dielectrics
+    specular_reflectance: Vector3 = DEFAULT_SPECULAR
+    specular_transmittance: Vector3 = DEFAULT_SPECULAR  # dielectrics
     alpha: float = DEFAULT_ALPHA  # rough types: the isotropic microfacet roughness
-    distribution: str = "beckmann"  # rough types
-    sample_visible: bool = True  # rough types: sample the visible normals
+    distribution: str = DEFAULT_DISTRIBUTION  # rough types: one of DISTRIBUTIONS
+    sample_visible: bool = DEFAULT_SAMPLE_VISIBLE  # rough types: sample the visible normals
     int_ior: float = DEFAULT_INT_IOR  # dielectrics: the index inside (behind the front side)
     ext_ior: float = DEFAULT_EXT_IOR  # dielectrics: the index outside (on the front side)
 
@@ -161,8 +159,8 @@ class SpotLight:
     name: str
     to_world: np.ndarray  # 4x4, world from the light's frame: origin = position, +z = the cone's axis
     intensity: Vector3
-    cutoff_angle: float = 20.0
-    beam_width: float = 15.0  # the loader's default: 3/4 of cutoff_angle
+    cutoff_angle: float = DEFAULT_CUTOFF_ANGLE
+    beam_width: float = DEFAULT_BEAM_WIDTH  # the loader's default: 3/4 of cutoff_angle
     type = "spot"
 
     @property
@@ -208,7 +206,7 @@ class EnvironmentMap:
     file: Path
     image: np.ndarray
     to_world: np.ndarray
-    scale: float = 1.0
+    scale: float = DEFAULT_SCALE
     type = "envmap"
 
 

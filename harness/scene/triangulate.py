@@ -14,8 +14,6 @@ winding once more.
 
 from __future__ import annotations
 
-import math
-from functools import lru_cache
 
 import numpy as np
 
@@ -23,169 +21,19 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 
 from harness.core.errors import HarnessError
+from harness.scene.kinds.shapes import SHAPES
 from harness.scene.model import Scene, Shape
-
-# Shape types whose front side Mitsuba keeps under a mirroring placement (the others swap sides with the winding).
-KEEP_FRONT_WHEN_MIRRORED = ("rectangle", "cube")
-
-# --------------------------------------------------------------------------------------------------------------------
-# 4x4 transforms (row-major, applied to column vectors: p' = M p), the same matrices as Mitsuba's Transform4f.
-
-
-def translate_matrix(offset) -> np.ndarray:
-    """The 4x4 matrix that moves points by ``offset`` (3 numbers)."""
-    matrix = np.eye(4)
-    matrix[:3, 3] = np.asarray(offset, dtype=np.float64)
-    return matrix
-
-
-def scale_matrix(factors) -> np.ndarray:
-    """The 4x4 matrix that scales by one number or by 3 per-axis factors."""
-    return np.diag([*np.broadcast_to(np.asarray(factors, dtype=np.float64), (3,)), 1.0])
-
-
-def rotate_matrix(axis, angle_degrees: float) -> np.ndarray:
-    """Right-handed rotation by ``angle_degrees`` about ``axis`` (normalised here), Rodrigues' formula.
-
-    Matches Mitsuba's ``Transform4f.rotate(axis / |axis|, angle)`` (Mitsuba itself does not normalise the axis).
-    ``axis`` must not be the zero vector.
-    """
-    k = np.asarray(axis, dtype=np.float64)
-    k = k / np.linalg.norm(k)
-    theta = math.radians(angle_degrees)
-    cos, sin = math.cos(theta), math.sin(theta)
-    cross_matrix = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    matrix = np.eye(4)
-    matrix[:3, :3] = cos * np.eye(3) + sin * cross_matrix + (1.0 - cos) * np.outer(k, k)
-    return matrix
-
-
-# --------------------------------------------------------------------------------------------------------------------
-# Unit shapes in object space, front side = cross(v1 - v0, v2 - v0).
-
-
-def unit_rectangle() -> tuple[np.ndarray, np.ndarray]:
-    """Mitsuba's rectangle: [-1, 1]^2 at z = 0, two triangles facing +z."""
-    vertices = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
-    triangles = np.array([[0, 1, 2], [0, 2, 3]])
-    return vertices, triangles
-
-
-def unit_cube() -> tuple[np.ndarray, np.ndarray]:
-    """Mitsuba's cube: [-1, 1]^3, 12 triangles facing outward, each face with its own 4 vertices."""
-    identity = np.eye(3)
-    vertices, triangles = [], []
-    for axis in range(3):
-        for sign in (1.0, -1.0):
-            normal = sign * identity[axis]
-            # Tangents u, v with cross(u, v) = normal.
-            u, v = identity[(axis + 1) % 3], identity[(axis + 2) % 3]
-            if sign < 0:
-                u, v = v, u
-            first = len(vertices)
-            vertices += [normal - u - v, normal + u - v, normal + u + v, normal - u + v]
-            triangles += [[first, first + 1, first + 2], [first, first + 2, first + 3]]
-    return np.array(vertices), np.array(triangles)
-
-
-#: The regular icosahedron the icosphere starts from: its 12 vertices (the cyclic permutations of (0, +-a, +-b), a
-#: and b = 1 and the golden ratio scaled onto the unit sphere) and 20 faces wound outward. These are the numbers
-#: trimesh ships (its creation.json), to the last bit and in its order (b has only 14 digits there), so that
-#: :func:`unit_sphere` gives the triangles the images and their checksums were made with (trimesh.creation.icosphere's;
-#: tests/scene/test_icosphere.py compares the two at every level).
-ICOSAHEDRON_VERTICES = (
-    (-0.5257311121191336, 0.85065080835204, 0.0), (0.5257311121191336, 0.85065080835204, 0.0),
-    (-0.5257311121191336, -0.85065080835204, 0.0), (0.5257311121191336, -0.85065080835204, 0.0),
-    (0.0, -0.5257311121191336, 0.85065080835204), (0.0, 0.5257311121191336, 0.85065080835204),
-    (0.0, -0.5257311121191336, -0.85065080835204), (0.0, 0.5257311121191336, -0.85065080835204),
-    (0.85065080835204, 0.0, -0.5257311121191336), (0.85065080835204, 0.0, 0.5257311121191336),
-    (-0.85065080835204, 0.0, -0.5257311121191336), (-0.85065080835204, 0.0, 0.5257311121191336),
+from harness.scene.primitives import (  # noqa: F401 (the transforms and unit shapes, importable from here)
+    frame_to_world,
+    icosphere,
+    is_similarity,
+    rotate_matrix,
+    scale_matrix,
+    translate_matrix,
+    unit_cube,
+    unit_rectangle,
+    unit_sphere,
 )
-ICOSAHEDRON_TRIANGLES = (
-    (0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2), (10, 7, 6),
-    (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11), (6, 2, 10), (8, 6, 7),
-    (9, 8, 1),
-)
-
-
-def _onto_sphere(vertices: np.ndarray) -> np.ndarray:
-    """Each vertex moved along its direction by 1 - |v|: ``v + (v / |v|) (1 - |v|)``, as trimesh does it (not
-    ``v / |v|``, which rounds differently). |v| comes from ``np.dot`` with a vector of ones, the reduction trimesh
-    uses (through BLAS), so that the sums, and the bits, are the same."""
-    length = np.sqrt(np.dot(vertices * vertices, np.ones(3)))
-    return vertices + vertices / length[:, None] * (1.0 - length)[:, None]
-
-
-def _subdivide(vertices: np.ndarray, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Each triangle (a, b, c) split in four at its edges' midpoints m_ab, m_bc, m_ca: (a, m_ab, m_ca),
-    (m_ab, b, m_bc), (m_ca, m_bc, c), (m_ab, m_bc, m_ca), in that order, triangle after triangle (the winding is
-    kept). An edge shared by two triangles gets one midpoint, ``(v_lo + v_hi) / 2``; the midpoints follow the old
-    vertices, ordered by (larger index, smaller index) of their edge (the order trimesh's subdivision gives)."""
-    count = len(vertices)
-    edges = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)  # (a, b), (b, c), (c, a) of each triangle
-    low, high = edges.min(axis=1), edges.max(axis=1)
-    _, first, which = np.unique(high * count + low, return_index=True, return_inverse=True)
-    midpoints = (vertices[low[first]] + vertices[high[first]]) / 2.0
-    ab, bc, ca = (which.reshape(-1, 3) + count).T
-    a, b, c = triangles.T
-    split = np.stack([a, ab, ca, ab, b, bc, ca, bc, c, ab, bc, ca], axis=1).reshape(-1, 3)
-    return np.concatenate([vertices, midpoints]), split
-
-
-def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
-    """``trimesh.creation.icosphere(subdivisions, radius=1)``'s vertices (float64) and faces (int64), the same
-    arrays to the last bit (:func:`unit_sphere` divides the vertices by their norms)."""
-    vertices = np.array(ICOSAHEDRON_VERTICES, dtype=np.float64)
-    triangles = np.array(ICOSAHEDRON_TRIANGLES, dtype=np.int64)
-    if subdivisions <= 0:
-        vertices = _onto_sphere(vertices)
-    for _ in range(subdivisions):
-        vertices, triangles = _subdivide(vertices, triangles)
-        vertices = _onto_sphere(vertices)
-    return vertices, triangles
-
-
-@lru_cache(maxsize=None)
-def _unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
-    vertices, triangles = icosphere(subdivisions)
-    vertices /= np.linalg.norm(vertices, axis=1, keepdims=True)  # exactly on the unit sphere
-    vertices.setflags(write=False)
-    triangles.setflags(write=False)
-    return vertices, triangles
-
-
-def unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
-    """The unit sphere as an icosphere (20 * 4**subdivisions triangles) facing outward, vertices on the sphere.
-
-    Parameters
-    ----------
-    subdivisions : int
-        How many times the icosahedron is subdivided (0 to 7 in a scene file).
-
-    Returns
-    -------
-    vertices : numpy.ndarray
-        (10 * 4**subdivisions + 2, 3) float64, read-only, each of norm 1 (to rounding).
-    triangles : numpy.ndarray
-        (20 * 4**subdivisions, 3) int64, read-only, wound outward.
-
-    Notes
-    -----
-    Midpoint subdivision of the regular icosahedron (not Loop's scheme: nothing is smoothed): each level splits
-    every triangle in four at its edges' midpoints and moves every vertex onto the sphere,
-    :math:`v \\leftarrow v + \\hat v (1 - |v|)`; at the end every vertex is divided by its norm. The
-    construction, the order of the vertices and triangles and every bit are those of
-    ``trimesh.creation.icosphere`` (followed by that division), which the harness called before (importing trimesh
-    took 0.6 s of every command that loads a sphere); tests/scene/test_icosphere.py checks them against trimesh for
-    every level a scene may ask for.
-
-    References
-    ----------
-    .. [1] trimesh, ``trimesh.creation.icosphere`` and ``trimesh.remesh.subdivide`` (MIT licence),
-           https://github.com/mikedh/trimesh.
-    """
-    return _unit_sphere(int(subdivisions))
-
 
 # --------------------------------------------------------------------------------------------------------------------
 # Shapes to world-space triangles.
@@ -193,28 +41,18 @@ def unit_sphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
 
 def object_to_world(shape: Shape) -> np.ndarray:
     """The full 4x4 object-to-world matrix of a shape (for spheres: to_world @ T(center) @ S(radius))."""
-    if shape.type == "sphere":
-        return shape.to_world @ translate_matrix(shape.center) @ scale_matrix(shape.radius)
-    return shape.to_world
+    return SHAPES[shape.type].object_to_world(shape)
 
 
 def object_mesh(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
     """The shape's vertices and triangles in object space (before ``object_to_world``)."""
-    if shape.type == "rectangle":
-        return unit_rectangle()
-    if shape.type == "cube":
-        return unit_cube()
-    if shape.type == "sphere":
-        return unit_sphere(shape.subdivisions)
-    if shape.type == "mesh":
-        return shape.mesh_vertices, shape.mesh_triangles
-    raise ValueError(f"unknown shape type {shape.type!r}")
+    return SHAPES[shape.type].object_mesh(shape)
 
 
 def reverses_winding(shape: Shape) -> bool:
     """True if the shape's transformed triangles must be wound the other way round to face its front side."""
     mirrored = np.linalg.det(object_to_world(shape)[:3, :3]) < 0
-    return bool(mirrored and shape.type in KEEP_FRONT_WHEN_MIRRORED) != bool(shape.flip_normals)
+    return bool(mirrored and SHAPES[shape.type].keeps_front_when_mirrored) != bool(shape.flip_normals)
 
 
 def shape_triangles(shape: Shape) -> tuple[np.ndarray, np.ndarray]:

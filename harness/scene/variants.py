@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.model import Scene, Shape
 from harness.scene.triangulate import (
     object_to_world,
@@ -188,18 +189,9 @@ def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     def point(p):
         return tuple(float(x) for x in matrix[:3, :3] @ np.asarray(p, float) + matrix[:3, 3])
 
-    def moved(emitter):
-        if emitter.type == "point":
-            return dataclasses.replace(emitter, position=point(emitter.position),
-                                       intensity=tuple(float(i) * area for i in emitter.intensity))
-        if emitter.type == "spot":
-            return dataclasses.replace(emitter, to_world=matrix @ emitter.to_world,
-                                       intensity=tuple(float(i) * area for i in emitter.intensity))
-        return emitter  # directional, constant, envmap: infinitely far, unchanged by translation and scale
-
     camera = dataclasses.replace(cam, origin=point(cam.origin), target=point(cam.target))
     return dataclasses.replace(scene, shapes=shapes, camera=camera,
-                               emitters=tuple(moved(e) for e in scene.emitters))
+                               emitters=tuple(EMITTERS[e.type].moved(e, matrix, area) for e in scene.emitters))
 
 
 def scaled(scene: Scene, factor: float) -> Scene:

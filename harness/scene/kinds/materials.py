@@ -1,0 +1,295 @@
+"""The material types of a ``[materials.NAME]`` table (Mitsuba's BSDF plugins of the same names and parameters,
+docs/scene-format.md, "Materials"), one :class:`MaterialKind` each in :data:`MATERIALS`: its keys and their reading,
+its row of the core's table (:mod:`reference_impl.materials`, whose defaults are the model's), its Mitsuba plugin and
+its scene.json entry."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from reference_impl import materials as core
+
+from harness.scene.kinds.mitsuba_values import rgb
+from harness.scene.model import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
+                                 DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS, MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, Material)
+
+DEFAULT_TYPE = "diffuse"
+CONDUCTOR_MATERIALS = ("none",)  # Mitsuba's named conductors but "none" (a perfect mirror) are refused
+# Mitsuba 3.9.1's "Cu" in its RGB variants (mi.load_dict({"type": "conductor", "material": "Cu"}) in scalar_rgb),
+# quoted by the refusal of named materials so that a user can type them.
+CU_ETA = (0.201005, 0.92375, 1.10222)
+CU_K = (3.91326, 2.45305, 2.14209)
+# Ranges the reference's BSDFs are tested over (docs/scene-format.md): alpha from near-specular to very rough;
+# indices and extinction coefficients of every real material, with room to spare.
+MIN_ALPHA, MAX_ALPHA = 1e-4, 1.0
+MIN_IOR, MAX_IOR = 0.01, 100.0
+MAX_CONDUCTOR_INDEX = 100.0
+
+
+@dataclass(frozen=True)
+class MaterialKind:
+    """One material type.
+
+    Attributes
+    ----------
+    name : str
+        The ``type`` value (Mitsuba's plugin name).
+    core_kind : int
+        Its kind in the core's table (:data:`reference_impl.materials.DIFFUSE` ...).
+    keys : tuple of str
+        The keys its table may hold.
+    read : callable
+        ``read(reader, entry, key) -> dict``: the :class:`~harness.scene.model.Material` fields of the table
+        ``entry`` at key path ``key`` but ``name``, ``type`` and ``two_sided``, read with the scene reader's typed
+        readers (``reader``: :class:`harness.scene.load._SceneReader`); a bad value is its HarnessError.
+    parameters : callable
+        ``parameters(material) -> dict``: the parameters of its Mitsuba plugin, every one written out.
+    json : callable
+        ``json(material) -> dict``: its parameters in the scene.json entry (``type`` and ``two_sided`` aside).
+    refused : tuple of (str, str)
+        Keys of other types that this one refuses with a reason of their own.
+    """
+
+    name: str
+    core_kind: int
+    keys: tuple[str, ...]
+    read: Callable[[Any, dict, str], dict]
+    parameters: Callable[[Material], dict]
+    json: Callable[[Material], dict]
+    refused: tuple[tuple[str, str], ...] = ()
+
+    @property
+    def two_sided(self) -> bool:
+        """Whether the type takes ``two_sided`` (Mitsuba's ``twosided`` wrapper)."""
+        return "two_sided" in self.keys
+
+    def to_core(self, material: Material) -> np.ndarray:
+        """The core's parameter row of ``material`` (same parameters, Mitsuba's meaning)."""
+        if self.core_kind == core.DIFFUSE:
+            return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
+        return core.material_row(
+            self.core_kind, reflectance=material.specular_reflectance, eta=material.eta, k=material.k,
+            transmittance=material.specular_transmittance, alpha=material.alpha,
+            distribution=core.DISTRIBUTIONS[material.distribution], sample_visible=material.sample_visible,
+            int_ior=material.int_ior, ext_ior=material.ext_ior, two_sided=material.two_sided,
+            mirror=material.mirror)
+
+    def to_mitsuba(self, material: Material) -> dict:
+        """Mitsuba's dict of ``material``: its plugin with every parameter written out (so Mitsuba's defaults never
+        decide), inside ``twosided`` when two-sided."""
+        spec = {"type": self.name, **self.parameters(material)}
+        return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
+
+    def to_scene_json(self, material: Material) -> dict:
+        """The scene.json entry of ``material``: every parameter of its plugin, ``two_sided`` where it applies."""
+        out = {"type": self.name, **self.json(material)}
+        if self.two_sided:
+            out["two_sided"] = bool(material.two_sided)
+        return out
+
+
+def read_material(reader, name: str, entry: Any) -> Material:
+    """One ``[materials.NAME]`` table: its type (default diffuse) and that type's parameters.
+
+    Parameters
+    ----------
+    reader : harness.scene.load._SceneReader
+        The scene reader (its typed readers and errors).
+    name : str
+        The table's name.
+    entry : object
+        The parsed table.
+
+    Returns
+    -------
+    Material
+    """
+    key = reader.join("materials", name)
+    entry = reader.table(entry, key)
+    reader.check_keys(entry, MATERIAL_KEYS, key)
+    kind = MATERIALS[reader.choice(entry.get("type", DEFAULT_TYPE), f"{key}.type", tuple(MATERIALS))]
+    for item, reason in kind.refused:
+        if item in entry:
+            raise reader.error(f"{key}.{item}", f"a {kind.name} has no {item}: {reason}")
+    for item in entry:
+        if item not in kind.keys:
+            owners = " or ".join(repr(t) for t, other in MATERIALS.items() if item in other.keys)
+            raise reader.error(f"{key}.{item}", f"key {item!r} applies only to materials of type {owners}, "
+                                                f"not {kind.name!r}")
+    two_sided = reader.boolean(entry.get("two_sided", False), f"{key}.two_sided")
+    return Material(name, type=kind.name, two_sided=two_sided, **kind.read(reader, entry, key))
+
+
+# ---- reading -------------------------------------------------------------------------------------------------------
+
+
+def _read_diffuse(reader, entry: dict, key: str) -> dict:
+    what = "a list of 3 numbers in [0, 1]"
+    raw = reader.require(entry, "reflectance", key, what)
+    reflectance = reader.vector3(raw, f"{key}.reflectance", what)
+    if not all(0.0 <= channel <= 1.0 for channel in reflectance):
+        raise reader.expected(f"{key}.reflectance", what, raw)
+    return {"reflectance": reflectance}
+
+
+def _read_conductor(reader, entry: dict, key: str) -> dict:
+    """A conductor's fields; ``reflectance`` (the bound of one bounce) is its specular_reflectance."""
+    fields = {"specular_reflectance": _unit_colour(reader, entry, "specular_reflectance", key)}
+    fields.update(_complex_index(reader, entry, key))
+    fields["reflectance"] = fields["specular_reflectance"]
+    return fields
+
+
+def _read_dielectric(reader, entry: dict, key: str) -> dict:
+    """A dielectric's fields; ``reflectance`` is the larger of its specular reflectance and transmittance."""
+    fields: dict[str, Any] = {"specular_reflectance": _unit_colour(reader, entry, "specular_reflectance", key),
+                              "specular_transmittance": _unit_colour(reader, entry, "specular_transmittance", key)}
+    for item, default in (("int_ior", DEFAULT_INT_IOR), ("ext_ior", DEFAULT_EXT_IOR)):
+        fields[item] = _index_of_refraction(reader, entry.get(item, default), f"{key}.{item}")
+    fields["reflectance"] = tuple(max(r, t) for r, t in zip(fields["specular_reflectance"],
+                                                            fields["specular_transmittance"]))
+    return fields
+
+
+def _read_roughdielectric(reader, entry: dict, key: str) -> dict:
+    fields = _read_dielectric(reader, entry, key)
+    if np.float32(fields["int_ior"]) == np.float32(fields["ext_ior"]):
+        item = "int_ior" if "int_ior" in entry else "ext_ior"
+        raise reader.error(f"{key}.{item}", (
+            f"expected int_ior != ext_ior for a roughdielectric (Mitsuba refuses an index-matched rough "
+            f"interface), got both {fields['int_ior']:g}; an invisible surface is a dielectric"))
+    return {**fields, **_roughness(reader, entry, key)}
+
+
+def _roughness(reader, entry: dict, key: str) -> dict:
+    """A rough type's ``alpha``, ``distribution`` and ``sample_visible``."""
+    what = f"a finite number in [{MIN_ALPHA:g}, {MAX_ALPHA:g}] (the microfacets' roughness)"
+    alpha = reader.number(entry.get("alpha", DEFAULT_ALPHA), f"{key}.alpha", what)
+    if not MIN_ALPHA <= alpha <= MAX_ALPHA:
+        raise reader.expected(f"{key}.alpha", what, entry["alpha"])
+    return {"alpha": alpha,
+            "distribution": reader.choice(entry.get("distribution", DEFAULT_DISTRIBUTION), f"{key}.distribution",
+                                          DISTRIBUTIONS),
+            "sample_visible": reader.boolean(entry.get("sample_visible", DEFAULT_SAMPLE_VISIBLE),
+                                             f"{key}.sample_visible")}
+
+
+def _unit_colour(reader, entry: dict, item: str, key: str) -> tuple[float, float, float]:
+    """``specular_reflectance`` / ``specular_transmittance``: a number or [r, g, b], each in [0, 1]; default 1."""
+    what = "a number or a list of 3 numbers, each in [0, 1]"
+    colour = reader.colour_or_number(entry.get(item, 1.0), f"{key}.{item}", what)
+    if not all(0.0 <= channel <= 1.0 for channel in colour):
+        raise reader.expected(f"{key}.{item}", what, entry[item])
+    return colour
+
+
+def _complex_index(reader, entry: dict, key: str) -> dict[str, tuple[float, float, float]]:
+    """A conductor's ``eta`` and ``k`` (Mitsuba's defaults 0 and 1), or ``material = "none"`` (the same: a perfect
+    mirror); other named materials are refused."""
+    if "material" in entry:
+        material = entry["material"]
+        if material not in CONDUCTOR_MATERIALS:
+            raise reader.error(f"{key}.material", (
+                f'expected "none" (a perfect mirror), got {reader.show(material)}: named conductors are not '
+                f"supported; give eta and k (Mitsuba 3.9.1's RGB Cu: eta = [{', '.join(map(str, CU_ETA))}], "
+                f"k = [{', '.join(map(str, CU_K))}])"))
+        given = [item for item in ("eta", "k") if item in entry]
+        if given:
+            raise reader.error(f"{key}.material",
+                               f'expected either material = "none" or eta / k, not both (found {", ".join(given)})')
+    what = f"a number or a list of 3 numbers, each in [0, {MAX_CONDUCTOR_INDEX:g}]"
+    values = {}
+    for item, default in (("eta", MIRROR_ETA), ("k", MIRROR_K)):
+        values[item] = reader.colour_or_number(entry.get(item, list(default)), f"{key}.{item}", what)
+        if not all(0.0 <= channel <= MAX_CONDUCTOR_INDEX for channel in values[item]):
+            raise reader.expected(f"{key}.{item}", what, entry[item])
+    for channel, (eta, k) in enumerate(zip(values["eta"], values["k"])):
+        if eta == 0 and k == 0:
+            where = f"{key}.eta" if "eta" in entry else f"{key}.k"
+            raise reader.error(where, (
+                f"eta and k are both 0 in channel {'RGB'[channel]}: a complex index of 0 has no Fresnel "
+                "reflectance; expected eta > 0 or k > 0 in every channel"))
+    return values
+
+
+def _index_of_refraction(reader, value: Any, key: str) -> float:
+    what = f"a finite number in [{MIN_IOR:g}, {MAX_IOR:g}] (an index of refraction)"
+    if isinstance(value, str):
+        raise reader.error(key, f"expected {what}, got {reader.show(value)}: named indices are not supported; give "
+                                "the number")
+    ior = reader.number(value, key, what)
+    if not MIN_IOR <= ior <= MAX_IOR:
+        raise reader.expected(key, what, value)
+    return ior
+
+
+# ---- Mitsuba's parameters and scene.json's ------------------------------------------------------------------------
+
+
+def _numbers(values) -> list:
+    return np.asarray(values, dtype=np.float64).tolist()
+
+
+def _complex_index_parameters(material: Material) -> dict:
+    if material.mirror:
+        return {"material": "none"}
+    return {"eta": rgb(material.eta), "k": rgb(material.k)}
+
+
+def _rough_parameters(material: Material) -> dict:
+    return {"alpha": float(material.alpha), "distribution": material.distribution,
+            "sample_visible": bool(material.sample_visible)}
+
+
+def _conductor_parameters(material: Material) -> dict:
+    return {**_complex_index_parameters(material), "specular_reflectance": rgb(material.specular_reflectance)}
+
+
+def _dielectric_parameters(material: Material) -> dict:
+    return {"int_ior": float(material.int_ior), "ext_ior": float(material.ext_ior),
+            "specular_reflectance": rgb(material.specular_reflectance),
+            "specular_transmittance": rgb(material.specular_transmittance)}
+
+
+def _conductor_json(material: Material) -> dict:
+    return {"eta": _numbers(material.eta), "k": _numbers(material.k),
+            "specular_reflectance": _numbers(material.specular_reflectance)}
+
+
+def _dielectric_json(material: Material) -> dict:
+    return {"int_ior": float(material.int_ior), "ext_ior": float(material.ext_ior),
+            "specular_reflectance": _numbers(material.specular_reflectance),
+            "specular_transmittance": _numbers(material.specular_transmittance)}
+
+
+_CONDUCTOR_KEYS = ("type", "material", "eta", "k", "specular_reflectance", "two_sided")
+_DIELECTRIC_KEYS = ("type", "int_ior", "ext_ior", "specular_reflectance", "specular_transmittance")
+_ROUGH_KEYS = ("alpha", "distribution", "sample_visible")
+_NOT_TWO_SIDED = (("two_sided", "light crosses it from either side (Mitsuba's twosided wrapper takes no "
+                                "transmitting BSDF); int_ior is the index behind the front side, ext_ior the one in "
+                                "front"),)
+
+#: Every material type by its name, in :data:`harness.scene.model.MATERIAL_TYPES`'s order.
+MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
+    MaterialKind("diffuse", core.DIFFUSE, ("type", "reflectance", "two_sided"), _read_diffuse,
+                 parameters=lambda m: {"reflectance": rgb(m.reflectance)},
+                 json=lambda m: {"reflectance": _numbers(m.reflectance)}),
+    MaterialKind("conductor", core.CONDUCTOR, _CONDUCTOR_KEYS, _read_conductor,
+                 parameters=_conductor_parameters, json=_conductor_json),
+    MaterialKind("roughconductor", core.ROUGHCONDUCTOR, _CONDUCTOR_KEYS + _ROUGH_KEYS,
+                 lambda reader, entry, key: {**_read_conductor(reader, entry, key),
+                                             **_roughness(reader, entry, key)},
+                 parameters=lambda m: {**_conductor_parameters(m), **_rough_parameters(m)},
+                 json=lambda m: {**_conductor_json(m), **_rough_parameters(m)}),
+    MaterialKind("dielectric", core.DIELECTRIC, _DIELECTRIC_KEYS, _read_dielectric,
+                 parameters=_dielectric_parameters, json=_dielectric_json, refused=_NOT_TWO_SIDED),
+    MaterialKind("roughdielectric", core.ROUGHDIELECTRIC, _DIELECTRIC_KEYS + _ROUGH_KEYS, _read_roughdielectric,
+                 parameters=lambda m: {**_dielectric_parameters(m), **_rough_parameters(m)},
+                 json=lambda m: {**_dielectric_json(m), **_rough_parameters(m)}, refused=_NOT_TWO_SIDED),
+)}
+assert tuple(MATERIALS) == MATERIAL_TYPES
+#: Every key of any type, for did-you-mean hints.
+MATERIAL_KEYS = tuple(dict.fromkeys(key for kind in MATERIALS.values() for key in kind.keys))

@@ -1,0 +1,88 @@
+"""The neutral values of a Mitsuba plugin dict (:mod:`harness.renderers.mitsuba_spec`), which ``mi.load_dict``
+(:func:`harness.renderers.mitsuba.load_dict_form`) and the XML (:mod:`harness.renderers.mitsuba_xml`) each write their
+own way, and the ``rgb`` colour every plugin spells the same."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class LookAt:
+    """A camera's look-at transform: its eye, the point it looks at and its up direction."""
+
+    origin: tuple[float, ...]
+    target: tuple[float, ...]
+    up: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Point:
+    """A position (a light's ``position``): transformed with translation."""
+
+    xyz: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Vector:
+    """A direction (a light's ``direction``): transformed without translation."""
+
+    xyz: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A value the XML names as ``$name`` and whose reader may override it; ``default`` where nobody does."""
+
+    name: str
+    default: int
+
+
+@dataclass(frozen=True, eq=False)
+class MeshFile:
+    """A shape's triangles (world space, wound to face the front side) and the PLY file they become in an export.
+
+    Attributes
+    ----------
+    name : str
+        The shape's name.
+    path : str
+        The file's path relative to the exported scene file.
+    vertices, triangles : numpy.ndarray
+        (V, 3) float64 positions and (T, 3) vertex indices.
+    """
+
+    name: str
+    path: str
+    vertices: np.ndarray
+    triangles: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ImageFile:
+    """An environment map's pixels (float32 linear RGB, row 0 the top) and the EXR file they become in an export."""
+
+    path: str
+    image: np.ndarray
+
+
+def rgb(values) -> dict:
+    """Mitsuba's ``rgb`` colour of three numbers."""
+    return {"type": "rgb", "value": floats(values)}
+
+
+def floats(values) -> list[float]:
+    """``values`` as a list of Python floats."""
+    return [float(x) for x in values]
+
+
+def xyz(values) -> tuple[float, ...]:
+    """``values`` as a tuple of Python floats (a :class:`Point`'s or :class:`Vector`'s)."""
+    return tuple(float(x) for x in values)
+
+
+def matrix(values) -> np.ndarray:
+    """A transform as a float64 array."""
+    return np.asarray(values, dtype=np.float64)
