@@ -25,6 +25,7 @@ from harness.core.options import env_switch
 from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.core.text import short
 from harness.files.imageio import exr_size, read_exr
+from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
@@ -50,7 +51,6 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
                   "emitters", "regions")
 CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
-CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (
@@ -230,15 +230,7 @@ class _SceneReader(TypedReader):
         return tuple(raw)
 
     def camera(self, document: dict) -> Camera:
-        table = self.required_table(document, "camera")
-        self.check_keys(table, CAMERA_KEYS, "camera")
-        origin, target, up = (
-            self.vector3(self.require(table, key, "camera", "a list of 3 numbers"), f"camera.{key}")
-            for key in ("origin", "target", "up")
-        )
-        fov = self.number(self.require(table, "fov", "camera", "degrees"), "camera.fov", "degrees in (0, 180)")
-        fov_axis = self.string(table.get("fov_axis", "x"), "camera.fov_axis")
-        return self.settings(lambda: Camera(origin, target, up, fov, fov_axis))
+        return read_camera(self, document)
 
     def film(self, document: dict) -> Film:
         table = self.required_table(document, "film")
