@@ -246,7 +246,8 @@ class _SceneReader(TypedReader):
             if value > MAX_FILM_SIDE:
                 raise self.error(f"film.{key}", (
                     f"expected a positive integer of at most {MAX_FILM_SIDE} pixels, got {show_value(value)} "
-                    f"({show_value(width)} x {show_value(height)} pixels need {estimate_text(width, height)}); lower film.{key}"))
+                    f"({show_value(width)} x {show_value(height)} pixels need {estimate_text(width, height)}); "
+                    f"lower film.{key}"))
         problem = film_problem(width, height)
         if problem:
             raise self.error("film", f"{problem}; lower film.width / film.height")

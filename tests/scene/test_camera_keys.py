@@ -36,14 +36,12 @@ def test_the_type_perspective_is_the_default(tmp_path):
     assert content_key(typed) != content_key(plain)
 
 
-@pytest.mark.parametrize("value, shown", [
-    ('"thinlens"', '"thinlens"'), ('"orthographic"', '"orthographic"'), ("3", "3"), ('["perspective"]', '["perspective"]'),
-])
-def test_an_unknown_type_is_one_line_naming_the_file_the_key_and_the_types(tmp_path, value, shown):
+@pytest.mark.parametrize("value", ['"thinlens"', '"orthographic"', "3", '["perspective"]'])
+def test_an_unknown_type_is_one_line_naming_the_file_the_key_and_the_types(tmp_path, value):
     path = write(tmp_path, MINIMAL_SCENE.replace("fov = 40", f"fov = 40\ntype = {value}"))
     with pytest.raises(HarnessError) as info:
         load_scene(path)
-    assert str(info.value) == f"{path}: camera.type: expected one of perspective, got {shown}"
+    assert str(info.value) == f"{path}: camera.type: expected one of perspective, got {value}"
 
 
 def test_a_near_miss_of_a_type_gets_a_hint(tmp_path):
