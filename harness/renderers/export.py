@@ -43,8 +43,9 @@ from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write
 from harness.renderers.meshfiles import ply_bytes, safe_name
 from harness.renderers.mitsuba_spec import RR_DEPTH, Parameter, bsdf_dict, clip_planes, scene_spec
 from harness.renderers.mitsuba_xml import spec_xml
-from harness.renderers.scene_json import FILTERS, camera_to_world, scene_json
+from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
+from harness.scene.kinds.cameras import camera_to_world
 from harness.scene.triangulate import shape_triangles
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")

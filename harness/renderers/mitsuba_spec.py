@@ -30,6 +30,7 @@ import numpy as np
 
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, safe_name
 from harness.scene import Scene
+from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.shapes import SHAPES
@@ -68,7 +69,7 @@ class MitsubaSpec:
 
 def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Parameter = 4,
                seed: Parameter | None = None, sampler: str = "independent") -> MitsubaSpec:
-    """The scene as Mitsuba plugins: ``path`` integrator, perspective sensor, one BSDF per material, one shape per
+    """The scene as Mitsuba plugins: ``path`` integrator, the camera's sensor, one BSDF per material, one shape per
     shape, one emitter per ``[[emitters]]`` entry.
 
     Rectangles, cubes and spheres keep their plugin and placement matrix; meshes are the loaded triangles, and so
@@ -117,23 +118,14 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
 
 
 def sensor_plugin(scene: Scene, spp: int | Parameter, seed: Parameter | None, sampler: str) -> dict:
-    """The ``perspective`` sensor: the camera's look-at, ``fov``, ``fov_axis`` and clip planes
-    (:func:`clip_planes`), its sampler and film (:func:`film_dict`)."""
-    camera = scene.camera
+    """The camera's sensor (its entry of :data:`harness.scene.kinds.cameras.CAMERAS`: its plugin, parameters and
+    look-at) with the scene's clip planes (:func:`clip_planes`), its sampler and film (:func:`film_dict`)."""
     near, far = clip_planes(scene)
     samples = {"type": sampler, "sample_count": spp if isinstance(spp, Parameter) else int(spp)}
     if seed is not None:
         samples["seed"] = seed
-    return {
-        "type": "perspective",
-        "fov": float(camera.fov),
-        "fov_axis": camera.fov_axis,
-        "near_clip": near,
-        "far_clip": far,
-        "to_world": LookAt(xyz(camera.origin), xyz(camera.target), xyz(camera.up)),
-        "sampler": samples,
-        "film": film_dict(scene),
-    }
+    return {**camera_kind(scene.camera).to_mitsuba(scene.camera, near, far), "sampler": samples,
+            "film": film_dict(scene)}
 
 
 def shape_plugin(shape, bsdf_key: str, as_mesh: bool) -> dict:

@@ -14,14 +14,13 @@ irradiance in W m^-2, angles in degrees; emitting shapes emit from their front s
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from harness.files.imageio import exr_bytes
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes, tessellates_spheres
 from harness.scene import Scene
+from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.shapes import SHAPES
@@ -39,31 +38,13 @@ def _floats(values) -> list:
     return np.asarray(values, dtype=np.float64).tolist()
 
 
-def camera_to_world(camera) -> np.ndarray:
-    """The 4x4 camera-to-world matrix of Mitsuba's ``look_at``: columns +x (image left), +y (up), +z (forward)
-    and the eye."""
-    to_world = np.eye(4)
-    to_world[:3, :3] = camera.frame()
-    to_world[:3, 3] = camera.origin
-    return to_world
-
-
 def camera_json(scene: Scene) -> dict:
-    """The perspective camera: its look-at, Mitsuba's ``fov`` / ``fov_axis``, the resolved full angles, the
+    """The camera's entry (of :data:`harness.scene.kinds.cameras.CAMERAS`): its type, look-at, its parameters (a
+    perspective camera's: Mitsuba's ``fov`` / ``fov_axis``, the resolved full angles and the aspect ratio), the
     camera-to-world matrix (columns: +x = image left, +y = image up, +z = forward, origin) and the clip planes."""
-    camera, film = scene.camera, scene.film
-    tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
-    to_world = camera_to_world(camera)
     near, far = clip_planes(scene)
-    return {
-        "type": "perspective",
-        "origin": _floats(camera.origin), "target": _floats(camera.target), "up": _floats(camera.up),
-        "fov": float(camera.fov), "fov_axis": camera.fov_axis,
-        "fov_x": math.degrees(2 * math.atan(tan_x)), "fov_y": math.degrees(2 * math.atan(tan_y)),
-        "aspect": film.width / film.height,
-        "to_world": _floats(to_world),
-        "near_clip": float(near), "far_clip": float(far),
-    }
+    return {**camera_kind(scene.camera).to_scene_json(scene.camera, scene.film),
+            "near_clip": float(near), "far_clip": float(far)}
 
 
 def material_json(material) -> dict:

@@ -6,9 +6,7 @@ Every problem with the file raises :class:`HarnessError` whose ``where`` is ``"<
 
 from __future__ import annotations
 
-import datetime
 import io
-import json
 import math
 import os
 import re
@@ -27,6 +25,7 @@ from harness.core.options import env_switch
 from harness.core.text import hint as suggestion  # `hint` is a local name here
 from harness.core.text import short
 from harness.files.imageio import exr_size, read_exr
+from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
@@ -37,6 +36,7 @@ from harness.scene.mesh_files import (
     confined_path,
     ply_count_problem,
 )
+from harness.scene.typed_reader import TOML_PHRASING, TypedReader, show_value
 from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's frame, read by the tests)
     frame_to_world,
     is_similarity,
@@ -51,7 +51,6 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
                   "emitters", "regions")
 CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
-CAMERA_KEYS = ("origin", "target", "up", "fov", "fov_axis")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (
@@ -70,7 +69,6 @@ DEFAULT_MAX_DEPTH = -1  # Mitsuba's path integrator: unbounded
 MAX_EMISSION = 1e12
 INT32_MAX = 2**31 - 1
 
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 _OBJ_INDEX = re.compile(rb"[-+]?[0-9]+")
 _TOML_POSITION = re.compile(r"\s*\(at line (\d+), column (\d+)\)\s*$")
 _TOML_END = "(at end of document)"
@@ -165,75 +163,22 @@ def _read_toml(path: Path) -> dict[str, Any]:
 
 
 # --------------------------------------------------------------------------------------------------------------------
-# Showing values and key paths in messages.
-
-
-def _show(value: Any, limit: int = 60) -> str:
-    """A short TOML-like rendering of a parsed value for "got ..." in messages."""
-    text = _toml_text(value, depth=0)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _toml_text(value: Any, depth: int) -> str:
-    if depth > 4:
-        return "..."
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        try:
-            return str(value)
-        except ValueError:  # more digits than Python will print
-            return "a huge integer"
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
-    if isinstance(value, str):
-        return _quoted(value)
-    if isinstance(value, list):
-        items = [_toml_text(item, depth + 1) for item in value[:8]]
-        return "[" + ", ".join(items) + (", ...]" if len(value) > 8 else "]")
-    if isinstance(value, dict):
-        items = [f"{_key_text(k)} = {_toml_text(v, depth + 1)}" for k, v in list(value.items())[:8]]
-        return "{" + ", ".join(items) + (", ...}" if len(value) > 8 else "}")
-    if isinstance(value, (datetime.date, datetime.time)):
-        return value.isoformat()
-    return repr(value)
-
-
-def _key_text(key: str) -> str:
-    """A key as TOML writes it: bare if it can be, quoted otherwise."""
-    return key if _BARE_KEY.fullmatch(key) else _quoted(key)
-
-
-def _quoted(text: str) -> str:
-    """A JSON string literal that stays on one line: non-printable characters (line and paragraph separators
-    too, which JSON leaves alone) are escaped as \\uXXXX."""
-    return "".join(ch if ch.isprintable() else ch.encode("unicode_escape").decode("ascii")
-                   for ch in json.dumps(text, ensure_ascii=False))
-
-
-def _join(parent: str, key: str) -> str:
-    """The dotted key path of ``key`` inside the table at ``parent``."""
-    return f"{parent}.{_key_text(key)}" if parent else _key_text(key)
-
-
-# --------------------------------------------------------------------------------------------------------------------
 # The reader.
 
 
-class _SceneReader:
+class _SceneReader(TypedReader):
     """Turns a parsed TOML document into a :class:`Scene`, raising :class:`HarnessError` on the first problem.
 
     ``label`` is the file path shown in messages; ``folder`` is where mesh file names are relative to and, unless
     ``allow_outside``, the folder they must stay in. ``files`` lists every file read for the scene, in the order
-    read (:meth:`opened`; :attr:`Scene.files`).
+    read (:meth:`opened`; :attr:`Scene.files`). The typed readers and their messages are
+    :class:`~harness.scene.typed_reader.TypedReader`'s, phrased as TOML writes values and keys.
     """
 
     max_emission = MAX_EMISSION  # radiance per channel, at most (shapes' emission, emitters, envmaps)
-    show = staticmethod(_show)  # a parsed value in a message
-    join = staticmethod(_join)  # a key path
 
     def __init__(self, label: str, folder: Path, allow_outside: bool = False):
-        self.label = label
+        super().__init__(label, TOML_PHRASING)
         self.folder = folder
         self.allow_outside = allow_outside
         self.files: list[Path] = []
@@ -243,95 +188,6 @@ class _SceneReader:
         here (the scene file, :meth:`file_path`, the resolver of the files a mesh names)."""
         self.files.append(path)
         return path
-
-    # ---- errors and generic value readers ------------------------------------------------------------------------
-
-    def error(self, key: str, message: str) -> HarnessError:
-        return HarnessError(f"{self.label}: {key}" if key else self.label, message)
-
-    def expected(self, key: str, what: str, value: Any) -> HarnessError:
-        return self.error(key, f"expected {what}, got {_show(value)}")
-
-    def check_keys(self, table: dict, known: tuple[str, ...], parent: str) -> None:
-        """Refuse keys of ``table`` that are not in ``known``, suggesting the closest known one."""
-        for key in table:
-            if key not in known:
-                hint = suggestion(key, known) or f"; expected one of: {', '.join(known)}"
-                raise self.error(_join(parent, key), f"unknown key {key!r}{hint}")
-
-    def require(self, table: dict, key: str, parent: str, what: str) -> Any:
-        if key not in table:
-            raise self.error(_join(parent, key), f"missing required key {key!r} ({what})")
-        return table[key]
-
-    def required_table(self, document: dict, name: str) -> dict:
-        if name not in document:
-            raise self.error(name, f"missing required table [{name}]")
-        return self.table(document[name], name)
-
-    def table(self, value: Any, key: str) -> dict:
-        if not isinstance(value, dict):
-            raise self.expected(key, "a table", value)
-        return value
-
-    def string(self, value: Any, key: str) -> str:
-        if not isinstance(value, str):
-            raise self.expected(key, "a string", value)
-        return value
-
-    def boolean(self, value: Any, key: str) -> bool:
-        if not isinstance(value, bool):
-            raise self.expected(key, "true or false", value)
-        return value
-
-    def integer(self, value: Any, key: str, what: str = "an integer") -> int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self.expected(key, what, value)
-        return value
-
-    def number(self, value: Any, key: str, what: str = "a finite number") -> float:
-        number = _finite_float(value)
-        if number is None:
-            raise self.expected(key, what, value)
-        return number
-
-    def vector3(self, value: Any, key: str, what: str = "a list of 3 finite numbers") -> tuple[float, float, float]:
-        if not isinstance(value, list) or len(value) != 3:
-            raise self.expected(key, what, value)
-        numbers = [_finite_float(item) for item in value]
-        if any(number is None for number in numbers):
-            raise self.expected(key, what, value)
-        return tuple(numbers)
-
-    def choice(self, value: Any, key: str, choices: tuple[str, ...]) -> str:
-        if not isinstance(value, str) or value not in choices:
-            hint = suggestion(value, choices) if isinstance(value, str) else ""
-            raise self.error(key, f"expected one of {', '.join(choices)}, got {_show(value)}{hint}")
-        return value
-
-    def colour_or_number(self, value: Any, key: str, what: str) -> tuple[float, float, float]:
-        """One finite number (the same in every channel, as Mitsuba takes it) or a list of 3."""
-        if isinstance(value, list):
-            return self.vector3(value, key, what)
-        number = self.number(value, key, what)
-        return (number, number, number)
-
-    def matrix4(self, value: Any, key: str) -> np.ndarray:
-        what = "a 4x4 nested list of finite numbers (row-major)"
-        if not isinstance(value, list) or len(value) != 4:
-            raise self.expected(key, what, value)
-        rows = []
-        for row in value:
-            if not isinstance(row, list) or len(row) != 4:
-                raise self.expected(key, what, value)
-            numbers = [_finite_float(item) for item in row]
-            if any(number is None for number in numbers):
-                raise self.expected(key, what, value)
-            rows.append(numbers)
-        matrix = np.array(rows, dtype=np.float64)
-        if not np.array_equal(matrix[3], [0.0, 0.0, 0.0, 1.0]):
-            raise self.expected(key, "an affine transform whose last row is [0, 0, 0, 1]", value[3])
-        return matrix
 
     def settings(self, build):
         """Call ``build()`` (a core constructor); turn its SettingsError into a HarnessError at the same key."""
@@ -374,15 +230,7 @@ class _SceneReader:
         return tuple(raw)
 
     def camera(self, document: dict) -> Camera:
-        table = self.required_table(document, "camera")
-        self.check_keys(table, CAMERA_KEYS, "camera")
-        origin, target, up = (
-            self.vector3(self.require(table, key, "camera", "a list of 3 numbers"), f"camera.{key}")
-            for key in ("origin", "target", "up")
-        )
-        fov = self.number(self.require(table, "fov", "camera", "degrees"), "camera.fov", "degrees in (0, 180)")
-        fov_axis = self.string(table.get("fov_axis", "x"), "camera.fov_axis")
-        return self.settings(lambda: Camera(origin, target, up, fov, fov_axis))
+        return read_camera(self, document)
 
     def film(self, document: dict) -> Film:
         table = self.required_table(document, "film")
@@ -397,8 +245,9 @@ class _SceneReader:
         for key, value in size.items():
             if value > MAX_FILM_SIDE:
                 raise self.error(f"film.{key}", (
-                    f"expected a positive integer of at most {MAX_FILM_SIDE} pixels, got {_show(value)} "
-                    f"({_show(width)} x {_show(height)} pixels need {estimate_text(width, height)}); lower film.{key}"))
+                    f"expected a positive integer of at most {MAX_FILM_SIDE} pixels, got {show_value(value)} "
+                    f"({show_value(width)} x {show_value(height)} pixels need {estimate_text(width, height)}); "
+                    f"lower film.{key}"))
         problem = film_problem(width, height)
         if problem:
             raise self.error("film", f"{problem}; lower film.width / film.height")
@@ -421,9 +270,7 @@ class _SceneReader:
     # ---- shapes --------------------------------------------------------------------------------------------------
 
     def shapes(self, document: dict, materials: dict[str, Material]) -> list[Shape]:
-        entries = document.get("shapes", [])
-        if not isinstance(entries, list):
-            raise self.expected("shapes", "an array of tables ([[shapes]])", entries)
+        entries = self.array(document.get("shapes", []), "shapes", "an array of tables ([[shapes]])")
         shapes: list[Shape] = []
         for index, entry in enumerate(entries):
             shape = self.shape(index, entry, materials)
@@ -534,7 +381,7 @@ class _SceneReader:
         if size > MAX_MESH_BYTES:
             raise self.error(file_key, f"mesh file {name!r} is {size / 2**20:.0f} MiB; expected at most "
                                        f"{MAX_MESH_BYTES / 2**30:g} GiB")
-        where = f"{self.label}: {file_key}"
+        where = self.where(file_key)
         data = read_user_bytes(path, missing="no such mesh file", where=where, limit=MAX_MESH_BYTES)
         file_type = name.lower().rsplit(".", 1)[-1]  # the name's suffix: a symlink's target may have another
         if file_type == "obj":
@@ -571,7 +418,7 @@ class _SceneReader:
         be a regular file and, unless ``allow_outside``, lie inside the scene file's folder. Every file a scene names
         goes through here (and is recorded, :meth:`opened`), and every file such a file names through the same
         :func:`harness.scene.mesh_files.confined_path`."""
-        return self.opened(confined_path(self.folder, name, what, f"{self.label}: {key}" if key else self.label,
+        return self.opened(confined_path(self.folder, name, what, self.where(key),
                                          allow_outside=self.allow_outside))
 
     def check_placed_shape(self, shape: Shape, key: str, placement_key: str) -> None:
@@ -652,7 +499,7 @@ def obj_face_problem(data: bytes) -> str | None:
 
 def _obj_index_problem(token: bytes, totals: dict, so_far: dict) -> str | None:
     """Why one face vertex (``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``) of an OBJ file is wrong, or None."""
-    shown = _show(token.decode("utf-8", "replace"))
+    shown = show_value(token.decode("utf-8", "replace"))
     parts = token.split(b"/")
     if len(parts) > 3 or not parts[0]:
         return f"expected a face vertex v, v/vt, v//vn or v/vt/vn, got {shown}"
@@ -671,13 +518,3 @@ def _obj_index_problem(token: bytes, totals: dict, so_far: dict) -> str | None:
                     f"{kind.decode()} lines{where}")
     return None
 
-
-def _finite_float(value: Any) -> float | None:
-    """``value`` as a float if it is a finite TOML number (not a boolean), else None."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    try:
-        number = float(value)
-    except OverflowError:
-        return None
-    return number if math.isfinite(number) else None

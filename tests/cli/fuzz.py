@@ -564,7 +564,8 @@ repeats = 2
 
 SCENE_TABLES = {(): ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
                      "emitters"),
-                ("camera",): ("origin", "target", "up", "fov", "fov_axis"), ("film",): ("width", "height", "filter"),
+                ("camera",): ("origin", "target", "up", "fov", "fov_axis", "type"),
+                ("film",): ("width", "height", "filter"),
                 ("integrator",): ("max_depth",)}
 SHAPE_KEYS = ("name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
               "file", "center", "radius", "subdivisions")
@@ -601,6 +602,7 @@ SCENE_BAD = {  # a value certainly refused at this key
     ("camera", "fov"): [0, 180, -5, NAN, INF, "40", True, [40], 1e308, 10**400],
     ("camera", "origin"): BAD_VECTORS, ("camera", "target"): BAD_VECTORS, ("camera", "up"): BAD_VECTORS + [[0, 0, 0]],
     ("camera", "fov_axis"): ["z", "X", 1, ""],
+    ("camera", "type"): ["thinlens", "orthographic", "Perspective", 3, ""],
     ("film", "width"): [0, -1, 16385, 1.5, "16", 10**30, True], ("film", "height"): [0, -1, 16385, 2.0, "16", 10**30],
     ("film", "filter"): ["lanczos", "", 1],
     ("integrator", "max_depth"): [0, -2, 1.5, "3", 10**30, True],
@@ -646,6 +648,7 @@ EMITTER_SPECIAL = ("target = position", "beam_width > cutoff_angle", "a duplicat
                    "a key of another type")
 SCENE_VALID = {  # values that keep a scene valid
     ("camera", "fov"): [30, 45.5, 90, 1], ("camera", "fov_axis"): ["x", "y", "smaller", "larger"],
+    ("camera", "type"): ["perspective"],
     ("film", "width"): [8, 16, 12], ("film", "height"): [8, 16, 1], ("film", "filter"): ["box", "tent", "gaussian"],
     ("integrator", "max_depth"): [1, 2, 3, -1], ("material", "two_sided"): [True, False],
     ("material", "type"): ["diffuse"],

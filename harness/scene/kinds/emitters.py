@@ -81,9 +81,7 @@ class EmitterKind:
 
 def read_emitters(reader, document: dict) -> tuple[Emitter, ...]:
     """``[[emitters]]``: each entry (:func:`read_emitter`), names unique, at most one environment."""
-    entries = document.get("emitters", [])
-    if not isinstance(entries, list):
-        raise reader.expected("emitters", "an array of tables ([[emitters]])", entries)
+    entries = reader.array(document.get("emitters", []), "emitters", "an array of tables ([[emitters]])")
     emitters: list[Emitter] = []
     for index, entry in enumerate(entries):
         emitter = read_emitter(reader, index, entry)
