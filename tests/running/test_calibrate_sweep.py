@@ -159,16 +159,21 @@ def test_sweep_configurations_are_the_product_of_the_options(suite):
     assert calibrate.sweep_configs(tiny, calibrate.SweepOptions(spp=(4,)))[0].seconds is None
 
 
-def test_the_sweep_command_of_the_docs_parses_and_plans():
-    """docs/verdict.md's sweep command, as printed: its options parse, and it plans 27 configurations of the case
-    within the cost limit (nothing rendered)."""
+@pytest.mark.parametrize(("index", "names", "configs"), [
+    (0, ["point-spot/reference"], 27),
+    (1, ["point-spot/reference", "veach-mis/reference"], 36),
+])
+def test_the_sweep_commands_of_the_docs_parse_and_plan(index, names, configs):
+    """docs/verdict.md's sweep commands, as printed: their options parse, and each plans its configurations of
+    each case within the cost limit (nothing rendered)."""
     text = (ROOT / "docs" / "verdict.md").read_text(encoding="utf-8")
-    command = re.search(r"^(harness calibrate [^\n]*\\\n[^\n]*--films[^\n]*)$", text, re.M)[1].replace("\\\n", " ")
+    found = re.findall(r"^(harness calibrate [^\n]*\\\n[^\n]*--films[^\n]*)$", text, re.M)
+    command = found[index].replace("\\\n", " ")
     argv = shlex.split(command)[1:]
     args = build_parser().parse_args(argv)
     options = _sweep_options(args)
     suite = load_suite(ROOT / args.suite)
     cases = calibrate.select_cases(suite, args.cases)
-    assert [c.name for c in cases] == ["point-spot/reference"]
-    assert len(calibrate.sweep_configs(cases[0], options)) == 27
+    assert [c.name for c in cases] == names
+    assert all(len(calibrate.sweep_configs(case, options)) == configs for case in cases)
     calibrate.check_cost(cases, args.seeds, sweep_options=options)
