@@ -307,18 +307,19 @@ def _budget(measurements: list[dict]) -> dict:
 
 def _compare(scene_name: str, rows: list[dict], level: float, repeats: int) -> dict:
     """Each row's numbers and intervals against the default's (see :func:`strategy_rows`), and the best. A row
-    whose estimator is exact here (``zero_variance`` at both budgets) has no efficiency, no MSE ratio and no place
-    in the ranking; ratios to an exact default are none."""
+    whose estimator is exact here (``zero_variance`` at either budget: one exact at the equal-time spp and not at
+    the other, where float32 accumulation leaves a variance, would rank by rounding's inverse) has no efficiency, no
+    MSE ratio and no place in the ranking; ratios to an exact default are none."""
     default = next((r for r in rows if r.get("is_default")), None)
     d_spp, d_time = default["equal_spp"], default["equal_time"]
-    d_zero = d_spp["zero_variance"] and d_time["zero_variance"]
+    d_zero = d_spp["zero_variance"] or d_time["zero_variance"]
     none = {"value": None, "low": None, "high": None, "level": level, "dof": None, "seeds": []}
     samples = {}
     for row in rows:
         if "skipped" in row:
             continue
         s, t = row["equal_spp"], row["equal_time"]
-        row["zero_variance"] = zero = s["zero_variance"] and t["zero_variance"]
+        row["zero_variance"] = zero = s["zero_variance"] or t["zero_variance"]
         measured = shown_mse(float(np.mean(s["mse_measured"])), s["floor_mse"])
         row.update(mse_estimate=float(np.mean(s["mse"])), mse_source=s["mse_source"], mse_corrected=measured["value"],
                    mse_bound=measured["bound"], seconds=float(np.mean(s["seconds"])),

@@ -163,3 +163,22 @@ def test_a_zero_variance_strategy_shows_no_efficiency_and_is_left_out_of_the_ran
     only = _rows(cases)["hemisphere=uniform"]
     assert only["zero_variance"] is True and only["efficiency"] is None
     assert cases["zero_variance"] == ["hemisphere=uniform"]
+
+
+def test_a_strategy_exact_at_one_budget_only_is_left_out_of_the_ranking():
+    """White furnace, env_sampling=cosine: exact at the equal-time budget (124 spp: variance 5e-17) but not at 256 spp,
+    where float32 accumulation leaves a variance of 4e-9; its equal-time efficiency read 7.5e+27 x the default and
+    "Best" named it. A row exact at either budget has no efficiency and no place in the ranking."""
+    planted = Planted({"direct=mis": 0.1}, {"hemisphere=uniform": 2.0}, noise=0.02)  # equal time: 8 spp
+
+    def render(settings, spp, index):
+        m = planted(settings, spp, index)
+        if settings == {"hemisphere": "uniform"} and spp != 16:  # exact at the equal-time spp only
+            return dict(m, mse=1e-33, floor_mse=0.0, variance=4e-17, level=0.93)
+        return dict(m, level=0.93)
+
+    table = strategy_rows("planted", [], render, True, DEFAULTS, spp=16, repeats=4, min_seconds=0.0, spp_step=2)
+    exact = _rows(table)["hemisphere=uniform"]
+    assert exact["equal_time"]["zero_variance"] and not exact["equal_spp"]["zero_variance"]
+    assert exact["zero_variance"] is True and exact["efficiency"] is None
+    assert table["best"] == "direct=mis" and "hemisphere=uniform" in table["zero_variance"]
