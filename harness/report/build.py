@@ -384,12 +384,15 @@ def _strategy_row_view(row: dict, best: Any) -> dict:
 
 
 def _best_line(entry: dict) -> str:
-    """What the table says about the best strategy: named with its interval where told apart, else why not; and
-    the rows of zero variance, left out of the ranking."""
+    """What the table says about the best strategy: named with its interval where told apart, else why not. Rows of
+    zero variance are left out of the ranking and, exact, come first: a noisy row is then the best only "among the
+    others"."""
     zero = entry.get("zero_variance") or []
     if not zero:
         return _best_named(entry)
-    return (f"{_best_named(entry)}. Zero variance (exact here; no efficiency, not ranked): {', '.join(zero)}")
+    named = _best_named(entry).removeprefix("Best: ")
+    return (f"Best: zero variance (exact here; no efficiency, not ranked): {', '.join(zero)}. Among the others: "
+            f"{named}")
 
 
 def _best_named(entry: dict) -> str:
