@@ -101,8 +101,9 @@ class RenderOutput:
 
 
 class _Sampling(NamedTuple):
-    """Where a pass over the pixels draws its numbers: its samples per pixel, its seed, ``seed_key = mix64(seed ^
-    golden)`` and the kernels' configuration with that spp. The render itself, or one of its replicates."""
+    """Where a pass over the pixels draws its numbers: its samples per pixel, its seed, its key
+    (:func:`reference_impl.rng.seed_key`) and the kernels' configuration with that spp. The render itself, or one of
+    its replicates."""
 
     spp: int
     seed: int
@@ -288,13 +289,13 @@ class _Context:
         self.tan_half_fov = self.camera.tan_half_fov(width, height)
         self.camera_frame = c(self.camera.frame(), dtype=np.float64)
         self.eye = np.asarray(self.camera.origin, dtype=np.float64)
-        self.seed_key = np.uint64(rng._mix64_int(s.seed ^ int(rng._GOLDEN)))
+        self.seed_key = rng.seed_key(s.seed)
         self.sampling = _Sampling(s.spp, s.seed, self.seed_key, self.config)
 
     def replicate(self, r: int, spp: int) -> _Sampling:
         """Replicate ``r`` of ``spp`` samples per pixel: a render of its own seed (``Settings.replicate_seed``)."""
         seed = self.settings.replicate_seed(r)
-        return _Sampling(spp, seed, np.uint64(rng._mix64_int(seed ^ int(rng._GOLDEN))), self.config._replace(spp=spp))
+        return _Sampling(spp, seed, rng.seed_key(seed), self.config._replace(spp=spp))
 
 
 class _Clock:

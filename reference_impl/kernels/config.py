@@ -132,7 +132,7 @@ FROM_SETTINGS = {
 FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf", "num_area_lights", "env_light", "packet_width")
 # The Settings fields that fill no slot, and where they go instead.
 NOT_SLOTS = {
-    "seed": "seed_key = mix64(seed ^ golden), an argument of camera_paths and of the engines (film_samples)",
+    "seed": "its key, rng.seed_key(seed): FilmSamples.seed_key, read by camera_paths and the engines",
     "light_selection": "the light tables' pdf(k) (lights.LightSampler)",
     "batch_size": "how many camera samples the integrator hands to a kernel at once",
     "threads": "the integrator's thread pool",

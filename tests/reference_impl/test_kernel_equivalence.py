@@ -46,7 +46,7 @@ def test_random_numbers_match_rng():
     seed = 1234567
     ids = np.concatenate([np.arange(500, dtype=np.uint64), np.random.default_rng(1).integers(0, 2**63, 500, dtype=np.uint64)])
     keys = rng.path_keys(seed, ids)
-    seed_key = np.uint64(rng._mix64_int(seed ^ int(rng._GOLDEN)))
+    seed_key = rng.seed_key(seed)
     assert [k_rng.path_key(seed_key, i) for i in ids] == keys.tolist()
     for depth, purpose, index in ((0, 0, 0), (1, 9, 0), (7, 3, 2), (300, 10, 5), (2**20, 8, 0)):
         want = rng.uniform(keys, rng.dimension(depth, purpose, index))
