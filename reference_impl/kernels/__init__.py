@@ -10,6 +10,9 @@ module              what it holds                                              n
 =================== ========================================================== ====================================
 ``config``          compile options, the settings as the kernels read them     ``Settings`` (the table of slots)
                     (``KernelConfig``), modes, planted-fault bits, counters
+``records``         the scene, lights, surfaces, emitters, materials, camera,  ``Geometry``, ``LightSampler``,
+                    pixel filter and camera samples as the kernels take them   ``Emitters``, ``Materials``, ``Camera``
+                    (named tuples of arrays, each built by one function)
 ``rng``             hashed random numbers: keys, dimensions, uniforms          ``reference_impl.rng``
 ``sobol``           the stratified sampler: scrambled, shuffled Sobol points   ``rng.sobol_2d``
 ``warps``           hemisphere warps, the world frame, discrete choices        ``reference_impl.sampling``

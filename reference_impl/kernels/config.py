@@ -101,16 +101,10 @@ class KernelConfig(NamedTuple):
     packet_width: int  # rays per packet query: the widest Embree traces natively here (16, 8 or 4; 1: no packets)
 
 
-# The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
-#   scene    = (prim_to_tri, normal, v0, corners, emission, light_id, material, two_sided, f_r, albedo_max), per
-#              triangle (prim_to_tri per Embree primitive; f_r and albedo_max per material);
-#   lights   = (cdf, triangles, first, count, within_cdf, pmf, area, frames, parallelogram, other) of
-#              lights.LightSampler (its kernel_tables(): per light, or per piece of a light);
-#   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface;
-#   and, only in scenes that have emitters which are not surfaces (None otherwise, which compiles every branch for
-#   them out of the engines: such scenes run exactly the code they ran before those emitters existed),
-#   emitters = (kind, position, direction, intensity, to_local, to_world, spot, env_image, env_cell_pdf, env_row_cdf,
-#               env_col_cdf) of emitters.Emitters.
+# The scene as the kernels take it: the records of reference_impl.kernels.records (SceneTables, LightTables,
+# SurfaceTables, MaterialTables; EmitterTables only in scenes that have emitters which are not surfaces, None
+# otherwise, which compiles every branch for them out of the engines: such scenes run exactly the code they ran before
+# those emitters existed).
 
 # The one table from Settings to the kernels: slot of KernelConfig -> (the Settings field that fills it, its value in
 # the slot).

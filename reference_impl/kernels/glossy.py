@@ -55,7 +55,8 @@ from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, c
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.record import record_camera, record_closest, record_occluded
 from reference_impl.kernels.rng import dim_salt, uniform
-from reference_impl.kernels.sobol import ahead, glossy_first_hit_seeds, held_point, longest_run, pair_point, pixel_run
+from reference_impl.kernels.sobol import (NOTHING_HELD, GlossyFirstHitPairs, ahead, glossy_first_hit_seeds, held_point,
+                                          longest_run, pair_point, pixel_run)
 from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
 from reference_impl.materials import DIELECTRIC, P_TWO_SIDED, ROUGHDIELECTRIC
@@ -89,8 +90,8 @@ def light_piece(cfg, lights, light, u_tri):
     an emitter that is not a surface."""
     if light >= cfg.num_area_lights:
         return -1
-    f = lights[2][light]
-    return f + search_within(lights[4], f, lights[3][light], u_tri)
+    f = lights.first[light]
+    return f + search_within(lights.within_cdf, f, lights.count[light], u_tri)
 
 
 @njit(**JIT_BORROW)
@@ -102,7 +103,7 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
     for an emitter that is not a surface))."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     if light < cfg.num_area_lights:
-        tri_normal, emission, light_area = scene[1], scene[4], lights[6]
+        tri_normal, emission, light_area = scene.normal, scene.emission, lights.area
         tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
         l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
         dist2 = dot3(l0, l1, l2, l0, l1, l2)
@@ -128,7 +129,7 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
 def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2):
     """:func:`light_connection_on` for emitter e, which is not a surface."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
-    kind, position, direction, intensity = emitters[0], emitters[1], emitters[2], emitters[3]
+    kind, position, direction, intensity = emitters.kind, emitters.position, emitters.direction, emitters.intensity
     k = kind[e]
     if k == POINT or k == SPOT:
         p0, p1, p2 = position[e, 0], position[e, 1], position[e, 2]
@@ -140,8 +141,8 @@ def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1
         wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
         falloff = 1.0
         if k == SPOT:
-            s0, s1, s2 = mat_vec(emitters[4], e, -wi0, -wi1, -wi2)
-            falloff = spot_falloff(cfg, emitters[6], e, s0, s1, s2)
+            s0, s1, s2 = mat_vec(emitters.to_local, e, -wi0, -wi1, -wi2)
+            falloff = spot_falloff(cfg, emitters.spot, e, s0, s1, s2)
             if not falloff > 0:
                 return nothing
         if k == POINT and cfg.mutant & M_POINT_NO_INVERSE_SQUARE:  # mutant "point-no-inverse-square"
@@ -168,14 +169,14 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                  record=None):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one at a time
     (module docstring). ``scene``, ``lights``, ``emitters`` (or None) as for :func:`.path.trace_paths`;
-    ``materials`` = (kind, params) of :class:`reference_impl.Materials`, indexed by the scene's material ids.
-    ``timing`` and ``film_samples`` (pixel, sample, seed_key of the camera samples) as for trace_paths.
+    ``materials`` (:class:`.records.MaterialTables`), indexed by the scene's material ids.
+    ``timing`` and ``film_samples`` (:class:`.records.FilmSamples`) as for trace_paths.
     ``record``: None in a render (compiled out), or buffers that receive every query's ray and answer
     (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
-    emission, light_id, tri_material = scene[4], scene[5], scene[6]
-    mkind, mparams = materials
-    light_cdf, light_pmf, light_area = lights[0], lights[5], lights[6]
+    emission, light_id, tri_material = scene.emission, scene.light_id, scene.material
+    mkind, mparams = materials.kind, materials.params
+    light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd
     direct = cfg.direct
@@ -183,7 +184,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     max_depth = cfg.max_depth
     num_lights = cfg.num_lights
     sobol = cfg.sampler == SAMPLER_SOBOL
-    film_pixel, film_sample, seed_key = film_samples
+    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
     # The first hit's points of each pixel's run of samples, computed ahead (kernels.sobol.sobol_points).
     fh = glossy_first_hit_seeds(seed_key, 0, 1, 1)
     fh_pixel = -1
@@ -192,8 +193,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     lx, ly = np.empty(size), np.empty(size)
     bx, by = np.empty(size), np.empty(size)
     cx, cy = np.empty(size), np.empty(size)
-    nothing = (np.int64(0), np.int64(0))
-    held = (nothing, nothing, nothing)
+    held = GlossyFirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0
@@ -236,8 +236,9 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 fh_pixel = film_pixel[r]
                 fh = glossy_first_hit_seeds(seed_key, fh_pixel, cfg.spp, nd)
                 first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
-                held = (ahead(fh[0], first * nd, m_run * nd, lx, ly, True), ahead(fh[1], first, m_run, bx, by, True),
-                        ahead(fh[2], first, m_run, cx, cy, True))
+                held = GlossyFirstHitPairs(ahead(fh.light, first * nd, m_run * nd, lx, ly, True),
+                                           ahead(fh.bsdf, first, m_run, bx, by, True),
+                                           ahead(fh.lobe_roulette, first, m_run, cx, cy, True))
             si = film_sample[r]
         while True:
             sob = sobol and depth == 1
@@ -287,11 +288,11 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 samples = nd if direct != DIRECT_BSDF else 0
                 if emitters is not None:
                     if direct == DIRECT_BSDF:
-                        samples = len(emitters[0])
+                        samples = len(emitters.kind)
                 for j in range(samples):
                     if direct != DIRECT_BSDF:
                         if sob:  # one 2D point: its first coordinate picks the light and the piece too
-                            u_a, u2 = pair_point(held_point(fh[0], lx, ly, held[0], si * nd + j), si * nd + j)
+                            u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j), si * nd + j)
                             sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
                         else:
                             u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
@@ -306,7 +307,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                     else:  # a delta light's own sample (its uniforms are not used)
                         sel = -1
                         if emitters is not None:
-                            ekind = emitters[0][j]
+                            ekind = emitters.kind[j]
                             if ekind == POINT or ekind == SPOT or ekind == DIRECTIONAL:
                                 sel = cfg.num_area_lights + j
                         if sel < 0:
@@ -358,8 +359,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
 
             # The next ray, sampled from the BSDF.
             if sob:
-                u1, u2 = pair_point(held_point(fh[1], bx, by, held[1], si), si)
-                u_lobe, u_rr = pair_point(held_point(fh[2], cx, cy, held[2], si), si)
+                u1, u2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
+                u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
             else:
                 u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
                 u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))

@@ -36,7 +36,7 @@ def hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, v0, v1, v2):
 @njit(**JIT_BORROW)
 def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
     """The hit of a ray on primitive p: (its triangle, the triangle's normal N, t, x, cos(theta_out))."""
-    prim_to_tri, tri_normal, tri_v0 = scene[0], scene[1], scene[2]
+    prim_to_tri, tri_normal, tri_v0 = scene.prim_to_tri, scene.normal, scene.corner0
     tri = prim_to_tri[p]
     n0, n1, n2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
     t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, tri_v0[tri, 0], tri_v0[tri, 1], tri_v0[tri, 2])

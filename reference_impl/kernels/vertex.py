@@ -54,8 +54,8 @@ def emitted(cfg, emit, front, tri, scene, lights, t, cos_out, p_hemi):
     EMIT_MIS the power heuristic's weight of the ray (density p_hemi = Ni p(Psi)) that found it at distance t
     against the Nd light samples that could have drawn the same point (``_mis_weight_hemisphere``):
     p_h^2 / (p_h^2 + p_l^2), p_l = Nd pdf(k) / A_k t^2 / cos(theta_out)."""
-    emission, light_id = scene[4], scene[5]
-    light_pmf, light_area = lights[5], lights[6]
+    emission, light_id = scene.emission, scene.light_id
+    light_pmf, light_area = lights.pmf, lights.area
     fr = 1.0 if front else 0.0
     e0, e1, e2 = emission[tri, 0] * fr, emission[tri, 1] * fr, emission[tri, 2] * fr
     w = 1.0  # exact: b Le w = b Le
@@ -73,7 +73,7 @@ def shading_point(cfg, scene, tri, front, n0, n1, n2, x0, x1, x2):
     """What the light leaving x toward Theta depends on: (whether x reflects at all, which it does not on the back
     of a one-sided surface, its material, N turned to the side Theta leaves from, f_r, and the offset origin of the
     rays that leave x)."""
-    tri_material, two_sided, f_r_table = scene[6], scene[7], scene[8]
+    tri_material, two_sided, f_r_table = scene.material, scene.two_sided, scene.f_r
     material = tri_material[tri]
     if not (front or two_sided[material]):
         return False, material, n0, n1, n2, 0.0, 0.0, 0.0, x0, x1, x2
@@ -91,7 +91,7 @@ def roulette(cfg, scene, material, sob, seeds, index, key, depth, b0, b1, b2):
     of the pixel's set ``seeds`` (``sob``) or the path's own."""
     if not (cfg.rr != RR_OFF and depth >= cfg.rr_depth):
         return True, b0, b1, b2
-    survival = scene[9][material] if cfg.rr == RR_ALBEDO else cfg.survival
+    survival = scene.albedo_max[material] if cfg.rr == RR_ALBEDO else cfg.survival
     u_rr = pair_point(seeds, index)[0] if sob else uniform(key, dim_salt(depth, ROULETTE, 0))
     if not (u_rr < survival):
         return False, b0, b1, b2
