@@ -127,7 +127,8 @@ def env_sample(cfg, emitters, u1, u2, n0, n1, n2):
     kind = emitters.kind
     e = cfg.env_light - cfg.num_area_lights
     if cfg.env_sampling == ENV_IMPORTANCE and kind[e] == ENV_MAP:
-        to_world, cell_pdf, row_cdf, col_cdf = emitters.to_world, emitters.env_cell_pdf, emitters.env_row_cdf, emitters.env_col_cdf
+        to_world, cell_pdf = emitters.to_world, emitters.env_cell_pdf
+        row_cdf, col_cdf = emitters.env_row_cdf, emitters.env_col_cdf
         rows, cols = cell_pdf.shape[0], cell_pdf.shape[1]
         i = sample_discrete(row_cdf, u1)
         fv = rescale_within(u1, row_cdf[i - 1] if i > 0 else 0.0, row_cdf[i])

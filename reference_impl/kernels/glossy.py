@@ -51,6 +51,7 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C
 from reference_impl.kernels.emitters import (env_light_pdf, env_radiance, env_sample, mat_vec, spot_falloff,
                                              split_light_piece_all)
 from reference_impl.kernels.light_sampling import point_on_light, search_within
+from reference_impl.kernels.material import material_at
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.record import record_camera, record_closest, record_occluded
@@ -64,15 +65,6 @@ from reference_impl.rng import BSDF_LOBE, BSDF_U1, BSDF_U2, LIGHT_SELECT, LIGHT_
 
 MAX_VERTICES = 1 << 16
 RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
-
-
-@njit(**JIT)
-def frame(n0, n1, n2):
-    """Tangents s, t of the orthonormal frame (s, t, N) of warps.to_world (Duff et al. 2017)."""
-    sign = 1.0 if n2 >= 0 else -1.0
-    a = -1.0 / (sign + n2)
-    b = n0 * n1 * a
-    return 1.0 + sign * (n0 * n0) * a, sign * b, -sign * n0, b, sign + (n1 * n1) * a, -n1
 
 
 @njit(**JIT_BORROW)
@@ -174,8 +166,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     ``record``: None in a render (compiled out), or buffers that receive every query's ray and answer
     (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
-    emission, light_id, tri_material = scene.emission, scene.light_id, scene.material
-    mkind, mparams = materials.kind, materials.params
+    emission, light_id = scene.emission, scene.light_id
     light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd
@@ -264,7 +255,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         rad1 += b1 * e1 * w
                         rad2 += b2 * e2 * w
                 break
-            tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
+            hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
+            tri, t, cos_out = hit.tri, hit.t, hit.cos_out
             light = light_id[tri]
             if light >= 0 and cos_out > 0 and (direct != DIRECT_AREA or prev_delta):
                 w = 1.0
@@ -276,11 +268,14 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 rad2 += b2 * emission[tri, 2] * w
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
-            m = tri_material[tri]
-            s0, s1, s2, t0, t1, t2 = frame(nx0, nx1, nx2)
+            bsdf = material_at(materials, hit)  # the material step
+            x0, x1, x2 = hit.x0, hit.x1, hit.x2
+            nx0, nx1, nx2 = hit.n0, hit.n1, hit.n2
+            # The BSDF's local frame: the shading frame's tangents s, t and the normal N (the shading normal is N).
+            s0, s1, s2, t0, t1, t2 = hit.ss0, hit.ss1, hit.ss2, hit.st0, hit.st1, hit.st2
             wo0, wo1, wo2 = -d0, -d1, -d2
             lo0, lo1, lo2 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2), cos_out
-            delta_bsdf = is_delta(mkind[m])
+            delta_bsdf = is_delta(bsdf.kind)
 
             # Direct light: Nd light samples (none at a delta BSDF); with direct = bsdf the delta lights alone.
             if not delta_bsdf:
@@ -321,13 +316,13 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         count_shadow_skipped += 1
                         continue
                     li0, li1, li2 = dot3(s0, s1, s2, wi0, wi1, wi2), dot3(t0, t1, t2, wi0, wi1, wi2), cos_x
-                    f0, f1, f2 = bsdf_eval(mkind, mparams, m, mutant, lo0, lo1, lo2, li0, li1, li2)
+                    f0, f1, f2 = bsdf_eval(bsdf, mutant, lo0, lo1, lo2, li0, li1, li2)
                     if not (f0 > 0 or f1 > 0 or f2 > 0):
                         count_shadow_skipped += 1
                         continue
                     w = 1.0
                     if direct == DIRECT_MIS and p_l > 0:
-                        p_b = bsdf_pdf(mkind, mparams, m, mutant, lo0, lo1, lo2, li0, li1, li2)
+                        p_b = bsdf_pdf(bsdf, mutant, lo0, lo1, lo2, li0, li1, li2)
                         w = power_weight(mutant, p_l, p_b, True)
                     side = 1.0 if cos_x > 0 else -1.0
                     so0, so1, so2 = offset_origin(cfg.offset_scene, x0, x1, x2, side * nx0, side * nx1, side * nx2)
@@ -366,18 +361,16 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                 u2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
                 u_rr = -1.0  # drawn below only where roulette is played
-            ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(mkind, mparams, m, mutant, lo0, lo1, lo2, u_lobe,
-                                                                    u1, u2)
+            ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(bsdf, mutant, lo0, lo1, lo2, u_lobe, u1, u2)
             if not ok:
-                kind_m = mkind[m]
-                if cos_out < 0 and mparams[m, P_TWO_SIDED] == 0 and not (kind_m == DIELECTRIC
-                                                                        or kind_m == ROUGHDIELECTRIC):
+                kind = bsdf.kind
+                if cos_out < 0 and bsdf.params[P_TWO_SIDED] == 0 and not (kind == DIELECTRIC or kind == ROUGHDIELECTRIC):
                     count_back_face += 1
                 break
             if direct == DIRECT_AREA and not delta and not (max_depth == -1 or depth + 2 <= max_depth):
                 break  # its vertex would add direct light only, which max_depth forbids
             nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
-            eta_rel = sample_eta(mkind, mparams, m, lo2, li2)
+            eta_rel = sample_eta(bsdf, lo2, li2)
             eta2 *= eta_rel * eta_rel
             if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
                 if cfg.rr == RR_THROUGHPUT:
@@ -426,4 +419,4 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     timing[1] += queries + n
 
 
-__all__ = ["MAX_VERTICES", "frame", "light_connection_on", "light_piece", "power_weight", "trace_glossy"]
+__all__ = ["MAX_VERTICES", "light_connection_on", "light_piece", "power_weight", "trace_glossy"]

@@ -157,32 +157,32 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
                     count_escaped += 1
                     alive[lane] = False
                     continue
-                tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
-                front = cos_out > 0
+                hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
                 if emit != EMIT_NONE:
-                    e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, ray[lane, 6])
+                    e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, ray[lane, 6])
                     rad[lane, 0] += b0 * e0 * w
                     rad[lane, 1] += b1 * e1 * w
                     rad[lane, 2] += b2 * e2 * w
                 if not allow_next:
                     alive[lane] = False
                     continue
-                reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front,
-                                                                                             nx0, nx1, nx2, x0, x1, x2)
+                reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
                 if not reflects:
                     count_back_face += 1
                     alive[lane] = False
                     continue
+                x0, x1, x2 = hit.x0, hit.x1, hit.x2
                 going = allow_indirect
                 if going:
-                    going, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh.roulette, rx, ry, held.roulette, si),
-                                                 si, k, depth, b0, b1, b2)
+                    going, q0, q1, q2 = roulette(cfg, scene, material, sob,
+                                                 held_point(fh.roulette, rx, ry, held.roulette, si), si, k, depth, b0,
+                                                 b1, b2)
                     if not going:
                         count_roulette += 1
                 if going:
                     going, nk, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(
-                        cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2, f0, f1,
-                        f2, q0, q1, q2)
+                        cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2,
+                        f0, f1, f2, q0, q1, q2)
                     if going:
                         count_indirect += 1
                         next_key[lane] = nk

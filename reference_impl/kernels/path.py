@@ -120,35 +120,35 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                         rad1 += b1 * e1 * w
                         rad2 += b2 * e2 * w
                 break
-            tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
-            front = cos_out > 0
+            hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
             if emit != EMIT_NONE:
-                e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, ray_pdf)
+                e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, ray_pdf)
                 rad0 += b0 * e0 * w
                 rad1 += b1 * e1 * w
                 rad2 += b2 * e2 * w
 
             if not allow_next:
                 break
-            reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0,
-                                                                                         nx1, nx2, x0, x1, x2)
+            reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
             if not reflects:
                 count_back_face += 1
                 break
+            x0, x1, x2 = hit.x0, hit.x1, hit.x2
 
             # Indirect light, if the next vertex can still add anything. Drawn before the direct light's queries (the
             # random numbers are counter-based, so the order of drawing changes nothing), which gives the processor
             # independent arithmetic to overlap instead of a chain broken by every Embree call.
             go_on = allow_indirect
             if go_on:
-                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh.roulette, rx, ry, held.roulette, si), si, k,
-                                             depth, b0, b1, b2)
+                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob,
+                                             held_point(fh.roulette, rx, ry, held.roulette, si), si, k, depth, b0, b1,
+                                             b2)
                 if not go_on:
                     count_roulette += 1
             if go_on:
                 go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(
-                    cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2, f0, f1, f2, q0,
-                    q1, q2)
+                    cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2,
+                    f0, f1, f2, q0, q1, q2)
                 if go_on:
                     count_indirect += 1
                 else:
@@ -158,8 +158,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, held_point(fh.direction, dx, dy, held.direction, si * nd + j), si,
-                                                          j, k, depth, nx0, nx1, nx2)
+                    h0, h1, h2, ratio = hemisphere_sample(
+                        cfg, sob, held_point(fh.direction, dx, dy, held.direction, si * nd + j), si, j, k, depth, nx0,
+                        nx1, nx2)
                     count_hemi_direct += 1
                     hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
                                                                  ox0, ox1, ox2, h0, h1, h2)

@@ -78,24 +78,23 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                     radiance[r, 1] += beta[i, 1] * e1 * w
                     radiance[r, 2] += beta[i, 2] * e2 * w
             continue
-        tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2],
-                                                                 direction[i, 0], direction[i, 1], direction[i, 2])
-        front = cos_out > 0
+        hit = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1],
+                          direction[i, 2])
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         r = root[i]
         if emit != EMIT_NONE:
-            e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, pdf_dir[i])
+            e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, pdf_dir[i])
             radiance[r, 0] += b0 * e0 * w
             radiance[r, 1] += b1 * e1 * w
             radiance[r, 2] += b2 * e2 * w
 
         if not allow_next:
             continue
-        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0, nx1,
-                                                                                     nx2, x0, x1, x2)
+        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
         if not reflects:
             counters[C_BACK_FACE] += 1
             continue
+        x0, x1, x2 = hit.x0, hit.x1, hit.x2
         k = key[i]
         if sob:
             fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
@@ -106,7 +105,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
         # Direct light: the rays of Nd samples, resolved by resolve_shadow / resolve_hemisphere.
         for j in range(nd):
             if hemi_direct:  # a closest-hit ray
-                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, spot_point(fh.direction), si, j, k, depth, nx0, nx1, nx2)
+                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, spot_point(fh.direction), si, j, k, depth, nx0, nx1,
+                                                      nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
                 s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
@@ -117,8 +117,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                 s += 1
                 continue
             if emitters is None:
-                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh.light), si, j, k, depth, scene,
-                                                                    lights, surfaces)
+                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh.light), si, j, k, depth,
+                                                                    scene, lights, surfaces)
                 needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                     cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
             else:
@@ -163,8 +163,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
             counters[C_ROULETTE] += 1
             continue
         for branch in range(ni):
-            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh.indirect), si, branch, k,
-                                                                         depth, nx0, nx1, nx2, f0, f1, f2, b0, b1,
+            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh.indirect), si, branch,
+                                                                         k, depth, nx0, nx1, nx2, f0, f1, f2, b0, b1,
                                                                          b2)
             if not carries:
                 counters[C_ROULETTE] += 1

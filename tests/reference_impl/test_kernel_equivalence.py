@@ -121,7 +121,8 @@ def test_surface_points_match_triangle_area_sampler():
     sampler = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     u = [_uniforms(20 + i) for i in range(3)]
     points = sampler.sample(*u)
-    got = [k_lights.sample_surface_point(k_records.surface_tables(sampler), geometry.corners, *args) for args in zip(*u)]
+    tables = k_records.surface_tables(sampler)
+    got = [k_lights.sample_surface_point(tables, geometry.corners, *args) for args in zip(*u)]
     np.testing.assert_array_equal([g[0] for g in got], points.triangle)
     np.testing.assert_array_equal(np.array([g[1:] for g in got]), points.position)
 
@@ -153,8 +154,8 @@ def test_sample_reuse_matches_split_uniform(selection):
                                                                0.5)[0], u1)
         assert piece == f + k_lights.search_within(sampler.within_cdf, f, sampler.count[light], u_tri)
     with_emitter = LightSampler(geometry, selection, extra_power=np.array([1.0]))  # light 4: a point light, say
-    light, piece, got_u1 = k_emitters.split_light_piece_all(k_records.light_tables(with_emitter), with_emitter.num_lights,
-                                                            with_emitter.num_area, 0.9999999)
+    light, piece, got_u1 = k_emitters.split_light_piece_all(k_records.light_tables(with_emitter),
+                                                            with_emitter.num_lights, with_emitter.num_area, 0.9999999)
     assert (light, piece) == (with_emitter.num_area, -1) and 0 <= got_u1 < 1
     surfaces = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     want = surfaces.split_uniform(u)
