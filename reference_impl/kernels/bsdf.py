@@ -6,9 +6,9 @@ numba. Everything is in the LOCAL frame of the surface: z is the triangle's fron
 by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
 radiance mode (transmission carries the ``1 / eta^2`` solid-angle compression of radiance).
-The parameters are the material step's (:func:`.material.material_at`): each entry point takes a
-:class:`.material.Bsdf`, the kind and the parameter row (columns ``P_*``) of the surface's material at the hit, and
-reads nothing else of the material table.
+The parameters are the material step's (:func:`.material.material_at`): each entry point takes the kind and the
+parameter row (``row``, columns ``P_*``) of the surface's material at the hit, and reads nothing else of the
+material table.
 
 Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittance)
 
@@ -69,12 +69,12 @@ from numba import njit
 
 from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCTOR_FRESNEL_ONE,
                                            M_MICROFACET_PDF_NO_JACOBIAN, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED)
-from reference_impl.kernels.material import material_bsdf
+from reference_impl.kernels.material import material_params
 from reference_impl.kernels.records import material_tables
 from reference_impl.kernels.warps import cosine_hemisphere
-from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, P_ALPHA, P_DISTRIBUTION, P_ETA, P_IOR,
-                                      P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE, P_TWO_SIDED,
-                                      ROUGHCONDUCTOR, ROUGHDIELECTRIC)
+from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_DISTRIBUTION,
+                                      P_ETA, P_IOR, P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE,
+                                      P_TWO_SIDED, ROUGHCONDUCTOR, ROUGHDIELECTRIC)
 
 INV_PI = 1.0 / np.pi
 INV_SQRT_PI = 1.0 / math.sqrt(np.pi)
@@ -460,39 +460,38 @@ def _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz):
 
 
 @njit(**JIT_BORROW)
-def bsdf_eval(bsdf, mutant, wox, woy, woz, wix, wiy, wiz):
-    """f(wo, wi) |cos theta_i| of ``bsdf`` (:class:`.material.Bsdf`, the material step's answer at the hit), per
-    channel (v0, v1, v2); 0 for delta BSDFs and impossible pairs. Directions local (z = the front normal)."""
-    k, row = bsdf.kind, bsdf.params
-    if k == DIFFUSE or k == ROUGHCONDUCTOR:
+def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
+    """f(wo, wi) |cos theta_i| of a material of ``kind`` with the parameters ``row`` at the hit (the material
+    step's, :func:`.material.material_at`), per channel (v0, v1, v2); 0 for delta BSDFs and impossible pairs.
+    Directions local (z = the front normal)."""
+    if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
         ok, sgn = _side(row, woz, wiz)
         if not ok:
             return 0.0, 0.0, 0.0
         woz, wiz = sgn * woz, sgn * wiz
-        if k == DIFFUSE:
+        if kind == DIFFUSE:
             if wiz <= 0.0:
                 return 0.0, 0.0, 0.0
             c = wiz * INV_PI
             return c * row[P_REFLECTANCE], c * row[P_REFLECTANCE + 1], c * row[P_REFLECTANCE + 2]
         return _roughconductor_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
-    if k == ROUGHDIELECTRIC:
+    if kind == ROUGHDIELECTRIC:
         return _roughdielectric_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
     return 0.0, 0.0, 0.0
 
 
 @njit(**JIT_BORROW)
-def bsdf_pdf(bsdf, mutant, wox, woy, woz, wix, wiy, wiz):
+def bsdf_pdf(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
     """Density of :func:`bsdf_sample`'s wi per unit solid angle; 0 for delta BSDFs and impossible pairs."""
-    k, row = bsdf.kind, bsdf.params
-    if k == DIFFUSE or k == ROUGHCONDUCTOR:
+    if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
         ok, sgn = _side(row, woz, wiz)
         if not ok:
             return 0.0
         woz, wiz = sgn * woz, sgn * wiz
-        if k == DIFFUSE:
+        if kind == DIFFUSE:
             return wiz * INV_PI if wiz > 0.0 else 0.0
         return _roughconductor_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
-    if k == ROUGHDIELECTRIC:
+    if kind == ROUGHDIELECTRIC:
         return _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
     return 0.0
 
@@ -504,36 +503,34 @@ def is_delta(kind):
 
 
 @njit(**JIT_BORROW)
-def sample_eta(bsdf, woz, wiz):
+def sample_eta(kind, row, woz, wiz):
     """The relative index of refraction of a sampled (wo, wi) in the direction of travel (Mitsuba's ``bs.eta``, for
     the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1."""
-    k, row = bsdf.kind, bsdf.params
-    if (k == DIELECTRIC or k == ROUGHDIELECTRIC) and woz * wiz < 0.0:
+    if (kind == DIELECTRIC or kind == ROUGHDIELECTRIC) and woz * wiz < 0.0:
         eta = row[P_IOR]
         return eta if woz > 0.0 else 1.0 / eta
     return 1.0
 
 
 @njit(**JIT_BORROW)
-def bsdf_sample(bsdf, mutant, wox, woy, woz, u_lobe, u1, u2):
+def bsdf_sample(kind, row, mutant, wox, woy, woz, u_lobe, u1, u2):
     """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta).
 
     w = f |cos theta_i| / pdf per channel (a delta lobe: its weight, e.g. R F / P(lobe)); pdf per unit solid angle
     of wi, or for a delta lobe the discrete probability of the lobe; ok False when nothing is sampled (wo behind a
     one-sided surface, a sample below the horizon or on the wrong side for its lobe, a zero weight)."""
-    k, row = bsdf.kind, bsdf.params
-    if k == DIFFUSE or k == CONDUCTOR or k == ROUGHCONDUCTOR:
+    if kind == DIFFUSE or kind == CONDUCTOR or kind == ROUGHCONDUCTOR:
         ok, sgn = _side(row, woz, 0.0)
         if not ok:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         woz = sgn * woz
-        if k == DIFFUSE:
+        if kind == DIFFUSE:
             lx, ly, lz = cosine_hemisphere(u1, u2)
             if not lz > 0.0:
                 return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
             return (True, lx, ly, sgn * lz, row[P_REFLECTANCE], row[P_REFLECTANCE + 1],
                     row[P_REFLECTANCE + 2], lz * INV_PI, False)
-        if k == CONDUCTOR:
+        if kind == CONDUCTOR:
             f0, f1, f2 = _conductor_fresnel3(row, mutant, woz)
             return (True, -wox, -woy, sgn * woz, f0 * row[P_REFLECTANCE], f1 * row[P_REFLECTANCE + 1],
                     f2 * row[P_REFLECTANCE + 2], 1.0, True)
@@ -549,7 +546,7 @@ def bsdf_sample(bsdf, mutant, wox, woy, woz, u_lobe, u1, u2):
         if not (p > 0.0) or (v0 == 0.0 and v1 == 0.0 and v2 == 0.0):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         return True, wix, wiy, sgn * wiz, v0 / p, v1 / p, v2 / p, p, False
-    if k == DIELECTRIC:
+    if kind == DIELECTRIC:
         if woz == 0.0:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         r, cos_t, eta_it, eta_ti = fresnel_dielectric(woz, row[P_IOR])
@@ -561,7 +558,7 @@ def bsdf_sample(bsdf, mutant, wox, woy, woz, u_lobe, u1, u2):
             scale = 1.0
         return (True, -eta_ti * wox, -eta_ti * woy, cos_t, scale * row[P_TRANSMITTANCE],
                 scale * row[P_TRANSMITTANCE + 1], scale * row[P_TRANSMITTANCE + 2], 1.0 - r, True)
-    if k == ROUGHDIELECTRIC:
+    if kind == ROUGHDIELECTRIC:
         if woz == 0.0:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         sgn = 1.0 if woz > 0.0 else -1.0
@@ -596,22 +593,24 @@ def bsdf_sample(bsdf, mutant, wox, woy, woz, u_lobe, u1, u2):
 
 @njit(**JIT)
 def _eval_many(materials, m, mutant, wo, wi, out_f, out_p):
-    bsdf = material_bsdf(materials, m)
+    row = np.empty(NUM_PARAMS)
+    kind = material_params(materials, m, row)
     with_f = len(out_f) > 0  # an empty out_f: the pdf only
     for i in range(len(wi)):
         j = i if len(wo) > 1 else 0
         if with_f:
-            v0, v1, v2 = bsdf_eval(bsdf, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
+            v0, v1, v2 = bsdf_eval(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
             out_f[i, 0], out_f[i, 1], out_f[i, 2] = v0, v1, v2
-        out_p[i] = bsdf_pdf(bsdf, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
+        out_p[i] = bsdf_pdf(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
 
 
 @njit(**JIT)
 def _sample_many(materials, m, mutant, wo, u, ok, wi, w, pdf, delta):
-    bsdf = material_bsdf(materials, m)
+    row = np.empty(NUM_PARAMS)
+    kind = material_params(materials, m, row)
     for i in range(len(u)):
         j = i if len(wo) > 1 else 0
-        ok_i, wi0, wi1, wi2, w0, w1, w2, pdf_i, delta_i = bsdf_sample(bsdf, mutant, wo[j, 0], wo[j, 1], wo[j, 2],
+        ok_i, wi0, wi1, wi2, w0, w1, w2, pdf_i, delta_i = bsdf_sample(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2],
                                                                       u[i, 0], u[i, 1], u[i, 2])
         ok[i] = ok_i
         wi[i, 0], wi[i, 1], wi[i, 2] = wi0, wi1, wi2

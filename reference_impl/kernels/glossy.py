@@ -60,7 +60,7 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, GlossyFirstHitPairs, ahe
                                           longest_run, pair_point, pixel_run)
 from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
-from reference_impl.materials import DIELECTRIC, P_TWO_SIDED, ROUGHDIELECTRIC
+from reference_impl.materials import DIELECTRIC, NUM_PARAMS, P_TWO_SIDED, ROUGHDIELECTRIC
 from reference_impl.rng import BSDF_LOBE, BSDF_U1, BSDF_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE
 
 MAX_VERTICES = 1 << 16
@@ -185,6 +185,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     bx, by = np.empty(size), np.empty(size)
     cx, cy = np.empty(size), np.empty(size)
     held = GlossyFirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
+    row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0
@@ -268,14 +269,14 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 rad2 += b2 * emission[tri, 2] * w
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
-            bsdf = material_at(materials, hit)  # the material step
+            kind = material_at(materials, hit, row)  # the material step: the BSDF's kind and parameters at x
             x0, x1, x2 = hit.x0, hit.x1, hit.x2
             nx0, nx1, nx2 = hit.n0, hit.n1, hit.n2
             # The BSDF's local frame: the shading frame's tangents s, t and the normal N (the shading normal is N).
             s0, s1, s2, t0, t1, t2 = hit.ss0, hit.ss1, hit.ss2, hit.st0, hit.st1, hit.st2
             wo0, wo1, wo2 = -d0, -d1, -d2
             lo0, lo1, lo2 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2), cos_out
-            delta_bsdf = is_delta(bsdf.kind)
+            delta_bsdf = is_delta(kind)
 
             # Direct light: Nd light samples (none at a delta BSDF); with direct = bsdf the delta lights alone.
             if not delta_bsdf:
@@ -316,13 +317,13 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         count_shadow_skipped += 1
                         continue
                     li0, li1, li2 = dot3(s0, s1, s2, wi0, wi1, wi2), dot3(t0, t1, t2, wi0, wi1, wi2), cos_x
-                    f0, f1, f2 = bsdf_eval(bsdf, mutant, lo0, lo1, lo2, li0, li1, li2)
+                    f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
                     if not (f0 > 0 or f1 > 0 or f2 > 0):
                         count_shadow_skipped += 1
                         continue
                     w = 1.0
                     if direct == DIRECT_MIS and p_l > 0:
-                        p_b = bsdf_pdf(bsdf, mutant, lo0, lo1, lo2, li0, li1, li2)
+                        p_b = bsdf_pdf(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
                         w = power_weight(mutant, p_l, p_b, True)
                     side = 1.0 if cos_x > 0 else -1.0
                     so0, so1, so2 = offset_origin(cfg.offset_scene, x0, x1, x2, side * nx0, side * nx1, side * nx2)
@@ -361,16 +362,15 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                 u2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
                 u_rr = -1.0  # drawn below only where roulette is played
-            ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(bsdf, mutant, lo0, lo1, lo2, u_lobe, u1, u2)
+            ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, lo0, lo1, lo2, u_lobe, u1, u2)
             if not ok:
-                kind = bsdf.kind
-                if cos_out < 0 and bsdf.params[P_TWO_SIDED] == 0 and not (kind == DIELECTRIC or kind == ROUGHDIELECTRIC):
+                if cos_out < 0 and row[P_TWO_SIDED] == 0 and not (kind == DIELECTRIC or kind == ROUGHDIELECTRIC):
                     count_back_face += 1
                 break
             if direct == DIRECT_AREA and not delta and not (max_depth == -1 or depth + 2 <= max_depth):
                 break  # its vertex would add direct light only, which max_depth forbids
             nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
-            eta_rel = sample_eta(bsdf, lo2, li2)
+            eta_rel = sample_eta(kind, row, lo2, li2)
             eta2 *= eta_rel * eta_rel
             if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
                 if cfg.rr == RR_THROUGHPUT:

@@ -1,53 +1,42 @@
 """The material step: between a hit and its BSDF, what the surface's material is at that hit (pbrt-v4's
 ``Material::GetBxDF``, which evaluates a material's textures at the hit and returns the BSDF they make).
 
-    Bsdf(hit) = (kind_m, row_m),   m = hit.material
+    (kind, params)(hit) = (kind_m, row_m),   m = hit.material
 
 Every parameter is constant over a surface today, so the step hands on material m's kind and its row of
-:class:`reference_impl.Materials` unchanged (its columns are the ``P_*`` of :mod:`reference_impl.materials`). A
+:class:`reference_impl.Materials` unchanged (the columns are the ``P_*`` of :mod:`reference_impl.materials`). A
 texture will be looked up here, at the hit's texture coordinates (:class:`.surface.SurfaceHit`'s ``tex_u``,
-``tex_v``), and replace the columns it drives; the BSDF (:mod:`.bsdf`) reads its parameters only from the
-:class:`Bsdf` this step returns.
+``tex_v``), and replace the columns it drives; the BSDF (:mod:`.bsdf`) reads its parameters only from the row this
+step writes.
 
-The row is copied into a tuple of NUM_PARAMS floats: a value, so a step that alters it needs no buffer, and a
-kernel that holds it holds no reference to the table (no reference count per hit).
+The row is written into the caller's room for it (``params``, NUM_PARAMS float64, one per engine call, reused at
+every hit): a step that alters it needs no other buffer, a hit costs no allocation and no reference count (a view
+of the material table would cost two atomic counts per hit, a tuple of the row twenty live values), and the BSDF
+reads it as it read the table's row.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 from numba import njit
-from numba.np.unsafe.ndarray import to_fixed_tuple
 
 from reference_impl.kernels.config import JIT_BORROW
 from reference_impl.materials import NUM_PARAMS
 
 
-class Bsdf(NamedTuple):
-    """The BSDF at one hit: what :mod:`.bsdf` evaluates and samples.
-
-    Attributes
-    ----------
-    kind : int
-        DIFFUSE .. ROUGHDIELECTRIC (:mod:`reference_impl.materials`).
-    params : tuple of NUM_PARAMS floats
-        The parameters at the hit, indexed by the ``P_*`` columns of :mod:`reference_impl.materials`.
-    """
-
-    kind: int
-    params: tuple
+@njit(**JIT_BORROW)
+def material_params(materials, m, params):
+    """Material ``m`` of ``materials`` (:class:`.records.MaterialTables`): its row of parameters, unchanged, written
+    into ``params``; returns its kind."""
+    table = materials.params
+    for c in range(NUM_PARAMS):
+        params[c] = table[m, c]
+    return materials.kind[m]
 
 
 @njit(**JIT_BORROW)
-def material_bsdf(materials, m):
-    """The :class:`Bsdf` of material ``m`` of ``materials`` (:class:`.records.MaterialTables`): its kind and its
-    row of parameters, unchanged."""
-    return Bsdf(materials.kind[m], to_fixed_tuple(materials.params[m], NUM_PARAMS))
-
-
-@njit(**JIT_BORROW)
-def material_at(materials, hit):
-    """The material step at ``hit`` (:class:`.surface.SurfaceHit`): the :class:`Bsdf` of its material, whose
-    parameters do not vary over a surface (no textures yet), hence material ``hit.material``'s row unchanged."""
-    return material_bsdf(materials, hit.material)
+def material_at(materials, hit, params):
+    """The material step at ``hit`` (:class:`.surface.SurfaceHit`): the parameters of its material at the hit,
+    written into ``params`` (NUM_PARAMS float64, the ``P_*`` columns), and its kind (returned), which the BSDF
+    (:mod:`.bsdf`) evaluates and samples. Nothing varies over a surface yet (no textures): material
+    ``hit.material``'s row, unchanged."""
+    return material_params(materials, hit.material, params)

@@ -9,7 +9,7 @@ import pytest
 
 from reference_impl import Geometry, Materials
 from reference_impl.kernels import bsdf, material, records, surface
-from reference_impl.materials import CONDUCTOR, DIFFUSE, P_REFLECTANCE, material_row
+from reference_impl.materials import CONDUCTOR, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, material_row
 
 
 def _geometry(seed: int = 3, count: int = 6) -> Geometry:
@@ -74,20 +74,20 @@ def test_the_material_step_hands_on_the_materials_row_unchanged():
         c = geometry.corners[tri]
         o = c.mean(axis=0) + 2.0 * geometry.normal[tri]
         hit = surface.surface_hit(scene, tri, *o, *(-geometry.normal[tri]))
-        at = material.material_at(tables, hit)
+        row = np.full(NUM_PARAMS, np.nan)
+        kind = material.material_at(tables, hit, row)
         m = geometry.material[tri]
-        assert at.kind == materials.kind[m]
-        assert at.params == tuple(materials.params[m])
+        assert kind == materials.kind[m]
+        np.testing.assert_array_equal(row, materials.params[m])
 
 
 def test_the_bsdf_reads_its_parameters_from_the_material_steps_answer():
     """A reflectance the material step would change (a texture) scales the BSDF: nothing else is read."""
     tables = records.material_tables(Materials(np.array([DIFFUSE]), material_row(DIFFUSE, reflectance=0.5)[None]))
-    at = material.material_bsdf(tables, 0)
-    params = list(at.params)
-    params[P_REFLECTANCE:P_REFLECTANCE + 3] = [0.1, 0.2, 0.3]
-    textured = material.Bsdf(at.kind, tuple(params))
+    row = np.empty(NUM_PARAMS)
+    kind = material.material_params(tables, 0, row)
     wo, wi = (0.0, 0.6, 0.8), (0.0, -0.28, 0.96)
-    assert bsdf.bsdf_eval(at, 0, *wo, *wi) == pytest.approx((0.5 * 0.96 / np.pi,) * 3, rel=1e-15)
-    assert bsdf.bsdf_eval(textured, 0, *wo, *wi) == pytest.approx(tuple(np.array([0.1, 0.2, 0.3]) * 0.96 / np.pi),
+    assert bsdf.bsdf_eval(kind, row, 0, *wo, *wi) == pytest.approx((0.5 * 0.96 / np.pi,) * 3, rel=1e-15)
+    row[P_REFLECTANCE:P_REFLECTANCE + 3] = [0.1, 0.2, 0.3]
+    assert bsdf.bsdf_eval(kind, row, 0, *wo, *wi) == pytest.approx(tuple(np.array([0.1, 0.2, 0.3]) * 0.96 / np.pi),
                                                                    rel=1e-15)
