@@ -46,7 +46,7 @@ def seed_key(seed: int) -> np.uint64:
     -------
     numpy.uint64
         ``mix64(seed ^ golden)``, golden = 0x9E3779B97F4A7C15 (2^64 / phi, SplitMix64's increment; Steele, Lea and
-        Flood 2014): what the kernels derive every path and pixel key from.
+        Flood 2014): what the kernels derive every path and pixel key from (their ``FilmSamples.seed_key``).
     """
     return np.uint64(_mix64_int(seed ^ int(_GOLDEN)))
 

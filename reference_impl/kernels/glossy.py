@@ -1,8 +1,9 @@
 """The glossy engine: each camera path to its end in one compiled loop, for scenes with a material that is not
 Lambertian (conductors, dielectrics, rough or smooth: :mod:`.bsdf`), and for ``direct = "bsdf"`` on any scene.
 
-At each vertex x (front geometric normal N; the BSDF's local frame has z = N, never flipped; wo toward the previous
-vertex) the path adds
+At each vertex x (its surface record, :class:`.surface.SurfaceHit`: front geometric normal N; the BSDF's local frame
+is the shading frame, z = N, never flipped; wo toward the previous vertex; the BSDF's kind and parameters from the
+material step, :func:`.material.material_at`) the path adds
 
 * emission Le(x -> wo) of an area light's front side, met by the ray that found x, weighted by w_b:
   1 at the camera hit or after a delta bounce (no light sample could have found it) or with ``direct = bsdf``;

@@ -10,9 +10,8 @@ texture will be looked up here, at the hit's texture coordinates (:class:`.surfa
 step writes.
 
 The row is written into the caller's room for it (``params``, NUM_PARAMS float64, one per engine call, reused at
-every hit): a step that alters it needs no other buffer, a hit costs no allocation and no reference count (a view
-of the material table would cost two atomic counts per hit, a tuple of the row twenty live values), and the BSDF
-reads it as it read the table's row.
+every hit): a step that alters it needs no other buffer, and a hit costs no allocation, no reference count and no
+registers held across the vertex.
 """
 
 from __future__ import annotations
