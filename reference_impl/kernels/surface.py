@@ -100,7 +100,8 @@ def barycentrics(corners, tri, x0, x1, x2, n0, n1, n2):
 
     so that x = (1 - u - v) v0 + u v1 + v v2 for x in the triangle's plane (the signed areas of the triangles x v2 v0
     and x v0 v1 over the triangle's; a distance of x off the plane changes neither). Moeller and Trumbore (1997)
-    compute the same u, v where the ray meets the plane; Embree's hit reports them in float32."""
+    compute the same u, v where the ray meets the plane; Embree reports them in float32, but the queries read only
+    its primitive id."""
     c00, c01, c02 = corners[tri, 0, 0], corners[tri, 0, 1], corners[tri, 0, 2]
     e10, e11, e12 = corners[tri, 1, 0] - c00, corners[tri, 1, 1] - c01, corners[tri, 1, 2] - c02
     e20, e21, e22 = corners[tri, 2, 0] - c00, corners[tri, 2, 1] - c01, corners[tri, 2, 2] - c02
