@@ -72,7 +72,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, glossy, packet, path, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import camera, config, film, glossy, packet, path, records, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
@@ -101,8 +101,9 @@ class RenderOutput:
 
 
 class _Sampling(NamedTuple):
-    """Where a pass over the pixels draws its numbers: its samples per pixel, its seed, ``seed_key = mix64(seed ^
-    golden)`` and the kernels' configuration with that spp. The render itself, or one of its replicates."""
+    """Where a pass over the pixels draws its numbers: its samples per pixel, its seed, its key
+    (:func:`reference_impl.rng.seed_key`) and the kernels' configuration with that spp. The render itself, or one of
+    its replicates."""
 
     spp: int
     seed: int
@@ -229,7 +230,6 @@ class _Context:
         usable = np.flatnonzero(geometry.area > 0)
         self.all_surfaces = TriangleAreaSampler(geometry, usable) if len(usable) else None
         self.mutant = settings.mutant  # a planted fault (reference_impl/mutants.py), "" in every real render
-        self.reflectance = geometry.reflectance / np.pi  # f_r of each material
         self.split_cap = 4 * settings.batch_size
         self.hemisphere_direct = settings.direct in ("hemisphere-cosine", "hemisphere-uniform")
         self._local = threading.local()
@@ -244,38 +244,26 @@ class _Context:
         return ws
 
     def _kernel_tables(self) -> None:
-        """The scene, the samplers and the settings as the flat arrays and the configuration the kernels take."""
+        """The scene, the samplers and the settings as the records and the configuration the kernels take
+        (:mod:`reference_impl.kernels.records`, :mod:`reference_impl.kernels.config`)."""
         kernels = _kernels()
-        g, s = self.geometry, self.settings
-        c = np.ascontiguousarray
-        self.scene_tables = (
-            c(self.intersector.prim_to_tri, dtype=np.int64), c(g.normal), c(g.corners[:, 0]), c(g.corners),
-            c(g.emission), c(g.light_id), c(g.material), c(g.two_sided), c(self.reflectance),
-            c(np.max(g.reflectance, axis=1)) if len(g.reflectance) else np.zeros(0),  # survival for rr = "albedo"
-        )
-        self.light_tables = (self.lights.kernel_tables() if self.lights is not None
-                             else LightSampler.empty_kernel_tables())
-        if self.all_surfaces is not None:
-            self.surface_tables = (c(self.all_surfaces.triangles, dtype=np.int64), c(self.all_surfaces.cdf, dtype=np.float64))
-            surface_pdf = 1.0 / self.all_surfaces.total_area
-        else:
-            self.surface_tables = (np.zeros(0, np.int64), np.zeros(0))
-            surface_pdf = 0.0
+        records = kernels.records
+        s = self.settings
+        self.scene_tables = records.scene_tables(self.geometry, self.intersector.prim_to_tri)
+        self.light_tables = records.light_tables(self.lights)
+        self.surface_tables = records.surface_tables(self.all_surfaces)
+        surface_pdf = 1.0 / self.all_surfaces.total_area if self.all_surfaces is not None else 0.0
         num_lights = self.lights.num_lights if self.lights is not None else 0
         em = self.emitters
         env_light = self.geometry.num_lights + em.env if em is not None and em.env >= 0 else -1
         self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light,
                                                    packet_width=self.intersector.packet_width)
-        self.material_tables = None
-        if self.glossy_engine:
-            self.material_tables = (c(self.materials.kind, dtype=np.int64), c(self.materials.params, dtype=np.float64))
+        self.material_tables = records.material_tables(self.materials) if self.glossy_engine else None
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
-            self.emitter_tables = (c(em.kind, dtype=np.int64), c(em.position), c(em.direction), c(em.intensity),
-                                   c(em.to_local), c(em.to_world), c(em.spot), c(em.env_image, dtype=np.float64),
-                                   c(em.env_cell_pdf), c(em.env_row_cdf), c(em.env_col_cdf))
+            self.emitter_tables = records.emitter_tables(em)
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
         self.path_engine = (s.engine in ("packet", "path") and s.indirect_rays == 1
@@ -284,17 +272,14 @@ class _Context:
         self.packet_engine = (self.path_engine and s.engine == "packet" and self.emitter_tables is None
                               and s.direct not in ("hemisphere-cosine", "hemisphere-uniform"))
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
-        width, height = self.film.width, self.film.height
-        self.tan_half_fov = self.camera.tan_half_fov(width, height)
-        self.camera_frame = c(self.camera.frame(), dtype=np.float64)
-        self.eye = np.asarray(self.camera.origin, dtype=np.float64)
-        self.seed_key = np.uint64(rng._mix64_int(s.seed ^ int(rng._GOLDEN)))
+        self.pinhole = records.pinhole(self.camera, self.film.width, self.film.height)
+        self.seed_key = rng.seed_key(s.seed)
         self.sampling = _Sampling(s.spp, s.seed, self.seed_key, self.config)
 
     def replicate(self, r: int, spp: int) -> _Sampling:
         """Replicate ``r`` of ``spp`` samples per pixel: a render of its own seed (``Settings.replicate_seed``)."""
         seed = self.settings.replicate_seed(r)
-        return _Sampling(spp, seed, np.uint64(rng._mix64_int(seed ^ int(rng._GOLDEN))), self.config._replace(spp=spp))
+        return _Sampling(spp, seed, rng.seed_key(seed), self.config._replace(spp=spp))
 
 
 class _Clock:
@@ -458,27 +443,21 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     in the same pass as the pixel sums)."""
     kernels = _kernels()
     sampling = sampling or ctx.sampling
-    config, seed, seed_key, spp = sampling.config, sampling.seed, sampling.seed_key, sampling.spp
-    width, height = ctx.film.width, ctx.film.height
-    tan_x, tan_y = ctx.tan_half_fov
+    config, seed, spp = sampling.config, sampling.seed, sampling.spp
     n = len(pixel)
     sobol = config.sampler == kernels.config.SAMPLER_SOBOL
+    drawn = None
     if ctx.filter_kind == kernels.config.FILTER_GAUSSIAN:  # sampled through its table by the numpy filter code
         if sobol:
             ux, uy = rng.sobol_2d(rng.pixel_keys(seed, pixel), sample, spp, rng.dimension(0, rng.FILM_X))
         else:
             keys = rng.path_keys(seed, pixel.astype(np.uint64) * np.uint64(spp) + sample.astype(np.uint64))
             ux, uy = rng.uniform(keys, rng.dimension(0, rng.FILM_X)), rng.uniform(keys, rng.dimension(0, rng.FILM_Y))
-        filter_samples = ctx.filter.sample(ux, uy)
-    else:
-        filter_samples = (np.zeros(0), np.zeros(0), np.zeros(0))
+        drawn = ctx.filter.sample(ux, uy)
     first = _view(ctx.workspace().state(0, n), n)
-    film_samples = (np.ascontiguousarray(pixel, dtype=np.int64), np.ascontiguousarray(sample, dtype=np.int64), seed_key)
-    half_pixel = (config.mutant & kernels.config.M_CAMERA_HALF_PIXEL) != 0  # mutant "camera-half-pixel"
-    kernels.camera.camera_paths(
-        film_samples[0], film_samples[1], seed_key, config.spp, width, height, ctx.filter_kind,
-        filter_samples, half_pixel, tan_x, tan_y, ctx.camera_frame, ctx.eye, sobol, first,
-    )
+    film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
+    pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
+    kernels.camera.camera_paths(film_samples, config, ctx.pinhole, pixel_filter, first)
     radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
@@ -567,8 +546,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             s_prim = intersector.closest_prims(o32[:s], d32[:s])
             clock.seconds += time.perf_counter() - t0
             kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
-                                       s_prim, ctx.scene_tables[0], ctx.scene_tables[1], ctx.scene_tables[4],
-                                       total, radiance, config, ctx.emitter_tables)
+                                       s_prim, ctx.scene_tables, total, radiance, config, ctx.emitter_tables)
         else:
             t0 = time.perf_counter()
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])

@@ -226,21 +226,6 @@ class LightSampler:
         tri, pos = self.point_on_entry(first + local, u1, u2)
         return light, SurfacePoints(tri, pos, self.geometry.normal[tri], self.pdf_area(light))
 
-    def kernel_tables(self) -> tuple:
-        """The tables as the kernels take them (kernels.config, ``lights``): (cdf, triangles, first, count,
-        within_cdf, pmf, area, frames, parallelogram, other), contiguous, of the kernels' dtypes."""
-        c = np.ascontiguousarray
-        return (c(self.cdf, dtype=np.float64), c(self.triangles, dtype=np.int64), c(self.first, dtype=np.int64),
-                c(self.count, dtype=np.int64), c(self.within_cdf, dtype=np.float64), c(self.pmf, dtype=np.float64),
-                c(self.area, dtype=np.float64), c(self.frames, dtype=np.float64), c(self.parallelogram, dtype=np.bool_),
-                c(self.other, dtype=np.int64))
-
-    @staticmethod
-    def empty_kernel_tables() -> tuple:
-        """:meth:`kernel_tables` of a scene without lights."""
-        f, i = np.zeros(0), np.zeros(0, np.int64)
-        return (f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i)
-
 
 _BELOW_ONE = np.nextafter(1.0, 0.0)
 

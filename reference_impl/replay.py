@@ -104,32 +104,28 @@ def _spread(n: int) -> list[int]:
     return sorted(range(n), key=lambda i: int(format(i, f"0{bits}b")[::-1], 2))
 
 
-def _record_buffers(n: int, closest: int, occlusion: int) -> tuple:
-    f32 = np.float32
-    return (np.empty((n, 3), f32), np.empty((n, 3), f32), np.empty(n, np.int32),
-            np.empty((closest, 3), f32), np.empty((closest, 3), f32), np.empty(closest, np.int32),
-            np.empty((occlusion, 3), f32), np.empty((occlusion, 3), f32), np.empty(occlusion, f32),
-            np.empty(occlusion, np.int8), np.zeros(2, np.int64))
-
-
 def _trace_glossy_recorded(ctx, pixel, sample, stats, log: RayLog) -> None:
     """Trace camera samples with the glossy engine, keeping its queries; a batch whose queries overflow the buffers
     is traced again with room for all of them (the same rays)."""
+    from reference_impl.kernels import records  # optional: numba-compiled, loaded only to trace
+
     n = len(pixel)
     room = (ROOM_PER_PATH * n, ROOM_PER_PATH * n)
     while True:
-        record = _record_buffers(n, *room)
+        record = records.ray_record(n, *room)
         attempt = dict.fromkeys(stats, 0)
         integrator._trace_camera_paths(ctx, pixel, sample, attempt, record)
-        made = tuple(int(c) for c in record[10])
-        if made[0] <= room[0] and made[1] <= room[1]:
+        closest, occlusion = int(record.counts[records.COUNT_CLOSEST]), int(record.counts[records.COUNT_OCCLUSION])
+        if closest <= room[0] and occlusion <= room[1]:
             break
-        room = (max(room[0], made[0]), max(room[1], made[1]))
+        room = (max(room[0], closest), max(room[1], occlusion))
     for key, value in attempt.items():
         stats[key] += value
-    log.camera.append(record[0:3])
-    log.closest.append(tuple(a[:made[0]] for a in record[3:6]))
-    log.occlusion.append(tuple(a[:made[1]] for a in record[6:10]))
+    log.camera.append((record.camera_origin, record.camera_direction, record.camera_prim))
+    log.closest.append((record.closest_origin[:closest], record.closest_direction[:closest],
+                        record.closest_prim[:closest]))
+    log.occlusion.append((record.occlusion_origin[:occlusion], record.occlusion_direction[:occlusion],
+                          record.occlusion_tfar[:occlusion], record.occlusion_blocked[:occlusion]))
 
 
 def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settings, emitters: Emitters | None = None,

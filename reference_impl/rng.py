@@ -34,10 +34,26 @@ def _mix64_int(x: int) -> int:
     return x ^ (x >> 31)
 
 
+def seed_key(seed: int) -> np.uint64:
+    """The key of a render's seed, from which every path and pixel key is derived.
+
+    Parameters
+    ----------
+    seed : int
+        The render's seed (``Settings.seed``, or a replicate's ``Settings.replicate_seed``).
+
+    Returns
+    -------
+    numpy.uint64
+        ``mix64(seed ^ golden)``, golden = 0x9E3779B97F4A7C15 (2^64 / phi, SplitMix64's increment; Steele, Lea and
+        Flood 2014): what the kernels derive every path and pixel key from (their ``FilmSamples.seed_key``).
+    """
+    return np.uint64(_mix64_int(seed ^ int(_GOLDEN)))
+
+
 def path_keys(seed: int, path_ids: np.ndarray) -> np.ndarray:
     """Keys of camera paths: ``path_ids`` are unique per (pixel, sample), e.g. pixel * spp + sample."""
-    seed_key = np.uint64(_mix64_int(seed ^ int(_GOLDEN)))
-    return mix64((np.asarray(path_ids, dtype=np.uint64) * _GOLDEN) ^ seed_key)
+    return mix64((np.asarray(path_ids, dtype=np.uint64) * _GOLDEN) ^ seed_key(seed))
 
 
 def branch_keys(keys: np.ndarray, branch: int, depth: int) -> np.ndarray:
@@ -152,8 +168,7 @@ def permutation_element(i: np.ndarray, n: int, seeds: tuple) -> np.ndarray:
 
 def pixel_keys(seed: int, pixels: np.ndarray) -> np.ndarray:
     """Keys of pixels for the stratified sampler (one point set per pixel and dimension pair)."""
-    seed_key = np.uint64(_mix64_int(seed ^ int(_GOLDEN)))
-    return mix64((np.asarray(pixels, dtype=np.uint64) * _GOLDEN) ^ seed_key ^ np.uint64(_PIXEL_SALT))
+    return mix64((np.asarray(pixels, dtype=np.uint64) * _GOLDEN) ^ seed_key(seed) ^ np.uint64(_PIXEL_SALT))
 
 
 def sobol_seeds(pixel_keys: np.ndarray, dim: int) -> tuple:

@@ -10,6 +10,9 @@ module              what it holds                                              n
 =================== ========================================================== ====================================
 ``config``          compile options, the settings as the kernels read them     ``Settings`` (the table of slots)
                     (``KernelConfig``), modes, planted-fault bits, counters
+``records``         the scene, lights, surfaces, emitters, materials, camera,  ``Geometry``, ``LightSampler``,
+                    pixel filter and camera samples as the kernels take them   ``Emitters``, ``Materials``, ``Camera``
+                    (named tuples of arrays, each built by one function)
 ``rng``             hashed random numbers: keys, dimensions, uniforms          ``reference_impl.rng``
 ``sobol``           the stratified sampler: scrambled, shuffled Sobol points   ``rng.sobol_2d``
 ``warps``           hemisphere warps, the world frame, discrete choices        ``reference_impl.sampling``
@@ -17,8 +20,10 @@ module              what it holds                                              n
                     (Fig. 5.13)
 ``emitters``        point, spot, directional lights and environments: their   ``reference_impl.emitters``
                     light samples, the environment's radiance and directions
-``surface``         the hit point in float64, ray origin offsets, where a      ``reference_impl.intersect``
-                    shadow ray stops
+``surface``         the surface record of a hit (``SurfaceHit``: triangle,     ``reference_impl.intersect``
+                    material, the hit point in float64, normal,
+                    barycentrics, texture coordinates, shading frame), ray
+                    origin offsets, where a shadow ray stops
 ``camera``          viewing rays through the pixel filter (Fig. 5.16)          ``Camera``, ``filters``
 ``vertex``          a vertex's rules (max_depth), emission, roulette, the      ``integrator`` (eq. 5.2, Fig. 5.14)
                     indirect ray
@@ -29,6 +34,10 @@ module              what it holds                                              n
 ``wavefront``       one bounce of a batch, and the direct light once Embree    the wavefront engine
                     has answered
 ``path``            whole paths, one at a time                                 the same bits as ``wavefront``
+``material``        the material step: a material's kind and parameters at a   (none: the parameters are
+                    hit, which the BSDF reads                                  ``Materials.params``' rows)
+``bsdf``            evaluation, pdf and sampling of the materials' BSDFs       (none: Mitsuba 3's plugins; chi^2
+                                                                               and Mitsuba checks)
 ``glossy``          whole paths on scenes with materials that are not          (none: its checks are closed forms
                     Lambertian (BSDF sampling, MIS), and for direct = bsdf     and the other strategies)
 ``record``          the glossy engine's rays and Embree's answers, recorded    (none: reference_impl.replay checks

@@ -6,6 +6,9 @@ numba. Everything is in the LOCAL frame of the surface: z is the triangle's fron
 by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
 radiance mode (transmission carries the ``1 / eta^2`` solid-angle compression of radiance).
+The parameters are the material step's (:func:`.material.material_at`): each entry point takes the kind and the
+parameter row (``row``, columns ``P_*``) of the surface's material at the hit, and reads nothing else of the
+material table.
 
 Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittance)
 
@@ -66,10 +69,12 @@ from numba import njit
 
 from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCTOR_FRESNEL_ONE,
                                            M_MICROFACET_PDF_NO_JACOBIAN, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED)
+from reference_impl.kernels.material import material_params
+from reference_impl.kernels.records import material_tables
 from reference_impl.kernels.warps import cosine_hemisphere
-from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, P_ALPHA, P_DISTRIBUTION, P_ETA, P_IOR,
-                                      P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE, P_TWO_SIDED,
-                                      ROUGHCONDUCTOR, ROUGHDIELECTRIC)
+from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_DISTRIBUTION,
+                                      P_ETA, P_IOR, P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE,
+                                      P_TWO_SIDED, ROUGHCONDUCTOR, ROUGHDIELECTRIC)
 
 INV_PI = 1.0 / np.pi
 INV_SQRT_PI = 1.0 / math.sqrt(np.pi)
@@ -132,13 +137,13 @@ def fresnel_conductor(cos_theta_i, eta, k):
 
 
 @njit(**JIT_NONRT)
-def _conductor_fresnel3(params, m, mutant, cos_theta_i):
-    """F_c per channel for material m (1 for a mirror, and under "conductor-fresnel-one")."""
-    if params[m, P_MIRROR] != 0.0 or (mutant & M_CONDUCTOR_FRESNEL_ONE):  # mutant "conductor-fresnel-one"
+def _conductor_fresnel3(row, mutant, cos_theta_i):
+    """F_c per channel for the parameters ``row`` (1 for a mirror, and under "conductor-fresnel-one")."""
+    if row[P_MIRROR] != 0.0 or (mutant & M_CONDUCTOR_FRESNEL_ONE):  # mutant "conductor-fresnel-one"
         return 1.0, 1.0, 1.0
-    return (fresnel_conductor(cos_theta_i, params[m, P_ETA], params[m, P_K]),
-            fresnel_conductor(cos_theta_i, params[m, P_ETA + 1], params[m, P_K + 1]),
-            fresnel_conductor(cos_theta_i, params[m, P_ETA + 2], params[m, P_K + 2]))
+    return (fresnel_conductor(cos_theta_i, row[P_ETA], row[P_K]),
+            fresnel_conductor(cos_theta_i, row[P_ETA + 1], row[P_K + 1]),
+            fresnel_conductor(cos_theta_i, row[P_ETA + 2], row[P_K + 2]))
 
 
 # ------------------------------------------------------------------------------------------------- microfacets
@@ -316,31 +321,31 @@ def mf_sample(ggx, alpha, visible, mutant, wx, wy, wz, u1, u2):
 
 
 @njit(**JIT_NONRT)
-def _alpha(params, m):
-    return max(params[m, P_ALPHA], MIN_ALPHA)
+def _alpha(row):
+    return max(row[P_ALPHA], MIN_ALPHA)
 
 
 # ----------------------------------------------------------------------------------------- the models, one each
 
 
 @njit(**JIT_NONRT)
-def _side(params, m, woz, wiz):
+def _side(row, woz, wiz):
     """For the reflection-only kinds (diffuse, conductors): (ok, sign) with sign flipping both directions to the
     front when the material is two-sided and wo is behind (Mitsuba's ``twosided``); ok False when wo is behind a
     one-sided surface or on the surface."""
     if woz > 0.0:
         return True, 1.0
-    if woz < 0.0 and params[m, P_TWO_SIDED] != 0.0:
+    if woz < 0.0 and row[P_TWO_SIDED] != 0.0:
         return True, -1.0
     return False, 1.0
 
 
 @njit(**JIT_NONRT)
-def _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
+def _roughconductor_eval(row, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz <= 0.0 or wiz <= 0.0:
         return 0.0, 0.0, 0.0
-    ggx = params[m, P_DISTRIBUTION] == GGX
-    alpha = _alpha(params, m)
+    ggx = row[P_DISTRIBUTION] == GGX
+    alpha = _alpha(row)
     hx, hy, hz = wox + wix, woy + wiy, woz + wiz
     inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
     hx, hy, hz = hx * inv, hy * inv, hz * inv
@@ -349,13 +354,13 @@ def _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
         return 0.0, 0.0, 0.0
     g = mf_g1(ggx, alpha, wox, woy, woz, hx, hy, hz) * mf_g1(ggx, alpha, wix, wiy, wiz, hx, hy, hz)
     v = d * g / (4.0 * woz)
-    f0, f1, f2 = _conductor_fresnel3(params, m, mutant, wox * hx + woy * hy + woz * hz)
-    return (v * f0 * params[m, P_REFLECTANCE], v * f1 * params[m, P_REFLECTANCE + 1],
-            v * f2 * params[m, P_REFLECTANCE + 2])
+    f0, f1, f2 = _conductor_fresnel3(row, mutant, wox * hx + woy * hy + woz * hz)
+    return (v * f0 * row[P_REFLECTANCE], v * f1 * row[P_REFLECTANCE + 1],
+            v * f2 * row[P_REFLECTANCE + 2])
 
 
 @njit(**JIT_NONRT)
-def _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
+def _roughconductor_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz <= 0.0 or wiz <= 0.0:
         return 0.0
     hx, hy, hz = wox + wix, woy + wiy, woz + wiz
@@ -365,7 +370,7 @@ def _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     wi_h = wix * hx + wiy * hy + wiz * hz
     if wo_h <= 0.0 or wi_h <= 0.0:
         return 0.0
-    p = mf_pdf(params[m, P_DISTRIBUTION] == GGX, _alpha(params, m), params[m, P_SAMPLE_VISIBLE] != 0.0,
+    p = mf_pdf(row[P_DISTRIBUTION] == GGX, _alpha(row), row[P_SAMPLE_VISIBLE] != 0.0,
                wox, woy, woz, hx, hy, hz)
     if mutant & M_MICROFACET_PDF_NO_JACOBIAN:  # mutant "microfacet-pdf-no-jacobian": no 1 / (4 |wi.h|)
         return p
@@ -373,11 +378,11 @@ def _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
 
 
 @njit(**JIT_NONRT)
-def _roughdielectric_half(params, m, wox, woy, woz, wix, wiy, wiz):
+def _roughdielectric_half(row, wox, woy, woz, wix, wiy, wiz):
     """(ok, reflect, eta_side, hx, hy, hz): the (generalised) half vector of wo, wi, flipped to h_z > 0, and the
     relative index eta of the side wo is on (int/ext outside, ext/int inside)."""
     reflect = woz * wiz > 0.0
-    eta = params[m, P_IOR]
+    eta = row[P_IOR]
     eta_side = eta if woz > 0.0 else 1.0 / eta
     s = 1.0 if reflect else eta_side
     hx, hy, hz = wox + wix * s, woy + wiy * s, woz + wiz * s
@@ -391,14 +396,14 @@ def _roughdielectric_half(params, m, wox, woy, woz, wix, wiy, wiz):
 
 
 @njit(**JIT_NONRT)
-def _roughdielectric_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
+def _roughdielectric_eval(row, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz == 0.0 or wiz == 0.0:
         return 0.0, 0.0, 0.0
-    ok, reflect, eta, hx, hy, hz = _roughdielectric_half(params, m, wox, woy, woz, wix, wiy, wiz)
+    ok, reflect, eta, hx, hy, hz = _roughdielectric_half(row, wox, woy, woz, wix, wiy, wiz)
     if not ok:
         return 0.0, 0.0, 0.0
-    ggx = params[m, P_DISTRIBUTION] == GGX
-    alpha = _alpha(params, m)
+    ggx = row[P_DISTRIBUTION] == GGX
+    alpha = _alpha(row)
     d = mf_d(ggx, alpha, hx, hy, hz)
     if d == 0.0:
         return 0.0, 0.0, 0.0
@@ -407,35 +412,35 @@ def _roughdielectric_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
         return 0.0, 0.0, 0.0
     wo_h = wox * hx + woy * hy + woz * hz
     wi_h = wix * hx + wiy * hy + wiz * hz
-    f = fresnel_dielectric(wo_h, params[m, P_IOR])[0]
+    f = fresnel_dielectric(wo_h, row[P_IOR])[0]
     if reflect:
         v = f * d * g / (4.0 * abs(woz))
-        return v * params[m, P_REFLECTANCE], v * params[m, P_REFLECTANCE + 1], v * params[m, P_REFLECTANCE + 2]
+        return v * row[P_REFLECTANCE], v * row[P_REFLECTANCE + 1], v * row[P_REFLECTANCE + 2]
     denom = wo_h + eta * wi_h
     # Radiance scaling 1 / eta^2 (eta of wo's side): it cancels Walter's eta^2, as in Mitsuba's radiance mode.
     scale = 1.0 / (eta * eta)
     if mutant & M_REFRACTION_NO_ETA2:  # mutant "refraction-no-eta2"
         scale = 1.0
     v = abs(scale * (1.0 - f) * d * g * eta * eta * wo_h * wi_h / (woz * denom * denom))
-    return (v * params[m, P_TRANSMITTANCE], v * params[m, P_TRANSMITTANCE + 1],
-            v * params[m, P_TRANSMITTANCE + 2])
+    return (v * row[P_TRANSMITTANCE], v * row[P_TRANSMITTANCE + 1],
+            v * row[P_TRANSMITTANCE + 2])
 
 
 @njit(**JIT_NONRT)
-def _roughdielectric_sample_alpha(params, m, woz):
+def _roughdielectric_sample_alpha(row, woz):
     """The alpha the rough dielectric samples h with: Walter's 1.2 - 0.2 sqrt(|cos theta_o|) scaling without
     visible-normal sampling."""
-    alpha = _alpha(params, m)
-    if params[m, P_SAMPLE_VISIBLE] == 0.0:
+    alpha = _alpha(row)
+    if row[P_SAMPLE_VISIBLE] == 0.0:
         alpha *= 1.2 - 0.2 * math.sqrt(abs(woz))
     return alpha
 
 
 @njit(**JIT_NONRT)
-def _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
+def _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz):
     if woz == 0.0 or wiz == 0.0:
         return 0.0
-    ok, reflect, eta, hx, hy, hz = _roughdielectric_half(params, m, wox, woy, woz, wix, wiy, wiz)
+    ok, reflect, eta, hx, hy, hz = _roughdielectric_half(row, wox, woy, woz, wix, wiy, wiz)
     if not ok:
         return 0.0
     wo_h = wox * hx + woy * hy + woz * hz
@@ -443,9 +448,9 @@ def _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
     if wo_h * woz <= 0.0 or wi_h * wiz <= 0.0:
         return 0.0
     sgn = 1.0 if woz > 0.0 else -1.0
-    p = mf_pdf(params[m, P_DISTRIBUTION] == GGX, _roughdielectric_sample_alpha(params, m, woz),
-               params[m, P_SAMPLE_VISIBLE] != 0.0, sgn * wox, sgn * woy, sgn * woz, hx, hy, hz)
-    f = fresnel_dielectric(wo_h, params[m, P_IOR])[0]
+    p = mf_pdf(row[P_DISTRIBUTION] == GGX, _roughdielectric_sample_alpha(row, woz),
+               row[P_SAMPLE_VISIBLE] != 0.0, sgn * wox, sgn * woy, sgn * woz, hx, hy, hz)
+    f = fresnel_dielectric(wo_h, row[P_IOR])[0]
     if reflect:
         if mutant & M_MICROFACET_PDF_NO_JACOBIAN:  # mutant "microfacet-pdf-no-jacobian": no 1 / (4 |wi.h|)
             return p * f
@@ -455,41 +460,39 @@ def _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz):
 
 
 @njit(**JIT_BORROW)
-def bsdf_eval(kind, params, m, mutant, wox, woy, woz, wix, wiy, wiz):
-    """f(wo, wi) |cos theta_i| of material m, per channel (v0, v1, v2); 0 for delta BSDFs and impossible pairs.
-
-    ``kind`` = Materials.kind, ``params`` = Materials.params, directions local (z = the front normal)."""
-    k = kind[m]
-    if k == DIFFUSE or k == ROUGHCONDUCTOR:
-        ok, sgn = _side(params, m, woz, wiz)
+def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
+    """f(wo, wi) |cos theta_i| of a material of ``kind`` with the parameters ``row`` at the hit (the material
+    step's, :func:`.material.material_at`), per channel (v0, v1, v2); 0 for delta BSDFs and impossible pairs.
+    Directions local (z = the front normal)."""
+    if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
+        ok, sgn = _side(row, woz, wiz)
         if not ok:
             return 0.0, 0.0, 0.0
         woz, wiz = sgn * woz, sgn * wiz
-        if k == DIFFUSE:
+        if kind == DIFFUSE:
             if wiz <= 0.0:
                 return 0.0, 0.0, 0.0
             c = wiz * INV_PI
-            return c * params[m, P_REFLECTANCE], c * params[m, P_REFLECTANCE + 1], c * params[m, P_REFLECTANCE + 2]
-        return _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
-    if k == ROUGHDIELECTRIC:
-        return _roughdielectric_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
+            return c * row[P_REFLECTANCE], c * row[P_REFLECTANCE + 1], c * row[P_REFLECTANCE + 2]
+        return _roughconductor_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
+    if kind == ROUGHDIELECTRIC:
+        return _roughdielectric_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
     return 0.0, 0.0, 0.0
 
 
 @njit(**JIT_BORROW)
-def bsdf_pdf(kind, params, m, mutant, wox, woy, woz, wix, wiy, wiz):
+def bsdf_pdf(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
     """Density of :func:`bsdf_sample`'s wi per unit solid angle; 0 for delta BSDFs and impossible pairs."""
-    k = kind[m]
-    if k == DIFFUSE or k == ROUGHCONDUCTOR:
-        ok, sgn = _side(params, m, woz, wiz)
+    if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
+        ok, sgn = _side(row, woz, wiz)
         if not ok:
             return 0.0
         woz, wiz = sgn * woz, sgn * wiz
-        if k == DIFFUSE:
+        if kind == DIFFUSE:
             return wiz * INV_PI if wiz > 0.0 else 0.0
-        return _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
-    if k == ROUGHDIELECTRIC:
-        return _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
+        return _roughconductor_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
+    if kind == ROUGHDIELECTRIC:
+        return _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
     return 0.0
 
 
@@ -500,76 +503,74 @@ def is_delta(kind):
 
 
 @njit(**JIT_BORROW)
-def sample_eta(kind, params, m, woz, wiz):
+def sample_eta(kind, row, woz, wiz):
     """The relative index of refraction of a sampled (wo, wi) in the direction of travel (Mitsuba's ``bs.eta``, for
     the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1."""
-    k = kind[m]
-    if (k == DIELECTRIC or k == ROUGHDIELECTRIC) and woz * wiz < 0.0:
-        eta = params[m, P_IOR]
+    if (kind == DIELECTRIC or kind == ROUGHDIELECTRIC) and woz * wiz < 0.0:
+        eta = row[P_IOR]
         return eta if woz > 0.0 else 1.0 / eta
     return 1.0
 
 
 @njit(**JIT_BORROW)
-def bsdf_sample(kind, params, m, mutant, wox, woy, woz, u_lobe, u1, u2):
+def bsdf_sample(kind, row, mutant, wox, woy, woz, u_lobe, u1, u2):
     """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta).
 
     w = f |cos theta_i| / pdf per channel (a delta lobe: its weight, e.g. R F / P(lobe)); pdf per unit solid angle
     of wi, or for a delta lobe the discrete probability of the lobe; ok False when nothing is sampled (wo behind a
     one-sided surface, a sample below the horizon or on the wrong side for its lobe, a zero weight)."""
-    k = kind[m]
-    if k == DIFFUSE or k == CONDUCTOR or k == ROUGHCONDUCTOR:
-        ok, sgn = _side(params, m, woz, 0.0)
+    if kind == DIFFUSE or kind == CONDUCTOR or kind == ROUGHCONDUCTOR:
+        ok, sgn = _side(row, woz, 0.0)
         if not ok:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         woz = sgn * woz
-        if k == DIFFUSE:
+        if kind == DIFFUSE:
             lx, ly, lz = cosine_hemisphere(u1, u2)
             if not lz > 0.0:
                 return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-            return (True, lx, ly, sgn * lz, params[m, P_REFLECTANCE], params[m, P_REFLECTANCE + 1],
-                    params[m, P_REFLECTANCE + 2], lz * INV_PI, False)
-        if k == CONDUCTOR:
-            f0, f1, f2 = _conductor_fresnel3(params, m, mutant, woz)
-            return (True, -wox, -woy, sgn * woz, f0 * params[m, P_REFLECTANCE], f1 * params[m, P_REFLECTANCE + 1],
-                    f2 * params[m, P_REFLECTANCE + 2], 1.0, True)
-        ggx = params[m, P_DISTRIBUTION] == GGX
-        hx, hy, hz, ph = mf_sample(ggx, _alpha(params, m), params[m, P_SAMPLE_VISIBLE] != 0.0, mutant,
+            return (True, lx, ly, sgn * lz, row[P_REFLECTANCE], row[P_REFLECTANCE + 1],
+                    row[P_REFLECTANCE + 2], lz * INV_PI, False)
+        if kind == CONDUCTOR:
+            f0, f1, f2 = _conductor_fresnel3(row, mutant, woz)
+            return (True, -wox, -woy, sgn * woz, f0 * row[P_REFLECTANCE], f1 * row[P_REFLECTANCE + 1],
+                    f2 * row[P_REFLECTANCE + 2], 1.0, True)
+        ggx = row[P_DISTRIBUTION] == GGX
+        hx, hy, hz, ph = mf_sample(ggx, _alpha(row), row[P_SAMPLE_VISIBLE] != 0.0, mutant,
                                    wox, woy, woz, u1, u2)
         wo_h = wox * hx + woy * hy + woz * hz
         wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
         if not (ph > 0.0 and wiz > 0.0 and wo_h > 0.0):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-        v0, v1, v2 = _roughconductor_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
-        p = _roughconductor_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
+        v0, v1, v2 = _roughconductor_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
+        p = _roughconductor_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
         if not (p > 0.0) or (v0 == 0.0 and v1 == 0.0 and v2 == 0.0):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         return True, wix, wiy, sgn * wiz, v0 / p, v1 / p, v2 / p, p, False
-    if k == DIELECTRIC:
+    if kind == DIELECTRIC:
         if woz == 0.0:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-        r, cos_t, eta_it, eta_ti = fresnel_dielectric(woz, params[m, P_IOR])
+        r, cos_t, eta_it, eta_ti = fresnel_dielectric(woz, row[P_IOR])
         if u_lobe < r:
-            return (True, -wox, -woy, woz, params[m, P_REFLECTANCE], params[m, P_REFLECTANCE + 1],
-                    params[m, P_REFLECTANCE + 2], r, True)
+            return (True, -wox, -woy, woz, row[P_REFLECTANCE], row[P_REFLECTANCE + 1],
+                    row[P_REFLECTANCE + 2], r, True)
         scale = eta_ti * eta_ti
         if mutant & M_REFRACTION_NO_ETA2:  # mutant "refraction-no-eta2"
             scale = 1.0
-        return (True, -eta_ti * wox, -eta_ti * woy, cos_t, scale * params[m, P_TRANSMITTANCE],
-                scale * params[m, P_TRANSMITTANCE + 1], scale * params[m, P_TRANSMITTANCE + 2], 1.0 - r, True)
-    if k == ROUGHDIELECTRIC:
+        return (True, -eta_ti * wox, -eta_ti * woy, cos_t, scale * row[P_TRANSMITTANCE],
+                scale * row[P_TRANSMITTANCE + 1], scale * row[P_TRANSMITTANCE + 2], 1.0 - r, True)
+    if kind == ROUGHDIELECTRIC:
         if woz == 0.0:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         sgn = 1.0 if woz > 0.0 else -1.0
-        hx, hy, hz, ph = mf_sample(params[m, P_DISTRIBUTION] == GGX, _roughdielectric_sample_alpha(params, m, woz),
-                                   params[m, P_SAMPLE_VISIBLE] != 0.0, mutant, sgn * wox, sgn * woy, sgn * woz,
+        hx, hy, hz, ph = mf_sample(row[P_DISTRIBUTION] == GGX, _roughdielectric_sample_alpha(row, woz),
+                                   row[P_SAMPLE_VISIBLE] != 0.0, mutant, sgn * wox, sgn * woy, sgn * woz,
                                    u1, u2)
         if not ph > 0.0:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         wo_h = wox * hx + woy * hy + woz * hz
         if wo_h * woz <= 0.0:  # a normal facing away from wo (all-normals sampling): masked, G1(wo, h) = 0
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-        f, cos_t, eta_it, eta_ti = fresnel_dielectric(wo_h, params[m, P_IOR])
+        f, cos_t, eta_it, eta_ti = fresnel_dielectric(wo_h, row[P_IOR])
         if u_lobe < f:
             wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
             if wiz * woz <= 0.0:
@@ -579,8 +580,8 @@ def bsdf_sample(kind, params, m, mutant, wox, woy, woz, u_lobe, u1, u2):
             wix, wiy, wiz = hx * c - wox * eta_ti, hy * c - woy * eta_ti, hz * c - woz * eta_ti
             if wiz * woz >= 0.0:
                 return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-        v0, v1, v2 = _roughdielectric_eval(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
-        p = _roughdielectric_pdf(params, m, mutant, wox, woy, woz, wix, wiy, wiz)
+        v0, v1, v2 = _roughdielectric_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
+        p = _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
         if not (p > 0.0) or (v0 == 0.0 and v1 == 0.0 and v2 == 0.0):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         return True, wix, wiy, wiz, v0 / p, v1 / p, v2 / p, p, False
@@ -591,27 +592,31 @@ def bsdf_sample(kind, params, m, mutant, wox, woy, woz, u_lobe, u1, u2):
 
 
 @njit(**JIT)
-def _eval_many(kind, params, m, mutant, wo, wi, out_f, out_p):
+def _eval_many(materials, m, mutant, wo, wi, out_f, out_p):
+    row = np.empty(NUM_PARAMS)
+    kind = material_params(materials, m, row)
     with_f = len(out_f) > 0  # an empty out_f: the pdf only
     for i in range(len(wi)):
         j = i if len(wo) > 1 else 0
         if with_f:
-            v0, v1, v2 = bsdf_eval(kind, params, m, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1],
-                                   wi[i, 2])
+            v0, v1, v2 = bsdf_eval(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
             out_f[i, 0], out_f[i, 1], out_f[i, 2] = v0, v1, v2
-        out_p[i] = bsdf_pdf(kind, params, m, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
+        out_p[i] = bsdf_pdf(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
 
 
 @njit(**JIT)
-def _sample_many(kind, params, m, mutant, wo, u, ok, wi, w, pdf, delta):
+def _sample_many(materials, m, mutant, wo, u, ok, wi, w, pdf, delta):
+    row = np.empty(NUM_PARAMS)
+    kind = material_params(materials, m, row)
     for i in range(len(u)):
         j = i if len(wo) > 1 else 0
-        r = bsdf_sample(kind, params, m, mutant, wo[j, 0], wo[j, 1], wo[j, 2], u[i, 0], u[i, 1], u[i, 2])
-        ok[i] = r[0]
-        wi[i, 0], wi[i, 1], wi[i, 2] = r[1], r[2], r[3]
-        w[i, 0], w[i, 1], w[i, 2] = r[4], r[5], r[6]
-        pdf[i] = r[7]
-        delta[i] = r[8]
+        ok_i, wi0, wi1, wi2, w0, w1, w2, pdf_i, delta_i = bsdf_sample(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2],
+                                                                      u[i, 0], u[i, 1], u[i, 2])
+        ok[i] = ok_i
+        wi[i, 0], wi[i, 1], wi[i, 2] = wi0, wi1, wi2
+        w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
+        pdf[i] = pdf_i
+        delta[i] = delta_i
 
 
 def _directions(a, n=None) -> np.ndarray:
@@ -628,7 +633,7 @@ def eval_pdf(materials, m: int, wo, wi, mutant: int = 0) -> tuple[np.ndarray, np
     wo = _directions(wo, len(wi))
     f = np.empty((len(wi), 3))
     p = np.empty(len(wi))
-    _eval_many(materials.kind, materials.params, int(m), int(mutant), wo, wi, f, p)
+    _eval_many(material_tables(materials), int(m), int(mutant), wo, wi, f, p)
     return f, p
 
 
@@ -638,7 +643,7 @@ def pdf(materials, m: int, wo, wi, mutant: int = 0) -> np.ndarray:
     wi = _directions(wi)
     wo = _directions(wo, len(wi))
     p = np.empty(len(wi))
-    _eval_many(materials.kind, materials.params, int(m), int(mutant), wo, wi, np.empty((0, 3)), p)
+    _eval_many(material_tables(materials), int(m), int(mutant), wo, wi, np.empty((0, 3)), p)
     return p
 
 
@@ -650,6 +655,6 @@ def sample(materials, m: int, wo, u, mutant: int = 0) -> dict[str, np.ndarray]:
     n = len(u)
     out = dict(ok=np.empty(n, dtype=np.bool_), wi=np.empty((n, 3)), weight=np.empty((n, 3)), pdf=np.empty(n),
                delta=np.empty(n, dtype=np.bool_))
-    _sample_many(materials.kind, materials.params, int(m), int(mutant), wo, u, out["ok"], out["wi"],
+    _sample_many(material_tables(materials), int(m), int(mutant), wo, u, out["ok"], out["wi"],
                  out["weight"], out["pdf"], out["delta"])
     return out

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit
 
-from reference_impl.kernels.config import FILTER_BOX, FILTER_GAUSSIAN, JIT
+from reference_impl.kernels.config import FILTER_BOX, FILTER_GAUSSIAN, JIT, M_CAMERA_HALF_PIXEL, SAMPLER_SOBOL
 from reference_impl.kernels.rng import dim_salt, path_key, pixel_key, uniform
 from reference_impl.kernels.sobol import pixel_run, sobol_points, sobol_seeds
 from reference_impl.rng import FILM_X, FILM_Y
@@ -31,18 +31,27 @@ def filter_sample(kind, u):
 
 
 @njit(**JIT)
-def camera_paths(pixel, sample, seed_key, spp, width, height, filter_kind, filter_samples, half_pixel,
-                 tan_x, tan_y, frame, eye, sobol, out):
-    """The viewing rays of camera samples (pixel, sample) (integrator._trace_camera_paths, Camera.generate_rays).
+def camera_paths(samples, cfg, camera, pixel_filter, out):
+    """The viewing rays of the camera samples ``samples`` (:class:`.records.FilmSamples`; integrator's
+    _trace_camera_paths, Camera.generate_rays) through ``camera`` (:class:`.records.Pinhole`).
 
-    Box and tent filter offsets are drawn here (``sobol``: from the pixel's stratified set, index ``sample``); the Gaussian's (a table lookup and exp) come in ``filter_samples``
-    (dx, dy, weight per sample, from PixelFilter.sample), so that numpy's exp, not libm's, gives their bits.
+    Box and tent filter offsets are drawn here (``cfg.sampler`` sobol: from the pixel's stratified set, index
+    ``sample``); the Gaussian's (a table lookup and exp) come in ``pixel_filter`` (:class:`.records.FilterSamples`,
+    from PixelFilter.sample), so that numpy's exp, not libm's, gives their bits. ``cfg``: the pass's
+    :class:`.config.KernelConfig` (its spp, sampler and planted fault "camera-half-pixel").
     Writes the wavefront ``out`` (root, key, origin, direction, origin32, direction32, beta, pdf_dir, env_pdf; the
     last is not written: the viewing ray's hit counts emission unweighted): root i for
     sample i, float64 origins and unit directions with their float32 copies for Embree, and the throughput (the
     filter weight in all three channels).
     """
-    pre_dx, pre_dy, pre_w = filter_samples
+    pixel, sample, seed_key = samples.pixel, samples.sample, samples.seed_key
+    spp = cfg.spp
+    sobol = cfg.sampler == SAMPLER_SOBOL
+    half_pixel = (cfg.mutant & M_CAMERA_HALF_PIXEL) != 0
+    filter_kind = pixel_filter.kind
+    pre_dx, pre_dy, pre_w = pixel_filter.dx, pixel_filter.dy, pixel_filter.weight
+    width, height, tan_x, tan_y = camera.width, camera.height, camera.tan_x, camera.tan_y
+    frame, eye = camera.frame, camera.eye
     root, key, origin, direction, o32, d32, beta, pdf_dir, _env_pdf = out
     n = len(pixel)
     salt_x = dim_salt(0, FILM_X, 0)

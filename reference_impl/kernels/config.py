@@ -101,16 +101,10 @@ class KernelConfig(NamedTuple):
     packet_width: int  # rays per packet query: the widest Embree traces natively here (16, 8 or 4; 1: no packets)
 
 
-# The scene as the kernels take it (integrator._Context._kernel_tables), three tuples of arrays:
-#   scene    = (prim_to_tri, normal, v0, corners, emission, light_id, material, two_sided, f_r, albedo_max), per
-#              triangle (prim_to_tri per Embree primitive; f_r and albedo_max per material);
-#   lights   = (cdf, triangles, first, count, within_cdf, pmf, area, frames, parallelogram, other) of
-#              lights.LightSampler (its kernel_tables(): per light, or per piece of a light);
-#   surfaces = (triangles, cdf) of lights.TriangleAreaSampler over every surface;
-#   and, only in scenes that have emitters which are not surfaces (None otherwise, which compiles every branch for
-#   them out of the engines: such scenes run exactly the code they ran before those emitters existed),
-#   emitters = (kind, position, direction, intensity, to_local, to_world, spot, env_image, env_cell_pdf, env_row_cdf,
-#               env_col_cdf) of emitters.Emitters.
+# The scene as the kernels take it: the records of reference_impl.kernels.records (SceneTables, LightTables,
+# SurfaceTables, MaterialTables; EmitterTables only in scenes that have emitters which are not surfaces, None
+# otherwise, which compiles every branch for them out of the engines: such scenes run exactly the code they ran before
+# those emitters existed).
 
 # The one table from Settings to the kernels: slot of KernelConfig -> (the Settings field that fills it, its value in
 # the slot).
@@ -132,7 +126,7 @@ FROM_SETTINGS = {
 FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf", "num_area_lights", "env_light", "packet_width")
 # The Settings fields that fill no slot, and where they go instead.
 NOT_SLOTS = {
-    "seed": "seed_key = mix64(seed ^ golden), an argument of camera_paths and of the engines (film_samples)",
+    "seed": "its key, rng.seed_key(seed): FilmSamples.seed_key, read by camera_paths and the engines",
     "light_selection": "the light tables' pdf(k) (lights.LightSampler)",
     "batch_size": "how many camera samples the integrator hands to a kernel at once",
     "threads": "the integrator's thread pool",

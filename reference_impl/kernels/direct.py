@@ -54,7 +54,7 @@ def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces)
     camera sample ``index`` of its pixel: (whether a light was chosen, the triangle of y, y, p(y) per unit area).
     The stratified sampler (``sob``) draws one 2D point of the pixel's set ``seeds`` and reuses its first coordinate
     for the discrete choices (lights.LightSampler.split_uniform); independent numbers need no reuse."""
-    corners = scene[3]
+    corners = scene.corners
     if sob:
         u_a, u_b = pair_point(seeds, index * cfg.shadow_rays + j)
     else:
@@ -73,7 +73,7 @@ def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces)
         u_select = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
         u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
     light, tri, y0, y1, y2 = sample_light_point(lights, num_lights, u_select, u_tri, u_a, u_b)
-    light_pmf, light_area = lights[5], lights[6]
+    light_pmf, light_area = lights.pmf, lights.area
     if cfg.mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
         return num_lights > 1, tri, y0, y1, y2, 1.0 / light_area[light]
     return num_lights > 1, tri, y0, y1, y2, light_pmf[light] / light_area[light]
@@ -94,7 +94,7 @@ def light_sample_all(cfg, sob, seeds, index, j, key, depth, scene, lights, surfa
                                                                          ox1, ox2, f0, f1, f2, tri, y0, y1, y2,
                                                                          pdf_area)
         return False, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2
-    cdf, light_pmf, light_area = lights[0], lights[5], lights[6]
+    cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     num_lights = cfg.num_lights
     if sob:
         u_a, u_b = pair_point(seeds, index * cfg.shadow_rays + j)
@@ -125,7 +125,7 @@ def complement_sample(cfg, emitters, e, key, depth, x0, x1, x2, n0, n1, n2, ox0,
     sampling neither a delta light nor an environment): e's own light sample, as if it were the only light
     (pdf(k) = 1), once per hit, added to the strategy's estimate. (whether e is such an emitter, and
     :func:`.emitters.emitter_sample`'s answer.) An environment's direction comes from its own uniforms."""
-    kind = emitters[0][e]
+    kind = emitters.kind[e]
     if (kind == ENV_CONSTANT or kind == ENV_MAP) and cfg.direct != DIRECT_GLOBAL_AREA:  # hemisphere rays find it
         return False, False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     u1 = uniform(key, dim_salt(depth, COMPLEMENT_U1, e))
@@ -141,7 +141,7 @@ def shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2, lt
     N_x, offset origin ox, f_r = f), and what it carries where nothing blocks it (``_shadow_ray_estimate``,
     ``_mis_weight_light``): (whether the sample needs a ray at all, the ray's origin, unit direction and t_max,
     Le f_r G / p(y) with its MIS weight)."""
-    tri_normal, emission, light_id = scene[1], scene[4], scene[5]
+    tri_normal, emission, light_id = scene.normal, scene.emission, scene.light_id
     l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
     dist2 = dot3(l0, l1, l2, l0, l1, l2)
     dist = math.sqrt(dist2)

@@ -101,7 +101,7 @@ def envmap_lookup(image, u, v):
 def env_radiance(cfg, emitters, d0, d1, d2):
     """L of the environment along the world direction d (unit), the way a ray leaves the scene
     (emitters.environment_radiance)."""
-    kind, intensity, to_local, image = emitters[0], emitters[3], emitters[4], emitters[7]
+    kind, intensity, to_local, image = emitters.kind, emitters.intensity, emitters.to_local, emitters.env_image
     e = cfg.env_light - cfg.num_area_lights
     if kind[e] != ENV_MAP:
         return intensity[e, 0], intensity[e, 1], intensity[e, 2]
@@ -124,10 +124,11 @@ def env_sample(cfg, emitters, u1, u2, n0, n1, n2):
     if cfg.env_sampling == ENV_COSINE:
         w0, w1, w2, _cos, pdf = sample_hemisphere(True, u1, u2, n0, n1, n2)
         return w0, w1, w2, pdf
-    kind = emitters[0]
+    kind = emitters.kind
     e = cfg.env_light - cfg.num_area_lights
     if cfg.env_sampling == ENV_IMPORTANCE and kind[e] == ENV_MAP:
-        to_world, cell_pdf, row_cdf, col_cdf = emitters[5], emitters[8], emitters[9], emitters[10]
+        to_world, cell_pdf = emitters.to_world, emitters.env_cell_pdf
+        row_cdf, col_cdf = emitters.env_row_cdf, emitters.env_col_cdf
         rows, cols = cell_pdf.shape[0], cell_pdf.shape[1]
         i = sample_discrete(row_cdf, u1)
         fv = rescale_within(u1, row_cdf[i - 1] if i > 0 else 0.0, row_cdf[i])
@@ -157,10 +158,10 @@ def env_pdf(cfg, emitters, d0, d1, d2, n0, n1, n2):
     environment_pdf)."""
     if cfg.env_sampling == ENV_COSINE:
         return hemisphere_pdf(True, dot3(n0, n1, n2, d0, d1, d2))
-    kind = emitters[0]
+    kind = emitters.kind
     e = cfg.env_light - cfg.num_area_lights
     if cfg.env_sampling == ENV_IMPORTANCE and kind[e] == ENV_MAP:
-        to_local, cell_pdf = emitters[4], emitters[8]
+        to_local, cell_pdf = emitters.to_local, emitters.env_cell_pdf
         rows, cols = cell_pdf.shape[0], cell_pdf.shape[1]
         lx, ly, lz = mat_vec(to_local, e, d0, d1, d2)
         lx, ly, lz = normalized(lx, ly, lz)
@@ -181,7 +182,7 @@ def env_pdf(cfg, emitters, d0, d1, d2, n0, n1, n2):
 def env_light_pdf(cfg, lights, emitters, d0, d1, d2, n0, n1, n2):
     """Nd pdf(k_env) p(w): the density with which the light samples at a point of normal N draw direction w of the
     environment (the MIS weight of a ray that escapes along w; a density of directions, as Ni p(Psi))."""
-    return cfg.shadow_rays * lights[5][cfg.env_light] * env_pdf(cfg, emitters, d0, d1, d2, n0, n1, n2)
+    return cfg.shadow_rays * lights.pmf[cfg.env_light] * env_pdf(cfg, emitters, d0, d1, d2, n0, n1, n2)
 
 
 @njit(**JIT)
@@ -203,7 +204,7 @@ def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2,
     f_r = f), uniforms (u1, u2) for an environment's direction: (whether it needs a shadow ray, the ray's origin,
     unit direction and t_max, what it carries where nothing blocks it, with its MIS weight). No ray where the light
     is behind x, outside a spot's cone, or brings nothing."""
-    kind, position, direction, intensity = emitters[0], emitters[1], emitters[2], emitters[3]
+    kind, position, direction, intensity = emitters.kind, emitters.position, emitters.direction, emitters.intensity
     k = kind[e]
     if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
         so0, so1, so2 = x0, x1, x2
@@ -220,8 +221,8 @@ def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2,
             return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         falloff = 1.0
         if k == SPOT:
-            s0, s1, s2 = mat_vec(emitters[4], e, -wi0, -wi1, -wi2)
-            falloff = spot_falloff(cfg, emitters[6], e, s0, s1, s2)
+            s0, s1, s2 = mat_vec(emitters.to_local, e, -wi0, -wi1, -wi2)
+            falloff = spot_falloff(cfg, emitters.spot, e, s0, s1, s2)
             if not falloff > 0:
                 return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         if k == POINT and cfg.mutant & M_POINT_NO_INVERSE_SQUARE:  # mutant "point-no-inverse-square"
@@ -271,7 +272,7 @@ def _split_light(lights, num_lights, num_area, u):
     """The choices one uniform u makes among area lights and emitters (pbrt-v4's sample reuse): (light k, what is
     left of u inside k's interval of the cdf, the piece of k that picks (a row of the light tables; -1 for an
     emitter), what is left of that inside the piece's interval)."""
-    cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
+    cdf, first, count, within_cdf = lights.cdf, lights.first, lights.count, lights.within_cdf
     light = 0
     u_tri = u
     if num_lights > 1:

@@ -1,8 +1,9 @@
 """The glossy engine: each camera path to its end in one compiled loop, for scenes with a material that is not
 Lambertian (conductors, dielectrics, rough or smooth: :mod:`.bsdf`), and for ``direct = "bsdf"`` on any scene.
 
-At each vertex x (front geometric normal N; the BSDF's local frame has z = N, never flipped; wo toward the previous
-vertex) the path adds
+At each vertex x (its surface record, :class:`.surface.SurfaceHit`: front geometric normal N; the BSDF's local frame
+is the shading frame, z = N, never flipped; wo toward the previous vertex; the BSDF's kind and parameters from the
+material step, :func:`.material.material_at`) the path adds
 
 * emission Le(x -> wo) of an area light's front side, met by the ray that found x, weighted by w_b:
   1 at the camera hit or after a delta bounce (no light sample could have found it) or with ``direct = bsdf``;
@@ -51,27 +52,20 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C
 from reference_impl.kernels.emitters import (env_light_pdf, env_radiance, env_sample, mat_vec, spot_falloff,
                                              split_light_piece_all)
 from reference_impl.kernels.light_sampling import point_on_light, search_within
+from reference_impl.kernels.material import material_at
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.record import record_camera, record_closest, record_occluded
 from reference_impl.kernels.rng import dim_salt, uniform
-from reference_impl.kernels.sobol import ahead, glossy_first_hit_seeds, held_point, longest_run, pair_point, pixel_run
+from reference_impl.kernels.sobol import (NOTHING_HELD, GlossyFirstHitPairs, ahead, glossy_first_hit_seeds, held_point,
+                                          longest_run, pair_point, pixel_run)
 from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
-from reference_impl.materials import DIELECTRIC, P_TWO_SIDED, ROUGHDIELECTRIC
+from reference_impl.materials import DIELECTRIC, NUM_PARAMS, P_TWO_SIDED, ROUGHDIELECTRIC
 from reference_impl.rng import BSDF_LOBE, BSDF_U1, BSDF_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE
 
 MAX_VERTICES = 1 << 16
 RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
-
-
-@njit(**JIT)
-def frame(n0, n1, n2):
-    """Tangents s, t of the orthonormal frame (s, t, N) of warps.to_world (Duff et al. 2017)."""
-    sign = 1.0 if n2 >= 0 else -1.0
-    a = -1.0 / (sign + n2)
-    b = n0 * n1 * a
-    return 1.0 + sign * (n0 * n0) * a, sign * b, -sign * n0, b, sign + (n1 * n1) * a, -n1
 
 
 @njit(**JIT_BORROW)
@@ -89,8 +83,8 @@ def light_piece(cfg, lights, light, u_tri):
     an emitter that is not a surface."""
     if light >= cfg.num_area_lights:
         return -1
-    f = lights[2][light]
-    return f + search_within(lights[4], f, lights[3][light], u_tri)
+    f = lights.first[light]
+    return f + search_within(lights.within_cdf, f, lights.count[light], u_tri)
 
 
 @njit(**JIT_BORROW)
@@ -102,7 +96,7 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
     for an emitter that is not a surface))."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     if light < cfg.num_area_lights:
-        tri_normal, emission, light_area = scene[1], scene[4], lights[6]
+        tri_normal, emission, light_area = scene.normal, scene.emission, lights.area
         tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
         l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
         dist2 = dot3(l0, l1, l2, l0, l1, l2)
@@ -128,7 +122,7 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
 def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2):
     """:func:`light_connection_on` for emitter e, which is not a surface."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
-    kind, position, direction, intensity = emitters[0], emitters[1], emitters[2], emitters[3]
+    kind, position, direction, intensity = emitters.kind, emitters.position, emitters.direction, emitters.intensity
     k = kind[e]
     if k == POINT or k == SPOT:
         p0, p1, p2 = position[e, 0], position[e, 1], position[e, 2]
@@ -140,8 +134,8 @@ def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1
         wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
         falloff = 1.0
         if k == SPOT:
-            s0, s1, s2 = mat_vec(emitters[4], e, -wi0, -wi1, -wi2)
-            falloff = spot_falloff(cfg, emitters[6], e, s0, s1, s2)
+            s0, s1, s2 = mat_vec(emitters.to_local, e, -wi0, -wi1, -wi2)
+            falloff = spot_falloff(cfg, emitters.spot, e, s0, s1, s2)
             if not falloff > 0:
                 return nothing
         if k == POINT and cfg.mutant & M_POINT_NO_INVERSE_SQUARE:  # mutant "point-no-inverse-square"
@@ -168,14 +162,13 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                  record=None):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one at a time
     (module docstring). ``scene``, ``lights``, ``emitters`` (or None) as for :func:`.path.trace_paths`;
-    ``materials`` = (kind, params) of :class:`reference_impl.Materials`, indexed by the scene's material ids.
-    ``timing`` and ``film_samples`` (pixel, sample, seed_key of the camera samples) as for trace_paths.
+    ``materials`` (:class:`.records.MaterialTables`), indexed by the scene's material ids.
+    ``timing`` and ``film_samples`` (:class:`.records.FilmSamples`) as for trace_paths.
     ``record``: None in a render (compiled out), or buffers that receive every query's ray and answer
     (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
-    emission, light_id, tri_material = scene[4], scene[5], scene[6]
-    mkind, mparams = materials
-    light_cdf, light_pmf, light_area = lights[0], lights[5], lights[6]
+    emission, light_id = scene.emission, scene.light_id
+    light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd
     direct = cfg.direct
@@ -183,7 +176,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     max_depth = cfg.max_depth
     num_lights = cfg.num_lights
     sobol = cfg.sampler == SAMPLER_SOBOL
-    film_pixel, film_sample, seed_key = film_samples
+    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
     # The first hit's points of each pixel's run of samples, computed ahead (kernels.sobol.sobol_points).
     fh = glossy_first_hit_seeds(seed_key, 0, 1, 1)
     fh_pixel = -1
@@ -192,8 +185,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     lx, ly = np.empty(size), np.empty(size)
     bx, by = np.empty(size), np.empty(size)
     cx, cy = np.empty(size), np.empty(size)
-    nothing = (np.int64(0), np.int64(0))
-    held = (nothing, nothing, nothing)
+    held = GlossyFirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
+    row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0
@@ -236,8 +229,9 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 fh_pixel = film_pixel[r]
                 fh = glossy_first_hit_seeds(seed_key, fh_pixel, cfg.spp, nd)
                 first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
-                held = (ahead(fh[0], first * nd, m_run * nd, lx, ly, True), ahead(fh[1], first, m_run, bx, by, True),
-                        ahead(fh[2], first, m_run, cx, cy, True))
+                held = GlossyFirstHitPairs(ahead(fh.light, first * nd, m_run * nd, lx, ly, True),
+                                           ahead(fh.bsdf, first, m_run, bx, by, True),
+                                           ahead(fh.lobe_roulette, first, m_run, cx, cy, True))
             si = film_sample[r]
         while True:
             sob = sobol and depth == 1
@@ -263,7 +257,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         rad1 += b1 * e1 * w
                         rad2 += b2 * e2 * w
                 break
-            tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
+            hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
+            tri, t, cos_out = hit.tri, hit.t, hit.cos_out
             light = light_id[tri]
             if light >= 0 and cos_out > 0 and (direct != DIRECT_AREA or prev_delta):
                 w = 1.0
@@ -275,11 +270,14 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 rad2 += b2 * emission[tri, 2] * w
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
-            m = tri_material[tri]
-            s0, s1, s2, t0, t1, t2 = frame(nx0, nx1, nx2)
+            kind = material_at(materials, hit, row)  # the material step: the BSDF's kind and parameters at x
+            x0, x1, x2 = hit.x0, hit.x1, hit.x2
+            nx0, nx1, nx2 = hit.n0, hit.n1, hit.n2
+            # The BSDF's local frame: the shading frame's tangents s, t and the normal N (the shading normal is N).
+            s0, s1, s2, t0, t1, t2 = hit.ss0, hit.ss1, hit.ss2, hit.st0, hit.st1, hit.st2
             wo0, wo1, wo2 = -d0, -d1, -d2
             lo0, lo1, lo2 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2), cos_out
-            delta_bsdf = is_delta(mkind[m])
+            delta_bsdf = is_delta(kind)
 
             # Direct light: Nd light samples (none at a delta BSDF); with direct = bsdf the delta lights alone.
             if not delta_bsdf:
@@ -287,11 +285,11 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 samples = nd if direct != DIRECT_BSDF else 0
                 if emitters is not None:
                     if direct == DIRECT_BSDF:
-                        samples = len(emitters[0])
+                        samples = len(emitters.kind)
                 for j in range(samples):
                     if direct != DIRECT_BSDF:
                         if sob:  # one 2D point: its first coordinate picks the light and the piece too
-                            u_a, u2 = pair_point(held_point(fh[0], lx, ly, held[0], si * nd + j), si * nd + j)
+                            u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j), si * nd + j)
                             sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
                         else:
                             u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
@@ -306,7 +304,7 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                     else:  # a delta light's own sample (its uniforms are not used)
                         sel = -1
                         if emitters is not None:
-                            ekind = emitters[0][j]
+                            ekind = emitters.kind[j]
                             if ekind == POINT or ekind == SPOT or ekind == DIRECTIONAL:
                                 sel = cfg.num_area_lights + j
                         if sel < 0:
@@ -320,13 +318,13 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         count_shadow_skipped += 1
                         continue
                     li0, li1, li2 = dot3(s0, s1, s2, wi0, wi1, wi2), dot3(t0, t1, t2, wi0, wi1, wi2), cos_x
-                    f0, f1, f2 = bsdf_eval(mkind, mparams, m, mutant, lo0, lo1, lo2, li0, li1, li2)
+                    f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
                     if not (f0 > 0 or f1 > 0 or f2 > 0):
                         count_shadow_skipped += 1
                         continue
                     w = 1.0
                     if direct == DIRECT_MIS and p_l > 0:
-                        p_b = bsdf_pdf(mkind, mparams, m, mutant, lo0, lo1, lo2, li0, li1, li2)
+                        p_b = bsdf_pdf(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
                         w = power_weight(mutant, p_l, p_b, True)
                     side = 1.0 if cos_x > 0 else -1.0
                     so0, so1, so2 = offset_origin(cfg.offset_scene, x0, x1, x2, side * nx0, side * nx1, side * nx2)
@@ -358,25 +356,22 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
 
             # The next ray, sampled from the BSDF.
             if sob:
-                u1, u2 = pair_point(held_point(fh[1], bx, by, held[1], si), si)
-                u_lobe, u_rr = pair_point(held_point(fh[2], cx, cy, held[2], si), si)
+                u1, u2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
+                u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
             else:
                 u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
                 u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                 u2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
                 u_rr = -1.0  # drawn below only where roulette is played
-            ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(mkind, mparams, m, mutant, lo0, lo1, lo2, u_lobe,
-                                                                    u1, u2)
+            ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, lo0, lo1, lo2, u_lobe, u1, u2)
             if not ok:
-                kind_m = mkind[m]
-                if cos_out < 0 and mparams[m, P_TWO_SIDED] == 0 and not (kind_m == DIELECTRIC
-                                                                        or kind_m == ROUGHDIELECTRIC):
+                if cos_out < 0 and row[P_TWO_SIDED] == 0 and not (kind == DIELECTRIC or kind == ROUGHDIELECTRIC):
                     count_back_face += 1
                 break
             if direct == DIRECT_AREA and not delta and not (max_depth == -1 or depth + 2 <= max_depth):
                 break  # its vertex would add direct light only, which max_depth forbids
             nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
-            eta_rel = sample_eta(mkind, mparams, m, lo2, li2)
+            eta_rel = sample_eta(kind, row, lo2, li2)
             eta2 *= eta_rel * eta_rel
             if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
                 if cfg.rr == RR_THROUGHPUT:
@@ -425,4 +420,4 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     timing[1] += queries + n
 
 
-__all__ = ["MAX_VERTICES", "frame", "light_connection_on", "light_piece", "power_weight", "trace_glossy"]
+__all__ = ["MAX_VERTICES", "light_connection_on", "light_piece", "power_weight", "trace_glossy"]

@@ -42,7 +42,7 @@ def point_on_light(lights, entry, u1, u2):
     """LightSampler.point_on_entry for one entry of the light table: (the triangle y lies in, y). Both warps are
     computed and the entry's flag selects one (no branch on the kind of piece): a triangle's barycentrics
     (1 - sqrt(u1), u2 sqrt(u1)) or a parallelogram's (u1, u2); y = o + a e1 + b e2 of the entry's frame."""
-    triangles, frames, parallelogram, other = lights[1], lights[7], lights[8], lights[9]
+    triangles, frames, parallelogram, other = lights.triangles, lights.frames, lights.parallelogram, lights.other
     s = math.sqrt(u1)
     par = parallelogram[entry]
     a = u1 if par else 1.0 - s
@@ -58,7 +58,7 @@ def point_on_light(lights, entry, u1, u2):
 def light_point(lights, light, u_tri, u1, u2):
     """A point of light k = ``light``: its piece from u_tri (within k's cdf), the point on it from (u1, u2):
     (the triangle y lies in, y)."""
-    first, count, within_cdf = lights[2], lights[3], lights[4]
+    first, count, within_cdf = lights.first, lights.count, lights.within_cdf
     f = first[light]
     return point_on_light(lights, f + search_within(within_cdf, f, count[light], u_tri), u1, u2)
 
@@ -80,7 +80,7 @@ def search_within(within_cdf, f, n, u):
 @njit(**JIT_INLINE)
 def sample_light_point(lights, num_lights, u_select, u_tri, u1, u2):
     """LightSampler.sample for one set of uniforms: (light k, triangle, point y)."""
-    light = sample_discrete(lights[0], u_select) if num_lights > 1 else 0
+    light = sample_discrete(lights.cdf, u_select) if num_lights > 1 else 0
     tri, p0, p1, p2 = light_point(lights, light, u_tri, u1, u2)
     return light, tri, p0, p1, p2
 
@@ -88,7 +88,7 @@ def sample_light_point(lights, num_lights, u_select, u_tri, u1, u2):
 @njit(**JIT_INLINE)
 def sample_surface_point(surfaces, corners, u_tri, u1, u2):
     """TriangleAreaSampler.sample for one set of uniforms: (triangle, point y)."""
-    triangles, cdf = surfaces
+    triangles, cdf = surfaces.triangles, surfaces.cdf
     tri = triangles[sample_discrete(cdf, u_tri)]
     p0, p1, p2 = point_on_triangle(corners, tri, u1, u2)
     return tri, p0, p1, p2
@@ -99,7 +99,7 @@ def split_light_uniform(lights, num_lights, u):
     """LightSampler.split_uniform for one uniform: (u_select, u_tri, u1). (Handing on the light and triangle it
     finds, so that sample_light_point need not search again, measured 4-6 % slower on multi-light: numba's code
     for the path loop got worse.)"""
-    cdf, first, count, within_cdf = lights[0], lights[2], lights[3], lights[4]
+    cdf, first, count, within_cdf = lights.cdf, lights.first, lights.count, lights.within_cdf
     light = 0
     u_tri = u
     if num_lights > 1:
@@ -113,6 +113,6 @@ def split_light_uniform(lights, num_lights, u):
 @njit(**JIT_INLINE)
 def split_surface_uniform(surfaces, u):
     """TriangleAreaSampler.split_uniform for one uniform: (u_tri, u1)."""
-    _triangles, cdf = surfaces
+    cdf = surfaces.cdf
     index = sample_discrete(cdf, u)
     return u, rescale_within(u, cdf[index - 1] if index > 0 else 0.0, cdf[index])

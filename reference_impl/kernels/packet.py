@@ -26,7 +26,8 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C
 from reference_impl.kernels.direct import light_sample, shadow_ray
 from reference_impl.kernels.queries import (closest_prims_coherent, closest_prims_packets, now_ns,
                                             occluded_coherent, packet_buffer)
-from reference_impl.kernels.sobol import first_hit_seeds, held_point, longest_run, pixel_first_hit_points
+from reference_impl.kernels.sobol import (NOTHING_HELD, FirstHitPairs, first_hit_seeds, held_point, longest_run,
+                                          pixel_first_hit_points)
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
@@ -43,15 +44,14 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd
     sobol = cfg.sampler == SAMPLER_SOBOL
-    film_pixel, film_sample = film_samples[0], film_samples[1]
-    fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
+    film_pixel, film_sample = film_samples.pixel, film_samples.sample
+    fh = first_hit_seeds(film_samples.seed_key, 0, 1, 1, 1)
     fh_pixel = -1
     size = longest_run(film_samples) * max(cfg.shadow_rays, cfg.indirect_rays) if sobol else 0
     buffers = (np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size),
                np.empty(size), np.empty(size))
     lx, ly, _dx, _dy, rx, ry, ix, iy = buffers
-    nothing = (np.int64(0), np.int64(0))
-    held = (nothing, nothing, nothing, nothing)
+    held = FirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
     indirect_first = vertex_rules(cfg, 1)[2]
     want_rr = indirect_first and cfg.rr != RR_OFF and cfg.rr_depth <= 1
 
@@ -157,32 +157,32 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
                     count_escaped += 1
                     alive[lane] = False
                     continue
-                tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
-                front = cos_out > 0
+                hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
                 if emit != EMIT_NONE:
-                    e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, ray[lane, 6])
+                    e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, ray[lane, 6])
                     rad[lane, 0] += b0 * e0 * w
                     rad[lane, 1] += b1 * e1 * w
                     rad[lane, 2] += b2 * e2 * w
                 if not allow_next:
                     alive[lane] = False
                     continue
-                reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front,
-                                                                                             nx0, nx1, nx2, x0, x1, x2)
+                reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
                 if not reflects:
                     count_back_face += 1
                     alive[lane] = False
                     continue
+                x0, x1, x2 = hit.x0, hit.x1, hit.x2
                 going = allow_indirect
                 if going:
-                    going, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh[2], rx, ry, held[2], si),
-                                                 si, k, depth, b0, b1, b2)
+                    going, q0, q1, q2 = roulette(cfg, scene, material, sob,
+                                                 held_point(fh.roulette, rx, ry, held.roulette, si), si, k, depth, b0,
+                                                 b1, b2)
                     if not going:
                         count_roulette += 1
                 if going:
                     going, nk, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(
-                        cfg, sob, held_point(fh[3], ix, iy, held[3], si), si, 0, k, depth, nx0, nx1, nx2, f0, f1,
-                        f2, q0, q1, q2)
+                        cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2,
+                        f0, f1, f2, q0, q1, q2)
                     if going:
                         count_indirect += 1
                         next_key[lane] = nk
@@ -195,7 +195,7 @@ def trace_packets(state, scene_ptr, scene, lights, surfaces, cfg, radiance, coun
                 go_on[lane] = going
                 for j in range(nd):
                     selected, ltri, y0, y1, y2, pdf_area = light_sample(
-                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights,
+                        cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth, scene, lights,
                         surfaces)
                     needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                         cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)

@@ -21,7 +21,8 @@ from reference_impl.kernels.direct import (complement_sample, hemisphere_sample,
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
-from reference_impl.kernels.sobol import first_hit_seeds, held_point, longest_run, pixel_first_hit_points
+from reference_impl.kernels.sobol import (NOTHING_HELD, FirstHitPairs, first_hit_seeds, held_point, longest_run,
+                                          pixel_first_hit_points)
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 
@@ -37,26 +38,26 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
     ``cfg`` is the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet query. ``timing[0]``
     receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]`` the number of
-    queries. ``film_samples`` = (pixel, sample, seed_key) of the camera samples, for the stratified sampler.
-    ``emitters``: the tables of the emitters that are not surfaces (:mod:`.config`), or None, which compiles every
+    queries. ``scene``, ``lights``, ``surfaces`` and ``emitters``: the scene's tables (:mod:`.records`);
+    ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
+    ``emitters``: the tables of the emitters that are not surfaces, or None, which compiles every
     branch for them out (``if emitters is not None`` is decided by numba from the argument's type).
     """
     root, key, origin, direction, o32, d32, beta, pdf_dir, _env_pdf = state
-    prim_to_tri, tri_normal, emission = scene[0], scene[1], scene[4]
+    prim_to_tri, tri_normal, emission = scene.prim_to_tri, scene.normal, scene.emission
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
     hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
     sobol = cfg.sampler == SAMPLER_SOBOL
     # The first hit's points of each pixel, computed ahead for its samples here, for the pairs these settings draw.
-    fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
+    fh = first_hit_seeds(film_samples.seed_key, 0, 1, 1, 1)
     fh_pixel = -1
     si = 0
     size = longest_run(film_samples) * max(cfg.shadow_rays, cfg.indirect_rays) if sobol else 0
     buffers = (np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size),
                np.empty(size), np.empty(size))
     lx, ly, dx, dy, rx, ry, ix, iy = buffers
-    nothing = (np.int64(0), np.int64(0))  # (base, count) of the points held: none yet
-    held = (nothing, nothing, nothing, nothing)
+    held = FirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
     indirect_first = vertex_rules(cfg, 1)[2]
     want_rr = indirect_first and cfg.rr != RR_OFF and cfg.rr_depth <= 1
     words, floats = ray_buffer()
@@ -91,10 +92,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
         ray_pdf = pdf_dir[i]
         depth = 1
         if sobol:
-            if film_samples[0][r] != fh_pixel:
+            if film_samples.pixel[r] != fh_pixel:
                 fh, fh_pixel, held = pixel_first_hit_points(cfg, film_samples, r, buffers, not hemi_direct,
                                                             hemi_direct, want_rr, indirect_first)
-            si = film_samples[1][r]
+            si = film_samples.sample[r]
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
         if emitters is not None:
             nx0, nx1, nx2 = 0.0, 0.0, 1.0  # the previous vertex's normal, for the escape's MIS weight
@@ -119,35 +120,35 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                         rad1 += b1 * e1 * w
                         rad2 += b2 * e2 * w
                 break
-            tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
-            front = cos_out > 0
+            hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
             if emit != EMIT_NONE:
-                e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, ray_pdf)
+                e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, ray_pdf)
                 rad0 += b0 * e0 * w
                 rad1 += b1 * e1 * w
                 rad2 += b2 * e2 * w
 
             if not allow_next:
                 break
-            reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0,
-                                                                                         nx1, nx2, x0, x1, x2)
+            reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
             if not reflects:
                 count_back_face += 1
                 break
+            x0, x1, x2 = hit.x0, hit.x1, hit.x2
 
             # Indirect light, if the next vertex can still add anything. Drawn before the direct light's queries (the
             # random numbers are counter-based, so the order of drawing changes nothing), which gives the processor
             # independent arithmetic to overlap instead of a chain broken by every Embree call.
             go_on = allow_indirect
             if go_on:
-                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob, held_point(fh[2], rx, ry, held[2], si), si, k,
-                                             depth, b0, b1, b2)
+                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob,
+                                             held_point(fh.roulette, rx, ry, held.roulette, si), si, k, depth, b0, b1,
+                                             b2)
                 if not go_on:
                     count_roulette += 1
             if go_on:
                 go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(
-                    cfg, sob, held_point(fh[3], ix, iy, held[3], si), si, 0, k, depth, nx0, nx1, nx2, f0, f1, f2, q0,
-                    q1, q2)
+                    cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2,
+                    f0, f1, f2, q0, q1, q2)
                 if go_on:
                     count_indirect += 1
                 else:
@@ -157,8 +158,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             tot0, tot1, tot2 = 0.0, 0.0, 0.0
             for j in range(nd):
                 if hemi_direct:
-                    h0, h1, h2, ratio = hemisphere_sample(cfg, sob, held_point(fh[1], dx, dy, held[1], si * nd + j), si,
-                                                          j, k, depth, nx0, nx1, nx2)
+                    h0, h1, h2, ratio = hemisphere_sample(
+                        cfg, sob, held_point(fh.direction, dx, dy, held.direction, si * nd + j), si, j, k, depth, nx0,
+                        nx1, nx2)
                     count_hemi_direct += 1
                     hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
                                                                  ox0, ox1, ox2, h0, h1, h2)
@@ -179,13 +181,13 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
                     continue
                 if emitters is None:
                     selected, ltri, y0, y1, y2, pdf_area = light_sample(
-                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights,
+                        cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth, scene, lights,
                         surfaces)
                     needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                         cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
                 else:
                     selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                        cfg, sob, held_point(fh[0], lx, ly, held[0], si * nd + j), si, j, k, depth, scene, lights,
+                        cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth, scene, lights,
                         surfaces, emitters, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
                 if selected:
                     count_light_select += 1
@@ -205,7 +207,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             if emitters is not None:
                 if hemi_direct or cfg.direct == DIRECT_GLOBAL_AREA:  # what the strategy cannot find (resolve_complement)
                     ct0, ct1, ct2 = 0.0, 0.0, 0.0
-                    for e in range(len(emitters[0])):
+                    for e in range(len(emitters.kind)):
                         is_complement, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = complement_sample(
                             cfg, emitters, e, k, depth, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
                         if not is_complement:

@@ -56,11 +56,11 @@ def branch_salt(branch, depth):
 
 @njit(**JIT)
 def path_key(seed_key, path_id):
-    """rng.path_keys for one path id, with ``seed_key = mix64(seed ^ golden)``."""
+    """rng.path_keys for one path id, with the render's ``seed_key`` (:func:`reference_impl.rng.seed_key`)."""
     return mix64((np.uint64(path_id) * _GOLDEN) ^ seed_key)
 
 
 @njit(**JIT)
 def pixel_key(seed_key, pixel):
-    """rng.pixel_keys for one pixel, with ``seed_key = mix64(seed ^ golden)``."""
+    """rng.pixel_keys for one pixel, with the render's ``seed_key`` (:func:`reference_impl.rng.seed_key`)."""
     return mix64((np.uint64(pixel) * _GOLDEN) ^ seed_key ^ _PIXEL_SALT_U)

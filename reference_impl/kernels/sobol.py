@@ -17,6 +17,8 @@ gain, MSE 5.6e-4 -> 1.5e-4; going on to depth 2 took 3 % more time for 3 % less 
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -32,6 +34,28 @@ _B1, _B2, _B4, _B8, _B16 = (np.uint64(m) for m in (0x55555555, 0x33333333, 0x0F0
 _SH1, _SH2, _SH4, _SH8, _SH16 = (np.uint64(v) for v in (1, 2, 4, 8, 16))
 _LK0, _LK1, _LK2, _LK3 = _LK
 _GOLDEN_1, _GOLDEN_2, _GOLDEN_3 = (np.uint64((r * int(_GOLDEN)) & ((1 << 64) - 1)) for r in (1, 2, 3))
+
+
+class FirstHitPairs(NamedTuple):
+    """One entry per pair of dimensions a pixel's first hit draws from its stratified sets in the Lambertian
+    engines: the pair's seeds (:func:`first_hit_seeds`), or the (base, count) of its points computed ahead
+    (:func:`ahead`)."""
+
+    light: tuple  # the light sample's point (its first coordinate also picks the light and the piece); Np x Nd
+    direction: tuple  # hemisphere sampling's direct-light direction; Np x Nd
+    roulette: tuple  # Russian roulette (the first coordinate); Np
+    indirect: tuple  # the indirect ray's direction; Np x Ni
+
+
+class GlossyFirstHitPairs(NamedTuple):
+    """:class:`FirstHitPairs` of the glossy engine (:func:`glossy_first_hit_seeds`)."""
+
+    light: tuple  # the light sample's point (its first coordinate also picks the light and the piece); Np x Nd
+    bsdf: tuple  # the BSDF sample's direction; Np
+    lobe_roulette: tuple  # the BSDF's lobe (x) and Russian roulette (y); Np
+
+
+NOTHING_HELD = (np.int64(0), np.int64(0))  # (base, count) of the points of a pair computed ahead: none
 
 
 @njit(**JIT)
@@ -150,8 +174,9 @@ def spot_point(seeds):
 def held_point(seeds, xs, ys, held, index):
     """The point set for :func:`pair_point`'s ``index`` with the point itself where xs, ys hold it (``held`` =
     (base, count) of the points :func:`ahead` computed there), else with the seeds alone."""
-    o = np.int64(index) - held[0]
-    if o >= 0 and o < held[1]:
+    base, count = held
+    o = np.int64(index) - base
+    if o >= 0 and o < count:
         return seeds, xs[o], ys[o], True
     return seeds, 0.0, 0.0, False
 
@@ -172,9 +197,10 @@ def first_hit_seeds(seed_key, pixel, spp, nd, ni):
     direction); Np x Nd, Np x Nd, Np and Np x Ni points. (A light sample's choices of light and triangle reuse its
     point's first coordinate: lights.LightSampler.split_uniform.)"""
     pk = pixel_key(seed_key, pixel)
-    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
-            sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
-            sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp), sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
+    return FirstHitPairs(sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+                         sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
+                         sobol_seeds(pk, dim_salt(1, ROULETTE, 0), spp),
+                         sobol_seeds(pk, dim_salt(1, INDIRECT_U1, 0), spp * ni))
 
 
 @njit(**JIT)
@@ -184,17 +210,18 @@ def glossy_first_hit_seeds(seed_key, pixel, spp, nd):
     first coordinate (as :func:`first_hit_seeds`'); the lobe and the roulette number are the two coordinates of one
     point."""
     pk = pixel_key(seed_key, pixel)
-    return (sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd), sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
-            sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
+    return GlossyFirstHitPairs(sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+                               sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
+                               sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
 
 
 @njit(**JIT_BORROW)
 def pixel_first_hit_seeds(cfg, seeds, seeds_pixel, film_samples, r):
     """The :func:`first_hit_seeds` of camera sample r's pixel, and r's index among the pixel's samples: (seeds,
     their pixel, index). A pixel's samples come together, so its seeds are computed once: ``seeds`` of pixel
-    ``seeds_pixel`` are handed back unchanged while the pixel is the same. ``film_samples`` = (pixel, sample,
-    seed_key) of the camera samples."""
-    film_pixel, film_sample, seed_key = film_samples
+    ``seeds_pixel`` are handed back unchanged while the pixel is the same. ``film_samples``: the camera samples
+    (:class:`.records.FilmSamples`)."""
+    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
     if film_pixel[r] != seeds_pixel:
         seeds_pixel = film_pixel[r]
         seeds = first_hit_seeds(seed_key, seeds_pixel, cfg.spp, cfg.shadow_rays, cfg.indirect_rays)
@@ -214,7 +241,7 @@ def pixel_run(pixel, sample, r):
 @njit(**JIT)
 def longest_run(film_samples):
     """The longest :func:`pixel_run` of the camera samples: what the buffers of points computed ahead must hold."""
-    film_pixel, film_sample = film_samples[0], film_samples[1]
+    film_pixel, film_sample = film_samples.pixel, film_samples.sample
     longest, r = 0, 0
     while r < len(film_pixel):
         m = pixel_run(film_pixel, film_sample, r)
@@ -239,13 +266,14 @@ def pixel_first_hit_points(cfg, film_samples, r, buffers, want_light, want_direc
     pixel's four first-hit seeds, with the points of its run of samples (:func:`pixel_run`) computed ahead into
     ``buffers`` (8 float64 arrays, x and y of each pair, of :func:`longest_run` x Nd or Ni points) for the pairs
     wanted (the engine's settings say which pairs it draws). Returns (seeds, pixel, the 4 pairs' (base, count))."""
-    film_pixel, film_sample, seed_key = film_samples
+    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
     pixel = film_pixel[r]
     nd, ni = cfg.shadow_rays, cfg.indirect_rays
     first, m = film_sample[r], pixel_run(film_pixel, film_sample, r)
-    light, direction, rr, indirect = first_hit_seeds(seed_key, pixel, cfg.spp, nd, ni)
+    seeds = first_hit_seeds(seed_key, pixel, cfg.spp, nd, ni)
     lx, ly, dx, dy, rx, ry, ix, iy = buffers
-    held = (ahead(light, first * nd, m * nd, lx, ly, want_light),
-            ahead(direction, first * nd, m * nd, dx, dy, want_direction),
-            ahead(rr, first, m, rx, ry, want_rr), ahead(indirect, first * ni, m * ni, ix, iy, want_indirect))
-    return (light, direction, rr, indirect), pixel, held
+    held = FirstHitPairs(ahead(seeds.light, first * nd, m * nd, lx, ly, want_light),
+                         ahead(seeds.direction, first * nd, m * nd, dx, dy, want_direction),
+                         ahead(seeds.roulette, first, m, rx, ry, want_rr),
+                         ahead(seeds.indirect, first * ni, m * ni, ix, iy, want_indirect))
+    return seeds, pixel, held

@@ -1,9 +1,13 @@
-"""The hit point x of a ray and the rays that leave it (:class:`reference_impl.intersect.Intersector`): the distance
-recomputed in float64, the offset that keeps a ray off the surface it leaves, and where a shadow ray stops.
+"""The hit point x of a ray and the rays that leave it (:class:`reference_impl.intersect.Intersector`): the surface
+record of a hit (:class:`SurfaceHit`), with the distance recomputed in float64, the offset that keeps a ray off the
+surface it leaves, and where a shadow ray stops.
 
     t            = ((v0 - o) . N) / (d . N)      float64, from the triangle's plane (Embree answers in float32);
                                                  0 where that is not a positive number
     x            = o + t d,   cos(theta_out) = -d . N
+    (u, v)       = ((p x e2) . N, (e1 x p) . N) / ((e1 x e2) . N),   e1 = v1 - v0, e2 = v2 - v0, p = x - v0:
+                 the barycentrics of x, x = (1 - u - v) v0 + u v1 + v v2 (ratios of signed areas; Moeller and
+                 Trumbore 1997 find the same u, v along the ray)
     offset(p)    = 2^-20 max(|p_x|, |p_y|, |p_z|) + 2^-22 scene size        (a few float32 ulps of p)
     origin       = x + offset(x) N_x                                          (N_x on the side the ray leaves)
     shadow t_max = |y - origin| (1 - 1e-6) - offset(y) / cos(theta_y)         (short of y by y's offset off y's plane)
@@ -12,11 +16,12 @@ recomputed in float64, the offset that keeps a ray off the surface it leaves, an
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_BORROW
-from reference_impl.kernels.warps import dot3
+from reference_impl.kernels.warps import dot3, tangent_frame
 
 # Relative offset of ray origins (intersect._OFFSET_REL), repeated so the kernels need no import of Embree.
 _OFFSET_REL = 2.0**-20
@@ -33,14 +38,91 @@ def hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, v0, v1, v2):
     return t, o0 + t * d0, o1 + t * d1, o2 + t * d2, -denom
 
 
+class SurfaceHit(NamedTuple):
+    """What a ray found: the surface record of one hit, built by :func:`surface_hit` (pbrt's SurfaceInteraction).
+    The material step (:func:`.material.material_at`) and the BSDF read it; the shading frame is where a shading
+    normal would go, the texture coordinates where a texture is looked up.
+
+    Attributes
+    ----------
+    tri : int
+        The triangle hit.
+    material : int
+        Its material (a row of the material tables).
+    t : float
+        The distance along the unit direction, float64 from the triangle's plane (:func:`hit_point`).
+    x0, x1, x2 : float
+        The hit point x = o + t d.
+    n0, n1, n2 : float
+        The unit geometric normal N of the triangle's front side (never flipped).
+    cos_out : float
+        cos(theta_out) = -d . N: > 0 where the ray came from the front.
+    u, v : float
+        The barycentrics of x (:func:`barycentrics`).
+    tex_u, tex_v : float
+        The texture coordinates at x: 0 (the meshes carry none).
+    ss0, ss1, ss2, st0, st1, st2, sn0, sn1, sn2 : float
+        The shading frame (s, t, n): the geometric frame, n = N and s, t the tangents of
+        :func:`.warps.tangent_frame` (the BSDF's local x and y axes).
+    """
+
+    tri: int
+    material: int
+    t: float
+    x0: float
+    x1: float
+    x2: float
+    n0: float
+    n1: float
+    n2: float
+    cos_out: float
+    u: float
+    v: float
+    tex_u: float
+    tex_v: float
+    ss0: float
+    ss1: float
+    ss2: float
+    st0: float
+    st1: float
+    st2: float
+    sn0: float
+    sn1: float
+    sn2: float
+
+
+@njit(**JIT_BORROW)
+def barycentrics(corners, tri, x0, x1, x2, n0, n1, n2):
+    """The barycentrics (u, v) of a point x of triangle ``tri`` (corners v0, v1, v2; unit normal N):
+
+        u = ((p x e2) . N) / ((e1 x e2) . N),  v = ((e1 x p) . N) / ((e1 x e2) . N),
+        e1 = v1 - v0, e2 = v2 - v0, p = x - v0,
+
+    so that x = (1 - u - v) v0 + u v1 + v v2 for x in the triangle's plane (the signed areas of the triangles x v2 v0
+    and x v0 v1 over the triangle's; a distance of x off the plane changes neither). Moeller and Trumbore (1997)
+    compute the same u, v where the ray meets the plane; Embree reports them in float32, but the queries read only
+    its primitive id."""
+    c00, c01, c02 = corners[tri, 0, 0], corners[tri, 0, 1], corners[tri, 0, 2]
+    e10, e11, e12 = corners[tri, 1, 0] - c00, corners[tri, 1, 1] - c01, corners[tri, 1, 2] - c02
+    e20, e21, e22 = corners[tri, 2, 0] - c00, corners[tri, 2, 1] - c01, corners[tri, 2, 2] - c02
+    p0, p1, p2 = x0 - c00, x1 - c01, x2 - c02
+    area = dot3(e11 * e22 - e12 * e21, e12 * e20 - e10 * e22, e10 * e21 - e11 * e20, n0, n1, n2)
+    u = dot3(p1 * e22 - p2 * e21, p2 * e20 - p0 * e22, p0 * e21 - p1 * e20, n0, n1, n2) / area
+    v = dot3(e11 * p2 - e12 * p1, e12 * p0 - e10 * p2, e10 * p1 - e11 * p0, n0, n1, n2) / area
+    return u, v
+
+
 @njit(**JIT_BORROW)
 def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
-    """The hit of a ray on primitive p: (its triangle, the triangle's normal N, t, x, cos(theta_out))."""
-    prim_to_tri, tri_normal, tri_v0 = scene[0], scene[1], scene[2]
-    tri = prim_to_tri[p]
+    """The :class:`SurfaceHit` of a ray (origin o, unit direction d) on Embree's primitive p."""
+    tri_normal, tri_v0 = scene.normal, scene.corner0
+    tri = scene.prim_to_tri[p]
     n0, n1, n2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
     t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, tri_v0[tri, 0], tri_v0[tri, 1], tri_v0[tri, 2])
-    return tri, n0, n1, n2, t, x0, x1, x2, cos_out
+    u, v = barycentrics(scene.corners, tri, x0, x1, x2, n0, n1, n2)
+    s0, s1, s2, t0, t1, t2 = tangent_frame(n0, n1, n2)
+    return SurfaceHit(tri, scene.material[tri], t, x0, x1, x2, n0, n1, n2, cos_out, u, v, 0.0, 0.0, s0, s1, s2, t0,
+                      t1, t2, n0, n1, n2)
 
 
 @njit(**JIT)

@@ -49,14 +49,15 @@ def vertex_rules(cfg, depth):
 
 
 @njit(**JIT_BORROW)
-def emitted(cfg, emit, front, tri, scene, lights, t, cos_out, p_hemi):
-    """Le(x -> Theta) of the hit triangle ``tri`` (its front side only) and the weight it counts with: 1, or with
-    EMIT_MIS the power heuristic's weight of the ray (density p_hemi = Ni p(Psi)) that found it at distance t
-    against the Nd light samples that could have drawn the same point (``_mis_weight_hemisphere``):
-    p_h^2 / (p_h^2 + p_l^2), p_l = Nd pdf(k) / A_k t^2 / cos(theta_out)."""
-    emission, light_id = scene[4], scene[5]
-    light_pmf, light_area = lights[5], lights[6]
-    fr = 1.0 if front else 0.0
+def emitted(cfg, emit, hit, scene, lights, p_hemi):
+    """Le(x -> Theta) of the triangle ``hit`` found (:class:`.surface.SurfaceHit`; its front side only) and the
+    weight it counts with: 1, or with EMIT_MIS the power heuristic's weight of the ray (density p_hemi = Ni p(Psi))
+    that found it at distance t against the Nd light samples that could have drawn the same point
+    (``_mis_weight_hemisphere``): p_h^2 / (p_h^2 + p_l^2), p_l = Nd pdf(k) / A_k t^2 / cos(theta_out)."""
+    emission, light_id = scene.emission, scene.light_id
+    light_pmf, light_area = lights.pmf, lights.area
+    tri, t, cos_out = hit.tri, hit.t, hit.cos_out
+    fr = 1.0 if cos_out > 0 else 0.0
     e0, e1, e2 = emission[tri, 0] * fr, emission[tri, 1] * fr, emission[tri, 2] * fr
     w = 1.0  # exact: b Le w = b Le
     if emit == EMIT_MIS:
@@ -69,12 +70,14 @@ def emitted(cfg, emit, front, tri, scene, lights, t, cos_out, p_hemi):
 
 
 @njit(**JIT_BORROW)
-def shading_point(cfg, scene, tri, front, n0, n1, n2, x0, x1, x2):
-    """What the light leaving x toward Theta depends on: (whether x reflects at all, which it does not on the back
-    of a one-sided surface, its material, N turned to the side Theta leaves from, f_r, and the offset origin of the
-    rays that leave x)."""
-    tri_material, two_sided, f_r_table = scene[6], scene[7], scene[8]
-    material = tri_material[tri]
+def shading_point(cfg, scene, hit):
+    """What the light leaving x toward Theta depends on, at the hit ``hit`` (:class:`.surface.SurfaceHit`):
+    (whether x reflects at all, which it does not on the back of a one-sided surface, its material, N turned to the
+    side Theta leaves from, f_r, and the offset origin of the rays that leave x)."""
+    two_sided, f_r_table = scene.two_sided, scene.f_r
+    material = hit.material
+    front = hit.cos_out > 0
+    n0, n1, n2, x0, x1, x2 = hit.n0, hit.n1, hit.n2, hit.x0, hit.x1, hit.x2
     if not (front or two_sided[material]):
         return False, material, n0, n1, n2, 0.0, 0.0, 0.0, x0, x1, x2
     if not front:  # the side Theta leaves from
@@ -91,7 +94,7 @@ def roulette(cfg, scene, material, sob, seeds, index, key, depth, b0, b1, b2):
     of the pixel's set ``seeds`` (``sob``) or the path's own."""
     if not (cfg.rr != RR_OFF and depth >= cfg.rr_depth):
         return True, b0, b1, b2
-    survival = scene[9][material] if cfg.rr == RR_ALBEDO else cfg.survival
+    survival = scene.albedo_max[material] if cfg.rr == RR_ALBEDO else cfg.survival
     u_rr = pair_point(seeds, index)[0] if sob else uniform(key, dim_salt(depth, ROULETTE, 0))
     if not (u_rr < survival):
         return False, b0, b1, b2

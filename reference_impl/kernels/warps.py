@@ -95,6 +95,17 @@ def hemisphere_pdf(cosine, cos_theta):
 
 
 @njit(**JIT)
+def tangent_frame(n0, n1, n2):
+    """The tangents s, t of the orthonormal frame (s, t, N) of a unit normal N, :func:`to_world`'s (Duff et al.
+    2017): with sign = +1 for N_z >= 0 else -1, a = -1 / (sign + N_z), b = N_x N_y a,
+    s = (1 + sign N_x^2 a, sign b, -sign N_x), t = (b, sign + N_y^2 a, -N_y)."""
+    sign = 1.0 if n2 >= 0 else -1.0
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    return 1.0 + sign * (n0 * n0) * a, sign * b, -sign * n0, b, sign + (n1 * n1) * a, -n1
+
+
+@njit(**JIT)
 def to_world(lx, ly, lz, n0, n1, n2):
     """sampling.to_world for one direction (frame of sampling.coordinate_frame, Duff et al. 2017)."""
     sign = 1.0 if n2 >= 0 else -1.0

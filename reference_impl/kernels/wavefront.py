@@ -37,7 +37,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
     wavefronts (root, key, origin, direction, origin32, direction32, beta, pdf_dir), the current one and room for
     the next (at least Ni rows per row of ``state``). ``hits`` receives the rows of the reflecting hits, in order;
     ``rays`` (owner hit, origin32, direction32, tfar32, value, aux, direction64) the direct-light rays of each hit,
-    in sample order, Nd rows per row of ``state``. ``film_samples`` = (pixel, sample, seed_key) of the camera
+    in sample order, Nd rows per row of ``state``. ``film_samples`` (:class:`.records.FilmSamples`): the camera
     samples (rows of ``root``), for the stratified sampler. ``emitters``: the emitters that are not surfaces, or
     None (every branch for them compiled out); ``crays`` (owner hit, origin32, direction32, tfar32, value) receives
     the shadow rays of the emitters the direct strategy cannot find (:func:`.direct.complement_sample`). Returns
@@ -53,7 +53,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
     ni = cfg.indirect_rays
     hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
     sob = cfg.sampler == SAMPLER_SOBOL and depth == 1
-    fh = first_hit_seeds(film_samples[2], 0, 1, 1, 1)
+    fh = first_hit_seeds(film_samples.seed_key, 0, 1, 1, 1)
     fh_pixel = -1
     si = 0
 
@@ -78,24 +78,23 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                     radiance[r, 1] += beta[i, 1] * e1 * w
                     radiance[r, 2] += beta[i, 2] * e2 * w
             continue
-        tri, nx0, nx1, nx2, t, x0, x1, x2, cos_out = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2],
-                                                                 direction[i, 0], direction[i, 1], direction[i, 2])
-        front = cos_out > 0
+        hit = surface_hit(scene, p, origin[i, 0], origin[i, 1], origin[i, 2], direction[i, 0], direction[i, 1],
+                          direction[i, 2])
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         r = root[i]
         if emit != EMIT_NONE:
-            e0, e1, e2, w = emitted(cfg, emit, front, tri, scene, lights, t, cos_out, pdf_dir[i])
+            e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, pdf_dir[i])
             radiance[r, 0] += b0 * e0 * w
             radiance[r, 1] += b1 * e1 * w
             radiance[r, 2] += b2 * e2 * w
 
         if not allow_next:
             continue
-        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, tri, front, nx0, nx1,
-                                                                                     nx2, x0, x1, x2)
+        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
         if not reflects:
             counters[C_BACK_FACE] += 1
             continue
+        x0, x1, x2 = hit.x0, hit.x1, hit.x2
         k = key[i]
         if sob:
             fh, fh_pixel, si = pixel_first_hit_seeds(cfg, fh, fh_pixel, film_samples, r)
@@ -106,7 +105,8 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
         # Direct light: the rays of Nd samples, resolved by resolve_shadow / resolve_hemisphere.
         for j in range(nd):
             if hemi_direct:  # a closest-hit ray
-                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, spot_point(fh[1]), si, j, k, depth, nx0, nx1, nx2)
+                w0, w1, w2, ratio = hemisphere_sample(cfg, sob, spot_point(fh.direction), si, j, k, depth, nx0, nx1,
+                                                      nx2)
                 counters[C_HEMI_DIRECT] += 1
                 s_owner[s] = h
                 s_o32[s, 0], s_o32[s, 1], s_o32[s, 2] = ox0, ox1, ox2
@@ -117,13 +117,13 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
                 s += 1
                 continue
             if emitters is None:
-                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh[0]), si, j, k, depth, scene,
-                                                                    lights, surfaces)
+                selected, ltri, y0, y1, y2, pdf_area = light_sample(cfg, sob, spot_point(fh.light), si, j, k, depth,
+                                                                    scene, lights, surfaces)
                 needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
                     cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
             else:
                 selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                    cfg, sob, spot_point(fh[0]), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0,
+                    cfg, sob, spot_point(fh.light), si, j, k, depth, scene, lights, surfaces, emitters, x0, x1, x2, nx0,
                     nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
             if selected:
                 counters[C_LIGHT_SELECT] += 1
@@ -139,7 +139,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
             s += 1
         if emitters is not None:
             if hemi_direct or cfg.direct == DIRECT_GLOBAL_AREA:  # what the strategy cannot find (resolve_complement)
-                for e in range(len(emitters[0])):
+                for e in range(len(emitters.kind)):
                     is_complement, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = complement_sample(
                         cfg, emitters, e, k, depth, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
                     if not is_complement:
@@ -158,13 +158,13 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
         # Indirect light (Fig. 5.14), if the next vertex can still add anything.
         if not allow_indirect:
             continue
-        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, spot_point(fh[2]), si, k, depth, b0, b1, b2)
+        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, spot_point(fh.roulette), si, k, depth, b0, b1, b2)
         if not alive:
             counters[C_ROULETTE] += 1
             continue
         for branch in range(ni):
-            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh[3]), si, branch, k,
-                                                                         depth, nx0, nx1, nx2, f0, f1, f2, b0, b1,
+            carries, kb, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(cfg, sob, spot_point(fh.indirect), si, branch,
+                                                                         k, depth, nx0, nx1, nx2, f0, f1, f2, b0, b1,
                                                                          b2)
             if not carries:
                 counters[C_ROULETTE] += 1
@@ -206,11 +206,12 @@ def resolve_shadow(root, beta, hits, nd, s_owner, s_value, s_hit, total, radianc
 
 
 @njit(**JIT)
-def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_prim, prim_to_tri, tri_normal,
-                       emission, total, radiance, cfg, emitters):
+def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_prim, scene, total, radiance, cfg,
+                       emitters):
     """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only), or the
     environment's where it escaped, times f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0),
     averaged over the Nd samples."""
+    prim_to_tri, tri_normal, emission = scene.prim_to_tri, scene.normal, scene.emission
     m = len(hits)
     total[:m] = 0.0
     for q in range(len(s_owner)):

@@ -252,15 +252,11 @@ def test_envmap_lookup_is_mitsubas_bilinear_interpolation():
 
 
 def _kernel_inputs(emitters: em.Emitters, env_sampling: str, mutant: str = ""):
-    from reference_impl.kernels import config  # optional: numba-compiled, as the renders import it
+    from reference_impl.kernels import config, records  # optional: numba-compiled, as the renders import it
 
     cfg = config.kernel_config(Settings(env_sampling=env_sampling, max_depth=2, mutant=mutant), len(emitters), 0.0,
                                0.0, num_area_lights=0, env_light=emitters.env)
-    c = np.ascontiguousarray
-    tables = (c(emitters.kind), c(emitters.position), c(emitters.direction), c(emitters.intensity),
-              c(emitters.to_local), c(emitters.to_world), c(emitters.spot), c(emitters.env_image),
-              c(emitters.env_cell_pdf), c(emitters.env_row_cdf), c(emitters.env_col_cdf))
-    return cfg, tables
+    return cfg, records.emitter_tables(emitters)
 
 
 @pytest.mark.parametrize("strategy", ["importance", "uniform", "cosine"])

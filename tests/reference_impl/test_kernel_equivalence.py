@@ -19,6 +19,7 @@ except ImportError:  # tests/ imported as a package
 from reference_impl.kernels import camera as k_camera
 from reference_impl.kernels import config as k_config
 from reference_impl.kernels import light_sampling as k_lights
+from reference_impl.kernels import records as k_records
 from reference_impl.kernels import rng as k_rng
 from reference_impl.kernels import surface as k_surface
 from reference_impl.kernels import warps as k_warps
@@ -46,7 +47,7 @@ def test_random_numbers_match_rng():
     seed = 1234567
     ids = np.concatenate([np.arange(500, dtype=np.uint64), np.random.default_rng(1).integers(0, 2**63, 500, dtype=np.uint64)])
     keys = rng.path_keys(seed, ids)
-    seed_key = np.uint64(rng._mix64_int(seed ^ int(rng._GOLDEN)))
+    seed_key = rng.seed_key(seed)
     assert [k_rng.path_key(seed_key, i) for i in ids] == keys.tolist()
     for depth, purpose, index in ((0, 0, 0), (1, 9, 0), (7, 3, 2), (300, 10, 5), (2**20, 8, 0)):
         want = rng.uniform(keys, rng.dimension(depth, purpose, index))
@@ -106,7 +107,7 @@ def test_light_points_match_light_sampler(selection):
     u = [_uniforms(10 + i) for i in range(4)]
     light, points = sampler.sample(*u)
     assert sampler.count.tolist() == [1, 4, 4, 1] and sampler.parallelogram.tolist() == [False] * 9 + [True]  # a quad
-    tables = sampler.kernel_tables()
+    tables = k_records.light_tables(sampler)
     got = [k_lights.sample_light_point(tables, sampler.num_lights, *args) for args in zip(*u)]
     np.testing.assert_array_equal([g[0] for g in got], light)
     np.testing.assert_array_equal([g[1] for g in got], points.triangle)
@@ -120,7 +121,8 @@ def test_surface_points_match_triangle_area_sampler():
     sampler = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     u = [_uniforms(20 + i) for i in range(3)]
     points = sampler.sample(*u)
-    got = [k_lights.sample_surface_point((sampler.triangles, sampler.cdf), geometry.corners, *args) for args in zip(*u)]
+    tables = k_records.surface_tables(sampler)
+    got = [k_lights.sample_surface_point(tables, geometry.corners, *args) for args in zip(*u)]
     np.testing.assert_array_equal([g[0] for g in got], points.triangle)
     np.testing.assert_array_equal(np.array([g[1:] for g in got]), points.position)
 
@@ -134,7 +136,7 @@ def test_sample_reuse_matches_split_uniform(selection):
     lights[1] = (chi2_cases.fan_light(), lights[1][1])
     geometry, _ = chi2_cases.light_geometry(lights)
     sampler = LightSampler(geometry, selection)
-    tables = sampler.kernel_tables()
+    tables = k_records.light_tables(sampler)
     u = _uniforms(40)
     want = sampler.split_uniform(u)
     got = np.array([k_lights.split_light_uniform(tables, sampler.num_lights, a) for a in u])
@@ -152,12 +154,12 @@ def test_sample_reuse_matches_split_uniform(selection):
                                                                0.5)[0], u1)
         assert piece == f + k_lights.search_within(sampler.within_cdf, f, sampler.count[light], u_tri)
     with_emitter = LightSampler(geometry, selection, extra_power=np.array([1.0]))  # light 4: a point light, say
-    light, piece, got_u1 = k_emitters.split_light_piece_all(with_emitter.kernel_tables(), with_emitter.num_lights,
-                                                            with_emitter.num_area, 0.9999999)
+    light, piece, got_u1 = k_emitters.split_light_piece_all(k_records.light_tables(with_emitter),
+                                                            with_emitter.num_lights, with_emitter.num_area, 0.9999999)
     assert (light, piece) == (with_emitter.num_area, -1) and 0 <= got_u1 < 1
     surfaces = TriangleAreaSampler(geometry, np.flatnonzero(geometry.area > 0))
     want = surfaces.split_uniform(u)
-    got = np.array([k_lights.split_surface_uniform((surfaces.triangles, surfaces.cdf), a) for a in u])
+    got = np.array([k_lights.split_surface_uniform(k_records.surface_tables(surfaces), a) for a in u])
     np.testing.assert_array_equal(got[:, 0], want[0])
     np.testing.assert_array_equal(got[:, 1], want[1])
 

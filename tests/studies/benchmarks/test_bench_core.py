@@ -37,7 +37,7 @@ def _scene(name: str):
 def cornell():
     """A one-thread context for the Cornell box, its first wavefront (camera rays) and their closest hits."""
     from reference_impl import Film, Settings, integrator
-    from reference_impl.kernels import camera
+    from reference_impl.kernels import camera, records
 
     scene, geometry = _scene("cornell-box")
     settings = Settings(spp=1, seed=0, max_depth=scene.max_depth, threads=1)
@@ -47,15 +47,13 @@ def cornell():
     integrator._trace_camera_paths(ctx, pixel, sample, dict.fromkeys(integrator.COUNTERS, 0) | {integrator.EMBREE_MICROSECONDS: 0})
     ws = ctx.workspace()
     first = integrator._view(ws.state(0, N_RAYS), N_RAYS)
-    tan_x, tan_y = ctx.tan_half_fov
-    camera_args = (pixel, sample, ctx.seed_key, settings.spp, 256, 256, ctx.filter_kind,
-                   (np.zeros(0), np.zeros(0), np.zeros(0)), False, tan_x, tan_y, ctx.camera_frame, ctx.eye,
-                   settings.sampler == "sobol", first)
+    film_samples = records.film_samples(pixel, sample, ctx.seed_key)
+    camera_args = (film_samples, ctx.config, ctx.pinhole, records.filter_samples(ctx.filter_kind), first)
     camera.camera_paths(*camera_args)
     state = integrator._PathState(*first)
     prim = ctx.intersector.closest_prims(state.origin32, state.direction32)
     return {"ctx": ctx, "ws": ws, "state": state, "prim": prim, "camera_args": camera_args,
-            "film_samples": (pixel, sample, ctx.seed_key)}
+            "film_samples": film_samples}
 
 
 def _per_second(benchmark, count):

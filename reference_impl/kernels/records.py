@@ -1,0 +1,347 @@
+"""The named records the kernels take: the scene, its lights, its surfaces, its other emitters and its materials as
+tables of arrays, the camera, the pixel filter's draws and the camera samples of a batch, each a ``NamedTuple``
+built here and only here (one function each, from the core's objects), read in the kernels by field name.
+
+numba compiles a field read ``record.name`` as it compiles ``record[i]``: a record costs a kernel nothing. The
+arrays are contiguous and of the dtypes the kernels are compiled for, so every scene runs the same compiled
+signatures. Tables per triangle have T rows, per material M, per light N_L (the area lights first, then the
+emitters that are not surfaces), per light piece P (:class:`reference_impl.lights.LightSampler`), per emitter E.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+_c = np.ascontiguousarray
+
+
+class SceneTables(NamedTuple):
+    """The triangles and their materials as the Lambertian engines read them.
+
+    Attributes
+    ----------
+    prim_to_tri : (primitives,) int64
+        The triangle of each Embree primitive (``Intersector.prim_to_tri``).
+    normal : (T, 3) float64
+        The unit geometric normal N of the front side, N = (c1 - c0) x (c2 - c0) / |(c1 - c0) x (c2 - c0)|.
+    corner0 : (T, 3) float64
+        The first corner c0: the point of the triangle's plane a hit distance is computed from.
+    corners : (T, 3, 3) float64
+        The corners c0, c1, c2.
+    emission : (T, 3) float64
+        Le of the front side (0 off the lights).
+    light_id : (T,) int64
+        The light k the triangle belongs to, -1 off the lights.
+    material : (T,) int64
+        The triangle's material, a row of the per-material tables.
+    two_sided : (M,) bool
+        Whether the material reflects on both sides.
+    f_r : (M, 3) float64
+        The Lambertian BRDF rho / pi.
+    albedo_max : (M,) float64
+        max_c rho_c, the survival probability of ``rr = "albedo"``.
+    """
+
+    prim_to_tri: np.ndarray
+    normal: np.ndarray
+    corner0: np.ndarray
+    corners: np.ndarray
+    emission: np.ndarray
+    light_id: np.ndarray
+    material: np.ndarray
+    two_sided: np.ndarray
+    f_r: np.ndarray
+    albedo_max: np.ndarray
+
+
+def scene_tables(geometry, prim_to_tri: np.ndarray) -> SceneTables:
+    """The :class:`SceneTables` of ``geometry`` (:class:`reference_impl.Geometry`) for Embree's primitives
+    ``prim_to_tri``; f_r = rho / pi per material (Lambert's BRDF)."""
+    g = geometry
+    return SceneTables(
+        prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
+        corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
+        two_sided=_c(g.two_sided), f_r=_c(g.reflectance / np.pi),
+        albedo_max=_c(np.max(g.reflectance, axis=1)) if len(g.reflectance) else np.zeros(0))
+
+
+class LightTables(NamedTuple):
+    """The lights of pdf(k) and their pieces (:class:`reference_impl.lights.LightSampler`, whose attributes these
+    are).
+
+    Attributes
+    ----------
+    cdf : (N_L,) float64
+        The cdf of pdf(k) over the lights.
+    triangles : (P,) int64
+        Per piece: its triangle (of a parallelogram, the half a + b <= 1).
+    first : (N_A,) int64
+        Per area light: its first piece.
+    count : (N_A,) int64
+        Per area light: how many pieces it has.
+    within_cdf : (P,) float64
+        Per piece: the cdf of A_piece / A_k within its light.
+    pmf : (N_L,) float64
+        pdf(k).
+    area : (N_A,) float64
+        A_k.
+    frames : (P, 3, 3) float64
+        Per piece: its frame (o, e1, e2), y = o + a e1 + b e2.
+    parallelogram : (P,) bool
+        Per piece: (a, b) = (u1, u2) on a parallelogram, a triangle's barycentrics otherwise.
+    other : (P,) int64
+        Per piece: the triangle where a + b > 1 (a triangle's own otherwise).
+    """
+
+    cdf: np.ndarray
+    triangles: np.ndarray
+    first: np.ndarray
+    count: np.ndarray
+    within_cdf: np.ndarray
+    pmf: np.ndarray
+    area: np.ndarray
+    frames: np.ndarray
+    parallelogram: np.ndarray
+    other: np.ndarray
+
+
+def light_tables(sampler) -> LightTables:
+    """The :class:`LightTables` of a :class:`reference_impl.lights.LightSampler`, or empty ones for None (a scene
+    without lights)."""
+    if sampler is None:
+        f, i = np.zeros(0), np.zeros(0, np.int64)
+        return LightTables(f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i)
+    s = sampler
+    return LightTables(
+        cdf=_c(s.cdf, dtype=np.float64), triangles=_c(s.triangles, dtype=np.int64), first=_c(s.first, dtype=np.int64),
+        count=_c(s.count, dtype=np.int64), within_cdf=_c(s.within_cdf, dtype=np.float64),
+        pmf=_c(s.pmf, dtype=np.float64), area=_c(s.area, dtype=np.float64), frames=_c(s.frames, dtype=np.float64),
+        parallelogram=_c(s.parallelogram, dtype=np.bool_), other=_c(s.other, dtype=np.int64))
+
+
+class SurfaceTables(NamedTuple):
+    """Every surface, for global area sampling (:class:`reference_impl.lights.TriangleAreaSampler`).
+
+    Attributes
+    ----------
+    triangles : (S,) int64
+        The triangles of positive area.
+    cdf : (S,) float64
+        The cdf of A_t / A_scene over them.
+    """
+
+    triangles: np.ndarray
+    cdf: np.ndarray
+
+
+def surface_tables(sampler) -> SurfaceTables:
+    """The :class:`SurfaceTables` of a :class:`reference_impl.lights.TriangleAreaSampler`, or empty ones for None
+    (a scene without area)."""
+    if sampler is None:
+        return SurfaceTables(np.zeros(0, np.int64), np.zeros(0))
+    return SurfaceTables(_c(sampler.triangles, dtype=np.int64), _c(sampler.cdf, dtype=np.float64))
+
+
+class EmitterTables(NamedTuple):
+    """The emitters that are not surfaces (:class:`reference_impl.emitters.Emitters`, whose attributes these are).
+
+    Attributes
+    ----------
+    kind : (E,) int64
+        POINT, SPOT, DIRECTIONAL, ENV_CONSTANT, ENV_MAP.
+    position : (E, 3) float64
+        Point, spot: where it is.
+    direction : (E, 3) float64
+        Directional: the unit direction the light travels.
+    intensity : (E, 3) float64
+        I (point, spot), E (directional), L (constant), the scale (envmap).
+    to_local, to_world : (E, 3, 3) float64
+        Spot, envmap: the linear part of to_world^-1 and of to_world.
+    spot : (E, 4) float64
+        Spot: cos(cutoff), cutoff, cos(beam_width), 1 / (cutoff - beam_width).
+    env_image : (H, W, 3) float64
+        The envmap's texels.
+    env_cell_pdf : (H - 1, W) float64
+        p(u, v) of each cell of the bilinear interpolation.
+    env_row_cdf : (H - 1,) float64
+        The marginal cdf of the cell rows.
+    env_col_cdf : (H - 1, W) float64
+        Each row's conditional cdf of its cells.
+    """
+
+    kind: np.ndarray
+    position: np.ndarray
+    direction: np.ndarray
+    intensity: np.ndarray
+    to_local: np.ndarray
+    to_world: np.ndarray
+    spot: np.ndarray
+    env_image: np.ndarray
+    env_cell_pdf: np.ndarray
+    env_row_cdf: np.ndarray
+    env_col_cdf: np.ndarray
+
+
+def emitter_tables(emitters) -> EmitterTables:
+    """The :class:`EmitterTables` of a :class:`reference_impl.emitters.Emitters`."""
+    e = emitters
+    return EmitterTables(
+        kind=_c(e.kind, dtype=np.int64), position=_c(e.position), direction=_c(e.direction),
+        intensity=_c(e.intensity), to_local=_c(e.to_local), to_world=_c(e.to_world), spot=_c(e.spot),
+        env_image=_c(e.env_image, dtype=np.float64), env_cell_pdf=_c(e.env_cell_pdf), env_row_cdf=_c(e.env_row_cdf),
+        env_col_cdf=_c(e.env_col_cdf))
+
+
+class MaterialTables(NamedTuple):
+    """The materials of the glossy engine (:class:`reference_impl.Materials`, whose attributes these are).
+
+    Attributes
+    ----------
+    kind : (M,) int64
+        DIFFUSE .. ROUGHDIELECTRIC (:mod:`reference_impl.materials`).
+    params : (M, NUM_PARAMS) float64
+        One row per material, its columns the ``P_*`` of :mod:`reference_impl.materials`.
+    """
+
+    kind: np.ndarray
+    params: np.ndarray
+
+
+def material_tables(materials) -> MaterialTables:
+    """The :class:`MaterialTables` of a :class:`reference_impl.Materials`."""
+    return MaterialTables(_c(materials.kind, dtype=np.int64), _c(materials.params, dtype=np.float64))
+
+
+class FilmSamples(NamedTuple):
+    """The camera samples of a batch: sample i is number ``sample[i]`` of pixel ``pixel[i]`` (row-major, y * W + x).
+
+    Attributes
+    ----------
+    pixel : (n,) int64
+    sample : (n,) int64
+    seed_key : numpy.uint64
+        The key every path and pixel key is derived from (:func:`reference_impl.rng.seed_key`).
+    """
+
+    pixel: np.ndarray
+    sample: np.ndarray
+    seed_key: np.uint64
+
+
+def film_samples(pixel: np.ndarray, sample: np.ndarray, seed_key: np.uint64) -> FilmSamples:
+    """The :class:`FilmSamples` of camera samples (``pixel``, ``sample``) of a pass whose seed has key
+    ``seed_key``."""
+    return FilmSamples(_c(pixel, dtype=np.int64), _c(sample, dtype=np.int64), np.uint64(seed_key))
+
+
+class Pinhole(NamedTuple):
+    """The camera as the viewing rays need it (:class:`reference_impl.Camera` on a film of ``width`` x ``height``):
+    the ray through film point (p_x, p_y) leaves ``eye`` along normalize(frame (l_0, l_1, 1)),
+    l = ((1 - 2 p_x / W) tan_x, (1 - 2 p_y / H) tan_y).
+
+    Attributes
+    ----------
+    eye : (3,) float64
+    frame : (3, 3) float64
+        Columns: camera +x (left), +y (up), +z (forward) in world space.
+    tan_x, tan_y : float
+        tan of half the field of view along x and y.
+    width, height : int
+        The film's size in pixels.
+    """
+
+    eye: np.ndarray
+    frame: np.ndarray
+    tan_x: float
+    tan_y: float
+    width: int
+    height: int
+
+
+def pinhole(camera, width: int, height: int) -> Pinhole:
+    """The :class:`Pinhole` of ``camera`` (:class:`reference_impl.Camera`) on a film of ``width`` x ``height``."""
+    tan_x, tan_y = camera.tan_half_fov(width, height)
+    return Pinhole(np.asarray(camera.origin, dtype=np.float64), _c(camera.frame(), dtype=np.float64), float(tan_x),
+                   float(tan_y), int(width), int(height))
+
+
+class FilterSamples(NamedTuple):
+    """The pixel filter of a batch: its kind, and for the Gaussian the offsets and weights numpy drew
+    (``PixelFilter.sample``; empty for box and tent, which the kernel draws itself).
+
+    Attributes
+    ----------
+    kind : int
+        FILTER_BOX, FILTER_TENT or FILTER_GAUSSIAN (:mod:`.config`).
+    dx, dy : (n,) or (0,) float64
+        The film offsets of the samples from their pixel centres.
+    weight : (n,) or (0,) float64
+        h(p) / (pdf(p) int h) of each sample.
+    """
+
+    kind: int
+    dx: np.ndarray
+    dy: np.ndarray
+    weight: np.ndarray
+
+
+def filter_samples(kind: int, drawn=None) -> FilterSamples:
+    """The :class:`FilterSamples` of a filter of ``kind``, with ``drawn`` = (dx, dy, weight) for the Gaussian (None:
+    the kernel draws them)."""
+    if drawn is None:
+        return FilterSamples(int(kind), np.zeros(0), np.zeros(0), np.zeros(0))
+    dx, dy, weight = drawn
+    return FilterSamples(int(kind), _c(dx, dtype=np.float64), _c(dy, dtype=np.float64), _c(weight, dtype=np.float64))
+
+
+COUNT_CLOSEST, COUNT_OCCLUSION = 0, 1  # the entries of RayRecord.counts
+
+
+class RayRecord(NamedTuple):
+    """Room for the queries of one batch of the glossy engine and Embree's answers (:mod:`.record`, for
+    :mod:`reference_impl.replay`): float32 rays as the queries round them.
+
+    Attributes
+    ----------
+    camera_origin, camera_direction : (n, 3) float32
+        The batch's camera rays, one row each.
+    camera_prim : (n,) int32
+        Their closest hits (-1: a miss).
+    closest_origin, closest_direction : (q, 3) float32
+        The closest-hit rays past the camera.
+    closest_prim : (q,) int32
+        Their hits.
+    occlusion_origin, occlusion_direction : (s, 3) float32
+        The occlusion rays.
+    occlusion_tfar : (s,) float32
+        Where each stops.
+    occlusion_blocked : (s,) int8
+        1 where something blocked it, 0 where not.
+    counts : (2,) int64
+        The closest-hit (``counts[COUNT_CLOSEST]``) and the occlusion (``counts[COUNT_OCCLUSION]``) queries made,
+        also those past q and s: a count above its room says the batch must be traced again with more.
+    """
+
+    camera_origin: np.ndarray
+    camera_direction: np.ndarray
+    camera_prim: np.ndarray
+    closest_origin: np.ndarray
+    closest_direction: np.ndarray
+    closest_prim: np.ndarray
+    occlusion_origin: np.ndarray
+    occlusion_direction: np.ndarray
+    occlusion_tfar: np.ndarray
+    occlusion_blocked: np.ndarray
+    counts: np.ndarray
+
+
+def ray_record(cameras: int, closest: int, occlusion: int) -> RayRecord:
+    """An empty :class:`RayRecord` with room for ``cameras`` camera rays, ``closest`` closest-hit and ``occlusion``
+    occlusion queries."""
+    f32 = np.float32
+    return RayRecord(np.empty((cameras, 3), f32), np.empty((cameras, 3), f32), np.empty(cameras, np.int32),
+                     np.empty((closest, 3), f32), np.empty((closest, 3), f32), np.empty(closest, np.int32),
+                     np.empty((occlusion, 3), f32), np.empty((occlusion, 3), f32), np.empty(occlusion, f32),
+                     np.empty(occlusion, np.int8), np.zeros(2, np.int64))
