@@ -28,10 +28,7 @@ class ReferenceRenderer:
         try:
             settings = reference_impl.Settings.from_strings(values)
             settings = dataclasses.replace(settings, spp=request.spp, seed=request.seed)
-            if settings.direct == "auto" or settings.rr == "auto":  # resolved here: every reader sees the run ones
-                glossy = scene_is_glossy(scene)
-                settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy),
-                                               rr=settings.resolved_rr(glossy))
+            settings = settings.resolved(scene.has_glossy_materials)  # every reader sees the run ones
             if settings.max_depth is None:
                 settings = dataclasses.replace(settings, max_depth=scene.max_depth)
             settings.resolved_max_depth(settings.max_depth)
