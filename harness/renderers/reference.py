@@ -90,12 +90,6 @@ def _info(settings: reference_impl.Settings, geometry, out) -> dict:
     return info
 
 
-def scene_is_glossy(scene: Scene) -> bool:
-    """Whether a material of ``scene`` is not Lambertian (the reference runs its glossy engine, and ``direct =
-    auto`` means "mis" there; docs/reference-renderer.md, "Glossy and glass")."""
-    return scene.has_glossy_materials
-
-
 _PLAIN_INTEGER = re.compile(r"-?[0-9]+")
 #: settings that shape the work per camera sample, the first non-default of which a cost refusal names
 COST_SETTINGS = ("indirect_rays", "shadow_rays", "max_depth", "batch_size", "threads")
