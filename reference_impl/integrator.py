@@ -33,7 +33,6 @@ import math
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
-import dataclasses
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -46,7 +45,7 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.materials import Materials
+from reference_impl.materials import Materials, is_glossy
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import GLOSSY_DIRECT, Settings
 
@@ -299,7 +298,7 @@ def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | 
     if materials is not None and len(materials) != len(geometry.reflectance):
         raise SettingsError("materials", f"expected one material per entry of the geometry's reflectance "
                                          f"({len(geometry.reflectance)}), got {len(materials)}")
-    glossy = materials is not None and not materials.all_diffuse
+    glossy = is_glossy(materials)
     if not (glossy or settings.direct == "bsdf" or settings.rr in ("throughput", "pbrt")):
         return False, None
     why = "with a material that is not diffuse" if glossy else f"with {'direct = bsdf' if settings.direct == 'bsdf' else 'rr = ' + settings.rr}"
@@ -328,12 +327,10 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     (:class:`Materials`, in the order ``geometry.material`` indexes), or None (all Lambertian, as
     ``geometry.reflectance`` says). None or all diffuse runs the Lambertian engines (``settings.engine``); a
     material that is not diffuse, ``direct = bsdf`` or ``rr = throughput`` or ``pbrt`` the glossy engine (kernels/glossy.py).
-    ``direct = auto`` and ``rr = auto`` are resolved here (:meth:`Settings.resolved_direct`, :meth:`Settings.resolved_rr`);
-    the output's settings hold the resolved ones.
+    ``direct = auto`` and ``rr = auto`` are resolved here (:meth:`Settings.resolved`, for
+    :func:`~reference_impl.materials.is_glossy`); the output's settings hold the resolved ones.
     """
-    glossy = materials is not None and not materials.all_diffuse
-    if settings.direct == "auto" or settings.rr == "auto":
-        settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy), rr=settings.resolved_rr(glossy))
+    settings = settings.resolved(is_glossy(materials))
     ctx = _Context(geometry, camera, film, settings, emitters, materials)
     kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp

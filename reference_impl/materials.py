@@ -103,6 +103,26 @@ class Materials:
         return len(self.kind)
 
 
+def is_glossy(materials: Materials | None) -> bool:
+    """Whether a scene is glossy: its material table is given and holds a material that is not Lambertian.
+
+    The one rule the core decides it by: a glossy scene runs the glossy engine (kernels/glossy.py) and resolves
+    ``direct = auto`` and ``rr = auto`` as :meth:`Settings.resolved <reference_impl.settings.Settings.resolved>`
+    says.
+
+    Parameters
+    ----------
+    materials : Materials or None
+        The scene's material table, or None (every material Lambertian, as ``Geometry.reflectance`` says).
+
+    Returns
+    -------
+    bool
+        True when a material is not diffuse.
+    """
+    return materials is not None and not materials.all_diffuse
+
+
 def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=MIRROR_K,
                  transmittance=DEFAULT_SPECULAR, alpha: float = DEFAULT_ALPHA,
                  distribution: int = DISTRIBUTIONS[DEFAULT_DISTRIBUTION],

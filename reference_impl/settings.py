@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import difflib
 import os
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 
 from reference_impl.emitters import ENV_SAMPLINGS
 from reference_impl.errors import SettingsError
@@ -19,6 +19,11 @@ HEMISPHERES = ("cosine", "uniform")
 ROULETTES = ("auto", "albedo", "fixed", "throughput", "pbrt", "off")
 ENGINES = ("packet", "path", "wavefront")
 SAMPLERS = ("sobol", "independent")
+#: what ``direct = "auto"`` runs on a Lambertian-only scene (False) and on a glossy one (True): Settings.resolved
+AUTO_DIRECT = {False: "area", True: "mis"}
+#: what ``rr = "auto"`` plays on a Lambertian-only scene (False) and on a glossy one (True; pbrt-v4's throughput
+#: roulette, which never cuts a path of throughput 1, as in a furnace of glass or mirrors): Settings.resolved
+AUTO_RR = {False: "albedo", True: "pbrt"}
 
 
 @dataclass(frozen=True)
@@ -48,7 +53,7 @@ class Settings:
                     (beyond the slides: area samples and the indirect rays combined by the power heuristic), "bsdf"
                     (no light samples: the emission the BSDF-sampled rays find; the glossy engine), or "auto", the
                     default: "area" on Lambertian-only scenes, "mis" where a material is not diffuse
-                    (:meth:`resolved_direct`).
+                    (:meth:`resolved`).
     light_selection pdf(k): "power" (proportional to emitted power) or "uniform".
     env_sampling    directions toward an environment, as light samples: "importance" (an envmap by its luminance
                     times solid angle, cell by cell; a constant environment uniformly), "uniform" (over the sphere) or
@@ -61,7 +66,7 @@ class Settings:
                     only), "pbrt" (pbrt-v4's: min(max channel of the throughput x eta^2, 1), so a path whose
                     throughput is 1, as in a furnace of glass or mirrors, is never cut; the glossy engine only),
                     "off", or "auto", the default: "albedo" on Lambertian-only scenes, "pbrt" where a material is
-                    not diffuse (:meth:`resolved_rr`).
+                    not diffuse (:meth:`resolved`).
     rr_depth        first path depth (camera hit = 1) at which roulette is played.
     absorption      alpha for rr = "fixed".
     max_depth       longest path in segments, Mitsuba's meaning (1 = emitters seen directly, 2 = plus direct light,
@@ -146,20 +151,28 @@ class Settings:
             raise SettingsError("absorption", "max_depth = -1 with rr = fixed needs absorption > 0")
         return depth
 
-    def resolved_direct(self, glossy: bool) -> str:
-        """The direct strategy a render runs: ``direct``, or for "auto" "mis" on a scene with a non-diffuse
-        material (``glossy``) and "area" on a Lambertian-only one (today's default, the same bits)."""
-        if self.direct == "auto":
-            return "mis" if glossy else "area"
-        return self.direct
+    def resolved(self, glossy: bool) -> "Settings":
+        """These settings with ``direct = "auto"`` and ``rr = "auto"`` resolved for a scene.
 
-    def resolved_rr(self, glossy: bool) -> str:
-        """The roulette a render plays: ``rr``, or for "auto" "pbrt" on a scene with a non-diffuse material
-        (``glossy``: the glossy engine, where the throughput roulette of pbrt-v4 took cornell-box-specular's MSE
-        0.74x in 0.86x the time against "albedo") and "albedo" on a Lambertian-only one (the same bits as before)."""
-        if self.rr == "auto":
-            return "pbrt" if glossy else "albedo"
-        return self.rr
+        The one place "auto" is resolved; a render resolves its settings once, where it starts, and every later
+        reader (the kernels' configuration, the engines, the recorded settings) sees the resolved ones.
+
+        Parameters
+        ----------
+        glossy : bool
+            Whether a material of the scene is not diffuse (:func:`reference_impl.materials.is_glossy`).
+
+        Returns
+        -------
+        Settings
+            ``self`` when neither is "auto"; else a copy with ``direct`` from :data:`AUTO_DIRECT` and ``rr`` from
+            :data:`AUTO_RR` for ``glossy``.
+        """
+        direct = AUTO_DIRECT[glossy] if self.direct == "auto" else self.direct
+        rr = AUTO_RR[glossy] if self.rr == "auto" else self.rr
+        if (direct, rr) == (self.direct, self.rr):
+            return self
+        return replace(self, direct=direct, rr=rr)
 
     def replicate_sizes(self) -> tuple[int, ...]:
         """The samples per pixel of each of the ``min(replicates, spp)`` replicates: ``spp`` split as evenly as

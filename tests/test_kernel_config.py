@@ -36,7 +36,7 @@ def test_the_slots_hold_what_the_settings_say():
     assert cfg.survival == 0.75 and cfg.mutant == config.M_NO_COSINE
     assert (cfg.depth, cfg.num_lights, cfg.offset_scene, cfg.surface_pdf) == (0, 4, 1e-6, 0.5)
     assert (cfg.num_area_lights, cfg.env_light, cfg.env_sampling) == (4, -1, config.ENV_IMPORTANCE)
-    cfg = config.kernel_config(Settings(env_sampling="cosine", max_depth=2), 5, 0.0, 0.0, num_area_lights=2,
+    cfg = config.kernel_config(Settings(env_sampling="cosine", max_depth=2).resolved(False), 5, 0.0, 0.0, num_area_lights=2,
                                env_light=4)
     assert (cfg.num_lights, cfg.num_area_lights, cfg.env_light, cfg.env_sampling) == (5, 2, 4, config.ENV_COSINE)
 
@@ -55,7 +55,7 @@ def test_every_configuration_is_one_numba_type():
                                                                       SAMPLERS, ["", *sorted(ALL_MUTANTS)]):
         settings = Settings(direct=direct, hemisphere=hemisphere, rr=rr, sampler=sampler, mutant=mutant, max_depth=3,
                             absorption=0)
-        cfg = config.kernel_config(settings, 1, 0, 1)
+        cfg = config.kernel_config(settings.resolved(False), 1, 0, 1)
         types.add(numba.typeof(cfg))
         types.add(numba.typeof(cfg._replace(depth=3)))
     assert len(types) == 1

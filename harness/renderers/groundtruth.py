@@ -95,7 +95,8 @@ def _furnace(scene: Scene) -> np.ndarray:
         raise HarnessError(f"{scene.path}: closed_form", (
             "the furnace closed form holds for emitting shapes alone; this scene also has [[emitters]] "
             f"({', '.join(e.type for e in scene.emitters)})"))
-    glossy = sorted({scene.materials[s.material].type for s in scene.shapes} - {"diffuse"})
+    used = [scene.materials[s.material] for s in scene.shapes]
+    glossy = sorted({m.type for m in used if not m.is_diffuse})
     if glossy:
         raise HarnessError(f"{scene.path}: closed_form", (
             f"the furnace closed form holds for diffuse materials alone; this scene also has {', '.join(glossy)}"))

@@ -28,10 +28,7 @@ class ReferenceRenderer:
         try:
             settings = reference_impl.Settings.from_strings(values)
             settings = dataclasses.replace(settings, spp=request.spp, seed=request.seed)
-            if settings.direct == "auto" or settings.rr == "auto":  # resolved here: every reader sees the run ones
-                glossy = scene_is_glossy(scene)
-                settings = dataclasses.replace(settings, direct=settings.resolved_direct(glossy),
-                                               rr=settings.resolved_rr(glossy))
+            settings = settings.resolved(scene.has_glossy_materials)  # every reader sees the run ones
             if settings.max_depth is None:
                 settings = dataclasses.replace(settings, max_depth=scene.max_depth)
             settings.resolved_max_depth(settings.max_depth)
@@ -91,12 +88,6 @@ def _info(settings: reference_impl.Settings, geometry, out) -> dict:
     if replicates > 1:
         info.update(replicates=replicates, variance_dof=out.variance_dof)
     return info
-
-
-def scene_is_glossy(scene: Scene) -> bool:
-    """Whether a material of ``scene`` is not Lambertian (the reference runs its glossy engine, and ``direct =
-    auto`` means "mis" there; docs/reference-renderer.md, "Glossy and glass")."""
-    return scene.has_glossy_materials
 
 
 _PLAIN_INTEGER = re.compile(r"-?[0-9]+")

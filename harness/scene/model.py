@@ -240,8 +240,12 @@ class Scene:
 
     @property
     def has_glossy_materials(self) -> bool:
-        """Whether a material is not Lambertian (conductors, dielectrics): the reference runs its glossy engine
-        (``direct = auto`` is "mis" there), the core gets a material table, Mitsuba gets the spheres as meshes."""
+        """Whether the scene is glossy: a material is not Lambertian (conductors, dielectrics).
+
+        The harness's one rule, and the one the core's is built from: :func:`harness.scene.material_arrays` hands
+        the core a material table exactly when it holds, so :func:`reference_impl.materials.is_glossy` of that
+        table agrees. A glossy scene runs the reference's glossy engine (``direct`` and ``rr`` = "auto" resolved
+        by :meth:`reference_impl.Settings.resolved`), and Mitsuba gets its spheres as meshes."""
         return any(not m.is_diffuse for m in self.materials.values())
 
     @property

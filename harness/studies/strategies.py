@@ -21,6 +21,7 @@ from harness.studies import figures
 from harness.studies.regions import region_variances
 from harness.studies.convergence import MIN_TIMING_SECONDS, fit_convergence, timed_render
 from reference_impl import Settings
+from reference_impl.settings import AUTO_DIRECT, AUTO_RR
 
 SHADOW_RAY_COUNTS = (1, 4, 9, 16, 36, 64, 100)
 #: the penumbra: pixels whose ground truth lies strictly between these fractions of the fully lit level
@@ -67,10 +68,10 @@ def strategy_defaults(glossy: bool = False) -> dict[str, str]:
     auto to "pbrt")."""
     try:
         settings = Settings.from_strings({})
-        resolved = dict(settings.as_dict(), direct=settings.resolved_direct(glossy), rr=settings.resolved_rr(glossy))
+        resolved = settings.resolved(glossy).as_dict()
         return {k: str(resolved.get(k, v)) for k, v in FALLBACK_DEFAULTS.items()}
     except Exception:  # noqa: BLE001 - fall back to the documented defaults
-        return dict(FALLBACK_DEFAULTS, direct="mis", rr="pbrt") if glossy else dict(FALLBACK_DEFAULTS)
+        return dict(FALLBACK_DEFAULTS, direct=AUTO_DIRECT[glossy], rr=AUTO_RR[glossy])
 
 
 def luminance(image: np.ndarray) -> np.ndarray:

@@ -36,7 +36,6 @@ from harness.files.previews import ImageWriter
 from harness.files.studies import STUDIES_FILE, STUDIES_KIND, STUDIES_SCHEMA, studies_folder
 from harness.judges.floor import error_point
 from harness.renderers import get_renderer
-from harness.renderers.reference import scene_is_glossy
 from harness.renderers.cached import CachedMitsubaRenderer
 from harness.running.cases import SUITE_REPLICATES, Case, judged_settings, load_suite
 from harness.running.judge import case_scene
@@ -419,7 +418,7 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                                "strategy_repeats": options.strategy_repeats, "scenes": []}
     lambertian_defaults = defaults
     for key, base in bases.items():
-        glossy = scene_is_glossy(base.scene)  # direct = auto is "mis" there, and the rows are the glossy engine's
+        glossy = base.scene.has_glossy_materials  # direct = auto is "mis" there, and the rows are the glossy engine's
         defaults = studies.strategy_defaults(glossy) if glossy else lambertian_defaults
         masks = region_masks(base.scene, tuple(base.render.shape[:2])) if base.scene.regions else {}
         case_rows = _case_rows(items, key, base, masks)

@@ -8,6 +8,8 @@ setting runs the same compiled signatures and no setting triggers a compilation.
 
 from typing import NamedTuple
 
+from reference_impl.errors import SettingsError
+
 # Every kernel is nogil (the integrator's thread pool runs them concurrently, as it runs Embree queries) and cached
 # (reference_impl/kernels/__pycache__). IEEE semantics are kept: no fastmath (no reassociation, no FMA contraction),
 # and error_model="numpy" so a division by zero gives inf/NaN as in numpy instead of raising. Reference counting and
@@ -36,8 +38,8 @@ JIT_NONRT = dict(JIT, _nrt=False)
  C_LIGHT_SELECT) = range(10)
 
 DIRECT_AREA, DIRECT_MIS, DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_BSDF = range(6)
-# "auto" never reaches a kernel: kernel_config resolves it (Settings.resolved_direct) to "area" or "mis" (and rr's
-# "auto", Settings.resolved_rr, to "albedo" or "pbrt").
+# "auto" never reaches a kernel: a render resolves it (Settings.resolved) to "area" or "mis" (and rr's "auto" to
+# "albedo" or "pbrt") before kernel_config reads the settings.
 DIRECT_MODES = {"area": DIRECT_AREA, "mis": DIRECT_MIS, "global-area": DIRECT_GLOBAL_AREA,
                 "hemisphere-cosine": DIRECT_HEMI_COSINE, "hemisphere-uniform": DIRECT_HEMI_UNIFORM,
                 "bsdf": DIRECT_BSDF}
@@ -136,17 +138,17 @@ NOT_SLOTS = {
 
 
 def kernel_config(settings, num_lights: int, offset_scene: float, surface_pdf: float,
-                  num_area_lights: int | None = None, env_light: int = -1, glossy: bool = False,
-                  packet_width: int = 1) -> KernelConfig:
+                  num_area_lights: int | None = None, env_light: int = -1, packet_width: int = 1) -> KernelConfig:
     """The :class:`KernelConfig` of a render with ``settings`` (max_depth resolved) on a scene with ``num_lights``
     lights, the first ``num_area_lights`` of them area lights (all, by default), the environment light
     ``env_light`` (-1: none), Embree's packets of ``packet_width`` rays (1: one query per ray); ``depth`` 0 (a
     wavefront bounce sets its own: ``config._replace(depth=...)``).
-    ``direct = "auto"`` and ``rr = "auto"`` are resolved for a scene with (``glossy``) or without a non-diffuse
-    material."""
-    resolved = {"direct": DIRECT_MODES[settings.resolved_direct(glossy)], "rr": RR_MODES[settings.resolved_rr(glossy)]}
-    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items() if slot not in resolved}
-    slots.update(resolved)
+    ``settings`` are resolved (:meth:`Settings.resolved <reference_impl.settings.Settings.resolved>`): a ``direct``
+    or ``rr`` of "auto" is a SettingsError."""
+    for key in ("direct", "rr"):
+        if getattr(settings, key) == "auto":
+            raise SettingsError(key, "expected the resolved settings (Settings.resolved), got 'auto'")
+    slots = {slot: fill(getattr(settings, field)) for slot, (field, fill) in FROM_SETTINGS.items()}
     area = int(num_lights if num_area_lights is None else num_area_lights)
     return KernelConfig(depth=0, num_lights=int(num_lights), offset_scene=float(offset_scene),
                         surface_pdf=float(surface_pdf), num_area_lights=area, env_light=int(env_light),

@@ -254,8 +254,8 @@ def test_envmap_lookup_is_mitsubas_bilinear_interpolation():
 def _kernel_inputs(emitters: em.Emitters, env_sampling: str, mutant: str = ""):
     from reference_impl.kernels import config, records  # optional: numba-compiled, as the renders import it
 
-    cfg = config.kernel_config(Settings(env_sampling=env_sampling, max_depth=2, mutant=mutant), len(emitters), 0.0,
-                               0.0, num_area_lights=0, env_light=emitters.env)
+    cfg = config.kernel_config(Settings(env_sampling=env_sampling, max_depth=2, mutant=mutant).resolved(False),
+                               len(emitters), 0.0, 0.0, num_area_lights=0, env_light=emitters.env)
     return cfg, records.emitter_tables(emitters)
 
 

@@ -28,7 +28,7 @@ from harness.scene.triangulate import rotate_matrix, scale_matrix, translate_mat
 from harness.studies import strategies
 from reference_impl import Camera, Film, Materials, Settings
 from reference_impl.errors import SettingsError
-from reference_impl.materials import CONDUCTOR, DIELECTRIC, ROUGHCONDUCTOR, ROUGHDIELECTRIC
+from reference_impl.materials import CONDUCTOR, DIELECTRIC, ROUGHCONDUCTOR, ROUGHDIELECTRIC, is_glossy, material_row
 
 ALPHA = FALSE_ALARM  # 1e-4 per verdict
 SKY = (1.0, 0.5, 0.25)
@@ -206,10 +206,18 @@ def test_what_the_glossy_engine_does_not_do_is_refused(settings, key):
 def test_auto_resolves_to_area_without_a_glossy_material_and_to_mis_with_one():
     s = Settings()
     assert s.direct == "auto" and s.rr == "auto"
-    assert (s.resolved_direct(False), s.resolved_direct(True)) == ("area", "mis")
-    assert (s.resolved_rr(False), s.resolved_rr(True)) == ("albedo", "pbrt")
-    assert Settings(direct="bsdf").resolved_direct(False) == "bsdf"
-    assert Settings(rr="throughput").resolved_rr(True) == "throughput"
+    assert (s.resolved(False).direct, s.resolved(True).direct) == ("area", "mis")
+    assert (s.resolved(False).rr, s.resolved(True).rr) == ("albedo", "pbrt")
+    assert Settings(direct="bsdf").resolved(False).direct == "bsdf"
+    assert Settings(rr="throughput").resolved(True).rr == "throughput"
+    given = Settings(direct="mis", rr="fixed")
+    assert given.resolved(False) is given and given.resolved(True) is given
+
+
+def test_the_glossy_rule_reads_the_material_table():
+    assert not is_glossy(None)
+    assert not is_glossy(Materials.diffuse([[0.5] * 3], [False]))
+    assert is_glossy(Materials(np.array([CONDUCTOR]), material_row(CONDUCTOR)[None]))
 
 
 def test_the_harness_reads_the_resolved_strategy():

@@ -70,8 +70,8 @@ def convert_inputs(baseline, geometry, camera, film, settings):
     known = {f.name for f in dataclasses.fields(baseline.settings.Settings)}
     values = {k: v for k, v in dataclasses.asdict(settings).items() if k in known}
     if values.get("direct") == "auto":  # the baseline predates "auto"; on these Lambertian scenes it is "area"
-        values["direct"] = settings.resolved_direct(False)
+        values["direct"] = settings.resolved(False).direct
     if values.get("rr") == "auto":  # likewise rr = auto: "albedo" on these Lambertian scenes
-        values["rr"] = settings.resolved_rr(False)
+        values["rr"] = settings.resolved(False).rr
     s = baseline.settings.Settings(**values)
     return g, cam, f, s
