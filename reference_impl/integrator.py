@@ -210,6 +210,7 @@ class _Context:
                  emitters: Emitters | None = None, materials: Materials | None = None):
         if settings.max_depth is None:
             raise SettingsError("max_depth", "expected the scene's max_depth to be resolved before rendering")
+        settings = settings.resolved(is_glossy(materials))  # a no-op where render() resolved them already
         self.glossy_engine, self.materials = _glossy_engine(geometry, settings, emitters, materials)
         self.max_depth = settings.resolved_max_depth(settings.max_depth)
         self.geometry = geometry
