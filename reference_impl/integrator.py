@@ -71,7 +71,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, glossy, packet, path, records, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import camera, config, film, glossy, path, records, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
@@ -266,11 +266,7 @@ class _Context:
             self.emitter_tables = records.emitter_tables(em)
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
-        self.path_engine = (s.engine in ("packet", "path") and s.indirect_rays == 1
-                            and self.intersector.scene_pointer != 0)
-        # The packet engine repeats the path engine's loop for point-sampling strategies without other emitters.
-        self.packet_engine = (self.path_engine and s.engine == "packet" and self.emitter_tables is None
-                              and s.direct not in ("hemisphere-cosine", "hemisphere-uniform"))
+        self.path_engine = s.engine == "path" and s.indirect_rays == 1 and self.intersector.scene_pointer != 0
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.pinhole = records.pinhole(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
@@ -465,11 +461,6 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                     ctx.material_tables, config, radiance, counters, timing, ctx.emitter_tables,
                                     film_samples, record)
-        clock.seconds += timing[0] * 1e-9
-    elif ctx.packet_engine:
-        timing = np.zeros(2, np.int64)
-        kernels.packet.trace_packets(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                     ctx.surface_tables, config, radiance, counters, timing, film_samples)
         clock.seconds += timing[0] * 1e-9
     elif ctx.path_engine:
         timing = np.zeros(2, np.int64)

@@ -17,7 +17,7 @@ DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", 
 GLOSSY_DIRECT = ("area", "mis", "bsdf")
 HEMISPHERES = ("cosine", "uniform")
 ROULETTES = ("auto", "albedo", "fixed", "throughput", "pbrt", "off")
-ENGINES = ("packet", "path", "wavefront")
+ENGINES = ("path", "wavefront")
 SAMPLERS = ("sobol", "independent")
 #: what ``direct = "auto"`` runs on a Lambertian-only scene (False) and on a glossy one (True): Settings.resolved
 AUTO_DIRECT = {False: "area", True: "mis"}
@@ -75,9 +75,7 @@ class Settings:
     threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
     engine          how paths are traced (speed only: the same bits either way): "path", each path from its camera
                     ray to its end in one compiled loop that queries Embree itself (Ni = 1 only; with Ni > 1 the
-                    wavefront is used); "packet", the same loop with up to 16 paths of a pixel stepped together and
-                    their rays queried as packets (kernels/packet.py; with other emitters or a hemisphere strategy,
-                    the path engine); or "wavefront", every bounce of a batch at once, queries in batches.
+                    wavefront is used); or "wavefront", every bounce of a batch at once, queries in batches.
     mutant          name of a planted fault (see ``reference_impl.mutants``); "" = none. Never on by default.
     """
 
