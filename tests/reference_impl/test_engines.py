@@ -125,3 +125,24 @@ def test_engine_packet_is_refused_naming_the_engines_that_remain():
 
     with pytest.raises(reference_impl.SettingsError, match=r"^engine: expected one of path, wavefront, got 'packet'$"):
         reference_impl.Settings.from_strings({"engine": "packet"})
+
+
+def test_the_capability_table_of_the_docs_is_the_core_s():
+    """docs/reference-renderer.md shows ``settings.CAPABILITIES`` (strategy x engine) as one table, row for row; every
+    resolved value of ``direct``, ``rr`` and ``env_sampling`` has its row."""
+    from pathlib import Path
+
+    from reference_impl.emitters import ENV_SAMPLINGS
+    from reference_impl.settings import CAPABILITIES, DIRECT_STRATEGIES, ROULETTES
+
+    columns = ("path", "wavefront", "glossy")
+    lines = ["| strategy | `path` | `wavefront` | glossy |", "|---|---|---|---|"]
+    for (key, value), engines in CAPABILITIES.items():
+        label = f"`{key} {value}`" if value.startswith(">") else f"`{key} = {value}`"
+        lines.append(f"| {label} | " + " | ".join("yes" if c in engines else "no" for c in columns) + " |")
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference-renderer.md").read_text(encoding="utf-8")
+    assert "\n" + "\n".join(lines) + "\n\n" in doc
+    rows = {(key, value) for key, value in CAPABILITIES}
+    for key, values in (("direct", DIRECT_STRATEGIES), ("rr", ROULETTES), ("env_sampling", ENV_SAMPLINGS)):
+        assert {(key, v) for v in values if v != "auto"} <= rows, key
+    assert all(set(engines) <= set(columns) and engines for engines in CAPABILITIES.values())
