@@ -13,18 +13,20 @@ already in L_direct and is not added again (the literal pseudo-code's ``computeR
 counts direct light twice; it survives only as the mutant "double-emission"). Russian roulette divides survivors
 by their survival probability (Fig. 5.16, ``estimatedRadiance / (1 - absorption)``).
 
-Two engines give the same bits (``Settings.engine``). The default, "path", hands a batch of camera samples to one
-compiled loop (:func:`kernels.path.trace_paths`) that follows each path to its end and queries Embree itself (its C
-API: ``reference_impl/embree_c.py``), after tracing the batch's camera rays in packets of 16; it serves Ni = 1. The
-"wavefront" engine, needed when paths branch (Ni > 1): all paths of a batch advance one bounce at a time, every ray
-query is one batched call, and everything between two queries is one compiled kernel over all paths
-(``reference_impl/kernels/``, numba, ``nogil`` so that the worker threads run kernels and Embree queries
-concurrently); there is no Python loop over rays. One bounce (:func:`_bounce`) is: closest hits of the wavefront
-(Embree) -> :func:`kernels.wavefront.bounce` (emission at the hits, the Nd direct-light samples and the rays they
-need, Russian roulette and the next wavefront) -> shadow rays (Embree, any-hit; closest-hit for hemisphere sampling)
--> :func:`kernels.wavefront.resolve_shadow` / :func:`kernels.wavefront.resolve_hemisphere` (the direct light). The
-functions ``_direct_*``, ``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments are the sections of the
-kernels that compute each estimator; their formulas are the ones written above.
+Scenes whose materials are all Lambertian run one of two engines that give the same bits (``Settings.engine``; which
+strategies each runs: ``settings.CAPABILITIES``; other scenes run the glossy engine, kernels/glossy.py). The
+default, "path", hands a batch of camera samples to one compiled loop (:func:`kernels.path.trace_paths`) that
+follows each path to its end and queries Embree itself (its C API: ``reference_impl/embree_c.py``), after tracing
+the batch's camera rays in packets of 16; it serves Ni = 1. The "wavefront" engine, needed when paths branch
+(Ni > 1): all paths of a batch advance one bounce at a time, every ray query is one batched call, and everything
+between two queries is one compiled kernel over all paths (``reference_impl/kernels/``, numba, ``nogil`` so that the
+worker threads run kernels and Embree queries concurrently); there is no Python loop over rays. One bounce
+(:func:`_bounce`) is: closest hits of the wavefront (Embree) -> :func:`kernels.wavefront.bounce` (emission at the
+hits, the Nd direct-light samples and the rays they need, Russian roulette and the next wavefront) -> shadow rays
+(Embree, any-hit; closest-hit for hemisphere sampling) -> :func:`kernels.wavefront.resolve_shadow` /
+:func:`kernels.wavefront.resolve_hemisphere` (the direct light). The functions ``_direct_*``,
+``_shadow_ray_estimate`` and ``_mis_weight_*`` named in comments are the sections of the kernels that compute each
+estimator; their formulas are the ones written above.
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
 from reference_impl.materials import Materials, is_glossy
 from reference_impl.sampling import INV_PI
-from reference_impl.settings import GLOSSY_DIRECT, Settings
+from reference_impl.settings import CAPABILITIES, GLOSSY_DIRECT, Settings
 
 COUNTERS = (
     "camera_rays",  # viewing rays traced
@@ -71,7 +73,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, glossy, packet, path, records, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import camera, config, film, glossy, path, records, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
@@ -266,11 +268,9 @@ class _Context:
             self.emitter_tables = records.emitter_tables(em)
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
-        self.path_engine = (s.engine in ("packet", "path") and s.indirect_rays == 1
-                            and self.intersector.scene_pointer != 0)
-        # The packet engine repeats the path engine's loop for point-sampling strategies without other emitters.
-        self.packet_engine = (self.path_engine and s.engine == "packet" and self.emitter_tables is None
-                              and s.direct not in ("hemisphere-cosine", "hemisphere-uniform"))
+        environment = em is not None and em.env >= 0
+        self.path_engine = (s.engine == "path" and self.intersector.scene_pointer != 0
+                            and all("path" in CAPABILITIES[row] for row in s.strategies(environment)))
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.pinhole = records.pinhole(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
@@ -291,27 +291,34 @@ class _Clock:
         self.seconds = 0.0
 
 
+# What the glossy engine says of a strategy it does not run (a row of CAPABILITIES without it), before the value.
+_GLOSSY_REFUSALS = {
+    "direct": f"takes direct = {', '.join(GLOSSY_DIRECT)} or auto",
+    "indirect_rays": "traces one BSDF sample per vertex: expected indirect_rays = 1",
+    "env_sampling": "samples the environment on both sides of a surface: expected "
+                    + " or ".join(v for (k, v), e in CAPABILITIES.items() if k == "env_sampling" and "glossy" in e),
+}
+
+
 def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
                    materials: Materials | None) -> tuple[bool, Materials | None]:
-    """Whether the render runs the glossy engine (kernels/glossy.py: a material that is not diffuse, ``direct =
-    bsdf`` or ``rr = throughput``), and the material table it reads; SettingsError for what that engine does not
-    do. ``settings.direct`` is resolved already."""
+    """Whether the render runs the glossy engine (kernels/glossy.py: a material that is not diffuse, or a strategy
+    only it runs, :data:`~reference_impl.settings.CAPABILITIES`), and the material table it reads; SettingsError
+    for a strategy that engine does not run. ``settings`` are resolved already."""
     if materials is not None and len(materials) != len(geometry.reflectance):
         raise SettingsError("materials", f"expected one material per entry of the geometry's reflectance "
                                          f"({len(geometry.reflectance)}), got {len(materials)}")
     glossy = is_glossy(materials)
-    if not (glossy or settings.direct == "bsdf" or settings.rr in ("throughput", "pbrt")):
+    # an unresolved "auto" is in no row: no engine runs it
+    rows = {row: CAPABILITIES.get(row, ()) for row in settings.strategies(emitters is not None and emitters.env >= 0)}
+    only_glossy = [row for row, engines in rows.items() if engines == ("glossy",)]
+    if not (glossy or only_glossy):
         return False, None
-    why = "with a material that is not diffuse" if glossy else f"with {'direct = bsdf' if settings.direct == 'bsdf' else 'rr = ' + settings.rr}"
-    if settings.direct not in GLOSSY_DIRECT:
-        raise SettingsError("direct", f"the glossy engine (scenes {why}) takes direct = {', '.join(GLOSSY_DIRECT)} "
-                                      f"or auto, got {settings.direct!r}")
-    if settings.indirect_rays != 1:
-        raise SettingsError("indirect_rays", f"the glossy engine (scenes {why}) traces one BSDF sample per vertex: "
-                                             f"expected indirect_rays = 1, got {settings.indirect_rays}")
-    if emitters is not None and emitters.env >= 0 and settings.env_sampling == "cosine":
-        raise SettingsError("env_sampling", f"the glossy engine (scenes {why}) samples the environment on both sides "
-                                            "of a surface: expected importance or uniform, got 'cosine'")
+    why = "with a material that is not diffuse" if glossy else "with {} = {}".format(*only_glossy[0])
+    for (key, value), engines in rows.items():
+        if "glossy" not in engines and key in _GLOSSY_REFUSALS:
+            raise SettingsError(key, f"the glossy engine (scenes {why}) {_GLOSSY_REFUSALS[key]}, "
+                                     f"got {getattr(settings, key)!r}")
     if materials is None:
         materials = Materials.diffuse(geometry.reflectance, geometry.two_sided)
     return True, materials
@@ -465,11 +472,6 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                     ctx.material_tables, config, radiance, counters, timing, ctx.emitter_tables,
                                     film_samples, record)
-        clock.seconds += timing[0] * 1e-9
-    elif ctx.packet_engine:
-        timing = np.zeros(2, np.int64)
-        kernels.packet.trace_packets(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                     ctx.surface_tables, config, radiance, counters, timing, film_samples)
         clock.seconds += timing[0] * 1e-9
     elif ctx.path_engine:
         timing = np.zeros(2, np.int64)

@@ -13,11 +13,39 @@ from reference_impl.mutants import ALL_MUTANTS
 from reference_impl.rng import _mix64_int
 
 DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis", "bsdf")
-#: the strategies the glossy engine (kernels/glossy.py, scenes with a non-diffuse material) runs
-GLOSSY_DIRECT = ("area", "mis", "bsdf")
 HEMISPHERES = ("cosine", "uniform")
 ROULETTES = ("auto", "albedo", "fixed", "throughput", "pbrt", "off")
-ENGINES = ("packet", "path", "wavefront")
+#: the values of ``engine``: the engines of scenes whose materials are all Lambertian, the same bits either way
+ENGINES = ("path", "wavefront")
+_LAMBERTIAN = ENGINES
+_ALL = ENGINES + ("glossy",)
+#: The capability matrix: each strategy (a setting's resolved value; ``indirect_rays`` as 1 or more, ``env_sampling``
+#: on scenes with an environment) and the engines that run it. "path" (kernels/path.py: each path to its end in one
+#: loop) and "wavefront" (kernels/wavefront.py: every bounce of a batch at once) are ``engine``'s values;
+#: "glossy" (kernels/glossy.py) runs every scene with a material that is not diffuse, whatever ``engine`` says.
+#: The engine selection reads it (``integrator._glossy_engine``, ``_Context``): a strategy only the glossy engine
+#: runs takes a Lambertian scene there; one it does not run is refused there; one the path engine does not run
+#: takes ``engine = path`` to the wavefront. docs/reference-renderer.md shows it as a table.
+CAPABILITIES: dict[tuple[str, str], tuple[str, ...]] = {
+    ("direct", "area"): _ALL,
+    ("direct", "hemisphere-cosine"): _LAMBERTIAN,
+    ("direct", "hemisphere-uniform"): _LAMBERTIAN,
+    ("direct", "global-area"): _LAMBERTIAN,
+    ("direct", "mis"): _ALL,
+    ("direct", "bsdf"): ("glossy",),
+    ("rr", "albedo"): _ALL,
+    ("rr", "fixed"): _ALL,
+    ("rr", "throughput"): ("glossy",),
+    ("rr", "pbrt"): ("glossy",),
+    ("rr", "off"): _ALL,
+    ("indirect_rays", "1"): _ALL,
+    ("indirect_rays", "> 1"): ("wavefront",),
+    ("env_sampling", "importance"): _ALL,
+    ("env_sampling", "uniform"): _ALL,
+    ("env_sampling", "cosine"): _LAMBERTIAN,
+}
+#: the strategies the glossy engine (scenes with a non-diffuse material) runs
+GLOSSY_DIRECT = tuple(v for (k, v), engines in CAPABILITIES.items() if k == "direct" and "glossy" in engines)
 SAMPLERS = ("sobol", "independent")
 #: what ``direct = "auto"`` runs on a Lambertian-only scene (False) and on a glossy one (True): Settings.resolved
 AUTO_DIRECT = {False: "area", True: "mis"}
@@ -73,11 +101,10 @@ class Settings:
                     -1 = unbounded); None = the scene's.
     batch_size      camera paths traced together (memory / speed only: the image does not depend on it).
     threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
-    engine          how paths are traced (speed only: the same bits either way): "path", each path from its camera
-                    ray to its end in one compiled loop that queries Embree itself (Ni = 1 only; with Ni > 1 the
-                    wavefront is used); "packet", the same loop with up to 16 paths of a pixel stepped together and
-                    their rays queried as packets (kernels/packet.py; with other emitters or a hemisphere strategy,
-                    the path engine); or "wavefront", every bounce of a batch at once, queries in batches.
+    engine          how paths are traced on scenes whose materials are all Lambertian (speed only: the same bits
+                    either way): "path", each path from its camera ray to its end in one compiled loop that queries
+                    Embree itself (Ni = 1 only; with Ni > 1 the wavefront is used); or "wavefront", every bounce of
+                    a batch at once, queries in batches. Which engine runs which strategy: :data:`CAPABILITIES`.
     mutant          name of a planted fault (see ``reference_impl.mutants``); "" = none. Never on by default.
     """
 
@@ -173,6 +200,12 @@ class Settings:
         if (direct, rr) == (self.direct, self.rr):
             return self
         return replace(self, direct=direct, rr=rr)
+
+    def strategies(self, environment: bool) -> list[tuple[str, str]]:
+        """The rows of :data:`CAPABILITIES` these resolved settings choose, ``env_sampling``'s only on a scene with
+        an ``environment``."""
+        rows = [("direct", self.direct), ("rr", self.rr), ("indirect_rays", "1" if self.indirect_rays == 1 else "> 1")]
+        return rows + [("env_sampling", self.env_sampling)] if environment else rows
 
     def replicate_sizes(self) -> tuple[int, ...]:
         """The samples per pixel of each of the ``min(replicates, spp)`` replicates: ``spp`` split as evenly as

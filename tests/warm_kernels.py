@@ -22,18 +22,17 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 
-# (scene, settings) per group. The path and packet engines in one group, the wavefront and glossy engines (and the
+# (scene, settings) per group. The path engine in one group, the wavefront and glossy engines (and the
 # emitters' kernels, compiled into the glossy engine) in the other: about equal compile times, few kernels shared.
 GROUPS = {
-    "path": [("cornell-box", {"engine": "path"}), ("multi-light", {"direct": "hemisphere-cosine"}),
-             ("cornell-box", {"engine": "packet"})],
+    "path": [("cornell-box", {"engine": "path"}), ("multi-light", {"direct": "hemisphere-cosine"})],
     "wavefront-glossy": [("cornell-box", {"engine": "wavefront"}),
                          ("multi-light", {"engine": "wavefront", "direct": "hemisphere-cosine"}),
                          ("multi-light", {"engine": "wavefront", "direct": "mis"}),
                          ("cornell-box-specular", {}), ("envmap", {}), ("point-spot", {}), ("sun-sky", {})],
 }
 # the top-level kernels whose cache index files mean the groups have run (numba names them MODULE.FUNCTION-LINE...)
-INDEX_PREFIXES = ("path.", "wavefront.", "glossy.", "packet.")
+INDEX_PREFIXES = ("path.", "wavefront.", "glossy.")
 
 
 def cache_is_warm() -> bool:

@@ -76,7 +76,6 @@ STRATEGIES: tuple[dict[str, str], ...] = (
     {"rr_depth": "5"},
     {"rr": "off"},
     {"light_selection": "uniform"},
-    {"engine": "packet"},
 )
 
 #: the two comparisons of the strategy rows, as the table, the lines and the JSON name them

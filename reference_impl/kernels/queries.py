@@ -16,8 +16,6 @@ from reference_impl.kernels.config import JIT, JIT_BORROW, JIT_INLINE
 # One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
 # clock read (measured at the start of each call), times the stride.
 TIMING_STRIDE = 64
-# Packet queries (4, 8 or 16 rays each) are timed one in PACKET_STRIDE.
-PACKET_STRIDE = 4
 
 
 @njit(**JIT)
@@ -117,22 +115,6 @@ def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at):
             out[at + lane] = np.int64(words[prim + lane])
 
 
-@njit(**JIT_INLINE)
-def occlude_packet(scene_ptr, width, words, floats, valid, m, out, at):
-    """Any-hit queries of the m segments a packet of ``width`` holds, one query (``rtcOccluded16``, ``8`` or ``4``):
-    out[at + lane] = True where something blocks lane ``lane``'s segment. The answers of one query per ray
-    (:func:`occluded`)."""
-    if width == 16:
-        embree_c.rtc_occluded16(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
-    elif width == 8:
-        embree_c.rtc_occluded8(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
-    else:
-        embree_c.rtc_occluded4(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
-    tfar = 8 * width
-    for lane in range(m):
-        out[at + lane] = floats[tfar + lane] < 0
-
-
 @njit(**JIT)
 def closest_prims_coherent(scene_ptr, width, o32, d32, out, start, stop, words, floats, valid):
     """Closest hits of rays ``start:stop``, ``width`` per packet query (:func:`intersect_packet`; one query per ray
@@ -180,39 +162,6 @@ def occluders(scene_ptr, o32, d32, tfar, out):
         blocked = occluded(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
                            d32[i, 2], tfar[i])
         out[i] = 0 if blocked else -1
-
-
-@njit(**JIT)
-def occluded_coherent(scene_ptr, width, o32, d32, tfar, out, start, stop, words, floats, valid):
-    """Any-hit queries of rays ``start:stop``, ``width`` per packet query (:func:`occlude_packet`; one query per ray
-    where ``width`` is 1): for shadow rays that leave nearby points for the same light (one pixel's hits), Embree
-    traverses its tree once for a packet. The answers of one query per ray (:func:`occluded`): 0 where blocked, -1
-    where not."""
-    if width == 1:
-        for i in range(start, stop):
-            blocked = occluded(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
-                               d32[i, 2], tfar[i])
-            out[i] = 0 if blocked else -1
-        return
-    blocked = np.empty(embree_c.PACKET, np.bool_)
-    for s0 in range(start, stop, width):
-        m = min(width, stop - s0)
-        for lane in range(m):
-            i = s0 + lane
-            packet_lane(words, floats, valid, width, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
-                        d32[i, 2], tfar[i])
-        packet_rest(words, floats, valid, width, m)
-        occlude_packet(scene_ptr, width, words, floats, valid, m, blocked, 0)
-        for lane in range(m):
-            out[s0 + lane] = 0 if blocked[lane] else -1
-
-
-@njit(**JIT)
-def occluders_packets(scene_ptr, width, o32, d32, tfar, out):
-    """:func:`occluders` with ``width`` consecutive rays per packet query (:func:`occluded_coherent`). The same
-    answers."""
-    words, floats, valid = packet_buffer()
-    occluded_coherent(scene_ptr, width, o32, d32, tfar, out, 0, o32.shape[0], words, floats, valid)
 
 
 @njit(**JIT_INLINE)

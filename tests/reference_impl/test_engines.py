@@ -1,6 +1,5 @@
-"""The path engine (one path at a time, Embree's C API from the kernels), the packet engine (16 paths of a pixel
-stepped together, packet queries) and the wavefront give the same bits, and the direct Embree queries answer as
-Embree should.
+"""The path engine (one path at a time, Embree's C API from the kernels) and the wavefront give the same bits, and
+the direct Embree queries answer as Embree should.
 
 The path engine is the default; the wavefront is what Ni > 1 needs. Every setting and planted fault is rendered by
 each at the same seed: images, variances and counters must be identical, bit for bit.
@@ -52,17 +51,15 @@ def _render(scene, engine, **settings):
 
 @pytest.mark.parametrize("name, settings", CASES, ids=[f"{n}-{'-'.join(map(str, s.values())) or 'defaults'}"
                                                        for n, s in CASES])
-def test_path_packet_and_wavefront_engines_give_the_same_bits(name, settings):
+def test_path_and_wavefront_engines_give_the_same_bits(name, settings):
     scene = load_small(name, 24)
     a = _render(scene, "wavefront", **settings)
+    b = _render(scene, "path", **settings)
     drop = {"embree_microseconds"}
-    for engine in ("path", "packet"):
-        b = _render(scene, engine, **settings)
-        assert a.image.tobytes() == b.image.tobytes(), engine
-        assert np.array_equal(a.variance, b.variance, equal_nan=True), engine
-        assert ({k: v for k, v in a.stats.items() if k not in drop}
-                == {k: v for k, v in b.stats.items() if k not in drop}), engine
-        assert b.stats["embree_microseconds"] >= 0
+    assert a.image.tobytes() == b.image.tobytes()
+    assert np.array_equal(a.variance, b.variance, equal_nan=True)
+    assert {k: v for k, v in a.stats.items() if k not in drop} == {k: v for k, v in b.stats.items() if k not in drop}
+    assert b.stats["embree_microseconds"] >= 0
 
 
 @pytest.mark.parametrize("sampler", ["sobol", "independent"])
@@ -71,8 +68,7 @@ def test_gaussian_filter_and_odd_batches_agree_too(sampler):
     scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, filter="gaussian"))
     a = _render(scene, "wavefront", batch_size=37, sampler=sampler)
     b = _render(scene, "path", batch_size=1000, threads=1, sampler=sampler)
-    c = _render(scene, "packet", batch_size=23, sampler=sampler)  # packets cut short by the batches
-    assert a.image.tobytes() == b.image.tobytes() == c.image.tobytes()
+    assert a.image.tobytes() == b.image.tobytes()
 
 
 def test_direct_queries_match_a_brute_force_intersector():
@@ -122,3 +118,31 @@ def test_direct_queries_match_a_brute_force_intersector():
     free = ix.occluders(o32, d32, (d_best[sel] * 0.99).astype(np.float32))
     blocked = ix.occluders(o32, d32, (d_best[sel] * 1.01).astype(np.float32))
     assert np.all(free < 0) and np.all(blocked >= 0)
+
+
+def test_engine_packet_is_refused_naming_the_engines_that_remain():
+    import reference_impl
+
+    with pytest.raises(reference_impl.SettingsError, match=r"^engine: expected one of path, wavefront, got 'packet'$"):
+        reference_impl.Settings.from_strings({"engine": "packet"})
+
+
+def test_the_capability_table_of_the_docs_is_the_core_s():
+    """docs/reference-renderer.md shows ``settings.CAPABILITIES`` (strategy x engine) as one table, row for row; every
+    resolved value of ``direct``, ``rr`` and ``env_sampling`` has its row."""
+    from pathlib import Path
+
+    from reference_impl.emitters import ENV_SAMPLINGS
+    from reference_impl.settings import CAPABILITIES, DIRECT_STRATEGIES, ROULETTES
+
+    columns = ("path", "wavefront", "glossy")
+    lines = ["| strategy | `path` | `wavefront` | glossy |", "|---|---|---|---|"]
+    for (key, value), engines in CAPABILITIES.items():
+        label = f"`{key} {value}`" if value.startswith(">") else f"`{key} = {value}`"
+        lines.append(f"| {label} | " + " | ".join("yes" if c in engines else "no" for c in columns) + " |")
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference-renderer.md").read_text(encoding="utf-8")
+    assert "\n" + "\n".join(lines) + "\n\n" in doc
+    rows = {(key, value) for key, value in CAPABILITIES}
+    for key, values in (("direct", DIRECT_STRATEGIES), ("rr", ROULETTES), ("env_sampling", ENV_SAMPLINGS)):
+        assert {(key, v) for v in values if v != "auto"} <= rows, key
+    assert all(set(engines) <= set(columns) and engines for engines in CAPABILITIES.values())
