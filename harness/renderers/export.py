@@ -46,6 +46,7 @@ from harness.renderers.mitsuba_xml import spec_xml
 from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_to_world
+from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS, normal_incidence_reflectance
 from harness.scene.triangulate import shape_triangles
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
@@ -67,36 +68,11 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0) -> tuple[str, dic
     return spec_xml(spec, f"{scene.name}: exported by rendering-harness (harness export) from {scene.path}")
 
 
-def normal_incidence_reflectance(eta, k) -> list[float]:
-    """A conductor's Fresnel reflectance at normal incidence, per channel: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)
-    (1 for Mitsuba's perfect mirror eta = 0, k = 1)."""
-    eta, k = np.asarray(eta, dtype=np.float64), np.asarray(k, dtype=np.float64)
-    return [float(x) for x in ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)]
-
-
 def gltf_material(material) -> tuple[dict, dict]:
     """The glTF 2.0 metallic-roughness factors of a material (the keys of ``pbrMetallicRoughness``) and its
-    glTF extensions (docs/external-renderers.md, "glTF materials").
-
-    Diffuse: base colour = reflectance, metallic 0, roughness 1. Conductors: metallic 1, base colour = the normal-
-    incidence Fresnel reflectance times specular_reflectance (exact for a perfect mirror; glTF's Schlick Fresnel
-    approximates the others). Dielectrics: metallic 0, base colour = specular_transmittance,
-    ``KHR_materials_transmission`` 1, ``KHR_materials_ior`` = int_ior / ext_ior (glTF's outside is index 1, so the
-    relative index keeps the interface), ``KHR_materials_volume`` (a solid that refracts, not a thin wall).
-    Roughness: 0 for smooth types, sqrt(alpha) for rough ones (glTF's GGX alpha is roughness^2: exact for ggx).
-    """
-    if material.is_diffuse:
-        return {"baseColorFactor": [*material.reflectance, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}, {}
-    roughness = math.sqrt(material.alpha) if material.is_rough else 0.0
-    if material.is_conductor:
-        f0 = normal_incidence_reflectance(material.eta, material.k)
-        colour = [min(1.0, f * r) for f, r in zip(f0, material.specular_reflectance)]
-        return {"baseColorFactor": [*colour, 1.0], "metallicFactor": 1.0, "roughnessFactor": roughness}, {}
-    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                  "KHR_materials_ior": {"ior": float(material.int_ior / material.ext_ior)},
-                  "KHR_materials_volume": {"thicknessFactor": 1.0}}
-    return {"baseColorFactor": [*material.specular_transmittance, 1.0], "metallicFactor": 0.0,
-            "roughnessFactor": roughness}, extensions
+    glTF extensions (docs/external-renderers.md, "glTF materials"): its type's
+    (:meth:`harness.scene.kinds.materials.MaterialKind.to_gltf`)."""
+    return MATERIALS[material.type].to_gltf(material)
 
 
 def _rotation_from_minus_z(direction) -> list[float]:
@@ -201,7 +177,7 @@ def _gltf_shape_material(shape, material) -> dict:
     channel (factor x strength = the radiance)."""
     factors, extensions = gltf_material(material)
     entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": plain(factors),
-                   "doubleSided": bool(material.two_sided or material.is_dielectric)}
+                   "doubleSided": MATERIALS[material.type].gltf_double_sided(material)}
     extensions = dict(extensions)
     if shape.is_emitter:
         emission = np.asarray(shape.emission, dtype=np.float64)
@@ -352,24 +328,14 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
 
 
 def _gltf_material_losses(glossy) -> list[str]:
-    """What glTF's metallic-roughness model and its extensions cannot say exactly of the non-diffuse materials."""
-    def listed(materials) -> str:
-        return ", ".join(f"{m.name} ({m.type})" for m in materials)
-
+    """What glTF's metallic-roughness model and its extensions cannot say exactly of the non-diffuse materials: one
+    line per loss of :data:`harness.scene.kinds.materials.GLTF_LOSSES` that some of them have (their type's
+    ``gltf_losses``)."""
     losses = []
-    metals = [m for m in glossy if m.is_conductor and not (m.mirror and m.specular_reflectance == (1.0, 1.0, 1.0))]
-    if metals:
-        losses.append(f"glTF metals have Schlick's Fresnel from a base colour: {listed(metals)} written with base "
-                      "colour = normal-incidence reflectance x specular_reflectance (eta, k in the node's extras)")
-    beckmann = [m for m in glossy if m.is_rough and m.distribution == "beckmann"]
-    if beckmann:
-        losses.append(f"glTF's microfacets are GGX: {listed(beckmann)} (beckmann) written with roughness sqrt(alpha)")
-    tinted = [m for m in glossy if m.is_dielectric and m.specular_reflectance != (1.0, 1.0, 1.0)]
-    if tinted:
-        losses.append(f"glTF's transmission has no reflection tint: specular_reflectance of {listed(tinted)} left out")
-    sided = [m for m in glossy if m.is_conductor and not m.two_sided]
-    if sided:
-        losses.append(f"glTF's single-sided materials are culled from behind, not black: {listed(sided)}")
+    for loss, message in GLTF_LOSSES.items():
+        materials = [m for m in glossy if loss in MATERIALS[m.type].gltf_losses(m)]
+        if materials:
+            losses.append(message.format(materials=", ".join(f"{m.name} ({m.type})" for m in materials)))
     return losses
 
 
