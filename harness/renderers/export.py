@@ -46,13 +46,11 @@ from harness.renderers.mitsuba_xml import spec_xml
 from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_to_world
-from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS, normal_incidence_reflectance
+from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
 from harness.scene.triangulate import shape_triangles
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
-#: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
-#: Blender's glTF importer ("Standard" lighting), which turns the candela back into the same watts
-LUMENS_PER_WATT = 683.0
 GLTF_LIGHTS = "KHR_lights_punctual"
 GLTF_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
 
@@ -75,64 +73,16 @@ def gltf_material(material) -> tuple[dict, dict]:
     return MATERIALS[material.type].to_gltf(material)
 
 
-def _rotation_from_minus_z(direction) -> list[float]:
-    """The unit quaternion [x, y, z, w] (glTF's order) that turns -z, where a glTF light points, into the unit
-    vector ``direction``."""
-    d = np.asarray(direction, dtype=np.float64)
-    d = d / np.linalg.norm(d)
-    q = np.array([d[1], -d[0], 0.0, 1.0 - d[2]])  # [cross(-z, d), 1 + dot(-z, d)], normalised below
-    length = float(np.linalg.norm(q))
-    if length == 0.0:  # d = +z exactly: half a turn about x
-        return [1.0, 0.0, 0.0, 0.0]
-    return [float(x) + 0.0 for x in q / length]
-
-
-def _gltf_colour(rgb) -> tuple[list[float], float]:
-    """glTF's (color in [0, 1], intensity): color = rgb / its largest channel, intensity = that channel times
-    :data:`LUMENS_PER_WATT`."""
-    rgb = np.asarray(rgb, dtype=np.float64)
-    peak = float(rgb.max())
-    return [float(x) for x in rgb / peak], LUMENS_PER_WATT * peak
-
-
 def gltf_light(emitter) -> tuple[dict, dict]:
-    """A point, spot or directional emitter as a ``KHR_lights_punctual`` light and the node that places it.
-
-    Intensity: candela (point, spot) or lux (directional) = :data:`LUMENS_PER_WATT` x the largest channel of the
-    RGB W/sr (W/m^2), colour = the RGB divided by that channel. Spot: ``outerConeAngle`` = ``cutoff_angle``,
-    ``innerConeAngle`` = ``beam_width`` (radians; glTF wants inner < outer, so inner is a hair smaller when they are
-    equal); glTF's falloff between them is left to the viewer (the spec's sample code fades with the square of a
-    ramp in cos), not Mitsuba's ramp linear in the angle. glTF lights have no size and fall off with 1/r^2, as
-    Mitsuba's.
-    """
-    quantity, place = GLTF_PUNCTUAL[emitter.type]
-    color, intensity = _gltf_colour(getattr(emitter, quantity))
-    light = {"name": emitter.name, "type": emitter.type, "color": color, "intensity": intensity}
-    node: dict = {"name": safe_name(emitter.name)}
-    place(emitter, light, node)
-    return light, node
+    """A point, spot or directional emitter as a ``KHR_lights_punctual`` light and the node that places it (its
+    type's, :meth:`harness.scene.kinds.emitters.EmitterKind.to_gltf`)."""
+    light, placement = EMITTERS[emitter.type].to_gltf(emitter)
+    return light, {"name": safe_name(emitter.name), **placement}
 
 
-def _place_point(emitter, light: dict, node: dict) -> None:
-    node["translation"] = [float(x) for x in emitter.position]
-
-
-def _place_spot(emitter, light: dict, node: dict) -> None:
-    outer = math.radians(emitter.cutoff_angle)
-    inner = min(math.radians(emitter.beam_width), math.nextafter(outer, 0.0))
-    light["spot"] = {"innerConeAngle": inner, "outerConeAngle": outer}
-    node["translation"] = [float(x) for x in emitter.position]
-    node["rotation"] = _rotation_from_minus_z(emitter.axis)
-
-
-def _place_directional(emitter, light: dict, node: dict) -> None:
-    node["rotation"] = _rotation_from_minus_z(emitter.direction)
-
-
-#: The emitter types of ``KHR_lights_punctual``: the field that holds each one's W/sr (W/m^2) and how its light and
-#: node are placed; glTF has no environment light.
-GLTF_PUNCTUAL = {"point": ("intensity", _place_point), "spot": ("intensity", _place_spot),
-                 "directional": ("irradiance", _place_directional)}
+def _in_gltf(emitter) -> bool:
+    """Whether glTF 2.0 has a light for the emitter's type (``KHR_lights_punctual``: point, spot, directional)."""
+    return EMITTERS[emitter.type].gltf is not None
 
 
 def _unique(name: str, taken: set[str]) -> str:
@@ -244,7 +194,7 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
     nodes.append(camera_node)
     lights = []
     for emitter in scene.emitters:
-        if emitter.type in GLTF_PUNCTUAL:
+        if _in_gltf(emitter):
             light, node = gltf_light(emitter)
             node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
             lights.append(light)
@@ -319,7 +269,7 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
         losses.append("OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials " + ", ".join(
             f"{m.name} ({m.type})" for m in glossy) + " written with Kd = their glTF base colour")
     if fmt == "gltf":
-        lost = [e for e in scene.emitters if e.type not in GLTF_PUNCTUAL]
+        lost = [e for e in scene.emitters if not _in_gltf(e)]
         if lost:
             losses.append(f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has "
                           "point, spot and directional lights only)")
