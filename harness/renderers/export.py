@@ -46,12 +46,11 @@ from harness.renderers.mitsuba_xml import spec_xml
 from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_to_world
+from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
 from harness.scene.triangulate import shape_triangles
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
-#: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
-#: Blender's glTF importer ("Standard" lighting), which turns the candela back into the same watts
-LUMENS_PER_WATT = 683.0
 GLTF_LIGHTS = "KHR_lights_punctual"
 GLTF_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
 
@@ -67,96 +66,23 @@ def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0) -> tuple[str, dic
     return spec_xml(spec, f"{scene.name}: exported by rendering-harness (harness export) from {scene.path}")
 
 
-def normal_incidence_reflectance(eta, k) -> list[float]:
-    """A conductor's Fresnel reflectance at normal incidence, per channel: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)
-    (1 for Mitsuba's perfect mirror eta = 0, k = 1)."""
-    eta, k = np.asarray(eta, dtype=np.float64), np.asarray(k, dtype=np.float64)
-    return [float(x) for x in ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)]
-
-
 def gltf_material(material) -> tuple[dict, dict]:
     """The glTF 2.0 metallic-roughness factors of a material (the keys of ``pbrMetallicRoughness``) and its
-    glTF extensions (docs/external-renderers.md, "glTF materials").
-
-    Diffuse: base colour = reflectance, metallic 0, roughness 1. Conductors: metallic 1, base colour = the normal-
-    incidence Fresnel reflectance times specular_reflectance (exact for a perfect mirror; glTF's Schlick Fresnel
-    approximates the others). Dielectrics: metallic 0, base colour = specular_transmittance,
-    ``KHR_materials_transmission`` 1, ``KHR_materials_ior`` = int_ior / ext_ior (glTF's outside is index 1, so the
-    relative index keeps the interface), ``KHR_materials_volume`` (a solid that refracts, not a thin wall).
-    Roughness: 0 for smooth types, sqrt(alpha) for rough ones (glTF's GGX alpha is roughness^2: exact for ggx).
-    """
-    if material.is_diffuse:
-        return {"baseColorFactor": [*material.reflectance, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}, {}
-    roughness = math.sqrt(material.alpha) if material.is_rough else 0.0
-    if material.is_conductor:
-        f0 = normal_incidence_reflectance(material.eta, material.k)
-        colour = [min(1.0, f * r) for f, r in zip(f0, material.specular_reflectance)]
-        return {"baseColorFactor": [*colour, 1.0], "metallicFactor": 1.0, "roughnessFactor": roughness}, {}
-    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
-                  "KHR_materials_ior": {"ior": float(material.int_ior / material.ext_ior)},
-                  "KHR_materials_volume": {"thicknessFactor": 1.0}}
-    return {"baseColorFactor": [*material.specular_transmittance, 1.0], "metallicFactor": 0.0,
-            "roughnessFactor": roughness}, extensions
-
-
-def _rotation_from_minus_z(direction) -> list[float]:
-    """The unit quaternion [x, y, z, w] (glTF's order) that turns -z, where a glTF light points, into the unit
-    vector ``direction``."""
-    d = np.asarray(direction, dtype=np.float64)
-    d = d / np.linalg.norm(d)
-    q = np.array([d[1], -d[0], 0.0, 1.0 - d[2]])  # [cross(-z, d), 1 + dot(-z, d)], normalised below
-    length = float(np.linalg.norm(q))
-    if length == 0.0:  # d = +z exactly: half a turn about x
-        return [1.0, 0.0, 0.0, 0.0]
-    return [float(x) + 0.0 for x in q / length]
-
-
-def _gltf_colour(rgb) -> tuple[list[float], float]:
-    """glTF's (color in [0, 1], intensity): color = rgb / its largest channel, intensity = that channel times
-    :data:`LUMENS_PER_WATT`."""
-    rgb = np.asarray(rgb, dtype=np.float64)
-    peak = float(rgb.max())
-    return [float(x) for x in rgb / peak], LUMENS_PER_WATT * peak
+    glTF extensions (docs/external-renderers.md, "glTF materials"): its type's
+    (:meth:`harness.scene.kinds.materials.MaterialKind.to_gltf`)."""
+    return MATERIALS[material.type].to_gltf(material)
 
 
 def gltf_light(emitter) -> tuple[dict, dict]:
-    """A point, spot or directional emitter as a ``KHR_lights_punctual`` light and the node that places it.
-
-    Intensity: candela (point, spot) or lux (directional) = :data:`LUMENS_PER_WATT` x the largest channel of the
-    RGB W/sr (W/m^2), colour = the RGB divided by that channel. Spot: ``outerConeAngle`` = ``cutoff_angle``,
-    ``innerConeAngle`` = ``beam_width`` (radians; glTF wants inner < outer, so inner is a hair smaller when they are
-    equal); glTF's falloff between them is left to the viewer (the spec's sample code fades with the square of a
-    ramp in cos), not Mitsuba's ramp linear in the angle. glTF lights have no size and fall off with 1/r^2, as
-    Mitsuba's.
-    """
-    quantity, place = GLTF_PUNCTUAL[emitter.type]
-    color, intensity = _gltf_colour(getattr(emitter, quantity))
-    light = {"name": emitter.name, "type": emitter.type, "color": color, "intensity": intensity}
-    node: dict = {"name": safe_name(emitter.name)}
-    place(emitter, light, node)
-    return light, node
+    """A point, spot or directional emitter as a ``KHR_lights_punctual`` light and the node that places it (its
+    type's, :meth:`harness.scene.kinds.emitters.EmitterKind.to_gltf`)."""
+    light, placement = EMITTERS[emitter.type].to_gltf(emitter)
+    return light, {"name": safe_name(emitter.name), **placement}
 
 
-def _place_point(emitter, light: dict, node: dict) -> None:
-    node["translation"] = [float(x) for x in emitter.position]
-
-
-def _place_spot(emitter, light: dict, node: dict) -> None:
-    outer = math.radians(emitter.cutoff_angle)
-    inner = min(math.radians(emitter.beam_width), math.nextafter(outer, 0.0))
-    light["spot"] = {"innerConeAngle": inner, "outerConeAngle": outer}
-    node["translation"] = [float(x) for x in emitter.position]
-    node["rotation"] = _rotation_from_minus_z(emitter.axis)
-
-
-def _place_directional(emitter, light: dict, node: dict) -> None:
-    node["rotation"] = _rotation_from_minus_z(emitter.direction)
-
-
-#: The emitter types of ``KHR_lights_punctual``: the field that holds each one's W/sr (W/m^2) and how its light and
-#: node are placed; glTF has no environment light.
-GLTF_PUNCTUAL = {"point": ("intensity", _place_point), "spot": ("intensity", _place_spot),
-                 "directional": ("irradiance", _place_directional)}
+def _in_gltf(emitter) -> bool:
+    """Whether glTF 2.0 has a light for the emitter's type (``KHR_lights_punctual``: point, spot, directional)."""
+    return EMITTERS[emitter.type].gltf is not None
 
 
 def _unique(name: str, taken: set[str]) -> str:
@@ -201,7 +127,7 @@ def _gltf_shape_material(shape, material) -> dict:
     channel (factor x strength = the radiance)."""
     factors, extensions = gltf_material(material)
     entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": plain(factors),
-                   "doubleSided": bool(material.two_sided or material.is_dielectric)}
+                   "doubleSided": MATERIALS[material.type].gltf_double_sided(material)}
     extensions = dict(extensions)
     if shape.is_emitter:
         emission = np.asarray(shape.emission, dtype=np.float64)
@@ -268,7 +194,7 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
     nodes.append(camera_node)
     lights = []
     for emitter in scene.emitters:
-        if emitter.type in GLTF_PUNCTUAL:
+        if _in_gltf(emitter):
             light, node = gltf_light(emitter)
             node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
             lights.append(light)
@@ -343,7 +269,7 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
         losses.append("OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials " + ", ".join(
             f"{m.name} ({m.type})" for m in glossy) + " written with Kd = their glTF base colour")
     if fmt == "gltf":
-        lost = [e for e in scene.emitters if e.type not in GLTF_PUNCTUAL]
+        lost = [e for e in scene.emitters if not _in_gltf(e)]
         if lost:
             losses.append(f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has "
                           "point, spot and directional lights only)")
@@ -352,24 +278,14 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
 
 
 def _gltf_material_losses(glossy) -> list[str]:
-    """What glTF's metallic-roughness model and its extensions cannot say exactly of the non-diffuse materials."""
-    def listed(materials) -> str:
-        return ", ".join(f"{m.name} ({m.type})" for m in materials)
-
+    """What glTF's metallic-roughness model and its extensions cannot say exactly of the non-diffuse materials: one
+    line per loss of :data:`harness.scene.kinds.materials.GLTF_LOSSES` that some of them have (their type's
+    ``gltf_losses``)."""
     losses = []
-    metals = [m for m in glossy if m.is_conductor and not (m.mirror and m.specular_reflectance == (1.0, 1.0, 1.0))]
-    if metals:
-        losses.append(f"glTF metals have Schlick's Fresnel from a base colour: {listed(metals)} written with base "
-                      "colour = normal-incidence reflectance x specular_reflectance (eta, k in the node's extras)")
-    beckmann = [m for m in glossy if m.is_rough and m.distribution == "beckmann"]
-    if beckmann:
-        losses.append(f"glTF's microfacets are GGX: {listed(beckmann)} (beckmann) written with roughness sqrt(alpha)")
-    tinted = [m for m in glossy if m.is_dielectric and m.specular_reflectance != (1.0, 1.0, 1.0)]
-    if tinted:
-        losses.append(f"glTF's transmission has no reflection tint: specular_reflectance of {listed(tinted)} left out")
-    sided = [m for m in glossy if m.is_conductor and not m.two_sided]
-    if sided:
-        losses.append(f"glTF's single-sided materials are culled from behind, not black: {listed(sided)}")
+    for loss, message in GLTF_LOSSES.items():
+        materials = [m for m in glossy if loss in MATERIALS[m.type].gltf_losses(m)]
+        if materials:
+            losses.append(message.format(materials=", ".join(f"{m.name} ({m.type})" for m in materials)))
     return losses
 
 

@@ -19,13 +19,14 @@ from trimesh.exchange.obj import parse_mtl
 
 from harness.files.imageio import read_exr
 from harness.renderers import RenderRequest, get_renderer
-from harness.renderers.export import export_scene, normal_incidence_reflectance
+from harness.renderers.export import export_scene
 from harness.renderers.meshfiles import safe_name
 from harness.renderers.mitsuba_spec import RR_DEPTH, bsdf_dict, clip_planes
 from harness.renderers.scene_json import FILTERS
 from harness.running.cases import load_suite
 from harness.running.judge import case_scene
 from harness.scene import load_scene
+from harness.scene.kinds.materials import normal_incidence_reflectance
 from harness.scene.triangulate import shape_triangles
 from reference_impl import Film
 

@@ -24,11 +24,12 @@ from harness.files.imageio import read_exr, write_exr
 from harness.judges.mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_scores
 from harness.judges.verdict import verdict
 from harness.renderers import RenderRequest, get_renderer
-from harness.renderers.export import LUMENS_PER_WATT, export_losses, export_scene
+from harness.renderers.export import export_losses, export_scene
 from harness.renderers.external import combine_repeats
 from harness.renderers.groundtruth import ground_truth, scene_digest
 from harness.renderers.mitsuba import import_mitsuba, scene_to_mitsuba_dict
 from harness.scene import load_scene
+from harness.scene.kinds.emitters import LUMENS_PER_WATT
 from harness.scene.triangulate import rotate_matrix
 
 VARIANT = "scalar_rgb"

@@ -1,7 +1,8 @@
 """The emitter types of ``[[emitters]]``, the emitters that are not shapes (Mitsuba's plugins of the same names and
 parameters, docs/scene-format.md, "Emitters"), one :class:`EmitterKind` each in :data:`EMITTERS`: its keys and their
 reading, its record of the core (:mod:`reference_impl.emitters`, whose defaults are the model's), its Mitsuba
-plugin, its scene.json entry and how a similarity transform of the scene moves it."""
+plugin, its scene.json entry, its glTF light where glTF has one, and how a similarity transform of the scene moves
+it."""
 
 from __future__ import annotations
 
@@ -24,6 +25,9 @@ ENVMAP_SUFFIXES = (".exr",)
 MAX_CUTOFF_ANGLE = 90.0
 MIN_ENVMAP_SIZE = (2, 3)  # width, height: Mitsuba pads smaller maps (repeating edges), which would move the texels
 ORTHONORMAL_TOLERANCE = 1e-5  # an envmap's to_world: |M^T M - I| at most this (entries typed with 6 digits pass)
+#: lumens per watt: a radiometric W/sr (W/m^2) is written to glTF as this many candela (lux), the convention of
+#: Blender's glTF importer ("Standard" lighting), which turns the candela back into the same watts
+LUMENS_PER_WATT = 683.0
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,10 @@ class EmitterKind:
     moved : callable
         ``moved(emitter, matrix, area)``: the emitter under the similarity ``matrix`` that scales areas by ``area``
         (intensities scale with it, so the image stays the same); infinitely far ones are unchanged.
+    gltf : callable or None
+        ``gltf(emitter) -> (rgb, dict, dict)``: a ``KHR_lights_punctual`` type's W/sr (W/m^2), the light's keys
+        beyond name, type, color and intensity, and its node's placement (``translation``, ``rotation``); None for
+        a type glTF 2.0 has no light for (an environment).
     """
 
     name: str
@@ -68,6 +76,7 @@ class EmitterKind:
     environment: bool = False
     textured: bool = False
     moved: Callable[[Emitter, np.ndarray, float], Emitter] = lambda emitter, _matrix, _area: emitter
+    gltf: Callable[[Emitter], tuple[Any, dict, dict]] | None = None
 
     def to_mitsuba(self, emitter: Emitter, texture: str | None = None) -> dict:
         """Mitsuba's plugin of ``emitter`` (docs/mitsuba.md, "Emitters"): its parameters written out, colours as
@@ -77,6 +86,17 @@ class EmitterKind:
     def to_scene_json(self, emitter: Emitter, texture: str | None = None) -> dict:
         """The scene.json entry of ``emitter``: index, name, type and its parameters; ``texture`` names its image."""
         return {"index": emitter.index, "name": emitter.name, "type": self.name, **self.json(emitter, texture)}
+
+    def to_gltf(self, emitter: Emitter) -> tuple[dict, dict]:
+        """``emitter`` as a ``KHR_lights_punctual`` light and its node's placement (the node's name aside).
+
+        Intensity: candela (point, spot) or lux (directional) = :data:`LUMENS_PER_WATT` x the largest channel of
+        the RGB W/sr (W/m^2), colour = the RGB divided by that channel. glTF lights have no size and fall off with
+        1/r^2, as Mitsuba's. Only for types with a glTF light (``gltf`` not None).
+        """
+        radiometric, keys, placement = self.gltf(emitter)
+        color, intensity = _gltf_colour(radiometric)
+        return {"name": emitter.name, "type": self.name, "color": color, "intensity": intensity, **keys}, placement
 
 
 def read_emitters(reader, document: dict) -> tuple[Emitter, ...]:
@@ -262,6 +282,45 @@ def _envmap_image(emitter: EnvironmentMap, texture: str | None) -> ImageFile:
     return ImageFile(texture, emitter.image)
 
 
+def _gltf_colour(rgb_values) -> tuple[list[float], float]:
+    """glTF's (color in [0, 1], intensity): color = rgb / its largest channel, intensity = that channel times
+    :data:`LUMENS_PER_WATT`."""
+    values = np.asarray(rgb_values, dtype=np.float64)
+    peak = float(values.max())
+    return [float(x) for x in values / peak], LUMENS_PER_WATT * peak
+
+
+def _rotation_from_minus_z(direction) -> list[float]:
+    """The unit quaternion [x, y, z, w] (glTF's order) that turns -z, where a glTF light points, into the unit
+    vector ``direction``."""
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    q = np.array([d[1], -d[0], 0.0, 1.0 - d[2]])  # [cross(-z, d), 1 + dot(-z, d)], normalised below
+    length = float(np.linalg.norm(q))
+    if length == 0.0:  # d = +z exactly: half a turn about x
+        return [1.0, 0.0, 0.0, 0.0]
+    return [float(x) + 0.0 for x in q / length]
+
+
+def _gltf_point(emitter: PointLight) -> tuple[Any, dict, dict]:
+    return emitter.intensity, {}, {"translation": [float(x) for x in emitter.position]}
+
+
+def _gltf_spot(emitter: SpotLight) -> tuple[Any, dict, dict]:
+    """``outerConeAngle`` = ``cutoff_angle``, ``innerConeAngle`` = ``beam_width`` (radians; glTF wants inner <
+    outer, so inner is a hair smaller when they are equal); glTF's falloff between them is left to the viewer (the
+    spec's sample code fades with the square of a ramp in cos), not Mitsuba's ramp linear in the angle."""
+    outer = math.radians(emitter.cutoff_angle)
+    inner = min(math.radians(emitter.beam_width), math.nextafter(outer, 0.0))
+    placement = {"translation": [float(x) for x in emitter.position],
+                 "rotation": _rotation_from_minus_z(emitter.axis)}
+    return emitter.intensity, {"spot": {"innerConeAngle": inner, "outerConeAngle": outer}}, placement
+
+
+def _gltf_directional(emitter: DirectionalLight) -> tuple[Any, dict, dict]:
+    return emitter.irradiance, {}, {"rotation": _rotation_from_minus_z(emitter.direction)}
+
+
 #: Every emitter type by its name, in :data:`harness.scene.model.EMITTER_TYPES`'s order.
 EMITTERS: dict[str, EmitterKind] = {kind.name: kind for kind in (
     EmitterKind(
@@ -269,7 +328,7 @@ EMITTERS: dict[str, EmitterKind] = {kind.name: kind for kind in (
         to_core=lambda e: reference_impl.Point(position=e.position, intensity=e.intensity),
         parameters=lambda e, _t: {"position": Point(xyz(e.position)), "intensity": rgb(e.intensity)},
         json=lambda e, _t: {"position": _numbers(e.position), "intensity": _numbers(e.intensity)},
-        moved=_moved_point),
+        moved=_moved_point, gltf=_gltf_point),
     EmitterKind(
         "spot", SpotLight,
         ("name", "type", "position", "target", "to_world", "intensity", "cutoff_angle", "beam_width"), _read_spot,
@@ -280,12 +339,13 @@ EMITTERS: dict[str, EmitterKind] = {kind.name: kind for kind in (
         json=lambda e, _t: {"to_world": _numbers(e.to_world), "position": _numbers(e.position),
                             "axis": _numbers(e.axis), "intensity": _numbers(e.intensity),
                             "cutoff_angle": float(e.cutoff_angle), "beam_width": float(e.beam_width)},
-        moved=_moved_spot),
+        moved=_moved_spot, gltf=_gltf_spot),
     EmitterKind(
         "directional", DirectionalLight, ("name", "type", "direction", "irradiance"), _read_directional,
         to_core=lambda e: reference_impl.Directional(direction=e.direction, irradiance=e.irradiance),
         parameters=lambda e, _t: {"direction": Vector(xyz(e.direction)), "irradiance": rgb(e.irradiance)},
-        json=lambda e, _t: {"direction": _numbers(e.direction), "irradiance": _numbers(e.irradiance)}),
+        json=lambda e, _t: {"direction": _numbers(e.direction), "irradiance": _numbers(e.irradiance)},
+        gltf=_gltf_directional),
     EmitterKind(
         "constant", ConstantEnvironment, ("name", "type", "radiance"), _read_constant,
         to_core=lambda e: reference_impl.Constant(radiance=e.radiance),

@@ -1,10 +1,11 @@
 """The material types of a ``[materials.NAME]`` table (Mitsuba's BSDF plugins of the same names and parameters,
 docs/scene-format.md, "Materials"), one :class:`MaterialKind` each in :data:`MATERIALS`: its keys and their reading,
-its row of the core's table (:mod:`reference_impl.materials`, whose defaults are the model's), its Mitsuba plugin and
-its scene.json entry."""
+its row of the core's table (:mod:`reference_impl.materials`, whose defaults are the model's), its Mitsuba plugin,
+its scene.json entry and its glTF 2.0 material with what that form loses."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -49,8 +50,13 @@ class MaterialKind:
         ``parameters(material) -> dict``: the parameters of its Mitsuba plugin, every one written out.
     json : callable
         ``json(material) -> dict``: its parameters in the scene.json entry (``type`` and ``two_sided`` aside).
+    gltf : callable
+        ``gltf(material) -> (dict, dict)``: its glTF 2.0 metallic-roughness factors (the keys of
+        ``pbrMetallicRoughness``) and its glTF extensions (docs/external-renderers.md, "glTF materials").
     refused : tuple of (str, str)
         Keys of other types that this one refuses with a reason of their own.
+    gltf_losses : callable
+        ``gltf_losses(material) -> tuple of str``: the keys of :data:`GLTF_LOSSES` that its glTF form loses.
     """
 
     name: str
@@ -59,7 +65,9 @@ class MaterialKind:
     read: Callable[[Any, dict, str], dict]
     parameters: Callable[[Material], dict]
     json: Callable[[Material], dict]
+    gltf: Callable[[Material], tuple[dict, dict]]
     refused: tuple[tuple[str, str], ...] = ()
+    gltf_losses: Callable[[Material], tuple[str, ...]] = lambda _material: ()
 
     @property
     def two_sided(self) -> bool:
@@ -89,6 +97,15 @@ class MaterialKind:
         if self.two_sided:
             out["two_sided"] = bool(material.two_sided)
         return out
+
+    def to_gltf(self, material: Material) -> tuple[dict, dict]:
+        """The glTF 2.0 metallic-roughness factors of ``material`` and its glTF extensions."""
+        return self.gltf(material)
+
+    def gltf_double_sided(self, material: Material) -> bool:
+        """glTF's ``doubleSided`` of ``material``: two-sided, or of a type that light crosses from either side (one
+        without ``two_sided``, a dielectric)."""
+        return bool(material.two_sided or not self.two_sided)
 
 
 def read_material(reader, name: str, entry: Any) -> Material:
@@ -265,6 +282,71 @@ def _dielectric_json(material: Material) -> dict:
             "specular_transmittance": _numbers(material.specular_transmittance)}
 
 
+# ---- glTF's material and what it loses ---------------------------------------------------------------------------
+
+
+#: What glTF's metallic-roughness model and its extensions cannot say exactly of a material, by key, in the order the
+#: export lists them; ``{materials}`` is the list of the materials that lose it.
+GLTF_LOSSES: dict[str, str] = {
+    "fresnel": ("glTF metals have Schlick's Fresnel from a base colour: {materials} written with base colour = "
+                "normal-incidence reflectance x specular_reflectance (eta, k in the node's extras)"),
+    "beckmann": "glTF's microfacets are GGX: {materials} (beckmann) written with roughness sqrt(alpha)",
+    "tint": "glTF's transmission has no reflection tint: specular_reflectance of {materials} left out",
+    "culled": "glTF's single-sided materials are culled from behind, not black: {materials}",
+}
+_WHITE = (1.0, 1.0, 1.0)
+
+
+def normal_incidence_reflectance(eta, k) -> list[float]:
+    """A conductor's Fresnel reflectance at normal incidence, per channel: ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2)
+    (1 for Mitsuba's perfect mirror eta = 0, k = 1)."""
+    eta, k = np.asarray(eta, dtype=np.float64), np.asarray(k, dtype=np.float64)
+    return [float(x) for x in ((eta - 1) ** 2 + k**2) / ((eta + 1) ** 2 + k**2)]
+
+
+def _diffuse_gltf(material: Material) -> tuple[dict, dict]:
+    """Base colour = reflectance, metallic 0, roughness 1."""
+    return {"baseColorFactor": [*material.reflectance, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}, {}
+
+
+def _conductor_gltf(material: Material, roughness: float) -> tuple[dict, dict]:
+    """Metallic 1, base colour = the normal-incidence Fresnel reflectance times specular_reflectance (exact for a
+    perfect mirror; glTF's Schlick Fresnel approximates the others)."""
+    f0 = normal_incidence_reflectance(material.eta, material.k)
+    colour = [min(1.0, f * r) for f, r in zip(f0, material.specular_reflectance)]
+    return {"baseColorFactor": [*colour, 1.0], "metallicFactor": 1.0, "roughnessFactor": roughness}, {}
+
+
+def _dielectric_gltf(material: Material, roughness: float) -> tuple[dict, dict]:
+    """Metallic 0, base colour = specular_transmittance, ``KHR_materials_transmission`` 1, ``KHR_materials_ior`` =
+    int_ior / ext_ior (glTF's outside is index 1, so the relative index keeps the interface),
+    ``KHR_materials_volume`` (a solid that refracts, not a thin wall)."""
+    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                  "KHR_materials_ior": {"ior": float(material.int_ior / material.ext_ior)},
+                  "KHR_materials_volume": {"thicknessFactor": 1.0}}
+    return {"baseColorFactor": [*material.specular_transmittance, 1.0], "metallicFactor": 0.0,
+            "roughnessFactor": roughness}, extensions
+
+
+def _rough_gltf_roughness(material: Material) -> float:
+    """glTF's roughness of a rough type: sqrt(alpha) (glTF's GGX alpha is roughness^2: exact for ggx)."""
+    return math.sqrt(material.alpha)
+
+
+def _conductor_gltf_losses(material: Material) -> tuple[str, ...]:
+    """A conductor loses its Fresnel unless it is a white perfect mirror, and its back side unless two-sided."""
+    fresnel = () if material.mirror and material.specular_reflectance == _WHITE else ("fresnel",)
+    return fresnel + (() if material.two_sided else ("culled",))
+
+
+def _beckmann_gltf_losses(material: Material) -> tuple[str, ...]:
+    return ("beckmann",) if material.distribution == "beckmann" else ()
+
+
+def _dielectric_gltf_losses(material: Material) -> tuple[str, ...]:
+    return ("tint",) if material.specular_reflectance != _WHITE else ()
+
+
 _CONDUCTOR_KEYS = ("type", "material", "eta", "k", "specular_reflectance", "two_sided")
 _DIELECTRIC_KEYS = ("type", "int_ior", "ext_ior", "specular_reflectance", "specular_transmittance")
 _ROUGH_KEYS = ("alpha", "distribution", "sample_visible")
@@ -276,19 +358,26 @@ _NOT_TWO_SIDED = (("two_sided", "light crosses it from either side (Mitsuba's tw
 MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
     MaterialKind("diffuse", core.DIFFUSE, ("type", "reflectance", "two_sided"), _read_diffuse,
                  parameters=lambda m: {"reflectance": rgb(m.reflectance)},
-                 json=lambda m: {"reflectance": _numbers(m.reflectance)}),
+                 json=lambda m: {"reflectance": _numbers(m.reflectance)}, gltf=_diffuse_gltf),
     MaterialKind("conductor", core.CONDUCTOR, _CONDUCTOR_KEYS, _read_conductor,
-                 parameters=_conductor_parameters, json=_conductor_json),
+                 parameters=_conductor_parameters, json=_conductor_json,
+                 gltf=lambda m: _conductor_gltf(m, 0.0), gltf_losses=_conductor_gltf_losses),
     MaterialKind("roughconductor", core.ROUGHCONDUCTOR, _CONDUCTOR_KEYS + _ROUGH_KEYS,
                  lambda reader, entry, key: {**_read_conductor(reader, entry, key),
                                              **_roughness(reader, entry, key)},
                  parameters=lambda m: {**_conductor_parameters(m), **_rough_parameters(m)},
-                 json=lambda m: {**_conductor_json(m), **_rough_parameters(m)}),
+                 json=lambda m: {**_conductor_json(m), **_rough_parameters(m)},
+                 gltf=lambda m: _conductor_gltf(m, _rough_gltf_roughness(m)),
+                 gltf_losses=lambda m: _conductor_gltf_losses(m) + _beckmann_gltf_losses(m)),
     MaterialKind("dielectric", core.DIELECTRIC, _DIELECTRIC_KEYS, _read_dielectric,
-                 parameters=_dielectric_parameters, json=_dielectric_json, refused=_NOT_TWO_SIDED),
+                 parameters=_dielectric_parameters, json=_dielectric_json,
+                 gltf=lambda m: _dielectric_gltf(m, 0.0), refused=_NOT_TWO_SIDED,
+                 gltf_losses=_dielectric_gltf_losses),
     MaterialKind("roughdielectric", core.ROUGHDIELECTRIC, _DIELECTRIC_KEYS + _ROUGH_KEYS, _read_roughdielectric,
                  parameters=lambda m: {**_dielectric_parameters(m), **_rough_parameters(m)},
-                 json=lambda m: {**_dielectric_json(m), **_rough_parameters(m)}, refused=_NOT_TWO_SIDED),
+                 json=lambda m: {**_dielectric_json(m), **_rough_parameters(m)},
+                 gltf=lambda m: _dielectric_gltf(m, _rough_gltf_roughness(m)), refused=_NOT_TWO_SIDED,
+                 gltf_losses=lambda m: _beckmann_gltf_losses(m) + _dielectric_gltf_losses(m)),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.
