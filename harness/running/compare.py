@@ -38,12 +38,8 @@ def _variance_dof(image: ExrImage) -> int | None:
             return int(str(raw).strip())
     except ValueError:
         pass
-    raw = image.metadata.get("spp") if image.metadata else None
-    try:
-        spp = int(str(raw).strip())
-    except (TypeError, ValueError):
-        return None
-    return spp - 1 if spp >= 2 else None
+    spp = _spp(image)
+    return spp - 1 if spp is not None and spp >= 2 else None
 
 
 def _spp(image: ExrImage) -> int | None:
