@@ -212,7 +212,7 @@ class _Context:
                  emitters: Emitters | None = None, materials: Materials | None = None):
         if settings.max_depth is None:
             raise SettingsError("max_depth", "expected the scene's max_depth to be resolved before rendering")
-        settings = settings.resolved(is_glossy(materials))  # a no-op where render() resolved them already
+        settings = settings.resolved(is_glossy(materials))  # direct = auto and rr = auto: the one place
         self.glossy_engine, self.materials = _glossy_engine(geometry, settings, emitters, materials)
         self.max_depth = settings.resolved_max_depth(settings.max_depth)
         self.geometry = geometry
@@ -335,11 +335,11 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     (:class:`Materials`, in the order ``geometry.material`` indexes), or None (all Lambertian, as
     ``geometry.reflectance`` says). None or all diffuse runs the Lambertian engines (``settings.engine``); a
     material that is not diffuse, ``direct = bsdf`` or ``rr = throughput`` or ``pbrt`` the glossy engine (kernels/glossy.py).
-    ``direct = auto`` and ``rr = auto`` are resolved here (:meth:`Settings.resolved`, for
+    ``direct = auto`` and ``rr = auto`` are resolved by the render's context (:meth:`Settings.resolved`, for
     :func:`~reference_impl.materials.is_glossy`); the output's settings hold the resolved ones.
     """
-    settings = settings.resolved(is_glossy(materials))
     ctx = _Context(geometry, camera, film, settings, emitters, materials)
+    settings = ctx.settings
     kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp
     num_pixels = width * height

@@ -35,7 +35,7 @@ from reference_impl import integrator
 from reference_impl.camera import Camera, Film
 from reference_impl.emitters import Emitters
 from reference_impl.geometry import Geometry
-from reference_impl.materials import Materials, is_glossy
+from reference_impl.materials import Materials
 from reference_impl.settings import Settings
 
 PHASES = ("camera", "closest", "occlusion")
@@ -134,8 +134,8 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
     an order that spreads them over the film, until at least ``max_rays`` queries are recorded (or the whole film
     is). The rays are those of the render (same settings, seed and pixels). Single-threaded: the threads count
     only in the replay (``log.threads`` = the render's)."""
-    settings = settings.resolved(is_glossy(materials))
     ctx = integrator._Context(geometry, camera, film, settings, emitters, materials)
+    settings = ctx.settings
     log = RayLog(scene_pointer=ctx.intersector.scene_pointer, packet_width=ctx.intersector.packet_width,
                  threads=settings.worker_threads(),
                  stats=dict.fromkeys(integrator.COUNTERS, 0) | {integrator.EMBREE_MICROSECONDS: 0},
