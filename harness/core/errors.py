@@ -30,18 +30,6 @@ class HarnessError(Exception):
         self.message = message
 
 
-def image_error(err: ValueError, names: tuple[str, ...]) -> HarnessError | None:
-    """A judge's ``ValueError`` about one of the images it was handed under ``names`` (its text begins with that
-    name and ": ", as :func:`harness.judges.verdict.verdict` names an image whose own arrays are unusable) as the
-    HarnessError at that image, with the same text; None for any other ``ValueError`` (a caller's own bad argument,
-    which stays one)."""
-    text = str(err)
-    for name in sorted(names, key=len, reverse=True):  # the longer name first, should one begin the other
-        if name and text.startswith(f"{name}: "):
-            return HarnessError(name, text[len(name) + 2:])
-    return None
-
-
 def file_kind(mode: int) -> str:
     """"a regular file", "a directory", "a character device", ... for an ``st_mode``."""
     if stat.S_ISREG(mode):
@@ -113,5 +101,5 @@ def read_user_toml(path, *, missing: str) -> dict:
         raise HarnessError(str(path), f"invalid TOML: {err}") from None
 
 
-__all__ = ["HarnessError", "MAX_TEXT_BYTES", "file_kind", "image_error", "not_regular", "read_user_bytes",
+__all__ = ["HarnessError", "MAX_TEXT_BYTES", "file_kind", "not_regular", "read_user_bytes",
            "read_user_text", "read_user_toml"]

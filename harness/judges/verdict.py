@@ -80,7 +80,7 @@ import numpy as np
 
 from harness.judges.distributions import chi2_sf, normal_isf, normal_sf, student_t_sf
 
-__all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "TileMaps", "Verdict", "tile_z_scores", "verdict"]
+__all__ = ["CHANNELS", "ROUNDING_RTOL", "SUBTESTS", "ImageError", "TileMaps", "Verdict", "tile_z_scores", "verdict"]
 
 CHANNELS: tuple[str, str, str] = ("R", "G", "B")
 #: Relative tolerance for values that carry no Monte Carlo noise: ~16 float32 ulps.
@@ -329,10 +329,19 @@ def _dof_array(name: str, dof: object, shape: tuple[int, ...]) -> np.ndarray:
     return arr
 
 
-def _image_error(name: str, message: str) -> ValueError:
-    """A problem in one image's own arrays, ``"<name>: <message>"``, the image named as ``verdict``'s ``names``
-    name it."""
-    return ValueError(f"{name}: {message}" if name else message)
+class ImageError(ValueError):
+    """A problem in one image's own arrays (``image``: the image as ``verdict``'s ``names`` name it; ``message``:
+    what is wrong), ``"<image>: <message>"`` as text; a caller that took the image from a file turns it into that
+    file's one-line error."""
+
+    def __init__(self, image: str, message: str):
+        super().__init__(f"{image}: {message}" if image else message)
+        self.image, self.message = image, message
+
+
+def _image_error(name: str, message: str) -> ImageError:
+    """A problem in one image's own arrays, the image named as ``verdict``'s ``names`` name it."""
+    return ImageError(name, message)
 
 
 def _check_variance(name: str, variance: np.ndarray, image_ok: np.ndarray) -> None:

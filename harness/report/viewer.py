@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core.errors import image_error
+from harness.core.errors import HarnessError
 from harness.files import imageio
 from harness.files.cases import GroundTruthImage
 from harness.files.confined import first_inside
 from harness.files.previews import ReportImage, display_exposure
 from harness.files.viewer_data import PVALUE_TOP, THUMBNAIL_SIDE, ViewerData, make_viewer_data, read_viewer_data
 from harness.judges import metrics
-from harness.judges.verdict import TileMaps, verdict
+from harness.judges.verdict import ImageError, TileMaps, verdict
 from harness.report.html import data_uri, render, static_script, static_style
 
 #: the viewer's scripts, in the order the page runs them (each may use those before it)
@@ -127,7 +127,7 @@ def tiles_again(render: np.ndarray, render_variance: np.ndarray | None, truth: G
     with the tile, alpha and variance degrees of freedom its record names, the render's ``spp`` and the ground
     truth's (which tiles are too sparse to judge; per-pixel degrees of freedom,
     ``{"min", "max"}``, are taken as exact: the tiles' z then differ a little from the run's). None without a
-    render variance or a verdict. The verdict's ``ValueError`` about an image's own arrays (a NaN variance, a
+    render variance or a verdict. The verdict's ``ImageError`` about an image's own arrays (a NaN variance, a
     non-finite ground truth) is raised as the HarnessError naming that image."""
     if render_variance is None or not isinstance(record_verdict, dict) or not record_verdict.get("tile"):
         return None
@@ -139,11 +139,10 @@ def tiles_again(render: np.ndarray, render_variance: np.ndarray | None, truth: G
                           expected_dof=_dof(dof.get("ground_truth", dof.get("reference"))), test_spp=_dof(spp),
                           expected_spp=float(truth.spp) if truth.spp and truth.source != "closed-form" else None,
                           names=names)
-    except ValueError as err:
-        user = image_error(err, names)
-        if user is None:
+    except ImageError as err:
+        if not err.image:
             raise
-        raise user from None
+        raise HarnessError(err.image, err.message) from None
     return outcome.tiles
 
 

@@ -19,12 +19,12 @@ from typing import Any
 
 import numpy as np
 
-from harness.core.errors import HarnessError, image_error
+from harness.core.errors import HarnessError
 from harness.core.jsonsafe import plain
 from harness.files.imageio import ExrImage, read_exr
 from harness.judges import metrics
 from harness.judges.diagnose import diagnose as diagnose_images
-from harness.judges.verdict import verdict
+from harness.judges.verdict import ImageError, verdict
 
 __all__ = ["compare_files", "compare_images", "image_facts", "judge", "swapped_warning"]
 
@@ -115,17 +115,17 @@ def judge(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0
     (``variance_dof``, else ``spp`` - 1): what a case is judged by, without the metrics (``harness calibrate``
     judges thousands of planted images with it). Returns the :class:`harness.judges.verdict.Verdict`.
 
-    The verdict's ``ValueError`` about an image's own arrays (a variance missing, NaN, infinite or negative, a
-    non-finite ground truth) is raised as the :class:`HarnessError` naming that image (``names``), with its text."""
+    The verdict's :class:`~harness.judges.verdict.ImageError` about an image's own arrays (a variance missing, NaN,
+    infinite or negative, a non-finite ground truth) is raised as the :class:`HarnessError` naming that image
+    (``names``), with its text."""
     try:
         return verdict(test.image, test.variance, expected.image, expected.variance, tile=tile, alpha=alpha,
                        test_dof=_variance_dof(test), expected_dof=_variance_dof(expected), names=names,
                        test_spp=_spp(test), expected_spp=_spp(expected))
-    except ValueError as err:
-        user = image_error(err, names)
-        if user is None:
+    except ImageError as err:
+        if not err.image:
             raise
-        raise user from None
+        raise HarnessError(err.image, err.message) from None
 
 
 def compare_images(test: ExrImage, expected: ExrImage, *, tile: int = 8, alpha: float = 0.01,
