@@ -300,7 +300,7 @@ VERDICT = Obj({
                                 "stderr": NON_NEGATIVE, "z": NUM_OR_NULL, "z_normal": NUM_OR_NULL,
                                 "dof": NON_NEGATIVE})),
     "variance_dof": Obj({"test": DOF}, {"ground_truth": DOF, "reference": DOF})},  # "reference": its older name
-    {"variance_floor": Obj({"neighbourhood": COUNT, "tiles": COUNT}),  # both absent in runs by older harnesses
+    {"variance_floor": Obj({"neighbourhood": COUNT, "tiles": COUNT}, {"dispersed": COUNT}),  # absent in older runs
      "sparse": Obj({"min_samples": NON_NEGATIVE, "tiles": COUNT, "share": PROBABILITY})})
 
 RENDER = Obj({"seconds": SECONDS, "spp": COUNT, "paths_per_second": NON_NEGATIVE, "rays": DictOf(COUNT),

@@ -56,6 +56,11 @@ floor keeps those tiles' z near their true scale (docs/verdict.md,
 fewer than :data:`MIN_SAMPLES` effective samples (:func:`_sparse_tiles`) is
 left out of the three sub-tests and counted: its mean is a count of a few
 rare samples, not normal (docs/verdict.md, "Tiles too sparse to judge").
+Where the variance ratios of adjacent tiles (the less certain image's to the
+other's) are far more dispersed than their dof say (:func:`_dispersion_dof`:
+fewer than :data:`DISPERSED_DOF`; a tile drew a rare sample or drew none), the
+tile's dof are capped by that dispersion (docs/verdict.md, "Variance estimates
+more dispersed than their dof").
 
 References
 ----------
@@ -100,6 +105,11 @@ GUIDE_FACTOR = 300.0
 #: A tile is judged only where each image's estimate of it holds at least this many effective samples,
 #: :math:`M^2 / S^2` (``_sparse_tiles``); below it the tile's mean is a count of a few rare samples, not normal.
 MIN_SAMPLES = 10.0
+#: A tile's degrees of freedom are capped by those its neighbourhood's variance ratios show (``_dispersion_dof``)
+#: where these are fewer than this: estimates that split by factors of 100 between adjacent tiles (a tile drew a rare
+#: sample or drew none), not the smooth change of two renderers' relative efficiency across an image
+#: (docs/verdict.md, "Variance estimates more dispersed than their dof").
+DISPERSED_DOF = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,8 +153,10 @@ class Verdict:
     use), ``dof``; None if there is no tile.
     ``variance_dof``: the degrees of freedom of the variance estimates used
     (None: taken as exact).
-    ``variance_floor``: ``neighbourhood`` (its radius in tiles) and ``tiles``
-    (tile-channels where the neighbourhood raised either image's variance).
+    ``variance_floor``: ``neighbourhood`` (its radius in tiles), ``tiles``
+    (tile-channels where the neighbourhood raised either image's variance) and
+    ``dispersed`` (tested tile-channels whose dof the dispersion of their
+    neighbourhood's variance ratios capped, :data:`DISPERSED_DOF`).
     ``sparse``: ``min_samples`` (:data:`MIN_SAMPLES`), ``tiles`` (noisy tile-channels left out of the sub-tests:
     fewer effective samples than that) and ``share`` (their part of the noisy tiles' summed brightness).
     """
@@ -192,25 +204,33 @@ def _tile_sum(x: np.ndarray, tile: int) -> np.ndarray:
     return x.reshape(th, tile, tw, tile, c).sum(axis=(1, 3))
 
 
-def _box(arrays: tuple[np.ndarray, ...], radius: int, guide: np.ndarray, factor: float) -> list[np.ndarray]:
-    """Sums of each of ``arrays`` over the (2 radius + 1)^2 tiles around each tile (those inside the grid), per
-    channel, counting only the tiles whose ``guide`` lies within ``factor`` of the centre tile's (either way)."""
+def _box(arrays: tuple[np.ndarray, ...], radius: int, guide: np.ndarray, factor: float,
+         inside: bool = False) -> list[np.ndarray]:
+    """Sums of each of ``arrays`` over the (2 radius + 1)^2 tiles around each tile, per channel, counting only the
+    tiles whose ``guide`` lies within ``factor`` of the centre tile's (either way). The window is centred on the
+    tile and cut at the grid's edges, or with ``inside`` shifted to lie inside the grid (as many tiles at an edge or
+    a corner as in the middle, where the grid is that large)."""
     h, w = guide.shape[:2]
+    size = 2 * radius + 1
 
-    def pad(x, fill):
-        padded = np.full((h + 2 * radius, w + 2 * radius) + x.shape[2:], fill)
-        padded[radius:radius + h, radius:radius + w] = x
-        return padded
+    def starts(length):
+        return np.clip(np.arange(length) - radius, 0, max(length - size, 0)) if inside else np.arange(length) - radius
 
-    padded, padded_guide = [pad(x, 0.0) for x in arrays], pad(guide, np.nan)
+    row0, col0 = starts(h), starts(w)
     out = [np.zeros(guide.shape) for _ in arrays]
     with np.errstate(invalid="ignore"):
-        for dy in range(2 * radius + 1):
-            for dx in range(2 * radius + 1):
-                g = padded_guide[dy:dy + h, dx:dx + w]
-                alike = (g * factor >= guide) & (g <= guide * factor)  # NaN (outside the grid): False
-                for total, x in zip(out, padded):
-                    total += np.where(alike, x[dy:dy + h, dx:dx + w], 0.0)
+        for dy in range(size):
+            rows = row0 + dy
+            row_ok = (rows >= 0) & (rows < h)
+            rows = np.clip(rows, 0, h - 1)
+            for dx in range(size):
+                cols = col0 + dx
+                ok = row_ok[:, None] & ((cols >= 0) & (cols < w))[None, :]
+                cols = np.clip(cols, 0, w - 1)
+                g = guide[rows][:, cols]
+                alike = ok[..., None] & (g * factor >= guide) & (g <= guide * factor)  # NaN: False
+                for total, x in zip(out, arrays):
+                    total += np.where(alike, x[rows][:, cols], 0.0)
     return out
 
 
@@ -249,6 +269,41 @@ def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np
     with np.errstate(divide="ignore", invalid="ignore"):
         floor = np.where(nb_w > 0, other_sum * nb_v / nb_w, 0.0)
     return floor, _welch_dof(nb_v, nb_welch)
+
+
+def _dispersion_dof(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, radius: int) -> np.ndarray:
+    r"""The degrees of freedom one image's tile variances show across each tile's neighbourhood.
+
+    If a tile's variance estimate is :math:`V_k = \sigma_k^2 \chi^2_\nu / \nu`, its ratio to the other image's,
+    :math:`r_k = V_k / W_k` (the other image as the shape), has :math:`E(r) = \rho` and
+    :math:`E[(r_a - r_b)^2] = 2 \mathrm{Var}(r) = 4 \rho^2 / \nu` for two tiles a, b of the same ratio
+    :math:`\rho`. Over the adjacent pairs (a tile and its right or lower neighbour, alike by the guide of
+    :func:`_neighbourhood_floor`) in the (2 radius + 1)^2 window around each tile, shifted to lie inside the grid,
+
+    .. math:: \nu_d = 4 \sum r_a r_b / \sum (r_a - r_b)^2
+
+    (method of moments; adjacent pairs so that a smooth change of the two estimators' relative efficiency across the
+    image does not count as dispersion). inf where no pair differs, the other image has no variance, or ``radius``
+    is 0. Welch's dof take each pixel's estimate to be :math:`\chi^2` with its nominal dof; where a renderer's
+    variance rides on rare, large samples, a tile drew one or none and its ratio is 100 times above or below its
+    neighbour's, and :math:`\nu_d` falls below one."""
+    if radius <= 0:
+        return np.full(v_sum.shape, np.inf)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        guide = np.where(n > 0, other_sum / n, 0.0)
+        guide = np.where(guide > 0, guide, np.nan)
+        ratio = np.where(np.isfinite(guide), v_sum / other_sum, 0.0)
+    squares, products = np.zeros(v_sum.shape), np.zeros(v_sum.shape)
+    with np.errstate(invalid="ignore"):
+        for first, second in (((slice(None), slice(None, -1)), (slice(None), slice(1, None))),
+                              ((slice(None, -1), slice(None)), (slice(1, None), slice(None)))):
+            a, b, ga, gb = ratio[first], ratio[second], guide[first], guide[second]
+            alike = (ga * GUIDE_FACTOR >= gb) & (gb * GUIDE_FACTOR >= ga)  # NaN: False
+            squares[first] += np.where(alike, (a - b) ** 2, 0.0)
+            products[first] += np.where(alike, a * b, 0.0)
+    sum_squares, sum_products = _box((squares, products), radius, guide, GUIDE_FACTOR, inside=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(sum_squares > 0, 4.0 * sum_products / sum_squares, np.inf)
 
 
 def _sparse_tiles(mean_sum: np.ndarray, vt_sum: np.ndarray, vr_sum: np.ndarray, test_spp: float | None,
@@ -405,7 +460,8 @@ class _Tiles:
     ``dof``: the tile's :math:`\nu = \min(\nu_T, \nu_R)`; ``zero``: tiles with pixels and no variance at all;
     ``noisy``: tiles with pixels and some variance; ``sparse``: noisy tiles too sparse to judge; ``tested``: the
     noisy tiles the sub-tests use (not sparse); ``differing``: zero-variance tiles whose images differ beyond
-    rounding; ``raised``: tiles where the floor raised either image's variance; ``mean_sum``: the larger of the two
+    rounding; ``raised``: tiles where the floor raised either image's variance; ``dispersed``: tiles whose dof the
+    dispersion of their neighbourhood's variances capped; ``mean_sum``: the larger of the two
     images' tile sums, :math:`M`. ``image_dof``: per channel, :math:`\min(\nu_T, \nu_R)` over the whole image."""
 
     n: np.ndarray
@@ -419,6 +475,7 @@ class _Tiles:
     tested: np.ndarray
     differing: np.ndarray
     raised: np.ndarray
+    dispersed: np.ndarray
     mean_sum: np.ndarray
     image_dof: np.ndarray
 
@@ -499,9 +556,9 @@ def _pixel_terms(t: np.ndarray, vt: np.ndarray, r: np.ndarray, vr: np.ndarray, n
                    t=t, r=r, nonfinite=int(np.count_nonzero(~ok)))
 
 
-def _floored(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray,
-             radius: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    r"""One image's tile variances under the neighbourhood floor: ``(floor, raised, dof)``.
+def _floored(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, radius: int,
+             less_certain: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    r"""One image's tile variances under the neighbourhood floor: ``(floor, raised, dof, capped)``.
 
     With :math:`\hat V_j` the floor of :func:`_neighbourhood_floor` (``floor``), the tile's variance is raised to it
     where
@@ -509,10 +566,25 @@ def _floored(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n:
     .. math:: \hat V_j > \mathrm{FLOOR\_RATIO} \cdot V_j
 
     (``raised``, :data:`FLOOR_RATIO`); the tile's degrees of freedom (``dof``) are then the neighbourhood's Welch
-    dof, else its own, :math:`\nu = (\sum_p v_p)^2 / \sum_p w_p - 2` (:func:`_welch_dof`)."""
+    dof, else its own, :math:`\nu = (\sum_p v_p)^2 / \sum_p w_p - 2` (:func:`_welch_dof`). Where this image's
+    estimate is the ``less_certain`` of the two and the dispersion of the neighbourhood's variance ratios shows
+    fewer than :data:`DISPERSED_DOF` (:func:`_dispersion_dof`, :math:`\nu_d`), the dof are at most
+    :math:`\nu_d` (an unraised tile's own estimate) or :math:`k \nu_d` (a raised one's: the neighbourhood's k alike
+    tiles pooled; ``capped``: where that lowered them)."""
     floor, nb_dof = _neighbourhood_floor(v_sum, welch_sum, other_sum, n, radius)
     raised = floor > FLOOR_RATIO * v_sum
-    return floor, raised, np.where(raised, nb_dof, _welch_dof(v_sum, welch_sum))
+    dof = np.where(raised, nb_dof, _welch_dof(v_sum, welch_sum))
+    dispersed = _dispersion_dof(v_sum, other_sum, n, radius)
+    capped = less_certain & (dispersed < DISPERSED_DOF)
+    if not capped.any():
+        return floor, raised, dof, capped
+    with np.errstate(divide="ignore", invalid="ignore"):
+        guide = np.where(n > 0, other_sum / n, 0.0)
+    guide = np.where(guide > 0, guide, np.nan)
+    (alike,) = _box((np.ones_like(v_sum),), radius, guide, GUIDE_FACTOR, inside=True)
+    cap = np.where(raised, np.maximum(alike, 1.0) * dispersed, dispersed)
+    capped &= cap < dof
+    return floor, raised, np.where(capped, cap, dof), capped
 
 
 def _differing_tiles(pixels: _Pixels, zero: np.ndarray, rtol: float, tile: int) -> np.ndarray:
@@ -540,8 +612,10 @@ def _tile_statistics(pixels: _Pixels, tile: int, rtol: float, neighbourhood: int
     vt_sum, vr_sum = _tile_sum(p.vt, tile), _tile_sum(p.vr, tile)
     wt_sum, wr_sum = _tile_sum(p.welch_t, tile), _tile_sum(p.welch_r, tile)
     v_raw_sum = vt_sum + vr_sum  # only its sign is used: zero exactly where every variance is
-    floor_t, raised_t, dof_t = _floored(vt_sum, wt_sum, vr_sum, n, neighbourhood)
-    floor_r, raised_r, dof_r = _floored(vr_sum, wr_sum, vt_sum, n, neighbourhood)
+    # the dispersion of a tile's variances is measured on the less certain image, the other one giving the shape
+    test_less_certain = _welch_dof(vt_sum, wt_sum) <= _welch_dof(vr_sum, wr_sum)
+    floor_t, raised_t, dof_t, capped_t = _floored(vt_sum, wt_sum, vr_sum, n, neighbourhood, test_less_certain)
+    floor_r, raised_r, dof_r, capped_r = _floored(vr_sum, wr_sum, vt_sum, n, neighbourhood, ~test_less_certain)
     v_sum = (_tile_sum(p.v_eff, tile) + np.where(raised_t, floor_t - vt_sum, 0.0)
              + np.where(raised_r, floor_r - vr_sum, 0.0))
     zero = (n > 0) & (v_raw_sum == 0)
@@ -553,7 +627,8 @@ def _tile_statistics(pixels: _Pixels, tile: int, rtol: float, neighbourhood: int
                            _welch_dof(p.vr.sum(axis=(0, 1)), p.welch_r.sum(axis=(0, 1))))
     return _Tiles(n=n, d_sum=_tile_sum(p.diff, tile), v_sum=v_sum, v_raw_sum=v_raw_sum,
                   dof=np.minimum(dof_t, dof_r), zero=zero, noisy=noisy, sparse=sparse, tested=noisy & ~sparse,
-                  differing=_differing_tiles(p, zero, rtol, tile), raised=raised_t | raised_r, mean_sum=mean_sum,
+                  differing=_differing_tiles(p, zero, rtol, tile), raised=raised_t | raised_r,
+                  dispersed=capped_t | capped_r, mean_sum=mean_sum,
                   image_dof=image_dof)
 
 
@@ -843,7 +918,9 @@ def verdict(
     neighbourhood : int
         Radius in tiles of the variance floor (default :data:`NEIGHBOURHOOD`; 0: none): each image's variance in a
         tile more than :data:`FLOOR_RATIO` below what the tiles within that radius say (``_neighbourhood_floor``) is
-        raised to it, with their Welch dof.
+        raised to it, with their Welch dof; the same window, shifted inside the grid, measures the dispersion of
+        the tiles' variance ratios (``_dispersion_dof``), which caps a tile's dof where it shows fewer than
+        :data:`DISPERSED_DOF`.
     test_spp, expected_spp : float, optional
         Samples per pixel of each image. With both, a tile is left out of the sub-tests where the other image's
         variance brought to this one's spp predicts fewer than :data:`MIN_SAMPLES` effective samples
@@ -900,7 +977,8 @@ def verdict(
         zero_variance=zero_variance,
         worst_tile=worst,
         variance_dof={"test": _dof_summary(test_dof), "ground_truth": _dof_summary(expected_dof)},
-        variance_floor={"neighbourhood": int(neighbourhood), "tiles": int((tiles.raised & tiles.tested).sum())},
+        variance_floor={"neighbourhood": int(neighbourhood), "tiles": int((tiles.raised & tiles.tested).sum()),
+                        "dispersed": int((tiles.dispersed & tiles.tested).sum())},
         sparse=sparse,
         tiles=_tile_maps(tiles, z_normal, threshold),
     )

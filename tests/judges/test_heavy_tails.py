@@ -83,7 +83,7 @@ def test_an_exact_ground_truth_leaves_the_tiles_alone() -> None:
     with_floor = verdict(test, test_var, truth, np.zeros_like(truth), test_dof=1)
     without = verdict(test, test_var, truth, np.zeros_like(truth), test_dof=1, neighbourhood=0)
     assert with_floor.to_dict()["omnibus"] == without.to_dict()["omnibus"]
-    assert with_floor.variance_floor == {"neighbourhood": 2, "tiles": 0}
+    assert with_floor.variance_floor == {"neighbourhood": 2, "tiles": 0, "dispersed": 0}
 
 
 def test_rare_large_samples_in_the_ground_truth_are_floored_too() -> None:
