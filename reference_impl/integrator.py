@@ -261,7 +261,7 @@ class _Context:
         self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light,
                                                    packet_width=self.intersector.packet_width)
-        self.material_tables = records.material_tables(self.materials) if self.glossy_engine else None
+        self.material_tables = records.material_tables(self.materials)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -301,10 +301,11 @@ _GLOSSY_REFUSALS = {
 
 
 def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
-                   materials: Materials | None) -> tuple[bool, Materials | None]:
+                   materials: Materials | None) -> tuple[bool, Materials]:
     """Whether the render runs the glossy engine (kernels/glossy.py: a material that is not diffuse, or a strategy
-    only it runs, :data:`~reference_impl.settings.CAPABILITIES`), and the material table it reads; SettingsError
-    for a strategy that engine does not run. ``settings`` are resolved already."""
+    only it runs, :data:`~reference_impl.settings.CAPABILITIES`), and the material table every engine's material
+    step reads (the geometry's diffuse albedos where none is given); SettingsError for a strategy that engine does
+    not run. ``settings`` are resolved already."""
     if materials is not None and len(materials) != len(geometry.reflectance):
         raise SettingsError("materials", f"expected one material per entry of the geometry's reflectance "
                                          f"({len(geometry.reflectance)}), got {len(materials)}")
@@ -312,15 +313,15 @@ def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | 
     # an unresolved "auto" is in no row: no engine runs it
     rows = {row: CAPABILITIES.get(row, ()) for row in settings.strategies(emitters is not None and emitters.env >= 0)}
     only_glossy = [row for row, engines in rows.items() if engines == ("glossy",)]
+    if materials is None:
+        materials = Materials.diffuse(geometry.reflectance, geometry.two_sided)
     if not (glossy or only_glossy):
-        return False, None
+        return False, materials
     why = "with a material that is not diffuse" if glossy else "with {} = {}".format(*only_glossy[0])
     for (key, value), engines in rows.items():
         if "glossy" not in engines and key in _GLOSSY_REFUSALS:
             raise SettingsError(key, f"the glossy engine (scenes {why}) {_GLOSSY_REFUSALS[key]}, "
                                      f"got {getattr(settings, key)!r}")
-    if materials is None:
-        materials = Materials.diffuse(geometry.reflectance, geometry.two_sided)
     return True, materials
 
 
@@ -476,8 +477,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     elif ctx.path_engine:
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                 ctx.surface_tables, config, radiance, counters, timing, film_samples,
-                                 ctx.emitter_tables)
+                                 ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
+                                 film_samples, ctx.emitter_tables)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)
@@ -534,7 +535,8 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
     hits, total, rays = ws.direct(len(state))
     crays = ws.complement_rays()
     m, s, n_next, c = kernels.wavefront.bounce(
-        state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, config._replace(depth=depth),
+        state.arrays(), prim, ctx.scene_tables, ctx.light_tables, ctx.surface_tables, ctx.material_tables,
+        config._replace(depth=depth),
         radiance, counters, hits, rays, out, film_samples, ctx.emitter_tables, crays,
     )
     if m:

@@ -25,10 +25,12 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, FirstHitPairs, first_hit
                                           pixel_first_hit_points)
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
+from reference_impl.materials import NUM_PARAMS
 
 
 @njit(**JIT)
-def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counters, timing, film_samples, emitters):
+def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
+                emitters):
     """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one path at a time,
     with Ni = 1: the same estimator, random numbers and order of floating-point operations as the wavefront
     (``bounce`` then ``resolve_shadow`` / ``resolve_hemisphere`` at each vertex), so the same bits, but each
@@ -61,6 +63,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
     indirect_first = vertex_rules(cfg, 1)[2]
     want_rr = indirect_first and cfg.rr != RR_OFF and cfg.rr_depth <= 1
     words, floats = ray_buffer()
+    row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
     ts = np.zeros(2, np.int64)
     queries = 0
     sampled_ns = 0
@@ -129,7 +132,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
 
             if not allow_next:
                 break
-            reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
+            reflects, albedo, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, materials, hit, row)
             if not reflects:
                 count_back_face += 1
                 break
@@ -140,7 +143,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, cfg, radiance, counte
             # independent arithmetic to overlap instead of a chain broken by every Embree call.
             go_on = allow_indirect
             if go_on:
-                go_on, q0, q1, q2 = roulette(cfg, scene, material, sob,
+                go_on, q0, q1, q2 = roulette(cfg, albedo, sob,
                                              held_point(fh.roulette, rx, ry, held.roulette, si), si, k, depth, b0, b1,
                                              b2)
                 if not go_on:

@@ -35,13 +35,8 @@ class SceneTables(NamedTuple):
     light_id : (T,) int64
         The light k the triangle belongs to, -1 off the lights.
     material : (T,) int64
-        The triangle's material, a row of the per-material tables.
-    two_sided : (M,) bool
-        Whether the material reflects on both sides.
-    f_r : (M, 3) float64
-        The Lambertian BRDF rho / pi.
-    albedo_max : (M,) float64
-        max_c rho_c, the survival probability of ``rr = "albedo"``.
+        The triangle's material, a row of :class:`MaterialTables` (what it is at a hit: the material step,
+        :mod:`.material`).
     """
 
     prim_to_tri: np.ndarray
@@ -51,20 +46,15 @@ class SceneTables(NamedTuple):
     emission: np.ndarray
     light_id: np.ndarray
     material: np.ndarray
-    two_sided: np.ndarray
-    f_r: np.ndarray
-    albedo_max: np.ndarray
 
 
 def scene_tables(geometry, prim_to_tri: np.ndarray) -> SceneTables:
     """The :class:`SceneTables` of ``geometry`` (:class:`reference_impl.Geometry`) for Embree's primitives
-    ``prim_to_tri``; f_r = rho / pi per material (Lambert's BRDF)."""
+    ``prim_to_tri``."""
     g = geometry
     return SceneTables(
         prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
-        corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
-        two_sided=_c(g.two_sided), f_r=_c(g.reflectance / np.pi),
-        albedo_max=_c(np.max(g.reflectance, axis=1)) if len(g.reflectance) else np.zeros(0))
+        corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material))
 
 
 class LightTables(NamedTuple):

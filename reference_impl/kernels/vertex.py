@@ -19,15 +19,18 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import (DIRECT_MIS, EMIT_ALL, EMIT_MIS, EMIT_NONE, HEMI_COSINE, JIT_BORROW,
                                            M_COSINE_PDF_PI, M_DOUBLE_EMISSION, M_NO_COSINE, M_RR_NO_REWEIGHT,
                                            RR_ALBEDO, RR_OFF)
 from reference_impl.kernels.rng import branch_salt, dim_salt, mix64, uniform
+from reference_impl.kernels.material import material_at
 from reference_impl.kernels.sobol import pair_point, uniform_2d
 from reference_impl.kernels.surface import offset_origin
 from reference_impl.kernels.warps import PI, sample_hemisphere
+from reference_impl.materials import P_REFLECTANCE, P_TWO_SIDED
 from reference_impl.rng import INDIRECT_U1, INDIRECT_U2, ROULETTE
 
 
@@ -70,31 +73,33 @@ def emitted(cfg, emit, hit, scene, lights, p_hemi):
 
 
 @njit(**JIT_BORROW)
-def shading_point(cfg, scene, hit):
-    """What the light leaving x toward Theta depends on, at the hit ``hit`` (:class:`.surface.SurfaceHit`):
-    (whether x reflects at all, which it does not on the back of a one-sided surface, its material, N turned to the
-    side Theta leaves from, f_r, and the offset origin of the rays that leave x)."""
-    two_sided, f_r_table = scene.two_sided, scene.f_r
-    material = hit.material
+def shading_point(cfg, materials, hit, row):
+    """What the light leaving x toward Theta depends on, at the hit ``hit`` (:class:`.surface.SurfaceHit`), its
+    diffuse material's parameters from the material step (:func:`.material.material_at`, written into ``row``):
+    (whether x reflects at all, which it does not on the back of a one-sided surface, its largest albedo
+    max_c rho_c (the survival probability of ``rr = "albedo"``), N turned to the side Theta leaves from, Lambert's
+    f_r = rho / pi, and the offset origin of the rays that leave x)."""
+    material_at(materials, hit, row)  # a diffuse kind: these engines run Lambertian scenes only
     front = hit.cos_out > 0
     n0, n1, n2, x0, x1, x2 = hit.n0, hit.n1, hit.n2, hit.x0, hit.x1, hit.x2
-    if not (front or two_sided[material]):
-        return False, material, n0, n1, n2, 0.0, 0.0, 0.0, x0, x1, x2
+    if not (front or row[P_TWO_SIDED] != 0.0):
+        return False, 0.0, n0, n1, n2, 0.0, 0.0, 0.0, x0, x1, x2
     if not front:  # the side Theta leaves from
         n0, n1, n2 = -n0, -n1, -n2
     ox0, ox1, ox2 = offset_origin(cfg.offset_scene, x0, x1, x2, n0, n1, n2)
-    return (True, material, n0, n1, n2, f_r_table[material, 0], f_r_table[material, 1], f_r_table[material, 2], ox0,
-            ox1, ox2)
+    r0, r1, r2 = row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2]
+    return True, max(r0, r1, r2), n0, n1, n2, r0 / np.pi, r1 / np.pi, r2 / np.pi, ox0, ox1, ox2
 
 
 @njit(**JIT_BORROW)
-def roulette(cfg, scene, material, sob, seeds, index, key, depth, b0, b1, b2):
+def roulette(cfg, albedo, sob, seeds, index, key, depth, b0, b1, b2):
     """Russian roulette at vertex ``depth``, where it is played: (whether the path goes on, its throughput divided
-    by the survival probability q, unless the planted fault "rr-no-reweight" is on). The uniform is point ``index``
-    of the pixel's set ``seeds`` (``sob``) or the path's own."""
+    by the survival probability q, unless the planted fault "rr-no-reweight" is on); q = ``albedo`` (the material's
+    largest, :func:`shading_point`) or 1 - absorption. The uniform is point ``index`` of the pixel's set ``seeds``
+    (``sob``) or the path's own."""
     if not (cfg.rr != RR_OFF and depth >= cfg.rr_depth):
         return True, b0, b1, b2
-    survival = scene.albedo_max[material] if cfg.rr == RR_ALBEDO else cfg.survival
+    survival = albedo if cfg.rr == RR_ALBEDO else cfg.survival
     u_rr = pair_point(seeds, index)[0] if sob else uniform(key, dim_salt(depth, ROULETTE, 0))
     if not (u_rr < survival):
         return False, b0, b1, b2

@@ -9,6 +9,7 @@ the two engines give the same bits.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
@@ -21,11 +22,12 @@ from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds, spot_point
 from reference_impl.kernels.surface import surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
+from reference_impl.materials import NUM_PARAMS
 
 
 @njit(**JIT)
-def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, rays, out, film_samples, emitters,
-           crays):
+def bounce(state, prim, scene, lights, surfaces, materials, cfg, radiance, counters, hits, rays, out, film_samples,
+           emitters, crays):
     """One bounce of the wavefront (integrator._bounce), given the closest hits ``prim`` of the current rays.
 
     Adds the emission seen at the hits to ``radiance``, draws the Nd direct-light samples of each reflecting hit
@@ -57,6 +59,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
     fh_pixel = -1
     si = 0
 
+    row = np.empty(NUM_PARAMS)  # the material step's parameters at the current hit
     n = len(root)
     m = 0
     s = 0
@@ -90,7 +93,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
 
         if not allow_next:
             continue
-        reflects, material, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, scene, hit)
+        reflects, albedo, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, materials, hit, row)
         if not reflects:
             counters[C_BACK_FACE] += 1
             continue
@@ -158,7 +161,7 @@ def bounce(state, prim, scene, lights, surfaces, cfg, radiance, counters, hits, 
         # Indirect light (Fig. 5.14), if the next vertex can still add anything.
         if not allow_indirect:
             continue
-        alive, b0, b1, b2 = roulette(cfg, scene, material, sob, spot_point(fh.roulette), si, k, depth, b0, b1, b2)
+        alive, b0, b1, b2 = roulette(cfg, albedo, sob, spot_point(fh.roulette), si, k, depth, b0, b1, b2)
         if not alive:
             counters[C_ROULETTE] += 1
             continue

@@ -73,8 +73,8 @@ def _run_bounce_kernel(c, radiance, counters):
     ctx, ws = c["ctx"], c["ws"]
     hits, _, rays = ws.direct(N_RAYS)
     return wavefront.bounce(c["state"].arrays(), c["prim"], ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                            ctx.config._replace(depth=1), radiance, counters, hits, rays, ws.state(1, N_RAYS),
-                            c["film_samples"], ctx.emitter_tables, ws.complement_rays())
+                            ctx.material_tables, ctx.config._replace(depth=1), radiance, counters, hits, rays,
+                            ws.state(1, N_RAYS), c["film_samples"], ctx.emitter_tables, ws.complement_rays())
 
 
 @pytest.mark.benchmark(group="primary rays")
