@@ -1,5 +1,7 @@
 """The emitters that are not surfaces in the kernels (:mod:`reference_impl.emitters` for one sample): the
-environment's radiance and directions, the spot's falloff, and the light sample of each kind with its shadow ray.
+environment's radiance and directions, the spot's falloff, the light door of each kind (:func:`emitter_direction`:
+direction, distance, falloff, density and emission, for every engine) and the Lambertian engines' light sample with
+its shadow ray (:func:`emitter_sample`).
 
     point        v = I f_r cos(x) / (r^2 pdf(k)),            ray toward p, stops short of it
     spot         v = I s(theta) f_r cos(x) / (r^2 pdf(k)),    s: 1 within beam_width, linear to 0 at cutoff_angle
@@ -199,16 +201,17 @@ def spot_falloff(cfg, spot, e, l0, l1, l2):
 
 
 @njit(**JIT_BORROW)
-def emitter_direction(cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2):
+def emitter_direction(cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, front_only):
     """The light door for emitter e, which is not a surface (pbrt-v4's ``Light::SampleLi``, Mitsuba's
     ``sample_direction``), seen from x (normal N; uniforms (u1, u2) for an environment's direction): (whether it
     can send light toward x at all, its kind, the unit direction wi from x toward it, r^2 (the squared distance of a
     point or spot light; 1 otherwise, and with the planted fault "point-no-inverse-square"), the spot's falloff s
     (1 otherwise), p(w) of an environment's direction per solid angle (1 otherwise), what it emits toward x (I or
     E; L(w) of an environment), and its position, for the shadow ray (point and spot)). Each engine forms its
-    estimate from these, Le s / (r^2 pdf(k)) times f |cos| (times 1 / p(w) for an environment); the side of x the
-    direction lies on is the engine's to judge. Nothing where a point light sits at x, outside a spot's cone, or
-    where an environment's sample is void."""
+    estimate from these, Le s / (r^2 pdf(k)) times f |cos| (times 1 / p(w) for an environment). Nothing where a
+    point light sits at x, outside a spot's cone, where an environment's sample is void, or with ``front_only``
+    where the direction is not above x's surface (N . wi <= 0: a surface that reflects on that side only, whose
+    engine then needs neither the falloff nor the environment's radiance there)."""
     kind, position, direction, intensity = emitters.kind, emitters.position, emitters.direction, emitters.intensity
     k = kind[e]
     if k == POINT or k == SPOT:
@@ -219,6 +222,8 @@ def emitter_direction(cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2):
             return False, k, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, x0, x1, x2
         inv_dist = 1.0 / math.sqrt(dist2)
         wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
+        if front_only and not dot3(n0, n1, n2, wi0, wi1, wi2) > 0:
+            return False, k, wi0, wi1, wi2, dist2, 0.0, 1.0, 0.0, 0.0, 0.0, p0, p1, p2
         falloff = 1.0
         if k == SPOT:
             s0, s1, s2 = mat_vec(emitters.to_local, e, -wi0, -wi1, -wi2)
@@ -231,10 +236,11 @@ def emitter_direction(cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2):
                 p1, p2)
     if k == DIRECTIONAL:
         sign = 1.0 if cfg.mutant & M_DIRECTIONAL_REVERSED else -1.0  # mutant "directional-reversed"
-        return (True, k, sign * direction[e, 0], sign * direction[e, 1], sign * direction[e, 2], 1.0, 1.0, 1.0,
-                intensity[e, 0], intensity[e, 1], intensity[e, 2], x0, x1, x2)
+        r0, r1, r2 = sign * direction[e, 0], sign * direction[e, 1], sign * direction[e, 2]
+        ok = not front_only or dot3(n0, n1, n2, r0, r1, r2) > 0
+        return ok, k, r0, r1, r2, 1.0, 1.0, 1.0, intensity[e, 0], intensity[e, 1], intensity[e, 2], x0, x1, x2
     r0, r1, r2, pdf = env_sample(cfg, emitters, u1, u2, n0, n1, n2)
-    if not pdf > 0:
+    if not pdf > 0 or (front_only and not dot3(n0, n1, n2, r0, r1, r2) > 0):
         return False, k, r0, r1, r2, 1.0, 1.0, pdf, 0.0, 0.0, 0.0, x0, x1, x2
     le0, le1, le2 = env_radiance(cfg, emitters, r0, r1, r2)
     return True, k, r0, r1, r2, 1.0, 1.0, pdf, le0, le1, le2, x0, x1, x2
@@ -247,7 +253,7 @@ def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2,
     unit direction and t_max, what it carries where nothing blocks it, with its MIS weight). No ray where the light
     is behind x, outside a spot's cone, or brings nothing."""
     ok, k, r0, r1, r2, dist2, falloff, pdf, le0, le1, le2, p0, p1, p2 = emitter_direction(cfg, emitters, e, u1, u2,
-                                                                                          x0, x1, x2, n0, n1, n2)
+                                                                                          x0, x1, x2, n0, n1, n2, True)
     cos_x = dot3(n0, n1, n2, r0, r1, r2)
     if not (ok and cos_x > 0):
         return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0

@@ -116,7 +116,7 @@ def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1
     (:func:`.emitters.emitter_direction`)."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     ok, k, wi0, wi1, wi2, dist2, falloff, pdf, le0, le1, le2, p0, p1, p2 = emitter_direction(
-        cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2)
+        cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, False)  # light may arrive from either side
     if not ok:
         return nothing
     if k == POINT or k == SPOT:
