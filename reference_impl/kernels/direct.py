@@ -38,7 +38,7 @@ from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSIN
                                            JIT_BORROW, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET)
 from reference_impl.kernels.emitters import emitter_sample, split_light_uniform_all
 from reference_impl.kernels.light_sampling import (light_point, sample_light_point, sample_surface_point,
-                                                   split_light_uniform, split_surface_uniform)
+                                                   split_light_uniform, split_surface_uniform, toward_light_point)
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import pair_point, uniform_2d
@@ -141,14 +141,9 @@ def shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2, lt
     N_x, offset origin ox, f_r = f), and what it carries where nothing blocks it (``_shadow_ray_estimate``,
     ``_mis_weight_light``): (whether the sample needs a ray at all, the ray's origin, unit direction and t_max,
     Le f_r G / p(y) with its MIS weight)."""
-    tri_normal, emission, light_id = scene.normal, scene.emission, scene.light_id
-    l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
-    dist2 = dot3(l0, l1, l2, l0, l1, l2)
-    dist = math.sqrt(dist2)
-    inv_dist = 1.0 / dist  # one division, three products
-    wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
+    emission, light_id = scene.emission, scene.light_id
+    wi0, wi1, wi2, dist2, cos_y = toward_light_point(scene, ltri, y0, y1, y2, x0, x1, x2)
     cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
-    cos_y = -dot3(tri_normal[ltri, 0], tri_normal[ltri, 1], tri_normal[ltri, 2], wi0, wi1, wi2)
     if not (cos_x > 0 and cos_y > 0 and light_id[ltri] >= 0 and dist2 > 0):
         return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"

@@ -1,5 +1,7 @@
 """The emitters that are not surfaces in the kernels (:mod:`reference_impl.emitters` for one sample): the
-environment's radiance and directions, the spot's falloff, and the light sample of each kind with its shadow ray.
+environment's radiance and directions, the spot's falloff, the light door of each kind (:func:`emitter_direction`:
+direction, distance, falloff, density and emission, for every engine) and the Lambertian engines' light sample with
+its shadow ray (:func:`emitter_sample`).
 
     point        v = I f_r cos(x) / (r^2 pdf(k)),            ray toward p, stops short of it
     spot         v = I s(theta) f_r cos(x) / (r^2 pdf(k)),    s: 1 within beam_width, linear to 0 at cutoff_angle
@@ -199,69 +201,84 @@ def spot_falloff(cfg, spot, e, l0, l1, l2):
 
 
 @njit(**JIT_BORROW)
-def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2):
-    """The light sample of emitter e (chosen with probability ``pdf_select``) at x (normal N, offset origin ox,
-    f_r = f), uniforms (u1, u2) for an environment's direction: (whether it needs a shadow ray, the ray's origin,
-    unit direction and t_max, what it carries where nothing blocks it, with its MIS weight). No ray where the light
-    is behind x, outside a spot's cone, or brings nothing."""
+def emitter_direction(cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, front_only):
+    """The light door for emitter e, which is not a surface (pbrt-v4's ``Light::SampleLi``, Mitsuba's
+    ``sample_direction``), seen from x (normal N; uniforms (u1, u2) for an environment's direction): (whether it
+    can send light toward x at all, its kind, the unit direction wi from x toward it, r^2 (the squared distance of a
+    point or spot light; 1 otherwise, and with the planted fault "point-no-inverse-square"), the spot's falloff s
+    (1 otherwise), p(w) of an environment's direction per solid angle (1 otherwise), what it emits toward x (I or
+    E; L(w) of an environment), and its position, for the shadow ray (point and spot)). Each engine forms its
+    estimate from these, Le s / (r^2 pdf(k)) times f |cos| (times 1 / p(w) for an environment). Nothing where a
+    point light sits at x, outside a spot's cone, where an environment's sample is void, or with ``front_only``
+    where the direction is not above x's surface (N . wi <= 0: a surface that reflects on that side only, whose
+    engine then needs neither the falloff nor the environment's radiance there)."""
     kind, position, direction, intensity = emitters.kind, emitters.position, emitters.direction, emitters.intensity
     k = kind[e]
-    if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
-        so0, so1, so2 = x0, x1, x2
-    else:
-        so0, so1, so2 = ox0, ox1, ox2
     if k == POINT or k == SPOT:
         p0, p1, p2 = position[e, 0], position[e, 1], position[e, 2]
         l0, l1, l2 = p0 - x0, p1 - x1, p2 - x2
         dist2 = dot3(l0, l1, l2, l0, l1, l2)
+        if not dist2 > 0:
+            return False, k, 0.0, 0.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, x0, x1, x2
         inv_dist = 1.0 / math.sqrt(dist2)
         wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
-        cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
-        if not (cos_x > 0 and dist2 > 0):
-            return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        if front_only and not dot3(n0, n1, n2, wi0, wi1, wi2) > 0:
+            return False, k, wi0, wi1, wi2, dist2, 0.0, 1.0, 0.0, 0.0, 0.0, p0, p1, p2
         falloff = 1.0
         if k == SPOT:
             s0, s1, s2 = mat_vec(emitters.to_local, e, -wi0, -wi1, -wi2)
             falloff = spot_falloff(cfg, emitters.spot, e, s0, s1, s2)
             if not falloff > 0:
-                return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+                return False, k, wi0, wi1, wi2, dist2, 0.0, 1.0, 0.0, 0.0, 0.0, p0, p1, p2
         if k == POINT and cfg.mutant & M_POINT_NO_INVERSE_SQUARE:  # mutant "point-no-inverse-square"
             dist2 = 1.0
+        return (True, k, wi0, wi1, wi2, dist2, falloff, 1.0, intensity[e, 0], intensity[e, 1], intensity[e, 2], p0,
+                p1, p2)
+    if k == DIRECTIONAL:
+        sign = 1.0 if cfg.mutant & M_DIRECTIONAL_REVERSED else -1.0  # mutant "directional-reversed"
+        r0, r1, r2 = sign * direction[e, 0], sign * direction[e, 1], sign * direction[e, 2]
+        ok = not front_only or dot3(n0, n1, n2, r0, r1, r2) > 0
+        return ok, k, r0, r1, r2, 1.0, 1.0, 1.0, intensity[e, 0], intensity[e, 1], intensity[e, 2], x0, x1, x2
+    r0, r1, r2, pdf = env_sample(cfg, emitters, u1, u2, n0, n1, n2)
+    if not pdf > 0 or (front_only and not dot3(n0, n1, n2, r0, r1, r2) > 0):
+        return False, k, r0, r1, r2, 1.0, 1.0, pdf, 0.0, 0.0, 0.0, x0, x1, x2
+    le0, le1, le2 = env_radiance(cfg, emitters, r0, r1, r2)
+    return True, k, r0, r1, r2, 1.0, 1.0, pdf, le0, le1, le2, x0, x1, x2
+
+
+@njit(**JIT_BORROW)
+def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2):
+    """The Lambertian engines' light sample of emitter e (chosen with probability ``pdf_select``) at x (normal N,
+    offset origin ox, f_r = f), from :func:`emitter_direction`: (whether it needs a shadow ray, the ray's origin,
+    unit direction and t_max, what it carries where nothing blocks it, with its MIS weight). No ray where the light
+    is behind x, outside a spot's cone, or brings nothing."""
+    ok, k, r0, r1, r2, dist2, falloff, pdf, le0, le1, le2, p0, p1, p2 = emitter_direction(cfg, emitters, e, u1, u2,
+                                                                                          x0, x1, x2, n0, n1, n2, True)
+    cos_x = dot3(n0, n1, n2, r0, r1, r2)
+    if not (ok and cos_x > 0):
+        return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
+        so0, so1, so2 = x0, x1, x2
+    else:
+        so0, so1, so2 = ox0, ox1, ox2
+    cos_at_x = 1.0 if cfg.mutant & M_NO_COSINE else cos_x  # mutant "no-cosine" (direct light)
+    t_max = np.inf
+    if k == POINT or k == SPOT:
         g0, g1, g2 = p0 - so0, p1 - so1, p2 - so2
         seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
         inv_seg = 1.0 / seg_len
         r0, r1, r2 = g0 * inv_seg, g1 * inv_seg, g2 * inv_seg
         t_max = max(shadow_t_max(seg_len, 0.0, 1.0), 0.0)
-        cos_at_x = 1.0 if cfg.mutant & M_NO_COSINE else cos_x  # mutant "no-cosine" (direct light)
         scale = (cos_at_x * falloff) / (dist2 * pdf_select)
     elif k == DIRECTIONAL:
-        sign = 1.0 if cfg.mutant & M_DIRECTIONAL_REVERSED else -1.0  # mutant "directional-reversed"
-        r0, r1, r2 = sign * direction[e, 0], sign * direction[e, 1], sign * direction[e, 2]
-        cos_x = dot3(n0, n1, n2, r0, r1, r2)
-        if not cos_x > 0:
-            return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        t_max = np.inf
-        cos_at_x = 1.0 if cfg.mutant & M_NO_COSINE else cos_x
         scale = cos_at_x / pdf_select
     else:
-        r0, r1, r2, pdf = env_sample(cfg, emitters, u1, u2, n0, n1, n2)
-        cos_x = dot3(n0, n1, n2, r0, r1, r2)
-        if not (cos_x > 0 and pdf > 0):
-            return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        le0, le1, le2 = env_radiance(cfg, emitters, r0, r1, r2)
-        cos_at_x = 1.0 if cfg.mutant & M_NO_COSINE else cos_x
         scale = cos_at_x / (pdf_select * pdf)
         if cfg.direct == DIRECT_MIS:  # _mis_weight_light, against the indirect rays that could find w
             p_light = cfg.shadow_rays * pdf_select * pdf
             p_hemi = cfg.indirect_rays * hemisphere_pdf(cfg.hemisphere == HEMI_COSINE, cos_x)
             scale = scale * (p_light * p_light / (p_light * p_light + p_hemi * p_hemi))
-        v0, v1, v2 = le0 * f0 * scale, le1 * f1 * scale, le2 * f2 * scale
-        if not (v0 > 0 or v1 > 0 or v2 > 0):
-            return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        return True, so0, so1, so2, r0, r1, r2, np.inf, v0, v1, v2
-    v0 = intensity[e, 0] * f0 * scale
-    v1 = intensity[e, 1] * f1 * scale
-    v2 = intensity[e, 2] * f2 * scale
+    v0, v1, v2 = le0 * f0 * scale, le1 * f1 * scale, le2 * f2 * scale
     if not (v0 > 0 or v1 > 0 or v2 > 0):
         return False, x0, x1, x2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     return True, so0, so1, so2, r0, r1, r2, t_max, v0, v1, v2
@@ -305,5 +322,5 @@ def split_light_piece_all(lights, num_lights, num_area, u):
     return light, piece, u1
 
 
-__all__ = ["INV_FOUR_PI", "emitter_sample", "env_light_pdf", "env_pdf", "env_radiance", "env_sample",
+__all__ = ["INV_FOUR_PI", "emitter_direction", "emitter_sample", "env_light_pdf", "env_pdf", "env_radiance", "env_sample",
            "split_light_piece_all", "split_light_uniform_all", "spot_falloff", "uniform_sphere"]

@@ -46,12 +46,10 @@ from reference_impl.emitters import DIRECTIONAL, POINT, SPOT
 from reference_impl.kernels.bsdf import bsdf_eval, bsdf_pdf, bsdf_sample, is_delta, sample_eta
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT, C_ROULETTE,
                                            C_SHADOW, C_SHADOW_SKIPPED, DIRECT_AREA, DIRECT_BSDF, DIRECT_MIS, JIT,
-                                           JIT_BORROW, M_DIRECTIONAL_REVERSED, M_MIS_WEIGHTS_NOT_ONE,
-                                           M_POINT_NO_INVERSE_SQUARE, M_RR_NO_REWEIGHT, RR_ALBEDO, RR_FIXED, RR_OFF,
+                                           JIT_BORROW, M_MIS_WEIGHTS_NOT_ONE, M_RR_NO_REWEIGHT, RR_ALBEDO, RR_OFF,
                                            RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
-from reference_impl.kernels.emitters import (env_light_pdf, env_radiance, env_sample, mat_vec, spot_falloff,
-                                             split_light_piece_all)
-from reference_impl.kernels.light_sampling import point_on_light, search_within
+from reference_impl.kernels.emitters import emitter_direction, env_light_pdf, env_radiance, split_light_piece_all
+from reference_impl.kernels.light_sampling import point_on_light, search_within, toward_light_point
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
@@ -96,16 +94,10 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
     for an emitter that is not a surface))."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
     if light < cfg.num_area_lights:
-        tri_normal, emission, light_area = scene.normal, scene.emission, lights.area
+        emission, light_area = scene.emission, lights.area
         tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
-        l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
-        dist2 = dot3(l0, l1, l2, l0, l1, l2)
-        if not dist2 > 0:
-            return nothing
-        inv_dist = 1.0 / math.sqrt(dist2)
-        wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
-        cos_y = -dot3(tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2], wi0, wi1, wi2)
-        if not cos_y > 0:
+        wi0, wi1, wi2, dist2, cos_y = toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2)
+        if not (dist2 > 0 and cos_y > 0):
             return nothing
         pdf_area = pdf_select / light_area[light]
         scale = cos_y / (dist2 * pdf_area)
@@ -120,40 +112,21 @@ def light_connection_on(cfg, scene, lights, emitters, light, piece, pdf_select, 
 
 @njit(**JIT_BORROW)
 def _emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2):
-    """:func:`light_connection_on` for emitter e, which is not a surface."""
+    """:func:`light_connection_on` for emitter e, which is not a surface, from the light door
+    (:func:`.emitters.emitter_direction`)."""
     nothing = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
-    kind, position, direction, intensity = emitters.kind, emitters.position, emitters.direction, emitters.intensity
-    k = kind[e]
-    if k == POINT or k == SPOT:
-        p0, p1, p2 = position[e, 0], position[e, 1], position[e, 2]
-        l0, l1, l2 = p0 - x0, p1 - x1, p2 - x2
-        dist2 = dot3(l0, l1, l2, l0, l1, l2)
-        if not dist2 > 0:
-            return nothing
-        inv_dist = 1.0 / math.sqrt(dist2)
-        wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
-        falloff = 1.0
-        if k == SPOT:
-            s0, s1, s2 = mat_vec(emitters.to_local, e, -wi0, -wi1, -wi2)
-            falloff = spot_falloff(cfg, emitters.spot, e, s0, s1, s2)
-            if not falloff > 0:
-                return nothing
-        if k == POINT and cfg.mutant & M_POINT_NO_INVERSE_SQUARE:  # mutant "point-no-inverse-square"
-            dist2 = 1.0
-        scale = falloff / (dist2 * pdf_select)
-        return (True, wi0, wi1, wi2, intensity[e, 0] * scale, intensity[e, 1] * scale, intensity[e, 2] * scale, 0.0,
-                False, p0, p1, p2, 1.0, 0.0)
-    if k == DIRECTIONAL:
-        sign = 1.0 if cfg.mutant & M_DIRECTIONAL_REVERSED else -1.0  # mutant "directional-reversed"
-        scale = 1.0 / pdf_select
-        return (True, sign * direction[e, 0], sign * direction[e, 1], sign * direction[e, 2], intensity[e, 0] * scale,
-                intensity[e, 1] * scale, intensity[e, 2] * scale, 0.0, True, 0.0, 0.0, 0.0, 1.0, 0.0)
-    r0, r1, r2, pdf = env_sample(cfg, emitters, u1, u2, n0, n1, n2)
-    if not pdf > 0:
+    ok, k, wi0, wi1, wi2, dist2, falloff, pdf, le0, le1, le2, p0, p1, p2 = emitter_direction(
+        cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, False)  # light may arrive from either side
+    if not ok:
         return nothing
-    le0, le1, le2 = env_radiance(cfg, emitters, r0, r1, r2)
+    if k == POINT or k == SPOT:
+        scale = falloff / (dist2 * pdf_select)
+        return True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, False, p0, p1, p2, 1.0, 0.0
+    if k == DIRECTIONAL:
+        scale = 1.0 / pdf_select
+        return True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, True, 0.0, 0.0, 0.0, 1.0, 0.0
     scale = 1.0 / (pdf_select * pdf)
-    return (True, r0, r1, r2, le0 * scale, le1 * scale, le2 * scale, cfg.shadow_rays * pdf_select * pdf, True, 0.0,
+    return (True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, cfg.shadow_rays * pdf_select * pdf, True, 0.0,
             0.0, 0.0, 1.0, 0.0)
 
 

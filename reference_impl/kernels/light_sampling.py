@@ -22,7 +22,7 @@ import math
 from numba import njit
 
 from reference_impl.kernels.config import JIT_INLINE
-from reference_impl.kernels.warps import rescale_within, sample_discrete
+from reference_impl.kernels.warps import dot3, rescale_within, sample_discrete
 
 
 @njit(**JIT_INLINE)
@@ -61,6 +61,20 @@ def light_point(lights, light, u_tri, u1, u2):
     first, count, within_cdf = lights.first, lights.count, lights.within_cdf
     f = first[light]
     return point_on_light(lights, f + search_within(within_cdf, f, count[light], u_tri), u1, u2)
+
+
+@njit(**JIT_INLINE)
+def toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2):
+    """The light door's geometry for a point y on triangle ``tri`` of a light seen from x: (the unit direction wi
+    from x toward y, |y - x|^2, cos theta_y = -N_tri . wi, positive where y's front side faces x). Every engine's
+    light sample on an area light (and global area sampling's point) goes through it."""
+    tri_normal = scene.normal
+    l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
+    dist2 = dot3(l0, l1, l2, l0, l1, l2)
+    inv_dist = 1.0 / math.sqrt(dist2)  # one division, three products
+    wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
+    cos_y = -dot3(tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2], wi0, wi1, wi2)
+    return wi0, wi1, wi2, dist2, cos_y
 
 
 @njit(**JIT_INLINE)
