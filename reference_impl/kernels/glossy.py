@@ -159,6 +159,9 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     bx, by = np.empty(size), np.empty(size)
     cx, cy = np.empty(size), np.empty(size)
     held = GlossyFirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
+    # the first hits' BSDF and roulette points are computed ahead only where a first hit's next ray can be drawn
+    # without a delta lobe (else the few a delta material draws come from their seeds, the same points)
+    next_ray_drawn = direct != DIRECT_AREA or max_depth == -1 or max_depth >= 3
     row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
@@ -203,8 +206,8 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 fh = glossy_first_hit_seeds(seed_key, fh_pixel, cfg.spp, nd)
                 first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
                 held = GlossyFirstHitPairs(ahead(fh.light, first * nd, m_run * nd, lx, ly, True),
-                                           ahead(fh.bsdf, first, m_run, bx, by, True),
-                                           ahead(fh.lobe_roulette, first, m_run, cx, cy, True))
+                                           ahead(fh.bsdf, first, m_run, bx, by, next_ray_drawn),
+                                           ahead(fh.lobe_roulette, first, m_run, cx, cy, next_ray_drawn))
             si = film_sample[r]
         while True:
             sob = sobol and depth == 1
@@ -326,6 +329,13 @@ def trace_glossy(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 rad0 += b0 * tot0
                 rad1 += b1 * tot1
                 rad2 += b2 * tot2
+
+            if direct == DIRECT_AREA and not (max_depth == -1 or depth + 2 <= max_depth) and not delta_bsdf:
+                # its vertex would add direct light only, which max_depth forbids, and no sample of this BSDF is a
+                # delta bounce: the next ray is not drawn (a one-sided surface seen from behind is counted as below)
+                if cos_out < 0 and row[P_TWO_SIDED] == 0 and not (kind == DIELECTRIC or kind == ROUGHDIELECTRIC):
+                    count_back_face += 1
+                break
 
             # The next ray, sampled from the BSDF.
             if sob:
