@@ -234,6 +234,14 @@ def _box(arrays: tuple[np.ndarray, ...], radius: int, guide: np.ndarray, factor:
     return out
 
 
+def _guide(other_sum: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """The other image's variance per pixel of each tile, :math:`W_k / n_k`, which says which tiles are alike
+    (:func:`_box`); NaN where it has none (nothing to scale, and like no other tile)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        guide = np.where(n > 0, other_sum / n, 0.0)
+    return np.where(guide > 0, guide, np.nan)
+
+
 def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray,
                          radius: int) -> tuple[np.ndarray, np.ndarray]:
     r"""One image's variance in each tile as its neighbourhood says it may be, and that estimate's Welch dof.
@@ -256,9 +264,7 @@ def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np
     times the samples."""
     if radius <= 0:
         return np.zeros_like(v_sum), np.full(v_sum.shape, np.inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        guide = np.where(n > 0, other_sum / n, 0.0)
-    guide = np.where(guide > 0, guide, np.nan)  # no variance: nothing to scale, and like no other tile
+    guide = _guide(other_sum, n)
     nb_v, nb_w, nb_welch, alike = _box((v_sum, other_sum, welch_sum, np.ones_like(v_sum)), radius, guide,
                                        GUIDE_FACTOR)
     # a tile alike no other around it (a small light among black pixels) takes the image's ratio of the two
@@ -271,8 +277,10 @@ def _neighbourhood_floor(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np
     return floor, _welch_dof(nb_v, nb_welch)
 
 
-def _dispersion_dof(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, radius: int) -> np.ndarray:
-    r"""The degrees of freedom one image's tile variances show across each tile's neighbourhood.
+def _dispersion_dof(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray,
+                    radius: int) -> tuple[np.ndarray, np.ndarray]:
+    r"""The degrees of freedom one image's tile variances show across each tile's neighbourhood, and how many tiles
+    of that window are alike (k).
 
     If a tile's variance estimate is :math:`V_k = \sigma_k^2 \chi^2_\nu / \nu`, its ratio to the other image's,
     :math:`r_k = V_k / W_k` (the other image as the shape), has :math:`E(r) = \rho` and
@@ -284,14 +292,13 @@ def _dispersion_dof(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, rad
 
     (method of moments; adjacent pairs so that a smooth change of the two estimators' relative efficiency across the
     image does not count as dispersion). inf where no pair differs, the other image has no variance, or ``radius``
-    is 0. Welch's dof take each pixel's estimate to be :math:`\chi^2` with its nominal dof; where a renderer's
+    is 0 (k = 1 then). Welch's dof take each pixel's estimate to be :math:`\chi^2` with its nominal dof; where a renderer's
     variance rides on rare, large samples, a tile drew one or none and its ratio is 100 times above or below its
     neighbour's, and :math:`\nu_d` falls below one."""
     if radius <= 0:
-        return np.full(v_sum.shape, np.inf)
+        return np.full(v_sum.shape, np.inf), np.ones(v_sum.shape)
+    guide = _guide(other_sum, n)
     with np.errstate(divide="ignore", invalid="ignore"):
-        guide = np.where(n > 0, other_sum / n, 0.0)
-        guide = np.where(guide > 0, guide, np.nan)
         ratio = np.where(np.isfinite(guide), v_sum / other_sum, 0.0)
     squares, products = np.zeros(v_sum.shape), np.zeros(v_sum.shape)
     with np.errstate(invalid="ignore"):
@@ -301,9 +308,10 @@ def _dispersion_dof(v_sum: np.ndarray, other_sum: np.ndarray, n: np.ndarray, rad
             alike = (ga * GUIDE_FACTOR >= gb) & (gb * GUIDE_FACTOR >= ga)  # NaN: False
             squares[first] += np.where(alike, (a - b) ** 2, 0.0)
             products[first] += np.where(alike, a * b, 0.0)
-    sum_squares, sum_products = _box((squares, products), radius, guide, GUIDE_FACTOR, inside=True)
+    sum_squares, sum_products, alike = _box((squares, products, np.ones_like(v_sum)), radius, guide, GUIDE_FACTOR,
+                                            inside=True)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(sum_squares > 0, 4.0 * sum_products / sum_squares, np.inf)
+        return np.where(sum_squares > 0, 4.0 * sum_products / sum_squares, np.inf), np.maximum(alike, 1.0)
 
 
 def _sparse_tiles(mean_sum: np.ndarray, vt_sum: np.ndarray, vr_sum: np.ndarray, test_spp: float | None,
@@ -574,15 +582,11 @@ def _floored(v_sum: np.ndarray, welch_sum: np.ndarray, other_sum: np.ndarray, n:
     floor, nb_dof = _neighbourhood_floor(v_sum, welch_sum, other_sum, n, radius)
     raised = floor > FLOOR_RATIO * v_sum
     dof = np.where(raised, nb_dof, _welch_dof(v_sum, welch_sum))
-    dispersed = _dispersion_dof(v_sum, other_sum, n, radius)
+    if not less_certain.any():  # the other image's variances are measured, not this one's
+        return floor, raised, dof, less_certain
+    dispersed, alike = _dispersion_dof(v_sum, other_sum, n, radius)
     capped = less_certain & (dispersed < DISPERSED_DOF)
-    if not capped.any():
-        return floor, raised, dof, capped
-    with np.errstate(divide="ignore", invalid="ignore"):
-        guide = np.where(n > 0, other_sum / n, 0.0)
-    guide = np.where(guide > 0, guide, np.nan)
-    (alike,) = _box((np.ones_like(v_sum),), radius, guide, GUIDE_FACTOR, inside=True)
-    cap = np.where(raised, np.maximum(alike, 1.0) * dispersed, dispersed)
+    cap = np.where(raised, alike * dispersed, dispersed)
     capped &= cap < dof
     return floor, raised, np.where(capped, cap, dof), capped
 

@@ -89,7 +89,7 @@ def test_even_variances_are_not_capped() -> None:
     dof are those of the estimates (median within a factor 2 of Welch's), far above DISPERSED_DOF everywhere."""
     test, test_var, truth, truth_var = _images(3, 0.0, 1.0, 3.0)
     vt, vr = _tile_sum(test_var, 8), _tile_sum(truth_var, 8)
-    dispersed = _dispersion_dof(vt, vr, np.full(vt.shape, 64.0), 2)
+    dispersed, _ = _dispersion_dof(vt, vr, np.full(vt.shape, 64.0), 2)
     welch = _welch_dof(vt, _tile_sum(test_var**2 / 3.0, 8))
     assert 0.5 < np.median(dispersed / welch) < 2.0
     assert dispersed.min() > 4 * verdict_module.DISPERSED_DOF
@@ -99,11 +99,11 @@ def test_the_rare_samples_show_as_dispersion() -> None:
     """With rare events, most tiles' dispersion dof are below DISPERSED_DOF though their Welch dof are about 20."""
     test, test_var, truth, truth_var = _images(0, 0.5, 60.0, 2.3)
     vt, vr = _tile_sum(test_var, 8), _tile_sum(truth_var, 8)
-    dispersed = _dispersion_dof(vt, vr, np.full(vt.shape, 64.0), 2)
+    dispersed, _ = _dispersion_dof(vt, vr, np.full(vt.shape, 64.0), 2)
     assert np.mean(dispersed < verdict_module.DISPERSED_DOF) > 0.5
 
 
 def test_an_exact_ground_truth_gives_no_dispersion() -> None:
     """Against a closed form (no variance) there is no shape to measure the ratios against: no cap."""
     v = np.random.default_rng(0).random((8, 8, 3))
-    assert np.all(np.isinf(_dispersion_dof(v, np.zeros_like(v), np.full(v.shape, 64.0), 2)))
+    assert np.all(np.isinf(_dispersion_dof(v, np.zeros_like(v), np.full(v.shape, 64.0), 2)[0]))
