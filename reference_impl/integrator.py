@@ -73,7 +73,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, glossy, path, records, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import camera, config, film, path, records, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
@@ -213,7 +213,7 @@ class _Context:
         if settings.max_depth is None:
             raise SettingsError("max_depth", "expected the scene's max_depth to be resolved before rendering")
         settings = settings.resolved(is_glossy(materials))  # direct = auto and rr = auto: the one place
-        self.glossy_engine, self.materials = _glossy_engine(geometry, settings, emitters, materials)
+        self.engine, self.materials = _engine(geometry, settings, emitters, materials)
         self.max_depth = settings.resolved_max_depth(settings.max_depth)
         self.geometry = geometry
         self.camera = camera
@@ -262,15 +262,14 @@ class _Context:
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light,
                                                    packet_width=self.intersector.packet_width)
         self.material_tables = records.material_tables(self.materials)
+        # None where every material is diffuse: the path loop compiles the BSDF door's other kinds out
+        self.other_kinds = True if is_glossy(self.materials) else None
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
             self.emitter_tables = records.emitter_tables(em)
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
-        environment = em is not None and em.env >= 0
-        self.path_engine = (s.engine == "path" and self.intersector.scene_pointer != 0
-                            and all("path" in CAPABILITIES[row] for row in s.strategies(environment)))
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.pinhole = records.pinhole(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
@@ -291,7 +290,8 @@ class _Clock:
         self.seconds = 0.0
 
 
-# What the glossy engine says of a strategy it does not run (a row of CAPABILITIES without it), before the value.
+# What a scene with a material that is not diffuse says of a strategy it does not take (a row of CAPABILITIES
+# without "glossy"), before the value.
 _GLOSSY_REFUSALS = {
     "direct": f"takes direct = {', '.join(GLOSSY_DIRECT)} or auto",
     "indirect_rays": "traces one BSDF sample per vertex: expected indirect_rays = 1",
@@ -300,29 +300,35 @@ _GLOSSY_REFUSALS = {
 }
 
 
-def _glossy_engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
-                   materials: Materials | None) -> tuple[bool, Materials]:
-    """Whether the render runs the glossy engine (kernels/glossy.py: a material that is not diffuse, or a strategy
-    only it runs, :data:`~reference_impl.settings.CAPABILITIES`), and the material table every engine's material
-    step reads (the geometry's diffuse albedos where none is given); SettingsError for a strategy that engine does
-    not run. ``settings`` are resolved already."""
+def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
+            materials: Materials | None) -> tuple[str, Materials]:
+    """Which engine traces the render, "path" (kernels/path.py) or "wavefront" (kernels/wavefront.py), by
+    :data:`~reference_impl.settings.CAPABILITIES`: a scene with a material that is not diffuse runs the path loop; a
+    Lambertian one ``settings.engine``, or the other engine where a strategy needs it. And the material table every
+    engine's material step reads (the geometry's diffuse albedos where none is given). SettingsError for a strategy
+    the scene or no engine runs. ``settings`` are resolved already."""
     if materials is not None and len(materials) != len(geometry.reflectance):
         raise SettingsError("materials", f"expected one material per entry of the geometry's reflectance "
                                          f"({len(geometry.reflectance)}), got {len(materials)}")
     glossy = is_glossy(materials)
     # an unresolved "auto" is in no row: no engine runs it
     rows = {row: CAPABILITIES.get(row, ()) for row in settings.strategies(emitters is not None and emitters.env >= 0)}
-    only_glossy = [row for row, engines in rows.items() if engines == ("glossy",)]
     if materials is None:
         materials = Materials.diffuse(geometry.reflectance, geometry.two_sided)
-    if not (glossy or only_glossy):
-        return False, materials
-    why = "with a material that is not diffuse" if glossy else "with {} = {}".format(*only_glossy[0])
-    for (key, value), engines in rows.items():
-        if "glossy" not in engines and key in _GLOSSY_REFUSALS:
-            raise SettingsError(key, f"the glossy engine (scenes {why}) {_GLOSSY_REFUSALS[key]}, "
-                                     f"got {getattr(settings, key)!r}")
-    return True, materials
+    if glossy:
+        for (key, value), engines in rows.items():
+            if "glossy" not in engines and key in _GLOSSY_REFUSALS:
+                raise SettingsError(key, f"scenes with a material that is not diffuse {_GLOSSY_REFUSALS[key]}, "
+                                         f"got {getattr(settings, key)!r}")
+        return "path", materials
+    other = "wavefront" if settings.engine == "path" else "path"
+    for engine in (settings.engine, other):
+        if all(engine in engines for engines in rows.values()):
+            return engine, materials
+    path_only = next(row for row, engines in rows.items() if "wavefront" not in engines)
+    raise SettingsError("indirect_rays", "the path loop traces one ray per vertex (indirect_rays > 1 is the "
+                                         "wavefront's, which does not run {} = {}): expected indirect_rays = 1, got "
+                                         "{}".format(*path_only, settings.indirect_rays))
 
 
 def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, progress=None,
@@ -468,17 +474,11 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
-    if ctx.glossy_engine:
-        timing = np.zeros(2, np.int64)
-        kernels.glossy.trace_glossy(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                    ctx.material_tables, config, radiance, counters, timing, ctx.emitter_tables,
-                                    film_samples, record)
-        clock.seconds += timing[0] * 1e-9
-    elif ctx.path_engine:
+    if ctx.engine == "path":
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                  ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
-                                 film_samples, ctx.emitter_tables)
+                                 film_samples, ctx.emitter_tables, ctx.other_kinds, record)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

@@ -5,9 +5,8 @@ through the same C API queries, in compiled loops that do nothing else, on the r
 the film, until ``max_rays`` are recorded) and keeps every query: the camera rays in the batches that went to Embree
 in packets of 16 (``rtcIntersect16``), the closest-hit rays past the camera (indirect rays, and hemisphere sampling's
 direct-light rays; ``rtcIntersect1``), the occlusion rays with their tfar (shadow rays; ``rtcOccluded1``), each with
-Embree's answer. The Lambertian engines' rays are taken from the wavefront engine's batched queries (it traces the
-path engine's rays, to the bit: ``tests/reference_impl/test_engines.py``); the glossy engine writes its own
-(:mod:`reference_impl.kernels.record`).
+Embree's answer. The path loop writes its own (:mod:`reference_impl.kernels.record`); a render the wavefront traces
+(Ni > 1, or ``engine = wavefront``) has its rays taken from the wavefront's batched queries.
 
 :class:`Replay` sends them again (``kernels.queries.closest_prims_packets``, ``closest_prims``, ``occluders``: a
 loop that fills the ray structure and calls Embree), each kind of query split into one contiguous share per thread
@@ -40,7 +39,7 @@ from reference_impl.settings import Settings
 
 PHASES = ("camera", "closest", "occlusion")
 DEFAULT_MAX_RAYS = 2_000_000
-ROOM_PER_PATH = 4  # closest-hit and occlusion queries per camera path the glossy engine's record first has room for
+ROOM_PER_PATH = 4  # closest-hit and occlusion queries per camera path the path loop's record first has room for
 
 
 @dataclass
@@ -103,8 +102,8 @@ def _spread(n: int) -> list[int]:
     return sorted(range(n), key=lambda i: int(format(i, f"0{bits}b")[::-1], 2))
 
 
-def _trace_glossy_recorded(ctx, pixel, sample, stats, log: RayLog) -> None:
-    """Trace camera samples with the glossy engine, keeping its queries; a batch whose queries overflow the buffers
+def _trace_path_recorded(ctx, pixel, sample, stats, log: RayLog) -> None:
+    """Trace camera samples with the path loop, keeping its queries; a batch whose queries overflow the buffers
     is traced again with room for all of them (the same rays)."""
     from reference_impl.kernels import records  # optional: numba-compiled, loaded only to trace
 
@@ -142,8 +141,7 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
                  owner=ctx.intersector)
     if not ctx.has_lights or log.scene_pointer == 0:  # the render traces no ray at all
         return log
-    if not ctx.glossy_engine:
-        ctx.path_engine = False  # the wavefront: the same rays, in batches we can copy
+    if ctx.engine != "path":  # the wavefront's rays, from its batched queries
         ctx.intersector = _Recorder(ctx.intersector, log)
     spp = settings.spp
     num_pixels = film.width * film.height
@@ -157,8 +155,8 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
             s1 = min(spp, s0 + samples_per_batch)
             pixel = np.repeat(np.arange(p0, p1, dtype=np.int64), s1 - s0)
             sample = np.tile(np.arange(s0, s1, dtype=np.int64), p1 - p0)
-            if ctx.glossy_engine:
-                _trace_glossy_recorded(ctx, pixel, sample, log.stats, log)
+            if ctx.engine == "path":
+                _trace_path_recorded(ctx, pixel, sample, log.stats, log)
             else:
                 integrator._trace_camera_paths(ctx, pixel, sample, log.stats)
             log.paths += len(pixel)

@@ -15,28 +15,29 @@ from reference_impl.rng import _mix64_int
 DIRECT_STRATEGIES = ("auto", "area", "hemisphere-cosine", "hemisphere-uniform", "global-area", "mis", "bsdf")
 HEMISPHERES = ("cosine", "uniform")
 ROULETTES = ("auto", "albedo", "fixed", "throughput", "pbrt", "off")
-#: the values of ``engine``: the engines of scenes whose materials are all Lambertian, the same bits either way
+#: the values of ``engine``: how paths are traced (the path loop, or the wavefront, which alone branches, Ni > 1)
 ENGINES = ("path", "wavefront")
 _LAMBERTIAN = ENGINES
 _ALL = ENGINES + ("glossy",)
+_PATH = ("path", "glossy")
 #: The capability matrix: each strategy (a setting's resolved value; ``indirect_rays`` as 1 or more, ``env_sampling``
-#: on scenes with an environment) and the engines that run it. "path" (kernels/path.py: each path to its end in one
-#: loop) and "wavefront" (kernels/wavefront.py: every bounce of a batch at once) are ``engine``'s values;
-#: "glossy" (kernels/glossy.py) runs every scene with a material that is not diffuse, whatever ``engine`` says.
-#: The engine selection reads it (``integrator._glossy_engine``, ``_Context``): a strategy only the glossy engine
-#: runs takes a Lambertian scene there; one it does not run is refused there; one the path engine does not run
-#: takes ``engine = path`` to the wavefront. docs/reference-renderer.md shows it as a table.
+#: on scenes with an environment) and where it runs. "path" (kernels/path.py: each path to its end in one loop) and
+#: "wavefront" (kernels/wavefront.py: every bounce of a batch at once) are ``engine``'s values on scenes whose
+#: materials are all diffuse; "glossy" is a scene with a material that is not diffuse, which the path loop runs
+#: whatever ``engine`` says. The engine selection reads it (``integrator._engine``): a strategy that ``engine`` does
+#: not run takes the render to the other engine; one that a glossy scene does not take is refused there.
+#: docs/reference-renderer.md shows it as a table.
 CAPABILITIES: dict[tuple[str, str], tuple[str, ...]] = {
     ("direct", "area"): _ALL,
     ("direct", "hemisphere-cosine"): _LAMBERTIAN,
     ("direct", "hemisphere-uniform"): _LAMBERTIAN,
     ("direct", "global-area"): _LAMBERTIAN,
     ("direct", "mis"): _ALL,
-    ("direct", "bsdf"): ("glossy",),
+    ("direct", "bsdf"): _PATH,
     ("rr", "albedo"): _ALL,
     ("rr", "fixed"): _ALL,
-    ("rr", "throughput"): ("glossy",),
-    ("rr", "pbrt"): ("glossy",),
+    ("rr", "throughput"): _PATH,
+    ("rr", "pbrt"): _PATH,
     ("rr", "off"): _ALL,
     ("indirect_rays", "1"): _ALL,
     ("indirect_rays", "> 1"): ("wavefront",),
@@ -44,7 +45,7 @@ CAPABILITIES: dict[tuple[str, str], tuple[str, ...]] = {
     ("env_sampling", "uniform"): _ALL,
     ("env_sampling", "cosine"): _LAMBERTIAN,
 }
-#: the strategies the glossy engine (scenes with a non-diffuse material) runs
+#: the direct strategies of scenes with a material that is not diffuse
 GLOSSY_DIRECT = tuple(v for (k, v), engines in CAPABILITIES.items() if k == "direct" and "glossy" in engines)
 SAMPLERS = ("sobol", "independent")
 #: what ``direct = "auto"`` runs on a Lambertian-only scene (False) and on a glossy one (True): Settings.resolved
@@ -79,7 +80,7 @@ class Settings:
     direct          how they are drawn: "area" (pick light k with pdf(k), a point y with pdf(y|k); Fig. 5.7, 5.8,
                     5.10), "hemisphere-cosine" / "hemisphere-uniform" (Fig. 5.12), "global-area" (Fig. 5.13), "mis"
                     (beyond the slides: area samples and the indirect rays combined by the power heuristic), "bsdf"
-                    (no light samples: the emission the BSDF-sampled rays find; the glossy engine), or "auto", the
+                    (no light samples: the emission the BSDF-sampled rays find; the path loop), or "auto", the
                     default: "area" on Lambertian-only scenes, "mis" where a material is not diffuse
                     (:meth:`resolved`).
     light_selection pdf(k): "power" (proportional to emitted power) or "uniform".
@@ -87,12 +88,12 @@ class Settings:
                     times solid angle, cell by cell; a constant environment uniformly), "uniform" (over the sphere) or
                     "cosine" (about the normal at x). Scenes without an environment ignore it.
     indirect_rays   [Ni] indirect rays per hit (the recursion branches Ni ways at every hit).
-    hemisphere      their directions: "cosine" or "uniform".
-    rr              Russian roulette: "albedo" (survival = max reflectance; in the glossy engine the largest
-                    channel of the bounce's weight f cos / p, at most 1), "fixed" (absorption alpha, as the slides),
-                    "throughput" (Mitsuba's: min(max channel of the throughput x eta^2, 0.95); the glossy engine
-                    only), "pbrt" (pbrt-v4's: min(max channel of the throughput x eta^2, 1), so a path whose
-                    throughput is 1, as in a furnace of glass or mirrors, is never cut; the glossy engine only),
+    hemisphere      their directions off a diffuse surface (the diffuse BSDF's sampling): "cosine" or "uniform".
+    rr              Russian roulette: "albedo" (survival = the diffuse albedo max_c rho_c; for the other materials the
+                    largest channel of the bounce's weight f cos / p, at most 1), "fixed" (absorption alpha, as the
+                    slides), "throughput" (Mitsuba's: min(max channel of the throughput x eta^2, 0.95); the path
+                    loop only), "pbrt" (pbrt-v4's: min(max channel of the throughput x eta^2, 1), so a path whose
+                    throughput is 1, as in a furnace of glass or mirrors, is never cut; the path loop only),
                     "off", or "auto", the default: "albedo" on Lambertian-only scenes, "pbrt" where a material is
                     not diffuse (:meth:`resolved`).
     rr_depth        first path depth (camera hit = 1) at which roulette is played.
@@ -101,10 +102,11 @@ class Settings:
                     -1 = unbounded); None = the scene's.
     batch_size      camera paths traced together (memory / speed only: the image does not depend on it).
     threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
-    engine          how paths are traced on scenes whose materials are all Lambertian (speed only: the same bits
-                    either way): "path", each path from its camera ray to its end in one compiled loop that queries
-                    Embree itself (Ni = 1 only; with Ni > 1 the wavefront is used); or "wavefront", every bounce of
-                    a batch at once, queries in batches. Which engine runs which strategy: :data:`CAPABILITIES`.
+    engine          how paths are traced on scenes whose materials are all Lambertian (the same estimator either way,
+                    not the same bits): "path", each path from its camera ray to its end in one compiled loop that
+                    queries Embree itself (Ni = 1 only; with Ni > 1 the wavefront is used); or "wavefront", every
+                    bounce of a batch at once, queries in batches (Ni >= 1). Scenes with a material that is not
+                    diffuse run the path loop. Which engine runs which strategy: :data:`CAPABILITIES`.
     mutant          name of a planted fault (see ``reference_impl.mutants``); "" = none. Never on by default.
     """
 

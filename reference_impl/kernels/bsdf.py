@@ -12,7 +12,8 @@ material table.
 
 Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittance)
 
-    diffuse          f |cos| = R / pi cos(theta_i) with wo, wi both above the surface; cosine-weighted sampling
+    diffuse          f |cos| = R / pi cos(theta_i) with wo, wi both above the surface; cosine-weighted sampling (or,
+                     with ``hemisphere = "uniform"``, uniform: p = 1 / (2 pi), the slides' Fig. 5.14)
     conductor        delta reflection (-wo_x, -wo_y, wo_z), weight R F_c(cos theta_o)
     roughconductor   f |cos| = R F_c(wo.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o), h = (wo + wi) / |wo + wi|
                      (Walter et al. 2007, eq. 20)
@@ -71,12 +72,13 @@ from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCT
                                            M_MICROFACET_PDF_NO_JACOBIAN, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED)
 from reference_impl.kernels.material import material_params
 from reference_impl.kernels.records import material_tables
-from reference_impl.kernels.warps import cosine_hemisphere
+from reference_impl.kernels.warps import cosine_hemisphere, uniform_hemisphere
 from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_DISTRIBUTION,
                                       P_ETA, P_IOR, P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE,
                                       P_TWO_SIDED, ROUGHCONDUCTOR, ROUGHDIELECTRIC)
 
 INV_PI = 1.0 / np.pi
+INV_2PI = 0.5 / np.pi
 INV_SQRT_PI = 1.0 / math.sqrt(np.pi)
 MIN_ALPHA = 1e-4  # Mitsuba's MicrofacetDistribution::configure clamps alpha to at least this
 
@@ -481,15 +483,18 @@ def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
 
 
 @njit(**JIT_BORROW)
-def bsdf_pdf(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
-    """Density of :func:`bsdf_sample`'s wi per unit solid angle; 0 for delta BSDFs and impossible pairs."""
+def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz):
+    """Density of :func:`bsdf_sample`'s wi per unit solid angle (``uniform_diffuse`` as there); 0 for delta BSDFs
+    and impossible pairs."""
     if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
         ok, sgn = _side(row, woz, wiz)
         if not ok:
             return 0.0
         woz, wiz = sgn * woz, sgn * wiz
         if kind == DIFFUSE:
-            return wiz * INV_PI if wiz > 0.0 else 0.0
+            if not wiz > 0.0:
+                return 0.0
+            return INV_2PI if uniform_diffuse else wiz * INV_PI
         return _roughconductor_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
     if kind == ROUGHDIELECTRIC:
         return _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
@@ -513,8 +518,10 @@ def sample_eta(kind, row, woz, wiz):
 
 
 @njit(**JIT_BORROW)
-def bsdf_sample(kind, row, mutant, wox, woy, woz, u_lobe, u1, u2):
-    """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta).
+def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u2):
+    """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta). The diffuse kind samples the cosine-weighted
+    hemisphere (p = cos / pi, w = rho), or with ``uniform_diffuse`` (``hemisphere = "uniform"``, the slides'
+    other choice, Fig. 5.14) the uniform one (p = 1 / (2 pi), w = 2 rho cos).
 
     w = f |cos theta_i| / pdf per channel (a delta lobe: its weight, e.g. R F / P(lobe)); pdf per unit solid angle
     of wi, or for a delta lobe the discrete probability of the lobe; ok False when nothing is sampled (wo behind a
@@ -525,6 +532,13 @@ def bsdf_sample(kind, row, mutant, wox, woy, woz, u_lobe, u1, u2):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         woz = sgn * woz
         if kind == DIFFUSE:
+            if uniform_diffuse:
+                lx, ly, lz = uniform_hemisphere(u1, u2)
+                if not lz > 0.0:
+                    return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+                c = 2.0 * lz
+                return (True, lx, ly, sgn * lz, c * row[P_REFLECTANCE], c * row[P_REFLECTANCE + 1],
+                        c * row[P_REFLECTANCE + 2], INV_2PI, False)
             lx, ly, lz = cosine_hemisphere(u1, u2)
             if not lz > 0.0:
                 return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
@@ -592,7 +606,7 @@ def bsdf_sample(kind, row, mutant, wox, woy, woz, u_lobe, u1, u2):
 
 
 @njit(**JIT)
-def _eval_many(materials, m, mutant, wo, wi, out_f, out_p):
+def _eval_many(materials, m, mutant, uniform_diffuse, wo, wi, out_f, out_p):
     row = np.empty(NUM_PARAMS)
     kind = material_params(materials, m, row)
     with_f = len(out_f) > 0  # an empty out_f: the pdf only
@@ -601,22 +615,28 @@ def _eval_many(materials, m, mutant, wo, wi, out_f, out_p):
         if with_f:
             v0, v1, v2 = bsdf_eval(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
             out_f[i, 0], out_f[i, 1], out_f[i, 2] = v0, v1, v2
-        out_p[i] = bsdf_pdf(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
+        out_p[i] = bsdf_pdf(kind, row, mutant, uniform_diffuse, wo[j, 0], wo[j, 1], wo[j, 2], wi[i, 0], wi[i, 1], wi[i, 2])
 
 
 @njit(**JIT)
-def _sample_many(materials, m, mutant, wo, u, ok, wi, w, pdf, delta):
+def _sample_many(materials, m, mutant, uniform_diffuse, wo, u, ok, wi, w, pdf, delta):
     row = np.empty(NUM_PARAMS)
     kind = material_params(materials, m, row)
     for i in range(len(u)):
         j = i if len(wo) > 1 else 0
-        ok_i, wi0, wi1, wi2, w0, w1, w2, pdf_i, delta_i = bsdf_sample(kind, row, mutant, wo[j, 0], wo[j, 1], wo[j, 2],
-                                                                      u[i, 0], u[i, 1], u[i, 2])
+        ok_i, wi0, wi1, wi2, w0, w1, w2, pdf_i, delta_i = bsdf_sample(kind, row, mutant, uniform_diffuse, wo[j, 0],
+                                                                      wo[j, 1], wo[j, 2], u[i, 0], u[i, 1], u[i, 2])
         ok[i] = ok_i
         wi[i, 0], wi[i, 1], wi[i, 2] = wi0, wi1, wi2
         w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
         pdf[i] = pdf_i
         delta[i] = delta_i
+
+
+def _uniform(hemisphere: str) -> bool:
+    if hemisphere not in ("cosine", "uniform"):
+        raise ValueError(f"hemisphere: expected 'cosine' or 'uniform', got {hemisphere!r}")
+    return hemisphere == "uniform"
 
 
 def _directions(a, n=None) -> np.ndarray:
@@ -626,35 +646,36 @@ def _directions(a, n=None) -> np.ndarray:
     return a
 
 
-def eval_pdf(materials, m: int, wo, wi, mutant: int = 0) -> tuple[np.ndarray, np.ndarray]:
+def eval_pdf(materials, m: int, wo, wi, mutant: int = 0, hemisphere: str = "cosine") -> tuple[np.ndarray, np.ndarray]:
     """:func:`bsdf_eval` and :func:`bsdf_pdf` of material ``m`` over arrays: ``wo`` (3,) or (n, 3), ``wi`` (n, 3)
-    local directions; returns f |cos| (n, 3) and pdf (n,)."""
+    local directions; returns f |cos| (n, 3) and pdf (n,). ``hemisphere``: the diffuse kind's sampling, "cosine"
+    or "uniform" (``Settings.hemisphere``)."""
     wi = _directions(wi)
     wo = _directions(wo, len(wi))
     f = np.empty((len(wi), 3))
     p = np.empty(len(wi))
-    _eval_many(material_tables(materials), int(m), int(mutant), wo, wi, f, p)
+    _eval_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, f, p)
     return f, p
 
 
-def pdf(materials, m: int, wo, wi, mutant: int = 0) -> np.ndarray:
+def pdf(materials, m: int, wo, wi, mutant: int = 0, hemisphere: str = "cosine") -> np.ndarray:
     """:func:`bsdf_pdf` of material ``m`` over arrays, as :func:`eval_pdf` returns it without evaluating the BSDF
     (half the work, for the chi^2 tests' quadrature)."""
     wi = _directions(wi)
     wo = _directions(wo, len(wi))
     p = np.empty(len(wi))
-    _eval_many(material_tables(materials), int(m), int(mutant), wo, wi, np.empty((0, 3)), p)
+    _eval_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, np.empty((0, 3)), p)
     return p
 
 
-def sample(materials, m: int, wo, u, mutant: int = 0) -> dict[str, np.ndarray]:
+def sample(materials, m: int, wo, u, mutant: int = 0, hemisphere: str = "cosine") -> dict[str, np.ndarray]:
     """:func:`bsdf_sample` of material ``m`` over arrays: ``wo`` (3,) or (n, 3), ``u`` (n, 3) uniforms (u_lobe, u1,
-    u2); returns a dict of ``ok`` (n,) bool, ``wi`` (n, 3), ``weight`` (n, 3), ``pdf`` (n,), ``delta`` (n,) bool."""
+    u2), ``hemisphere`` as for :func:`eval_pdf`; returns a dict of ``ok`` (n,) bool, ``wi`` (n, 3), ``weight`` (n, 3), ``pdf`` (n,), ``delta`` (n,) bool."""
     u = np.ascontiguousarray(np.asarray(u, dtype=np.float64).reshape(-1, 3))
     wo = _directions(wo, len(u))
     n = len(u)
     out = dict(ok=np.empty(n, dtype=np.bool_), wi=np.empty((n, 3)), weight=np.empty((n, 3)), pdf=np.empty(n),
                delta=np.empty(n, dtype=np.bool_))
-    _sample_many(material_tables(materials), int(m), int(mutant), wo, u, out["ok"], out["wi"],
+    _sample_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, u, out["ok"], out["wi"],
                  out["weight"], out["pdf"], out["delta"])
     return out

@@ -33,16 +33,20 @@ import math
 
 from numba import njit
 
-from reference_impl.emitters import ENV_CONSTANT, ENV_MAP
+import numpy as np
+
+from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, SPOT
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
-                                           JIT_BORROW, M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_NO_RAY_OFFSET)
-from reference_impl.kernels.emitters import emitter_sample, split_light_uniform_all
-from reference_impl.kernels.light_sampling import (light_point, sample_light_point, sample_surface_point,
-                                                   split_light_uniform, split_surface_uniform, toward_light_point)
+                                           JIT_BORROW, M_LIGHT_PDF_IGNORED, M_MIS_WEIGHTS_NOT_ONE, M_NO_COSINE,
+                                           M_NO_RAY_OFFSET)
+from reference_impl.kernels.emitters import emitter_direction, emitter_sample, split_light_uniform_all
+from reference_impl.kernels.light_sampling import (light_point, point_on_light, sample_light_point,
+                                                   sample_surface_point, search_within, split_light_uniform,
+                                                   split_surface_uniform, toward_light_point)
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import pair_point, uniform_2d
-from reference_impl.kernels.surface import origin_offset, shadow_t_max
+from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max
 from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
 from reference_impl.rng import (COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT,
                                 LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2)
@@ -183,3 +187,103 @@ def hemisphere_weight(ratio, w0, w1, w2, m0, m1, m2):
     (Psi . m < 0), else 0."""
     faces_x = dot3(w0, w1, w2, m0, m1, m2) < 0
     return ratio * (1.0 if faces_x else 0.0)
+
+
+# ----------------------------------------------------------------- the path loop's connections (kernels/path.py)
+# A connection is a light sample seen from x before x's BSDF and the shadow ray: (whether it can bring light at all,
+# the unit direction wi from x, Le G / (p cos_x) per channel (what it carries without f |cos_x|), the light samples'
+# solid-angle density p_l of wi (Nd included; 0 for delta lights), whether the shadow ray is infinite, the point y it
+# ends at, cos_y (1 for an emitter that is not a surface) and y's own offset). The loop multiplies by the BSDF door's
+# f |cos_x| (:func:`connect`).
+NO_CONNECTION = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
+
+
+@njit(**JIT_BORROW)
+def power_weight(mutant, p_self, p_other, light_side):
+    """The power heuristic's weight p_self^2 / (p_self^2 + p_other^2) (Veach 1997, ch. 9); with the planted fault
+    "mis-weights-not-one", the light samples' (``light_side``) is the balance heuristic's p_self / (p_self + p_other)."""
+    if light_side and mutant & M_MIS_WEIGHTS_NOT_ONE:  # mutant "mis-weights-not-one"
+        return p_self / (p_self + p_other)
+    return p_self * p_self / (p_self * p_self + p_other * p_other)
+
+
+@njit(**JIT_BORROW)
+def light_piece(cfg, lights, light, u_tri):
+    """The piece (a row of the light tables) of area light k = ``light`` that u_tri picks within k's cdf; -1 for
+    an emitter that is not a surface."""
+    if light >= cfg.num_area_lights:
+        return -1
+    f = lights.first[light]
+    return f + search_within(lights.within_cdf, f, lights.count[light], u_tri)
+
+
+@njit(**JIT_BORROW)
+def point_connection(cfg, scene, tri, y0, y1, y2, pdf_area, x0, x1, x2):
+    """The connection (above) of a point y on triangle ``tri`` drawn with density ``pdf_area`` per unit area
+    (area sampling: pdf(k) / A_k; global area sampling: 1 / A_scene): Le G / (p(y) cos_x) = Le cos_y / (r^2 p(y)),
+    p_l = Nd p(y) r^2 / cos_y. None where y is not on an emitter, faces away from x or sits at x."""
+    wi0, wi1, wi2, dist2, cos_y = toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2)
+    if not (dist2 > 0 and cos_y > 0 and scene.light_id[tri] >= 0):
+        return NO_CONNECTION
+    emission = scene.emission
+    scale = cos_y / (dist2 * pdf_area)
+    p_l = cfg.shadow_rays * pdf_area * dist2 / cos_y
+    return (True, wi0, wi1, wi2, emission[tri, 0] * scale, emission[tri, 1] * scale, emission[tri, 2] * scale,
+            p_l, False, y0, y1, y2, cos_y, origin_offset(cfg.offset_scene, y0, y1, y2))
+
+
+@njit(**JIT_BORROW)
+def emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2, front_only):
+    """The connection (above) of emitter e, which is not a surface, chosen with ``pdf_select``, from the light door
+    (:func:`.emitters.emitter_direction`; ``front_only``: only directions above N): Le s / (r^2 pdf(k)) for a point
+    or spot light, E / pdf(k) for a directional one, L(w) / (pdf(k) p(w)) with p_l = Nd pdf(k) p(w) for an
+    environment."""
+    ok, k, wi0, wi1, wi2, dist2, falloff, pdf, le0, le1, le2, p0, p1, p2 = emitter_direction(
+        cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, front_only)
+    if not ok:
+        return NO_CONNECTION
+    if k == POINT or k == SPOT:
+        scale = falloff / (dist2 * pdf_select)
+        return True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, False, p0, p1, p2, 1.0, 0.0
+    if k == DIRECTIONAL:
+        scale = 1.0 / pdf_select
+        return True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, True, 0.0, 0.0, 0.0, 1.0, 0.0
+    scale = 1.0 / (pdf_select * pdf)
+    return (True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, cfg.shadow_rays * pdf_select * pdf, True, 0.0,
+            0.0, 0.0, 1.0, 0.0)
+
+
+@njit(**JIT_BORROW)
+def light_connection(cfg, scene, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2,
+                     front_only):
+    """The connection (above) of light k = ``light`` (chosen with ``pdf_select``): a point on area light k's
+    ``piece`` (:func:`light_piece`) from (u1, u2), or emitter k - N_A's own sample (:func:`emitter_connection`)."""
+    if light < cfg.num_area_lights:
+        tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
+        return point_connection(cfg, scene, tri, y0, y1, y2, pdf_select / lights.area[light], x0, x1, x2)
+    if emitters is not None:
+        return emitter_connection(cfg, emitters, light - cfg.num_area_lights, pdf_select, u1, u2, x0, x1, x2, n0,
+                                  n1, n2, front_only)
+    return NO_CONNECTION
+
+
+@njit(**JIT_BORROW)
+def connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2):
+    """The shadow ray of connection ``conn`` from x (front normal N, ``cos_x`` = N . wi): (origin, unit direction,
+    t_max). It leaves from x's offset origin ``ox`` on the side x reflects from, or for a surface that transmits
+    (``transmits``) on the side of wi; with the planted fault "no-ray-offset" from x itself. It stops short of y
+    (:func:`.surface.shadow_t_max`), or is infinite toward a directional light or an environment."""
+    if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
+        so0, so1, so2 = x0, x1, x2
+    elif transmits:
+        side = 1.0 if cos_x > 0 else -1.0
+        so0, so1, so2 = offset_origin(cfg.offset_scene, x0, x1, x2, side * n0, side * n1, side * n2)
+    else:
+        so0, so1, so2 = ox0, ox1, ox2
+    if conn[8]:
+        return so0, so1, so2, conn[1], conn[2], conn[3], np.inf
+    g0, g1, g2 = conn[9] - so0, conn[10] - so1, conn[11] - so2
+    seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
+    inv_seg = 1.0 / seg_len
+    return (so0, so1, so2, g0 * inv_seg, g1 * inv_seg, g2 * inv_seg,
+            max(shadow_t_max(seg_len, conn[13], conn[12]), 0.0))

@@ -1,69 +1,165 @@
-"""The path engine (``engine = "path"``, the default with Ni = 1): each camera path from its viewing ray to its end in
-one compiled loop, with the vertex's Embree queries made on the spot (:mod:`.queries`).
+"""The path loop (pbrt-v4's ``PathIntegrator::Li``, Mitsuba's ``path.cpp``): each camera path from its viewing ray to
+its end in one compiled loop that queries Embree itself, for every scene and every strategy with Ni = 1 (Ni > 1, the
+slides' branching paths, is the wavefront's: :mod:`.wavefront`).
 
-Each vertex is the wavefront's vertex (:mod:`.wavefront`), from the same helpers: the hit point (:mod:`.surface`),
-emission, roulette and the indirect ray (:mod:`.vertex`), the direct light (:mod:`.direct`); what differs is only
-where the rays go (a query now, not a buffer for the next batched query) and where the sums are kept (in registers,
-stored once per path). So the two engines give the same bits (``tests/test_engines.py``).
+At each vertex x (its surface record, :class:`.surface.SurfaceHit`: front geometric normal N; the BSDF's local frame
+is the shading frame, z = N, never flipped; wo toward the previous vertex; the BSDF's kind and parameters from the
+material step, :func:`.material.material_at`) the path adds
+
+* emission Le(x -> wo) of an area light's front side, met by the ray that found x, weighted by w_b:
+  1 at the camera hit or after a delta bounce (no light sample could have found it) or with ``direct = bsdf``;
+  0 with ``direct = area``, ``global-area`` and the hemisphere strategies (their direct light found it: the
+  slides' L_r recursion, eq. 5.2); with ``direct = mis`` the power heuristic (Veach 1997, ch. 9)
+  w_b = p_b^2 / (p_b^2 + p_l^2), p_b the BSDF's solid-angle pdf of that ray at the previous vertex and
+  p_l = Nd pdf(k) / A_k |x - y|^2 / cos_y the light samples' density of the same direction; the environment met
+  by an escaping ray likewise, with p_l = Nd pdf(k_env) p_env(w). With the planted fault "double-emission", 1 at
+  every hit (the pseudo-code's computeRadiance taken literally).
+* direct light (none at a delta BSDF; :mod:`.direct`), 1/Nd sum of Le G V f|cos_x| / p over Nd samples, by
+  ``direct``: ``area`` and ``mis``, light k with pdf(k) and a point on it or an emitter's own sample (the light
+  door, :func:`.direct.light_connection`), on either side of a surface that transmits, weighted with ``mis`` by
+  w_l = p_l^2 / (p_l^2 + p_b^2) (delta lights: 1); ``global-area``, a point uniform over every surface
+  (Fig. 5.13); ``hemisphere-cosine`` / ``-uniform``, a direction Psi about N and the emission the ray finds,
+  Le f|cos| / p(Psi) (Fig. 5.12). f|cos_x| is the BSDF door's (:func:`.bsdf.bsdf_eval`). The emitters a strategy
+  cannot find (hemisphere: delta lights; global area: delta lights and the environment; ``bsdf``: delta lights) add
+  their own sample once per hit, as if each were the only light (pdf(k) = 1).
+* the next ray: :func:`.bsdf.bsdf_sample` (the diffuse kind cosine-weighted, or uniform with ``hemisphere =
+  uniform``), beta *= its weight f|cos|/p (eta^2 radiance scaling included), then Russian roulette from
+  ``rr_depth`` on, survivors divided by q: "albedo" q = the diffuse albedo max_c rho_c (the slides' 1 - absorption,
+  Fig. 5.16) or, for the other kinds, min(1, max channel of the weight); "fixed" q = 1 - alpha; "throughput"
+  q = min(max(beta) eta^2, 0.95) (Mitsuba's; eta the product of the relative indices of the refractions so far);
+  "pbrt" q = min(max(beta) eta^2, 1) (pbrt-v4's: a path of throughput 1 is never cut, so furnaces of glass or
+  mirrors stay exact).
+
+Path lengths follow Mitsuba's max_depth: emission of vertex i counts for i <= max_depth, direct light at x_i when
+i + 1 <= max_depth, the next ray when its vertex can still add something (a vertex whose next would add direct
+light only, which max_depth forbids, draws none unless its BSDF is a delta). A path is cut after MAX_VERTICES
+vertices whatever max_depth says (a closed perfect mirror, whose weight is 1, would never end). A one-sided surface
+seen from behind (and not transmitting) ends its path, black.
+
+Random numbers past the camera are independent hashes ``uniform(key, dim_salt(depth, PURPOSE, j))``, except at
+the first hit with ``sampler = sobol``: there each pixel's light samples, hemisphere directions, BSDF directions and
+(BSDF lobe, roulette) pairs are stratified point sets (:func:`.sobol.path_first_hit_seeds`), computed ahead for the
+pixel's run of samples, the light sample's choices of light and piece reusing its point's first coordinate
+(:func:`.emitters.split_light_piece_all`; global area sampling's triangle likewise). The camera rays are traced
+first, 16 consecutive ones (one pixel's samples) per packet query. Rays leave x from its origin offset along the
+normal on the side the new direction leaves (:mod:`.surface`).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
+from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, SPOT
+from reference_impl.kernels.bsdf import bsdf_eval, bsdf_pdf, bsdf_sample, is_delta, sample_eta
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
-                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_GLOBAL_AREA,
-                                           DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, EMIT_MIS, EMIT_NONE, JIT, RR_OFF,
-                                           SAMPLER_SOBOL)
-from reference_impl.kernels.direct import (complement_sample, hemisphere_sample, hemisphere_weight, light_sample,
-                                           light_sample_all, shadow_ray)
-from reference_impl.kernels.emitters import env_light_pdf, env_radiance
+                                           C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_AREA, DIRECT_BSDF,
+                                           DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
+                                           HEMI_UNIFORM, JIT, JIT_BORROW, M_COSINE_PDF_PI, M_DOUBLE_EMISSION,
+                                           M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, RR_ALBEDO, RR_OFF,
+                                           RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
+from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
+                                           light_sample, point_connection, power_weight)
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
+from reference_impl.kernels.material import material_at
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
-from reference_impl.kernels.sobol import (NOTHING_HELD, FirstHitPairs, first_hit_seeds, held_point, longest_run,
-                                          pixel_first_hit_points)
-from reference_impl.kernels.surface import surface_hit
-from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
-from reference_impl.materials import NUM_PARAMS
+from reference_impl.kernels.record import record_camera, record_closest, record_occluded
+from reference_impl.kernels.rng import dim_salt, uniform
+from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
+                                          pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
+from reference_impl.kernels.surface import offset_origin, surface_hit
+from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
+from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED,
+                                      ROUGHDIELECTRIC)
+from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
+                                DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
+
+MAX_VERTICES = 1 << 16
+RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
+
+
+@njit(**JIT_BORROW)
+def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, n1, n2, s0, s1, s2, t0, t1, t2,
+            lo0, lo1, lo2):
+    """What connection ``conn`` (:mod:`.direct`) brings through x's BSDF where nothing blocks it: (whether it needs
+    a shadow ray at all, N . wi, and Le G f |cos_x| / p with its MIS weight, per channel). None where wi is on the
+    side a surface that does not transmit does not reflect from (``side`` = the side of wo), or f = 0. With the
+    planted fault "no-cosine", f without |cos_x|."""
+    wi0, wi1, wi2 = conn[1], conn[2], conn[3]
+    cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
+    if not (conn[0] and cos_x != 0 and (transmits or side * cos_x > 0)):
+        return False, cos_x, 0.0, 0.0, 0.0
+    li0, li1, li2 = dot3(s0, s1, s2, wi0, wi1, wi2), dot3(t0, t1, t2, wi0, wi1, wi2), cos_x
+    f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
+    if not (f0 > 0 or f1 > 0 or f2 > 0):
+        return False, cos_x, 0.0, 0.0, 0.0
+    if mutant & M_NO_COSINE:  # mutant "no-cosine" (direct light)
+        inv_cos = 1.0 / abs(cos_x)
+        f0, f1, f2 = f0 * inv_cos, f1 * inv_cos, f2 * inv_cos
+    w = 1.0
+    p_l = conn[7]
+    if mis and p_l > 0:
+        p_b = bsdf_pdf(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, li0, li1, li2)
+        w = power_weight(mutant, p_l, p_b, True)
+    return True, cos_x, conn[4] * f0 * w, conn[5] * f1 * w, conn[6] * f2 * w
 
 
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
-                emitters):
-    """Trace every camera path of ``state`` (the wavefront ``camera_paths`` wrote) to its end, one path at a time,
-    with Ni = 1: the same estimator, random numbers and order of floating-point operations as the wavefront
-    (``bounce`` then ``resolve_shadow`` / ``resolve_hemisphere`` at each vertex), so the same bits, but each
-    vertex's queries are made on the spot (Embree's C API) instead of in batches, and nothing is written between
-    vertices but the path's own few numbers.
+                emitters, other_kinds, record=None):
+    """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
+    (module docstring), adding each path's radiance to ``radiance[root]``.
 
-    ``cfg`` is the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
-    The camera rays are traced first, 16 consecutive ones (one pixel's samples) per packet query. ``timing[0]``
-    receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]`` the number of
-    queries. ``scene``, ``lights``, ``surfaces`` and ``emitters``: the scene's tables (:mod:`.records`);
+    ``scene``, ``lights``, ``surfaces``, ``materials`` (indexed by the scene's material ids): the scene's tables
+    (:mod:`.records`); ``emitters``: the tables of the emitters that are not surfaces, or None, which compiles
+    every branch for them out (numba decides ``emitters is not None`` from the argument's type); ``other_kinds``
+    likewise: None where every material is diffuse, which compiles the BSDF door's other kinds out (a loop of its
+    own for Lambertian scenes, from the same source), else True. ``cfg``: the
+    render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
-    ``emitters``: the tables of the emitters that are not surfaces, or None, which compiles every
-    branch for them out (``if emitters is not None`` is decided by numba from the argument's type).
-    """
-    root, key, origin, direction, o32, d32, beta, pdf_dir, _env_pdf = state
-    prim_to_tri, tri_normal, emission = scene.prim_to_tri, scene.normal, scene.emission
+    ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
+    the number of queries. ``record``: None in a render (compiled out), or buffers that receive every query's ray
+    and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
+    root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
+    emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
+    light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
-    hemi_direct = cfg.direct == DIRECT_HEMI_COSINE or cfg.direct == DIRECT_HEMI_UNIFORM
+    direct = cfg.direct
+    mutant = cfg.mutant
+    max_depth = cfg.max_depth
+    num_lights = cfg.num_lights
+    mis = direct == DIRECT_MIS
+    light_points = direct == DIRECT_AREA or mis  # light k with pdf(k), then a point on it or its own sample
+    global_area = direct == DIRECT_GLOBAL_AREA
+    hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
+    # whether emission met past the camera hit counts (weighted with mis): the strategies that draw no light sample
+    # for it; with the planted fault "double-emission" at every hit, unweighted
+    double_emission = (mutant & M_DOUBLE_EMISSION) != 0
+    finds_emission = mis or direct == DIRECT_BSDF
+    # the emitters the strategy cannot find, each with its own sample once per hit
+    own_samples = direct == DIRECT_BSDF or hemi_direct or global_area
+    uniform_diffuse = cfg.hemisphere == HEMI_UNIFORM
     sobol = cfg.sampler == SAMPLER_SOBOL
-    # The first hit's points of each pixel, computed ahead for its samples here, for the pairs these settings draw.
-    fh = first_hit_seeds(film_samples.seed_key, 0, 1, 1, 1)
+    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
+    # The first hit's points of each pixel's run of samples, computed ahead (kernels.sobol.sobol_points).
+    fh = path_first_hit_seeds(seed_key, 0, 1, 1)
     fh_pixel = -1
     si = 0
-    size = longest_run(film_samples) * max(cfg.shadow_rays, cfg.indirect_rays) if sobol else 0
-    buffers = (np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size), np.empty(size),
-               np.empty(size), np.empty(size))
-    lx, ly, dx, dy, rx, ry, ix, iy = buffers
-    held = FirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
-    indirect_first = vertex_rules(cfg, 1)[2]
-    want_rr = indirect_first and cfg.rr != RR_OFF and cfg.rr_depth <= 1
-    words, floats = ray_buffer()
+    size = longest_run(film_samples) * nd if sobol else 0
+    lx, ly = np.empty(size), np.empty(size)
+    dx, dy = np.empty(size), np.empty(size)
+    bx, by = np.empty(size), np.empty(size)
+    cx, cy = np.empty(size), np.empty(size)
+    held = PathFirstHitPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
+    # the first hits' BSDF and roulette points are computed ahead only where a first hit's next ray can be drawn
+    # without a delta lobe (else the few a delta material draws come from their seeds: the same points)
+    next_ray_drawn = finds_emission or max_depth == -1 or max_depth >= 3
     row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
+    words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0
     sampled_ns = 0
@@ -73,10 +169,14 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
         clock_ns = min(clock_ns, now_ns(ts) - t_start)
     # The camera rays first, 16 of one pixel's samples per packet query (the same hits as one query per ray).
     n = len(root)
-    first_prim = np.empty(n, np.int32)
-    t_start = now_ns(ts)
-    closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim)
-    packet_ns = now_ns(ts) - t_start
+    first_prim = np.full(n, -1, np.int32)
+    packet_ns = 0
+    if scene_ptr != 0:
+        t_start = now_ns(ts)
+        closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim)
+        packet_ns = now_ns(ts) - t_start
+        if record is not None:
+            record_camera(record, o32, d32, first_prim)
 
     count_back_face = 0
     count_escaped = 0
@@ -92,151 +192,275 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
         o0, o1, o2 = origin[i, 0], origin[i, 1], origin[i, 2]
         d0, d1, d2 = direction[i, 0], direction[i, 1], direction[i, 2]
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
-        ray_pdf = pdf_dir[i]
-        depth = 1
-        if sobol:
-            if film_samples.pixel[r] != fh_pixel:
-                fh, fh_pixel, held = pixel_first_hit_points(cfg, film_samples, r, buffers, not hemi_direct,
-                                                            hemi_direct, want_rr, indirect_first)
-            si = film_samples.sample[r]
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]  # summed here, stored once
-        if emitters is not None:
-            nx0, nx1, nx2 = 0.0, 0.0, 1.0  # the previous vertex's normal, for the escape's MIS weight
+        depth = 1
+        prev_delta = True  # the camera ray: what it finds, no light sample could have found
+        prev_pdf = 0.0  # the BSDF's solid-angle pdf of the ray that reached this vertex
+        pn0, pn1, pn2 = 0.0, 0.0, 1.0  # the previous vertex's normal on the side the ray left (env_light_pdf)
+        eta2 = 1.0  # product of the relative ior^2 of the refractions so far (rr = "throughput", "pbrt")
+        if sobol:
+            if film_pixel[r] != fh_pixel:  # a pixel's samples come together: its seeds and points once
+                fh_pixel = film_pixel[r]
+                fh = path_first_hit_seeds(seed_key, fh_pixel, cfg.spp, nd)
+                first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
+                held = PathFirstHitPairs(ahead(fh.light, first * nd, m_run * nd, lx, ly, not hemi_direct),
+                                         ahead(fh.direction, first * nd, m_run * nd, dx, dy, hemi_direct),
+                                         ahead(fh.bsdf, first, m_run, bx, by, next_ray_drawn),
+                                         ahead(fh.lobe_roulette, first, m_run, cx, cy, next_ray_drawn))
+            si = film_sample[r]
         while True:
-            emit, allow_next, allow_indirect = vertex_rules(cfg, depth)
             sob = sobol and depth == 1
+            counts = prev_delta or finds_emission or double_emission  # emission found here counts
+            weighted = mis and not (prev_delta or double_emission)  # ... with the MIS weight
             if depth == 1:
                 p = np.int64(first_prim[i])
-            else:
+            elif scene_ptr != 0:
                 p, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1,
                                                             o2, d0, d1, d2)
+                if record is not None:
+                    record_closest(record, o0, o1, o2, d0, d1, d2, p)
+            else:
+                p = -1
             if p < 0:
                 count_escaped += 1
                 if emitters is not None:
-                    if emit != EMIT_NONE and cfg.env_light >= 0:  # the environment, seen by an escaping ray
+                    if cfg.env_light >= 0 and counts:  # the environment, seen by the escaping ray
                         e0, e1, e2 = env_radiance(cfg, emitters, d0, d1, d2)
                         w = 1.0
-                        if emit == EMIT_MIS:  # _mis_weight_hemisphere, against the light samples at the origin
-                            p_env = env_light_pdf(cfg, lights, emitters, d0, d1, d2, nx0, nx1, nx2)
-                            w = ray_pdf * ray_pdf / (ray_pdf * ray_pdf + p_env * p_env)
+                        if weighted:
+                            p_env = env_light_pdf(cfg, lights, emitters, d0, d1, d2, pn0, pn1, pn2)
+                            w = power_weight(mutant, prev_pdf, p_env, False) if p_env > 0 else 1.0
                         rad0 += b0 * e0 * w
                         rad1 += b1 * e1 * w
                         rad2 += b2 * e2 * w
                 break
             hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
-            if emit != EMIT_NONE:
-                e0, e1, e2, w = emitted(cfg, emit, hit, scene, lights, ray_pdf)
-                rad0 += b0 * e0 * w
-                rad1 += b1 * e1 * w
-                rad2 += b2 * e2 * w
-
-            if not allow_next:
+            tri, t, cos_out = hit.tri, hit.t, hit.cos_out
+            if counts:
+                light = light_id[tri]
+                if light >= 0 and cos_out > 0:
+                    w = 1.0
+                    if weighted:
+                        p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
+                        w = power_weight(mutant, prev_pdf, p_light, False)
+                    rad0 += b0 * emission[tri, 0] * w
+                    rad1 += b1 * emission[tri, 1] * w
+                    rad2 += b2 * emission[tri, 2] * w
+            if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
-            reflects, albedo, nx0, nx1, nx2, f0, f1, f2, ox0, ox1, ox2 = shading_point(cfg, materials, hit, row)
-            if not reflects:
-                count_back_face += 1
+            kind = material_at(materials, hit, row)  # the material step: the BSDF's kind and parameters at x
+            if other_kinds is None:
+                kind = DIFFUSE  # what the table says, known to the compiler
+            transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC
+            if not (cos_out > 0 or row[P_TWO_SIDED] != 0 or transmits):
+                count_back_face += 1  # the back of a one-sided surface: black
                 break
             x0, x1, x2 = hit.x0, hit.x1, hit.x2
+            nx0, nx1, nx2 = hit.n0, hit.n1, hit.n2
+            side = 1.0 if cos_out > 0 else -1.0  # the side of wo
+            ns0, ns1, ns2 = side * nx0, side * nx1, side * nx2
+            ox0, ox1, ox2 = offset_origin(cfg.offset_scene, x0, x1, x2, ns0, ns1, ns2)
+            # The BSDF's local frame: the shading frame's tangents s, t and the normal N (the shading normal is N).
+            s0, s1, s2, t0, t1, t2 = hit.ss0, hit.ss1, hit.ss2, hit.st0, hit.st1, hit.st2
+            wo0, wo1, wo2 = -d0, -d1, -d2
+            lo0, lo1, lo2 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2), cos_out
+            delta_bsdf = is_delta(kind)
 
-            # Indirect light, if the next vertex can still add anything. Drawn before the direct light's queries (the
-            # random numbers are counter-based, so the order of drawing changes nothing), which gives the processor
-            # independent arithmetic to overlap instead of a chain broken by every Embree call.
-            go_on = allow_indirect
-            if go_on:
-                go_on, q0, q1, q2 = roulette(cfg, albedo, sob,
-                                             held_point(fh.roulette, rx, ry, held.roulette, si), si, k, depth, b0, b1,
-                                             b2)
-                if not go_on:
-                    count_roulette += 1
-            if go_on:
-                go_on, next_key, w0, w1, w2, c0, c1, c2, next_pdf = indirect_ray(
-                    cfg, sob, held_point(fh.indirect, ix, iy, held.indirect, si), si, 0, k, depth, nx0, nx1, nx2,
-                    f0, f1, f2, q0, q1, q2)
-                if go_on:
-                    count_indirect += 1
+            # The next ray, sampled from the BSDF, then Russian roulette: drawn before the direct light's queries
+            # (the random numbers are counter-based, so the order of drawing changes nothing), which gives the
+            # processor independent arithmetic to overlap with them. None where the next vertex would add direct
+            # light only, which max_depth forbids, unless the sample is off a delta lobe.
+            go_on = finds_emission or max_depth == -1 or depth + 2 <= max_depth
+            if go_on or delta_bsdf:
+                if sob:
+                    u1, u2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
+                    u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
                 else:
+                    u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0)) if transmits else 0.0  # only they read it
+                    u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
+                    u2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
+                    u_rr = -1.0  # drawn below only where roulette is played
+                ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, uniform_diffuse, lo0, lo1,
+                                                                        lo2, u_lobe, u1, u2)
+                # nothing sampled (below the horizon, a zero weight): the path carries no more light
+                go_on = ok and (go_on or delta)
+            if go_on:
+                if not delta:
+                    if mutant & M_NO_COSINE:  # mutant "no-cosine" (indirect light): f / p, without |cos|
+                        inv_cos = 1.0 / abs(li2)
+                        w0, w1, w2 = w0 * inv_cos, w1 * inv_cos, w2 * inv_cos
+                    if (mutant & M_COSINE_PDF_PI) and kind == DIFFUSE and not uniform_diffuse:
+                        # mutant "cosine-pdf-pi": the cosine-hemisphere pdf taken as cos, not cos / pi
+                        pdf = pdf * PI
+                        w0, w1, w2 = w0 / PI, w1 / PI, w2 / PI
+                nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
+                eta_rel = sample_eta(kind, row, lo2, li2)
+                eta2 *= eta_rel * eta_rel
+                if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
+                    if cfg.rr == RR_THROUGHPUT:
+                        q = min(max(nb0, nb1, nb2) * eta2, RR_THROUGHPUT_CAP)
+                    elif cfg.rr == RR_PBRT:
+                        q = min(max(nb0, nb1, nb2) * eta2, 1.0)
+                    elif cfg.rr == RR_ALBEDO:
+                        if kind == DIFFUSE:  # the slides' 1 - absorption: the albedo rho
+                            q = min(max(row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2]), 1.0)
+                        else:
+                            q = min(max(w0, w1, w2), 1.0)
+                    else:
+                        q = cfg.survival
+                    if not sob:
+                        u_rr = uniform(k, dim_salt(depth, ROULETTE, 0))
+                    if not (u_rr < q):
+                        count_roulette += 1
+                        go_on = False
+                    elif not (mutant & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight": survivors not divided by q
+                        inv_q = 1.0 / q
+                        nb0, nb1, nb2 = nb0 * inv_q, nb1 * inv_q, nb2 * inv_q
+                if go_on and not ((math.isfinite(nb0) and math.isfinite(nb1) and math.isfinite(nb2))
+                                  and (nb0 > 0 or nb1 > 0 or nb2 > 0)):
                     count_roulette += 1
+                    go_on = False
+            if go_on:  # the next ray's direction and origin (the direct light below reads neither)
+                count_indirect += 1
+                wn0 = li0 * s0 + li1 * t0 + li2 * nx0
+                wn1 = li0 * s1 + li1 * t1 + li2 * nx1
+                wn2 = li0 * s2 + li1 * t2 + li2 * nx2
+                inv_len = 1.0 / math.sqrt(wn0 * wn0 + wn1 * wn1 + wn2 * wn2)
+                d0, d1, d2 = wn0 * inv_len, wn1 * inv_len, wn2 * inv_len
+                if li2 * side > 0:  # leaves on the side of wo
+                    pn0, pn1, pn2 = ns0, ns1, ns2
+                    o0, o1, o2 = ox0, ox1, ox2
+                else:
+                    pn0, pn1, pn2 = -ns0, -ns1, -ns2
+                    o0, o1, o2 = offset_origin(cfg.offset_scene, x0, x1, x2, pn0, pn1, pn2)
 
-            # Direct light: Nd samples, summed in sample order (resolve_shadow / resolve_hemisphere).
-            tot0, tot1, tot2 = 0.0, 0.0, 0.0
-            for j in range(nd):
-                if hemi_direct:
-                    h0, h1, h2, ratio = hemisphere_sample(
-                        cfg, sob, held_point(fh.direction, dx, dy, held.direction, si * nd + j), si, j, k, depth, nx0,
-                        nx1, nx2)
-                    count_hemi_direct += 1
-                    hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns,
-                                                                 ox0, ox1, ox2, h0, h1, h2)
-                    if hp < 0 or ratio < 0:
-                        if emitters is not None:
-                            if hp < 0 and ratio >= 0 and cfg.env_light >= 0:  # the environment, found by Psi
-                                le0, le1, le2 = env_radiance(cfg, emitters, h0, h1, h2)
-                                tot0 += le0 * f0 * ratio
-                                tot1 += le1 * f1 * ratio
-                                tot2 += le2 * f2 * ratio
-                        continue
-                    htri = prim_to_tri[hp]
-                    weight = hemisphere_weight(ratio, h0, h1, h2, tri_normal[htri, 0], tri_normal[htri, 1],
-                                               tri_normal[htri, 2])
-                    tot0 += emission[htri, 0] * f0 * weight
-                    tot1 += emission[htri, 1] * f1 * weight
-                    tot2 += emission[htri, 2] * f2 * weight
-                    continue
-                if emitters is None:
-                    selected, ltri, y0, y1, y2, pdf_area = light_sample(
-                        cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth, scene, lights,
-                        surfaces)
-                    needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(
-                        cfg, scene, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2, ltri, y0, y1, y2, pdf_area)
-                else:
-                    selected, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = light_sample_all(
-                        cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth, scene, lights,
-                        surfaces, emitters, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
-                if selected:
-                    count_light_select += 1
-                if not needed:
-                    count_shadow_skipped += 1
-                    continue
-                count_shadow += 1
-                blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, so0,
-                                                              so1, so2, r0, r1, r2, np.float32(tfar))
-                if not blocked:
-                    tot0 += v0
-                    tot1 += v1
-                    tot2 += v2
-            rad0 += b0 * (tot0 * inv_nd)
-            rad1 += b1 * (tot1 * inv_nd)
-            rad2 += b2 * (tot2 * inv_nd)
-            if emitters is not None:
-                if hemi_direct or cfg.direct == DIRECT_GLOBAL_AREA:  # what the strategy cannot find (resolve_complement)
-                    ct0, ct1, ct2 = 0.0, 0.0, 0.0
-                    for e in range(len(emitters.kind)):
-                        is_complement, needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = complement_sample(
-                            cfg, emitters, e, k, depth, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2, f0, f1, f2)
-                        if not is_complement:
+            # Direct light (none at a delta BSDF).
+            if not delta_bsdf:
+                tot0, tot1, tot2 = 0.0, 0.0, 0.0
+                if hemi_direct:  # Nd directions about N, and the emission each finds (Fig. 5.12)
+                    for j in range(nd):
+                        u_a, u_b = uniform_2d(sob, held_point(fh.direction, dx, dy, held.direction, si * nd + j),
+                                              si * nd + j, k, j, depth, DIRECT_DIR_U1, DIRECT_DIR_U2)
+                        h0, h1, h2, cos_h, pdf_h = sample_hemisphere(direct == DIRECT_HEMI_COSINE, u_a, u_b, ns0,
+                                                                     ns1, ns2)
+                        count_hemi_direct += 1
+                        hp = np.int64(-1)
+                        if scene_ptr != 0:
+                            hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries,
+                                                                         sampled_ns, ox0, ox1, ox2, h0, h1, h2)
+                            if record is not None:
+                                record_closest(record, ox0, ox1, ox2, h0, h1, h2, hp)
+                        if not pdf_h > 0:
                             continue
+                        if hp < 0:
+                            if emitters is not None:
+                                if cfg.env_light >= 0:  # the environment, found by Psi
+                                    le0, le1, le2 = env_radiance(cfg, emitters, h0, h1, h2)
+                                else:
+                                    continue
+                            else:
+                                continue
+                        else:
+                            htri = prim_to_tri[hp]
+                            if not (light_id[htri] >= 0 and dot3(h0, h1, h2, tri_normal[htri, 0], tri_normal[htri, 1],
+                                                                 tri_normal[htri, 2]) < 0):
+                                continue  # not an emitter's front side
+                            le0, le1, le2 = emission[htri, 0], emission[htri, 1], emission[htri, 2]
+                        li0, li1 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2)
+                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, side * cos_h)
+                        inv_p = 1.0 / pdf_h
+                        tot0 += le0 * f0 * inv_p
+                        tot1 += le1 * f1 * inv_p
+                        tot2 += le2 * f2 * inv_p
+                elif light_points or global_area:  # Nd points on the lights (or on every surface)
+                    for j in range(nd):
+                        if global_area:
+                            _sel, gtri, y0, y1, y2, pdf_area = light_sample(
+                                cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth,
+                                scene, lights, surfaces)
+                            conn = point_connection(cfg, scene, gtri, y0, y1, y2, pdf_area, x0, x1, x2)
+                        else:
+                            if sob:  # one 2D point: its first coordinate picks the light and the piece too
+                                u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
+                                                     si * nd + j)
+                                sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
+                            else:
+                                u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
+                                u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
+                                u1 = uniform(k, dim_salt(depth, LIGHT_U1, j))
+                                u2 = uniform(k, dim_salt(depth, LIGHT_U2, j))
+                                sel = sample_discrete(light_cdf, u_sel) if num_lights > 1 else 0
+                                piece = light_piece(cfg, lights, sel, u_tri)
+                            if num_lights > 1:
+                                count_light_select += 1
+                            # mutant "light-pdf-ignored": pdf(y|k) alone
+                            pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
+                            conn = light_connection(cfg, scene, lights, emitters, sel, piece, pdf_select, u1, u2, x0,
+                                                    x1, x2, ns0, ns1, ns2, not transmits)
+                        needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits,
+                                                            side, nx0, nx1, nx2, s0, s1, s2, t0, t1, t2, lo0, lo1,
+                                                            lo2)
                         if not needed:
                             count_shadow_skipped += 1
                             continue
+                        so0, so1, so2, r0, r1, r2, tfar = connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2,
+                                                                         nx0, nx1, nx2, ox0, ox1, ox2)
                         count_shadow += 1
-                        blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
-                                                                      sampled_ns, so0, so1, so2, r0, r1, r2,
-                                                                      np.float32(tfar))
+                        blocked = False
+                        if scene_ptr != 0:
+                            blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
+                                                                          sampled_ns, so0, so1, so2, r0, r1, r2,
+                                                                          np.float32(tfar))
+                            if record is not None:
+                                record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
                         if not blocked:
-                            ct0 += v0
-                            ct1 += v1
-                            ct2 += v2
-                    rad0 += b0 * ct0
-                    rad1 += b1 * ct1
-                    rad2 += b2 * ct2
+                            tot0 += v0
+                            tot1 += v1
+                            tot2 += v2
+                rad0 += b0 * (tot0 * inv_nd)
+                rad1 += b1 * (tot1 * inv_nd)
+                rad2 += b2 * (tot2 * inv_nd)
+                if emitters is not None:
+                    if own_samples:  # the emitters the strategy cannot find: each its own sample, pdf(k) = 1
+                        ct0, ct1, ct2 = 0.0, 0.0, 0.0
+                        for e in range(len(emitters.kind)):
+                            ekind = emitters.kind[e]
+                            if not (ekind == POINT or ekind == SPOT or ekind == DIRECTIONAL
+                                    or (global_area and (ekind == ENV_CONSTANT or ekind == ENV_MAP))):
+                                continue
+                            u1 = uniform(k, dim_salt(depth, COMPLEMENT_U1, e))
+                            u2 = uniform(k, dim_salt(depth, COMPLEMENT_U2, e))
+                            conn = emitter_connection(cfg, emitters, e, 1.0, u1, u2, x0, x1, x2, ns0, ns1, ns2,
+                                                      not transmits)
+                            needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, False, conn,
+                                                                transmits, side, nx0, nx1, nx2, s0, s1, s2, t0, t1,
+                                                                t2, lo0, lo1, lo2)
+                            if not needed:
+                                count_shadow_skipped += 1
+                                continue
+                            so0, so1, so2, r0, r1, r2, tfar = connection_ray(cfg, conn, cos_x, transmits, x0, x1,
+                                                                             x2, nx0, nx1, nx2, ox0, ox1, ox2)
+                            count_shadow += 1
+                            blocked = False
+                            if scene_ptr != 0:
+                                blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
+                                                                              sampled_ns, so0, so1, so2, r0, r1, r2,
+                                                                              np.float32(tfar))
+                                if record is not None:
+                                    record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
+                            if not blocked:
+                                ct0 += v0
+                                ct1 += v1
+                                ct2 += v2
+                        rad0 += b0 * ct0
+                        rad1 += b1 * ct1
+                        rad2 += b2 * ct2
 
             if not go_on:
                 break
-            k = next_key
-            o0, o1, o2 = ox0, ox1, ox2
-            d0, d1, d2 = w0, w1, w2
-            b0, b1, b2 = c0, c1, c2
-            ray_pdf = next_pdf
+            b0, b1, b2 = nb0, nb1, nb2
+            prev_delta = delta
+            prev_pdf = pdf
             depth += 1
         radiance[r, 0], radiance[r, 1], radiance[r, 2] = rad0, rad1, rad2
     counters[C_BACK_FACE] += count_back_face
@@ -250,3 +474,6 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     timed = queries // TIMING_STRIDE  # the queries closest_prim_timed / occluded_timed timed
     timing[0] += max(sampled_ns - timed * clock_ns, 0) * TIMING_STRIDE + packet_ns
     timing[1] += queries + n
+
+
+__all__ = ["MAX_VERTICES", "connect", "trace_paths"]

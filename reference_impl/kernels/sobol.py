@@ -37,9 +37,8 @@ _GOLDEN_1, _GOLDEN_2, _GOLDEN_3 = (np.uint64((r * int(_GOLDEN)) & ((1 << 64) - 1
 
 
 class FirstHitPairs(NamedTuple):
-    """One entry per pair of dimensions a pixel's first hit draws from its stratified sets in the Lambertian
-    engines: the pair's seeds (:func:`first_hit_seeds`), or the (base, count) of its points computed ahead
-    (:func:`ahead`)."""
+    """One entry per pair of dimensions a pixel's first hit draws from its stratified sets in the wavefront: the
+    pair's seeds (:func:`first_hit_seeds`)."""
 
     light: tuple  # the light sample's point (its first coordinate also picks the light and the piece); Np x Nd
     direction: tuple  # hemisphere sampling's direct-light direction; Np x Nd
@@ -47,10 +46,13 @@ class FirstHitPairs(NamedTuple):
     indirect: tuple  # the indirect ray's direction; Np x Ni
 
 
-class GlossyFirstHitPairs(NamedTuple):
-    """:class:`FirstHitPairs` of the glossy engine (:func:`glossy_first_hit_seeds`)."""
+class PathFirstHitPairs(NamedTuple):
+    """One entry per pair of dimensions a pixel's first hit draws from its stratified sets in the path loop
+    (:func:`path_first_hit_seeds`): the pair's seeds, or the (base, count) of its points computed ahead
+    (:func:`ahead`)."""
 
     light: tuple  # the light sample's point (its first coordinate also picks the light and the piece); Np x Nd
+    direction: tuple  # hemisphere sampling's direct-light direction; Np x Nd
     bsdf: tuple  # the BSDF sample's direction; Np
     lobe_roulette: tuple  # the BSDF's lobe (x) and Russian roulette (y); Np
 
@@ -204,15 +206,16 @@ def first_hit_seeds(seed_key, pixel, spp, nd, ni):
 
 
 @njit(**JIT)
-def glossy_first_hit_seeds(seed_key, pixel, spp, nd):
-    """The ``sobol_seeds`` of a pixel's first-hit pairs in the glossy engine: (light sample, BSDF direction, BSDF
-    lobe and roulette); Np x Nd, Np and Np points. The light sample's choices of light and piece reuse its point's
+def path_first_hit_seeds(seed_key, pixel, spp, nd):
+    """The ``sobol_seeds`` of a pixel's first-hit pairs in the path loop: (light sample, hemisphere sampling's
+    direct-light direction, BSDF direction, BSDF lobe and roulette); Np x Nd, Np x Nd, Np and Np points. The light sample's choices of light and piece reuse its point's
     first coordinate (as :func:`first_hit_seeds`'); the lobe and the roulette number are the two coordinates of one
     point."""
     pk = pixel_key(seed_key, pixel)
-    return GlossyFirstHitPairs(sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
-                               sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
-                               sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
+    return PathFirstHitPairs(sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+                             sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
+                             sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
+                             sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
 
 
 @njit(**JIT_BORROW)
@@ -258,22 +261,3 @@ def ahead(seeds, first, count, xs, ys, wanted):
         return np.int64(0), np.int64(0)
     sobol_points(seeds, first, count, xs, ys, 0)
     return np.int64(first), np.int64(count)
-
-
-@njit(**JIT_BORROW)
-def pixel_first_hit_points(cfg, film_samples, r, buffers, want_light, want_direction, want_rr, want_indirect):
-    """The path engine's :func:`pixel_first_hit_seeds` for camera sample r, the first of its pixel here: the
-    pixel's four first-hit seeds, with the points of its run of samples (:func:`pixel_run`) computed ahead into
-    ``buffers`` (8 float64 arrays, x and y of each pair, of :func:`longest_run` x Nd or Ni points) for the pairs
-    wanted (the engine's settings say which pairs it draws). Returns (seeds, pixel, the 4 pairs' (base, count))."""
-    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
-    pixel = film_pixel[r]
-    nd, ni = cfg.shadow_rays, cfg.indirect_rays
-    first, m = film_sample[r], pixel_run(film_pixel, film_sample, r)
-    seeds = first_hit_seeds(seed_key, pixel, cfg.spp, nd, ni)
-    lx, ly, dx, dy, rx, ry, ix, iy = buffers
-    held = FirstHitPairs(ahead(seeds.light, first * nd, m * nd, lx, ly, want_light),
-                         ahead(seeds.direction, first * nd, m * nd, dx, dy, want_direction),
-                         ahead(seeds.roulette, first, m, rx, ry, want_rr),
-                         ahead(seeds.indirect, first * ni, m * ni, ix, iy, want_indirect))
-    return seeds, pixel, held

@@ -111,11 +111,11 @@ class BsdfChi2:
 
 
 def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = "", mutant: int = 0,
-              pdf_mutant: int | None = None, n: int = N_SAMPLES) -> BsdfChi2:
+              pdf_mutant: int | None = None, n: int = N_SAMPLES, hemisphere: str = "cosine") -> BsdfChi2:
     """Chi^2 of material 0's sampler for ``wo`` against its pdf (``pdf_mutant``: the mutant bits the pdf is
-    evaluated with, default ``mutant``)."""
+    evaluated with, default ``mutant``; ``hemisphere``: the diffuse kind's sampling, both sides alike)."""
     pdf_mutant = mutant if pdf_mutant is None else pdf_mutant
-    s = bsdf.sample(materials, 0, wo, uniforms(seed, n), mutant=mutant)
+    s = bsdf.sample(materials, 0, wo, uniforms(seed, n), mutant=mutant, hemisphere=hemisphere)
     ok = s["ok"]
     wi = s["wi"][ok]
     same = wi[:, 2] * wo[2] > 0
@@ -130,7 +130,7 @@ def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = ""
             d = _from_chart(g, phi, frame)
             keep = (d[..., 2] * wo[2] > 0) == want_same  # the pdf counts on this chart's side only
             p = np.zeros(keep.shape)
-            p[keep] = bsdf.pdf(materials, 0, wo, d[keep], mutant=pdf_mutant)
+            p[keep] = bsdf.pdf(materials, 0, wo, d[keep], mutant=pdf_mutant, hemisphere=hemisphere)
             return p
 
         probs = bin_integrals(pdf, domain, RES, jacobian=lambda g, phi: 4.0 * (1.0 - np.abs(g)) ** 3,
@@ -145,7 +145,7 @@ def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = ""
     expected.append(np.array([max(0.0, n * (1.0 - integral))]))
     statistic, dof, _, _ = pooled_statistic(np.concatenate(observed), np.concatenate(expected))
     p_value = float(stats.chi2.sf(statistic, dof)) if dof >= 1 else float("nan")
-    pdf_at = bsdf.pdf(materials, 0, wo, wi, mutant=pdf_mutant)
+    pdf_at = bsdf.pdf(materials, 0, wo, wi, mutant=pdf_mutant, hemisphere=hemisphere)
     impossible = int(np.count_nonzero(~(pdf_at > 0)) + np.count_nonzero(np.abs(np.linalg.norm(wi, axis=1) - 1) > 1e-9))
     return BsdfChi2(name, p_value, statistic, dof, float(integral), fails / n, impossible)
 

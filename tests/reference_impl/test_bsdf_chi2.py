@@ -54,6 +54,22 @@ def test_sampler_matches_its_pdf(index):
     assert result.p_value >= ALPHA, result.line()
 
 
+@pytest.mark.parametrize("index", [0, 1, 2], ids=lambda i: CASES[i][0])
+def test_the_uniform_diffuse_sampler_matches_its_pdf(index):
+    """``hemisphere = uniform``: the diffuse kind's uniform sampler (p = 1 / (2 pi)) against its own pdf, on the three
+    diffuse cases, at the same per-test alpha; and the cosine pdf must reject its samples."""
+    name, materials, wo = CASES[index]
+    result = cases.bsdf_chi2(materials, wo, seed=2000 + index, name=name + " uniform", hemisphere="uniform")
+    print(result.line())
+    assert result.impossible == 0, result.line()
+    assert abs(result.pdf_integral - 1.0) <= 1e-3, result.line()
+    assert result.p_value >= ALPHA, result.line()
+    s = cases.bsdf.sample(materials, 0, wo, cases.uniforms(2100 + index, 20000), hemisphere="uniform")
+    cosine_pdf = cases.bsdf.pdf(materials, 0, wo, s["wi"][s["ok"]])
+    uniform_pdf = cases.bsdf.pdf(materials, 0, wo, s["wi"][s["ok"]], hemisphere="uniform")
+    assert np.allclose(uniform_pdf, 0.5 / np.pi) and not np.allclose(cosine_pdf, uniform_pdf)
+
+
 @pytest.mark.parametrize("kind", [ROUGHCONDUCTOR, ROUGHDIELECTRIC], ids=["roughconductor", "roughdielectric"])
 @pytest.mark.parametrize("dist", [BECKMANN, GGX], ids=["beckmann", "ggx"])
 def test_vndf_alpha_squared_is_rejected(kind, dist):

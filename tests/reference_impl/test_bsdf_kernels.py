@@ -59,6 +59,22 @@ def test_weight_is_eval_over_pdf(case, mutant):
         assert not s["delta"].any()
 
 
+@pytest.mark.parametrize("hemisphere", ["cosine", "uniform"])
+@pytest.mark.parametrize("two_sided, cos_o", [(False, 0.6), (True, -0.4)], ids=["front", "two-sided-behind"])
+def test_the_diffuse_weight_is_eval_over_pdf(hemisphere, two_sided, cos_o):
+    """The diffuse kind, both of its samplers (``hemisphere``): weight = f |cos| / pdf, the pdf the one
+    bsdf_pdf gives, wi on wo's side."""
+    materials = cases.one(DIFFUSE, reflectance=(0.3, 0.5, 0.9), two_sided=two_sided)
+    wo = cases.direction(cos_o)
+    s = bsdf.sample(materials, 0, wo, cases.uniforms(12, 2000), hemisphere=hemisphere)
+    ok = s["ok"]
+    assert ok.mean() > 0.99
+    f, p = bsdf.eval_pdf(materials, 0, wo, s["wi"][ok], hemisphere=hemisphere)
+    assert np.all(p > 0) and np.all(s["wi"][ok][:, 2] * cos_o > 0)
+    np.testing.assert_allclose(s["pdf"][ok], p, rtol=1e-12)
+    np.testing.assert_allclose(s["weight"][ok], f / p[:, None], rtol=1e-12)
+
+
 def test_no_jacobian_mutant_changes_the_pdf_only_by_the_jacobian():
     materials = _rough(ROUGHCONDUCTOR, GGX, True, 0.3)
     wo = cases.direction(0.6)

@@ -1,6 +1,7 @@
 """The reference renderer's emitters that are not shapes (point, spot, directional, constant and map environments)
 against closed forms and against each other; the planted faults of reference_impl/mutants.py's EMITTER_MUTANTS,
-each caught by the verdict; numerical limits; the same bits whatever the engine, batch size or thread count.
+each caught by the verdict; numerical limits; the two engines agree, and each gives the same bits whatever the batch
+size or thread count.
 
 Every statistical check is the harness's verdict (harness/judges/verdict.py) at a false-alarm probability
 ALPHA = FALSE_ALARM (1e-4) per test, against a closed form (zero variance) or an independent render of the same scene
@@ -17,6 +18,10 @@ import functools
 import numpy as np
 import pytest
 from conftest import render_reference
+try:
+    from engine_agreement import Z_MAX, mean_z
+except ImportError:  # tests/ imported as a package
+    from tests.reference_impl.engine_agreement import Z_MAX, mean_z
 from emitter_scenes import (RHO, constant, directional, envmap, envmap_on_plane, open_box_scene, plane_normal,
                             plane_scene, point, point_on_plane, sphere_scene, spot, spot_on_plane, sun_sky_map,
                             with_emitters)
@@ -355,24 +360,23 @@ ENGINE_CASES = [{}, {"direct": "mis"}, {"direct": "hemisphere-cosine", "shadow_r
 
 
 @pytest.mark.parametrize("settings", ENGINE_CASES, ids=lambda s: "-".join(map(str, s.values())) or "defaults")
-def test_path_engine_and_wavefront_give_the_same_bits_with_emitters(settings):
+def test_path_loop_and_wavefront_agree_with_emitters(settings):
+    """The two engines draw different numbers: their means agree within Z_MAX (engine_agreement: 15 z per case,
+    two-sided 1e-6 each; 8 cases)."""
     scene = _mixed_scene()
-    a = _core_render(scene, engine="wavefront", **settings)
-    b = _core_render(scene, engine="path", **settings)
-    assert a.image.tobytes() == b.image.tobytes()
-    assert np.array_equal(a.variance, b.variance, equal_nan=True)
-    drop = {"embree_microseconds"}
-    assert {k: v for k, v in a.stats.items() if k not in drop} == {k: v for k, v in b.stats.items() if k not in drop}
+    a = _core_render(scene, engine="wavefront", **{"spp": 64, **settings})
+    b = _core_render(scene, engine="path", **{"spp": 64, "seed": 5, **settings})
+    assert mean_z(a, b).max() <= Z_MAX
     assert a.image.max() > 0
 
 
 def test_batch_size_and_threads_do_not_change_a_bit_with_emitters():
     scene = _mixed_scene()
-    base = _core_render(scene, threads=1)
-    for settings in ({"batch_size": 37, "threads": 2}, {"batch_size": 1000, "threads": 1},
-                     {"batch_size": 37, "engine": "wavefront", "threads": 2}):
-        other = _core_render(scene, **settings)
-        assert other.image.tobytes() == base.image.tobytes(), settings
+    for engine in ("path", "wavefront"):
+        base = _core_render(scene, threads=1, engine=engine)
+        for settings in ({"batch_size": 37, "threads": 2}, {"batch_size": 1000, "threads": 1}):
+            other = _core_render(scene, engine=engine, **settings)
+            assert other.image.tobytes() == base.image.tobytes(), (engine, settings)
 
 
 def test_a_scene_with_only_emitters_that_are_not_shapes_renders():

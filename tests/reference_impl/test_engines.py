@@ -1,8 +1,12 @@
-"""The path engine (one path at a time, Embree's C API from the kernels) and the wavefront give the same bits, and
+"""The path loop (one path at a time, Embree's C API from the kernels) and the wavefront estimate the same image, and
 the direct Embree queries answer as Embree should.
 
-The path engine is the default; the wavefront is what Ni > 1 needs. Every setting and planted fault is rendered by
-each at the same seed: images, variances and counters must be identical, bit for bit.
+The path loop is the default and runs every scene; the wavefront is what Ni > 1 needs. They draw their random
+numbers for different dimensions (the path loop samples the BSDF door, the wavefront the slides' hemisphere) and
+sum in other orders, so their bits differ: every setting and planted fault is rendered by each at its own seed and
+the means compared (``engine_agreement.mean_z``: globally and per quadrant, per channel, with the renders' own
+variance estimates). A case fails where some |z| > Z_MAX = 4.9 (two-sided 1e-6 per z, 15 z per case, 22 cases: a
+false alarm about once in 3,000 draws of the seeds, which are fixed).
 """
 
 from __future__ import annotations
@@ -13,7 +17,14 @@ import numpy as np
 import pytest
 from conftest import load_small
 
+try:
+    from engine_agreement import Z_MAX, mean_z
+except ImportError:  # tests/ imported as a package
+    from tests.reference_impl.engine_agreement import Z_MAX, mean_z
+
 from harness.scene import triangulate
+
+SPP = 64
 
 CASES = [
     ("cornell-box", {}),
@@ -51,23 +62,31 @@ def _render(scene, engine, **settings):
 
 @pytest.mark.parametrize("name, settings", CASES, ids=[f"{n}-{'-'.join(map(str, s.values())) or 'defaults'}"
                                                        for n, s in CASES])
-def test_path_and_wavefront_engines_give_the_same_bits(name, settings):
+def test_path_and_wavefront_engines_agree(name, settings):
     scene = load_small(name, 24)
-    a = _render(scene, "wavefront", **settings)
-    b = _render(scene, "path", **settings)
-    drop = {"embree_microseconds"}
-    assert a.image.tobytes() == b.image.tobytes()
-    assert np.array_equal(a.variance, b.variance, equal_nan=True)
-    assert {k: v for k, v in a.stats.items() if k not in drop} == {k: v for k, v in b.stats.items() if k not in drop}
+    a = _render(scene, "wavefront", **{"spp": SPP, **settings})
+    b = _render(scene, "path", **{"spp": SPP, "seed": 12, **settings})
+    assert a.stats["paths"] == b.stats["paths"]
+    assert np.all(np.isfinite(a.variance)) and np.all(np.isfinite(b.variance))
+    assert mean_z(a, b).max() <= Z_MAX
     assert b.stats["embree_microseconds"] >= 0
 
 
+def test_the_engines_comparison_can_fail():
+    """The same comparison, a planted fault on one side only: the cosine dropped from the estimators."""
+    scene = load_small("cornell-box", 24)
+    a = _render(scene, "wavefront", spp=SPP)
+    b = _render(scene, "path", spp=SPP, seed=12, mutant="no-cosine")
+    assert mean_z(a, b).max() > Z_MAX
+
+
+@pytest.mark.parametrize("engine", ["path", "wavefront"])
 @pytest.mark.parametrize("sampler", ["sobol", "independent"])
-def test_gaussian_filter_and_odd_batches_agree_too(sampler):
+def test_gaussian_filter_and_odd_batches_give_the_same_bits(engine, sampler):
     scene = load_small("cornell-box", 20)
     scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, filter="gaussian"))
-    a = _render(scene, "wavefront", batch_size=37, sampler=sampler)
-    b = _render(scene, "path", batch_size=1000, threads=1, sampler=sampler)
+    a = _render(scene, engine, batch_size=37, sampler=sampler)
+    b = _render(scene, engine, batch_size=1000, threads=1, sampler=sampler)
     assert a.image.tobytes() == b.image.tobytes()
 
 

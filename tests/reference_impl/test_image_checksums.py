@@ -2,7 +2,9 @@
 
 Every strategy and setting value of ``reference_impl.Settings``, every planted fault of ``reference_impl/mutants.py``
 and every pixel filter is rendered on a 16 x 16 crop of a canonical scene at 4 spp, by both engines and with both
-samplers, and the SHA-256 of the float32 image and of the variance bytes, and the counters, must be those stored. A
+samplers (scenes with emitters that are not surfaces or with materials that are not diffuse: ``LOOP_CASES``, where
+the wavefront runs only the Lambertian ones), and the SHA-256 of the float32 image and of the variance bytes, and
+the counters, must be those stored. A
 change meant to keep the images (a refactor of the kernels) must pass this unchanged; a change meant to alter them
 regenerates the file, in a commit of its own, and says why:
 
@@ -26,7 +28,7 @@ from pathlib import Path
 import pytest
 from conftest import load_small
 
-from harness.scene import triangulate
+from harness.scene import emitter_arrays, material_arrays, triangulate
 
 DATA = Path(__file__).resolve().parent / "data" / "image_checksums.json"
 REGENERATE = "REGENERATE_IMAGE_CHECKSUMS"
@@ -70,8 +72,28 @@ BASE_CASES = [
     ("soft-shadows", {"mutant": "no-ray-offset"}),
     ("furnace", {"mutant": "energy-loss-2pct"}),
 ]
+# Scenes with emitters that are not surfaces, and glossy scenes (whose every render is the path loop's).
+LOOP_CASES = [
+    ("point-spot", {}),
+    ("point-spot", {"direct": "hemisphere-cosine"}),
+    ("point-spot", {"mutant": "spot-ignores-beam-width"}),
+    ("sun-sky", {"direct": "global-area"}),
+    ("sun-sky", {"env_sampling": "cosine", "direct": "mis"}),
+    ("envmap", {}),
+    ("envmap", {"mutant": "envmap-mirrored-u"}),
+    ("veach-mis", {}),
+    ("veach-mis", {"direct": "bsdf"}),
+    ("veach-mis", {"mutant": "mis-weights-not-one"}),
+    ("cornell-box-specular", {}),
+    ("cornell-box-specular", {"rr": "throughput", "direct": "area"}),
+    ("underwater", {}),
+    ("underwater", {"mutant": "refraction-no-eta2"}),
+    ("white-furnace-rough", {"mutant": "microfacet-pdf-no-jacobian"}),
+]
+GLOSSY = {"veach-mis", "cornell-box-specular", "underwater", "white-furnace-rough"}
 CASES = [(scene, {**settings, "engine": engine, "sampler": sampler})
-         for scene, settings in BASE_CASES for engine in ("path", "wavefront") for sampler in ("sobol", "independent")]
+         for scene, settings in BASE_CASES + LOOP_CASES for engine in ("path", "wavefront")
+         for sampler in ("sobol", "independent") if not (engine == "wavefront" and scene in GLOSSY)]
 
 
 def _case_id(scene: str, settings: dict) -> str:
@@ -86,7 +108,9 @@ def _inputs(name: str, pixel_filter: str | None):
     scene = load_small(name, SIZE)
     if pixel_filter is not None:
         scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, filter=pixel_filter))
-    return triangulate(scene), scene.camera, scene.film, scene.max_depth
+    materials = material_arrays(scene)
+    return (triangulate(scene), scene.camera, scene.film, scene.max_depth, emitter_arrays(scene),
+            {} if materials is None else {"materials": materials})
 
 
 @functools.cache
@@ -96,9 +120,10 @@ def _checksum(case_id: str) -> dict:
 
     scene, settings = CASES[IDS.index(case_id)]
     settings = dict(settings)
-    geometry, camera, film, max_depth = _inputs(scene, settings.pop("filter", None))
+    geometry, camera, film, max_depth, emitters, materials = _inputs(scene, settings.pop("filter", None))
     values = {"spp": SPP, "seed": SEED, "max_depth": max_depth, "threads": 1, **settings}
-    out = reference_impl.render(geometry, camera, film, reference_impl.Settings(**values))
+    out = reference_impl.render(geometry, camera, film, reference_impl.Settings(**values), emitters=emitters,
+                                **materials)
     stats = {k: v for k, v in sorted(out.stats.items()) if k != "embree_microseconds"}
     return {"image": hashlib.sha256(out.image.tobytes()).hexdigest(),
             "variance": hashlib.sha256(out.variance.tobytes()).hexdigest(), "stats": stats}

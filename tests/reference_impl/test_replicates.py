@@ -65,8 +65,6 @@ def test_replicates_do_not_depend_on_batch_or_threads(engine):
     a = _render(scene, 12, seed=5, replicates=3, engine=engine)
     b = _render(scene, 12, seed=5, replicates=3, engine=engine, threads=1, batch_size=100)
     assert np.array_equal(a.image, b.image) and np.array_equal(a.variance, b.variance)
-    c = _render(scene, 12, seed=5, replicates=3, engine="path" if engine == "wavefront" else "wavefront")
-    assert np.array_equal(a.image, c.image) and np.array_equal(a.variance, c.variance)
 
 
 def _variance_ratio(scene, spp, seeds, **settings):
