@@ -13,11 +13,12 @@ already in L_direct and is not added again (the literal pseudo-code's ``computeR
 counts direct light twice; it survives only as the mutant "double-emission"). Russian roulette divides survivors
 by their survival probability (Fig. 5.16, ``estimatedRadiance / (1 - absorption)``).
 
-Scenes whose materials are all Lambertian run one of two engines that give the same bits (``Settings.engine``; which
-strategies each runs: ``settings.CAPABILITIES``; other scenes run the glossy engine, kernels/glossy.py). The
-default, "path", hands a batch of camera samples to one compiled loop (:func:`kernels.path.trace_paths`) that
+Two engines trace the same estimator with random numbers of their own (``Settings.engine``; which strategies each
+runs: ``settings.CAPABILITIES``). The default, "path", hands a batch of camera samples to one compiled loop
+(:func:`kernels.path.trace_paths`: the material step, the BSDF door, the light door and MIS at every vertex) that
 follows each path to its end and queries Embree itself (its C API: ``reference_impl/embree_c.py``), after tracing
-the batch's camera rays in packets of 16; it serves Ni = 1. The "wavefront" engine, needed when paths branch
+the batch's camera rays in packets of 16; it runs every scene with Ni = 1. The "wavefront" engine, needed on
+Lambertian scenes when paths branch
 (Ni > 1): all paths of a batch advance one bounce at a time, every ray query is one batched call, and everything
 between two queries is one compiled kernel over all paths (``reference_impl/kernels/``, numba, ``nogil`` so that the
 worker threads run kernels and Embree queries concurrently); there is no Python loop over rays. One bounce
@@ -65,7 +66,7 @@ COUNTERS = (
 )
 # Time, in microseconds, the worker threads spent inside Embree queries (summed over threads, so it can exceed the
 # wall time): the only entry of ``stats`` that is not a deterministic count. The wavefront times each batched query;
-# the path engine times one query in kernels.queries.TIMING_STRIDE and scales by the stride.
+# the path loop times one query in kernels.queries.TIMING_STRIDE and scales by the stride.
 EMBREE_MICROSECONDS = "embree_microseconds"
 
 
@@ -340,8 +341,8 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     surfaces (point, spot, directional lights, an environment), or None. The result depends only on the inputs and
     ``settings.seed``: not on ``batch_size`` or ``threads``. ``materials``: the scene's material table
     (:class:`Materials`, in the order ``geometry.material`` indexes), or None (all Lambertian, as
-    ``geometry.reflectance`` says). None or all diffuse runs the Lambertian engines (``settings.engine``); a
-    material that is not diffuse, ``direct = bsdf`` or ``rr = throughput`` or ``pbrt`` the glossy engine (kernels/glossy.py).
+    ``geometry.reflectance`` says). None or all diffuse runs ``settings.engine`` (or the other engine where a
+    strategy needs it: :func:`_engine`); a material that is not diffuse the path loop (kernels/path.py).
     ``direct = auto`` and ``rr = auto`` are resolved by the render's context (:meth:`Settings.resolved`, for
     :func:`~reference_impl.materials.is_glossy`); the output's settings hold the resolved ones.
     """
@@ -448,8 +449,8 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
 def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None,
                         sampling: _Sampling | None = None, finish: bool = True) -> np.ndarray:
     """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16. ``record``:
-    buffers for the glossy engine's rays (:mod:`reference_impl.kernels.record`, used by :mod:`reference_impl.replay`;
-    the other engines' rays are recorded from the wavefront's batched queries). ``sampling``: the pass the samples
+    buffers for the path loop's rays (:mod:`reference_impl.kernels.record`, used by :mod:`reference_impl.replay`;
+    the wavefront's rays are recorded from its batched queries). ``sampling``: the pass the samples
     belong to (a replicate), by default the render's own. ``finish`` = False leaves the planted fault
     "energy-loss-2pct" and the count of non-finite samples to the caller (:func:`kernels.film.finish_and_accumulate`,
     in the same pass as the pixel sums)."""
@@ -554,7 +555,7 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])
             clock.seconds += time.perf_counter() - t0
             kernels.wavefront.resolve_shadow(state.root, state.beta, hits, nd, owner[:s], value[:s], s_hit, total, radiance)
-        if c:  # after the strategy's own estimate, as the path engine adds them
+        if c:  # after the strategy's own estimate, as the path loop adds them
             c_owner, c_o32, c_d32, c_tfar, c_value = crays
             t0 = time.perf_counter()
             c_hit = intersector.occluders(c_o32[:c], c_d32[:c], c_tfar[:c])

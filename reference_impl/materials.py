@@ -106,7 +106,8 @@ class Materials:
 def is_glossy(materials: Materials | None) -> bool:
     """Whether a scene is glossy: its material table is given and holds a material that is not Lambertian.
 
-    The one rule the core decides it by: a glossy scene runs the glossy engine (kernels/glossy.py) and resolves
+    The one rule the core decides it by: a glossy scene runs the path loop (kernels/path.py), whatever
+    ``engine`` says, with the BSDF door's every kind compiled in, and resolves
     ``direct = auto`` and ``rr = auto`` as :meth:`Settings.resolved <reference_impl.settings.Settings.resolved>`
     says.
 

@@ -53,7 +53,7 @@ BSDF_MUTANTS: dict[str, str] = {
     ),
 }
 
-# The glossy engine's (reference_impl/kernels/glossy.py), on scenes with a non-diffuse material or direct = bsdf.
+# The MIS weights' (reference_impl/kernels/direct.py power_weight): the path loop with direct = mis.
 GLOSSY_MUTANTS: dict[str, str] = {
     "mis-weights-not-one": (
         "direct = mis: the light sample weighted by the balance heuristic p_l / (p_l + p_b) while the BSDF sample "

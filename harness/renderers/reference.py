@@ -117,7 +117,7 @@ def _survival(scene: Scene, settings: reference_impl.Settings) -> float:
     if settings.rr == "fixed":
         return 1.0 - settings.absorption
     if settings.rr == "throughput":
-        return 0.95  # Mitsuba's cap (kernels/glossy.py)
+        return 0.95  # Mitsuba's cap (kernels/path.py)
     # "albedo" and "pbrt" (whose survival, min(1, throughput), falls as fast as the reflectances multiply)
     return max((max(m.reflectance) for m in scene.materials.values()), default=0.0)
 

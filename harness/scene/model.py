@@ -244,8 +244,8 @@ class Scene:
 
         The harness's one rule, and the one the core's is built from: :func:`harness.scene.material_arrays` hands
         the core a material table exactly when it holds, so :func:`reference_impl.materials.is_glossy` of that
-        table agrees. A glossy scene runs the reference's glossy engine (``direct`` and ``rr`` = "auto" resolved
-        by :meth:`reference_impl.Settings.resolved`), and Mitsuba gets its spheres as meshes."""
+        table agrees. A glossy scene runs the reference's path loop with every BSDF kind (``direct`` and ``rr`` =
+        "auto" resolved by :meth:`reference_impl.Settings.resolved`), and Mitsuba gets its spheres as meshes."""
         return any(not m.is_diffuse for m in self.materials.values())
 
     @property

@@ -39,7 +39,7 @@ STRATEGIES: dict[str, tuple[str, ...]] = {
     "rr": ("albedo", "fixed", "off"),
     "env_sampling": ("importance", "uniform", "cosine"),  # rows only on scenes with an environment
 }
-#: the same on scenes with a material that is not diffuse (the glossy engine: no hemisphere or global-area
+#: the same on scenes with a material that is not diffuse (the path loop there: no hemisphere or global-area
 #: strategies, no hemisphere setting, no cosine sampling of an environment; direct = bsdf, rr = pbrt and throughput
 #: beside)
 GLOSSY_STRATEGIES: dict[str, tuple[str, ...]] = {

@@ -62,7 +62,7 @@ class StudyOptions:
     convergence: bool = True
     convergence_spp: tuple[int, ...] = conv.DEFAULT_SPP_LADDER
     #: besides the defaults, convergence curves of these `direct` strategies and (cached) Mitsuba; in scenes with
-    #: a material that is not diffuse (the glossy engine: direct = area, mis, bsdf) those of the second tuple
+    #: a material that is not diffuse (direct = area, mis, bsdf there) those of the second tuple
     convergence_strategies: tuple[str, ...] = ("mis", "hemisphere-cosine", "global-area")
     glossy_convergence_strategies: tuple[str, ...] = tuple(d for d in GLOSSY_DIRECT if d != "mis")  # mis: default
     convergence_mitsuba: bool = True
@@ -418,7 +418,7 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
                                "strategy_repeats": options.strategy_repeats, "scenes": []}
     lambertian_defaults = defaults
     for key, base in bases.items():
-        glossy = base.scene.has_glossy_materials  # direct = auto is "mis" there, and the rows are the glossy engine's
+        glossy = base.scene.has_glossy_materials  # direct = auto is "mis" there, and the rows are a glossy scene's
         defaults = studies.strategy_defaults(glossy) if glossy else lambertian_defaults
         masks = region_masks(base.scene, tuple(base.render.shape[:2])) if base.scene.regions else {}
         case_rows = _case_rows(items, key, base, masks)

@@ -1,9 +1,10 @@
 """Compiled kernels of the integrator, in numba: whole paths one at a time, or one bounce of a wavefront.
 
-Two engines trace the same estimator to the same bits (``Settings.engine``): :mod:`.path` follows each camera path
+Two engines trace the same estimator (``Settings.engine``): :mod:`.path`, the path loop, follows each camera path
 from its viewing ray to its end in one loop and asks Embree for each hit and shadow ray on the spot, through Embree's C
-API (:mod:`.queries`); :mod:`.wavefront` is one bounce of every path of a batch between batched queries (used with
-Ni > 1, where paths branch). Both compute exactly what the numpy definitions compute, with the same random numbers.
+API (:mod:`.queries`), on every scene (Ni = 1); :mod:`.wavefront` is one bounce of every path of a batch between
+batched queries, on Lambertian scenes (used with Ni > 1, where paths branch). They draw different random numbers, so
+their images agree in expectation, not in bits (``tests/reference_impl/test_engines.py``).
 
 =================== ========================================================== ====================================
 module              what it holds                                              numpy definition it repeats
@@ -25,34 +26,35 @@ module              what it holds                                              n
                     barycentrics, texture coordinates, shading frame), ray
                     origin offsets, where a shadow ray stops
 ``camera``          viewing rays through the pixel filter (Fig. 5.16)          ``Camera``, ``filters``
-``vertex``          a vertex's rules (max_depth), emission, roulette, the      ``integrator`` (eq. 5.2, Fig. 5.14)
-                    indirect ray
+``vertex``          the wavefront's vertex: its rules (max_depth), emission,   ``integrator`` (eq. 5.2, Fig. 5.14)
+                    roulette, the indirect ray
 ``direct``          the direct-light estimator: light and surface samples,     ``integrator`` (eq. 5.3, Fig. 5.7,
-                    shadow rays, MIS, hemisphere samples                       5.10, 5.12, 5.13)
+                    shadow rays, MIS, hemisphere samples; the path loop's      5.10, 5.12, 5.13)
+                    connections (the light door)
 ``queries``         Embree's C API: ray buffers, closest hit, occlusion,       ``Intersector`` (embreex)
                     packets, timing
 ``wavefront``       one bounce of a batch, and the direct light once Embree    the wavefront engine
                     has answered
-``path``            whole paths, one at a time                                 the same bits as ``wavefront``
+``path``            the path loop: whole paths, one at a time, every scene     (none: the wavefront in expectation,
+                    and strategy with Ni = 1 (BSDF door, light door, MIS)      closed forms, Mitsuba)
 ``material``        the material step: a material's kind and parameters at a   (none: the parameters are
                     hit, which the BSDF reads                                  ``Materials.params``' rows)
 ``bsdf``            evaluation, pdf and sampling of the materials' BSDFs       (none: Mitsuba 3's plugins; chi^2
                                                                                and Mitsuba checks)
-``glossy``          whole paths on scenes with materials that are not          (none: its checks are closed forms
-                    Lambertian (BSDF sampling, MIS), and for direct = bsdf     and the other strategies)
-``record``          the glossy engine's rays and Embree's answers, recorded    (none: reference_impl.replay checks
+``record``          the path loop's rays and Embree's answers, recorded        (none: reference_impl.replay checks
                     for replay (compiled out of a render)                      the replayed hits against them)
 ``film``            the samples' end: non-finite count, per-pixel sums         ``np.cumsum`` in sample order
 =================== ========================================================== ====================================
 
-Both engines build each vertex from the same helpers of ``surface``, ``vertex`` and ``direct``; they differ only in
-where the rays go (a query on the spot, or a buffer for the next batched query) and where the sums are kept.
+Both engines take the hit from ``surface``, the material from ``material``, the light door's samples from
+``emitters`` and ``light_sampling``; the path loop reflects through the BSDF door (``bsdf``), the wavefront through
+Lambert's f_r (``vertex``), the slides' branching estimator for Ni > 1.
 
 The numpy functions stay the documented definitions (the chi^2 tests run them); the kernels repeat the same
 formulas, operation for operation (same order of floating-point operations wherever the numpy code fixes one), so
 the warps and samplers give the numpy functions' bits. (The shading arithmetic has since been reordered for speed,
 one division and three products where three divisions were, so images are no longer those of the numpy integrator
-of git 5dd5d08; the two engines agree bit for bit: ``tests/test_engines.py``.) The order of numpy's einsum sums and
+of git 5dd5d08.) The order of numpy's einsum sums and
 the last bits of sin/cos/sqrt come from the numpy build, the CPU and libm (the hemisphere warps' cos and sin are
 ``sampling.unit_circle``'s polynomials, not libm's), so elsewhere the two may differ in last
 bits (each still deterministic). ``tests/test_kernel_equivalence.py`` checks the warps, light sampling and random

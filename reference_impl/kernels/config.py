@@ -20,12 +20,12 @@ JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True, forceinline=F
 # and decrements its reference count atomically, and with two threads sharing the scene's arrays those atomics took
 # a quarter of a render's time (perf: NRT_incref / NRT_decref).
 JIT_INLINE = dict(JIT, inline="always")
-# The helpers that share a vertex's work between the two engines take the caller's arrays and branch on what they
-# find. Inlined at numba's level, their arguments' reference counts die on different branches, where numba's pruning
-# of them fails: the path loop kept 15 increments and 29 decrements of the light tables around each light sample, and
-# the engines were 11-17 % slower than with the code written out twice. These helpers only borrow the arrays and
-# allocate nothing, so they are compiled without reference counting (``_nrt=False``, numba's option for such code)
-# and always inlined by LLVM (``forceinline``): no count and no call is left in the loops.
+# The helpers that share a vertex's work (between the engines, and within the path loop) take the caller's arrays and
+# branch on what they find. Inlined at numba's level, their arguments' reference counts die on different branches,
+# where numba's pruning of them fails: the path loop kept 15 increments and 29 decrements of the light tables around
+# each light sample, and the engines were 11-17 % slower than with the code written out twice. These helpers only
+# borrow the arrays and allocate nothing, so they are compiled without reference counting (``_nrt=False``, numba's
+# option for such code) and always inlined by LLVM (``forceinline``): no count and no call is left in the loops.
 JIT_BORROW = dict(JIT, _nrt=False, forceinline=True)
 # Helpers that only borrow arrays but are too large or too many to inline everywhere (the BSDFs' lobes): no reference
 # counting, calls left to LLVM. (The BSDFs with reference counting spent 3.5 % of a cornell-box-specular render in
@@ -72,7 +72,7 @@ M_MICROFACET_PDF_NO_JACOBIAN, M_CONDUCTOR_FRESNEL_ONE, M_REFRACTION_NO_ETA2, M_V
 MUTANT_BITS.update({"microfacet-pdf-no-jacobian": M_MICROFACET_PDF_NO_JACOBIAN,
                     "conductor-fresnel-one": M_CONDUCTOR_FRESNEL_ONE, "refraction-no-eta2": M_REFRACTION_NO_ETA2,
                     "vndf-alpha-squared": M_VNDF_ALPHA_SQUARED})
-# The glossy engine's planted fault (reference_impl/kernels/glossy.py; reference_impl.mutants.GLOSSY_MUTANTS).
+# The MIS weights' planted fault (reference_impl/kernels/direct.py power_weight; reference_impl.mutants.GLOSSY_MUTANTS).
 M_MIS_WEIGHTS_NOT_ONE = 1 << 16
 MUTANT_BITS["mis-weights-not-one"] = M_MIS_WEIGHTS_NOT_ONE
 
@@ -82,7 +82,7 @@ class KernelConfig(NamedTuple):
     name (:data:`FROM_SETTINGS` says how it is filled); the others come from the scene (:data:`FROM_SCENE`). Only
     ints and floats, so that every configuration is the same numba type."""
 
-    depth: int  # the vertex a wavefront bounce is at (the viewing ray's hit is 1); 0 for the path engine
+    depth: int  # the vertex a wavefront bounce is at (the viewing ray's hit is 1); 0 for the path loop
     max_depth: int  # longest path in segments, -1 unbounded
     direct: int  # DIRECT_*
     shadow_rays: int  # [Nd]

@@ -1,4 +1,4 @@
-"""The direct-light estimator, one sample at a time, for both engines (``integrator._direct_*``,
+"""The direct-light estimator, one sample at a time (``integrator._direct_*``,
 ``_shadow_ray_estimate``, ``_mis_weight_*``): eq. 5.3 of the slides,
 
     <L_direct(x -> Theta)> = 1/Nd sum_i Le(y_i -> x) f_r G(x, y_i) V(x, y_i) / p(y_i),
@@ -23,8 +23,13 @@ In a scene with emitters that are not surfaces (point, spot, directional lights,
 the area lights and then those emitters (:func:`light_sample_all`, whose emitter samples are
 :func:`.emitters.emitter_sample`'s); a strategy that cannot find some of them (hemisphere sampling: delta lights;
 global area sampling: delta lights and the environment) adds each one's own sample once per hit
-(:func:`complement_sample`). Without such emitters the engines call :func:`light_sample` and :func:`shadow_ray` as
-before: numba compiles the other branch out.
+(:func:`complement_sample`). Without such emitters the wavefront calls :func:`light_sample` and :func:`shadow_ray`:
+numba compiles the other branch out.
+
+The wavefront (Ni > 1) forms its samples with Lambert's f_r here (:func:`shadow_ray`, :func:`emitter_sample`); the
+path loop (:mod:`.path`) takes the same samples as *connections* (the light door: :func:`light_connection`,
+:func:`point_connection`, :func:`emitter_connection`, the section at the end) and reflects them through the BSDF
+door (:func:`.path.connect`), with the power heuristic against the BSDF's own pdf (:func:`power_weight`).
 """
 
 from __future__ import annotations

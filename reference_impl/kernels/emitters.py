@@ -1,7 +1,7 @@
 """The emitters that are not surfaces in the kernels (:mod:`reference_impl.emitters` for one sample): the
 environment's radiance and directions, the spot's falloff, the light door of each kind (:func:`emitter_direction`:
-direction, distance, falloff, density and emission, for every engine) and the Lambertian engines' light sample with
-its shadow ray (:func:`emitter_sample`).
+direction, distance, falloff, density and emission, for every engine) and the wavefront's light sample with its
+shadow ray (:func:`emitter_sample`; the path loop's is :func:`.direct.emitter_connection`).
 
     point        v = I f_r cos(x) / (r^2 pdf(k)),            ray toward p, stops short of it
     spot         v = I s(theta) f_r cos(x) / (r^2 pdf(k)),    s: 1 within beam_width, linear to 0 at cutoff_angle
@@ -248,7 +248,7 @@ def emitter_direction(cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, front_on
 
 @njit(**JIT_BORROW)
 def emitter_sample(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2, f0, f1, f2):
-    """The Lambertian engines' light sample of emitter e (chosen with probability ``pdf_select``) at x (normal N,
+    """The wavefront's light sample of emitter e (chosen with probability ``pdf_select``) at x (normal N,
     offset origin ox, f_r = f), from :func:`emitter_direction`: (whether it needs a shadow ray, the ray's origin,
     unit direction and t_max, what it carries where nothing blocks it, with its MIS weight). No ray where the light
     is behind x, outside a spot's cone, or brings nothing."""
@@ -317,7 +317,7 @@ def split_light_piece_all(lights, num_lights, num_area, u):
     """:func:`split_light_uniform_all` handing on the piece it finds instead of u_tri: (light k, its piece (the
     row of the light tables; -1 for an emitter), u1, for an emitter what is left of u inside k's interval), so that
     the point need not search k's pieces again (on veach-mis, whose sphere lights have hundreds of triangles, the
-    second search cost the glossy engine 17 %)."""
+    second search cost the path loop on glossy scenes 17 %)."""
     light, _u_tri, piece, u1 = _split_light(lights, num_lights, num_area, u)
     return light, piece, u1
 

@@ -18,7 +18,7 @@ _c = np.ascontiguousarray
 
 
 class SceneTables(NamedTuple):
-    """The triangles and their materials as the Lambertian engines read them.
+    """The triangles and their materials as the engines read them.
 
     Attributes
     ----------
@@ -185,7 +185,8 @@ def emitter_tables(emitters) -> EmitterTables:
 
 
 class MaterialTables(NamedTuple):
-    """The materials of the glossy engine (:class:`reference_impl.Materials`, whose attributes these are).
+    """The materials, as every engine's material step reads them (:class:`reference_impl.Materials`, whose attributes
+    these are).
 
     Attributes
     ----------
@@ -290,7 +291,7 @@ COUNT_CLOSEST, COUNT_OCCLUSION = 0, 1  # the entries of RayRecord.counts
 
 
 class RayRecord(NamedTuple):
-    """Room for the queries of one batch of the glossy engine and Embree's answers (:mod:`.record`, for
+    """Room for the queries of one batch of the path loop and Embree's answers (:mod:`.record`, for
     :mod:`reference_impl.replay`): float32 rays as the queries round them.
 
     Attributes

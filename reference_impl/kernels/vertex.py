@@ -1,4 +1,4 @@
-"""One vertex x_i of a path, besides its direct light (:mod:`.direct`), for both engines: which terms it adds, the
+"""One vertex x_i of a path in the wavefront, besides its direct light (:mod:`.direct`): which terms it adds, the
 emission it shows, Russian roulette and the indirect ray (Fig. 5.14, 5.16; eq. 5.2).
 
     L(x -> Theta) = Le(x -> Theta) [i = 1 only] + L_direct + L_indirect,

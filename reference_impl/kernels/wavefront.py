@@ -3,8 +3,9 @@ between batched Embree queries (``integrator._bounce``).
 
 :func:`bounce` takes the closest hits of the current rays and writes the direct-light rays and the next wavefront;
 :func:`resolve_shadow` / :func:`resolve_hemisphere` add the direct light once Embree has answered them. Each vertex is
-the path engine's vertex (:mod:`.path`), from the same helpers (:mod:`.surface`, :mod:`.vertex`, :mod:`.direct`), so
-the two engines give the same bits.
+built from the Lambertian helpers (:mod:`.surface`, :mod:`.vertex`, :mod:`.direct`): the same estimator as the path
+loop's (:mod:`.path`) on Lambertian scenes, with random numbers of its own (the slides' hemisphere for the indirect
+rays), so the two agree in expectation, not in bits.
 """
 
 from __future__ import annotations
@@ -242,7 +243,7 @@ def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_p
 def resolve_complement(root, beta, hits, c_owner, c_value, c_hit, total, radiance):
     """The emitters the direct strategy cannot find (:func:`.direct.complement_sample`): each hit's complement
     samples (value x V, V = 1 where ``c_hit < 0``) summed in order and added to ``radiance``, weighted by the hit's
-    throughput (after the strategy's own estimate, as the path engine adds them)."""
+    throughput (after the strategy's own estimate, as the path loop adds them)."""
     m = len(hits)
     total[:m] = 0.0
     for q in range(len(c_owner)):

@@ -1,5 +1,5 @@
-"""The glossy engine (reference_impl/kernels/glossy.py): scenes with materials that are not Lambertian, and
-``direct = bsdf`` on any scene.
+"""The path loop (reference_impl/kernels/path.py) on scenes with materials that are not Lambertian, and its BSDF
+strategies (``direct = bsdf``, ``rr = throughput``, MIS against the BSDF's pdf) on Lambertian ones.
 
 Closed forms first (a perfect mirror ball and a smooth glass ball in a constant environment: every pixel is exactly
 L at max_depth = -1, for every direct strategy), then the strategies against each other in expectation (the
@@ -105,8 +105,8 @@ def plate_scene(size=8, light_half=2.0, height=1.0, max_depth=3, material="grey"
 
 
 def test_bsdf_sampling_agrees_with_light_sampling_on_a_lambertian_scene():
-    """direct = bsdf runs the glossy engine on a Lambertian scene (the pure BSDF-sampling estimator); in expectation
-    it is today's light sampling (direct = area, the Lambertian engine)."""
+    """direct = bsdf on a Lambertian scene (the pure BSDF-sampling estimator); in expectation it is light sampling
+    (direct = area)."""
     scene = plate_scene(light_half=0.6)
     area = _render(scene, spp=64, sampler="independent", direct="area")
     bsdf = _render(scene, spp=256, sampler="independent", direct="bsdf")
@@ -153,9 +153,9 @@ def test_the_light_through_a_rough_dielectric_is_found_by_light_samples():
 
 def test_mis_weights_that_do_not_sum_to_one_are_caught():
     """The light sample weighted by the balance heuristic, the BSDF sample by the power heuristic: under a light
-    large against its distance (p_l / p_b about 0.2 over most of the plate) the weights sum to about 1.13. The
-    glossy engine runs on the Lambertian plate through rr = throughput; the correct MIS passes against light
-    sampling, the planted fault fails."""
+    large against its distance (p_l / p_b about 0.2 over most of the plate) the weights sum to about 1.13. On the
+    Lambertian plate with rr = throughput; the correct MIS passes against light sampling, the planted fault
+    fails."""
     scene = plate_scene(size=16, light_half=2.0, max_depth=2)
     common = dict(spp=256, sampler="independent", rr="throughput")
     area = _render(scene, direct="area", **common)
@@ -166,7 +166,7 @@ def test_mis_weights_that_do_not_sum_to_one_are_caught():
 
 
 def test_roulette_survivors_not_reweighted_are_caught_under_the_pbrt_roulette():
-    """The default roulette of the glossy engine (rr = auto: pbrt-v4's, q = min(1, max(beta) eta^2)) against the
+    """The default roulette of glossy scenes (rr = auto: pbrt-v4's, q = min(1, max(beta) eta^2)) against the
     planted fault "rr-no-reweight" (survivors not divided by q): on the Lambertian plate of reflectance 0.5, lit from
     above, paths that reach depth 3 carry the second bounce; without the 1/q the image is darker. Both against
     rr = off (no roulette, the same estimator otherwise)."""
@@ -196,7 +196,7 @@ def test_the_image_depends_on_neither_the_thread_count_nor_the_batch_size():
 @pytest.mark.parametrize("settings, key", [({"direct": "hemisphere-cosine"}, "direct"),
                                            ({"direct": "global-area"}, "direct"),
                                            ({"indirect_rays": 2}, "indirect_rays")])
-def test_what_the_glossy_engine_does_not_do_is_refused(settings, key):
+def test_what_a_glossy_scene_does_not_take_is_refused(settings, key):
     scene = with_emitters(sphere_scene(size=4, max_depth=-1), constant(SKY))
     with pytest.raises(SettingsError) as err:
         _render(scene, {0: MIRROR}, spp=1, **settings)

@@ -143,7 +143,7 @@ def test_sample_reuse_matches_split_uniform(selection):
     for i in range(3):
         np.testing.assert_array_equal(got[:, i], want[i])
     assert np.all((want[2] >= 0) & (want[2] < 1))
-    # The glossy engine's split (kernels.emitters.split_light_piece_all): the same light and point coordinate, and
+    # The path loop's split (kernels.emitters.split_light_piece_all): the same light and point coordinate, and
     # the piece the light's table gives for its u_tri, found once; an emitter past the area lights has no piece.
     from reference_impl.kernels import emitters as k_emitters
 

@@ -62,8 +62,8 @@ def test_no_shadow_ray_from_a_back_face():
 
 def test_shadow_rays_are_occlusion_queries(monkeypatch):
     """Shadow rays go to Embree's any-hit query; only camera and indirect rays use closest-hit queries. Counted on
-    the wavefront engine, whose queries go through the Intersector; the path engine calls rtcOccluded1 for the same
-    rays (its counters equal the wavefront's: tests/reference_impl/test_engines.py)."""
+    the wavefront engine, whose queries go through the Intersector (the path loop calls rtcOccluded1 for its shadow
+    rays: kernels/path.py)."""
     from reference_impl import intersect
 
     counted = {"closest": 0, "occluded": 0}

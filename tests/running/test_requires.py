@@ -97,8 +97,8 @@ def test_a_case_whose_requirement_is_not_met_is_skipped(tmp_path, capfd, monkeyp
 def test_the_backends_suite_pairs_each_backend_with_its_counterpart():
     """suites/backends.toml (issue 19, item 5) loads and judges what it says: Mitsuba llvm_ad_rgb and cuda_ad_rgb
     against scalar_rgb (the CUDA cases ``requires`` their variant, so they are skipped, not errors, without a GPU),
-    and the reference's path engine against its wavefront engine with another seed (the same seed gives the same
-    bits, which would test nothing); each image judged against has more samples than the test's."""
+    and the reference's path engine against its wavefront engine with another seed (each its own random numbers,
+    seeded apart all the same); each image judged against has more samples than the test's."""
     suite = load_suite(Path(__file__).resolve().parents[2] / "suites" / "backends.toml")
     pairs = set()
     for case in suite.cases:

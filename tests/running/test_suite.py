@@ -48,7 +48,7 @@ def test_repository_suites_load():
                      "white-furnace-glass", "white-furnace-rough"}
     assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes | glossy_scenes
     assert names == reference_scenes
-    # The glossy engine's strategies (direct = auto is mis there) on every glossy scene.
+    # A glossy scene's strategies (direct = auto is mis there) on every glossy scene.
     for scene in glossy_scenes:
         seen = {c.settings.get("direct") for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"}
         assert None in seen and {"area", "bsdf"} <= seen, (scene, seen)

@@ -245,7 +245,7 @@ def test_lambertian_scenes_hand_the_core_no_table(tmp_path):
 
 @pytest.mark.parametrize(("text", "passed"), [(TABLE, True), (MINIMAL_SCENE + SHAPE.replace('"m"', '"white"'), False)])
 def test_the_reference_renderer_passes_the_table_only_for_glossy_scenes(tmp_path, monkeypatch, text, passed):
-    """Lambertian scenes call the core exactly as before (no materials argument: the same engines, the same bits)."""
+    """Lambertian scenes call the core without a materials argument (the geometry's albedos are their table)."""
     calls = []
 
     def fake_render(geometry, camera, film, settings, progress=None, emitters=None, **kwargs):

@@ -150,7 +150,7 @@ expect = "fail"
 
 @pytest.mark.slow
 def test_a_glossy_scene_gets_the_glossy_engines_strategy_curves(tmp_path, no_plots):
-    """The convergence study's extra curves of a scene with a mirror are the glossy engine's direct strategies
+    """The convergence study's extra curves of a scene with a mirror are a glossy scene's direct strategies
     (area, bsdf), not the Lambertian ones it refuses (hemisphere-cosine failed the whole scene's study before)."""
     suite = tmp_path / "suite.toml"
     suite.write_text(f'''name = "glossy"
