@@ -107,6 +107,21 @@ def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, 
     return True, cos_x, conn[4] * f0 * w, conn[5] * f1 * w, conn[6] * f2 * w
 
 
+@njit(**JIT_BORROW)
+def shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns, record, ray):
+    """Whether anything blocks the shadow ray ``ray`` (origin, unit direction, t_max: :func:`.direct.connection_ray`),
+    Embree's occlusion query timed as :func:`.queries.occluded_timed` times it, and recorded where ``record`` is
+    given: (blocked, queries, sampled_ns). Nothing blocks it in a scene without geometry (``scene_ptr`` 0)."""
+    so0, so1, so2, r0, r1, r2, tfar = ray
+    if scene_ptr == 0:
+        return False, queries, sampled_ns
+    blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, so0, so1, so2, r0,
+                                                  r1, r2, np.float32(tfar))
+    if record is not None:
+        record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
+    return blocked, queries, sampled_ns
+
+
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
                 emitters, other_kinds, record=None):
@@ -366,14 +381,22 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                                                  tri_normal[htri, 2]) < 0):
                                 continue  # not an emitter's front side
                             le0, le1, le2 = emission[htri, 0], emission[htri, 1], emission[htri, 2]
-                        li0, li1 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2)
-                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, side * cos_h)
+                        hl0, hl1 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2)
+                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, hl0, hl1, side * cos_h)
                         inv_p = 1.0 / pdf_h
                         tot0 += le0 * f0 * inv_p
                         tot1 += le1 * f1 * inv_p
                         tot2 += le2 * f2 * inv_p
-                elif light_points or global_area:  # Nd points on the lights (or on every surface)
-                    for j in range(nd):
+                # Nd points on the lights (or on every surface), then the emitters the strategy cannot find, each
+                # its own sample once (pdf(k) = 1): one connection each, through the BSDF, and its shadow ray.
+                points = nd if light_points or global_area else 0
+                own = 0
+                if emitters is not None:
+                    if own_samples:
+                        own = len(emitters.kind)
+                ct0, ct1, ct2 = 0.0, 0.0, 0.0
+                for j in range(points + own):
+                    if j < points:
                         if global_area:
                             _sel, gtri, y0, y1, y2, pdf_area = light_sample(
                                 cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth,
@@ -397,64 +420,45 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                             pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
                             conn = light_connection(cfg, scene, lights, emitters, sel, piece, pdf_select, u1, u2, x0,
                                                     x1, x2, ns0, ns1, ns2, not transmits)
-                        needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits,
-                                                            side, nx0, nx1, nx2, s0, s1, s2, t0, t1, t2, lo0, lo1,
-                                                            lo2)
-                        if not needed:
-                            count_shadow_skipped += 1
+                    elif emitters is not None:
+                        e = j - points
+                        ekind = emitters.kind[e]
+                        if not (ekind == POINT or ekind == SPOT or ekind == DIRECTIONAL
+                                or (global_area and (ekind == ENV_CONSTANT or ekind == ENV_MAP))):
                             continue
-                        so0, so1, so2, r0, r1, r2, tfar = connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2,
-                                                                         nx0, nx1, nx2, ox0, ox1, ox2)
-                        count_shadow += 1
-                        blocked = False
-                        if scene_ptr != 0:
-                            blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
-                                                                          sampled_ns, so0, so1, so2, r0, r1, r2,
-                                                                          np.float32(tfar))
-                            if record is not None:
-                                record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
-                        if not blocked:
-                            tot0 += v0
-                            tot1 += v1
-                            tot2 += v2
+                        u1 = uniform(k, dim_salt(depth, COMPLEMENT_U1, e))
+                        u2 = uniform(k, dim_salt(depth, COMPLEMENT_U2, e))
+                        conn = emitter_connection(cfg, emitters, e, 1.0, u1, u2, x0, x1, x2, ns0, ns1, ns2,
+                                                  not transmits)
+                    else:
+                        continue
+                    needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, mis and j < points, conn,
+                                                        transmits, side, nx0, nx1, nx2, s0, s1, s2, t0, t1, t2, lo0,
+                                                        lo1, lo2)
+                    if not needed:
+                        count_shadow_skipped += 1
+                        continue
+                    count_shadow += 1
+                    blocked, queries, sampled_ns = shadow_query(
+                        scene_ptr, words, floats, ts, queries, sampled_ns, record,
+                        connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2))
+                    if blocked:
+                        continue
+                    if j < points:
+                        tot0 += v0
+                        tot1 += v1
+                        tot2 += v2
+                    else:
+                        ct0 += v0
+                        ct1 += v1
+                        ct2 += v2
                 rad0 += b0 * (tot0 * inv_nd)
                 rad1 += b1 * (tot1 * inv_nd)
                 rad2 += b2 * (tot2 * inv_nd)
-                if emitters is not None:
-                    if own_samples:  # the emitters the strategy cannot find: each its own sample, pdf(k) = 1
-                        ct0, ct1, ct2 = 0.0, 0.0, 0.0
-                        for e in range(len(emitters.kind)):
-                            ekind = emitters.kind[e]
-                            if not (ekind == POINT or ekind == SPOT or ekind == DIRECTIONAL
-                                    or (global_area and (ekind == ENV_CONSTANT or ekind == ENV_MAP))):
-                                continue
-                            u1 = uniform(k, dim_salt(depth, COMPLEMENT_U1, e))
-                            u2 = uniform(k, dim_salt(depth, COMPLEMENT_U2, e))
-                            conn = emitter_connection(cfg, emitters, e, 1.0, u1, u2, x0, x1, x2, ns0, ns1, ns2,
-                                                      not transmits)
-                            needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, False, conn,
-                                                                transmits, side, nx0, nx1, nx2, s0, s1, s2, t0, t1,
-                                                                t2, lo0, lo1, lo2)
-                            if not needed:
-                                count_shadow_skipped += 1
-                                continue
-                            so0, so1, so2, r0, r1, r2, tfar = connection_ray(cfg, conn, cos_x, transmits, x0, x1,
-                                                                             x2, nx0, nx1, nx2, ox0, ox1, ox2)
-                            count_shadow += 1
-                            blocked = False
-                            if scene_ptr != 0:
-                                blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries,
-                                                                              sampled_ns, so0, so1, so2, r0, r1, r2,
-                                                                              np.float32(tfar))
-                                if record is not None:
-                                    record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
-                            if not blocked:
-                                ct0 += v0
-                                ct1 += v1
-                                ct2 += v2
-                        rad0 += b0 * ct0
-                        rad1 += b1 * ct1
-                        rad2 += b2 * ct2
+                if own > 0:
+                    rad0 += b0 * ct0
+                    rad1 += b1 * ct1
+                    rad2 += b2 * ct2
 
             if not go_on:
                 break
@@ -476,4 +480,4 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     timing[1] += queries + n
 
 
-__all__ = ["MAX_VERTICES", "connect", "trace_paths"]
+__all__ = ["MAX_VERTICES", "connect", "shadow_query", "trace_paths"]
