@@ -294,9 +294,9 @@ class _Clock:
 # What a scene with a material that is not diffuse says of a strategy it does not take (a row of CAPABILITIES
 # without "glossy"), before the value.
 _GLOSSY_REFUSALS = {
-    "direct": f"takes direct = {', '.join(GLOSSY_DIRECT)} or auto",
-    "indirect_rays": "traces one BSDF sample per vertex: expected indirect_rays = 1",
-    "env_sampling": "samples the environment on both sides of a surface: expected "
+    "direct": f"take direct = {', '.join(GLOSSY_DIRECT)} or auto",
+    "indirect_rays": "trace one BSDF sample per vertex: expected indirect_rays = 1",
+    "env_sampling": "sample the environment on both sides of a surface: expected "
                     + " or ".join(v for (k, v), e in CAPABILITIES.items() if k == "env_sampling" and "glossy" in e),
 }
 
