@@ -122,6 +122,73 @@ def shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns, record, ray)
     return blocked, queries, sampled_ns
 
 
+@njit(**JIT_BORROW)
+def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key, depth, lo, beta, eta2, frame, side, x,
+             ox):
+    """The next ray from x, sampled from the BSDF (:func:`.bsdf.bsdf_sample`, uniforms u_lobe, u1, u2), then Russian
+    roulette (module docstring; u_rr, or where it is negative a hash of ``key`` drawn here) and the planted faults of
+    the indirect estimate. ``wanted``: whether the next vertex can add anything but direct light (max_depth); a
+    sample off a delta lobe goes on either way. ``lo``: wo in the local frame ``frame`` = (s, t, N); ``beta`` the
+    throughput so far, ``eta2`` the product of the relative ior^2 of the refractions so far; ``side`` the side of wo
+    (+1: N's), ``ox`` x's offset origin on that side. Returns (whether the path goes on, whether roulette (or a weight
+    that is zero or not finite) cut it, its direction, origin, the normal on the side it leaves, its throughput,
+    eta2, its pdf, whether it is off a delta lobe)."""
+    mutant = cfg.mutant
+    lo0, lo1, lo2 = lo
+    b0, b1, b2 = beta
+    s0, s1, s2, t0, t1, t2, nx0, nx1, nx2 = frame
+    x0, x1, x2 = x
+    ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, u_lobe,
+                                                            u1, u2)
+    # nothing sampled (below the horizon, a zero weight): the path carries no more light
+    if not (ok and (wanted or delta)):
+        return False, False, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
+    if not delta:
+        if mutant & M_NO_COSINE:  # mutant "no-cosine" (indirect light): f / p, without |cos|
+            inv_cos = 1.0 / abs(li2)
+            w0, w1, w2 = w0 * inv_cos, w1 * inv_cos, w2 * inv_cos
+        if (mutant & M_COSINE_PDF_PI) and kind == DIFFUSE and not uniform_diffuse:
+            # mutant "cosine-pdf-pi": the cosine-hemisphere pdf taken as cos, not cos / pi
+            pdf = pdf * PI
+            w0, w1, w2 = w0 / PI, w1 / PI, w2 / PI
+    nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
+    eta_rel = sample_eta(kind, row, lo2, li2)
+    eta2 *= eta_rel * eta_rel
+    if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
+        if cfg.rr == RR_THROUGHPUT:
+            q = min(max(nb0, nb1, nb2) * eta2, RR_THROUGHPUT_CAP)
+        elif cfg.rr == RR_PBRT:
+            q = min(max(nb0, nb1, nb2) * eta2, 1.0)
+        elif cfg.rr == RR_ALBEDO:
+            if kind == DIFFUSE:  # the slides' 1 - absorption: the albedo rho
+                q = min(max(row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2]), 1.0)
+            else:
+                q = min(max(w0, w1, w2), 1.0)
+        else:
+            q = cfg.survival
+        if u_rr < 0:
+            u_rr = uniform(key, dim_salt(depth, ROULETTE, 0))
+        if not (u_rr < q):
+            return False, True, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
+        if not (mutant & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight": survivors not divided by q
+            inv_q = 1.0 / q
+            nb0, nb1, nb2 = nb0 * inv_q, nb1 * inv_q, nb2 * inv_q
+    if not ((math.isfinite(nb0) and math.isfinite(nb1) and math.isfinite(nb2)) and (nb0 > 0 or nb1 > 0 or nb2 > 0)):
+        return False, True, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
+    wn0 = li0 * s0 + li1 * t0 + li2 * nx0
+    wn1 = li0 * s1 + li1 * t1 + li2 * nx1
+    wn2 = li0 * s2 + li1 * t2 + li2 * nx2
+    inv_len = 1.0 / math.sqrt(wn0 * wn0 + wn1 * wn1 + wn2 * wn2)
+    if li2 * side > 0:  # leaves on the side of wo
+        pn0, pn1, pn2 = side * nx0, side * nx1, side * nx2
+        o0, o1, o2 = ox
+    else:
+        pn0, pn1, pn2 = -side * nx0, -side * nx1, -side * nx2
+        o0, o1, o2 = offset_origin(cfg.offset_scene, x0, x1, x2, pn0, pn1, pn2)
+    return (True, False, wn0 * inv_len, wn1 * inv_len, wn2 * inv_len, o0, o1, o2, pn0, pn1, pn2, nb0, nb1, nb2, eta2,
+            pdf, delta)
+
+
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
                 emitters, other_kinds, record=None):
@@ -151,6 +218,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     light_points = direct == DIRECT_AREA or mis  # light k with pdf(k), then a point on it or its own sample
     global_area = direct == DIRECT_GLOBAL_AREA
     hemi_direct = direct == DIRECT_HEMI_COSINE or direct == DIRECT_HEMI_UNIFORM
+    if other_kinds is not None:  # glossy scenes take neither (integrator._engine): compiled out of their loop
+        global_area = False
+        hemi_direct = False
     # whether emission met past the camera hit counts (weighted with mis): the strategies that draw no light sample
     # for it; with the planted fault "double-emission" at every hit, unweighted
     double_emission = (mutant & M_DOUBLE_EMISSION) != 0
@@ -281,73 +351,30 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             lo0, lo1, lo2 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2), cos_out
             delta_bsdf = is_delta(kind)
 
-            # The next ray, sampled from the BSDF, then Russian roulette: drawn before the direct light's queries
-            # (the random numbers are counter-based, so the order of drawing changes nothing), which gives the
-            # processor independent arithmetic to overlap with them. None where the next vertex would add direct
-            # light only, which max_depth forbids, unless the sample is off a delta lobe.
-            go_on = finds_emission or max_depth == -1 or depth + 2 <= max_depth
-            if go_on or delta_bsdf:
+            # The next ray, sampled from the BSDF, then Russian roulette (next_ray), where the next vertex can add
+            # more than direct light (max_depth) or the BSDF has a delta lobe. On a Lambertian scene it is drawn
+            # before the direct light's queries (the random numbers are counter-based, so the order of drawing
+            # changes nothing), which gives the processor independent arithmetic to overlap with them; on a glossy
+            # one after them, where its state would be kept across the BSDF's calls.
+            wanted = finds_emission or max_depth == -1 or depth + 2 <= max_depth
+            drawn = wanted or delta_bsdf
+            if drawn:
                 if sob:
-                    u1, u2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
+                    bu1, bu2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
                     u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
                 else:
                     u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0)) if transmits else 0.0  # only they read it
-                    u1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
-                    u2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
-                    u_rr = -1.0  # drawn below only where roulette is played
-                ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, uniform_diffuse, lo0, lo1,
-                                                                        lo2, u_lobe, u1, u2)
-                # nothing sampled (below the horizon, a zero weight): the path carries no more light
-                go_on = ok and (go_on or delta)
-            if go_on:
-                if not delta:
-                    if mutant & M_NO_COSINE:  # mutant "no-cosine" (indirect light): f / p, without |cos|
-                        inv_cos = 1.0 / abs(li2)
-                        w0, w1, w2 = w0 * inv_cos, w1 * inv_cos, w2 * inv_cos
-                    if (mutant & M_COSINE_PDF_PI) and kind == DIFFUSE and not uniform_diffuse:
-                        # mutant "cosine-pdf-pi": the cosine-hemisphere pdf taken as cos, not cos / pi
-                        pdf = pdf * PI
-                        w0, w1, w2 = w0 / PI, w1 / PI, w2 / PI
-                nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
-                eta_rel = sample_eta(kind, row, lo2, li2)
-                eta2 *= eta_rel * eta_rel
-                if cfg.rr != RR_OFF and depth >= cfg.rr_depth:
-                    if cfg.rr == RR_THROUGHPUT:
-                        q = min(max(nb0, nb1, nb2) * eta2, RR_THROUGHPUT_CAP)
-                    elif cfg.rr == RR_PBRT:
-                        q = min(max(nb0, nb1, nb2) * eta2, 1.0)
-                    elif cfg.rr == RR_ALBEDO:
-                        if kind == DIFFUSE:  # the slides' 1 - absorption: the albedo rho
-                            q = min(max(row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2]), 1.0)
-                        else:
-                            q = min(max(w0, w1, w2), 1.0)
-                    else:
-                        q = cfg.survival
-                    if not sob:
-                        u_rr = uniform(k, dim_salt(depth, ROULETTE, 0))
-                    if not (u_rr < q):
-                        count_roulette += 1
-                        go_on = False
-                    elif not (mutant & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight": survivors not divided by q
-                        inv_q = 1.0 / q
-                        nb0, nb1, nb2 = nb0 * inv_q, nb1 * inv_q, nb2 * inv_q
-                if go_on and not ((math.isfinite(nb0) and math.isfinite(nb1) and math.isfinite(nb2))
-                                  and (nb0 > 0 or nb1 > 0 or nb2 > 0)):
-                    count_roulette += 1
-                    go_on = False
-            if go_on:  # the next ray's direction and origin (the direct light below reads neither)
-                count_indirect += 1
-                wn0 = li0 * s0 + li1 * t0 + li2 * nx0
-                wn1 = li0 * s1 + li1 * t1 + li2 * nx1
-                wn2 = li0 * s2 + li1 * t2 + li2 * nx2
-                inv_len = 1.0 / math.sqrt(wn0 * wn0 + wn1 * wn1 + wn2 * wn2)
-                d0, d1, d2 = wn0 * inv_len, wn1 * inv_len, wn2 * inv_len
-                if li2 * side > 0:  # leaves on the side of wo
-                    pn0, pn1, pn2 = ns0, ns1, ns2
-                    o0, o1, o2 = ox0, ox1, ox2
-                else:
-                    pn0, pn1, pn2 = -ns0, -ns1, -ns2
-                    o0, o1, o2 = offset_origin(cfg.offset_scene, x0, x1, x2, pn0, pn1, pn2)
+                    bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
+                    bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
+                    u_rr = -1.0  # drawn by next_ray only where roulette is played
+            go_on = False
+            if other_kinds is None:
+                if drawn:
+                    (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
+                     delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
+                                       (lo0, lo1, lo2), (b0, b1, b2), eta2, (s0, s1, s2, t0, t1, t2, nx0, nx1, nx2),
+                                       side, (x0, x1, x2), (ox0, ox1, ox2))
+                    count_roulette += cut
 
             # Direct light (none at a delta BSDF).
             if not delta_bsdf:
@@ -460,8 +487,18 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     rad1 += b1 * ct1
                     rad2 += b2 * ct2
 
+            if other_kinds is not None:
+                if drawn:
+                    (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
+                     delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
+                                       (lo0, lo1, lo2), (b0, b1, b2), eta2, (s0, s1, s2, t0, t1, t2, nx0, nx1, nx2),
+                                       side, (x0, x1, x2), (ox0, ox1, ox2))
+                    count_roulette += cut
             if not go_on:
                 break
+            count_indirect += 1
+            d0, d1, d2 = n0, n1, n2
+            o0, o1, o2 = m0, m1, m2
             b0, b1, b2 = nb0, nb1, nb2
             prev_delta = delta
             prev_pdf = pdf
