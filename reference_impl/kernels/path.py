@@ -79,8 +79,6 @@ from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMP
 
 MAX_VERTICES = 1 << 16
 RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
-#: :func:`next_ray`'s ray where there is none
-NO_RAY = (0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, False)
 
 
 @njit(**JIT_BORROW)
@@ -133,8 +131,8 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
     sample off a delta lobe goes on either way. ``lo``: wo in the local frame ``frame`` = (s, t, N); ``beta`` the
     throughput so far, ``eta2`` the product of the relative ior^2 of the refractions so far; ``side`` the side of wo
     (+1: N's), ``ox`` x's offset origin on that side. Returns (whether the path goes on, whether roulette (or a weight
-    that is zero or not finite) cut it, and the ray: (its direction, origin, the normal on the side it leaves, its
-    throughput, eta2, its pdf, whether it is off a delta lobe), :data:`NO_RAY` where there is none)."""
+    that is zero or not finite) cut it, its direction, origin, the normal on the side it leaves, its throughput,
+    eta2, its pdf, whether it is off a delta lobe)."""
     mutant = cfg.mutant
     lo0, lo1, lo2 = lo
     b0, b1, b2 = beta
@@ -144,7 +142,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
                                                             u1, u2)
     # nothing sampled (below the horizon, a zero weight): the path carries no more light
     if not (ok and (wanted or delta)):
-        return False, False, NO_RAY
+        return False, False, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
     if not delta:
         if mutant & M_NO_COSINE:  # mutant "no-cosine" (indirect light): f / p, without |cos|
             inv_cos = 1.0 / abs(li2)
@@ -171,12 +169,12 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
         if u_rr < 0:
             u_rr = uniform(key, dim_salt(depth, ROULETTE, 0))
         if not (u_rr < q):
-            return False, True, NO_RAY
+            return False, True, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
         if not (mutant & M_RR_NO_REWEIGHT):  # mutant "rr-no-reweight": survivors not divided by q
             inv_q = 1.0 / q
             nb0, nb1, nb2 = nb0 * inv_q, nb1 * inv_q, nb2 * inv_q
     if not ((math.isfinite(nb0) and math.isfinite(nb1) and math.isfinite(nb2)) and (nb0 > 0 or nb1 > 0 or nb2 > 0)):
-        return False, True, NO_RAY
+        return False, True, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
     wn0 = li0 * s0 + li1 * t0 + li2 * nx0
     wn1 = li0 * s1 + li1 * t1 + li2 * nx1
     wn2 = li0 * s2 + li1 * t2 + li2 * nx2
@@ -187,8 +185,8 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
     else:
         pn0, pn1, pn2 = -side * nx0, -side * nx1, -side * nx2
         o0, o1, o2 = offset_origin(cfg.offset_scene, x0, x1, x2, pn0, pn1, pn2)
-    return True, False, (wn0 * inv_len, wn1 * inv_len, wn2 * inv_len, o0, o1, o2, pn0, pn1, pn2, nb0, nb1, nb2, eta2,
-                         pdf, delta)
+    return (True, False, wn0 * inv_len, wn1 * inv_len, wn2 * inv_len, o0, o1, o2, pn0, pn1, pn2, nb0, nb1, nb2, eta2,
+            pdf, delta)
 
 
 @njit(**JIT)
@@ -360,7 +358,6 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             # one after them, where its state would be kept across the BSDF's calls.
             wanted = finds_emission or max_depth == -1 or depth + 2 <= max_depth
             drawn = wanted or delta_bsdf
-            u_lobe, bu1, bu2, u_rr = 0.0, 0.0, 0.0, -1.0
             if drawn:
                 if sob:
                     bu1, bu2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
@@ -369,14 +366,16 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0)) if transmits else 0.0  # only they read it
                     bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                     bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
-                    # u_rr stays -1: drawn by next_ray only where roulette is played
-            ray_args = (cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth, (lo0, lo1, lo2),
-                        (b0, b1, b2), eta2, (s0, s1, s2, t0, t1, t2, nx0, nx1, nx2), side, (x0, x1, x2),
-                        (ox0, ox1, ox2))
-            go_on, cut, ray = False, False, NO_RAY
+                    u_rr = -1.0  # drawn by next_ray only where roulette is played
+            # the vertex as next_ray takes it (tuples of numbers only: no array in them, no reference count)
+            lo, thru, frame = (lo0, lo1, lo2), (b0, b1, b2), (s0, s1, s2, t0, t1, t2, nx0, nx1, nx2)
+            xs, oxs = (x0, x1, x2), (ox0, ox1, ox2)
+            go_on, cut = False, False
             if other_kinds is None:
                 if drawn:
-                    go_on, cut, ray = next_ray(*ray_args)
+                    (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
+                     delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
+                                       lo, thru, eta2, frame, side, xs, oxs)
 
             # Direct light (none at a delta BSDF).
             if not delta_bsdf:
@@ -491,12 +490,18 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
 
             if other_kinds is not None:
                 if drawn:
-                    go_on, cut, ray = next_ray(*ray_args)
+                    (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
+                     delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
+                                       lo, thru, eta2, frame, side, xs, oxs)
             count_roulette += cut
             if not go_on:
                 break
             count_indirect += 1
-            d0, d1, d2, o0, o1, o2, pn0, pn1, pn2, b0, b1, b2, eta2, prev_pdf, prev_delta = ray
+            d0, d1, d2 = n0, n1, n2
+            o0, o1, o2 = m0, m1, m2
+            b0, b1, b2 = nb0, nb1, nb2
+            prev_delta = delta
+            prev_pdf = pdf
             depth += 1
         radiance[r, 0], radiance[r, 1], radiance[r, 2] = rad0, rad1, rad2
     counters[C_BACK_FACE] += count_back_face
