@@ -243,6 +243,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     # the first hits' BSDF and roulette points are computed ahead only where a first hit's next ray can be drawn
     # without a delta lobe (else the few a delta material draws come from their seeds: the same points)
     next_ray_drawn = finds_emission or max_depth == -1 or max_depth >= 3
+    # the (lobe, roulette) pair only where a first hit reads it: a lobe of a glossy scene's dielectric, or roulette
+    # played at the first hit
+    first_roulette = cfg.rr != RR_OFF and cfg.rr_depth <= 1
+    lobe_roulette_drawn = first_roulette
+    if other_kinds is not None:
+        lobe_roulette_drawn = True
     row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
@@ -291,7 +297,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 held = PathFirstHitPairs(ahead(fh.light, first * nd, m_run * nd, lx, ly, not hemi_direct),
                                          ahead(fh.direction, first * nd, m_run * nd, dx, dy, hemi_direct),
                                          ahead(fh.bsdf, first, m_run, bx, by, next_ray_drawn),
-                                         ahead(fh.lobe_roulette, first, m_run, cx, cy, next_ray_drawn))
+                                         ahead(fh.lobe_roulette, first, m_run, cx, cy,
+                                               next_ray_drawn and lobe_roulette_drawn))
             si = film_sample[r]
         while True:
             sob = sobol and depth == 1
@@ -361,7 +368,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             if drawn:
                 if sob:
                     bu1, bu2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
-                    u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
+                    u_lobe, u_rr = 0.0, -1.0
+                    if transmits or first_roulette:  # only they read the pair
+                        u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
                 else:
                     u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0)) if transmits else 0.0  # only they read it
                     bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
