@@ -35,10 +35,10 @@ door (:func:`.path.connect`), with the power heuristic against the BSDF's own pd
 from __future__ import annotations
 
 import math
-
-from numba import njit
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, SPOT
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
@@ -195,12 +195,30 @@ def hemisphere_weight(ratio, w0, w1, w2, m0, m1, m2):
 
 
 # ----------------------------------------------------------------- the path loop's connections (kernels/path.py)
-# A connection is a light sample seen from x before x's BSDF and the shadow ray: (whether it can bring light at all,
-# the unit direction wi from x, Le G / (p cos_x) per channel (what it carries without f |cos_x|), the light samples'
-# solid-angle density p_l of wi (Nd included; 0 for delta lights), whether the shadow ray is infinite, the point y it
-# ends at, cos_y (1 for an emitter that is not a surface) and y's own offset). The loop multiplies by the BSDF door's
-# f |cos_x| (:func:`connect`).
-NO_CONNECTION = (False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, 0.0)
+class Connection(NamedTuple):
+    """A light sample seen from x, before x's BSDF and the shadow ray. The loop multiplies ``v`` by the BSDF door's
+    f |cos_x| (:func:`.path.connect`) and traces :func:`connection_ray`."""
+
+    needed: bool  # whether it can bring light at all
+    wi0: float  # the unit direction wi from x
+    wi1: float
+    wi2: float
+    v0: float  # Le G / (p cos_x) per channel: what it carries without f |cos_x|
+    v1: float
+    v2: float
+    p_l: float  # the light samples' solid-angle density of wi, Nd included; 0 for delta lights
+    inf_ray: bool  # whether the shadow ray is infinite (a directional light, an environment)
+    y0: float  # the point y it ends at
+    y1: float
+    y2: float
+    cos_y: float  # at y (1 for an emitter that is not a surface)
+    on_surface: bool  # whether y is on a triangle, whose own offset the shadow ray stops short of
+
+
+@njit(**JIT_BORROW)
+def no_connection():
+    """The :class:`Connection` that brings nothing."""
+    return Connection(False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False, 0.0, 0.0, 0.0, 1.0, False)
 
 
 @njit(**JIT_BORROW)
@@ -229,12 +247,12 @@ def point_connection(cfg, scene, tri, y0, y1, y2, pdf_area, x0, x1, x2):
     p_l = Nd p(y) r^2 / cos_y. None where y is not on an emitter, faces away from x or sits at x."""
     wi0, wi1, wi2, dist2, cos_y = toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2)
     if not (dist2 > 0 and cos_y > 0 and scene.light_id[tri] >= 0):
-        return NO_CONNECTION
+        return no_connection()
     emission = scene.emission
     scale = cos_y / (dist2 * pdf_area)
     p_l = cfg.shadow_rays * pdf_area * dist2 / cos_y
-    return (True, wi0, wi1, wi2, emission[tri, 0] * scale, emission[tri, 1] * scale, emission[tri, 2] * scale,
-            p_l, False, y0, y1, y2, cos_y, origin_offset(cfg.offset_scene, y0, y1, y2))
+    return Connection(True, wi0, wi1, wi2, emission[tri, 0] * scale, emission[tri, 1] * scale,
+                      emission[tri, 2] * scale, p_l, False, y0, y1, y2, cos_y, True)
 
 
 @njit(**JIT_BORROW)
@@ -246,16 +264,18 @@ def emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1,
     ok, k, wi0, wi1, wi2, dist2, falloff, pdf, le0, le1, le2, p0, p1, p2 = emitter_direction(
         cfg, emitters, e, u1, u2, x0, x1, x2, n0, n1, n2, front_only)
     if not ok:
-        return NO_CONNECTION
+        return no_connection()
     if k == POINT or k == SPOT:
         scale = falloff / (dist2 * pdf_select)
-        return True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, False, p0, p1, p2, 1.0, 0.0
+        return Connection(True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, False, p0, p1, p2, 1.0,
+                          False)
     if k == DIRECTIONAL:
         scale = 1.0 / pdf_select
-        return True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, True, 0.0, 0.0, 0.0, 1.0, 0.0
+        return Connection(True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, 0.0, True, 0.0, 0.0, 0.0, 1.0,
+                          False)
     scale = 1.0 / (pdf_select * pdf)
-    return (True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, cfg.shadow_rays * pdf_select * pdf, True, 0.0,
-            0.0, 0.0, 1.0, 0.0)
+    return Connection(True, wi0, wi1, wi2, le0 * scale, le1 * scale, le2 * scale, cfg.shadow_rays * pdf_select * pdf,
+                      True, 0.0, 0.0, 0.0, 1.0, False)
 
 
 @njit(**JIT_BORROW)
@@ -269,15 +289,16 @@ def light_connection(cfg, scene, lights, emitters, light, piece, pdf_select, u1,
     if emitters is not None:
         return emitter_connection(cfg, emitters, light - cfg.num_area_lights, pdf_select, u1, u2, x0, x1, x2, n0,
                                   n1, n2, front_only)
-    return NO_CONNECTION
+    return no_connection()
 
 
 @njit(**JIT_BORROW)
 def connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2, n0, n1, n2, ox0, ox1, ox2):
-    """The shadow ray of connection ``conn`` from x (front normal N, ``cos_x`` = N . wi): (origin, unit direction,
-    t_max). It leaves from x's offset origin ``ox`` on the side x reflects from, or for a surface that transmits
-    (``transmits``) on the side of wi; with the planted fault "no-ray-offset" from x itself. It stops short of y
-    (:func:`.surface.shadow_t_max`), or is infinite toward a directional light or an environment."""
+    """The shadow ray of connection ``conn`` (:class:`Connection`) from x (front normal N, ``cos_x`` = N . wi):
+    (origin, unit direction, t_max). It leaves from x's offset origin ``ox`` on the side x reflects from, or for a
+    surface that transmits (``transmits``) on the side of wi; with the planted fault "no-ray-offset" from x itself.
+    It stops short of y (:func:`.surface.shadow_t_max`, y's own offset where y is on a triangle), or is infinite
+    toward a directional light or an environment."""
     if cfg.mutant & M_NO_RAY_OFFSET:  # mutant "no-ray-offset"
         so0, so1, so2 = x0, x1, x2
     elif transmits:
@@ -285,10 +306,11 @@ def connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2, n0, n1, n2, ox0, ox1
         so0, so1, so2 = offset_origin(cfg.offset_scene, x0, x1, x2, side * n0, side * n1, side * n2)
     else:
         so0, so1, so2 = ox0, ox1, ox2
-    if conn[8]:
-        return so0, so1, so2, conn[1], conn[2], conn[3], np.inf
-    g0, g1, g2 = conn[9] - so0, conn[10] - so1, conn[11] - so2
+    if conn.inf_ray:
+        return so0, so1, so2, conn.wi0, conn.wi1, conn.wi2, np.inf
+    g0, g1, g2 = conn.y0 - so0, conn.y1 - so1, conn.y2 - so2
     seg_len = math.sqrt(dot3(g0, g1, g2, g0, g1, g2))
     inv_seg = 1.0 / seg_len
+    y_offset = origin_offset(cfg.offset_scene, conn.y0, conn.y1, conn.y2) if conn.on_surface else 0.0
     return (so0, so1, so2, g0 * inv_seg, g1 * inv_seg, g2 * inv_seg,
-            max(shadow_t_max(seg_len, conn[13], conn[12]), 0.0))
+            max(shadow_t_max(seg_len, y_offset, conn.cos_y), 0.0))

@@ -84,13 +84,13 @@ RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
 @njit(**JIT_BORROW)
 def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, n1, n2, s0, s1, s2, t0, t1, t2,
             lo0, lo1, lo2):
-    """What connection ``conn`` (:mod:`.direct`) brings through x's BSDF where nothing blocks it: (whether it needs
+    """What connection ``conn`` (:class:`.direct.Connection`) brings through x's BSDF where nothing blocks it: (whether it needs
     a shadow ray at all, N . wi, and Le G f |cos_x| / p with its MIS weight, per channel). None where wi is on the
     side a surface that does not transmit does not reflect from (``side`` = the side of wo), or f = 0. With the
     planted fault "no-cosine", f without |cos_x|."""
-    wi0, wi1, wi2 = conn[1], conn[2], conn[3]
+    wi0, wi1, wi2 = conn.wi0, conn.wi1, conn.wi2
     cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
-    if not (conn[0] and cos_x != 0 and (transmits or side * cos_x > 0)):
+    if not (conn.needed and cos_x != 0 and (transmits or side * cos_x > 0)):
         return False, cos_x, 0.0, 0.0, 0.0
     li0, li1, li2 = dot3(s0, s1, s2, wi0, wi1, wi2), dot3(t0, t1, t2, wi0, wi1, wi2), cos_x
     f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
@@ -100,11 +100,11 @@ def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, 
         inv_cos = 1.0 / abs(cos_x)
         f0, f1, f2 = f0 * inv_cos, f1 * inv_cos, f2 * inv_cos
     w = 1.0
-    p_l = conn[7]
+    p_l = conn.p_l
     if mis and p_l > 0:
         p_b = bsdf_pdf(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, li0, li1, li2)
         w = power_weight(mutant, p_l, p_b, True)
-    return True, cos_x, conn[4] * f0 * w, conn[5] * f1 * w, conn[6] * f2 * w
+    return True, cos_x, conn.v0 * f0 * w, conn.v1 * f1 * w, conn.v2 * f2 * w
 
 
 @njit(**JIT_BORROW)
