@@ -31,6 +31,15 @@ class Geometry:
     light_id : (T,) int
         Which light k a triangle belongs to (all triangles of one emissive shape share an id), -1 for non-emitters.
         Ids run from 0 to N_L - 1.
+    uv : (T, 3, 2) float64, optional
+        The texture coordinates (u, v) at each triangle's corners, in the order of ``triangles``; a hit's are
+        interpolated with its barycentrics. None: the triangles have none (0 everywhere).
+    uv_sphere : (T,) int64, optional
+        Per triangle: -1 (its ``uv`` are interpolated), or the sphere s of ``sphere_to_object`` the triangle
+        approximates, whose texture coordinates are Mitsuba's analytic ones at the hit's direction from the centre:
+        p = sphere_to_object[s] x, u = atan2(p_y, p_x) / (2 pi) mod 1, v = acos(p_z / |p|) / pi.
+    sphere_to_object : (S, 4, 4) float64, optional
+        Per sphere: the inverse of its object-to-world matrix (the unit sphere in its own space).
     """
 
     vertices: np.ndarray
@@ -40,6 +49,9 @@ class Geometry:
     two_sided: np.ndarray
     emission: np.ndarray
     light_id: np.ndarray
+    uv: np.ndarray | None = None
+    uv_sphere: np.ndarray | None = None
+    sphere_to_object: np.ndarray | None = None
     # Derived per-triangle data, filled in by __post_init__.
     normal: np.ndarray = field(init=False, repr=False)  # (T, 3) unit geometric normal
     area: np.ndarray = field(init=False, repr=False)  # (T,)
@@ -82,6 +94,7 @@ class Geometry:
             if not np.array_equal(ids, np.arange(len(ids))):
                 raise SettingsError("light_id", "expected light ids 0 .. N_L - 1 without gaps")
 
+        self._check_uv(n_tri)
         corners = vertices[triangles]  # (T, 3, 3)
         cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         double_area = np.linalg.norm(cross, axis=1)
@@ -98,6 +111,27 @@ class Geometry:
         set_(self, "corners", corners)
         set_(self, "normal", normal)
         set_(self, "area", 0.5 * double_area)
+
+    def _check_uv(self, n_tri: int) -> None:
+        """``uv``, ``uv_sphere`` and ``sphere_to_object`` as contiguous arrays (empty where None), or
+        SettingsError."""
+        set_ = object.__setattr__
+        uv = np.zeros((0, 3, 2)) if self.uv is None else np.ascontiguousarray(self.uv, dtype=np.float64)
+        if uv.shape not in ((0, 3, 2), (n_tri, 3, 2)) or not np.all(np.isfinite(uv)):
+            raise SettingsError("uv", f"expected finite numbers in an array of shape ({n_tri}, 3, 2)")
+        spheres = (np.zeros((0, 4, 4)) if self.sphere_to_object is None
+                   else np.ascontiguousarray(self.sphere_to_object, dtype=np.float64))
+        if spheres.ndim != 3 or spheres.shape[1:] != (4, 4) or not np.all(np.isfinite(spheres)):
+            raise SettingsError("sphere_to_object", "expected finite numbers in an array of shape (S, 4, 4)")
+        which = (np.zeros(0, np.int64) if self.uv_sphere is None
+                 else np.ascontiguousarray(self.uv_sphere, dtype=np.int64).reshape(-1))
+        if len(which) not in (0, n_tri) or np.any(which < -1) or np.any(which >= len(spheres)):
+            raise SettingsError("uv_sphere", f"expected one entry per triangle, -1 or a sphere below {len(spheres)}")
+        if len(which) and len(uv) == 0:
+            raise SettingsError("uv", "expected the triangles' uv with uv_sphere")
+        set_(self, "uv", uv)
+        set_(self, "uv_sphere", which)
+        set_(self, "sphere_to_object", spheres)
 
     @property
     def num_lights(self) -> int:

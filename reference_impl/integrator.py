@@ -252,7 +252,7 @@ class _Context:
         kernels = _kernels()
         records = kernels.records
         s = self.settings
-        self.scene_tables = records.scene_tables(self.geometry, self.intersector.prim_to_tri)
+        self.scene_tables = records.scene_tables(self.geometry, self.intersector.prim_to_tri, self.materials.textured)
         self.light_tables = records.light_tables(self.lights)
         self.surface_tables = records.surface_tables(self.all_surfaces)
         surface_pdf = 1.0 / self.all_surfaces.total_area if self.all_surfaces is not None else 0.0
@@ -262,7 +262,7 @@ class _Context:
         self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light,
                                                    packet_width=self.intersector.packet_width)
-        self.material_tables = records.material_tables(self.materials)
+        self.material_tables = records.material_tables(self.materials, self.mutant)
         # None where every material is diffuse: the path loop compiles the BSDF door's other kinds out
         self.other_kinds = True if is_glossy(self.materials) else None
         self.emitter_tables = None

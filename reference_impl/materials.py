@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_impl.errors import SettingsError
+from reference_impl.textures import Textures
 
 DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC = range(5)
 #: Mitsuba's plugin name of each kind.
@@ -34,6 +35,11 @@ P_IOR = 15  # dielectrics: eta = int_ior / ext_ior
 P_TWO_SIDED = 16  # 1: Mitsuba's twosided wrapper (diffuse and conductors only)
 P_MIRROR = 17  # 1: conductor with material = "none" (Fresnel = 1)
 NUM_PARAMS = 20  # 18-19 spare
+
+#: The parameters a texture may drive (Mitsuba's texture-valued parameters): their first column and channel count,
+#: in the order of the columns of ``Materials.texture``.
+TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1)}
+NUM_SLOTS = len(TEXTURE_SLOTS)
 
 #: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
 #: visible-normal sampling, int_ior "bk7" = 1.5046, ext_ior "air" = 1.000277, specular_* = 1; a conductor's material
@@ -58,6 +64,12 @@ class Materials:
         :data:`DIFFUSE` .. :data:`ROUGHDIELECTRIC`.
     params : (M, NUM_PARAMS) float64
         The columns ``P_*`` of this module; columns a kind does not use are ignored (keep them 0).
+    texture : (M, NUM_SLOTS) int64, optional
+        Per material and :data:`TEXTURE_SLOTS` entry: the texture of ``textures`` that drives that parameter (its
+        value at a hit replaces the row's columns; a one-channel parameter takes the texture's first channel), -1
+        where none does. None: no texture anywhere.
+    textures : reference_impl.textures.Textures, optional
+        The textures ``texture`` names.
 
     Validation (:class:`SettingsError` naming ``materials.kind`` or ``materials.params``): known kinds; finite
     parameters; reflectances and transmittances in [0, 1]; alpha > 0 on rough kinds; eta > 0 on dielectrics (and != 1 on the rough one, as Mitsuba); k >= 0
@@ -66,6 +78,8 @@ class Materials:
 
     kind: np.ndarray
     params: np.ndarray
+    texture: np.ndarray | None = None
+    textures: Textures | None = None
 
     def __post_init__(self) -> None:
         kind = np.ascontiguousarray(self.kind, dtype=np.int64).reshape(-1)
@@ -77,6 +91,9 @@ class Materials:
             raise SettingsError("materials.kind", f"expected kinds {DIFFUSE} .. {ROUGHDIELECTRIC} "
                                 f"({', '.join(KIND_NAMES.values())})")
         _check_params(kind, params)
+        texture, textures = _check_textures(kind, self.texture, self.textures)
+        object.__setattr__(self, "texture", texture)
+        object.__setattr__(self, "textures", textures)
         params.setflags(write=False)
         kind.setflags(write=False)
         object.__setattr__(self, "kind", kind)
@@ -99,8 +116,35 @@ class Materials:
         """True when every material is Lambertian (the scene runs the engines that predate this table)."""
         return bool(np.all(self.kind == DIFFUSE))
 
+    @property
+    def textured(self) -> bool:
+        """True when a texture drives a parameter of some material."""
+        return bool(np.any(self.texture >= 0))
+
     def __len__(self) -> int:
         return len(self.kind)
+
+
+def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Textures]:
+    """``texture`` as (M, NUM_SLOTS) int64 (all -1 where None) and ``textures`` (empty where None); SettingsError
+    for an index out of range or a texture whose values the parameter cannot take."""
+    textures = textures if textures is not None else Textures()
+    if texture is None:
+        texture = np.full((len(kind), NUM_SLOTS), -1, dtype=np.int64)
+    texture = np.ascontiguousarray(texture, dtype=np.int64)
+    if texture.shape != (len(kind), NUM_SLOTS):
+        raise SettingsError("materials.texture", f"expected an array of shape ({len(kind)}, {NUM_SLOTS}), "
+                            f"got {texture.shape}")
+    if np.any(texture < -1) or np.any(texture >= len(textures)):
+        raise SettingsError("materials.texture", f"expected -1 or a texture index below {len(textures)}")
+    for m, slot in zip(*np.nonzero(texture >= 0)):
+        name = list(TEXTURE_SLOTS)[slot]
+        top = textures.max_value(int(texture[m, slot]))
+        if name in ("reflectance", "transmittance") and np.any(top > 1):
+            raise SettingsError(f"materials.texture[{m}] ({KIND_NAMES[int(kind[m])]})",
+                                f"expected the texture of {name} in [0, 1], got values up to {top.max():g}")
+    texture.setflags(write=False)
+    return texture, textures
 
 
 def is_glossy(materials: Materials | None) -> bool:

@@ -61,4 +61,16 @@ GLOSSY_MUTANTS: dict[str, str] = {
     ),
 }
 
-ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS}
+# The textures' (reference_impl/kernels/texture.py; the texels of kernels/records.py texture_tables).
+TEXTURE_MUTANTS: dict[str, str] = {
+    "texture-v-flipped": "textures looked up at (u, 1 - v): the image upside down",
+    "texture-srgb-as-linear": "an 8-bit sRGB texture's codes taken as linear values code / 255 (no sRGB decoding)",
+    "texture-nearest-not-bilinear": "the nearest texel taken where bilinear filtering was asked",
+    "texture-half-texel-shift": (
+        "bilinear filtering with the texel centres at integer texel coordinates (u W instead of u W - 1/2): the "
+        "image shifted by half a texel"
+    ),
+    "texture-repeat-as-clamp": "wrap_mode = repeat treated as clamp (the edge texels stretched outside [0, 1])",
+}
+
+ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS}

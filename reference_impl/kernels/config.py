@@ -75,6 +75,12 @@ MUTANT_BITS.update({"microfacet-pdf-no-jacobian": M_MICROFACET_PDF_NO_JACOBIAN,
 # The MIS weights' planted fault (reference_impl/kernels/direct.py power_weight; reference_impl.mutants.GLOSSY_MUTANTS).
 M_MIS_WEIGHTS_NOT_ONE = 1 << 16
 MUTANT_BITS["mis-weights-not-one"] = M_MIS_WEIGHTS_NOT_ONE
+# The textures' planted faults (reference_impl/kernels/texture.py; reference_impl.mutants.TEXTURE_MUTANTS;
+# "texture-srgb-as-linear" is in the texels, records.texture_tables).
+M_TEXTURE_V_FLIPPED, M_TEXTURE_NEAREST, M_TEXTURE_HALF_TEXEL, M_TEXTURE_REPEAT_AS_CLAMP = (1 << b for b in range(17, 21))
+MUTANT_BITS.update({"texture-v-flipped": M_TEXTURE_V_FLIPPED, "texture-nearest-not-bilinear": M_TEXTURE_NEAREST,
+                    "texture-half-texel-shift": M_TEXTURE_HALF_TEXEL,
+                    "texture-repeat-as-clamp": M_TEXTURE_REPEAT_AS_CLAMP})
 
 
 class KernelConfig(NamedTuple):

@@ -3,11 +3,11 @@
 
     (kind, params)(hit) = (kind_m, row_m),   m = hit.material
 
-Every parameter is constant over a surface today, so the step hands on material m's kind and its row of
-:class:`reference_impl.Materials` unchanged (the columns are the ``P_*`` of :mod:`reference_impl.materials`). A
-texture will be looked up here, at the hit's texture coordinates (:class:`.surface.SurfaceHit`'s ``tex_u``,
-``tex_v``), and replace the columns it drives; the BSDF (:mod:`.bsdf`) reads its parameters only from the row this
-step writes.
+The step hands on material m's kind and its row of :class:`reference_impl.Materials` (the columns are the ``P_*`` of
+:mod:`reference_impl.materials`), with the columns a texture drives (``Materials.texture``, the slots of
+:data:`reference_impl.materials.TEXTURE_SLOTS`) replaced by the texture's value at the hit's texture coordinates
+(:class:`.surface.SurfaceHit`'s ``tex_u``, ``tex_v``; :func:`.texture.texture_eval`); the BSDF (:mod:`.bsdf`) reads
+its parameters only from the row this step writes.
 
 The row is written into the caller's room for it (``params``, NUM_PARAMS float64, one per engine call, reused at
 every hit): a step that alters it needs no other buffer, and a hit costs no allocation, no reference count and no
@@ -19,7 +19,11 @@ from __future__ import annotations
 from numba import njit
 
 from reference_impl.kernels.config import JIT_BORROW
-from reference_impl.materials import NUM_PARAMS
+from reference_impl.kernels.texture import texture_eval
+from reference_impl.materials import NUM_PARAMS, NUM_SLOTS, TEXTURE_SLOTS
+
+_SLOT_COLUMN = tuple(column for column, _ in TEXTURE_SLOTS.values())
+_SLOT_CHANNELS = tuple(channels for _, channels in TEXTURE_SLOTS.values())
 
 
 @njit(**JIT_BORROW)
@@ -33,9 +37,23 @@ def material_params(materials, m, params):
 
 
 @njit(**JIT_BORROW)
-def material_at(materials, hit, params):
+def material_at(materials, hit, params, mutant):
     """The material step at ``hit`` (:class:`.surface.SurfaceHit`): the parameters of its material at the hit,
     written into ``params`` (NUM_PARAMS float64, the ``P_*`` columns), and its kind (returned), which the BSDF
-    (:mod:`.bsdf`) evaluates and samples. Nothing varies over a surface yet (no textures): material
-    ``hit.material``'s row, unchanged."""
-    return material_params(materials, hit.material, params)
+    (:mod:`.bsdf`) evaluates and samples: material ``hit.material``'s row, each textured slot replaced by its
+    texture's value at (``hit.tex_u``, ``hit.tex_v``) (a one-channel slot takes the first channel). ``mutant``: the
+    render's planted-fault bits (the textures' are in :func:`.texture.texture_eval`)."""
+    m = hit.material
+    kind = material_params(materials, m, params)
+    slots = materials.texture
+    if slots.shape[0] > 0:  # a scene with textures
+        for s in range(NUM_SLOTS):
+            k = slots[m, s]
+            if k >= 0:
+                r, g, b = texture_eval(materials.textures, k, hit.tex_u, hit.tex_v, mutant)
+                c = _SLOT_COLUMN[s]
+                params[c] = r
+                if _SLOT_CHANNELS[s] == 3:
+                    params[c + 1] = g
+                    params[c + 2] = b
+    return kind

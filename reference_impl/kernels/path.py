@@ -340,7 +340,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     rad2 += b2 * emission[tri, 2] * w
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
-            kind = material_at(materials, hit, row)  # the material step: the BSDF's kind and parameters at x
+            kind = material_at(materials, hit, row, mutant)  # the material step: the BSDF's kind and parameters at x
             if other_kinds is None:
                 kind = DIFFUSE  # what the table says, known to the compiler
             transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC

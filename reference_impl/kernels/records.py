@@ -14,6 +14,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+from reference_impl import textures as tx
+from reference_impl.materials import NUM_SLOTS
+
 _c = np.ascontiguousarray
 
 
@@ -37,6 +40,13 @@ class SceneTables(NamedTuple):
     material : (T,) int64
         The triangle's material, a row of :class:`MaterialTables` (what it is at a hit: the material step,
         :mod:`.material`).
+    uv : (T, 3, 2) or (0, 3, 2) float64
+        The texture coordinates at the corners (``Geometry.uv``); empty where no material is textured (no hit
+        computes them).
+    uv_sphere : (T,) or (0,) int64
+        ``Geometry.uv_sphere``: the sphere whose analytic coordinates a triangle takes, -1 for none.
+    sphere_to_object : (S, 4, 4) float64
+        ``Geometry.sphere_to_object``.
     """
 
     prim_to_tri: np.ndarray
@@ -46,15 +56,25 @@ class SceneTables(NamedTuple):
     emission: np.ndarray
     light_id: np.ndarray
     material: np.ndarray
+    uv: np.ndarray
+    uv_sphere: np.ndarray
+    sphere_to_object: np.ndarray
 
 
-def scene_tables(geometry, prim_to_tri: np.ndarray) -> SceneTables:
+def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> SceneTables:
     """The :class:`SceneTables` of ``geometry`` (:class:`reference_impl.Geometry`) for Embree's primitives
-    ``prim_to_tri``."""
+    ``prim_to_tri``; the texture coordinates only where ``textured`` (a material has a texture)."""
     g = geometry
+    uv, uv_sphere, spheres = np.zeros((0, 3, 2)), np.zeros(0, np.int64), np.zeros((0, 4, 4))
+    if textured:
+        uv = g.uv if len(g.uv) else np.zeros((len(g.triangles), 3, 2))
+        uv_sphere = g.uv_sphere if len(g.uv_sphere) else np.full(len(g.triangles), -1, np.int64)
+        spheres = g.sphere_to_object
     return SceneTables(
         prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
-        corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material))
+        corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
+        uv=_c(uv, dtype=np.float64), uv_sphere=_c(uv_sphere, dtype=np.int64),
+        sphere_to_object=_c(spheres, dtype=np.float64))
 
 
 class LightTables(NamedTuple):
@@ -194,15 +214,85 @@ class MaterialTables(NamedTuple):
         DIFFUSE .. ROUGHDIELECTRIC (:mod:`reference_impl.materials`).
     params : (M, NUM_PARAMS) float64
         One row per material, its columns the ``P_*`` of :mod:`reference_impl.materials`.
+    texture : (M, NUM_SLOTS) or (0, NUM_SLOTS) int64
+        ``Materials.texture``: per material and texture slot, the texture driving it or -1; empty where no material
+        is textured (the material step then copies rows only).
+    textures : TextureTables
+        The textures.
     """
 
     kind: np.ndarray
     params: np.ndarray
+    texture: np.ndarray
+    textures: "TextureTables"
 
 
-def material_tables(materials) -> MaterialTables:
-    """The :class:`MaterialTables` of a :class:`reference_impl.Materials`."""
-    return MaterialTables(_c(materials.kind, dtype=np.int64), _c(materials.params, dtype=np.float64))
+class TextureTables(NamedTuple):
+    """The textures (:class:`reference_impl.textures.Textures`), as :mod:`.texture` reads them; K textures.
+
+    Attributes
+    ----------
+    kind : (K,) int64
+        BITMAP or CHECKERBOARD (:mod:`reference_impl.textures`).
+    filter : (K,) int64
+        NEAREST or BILINEAR.
+    wrap : (K,) int64
+        REPEAT, MIRROR or CLAMP.
+    width, height : (K,) int64
+        A bitmap's size in texels.
+    offset : (K,) int64
+        A bitmap's first texel in ``texels``; texel (i, j) (column i, row j from the top) is
+        ``texels[offset + j * width + i]``.
+    texels : (N, 3) float64
+        Every bitmap's linear values, one after the other.
+    to_uv : (K, 3, 3) float64
+        Each texture's affine map of (u, v).
+    colors : (K, 2, 3) float64
+        A checkerboard's color0 and color1.
+    """
+
+    kind: np.ndarray
+    filter: np.ndarray
+    wrap: np.ndarray
+    width: np.ndarray
+    height: np.ndarray
+    offset: np.ndarray
+    texels: np.ndarray
+    to_uv: np.ndarray
+    colors: np.ndarray
+
+
+def texture_tables(textures, srgb_as_linear: bool = False) -> TextureTables:
+    """The :class:`TextureTables` of a :class:`reference_impl.textures.Textures` (``srgb_as_linear``: the planted
+    fault "texture-srgb-as-linear", sRGB codes taken as code / 255)."""
+    items = textures.items if textures is not None else ()
+    count = len(items)
+    kind, filt, wrap, width, height, offset = (np.zeros(count, np.int64) for _ in range(6))
+    to_uv, colors, texels = np.zeros((count, 3, 3)), np.zeros((count, 2, 3)), []
+    start = 0
+    for k, item in enumerate(items):
+        to_uv[k] = item.to_uv
+        if isinstance(item, tx.Checkerboard):
+            kind[k] = tx.CHECKERBOARD
+            colors[k] = (item.color0, item.color1)
+            continue
+        image = item.linear(srgb_as_linear)
+        kind[k], filt[k], wrap[k] = tx.BITMAP, tx.FILTERS[item.filter_type], tx.WRAPS[item.wrap_mode]
+        height[k], width[k] = image.shape[:2]
+        offset[k] = start
+        texels.append(image.reshape(-1, 3))
+        start += image.shape[0] * image.shape[1]
+    return TextureTables(kind, filt, wrap, width, height, offset,
+                         _c(np.concatenate(texels) if texels else np.zeros((0, 3)), dtype=np.float64), to_uv, colors)
+
+
+def material_tables(materials, mutant: str = "") -> MaterialTables:
+    """The :class:`MaterialTables` of a :class:`reference_impl.Materials` (``mutant``: the render's planted fault,
+    "texture-srgb-as-linear" changes the texels)."""
+    texture = materials.texture if materials.textured else np.zeros((0, NUM_SLOTS), np.int64)
+    return MaterialTables(_c(materials.kind, dtype=np.int64), _c(materials.params, dtype=np.float64),
+                          _c(texture, dtype=np.int64),
+                          texture_tables(materials.textures, mutant == "texture-srgb-as-linear"))
 
 
 class FilmSamples(NamedTuple):

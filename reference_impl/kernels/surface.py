@@ -8,6 +8,9 @@ surface it leaves, and where a shadow ray stops.
     (u, v)       = ((p x e2) . N, (e1 x p) . N) / ((e1 x e2) . N),   e1 = v1 - v0, e2 = v2 - v0, p = x - v0:
                  the barycentrics of x, x = (1 - u - v) v0 + u v1 + v v2 (ratios of signed areas; Moeller and
                  Trumbore 1997 find the same u, v along the ray)
+    (s, t)       = (1 - u - v) uv_0 + u uv_1 + v uv_2    the texture coordinates, from the corners' (a textured scene);
+                 on a sphere's triangles Mitsuba's analytic ones, p = to_object x:
+                 s = atan2(p_y, p_x) / (2 pi) (+ 1 where negative), t = acos(p_z / |p|) / pi
     offset(p)    = 2^-20 max(|p_x|, |p_y|, |p_z|) + 2^-22 scene size        (a few float32 ulps of p)
     origin       = x + offset(x) N_x                                          (N_x on the side the ray leaves)
     shadow t_max = |y - origin| (1 - 1e-6) - offset(y) / cos(theta_y)         (short of y by y's offset off y's plane)
@@ -60,7 +63,7 @@ class SurfaceHit(NamedTuple):
     u, v : float
         The barycentrics of x (:func:`barycentrics`).
     tex_u, tex_v : float
-        The texture coordinates at x: 0 (the meshes carry none).
+        The texture coordinates at x (:func:`texture_coordinates`); 0 in a scene without textures.
     ss0, ss1, ss2, st0, st1, st2, sn0, sn1, sn2 : float
         The shading frame (s, t, n): the geometric frame, n = N and s, t the tangents of
         :func:`.warps.tangent_frame` (the BSDF's local x and y axes).
@@ -113,6 +116,28 @@ def barycentrics(corners, tri, x0, x1, x2, n0, n1, n2):
 
 
 @njit(**JIT_BORROW)
+def texture_coordinates(scene, tri, u, v, x0, x1, x2):
+    """The texture coordinates (s, t) of point x of triangle ``tri`` (barycentrics u, v): the corners' interpolated,
+    or on a sphere's triangle (``scene.uv_sphere``) Mitsuba's analytic ones at the direction of x from its centre
+    (``sphere.cpp``: u from the azimuth about local z, v from the polar angle)."""
+    sphere = scene.uv_sphere[tri]
+    if sphere >= 0:
+        m = scene.sphere_to_object[sphere]
+        p0 = m[0, 0] * x0 + m[0, 1] * x1 + m[0, 2] * x2 + m[0, 3]
+        p1 = m[1, 0] * x0 + m[1, 1] * x1 + m[1, 2] * x2 + m[1, 3]
+        p2 = m[2, 0] * x0 + m[2, 1] * x1 + m[2, 2] * x2 + m[2, 3]
+        phi = math.atan2(p1, p0)
+        if phi < 0.0:
+            phi += 2.0 * math.pi
+        r = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+        return phi / (2.0 * math.pi), math.acos(min(1.0, max(-1.0, p2 / r))) / math.pi
+    uv = scene.uv
+    w = 1.0 - u - v
+    return (w * uv[tri, 0, 0] + u * uv[tri, 1, 0] + v * uv[tri, 2, 0],
+            w * uv[tri, 0, 1] + u * uv[tri, 1, 1] + v * uv[tri, 2, 1])
+
+
+@njit(**JIT_BORROW)
 def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
     """The :class:`SurfaceHit` of a ray (origin o, unit direction d) on Embree's primitive p."""
     tri_normal, tri_v0 = scene.normal, scene.corner0
@@ -120,9 +145,12 @@ def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
     n0, n1, n2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
     t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, tri_v0[tri, 0], tri_v0[tri, 1], tri_v0[tri, 2])
     u, v = barycentrics(scene.corners, tri, x0, x1, x2, n0, n1, n2)
+    tex_u, tex_v = 0.0, 0.0
+    if scene.uv.shape[0] > 0:  # a scene with textures
+        tex_u, tex_v = texture_coordinates(scene, tri, u, v, x0, x1, x2)
     s0, s1, s2, t0, t1, t2 = tangent_frame(n0, n1, n2)
-    return SurfaceHit(tri, scene.material[tri], t, x0, x1, x2, n0, n1, n2, cos_out, u, v, 0.0, 0.0, s0, s1, s2, t0,
-                      t1, t2, n0, n1, n2)
+    return SurfaceHit(tri, scene.material[tri], t, x0, x1, x2, n0, n1, n2, cos_out, u, v, tex_u, tex_v, s0, s1, s2,
+                      t0, t1, t2, n0, n1, n2)
 
 
 @njit(**JIT)

@@ -79,7 +79,7 @@ def shading_point(cfg, materials, hit, row):
     (whether x reflects at all, which it does not on the back of a one-sided surface, its largest albedo
     max_c rho_c (the survival probability of ``rr = "albedo"``), N turned to the side Theta leaves from, Lambert's
     f_r = rho / pi, and the offset origin of the rays that leave x)."""
-    material_at(materials, hit, row)  # a diffuse kind: these engines run Lambertian scenes only
+    material_at(materials, hit, row, cfg.mutant)  # a diffuse kind: these engines run Lambertian scenes only
     front = hit.cos_out > 0
     n0, n1, n2, x0, x1, x2 = hit.n0, hit.n1, hit.n2, hit.x0, hit.x1, hit.x2
     if not (front or row[P_TWO_SIDED] != 0.0):

@@ -75,7 +75,7 @@ def test_the_material_step_hands_on_the_materials_row_unchanged():
         o = c.mean(axis=0) + 2.0 * geometry.normal[tri]
         hit = surface.surface_hit(scene, tri, *o, *(-geometry.normal[tri]))
         row = np.full(NUM_PARAMS, np.nan)
-        kind = material.material_at(tables, hit, row)
+        kind = material.material_at(tables, hit, row, 0)
         m = geometry.material[tri]
         assert kind == materials.kind[m]
         np.testing.assert_array_equal(row, materials.params[m])

@@ -1,0 +1,103 @@
+"""A texture's value at texture coordinates (u, v) (:mod:`reference_impl.textures`, Mitsuba 3's ``bitmap`` and
+``checkerboard``), for the material step (:mod:`.material`).
+
+    (u', v', 1)  = to_uv (u, v, 1)
+    bitmap       nearest:   texel (wrap(floor(u' W)), wrap(floor(v' H)))
+                 bilinear:  x = u' W - 1/2, y = v' H - 1/2, i = floor(x), j = floor(y), a = x - i, b = y - j:
+                            (1 - a)(1 - b) T(i, j) + a (1 - b) T(i + 1, j) + (1 - a) b T(i, j + 1) + a b T(i + 1, j + 1)
+                 wrap(i) on n texels: repeat  i mod n;  clamp  min(max(i, 0), n - 1);
+                                      mirror  m = i mod 2n, m if m < n else 2n - 1 - m
+    checkerboard color0 where (u' mod 1 > 1/2) == (v' mod 1 > 1/2), color1 elsewhere
+
+Row j = 0 is the image's top row. The texels are linear values (an sRGB image is decoded when the tables are built,
+:func:`.records.texture_tables`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from numba import njit
+
+from reference_impl.kernels.config import (JIT_BORROW, M_TEXTURE_HALF_TEXEL, M_TEXTURE_NEAREST,
+                                           M_TEXTURE_REPEAT_AS_CLAMP, M_TEXTURE_V_FLIPPED)
+from reference_impl.textures import BILINEAR, CHECKERBOARD, CLAMP, REPEAT
+
+# Texel coordinates are clamped to +-2^52 before they become integers (a coordinate from a huge to_uv): far beyond
+# any image, and every wrap mode still gives a texel.
+_MAX_COORD = 2.0**52
+
+
+@njit(**JIT_BORROW)
+def wrap_index(i, n, mode):
+    """Texel index ``i`` of an axis of ``n`` texels, wrapped by ``mode`` (REPEAT, MIRROR, CLAMP)."""
+    if mode == REPEAT:
+        return i % n
+    if mode == CLAMP:
+        return min(max(i, 0), n - 1)
+    m = i % (2 * n)
+    return m if m < n else 2 * n - 1 - m
+
+
+@njit(**JIT_BORROW)
+def _floor(x):
+    return int(math.floor(min(max(x, -_MAX_COORD), _MAX_COORD)))
+
+
+@njit(**JIT_BORROW)
+def _texel(textures, k, i, j, wrap):
+    w, h = textures.width[k], textures.height[k]
+    t = textures.offset[k] + wrap_index(j, h, wrap) * w + wrap_index(i, w, wrap)
+    texels = textures.texels
+    return texels[t, 0], texels[t, 1], texels[t, 2]
+
+
+@njit(**JIT_BORROW)
+def texture_eval(textures, k, u, v, mutant):
+    """Texture ``k`` of ``textures`` (:class:`.records.TextureTables`) at (u, v): its RGB value. ``mutant``: the
+    render's planted-fault bits (:mod:`.config`)."""
+    a = textures.to_uv[k]
+    tu = a[0, 0] * u + a[0, 1] * v + a[0, 2]
+    tv = a[1, 0] * u + a[1, 1] * v + a[1, 2]
+    if mutant & M_TEXTURE_V_FLIPPED:  # planted fault "texture-v-flipped"
+        tv = 1.0 - tv
+    if textures.kind[k] == CHECKERBOARD:
+        c = 0 if ((tu - math.floor(tu)) > 0.5) == ((tv - math.floor(tv)) > 0.5) else 1
+        col = textures.colors[k, c]
+        return col[0], col[1], col[2]
+    wrap = textures.wrap[k]
+    if wrap == REPEAT and mutant & M_TEXTURE_REPEAT_AS_CLAMP:  # planted fault "texture-repeat-as-clamp"
+        wrap = CLAMP
+    x = tu * textures.width[k]
+    y = tv * textures.height[k]
+    if textures.filter[k] != BILINEAR or mutant & M_TEXTURE_NEAREST:  # planted fault "texture-nearest-not-bilinear"
+        return _texel(textures, k, _floor(x), _floor(y), wrap)
+    if not mutant & M_TEXTURE_HALF_TEXEL:  # planted fault "texture-half-texel-shift": no - 1/2
+        x -= 0.5
+        y -= 0.5
+    i, j = _floor(x), _floor(y)
+    fa, fb = x - i, y - j
+    r00, g00, b00 = _texel(textures, k, i, j, wrap)
+    r10, g10, b10 = _texel(textures, k, i + 1, j, wrap)
+    r01, g01, b01 = _texel(textures, k, i, j + 1, wrap)
+    r11, g11, b11 = _texel(textures, k, i + 1, j + 1, wrap)
+    w00, w10, w01, w11 = (1.0 - fa) * (1.0 - fb), fa * (1.0 - fb), (1.0 - fa) * fb, fa * fb
+    return (w00 * r00 + w10 * r10 + w01 * r01 + w11 * r11, w00 * g00 + w10 * g10 + w01 * g01 + w11 * g11,
+            w00 * b00 + w10 * b10 + w01 * b01 + w11 * b11)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _eval_many(textures, k, uv, mutant, out):
+    for n in range(uv.shape[0]):
+        out[n, 0], out[n, 1], out[n, 2] = texture_eval(textures, k, uv[n, 0], uv[n, 1], mutant)
+
+
+def evaluate(tables, k: int, uv, mutant: int = 0):
+    """Texture ``k`` of ``tables`` (:class:`.records.TextureTables`) at the (N, 2) points ``uv``: (N, 3) float64
+    (for tests and tools; the renders look textures up in the material step)."""
+    uv = np.ascontiguousarray(uv, dtype=np.float64).reshape(-1, 2)
+    out = np.empty((len(uv), 3))
+    _eval_many(tables, int(k), uv, int(mutant), out)
+    return out
