@@ -150,10 +150,10 @@ def run(args: argparse.Namespace) -> int:
     }
     if args.json:
         print(json.dumps(summary, indent=2))
-    elif gt.source == "closed-form" and out is not None:
-        print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {gt.info.get('radiance')}; wrote {out}")
     elif gt.source == "closed-form":
-        print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {gt.info.get('radiance')}; no render needed")
+        radiance = gt.info.get("radiance", "per pixel (a texture's mean over each footprint)")
+        done = f"wrote {out}" if out is not None else "no render needed"
+        print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {radiance}; {done}")
     else:
         state = "from the cache" if gt.cached else f"rendered in {gt.seconds:.1f} s ({gt.renders} chunk renders)"
         print(f"{scene.name}: Mitsuba {gt.info.get('variant')} {gt.spp} spp, {state}\n{gt.path}"

@@ -294,6 +294,10 @@ def scene_files(scene: Scene, fmt: str, *, spp: int = 16, seed: int = 0) -> dict
     first (``spp`` and ``seed``: the defaults of the Mitsuba XML's ``$spp`` and ``$seed``)."""
     if fmt not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
+    if fmt in ("gltf", "obj") and scene.used_textures:
+        raise HarnessError(str(scene.path), f"the {fmt} export does not carry textures yet (textures: "
+                                            f"{', '.join(t.name for t in scene.used_textures)}): export it as "
+                                            "mitsuba-xml or json")
     files: dict[str, bytes] = {}
     if fmt == "mitsuba-xml":
         text, meshes = mitsuba_xml(scene, spp=spp, seed=seed)

@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from reference_impl.textures import Textures
+
 from harness.core.errors import HarnessError
 from harness.files.entries import default_cache_dir, private_name
 from harness.files.imageio import WriteError, make_folders, remove_folders, write_exr
@@ -40,9 +42,10 @@ from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
 from harness.scene.content_key import content_key
+from harness.scene.kinds.textures import TEXTURES
 from harness.scene.triangulate import object_to_world, shape_triangles
 
-FORMAT_VERSION = 2  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
+FORMAT_VERSION = 3  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
 DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
@@ -76,7 +79,8 @@ def closed_form(scene: Scene) -> GroundTruth:
 
     white-furnace: one diffuse sphere of albedo rho under a ``constant`` environment L, covering every pixel's
     footprint: a convex surface sees only the environment, so every pixel is rho L for max_depth >= 2 or -1
-    (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit). A perfect mirror
+    (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit). A textured rho makes
+    each pixel L times the texture's mean over the pixel's footprint on the sphere (:func:`textured_sphere_means`). A perfect mirror
     (conductor, material "none") gives specular_reflectance L the same way; a smooth dielectric with
     specular_reflectance = specular_transmittance = 1 conserves energy, so every pixel is L at max_depth = -1.
     """
@@ -85,8 +89,10 @@ def closed_form(scene: Scene) -> GroundTruth:
     radiance = CLOSED_FORMS[scene.closed_form](scene)
     shape = (scene.film.height, scene.film.width, 3)
     image = np.broadcast_to(radiance.astype(np.float32), shape).copy()
-    return GroundTruth(image, np.zeros(shape, np.float32), "closed-form", 0,
-                       info={"closed_form": scene.closed_form, "radiance": radiance.tolist()}, cached=False)
+    info = {"closed_form": scene.closed_form}
+    if radiance.shape == (3,):  # one radiance for every pixel (a textured sphere's differs from pixel to pixel)
+        info["radiance"] = radiance.tolist()
+    return GroundTruth(image, np.zeros(shape, np.float32), "closed-form", 0, info=info, cached=False)
 
 
 def _furnace(scene: Scene) -> np.ndarray:
@@ -150,6 +156,12 @@ def _white_furnace(scene: Scene) -> np.ndarray:
             f"{'' if material.mirror else ' with eta / k (Fresnel < 1)'}"))
     if scene.max_depth == 1:
         return np.zeros(3)
+    if material.textures:
+        if not material.is_diffuse or scene.film.filter != "box":
+            raise HarnessError(where, "the white-furnace closed form of a textured sphere needs a diffuse one and "
+                                      f"the box filter; this scene has a {material.type} and the "
+                                      f"{scene.film.filter} filter")
+        return textured_sphere_means(scene) * radiance
     albedo = material.reflectance if material.is_diffuse else material.specular_reflectance
     return np.array(albedo, dtype=np.float64) * radiance
 
@@ -189,6 +201,45 @@ def sphere_coverage_problem(scene: Scene) -> str | None:
         return (f"the film's farthest corner ray (with the {scene.film.filter} filter's reach) is {angle:.4g} degrees "
                 f"from the sphere's centre, the sphere's angular radius {half_angle:.4g} degrees")
     return None
+
+
+#: Points per pixel side of :func:`textured_sphere_means`' quadrature.
+QUADRATURE_SIDE = 32
+
+
+def textured_sphere_means(scene: Scene, side: int = QUADRATURE_SIDE) -> np.ndarray:
+    """(H, W, 3): each pixel's mean of the sphere's textured reflectance over its box footprint, by the midpoint rule
+    on ``side`` x ``side`` points per pixel: each point's camera ray meets the analytic sphere at x, whose texture
+    coordinates are Mitsuba's (p = to_object x: u = atan2(p_y, p_x) / (2 pi) mod 1, v = acos(p_z) / pi), and the
+    texture is looked up there by the reference's lookup (kernels/texture.py, checked against Mitsuba's bitmaps in
+    tests/reference_impl/test_textures.py). The scene's checks (one sphere covering the footprint) are the
+    caller's."""
+    from reference_impl.kernels import records, texture as lookup  # optional: numba's kernels, closed forms only
+
+    sphere = scene.shapes[0]
+    (item, tex), = scene.materials[sphere.material].textures
+    tables = records.texture_tables(Textures((TEXTURES[tex.type].to_core(tex),)))
+    to_world = object_to_world(sphere)
+    to_object = np.linalg.inv(to_world)
+    centre, radius = to_world[:3, 3], float(np.linalg.norm(to_world[:3, 0]))
+    width, height = scene.film.width, scene.film.height
+    offsets = (np.arange(side) + 0.5) / side
+    out = np.empty((height, width, 3))
+    for y in range(height):
+        fx, fy = np.meshgrid(np.arange(width)[:, None] + offsets[None, :], y + offsets, indexing="ij")
+        origins, directions = scene.camera.generate_rays(fx.ravel(), np.broadcast_to(fy, fx.shape).ravel(), width,
+                                                         height)
+        oc = origins - centre
+        b = np.einsum("ij,ij->i", oc, directions)
+        c = np.einsum("ij,ij->i", oc, oc) - radius * radius
+        t = -b - np.sqrt(b * b - c)  # the nearer root: the camera is outside (the coverage check)
+        p = (origins + t[:, None] * directions) @ to_object[:3, :3].T + to_object[:3, 3]
+        p /= np.linalg.norm(p, axis=1, keepdims=True)
+        u = np.arctan2(p[:, 1], p[:, 0]) / (2 * np.pi)
+        uv = np.stack([np.where(u < 0, u + 1.0, u), np.arccos(np.clip(p[:, 2], -1.0, 1.0)) / np.pi], axis=1)
+        values = lookup.evaluate(tables, 0, uv).reshape(width, side * side, 3)
+        out[y] = values.mean(axis=1)
+    return out
 
 
 CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace}

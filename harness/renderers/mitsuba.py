@@ -46,6 +46,7 @@ from harness.renderers.mitsuba_spec import (
     MitsubaSpec,
     Parameter,
     Point,
+    UVTransform,
     Vector,
     scene_spec,
 )
@@ -444,8 +445,12 @@ def _load_dict_value(mi, value, plugins: dict):
     if isinstance(value, Parameter):
         return value.default
     if isinstance(value, ImageFile):
-        # a writable copy: Mitsuba's binding refuses read-only arrays (the scene's image is read-only)
-        return mi.Bitmap(np.array(value.image, dtype=np.float32, order="C"), mi.Bitmap.PixelFormat.RGB)
+        # a writable copy: Mitsuba's binding refuses read-only arrays (the scene's image is read-only); an 8-bit
+        # image stays uint8, which Mitsuba takes as sRGB codes (as from a PNG, bit for bit)
+        dtype = np.uint8 if value.image.dtype == np.uint8 else np.float32
+        return mi.Bitmap(np.array(value.image, dtype=dtype, order="C"), mi.Bitmap.PixelFormat.RGB)
+    if isinstance(value, UVTransform):
+        return mi.ScalarTransform3f(np.asarray(value.matrix, dtype=np.float64).tolist())
     return value
 
 

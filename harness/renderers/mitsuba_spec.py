@@ -40,6 +40,7 @@ from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's value
     MeshFile,
     Parameter,
     Point,
+    UVTransform,
     Vector,
     rgb,
     xyz,

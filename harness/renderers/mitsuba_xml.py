@@ -18,9 +18,10 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from harness.files.imageio import exr_bytes
+from harness.files.imageio import encode_png, exr_bytes
 from harness.renderers.meshfiles import ply_bytes
-from harness.renderers.mitsuba_spec import ImageFile, LookAt, MeshFile, MitsubaSpec, Parameter, Point, Vector
+from harness.renderers.mitsuba_spec import (ImageFile, LookAt, MeshFile, MitsubaSpec, Parameter, Point, UVTransform,
+                                            Vector)
 
 INDENT = "    "
 #: the category (XML element) of each Mitsuba plugin type a spec holds
@@ -33,6 +34,7 @@ CATEGORIES = {
     **dict.fromkeys(("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "twosided"), "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap"), "emitter"),
     **dict.fromkeys(("rectangle", "cube", "sphere", "ply"), "shape"),
+    **dict.fromkeys(("bitmap", "checkerboard"), "texture"),
 }
 TAGS = frozenset(CATEGORIES.values())
 
@@ -107,6 +109,8 @@ def _property(key: str, value, indent: str, files: dict) -> list[str]:
         return _plugin(key, value, indent, files)
     if isinstance(value, (np.ndarray, LookAt)):
         return [f"{indent}<transform {name}>", f"{indent}{INDENT}{_transform(value)}", f"{indent}</transform>"]
+    if isinstance(value, UVTransform):
+        return [f"{indent}<transform {name}>", f"{indent}{INDENT}{_transform(value.as_4x4())}", f"{indent}</transform>"]
     if isinstance(value, (Point, Vector)):
         return [f'{indent}<{type(value).__name__.lower()} {name} value="{_numbers(value.xyz)}"/>']
     if isinstance(value, (MeshFile, ImageFile)):
@@ -133,6 +137,8 @@ def _file_bytes(reference) -> bytes:
     """A mesh as a binary PLY, an image as an OpenEXR file."""
     if isinstance(reference, MeshFile):
         return ply_bytes(reference.vertices, reference.triangles)
+    if reference.image.dtype == np.uint8:
+        return encode_png(reference.image)
     return exr_bytes(reference.image)
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from harness.files.imageio import exr_bytes
+from harness.files.imageio import encode_png, exr_bytes
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes, tessellates_spheres
 from harness.scene import Scene
@@ -24,7 +24,8 @@ from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.shapes import SHAPES
-from harness.scene.triangulate import object_to_world, shape_triangles
+from harness.scene.kinds.textures import TEXTURES, export_path
+from harness.scene.triangulate import object_to_world, shape_triangles, vertex_uv
 
 FORMAT = "rendering-harness scene"
 VERSION = 1
@@ -52,6 +53,18 @@ def material_json(material) -> dict:
     return MATERIALS[material.type].to_scene_json(material)
 
 
+def texture_json(scene: Scene, files: dict) -> dict:
+    """Every texture a material takes, by name (its type's entry, a bitmap's pixels as ``textures/texture-<name>``
+    .png or .exr, added to ``files``)."""
+    out = {}
+    for texture in scene.used_textures:
+        out[texture.name] = TEXTURES[texture.type].to_scene_json(texture)
+        if texture.image is not None:
+            path = export_path(texture)
+            files[path] = encode_png(texture.image) if texture.image.dtype == np.uint8 else exr_bytes(texture.image)
+    return out
+
+
 def emitter_json(emitter, texture: str | None = None) -> dict:
     """One ``[[emitters]]`` entry with its Mitsuba parameters (plain numbers; matrices 4x4 row-major)."""
     return EMITTERS[emitter.type].to_scene_json(emitter, texture)
@@ -67,13 +80,18 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
     """
     files: dict[str, bytes] = {}
     shapes = []
+    textured = bool(scene.used_textures)
     for shape in scene.shapes:
         rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
         vertices, triangles = shape_triangles(shape)
-        files[rel] = ply_bytes(vertices, triangles)
+        uv = vertex_uv(shape) if textured else None
+        files[rel] = ply_bytes(vertices, triangles, uv)
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
                        "emission": None if shape.emission is None else _floats(shape.emission),
                        "mesh": rel, "triangles": int(len(triangles))}
+        if textured:
+            entry["uv"] = "analytic" if SHAPES[shape.type].sphere is not None else ("mesh" if uv is not None
+                                                                                     else None)
         kind = SHAPES[shape.type]
         if kind.analytic:
             entry["to_world"] = _floats(object_to_world(shape))
@@ -97,6 +115,7 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         "integrator": {"type": "path", "max_depth": int(scene.max_depth), "rr_depth": RR_DEPTH},
         "spheres_as_meshes": bool(tessellates_spheres(scene)),
         "closed_form": scene.closed_form,
+        "textures": texture_json(scene, files),
         "materials": {name: material_json(m) for name, m in scene.materials.items()},
         "shapes": shapes,
         "emitters": emitters,

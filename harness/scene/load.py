@@ -29,7 +29,8 @@ from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
-from harness.scene.model import Emitter, Material, Scene, Shape
+from harness.scene.kinds.textures import read_texture
+from harness.scene.model import Emitter, Material, Scene, Shape, Texture
 from harness.scene.mesh_files import (
     MAX_MESH_BYTES,
     ConfinedResolver,
@@ -48,8 +49,8 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
     triangle_areas,
 )
 
-TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "materials", "shapes",
-                  "emitters", "regions")
+TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "textures", "materials",
+                  "shapes", "emitters", "regions")
 CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
@@ -206,15 +207,17 @@ class _SceneReader(TypedReader):
         camera = self.camera(document)
         film = self.film(document)
         max_depth = self.max_depth(document)
-        materials = self.materials(document)
+        textures = self.textures(document)
+        materials = self.materials(document, textures)
         shapes = self.shapes(document, materials)
+        self.check_textured_shapes(shapes, materials)
         emitters = self.emitters(document)
         closed_form = None
         if "closed_form" in document:
             closed_form = self.choice(document["closed_form"], "closed_form", CLOSED_FORMS)
         regions = self.regions(document, shapes)
         return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form,
-                     emitters=emitters, regions=regions, files=tuple(dict.fromkeys(self.files)))
+                     emitters=emitters, regions=regions, files=tuple(dict.fromkeys(self.files)), textures=textures)
 
     def regions(self, document: dict, shapes: list[Shape]) -> tuple[str, ...]:
         """``regions``: names of shapes whose pixels the strategy table measures apart (docs/scene-format.md)."""
@@ -263,9 +266,29 @@ class _SceneReader(TypedReader):
             raise self.expected("integrator.max_depth", what, depth)
         return depth
 
-    def materials(self, document: dict) -> dict[str, Material]:
+    def textures(self, document: dict) -> dict[str, Texture]:
+        table = self.table(document.get("textures", {}), "textures")
+        return {name: read_texture(self, name, entry) for name, entry in table.items()}
+
+    def materials(self, document: dict, textures: dict[str, Texture]) -> dict[str, Material]:
         table = self.table(document.get("materials", {}), "materials")
-        return {name: read_material(self, name, entry) for name, entry in table.items()}
+        return {name: read_material(self, name, entry, textures) for name, entry in table.items()}
+
+    def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
+        """Refuse a textured material on a shape without texture coordinates: a mesh (its file's are not read
+        yet), and a sphere in a scene with a material that is not diffuse (Mitsuba gets its icosphere, a mesh)."""
+        glossy = any(not m.is_diffuse for m in materials.values())
+        for shape in shapes:
+            if not materials[shape.material].textures:
+                continue
+            key = f"shapes[{shape.index}].material"
+            if shape.type == "mesh":
+                raise self.error(key, f"material {shape.material!r} is textured, but the texture coordinates of "
+                                      "mesh files are not read yet: expected an untextured material on a mesh")
+            if shape.type == "sphere" and glossy:
+                raise self.error(key, f"material {shape.material!r} is textured, but a sphere in a scene with a "
+                                      "material that is not diffuse is traced as its icosphere, which has no "
+                                      "texture coordinates: expected an untextured material on it")
 
     # ---- shapes --------------------------------------------------------------------------------------------------
 

@@ -9,9 +9,11 @@ import numpy as np
 import reference_impl
 from reference_impl import materials as core
 from reference_impl.errors import SettingsError
+from reference_impl.textures import Textures
 
 from harness.core.errors import HarnessError
 from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.textures import TEXTURES
 from harness.scene.model import Material, Scene
 
 
@@ -26,16 +28,24 @@ def material_table(scene: Scene) -> reference_impl.Materials:
     materials = list(scene.materials.values())
     kind = np.array([MATERIALS[m.type].core_kind for m in materials], dtype=np.int64)
     params = np.array([material_row(m) for m in materials], dtype=np.float64).reshape(-1, core.NUM_PARAMS)
+    used = scene.used_textures
+    number = {texture.name: k for k, texture in enumerate(used)}
+    texture = np.full((len(materials), core.NUM_SLOTS), -1, dtype=np.int64)
+    for m, material in enumerate(materials):
+        for slot, name in MATERIALS[material.type].core_slots(material).items():
+            texture[m, list(core.TEXTURE_SLOTS).index(slot)] = number[name]
     try:
-        return reference_impl.Materials(kind, params)
+        textures = Textures(tuple(TEXTURES[t.type].to_core(t) for t in used))
+        return reference_impl.Materials(kind, params, texture, textures)
     except SettingsError as err:
         # The core names a material by its row; the file names it by its table.
         raise HarnessError(str(scene.path), f"cannot use the materials: {err.key}: {err.message}") from err
 
 
 def material_arrays(scene: Scene) -> reference_impl.Materials | None:
-    """The core's material table, or None for a scene whose materials are all Lambertian (which then renders
-    exactly as it did before other materials existed: ``Geometry.reflectance`` and ``two_sided`` say it all)."""
-    if not scene.has_glossy_materials:
+    """The core's material table, or None for a scene whose materials are all Lambertian and untextured (which then
+    renders exactly as it did before other materials existed: ``Geometry.reflectance`` and ``two_sided`` say it
+    all)."""
+    if not scene.has_glossy_materials and not scene.used_textures:
         return None
     return material_table(scene)

@@ -6,7 +6,7 @@ flat triangle arrays of :class:`reference_impl.geometry.Geometry`; renderer adap
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -16,11 +16,50 @@ from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DE
 from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
                                       DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR, MIRROR_ETA, MIRROR_K)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
+from reference_impl.textures import srgb_to_linear
 
 SHAPE_TYPES = ("rectangle", "cube", "sphere", "mesh")
 EMITTER_TYPES = ("point", "spot", "directional", "constant", "envmap")
 
 Vector3 = tuple[float, float, float]
+
+
+TEXTURE_TYPES = ("bitmap", "checkerboard")  # Mitsuba's texture plugins
+FILTER_TYPES = ("bilinear", "nearest")  # a bitmap's filter_type
+WRAP_MODES = ("repeat", "mirror", "clamp")  # a bitmap's wrap_mode
+
+
+@dataclass(frozen=True, eq=False)
+class Texture:
+    """One ``[textures.NAME]`` table: Mitsuba's texture plugin ``type`` with its parameters (docs/scene-format.md,
+    "Textures"; the lookups are :mod:`reference_impl.textures`').
+
+    ``bitmap``: ``file`` (PNG, JPEG or OpenEXR, the ``filename`` key), read into ``image``, (H, W, 3), row 0 the
+    image's top: uint8 codes for an 8-bit file, float32 linear values for an EXR; ``raw = False`` decodes an 8-bit
+    image's sRGB codes, ``raw = True`` takes code / 255; ``filter_type`` and ``wrap_mode`` as Mitsuba's.
+    ``checkerboard``: ``color0`` and ``color1``. Both: ``to_uv``, the 3x3 affine map of the texture coordinates.
+    """
+
+    name: str
+    type: str
+    to_uv: np.ndarray
+    file: Path | None = None
+    image: np.ndarray | None = None
+    filter_type: str = "bilinear"
+    wrap_mode: str = "repeat"
+    raw: bool = False
+    color0: Vector3 = (0.4, 0.4, 0.4)  # Mitsuba's checkerboard defaults
+    color1: Vector3 = (0.2, 0.2, 0.2)
+
+    @property
+    def max_value(self) -> tuple[float, float, float]:
+        """The largest value the texture takes, per channel (the bound of a lookup: filtering interpolates)."""
+        if self.type == "checkerboard":
+            return tuple(max(a, b) for a, b in zip(self.color0, self.color1))
+        if self.image.dtype == np.uint8:
+            top = self.image.reshape(-1, 3).max(axis=0)
+            return tuple(float(c) / 255.0 if self.raw else float(srgb_to_linear(c)) for c in top)
+        return tuple(float(c) for c in self.image.reshape(-1, 3).max(axis=0))
 
 
 MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric")  # Mitsuba's plugins
@@ -58,6 +97,13 @@ class Material:
     sample_visible: bool = DEFAULT_SAMPLE_VISIBLE  # rough types: sample the visible normals
     int_ior: float = DEFAULT_INT_IOR  # dielectrics: the index inside (behind the front side)
     ext_ior: float = DEFAULT_EXT_IOR  # dielectrics: the index outside (on the front side)
+    # (parameter, texture) of every parameter a texture drives, in the order of the type's keys; the parameter's own
+    # field then holds the texture's largest value (a bound of what one bounce keeps)
+    textures: tuple[tuple[str, Texture], ...] = ()
+
+    def texture(self, parameter: str) -> Texture | None:
+        """The texture that drives ``parameter``, or None."""
+        return dict(self.textures).get(parameter)
 
     @property
     def is_diffuse(self) -> bool:
@@ -237,6 +283,13 @@ class Scene:
     emitters: tuple[Emitter, ...] = ()  # [[emitters]] in the file's order; emitting shapes are in ``shapes``
     regions: tuple[str, ...] = ()  # shape names: the strategy table's per-region efficiencies (their pixels)
     files: tuple[Path, ...] = ()  # every file read to load the scene (the scene file first)
+    textures: dict[str, Texture] = field(default_factory=dict)  # [textures.NAME] in the file's order
+
+    @property
+    def used_textures(self) -> list[Texture]:
+        """The textures some material's parameter takes, in the order of :attr:`textures` (the core's order)."""
+        used = {id(texture) for material in self.materials.values() for _, texture in material.textures}
+        return [texture for texture in self.textures.values() if id(texture) in used]
 
     @property
     def has_glossy_materials(self) -> bool:

@@ -94,6 +94,32 @@ def unit_cube() -> tuple[np.ndarray, np.ndarray]:
     return np.array(vertices), np.array(triangles)
 
 
+def rectangle_uv(vertices: np.ndarray) -> np.ndarray:
+    """Mitsuba's texture coordinates of points (x, y, 0) of the unit rectangle: ((x + 1) / 2, (y + 1) / 2)."""
+    return np.stack([(vertices[:, 0] + 1.0) / 2.0, (vertices[:, 1] + 1.0) / 2.0], axis=1)
+
+
+#: Mitsuba 3.9.1's cube (``cube.cpp``): per face (its outward normal), the texture coordinates (u, v) of a point
+#: (x, y, z) of it, as (coefficient of x, y, z and constant) for u and for v; every corner of a face takes (0, 0),
+#: (1, 0), (1, 1) or (0, 1) (measured by tracing Mitsuba's own cube).
+CUBE_UV = {
+    (1, 0, 0): ((0, 0.5, 0, 0.5), (0, 0, -0.5, 0.5)), (-1, 0, 0): ((0, 0.5, 0, 0.5), (0, 0, 0.5, 0.5)),
+    (0, 1, 0): ((-0.5, 0, 0, 0.5), (0, 0, -0.5, 0.5)), (0, -1, 0): ((0, 0, 0.5, 0.5), (0.5, 0, 0, 0.5)),
+    (0, 0, 1): ((0, 0.5, 0, 0.5), (0.5, 0, 0, 0.5)), (0, 0, -1): ((0, -0.5, 0, 0.5), (0.5, 0, 0, 0.5)),
+}
+
+
+def cube_uv(vertices: np.ndarray) -> np.ndarray:
+    """The texture coordinates of :func:`unit_cube`'s vertices (each face's four in turn), Mitsuba's (:data:`CUBE_UV`)."""
+    out = np.zeros((len(vertices), 2))
+    for face in range(len(vertices) // 4):
+        corners = vertices[4 * face:4 * face + 4]
+        normal = tuple(int(c) for c in np.rint(corners.mean(axis=0)))
+        for axis, (a, b, c, d) in enumerate(CUBE_UV[normal]):
+            out[4 * face:4 * face + 4, axis] = corners @ (a, b, c) + d
+    return out
+
+
 #: The regular icosahedron the icosphere starts from: its 12 vertices (the cyclic permutations of (0, +-a, +-b), a
 #: and b = 1 and the golden ratio scaled onto the unit sphere) and 20 faces wound outward. These are the numbers
 #: trimesh ships (its creation.json), to the last bit and in its order (b has only 14 digits there), so that

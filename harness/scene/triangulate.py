@@ -67,6 +67,25 @@ def shape_triangles(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
     return world, triangles
 
 
+def vertex_uv(shape: Shape) -> np.ndarray | None:
+    """Mitsuba's texture coordinates at the vertices of :func:`shape_triangles` (V, 2), or None for a shape whose
+    coordinates are analytic (a sphere's) or that has none (a mesh)."""
+    kind = SHAPES[shape.type]
+    if kind.object_uv is None:
+        return None
+    return kind.object_uv(np.asarray(object_mesh(shape)[0], dtype=np.float64))
+
+
+def shape_uv(shape: Shape, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """The texture coordinates at the corners of the shape's ``triangles`` (as :func:`shape_triangles` wound them),
+    (T, 3, 2), and for a sphere the inverse of its object-to-world matrix (its coordinates are analytic, the corners'
+    0), else None. A shape without coordinates (a mesh) has 0 everywhere."""
+    if SHAPES[shape.type].sphere is not None:
+        return np.zeros((len(triangles), 3, 2)), np.linalg.inv(object_to_world(shape))
+    uv = vertex_uv(shape)
+    return (np.zeros((len(triangles), 3, 2)) if uv is None else uv[triangles]), None
+
+
 def triangle_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Area of each triangle."""
     corners = vertices[triangles]
@@ -81,7 +100,9 @@ def triangulate(scene: Scene) -> Geometry:
     in shape order, and all triangles of one emissive shape share its light id and emission.
     """
     material_index = {name: i for i, name in enumerate(scene.materials)}
+    textured = bool(scene.used_textures)
     all_vertices, all_triangles, material, emission, light_id = [], [], [], [], []
+    uv, uv_sphere, sphere_to_object = [], [], []
     vertex_count = 0
     next_light = 0
     for shape in scene.shapes:
@@ -91,6 +112,12 @@ def triangulate(scene: Scene) -> Geometry:
         all_triangles.append(triangles + vertex_count)
         vertex_count += len(vertices)
         material.append(np.full(count, material_index[shape.material]))
+        if textured:
+            corners_uv, sphere = shape_uv(shape, triangles)
+            uv.append(corners_uv)
+            if sphere is not None:
+                sphere_to_object.append(sphere)
+            uv_sphere.append(np.full(count, len(sphere_to_object) - 1 if sphere is not None else -1))
         if shape.is_emitter:
             emission.append(np.tile(np.asarray(shape.emission, dtype=np.float64), (count, 1)))
             light_id.append(np.full(count, next_light))
@@ -109,6 +136,9 @@ def triangulate(scene: Scene) -> Geometry:
             two_sided=np.array([m.two_sided for m in materials], dtype=bool),
             emission=np.concatenate(emission) if emission else np.zeros((0, 3)),
             light_id=np.concatenate(light_id) if light_id else np.zeros(0, dtype=np.int64),
+            uv=np.concatenate(uv) if uv else None,
+            uv_sphere=np.concatenate(uv_sphere) if uv_sphere else None,
+            sphere_to_object=np.array(sphere_to_object).reshape(-1, 4, 4) if uv else None,
         )
     except SettingsError as err:
         raise HarnessError(str(scene.path), f"cannot triangulate the scene: {err}") from err

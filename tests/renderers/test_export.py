@@ -95,6 +95,8 @@ def _area(vertices, faces) -> float:
 @pytest.mark.parametrize("name", CANONICAL + ["mesh-mix"])
 def test_export_loads_back_with_the_same_triangles(name, fmt, mesh_scene, tmp_path):
     scene = load_scene(_scene_files(name, mesh_scene))
+    if fmt in ("gltf", "obj") and scene.used_textures:
+        pytest.skip(f"the {fmt} export refuses textures (tests/renderers/test_export_exact.py)")
     files = export_scene(scene, fmt, tmp_path)
     assert all(f.is_file() and f.stat().st_size > 0 for f in files)
     per_shape = [shape_triangles(s) for s in scene.shapes]
@@ -139,10 +141,12 @@ def test_export_loads_back_with_the_same_triangles(name, fmt, mesh_scene, tmp_pa
 
 
 def _shape_signature(shape) -> str:
-    """What Mitsuba made of one shape: its type, bounding box, area, BSDF and emitter (addresses and ids dropped)."""
+    """What Mitsuba made of one shape: its type, bounding box, area, BSDF and emitter (addresses, ids and a bitmap's
+    name dropped, which is its file's name in the XML and empty in the dict; -0 printed as 0)."""
     emitter = shape.emitter()
     text = f"{type(shape).__name__} {shape.bbox()} {shape.surface_area()} {shape.bsdf()} {emitter if emitter else ''}"
-    return re.sub(r"0x[0-9a-f]+|id = \"[^\"]*\"", "", text)
+    text = re.sub(r"(?<![\d.])-0(?![\d.])", "0", text)
+    return re.sub(r"0x[0-9a-f]+|id = \"[^\"]*\"|name = \"[^\"]*\"", "", text)
 
 
 @pytest.mark.parametrize("name", CANONICAL + ["mesh-mix"])

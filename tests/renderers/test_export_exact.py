@@ -11,12 +11,14 @@ import json
 import math
 from pathlib import Path
 
+import imageio.v3 as iio
 import numpy as np
 import pygltflib
 import pytest
 import trimesh
 from trimesh.exchange.obj import parse_mtl
 
+from harness.core.errors import HarnessError
 from harness.files.imageio import read_exr
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.export import export_scene
@@ -27,7 +29,7 @@ from harness.running.cases import load_suite
 from harness.running.judge import case_scene
 from harness.scene import load_scene
 from harness.scene.kinds.materials import normal_incidence_reflectance
-from harness.scene.triangulate import shape_triangles
+from harness.scene.triangulate import shape_triangles, vertex_uv
 from reference_impl import Film
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -88,6 +90,10 @@ def _gltf_ndc(node_matrix, camera, directions) -> np.ndarray:
 @pytest.mark.parametrize("name", CANONICAL)
 def test_gltf_reads_back_exactly(name, tmp_path):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
+    if scene.used_textures:  # refused in one line until the gltf export carries textures
+        with pytest.raises(HarnessError, match="does not carry textures yet"):
+            export_scene(scene, "gltf", tmp_path)
+        return
     files = export_scene(scene, "gltf", tmp_path)
     gltf = pygltflib.GLTF2().load(str(files[0]))
     mesh_nodes = [n for n in gltf.nodes if n.mesh is not None]
@@ -161,6 +167,10 @@ def _usemtl_of_objects(text: str) -> list[str]:
 @pytest.mark.parametrize("name", CANONICAL)
 def test_obj_and_mtl_read_back_exactly(name, tmp_path):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
+    if scene.used_textures:  # refused in one line until the obj export carries textures
+        with pytest.raises(HarnessError, match="does not carry textures yet"):
+            export_scene(scene, "obj", tmp_path)
+        return
     files = export_scene(scene, "obj", tmp_path)
     assert [f.name for f in files] == ["scene.obj", "scene.mtl"]
     materials = parse_mtl((tmp_path / "scene.mtl").read_text())
@@ -216,7 +226,21 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
         material = scene.materials[key]
         assert entry["type"] == material.type and len(entry) > 2
         for parameter, value in entry.items():
-            assert _equal(value, getattr(material, parameter)), (key, parameter, value)
+            texture = material.texture(parameter)
+            if texture is not None:
+                assert value == {"texture": texture.name}, (key, parameter, value)
+            else:
+                assert _equal(value, getattr(material, parameter)), (key, parameter, value)
+    assert set(document.get("textures", {})) == {t.name for t in scene.used_textures}
+    for texture in scene.used_textures:
+        entry = document["textures"][texture.name]
+        np.testing.assert_array_equal(entry.pop("to_uv"), texture.to_uv)
+        if texture.type == "bitmap":
+            path = tmp_path / entry.pop("filename")
+            image = iio.imread(path) if path.suffix == ".png" else read_exr(path).image
+            np.testing.assert_array_equal(image, texture.image)  # the pixels the scene holds, bit for bit
+        for parameter, value in entry.items():
+            assert _equal(value, getattr(texture, parameter)), (texture.name, parameter, value)
     assert len(document["emitters"]) == len(scene.emitters)
     for entry, emitter in zip(document["emitters"], scene.emitters):
         for parameter, value in entry.items():
@@ -236,6 +260,10 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
         np.testing.assert_array_equal(mesh.vertices, np.float32(vertices))
         np.testing.assert_array_equal(mesh.faces, triangles)  # the winding: the front side is counter-clockwise
         assert entry["triangles"] == len(triangles)
+        uv = vertex_uv(shape)
+        if scene.used_textures and uv is not None:  # Mitsuba's coordinates, as the PLY's s, t
+            assert entry["uv"] == "mesh"
+            np.testing.assert_array_equal(mesh.visual.uv, uv)
 
 
 # ---- the placeholders -----------------------------------------------------------------------------------------------

@@ -14,8 +14,10 @@ import numpy as np
 from reference_impl import materials as core
 
 from harness.scene.kinds.mitsuba_values import rgb
+from harness.scene.kinds.textures import TEXTURES, texture_reference
 from harness.scene.model import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
-                                 DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS, MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, Material)
+                                 DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS, MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, Material,
+                                 Texture)
 
 DEFAULT_TYPE = "diffuse"
 CONDUCTOR_MATERIALS = ("none",)  # Mitsuba's named conductors but "none" (a perfect mirror) are refused
@@ -28,6 +30,9 @@ CU_K = (3.91326, 2.45305, 2.14209)
 MIN_ALPHA, MAX_ALPHA = 1e-4, 1.0
 MIN_IOR, MAX_IOR = 0.01, 100.0
 MAX_CONDUCTOR_INDEX = 100.0
+#: The core's texture slot (:data:`reference_impl.materials.TEXTURE_SLOTS`) of each parameter a texture may drive.
+TEXTURE_SLOTS = {"reflectance": "reflectance", "specular_reflectance": "reflectance",
+                 "specular_transmittance": "transmittance"}
 
 
 @dataclass(frozen=True)
@@ -57,6 +62,9 @@ class MaterialKind:
         Keys of other types that this one refuses with a reason of their own.
     gltf_losses : callable
         ``gltf_losses(material) -> tuple of str``: the keys of :data:`GLTF_LOSSES` that its glTF form loses.
+    textured : tuple of str
+        The keys that take ``{ texture = "NAME" }`` in place of a value (Mitsuba's texture-valued parameters, of
+        those the reference looks up: :data:`TEXTURE_SLOTS`).
     """
 
     name: str
@@ -68,14 +76,20 @@ class MaterialKind:
     gltf: Callable[[Material], tuple[dict, dict]]
     refused: tuple[tuple[str, str], ...] = ()
     gltf_losses: Callable[[Material], tuple[str, ...]] = lambda _material: ()
+    textured: tuple[str, ...] = ()
 
     @property
     def two_sided(self) -> bool:
         """Whether the type takes ``two_sided`` (Mitsuba's ``twosided`` wrapper)."""
         return "two_sided" in self.keys
 
+    def core_slots(self, material: Material) -> dict[str, str]:
+        """``{core slot: texture name}`` of the parameters a texture drives (:data:`TEXTURE_SLOTS`)."""
+        return {TEXTURE_SLOTS[item]: texture.name for item, texture in material.textures}
+
     def to_core(self, material: Material) -> np.ndarray:
-        """The core's parameter row of ``material`` (same parameters, Mitsuba's meaning)."""
+        """The core's parameter row of ``material`` (same parameters, Mitsuba's meaning; a textured parameter holds
+        its texture's largest value, which the material step replaces at every hit)."""
         if self.core_kind == core.DIFFUSE:
             return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
         return core.material_row(
@@ -89,11 +103,15 @@ class MaterialKind:
         """Mitsuba's dict of ``material``: its plugin with every parameter written out (so Mitsuba's defaults never
         decide), inside ``twosided`` when two-sided."""
         spec = {"type": self.name, **self.parameters(material)}
+        for item, texture in material.textures:
+            spec[item] = TEXTURES[texture.type].to_mitsuba(texture)
         return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
 
     def to_scene_json(self, material: Material) -> dict:
         """The scene.json entry of ``material``: every parameter of its plugin, ``two_sided`` where it applies."""
         out = {"type": self.name, **self.json(material)}
+        for item, texture in material.textures:
+            out[item] = {"texture": texture.name}
         if self.two_sided:
             out["two_sided"] = bool(material.two_sided)
         return out
@@ -108,8 +126,9 @@ class MaterialKind:
         return bool(material.two_sided or not self.two_sided)
 
 
-def read_material(reader, name: str, entry: Any) -> Material:
-    """One ``[materials.NAME]`` table: its type (default diffuse) and that type's parameters.
+def read_material(reader, name: str, entry: Any, textures: dict[str, Texture] | None = None) -> Material:
+    """One ``[materials.NAME]`` table: its type (default diffuse) and that type's parameters, of which those the
+    type lists as ``textured`` may name a texture (``{ texture = "NAME" }``).
 
     Parameters
     ----------
@@ -119,6 +138,8 @@ def read_material(reader, name: str, entry: Any) -> Material:
         The table's name.
     entry : object
         The parsed table.
+    textures : dict, optional
+        The scene's ``[textures]``, by name.
 
     Returns
     -------
@@ -137,7 +158,29 @@ def read_material(reader, name: str, entry: Any) -> Material:
             raise reader.error(f"{key}.{item}", f"key {item!r} applies only to materials of type {owners}, "
                                                 f"not {kind.name!r}")
     two_sided = reader.boolean(entry.get("two_sided", False), f"{key}.two_sided")
-    return Material(name, type=kind.name, two_sided=two_sided, **kind.read(reader, entry, key))
+    entry, textured = _textured_parameters(reader, kind, entry, key, textures or {})
+    return Material(name, type=kind.name, two_sided=two_sided, textures=textured, **kind.read(reader, entry, key))
+
+
+def _textured_parameters(reader, kind: MaterialKind, entry: dict, key: str,
+                         textures: dict[str, Texture]) -> tuple[dict, tuple]:
+    """The table with each parameter that names a texture replaced by the texture's largest value (what the type's
+    reader checks, and the row's bound), and the (parameter, texture) pairs."""
+    entry, textured = dict(entry), []
+    for item, value in list(entry.items()):
+        if not (isinstance(value, dict) and "texture" in value):
+            continue
+        if item not in kind.textured:
+            takes = ", ".join(kind.textured) or "none of its parameters"
+            raise reader.error(f"{key}.{item}", f"{item} of a {kind.name} takes no texture (textures drive: {takes})")
+        texture = texture_reference(reader, value, f"{key}.{item}", textures)
+        top = texture.max_value
+        if max(top) > 1.0:
+            raise reader.error(f"{key}.{item}", f"texture {texture.name!r} has values up to {max(top):.6g}; {item} "
+                                                "takes values in [0, 1]")
+        entry[item] = list(top)
+        textured.append((item, texture))
+    return entry, tuple(textured)
 
 
 # ---- reading -------------------------------------------------------------------------------------------------------
@@ -358,26 +401,30 @@ _NOT_TWO_SIDED = (("two_sided", "light crosses it from either side (Mitsuba's tw
 MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
     MaterialKind("diffuse", core.DIFFUSE, ("type", "reflectance", "two_sided"), _read_diffuse,
                  parameters=lambda m: {"reflectance": rgb(m.reflectance)},
-                 json=lambda m: {"reflectance": _numbers(m.reflectance)}, gltf=_diffuse_gltf),
+                 json=lambda m: {"reflectance": _numbers(m.reflectance)}, gltf=_diffuse_gltf,
+                 textured=("reflectance",)),
     MaterialKind("conductor", core.CONDUCTOR, _CONDUCTOR_KEYS, _read_conductor,
                  parameters=_conductor_parameters, json=_conductor_json,
-                 gltf=lambda m: _conductor_gltf(m, 0.0), gltf_losses=_conductor_gltf_losses),
+                 gltf=lambda m: _conductor_gltf(m, 0.0), gltf_losses=_conductor_gltf_losses,
+                 textured=("specular_reflectance",)),
     MaterialKind("roughconductor", core.ROUGHCONDUCTOR, _CONDUCTOR_KEYS + _ROUGH_KEYS,
                  lambda reader, entry, key: {**_read_conductor(reader, entry, key),
                                              **_roughness(reader, entry, key)},
                  parameters=lambda m: {**_conductor_parameters(m), **_rough_parameters(m)},
                  json=lambda m: {**_conductor_json(m), **_rough_parameters(m)},
                  gltf=lambda m: _conductor_gltf(m, _rough_gltf_roughness(m)),
-                 gltf_losses=lambda m: _conductor_gltf_losses(m) + _beckmann_gltf_losses(m)),
+                 gltf_losses=lambda m: _conductor_gltf_losses(m) + _beckmann_gltf_losses(m),
+                 textured=("specular_reflectance",)),
     MaterialKind("dielectric", core.DIELECTRIC, _DIELECTRIC_KEYS, _read_dielectric,
                  parameters=_dielectric_parameters, json=_dielectric_json,
                  gltf=lambda m: _dielectric_gltf(m, 0.0), refused=_NOT_TWO_SIDED,
-                 gltf_losses=_dielectric_gltf_losses),
+                 gltf_losses=_dielectric_gltf_losses, textured=("specular_reflectance", "specular_transmittance")),
     MaterialKind("roughdielectric", core.ROUGHDIELECTRIC, _DIELECTRIC_KEYS + _ROUGH_KEYS, _read_roughdielectric,
                  parameters=lambda m: {**_dielectric_parameters(m), **_rough_parameters(m)},
                  json=lambda m: {**_dielectric_json(m), **_rough_parameters(m)},
                  gltf=lambda m: _dielectric_gltf(m, _rough_gltf_roughness(m)), refused=_NOT_TWO_SIDED,
-                 gltf_losses=lambda m: _beckmann_gltf_losses(m) + _dielectric_gltf_losses(m)),
+                 gltf_losses=lambda m: _beckmann_gltf_losses(m) + _dielectric_gltf_losses(m),
+                 textured=("specular_reflectance", "specular_transmittance")),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.

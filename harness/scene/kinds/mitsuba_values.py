@@ -62,10 +62,27 @@ class MeshFile:
 
 @dataclass(frozen=True, eq=False)
 class ImageFile:
-    """An environment map's pixels (float32 linear RGB, row 0 the top) and the EXR file they become in an export."""
+    """An image's pixels, row 0 the top, and the file they become in an export: float32 linear RGB (an environment
+    map, an EXR texture) an OpenEXR file, uint8 codes (an 8-bit texture) a PNG file. ``mi.load_dict`` gets them as
+    the plugin's ``bitmap`` (an ``mi.Bitmap`` of the same pixels: Mitsuba decodes an 8-bit one's sRGB codes as it
+    decodes a PNG's)."""
 
     path: str
     image: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class UVTransform:
+    """A texture's ``to_uv``: a 3x3 affine map of the plane (its last row 0, 0, 1)."""
+
+    matrix: np.ndarray
+
+    def as_4x4(self) -> np.ndarray:
+        """The map as Mitsuba's XML reads a ``to_uv`` ``<matrix>``: rows and columns 0, 1 and 3 of a 4x4 (a 3x3
+        ``<matrix>`` would be read as the linear part of a 4x4, its translation dropped)."""
+        out = np.eye(4)
+        out[np.ix_([0, 1, 3], [0, 1, 3])] = self.matrix
+        return out
 
 
 def rgb(values) -> dict:

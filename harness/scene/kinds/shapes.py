@@ -10,7 +10,8 @@ from typing import Any, Callable
 import numpy as np
 
 from harness.scene.model import SHAPE_TYPES, Shape
-from harness.scene.primitives import scale_matrix, translate_matrix, unit_cube, unit_rectangle, unit_sphere
+from harness.scene.primitives import (cube_uv, rectangle_uv, scale_matrix, translate_matrix, unit_cube, unit_rectangle,
+                                      unit_sphere)
 
 DEFAULT_SUBDIVISIONS = 3  # icosphere with 1280 triangles
 MAX_SUBDIVISIONS = 7  # 327 680 triangles
@@ -45,6 +46,9 @@ class ShapeKind:
         ``sphere(shape) -> (centre, radius)`` in world space, for a type that is a sphere exactly.
     json : callable
         ``json(shape) -> dict``: the parameters of its type in the scene.json entry.
+    object_uv : callable, optional
+        ``object_uv(vertices) -> (V, 2)``: Mitsuba's texture coordinates at the vertices of its ``object_mesh``;
+        None where it has none (a mesh: its file's are not read) or they are analytic (a sphere's, :attr:`sphere`).
     """
 
     name: str
@@ -57,6 +61,7 @@ class ShapeKind:
     similarity_only: bool = False
     sphere: Callable[[Shape], tuple[np.ndarray, float]] | None = None
     json: Callable[[Shape], dict] = lambda shape: {}
+    object_uv: Callable[[np.ndarray], np.ndarray] | None = None
 
     def object_to_world(self, shape: Shape) -> np.ndarray:
         """The full 4x4 object-to-world matrix of ``shape`` (a sphere's: to_world @ T(center) @ S(radius))."""
@@ -91,8 +96,9 @@ def _sphere_json(shape: Shape) -> dict:
 #: Every shape type by its name, in :data:`harness.scene.model.SHAPE_TYPES`'s order.
 SHAPES: dict[str, ShapeKind] = {kind.name: kind for kind in (
     ShapeKind("rectangle", (), lambda reader, table, key: {}, lambda shape: unit_rectangle(),
-              keeps_front_when_mirrored=True),
-    ShapeKind("cube", (), lambda reader, table, key: {}, lambda shape: unit_cube(), keeps_front_when_mirrored=True),
+              keeps_front_when_mirrored=True, object_uv=rectangle_uv),
+    ShapeKind("cube", (), lambda reader, table, key: {}, lambda shape: unit_cube(), keeps_front_when_mirrored=True,
+              object_uv=cube_uv),
     ShapeKind("sphere", ("center", "radius", "subdivisions"), _read_sphere,
               lambda shape: unit_sphere(shape.subdivisions), curved=True, similarity_only=True,
               sphere=_world_sphere, json=_sphere_json),

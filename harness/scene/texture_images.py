@@ -1,0 +1,57 @@
+"""The canonical scenes' texture images, made here from integer formulas (no third-party asset): 8-bit sRGB PNGs
+whose texels differ from their neighbours in every channel, so that a texture read upside down, shifted by half a
+texel, filtered nearest for bilinear, wrapped by clamping for repeating, or decoded as linear changes the image.
+
+* ``tiles.png`` (64 x 32): the textured furnace's sphere (scenes/textured-furnace.toml), each texel a colour of its
+  own, code = 40 + (a i + b j + c i j + d) mod 181 per channel (row i, column j);
+* ``wall.png`` (32 x 32): the textured Cornell box's left wall (scenes/textured-cornell-box.toml), a gradient from
+  top to bottom in red, across in green, and blue stripes four texels wide, so that no flip or shift maps it onto
+  itself.
+
+``python -m harness.scene.texture_images [FOLDER]`` writes them (default ``scenes/textures``, the committed files
+that ``tests/scene/test_texture_images.py`` checks this module reproduces pixel for pixel).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from harness.files.imageio import atomic_write_bytes, encode_png
+
+DEFAULT_FOLDER = Path(__file__).resolve().parents[2] / "scenes" / "textures"
+
+
+def tiles() -> np.ndarray:
+    """(32, 64, 3) uint8: code = 40 + (a i + b j + c i j + d) mod 181, (a, b, c, d) per channel."""
+    i, j = np.meshgrid(np.arange(32), np.arange(64), indexing="ij")
+    channels = [40 + (a * i + b * j + c * i * j + d) % 181 for a, b, c, d in ((37, 59, 11, 0), (83, 23, 7, 90),
+                                                                              (17, 71, 13, 45))]
+    return np.stack(channels, axis=-1).astype(np.uint8)
+
+
+def wall() -> np.ndarray:
+    """(32, 32, 3) uint8: red 40 + 6 i (top to bottom), green 230 - 5 j (left to right), blue 200 on stripes of
+    columns j // 4 odd, 50 between them."""
+    i, j = np.meshgrid(np.arange(32), np.arange(32), indexing="ij")
+    return np.stack([40 + 6 * i, 230 - 5 * j, np.where((j // 4) % 2 == 1, 200, 50)], axis=-1).astype(np.uint8)
+
+
+IMAGES = {"tiles.png": tiles, "wall.png": wall}
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) > 1:
+        print("usage: python -m harness.scene.texture_images [FOLDER]  (default: scenes/textures)", file=sys.stderr)
+        return 2
+    folder = Path(argv[0]) if argv else DEFAULT_FOLDER
+    for name, make in IMAGES.items():
+        atomic_write_bytes(folder / name, encode_png(make()))
+        print(f"wrote {folder / name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
