@@ -141,6 +141,23 @@ PER_SAMPLE_RATIO = {
     "veach-mis/mutant-conductor-fresnel-one": 2.4,
     "veach-mis/mutant-vndf-alpha-squared": 5.07,
     "underwater/mutant-refraction-no-eta2": 0.405,
+    # measured 2026-12-05 (issue 35), llvm_ad_rgb; the textured furnace's ground truth is its closed form
+    "textured-furnace/reference": 0.0,
+    "textured-furnace/mitsuba-vs-closed-form": 0.0,
+    "textured-cornell-box/reference": 8.61,
+    "textured-furnace/direct-hemisphere-uniform": 0.0,
+    "textured-furnace/direct-global-area": 0.0,
+    "textured-furnace/direct-mis": 0.0,
+    "textured-furnace/hemisphere-uniform": 0.0,
+    "textured-furnace/rr-fixed": 0.0,
+    "textured-furnace/rr-off": 0.0,
+    "textured-cornell-box/direct-area": 8.48,
+    "textured-cornell-box/direct-bsdf": 0.301,
+    "textured-furnace/mutant-texture-v-flipped": 0.0,
+    "textured-furnace/mutant-texture-srgb-as-linear": 0.0,
+    "textured-furnace/mutant-texture-nearest-not-bilinear": 0.0,
+    "textured-furnace/mutant-texture-half-texel-shift": 0.0,
+    "textured-furnace/mutant-texture-repeat-as-clamp": 0.0,
 }
 
 #: Cases whose ground truth has no variance to compare, or whose test render reports none (``ground_truth_noise``

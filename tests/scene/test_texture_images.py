@@ -1,0 +1,21 @@
+"""The canonical scenes' texture images are what harness/scene/texture_images.py makes, pixel for pixel."""
+
+from __future__ import annotations
+
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from harness.scene import texture_images
+
+
+@pytest.mark.parametrize("name", sorted(texture_images.IMAGES))
+def test_the_committed_texture_is_the_generators(name):
+    committed = iio.imread(texture_images.DEFAULT_FOLDER / name)
+    np.testing.assert_array_equal(committed, texture_images.IMAGES[name]())
+
+
+def test_the_generator_writes_them(tmp_path):
+    assert texture_images.main([str(tmp_path)]) == 0
+    for name, make in texture_images.IMAGES.items():
+        np.testing.assert_array_equal(iio.imread(tmp_path / name), make())
