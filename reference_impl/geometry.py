@@ -40,6 +40,11 @@ class Geometry:
         p = sphere_to_object[s] x, u = atan2(p_y, p_x) / (2 pi) mod 1, v = acos(p_z / |p|) / pi.
     sphere_to_object : (S, 4, 4) float64, optional
         Per sphere: the inverse of its object-to-world matrix (the unit sphere in its own space).
+    emission_texture : (T,) int64, optional
+        Per triangle: -1 (it emits ``emission``), or the texture (of the materials' ``Materials.textures``) whose
+        value at the point's texture coordinates is its radiance (Mitsuba's ``area`` emitter with a textured
+        ``radiance``); ``emission`` then holds a positive stand-in (the texture's mean), which only the choice of a
+        light by power reads.
     """
 
     vertices: np.ndarray
@@ -52,6 +57,7 @@ class Geometry:
     uv: np.ndarray | None = None
     uv_sphere: np.ndarray | None = None
     sphere_to_object: np.ndarray | None = None
+    emission_texture: np.ndarray | None = None
     # Derived per-triangle data, filled in by __post_init__.
     normal: np.ndarray = field(init=False, repr=False)  # (T, 3) unit geometric normal
     area: np.ndarray = field(init=False, repr=False)  # (T,)
@@ -113,8 +119,8 @@ class Geometry:
         set_(self, "area", 0.5 * double_area)
 
     def _check_uv(self, n_tri: int) -> None:
-        """``uv``, ``uv_sphere`` and ``sphere_to_object`` as contiguous arrays (empty where None), or
-        SettingsError."""
+        """``uv``, ``uv_sphere``, ``sphere_to_object`` and ``emission_texture`` as contiguous arrays (empty where
+        None), or SettingsError."""
         set_ = object.__setattr__
         uv = np.zeros((0, 3, 2)) if self.uv is None else np.ascontiguousarray(self.uv, dtype=np.float64)
         if uv.shape not in ((0, 3, 2), (n_tri, 3, 2)) or not np.all(np.isfinite(uv)):
@@ -129,9 +135,21 @@ class Geometry:
             raise SettingsError("uv_sphere", f"expected one entry per triangle, -1 or a sphere below {len(spheres)}")
         if len(which) and len(uv) == 0:
             raise SettingsError("uv", "expected the triangles' uv with uv_sphere")
+        textured = (np.zeros(0, np.int64) if self.emission_texture is None
+                    else np.ascontiguousarray(self.emission_texture, dtype=np.int64).reshape(-1))
+        if len(textured) not in (0, n_tri) or np.any(textured < -1):
+            raise SettingsError("emission_texture", "expected one entry per triangle, -1 or a texture index")
+        if np.any(textured >= 0) and len(uv) == 0:
+            raise SettingsError("uv", "expected the triangles' uv with emission_texture")
+        set_(self, "emission_texture", textured)
         set_(self, "uv", uv)
         set_(self, "uv_sphere", which)
         set_(self, "sphere_to_object", spheres)
+
+    @property
+    def textured_lights(self) -> bool:
+        """Whether an area light's radiance is a texture."""
+        return bool(np.any(self.emission_texture >= 0))
 
     @property
     def num_lights(self) -> int:

@@ -316,6 +316,13 @@ def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
     rows = {row: CAPABILITIES.get(row, ()) for row in settings.strategies(emitters is not None and emitters.env >= 0)}
     if materials is None:
         materials = Materials.diffuse(geometry.reflectance, geometry.two_sided)
+    if np.any(geometry.emission_texture >= len(materials.textures)):
+        raise SettingsError("emission_texture", f"expected -1 or a texture index below {len(materials.textures)} "
+                                                "(the materials' textures)")
+    if geometry.textured_lights and (settings.engine == "wavefront" or settings.indirect_rays > 1):
+        raise SettingsError("indirect_rays" if settings.indirect_rays > 1 else "engine",
+                            "a textured area light is traced by the path loop alone: expected indirect_rays = 1 and "
+                            f"engine = path, got {settings.indirect_rays} and {settings.engine!r}")
     if glossy:
         for (key, value), engines in rows.items():
             if "glossy" not in engines and key in _GLOSSY_REFUSALS:

@@ -456,7 +456,8 @@ def _load_dict_value(mi, value, plugins: dict):
 
 def _mesh_object(mi, plugin: dict, plugins: dict) -> object:
     """An ``mi.Mesh`` of a ``ply`` plugin whose file is a :class:`MeshFile`, built from its triangles (float32
-    positions, flat normals), with the plugin's other properties (its BSDF, a reference resolved, loaded anew)."""
+    positions, flat normals, its texture coordinates if it has them), with the plugin's other properties (its BSDF,
+    a reference resolved, loaded anew)."""
     mesh = plugin["filename"]
     props = mi.Properties()
     for key, value in plugin.items():
@@ -467,10 +468,12 @@ def _mesh_object(mi, plugin: dict, plugins: dict) -> object:
         value = _load_dict_value(mi, value, plugins)
         props[key] = mi.load_dict(value) if isinstance(value, dict) else value
     shape = mi.Mesh(mesh.name, len(mesh.vertices), len(mesh.triangles), props=props,
-                    has_vertex_normals=False, has_vertex_texcoords=False)
+                    has_vertex_normals=False, has_vertex_texcoords=mesh.uv is not None)
     params = mi.traverse(shape)
     params["vertex_positions"] = np.ascontiguousarray(mesh.vertices, dtype=np.float32).ravel()
     params["faces"] = np.ascontiguousarray(mesh.triangles, dtype=np.uint32).ravel()
+    if mesh.uv is not None:
+        params["vertex_texcoords"] = np.ascontiguousarray(mesh.uv, dtype=np.float32).ravel()
     params.update()
     return shape
 

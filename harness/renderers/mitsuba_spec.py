@@ -34,6 +34,7 @@ from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.shapes import SHAPES
+from harness.scene.kinds.textures import TEXTURES
 from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's values, importable from here)
     ImageFile,
     LookAt,
@@ -45,7 +46,7 @@ from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's value
     rgb,
     xyz,
 )
-from harness.scene.triangulate import object_to_world, shape_triangles
+from harness.scene.triangulate import object_to_world, shape_triangles, vertex_uv
 
 RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
 NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
@@ -110,7 +111,8 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
         key = f"shape_{shape.index}"
         kind = SHAPES[shape.type]
         as_mesh = not kind.analytic or (kind.curved and tessellated)
-        plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh)
+        uv = vertex_uv(shape) if as_mesh and scene.materials[shape.material].textures else None
+        plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh, uv)
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:
         plugins[f"emitter_{emitter.index}"] = light_spec(emitter)
@@ -129,12 +131,14 @@ def sensor_plugin(scene: Scene, spp: int | Parameter, seed: Parameter | None, sa
             "film": film_dict(scene)}
 
 
-def shape_plugin(shape, bsdf_key: str, as_mesh: bool) -> dict:
-    """One shape: its plugin and placement matrix, or (``as_mesh``) its triangles as a ``ply`` with flat normals;
-    its BSDF by reference, an emitting shape's ``area`` emitter."""
+def shape_plugin(shape, bsdf_key: str, as_mesh: bool, uv=None) -> dict:
+    """One shape: its plugin and placement matrix, or (``as_mesh``) its triangles as a ``ply`` with flat normals
+    (and ``uv``, its vertices' texture coordinates, where its material is textured); its BSDF by reference, an
+    emitting shape's ``area`` emitter."""
     if as_mesh:
         vertices, triangles = shape_triangles(shape)  # world space; flip_normals is in the winding
-        mesh = MeshFile(shape.name, f"{MESH_DIR}/{shape.index}-{safe_name(shape.name)}.ply", vertices, triangles)
+        mesh = MeshFile(shape.name, f"{MESH_DIR}/{shape.index}-{safe_name(shape.name)}.ply", vertices, triangles,
+                        uv)
         plugin = {"type": "ply", "filename": mesh, "face_normals": True}
     else:
         plugin = {"type": shape.type, "to_world": np.asarray(object_to_world(shape), dtype=np.float64)}
@@ -216,7 +220,10 @@ def bsdf_dict(material) -> dict:
 
 
 def emitter_dict(shape) -> dict:
-    """Mitsuba's ``area`` emitter dict of an emitting shape (its RGB radiance)."""
+    """Mitsuba's ``area`` emitter dict of an emitting shape (its RGB radiance, or its texture's plugin)."""
+    if shape.emission_texture is not None:
+        texture = shape.emission_texture
+        return {"type": "area", "radiance": TEXTURES[texture.type].to_mitsuba(texture)}
     return {"type": "area", "radiance": rgb(shape.emission)}
 
 

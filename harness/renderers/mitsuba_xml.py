@@ -136,7 +136,7 @@ def _transform(value) -> str:
 def _file_bytes(reference) -> bytes:
     """A mesh as a binary PLY, an image as an OpenEXR file."""
     if isinstance(reference, MeshFile):
-        return ply_bytes(reference.vertices, reference.triangles)
+        return ply_bytes(reference.vertices, reference.triangles, reference.uv)
     if reference.image.dtype == np.uint8:
         return encode_png(reference.image)
     return exr_bytes(reference.image)

@@ -87,7 +87,8 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         uv = vertex_uv(shape) if textured else None
         files[rel] = ply_bytes(vertices, triangles, uv)
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
-                       "emission": None if shape.emission is None else _floats(shape.emission),
+                       "emission": (None if shape.emission is None else _floats(shape.emission)
+                                    if shape.emission_texture is None else {"texture": shape.emission_texture.name}),
                        "mesh": rel, "triangles": int(len(triangles))}
         if textured:
             entry["uv"] = "analytic" if SHAPES[shape.type].sphere is not None else ("mesh" if uv is not None

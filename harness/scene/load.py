@@ -29,7 +29,7 @@ from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
-from harness.scene.kinds.textures import read_texture
+from harness.scene.kinds.textures import read_texture, texture_reference
 from harness.scene.model import Emitter, Material, Scene, Shape, Texture
 from harness.scene.mesh_files import (
     MAX_MESH_BYTES,
@@ -56,7 +56,7 @@ FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (
     "name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
-    "file", "center", "radius", "subdivisions",
+    "file", "flip_tex_coords", "center", "radius", "subdivisions",
 )  # fmt: skip
 ROTATE_KEYS = ("axis", "angle")
 MESH_SUFFIXES = (".ply", ".obj")
@@ -183,6 +183,7 @@ class _SceneReader(TypedReader):
         self.folder = folder
         self.allow_outside = allow_outside
         self.files: list[Path] = []
+        self.scene_textures: dict[str, Texture] = {}  # [textures], once read (a light's emission may name one)
 
     def opened(self, path: Path) -> Path:
         """``path``, recorded among the files the scene is read from: every file the loader reads passes through
@@ -268,27 +269,28 @@ class _SceneReader(TypedReader):
 
     def textures(self, document: dict) -> dict[str, Texture]:
         table = self.table(document.get("textures", {}), "textures")
-        return {name: read_texture(self, name, entry) for name, entry in table.items()}
+        self.scene_textures = {name: read_texture(self, name, entry) for name, entry in table.items()}
+        return self.scene_textures
 
     def materials(self, document: dict, textures: dict[str, Texture]) -> dict[str, Material]:
         table = self.table(document.get("materials", {}), "materials")
         return {name: read_material(self, name, entry, textures) for name, entry in table.items()}
 
     def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
-        """Refuse a textured material on a shape without texture coordinates: a mesh (its file's are not read
-        yet), and a sphere in a scene with a material that is not diffuse (Mitsuba gets its icosphere, a mesh)."""
+        """Refuse a textured material on a shape without texture coordinates: a mesh file without them, and a
+        sphere in a scene with a material that is not diffuse (Mitsuba gets its icosphere, a mesh)."""
         glossy = any(not m.is_diffuse for m in materials.values())
         for shape in shapes:
-            if not materials[shape.material].textures:
+            if not (materials[shape.material].textures or shape.emission_texture is not None):
                 continue
-            key = f"shapes[{shape.index}].material"
-            if shape.type == "mesh":
-                raise self.error(key, f"material {shape.material!r} is textured, but the texture coordinates of "
-                                      "mesh files are not read yet: expected an untextured material on a mesh")
+            key = f"shapes[{shape.index}].{'material' if materials[shape.material].textures else 'emission'}"
+            if shape.type == "mesh" and shape.mesh_uv is None:
+                raise self.error(key, f"shape {shape.name!r} is textured, but mesh {shape.file.name!r} has no "
+                                      "texture coordinates (PLY u, v / s, t / texture_u, texture_v; OBJ vt)")
             if shape.type == "sphere" and glossy:
-                raise self.error(key, f"material {shape.material!r} is textured, but a sphere in a scene with a "
-                                      "material that is not diffuse is traced as its icosphere, which has no "
-                                      "texture coordinates: expected an untextured material on it")
+                raise self.error(key, f"shape {shape.name!r} is textured, but a sphere in a scene with a material "
+                                      "that is not diffuse is traced as its icosphere, which has no texture "
+                                      "coordinates: expected no texture on it")
 
     # ---- shapes --------------------------------------------------------------------------------------------------
 
@@ -324,7 +326,7 @@ class _SceneReader(TypedReader):
         }
         fields["to_world"], placement_key = self.placement(table, key)
         if "emission" in table:
-            fields["emission"] = self.emission(table["emission"], f"{key}.emission")
+            fields.update(self.emission_fields(table["emission"], f"{key}.emission"))
         fields.update(kind.read(self, table, key))
         shape = Shape(**fields)
         self.check_placed_shape(shape, key, placement_key)
@@ -337,6 +339,18 @@ class _SceneReader(TypedReader):
             hint = suggestion(name, materials)
             raise self.error(f"{key}.material", f"unknown material {name!r}{hint} (defined in [materials]: {defined})")
         return name
+
+    def emission_fields(self, value: Any, key: str) -> dict[str, Any]:
+        """A shape's ``emission``: a radiance, or ``{ texture = "NAME" }`` (its values >= 0, not all 0, at most
+        MAX_EMISSION), whose mean stands in for its power."""
+        texture = texture_reference(self, value, key, self.scene_textures)
+        if texture is None:
+            return {"emission": self.emission(value, key)}
+        top, mean = texture.max_value, texture.mean_value
+        if max(top) > MAX_EMISSION or max(mean) <= 0:
+            raise self.error(key, f"texture {texture.name!r} has values up to {max(top):.6g} and a mean of "
+                                  f"{max(mean):.6g}: expected an emitted radiance at most {MAX_EMISSION:g}, not all 0")
+        return {"emission": mean, "emission_texture": texture}
 
     def emission(self, value: Any, key: str) -> tuple[float, float, float]:
         what = f"a list of 3 finite numbers >= 0, not all 0, each at most {MAX_EMISSION:g}".replace("e+", "e")
@@ -423,6 +437,8 @@ class _SceneReader(TypedReader):
                                 process=False, skip_materials=True)
             vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
             triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+            uv = getattr(mesh.visual, "uv", None)  # PLY u, v / s, t / texture_u, texture_v; OBJ vt (Mitsuba's)
+            uv = None if uv is None or len(uv) != len(vertices) else np.array(uv, dtype=np.float64).reshape(-1, 2)
         except HarnessError:
             raise
         except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
@@ -434,7 +450,14 @@ class _SceneReader(TypedReader):
             raise self.error(file_key, f"mesh {name!r} has a triangle with a vertex index out of range")
         if not np.all(np.isfinite(vertices)):
             raise self.error(file_key, f"mesh {name!r} has non-finite vertex coordinates")
-        return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles}
+        flip = self.boolean(table.get("flip_tex_coords", file_type == "obj"), f"{key}.flip_tex_coords")
+        if uv is not None:
+            if not np.all(np.isfinite(uv)):
+                raise self.error(file_key, f"mesh {name!r} has non-finite texture coordinates")
+            if flip:
+                uv[:, 1] = 1.0 - uv[:, 1]
+        return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles, "mesh_uv": uv,
+                "flip_tex_coords": flip}
 
     def file_path(self, name: str, key: str, what: str) -> Path:
         """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist,

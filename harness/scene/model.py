@@ -52,6 +52,16 @@ class Texture:
     color1: Vector3 = (0.2, 0.2, 0.2)
 
     @property
+    def mean_value(self) -> tuple[float, float, float]:
+        """The mean of the texture's texels (a checkerboard's two colours), per channel: a textured light's stand-in
+        radiance where a light is chosen by its power."""
+        if self.type == "checkerboard":
+            return tuple((a + b) / 2.0 for a, b in zip(self.color0, self.color1))
+        texels = srgb_to_linear(self.image) if self.image.dtype == np.uint8 and not self.raw else (
+            self.image / 255.0 if self.image.dtype == np.uint8 else self.image)
+        return tuple(float(c) for c in np.asarray(texels, dtype=np.float64).reshape(-1, 3).mean(axis=0))
+
+    @property
     def max_value(self) -> tuple[float, float, float]:
         """The largest value the texture takes, per channel (the bound of a lookup: filtering interpolates)."""
         if self.type == "checkerboard":
@@ -147,7 +157,11 @@ class Shape:
         For spheres it does *not* include ``center`` / ``radius``: the sphere's object-to-world matrix is
         ``to_world @ translate(center) @ scale(radius)``, as in Mitsuba.
     emission : (r, g, b) or None
-        Radiance emitted from the front side; None for shapes that do not emit.
+        Radiance emitted from the front side; None for shapes that do not emit. A textured light's is its
+        texture's mean (:attr:`Texture.mean_value`), the stand-in a light's power is estimated with.
+    emission_texture : Texture or None
+        The texture whose value at a point is the radiance emitted there (``emission = { texture = "NAME" }``,
+        Mitsuba's ``area`` emitter with a textured ``radiance``).
     flip_normals : bool
         Mitsuba's ``flip_normals``: swap the front and back sides.
     file : Path or None
@@ -157,6 +171,11 @@ class Shape:
         subdivisions used when triangulating it.
     mesh_vertices, mesh_triangles : ndarray or None
         Meshes only: the file's vertices (V, 3) and triangles (T, 3) in object space, as read at load time.
+    mesh_uv : ndarray or None
+        Meshes only: the file's texture coordinates (V, 2) as Mitsuba holds them (an OBJ's ``vt`` with v flipped,
+        1 - v, where ``flip_tex_coords``), or None for a file without them.
+    flip_tex_coords : bool
+        Meshes only: Mitsuba's ``flip_tex_coords`` (its default: true for OBJ, false for PLY).
     """
 
     index: int
@@ -172,6 +191,9 @@ class Shape:
     subdivisions: int = 3
     mesh_vertices: np.ndarray | None = None
     mesh_triangles: np.ndarray | None = None
+    mesh_uv: np.ndarray | None = None
+    flip_tex_coords: bool = False
+    emission_texture: Texture | None = None
 
     @property
     def is_emitter(self) -> bool:
@@ -287,8 +309,10 @@ class Scene:
 
     @property
     def used_textures(self) -> list[Texture]:
-        """The textures some material's parameter takes, in the order of :attr:`textures` (the core's order)."""
+        """The textures some material's parameter or some light's emission takes, in the order of :attr:`textures`
+        (the core's order)."""
         used = {id(texture) for material in self.materials.values() for _, texture in material.textures}
+        used |= {id(shape.emission_texture) for shape in self.shapes if shape.emission_texture is not None}
         return [texture for texture in self.textures.values() if id(texture) in used]
 
     @property

@@ -1,12 +1,14 @@
 """The canonical scenes' texture images, made here from integer formulas (no third-party asset): 8-bit sRGB PNGs
-whose texels differ from their neighbours in every channel, so that a texture read upside down, shifted by half a
+and a float EXR whose texels differ from their neighbours in every channel, so that a texture read upside down, shifted by half a
 texel, filtered nearest for bilinear, wrapped by clamping for repeating, or decoded as linear changes the image.
 
 * ``tiles.png`` (64 x 32): the textured furnace's sphere (scenes/textured-furnace.toml), each texel a colour of its
   own, code = 40 + (a i + b j + c i j + d) mod 181 per channel (row i, column j);
 * ``wall.png`` (32 x 32): the textured Cornell box's left wall (scenes/textured-cornell-box.toml), a gradient from
   top to bottom in red, across in green, and blue stripes four texels wide, so that no flip or shift maps it onto
-  itself.
+  itself;
+* ``glow.exr`` (8 x 4, float32): the textured Cornell box's light, its radiance 0.4 to 1.6 times the Cornell box
+  light's in a pattern of sevenths.
 
 ``python -m harness.scene.texture_images [FOLDER]`` writes them (default ``scenes/textures``, the committed files
 that ``tests/scene/test_texture_images.py`` checks this module reproduces pixel for pixel).
@@ -19,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.files.imageio import atomic_write_bytes, encode_png
+from harness.files.imageio import atomic_write_bytes, encode_png, exr_bytes
 
 DEFAULT_FOLDER = Path(__file__).resolve().parents[2] / "scenes" / "textures"
 
@@ -39,7 +41,15 @@ def wall() -> np.ndarray:
     return np.stack([40 + 6 * i, 230 - 5 * j, np.where((j // 4) % 2 == 1, 200, 50)], axis=-1).astype(np.uint8)
 
 
-IMAGES = {"tiles.png": tiles, "wall.png": wall}
+def glow() -> np.ndarray:
+    """(4, 8, 3) float32 radiance: the Cornell box light's, (18.387, 13.9873, 6.75357), times 0.4 + 1.2 k / 6 with
+    k = (3 i + 5 j) mod 7 (row i, column j): 0.4 to 1.6 of it, each texel unlike its neighbours."""
+    i, j = np.meshgrid(np.arange(4), np.arange(8), indexing="ij")
+    factor = 0.4 + 1.2 * ((3 * i + 5 * j) % 7) / 6.0
+    return (factor[..., None] * np.array([18.387, 13.9873, 6.75357])).astype(np.float32)
+
+
+IMAGES = {"tiles.png": tiles, "wall.png": wall, "glow.exr": glow}
 
 
 def main(argv: list[str]) -> int:
@@ -48,7 +58,8 @@ def main(argv: list[str]) -> int:
         return 2
     folder = Path(argv[0]) if argv else DEFAULT_FOLDER
     for name, make in IMAGES.items():
-        atomic_write_bytes(folder / name, encode_png(make()))
+        image = make()
+        atomic_write_bytes(folder / name, encode_png(image) if name.endswith(".png") else exr_bytes(image))
         print(f"wrote {folder / name}")
     return 0
 

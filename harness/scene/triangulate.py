@@ -69,11 +69,11 @@ def shape_triangles(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
 
 def vertex_uv(shape: Shape) -> np.ndarray | None:
     """Mitsuba's texture coordinates at the vertices of :func:`shape_triangles` (V, 2), or None for a shape whose
-    coordinates are analytic (a sphere's) or that has none (a mesh)."""
+    coordinates are analytic (a sphere's) or that has none (a mesh file without them)."""
     kind = SHAPES[shape.type]
     if kind.object_uv is None:
         return None
-    return kind.object_uv(np.asarray(object_mesh(shape)[0], dtype=np.float64))
+    return kind.object_uv(shape, np.asarray(object_mesh(shape)[0], dtype=np.float64))
 
 
 def shape_uv(shape: Shape, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -100,7 +100,10 @@ def triangulate(scene: Scene) -> Geometry:
     in shape order, and all triangles of one emissive shape share its light id and emission.
     """
     material_index = {name: i for i, name in enumerate(scene.materials)}
-    textured = bool(scene.used_textures)
+    used = scene.used_textures
+    texture_index = {id(texture): k for k, texture in enumerate(used)}
+    textured = bool(used)
+    emission_texture = []
     all_vertices, all_triangles, material, emission, light_id = [], [], [], [], []
     uv, uv_sphere, sphere_to_object = [], [], []
     vertex_count = 0
@@ -118,6 +121,7 @@ def triangulate(scene: Scene) -> Geometry:
             if sphere is not None:
                 sphere_to_object.append(sphere)
             uv_sphere.append(np.full(count, len(sphere_to_object) - 1 if sphere is not None else -1))
+        emission_texture.append(np.full(count, texture_index.get(id(shape.emission_texture), -1)))
         if shape.is_emitter:
             emission.append(np.tile(np.asarray(shape.emission, dtype=np.float64), (count, 1)))
             light_id.append(np.full(count, next_light))
@@ -139,6 +143,7 @@ def triangulate(scene: Scene) -> Geometry:
             uv=np.concatenate(uv) if uv else None,
             uv_sphere=np.concatenate(uv_sphere) if uv_sphere else None,
             sphere_to_object=np.array(sphere_to_object).reshape(-1, 4, 4) if uv else None,
+            emission_texture=np.concatenate(emission_texture) if textured else None,
         )
     except SettingsError as err:
         raise HarnessError(str(scene.path), f"cannot triangulate the scene: {err}") from err

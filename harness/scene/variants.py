@@ -38,6 +38,7 @@ import numpy as np
 from harness.core.errors import HarnessError
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.model import Scene, Shape
+from harness.scene.primitives import rectangle_uv
 from harness.scene.triangulate import (
     object_to_world,
     scale_matrix,
@@ -363,7 +364,8 @@ def sliver_walls(scene: Scene, aspect: float) -> Scene:
         if shape.type == "rectangle" and not shape.is_emitter:
             mirrored = np.linalg.det(object_to_world(shape)[:3, :3]) < 0
             shape = dataclasses.replace(shape, type="mesh", mesh_vertices=vertices.copy(),
-                                        mesh_triangles=triangles[:, [0, 2, 1]] if mirrored else triangles.copy())
+                                        mesh_triangles=triangles[:, [0, 2, 1]] if mirrored else triangles.copy(),
+                                        mesh_uv=rectangle_uv(vertices))  # the rectangle's texture coordinates
             replaced += 1
         shapes.append(shape)
     if not replaced:

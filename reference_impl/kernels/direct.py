@@ -51,7 +51,7 @@ from reference_impl.kernels.light_sampling import (light_point, point_on_light, 
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import pair_point, uniform_2d
-from reference_impl.kernels.surface import offset_origin, origin_offset, shadow_t_max
+from reference_impl.kernels.surface import emission_at, offset_origin, origin_offset, shadow_t_max
 from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
 from reference_impl.rng import (COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT,
                                 LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2)
@@ -241,18 +241,19 @@ def light_piece(cfg, lights, light, u_tri):
 
 
 @njit(**JIT_BORROW)
-def point_connection(cfg, scene, tri, y0, y1, y2, pdf_area, x0, x1, x2):
+def point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_area, x0, x1, x2):
     """The connection (above) of a point y on triangle ``tri`` drawn with density ``pdf_area`` per unit area
-    (area sampling: pdf(k) / A_k; global area sampling: 1 / A_scene): Le G / (p(y) cos_x) = Le cos_y / (r^2 p(y)),
-    p_l = Nd p(y) r^2 / cos_y. None where y is not on an emitter, faces away from x or sits at x."""
+    (area sampling: pdf(k) / A_k; global area sampling: 1 / A_scene): Le(y) G / (p(y) cos_x) = Le(y) cos_y /
+    (r^2 p(y)), p_l = Nd p(y) r^2 / cos_y (Le(y) a texture's value at y on a textured light: ``textures``, the
+    materials' :class:`.records.TextureTables`). None where y is not on an emitter, faces away from x or sits at
+    x."""
     wi0, wi1, wi2, dist2, cos_y = toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2)
     if not (dist2 > 0 and cos_y > 0 and scene.light_id[tri] >= 0):
         return no_connection()
-    emission = scene.emission
+    e0, e1, e2 = emission_at(scene, textures, tri, y0, y1, y2, cfg.mutant)
     scale = cos_y / (dist2 * pdf_area)
     p_l = cfg.shadow_rays * pdf_area * dist2 / cos_y
-    return Connection(True, wi0, wi1, wi2, emission[tri, 0] * scale, emission[tri, 1] * scale,
-                      emission[tri, 2] * scale, p_l, False, y0, y1, y2, cos_y, True)
+    return Connection(True, wi0, wi1, wi2, e0 * scale, e1 * scale, e2 * scale, p_l, False, y0, y1, y2, cos_y, True)
 
 
 @njit(**JIT_BORROW)
@@ -279,13 +280,13 @@ def emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1,
 
 
 @njit(**JIT_BORROW)
-def light_connection(cfg, scene, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2,
-                     front_only):
+def light_connection(cfg, scene, textures, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1,
+                     n2, front_only):
     """The connection (above) of light k = ``light`` (chosen with ``pdf_select``): a point on area light k's
     ``piece`` (:func:`light_piece`) from (u1, u2), or emitter k - N_A's own sample (:func:`emitter_connection`)."""
     if light < cfg.num_area_lights:
         tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
-        return point_connection(cfg, scene, tri, y0, y1, y2, pdf_select / lights.area[light], x0, x1, x2)
+        return point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select / lights.area[light], x0, x1, x2)
     if emitters is not None:
         return emitter_connection(cfg, emitters, light - cfg.num_area_lights, pdf_select, u1, u2, x0, x1, x2, n0,
                                   n1, n2, front_only)

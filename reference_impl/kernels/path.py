@@ -70,7 +70,7 @@ from reference_impl.kernels.record import record_camera, record_closest, record_
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
                                           pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
-from reference_impl.kernels.surface import offset_origin, surface_hit
+from reference_impl.kernels.surface import emission_at, hit_point, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED,
                                       ROUGHDIELECTRIC)
@@ -207,6 +207,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
+    textures = materials.textures
     light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
@@ -335,9 +336,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     if weighted:
                         p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
                         w = power_weight(mutant, prev_pdf, p_light, False)
-                    rad0 += b0 * emission[tri, 0] * w
-                    rad1 += b1 * emission[tri, 1] * w
-                    rad2 += b2 * emission[tri, 2] * w
+                    le0, le1, le2 = emission_at(scene, textures, tri, hit.x0, hit.x1, hit.x2, mutant)
+                    rad0 += b0 * le0 * w
+                    rad1 += b1 * le1 * w
+                    rad2 += b2 * le2 * w
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
             kind = material_at(materials, hit, row, mutant)  # the material step: the BSDF's kind and parameters at x
@@ -418,6 +420,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                                                  tri_normal[htri, 2]) < 0):
                                 continue  # not an emitter's front side
                             le0, le1, le2 = emission[htri, 0], emission[htri, 1], emission[htri, 2]
+                            if scene.emission_texture.shape[0] > 0:  # Le at the point Psi found on a textured light
+                                _t, q0, q1, q2, _c = hit_point(ox0, ox1, ox2, h0, h1, h2, tri_normal[htri, 0],
+                                                               tri_normal[htri, 1], tri_normal[htri, 2],
+                                                               scene.corner0[htri, 0], scene.corner0[htri, 1],
+                                                               scene.corner0[htri, 2])
+                                le0, le1, le2 = emission_at(scene, textures, htri, q0, q1, q2, mutant)
                         hl0, hl1 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2)
                         f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, hl0, hl1, side * cos_h)
                         inv_p = 1.0 / pdf_h
@@ -438,7 +446,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                             _sel, gtri, y0, y1, y2, pdf_area = light_sample(
                                 cfg, sob, held_point(fh.light, lx, ly, held.light, si * nd + j), si, j, k, depth,
                                 scene, lights, surfaces)
-                            conn = point_connection(cfg, scene, gtri, y0, y1, y2, pdf_area, x0, x1, x2)
+                            conn = point_connection(cfg, scene, textures, gtri, y0, y1, y2, pdf_area, x0, x1, x2)
                         else:
                             if sob:  # one 2D point: its first coordinate picks the light and the piece too
                                 u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
@@ -455,8 +463,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                 count_light_select += 1
                             # mutant "light-pdf-ignored": pdf(y|k) alone
                             pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
-                            conn = light_connection(cfg, scene, lights, emitters, sel, piece, pdf_select, u1, u2, x0,
-                                                    x1, x2, ns0, ns1, ns2, not transmits)
+                            conn = light_connection(cfg, scene, textures, lights, emitters, sel, piece, pdf_select, u1,
+                                                    u2, x0, x1, x2, ns0, ns1, ns2, not transmits)
                     elif emitters is not None:
                         e = j - points
                         ekind = emitters.kind[e]

@@ -47,6 +47,8 @@ class SceneTables(NamedTuple):
         ``Geometry.uv_sphere``: the sphere whose analytic coordinates a triangle takes, -1 for none.
     sphere_to_object : (S, 4, 4) float64
         ``Geometry.sphere_to_object``.
+    emission_texture : (T,) or (0,) int64
+        ``Geometry.emission_texture``, empty where no light is textured (a hit reads ``emission`` alone).
     """
 
     prim_to_tri: np.ndarray
@@ -59,14 +61,16 @@ class SceneTables(NamedTuple):
     uv: np.ndarray
     uv_sphere: np.ndarray
     sphere_to_object: np.ndarray
+    emission_texture: np.ndarray
 
 
 def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> SceneTables:
     """The :class:`SceneTables` of ``geometry`` (:class:`reference_impl.Geometry`) for Embree's primitives
-    ``prim_to_tri``; the texture coordinates only where ``textured`` (a material has a texture)."""
+    ``prim_to_tri``; the texture coordinates only where ``textured`` (a material has a texture) or a light is."""
     g = geometry
     uv, uv_sphere, spheres = np.zeros((0, 3, 2)), np.zeros(0, np.int64), np.zeros((0, 4, 4))
-    if textured:
+    emission_texture = g.emission_texture if g.textured_lights else np.zeros(0, np.int64)
+    if textured or g.textured_lights:
         uv = g.uv if len(g.uv) else np.zeros((len(g.triangles), 3, 2))
         uv_sphere = g.uv_sphere if len(g.uv_sphere) else np.full(len(g.triangles), -1, np.int64)
         spheres = g.sphere_to_object
@@ -74,7 +78,7 @@ def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> S
         prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
         corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
         uv=_c(uv, dtype=np.float64), uv_sphere=_c(uv_sphere, dtype=np.int64),
-        sphere_to_object=_c(spheres, dtype=np.float64))
+        sphere_to_object=_c(spheres, dtype=np.float64), emission_texture=_c(emission_texture, dtype=np.int64))
 
 
 class LightTables(NamedTuple):

@@ -24,6 +24,7 @@ from typing import NamedTuple
 from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_BORROW
+from reference_impl.kernels.texture import texture_eval
 from reference_impl.kernels.warps import dot3, tangent_frame
 
 # Relative offset of ray origins (intersect._OFFSET_REL), repeated so the kernels need no import of Embree.
@@ -151,6 +152,21 @@ def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
     s0, s1, s2, t0, t1, t2 = tangent_frame(n0, n1, n2)
     return SurfaceHit(tri, scene.material[tri], t, x0, x1, x2, n0, n1, n2, cos_out, u, v, tex_u, tex_v, s0, s1, s2,
                       t0, t1, t2, n0, n1, n2)
+
+
+@njit(**JIT_BORROW)
+def emission_at(scene, textures, tri, x0, x1, x2, mutant):
+    """Le of the front side of triangle ``tri`` at its point x: ``scene.emission``'s row, or where the light is
+    textured (``scene.emission_texture``) the texture's value at x's texture coordinates (``mutant``: the planted
+    faults' bits, which the lookup reads)."""
+    textured = scene.emission_texture
+    if textured.shape[0] == 0 or textured[tri] < 0:
+        e = scene.emission
+        return e[tri, 0], e[tri, 1], e[tri, 2]
+    n = scene.normal
+    u, v = barycentrics(scene.corners, tri, x0, x1, x2, n[tri, 0], n[tri, 1], n[tri, 2])
+    tu, tv = texture_coordinates(scene, tri, u, v, x0, x1, x2)
+    return texture_eval(textures, textured[tri], tu, tv, mutant)
 
 
 @njit(**JIT)

@@ -52,12 +52,15 @@ class MeshFile:
         The file's path relative to the exported scene file.
     vertices, triangles : numpy.ndarray
         (V, 3) float64 positions and (T, 3) vertex indices.
+    uv : numpy.ndarray, optional
+        (V, 2) texture coordinates (Mitsuba's: v = 0 the image's top row), for a textured shape.
     """
 
     name: str
     path: str
     vertices: np.ndarray
     triangles: np.ndarray
+    uv: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)

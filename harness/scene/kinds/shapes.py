@@ -47,8 +47,9 @@ class ShapeKind:
     json : callable
         ``json(shape) -> dict``: the parameters of its type in the scene.json entry.
     object_uv : callable, optional
-        ``object_uv(vertices) -> (V, 2)``: Mitsuba's texture coordinates at the vertices of its ``object_mesh``;
-        None where it has none (a mesh: its file's are not read) or they are analytic (a sphere's, :attr:`sphere`).
+        ``object_uv(shape, vertices) -> (V, 2) or None``: Mitsuba's texture coordinates at the vertices of its
+        ``object_mesh`` (None: a mesh file without them); None where they are analytic (a sphere's,
+        :attr:`sphere`).
     """
 
     name: str
@@ -61,7 +62,7 @@ class ShapeKind:
     similarity_only: bool = False
     sphere: Callable[[Shape], tuple[np.ndarray, float]] | None = None
     json: Callable[[Shape], dict] = lambda shape: {}
-    object_uv: Callable[[np.ndarray], np.ndarray] | None = None
+    object_uv: Callable[[Shape, np.ndarray], np.ndarray | None] | None = None
 
     def object_to_world(self, shape: Shape) -> np.ndarray:
         """The full 4x4 object-to-world matrix of ``shape`` (a sphere's: to_world @ T(center) @ S(radius))."""
@@ -96,14 +97,15 @@ def _sphere_json(shape: Shape) -> dict:
 #: Every shape type by its name, in :data:`harness.scene.model.SHAPE_TYPES`'s order.
 SHAPES: dict[str, ShapeKind] = {kind.name: kind for kind in (
     ShapeKind("rectangle", (), lambda reader, table, key: {}, lambda shape: unit_rectangle(),
-              keeps_front_when_mirrored=True, object_uv=rectangle_uv),
+              keeps_front_when_mirrored=True, object_uv=lambda shape, vertices: rectangle_uv(vertices)),
     ShapeKind("cube", (), lambda reader, table, key: {}, lambda shape: unit_cube(), keeps_front_when_mirrored=True,
-              object_uv=cube_uv),
+              object_uv=lambda shape, vertices: cube_uv(vertices)),
     ShapeKind("sphere", ("center", "radius", "subdivisions"), _read_sphere,
               lambda shape: unit_sphere(shape.subdivisions), curved=True, similarity_only=True,
               sphere=_world_sphere, json=_sphere_json),
-    ShapeKind("mesh", ("file",), lambda reader, table, key: reader.mesh(table, key),
-              lambda shape: (shape.mesh_vertices, shape.mesh_triangles), analytic=False),
+    ShapeKind("mesh", ("file", "flip_tex_coords"), lambda reader, table, key: reader.mesh(table, key),
+              lambda shape: (shape.mesh_vertices, shape.mesh_triangles), analytic=False,
+              object_uv=lambda shape, vertices: shape.mesh_uv),
 )}
 assert tuple(SHAPES) == SHAPE_TYPES
 #: The keys of one type alone, the mesh's first (the order in which a misplaced one is reported).
