@@ -21,6 +21,11 @@
   (:func:`gltf_camera`), point, spot and directional emitters as ``KHR_lights_punctual`` lights
   (:func:`gltf_light`), film, filter, ``max_depth`` and ``rr_depth`` in ``asset.extras``; constant and envmap
   emitters cannot be expressed in glTF 2.0 and are left out.
+* Textures (glTF and OBJ): an 8-bit sRGB bitmap on a material's base colour parameter is a PNG image
+  (``textures/texture-<name>.png``): glTF's ``baseColorTexture`` with its sampler and ``KHR_texture_transform``,
+  MTL's ``map_Kd``; every shape gets texture coordinates (glTF ``TEXCOORD_0``, OBJ ``vt`` with v flipped). What
+  they cannot say (checkerboards, float or raw bitmaps, other parameters, shear, MTL's filter and wrap, spheres'
+  analytic coordinates) :func:`export_losses` names.
 
 :func:`export_losses` says, one line each, what a format leaves out of a scene (``harness export`` prints them as
 warnings).
@@ -31,6 +36,7 @@ PLY meshes are written with trimesh, glTF and OBJ by this module; every file is 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -39,7 +45,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.core.jsonsafe import plain
-from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
+from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, encode_png, make_folders
 from harness.renderers.meshfiles import ply_bytes, safe_name
 from harness.renderers.mitsuba_spec import RR_DEPTH, Parameter, bsdf_dict, clip_planes, scene_spec
 from harness.renderers.mitsuba_xml import spec_xml
@@ -48,11 +54,19 @@ from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_to_world
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
-from harness.scene.triangulate import shape_triangles
+from harness.scene.kinds.shapes import SHAPES
+from harness.scene.kinds.textures import TEXTURES, export_path
+from harness.scene.triangulate import object_mesh, shape_triangles, vertex_uv
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
 GLTF_LIGHTS = "KHR_lights_punctual"
 GLTF_EMISSIVE_STRENGTH = "KHR_materials_emissive_strength"
+GLTF_TEXTURE_TRANSFORM = "KHR_texture_transform"
+#: glTF sampler constants (WebGL's): a bitmap's filter_type as magFilter and minFilter (no mipmaps: Mitsuba has none),
+#: its wrap_mode as wrapS and wrapT (MIRRORED_REPEAT reflects the texel index at each edge, as Mitsuba's mirror)
+GLTF_FILTERS = {"bilinear": 9729, "nearest": 9728}  # LINEAR, NEAREST
+GLTF_WRAPS = {"repeat": 10497, "mirror": 33648, "clamp": 33071}  # REPEAT, MIRRORED_REPEAT, CLAMP_TO_EDGE
+WHITE = (1.0, 1.0, 1.0)
 
 
 def mitsuba_xml(scene: Scene, *, spp: int = 16, seed: int = 0) -> tuple[str, dict[str, bytes]]:
@@ -95,6 +109,113 @@ def _unique(name: str, taken: set[str]) -> str:
     return out
 
 
+# ---- textures in glTF and OBJ ---------------------------------------------------------------------------------------
+
+
+def base_colour_parameter(material) -> str:
+    """The parameter glTF's base colour (and OBJ's ``Kd``) is made from: a diffuse material's ``reflectance``, a
+    conductor's ``specular_reflectance``, a dielectric's ``specular_transmittance`` (:func:`gltf_material`)."""
+    if material.is_diffuse:
+        return "reflectance"
+    return "specular_reflectance" if material.is_conductor else "specular_transmittance"
+
+
+def image_texture(texture) -> bool:
+    """Whether glTF's base colour texture and MTL's ``map_Kd`` carry ``texture`` exactly: an 8-bit bitmap of sRGB
+    codes (not ``raw``), written as the PNG of the codes the scene holds. A checkerboard (procedural), a float (EXR)
+    bitmap and a raw one (code / 255, where both formats decode sRGB) are not."""
+    return texture.type == "bitmap" and texture.image.dtype == np.uint8 and not texture.raw
+
+
+def carried_texture(material):
+    """The texture glTF's ``baseColorTexture`` and MTL's ``map_Kd`` hold for ``material``: that of its base colour
+    parameter (:func:`base_colour_parameter`) when :func:`image_texture`, else None."""
+    texture = material.texture(base_colour_parameter(material))
+    return texture if texture is not None and image_texture(texture) else None
+
+
+def exported_material(material):
+    """``material`` as glTF's factors and MTL's ``Kd`` see it: the parameter of :func:`carried_texture` white (the
+    format multiplies its factor by the texture), every other textured parameter its texture's mean
+    (:attr:`~harness.scene.model.Texture.mean_value`, a loss :func:`export_losses` names)."""
+    carried = carried_texture(material)
+    changes = {item: (WHITE if texture is carried else texture.mean_value) for item, texture in material.textures}
+    return dataclasses.replace(material, textures=(), **changes) if changes else material
+
+
+def gltf_uv_transform(to_uv) -> dict | None:
+    """``to_uv`` as ``KHR_texture_transform``'s offset, rotation and scale ({} for the identity; None for a map with
+    shear, which the extension cannot say).
+
+    The extension's matrix is T(offset) R(rotation) S(scale) with R(r) = [[cos r, sin r], [-sin r, cos r]] acting on
+    (u, v) (v down): the rotation as its example, sample model (TextureTransformTest) and readers (Blender, Babylon.js)
+    take it; the GLSL listing of the specification has its transpose (KhronosGroup/glTF#1563). So the linear part's
+    columns are scale_u (cos r, -sin r) and scale_v (sin r, cos r): r = atan2(-m10, m00), scale_u = |column 0| and
+    scale_v the second column's length along (sin r, cos r), negative for a mirrored map.
+    """
+    matrix = np.asarray(to_uv, dtype=np.float64)
+    if np.array_equal(matrix, np.eye(3)):
+        return {}
+    (a, b, tu), (c, d, tv) = matrix[:2]
+    scale_u = math.hypot(a, c)
+    if scale_u == 0.0 or abs(a * b + c * d) > 1e-12 * scale_u * math.hypot(b, d):
+        return None  # a shear (the columns are not perpendicular) or a degenerate map
+    rotation = math.atan2(-c, a) + 0.0
+    sin, cos = math.sin(rotation), math.cos(rotation)
+    scale_v = b * sin + d * cos
+    rebuilt = np.array([[cos * scale_u, sin * scale_v], [-sin * scale_u, cos * scale_v]])
+    if not np.allclose(rebuilt, [[a, b], [c, d]], rtol=0.0, atol=1e-12 * max(scale_u, abs(scale_v))):
+        return None
+    return {"offset": [float(tu) + 0.0, float(tv) + 0.0], "rotation": rotation, "scale": [scale_u, float(scale_v)]}
+
+
+def gltf_sampler(texture) -> dict:
+    """A bitmap's filter and wrap mode as a glTF sampler (:data:`GLTF_FILTERS`, :data:`GLTF_WRAPS`)."""
+    filt, wrap = GLTF_FILTERS[texture.filter_type], GLTF_WRAPS[texture.wrap_mode]
+    return {"magFilter": filt, "minFilter": filt, "wrapS": wrap, "wrapT": wrap}
+
+
+def sphere_corner_uv(shape, triangles: np.ndarray) -> np.ndarray:
+    """Mitsuba's analytic texture coordinates of a sphere at the corners of its icosphere's ``triangles``, (T, 3, 2):
+    at each vertex p (object space) u = atan2(p_y, p_x) / (2 pi) mod 1, v = acos(p_z / |p|) / pi; a triangle across
+    the seam (its u spanning more than 1/2) gets u + 1 at its corners below 1/2 (so that its u runs on, as the
+    sphere's does modulo 1), and a corner at a pole (where u is undefined) the mean u of its triangle's other two."""
+    points = np.asarray(object_mesh(shape)[0], dtype=np.float64)
+    radius = np.linalg.norm(points, axis=1)
+    u = (np.arctan2(points[:, 1], points[:, 0]) / (2.0 * math.pi)) % 1.0
+    v = np.arccos(np.clip(points[:, 2] / radius, -1.0, 1.0)) / math.pi
+    pole = (np.hypot(points[:, 0], points[:, 1]) <= 1e-12 * radius)[triangles]
+    cu, cv = u[triangles], v[triangles]
+    span = np.where(pole, -np.inf, cu).max(axis=1) - np.where(pole, np.inf, cu).min(axis=1)
+    cu = np.where((span > 0.5)[:, None] & (cu < 0.5) & ~pole, cu + 1.0, cu)
+    others = np.where(pole, 0.0, cu).sum(axis=1) / np.maximum((~pole).sum(axis=1), 1)
+    return np.stack([np.where(pole, others[:, None], cu), cv], axis=-1)
+
+
+def textured_mesh(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A shape's triangles with texture coordinates, (vertices, triangles, uv): :func:`shape_triangles` and Mitsuba's
+    coordinates at its vertices (:func:`harness.scene.triangulate.vertex_uv`; 0 for a mesh without them, as the
+    reference takes them); a sphere's from :func:`sphere_corner_uv`, its vertices repeated where a seam or pole
+    corner needs other coordinates (the same triangles)."""
+    vertices, triangles = shape_triangles(shape)
+    if SHAPES[shape.type].sphere is None:
+        uv = vertex_uv(shape)
+        return vertices, triangles, np.zeros((len(vertices), 2)) if uv is None else np.asarray(uv, np.float64)
+    corners = sphere_corner_uv(shape, triangles)
+    keys = np.concatenate([triangles.reshape(-1, 1).astype(np.float64), corners.reshape(-1, 2)], axis=1)
+    unique, inverse = np.unique(keys, axis=0, return_inverse=True)
+    return vertices[unique[:, 0].astype(np.int64)], np.reshape(inverse, (-1, 3)), unique[:, 1:]
+
+
+def mapped_uv(uv: np.ndarray, to_uv) -> np.ndarray:
+    """Texture coordinates mapped by a texture's ``to_uv`` ((u', v', 1) = to_uv (u, v, 1)); unchanged by the
+    identity."""
+    matrix = np.asarray(to_uv, dtype=np.float64)
+    if np.array_equal(matrix, np.eye(3)):
+        return uv
+    return uv @ matrix[:2, :2].T + matrix[:2, 2]
+
+
 def gltf_camera(scene: Scene) -> tuple[dict, dict]:
     """The scene's camera as a glTF perspective camera and the node that places it.
 
@@ -121,12 +242,16 @@ def gltf_render_settings(scene: Scene) -> dict:
             "max_depth": int(scene.max_depth), "rr_depth": RR_DEPTH}
 
 
-def _gltf_shape_material(shape, material) -> dict:
-    """The glTF material of one shape: :func:`gltf_material`'s factors as full float64 numbers, and for an emitting
-    shape ``emissiveFactor`` = emission / its largest channel with ``KHR_materials_emissive_strength`` = that
-    channel (factor x strength = the radiance)."""
-    factors, extensions = gltf_material(material)
-    entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": plain(factors),
+def _gltf_shape_material(shape, material, base_texture: dict | None = None) -> dict:
+    """The glTF material of one shape: :func:`gltf_material`'s factors as full float64 numbers (of
+    :func:`exported_material`: a texture glTF carries is ``base_texture``, the ``baseColorTexture`` whose texels the
+    factor multiplies), and for an emitting shape ``emissiveFactor`` = emission / its largest channel with
+    ``KHR_materials_emissive_strength`` = that channel (factor x strength = the radiance)."""
+    factors, extensions = gltf_material(exported_material(material))
+    factors = plain(factors)
+    if base_texture is not None:
+        factors["baseColorTexture"] = base_texture
+    entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": factors,
                    "doubleSided": MATERIALS[material.type].gltf_double_sided(material)}
     extensions = dict(extensions)
     if shape.is_emitter:
@@ -140,7 +265,18 @@ def _gltf_shape_material(shape, material) -> dict:
     return entry
 
 
-def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, bytes]:
+def _extras_bsdf(material) -> dict:
+    """A material's Mitsuba plugin dict as JSON values, each textured parameter as ``{"texture": NAME}`` (as in
+    scene.json; the texture itself is in ``asset.extras.textures``)."""
+    spec = bsdf_dict(material)
+    inner = spec["bsdf"] if spec.get("type") == "twosided" else spec
+    for item, texture in material.textures:
+        inner[item] = {"texture": texture.name}
+    return plain(spec)
+
+
+def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
+                  files: dict[str, bytes] | None = None) -> tuple[dict, bytes]:
     """The scene as a glTF 2.0 document (a JSON-ready dict) and its binary buffer (``buffer_name``).
 
     One node and mesh per shape (world-space triangles as the core triangulates them: float32 positions, uint32
@@ -149,6 +285,13 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
     ``KHR_lights_punctual`` lights (:func:`gltf_light`) and the render settings in ``asset.extras``
     (:func:`gltf_render_settings`). Each mesh node's ``extras`` holds its material's name and reflectance, the
     Mitsuba plugin dict of a non-diffuse material (``bsdf``) and an emitting shape's ``emission``.
+
+    A scene with textures: every primitive has ``TEXCOORD_0`` (float32; Mitsuba's (u, v), whose origin is the
+    image's top left with v down, as glTF's: :func:`textured_mesh`), each base colour texture glTF carries
+    (:func:`carried_texture`) is a ``baseColorTexture`` (texCoord 0) of an image ``textures/texture-<name>.png``
+    (the codes the scene holds, added to ``files``) with its sampler (:func:`gltf_sampler`) and ``to_uv`` as
+    ``KHR_texture_transform`` (:func:`gltf_uv_transform`); ``asset.extras.textures`` holds every texture's
+    scene.json entry and the nodes' ``extras.textures`` the textured parameters' texture names.
     """
     chunks: list[bytes] = []
     views: list[dict] = []
@@ -168,25 +311,59 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
     meshes: list[dict] = []
     used: list[str] = []
     taken: set[str] = set()
+    textured = bool(scene.used_textures)
+    images: list[dict] = []
+    samplers: list[dict] = []
+    textures: list[dict] = []
+    texture_index: dict[str, int] = {}
+
+    def texture_info(texture) -> dict:
+        """The ``baseColorTexture`` of a texture glTF carries: its image, sampler and transform."""
+        if texture.name not in texture_index:
+            path = export_path(texture)
+            if files is not None:
+                files[path] = encode_png(texture.image)
+            images.append({"name": safe_name(texture.name), "uri": path, "mimeType": "image/png"})
+            samplers.append(gltf_sampler(texture))
+            textures.append({"name": safe_name(texture.name), "sampler": len(samplers) - 1, "source": len(images) - 1})
+            texture_index[texture.name] = len(textures) - 1
+        info: dict = {"index": texture_index[texture.name], "texCoord": 0}
+        transform = gltf_uv_transform(texture.to_uv)
+        if transform:
+            info["extensions"] = {GLTF_TEXTURE_TRANSFORM: transform}
+            if GLTF_TEXTURE_TRANSFORM not in used:
+                used.append(GLTF_TEXTURE_TRANSFORM)
+        return info
+
     for shape in scene.shapes:
-        vertices, triangles = shape_triangles(shape)
+        material = scene.materials[shape.material]
+        if textured:
+            vertices, triangles, uv = textured_mesh(shape)
+        else:
+            (vertices, triangles), uv = shape_triangles(shape), None
         positions = np.asarray(vertices, dtype="<f4")
         position = accessor(positions, 34962, 5126, "VEC3",  # ARRAY_BUFFER, FLOAT
                             min=[float(x) for x in positions.min(axis=0)],
                             max=[float(x) for x in positions.max(axis=0)])
+        attributes = {"POSITION": position}
+        if uv is not None:
+            attributes["TEXCOORD_0"] = accessor(np.asarray(uv, dtype="<f4"), 34962, 5126, "VEC2")
         indices = accessor(np.asarray(triangles, dtype="<u4").ravel(), 34963, 5125, "SCALAR")  # UNSIGNED_INT
-        material = scene.materials[shape.material]
         key = (shape.material, tuple(shape.emission) if shape.is_emitter else None)
         if key not in material_index:
             material_index[key] = len(materials)
-            materials.append(_gltf_shape_material(shape, material))
+            carried = carried_texture(material)
+            materials.append(_gltf_shape_material(shape, material,
+                                                  None if carried is None else texture_info(carried)))
             used += [e for e in materials[-1].get("extensions", {}) if e not in used]
         name = _unique(safe_name(shape.name), taken)
         meshes.append({"name": name, "primitives": [
-            {"attributes": {"POSITION": position}, "indices": indices, "mode": 4, "material": material_index[key]}]})
+            {"attributes": attributes, "indices": indices, "mode": 4, "material": material_index[key]}]})
         extras: dict = {"material": shape.material, "reflectance": [float(x) for x in material.reflectance]}
         if not material.is_diffuse:
-            extras["bsdf"] = plain(bsdf_dict(material))  # Mitsuba's plugin and parameters, for a reader wanting all
+            extras["bsdf"] = _extras_bsdf(material)  # Mitsuba's plugin and parameters, for a reader wanting all
+        if material.textures:
+            extras["textures"] = {item: texture.name for item, texture in material.textures}
         if shape.is_emitter:
             extras["emission"] = [float(x) for x in shape.emission]
         nodes.append({"name": name, "mesh": len(meshes) - 1, "extras": extras})
@@ -199,15 +376,19 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
             node["extensions"] = {GLTF_LIGHTS: {"light": len(lights)}}
             lights.append(light)
             nodes.append(node)
+    settings = gltf_render_settings(scene)
+    if textured:
+        settings["textures"] = {t.name: _texture_extras(t, t.name in texture_index) for t in scene.used_textures}
     document: dict = {
-        "asset": {"version": "2.0", "generator": "rendering-harness (harness export)",
-                  "extras": gltf_render_settings(scene)},
+        "asset": {"version": "2.0", "generator": "rendering-harness (harness export)", "extras": settings},
         "scene": 0, "scenes": [{"name": scene.name, "nodes": list(range(len(nodes)))}],
         "nodes": nodes, "cameras": [camera],
     }
     if meshes:
         document.update(meshes=meshes, materials=materials, accessors=accessors, bufferViews=views,
                         buffers=[{"uri": buffer_name, "byteLength": sum(map(len, chunks))}])
+    if textures:
+        document.update(textures=textures, images=images, samplers=samplers)
     if lights:
         document["extensions"] = {GLTF_LIGHTS: {"lights": lights}}
         used.append(GLTF_LIGHTS)
@@ -216,11 +397,19 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin") -> tuple[dict, b
     return document, b"".join(chunks)
 
 
+def _texture_extras(texture, written: bool) -> dict:
+    """A texture's scene.json entry (docs/scene-json.md), its ``filename`` only where the export wrote the file."""
+    entry = TEXTURES[texture.type].to_scene_json(texture)
+    if not written:
+        entry.pop("filename", None)
+    return plain(entry)
+
+
 def _mtl_number(value: float) -> str:
     return repr(float(value) + 0.0)
 
 
-def obj_text(scene: Scene, mtl_name: str = "scene.mtl") -> tuple[str, str]:
+def obj_text(scene: Scene, mtl_name: str = "scene.mtl", files: dict[str, bytes] | None = None) -> tuple[str, str]:
     """The scene as OBJ text and its MTL text, holding only what the scene says.
 
     OBJ: one ``o`` object per shape (world-space triangles as the core triangulates them, counter-clockwise seen
@@ -230,27 +419,50 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl") -> tuple[str, str]:
     emitting shape, ``Ke`` = its radiance (W m^-2 sr^-1, from the front side; a common extension, which Blender's
     OBJ importer reads as emission colour Ke / its largest channel and strength = that channel). No other term
     (no ``Ka``, ``Ks``, ``Ns``, ``illum``): a reader's defaults decide those (docs/external-renderers.md).
+
+    A scene with textures: every vertex has a ``vt`` = (u, 1 - v) (OBJ's v points up; Mitsuba's OBJ loader flips it
+    back) of Mitsuba's coordinates (:func:`textured_mesh`) mapped by the ``to_uv`` of the texture the shape's
+    ``map_Kd`` shows, faces ``v/vt``; a base colour texture MTL carries (:func:`carried_texture`) is ``map_Kd
+    textures/texture-<name>.png`` (the codes the scene holds, added to ``files``) with ``Kd`` its factor (1 for a
+    diffuse material: MTL multiplies the two).
     """
     obj = [f"# {scene.name}: exported by rendering-harness (harness export)", f"mtllib {mtl_name}"]
     mtl = [f"# {scene.name}: materials exported by rendering-harness (harness export)"]
     names: dict[tuple, str] = {}
     taken_mtl: set[str] = set()
     taken_obj: set[str] = set()
+    textured = bool(scene.used_textures)
     offset = 1
     for shape in scene.shapes:
         material = scene.materials[shape.material]
+        carried = carried_texture(material)
         key = (shape.material, tuple(shape.emission) if shape.is_emitter else None)
         if key not in names:
             base = safe_name(shape.material) + (f"-emit-{safe_name(shape.name)}" if shape.is_emitter else "")
             names[key] = _unique(base, taken_mtl)
-            factors, _ = gltf_material(material)
+            factors, _ = gltf_material(exported_material(material))
             mtl += ["", f"newmtl {names[key]}", "Kd " + " ".join(map(_mtl_number, factors["baseColorFactor"][:3]))]
+            if carried is not None:
+                path = export_path(carried)
+                if files is not None:
+                    files[path] = encode_png(carried.image)
+                mtl.append(f"map_Kd {path}")
             if shape.is_emitter:
                 mtl.append("Ke " + " ".join(map(_mtl_number, shape.emission)))
-        vertices, triangles = shape_triangles(shape)
+        if textured:
+            vertices, triangles, uv = textured_mesh(shape)
+            if carried is not None:
+                uv = mapped_uv(uv, carried.to_uv)
+        else:
+            (vertices, triangles), uv = shape_triangles(shape), None
         obj += ["", f"o {_unique(safe_name(shape.name), taken_obj)}", f"usemtl {names[key]}"]
         obj += [f"v {_mtl_number(x)} {_mtl_number(y)} {_mtl_number(z)}" for x, y, z in np.asarray(vertices, np.float64)]
-        obj += [f"f {a + offset} {b + offset} {c + offset}" for a, b, c in np.asarray(triangles, np.int64)]
+        triangles = np.asarray(triangles, np.int64) + offset
+        if uv is None:
+            obj += [f"f {a} {b} {c}" for a, b, c in triangles]
+        else:
+            obj += [f"vt {_mtl_number(u)} {_mtl_number(1.0 - v)}" for u, v in np.asarray(uv, np.float64)]
+            obj += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in triangles]
         offset += len(vertices)
     return "\n".join(obj) + "\n", "\n".join(mtl) + "\n"
 
@@ -274,6 +486,66 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
             losses.append(f"glTF 2.0 has no environment light: left out {names(lost)} (KHR_lights_punctual has "
                           "point, spot and directional lights only)")
         losses += _gltf_material_losses(glossy)
+    if fmt in ("gltf", "obj"):
+        losses += _texture_losses(scene, fmt)
+    return losses
+
+
+def _texture_losses(scene: Scene, fmt: str) -> list[str]:
+    """What glTF (``fmt`` "gltf") or OBJ/MTL ("obj") cannot say exactly of the scene's textures, one line per kind of
+    loss naming the textures (and materials, shapes) it applies to (docs/external-renderers.md)."""
+    gltf = fmt == "gltf"
+    where = "glTF" if gltf else "MTL"
+    slot = "baseColorTexture" if gltf else "map_Kd"
+    lost: dict[str, list[str]] = {}
+
+    def add(kind: str, text: str) -> None:
+        lost.setdefault(kind, [])
+        if text not in lost[kind]:
+            lost[kind].append(text)
+
+    for material in scene.materials.values():
+        base = base_colour_parameter(material)
+        for item, texture in material.textures:
+            label = f"{texture.name} ({material.name}.{item})"
+            if item != base:
+                add("parameter", label)
+            elif texture.type == "checkerboard":
+                add("checkerboard", label)
+            elif texture.image.dtype != np.uint8:
+                add("float", label)
+            elif texture.raw:
+                add("raw", label)
+            elif gltf and gltf_uv_transform(texture.to_uv) is None:
+                add("shear", texture.name)
+            elif not gltf and (texture.filter_type, texture.wrap_mode) != ("bilinear", "repeat"):
+                add("sampler", f"{texture.name} ({texture.filter_type}, {texture.wrap_mode})")
+    carried = {m.name for m in scene.materials.values() if carried_texture(m) is not None}
+    spheres = [s.name for s in scene.shapes if s.material in carried and SHAPES[s.type].sphere is not None]
+    messages = {
+        "checkerboard": f"{where} has no procedural textures: checkerboard {{}} written as the mean colour "
+                        "(color0 + color1) / 2 of each",
+        "float": f"{where}'s {slot} here is an 8-bit sRGB PNG: float (EXR) texture {{}} written as the mean "
+                 "value of each",
+        "raw": f"{where}'s {slot} is decoded as sRGB: raw texture {{}} (code / 255) written as the "
+               "mean value of each",
+        "parameter": f"{where} has a texture for the base colour only: {{}} left out",
+        "shear": "KHR_texture_transform has no shear: to_uv of {} left out (the texture is read at Mitsuba's "
+                 "untransformed coordinates)",
+        "sampler": "MTL has no filter or wrap mode: texture {} is filtered and wrapped as the reader's default "
+                   "(usually bilinear, repeat)",
+    }
+    losses = [messages[kind].format(", ".join(items)) for kind, items in lost.items()]
+    glowing = [f"{s.name} ({s.emission_texture.name})" for s in scene.shapes
+               if getattr(s, "emission_texture", None) is not None]
+    if glowing:
+        losses.append(f"the {fmt} export carries no emission texture: light(s) {', '.join(glowing)} written with "
+                      "the texture's mean radiance")
+    if spheres:
+        losses.append(f"{'glTF' if gltf else 'OBJ'} has no analytic sphere: the textured icosphere(s) "
+                      f"{', '.join(spheres)} carry Mitsuba's texture coordinates at their vertices (seam and poles "
+                      "split), interpolated across each facet where Mitsuba's are exact at every point; a wrap mode "
+                      "other than repeat differs on the facets across the seam")
     return losses
 
 
@@ -294,10 +566,6 @@ def scene_files(scene: Scene, fmt: str, *, spp: int = 16, seed: int = 0) -> dict
     first (``spp`` and ``seed``: the defaults of the Mitsuba XML's ``$spp`` and ``$seed``)."""
     if fmt not in FORMATS:
         raise HarnessError("--format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
-    if fmt in ("gltf", "obj") and scene.used_textures:
-        raise HarnessError(str(scene.path), f"the {fmt} export does not carry textures yet (textures: "
-                                            f"{', '.join(t.name for t in scene.used_textures)}): export it as "
-                                            "mitsuba-xml or json")
     files: dict[str, bytes] = {}
     if fmt == "mitsuba-xml":
         text, meshes = mitsuba_xml(scene, spp=spp, seed=seed)
@@ -311,14 +579,18 @@ def scene_files(scene: Scene, fmt: str, *, spp: int = 16, seed: int = 0) -> dict
         for shape in scene.shapes:
             files[f"{shape.index}-{safe_name(shape.name)}.ply"] = ply_bytes(*shape_triangles(shape))
     elif fmt == "obj":
-        obj, mtl = obj_text(scene, mtl_name="scene.mtl")
+        textures: dict[str, bytes] = {}
+        obj, mtl = obj_text(scene, mtl_name="scene.mtl", files=textures)
         files["scene.obj"] = obj.encode("utf-8")
         files["scene.mtl"] = mtl.encode("utf-8")
+        files.update(textures)
     else:
-        document, buffer = gltf_document(scene, buffer_name="scene.bin")
+        textures = {}
+        document, buffer = gltf_document(scene, buffer_name="scene.bin", files=textures)
         files["scene.gltf"] = json.dumps(document, separators=(",", ":"), allow_nan=False).encode("utf-8")
         if buffer:
             files["scene.bin"] = buffer
+        files.update(textures)
     return files
 
 

@@ -17,19 +17,23 @@ import pygltflib
 import pytest
 import trimesh
 from trimesh.exchange.obj import parse_mtl
+from trimesh.resolvers import FilePathResolver
 
-from harness.core.errors import HarnessError
-from harness.files.imageio import read_exr
+from harness.files.imageio import read_exr, write_exr
 from harness.renderers import RenderRequest, get_renderer
-from harness.renderers.export import export_scene
+from harness.renderers.export import (GLTF_FILTERS, GLTF_WRAPS, export_losses, export_scene, gltf_uv_transform,
+                                      sphere_corner_uv)
 from harness.renderers.meshfiles import safe_name
+from harness.scene.kinds.textures import export_path
 from harness.renderers.mitsuba_spec import RR_DEPTH, bsdf_dict, clip_planes
 from harness.renderers.scene_json import FILTERS
 from harness.running.cases import load_suite
 from harness.running.judge import case_scene
 from harness.scene import load_scene
 from harness.scene.kinds.materials import normal_incidence_reflectance
+from harness.scene.kinds.shapes import SHAPES
 from harness.scene.triangulate import shape_triangles, vertex_uv
+from reference_impl.textures import srgb_to_linear
 from reference_impl import Film
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -52,14 +56,71 @@ def test_the_colour_check_rejects_eight_bit_colours():
     assert same32([0.885809], [0.885809])
 
 
-def expected_base_colour(material) -> list[float]:
-    """The glTF base colour of a material (docs/external-renderers.md, "glTF materials"), computed here."""
+def base_texture(material):
+    """The texture of the parameter a material's glTF base colour comes from, or None."""
     if material.is_diffuse:
-        return list(material.reflectance)
+        return material.texture("reflectance")
+    return material.texture("specular_reflectance" if material.is_conductor else "specular_transmittance")
+
+
+def carried(texture) -> bool:
+    """Whether glTF's baseColorTexture and MTL's map_Kd hold the texture: an 8-bit sRGB bitmap."""
+    return texture is not None and texture.type == "bitmap" and texture.image.dtype == np.uint8 and not texture.raw
+
+
+def texture_mean(texture) -> list[float]:
+    """What an export writes for a texture it cannot carry: its mean value (docs/external-renderers.md)."""
+    if texture.type == "checkerboard":
+        return [(a + b) / 2 for a, b in zip(texture.color0, texture.color1)]
+    image = texture.image
+    linear = (image / 255.0 if texture.raw else srgb_to_linear(image)) if image.dtype == np.uint8 else image
+    return list(np.asarray(linear, np.float64).reshape(-1, 3).mean(axis=0))
+
+
+def expected_base_colour(material) -> list[float]:
+    """The glTF base colour factor of a material (docs/external-renderers.md, "glTF materials"), computed here: the
+    texture's parameter white where the format carries the texture (it multiplies the factor), else its mean."""
+    texture = base_texture(material)
+    colour = None if texture is None else ([1.0, 1.0, 1.0] if carried(texture) else texture_mean(texture))
+    if material.is_diffuse:
+        return list(colour or material.reflectance)
     if material.is_conductor:
         f0 = normal_incidence_reflectance(material.eta, material.k)
-        return [min(1.0, f * r) for f, r in zip(f0, material.specular_reflectance)]
-    return list(material.specular_transmittance)
+        return [min(1.0, f * r) for f, r in zip(f0, colour or material.specular_reflectance)]
+    return list(colour or material.specular_transmittance)
+
+
+def expected_extras_bsdf(material) -> dict:
+    """A node's extras.bsdf: the Mitsuba plugin dict as JSON, each textured parameter ``{"texture": NAME}``."""
+    spec = bsdf_dict(material)
+    inner = spec["bsdf"] if spec["type"] == "twosided" else spec
+    for item, texture in material.textures:
+        inner[item] = {"texture": texture.name}
+    return json.loads(json.dumps(spec))
+
+
+def expected_uv(shape, triangles) -> np.ndarray:
+    """Mitsuba's texture coordinates at the corners of a shape's triangles (T, 3, 2) as an export writes them: the
+    vertices' (0 for a mesh without them), a sphere's analytic ones at its icosphere's vertices."""
+    if SHAPES[shape.type].sphere is not None:
+        return sphere_corner_uv(shape, triangles)
+    uv = vertex_uv(shape)
+    return (np.zeros((int(np.max(triangles)) + 1, 2)) if uv is None else uv)[triangles]
+
+
+def check_sphere_uv(shape, corners: np.ndarray) -> None:
+    """A sphere's corner coordinates: Mitsuba's analytic ones (u modulo 1) but at the poles, and no triangle's u
+    spans the seam."""
+    vertices, triangles = shape_triangles(shape)
+    to_object = np.linalg.inv(SHAPES[shape.type].object_to_world(shape))
+    points = (vertices @ to_object[:3, :3].T + to_object[:3, 3])[triangles]
+    radius = np.linalg.norm(points, axis=-1)
+    away = np.hypot(points[..., 0], points[..., 1]) > 1e-6 * radius
+    u = (np.arctan2(points[..., 1], points[..., 0]) / (2 * np.pi)) % 1.0
+    v = np.arccos(np.clip(points[..., 2] / radius, -1, 1)) / np.pi
+    np.testing.assert_allclose(np.asarray(corners[..., 1], np.float64), v, atol=1e-6)
+    np.testing.assert_allclose((np.asarray(corners[..., 0], np.float64) % 1.0)[away], u[away], atol=1e-6)
+    assert np.ptp(corners[..., 0], axis=1).max() < 0.5  # no facet runs the texture's whole width across the seam
 
 
 # ---- glTF -----------------------------------------------------------------------------------------------------------
@@ -71,8 +132,8 @@ def _accessor(gltf: pygltflib.GLTF2, folder: Path, index: int) -> np.ndarray:
     view = gltf.bufferViews[accessor.bufferView]
     data = (folder / gltf.buffers[view.buffer].uri).read_bytes()
     start = view.byteOffset + (accessor.byteOffset or 0)
-    dtype, width = {(pygltflib.FLOAT, "VEC3"): ("<f4", 3), (pygltflib.UNSIGNED_INT, "SCALAR"): ("<u4", 1)}[
-        (accessor.componentType, accessor.type)]
+    dtype, width = {(pygltflib.FLOAT, "VEC3"): ("<f4", 3), (pygltflib.FLOAT, "VEC2"): ("<f4", 2),
+                    (pygltflib.UNSIGNED_INT, "SCALAR"): ("<u4", 1)}[(accessor.componentType, accessor.type)]
     values = np.frombuffer(data, dtype=dtype, count=accessor.count * width, offset=start)
     return values.reshape(accessor.count, width) if width > 1 else values
 
@@ -90,12 +151,9 @@ def _gltf_ndc(node_matrix, camera, directions) -> np.ndarray:
 @pytest.mark.parametrize("name", CANONICAL)
 def test_gltf_reads_back_exactly(name, tmp_path):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
-    if scene.used_textures:  # refused in one line until the gltf export carries textures
-        with pytest.raises(HarnessError, match="does not carry textures yet"):
-            export_scene(scene, "gltf", tmp_path)
-        return
     files = export_scene(scene, "gltf", tmp_path)
     gltf = pygltflib.GLTF2().load(str(files[0]))
+    check_gltf_textures(scene, gltf, tmp_path)
     mesh_nodes = [n for n in gltf.nodes if n.mesh is not None]
     assert [n.extras["material"] for n in mesh_nodes] == [s.material for s in scene.shapes]
     for shape, node in zip(scene.shapes, mesh_nodes):
@@ -107,7 +165,8 @@ def test_gltf_reads_back_exactly(name, tmp_path):
         assert same32(node.extras["reflectance"], material.reflectance)
         assert (node.extras.get("bsdf") is None) == material.is_diffuse
         if not material.is_diffuse:
-            assert node.extras["bsdf"] == json.loads(json.dumps(bsdf_dict(material)))
+            assert node.extras["bsdf"] == expected_extras_bsdf(material)
+        assert node.extras.get("textures", {}) == {item: texture.name for item, texture in material.textures}
         strength = entry.extensions.get("KHR_materials_emissive_strength", {}).get("emissiveStrength")
         if shape.is_emitter:
             assert max(entry.emissiveFactor) == 1.0 and strength == max(shape.emission)
@@ -116,8 +175,20 @@ def test_gltf_reads_back_exactly(name, tmp_path):
         else:
             assert strength is None and (entry.emissiveFactor or [0, 0, 0]) == [0, 0, 0]
         vertices, triangles = shape_triangles(shape)
-        np.testing.assert_array_equal(_accessor(gltf, tmp_path, primitive.attributes.POSITION), np.float32(vertices))
-        np.testing.assert_array_equal(_accessor(gltf, tmp_path, primitive.indices), np.ravel(triangles))
+        positions = _accessor(gltf, tmp_path, primitive.attributes.POSITION)
+        indices = _accessor(gltf, tmp_path, primitive.indices).reshape(-1, 3)
+        if scene.used_textures and SHAPES[shape.type].sphere is not None:  # seam and pole vertices repeated
+            np.testing.assert_array_equal(positions[indices], np.float32(vertices)[triangles])
+        else:
+            np.testing.assert_array_equal(positions, np.float32(vertices))
+            np.testing.assert_array_equal(indices, triangles)
+        if not scene.used_textures:
+            assert primitive.attributes.TEXCOORD_0 is None
+            continue
+        uv = _accessor(gltf, tmp_path, primitive.attributes.TEXCOORD_0)[indices]  # float32, the corners'
+        if SHAPES[shape.type].sphere is not None:
+            check_sphere_uv(shape, uv)
+        np.testing.assert_array_equal(uv, np.float32(expected_uv(shape, triangles)))  # no flip: v down in both
     if any(s.is_emitter for s in scene.shapes):
         assert "KHR_materials_emissive_strength" in gltf.extensionsUsed
     # the camera: its frustum, and the same four image corners as the scene's camera
@@ -145,9 +216,63 @@ def test_gltf_reads_back_exactly(name, tmp_path):
     wrong = _gltf_ndc(mitsuba_to_world.T.ravel(), perspective, directions)
     assert not np.allclose(wrong, want, atol=1e-6)
     # the render settings
-    assert gltf.asset.extras == {"film": {"width": film.width, "height": film.height,
-                                          "filter": FILTERS[film.filter]},
-                                 "max_depth": scene.max_depth, "rr_depth": RR_DEPTH}
+    extras = dict(gltf.asset.extras)
+    textures = extras.pop("textures", None)
+    assert extras == {"film": {"width": film.width, "height": film.height, "filter": FILTERS[film.filter]},
+                      "max_depth": scene.max_depth, "rr_depth": RR_DEPTH}
+    assert (textures is None) == (not scene.used_textures)
+    for texture in scene.used_textures:  # the scene.json entries, a file named only where it was written
+        entry = dict(textures[texture.name])
+        assert ("filename" in entry) == carried(texture)
+        np.testing.assert_array_equal(entry.pop("to_uv"), texture.to_uv)
+        if "filename" in entry:
+            np.testing.assert_array_equal(iio.imread(tmp_path / entry.pop("filename")), texture.image)
+        assert entry.pop("type") == texture.type
+        for parameter, value in entry.items():
+            assert _equal(value, getattr(texture, parameter)), (texture.name, parameter, value)
+
+
+def _trs(transform: dict) -> np.ndarray:
+    """KHR_texture_transform's matrix T(offset) R(rotation) S(scale), its rotation as the extension's example, sample
+    model and readers take it (R(r) = [[cos r, sin r], [-sin r, cos r]], KhronosGroup/glTF#1563)."""
+    (tu, tv), (su, sv) = transform.get("offset", [0, 0]), transform.get("scale", [1, 1])
+    r = transform.get("rotation", 0)
+    return (np.array([[1, 0, tu], [0, 1, tv], [0, 0, 1.0]])
+            @ np.array([[math.cos(r), math.sin(r), 0], [-math.sin(r), math.cos(r), 0], [0, 0, 1]])
+            @ np.diag([su, sv, 1.0]))
+
+
+def check_gltf_textures(scene, gltf: pygltflib.GLTF2, folder: Path) -> None:
+    """Every base colour texture glTF carries: its image (the scene's codes, bit for bit), its sampler (filter and
+    wrap mode) and to_uv (KHR_texture_transform, the same matrix); every material's other textures nowhere."""
+    mesh_nodes = [n for n in gltf.nodes if n.mesh is not None]
+    for shape, node in zip(scene.shapes, mesh_nodes):
+        material = scene.materials[shape.material]
+        (primitive,) = gltf.meshes[node.mesh].primitives
+        info = gltf.materials[primitive.material].pbrMetallicRoughness.baseColorTexture
+        texture = base_texture(material)
+        if not carried(texture):
+            assert info is None
+            continue
+        assert info.texCoord == 0 and primitive.attributes.TEXCOORD_0 is not None
+        entry = gltf.textures[info.index]
+        image = gltf.images[entry.source]
+        assert image.uri.endswith(".png") and image.mimeType == "image/png"
+        np.testing.assert_array_equal(iio.imread(folder / image.uri), texture.image)
+        sampler = gltf.samplers[entry.sampler]
+        assert (sampler.magFilter, sampler.minFilter) == (GLTF_FILTERS[texture.filter_type],) * 2
+        assert (sampler.wrapS, sampler.wrapT) == (GLTF_WRAPS[texture.wrap_mode],) * 2
+        transform = (info.extensions or {}).get("KHR_texture_transform")
+        if np.array_equal(texture.to_uv, np.eye(3)):
+            assert transform is None
+        elif gltf_uv_transform(texture.to_uv) is None:  # a shear: left out, a loss
+            assert transform is None
+            assert any("no shear" in line and texture.name in line for line in export_losses(scene, "gltf"))
+        else:
+            np.testing.assert_allclose(_trs(transform), texture.to_uv, rtol=0, atol=1e-15 * np.abs(texture.to_uv).max())
+            assert "KHR_texture_transform" in gltf.extensionsUsed
+    assert len(gltf.textures or []) == len({t.name for m in scene.materials.values()
+                                            for t in [base_texture(m)] if carried(t)})
 
 
 # ---- OBJ / MTL ------------------------------------------------------------------------------------------------------
@@ -167,31 +292,182 @@ def _usemtl_of_objects(text: str) -> list[str]:
 @pytest.mark.parametrize("name", CANONICAL)
 def test_obj_and_mtl_read_back_exactly(name, tmp_path):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
-    if scene.used_textures:  # refused in one line until the obj export carries textures
-        with pytest.raises(HarnessError, match="does not carry textures yet"):
-            export_scene(scene, "obj", tmp_path)
-        return
     files = export_scene(scene, "obj", tmp_path)
-    assert [f.name for f in files] == ["scene.obj", "scene.mtl"]
-    materials = parse_mtl((tmp_path / "scene.mtl").read_text())
+    images = sorted({export_path(t) for m in scene.materials.values() for t in [base_texture(m)] if carried(t)})
+    assert [f.relative_to(tmp_path).as_posix() for f in files] == ["scene.obj", "scene.mtl", *images]
+    materials = parse_mtl((tmp_path / "scene.mtl").read_text(), resolver=FilePathResolver(str(tmp_path)))
     uses = _usemtl_of_objects(files[0].read_text())
     assert len(uses) == len(scene.shapes)
     for shape, mtl_name in zip(scene.shapes, uses):
         entry = materials[mtl_name]
-        assert set(entry) <= {"name", "kd", "diffuse", "ke"}, entry  # nothing the scene does not say: no Ks, Ka, Ns
+        # nothing the scene does not say: no Ks, Ka, Ns
+        assert set(entry) <= {"name", "kd", "diffuse", "ke", "image"}, entry
         assert same32(entry["kd"], expected_base_colour(scene.materials[shape.material])), (shape.name, entry["kd"])
+        texture = base_texture(scene.materials[shape.material])
+        assert ("image" in entry) == carried(texture)
+        if carried(texture):  # map_Kd: the scene's codes, bit for bit
+            assert entry["image"].info["file_path"] == export_path(texture)
+            np.testing.assert_array_equal(np.asarray(entry["image"].convert("RGB")), texture.image)
         if shape.is_emitter:
             assert same32([float(x) for x in entry["ke"]], shape.emission)
         else:
             assert "ke" not in entry
     # the geometry, per material group as trimesh loads it: the core's triangles, float64 exact
-    loaded = trimesh.load(files[0], process=False, maintain_order=True, force="scene")
+    # trimesh (4.x) drops the uv of every object but the first with maintain_order when faces are v/vt; without
+    # it the faces keep their order all the same
+    loaded = trimesh.load(files[0], process=False, maintain_order=not scene.used_textures, force="scene")
     groups = {mesh.visual.material.name: mesh for mesh in loaded.geometry.values()}
     assert sorted(groups) == sorted(set(uses))
     for mtl_name, mesh in groups.items():
-        want = np.concatenate([np.asarray(shape_triangles(s)[0])[shape_triangles(s)[1]]
-                               for s, used in zip(scene.shapes, uses) if used == mtl_name])
+        shapes = [s for s, used in zip(scene.shapes, uses) if used == mtl_name]
+        want = np.concatenate([np.asarray(shape_triangles(s)[0])[shape_triangles(s)[1]] for s in shapes])
         np.testing.assert_array_equal(mesh.vertices[mesh.faces], want)
+        if not scene.used_textures:
+            assert getattr(mesh.visual, "uv", None) is None
+            continue
+        # vt = (u', 1 - v') of Mitsuba's (u, v) mapped by the map_Kd texture's to_uv: OBJ's v points up
+        texture = base_texture(scene.materials[shapes[0].material])
+        to_uv = texture.to_uv if carried(texture) else np.eye(3)
+        corners = np.concatenate([expected_uv(s, shape_triangles(s)[1]) for s in shapes])
+        for shape, part in zip(shapes, np.split(mesh.visual.uv[mesh.faces], np.cumsum(
+                [len(shape_triangles(s)[1]) for s in shapes])[:-1])):
+            if SHAPES[shape.type].sphere is not None and np.array_equal(to_uv, np.eye(3)):
+                check_sphere_uv(shape, np.stack([part[..., 0], 1.0 - part[..., 1]], axis=-1))
+        mapped = corners if np.array_equal(to_uv, np.eye(3)) else corners @ to_uv[:2, :2].T + to_uv[:2, 2]
+        np.testing.assert_array_equal(mesh.visual.uv[mesh.faces], np.stack([mapped[..., 0], 1.0 - mapped[..., 1]],
+                                                                             axis=-1))
+
+
+# ---- textures the canonical scenes lack ------------------------------------------------------------------------------
+
+TEXTURED = """
+name = "textured-mix"
+[camera]
+origin = [0.0, 0.0, 4.0]
+target = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 40.0
+[film]
+width = 8
+height = 6
+[textures.turned]
+filename = "codes.png"
+filter_type = "nearest"
+wrap_mode = "mirror"
+to_uv = { translate = [0.25, -0.5], rotate = 30.0, scale = [2.0, -3.0] }
+[textures.edge]
+filename = "codes.png"
+wrap_mode = "clamp"
+to_uv = [[1.0, 0.5, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+[textures.float]
+filename = "float.exr"
+[textures.raw]
+filename = "codes.png"
+raw = true
+[textures.checks]
+type = "checkerboard"
+color0 = [0.9, 0.5, 0.1]
+color1 = [0.1, 0.2, 0.3]
+[materials.turned]
+reflectance = { texture = "turned" }
+[materials.edge]
+reflectance = { texture = "edge" }
+[materials.float]
+reflectance = { texture = "float" }
+[materials.raw]
+reflectance = { texture = "raw" }
+[materials.mirror]
+type = "conductor"
+specular_reflectance = { texture = "turned" }
+[materials.glass]
+type = "dielectric"
+specular_reflectance = { texture = "checks" }
+[[shapes]]
+name = "a"
+type = "rectangle"
+material = "turned"
+[[shapes]]
+name = "b"
+type = "cube"
+material = "edge"
+scale = 0.3
+[[shapes]]
+name = "c"
+type = "rectangle"
+material = "float"
+translate = [0.0, 0.0, -1.0]
+[[shapes]]
+name = "d"
+type = "rectangle"
+material = "raw"
+translate = [0.0, 0.0, -2.0]
+[[shapes]]
+name = "e"
+type = "cube"
+material = "mirror"
+translate = [1.0, 0.0, 0.0]
+scale = 0.2
+[[shapes]]
+name = "f"
+type = "rectangle"
+material = "glass"
+translate = [0.0, 1.0, 0.0]
+"""
+
+
+@pytest.fixture(scope="module")
+def textured_mix(tmp_path_factory) -> Path:
+    """A scene with what the canonical scenes' textures lack: a rotated, mirrored and translated to_uv with nearest
+    filtering and mirror wrapping (on a diffuse and on a mirror conductor: glTF's base colour texture of a metal), a
+    clamped texture with a shear, an EXR, a raw PNG and a checkerboard on a dielectric's specular_reflectance."""
+    folder = tmp_path_factory.mktemp("textured-mix")
+    codes = np.random.default_rng(5).integers(0, 256, size=(3, 5, 3), dtype=np.uint8)
+    iio.imwrite(folder / "codes.png", codes)
+    write_exr(folder / "float.exr", np.linspace(0.0, 1.0, 4 * 3 * 3, dtype=np.float32).reshape(4, 3, 3))
+    (folder / "textured-mix.toml").write_text(TEXTURED)
+    return folder / "textured-mix.toml"
+
+
+def test_gltf_and_obj_carry_the_textures_they_can_and_name_the_rest(textured_mix, tmp_path):
+    scene = load_scene(textured_mix)
+    assert gltf_uv_transform(scene.textures["turned"].to_uv)["rotation"] == pytest.approx(-math.radians(30.0))
+    assert gltf_uv_transform(scene.textures["edge"].to_uv) is None  # a shear
+    files = export_scene(scene, "gltf", tmp_path / "gltf")
+    gltf = pygltflib.GLTF2().load(str(files[0]))
+    check_gltf_textures(scene, gltf, tmp_path / "gltf")
+    assert [f.relative_to(tmp_path / "gltf").as_posix() for f in files] == [
+        "scene.gltf", "scene.bin", "textures/texture-turned.png", "textures/texture-edge.png"]
+    for shape, node in zip(scene.shapes, [n for n in gltf.nodes if n.mesh is not None]):
+        material = scene.materials[shape.material]
+        (primitive,) = gltf.meshes[node.mesh].primitives
+        pbr = gltf.materials[primitive.material].pbrMetallicRoughness
+        assert same32(pbr.baseColorFactor, [*expected_base_colour(material), 1.0]), shape.name
+        json.dumps(node.extras, allow_nan=False)  # JSON values only: each texture by name
+    gltf_losses = export_losses(scene, "gltf")
+    for words in (["base colour only", "checks (glass.specular_reflectance)"], ["KHR_texture_transform", "edge"],
+                  ["float (EXR)", "float (float.reflectance)"], ["raw texture raw (raw.reflectance)"]):
+        assert sum(all(w in line for w in words) for line in gltf_losses) == 1, (words, gltf_losses)
+    assert not any("analytic sphere" in line for line in gltf_losses)
+    furnace = load_scene(ROOT / "scenes" / "textured-furnace.toml")  # a textured sphere: its icosphere's uv
+    for fmt in ("gltf", "obj"):
+        assert sum("has no analytic sphere" in line and " ball " in line for line in export_losses(furnace, fmt)) == 1
+    # OBJ: map_Kd for the sRGB PNGs, to_uv applied to vt (a shear too), the sampler named as a loss
+    test_files = export_scene(scene, "obj", tmp_path / "obj")
+    assert [f.relative_to(tmp_path / "obj").as_posix() for f in test_files] == [
+        "scene.obj", "scene.mtl", "textures/texture-turned.png", "textures/texture-edge.png"]
+    mtl = (tmp_path / "obj" / "scene.mtl").read_text()
+    assert mtl.count("map_Kd textures/texture-turned.png") == 2 and mtl.count("map_Kd ") == 3
+    text = test_files[0].read_text()
+    vt = np.array([[float(x) for x in line.split()[1:]] for line in text.splitlines() if line.startswith("vt ")])
+    edge = scene.textures["edge"].to_uv
+    (b,) = [s for s in scene.shapes if s.name == "b"]
+    start = sum(len(shape_triangles(s)[0]) for s in scene.shapes[:1])
+    uv = vertex_uv(b) @ edge[:2, :2].T + edge[:2, 2]
+    np.testing.assert_array_equal(vt[start:start + len(uv)], np.stack([uv[:, 0], 1.0 - uv[:, 1]], axis=1))
+    obj_losses = export_losses(scene, "obj")
+    assert any("MTL has no filter or wrap mode" in line and "turned (nearest, mirror)" in line
+               and "edge (bilinear, clamp)" in line for line in obj_losses), obj_losses
+    assert not any("shear" in line for line in obj_losses)
 
 
 # ---- scene.json -----------------------------------------------------------------------------------------------------
@@ -254,7 +530,9 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
     assert len(document["shapes"]) == len(scene.shapes)
     for entry, shape in zip(document["shapes"], scene.shapes):
         assert (entry["name"], entry["material"]) == (shape.name, shape.material)
-        assert _equal(entry["emission"], shape.emission)
+        glow = getattr(shape, "emission_texture", None)  # a textured light: its texture by name
+        assert entry["emission"] == {"texture": glow.name} if glow is not None else _equal(entry["emission"],
+                                                                                         shape.emission)
         vertices, triangles = shape_triangles(shape)
         mesh = trimesh.load(tmp_path / entry["mesh"], process=False)
         np.testing.assert_array_equal(mesh.vertices, np.float32(vertices))
