@@ -49,6 +49,10 @@ class SceneError(Exception):
     """What the scene asks for cannot be rendered exactly by Cycles (a one-line message)."""
 
 
+#: the planted faults of the texture lookups (--texture-fault)
+TEXTURE_FAULTS = ("v-unflipped", "srgb-after-filter")
+
+
 def fail(message: str) -> None:
     print(f"cycles_render: error: {message}", file=sys.stderr)
     sys.exit(2)
@@ -72,6 +76,10 @@ def parse_args(argv: list[str]) -> argparse.Namespace:
                         help="planted fault: every emission times this factor (default 1)")
     parser.add_argument("--extra-bounces", type=int, default=0,
                         help="planted fault: max_bounces plus this many (default 0)")
+    parser.add_argument("--texture-fault", default=None, choices=TEXTURE_FAULTS,
+                        help="planted fault: v-unflipped reads every bitmap upside down (Blender's v taken as "
+                             "Mitsuba's); srgb-after-filter hands 8-bit sRGB bitmaps to Cycles as sRGB byte images, "
+                             "which Cycles decodes after its filtering, not per texel")
 
     def error(message: str) -> None:
         fail(message)
@@ -133,6 +141,13 @@ _PLY_TYPES = {"char": "i1", "uchar": "u1", "int8": "i1", "uint8": "u1", "short":
 
 def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices (N, 3) and triangles (M, 3) of a binary little-endian PLY whose faces are all triangles."""
+    vertices, triangles, _ = read_ply_uv(path)
+    return vertices, triangles
+
+
+def read_ply_uv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Vertices (N, 3), triangles (M, 3) and the per-vertex texture coordinates (N, 2) of its ``s``, ``t``
+    properties (Mitsuba's uv), or None without them, of a binary little-endian PLY whose faces are all triangles."""
     data = path.read_bytes()
     end = data.find(b"end_header\n")
     if not data.startswith(b"ply") or end < 0:
@@ -148,13 +163,15 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
         elif words[:1] == ["property"]:
             elements[-1][2].append(words[1:])
     offset = end + len(b"end_header\n")
-    vertices = triangles = None
+    vertices = triangles = uv = None
     for name, count, props in elements:
         if name == "vertex":
             dtype = np.dtype([(p[-1], _PLY_TYPES[p[0]]) for p in props])
             table = np.frombuffer(data, dtype, count, offset)
             offset += dtype.itemsize * count
             vertices = np.stack([table["x"], table["y"], table["z"]], axis=1).astype(np.float64)
+            if "s" in dtype.names and "t" in dtype.names:
+                uv = np.stack([table["s"], table["t"]], axis=1).astype(np.float64)
         elif name == "face":
             if len(props) != 1 or props[0][0] != "list":
                 raise SceneError(f"{path}: expected faces with one vertex-index list")
@@ -169,7 +186,7 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
             raise SceneError(f"{path}: unexpected PLY element {name!r}")
     if vertices is None or triangles is None:
         raise SceneError(f"{path}: expected vertex and face elements")
-    return vertices, triangles
+    return vertices, triangles, uv
 
 
 def read_exr_rgb(path: Path) -> np.ndarray:
@@ -312,13 +329,25 @@ def new_material(bpy, name: str):
     return mat, tree
 
 
-def bsdf_node(tree, spec: dict, where: str):
-    """The Cycles BSDF node of a harness material (docs/external-renderers.md, "Cycles", for each mapping)."""
+def set_colour(tree, node, name: str, value, textures: "TextureNodes | None", key: str) -> None:
+    """Input ``name`` of ``node``: a constant RGB, or the output of the texture ``{"texture": NAME}`` names."""
+    target = socket(node, name)
+    if isinstance(value, dict):
+        if textures is None:
+            raise SceneError(f"{key} = {value}: a texture where none can be looked up")
+        tree.links.new(textures.colour(tree, value, key), target)
+    else:
+        target.default_value = (*value, 1.0)
+
+
+def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = None):
+    """The Cycles BSDF node of a harness material (docs/external-renderers.md, "Cycles", for each mapping);
+    ``textures`` builds the lookups of its textured parameters (docs/cycles.md)."""
     kind = spec["type"]
     nodes = tree.nodes
     if kind == "diffuse":
         node = nodes.new("ShaderNodeBsdfDiffuse")
-        socket(node, "Color").default_value = (*spec["reflectance"], 1.0)
+        set_colour(tree, node, "Color", spec["reflectance"], textures, f"{where}.reflectance")
         socket(node, "Roughness").default_value = 0.0
         return node
     if kind in ("conductor", "roughconductor"):
@@ -330,8 +359,12 @@ def bsdf_node(tree, spec: dict, where: str):
         mirror = all(e == 0.0 for e in eta) and all(x == 1.0 for x in k)
         if mirror:  # eta 0, k 1: Fresnel exactly 1 (Mitsuba's material "none"); reflectance = the tint
             node = nodes.new("ShaderNodeBsdfGlossy")
-            socket(node, "Color").default_value = (*tint, 1.0)
+            set_colour(tree, node, "Color", tint, textures, f"{where}.specular_reflectance")
         else:
+            if isinstance(tint, dict):
+                raise SceneError(f"{where}.specular_reflectance = texture {tint.get('texture')!r}: Cycles' "
+                                 "physical-conductor Fresnel has no tint (only the perfect mirror, eta 0 and k 1, "
+                                 "takes a textured specular_reflectance)")
             if any(t != 1.0 for t in tint):
                 raise SceneError(f"{where}.specular_reflectance = {tint}: Cycles' physical-conductor Fresnel has "
                                  "no tint")
@@ -346,32 +379,37 @@ def bsdf_node(tree, spec: dict, where: str):
         refl, trans = spec["specular_reflectance"], spec["specular_transmittance"]
         if refl != trans:
             raise SceneError(f"{where}: specular_reflectance {refl} and specular_transmittance {trans} differ; "
-                             "Cycles' Glass BSDF tints both with one colour")
+                             "Cycles' Glass BSDF tints both with one colour (a texture: the same texture on both)")
         distribution = spec.get("distribution", "ggx")
         if distribution not in ("ggx", "beckmann"):
             raise SceneError(f"{where}.distribution = {distribution!r}: Cycles has ggx and beckmann")
         node = nodes.new("ShaderNodeBsdfGlass")
         node.distribution = "BECKMANN" if distribution == "beckmann" else "GGX"
-        socket(node, "Color").default_value = (*refl, 1.0)
+        set_colour(tree, node, "Color", refl, textures, f"{where}.specular_reflectance")
         socket(node, "IOR").default_value = float(spec["int_ior"]) / float(spec["ext_ior"])
         socket(node, "Roughness").default_value = math.sqrt(float(spec.get("alpha", 0.0)))
         return node
     raise SceneError(f"{where}.type = {kind!r}: not a material this adapter maps to Cycles")
 
 
-def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str):
+def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str,
+                   textures: "TextureNodes | None" = None, shape_where: str = "shape"):
     """A Cycles material for one shape: its BSDF (black from behind unless two-sided; dielectrics are two-sided)
     plus its emission from the front side only."""
     mat, tree = new_material(bpy, name)
     nodes, links = tree.nodes, tree.links
     output = nodes.new("ShaderNodeOutputMaterial")
     geometry = nodes.new("ShaderNodeNewGeometry")
-    surface = bsdf_node(tree, spec, where).outputs[0]
+    surface = bsdf_node(tree, spec, where, textures).outputs[0]
     two_sided = spec["type"] in ("dielectric", "roughdielectric") or bool(spec.get("two_sided", False))
-    if emission is not None and any(e != 0.0 for e in emission):
+    if isinstance(emission, dict) or (emission is not None and any(e != 0.0 for e in emission)):
         glow = nodes.new("ShaderNodeEmission")
-        socket(glow, "Color").default_value = (*(float(e) * scale for e in emission), 1.0)
-        socket(glow, "Strength").default_value = 1.0
+        if isinstance(emission, dict):  # a textured radiance (Mitsuba's area emitter with a radiance texture)
+            set_colour(tree, glow, "Color", emission, textures, f"{shape_where}.emission")
+            socket(glow, "Strength").default_value = scale
+        else:
+            socket(glow, "Color").default_value = (*(float(e) * scale for e in emission), 1.0)
+            socket(glow, "Strength").default_value = 1.0
         add = nodes.new("ShaderNodeAddShader")
         links.new(surface, add.inputs[0])
         links.new(glow.outputs[0], add.inputs[1])
@@ -396,18 +434,254 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
     return mat
 
 
-def add_shapes(bpy, doc: dict, folder: Path, scale: float) -> None:
+# ---- textures (docs/cycles.md, "Textures") -------------------------------------------------------------------------
+
+#: Mitsuba's bitmap filter_type -> Cycles' Image Texture interpolation (both without mipmaps or ray-differential
+#: filtering: nearest reads texel (floor(u W), floor(v H)), bilinear weighs the four texels whose centres
+#: ((i + 1/2) / W, (j + 1/2) / H) surround the point)
+INTERPOLATION = {"bilinear": "Linear", "nearest": "Closest"}
+#: Mitsuba's wrap_mode -> Cycles' extension; both wrap the integer texel indices, each axis on its own: repeat
+#: i mod n, clamp to [0, n - 1], mirror m = i mod 2n, m < n ? m : 2n - 1 - m (Cycles' wrap_periodic, wrap_clamp
+#: and wrap_mirror in kernel/device/cpu/image.h)
+EXTENSION = {"repeat": "REPEAT", "clamp": "EXTEND", "mirror": "MIRROR"}
+
+
+def srgb_to_linear(codes: np.ndarray) -> np.ndarray:
+    """The sRGB EOTF (IEC 61966-2-1) of 8-bit codes, as Mitsuba decodes an 8-bit image that is not raw."""
+    v = np.asarray(codes, np.float64) / 255.0
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+def read_image_codes(bpy, path: Path, key: str) -> np.ndarray:
+    """The 8-bit codes (H, W, 3) of a PNG or JPEG file, row 0 at the top, read by Blender's own loader (its
+    ``pixels`` of a byte image are the codes / 255, whatever the colour space)."""
+    if not path.is_file():
+        raise SceneError(f"{key}: no such texture file {path.name!r}")
+    image = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        width, height = image.size
+        if width < 1 or height < 1:
+            raise SceneError(f"{key}: Blender cannot read the texture file {path.name!r}")
+        if image.is_float:
+            raise SceneError(f"{key}: {path.name!r} is not an 8-bit image (scene.json's PNG textures are 8-bit)")
+        pixels = np.empty(width * height * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+    codes = np.rint(pixels.reshape(height, width, 4)[::-1, :, :3] * 255.0)  # Blender's rows are bottom up
+    return np.clip(codes, 0, 255).astype(np.uint8)
+
+
+class TextureImages:
+    """The scene's bitmaps as Blender float images, each made once: linear values (an 8-bit image that is not raw
+    decoded per texel, before any filtering, as Mitsuba does; Cycles' own sRGB images are decoded after its
+    filtering), colour space Non-Color (no transform), rows stored bottom up as Blender stores an image file."""
+
+    def __init__(self, bpy, textures: dict, folder: Path, fault: str | None = None):
+        self.bpy, self.textures, self.folder, self.fault = bpy, textures, folder, fault
+        self.images: dict[str, object] = {}
+
+    def texture(self, name: str, key: str) -> dict:
+        if name not in self.textures:
+            raise SceneError(f"{key}: unknown texture {name!r} (scene.json's textures: "
+                             f"{', '.join(map(repr, self.textures)) or 'none'})")
+        return self.textures[name]
+
+    def image(self, name: str) -> object:
+        if name in self.images:
+            return self.images[name]
+        texture, key = self.textures[name], f"textures.{name}"
+        path = self.folder / texture["filename"]
+        if path.suffix.lower() == ".exr":
+            if not path.is_file():
+                raise SceneError(f"{key}: no such texture file {path.name!r}")
+            linear = read_exr_rgb(path).astype(np.float64)
+        else:
+            codes = read_image_codes(self.bpy, path, key)
+            if self.fault == "srgb-after-filter" and not texture.get("raw", False):
+                return self._cycles_srgb(name, codes)
+            linear = codes / 255.0 if texture.get("raw", False) else srgb_to_linear(codes)
+        height, width = linear.shape[:2]
+        image = self.bpy.data.images.new(f"texture-{name}", width, height, alpha=True, float_buffer=True)
+        image.colorspace_settings.name = "Non-Color"  # the values as they are
+        image.alpha_mode = "STRAIGHT"
+        pixels = np.ones((height, width, 4), np.float32)
+        pixels[:, :, :3] = linear[::-1]  # row 0 of Blender's buffer is the image's bottom row
+        image.pixels.foreach_set(pixels.ravel())
+        image.pack()
+        self.images[name] = image
+        return image
+
+    def _cycles_srgb(self, name: str, codes: np.ndarray) -> object:
+        """The planted fault srgb-after-filter: the codes as a byte image in colour space sRGB (Cycles keeps it as
+        bytes and decodes the filtered value)."""
+        height, width = codes.shape[:2]
+        image = self.bpy.data.images.new(f"texture-{name}", width, height, alpha=True, float_buffer=False)
+        image.colorspace_settings.name = "sRGB"
+        pixels = np.ones((height, width, 4), np.float32)
+        pixels[:, :, :3] = codes[::-1] / 255.0
+        image.pixels.foreach_set(pixels.ravel())
+        image.pack()
+        self.images[name] = image
+        return image
+
+
+def math_node(tree, operation: str, a, b=None):
+    """A Math node's output: ``operation`` of a (and b), each a socket or a number."""
+    node = tree.nodes.new("ShaderNodeMath")
+    node.operation = operation
+    node.use_clamp = False
+    for slot, value in ((0, a), (1, b)):
+        if value is None:
+            continue
+        if isinstance(value, (int, float)):
+            node.inputs[slot].default_value = float(value)
+        else:
+            tree.links.new(value, node.inputs[slot])
+    return node.outputs[0]
+
+
+def vector_math(tree, operation: str, a, b=None, output: str = "Vector"):
+    node = tree.nodes.new("ShaderNodeVectorMath")
+    node.operation = operation
+    for slot, value in ((0, a), (1, b)):
+        if value is None:
+            continue
+        if isinstance(value, (tuple, list)):
+            node.inputs[slot].default_value = tuple(float(x) for x in value)
+        else:
+            tree.links.new(value, node.inputs[slot])
+    return node.outputs[output]
+
+
+def combine(tree, x, y, z=0.0):
+    node = tree.nodes.new("ShaderNodeCombineXYZ")
+    for slot, value in enumerate((x, y, z)):
+        if isinstance(value, (int, float)):
+            node.inputs[slot].default_value = float(value)
+        else:
+            tree.links.new(value, node.inputs[slot])
+    return node.outputs[0]
+
+
+def separate(tree, vector):
+    node = tree.nodes.new("ShaderNodeSeparateXYZ")
+    tree.links.new(vector, node.inputs[0])
+    return node.outputs["X"], node.outputs["Y"], node.outputs["Z"]
+
+
+def add_uv_layer(mesh, uv: np.ndarray) -> None:
+    """The PLY's per-vertex (s, t) as the mesh's UV map ``UVMap`` (one value per face corner)."""
+    layer = mesh.uv_layers.new(name="UVMap")
+    corners = np.empty(len(mesh.loops), np.int64)
+    mesh.loops.foreach_get("vertex_index", corners)
+    layer.data.foreach_set("uv", uv[corners].astype(np.float32).ravel())
+
+
+class TextureNodes:
+    """The texture lookups of one shape's material: its texture coordinates (u, v) (a mesh's UV map, or a sphere's
+    analytic ones computed in the shader), mapped by each texture's ``to_uv``, then a bitmap's Image Texture or
+    Mitsuba's checkerboard from math nodes."""
+
+    def __init__(self, images: TextureImages, source: str, to_world):
+        self.images, self.source, self.to_world = images, source, to_world
+
+    def uv(self, tree):
+        """(u, v) of the shading point as the X and Y sockets."""
+        if self.source == "mesh":
+            node = tree.nodes.new("ShaderNodeUVMap")
+            node.uv_map = "UVMap"
+            x, y, _ = separate(tree, node.outputs["UV"])
+            return x, y
+        # Mitsuba's sphere (sphere.cpp): p = to_world^-1 x in its object space, u = atan2(p.y, p.x) / (2 pi)
+        # (+ 1 where negative), v = acos(p.z / |p|) / pi. The mesh is in world space (object matrix the identity),
+        # so Texture Coordinate > Object is the world point of the hit, on the facet as in the reference.
+        inverse = np.linalg.inv(np.asarray(self.to_world, np.float64))
+        coords = tree.nodes.new("ShaderNodeTexCoord")
+        point = coords.outputs["Object"]
+        local = [math_node(tree, "ADD", vector_math(tree, "DOT_PRODUCT", point, tuple(inverse[r, :3]), "Value"),
+                           float(inverse[r, 3])) for r in range(3)]
+        x, y, z = separate(tree, vector_math(tree, "NORMALIZE", combine(tree, *local)))
+        u = math_node(tree, "FRACT", math_node(tree, "MULTIPLY", math_node(tree, "ARCTAN2", y, x), 0.5 / math.pi))
+        v = math_node(tree, "MULTIPLY", math_node(tree, "ARCCOSINE", z), 1.0 / math.pi)
+        return u, v
+
+    def colour(self, tree, value: dict, key: str):
+        """The output socket of the texture ``value`` names, looked up at this shape's (u, v)."""
+        name = value.get("texture")
+        texture = self.images.texture(name, key)
+        where = f"textures.{name}"
+        to_uv = np.asarray(texture.get("to_uv", np.eye(3)), np.float64)
+        if to_uv.shape != (3, 3) or not np.array_equal(to_uv[2], (0.0, 0.0, 1.0)):
+            raise SceneError(f"{where}.to_uv: expected an affine 3x3 map (last row 0, 0, 1)")
+        u, v = self.uv(tree)
+        uv = combine(tree, u, v)
+        u2, v2 = (math_node(tree, "ADD", vector_math(tree, "DOT_PRODUCT", uv, (to_uv[r, 0], to_uv[r, 1], 0.0),
+                                                     "Value"), float(to_uv[r, 2])) for r in range(2))
+        kind = texture.get("type")
+        if kind == "bitmap":
+            filter_type, wrap = texture.get("filter_type", "bilinear"), texture.get("wrap_mode", "repeat")
+            if filter_type not in INTERPOLATION:
+                raise SceneError(f"{where}.filter_type = {filter_type!r}: Cycles matches bilinear and nearest")
+            if wrap not in EXTENSION:
+                raise SceneError(f"{where}.wrap_mode = {wrap!r}: Cycles matches repeat, mirror and clamp")
+            node = tree.nodes.new("ShaderNodeTexImage")
+            node.image = self.images.image(name)
+            node.interpolation = INTERPOLATION[filter_type]
+            node.extension = EXTENSION[wrap]
+            node.projection = "FLAT"
+            # Mitsuba's v = 0 is the image's top row, Blender's the bottom row: v_blender = 1 - v
+            flipped = v2 if self.images.fault == "v-unflipped" else math_node(tree, "SUBTRACT", 1.0, v2)
+            tree.links.new(combine(tree, u2, flipped), node.inputs["Vector"])
+            return node.outputs["Color"]
+        if kind == "checkerboard":
+            # Mitsuba's checkerboard.cpp: color0 where (frac(u') > 1/2) == (frac(v') > 1/2), else color1
+            # (Cycles' Checker Texture is another pattern: squares of its Scale on 3D coordinates)
+            above = [math_node(tree, "GREATER_THAN", math_node(tree, "FRACT", w), 0.5) for w in (u2, v2)]
+            odd = math_node(tree, "ABSOLUTE", math_node(tree, "SUBTRACT", *above))  # 0: color0, 1: color1
+            even = math_node(tree, "SUBTRACT", 1.0, odd)
+            c0 = vector_math(tree, "SCALE", tuple(texture["color0"]))
+            tree.links.new(even, c0.node.inputs["Scale"])
+            c1 = vector_math(tree, "SCALE", tuple(texture["color1"]))
+            tree.links.new(odd, c1.node.inputs["Scale"])
+            return vector_math(tree, "ADD", c0, c1)
+        raise SceneError(f"{where}.type = {kind!r}: not a texture this adapter maps to Cycles")
+
+
+def textured(spec: dict) -> list[str]:
+    """The names of the textures a material's parameters take."""
+    return [v["texture"] for v in spec.values() if isinstance(v, dict) and "texture" in v]
+
+
+def add_shapes(bpy, doc: dict, folder: Path, scale: float, texture_fault: str | None = None) -> None:
     materials = doc["materials"]
+    images = TextureImages(bpy, doc.get("textures") or {}, folder, texture_fault)
     for i, shape in enumerate(doc["shapes"]):
         where = f"shapes[{i}] ({shape['name']})"
-        vertices, triangles = read_ply(folder / shape["mesh"])
+        vertices, triangles, uv = read_ply_uv(folder / shape["mesh"])
         mesh = bpy.data.meshes.new(f"mesh-{i}")
         mesh.from_pydata(vertices.tolist(), [], triangles.tolist())
         mesh.update()
         mesh.polygons.foreach_set("use_smooth", [False] * len(mesh.polygons))  # flat: the face normals
         spec = materials[shape["material"]]
+        names = textured(spec) + ([shape["emission"]["texture"]] if isinstance(shape["emission"], dict) else [])
+        textures = None
+        if names:
+            source = shape.get("uv")
+            if source == "mesh":
+                if uv is None:
+                    raise SceneError(f"{where}: uv = 'mesh' but {shape['mesh']} has no s, t vertex properties")
+                add_uv_layer(mesh, uv)
+            elif source == "analytic":
+                if shape.get("type") != "sphere" or "to_world" not in shape:
+                    raise SceneError(f"{where}: uv = 'analytic' on a {shape.get('type')!r}; only spheres have "
+                                     "analytic texture coordinates")
+            else:
+                raise SceneError(f"{where}: texture {names[0]!r} on a shape without texture coordinates (uv = "
+                                 f"{source!r}); Mitsuba's fallback for such a mesh is not reproduced")
+            textures = TextureNodes(images, source, shape.get("to_world"))
         mesh.materials.append(shape_material(bpy, spec, shape["emission"], scale, f"material-{i}",
-                                             f"materials.{shape['material']}"))
+                                             f"materials.{shape['material']}", textures, where))
         obj = bpy.data.objects.new(f"shape-{i}", mesh)
         obj.cycles.shadow_terminator_geometry_offset = 0.0  # no offset of shadow rays off low-poly meshes
         obj.cycles.shadow_terminator_offset = 0.0
@@ -582,7 +856,7 @@ def build_scene(bpy, doc: dict, folder: Path, args) -> None:
     bpy.ops.wm.read_factory_settings(use_empty=True)
     setup_render(bpy, doc, args)
     setup_camera(bpy, doc)
-    add_shapes(bpy, doc, folder, args.emission_scale)
+    add_shapes(bpy, doc, folder, args.emission_scale, args.texture_fault)
     for emitter in doc["emitters"]:
         if emitter["type"] in ("point", "spot", "directional"):
             add_light(bpy, emitter, args.emission_scale, f"emitters[{emitter['index']}] ({emitter['name']})")
