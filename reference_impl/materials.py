@@ -140,9 +140,13 @@ def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Te
     for m, slot in zip(*np.nonzero(texture >= 0)):
         name = list(TEXTURE_SLOTS)[slot]
         top = textures.max_value(int(texture[m, slot]))
+        where = f"materials.texture[{m}] ({KIND_NAMES[int(kind[m])]})"
         if name in ("reflectance", "transmittance") and np.any(top > 1):
-            raise SettingsError(f"materials.texture[{m}] ({KIND_NAMES[int(kind[m])]})",
-                                f"expected the texture of {name} in [0, 1], got values up to {top.max():g}")
+            raise SettingsError(where, f"expected the texture of {name} in [0, 1], got values up to {top.max():g}")
+        if name == "alpha":
+            low, high = textures.scalar_range(int(texture[m, slot]))
+            if not (low > 0 and high < np.inf):
+                raise SettingsError(where, f"expected the texture of alpha > 0, got values from {low:g}")
     texture.setflags(write=False)
     return texture, textures
 

@@ -30,6 +30,8 @@ NEAREST, BILINEAR = 0, 1
 FILTERS = {"nearest": NEAREST, "bilinear": BILINEAR}
 REPEAT, MIRROR, CLAMP = 0, 1, 2
 WRAPS = {"repeat": REPEAT, "mirror": MIRROR, "clamp": CLAMP}
+#: The luminance weights of a linear RGB value (Mitsuba's ``luminance``: Rec. 709 primaries), a bitmap's one number.
+LUMINANCE = (0.212671, 0.715160, 0.072169)
 
 
 def srgb_to_linear(codes) -> np.ndarray:
@@ -146,6 +148,16 @@ class Textures:
 
     def __len__(self) -> int:
         return len(self.items)
+
+    def scalar_range(self, k: int) -> tuple[float, float]:
+        """The least and the largest one-number value of texture ``k`` (Mitsuba's ``eval_1``: a bitmap's luminance
+        0.212671 r + 0.715160 g + 0.072169 b, a checkerboard colour's mean), the bounds of every lookup."""
+        item = self.items[k]
+        if isinstance(item, Checkerboard):
+            values = [float(np.mean(item.color0)), float(np.mean(item.color1))]
+        else:
+            values = item.linear().reshape(-1, 3) @ np.array(LUMINANCE)
+        return float(np.min(values)), float(np.max(values))
 
     def max_value(self, k: int) -> np.ndarray:
         """The largest value texture ``k`` takes, per channel (a bound of every lookup: filtering interpolates)."""

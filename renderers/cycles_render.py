@@ -345,6 +345,10 @@ def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = No
     ``textures`` builds the lookups of its textured parameters (docs/cycles.md)."""
     kind = spec["type"]
     nodes = tree.nodes
+    if isinstance(spec.get("alpha"), dict):
+        raise SceneError(f"{where}.alpha = texture {spec['alpha'].get('texture')!r}: a textured roughness is not "
+                         "mapped to Cycles (its Roughness socket is sqrt(alpha), a texture's square root per texel "
+                         "is not what Mitsuba filters)")
     if kind == "diffuse":
         node = nodes.new("ShaderNodeBsdfDiffuse")
         set_colour(tree, node, "Color", spec["reflectance"], textures, f"{where}.reflectance")

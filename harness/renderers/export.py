@@ -139,7 +139,8 @@ def exported_material(material):
     format multiplies its factor by the texture), every other textured parameter its texture's mean
     (:attr:`~harness.scene.model.Texture.mean_value`, a loss :func:`export_losses` names)."""
     carried = carried_texture(material)
-    changes = {item: (WHITE if texture is carried else texture.mean_value) for item, texture in material.textures}
+    changes = {item: (WHITE if texture is carried else texture.scalar_mean if item == "alpha" else texture.mean_value)
+               for item, texture in material.textures}
     return dataclasses.replace(material, textures=(), **changes) if changes else material
 
 

@@ -16,7 +16,7 @@ from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DE
 from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
                                       DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR, MIRROR_ETA, MIRROR_K)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
-from reference_impl.textures import srgb_to_linear
+from reference_impl.textures import LUMINANCE, srgb_to_linear
 
 SHAPE_TYPES = ("rectangle", "cube", "sphere", "mesh")
 EMITTER_TYPES = ("point", "spot", "directional", "constant", "envmap")
@@ -52,24 +52,42 @@ class Texture:
     color1: Vector3 = (0.2, 0.2, 0.2)
 
     @property
+    def scalar_range(self) -> tuple[float, float]:
+        """The least and the largest value the texture takes as one number (a one-channel parameter, ``alpha``:
+        Mitsuba's ``eval_1``, a bitmap's luminance, a checkerboard colour's mean)."""
+        if self.type == "checkerboard":
+            values = [sum(self.color0) / 3.0, sum(self.color1) / 3.0]
+        else:
+            values = self._linear().reshape(-1, 3) @ np.array(LUMINANCE)
+        return float(np.min(values)), float(np.max(values))
+
+    @property
+    def scalar_mean(self) -> float:
+        """The mean of the texture as one number (of :attr:`scalar_range`'s values)."""
+        if self.type == "checkerboard":
+            return (sum(self.color0) + sum(self.color1)) / 6.0
+        return float(np.mean(self._linear().reshape(-1, 3) @ np.array(LUMINANCE)))
+
+    def _linear(self) -> np.ndarray:
+        """A bitmap's texels as linear float64 values (8-bit codes sRGB-decoded unless raw)."""
+        if self.image.dtype != np.uint8:
+            return np.asarray(self.image, dtype=np.float64)
+        return self.image / 255.0 if self.raw else srgb_to_linear(self.image)
+
+    @property
     def mean_value(self) -> tuple[float, float, float]:
         """The mean of the texture's texels (a checkerboard's two colours), per channel: a textured light's stand-in
         radiance where a light is chosen by its power."""
         if self.type == "checkerboard":
             return tuple((a + b) / 2.0 for a, b in zip(self.color0, self.color1))
-        texels = srgb_to_linear(self.image) if self.image.dtype == np.uint8 and not self.raw else (
-            self.image / 255.0 if self.image.dtype == np.uint8 else self.image)
-        return tuple(float(c) for c in np.asarray(texels, dtype=np.float64).reshape(-1, 3).mean(axis=0))
+        return tuple(float(c) for c in self._linear().reshape(-1, 3).mean(axis=0))
 
     @property
     def max_value(self) -> tuple[float, float, float]:
         """The largest value the texture takes, per channel (the bound of a lookup: filtering interpolates)."""
         if self.type == "checkerboard":
             return tuple(max(a, b) for a, b in zip(self.color0, self.color1))
-        if self.image.dtype == np.uint8:
-            top = self.image.reshape(-1, 3).max(axis=0)
-            return tuple(float(c) / 255.0 if self.raw else float(srgb_to_linear(c)) for c in top)
-        return tuple(float(c) for c in self.image.reshape(-1, 3).max(axis=0))
+        return tuple(float(c) for c in self._linear().reshape(-1, 3).max(axis=0))
 
 
 MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric")  # Mitsuba's plugins

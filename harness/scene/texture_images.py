@@ -10,8 +10,10 @@ texel, filtered nearest for bilinear, wrapped by clamping for repeating, or deco
 * ``glow.exr`` (8 x 4, float32): the textured Cornell box's light, its radiance 0.4 to 1.6 times the Cornell box
   light's in a pattern of sevenths.
 
-``python -m harness.scene.texture_images [FOLDER]`` writes them (default ``scenes/textures``, the committed files
-that ``tests/scene/test_texture_images.py`` checks this module reproduces pixel for pixel).
+and the stress suite's (``scenes/stress/textures``): ``one-texel.png`` (1 x 1), ``fine-checker.png`` (2048 x 2048
+single-texel squares) and a copy of ``tiles.png``. ``python -m harness.scene.texture_images [FOLDER]`` writes them all (default
+``scenes/textures`` and ``scenes/stress/textures``, the committed files that ``tests/scene/test_texture_images.py``
+checks this module reproduces pixel for pixel).
 """
 
 from __future__ import annotations
@@ -49,18 +51,36 @@ def glow() -> np.ndarray:
     return (factor[..., None] * np.array([18.387, 13.9873, 6.75357])).astype(np.float32)
 
 
+def one_texel() -> np.ndarray:
+    """(1, 1, 3) uint8: one texel, (200, 120, 40) (the stress suite's 1 x 1 texture, which Mitsuba pads to 2 x 2)."""
+    return np.array([[[200, 120, 40]]], dtype=np.uint8)
+
+
+def fine_checker() -> np.ndarray:
+    """(2048, 2048, 3) uint8: a checkerboard of single texels, 255 and 0 (the stress suite's large texture, seen
+    minified thousands of texels to a pixel: its mean is 1/2 in linear values only when the codes are decoded before
+    filtering; 24 KB as a PNG)."""
+    i, j = np.meshgrid(np.arange(2048), np.arange(2048), indexing="ij")
+    return np.repeat((((i + j) % 2) * 255).astype(np.uint8)[..., None], 3, axis=2)
+
+
 IMAGES = {"tiles.png": tiles, "wall.png": wall, "glow.exr": glow}
+#: The stress suite's texture images (scenes/stress/textures).
+STRESS_IMAGES = {"one-texel.png": one_texel, "fine-checker.png": fine_checker, "tiles.png": tiles}
+STRESS_FOLDER = DEFAULT_FOLDER.parent / "stress" / "textures"
 
 
 def main(argv: list[str]) -> int:
     if len(argv) > 1:
         print("usage: python -m harness.scene.texture_images [FOLDER]  (default: scenes/textures)", file=sys.stderr)
         return 2
-    folder = Path(argv[0]) if argv else DEFAULT_FOLDER
-    for name, make in IMAGES.items():
-        image = make()
-        atomic_write_bytes(folder / name, encode_png(image) if name.endswith(".png") else exr_bytes(image))
-        print(f"wrote {folder / name}")
+    folders = [(Path(argv[0]), IMAGES), (Path(argv[0]), STRESS_IMAGES)] if argv else \
+        [(DEFAULT_FOLDER, IMAGES), (STRESS_FOLDER, STRESS_IMAGES)]
+    for folder, images in folders:
+        for name, make in images.items():
+            image = make()
+            atomic_write_bytes(folder / name, encode_png(image) if name.endswith(".png") else exr_bytes(image))
+            print(f"wrote {folder / name}")
     return 0
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 from numba import njit
 
 from reference_impl.kernels.config import JIT_BORROW
-from reference_impl.kernels.texture import texture_eval
+from reference_impl.kernels.texture import texture_eval, texture_eval_1
 from reference_impl.materials import NUM_PARAMS, NUM_SLOTS, TEXTURE_SLOTS
 
 _SLOT_COLUMN = tuple(column for column, _ in TEXTURE_SLOTS.values())
@@ -41,7 +41,8 @@ def material_at(materials, hit, params, mutant):
     """The material step at ``hit`` (:class:`.surface.SurfaceHit`): the parameters of its material at the hit,
     written into ``params`` (NUM_PARAMS float64, the ``P_*`` columns), and its kind (returned), which the BSDF
     (:mod:`.bsdf`) evaluates and samples: material ``hit.material``'s row, each textured slot replaced by its
-    texture's value at (``hit.tex_u``, ``hit.tex_v``) (a one-channel slot takes the first channel). ``mutant``: the
+    texture's value at (``hit.tex_u``, ``hit.tex_v``) (a one-channel slot, ``alpha``, its one number,
+    :func:`.texture.texture_eval_1`). ``mutant``: the
     render's planted-fault bits (the textures' are in :func:`.texture.texture_eval`)."""
     m = hit.material
     kind = material_params(materials, m, params)
@@ -50,10 +51,10 @@ def material_at(materials, hit, params, mutant):
         for s in range(NUM_SLOTS):
             k = slots[m, s]
             if k >= 0:
-                r, g, b = texture_eval(materials.textures, k, hit.tex_u, hit.tex_v, mutant)
                 c = _SLOT_COLUMN[s]
-                params[c] = r
                 if _SLOT_CHANNELS[s] == 3:
-                    params[c + 1] = g
-                    params[c + 2] = b
+                    params[c], params[c + 1], params[c + 2] = texture_eval(materials.textures, k, hit.tex_u,
+                                                                           hit.tex_v, mutant)
+                else:
+                    params[c] = texture_eval_1(materials.textures, k, hit.tex_u, hit.tex_v, mutant)
     return kind

@@ -8,6 +8,7 @@
                  wrap(i) on n texels: repeat  i mod n;  clamp  min(max(i, 0), n - 1);
                                       mirror  m = i mod 2n, m if m < n else 2n - 1 - m
     checkerboard color0 where (u' mod 1 > 1/2) == (v' mod 1 > 1/2), color1 elsewhere
+    one number   a bitmap's luminance (Mitsuba's eval_1; :func:`texture_eval_1`)
 
 Row j = 0 is the image's top row. The texels are linear values (an sRGB image is decoded when the tables are built,
 :func:`.records.texture_tables`).
@@ -23,7 +24,7 @@ from numba import njit
 
 from reference_impl.kernels.config import (JIT_BORROW, M_TEXTURE_HALF_TEXEL, M_TEXTURE_NEAREST,
                                            M_TEXTURE_REPEAT_AS_CLAMP, M_TEXTURE_V_FLIPPED)
-from reference_impl.textures import BILINEAR, CHECKERBOARD, CLAMP, REPEAT
+from reference_impl.textures import BILINEAR, CHECKERBOARD, CLAMP, LUMINANCE, REPEAT
 
 # Texel coordinates are clamped to +-2^52 before they become integers (a coordinate from a huge to_uv): far beyond
 # any image, and every wrap mode still gives a texel.
@@ -86,6 +87,18 @@ def texture_eval(textures, k, u, v, mutant):
     w00, w10, w01, w11 = (1.0 - fa) * (1.0 - fb), fa * (1.0 - fb), (1.0 - fa) * fb, fa * fb
     return (w00 * r00 + w10 * r10 + w01 * r01 + w11 * r11, w00 * g00 + w10 * g10 + w01 * g01 + w11 * g11,
             w00 * b00 + w10 * b10 + w01 * b01 + w11 * b11)
+
+
+@njit(**JIT_BORROW)
+def texture_eval_1(textures, k, u, v, mutant):
+    """Texture ``k`` at (u, v) as one number, Mitsuba's ``eval_1`` (a one-channel parameter such as ``alpha``): a
+    bitmap's luminance 0.212671 r + 0.715160 g + 0.072169 b; a checkerboard's colour's mean (r + g + b) / 3 (its
+    colours are ``rgb`` textures, whose ``eval_1`` is the mean; Mitsuba 3.9.1's own swaps the two colours, which the
+    scene format refuses)."""
+    r, g, b = texture_eval(textures, k, u, v, mutant)
+    if textures.kind[k] == CHECKERBOARD:
+        return (r + g + b) / 3.0
+    return LUMINANCE[0] * r + LUMINANCE[1] * g + LUMINANCE[2] * b
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

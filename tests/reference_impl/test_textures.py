@@ -132,3 +132,35 @@ def test_a_planted_fault_of_the_textures_leaves_what_it_does_not_concern():
         assert _shifted_by(mutant, nearest, uv).max() == 0.0
     assert _shifted_by("texture-repeat-as-clamp", Bitmap(IMAGE8, wrap_mode="mirror"), uv).max() == 0.0
     assert _shifted_by("texture-srgb-as-linear", Bitmap(IMAGE8, srgb=False), uv).max() == 0.0
+
+
+def test_mitsubas_checkerboard_as_one_number_swaps_its_colours():
+    """Mitsuba 3.9.1's checkerboard ``eval_1`` gives color1 where its ``eval`` gives color0 (and the other way
+    round): the scene format refuses a checkerboard on a one-number parameter (harness.scene.kinds.materials) rather
+    than follow either. If this fails, Mitsuba changed, and the refusal can go."""
+    plugin = {"type": "checkerboard", "color0": {"type": "rgb", "value": [0.9, 0.5, 0.1]},
+              "color1": {"type": "rgb", "value": [0.05, 0.2, 0.7]}}
+    tex = _mitsuba_texture(plugin)
+    si = mi.SurfaceInteraction3f()
+    si.uv = mi.Point2f(0.25, 0.25)  # color0's square
+    assert np.allclose(np.array(tex.eval(si)), [0.9, 0.5, 0.1], atol=1e-6)
+    assert float(tex.eval_1(si)) == pytest.approx((0.05 + 0.2 + 0.7) / 3, abs=1e-6)
+
+
+@pytest.mark.parametrize("item", ["bitmap-srgb", "bitmap-raw"])
+def test_a_texture_as_one_number_is_mitsubas_eval_1(item):
+    uv = _points(7, 5, seed=6)
+    raw = item == "bitmap-raw"
+    ours_item = Bitmap(IMAGE8, srgb=not raw)
+    plugin = {"type": "bitmap", "bitmap": mi.Bitmap(IMAGE8.copy()), "raw": raw}
+    tex = _mitsuba_texture(plugin)
+    si = mi.SurfaceInteraction3f()
+    mitsuba = []
+    for u, v in uv:
+        si.uv = mi.Point2f(float(u), float(v))
+        mitsuba.append(float(tex.eval_1(si)))
+    tables = records.texture_tables(Textures((ours_item,)))
+    ours = [texture.texture_eval_1(tables, 0, u, v, 0) for u, v in uv]
+    np.testing.assert_allclose(ours, mitsuba, rtol=0, atol=ATOL)
+    low, high = Textures((ours_item,)).scalar_range(0)
+    assert low - 1e-12 <= min(ours) and max(ours) <= high + 1e-12

@@ -320,3 +320,29 @@ def test_the_wavefront_refuses_a_textured_light_in_one_line(tmp_path):
     with pytest.raises(SettingsError, match="path loop alone"):
         render(triangulate(scene), scene.camera, scene.film, Settings(spp=1, max_depth=2, indirect_rays=2),
                materials=material_arrays(scene))
+
+
+def test_a_rough_materials_alpha_may_be_a_bitmap_taken_as_its_luminance(tmp_path):
+    from harness.scene.material_arrays import material_arrays
+    from reference_impl.materials import TEXTURE_SLOTS
+
+    grey = np.full((2, 2, 3), 90, dtype=np.uint8)
+    body = ('[textures.t]\nfilename = "tex.png"\n[materials.m]\ntype = "roughconductor"\nalpha = { texture = "t" }\n'
+            + SHAPE.format(type="rectangle", material="m", extra=""))
+    scene = load_scene(_write(tmp_path, body, image=grey))
+    material = scene.materials["m"]
+    low, high = scene.textures["t"].scalar_range
+    assert material.textures == (("alpha", scene.textures["t"]),) and material.alpha == high == low
+    table = material_arrays(scene)
+    assert table.texture[list(scene.materials).index("m"), list(TEXTURE_SLOTS).index("alpha")] == 0
+
+
+@pytest.mark.parametrize("texture,message", [
+    ('type = "checkerboard"\ncolor0 = 0.3\ncolor1 = 0.1', "alpha takes a bitmap"),
+    ('filename = "tex.png"', "luminances from")])
+def test_an_alpha_texture_that_mitsuba_reads_otherwise_or_out_of_range_is_refused(tmp_path, texture, message):
+    black = np.zeros((2, 2, 3), dtype=np.uint8)  # luminance 0: alpha must be >= 1e-4
+    body = (f'[textures.t]\n{texture}\n[materials.m]\ntype = "roughdielectric"\nalpha = {{ texture = "t" }}\n')
+    with pytest.raises(HarnessError) as err:
+        load_scene(_write(tmp_path, body, image=black))
+    assert err.value.where.endswith("materials.m.alpha") and message in err.value.message, err.value.message

@@ -32,7 +32,7 @@ MIN_IOR, MAX_IOR = 0.01, 100.0
 MAX_CONDUCTOR_INDEX = 100.0
 #: The core's texture slot (:data:`reference_impl.materials.TEXTURE_SLOTS`) of each parameter a texture may drive.
 TEXTURE_SLOTS = {"reflectance": "reflectance", "specular_reflectance": "reflectance",
-                 "specular_transmittance": "transmittance"}
+                 "specular_transmittance": "transmittance", "alpha": "alpha"}
 
 
 @dataclass(frozen=True)
@@ -174,11 +174,23 @@ def _textured_parameters(reader, kind: MaterialKind, entry: dict, key: str,
             takes = ", ".join(kind.textured) or "none of its parameters"
             raise reader.error(f"{key}.{item}", f"{item} of a {kind.name} takes no texture (textures drive: {takes})")
         texture = texture_reference(reader, value, f"{key}.{item}", textures)
-        top = texture.max_value
-        if max(top) > 1.0:
-            raise reader.error(f"{key}.{item}", f"texture {texture.name!r} has values up to {max(top):.6g}; {item} "
-                                                "takes values in [0, 1]")
-        entry[item] = list(top)
+        if item == "alpha":  # one number: Mitsuba's eval_1 (a bitmap's luminance)
+            if texture.type != "bitmap":
+                raise reader.error(f"{key}.{item}", f"texture {texture.name!r} is a {texture.type}: alpha takes a "
+                                                    "bitmap (Mitsuba 3.9.1's checkerboard as one number swaps its "
+                                                    "two colours, tests/reference_impl/test_textures.py)")
+            low, high = texture.scalar_range
+            if not (MIN_ALPHA <= low and high <= MAX_ALPHA):
+                raise reader.error(f"{key}.{item}", f"texture {texture.name!r} has luminances from {low:.6g} to "
+                                                    f"{high:.6g}; alpha takes values in [{MIN_ALPHA:g}, "
+                                                    f"{MAX_ALPHA:g}]")
+            entry[item] = high
+        else:
+            top = texture.max_value
+            if max(top) > 1.0:
+                raise reader.error(f"{key}.{item}", f"texture {texture.name!r} has values up to {max(top):.6g}; "
+                                                    f"{item} takes values in [0, 1]")
+            entry[item] = list(top)
         textured.append((item, texture))
     return entry, tuple(textured)
 
@@ -414,7 +426,7 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  json=lambda m: {**_conductor_json(m), **_rough_parameters(m)},
                  gltf=lambda m: _conductor_gltf(m, _rough_gltf_roughness(m)),
                  gltf_losses=lambda m: _conductor_gltf_losses(m) + _beckmann_gltf_losses(m),
-                 textured=("specular_reflectance",)),
+                 textured=("specular_reflectance", "alpha")),
     MaterialKind("dielectric", core.DIELECTRIC, _DIELECTRIC_KEYS, _read_dielectric,
                  parameters=_dielectric_parameters, json=_dielectric_json,
                  gltf=lambda m: _dielectric_gltf(m, 0.0), refused=_NOT_TWO_SIDED,
@@ -424,7 +436,7 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  json=lambda m: {**_dielectric_json(m), **_rough_parameters(m)},
                  gltf=lambda m: _dielectric_gltf(m, _rough_gltf_roughness(m)), refused=_NOT_TWO_SIDED,
                  gltf_losses=lambda m: _beckmann_gltf_losses(m) + _dielectric_gltf_losses(m),
-                 textured=("specular_reflectance", "specular_transmittance")),
+                 textured=("specular_reflectance", "specular_transmittance", "alpha")),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.
