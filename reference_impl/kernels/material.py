@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from reference_impl.kernels.config import JIT_BORROW
+from reference_impl.kernels.config import JIT_BORROW, JIT_NONRT
 from reference_impl.kernels.texture import texture_eval, texture_eval_1
 from reference_impl.materials import NUM_PARAMS, NUM_SLOTS, TEXTURE_SLOTS
 
@@ -46,15 +46,21 @@ def material_at(materials, hit, params, mutant):
     render's planted-fault bits (the textures' are in :func:`.texture.texture_eval`)."""
     m = hit.material
     kind = material_params(materials, m, params)
-    slots = materials.texture
-    if slots.shape[0] > 0:  # a scene with textures
-        for s in range(NUM_SLOTS):
-            k = slots[m, s]
-            if k >= 0:
-                c = _SLOT_COLUMN[s]
-                if _SLOT_CHANNELS[s] == 3:
-                    params[c], params[c + 1], params[c + 2] = texture_eval(materials.textures, k, hit.tex_u,
-                                                                           hit.tex_v, mutant)
-                else:
-                    params[c] = texture_eval_1(materials.textures, k, hit.tex_u, hit.tex_v, mutant)
+    if materials.texture.shape[0] > 0:  # a scene with textures
+        textured_params(materials, m, hit.tex_u, hit.tex_v, params, mutant)
     return kind
+
+
+@njit(**JIT_NONRT)
+def textured_params(materials, m, tex_u, tex_v, params, mutant):
+    """Each textured slot of material ``m``'s row ``params`` replaced by its texture's value at (tex_u, tex_v)
+    (called, not inlined: a scene without textures never comes here)."""
+    slots = materials.texture
+    for s in range(NUM_SLOTS):
+        k = slots[m, s]
+        if k >= 0:
+            c = _SLOT_COLUMN[s]
+            if _SLOT_CHANNELS[s] == 3:
+                params[c], params[c + 1], params[c + 2] = texture_eval(materials.textures, k, tex_u, tex_v, mutant)
+            else:
+                params[c] = texture_eval_1(materials.textures, k, tex_u, tex_v, mutant)

@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 from numba import njit
 
-from reference_impl.kernels.config import JIT, JIT_BORROW
+from reference_impl.kernels.config import JIT, JIT_BORROW, JIT_NONRT
 from reference_impl.kernels.texture import texture_eval
 from reference_impl.kernels.warps import dot3, tangent_frame
 
@@ -116,7 +116,7 @@ def barycentrics(corners, tri, x0, x1, x2, n0, n1, n2):
     return u, v
 
 
-@njit(**JIT_BORROW)
+@njit(**JIT_NONRT)
 def texture_coordinates(scene, tri, u, v, x0, x1, x2):
     """The texture coordinates (s, t) of point x of triangle ``tri`` (barycentrics u, v): the corners' interpolated,
     or on a sphere's triangle (``scene.uv_sphere``) Mitsuba's analytic ones at the direction of x from its centre
@@ -163,10 +163,16 @@ def emission_at(scene, textures, tri, x0, x1, x2, mutant):
     if textured.shape[0] == 0 or textured[tri] < 0:
         e = scene.emission
         return e[tri, 0], e[tri, 1], e[tri, 2]
+    return _textured_emission(scene, textures, tri, x0, x1, x2, mutant)
+
+
+@njit(**JIT_NONRT)
+def _textured_emission(scene, textures, tri, x0, x1, x2, mutant):
+    """:func:`emission_at` on a textured light (called, not inlined: untextured scenes never come here)."""
     n = scene.normal
     u, v = barycentrics(scene.corners, tri, x0, x1, x2, n[tri, 0], n[tri, 1], n[tri, 2])
     tu, tv = texture_coordinates(scene, tri, u, v, x0, x1, x2)
-    return texture_eval(textures, textured[tri], tu, tv, mutant)
+    return texture_eval(textures, scene.emission_texture[tri], tu, tv, mutant)
 
 
 @njit(**JIT)

@@ -22,7 +22,7 @@ import numpy as np
 
 from numba import njit
 
-from reference_impl.kernels.config import (JIT_BORROW, M_TEXTURE_HALF_TEXEL, M_TEXTURE_NEAREST,
+from reference_impl.kernels.config import (JIT_BORROW, JIT_NONRT, M_TEXTURE_HALF_TEXEL, M_TEXTURE_NEAREST,
                                            M_TEXTURE_REPEAT_AS_CLAMP, M_TEXTURE_V_FLIPPED)
 from reference_impl.textures import BILINEAR, CHECKERBOARD, CLAMP, LUMINANCE, REPEAT
 
@@ -55,7 +55,9 @@ def _texel(textures, k, i, j, wrap):
     return texels[t, 0], texels[t, 1], texels[t, 2]
 
 
-@njit(**JIT_BORROW)
+# The lookups are called, not inlined (JIT_NONRT): a scene without textures never reaches them, and inlined at each of
+# their call sites in the path loop they made every render 2-7 % slower (4 paired rounds, docs/performance.md).
+@njit(**JIT_NONRT)
 def texture_eval(textures, k, u, v, mutant):
     """Texture ``k`` of ``textures`` (:class:`.records.TextureTables`) at (u, v): its RGB value. ``mutant``: the
     render's planted-fault bits (:mod:`.config`)."""
@@ -89,7 +91,7 @@ def texture_eval(textures, k, u, v, mutant):
             w00 * b00 + w10 * b10 + w01 * b01 + w11 * b11)
 
 
-@njit(**JIT_BORROW)
+@njit(**JIT_NONRT)
 def texture_eval_1(textures, k, u, v, mutant):
     """Texture ``k`` at (u, v) as one number, Mitsuba's ``eval_1`` (a one-channel parameter such as ``alpha``): a
     bitmap's luminance 0.212671 r + 0.715160 g + 0.072169 b; a checkerboard's colour's mean (r + g + b) / 3 (its
