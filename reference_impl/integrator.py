@@ -263,6 +263,8 @@ class _Context:
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light,
                                                    packet_width=self.intersector.packet_width)
         self.material_tables = records.material_tables(self.materials, self.mutant)
+        # None where no area light is textured: the path loop compiles the emission lookups out
+        self.light_textures = self.material_tables.textures if self.geometry.textured_lights else None
         # None where every material is diffuse: the path loop compiles the BSDF door's other kinds out
         self.other_kinds = True if is_glossy(self.materials) else None
         self.emitter_tables = None
@@ -486,7 +488,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                  ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
-                                 film_samples, ctx.emitter_tables, ctx.other_kinds, record)
+                                 film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

@@ -191,7 +191,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
 
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
-                emitters, other_kinds, record=None):
+                emitters, other_kinds, textures=None, record=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
     (module docstring), adding each path's radiance to ``radiance[root]``.
 
@@ -199,15 +199,15 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     (:mod:`.records`); ``emitters``: the tables of the emitters that are not surfaces, or None, which compiles
     every branch for them out (numba decides ``emitters is not None`` from the argument's type); ``other_kinds``
     likewise: None where every material is diffuse, which compiles the BSDF door's other kinds out (a loop of its
-    own for Lambertian scenes, from the same source), else True. ``cfg``: the
-    render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
+    own for Lambertian scenes, from the same source), else True; ``textures`` likewise: None where no area light is
+    textured (every Le is its triangle's row: the lookups compiled out), else the materials' texture tables.
+    ``cfg``: the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
     the number of queries. ``record``: None in a render (compiled out), or buffers that receive every query's ray
     and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
-    textures = materials.textures
     light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
@@ -420,7 +420,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                                                  tri_normal[htri, 2]) < 0):
                                 continue  # not an emitter's front side
                             le0, le1, le2 = emission[htri, 0], emission[htri, 1], emission[htri, 2]
-                            if scene.emission_texture.shape[0] > 0:  # Le at the point Psi found on a textured light
+                            if textures is not None:  # Le at the point Psi found on a textured light
                                 _t, q0, q1, q2, _c = hit_point(ox0, ox1, ox2, h0, h1, h2, tri_normal[htri, 0],
                                                                tri_normal[htri, 1], tri_normal[htri, 2],
                                                                scene.corner0[htri, 0], scene.corner0[htri, 1],

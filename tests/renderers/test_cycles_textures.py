@@ -22,6 +22,7 @@ from harness.files.imageio import exr_bytes, read_exr
 from harness.renderers.groundtruth import textured_sphere_means
 from harness.renderers.scene_json import scene_json
 from harness.scene import load_scene
+from test_cycles import _one_line_error
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / "renderers" / "cycles_render.py"
@@ -123,15 +124,6 @@ def test_the_wrong_filter_or_wrap_is_far_off(tmp_path, scenes, bpy_present, vari
 def test_planted_texture_faults_are_far_off(tmp_path, bpy_present, fault):
     path, scene = _export(ROOT / "scenes" / "textured-furnace.toml", tmp_path)
     assert _relative_error(path, scene, "--texture-fault", fault) > FAR
-
-
-def _one_line_error(proc: subprocess.CompletedProcess, *words: str) -> None:
-    assert proc.returncode == 2, proc.stderr
-    lines = [line for line in proc.stderr.splitlines() if line.strip()]
-    assert len(lines) == 1, proc.stderr
-    assert "Traceback" not in proc.stderr
-    for word in words:
-        assert word in lines[0], lines[0]
 
 
 def _refused(tmp_path: Path, edit, *words: str) -> None:
