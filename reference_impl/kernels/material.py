@@ -42,8 +42,8 @@ def material_at(materials, hit, params, mutant):
     written into ``params`` (NUM_PARAMS float64, the ``P_*`` columns), and its kind (returned), which the BSDF
     (:mod:`.bsdf`) evaluates and samples: material ``hit.material``'s row, each textured slot replaced by its
     texture's value at (``hit.tex_u``, ``hit.tex_v``) (a one-channel slot, ``alpha``, its one number,
-    :func:`.texture.texture_eval_1`). ``mutant``: the
-    render's planted-fault bits (the textures' are in :func:`.texture.texture_eval`)."""
+    :func:`.texture.texture_eval_1`). ``mutant``: the render's planted-fault bits (the textures' are in
+    :func:`.texture.texture_eval`)."""
     m = hit.material
     kind = material_params(materials, m, params)
     if materials.texture.shape[0] > 0:  # a scene with textures
