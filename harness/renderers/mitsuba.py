@@ -660,39 +660,51 @@ class MitsubaRenderer:
                                            spp=min(options.chunk_spp, request.spp), sampler=options.sampler)
         if options.moments:
             scene_dict["integrator"] = moment_integrator(scene_dict["integrator"])
+        logger, level = mi.logger(), mi.logger().log_level()
+        if scene.used_textures:
+            # Mitsuba warns of a bitmap with values above 1 on every load, a light's radiance included; the loader
+            # has checked every texture's range against its parameter (docs/scene-format.md, "Textures"). Loaded
+            # on this thread, whose logger this is (a parallel load builds plugins on threads of their own), and
+            # quiet until the passes are rendered: Mitsuba checks a bitmap's range when it first evaluates it.
+            logger.set_log_level(mi.LogLevel.Error)
         try:
-            mitsuba_scene = mi.load_dict(scene_dict)
+            mitsuba_scene = mi.load_dict(scene_dict, parallel=not scene.used_textures)
         except Exception as err:  # Mitsuba raises plain RuntimeErrors for anything it rejects
+            logger.set_log_level(level)
             raise HarnessError(str(scene.path), f"Mitsuba cannot load the scene: {err}") from None
 
-        width, height = scene.film.width, scene.film.height
-        film = mitsuba_scene.sensors()[0].film()
-        border = int(film.rfilter().border_size()) if scene.film.filter != "box" else 0
-        # Mitsuba's wavefront (sampled pixels x spp of one pass) must stay below 2^32 lanes.
-        chunk = max(1, min(options.chunk_spp, MAX_PASS_SAMPLES // ((width + 2 * border) * (height + 2 * border))))
-        total_paths = width * height * request.spp
-        m1_idx = m2_idx = None
-        parts: list[Moments] = []
-        plain_sum: np.ndarray | float = 0.0  # sum of pass means x pass spp, when moments are off
-        seconds, first_pass_seconds, done = 0.0, 0.0, 0
-        passes = math.ceil(request.spp / chunk)
-        for index in range(passes):
-            n = min(chunk, request.spp - index * chunk)
-            start = time.perf_counter()
-            out = np.array(mi.render(mitsuba_scene, seed=pass_seed(request.seed, index), spp=n), dtype=np.float32)
-            elapsed = time.perf_counter() - start
-            seconds += elapsed
-            if index == 0:
-                first_pass_seconds = elapsed
+        try:
+            width, height = scene.film.width, scene.film.height
+            film = mitsuba_scene.sensors()[0].film()
+            border = int(film.rfilter().border_size()) if scene.film.filter != "box" else 0
+            # Mitsuba's wavefront (sampled pixels x spp of one pass) must stay below 2^32 lanes.
+            chunk = max(1, min(options.chunk_spp, MAX_PASS_SAMPLES // ((width + 2 * border) * (height + 2 * border))))
+            total_paths = width * height * request.spp
+            m1_idx = m2_idx = None
+            parts: list[Moments] = []
+            plain_sum: np.ndarray | float = 0.0  # sum of pass means x pass spp, when moments are off
+            seconds, first_pass_seconds, done = 0.0, 0.0, 0
+            passes = math.ceil(request.spp / chunk)
+            for index in range(passes):
+                n = min(chunk, request.spp - index * chunk)
+                start = time.perf_counter()
+                out = np.array(mi.render(mitsuba_scene, seed=pass_seed(request.seed, index), spp=n), dtype=np.float32)
+                elapsed = time.perf_counter() - start
+                seconds += elapsed
+                if index == 0:
+                    first_pass_seconds = elapsed
+                    if options.moments:
+                        m1_idx, m2_idx = moment_channels(mitsuba_scene.integrator(), out.shape[2])
                 if options.moments:
-                    m1_idx, m2_idx = moment_channels(mitsuba_scene.integrator(), out.shape[2])
-            if options.moments:
-                parts.append(Moments.from_means(n, out[..., m1_idx], out[..., m2_idx]))
-            else:
-                plain_sum = plain_sum + out[..., :3].astype(np.float64) * n
-            done += width * height * n
-            if request.progress is not None:
-                request.progress(done, total_paths)
+                    parts.append(Moments.from_means(n, out[..., m1_idx], out[..., m2_idx]))
+                else:
+                    plain_sum = plain_sum + out[..., :3].astype(np.float64) * n
+                done += width * height * n
+                if request.progress is not None:
+                    request.progress(done, total_paths)
+
+        finally:
+            logger.set_log_level(level)
 
         if options.moments:
             merged = merge_moments(parts)
