@@ -113,11 +113,9 @@ def _unique(name: str, taken: set[str]) -> str:
 
 
 def base_colour_parameter(material) -> str:
-    """The parameter glTF's base colour (and OBJ's ``Kd``) is made from: a diffuse material's ``reflectance``, a
-    conductor's ``specular_reflectance``, a dielectric's ``specular_transmittance`` (:func:`gltf_material`)."""
-    if material.is_diffuse:
-        return "reflectance"
-    return "specular_reflectance" if material.is_conductor else "specular_transmittance"
+    """The parameter glTF's base colour (and OBJ's ``Kd``) is made from: its type's ``gltf_base`` (a diffuse
+    material's ``reflectance``, a conductor's ``specular_reflectance``, a dielectric's ``specular_transmittance``)."""
+    return MATERIALS[material.type].gltf_base
 
 
 def image_texture(texture) -> bool:

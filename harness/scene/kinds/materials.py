@@ -65,6 +65,8 @@ class MaterialKind:
     textured : tuple of str
         The keys that take ``{ texture = "NAME" }`` in place of a value (Mitsuba's texture-valued parameters, of
         those the reference looks up: :data:`TEXTURE_SLOTS`).
+    gltf_base : str
+        The parameter its glTF base colour (and OBJ's ``Kd``) is made from, whose texture those formats can carry.
     """
 
     name: str
@@ -77,6 +79,7 @@ class MaterialKind:
     refused: tuple[tuple[str, str], ...] = ()
     gltf_losses: Callable[[Material], tuple[str, ...]] = lambda _material: ()
     textured: tuple[str, ...] = ()
+    gltf_base: str = "reflectance"
 
     @property
     def two_sided(self) -> bool:
@@ -418,7 +421,7 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
     MaterialKind("conductor", core.CONDUCTOR, _CONDUCTOR_KEYS, _read_conductor,
                  parameters=_conductor_parameters, json=_conductor_json,
                  gltf=lambda m: _conductor_gltf(m, 0.0), gltf_losses=_conductor_gltf_losses,
-                 textured=("specular_reflectance",)),
+                 textured=("specular_reflectance",), gltf_base="specular_reflectance"),
     MaterialKind("roughconductor", core.ROUGHCONDUCTOR, _CONDUCTOR_KEYS + _ROUGH_KEYS,
                  lambda reader, entry, key: {**_read_conductor(reader, entry, key),
                                              **_roughness(reader, entry, key)},
@@ -426,17 +429,19 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  json=lambda m: {**_conductor_json(m), **_rough_parameters(m)},
                  gltf=lambda m: _conductor_gltf(m, _rough_gltf_roughness(m)),
                  gltf_losses=lambda m: _conductor_gltf_losses(m) + _beckmann_gltf_losses(m),
-                 textured=("specular_reflectance", "alpha")),
+                 textured=("specular_reflectance", "alpha"), gltf_base="specular_reflectance"),
     MaterialKind("dielectric", core.DIELECTRIC, _DIELECTRIC_KEYS, _read_dielectric,
                  parameters=_dielectric_parameters, json=_dielectric_json,
                  gltf=lambda m: _dielectric_gltf(m, 0.0), refused=_NOT_TWO_SIDED,
-                 gltf_losses=_dielectric_gltf_losses, textured=("specular_reflectance", "specular_transmittance")),
+                 gltf_losses=_dielectric_gltf_losses, textured=("specular_reflectance", "specular_transmittance"),
+                 gltf_base="specular_transmittance"),
     MaterialKind("roughdielectric", core.ROUGHDIELECTRIC, _DIELECTRIC_KEYS + _ROUGH_KEYS, _read_roughdielectric,
                  parameters=lambda m: {**_dielectric_parameters(m), **_rough_parameters(m)},
                  json=lambda m: {**_dielectric_json(m), **_rough_parameters(m)},
                  gltf=lambda m: _dielectric_gltf(m, _rough_gltf_roughness(m)), refused=_NOT_TWO_SIDED,
                  gltf_losses=lambda m: _beckmann_gltf_losses(m) + _dielectric_gltf_losses(m),
-                 textured=("specular_reflectance", "specular_transmittance", "alpha")),
+                 textured=("specular_reflectance", "specular_transmittance", "alpha"),
+                 gltf_base="specular_transmittance"),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.
