@@ -106,6 +106,10 @@ class Bitmap:
             return srgb_to_linear(self.image)
         return self.image.astype(np.float64) / 255.0
 
+    def values(self) -> np.ndarray:
+        """Every value a lookup interpolates between, (N, 3) linear RGB: the texels."""
+        return self.linear().reshape(-1, 3)
+
 
 @dataclass(frozen=True, eq=False)
 class Checkerboard:
@@ -124,8 +128,21 @@ class Checkerboard:
             object.__setattr__(self, name, tuple(float(c) for c in colour))
         object.__setattr__(self, "to_uv", _affine(self.to_uv, "texture.to_uv"))
 
+    def values(self) -> np.ndarray:
+        """Every value a lookup takes, (2, 3) linear RGB: ``color0`` and ``color1``."""
+        return np.array([self.color0, self.color1])
+
 
 Texture = Bitmap | Checkerboard
+
+
+def scalar_values(item: Texture) -> np.ndarray:
+    """Every value ``item`` takes as one number (Mitsuba's ``eval_1``, a one-channel parameter such as ``alpha``): a
+    bitmap's texels' luminance 0.212671 r + 0.715160 g + 0.072169 b, a checkerboard colour's mean; their least and
+    largest bound every lookup."""
+    if isinstance(item, Checkerboard):
+        return item.values().mean(axis=1)
+    return item.values() @ np.array(LUMINANCE)
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,18 +167,11 @@ class Textures:
         return len(self.items)
 
     def scalar_range(self, k: int) -> tuple[float, float]:
-        """The least and the largest one-number value of texture ``k`` (Mitsuba's ``eval_1``: a bitmap's luminance
-        0.212671 r + 0.715160 g + 0.072169 b, a checkerboard colour's mean), the bounds of every lookup."""
-        item = self.items[k]
-        if isinstance(item, Checkerboard):
-            values = [float(np.mean(item.color0)), float(np.mean(item.color1))]
-        else:
-            values = item.linear().reshape(-1, 3) @ np.array(LUMINANCE)
+        """The least and the largest one-number value of texture ``k`` (:func:`scalar_values`), the bounds of every
+        lookup."""
+        values = scalar_values(self.items[k])
         return float(np.min(values)), float(np.max(values))
 
     def max_value(self, k: int) -> np.ndarray:
         """The largest value texture ``k`` takes, per channel (a bound of every lookup: filtering interpolates)."""
-        item = self.items[k]
-        if isinstance(item, Checkerboard):
-            return np.maximum(item.color0, item.color1)
-        return item.linear().reshape(-1, 3).max(axis=0)
+        return self.items[k].values().max(axis=0)

@@ -56,6 +56,7 @@ from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
+from harness.scene.primitives import sphere_uv
 from harness.scene.triangulate import object_mesh, shape_triangles, vertex_uv
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
@@ -180,10 +181,8 @@ def sphere_corner_uv(shape, triangles: np.ndarray) -> np.ndarray:
     the seam (its u spanning more than 1/2) gets u + 1 at its corners below 1/2 (so that its u runs on, as the
     sphere's does modulo 1), and a corner at a pole (where u is undefined) the mean u of its triangle's other two."""
     points = np.asarray(object_mesh(shape)[0], dtype=np.float64)
-    radius = np.linalg.norm(points, axis=1)
-    u = (np.arctan2(points[:, 1], points[:, 0]) / (2.0 * math.pi)) % 1.0
-    v = np.arccos(np.clip(points[:, 2] / radius, -1.0, 1.0)) / math.pi
-    pole = (np.hypot(points[:, 0], points[:, 1]) <= 1e-12 * radius)[triangles]
+    u, v = sphere_uv(points).T
+    pole = (np.hypot(points[:, 0], points[:, 1]) <= 1e-12 * np.linalg.norm(points, axis=1))[triangles]
     cu, cv = u[triangles], v[triangles]
     span = np.where(pole, -np.inf, cu).max(axis=1) - np.where(pole, np.inf, cu).min(axis=1)
     cu = np.where((span > 0.5)[:, None] & (cu < 0.5) & ~pole, cu + 1.0, cu)

@@ -42,7 +42,7 @@ from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
 from harness.scene.content_key import content_key
-from harness.scene.kinds.textures import TEXTURES
+from harness.scene.primitives import sphere_uv
 from harness.scene.triangulate import object_to_world, shape_triangles
 
 FORMAT_VERSION = 3  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
@@ -218,7 +218,7 @@ def textured_sphere_means(scene: Scene, side: int = QUADRATURE_SIDE) -> np.ndarr
 
     sphere = scene.shapes[0]
     (item, tex), = scene.materials[sphere.material].textures
-    tables = records.texture_tables(Textures((TEXTURES[tex.type].to_core(tex),)))
+    tables = records.texture_tables(Textures((tex.core,)))
     to_world = object_to_world(sphere)
     to_object = np.linalg.inv(to_world)
     centre, radius = to_world[:3, 3], float(np.linalg.norm(to_world[:3, 0]))
@@ -234,10 +234,7 @@ def textured_sphere_means(scene: Scene, side: int = QUADRATURE_SIDE) -> np.ndarr
         c = np.einsum("ij,ij->i", oc, oc) - radius * radius
         t = -b - np.sqrt(b * b - c)  # the nearer root: the camera is outside (the coverage check)
         p = (origins + t[:, None] * directions) @ to_object[:3, :3].T + to_object[:3, 3]
-        p /= np.linalg.norm(p, axis=1, keepdims=True)
-        u = np.arctan2(p[:, 1], p[:, 0]) / (2 * np.pi)
-        uv = np.stack([np.where(u < 0, u + 1.0, u), np.arccos(np.clip(p[:, 2], -1.0, 1.0)) / np.pi], axis=1)
-        values = lookup.evaluate(tables, 0, uv).reshape(width, side * side, 3)
+        values = lookup.evaluate(tables, 0, sphere_uv(p)).reshape(width, side * side, 3)
         out[y] = values.mean(axis=1)
     return out
 

@@ -183,7 +183,7 @@ class _SceneReader(TypedReader):
         self.folder = folder
         self.allow_outside = allow_outside
         self.files: list[Path] = []
-        self.scene_textures: dict[str, Texture] = {}  # [textures], once read (a light's emission may name one)
+        self.scene_textures: dict[str, Texture] = {}  # [textures], once read (materials and lights name them)
 
     def opened(self, path: Path) -> Path:
         """``path``, recorded among the files the scene is read from: every file the loader reads passes through
@@ -209,7 +209,7 @@ class _SceneReader(TypedReader):
         film = self.film(document)
         max_depth = self.max_depth(document)
         textures = self.textures(document)
-        materials = self.materials(document, textures)
+        materials = self.materials(document)
         shapes = self.shapes(document, materials)
         self.check_textured_shapes(shapes, materials)
         emitters = self.emitters(document)
@@ -272,9 +272,9 @@ class _SceneReader(TypedReader):
         self.scene_textures = {name: read_texture(self, name, entry) for name, entry in table.items()}
         return self.scene_textures
 
-    def materials(self, document: dict, textures: dict[str, Texture]) -> dict[str, Material]:
+    def materials(self, document: dict) -> dict[str, Material]:
         table = self.table(document.get("materials", {}), "materials")
-        return {name: read_material(self, name, entry, textures) for name, entry in table.items()}
+        return {name: read_material(self, name, entry) for name, entry in table.items()}
 
     def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
         """Refuse a textured material on a shape without texture coordinates: a mesh file without them, and a

@@ -13,7 +13,6 @@ from reference_impl.textures import Textures
 
 from harness.core.errors import HarnessError
 from harness.scene.kinds.materials import MATERIALS
-from harness.scene.kinds.textures import TEXTURES
 from harness.scene.model import Material, Scene
 
 
@@ -35,7 +34,7 @@ def material_table(scene: Scene) -> reference_impl.Materials:
         for slot, name in MATERIALS[material.type].core_slots(material).items():
             texture[m, list(core.TEXTURE_SLOTS).index(slot)] = number[name]
     try:
-        textures = Textures(tuple(TEXTURES[t.type].to_core(t) for t in used))
+        textures = Textures(tuple(t.core for t in used))
         return reference_impl.Materials(kind, params, texture, textures)
     except SettingsError as err:
         # The core names a material by its row; the file names it by its table.

@@ -7,6 +7,7 @@ flat triangle arrays of :class:`reference_impl.geometry.Geometry`; renderer adap
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,8 @@ from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DE
 from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
                                       DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR, MIRROR_ETA, MIRROR_K)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
-from reference_impl.textures import LUMINANCE, srgb_to_linear
+from reference_impl import textures as core_textures
+from reference_impl.textures import Texture as CoreTexture
 
 SHAPE_TYPES = ("rectangle", "cube", "sphere", "mesh")
 EMITTER_TYPES = ("point", "spot", "directional", "constant", "envmap")
@@ -51,43 +53,36 @@ class Texture:
     color0: Vector3 = (0.4, 0.4, 0.4)  # Mitsuba's checkerboard defaults
     color1: Vector3 = (0.2, 0.2, 0.2)
 
+    @cached_property
+    def core(self) -> CoreTexture:
+        """The core's texture (:mod:`reference_impl.textures`): an 8-bit image not ``raw`` is sRGB-decoded there."""
+        if self.type == "checkerboard":
+            return core_textures.Checkerboard(self.color0, self.color1, self.to_uv)
+        srgb = self.image.dtype == np.uint8 and not self.raw
+        return core_textures.Bitmap(self.image, self.filter_type, self.wrap_mode, srgb, self.to_uv)
+
     @property
     def scalar_range(self) -> tuple[float, float]:
         """The least and the largest value the texture takes as one number (a one-channel parameter, ``alpha``:
         Mitsuba's ``eval_1``, a bitmap's luminance, a checkerboard colour's mean)."""
-        if self.type == "checkerboard":
-            values = [sum(self.color0) / 3.0, sum(self.color1) / 3.0]
-        else:
-            values = self._linear().reshape(-1, 3) @ np.array(LUMINANCE)
+        values = core_textures.scalar_values(self.core)
         return float(np.min(values)), float(np.max(values))
 
     @property
     def scalar_mean(self) -> float:
         """The mean of the texture as one number (of :attr:`scalar_range`'s values)."""
-        if self.type == "checkerboard":
-            return (sum(self.color0) + sum(self.color1)) / 6.0
-        return float(np.mean(self._linear().reshape(-1, 3) @ np.array(LUMINANCE)))
-
-    def _linear(self) -> np.ndarray:
-        """A bitmap's texels as linear float64 values (8-bit codes sRGB-decoded unless raw)."""
-        if self.image.dtype != np.uint8:
-            return np.asarray(self.image, dtype=np.float64)
-        return self.image / 255.0 if self.raw else srgb_to_linear(self.image)
+        return float(np.mean(core_textures.scalar_values(self.core)))
 
     @property
     def mean_value(self) -> tuple[float, float, float]:
         """The mean of the texture's texels (a checkerboard's two colours), per channel: a textured light's stand-in
         radiance where a light is chosen by its power."""
-        if self.type == "checkerboard":
-            return tuple((a + b) / 2.0 for a, b in zip(self.color0, self.color1))
-        return tuple(float(c) for c in self._linear().reshape(-1, 3).mean(axis=0))
+        return tuple(float(c) for c in self.core.values().mean(axis=0))
 
     @property
     def max_value(self) -> tuple[float, float, float]:
         """The largest value the texture takes, per channel (the bound of a lookup: filtering interpolates)."""
-        if self.type == "checkerboard":
-            return tuple(max(a, b) for a, b in zip(self.color0, self.color1))
-        return tuple(float(c) for c in self._linear().reshape(-1, 3).max(axis=0))
+        return tuple(float(c) for c in self.core.values().max(axis=0))
 
 
 MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric")  # Mitsuba's plugins

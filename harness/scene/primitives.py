@@ -99,6 +99,16 @@ def rectangle_uv(vertices: np.ndarray) -> np.ndarray:
     return np.stack([(vertices[:, 0] + 1.0) / 2.0, (vertices[:, 1] + 1.0) / 2.0], axis=1)
 
 
+def sphere_uv(points: np.ndarray) -> np.ndarray:
+    """Mitsuba's analytic texture coordinates (``sphere.cpp``) at points p of a sphere in its own space, (N, 2):
+    u = atan2(p_y, p_x) / (2 pi) mod 1, v = acos(p_z / |p|) / pi (the reference's kernel computes the same,
+    ``reference_impl.kernels.surface.texture_coordinates``)."""
+    points = np.asarray(points, dtype=np.float64)
+    u = (np.arctan2(points[:, 1], points[:, 0]) / (2.0 * math.pi)) % 1.0
+    v = np.arccos(np.clip(points[:, 2] / np.linalg.norm(points, axis=1), -1.0, 1.0)) / math.pi
+    return np.stack([u, v], axis=1)
+
+
 #: Mitsuba 3.9.1's cube (``cube.cpp``): per face (its outward normal), the texture coordinates (u, v) of a point
 #: (x, y, z) of it, as (coefficient of x, y, z and constant) for u and for v; every corner of a face takes (0, 0),
 #: (1, 0), (1, 1) or (0, 1) (measured by tracing Mitsuba's own cube).

@@ -129,7 +129,7 @@ class MaterialKind:
         return bool(material.two_sided or not self.two_sided)
 
 
-def read_material(reader, name: str, entry: Any, textures: dict[str, Texture] | None = None) -> Material:
+def read_material(reader, name: str, entry: Any) -> Material:
     """One ``[materials.NAME]`` table: its type (default diffuse) and that type's parameters, of which those the
     type lists as ``textured`` may name a texture (``{ texture = "NAME" }``).
 
@@ -140,9 +140,8 @@ def read_material(reader, name: str, entry: Any, textures: dict[str, Texture] | 
     name : str
         The table's name.
     entry : object
-        The parsed table.
-    textures : dict, optional
-        The scene's ``[textures]``, by name.
+        The parsed table; a parameter's ``{ texture = "NAME" }`` names one of ``reader.scene_textures`` (the scene's
+        ``[textures]``, read first).
 
     Returns
     -------
@@ -161,7 +160,7 @@ def read_material(reader, name: str, entry: Any, textures: dict[str, Texture] | 
             raise reader.error(f"{key}.{item}", f"key {item!r} applies only to materials of type {owners}, "
                                                 f"not {kind.name!r}")
     two_sided = reader.boolean(entry.get("two_sided", False), f"{key}.two_sided")
-    entry, textured = _textured_parameters(reader, kind, entry, key, textures or {})
+    entry, textured = _textured_parameters(reader, kind, entry, key, reader.scene_textures)
     return Material(name, type=kind.name, two_sided=two_sided, textures=textured, **kind.read(reader, entry, key))
 
 

@@ -1,7 +1,8 @@
 """The texture types of a ``[textures.NAME]`` table (Mitsuba's texture plugins of the same names and parameters,
 docs/scene-format.md, "Textures"), one :class:`TextureKind` each in :data:`TEXTURES`: its keys and their reading, its
-object of the core (:mod:`reference_impl.textures`), its Mitsuba plugin and its scene.json entry; and the reading of
-a material parameter that takes ``{ texture = "NAME" }`` in place of a value (:func:`texture_reference`)."""
+Mitsuba plugin and its scene.json entry (the core's object is the model's
+:attr:`~harness.scene.model.Texture.core`); and the reading of a material parameter that takes
+``{ texture = "NAME" }`` in place of a value (:func:`texture_reference`)."""
 
 from __future__ import annotations
 
@@ -11,8 +12,6 @@ from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
-
-from reference_impl import textures as core
 
 from harness.core.errors import HarnessError, read_user_bytes
 from harness.files.imageio import exr_size, read_exr
@@ -42,8 +41,6 @@ class TextureKind:
     read : callable
         ``read(reader, entry, key) -> dict``: the :class:`~harness.scene.model.Texture` fields of its keys but
         ``name``, ``type`` and ``to_uv``.
-    to_core : callable
-        ``to_core(texture)``: the core's object (:class:`reference_impl.textures.Bitmap` or ``Checkerboard``).
     parameters : callable
         ``parameters(texture, path)``: its Mitsuba plugin's parameters, every one written out; ``path`` is the
         file's name in an export.
@@ -54,7 +51,6 @@ class TextureKind:
     name: str
     keys: tuple[str, ...]
     read: Callable[[Any, dict, str], dict]
-    to_core: Callable[[Texture], Any]
     parameters: Callable[[Texture, str], dict]
     json: Callable[[Texture, str], dict]
 
@@ -205,11 +201,6 @@ def _too_large(name: str, width: int, height: int) -> str:
             "(4096 x 4096)")
 
 
-def _bitmap_core(texture: Texture) -> core.Bitmap:
-    srgb = texture.image.dtype == np.uint8 and not texture.raw
-    return core.Bitmap(texture.image, texture.filter_type, texture.wrap_mode, srgb, texture.to_uv)
-
-
 def _bitmap_parameters(texture: Texture, path: str) -> dict:
     return {"filename": ImageFile(path, texture.image), "filter_type": texture.filter_type,
             "wrap_mode": texture.wrap_mode, "raw": bool(texture.raw)}
@@ -235,9 +226,8 @@ def _read_checkerboard(reader, entry: dict, key: str) -> dict:
 
 TEXTURES: dict[str, TextureKind] = {kind.name: kind for kind in (
     TextureKind("bitmap", ("type", "filename", "filter_type", "wrap_mode", "raw", "to_uv"), _read_bitmap,
-                _bitmap_core, _bitmap_parameters, _bitmap_json),
+                _bitmap_parameters, _bitmap_json),
     TextureKind("checkerboard", ("type", "color0", "color1", "to_uv"), _read_checkerboard,
-                lambda t: core.Checkerboard(t.color0, t.color1, t.to_uv),
                 lambda t, path: {"color0": rgb(t.color0), "color1": rgb(t.color1)},
                 lambda t, path: {"color0": list(map(float, t.color0)), "color1": list(map(float, t.color1))}),
 )}
