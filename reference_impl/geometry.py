@@ -45,6 +45,10 @@ class Geometry:
         value at the point's texture coordinates is its radiance (Mitsuba's ``area`` emitter with a textured
         ``radiance``); ``emission`` then holds a positive stand-in (the texture's mean), which only the choice of a
         light by power reads.
+    normals : (T, 3, 3) float64, optional
+        The shading normals at each triangle's corners (Mitsuba's vertex normals, in the order of ``triangles``;
+        normalised here), all zero for a triangle shaded flat; a hit's shading normal is their barycentric blend,
+        normalised (:mod:`reference_impl.kernels.shading`). None: every triangle flat.
     """
 
     vertices: np.ndarray
@@ -58,10 +62,12 @@ class Geometry:
     uv_sphere: np.ndarray | None = None
     sphere_to_object: np.ndarray | None = None
     emission_texture: np.ndarray | None = None
+    normals: np.ndarray | None = None
     # Derived per-triangle data, filled in by __post_init__.
     normal: np.ndarray = field(init=False, repr=False)  # (T, 3) unit geometric normal
     area: np.ndarray = field(init=False, repr=False)  # (T,)
     corners: np.ndarray = field(init=False, repr=False)  # (T, 3, 3): v0, v1, v2 of each triangle
+    smooth: np.ndarray = field(init=False, repr=False)  # (T,) bool: the triangle has vertex normals
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -101,6 +107,7 @@ class Geometry:
                 raise SettingsError("light_id", "expected light ids 0 .. N_L - 1 without gaps")
 
         self._check_uv(n_tri)
+        self._check_normals(n_tri)
         corners = vertices[triangles]  # (T, 3, 3)
         cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         double_area = np.linalg.norm(cross, axis=1)
@@ -145,6 +152,30 @@ class Geometry:
         set_(self, "uv", uv)
         set_(self, "uv_sphere", which)
         set_(self, "sphere_to_object", spheres)
+
+    def _check_normals(self, n_tri: int) -> None:
+        """``normals`` as a contiguous (T, 3, 3) array of unit vectors or zeros (empty where None) and ``smooth``,
+        or SettingsError."""
+        set_ = object.__setattr__
+        if self.normals is None or np.shape(self.normals) == (0, 3, 3):
+            set_(self, "normals", np.zeros((0, 3, 3)))
+            set_(self, "smooth", np.zeros(0, bool))
+            return
+        normals = np.array(self.normals, dtype=np.float64)
+        if normals.shape != (n_tri, 3, 3) or not np.all(np.isfinite(normals)):
+            raise SettingsError("normals", f"expected finite numbers in an array of shape ({n_tri}, 3, 3)")
+        length = np.linalg.norm(normals, axis=2)
+        smooth = np.any(length > 0, axis=1)
+        if np.any(length[smooth] == 0):
+            raise SettingsError("normals", "expected a non-zero normal at every corner of a smooth triangle")
+        normals[smooth] /= length[smooth][:, :, None]
+        set_(self, "normals", normals)
+        set_(self, "smooth", smooth)
+
+    @property
+    def has_shading_normals(self) -> bool:
+        """Whether a triangle has vertex normals (a shading normal of its own)."""
+        return bool(np.any(self.smooth))
 
     @property
     def textured_lights(self) -> bool:

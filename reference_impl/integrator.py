@@ -48,7 +48,7 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.materials import Materials, is_glossy
+from reference_impl.materials import P_PERTURB, PERTURB_NONE, Materials, is_glossy
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import CAPABILITIES, GLOSSY_DIRECT, Settings
 
@@ -325,6 +325,12 @@ def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
         raise SettingsError("indirect_rays" if settings.indirect_rays > 1 else "engine",
                             "a textured area light is traced by the path loop alone: expected indirect_rays = 1 and "
                             f"engine = path, got {settings.indirect_rays} and {settings.engine!r}")
+    shading = geometry.has_shading_normals or bool(np.any(materials.params[:, P_PERTURB] != PERTURB_NONE))
+    if shading and (settings.engine == "wavefront" or settings.indirect_rays > 1):
+        raise SettingsError("indirect_rays" if settings.indirect_rays > 1 else "engine",
+                            "shading normals (vertex normals, a normal or bump map) are traced by the path loop "
+                            f"alone: expected indirect_rays = 1 and engine = path, got {settings.indirect_rays} and "
+                            f"{settings.engine!r}")
     if glossy:
         for (key, value), engines in rows.items():
             if "glossy" not in engines and key in _GLOSSY_REFUSALS:
@@ -333,7 +339,7 @@ def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
         return "path", materials
     other = "wavefront" if settings.engine == "path" else "path"
     for engine in (settings.engine, other):
-        if all(engine in engines for engines in rows.values()):
+        if all(engine in engines for engines in rows.values()) and not (shading and engine == "wavefront"):
             return engine, materials
     path_only = next(row for row, engines in rows.items() if "wavefront" not in engines)
     raise SettingsError("indirect_rays", "the path loop traces one ray per vertex (indirect_rays > 1 is the "

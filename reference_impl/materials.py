@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_impl.errors import SettingsError
-from reference_impl.textures import Textures
+from reference_impl.textures import Bitmap, Textures
 
 DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC = range(5)
 #: Mitsuba's plugin name of each kind.
@@ -34,11 +34,22 @@ P_SAMPLE_VISIBLE = 14  # 1: visible-normal sampling, 0: sampling of D(m) cos(the
 P_IOR = 15  # dielectrics: eta = int_ior / ext_ior
 P_TWO_SIDED = 16  # 1: Mitsuba's twosided wrapper (diffuse and conductors only)
 P_MIRROR = 17  # 1: conductor with material = "none" (Fresnel = 1)
-NUM_PARAMS = 20  # 18-19 spare
+P_PERTURB = 18  # PERTURB_NONE | PERTURB_NORMALMAP | PERTURB_BUMPMAP: Mitsuba's normalmap / bumpmap around the kind
+P_BUMP_SCALE = 19  # bumpmap: scale
+P_NORMAL = 20  # 20-22: normalmap: the tangent-space normal's texture value (rgb, n = 2 rgb - 1), at a hit the texture's
+P_FLIP_INVALID = 23  # normalmap, bumpmap: 1: flip_invalid_normals
+P_SHADOWING = 24  # normalmap, bumpmap: 1: use_shadowing_function (the shadow terminator)
+NUM_PARAMS = 26  # 25 spare
+
+PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP = 0, 1, 2
+#: Mitsuba's plugin name of each perturbation.
+PERTURB_NAMES = {PERTURB_NORMALMAP: "normalmap", PERTURB_BUMPMAP: "bumpmap"}
 
 #: The parameters a texture may drive (Mitsuba's texture-valued parameters): their first column and channel count,
-#: in the order of the columns of ``Materials.texture``.
-TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1)}
+#: in the order of the columns of ``Materials.texture``. The bump map's height (channels 0) is not written into the
+#: row: its gradient is looked up where the frame is perturbed (kernels/shading.py).
+TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1),
+                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0)}
 NUM_SLOTS = len(TEXTURE_SLOTS)
 
 #: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
@@ -92,6 +103,7 @@ class Materials:
                                 f"({', '.join(KIND_NAMES.values())})")
         _check_params(kind, params)
         texture, textures = _check_textures(kind, self.texture, self.textures)
+        _check_perturbations(params, texture, textures)
         object.__setattr__(self, "texture", texture)
         object.__setattr__(self, "textures", textures)
         params.setflags(write=False)
@@ -151,6 +163,21 @@ def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Te
     return texture, textures
 
 
+def _check_perturbations(params: np.ndarray, texture: np.ndarray, textures: Textures) -> None:
+    """SettingsError for a normal map's or bump map's texture on a material that is not one, or a bump map without a
+    bitmap height (Mitsuba 3.9.1's ``eval_1_grad`` is a bitmap's alone)."""
+    slots = list(TEXTURE_SLOTS)
+    for m in range(len(params)):
+        perturb = params[m, P_PERTURB]
+        for slot, wanted in (("normalmap", PERTURB_NORMALMAP), ("bumpmap", PERTURB_BUMPMAP)):
+            k = int(texture[m, slots.index(slot)])
+            if k >= 0 and perturb != wanted:
+                raise SettingsError(f"materials.texture[{m}]", f"a {slot} texture on a material that is no {slot}")
+        k = int(texture[m, slots.index("bumpmap")])
+        if perturb == PERTURB_BUMPMAP and (k < 0 or not isinstance(textures.items[k], Bitmap)):
+            raise SettingsError(f"materials.texture[{m}]", "expected a bitmap's height for a bumpmap")
+
+
 def is_glossy(materials: Materials | None) -> bool:
     """Whether a scene is glossy: its material table is given and holds a material that is not Lambertian.
 
@@ -176,12 +203,14 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
                  transmittance=DEFAULT_SPECULAR, alpha: float = DEFAULT_ALPHA,
                  distribution: int = DISTRIBUTIONS[DEFAULT_DISTRIBUTION],
                  sample_visible: bool = DEFAULT_SAMPLE_VISIBLE, int_ior: float = DEFAULT_INT_IOR, ext_ior: float = DEFAULT_EXT_IOR,
-                 two_sided: bool = False, mirror: bool = False) -> np.ndarray:
+                 two_sided: bool = False, mirror: bool = False, perturb: int = PERTURB_NONE, bump_scale: float = 1.0,
+                 flip_invalid_normals: bool = True, use_shadowing_function: bool = True) -> np.ndarray:
     """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
 
     ``reflectance`` is the diffuse albedo or the specular_reflectance; ``eta``, ``k`` the conductor's complex index
     (Mitsuba's default without a named material is eta = 0, k = 1: Fresnel = 1); ``int_ior / ext_ior`` becomes
-    :data:`P_IOR`.
+    :data:`P_IOR`. ``perturb``, ``bump_scale``, ``flip_invalid_normals``, ``use_shadowing_function``: Mitsuba's
+    ``normalmap`` or ``bumpmap`` around the kind (its normal map's value is the texture's, at each hit).
     """
     row = np.zeros(NUM_PARAMS)
     row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), 3)
@@ -194,6 +223,11 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_IOR] = int_ior / ext_ior
     row[P_TWO_SIDED] = bool(two_sided)
     row[P_MIRROR] = bool(mirror)
+    row[P_PERTURB] = perturb
+    row[P_BUMP_SCALE] = bump_scale
+    row[P_NORMAL:P_NORMAL + 3] = (0.5, 0.5, 1.0)  # n = (0, 0, 1): the frame unperturbed
+    row[P_FLIP_INVALID] = bool(flip_invalid_normals)
+    row[P_SHADOWING] = bool(use_shadowing_function)
     return row
 
 
@@ -208,9 +242,13 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         if np.any(rgb < 0) or np.any(rgb > 1):
             raise SettingsError(name, "expected the reflectance in [0, 1]")
         for col, label in ((P_TWO_SIDED, "two_sided"), (P_MIRROR, "mirror"), (P_SAMPLE_VISIBLE, "sample_visible"),
-                           (P_DISTRIBUTION, "distribution")):
+                           (P_DISTRIBUTION, "distribution"), (P_FLIP_INVALID, "flip_invalid_normals"),
+                           (P_SHADOWING, "use_shadowing_function")):
             if row[col] not in (0.0, 1.0):
                 raise SettingsError(name, f"expected {label} 0 or 1, got {row[col]!r}")
+        if row[P_PERTURB] not in (PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP):
+            raise SettingsError(name, f"expected perturb {PERTURB_NONE}, {PERTURB_NORMALMAP} or {PERTURB_BUMPMAP}, "
+                                f"got {row[P_PERTURB]!r}")
         if kd in (ROUGHCONDUCTOR, ROUGHDIELECTRIC) and not row[P_ALPHA] > 0:
             raise SettingsError(name, f"expected alpha > 0, got {row[P_ALPHA]!r}")
         if kd in (CONDUCTOR, ROUGHCONDUCTOR) and np.any(row[P_K:P_K + 3] < 0):

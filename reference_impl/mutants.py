@@ -73,4 +73,19 @@ TEXTURE_MUTANTS: dict[str, str] = {
     "texture-repeat-as-clamp": "wrap_mode = repeat treated as clamp (the edge texels stretched outside [0, 1])",
 }
 
-ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS}
+# The shading normals' (reference_impl/kernels/shading.py; the side test in kernels/path.py).
+NORMAL_MUTANTS: dict[str, str] = {
+    "normals-not-renormalised": (
+        "a hit's shading normal taken as the barycentric blend of the vertex normals without normalising it (shorter "
+        "than 1 inside a triangle whose normals differ: every cosine too small)"
+    ),
+    "shading-normal-side": (
+        "the shading normal deciding which side of the surface a direction is on, where the geometric one should: "
+        "light below a surface whose shading normal leans toward it leaks through"
+    ),
+    "normalmap-green-inverted": "a normal map's green channel inverted (n_y = 1 - 2 g: the other handedness)",
+    "bumpmap-scale-ignored": "a bump map's scale ignored (taken as 1)",
+}
+
+ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS,
+                               **NORMAL_MUTANTS}

@@ -43,9 +43,9 @@ from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
 from harness.scene.content_key import content_key
 from harness.scene.primitives import sphere_uv
-from harness.scene.triangulate import object_to_world, shape_triangles
+from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals
 
-FORMAT_VERSION = 3  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
+FORMAT_VERSION = 4  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
 DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
@@ -239,7 +239,83 @@ def textured_sphere_means(scene: Scene, side: int = QUADRATURE_SIDE) -> np.ndarr
     return out
 
 
-CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace}
+def _leaning_plate(scene: Scene) -> np.ndarray:
+    """(H, W, 3): a smooth-shaded diffuse mesh under suns, alone, covering the film: each pixel the mean over its box
+    footprint of rho / pi sum_k E_k max(0, n_s . l_k) [N . l_k > 0] [n_s . wo > 0] (:func:`shaded_plate_means`)."""
+    where = f"{scene.path}: closed_form"
+    if len(scene.shapes) != 1 or scene.shapes[0].type != "mesh" or scene.shapes[0].emission is not None:
+        raise HarnessError(where, "the leaning-plate closed form needs exactly one shape, a mesh that does not emit")
+    material = scene.materials[scene.shapes[0].material]
+    if not material.is_diffuse or material.textures or material.perturbation or material.two_sided:
+        raise HarnessError(where, "the leaning-plate closed form needs a one-sided diffuse material without textures")
+    if not scene.emitters or any(e.type != "directional" for e in scene.emitters):
+        raise HarnessError(where, "the leaning-plate closed form needs [[emitters]] that are all directional")
+    if scene.film.filter != "box" or scene.max_depth == 1:
+        raise HarnessError(where, "the leaning-plate closed form needs the box filter and max_depth >= 2 or -1")
+    return shaded_plate_means(scene)
+
+
+def shaded_plate_means(scene: Scene, side: int = QUADRATURE_SIDE) -> np.ndarray:
+    """(H, W, 3): each pixel's mean over its box footprint, by the midpoint rule on ``side`` x ``side`` points, of
+    the light a one-sided diffuse mesh (the scene's one shape) reflects toward the camera from directional lights:
+
+        L = rho / pi sum_k E_k max(0, n_s . l_k) [N . l_k > 0] [n_s . wo > 0] [N . wo > 0],
+
+    n_s the normalised barycentric blend of the vertex normals (:func:`harness.scene.triangulate.vertex_normals`),
+    N the triangle's geometric normal, which decides the side (no light through the plate), l_k the direction toward
+    sun k, wo toward the camera. Every point's ray must meet the mesh (HarnessError otherwise): the mesh covers the
+    film, nothing else is in the scene."""
+    shape = scene.shapes[0]
+    vertices, triangles = shape_triangles(shape)
+    normals = vertex_normals(shape, vertices, triangles)
+    corners = vertices[triangles]
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    geometric = np.cross(e1, e2)
+    geometric /= np.linalg.norm(geometric, axis=1, keepdims=True)
+    rho = np.asarray(scene.materials[shape.material].reflectance, dtype=np.float64)
+    suns = [(-np.asarray(e.direction, dtype=np.float64) / np.linalg.norm(e.direction),
+             np.asarray(e.irradiance, dtype=np.float64)) for e in scene.emitters]
+    width, height = scene.film.width, scene.film.height
+    offsets = (np.arange(side) + 0.5) / side
+    out = np.empty((height, width, 3))
+    for y in range(height):
+        fx, fy = np.meshgrid(np.arange(width)[:, None] + offsets[None, :], y + offsets, indexing="ij")
+        origins, directions = scene.camera.generate_rays(fx.ravel(), np.broadcast_to(fy, fx.shape).ravel(), width,
+                                                         height)
+        best_t = np.full(len(origins), np.inf)
+        shading = np.zeros_like(origins)
+        face = np.zeros_like(origins)
+        for tri in range(len(triangles)):  # Moeller-Trumbore against each triangle: the nearest hit
+            p = np.cross(directions, e2[tri])
+            det = p @ e1[tri]
+            with np.errstate(all="ignore"):
+                inv = 1.0 / det
+                s = origins - corners[tri, 0]
+                u = np.einsum("ij,ij->i", s, p) * inv
+                q = np.cross(s, e1[tri])
+                v = np.einsum("ij,ij->i", directions, q) * inv
+                t = (q @ e2[tri]) * inv
+            hit = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0) & (t < best_t)
+            best_t[hit] = t[hit]
+            blend = ((1 - u - v)[:, None] * normals[triangles[tri, 0]] + u[:, None] * normals[triangles[tri, 1]]
+                     + v[:, None] * normals[triangles[tri, 2]])
+            shading[hit] = blend[hit] / np.linalg.norm(blend[hit], axis=1, keepdims=True)
+            face[hit] = geometric[tri]
+        if not np.all(np.isfinite(best_t)):
+            raise HarnessError(f"{scene.path}: closed_form", "the leaning-plate closed form needs the mesh to cover "
+                                                             "every pixel's footprint")
+        wo = -directions
+        seen = (np.einsum("ij,ij->i", shading, wo) > 0) & (np.einsum("ij,ij->i", face, wo) > 0)
+        radiance = np.zeros((len(origins), 3))
+        for toward, irradiance in suns:
+            cos = np.maximum(shading @ toward, 0.0) * (face @ toward > 0)
+            radiance += (cos * seen)[:, None] * irradiance
+        out[y] = (radiance * rho / np.pi).reshape(width, side * side, 3).mean(axis=1)
+    return out
+
+
+CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace,
+                                                          "leaning-plate": _leaning_plate}
 
 
 # ---- the cache -------------------------------------------------------------------------------------------------

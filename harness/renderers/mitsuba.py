@@ -468,9 +468,11 @@ def _mesh_object(mi, plugin: dict, plugins: dict) -> object:
         value = _load_dict_value(mi, value, plugins)
         props[key] = mi.load_dict(value) if isinstance(value, dict) else value
     shape = mi.Mesh(mesh.name, len(mesh.vertices), len(mesh.triangles), props=props,
-                    has_vertex_normals=False, has_vertex_texcoords=mesh.uv is not None)
+                    has_vertex_normals=mesh.normals is not None, has_vertex_texcoords=mesh.uv is not None)
     params = mi.traverse(shape)
     params["vertex_positions"] = np.ascontiguousarray(mesh.vertices, dtype=np.float32).ravel()
+    if mesh.normals is not None:  # updated with the positions: else Mitsuba would compute its own
+        params["vertex_normals"] = np.ascontiguousarray(mesh.normals, dtype=np.float32).ravel()
     params["faces"] = np.ascontiguousarray(mesh.triangles, dtype=np.uint32).ravel()
     if mesh.uv is not None:
         params["vertex_texcoords"] = np.ascontiguousarray(mesh.uv, dtype=np.float32).ravel()

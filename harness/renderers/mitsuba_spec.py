@@ -46,7 +46,7 @@ from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's value
     rgb,
     xyz,
 )
-from harness.scene.triangulate import object_to_world, shape_triangles, vertex_uv
+from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals, vertex_uv
 
 RR_DEPTH = 5  # Mitsuba's default (the reference's is 1: roulette changes the noise, not the expectation)
 NEAR_FRACTION = 1e-3  # near_clip = this fraction of the distance from the camera to the nearest surface
@@ -132,14 +132,16 @@ def sensor_plugin(scene: Scene, spp: int | Parameter, seed: Parameter | None, sa
 
 
 def shape_plugin(shape, bsdf_key: str, as_mesh: bool, uv=None) -> dict:
-    """One shape: its plugin and placement matrix, or (``as_mesh``) its triangles as a ``ply`` with flat normals
-    (and ``uv``, its vertices' texture coordinates, where its material is textured); its BSDF by reference, an
-    emitting shape's ``area`` emitter."""
+    """One shape: its plugin and placement matrix, or (``as_mesh``) its triangles as a ``ply`` with its vertex
+    normals where it is smooth-shaded (else ``face_normals``) and ``uv``, its vertices' texture coordinates, where
+    its material is textured; its BSDF by reference, an emitting shape's ``area`` emitter."""
     if as_mesh:
         vertices, triangles = shape_triangles(shape)  # world space; flip_normals is in the winding
+        # the reference's vertex normals, written out (Mitsuba's own; a light's are its pieces' normals: flat)
+        normals = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)
         mesh = MeshFile(shape.name, f"{MESH_DIR}/{shape.index}-{safe_name(shape.name)}.ply", vertices, triangles,
-                        uv)
-        plugin = {"type": "ply", "filename": mesh, "face_normals": True}
+                        uv, normals)
+        plugin = {"type": "ply", "filename": mesh, "face_normals": normals is None}
     else:
         plugin = {"type": shape.type, "to_world": np.asarray(object_to_world(shape), dtype=np.float64)}
         if shape.flip_normals:

@@ -31,7 +31,8 @@ CATEGORIES = {
     "hdrfilm": "film",
     **dict.fromkeys(("box", "tent", "gaussian"), "rfilter"),
     **dict.fromkeys(("independent", "stratified", "multijitter", "orthogonal", "ldsampler"), "sampler"),
-    **dict.fromkeys(("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "twosided"), "bsdf"),
+    **dict.fromkeys(("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "twosided",
+                      "normalmap", "bumpmap"), "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap"), "emitter"),
     **dict.fromkeys(("rectangle", "cube", "sphere", "ply"), "shape"),
     **dict.fromkeys(("bitmap", "checkerboard"), "texture"),
@@ -136,7 +137,7 @@ def _transform(value) -> str:
 def _file_bytes(reference) -> bytes:
     """A mesh as a binary PLY, an image as an OpenEXR file."""
     if isinstance(reference, MeshFile):
-        return ply_bytes(reference.vertices, reference.triangles, reference.uv)
+        return ply_bytes(reference.vertices, reference.triangles, reference.uv, reference.normals)
     if reference.image.dtype == np.uint8:
         return encode_png(reference.image)
     return exr_bytes(reference.image)

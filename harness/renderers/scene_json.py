@@ -25,7 +25,7 @@ from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
-from harness.scene.triangulate import object_to_world, shape_triangles, vertex_uv
+from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals, vertex_uv
 
 FORMAT = "rendering-harness scene"
 VERSION = 1
@@ -85,11 +85,14 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
         vertices, triangles = shape_triangles(shape)
         uv = vertex_uv(shape) if textured else None
-        files[rel] = ply_bytes(vertices, triangles, uv)
+        normals = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)
+        files[rel] = ply_bytes(vertices, triangles, uv, normals)
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
                        "emission": (None if shape.emission is None else _floats(shape.emission)
                                     if shape.emission_texture is None else {"texture": shape.emission_texture.name}),
-                       "mesh": rel, "triangles": int(len(triangles))}
+                       "mesh": rel, "triangles": int(len(triangles)),
+                       # smooth: the PLY's nx, ny, nz are the shading normals (Mitsuba's vertex normals)
+                       "shading": "flat" if normals is None else "smooth"}
         if textured:
             entry["uv"] = "analytic" if SHAPES[shape.type].sphere is not None else ("mesh" if uv is not None
                                                                                      else None)

@@ -28,6 +28,8 @@ from harness.files.imageio import exr_size, read_exr
 from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
+from harness.scene.kinds.perturbations import PERTURBATIONS, read_perturbed
+from harness.scene.triangulate import emitter_shades_flat
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
 from harness.scene.kinds.textures import read_texture, texture_reference
 from harness.scene.model import Emitter, Material, Scene, Shape, Texture
@@ -51,12 +53,12 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "textures", "materials",
                   "shapes", "emitters", "regions")
-CLOSED_FORMS = ("furnace", "white-furnace")  # harness.renderers.groundtruth.CLOSED_FORMS
+CLOSED_FORMS = ("furnace", "white-furnace", "leaning-plate")  # harness.renderers.groundtruth.CLOSED_FORMS
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (
     "name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
-    "file", "flip_tex_coords", "center", "radius", "subdivisions",
+    "file", "flip_tex_coords", "face_normals", "center", "radius", "subdivisions",
 )  # fmt: skip
 ROTATE_KEYS = ("axis", "angle")
 MESH_SUFFIXES = (".ply", ".obj")
@@ -273,17 +275,39 @@ class _SceneReader(TypedReader):
         return self.scene_textures
 
     def materials(self, document: dict) -> dict[str, Material]:
+        """The ``[materials]`` in file order: the plain ones first read, then the normal and bump maps around them
+        (:mod:`harness.scene.kinds.perturbations`)."""
         table = self.table(document.get("materials", {}), "materials")
-        return {name: read_material(self, name, entry) for name, entry in table.items()}
+        perturbing = {name: entry for name, entry in table.items()
+                      if isinstance(entry, dict) and isinstance(entry.get("type"), str) and entry["type"] in PERTURBATIONS}
+        self.perturbing_names = set(perturbing)
+        plain = {name: read_material(self, name, entry) for name, entry in table.items() if name not in perturbing}
+        read = dict(plain)
+        for name, entry in perturbing.items():
+            read[name] = read_perturbed(self, name, entry, self.join("materials", name), plain)
+        return {name: read[name] for name in table}
 
     def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
         """Refuse a textured material on a shape without texture coordinates: a mesh file without them, and a
         sphere in a scene with a material that is not diffuse (Mitsuba gets its icosphere, a mesh)."""
         glossy = any(not m.is_diffuse for m in materials.values())
         for shape in shapes:
-            if not (materials[shape.material].textures or shape.emission_texture is not None):
+            material = materials[shape.material]
+            if shape.is_emitter and not emitter_shades_flat(shape):
+                raise self.error(f"shapes[{shape.index}].face_normals",
+                                 f"shape {shape.name!r} emits light and its vertex normals lean off its triangles' "
+                                 "normals; Mitsuba 3.9.1 turns and samples an area light by them (docs/mitsuba.md, "
+                                 "\"Shading normals\"): expected face_normals = true on it")
+            if material.perturbation is not None and shape.type == "sphere":
+                raise self.error(f"shapes[{shape.index}].material",
+                                 f"shape {shape.name!r} is a sphere and material {shape.material!r} a "
+                                 f"{material.perturbation.type}: expected a {material.perturbation.type} on a "
+                                 "rectangle, cube or mesh (the reference traces a sphere as its icosphere, whose "
+                                 "tangents are not Mitsuba's analytic ones)")
+            textured = bool(material.textures or material.perturbation is not None)
+            if not (textured or shape.emission_texture is not None):
                 continue
-            key = f"shapes[{shape.index}].{'material' if materials[shape.material].textures else 'emission'}"
+            key = f"shapes[{shape.index}].{'material' if textured else 'emission'}"
             if shape.type == "mesh" and shape.mesh_uv is None:
                 raise self.error(key, f"shape {shape.name!r} is textured, but mesh {shape.file.name!r} has no "
                                       "texture coordinates (PLY u, v / s, t / texture_u, texture_v; OBJ vt)")
@@ -433,12 +457,19 @@ class _SceneReader(TypedReader):
                                     opened=self.opened)
         try:
             import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
-            mesh = trimesh.load(io.BytesIO(data), file_type=file_type, resolver=resolver, force="mesh",
-                                process=False, skip_materials=True)
+            mesh = trimesh.load(io.BytesIO(data), file_type=file_type, resolver=resolver, process=False,
+                                skip_materials=True)
+            if isinstance(mesh, trimesh.Scene):  # several parts: one mesh, as Mitsuba reads the file
+                mesh = trimesh.util.concatenate(mesh.dump())
+            # the file's vertex normals (PLY nx, ny, nz; OBJ vn), which trimesh keeps in its cache as read
+            normals = mesh._cache.cache.get("vertex_normals")
             vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
             triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
             uv = getattr(mesh.visual, "uv", None)  # PLY u, v / s, t / texture_u, texture_v; OBJ vt (Mitsuba's)
             uv = None if uv is None or len(uv) != len(vertices) else np.array(uv, dtype=np.float64).reshape(-1, 2)
+            if normals is not None:
+                normals = np.array(normals, dtype=np.float64).reshape(-1, 3)
+                normals = normals if len(normals) == len(vertices) else None
         except HarnessError:
             raise
         except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
@@ -451,13 +482,20 @@ class _SceneReader(TypedReader):
         if not np.all(np.isfinite(vertices)):
             raise self.error(file_key, f"mesh {name!r} has non-finite vertex coordinates")
         flip = self.boolean(table.get("flip_tex_coords", file_type == "obj"), f"{key}.flip_tex_coords")
+        face_normals = self.boolean(table.get("face_normals", False), f"{key}.face_normals")
+        if normals is not None and not face_normals:
+            length = np.linalg.norm(normals, axis=1)
+            if not (np.all(np.isfinite(normals)) and np.all(length > 0)):
+                raise self.error(file_key, f"mesh {name!r} has a vertex normal that is zero or not finite "
+                                           "(or set face_normals = true to shade it flat)")
         if uv is not None:
             if not np.all(np.isfinite(uv)):
                 raise self.error(file_key, f"mesh {name!r} has non-finite texture coordinates")
             if flip:
                 uv[:, 1] = 1.0 - uv[:, 1]
         return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles, "mesh_uv": uv,
-                "flip_tex_coords": flip}
+                "flip_tex_coords": flip, "face_normals": face_normals,
+                "mesh_normals": None if face_normals else normals}
 
     def file_path(self, name: str, key: str, what: str) -> Path:
         """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist,

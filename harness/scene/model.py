@@ -94,6 +94,24 @@ DISTRIBUTIONS = tuple(CORE_DISTRIBUTIONS)  # Mitsuba's microfacet distributions
 
 
 @dataclass(frozen=True)
+class Perturbation:
+    """A ``normalmap`` or ``bumpmap`` material's map (Mitsuba's plugins of those names, around the BSDF its ``bsdf``
+    key names; docs/scene-format.md, "Shading normals").
+
+    ``type = "normalmap"``: ``texture`` is the tangent-space normal map (``normalmap = { texture = "N" }``, raw RGB,
+    n = 2 rgb - 1); ``type = "bumpmap"``: ``texture`` is the height (a bitmap, its luminance), ``scale`` its factor.
+    ``flip_invalid_normals`` and ``use_shadowing_function`` are Mitsuba's keys of both (default true).
+    """
+
+    type: str
+    texture: Texture
+    bsdf: str  # the name of the material it wraps
+    scale: float = 1.0
+    flip_invalid_normals: bool = True
+    use_shadowing_function: bool = True
+
+
+@dataclass(frozen=True)
 class Material:
     """One ``[materials.NAME]`` table: Mitsuba's BSDF plugin ``type`` with its parameters (docs/scene-format.md).
 
@@ -123,6 +141,8 @@ class Material:
     # (parameter, texture) of every parameter a texture drives, in the order of the type's keys; the parameter's own
     # field then holds the texture's largest value (a bound of what one bounce keeps)
     textures: tuple[tuple[str, Texture], ...] = ()
+    # a normalmap or bumpmap material: its map; the fields above are those of the material its ``bsdf`` names
+    perturbation: Perturbation | None = None
 
     def texture(self, parameter: str) -> Texture | None:
         """The texture that drives ``parameter``, or None."""
@@ -189,6 +209,12 @@ class Shape:
         1 - v, where ``flip_tex_coords``), or None for a file without them.
     flip_tex_coords : bool
         Meshes only: Mitsuba's ``flip_tex_coords`` (its default: true for OBJ, false for PLY).
+    face_normals : bool
+        Meshes only: Mitsuba's ``face_normals`` (default false): shade flat, ignoring the file's vertex normals and
+        computing none.
+    mesh_normals : ndarray or None
+        Meshes only: the file's vertex normals (V, 3) in object space (PLY ``nx, ny, nz``; OBJ ``vn``), or None for
+        a file without them (whose normals are then computed as Mitsuba does, :mod:`harness.scene.triangulate`).
     """
 
     index: int
@@ -207,6 +233,8 @@ class Shape:
     mesh_uv: np.ndarray | None = None
     flip_tex_coords: bool = False
     emission_texture: Texture | None = None
+    face_normals: bool = False
+    mesh_normals: np.ndarray | None = None
 
     @property
     def is_emitter(self) -> bool:
@@ -325,6 +353,7 @@ class Scene:
         """The textures some material's parameter or some light's emission takes, in the order of :attr:`textures`
         (the core's order)."""
         used = {id(texture) for material in self.materials.values() for _, texture in material.textures}
+        used |= {id(m.perturbation.texture) for m in self.materials.values() if m.perturbation is not None}
         used |= {id(shape.emission_texture) for shape in self.shapes if shape.emission_texture is not None}
         return [texture for texture in self.textures.values() if id(texture) in used]
 

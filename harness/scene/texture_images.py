@@ -64,7 +64,34 @@ def fine_checker() -> np.ndarray:
     return np.repeat((((i + j) % 2) * 255).astype(np.uint8)[..., None], 3, axis=2)
 
 
-IMAGES = {"tiles.png": tiles, "wall.png": wall, "glow.exr": glow}
+def _height(size: int) -> np.ndarray:
+    """(size, size) float64 in [0, 1]: the mapped plates' height field, h = (2 + sin(2 pi (2 u + v)) + cos(2 pi 3 v)
+    sin(2 pi u)) / 4 at the texel centres (u across, v down): lopsided in u and v, so that no flip maps it onto
+    itself."""
+    v, u = (np.mgrid[0:size, 0:size] + 0.5) / size
+    return (2.0 + np.sin(2 * np.pi * (2 * u + v)) + np.cos(2 * np.pi * 3 * v) * np.sin(2 * np.pi * u)) / 4.0
+
+
+def bumps_normal() -> np.ndarray:
+    """(64, 64, 3) uint8: a tangent-space normal map (raw: rgb = (n + 1) / 2 in codes) of :func:`_height`,
+    n = normalize(-0.1 dh/du, -0.1 dh/dv, 1) from central differences: normals leaning up to 36 degrees, toward
+    +u and +v alike."""
+    size = 64
+    h = _height(size)
+    dh_du = (np.roll(h, -1, axis=1) - np.roll(h, 1, axis=1)) * size / 2.0
+    dh_dv = (np.roll(h, -1, axis=0) - np.roll(h, 1, axis=0)) * size / 2.0
+    n = np.stack([-0.1 * dh_du, -0.1 * dh_dv, np.ones_like(h)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.clip(np.rint((n + 1.0) / 2.0 * 255.0), 0, 255).astype(np.uint8)
+
+
+def ridges() -> np.ndarray:
+    """(64, 64, 3) uint8 grey: :func:`_height` as codes 255 h (the bump map's height, read raw)."""
+    return np.repeat(np.rint(_height(64) * 255.0).astype(np.uint8)[..., None], 3, axis=2)
+
+
+IMAGES = {"tiles.png": tiles, "wall.png": wall, "glow.exr": glow, "bumps-normal.png": bumps_normal,
+          "ridges.png": ridges}
 #: The stress suite's texture images (scenes/stress/textures).
 STRESS_IMAGES = {"one-texel.png": one_texel, "fine-checker.png": fine_checker, "tiles.png": tiles}
 STRESS_FOLDER = DEFAULT_FOLDER.parent / "stress" / "textures"

@@ -86,6 +86,62 @@ def shape_uv(shape: Shape, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return (np.zeros((len(triangles), 3, 2)) if uv is None else uv[triangles]), None
 
 
+def vertex_normals(shape: Shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
+    """The unit vertex normals (V, 3) of the shape's world ``vertices`` and ``triangles`` (:func:`shape_triangles`),
+    as Mitsuba 3.9.1 gives a mesh (``mesh.cpp``, docs/mitsuba.md "Shading normals"), or None where it shades flat
+    (``face_normals = true``, rectangles, cubes, spheres).
+
+    The file's normals: normalize(M^-T n), negated by ``flip_normals``. A file without normals: angle-weighted
+    normals of the triangles as wound (Thuermer and Wuethrich 1998), N_v = normalize(sum_f alpha_f(v) N_f), alpha_f(v)
+    the triangle's interior angle at v, degenerate triangles skipped, (1, 0, 0) where the sum is zero."""
+    if shape.type != "mesh" or shape.face_normals:
+        return None
+    if shape.mesh_normals is not None:
+        with np.errstate(all="ignore"):
+            normals = shape.mesh_normals @ np.linalg.inv(object_to_world(shape)[:3, :3])
+        normals = -normals if shape.flip_normals else normals
+    else:
+        normals = np.zeros_like(vertices)
+        corners = vertices[triangles]
+        with np.errstate(all="ignore"):
+            face = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+            length = np.linalg.norm(face, axis=1)
+            good = length > 0
+            face = face[good] / length[good, None]
+            for i in range(3):
+                a = corners[good, (i + 1) % 3] - corners[good, i]
+                b = corners[good, (i + 2) % 3] - corners[good, i]
+                cos = np.einsum("ij,ij->i", a, b) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+                angle = np.arccos(np.clip(np.nan_to_num(cos), -1.0, 1.0))
+                np.add.at(normals, triangles[good, i], angle[:, None] * face)
+    length = np.linalg.norm(normals, axis=1)
+    zero = ~(length > 0) | ~np.isfinite(length)
+    normals[zero] = (1.0, 0.0, 0.0)
+    length[zero] = 1.0
+    return normals / length[:, None]
+
+
+#: The largest angle (radians) between a corner's vertex normal and its triangle's normal at which a light is still
+#: shaded flat (its vertex normals those of its planar pieces, up to the file's rounding).
+FLAT_ANGLE = 1e-4
+
+
+def emitter_shades_flat(shape: Shape) -> bool:
+    """Whether the shape's vertex normals (:func:`vertex_normals`) are its triangles' own normals at every corner
+    (within :data:`FLAT_ANGLE`), or it has none: an area light the reference shades flat."""
+    vertices, triangles = shape_triangles(shape)
+    normals = vertex_normals(shape, vertices, triangles)
+    if normals is None:
+        return True
+    corners = vertices[triangles]
+    with np.errstate(all="ignore"):
+        face = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        face /= np.linalg.norm(face, axis=1, keepdims=True)
+    good = np.all(np.isfinite(face), axis=1)
+    cos = np.einsum("tij,tj->ti", normals[triangles[good]], face[good])
+    return bool(np.all(cos >= np.cos(FLAT_ANGLE)))
+
+
 def triangle_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Area of each triangle."""
     corners = vertices[triangles]
@@ -106,6 +162,7 @@ def triangulate(scene: Scene) -> Geometry:
     emission_texture = []
     all_vertices, all_triangles, material, emission, light_id = [], [], [], [], []
     uv, uv_sphere, sphere_to_object = [], [], []
+    normals = []
     vertex_count = 0
     next_light = 0
     for shape in scene.shapes:
@@ -115,6 +172,8 @@ def triangulate(scene: Scene) -> Geometry:
         all_triangles.append(triangles + vertex_count)
         vertex_count += len(vertices)
         material.append(np.full(count, material_index[shape.material]))
+        shading = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)  # lights: flat (load)
+        normals.append(np.zeros((count, 3, 3)) if shading is None else shading[triangles])
         if textured:
             corners_uv, sphere = shape_uv(shape, triangles)
             uv.append(corners_uv)
@@ -144,6 +203,7 @@ def triangulate(scene: Scene) -> Geometry:
             uv_sphere=np.concatenate(uv_sphere) if uv_sphere else None,
             sphere_to_object=np.array(sphere_to_object).reshape(-1, 4, 4) if uv else None,
             emission_texture=np.concatenate(emission_texture) if textured else None,
+            normals=np.concatenate(normals) if any(np.any(n) for n in normals) else None,
         )
     except SettingsError as err:
         raise HarnessError(str(scene.path), f"cannot triangulate the scene: {err}") from err

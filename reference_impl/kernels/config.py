@@ -81,6 +81,14 @@ M_TEXTURE_V_FLIPPED, M_TEXTURE_NEAREST, M_TEXTURE_HALF_TEXEL, M_TEXTURE_REPEAT_A
 MUTANT_BITS.update({"texture-v-flipped": M_TEXTURE_V_FLIPPED, "texture-nearest-not-bilinear": M_TEXTURE_NEAREST,
                     "texture-half-texel-shift": M_TEXTURE_HALF_TEXEL,
                     "texture-repeat-as-clamp": M_TEXTURE_REPEAT_AS_CLAMP})
+# The shading normals' planted faults (reference_impl/kernels/shading.py and the path loop's side test;
+# reference_impl.mutants.NORMAL_MUTANTS).
+M_NORMALS_UNNORMALISED, M_SHADING_NORMAL_SIDE, M_NORMALMAP_GREEN_INVERTED, M_BUMP_SCALE_IGNORED = (
+    1 << b for b in range(21, 25))
+MUTANT_BITS.update({"normals-not-renormalised": M_NORMALS_UNNORMALISED,
+                    "shading-normal-side": M_SHADING_NORMAL_SIDE,
+                    "normalmap-green-inverted": M_NORMALMAP_GREEN_INVERTED,
+                    "bumpmap-scale-ignored": M_BUMP_SCALE_IGNORED})
 
 
 class KernelConfig(NamedTuple):

@@ -42,7 +42,8 @@ def material_at(materials, hit, params, mutant):
     written into ``params`` (NUM_PARAMS float64, the ``P_*`` columns), and its kind (returned), which the BSDF
     (:mod:`.bsdf`) evaluates and samples: material ``hit.material``'s row, each textured slot replaced by its
     texture's value at (``hit.tex_u``, ``hit.tex_v``) (a one-channel slot, ``alpha``, its one number,
-    :func:`.texture.texture_eval_1`). ``mutant``: the render's planted-fault bits (the textures' are in
+    :func:`.texture.texture_eval_1`; a normal map's its raw RGB; a bump map's height none: the shading frame,
+    :mod:`.shading`, takes its gradient). ``mutant``: the render's planted-fault bits (the textures' are in
     :func:`.texture.texture_eval`)."""
     m = hit.material
     kind = material_params(materials, m, params)
@@ -62,5 +63,6 @@ def textured_params(materials, m, tex_u, tex_v, params, mutant):
             c = _SLOT_COLUMN[s]
             if _SLOT_CHANNELS[s] == 3:
                 params[c], params[c + 1], params[c + 2] = texture_eval(materials.textures, k, tex_u, tex_v, mutant)
-            else:
+            elif _SLOT_CHANNELS[s] == 1:
                 params[c] = texture_eval_1(materials.textures, k, tex_u, tex_v, mutant)
+            # (0 channels: a bump map's height, whose gradient the shading frame looks up, kernels/shading.py)

@@ -58,8 +58,8 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
                                            C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_AREA, DIRECT_BSDF,
                                            DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
                                            HEMI_UNIFORM, JIT, JIT_BORROW, M_COSINE_PDF_PI, M_DOUBLE_EMISSION,
-                                           M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, RR_ALBEDO, RR_OFF,
-                                           RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
+                                           M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, M_SHADING_NORMAL_SIDE,
+                                           RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            light_sample, point_connection, power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
@@ -70,6 +70,7 @@ from reference_impl.kernels.record import record_camera, record_closest, record_
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
                                           pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
+from reference_impl.kernels.shading import shading_frame, through_map
 from reference_impl.kernels.surface import emission_at, hit_point, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED,
@@ -82,22 +83,35 @@ RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
 
 
 @njit(**JIT_BORROW)
-def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, n1, n2, s0, s1, s2, t0, t1, t2,
-            lo0, lo1, lo2):
+def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, n1, n2, sf, lo0, lo1, lo2):
     """What connection ``conn`` (:class:`.direct.Connection`) brings through x's BSDF where nothing blocks it: (whether it needs
-    a shadow ray at all, N . wi, and Le G f |cos_x| / p with its MIS weight, per channel). None where wi is on the
-    side a surface that does not transmit does not reflect from (``side`` = the side of wo), or f = 0. With the
-    planted fault "no-cosine", f without |cos_x|."""
+    a shadow ray at all, N . wi, and Le G f |cos_x| / p with its MIS weight, per channel). The geometric normal N
+    decides the side: None where wi is on the side a surface that does not transmit does not reflect from (``side``
+    = the side of wo), where the shading frame ``sf`` (:class:`.shading.ShadingFrame`) would call wi a reflection
+    and N a transmission or the other way round, or where f = 0; f |cos| in the shading frame (times a map's
+    terminator, :func:`.shading.through_map`). With the planted fault "no-cosine", f without |cos_x|; with
+    "shading-normal-side", no side test but the shading frame's (light leaks through a leaning shading normal)."""
     wi0, wi1, wi2 = conn.wi0, conn.wi1, conn.wi2
     cos_x = dot3(n0, n1, n2, wi0, wi1, wi2)
-    if not (conn.needed and cos_x != 0 and (transmits or side * cos_x > 0)):
+    leaks = sf.differs and (mutant & M_SHADING_NORMAL_SIDE) != 0  # planted fault "shading-normal-side"
+    if not (conn.needed and cos_x != 0 and (transmits or side * cos_x > 0 or leaks)):
         return False, cos_x, 0.0, 0.0, 0.0
-    li0, li1, li2 = dot3(s0, s1, s2, wi0, wi1, wi2), dot3(t0, t1, t2, wi0, wi1, wi2), cos_x
+    li0, li1, li2 = dot3(sf.s0, sf.s1, sf.s2, wi0, wi1, wi2), dot3(sf.t0, sf.t1, sf.t2, wi0, wi1, wi2), cos_x
+    keep = 1.0
+    if sf.differs:
+        li2 = dot3(sf.n0, sf.n1, sf.n2, wi0, wi1, wi2)
+        if transmits and not leaks and (li2 * lo2 > 0) != (side * cos_x > 0):
+            return False, cos_x, 0.0, 0.0, 0.0
+        keep = through_map(sf, wi0, wi1, wi2, li2)
+        if keep == 0.0:
+            return False, cos_x, 0.0, 0.0, 0.0
     f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
     if not (f0 > 0 or f1 > 0 or f2 > 0):
         return False, cos_x, 0.0, 0.0, 0.0
+    if sf.perturbed:
+        f0, f1, f2 = f0 * keep, f1 * keep, f2 * keep
     if mutant & M_NO_COSINE:  # mutant "no-cosine" (direct light)
-        inv_cos = 1.0 / abs(cos_x)
+        inv_cos = 1.0 / abs(li2)
         f0, f1, f2 = f0 * inv_cos, f1 * inv_cos, f2 * inv_cos
     w = 1.0
     p_l = conn.p_l
@@ -123,20 +137,22 @@ def shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns, record, ray)
 
 
 @njit(**JIT_BORROW)
-def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key, depth, lo, beta, eta2, frame, side, x,
-             ox):
+def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key, depth, lo, beta, eta2, sf, geo, side,
+             x, ox):
     """The next ray from x, sampled from the BSDF (:func:`.bsdf.bsdf_sample`, uniforms u_lobe, u1, u2), then Russian
     roulette (module docstring; u_rr, or where it is negative a hash of ``key`` drawn here) and the planted faults of
     the indirect estimate. ``wanted``: whether the next vertex can add anything but direct light (max_depth); a
-    sample off a delta lobe goes on either way. ``lo``: wo in the local frame ``frame`` = (s, t, N); ``beta`` the
-    throughput so far, ``eta2`` the product of the relative ior^2 of the refractions so far; ``side`` the side of wo
-    (+1: N's), ``ox`` x's offset origin on that side. Returns (whether the path goes on, whether roulette (or a weight
+    sample off a delta lobe goes on either way. ``lo``: wo in the shading frame ``sf`` (:class:`.shading.ShadingFrame`);
+    ``geo`` the geometric normal N, which decides the side (a sample the shading frame calls a reflection and N a
+    transmission, or the other way round, ends the path: no light leaks through a leaning shading normal); ``beta``
+    the throughput so far, ``eta2`` the product of the relative ior^2 of the refractions so far; ``side`` the side
+    of wo (+1: N's), ``ox`` x's offset origin on that side. Returns (whether the path goes on, whether roulette (or a weight
     that is zero or not finite) cut it, its direction, origin, the normal on the side it leaves, its throughput,
     eta2, its pdf, whether it is off a delta lobe)."""
     mutant = cfg.mutant
     lo0, lo1, lo2 = lo
     b0, b1, b2 = beta
-    s0, s1, s2, t0, t1, t2, nx0, nx1, nx2 = frame
+    nx0, nx1, nx2 = geo
     x0, x1, x2 = x
     ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, u_lobe,
                                                             u1, u2)
@@ -151,6 +167,19 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
             # mutant "cosine-pdf-pi": the cosine-hemisphere pdf taken as cos, not cos / pi
             pdf = pdf * PI
             w0, w1, w2 = w0 / PI, w1 / PI, w2 / PI
+    wn0 = li0 * sf.s0 + li1 * sf.t0 + li2 * sf.n0
+    wn1 = li0 * sf.s1 + li1 * sf.t1 + li2 * sf.n1
+    wn2 = li0 * sf.s2 + li1 * sf.t2 + li2 * sf.n2
+    inv_len = 1.0 / math.sqrt(wn0 * wn0 + wn1 * wn1 + wn2 * wn2)
+    wn0, wn1, wn2 = wn0 * inv_len, wn1 * inv_len, wn2 * inv_len
+    g = li2  # N . w, which decides the side it leaves from
+    if sf.differs:
+        g = dot3(nx0, nx1, nx2, wn0, wn1, wn2)
+        # planted fault "shading-normal-side": the shading frame's side alone
+        if not (cfg.mutant & M_SHADING_NORMAL_SIDE) and ((li2 * lo2 > 0) != (g * side > 0) or g == 0):
+            return False, False, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
+        keep = through_map(sf, wn0, wn1, wn2, li2)
+        w0, w1, w2 = w0 * keep, w1 * keep, w2 * keep
     nb0, nb1, nb2 = b0 * w0, b1 * w1, b2 * w2
     eta_rel = sample_eta(kind, row, lo2, li2)
     eta2 *= eta_rel * eta_rel
@@ -175,18 +204,13 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
             nb0, nb1, nb2 = nb0 * inv_q, nb1 * inv_q, nb2 * inv_q
     if not ((math.isfinite(nb0) and math.isfinite(nb1) and math.isfinite(nb2)) and (nb0 > 0 or nb1 > 0 or nb2 > 0)):
         return False, True, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
-    wn0 = li0 * s0 + li1 * t0 + li2 * nx0
-    wn1 = li0 * s1 + li1 * t1 + li2 * nx1
-    wn2 = li0 * s2 + li1 * t2 + li2 * nx2
-    inv_len = 1.0 / math.sqrt(wn0 * wn0 + wn1 * wn1 + wn2 * wn2)
-    if li2 * side > 0:  # leaves on the side of wo
+    if g * side > 0:  # leaves on the side of wo
         pn0, pn1, pn2 = side * nx0, side * nx1, side * nx2
         o0, o1, o2 = ox
     else:
         pn0, pn1, pn2 = -side * nx0, -side * nx1, -side * nx2
         o0, o1, o2 = offset_origin(cfg.offset_scene, x0, x1, x2, pn0, pn1, pn2)
-    return (True, False, wn0 * inv_len, wn1 * inv_len, wn2 * inv_len, o0, o1, o2, pn0, pn1, pn2, nb0, nb1, nb2, eta2,
-            pdf, delta)
+    return True, False, wn0, wn1, wn2, o0, o1, o2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf, delta
 
 
 @njit(**JIT)
@@ -354,10 +378,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             side = 1.0 if cos_out > 0 else -1.0  # the side of wo
             ns0, ns1, ns2 = side * nx0, side * nx1, side * nx2
             ox0, ox1, ox2 = offset_origin(cfg.offset_scene, x0, x1, x2, ns0, ns1, ns2)
-            # The BSDF's local frame: the shading frame's tangents s, t and the normal N (the shading normal is N).
-            s0, s1, s2, t0, t1, t2 = hit.ss0, hit.ss1, hit.ss2, hit.st0, hit.st1, hit.st2
+            # The BSDF's local frame: the shading frame (vertex normals, a normal or bump map; else N's)
             wo0, wo1, wo2 = -d0, -d1, -d2
-            lo0, lo1, lo2 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2), cos_out
+            sf = shading_frame(scene, materials, hit, row, wo0, wo1, wo2, mutant)
+            s0, s1, s2, t0, t1, t2 = sf.s0, sf.s1, sf.s2, sf.t0, sf.t1, sf.t2
+            lo0, lo1 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2)
+            lo2 = dot3(sf.n0, sf.n1, sf.n2, wo0, wo1, wo2) if sf.differs else cos_out
             delta_bsdf = is_delta(kind)
 
             # The next ray, sampled from the BSDF, then Russian roulette (next_ray), where the next vertex can add
@@ -379,14 +405,14 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
                     u_rr = -1.0  # drawn by next_ray only where roulette is played
             # the vertex as next_ray takes it (tuples of numbers only: no array in them, no reference count)
-            lo, thru, frame = (lo0, lo1, lo2), (b0, b1, b2), (s0, s1, s2, t0, t1, t2, nx0, nx1, nx2)
+            lo, thru, geo = (lo0, lo1, lo2), (b0, b1, b2), (nx0, nx1, nx2)
             xs, oxs = (x0, x1, x2), (ox0, ox1, ox2)
             go_on, cut = False, False
             if other_kinds is None:
                 if drawn:
                     (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
                      delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
-                                       lo, thru, eta2, frame, side, xs, oxs)
+                                       lo, thru, eta2, sf, geo, side, xs, oxs)
 
             # Direct light (none at a delta BSDF).
             if not delta_bsdf:
@@ -426,14 +452,22 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                                                scene.corner0[htri, 0], scene.corner0[htri, 1],
                                                                scene.corner0[htri, 2])
                                 le0, le1, le2 = emission_at(scene, textures, htri, q0, q1, q2, mutant)
-                        hl0, hl1 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2)
-                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, hl0, hl1, side * cos_h)
+                        hl0, hl1, hl2 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2), side * cos_h
+                        keep = 1.0
+                        if sf.differs:  # Psi is on wo's side of N: the shading frame's cosine, a map's terminator
+                            hl2 = dot3(sf.n0, sf.n1, sf.n2, h0, h1, h2)
+                            keep = through_map(sf, h0, h1, h2, hl2)
+                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, hl0, hl1, hl2)
+                        f0, f1, f2 = f0 * keep, f1 * keep, f2 * keep
                         inv_p = 1.0 / pdf_h
                         tot0 += le0 * f0 * inv_p
                         tot1 += le1 * f1 * inv_p
                         tot2 += le2 * f2 * inv_p
                 # Nd points on the lights (or on every surface), then the emitters the strategy cannot find, each
                 # its own sample once (pdf(k) = 1): one connection each, through the BSDF, and its shadow ray.
+                # light samples from N's side only where x does not transmit (and, with the planted fault
+                # "shading-normal-side", the shading frame decides instead: connect)
+                front_only = not transmits and not (sf.differs and (mutant & M_SHADING_NORMAL_SIDE) != 0)
                 points = nd if light_points or global_area else 0
                 own = 0
                 if emitters is not None:
@@ -464,7 +498,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                             # mutant "light-pdf-ignored": pdf(y|k) alone
                             pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
                             conn = light_connection(cfg, scene, textures, lights, emitters, sel, piece, pdf_select, u1,
-                                                    u2, x0, x1, x2, ns0, ns1, ns2, not transmits)
+                                                    u2, x0, x1, x2, ns0, ns1, ns2, front_only)
                     elif emitters is not None:
                         e = j - points
                         ekind = emitters.kind[e]
@@ -474,19 +508,18 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                         u1 = uniform(k, dim_salt(depth, COMPLEMENT_U1, e))
                         u2 = uniform(k, dim_salt(depth, COMPLEMENT_U2, e))
                         conn = emitter_connection(cfg, emitters, e, 1.0, u1, u2, x0, x1, x2, ns0, ns1, ns2,
-                                                  not transmits)
+                                                  front_only)
                     else:
                         continue
                     needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, mis and j < points, conn,
-                                                        transmits, side, nx0, nx1, nx2, s0, s1, s2, t0, t1, t2, lo0,
-                                                        lo1, lo2)
+                                                        transmits, side, nx0, nx1, nx2, sf, lo0, lo1, lo2)
                     if not needed:
                         count_shadow_skipped += 1
                         continue
                     count_shadow += 1
                     blocked, queries, sampled_ns = shadow_query(
                         scene_ptr, words, floats, ts, queries, sampled_ns, record,
-                        connection_ray(cfg, conn, cos_x, transmits, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2))
+                        connection_ray(cfg, conn, cos_x, not front_only, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2))
                     if blocked:
                         continue
                     if j < points:
@@ -509,7 +542,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if drawn:
                     (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
                      delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
-                                       lo, thru, eta2, frame, side, xs, oxs)
+                                       lo, thru, eta2, sf, geo, side, xs, oxs)
             count_roulette += cut
             if not go_on:
                 break

@@ -49,6 +49,11 @@ class SceneTables(NamedTuple):
         ``Geometry.sphere_to_object``.
     emission_texture : (T,) or (0,) int64
         ``Geometry.emission_texture``, empty where no light is textured (a hit reads ``emission`` alone).
+    normals : (T, 3, 3) or (0, 3, 3) float64
+        ``Geometry.normals``, the unit vertex normals at the corners; empty where no triangle has them (every hit's
+        shading normal is its geometric one).
+    smooth : (T,) or (0,) bool
+        ``Geometry.smooth``: whether the triangle has vertex normals; empty with ``normals``.
     """
 
     prim_to_tri: np.ndarray
@@ -62,6 +67,8 @@ class SceneTables(NamedTuple):
     uv_sphere: np.ndarray
     sphere_to_object: np.ndarray
     emission_texture: np.ndarray
+    normals: np.ndarray
+    smooth: np.ndarray
 
 
 def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> SceneTables:
@@ -74,11 +81,14 @@ def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> S
         uv = g.uv if len(g.uv) else np.zeros((len(g.triangles), 3, 2))
         uv_sphere = g.uv_sphere if len(g.uv_sphere) else np.full(len(g.triangles), -1, np.int64)
         spheres = g.sphere_to_object
+    smooth = g.has_shading_normals
     return SceneTables(
         prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
         corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
         uv=_c(uv, dtype=np.float64), uv_sphere=_c(uv_sphere, dtype=np.int64),
-        sphere_to_object=_c(spheres, dtype=np.float64), emission_texture=_c(emission_texture, dtype=np.int64))
+        sphere_to_object=_c(spheres, dtype=np.float64), emission_texture=_c(emission_texture, dtype=np.int64),
+        normals=_c(g.normals if smooth else np.zeros((0, 3, 3)), dtype=np.float64),
+        smooth=_c(g.smooth if smooth else np.zeros(0, bool), dtype=np.bool_))
 
 
 class LightTables(NamedTuple):

@@ -103,10 +103,67 @@ def texture_eval_1(textures, k, u, v, mutant):
     return LUMINANCE[0] * r + LUMINANCE[1] * g + LUMINANCE[2] * b
 
 
+@njit(**JIT_NONRT)
+def texture_grad_1(textures, k, u, v, mutant):
+    """The gradient (df/du, df/dv) of bitmap ``k``'s one number f (its luminance, :func:`texture_eval_1`) at (u, v),
+    Mitsuba 3.9.1's ``eval_1_grad`` (the bump map's): the bilinear lookup's own derivative,
+
+        df/du' = W ((1 - b)(f10 - f00) + b (f11 - f01)),   df/dv' = H ((1 - a)(f01 - f00) + a (f11 - f10)),
+
+    with f_ij the luminance of the four texels of :func:`texture_eval` and (a, b) the weights there, taken back to
+    (u, v) through to_uv's transpose; (0, 0) with the nearest filter (a step function)."""
+    a = textures.to_uv[k]
+    tu = a[0, 0] * u + a[0, 1] * v + a[0, 2]
+    tv = a[1, 0] * u + a[1, 1] * v + a[1, 2]
+    if mutant & M_TEXTURE_V_FLIPPED:  # planted fault "texture-v-flipped"
+        tv = 1.0 - tv
+    if textures.filter[k] != BILINEAR or mutant & M_TEXTURE_NEAREST:
+        return 0.0, 0.0
+    wrap = textures.wrap[k]
+    if wrap == REPEAT and mutant & M_TEXTURE_REPEAT_AS_CLAMP:  # planted fault "texture-repeat-as-clamp"
+        wrap = CLAMP
+    width, height = textures.width[k], textures.height[k]
+    x = tu * width
+    y = tv * height
+    if not mutant & M_TEXTURE_HALF_TEXEL:  # planted fault "texture-half-texel-shift": no - 1/2
+        x -= 0.5
+        y -= 0.5
+    i, j = _floor(x), _floor(y)
+    fa, fb = x - i, y - j
+    f00 = _luminance(_texel(textures, k, i, j, wrap))
+    f10 = _luminance(_texel(textures, k, i + 1, j, wrap))
+    f01 = _luminance(_texel(textures, k, i, j + 1, wrap))
+    f11 = _luminance(_texel(textures, k, i + 1, j + 1, wrap))
+    du = width * ((1.0 - fb) * (f10 - f00) + fb * (f11 - f01))
+    dv = height * ((1.0 - fa) * (f01 - f00) + fa * (f11 - f10))
+    if mutant & M_TEXTURE_V_FLIPPED:
+        dv = -dv
+    return a[0, 0] * du + a[1, 0] * dv, a[0, 1] * du + a[1, 1] * dv
+
+
+@njit(**JIT_BORROW)
+def _luminance(rgb):
+    return LUMINANCE[0] * rgb[0] + LUMINANCE[1] * rgb[1] + LUMINANCE[2] * rgb[2]
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _eval_many(textures, k, uv, mutant, out):
     for n in range(uv.shape[0]):
         out[n, 0], out[n, 1], out[n, 2] = texture_eval(textures, k, uv[n, 0], uv[n, 1], mutant)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _grad_many(textures, k, uv, mutant, out):
+    for n in range(uv.shape[0]):
+        out[n, 0], out[n, 1] = texture_grad_1(textures, k, uv[n, 0], uv[n, 1], mutant)
+
+
+def gradient(tables, k: int, uv, mutant: int = 0):
+    """:func:`texture_grad_1` of bitmap ``k`` of ``tables`` at the (N, 2) points ``uv``: (N, 2) float64."""
+    uv = np.ascontiguousarray(uv, dtype=np.float64).reshape(-1, 2)
+    out = np.empty((len(uv), 2))
+    _grad_many(tables, int(k), uv, int(mutant), out)
+    return out
 
 
 def evaluate(tables, k: int, uv, mutant: int = 0):

@@ -500,6 +500,15 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
     assert set(document["materials"]) == set(scene.materials)
     for key, entry in document["materials"].items():
         material = scene.materials[key]
+        if material.perturbation is not None:  # a normalmap or bumpmap around the material its bsdf names
+            p = material.perturbation
+            texture_key = "normalmap" if p.type == "normalmap" else "texture"
+            assert (entry["type"], entry[texture_key], entry["flip_invalid_normals"],
+                    entry["use_shadowing_function"]) == (p.type, {"texture": p.texture.name},
+                                                         p.flip_invalid_normals, p.use_shadowing_function)
+            assert entry.get("scale", 1.0) == p.scale
+            assert entry["bsdf"] == document["materials"][p.bsdf]
+            continue
         assert entry["type"] == material.type and len(entry) > 2
         for parameter, value in entry.items():
             texture = material.texture(parameter)

@@ -158,6 +158,15 @@ PER_SAMPLE_RATIO = {
     "textured-furnace/mutant-texture-nearest-not-bilinear": 0.0,
     "textured-furnace/mutant-texture-half-texel-shift": 0.0,
     "textured-furnace/mutant-texture-repeat-as-clamp": 0.0,
+    # measured 2026-12-06 (issue 35, shading normals), llvm_ad_rgb; the leaning plate's ground truth is its closed form
+    "leaning-plate/reference": 0.0,
+    "leaning-plate/mitsuba-vs-closed-form": 0.0,
+    "smooth-twins/reference": 2.49,
+    "mapped-plates/reference": 32.5,
+    "leaning-plate/mutant-normals-not-renormalised": 0.0,
+    "leaning-plate/mutant-shading-normal-side": 0.0,
+    "mapped-plates/mutant-normalmap-green-inverted": 33.0,
+    "mapped-plates/mutant-bumpmap-scale-ignored": 18.5,
 }
 
 #: Cases whose ground truth has no variance to compare, or whose test render reports none (``ground_truth_noise``

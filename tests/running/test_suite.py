@@ -46,8 +46,11 @@ def test_repository_suites_load():
     emitter_scenes = {"white-furnace", "white-furnace-albedo-1", "point-spot", "sun-sky", "envmap"}
     glossy_scenes = {"veach-mis", "cornell-box-specular", "underwater", "white-furnace-mirror",
                      "white-furnace-glass", "white-furnace-rough", "textured-cornell-box"}
-    emitter_scenes |= {"textured-furnace"}
-    assert reference_scenes == {"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes | glossy_scenes
+    emitter_scenes |= {"textured-furnace", "leaning-plate"}
+    glossy_scenes |= {"smooth-twins"}
+    lambertian_mapped = {"mapped-plates"}
+    assert reference_scenes == ({"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes
+                                | glossy_scenes | lambertian_mapped)
     assert names == reference_scenes
     # A glossy scene's strategies (direct = auto is mis there) on every glossy scene.
     for scene in glossy_scenes:
@@ -61,13 +64,14 @@ def test_repository_suites_load():
         for pair in [("direct", "hemisphere-cosine"), ("direct", "hemisphere-uniform"), ("direct", "global-area"),
                      ("direct", "mis"), ("light_selection", "uniform"), ("hemisphere", "uniform"), ("rr", "fixed"),
                      ("rr", "off")]:
-            one_light = scene in {"furnace", "white-furnace", "envmap", "textured-furnace"}  # uniform = by power
+            one_light = scene in {"furnace", "white-furnace", "envmap", "textured-furnace",
+                                  "mapped-plates"}  # uniform = by power
             # textured-furnace with direct = hemisphere-cosine: every sample is rho L exactly, its only noise the
             # pixel footprint's (1e-6 of the value), finer than the reference's icosphere approximates the analytic
             # sphere of the closed form (a facet moves a hit's texture coordinates by up to 3e-4 tan(theta) texels)
             exact = scene == "textured-furnace" and pair == ("direct", "hemisphere-cosine")
             assert pair in seen or exact or (one_light and pair == ("light_selection", "uniform")), (scene, pair)
-    for scene in emitter_scenes - {"white-furnace-albedo-1", "textured-furnace"}:
+    for scene in emitter_scenes - {"white-furnace-albedo-1", "textured-furnace", "leaning-plate"}:  # (suns alone)
         seen = {c.settings.get("env_sampling") for c in canonical.cases if c.scene.stem == scene}
         assert scene in {"point-spot"} or {"uniform", "cosine"} <= seen, (scene, seen)
     # Every planted fault is a case the verdict must fail.

@@ -351,7 +351,7 @@ def test_mesh_file_relative_to_scene_file(tmp_path, monkeypatch, suffix):
     path = write_scene(
         folder,
         MINIMAL + f'\n[[shapes]]\ntype = "mesh"\nmaterial = "white"\nfile = "meshes/tet{suffix}"\n'
-        "translate = [0, 0, 1]\nemission = [1, 1, 1]\n",
+        "translate = [0, 0, 1]\nemission = [1, 1, 1]\nface_normals = true\n",
     )
     monkeypatch.chdir(tmp_path)  # the mesh is found relative to the scene file, not the working directory
     scene = load_scene(Path("scenes") / "scene.toml")

@@ -14,6 +14,7 @@ import numpy as np
 from reference_impl import materials as core
 
 from harness.scene.kinds.mitsuba_values import rgb
+from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.textures import TEXTURES, texture_reference
 from harness.scene.model import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
                                  DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS, MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, Material,
@@ -87,12 +88,23 @@ class MaterialKind:
         return "two_sided" in self.keys
 
     def core_slots(self, material: Material) -> dict[str, str]:
-        """``{core slot: texture name}`` of the parameters a texture drives (:data:`TEXTURE_SLOTS`)."""
-        return {TEXTURE_SLOTS[item]: texture.name for item, texture in material.textures}
+        """``{core slot: texture name}`` of the parameters a texture drives (:data:`TEXTURE_SLOTS`), and of a normal
+        or bump map's texture."""
+        slots = {TEXTURE_SLOTS[item]: texture.name for item, texture in material.textures}
+        if material.perturbation is not None:
+            slots[material.perturbation.type] = material.perturbation.texture.name
+        return slots
 
     def to_core(self, material: Material) -> np.ndarray:
         """The core's parameter row of ``material`` (same parameters, Mitsuba's meaning; a textured parameter holds
         its texture's largest value, which the material step replaces at every hit)."""
+        row = self._core_row(material)
+        if material.perturbation is not None:
+            for column, value in PERTURBATIONS[material.perturbation.type].core_columns(material).items():
+                row[column] = value
+        return row
+
+    def _core_row(self, material: Material) -> np.ndarray:
         if self.core_kind == core.DIFFUSE:
             return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
         return core.material_row(
@@ -108,7 +120,10 @@ class MaterialKind:
         spec = {"type": self.name, **self.parameters(material)}
         for item, texture in material.textures:
             spec[item] = TEXTURES[texture.type].to_mitsuba(texture)
-        return {"type": "twosided", "bsdf": spec} if material.two_sided else spec
+        spec = {"type": "twosided", "bsdf": spec} if material.two_sided else spec
+        if material.perturbation is not None:  # Mitsuba's normalmap / bumpmap around it
+            return PERTURBATIONS[material.perturbation.type].to_mitsuba(material, spec)
+        return spec
 
     def to_scene_json(self, material: Material) -> dict:
         """The scene.json entry of ``material``: every parameter of its plugin, ``two_sided`` where it applies."""
@@ -117,6 +132,8 @@ class MaterialKind:
             out[item] = {"texture": texture.name}
         if self.two_sided:
             out["two_sided"] = bool(material.two_sided)
+        if material.perturbation is not None:
+            return PERTURBATIONS[material.perturbation.type].to_scene_json(material, out)
         return out
 
     def to_gltf(self, material: Material) -> tuple[dict, dict]:

@@ -54,6 +54,8 @@ class MeshFile:
         (V, 3) float64 positions and (T, 3) vertex indices.
     uv : numpy.ndarray, optional
         (V, 2) texture coordinates (Mitsuba's: v = 0 the image's top row), for a textured shape.
+    normals : numpy.ndarray, optional
+        (V, 3) unit vertex normals (world space), for a smooth-shaded shape; None: flat (``face_normals``).
     """
 
     name: str
@@ -61,6 +63,7 @@ class MeshFile:
     vertices: np.ndarray
     triangles: np.ndarray
     uv: np.ndarray | None = None
+    normals: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -103,7 +103,7 @@ SHAPES: dict[str, ShapeKind] = {kind.name: kind for kind in (
     ShapeKind("sphere", ("center", "radius", "subdivisions"), _read_sphere,
               lambda shape: unit_sphere(shape.subdivisions), curved=True, similarity_only=True,
               sphere=_world_sphere, json=_sphere_json),
-    ShapeKind("mesh", ("file", "flip_tex_coords"), lambda reader, table, key: reader.mesh(table, key),
+    ShapeKind("mesh", ("file", "flip_tex_coords", "face_normals"), lambda reader, table, key: reader.mesh(table, key),
               lambda shape: (shape.mesh_vertices, shape.mesh_triangles), analytic=False,
               object_uv=lambda shape, vertices: shape.mesh_uv),
 )}
