@@ -148,6 +148,13 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
 def read_ply_uv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Vertices (N, 3), triangles (M, 3) and the per-vertex texture coordinates (N, 2) of its ``s``, ``t``
     properties (Mitsuba's uv), or None without them, of a binary little-endian PLY whose faces are all triangles."""
+    vertices, triangles, uv, _ = read_mesh(path)
+    return vertices, triangles, uv
+
+
+def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """:func:`read_ply_uv`, and the per-vertex shading normals (N, 3) of its ``nx``, ``ny``, ``nz`` properties
+    (scene.json's ``shading = "smooth"``: world-space unit normals, Mitsuba's vertex normals), or None without them."""
     data = path.read_bytes()
     end = data.find(b"end_header\n")
     if not data.startswith(b"ply") or end < 0:
@@ -163,7 +170,7 @@ def read_ply_uv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         elif words[:1] == ["property"]:
             elements[-1][2].append(words[1:])
     offset = end + len(b"end_header\n")
-    vertices = triangles = uv = None
+    vertices = triangles = uv = normals = None
     for name, count, props in elements:
         if name == "vertex":
             dtype = np.dtype([(p[-1], _PLY_TYPES[p[0]]) for p in props])
@@ -172,6 +179,8 @@ def read_ply_uv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
             vertices = np.stack([table["x"], table["y"], table["z"]], axis=1).astype(np.float64)
             if "s" in dtype.names and "t" in dtype.names:
                 uv = np.stack([table["s"], table["t"]], axis=1).astype(np.float64)
+            if {"nx", "ny", "nz"} <= set(dtype.names):
+                normals = np.stack([table["nx"], table["ny"], table["nz"]], axis=1).astype(np.float64)
         elif name == "face":
             if len(props) != 1 or props[0][0] != "list":
                 raise SceneError(f"{path}: expected faces with one vertex-index list")
@@ -186,7 +195,7 @@ def read_ply_uv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
             raise SceneError(f"{path}: unexpected PLY element {name!r}")
     if vertices is None or triangles is None:
         raise SceneError(f"{path}: expected vertex and face elements")
-    return vertices, triangles, uv
+    return vertices, triangles, uv, normals
 
 
 def read_exr_rgb(path: Path) -> np.ndarray:

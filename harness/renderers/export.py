@@ -54,10 +54,11 @@ from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_to_world
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
+from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
 from harness.scene.primitives import sphere_uv
-from harness.scene.triangulate import object_mesh, shape_triangles, vertex_uv
+from harness.scene.triangulate import object_mesh, shape_triangles, vertex_normals, vertex_uv
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
 GLTF_LIGHTS = "KHR_lights_punctual"
@@ -212,6 +213,114 @@ def mapped_uv(uv: np.ndarray, to_uv) -> np.ndarray:
     if np.array_equal(matrix, np.eye(3)):
         return uv
     return uv @ matrix[:2, :2].T + matrix[:2, 2]
+
+
+# ---- shading normals and normal maps in glTF and OBJ ---------------------------------------------------------------
+
+
+def smooth_normals(shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
+    """The world-space unit vertex normals a smooth-shaded shape is written with (glTF ``NORMAL``, OBJ ``vn``):
+    :func:`harness.scene.triangulate.vertex_normals` of its ``vertices`` and ``triangles`` (those of
+    :func:`shape_triangles`; a mesh's file normals or the angle-weighted ones Mitsuba computes), or None for a
+    shape shaded flat (``face_normals = true``, rectangles, cubes, spheres, and every emitting shape, as the reference
+    and scene.json take them), which both formats leave without normals: glTF's readers then MUST shade flat."""
+    return None if shape.is_emitter else vertex_normals(shape, vertices, triangles)
+
+
+def normal_map(material):
+    """The tangent-space normal map of a ``normalmap`` material (its perturbation's texture), else None (a
+    ``bumpmap``'s height is no normal map: neither format has a bump map, :func:`export_losses`)."""
+    p = material.perturbation
+    return p.texture if p is not None and p.type == "normalmap" else None
+
+
+def carried_normal_map(material):
+    """The normal map glTF's ``normalTexture`` holds for ``material``: an 8-bit bitmap (raw, as a ``normalmap``
+    takes it: n = 2 code / 255 - 1, which glTF's normal textures are too, never sRGB-decoded), written as the PNG of
+    the codes the scene holds; a float (EXR) one is not (a loss)."""
+    texture = normal_map(material)
+    return texture if texture is not None and texture.image is not None and texture.image.dtype == np.uint8 else None
+
+
+def _duff_tangent(normals: np.ndarray) -> np.ndarray:
+    """The first tangent of the core's frame about unit ``normals`` (N, 3) (Duff et al. 2017,
+    :func:`reference_impl.kernels.warps.tangent_frame`): s = (1 + sign n_x^2 a, sign n_x n_y a, -sign n_x) with
+    sign = +1 for n_z >= 0 else -1 and a = -1 / (sign + n_z)."""
+    x, y, z = normals.T
+    sign = np.where(z >= 0, 1.0, -1.0)
+    a = -1.0 / (sign + z)
+    return np.stack([1.0 + sign * x * x * a, sign * x * y * a, -sign * x], axis=-1)
+
+
+def corner_frames(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarray,
+                  normals: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """Mitsuba's shading frame at the corners of each triangle, (normals, tangents), each (T, 3, 3): n = the corner's
+    vertex normal (``normals``, (V, 3)), or the triangle's own normal as wound where the shape is flat (None); the
+    tangent s = normalize(dp/du - n (n . dp/du)), dp/du the triangle's from its corners and its (untransformed)
+    texture coordinates ``uv`` (V, 2) (dp/du = (dv_2 e_1 - dv_1 e_2) / (du_1 dv_2 - dv_1 du_2), e_i = p_i - p_0:
+    :func:`reference_impl.kernels.shading.position_derivatives`), or the core's tangent of n where the coordinates
+    are degenerate (:func:`_duff_tangent`). The bitangent is t = n x s (so glTF's ``TANGENT`` w is +1)."""
+    corners = np.asarray(vertices, np.float64)[triangles]
+    e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    with np.errstate(all="ignore"):
+        face = np.cross(e1, e2)
+        face /= np.linalg.norm(face, axis=1, keepdims=True)
+        n = (np.repeat(face[:, None, :], 3, axis=1) if normals is None
+             else np.asarray(normals, np.float64)[triangles])
+        n = np.where(np.isfinite(n), n, 0.0)
+        c = np.asarray(uv, np.float64)[triangles]
+        du1, dv1 = c[:, 1, 0] - c[:, 0, 0], c[:, 1, 1] - c[:, 0, 1]
+        du2, dv2 = c[:, 2, 0] - c[:, 0, 0], c[:, 2, 1] - c[:, 0, 1]
+        det = du1 * dv2 - dv1 * du2
+        dpdu = (dv2[:, None] * e1 - dv1[:, None] * e2) / det[:, None]
+        s = dpdu[:, None, :] - n * np.einsum("tcj,tj->tc", n, dpdu)[..., None]
+        length = np.linalg.norm(s, axis=-1, keepdims=True)
+        s = s / length
+    bad = ~((det != 0.0)[:, None] & (length[..., 0] > 0) & np.all(np.isfinite(s), axis=-1))
+    if np.any(bad):
+        s[bad] = _duff_tangent(n[bad])
+    return n, s
+
+
+def split_corners(triangles: np.ndarray, count: int, *corner_values: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Vertices for per-corner values (each (T, 3, k)): a vertex keeps its index and takes the values of its first
+    corner; a corner whose values (as float32, what glTF stores) differ from those gets a vertex of its own, appended
+    after the ``count`` vertices (one per distinct vertex and values). Returns (source, triangles, used, values...):
+    ``source`` the original index of every output vertex, the triangles re-indexed, ``used`` whether a triangle uses
+    the vertex (a mesh file may hold others: their values are 0), each value per output vertex. Shapes whose corners
+    agree (a rectangle's) keep their vertices and triangles as they are."""
+    flat = np.asarray(triangles, np.int64).ravel()
+    values = [np.asarray(v, np.float64).reshape(len(flat), -1) for v in corner_values]
+    key = np.concatenate([np.float32(v).astype(np.float64) for v in values], axis=1)
+    _, first = np.unique(flat, return_index=True)  # each used vertex's first corner
+    owner = np.full(count, -1, np.int64)
+    owner[flat[first]] = first
+    same = np.all(key == key[owner[flat]], axis=1)
+    source, corner_of, index = np.arange(count, dtype=np.int64), owner, flat.copy()
+    extra = np.flatnonzero(~same)
+    if len(extra):
+        keys = np.concatenate([flat[extra, None].astype(np.float64), key[extra]], axis=1)
+        _, pick, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        source = np.concatenate([source, flat[extra[pick]]])
+        corner_of = np.concatenate([owner, extra[pick]])
+        index[extra] = count + np.reshape(inverse, -1)
+    used = corner_of >= 0
+    out = [np.where(used[:, None], v[np.maximum(corner_of, 0)], 0.0) for v in values]
+    return (source, index.reshape(-1, 3), used, *out)
+
+
+def normal_mapped_mesh(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarray,
+                       normals: np.ndarray | None) -> tuple[np.ndarray, ...]:
+    """A normal-mapped shape's mesh for glTF: (vertices, triangles, uv, normals, tangents), the normals and tangents
+    Mitsuba's frame at every corner (:func:`corner_frames`), vertices repeated where two corners of one vertex need
+    different ones (:func:`split_corners`: a smooth mesh's, whose triangles have their own dp/du). A vertex no
+    triangle uses gets its vertex normal (or +z) and the core's tangent of it."""
+    corner_n, corner_s = corner_frames(vertices, triangles, uv, normals)
+    source, triangles, used, n, s = split_corners(triangles, len(vertices), corner_n, corner_s)
+    if not np.all(used):
+        n[~used] = (0.0, 0.0, 1.0) if normals is None else np.asarray(normals, np.float64)[source[~used]]
+        s[~used] = _duff_tangent(n[~used])
+    return np.asarray(vertices)[source], triangles, np.asarray(uv)[source], n, s
 
 
 def gltf_camera(scene: Scene) -> tuple[dict, dict]:

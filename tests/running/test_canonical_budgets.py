@@ -167,6 +167,23 @@ PER_SAMPLE_RATIO = {
     "leaning-plate/mutant-shading-normal-side": 0.0,
     "mapped-plates/mutant-normalmap-green-inverted": 33.0,
     "mapped-plates/mutant-bumpmap-scale-ignored": 18.5,
+    "leaning-plate/direct-hemisphere-cosine": 0.0,
+    "leaning-plate/direct-hemisphere-uniform": 0.0,
+    "leaning-plate/direct-global-area": 0.0,
+    "leaning-plate/direct-mis": 0.0,
+    "leaning-plate/light-selection-uniform": 0.0,
+    "leaning-plate/hemisphere-uniform": 0.0,
+    "leaning-plate/rr-fixed": 0.0,
+    "leaning-plate/rr-off": 0.0,
+    "mapped-plates/direct-hemisphere-cosine": 0.001,
+    "mapped-plates/direct-hemisphere-uniform": 0.001,
+    "mapped-plates/direct-global-area": 0.029,
+    "mapped-plates/direct-mis": 32.2,
+    "mapped-plates/hemisphere-uniform": 32.5,
+    "mapped-plates/rr-fixed": 32.5,
+    "mapped-plates/rr-off": 32.5,
+    "smooth-twins/direct-area": 2.44,
+    "smooth-twins/direct-bsdf": 0.004,
 }
 
 #: Cases whose ground truth has no variance to compare, or whose test render reports none (``ground_truth_noise``
