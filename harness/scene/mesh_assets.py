@@ -9,7 +9,8 @@
 * ``blob-bare.ply``: the same triangles without normals (their normals the angle-weighted ones Mitsuba computes);
 
 and the stress suite's (``scenes/stress/meshes``): ``flipping-normals.ply``, a plate whose vertex normals turn from leaning
-60 degrees one way to 60 degrees the other across each triangle, so that the blend passes near the plate's plane.
+100 degrees one way to 100 degrees the other across each triangle (past the plate's plane), so that their blend passes
+through zero and behind the plate.
 ``python -m harness.scene.mesh_assets [FOLDER]`` writes them (default: ``scenes/meshes`` and ``scenes/stress/meshes``, the
 committed files that ``tests/scene/test_mesh_assets.py`` checks this module reproduces byte for byte).
 """
@@ -93,11 +94,12 @@ def blob_bare() -> bytes:
 
 
 def flipping_normals() -> bytes:
-    """The stress plate: 3 x 3 vertices over [-1, 1]^2, normals leaning +-60 degrees toward x, alternating by
-    vertex, so that inside each triangle their blend is short and passes near the plane."""
+    """The stress plate: 3 x 3 vertices over [-1, 1]^2, normals leaning +-100 degrees toward x, alternating by
+    vertex (past the plate's plane, to its back), so that inside each triangle their blend shrinks, passes through
+    zero and turns to the back side."""
     vertices, triangles = _grid(3, 1.0)
     sign = np.where((np.arange(9) % 2) == 0, 1.0, -1.0)
-    a = np.radians(60.0) * sign
+    a = np.radians(100.0) * sign
     normals = np.stack([np.sin(a), np.zeros(9), np.cos(a)], axis=1)
     return ply_text(vertices, triangles, normals)
 

@@ -92,8 +92,20 @@ def ridges() -> np.ndarray:
 
 IMAGES = {"tiles.png": tiles, "wall.png": wall, "glow.exr": glow, "bumps-normal.png": bumps_normal,
           "ridges.png": ridges}
+def grazing_normals() -> np.ndarray:
+    """(4, 4, 3) uint8: a raw tangent-space normal map whose normals lean 80 to 98 degrees from the surface's, in
+    azimuths 45 degrees apart (a lean past 90 points below the surface: the flip of invalid normals), rgb = (n + 1) / 2
+    in codes; the stress suite's grazing normal map."""
+    i, j = np.meshgrid(np.arange(4), np.arange(4), indexing="ij")
+    lean = np.radians(80.0 + 6.0 * ((i + 2 * j) % 4))
+    azimuth = np.radians(45.0 * ((3 * i + j) % 8))
+    n = np.stack([np.sin(lean) * np.cos(azimuth), np.sin(lean) * np.sin(azimuth), np.cos(lean)], axis=-1)
+    return np.clip(np.rint((n + 1.0) / 2.0 * 255.0), 0, 255).astype(np.uint8)
+
+
 #: The stress suite's texture images (scenes/stress/textures).
-STRESS_IMAGES = {"one-texel.png": one_texel, "fine-checker.png": fine_checker, "tiles.png": tiles}
+STRESS_IMAGES = {"one-texel.png": one_texel, "fine-checker.png": fine_checker, "tiles.png": tiles,
+                 "grazing-normals.png": grazing_normals}
 STRESS_FOLDER = DEFAULT_FOLDER.parent / "stress" / "textures"
 
 

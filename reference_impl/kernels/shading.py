@@ -83,24 +83,26 @@ def shading_frame(scene, materials, hit, row, wo0, wo1, wo2, mutant):
     if scene.smooth.shape[0] > 0:  # a scene with vertex normals
         if scene.smooth[hit.tri]:
             smooth = True
-            n0, n1, n2, s0, s1, s2, t0, t1, t2 = vertex_normal(scene, hit.tri, hit.u, hit.v, mutant)
+            n0, n1, n2, s0, s1, s2, t0, t1, t2 = vertex_normal(scene, hit.tri, hit.u, hit.v, n0, n1, n2, mutant)
     if row[P_PERTURB] == PERTURB_NONE:
         return ShadingFrame(s0, s1, s2, t0, t1, t2, n0, n1, n2, n0, n1, n2, -1.0, smooth, False)
     return perturbed_frame(scene, materials, hit, row, n0, n1, n2, wo0, wo1, wo2, mutant)
 
 
 @njit(**JIT_NONRT)
-def vertex_normal(scene, tri, u, v, mutant):
-    """The shading normal at barycentrics (u, v) of triangle ``tri``, its corners' normals blended and normalised,
-    and tangents about it: (n, s, t). With the planted fault "normals-not-renormalised" n is the blend as it is
-    (the tangents of its direction)."""
+def vertex_normal(scene, tri, u, v, g0, g1, g2, mutant):
+    """The shading normal at barycentrics (u, v) of triangle ``tri``, its corners' normals blended and normalised
+    (where the blend is zero, between normals that turn to opposite sides, the geometric normal g), and tangents
+    about it: (n, s, t). With the planted fault "normals-not-renormalised" n is the blend as it is (the tangents of
+    its direction)."""
     c = scene.normals
     w = 1.0 - u - v
     b0 = w * c[tri, 0, 0] + u * c[tri, 1, 0] + v * c[tri, 2, 0]
     b1 = w * c[tri, 0, 1] + u * c[tri, 1, 1] + v * c[tri, 2, 1]
     b2 = w * c[tri, 0, 2] + u * c[tri, 1, 2] + v * c[tri, 2, 2]
-    inv = 1.0 / math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
-    n0, n1, n2 = b0 * inv, b1 * inv, b2 * inv
+    n0, n1, n2, ok = _normalize(b0, b1, b2)
+    if not ok:
+        n0, n1, n2, b0, b1, b2 = g0, g1, g2, g0, g1, g2
     s0, s1, s2, t0, t1, t2 = tangent_frame(n0, n1, n2)
     if mutant & M_NORMALS_UNNORMALISED:  # planted fault "normals-not-renormalised"
         return b0, b1, b2, s0, s1, s2, t0, t1, t2
