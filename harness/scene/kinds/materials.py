@@ -31,6 +31,8 @@ CU_K = (3.91326, 2.45305, 2.14209)
 MIN_ALPHA, MAX_ALPHA = 1e-4, 1.0
 MIN_IOR, MAX_IOR = 0.01, 100.0
 MAX_CONDUCTOR_INDEX = 100.0
+#: Mitsuba's keys of anisotropic roughness, refused in one line (the reference's microfacet models are isotropic).
+ANISOTROPIC_KEYS = ("alpha_u", "alpha_v")
 #: The core's texture slot (:data:`reference_impl.materials.TEXTURE_SLOTS`) of each parameter a texture may drive.
 TEXTURE_SLOTS = {"reflectance": "reflectance", "specular_reflectance": "reflectance",
                  "specular_transmittance": "transmittance", "alpha": "alpha"}
@@ -166,6 +168,10 @@ def read_material(reader, name: str, entry: Any) -> Material:
     """
     key = reader.join("materials", name)
     entry = reader.table(entry, key)
+    for item in ANISOTROPIC_KEYS:
+        if item in entry:
+            raise reader.error(f"{key}.{item}", "anisotropic roughness (Mitsuba's alpha_u and alpha_v) is not in the "
+                                                "reference's microfacet models: expected alpha (isotropic)")
     reader.check_keys(entry, MATERIAL_KEYS, key)
     kind = MATERIALS[reader.choice(entry.get("type", DEFAULT_TYPE), f"{key}.type", tuple(MATERIALS))]
     for item, reason in kind.refused:
