@@ -365,7 +365,8 @@ def sliver_walls(scene: Scene, aspect: float) -> Scene:
             mirrored = np.linalg.det(object_to_world(shape)[:3, :3]) < 0
             shape = dataclasses.replace(shape, type="mesh", mesh_vertices=vertices.copy(),
                                         mesh_triangles=triangles[:, [0, 2, 1]] if mirrored else triangles.copy(),
-                                        mesh_uv=rectangle_uv(vertices))  # the rectangle's texture coordinates
+                                        mesh_uv=rectangle_uv(vertices),  # the rectangle's texture coordinates
+                                        face_normals=True)  # flat, as the rectangle
             replaced += 1
         shapes.append(shape)
     if not replaced:
