@@ -26,6 +26,15 @@
   MTL's ``map_Kd``; every shape gets texture coordinates (glTF ``TEXCOORD_0``, OBJ ``vt`` with v flipped). What
   they cannot say (checkerboards, float or raw bitmaps, other parameters, shear, MTL's filter and wrap, spheres'
   analytic coordinates) :func:`export_losses` names.
+* Shading normals (glTF and OBJ): a smooth-shaded shape (:func:`smooth_normals`: a mesh with vertex normals, its
+  file's or the angle-weighted ones Mitsuba computes) has its world-space vertex normals, glTF's ``NORMAL`` (float32)
+  and OBJ's ``vn`` (faces ``v/vt/vn`` or ``v//vn``); flat shapes have none (glTF's readers then shade flat). A
+  ``normalmap`` material's 8-bit map is glTF's ``normalTexture`` (the codes the scene holds, its sampler and
+  transform as a base colour texture's) with ``NORMAL`` and ``TANGENT`` = Mitsuba's frame at every corner (s =
+  dp/du made perpendicular to n, w = +1 so that glTF's bitangent cross(n, s) w is Mitsuba's t = n x s:
+  :func:`corner_frames`), and MTL's ``norm`` (the codes with the green inverted for OBJ's v up: :func:`green_up`).
+  A ``bumpmap`` has neither form, and Mitsuba's shadow terminator and flip of invalid normals neither format:
+  :func:`export_losses` names them.
 
 :func:`export_losses` says, one line each, what a format leaves out of a scene (``harness export`` prints them as
 warnings).
@@ -349,17 +358,21 @@ def gltf_render_settings(scene: Scene) -> dict:
             "max_depth": int(scene.max_depth), "rr_depth": RR_DEPTH}
 
 
-def _gltf_shape_material(shape, material, base_texture: dict | None = None) -> dict:
+def _gltf_shape_material(shape, material, base_texture: dict | None = None,
+                         normal_texture: dict | None = None) -> dict:
     """The glTF material of one shape: :func:`gltf_material`'s factors as full float64 numbers (of
     :func:`exported_material`: a texture glTF carries is ``base_texture``, the ``baseColorTexture`` whose texels the
-    factor multiplies), and for an emitting shape ``emissiveFactor`` = emission / its largest channel with
-    ``KHR_materials_emissive_strength`` = that channel (factor x strength = the radiance)."""
+    factor multiplies), a normal map's ``normalTexture`` (``normal_texture``; glTF's default scale 1: n =
+    normalize(2 rgb - 1), as Mitsuba's), and for an emitting shape ``emissiveFactor`` = emission / its largest
+    channel with ``KHR_materials_emissive_strength`` = that channel (factor x strength = the radiance)."""
     factors, extensions = gltf_material(exported_material(material))
     factors = plain(factors)
     if base_texture is not None:
         factors["baseColorTexture"] = base_texture
     entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": factors,
                    "doubleSided": MATERIALS[material.type].gltf_double_sided(material)}
+    if normal_texture is not None:
+        entry["normalTexture"] = normal_texture
     extensions = dict(extensions)
     if shape.is_emitter:
         emission = np.asarray(shape.emission, dtype=np.float64)
@@ -382,6 +395,14 @@ def _extras_bsdf(material) -> dict:
     return plain(spec)
 
 
+def _extras_perturbation(material) -> dict:
+    """A ``normalmap`` or ``bumpmap`` material's keys as in scene.json (its texture by name, ``scale``,
+    ``flip_invalid_normals``, ``use_shadowing_function``), without the ``bsdf`` it wraps (the node's material)."""
+    entry = PERTURBATIONS[material.perturbation.type].to_scene_json(material, {})
+    entry.pop("bsdf", None)
+    return plain(entry)
+
+
 def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
                   files: dict[str, bytes] | None = None) -> tuple[dict, bytes]:
     """The scene as a glTF 2.0 document (a JSON-ready dict) and its binary buffer (``buffer_name``).
@@ -399,6 +420,14 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
     (the codes the scene holds, added to ``files``) with its sampler (:func:`gltf_sampler`) and ``to_uv`` as
     ``KHR_texture_transform`` (:func:`gltf_uv_transform`); ``asset.extras.textures`` holds every texture's
     scene.json entry and the nodes' ``extras.textures`` the textured parameters' texture names.
+
+    Shading normals: a smooth-shaded shape's ``NORMAL`` = its world-space vertex normals (float32,
+    :func:`smooth_normals`); a flat one has none (glTF's readers MUST then shade flat: the facets' normals, as
+    Mitsuba's). A ``normalmap`` material with an 8-bit map (:func:`carried_normal_map`) has a ``normalTexture``
+    (its image, sampler and ``KHR_texture_transform`` as a ``baseColorTexture``'s: glTF reads it raw, n =
+    normalize(2 rgb - 1)) and its shapes ``NORMAL`` and ``TANGENT`` at every corner (:func:`normal_mapped_mesh`:
+    Mitsuba's n and s, w = +1; glTF ignores TANGENT without NORMAL, so a flat shape's are its facets' normals). A
+    node's ``extras.perturbation`` holds a normalmap's or bumpmap's keys as in scene.json.
     """
     chunks: list[bytes] = []
     views: list[dict] = []
@@ -425,7 +454,8 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
     texture_index: dict[str, int] = {}
 
     def texture_info(texture) -> dict:
-        """The ``baseColorTexture`` of a texture glTF carries: its image, sampler and transform."""
+        """The ``baseColorTexture`` or ``normalTexture`` of a texture glTF carries: its image, sampler and
+        transform."""
         if texture.name not in texture_index:
             path = export_path(texture)
             if files is not None:
@@ -448,11 +478,20 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
             vertices, triangles, uv = textured_mesh(shape)
         else:
             (vertices, triangles), uv = shape_triangles(shape), None
+        normals, tangents = smooth_normals(shape, vertices, triangles), None
+        normal_texture = carried_normal_map(material)
+        if normal_texture is not None:  # a normal map: Mitsuba's frame at every corner (uv: the scene is textured)
+            vertices, triangles, uv, normals, tangents = normal_mapped_mesh(vertices, triangles, uv, normals)
         positions = np.asarray(vertices, dtype="<f4")
         position = accessor(positions, 34962, 5126, "VEC3",  # ARRAY_BUFFER, FLOAT
                             min=[float(x) for x in positions.min(axis=0)],
                             max=[float(x) for x in positions.max(axis=0)])
         attributes = {"POSITION": position}
+        if normals is not None:
+            attributes["NORMAL"] = accessor(np.asarray(normals, dtype="<f4"), 34962, 5126, "VEC3")
+        if tangents is not None:  # w = +1: glTF's bitangent cross(NORMAL, TANGENT) w is Mitsuba's t = n x s
+            tangent4 = np.concatenate([tangents, np.ones((len(tangents), 1))], axis=1)
+            attributes["TANGENT"] = accessor(np.asarray(tangent4, dtype="<f4"), 34962, 5126, "VEC4")
         if uv is not None:
             attributes["TEXCOORD_0"] = accessor(np.asarray(uv, dtype="<f4"), 34962, 5126, "VEC2")
         indices = accessor(np.asarray(triangles, dtype="<u4").ravel(), 34963, 5125, "SCALAR")  # UNSIGNED_INT
@@ -460,8 +499,9 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
         if key not in material_index:
             material_index[key] = len(materials)
             carried = carried_texture(material)
-            materials.append(_gltf_shape_material(shape, material,
-                                                  None if carried is None else texture_info(carried)))
+            materials.append(_gltf_shape_material(
+                shape, material, None if carried is None else texture_info(carried),
+                None if normal_texture is None else texture_info(normal_texture)))
             used += [e for e in materials[-1].get("extensions", {}) if e not in used]
         name = _unique(safe_name(shape.name), taken)
         meshes.append({"name": name, "primitives": [
@@ -471,6 +511,8 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
             extras["bsdf"] = _extras_bsdf(material)  # Mitsuba's plugin and parameters, for a reader wanting all
         if material.textures:
             extras["textures"] = {item: texture.name for item, texture in material.textures}
+        if material.perturbation is not None:  # the normalmap's or bumpmap's scene.json keys but its bsdf
+            extras["perturbation"] = _extras_perturbation(material)
         if shape.is_emitter:
             extras["emission"] = [float(x) for x in shape.emission]
         nodes.append({"name": name, "mesh": len(meshes) - 1, "extras": extras})
@@ -532,6 +574,11 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl", files: dict[str, bytes] 
     ``map_Kd`` shows, faces ``v/vt``; a base colour texture MTL carries (:func:`carried_texture`) is ``map_Kd
     textures/texture-<name>.png`` (the codes the scene holds, added to ``files``) with ``Kd`` its factor (1 for a
     diffuse material: MTL multiplies the two).
+
+    Shading normals: a smooth-shaded shape (:func:`smooth_normals`) has one ``vn`` per vertex (its world-space
+    vertex normal, full precision) and faces ``v/vt/vn`` (``v//vn`` without textures); a flat one has no ``vn``, as
+    before. A normal map MTL can hold (:func:`obj_normal_map`) is ``norm textures/texture-<name>-green-up.png`` (the
+    codes with the green inverted, :func:`green_up`; the extension three.js, assimp and tinyobjloader read).
     """
     obj = [f"# {scene.name}: exported by rendering-harness (harness export)", f"mtllib {mtl_name}"]
     mtl = [f"# {scene.name}: materials exported by rendering-harness (harness export)"]
@@ -539,7 +586,7 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl", files: dict[str, bytes] 
     taken_mtl: set[str] = set()
     taken_obj: set[str] = set()
     textured = bool(scene.used_textures)
-    offset = 1
+    offset = normal_offset = 1
     for shape in scene.shapes:
         material = scene.materials[shape.material]
         carried = carried_texture(material)
@@ -554,6 +601,12 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl", files: dict[str, bytes] 
                 if files is not None:
                     files[path] = encode_png(carried.image)
                 mtl.append(f"map_Kd {path}")
+            normal = obj_normal_map(material)
+            if normal is not None:
+                path = obj_normal_map_path(normal)
+                if files is not None:
+                    files[path] = encode_png(green_up(normal.image))
+                mtl.append(f"norm {path}")
             if shape.is_emitter:
                 mtl.append("Ke " + " ".join(map(_mtl_number, shape.emission)))
         if textured:
@@ -562,16 +615,59 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl", files: dict[str, bytes] 
                 uv = mapped_uv(uv, carried.to_uv)
         else:
             (vertices, triangles), uv = shape_triangles(shape), None
+        normals = smooth_normals(shape, vertices, triangles)
         obj += ["", f"o {_unique(safe_name(shape.name), taken_obj)}", f"usemtl {names[key]}"]
         obj += [f"v {_mtl_number(x)} {_mtl_number(y)} {_mtl_number(z)}" for x, y, z in np.asarray(vertices, np.float64)]
-        triangles = np.asarray(triangles, np.int64) + offset
-        if uv is None:
-            obj += [f"f {a} {b} {c}" for a, b, c in triangles]
-        else:
+        if uv is not None:
             obj += [f"vt {_mtl_number(u)} {_mtl_number(1.0 - v)}" for u, v in np.asarray(uv, np.float64)]
-            obj += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in triangles]
+        if normals is not None:
+            obj += [f"vn {_mtl_number(x)} {_mtl_number(y)} {_mtl_number(z)}" for x, y, z in normals]
+        corners = np.asarray(triangles, np.int64) + offset  # v and vt: one each per vertex
+        if normals is None:
+            form = "{0}" if uv is None else "{0}/{0}"
+            normal_index = corners
+        else:
+            form = "{0}//{1}" if uv is None else "{0}/{0}/{1}"
+            normal_index = np.asarray(triangles, np.int64) + normal_offset
+            normal_offset += len(normals)
+        obj += ["f " + " ".join(form.format(a, n) for a, n in zip(row, rown))
+                for row, rown in zip(corners, normal_index)]
         offset += len(vertices)
     return "\n".join(obj) + "\n", "\n".join(mtl) + "\n"
+
+
+def obj_normal_map(material):
+    """The normal map MTL's ``norm`` holds for ``material``: its 8-bit normal map (:func:`carried_normal_map`) where
+    the reader's tangent frame, which it derives from the ``vt`` (OBJ has no tangents), runs along Mitsuba's: the
+    map's ``to_uv`` is the one the ``vt`` are mapped by (the ``map_Kd`` texture's, else the identity) and it only
+    scales (by positive factors) and translates, so dp/du' keeps the direction of Mitsuba's dp/du. Else None (a
+    loss, :func:`export_losses`)."""
+    texture = carried_normal_map(material)
+    if texture is None:
+        return None
+    carried = carried_texture(material)
+    to_uv = np.asarray(texture.to_uv, np.float64)
+    if not np.array_equal(to_uv, np.eye(3) if carried is None else np.asarray(carried.to_uv, np.float64)):
+        return None
+    (a, b), (c, d) = to_uv[:2, :2]
+    return texture if b == 0.0 and c == 0.0 and a > 0.0 and d > 0.0 else None
+
+
+def obj_normal_map_path(texture) -> str:
+    """The file of MTL's ``norm``: ``textures/texture-<name>-green-up.png`` (:func:`green_up` of the codes)."""
+    return export_path(texture).removesuffix(".png") + "-green-up.png"
+
+
+def green_up(codes: np.ndarray) -> np.ndarray:
+    """A normal map's 8-bit codes with the green channel inverted (255 - G: y = 2 G / 255 - 1 becomes -y), for an
+    OBJ reader, whose bitangent follows the ``vt``'s v, which points up (OpenGL's convention: three.js derives it so,
+    MikkTSpace picks its sign so): on a triangle whose coordinates Mitsuba sees unmirrored ((dp/du x dp/dv) . n > 0,
+    v down: rectangles, a mesh's own), Mitsuba's t = n x s points along its +v, toward the image's bottom, and such
+    a reader's bitangent the other way. On a mirrored triangle (a cube's faces) the two agree, and the inversion
+    is wrong there (a loss naming the shapes)."""
+    out = np.array(codes, copy=True)
+    out[..., 1] = 255 - out[..., 1]
+    return out
 
 
 def export_losses(scene: Scene, fmt: str) -> list[str]:
@@ -595,7 +691,91 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
         losses += _gltf_material_losses(glossy)
     if fmt in ("gltf", "obj"):
         losses += _texture_losses(scene, fmt)
+        losses += _shading_losses(scene, fmt)
     return losses
+
+
+def _uv_handedness(shape) -> np.ndarray:
+    """The sign of each triangle's du_1 dv_2 - dv_1 du_2 in Mitsuba's (untransformed) coordinates
+    (:func:`textured_mesh`): +1 where (dp/du x dp/dv) . n > 0 (unmirrored, v down), -1 mirrored, 0 degenerate."""
+    _vertices, triangles, uv = textured_mesh(shape)
+    c = np.asarray(uv, np.float64)[triangles]
+    return np.sign((c[:, 1, 0] - c[:, 0, 0]) * (c[:, 2, 1] - c[:, 0, 1])
+                   - (c[:, 1, 1] - c[:, 0, 1]) * (c[:, 2, 0] - c[:, 0, 0]))
+
+
+def _shading_losses(scene: Scene, fmt: str) -> list[str]:
+    """What glTF (``fmt`` "gltf") or OBJ/MTL ("obj") cannot say exactly of the scene's normal and bump maps, one line
+    per kind of loss naming the textures, materials and shapes (docs/external-renderers.md, "Shading normals").
+    (A ``bumpmap`` entry for :data:`harness.scene.kinds.materials.GLTF_LOSSES` would serve glTF's first line.)"""
+    gltf = fmt == "gltf"
+    where = "glTF" if gltf else "MTL"
+    lost: dict[str, list[str]] = {}
+
+    def add(kind: str, text: str) -> None:
+        lost.setdefault(kind, [])
+        if text not in lost[kind]:
+            lost[kind].append(text)
+
+    for material in scene.materials.values():
+        p = material.perturbation
+        if p is None:
+            continue
+        label = f"{p.texture.name} ({material.name})"
+        if p.type == "bumpmap":
+            add("bump", f"{p.texture.name} ({material.name}, scale {float(p.scale)!r})")
+            continue
+        if p.flip_invalid_normals or p.use_shadowing_function:
+            add("terminator", label)
+        if carried_normal_map(material) is None:
+            add("float", label)
+        elif gltf and gltf_uv_transform(p.texture.to_uv) is None:
+            add("shear", label)
+        elif not gltf and obj_normal_map(material) is None:
+            add("to_uv", label)
+        elif not gltf:
+            add("frame", label)
+            if (p.texture.filter_type, p.texture.wrap_mode) != ("bilinear", "repeat"):
+                add("sampler", f"{p.texture.name} ({p.texture.filter_type}, {p.texture.wrap_mode})")
+    for shape in scene.shapes:
+        material = scene.materials[shape.material]
+        if (obj_normal_map(material) if not gltf else carried_normal_map(material)) is None:
+            continue
+        if SHAPES[shape.type].sphere is not None:
+            add("sphere", shape.name)
+        elif gltf and smooth_normals(shape, *shape_triangles(shape)) is not None:
+            add("interpolated", shape.name)
+        if not gltf and np.any(_uv_handedness(shape) <= 0):
+            add("mirrored", shape.name)
+    messages = {
+        "bump": f"{where} has no bump map: bump map(s) {{}} left out (the material is written as the one it "
+                "wraps, unperturbed" + (")" if gltf else "; MTL's bump is a height to three.js, assimp and "
+                                        "tinyobjloader but a normal map to Blender, with no common scale)"),
+        "terminator": f"{where} has no shadow terminator and no flip of invalid normals: normal map(s) {{}} shade "
+                      "without Mitsuba's use_shadowing_function (Estevez's G) and flip_invalid_normals",
+        "float": f"{where}'s normal map here is an 8-bit PNG: float (EXR) normal map(s) {{}} left out",
+        "shear": "KHR_texture_transform has no shear: to_uv of normal map(s) {} left out (read at Mitsuba's "
+                 "untransformed coordinates)",
+        "to_uv": "MTL has no texture transform of its own: normal map(s) {} left out (their to_uv is not the "
+                 "scale and offset the vt carry)",
+        "frame": "OBJ has no tangents: normal map(s) {} written as MTL norm (read by three.js, assimp and "
+                 "tinyobjloader; Blender reads normal maps from map_Bump only) with the green channel inverted "
+                 "(textures/*-green-up.png) for a reader whose bitangent follows vt's v, up; the reader derives "
+                 "the tangent frame from the vt, Mitsuba's (s = dp/du made perpendicular to n, t = n x s) on a "
+                 "flat, unmirrored triangle where its bitangent is n x s up to sign (MikkTSpace's) and its "
+                 "tangent not averaged with other triangles'",
+        "sampler": "MTL has no filter or wrap mode: normal map {} is filtered and wrapped as the reader's default",
+        "mirrored": "the inverted green of MTL's norm gives Mitsuba's normal only where the texture coordinates "
+                    "are unmirrored: shape(s) {} have mirrored or degenerate triangles, on which a reader sees the "
+                    "map's green inverted against Mitsuba's",
+        "sphere": f"{'glTF' if gltf else 'OBJ'} has no analytic sphere: the normal-mapped icosphere(s) {{}} are "
+                  "shaded with their facets' normals and the tangents of their corners' coordinates, where Mitsuba "
+                  "takes the sphere's",
+        "interpolated": "glTF interpolates TANGENT across a triangle: the smooth-shaded normal-mapped shape(s) {} "
+                        "carry Mitsuba's tangent at each corner (vertices split between triangles), where Mitsuba "
+                        "makes the triangle's dp/du perpendicular to the interpolated normal in between",
+    }
+    return [messages[kind].format(", ".join(items)) for kind, items in lost.items()]
 
 
 def _texture_losses(scene: Scene, fmt: str) -> list[str]:

@@ -111,7 +111,8 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
         key = f"shape_{shape.index}"
         kind = SHAPES[shape.type]
         as_mesh = not kind.analytic or (kind.curved and tessellated)
-        uv = vertex_uv(shape) if as_mesh and scene.materials[shape.material].textures else None
+        material = scene.materials[shape.material]
+        uv = vertex_uv(shape) if as_mesh and (material.textures or material.perturbation is not None) else None
         plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh, uv)
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:

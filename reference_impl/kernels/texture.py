@@ -106,12 +106,15 @@ def texture_eval_1(textures, k, u, v, mutant):
 @njit(**JIT_NONRT)
 def texture_grad_1(textures, k, u, v, mutant):
     """The gradient (df/du, df/dv) of bitmap ``k``'s one number f (its luminance, :func:`texture_eval_1`) at (u, v),
-    Mitsuba 3.9.1's ``eval_1_grad`` (the bump map's): the bilinear lookup's own derivative,
+    Mitsuba 3.9.1's ``eval_1_grad`` (the bump map's): the bilinear lookup's derivative per texel,
 
-        df/du' = W ((1 - b)(f10 - f00) + b (f11 - f01)),   df/dv' = H ((1 - a)(f01 - f00) + a (f11 - f10)),
+        g_x = (1 - b)(f10 - f00) + b (f11 - f01),   g_y = (1 - a)(f01 - f00) + a (f11 - f10),
 
-    with f_ij the luminance of the four texels of :func:`texture_eval` and (a, b) the weights there, taken back to
-    (u, v) through to_uv's transpose; (0, 0) with the nearest filter (a step function)."""
+    with f_ij the luminance of the four texels of :func:`texture_eval` and (a, b) the weights there, taken back
+    through to_uv's 2 x 2 part A by its transpose and then scaled by the resolution, (W, H) * (A^T g) (``bitmap.cpp``:
+    ``res * df_uv``); (0, 0) with the nearest filter (a step function). That is the exact derivative, A^T ((W, H) * g),
+    wherever A is diagonal or W = H; otherwise Mitsuba's order, which the ground truth has, is kept (it differs from
+    the derivative of Mitsuba's own lookup: tests/reference_impl/test_shading.py)."""
     a = textures.to_uv[k]
     tu = a[0, 0] * u + a[0, 1] * v + a[0, 2]
     tv = a[1, 0] * u + a[1, 1] * v + a[1, 2]
@@ -134,11 +137,11 @@ def texture_grad_1(textures, k, u, v, mutant):
     f10 = _luminance(_texel(textures, k, i + 1, j, wrap))
     f01 = _luminance(_texel(textures, k, i, j + 1, wrap))
     f11 = _luminance(_texel(textures, k, i + 1, j + 1, wrap))
-    du = width * ((1.0 - fb) * (f10 - f00) + fb * (f11 - f01))
-    dv = height * ((1.0 - fa) * (f01 - f00) + fa * (f11 - f10))
+    du = (1.0 - fb) * (f10 - f00) + fb * (f11 - f01)
+    dv = (1.0 - fa) * (f01 - f00) + fa * (f11 - f10)
     if mutant & M_TEXTURE_V_FLIPPED:
         dv = -dv
-    return a[0, 0] * du + a[1, 0] * dv, a[0, 1] * du + a[1, 1] * dv
+    return width * (a[0, 0] * du + a[1, 0] * dv), height * (a[0, 1] * du + a[1, 1] * dv)
 
 
 @njit(**JIT_BORROW)

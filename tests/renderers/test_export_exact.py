@@ -68,6 +68,12 @@ def carried(texture) -> bool:
     return texture is not None and texture.type == "bitmap" and texture.image.dtype == np.uint8 and not texture.raw
 
 
+def normal_maps(scene) -> set[str]:
+    """The textures glTF's normalTexture and MTL's norm hold: 8-bit normal maps (test_export_shading.py checks them)."""
+    return {m.perturbation.texture.name for m in scene.materials.values() if m.perturbation is not None
+            and m.perturbation.type == "normalmap" and m.perturbation.texture.image.dtype == np.uint8}
+
+
 def texture_mean(texture) -> list[float]:
     """What an export writes for a texture it cannot carry: its mean value (docs/external-renderers.md)."""
     if texture.type == "checkerboard":
@@ -223,7 +229,7 @@ def test_gltf_reads_back_exactly(name, tmp_path):
     assert (textures is None) == (not scene.used_textures)
     for texture in scene.used_textures:  # the scene.json entries, a file named only where it was written
         entry = dict(textures[texture.name])
-        assert ("filename" in entry) == carried(texture)
+        assert ("filename" in entry) == (carried(texture) or texture.name in normal_maps(scene))
         np.testing.assert_array_equal(entry.pop("to_uv"), texture.to_uv)
         if "filename" in entry:
             np.testing.assert_array_equal(iio.imread(tmp_path / entry.pop("filename")), texture.image)
@@ -272,7 +278,7 @@ def check_gltf_textures(scene, gltf: pygltflib.GLTF2, folder: Path) -> None:
             np.testing.assert_allclose(_trs(transform), texture.to_uv, rtol=0, atol=1e-15 * np.abs(texture.to_uv).max())
             assert "KHR_texture_transform" in gltf.extensionsUsed
     assert len(gltf.textures or []) == len({t.name for m in scene.materials.values()
-                                            for t in [base_texture(m)] if carried(t)})
+                                            for t in [base_texture(m)] if carried(t)} | normal_maps(scene))
 
 
 # ---- OBJ / MTL ------------------------------------------------------------------------------------------------------
@@ -294,14 +300,16 @@ def test_obj_and_mtl_read_back_exactly(name, tmp_path):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
     files = export_scene(scene, "obj", tmp_path)
     images = sorted({export_path(t) for m in scene.materials.values() for t in [base_texture(m)] if carried(t)})
-    assert [f.relative_to(tmp_path).as_posix() for f in files] == ["scene.obj", "scene.mtl", *images]
+    norms = [f"textures/texture-{n}-green-up.png" for n in normal_maps(scene)]  # MTL's norm
+    written = [f.relative_to(tmp_path).as_posix() for f in files]
+    assert written[:2] == ["scene.obj", "scene.mtl"] and sorted(written[2:]) == sorted(images + norms)
     materials = parse_mtl((tmp_path / "scene.mtl").read_text(), resolver=FilePathResolver(str(tmp_path)))
     uses = _usemtl_of_objects(files[0].read_text())
     assert len(uses) == len(scene.shapes)
     for shape, mtl_name in zip(scene.shapes, uses):
         entry = materials[mtl_name]
         # nothing the scene does not say: no Ks, Ka, Ns
-        assert set(entry) <= {"name", "kd", "diffuse", "ke", "image"}, entry
+        assert set(entry) <= {"name", "kd", "diffuse", "ke", "image", "norm"}, entry
         assert same32(entry["kd"], expected_base_colour(scene.materials[shape.material])), (shape.name, entry["kd"])
         texture = base_texture(scene.materials[shape.material])
         assert ("image" in entry) == carried(texture)
