@@ -89,8 +89,14 @@ LOOP_CASES = [
     ("underwater", {}),
     ("underwater", {"mutant": "refraction-no-eta2"}),
     ("white-furnace-rough", {"mutant": "microfacet-pdf-no-jacobian"}),
+    # shading normals (vertex normals, a normal and a bump map): the path loop's alone
+    ("smooth-twins", {}),
+    ("mapped-plates", {}),
+    ("mapped-plates", {"direct": "hemisphere-cosine"}),
+    ("leaning-plate", {"direct": "mis"}),
 ]
-GLOSSY = {"veach-mis", "cornell-box-specular", "underwater", "white-furnace-rough"}
+GLOSSY = {"veach-mis", "cornell-box-specular", "underwater", "white-furnace-rough", "smooth-twins", "mapped-plates",
+          "leaning-plate"}  # (and the scenes with shading normals: no wavefront)
 CASES = [(scene, {**settings, "engine": engine, "sampler": sampler})
          for scene, settings in BASE_CASES + LOOP_CASES for engine in ("path", "wavefront")
          for sampler in ("sobol", "independent") if not (engine == "wavefront" and scene in GLOSSY)]
