@@ -151,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
     elif gt.source == "closed-form":
-        radiance = gt.info.get("radiance", "per pixel (a texture's mean over each footprint)")
+        radiance = gt.info.get("radiance", "per pixel (the mean over each pixel's footprint)")
         done = f"wrote {out}" if out is not None else "no render needed"
         print(f"{scene.name}: closed form ({gt.info.get('closed_form')}), radiance {radiance}; {done}")
     else:

@@ -704,18 +704,30 @@ def _uv_handedness(shape) -> np.ndarray:
                    - (c[:, 1, 1] - c[:, 0, 1]) * (c[:, 2, 0] - c[:, 0, 0]))
 
 
+class _Lost:
+    """The items of each kind of loss an export names, in the order first met, each once."""
+
+    def __init__(self) -> None:
+        self.items: dict[str, list[str]] = {}
+
+    def add(self, kind: str, text: str) -> None:
+        items = self.items.setdefault(kind, [])
+        if text not in items:
+            items.append(text)
+
+    def lines(self, messages: dict[str, str]) -> list[str]:
+        """One line per kind met: its message with the items in place of ``{}``."""
+        return [messages[kind].format(", ".join(items)) for kind, items in self.items.items()]
+
+
 def _shading_losses(scene: Scene, fmt: str) -> list[str]:
     """What glTF (``fmt`` "gltf") or OBJ/MTL ("obj") cannot say exactly of the scene's normal and bump maps, one line
     per kind of loss naming the textures, materials and shapes (docs/external-renderers.md, "Shading normals").
     (A ``bumpmap`` entry for :data:`harness.scene.kinds.materials.GLTF_LOSSES` would serve glTF's first line.)"""
     gltf = fmt == "gltf"
     where = "glTF" if gltf else "MTL"
-    lost: dict[str, list[str]] = {}
-
-    def add(kind: str, text: str) -> None:
-        lost.setdefault(kind, [])
-        if text not in lost[kind]:
-            lost[kind].append(text)
+    lost = _Lost()
+    add = lost.add
 
     for material in scene.materials.values():
         p = material.perturbation
@@ -741,9 +753,7 @@ def _shading_losses(scene: Scene, fmt: str) -> list[str]:
         material = scene.materials[shape.material]
         if (obj_normal_map(material) if not gltf else carried_normal_map(material)) is None:
             continue
-        if SHAPES[shape.type].sphere is not None:
-            add("sphere", shape.name)
-        elif gltf and smooth_normals(shape, *shape_triangles(shape)) is not None:
+        if gltf and smooth_normals(shape, *shape_triangles(shape)) is not None:
             add("interpolated", shape.name)
         if not gltf and np.any(_uv_handedness(shape) <= 0):
             add("mirrored", shape.name)
@@ -768,14 +778,11 @@ def _shading_losses(scene: Scene, fmt: str) -> list[str]:
         "mirrored": "the inverted green of MTL's norm gives Mitsuba's normal only where the texture coordinates "
                     "are unmirrored: shape(s) {} have mirrored or degenerate triangles, on which a reader sees the "
                     "map's green inverted against Mitsuba's",
-        "sphere": f"{'glTF' if gltf else 'OBJ'} has no analytic sphere: the normal-mapped icosphere(s) {{}} are "
-                  "shaded with their facets' normals and the tangents of their corners' coordinates, where Mitsuba "
-                  "takes the sphere's",
         "interpolated": "glTF interpolates TANGENT across a triangle: the smooth-shaded normal-mapped shape(s) {} "
                         "carry Mitsuba's tangent at each corner (vertices split between triangles), where Mitsuba "
                         "makes the triangle's dp/du perpendicular to the interpolated normal in between",
     }
-    return [messages[kind].format(", ".join(items)) for kind, items in lost.items()]
+    return lost.lines(messages)
 
 
 def _texture_losses(scene: Scene, fmt: str) -> list[str]:
@@ -784,12 +791,8 @@ def _texture_losses(scene: Scene, fmt: str) -> list[str]:
     gltf = fmt == "gltf"
     where = "glTF" if gltf else "MTL"
     slot = "baseColorTexture" if gltf else "map_Kd"
-    lost: dict[str, list[str]] = {}
-
-    def add(kind: str, text: str) -> None:
-        lost.setdefault(kind, [])
-        if text not in lost[kind]:
-            lost[kind].append(text)
+    lost = _Lost()
+    add = lost.add
 
     for material in scene.materials.values():
         base = base_colour_parameter(material)
@@ -822,7 +825,7 @@ def _texture_losses(scene: Scene, fmt: str) -> list[str]:
         "sampler": "MTL has no filter or wrap mode: texture {} is filtered and wrapped as the reader's default "
                    "(usually bilinear, repeat)",
     }
-    losses = [messages[kind].format(", ".join(items)) for kind, items in lost.items()]
+    losses = lost.lines(messages)
     glowing = [f"{s.name} ({s.emission_texture.name})" for s in scene.shapes
                if getattr(s, "emission_texture", None) is not None]
     if glowing:

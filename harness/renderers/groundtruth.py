@@ -203,6 +203,16 @@ def sphere_coverage_problem(scene: Scene) -> str | None:
     return None
 
 
+def footprint_rays(scene: Scene, side: int):
+    """Each film row y's camera rays through ``side`` x ``side`` midpoints of each of its pixels' box footprints:
+    (y, origins, directions), the W side^2 rays pixel by pixel (the midpoint rule of the closed forms)."""
+    width, height = scene.film.width, scene.film.height
+    offsets = (np.arange(side) + 0.5) / side
+    for y in range(height):
+        fx, fy = np.meshgrid(np.arange(width)[:, None] + offsets[None, :], y + offsets, indexing="ij")
+        yield (y, *scene.camera.generate_rays(fx.ravel(), np.broadcast_to(fy, fx.shape).ravel(), width, height))
+
+
 #: Points per pixel side of :func:`textured_sphere_means`' quadrature.
 QUADRATURE_SIDE = 32
 
@@ -223,12 +233,8 @@ def textured_sphere_means(scene: Scene, side: int = QUADRATURE_SIDE) -> np.ndarr
     to_object = np.linalg.inv(to_world)
     centre, radius = to_world[:3, 3], float(np.linalg.norm(to_world[:3, 0]))
     width, height = scene.film.width, scene.film.height
-    offsets = (np.arange(side) + 0.5) / side
     out = np.empty((height, width, 3))
-    for y in range(height):
-        fx, fy = np.meshgrid(np.arange(width)[:, None] + offsets[None, :], y + offsets, indexing="ij")
-        origins, directions = scene.camera.generate_rays(fx.ravel(), np.broadcast_to(fy, fx.shape).ravel(), width,
-                                                         height)
+    for y, origins, directions in footprint_rays(scene, side):
         oc = origins - centre
         b = np.einsum("ij,ij->i", oc, directions)
         c = np.einsum("ij,ij->i", oc, oc) - radius * radius
@@ -290,12 +296,8 @@ def shaded_plate_means(scene: Scene, side: int = PLATE_QUADRATURE_SIDE) -> np.nd
     suns = [(-np.asarray(e.direction, dtype=np.float64) / np.linalg.norm(e.direction),
              np.asarray(e.irradiance, dtype=np.float64)) for e in scene.emitters]
     width, height = scene.film.width, scene.film.height
-    offsets = (np.arange(side) + 0.5) / side
     out = np.empty((height, width, 3))
-    for y in range(height):
-        fx, fy = np.meshgrid(np.arange(width)[:, None] + offsets[None, :], y + offsets, indexing="ij")
-        origins, directions = scene.camera.generate_rays(fx.ravel(), np.broadcast_to(fy, fx.shape).ravel(), width,
-                                                         height)
+    for y, origins, directions in footprint_rays(scene, side):
         best_t = np.full(len(origins), np.inf)
         shading = np.zeros_like(origins)
         face = np.zeros_like(origins)
