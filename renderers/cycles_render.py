@@ -729,13 +729,14 @@ class TextureNodes:
 
     def height_gradient(self, tree, value: dict, key: str):
         """(df/du, df/dv) of the bitmap ``value`` names, f its luminance, at this shape's (u, v): Mitsuba 3.9.1's
-        ``eval_1_grad``, the bilinear lookup's own derivative
+        ``eval_1_grad``, the bilinear lookup's derivative per texel
 
-            df/du' = W ((1 - b)(f10 - f00) + b (f11 - f01)),   df/dv' = H ((1 - a)(f01 - f00) + a (f11 - f10)),
+            g_x = (1 - b)(f10 - f00) + b (f11 - f01),   g_y = (1 - a)(f01 - f00) + a (f11 - f10),
 
         f_ij the luminance of the four texels around (u', v') (each fetched by a Closest lookup at its centre, so
         Cycles wraps the indices as Mitsuba does), (a, b) the bilinear weights, taken back to (u, v) through to_uv's
-        transpose. None for the nearest filter, whose gradient is 0."""
+        transpose and then times the resolution, (W, H) * (A^T g) (Mitsuba's order: the exact derivative only where
+        A is diagonal or W = H). None for the nearest filter, whose gradient is 0."""
         name = value.get("texture")
         texture = self.images.texture(name, key)
         where = f"textures.{name}"
@@ -780,13 +781,13 @@ class TextureNodes:
         def lerp(w, p, q):  # (1 - w) p + w q
             return math_node(tree, "ADD", p, math_node(tree, "MULTIPLY", w, math_node(tree, "SUBTRACT", q, p)))
 
-        du = math_node(tree, "MULTIPLY", lerp(b, math_node(tree, "SUBTRACT", f10, f00),
-                                              math_node(tree, "SUBTRACT", f11, f01)), float(width))
-        dv = math_node(tree, "MULTIPLY", lerp(a, math_node(tree, "SUBTRACT", f01, f00),
-                                              math_node(tree, "SUBTRACT", f11, f10)), float(height))
+        du = lerp(b, math_node(tree, "SUBTRACT", f10, f00), math_node(tree, "SUBTRACT", f11, f01))
+        dv = lerp(a, math_node(tree, "SUBTRACT", f01, f00), math_node(tree, "SUBTRACT", f11, f10))
         grad = combine(tree, du, dv)
-        return tuple(vector_math(tree, "DOT_PRODUCT", grad, (to_uv[0, c], to_uv[1, c], 0.0), "Value")
-                     for c in range(2))
+        # Mitsuba's order: to_uv's transpose first, then the resolution (bitmap.cpp: res * df_uv)
+        return tuple(math_node(tree, "MULTIPLY", vector_math(tree, "DOT_PRODUCT", grad,
+                                                             (to_uv[0, c], to_uv[1, c], 0.0), "Value"), size)
+                     for c, size in enumerate((float(width), float(height))))
 
 
 def textured(spec: dict) -> list[str]:
