@@ -267,6 +267,10 @@ class _Context:
         self.light_textures = self.material_tables.textures if self.geometry.textured_lights else None
         # None where every material is diffuse: the path loop compiles the BSDF door's other kinds out
         self.other_kinds = True if is_glossy(self.materials) else None
+        # None where no triangle has vertex normals and no material a normal or bump map: the path loop compiles the
+        # shading frame's side tests out
+        perturbs = bool(np.any(self.materials.params[:, P_PERTURB] != PERTURB_NONE))
+        self.shading = True if self.geometry.has_shading_normals or perturbs else None
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -494,7 +498,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         timing = np.zeros(2, np.int64)
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                  ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
-                                 film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record)
+                                 film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record,
+                                 ctx.shading)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

@@ -70,7 +70,7 @@ from reference_impl.kernels.record import record_camera, record_closest, record_
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
                                           pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
-from reference_impl.kernels.shading import shading_frame, through_map
+from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map
 from reference_impl.kernels.surface import emission_at, hit_point, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED,
@@ -215,7 +215,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
 
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
-                emitters, other_kinds, textures=None, record=None):
+                emitters, other_kinds, textures=None, record=None, shading=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
     (module docstring), adding each path's radiance to ``radiance[root]``.
 
@@ -224,7 +224,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     every branch for them out (numba decides ``emitters is not None`` from the argument's type); ``other_kinds``
     likewise: None where every material is diffuse, which compiles the BSDF door's other kinds out (a loop of its
     own for Lambertian scenes, from the same source), else True; ``textures`` likewise: None where no area light is
-    textured (every Le is its triangle's row: the lookups compiled out), else the materials' texture tables.
+    textured (every Le is its triangle's row: the lookups compiled out), else the materials' texture tables;
+    ``shading`` likewise: None where no triangle has vertex normals and no material a normal or bump map (every
+    frame the geometric one, :func:`.shading.geometric_frame`, whose constant flags fold the side tests away), else
+    True (:func:`.shading.shading_frame`).
     ``cfg``: the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
@@ -380,7 +383,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             ox0, ox1, ox2 = offset_origin(cfg.offset_scene, x0, x1, x2, ns0, ns1, ns2)
             # The BSDF's local frame: the shading frame (vertex normals, a normal or bump map; else N's)
             wo0, wo1, wo2 = -d0, -d1, -d2
-            sf = shading_frame(scene, materials, hit, row, wo0, wo1, wo2, mutant)
+            if shading is None:
+                sf = geometric_frame(hit)
+            else:
+                sf = shading_frame(scene, materials, hit, row, wo0, wo1, wo2, mutant)
             s0, s1, s2, t0, t1, t2 = sf.s0, sf.s1, sf.s2, sf.t0, sf.t1, sf.t2
             lo0, lo1 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2)
             lo2 = dot3(sf.n0, sf.n1, sf.n2, wo0, wo1, wo2) if sf.differs else cos_out

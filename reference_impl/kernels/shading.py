@@ -74,6 +74,14 @@ class ShadingFrame(NamedTuple):
 
 
 @njit(**JIT_BORROW)
+def geometric_frame(hit):
+    """The :class:`ShadingFrame` of a scene without shading normals: the hit's geometric frame, its flags constants
+    (so that the side tests that read them fold away where the path loop inlines it)."""
+    return ShadingFrame(hit.ss0, hit.ss1, hit.ss2, hit.st0, hit.st1, hit.st2, hit.sn0, hit.sn1, hit.sn2, hit.sn0,
+                        hit.sn1, hit.sn2, -1.0, False, False)
+
+
+@njit(**JIT_BORROW)
 def shading_frame(scene, materials, hit, row, wo0, wo1, wo2, mutant):
     """The :class:`ShadingFrame` at ``hit`` (:class:`.surface.SurfaceHit`) of a material with parameters ``row`` (the
     material step's), seen from unit direction wo; ``mutant``: the planted-fault bits."""
@@ -201,4 +209,5 @@ def through_map(frame, w0, w1, w2, cos_w):
     return 2.0 / (1.0 + math.sqrt(1.0 + frame.alpha2 * tan2))
 
 
-__all__ = ["ShadingFrame", "position_derivatives", "shading_frame", "through_map", "vertex_normal"]
+__all__ = ["ShadingFrame", "geometric_frame", "position_derivatives", "shading_frame", "through_map",
+           "vertex_normal"]
