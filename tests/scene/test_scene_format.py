@@ -381,6 +381,20 @@ def test_doc_emitters_example_loads(tmp_path):
     assert scene.emitters[3].image.shape == (64, 128, 3) and scene.lights == []
 
 
+def test_doc_shading_example_loads(tmp_path):
+    """The example of the "Shading normals" section (its map and mesh are the canonical scenes')."""
+    text = (REPO / "docs" / "scene-format.md").read_text()
+    example = re.search(r"## Shading normals.*?```toml\n(.*?)```", text, re.S).group(1)
+    for name in ("textures/bumps-normal.png", "meshes/blob.ply"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_bytes((SCENES / name).read_bytes())
+    scene = load_text(tmp_path, MINIMAL + example)
+    bumpy = scene.materials["bumpy"]
+    assert bumpy.type == "diffuse" and bumpy.perturbation.type == "normalmap" and bumpy.perturbation.bsdf == "grey"
+    assert [shape.type for shape in scene.shapes] == ["rectangle", "mesh"]
+    assert triangulate(scene).has_shading_normals
+
+
 # --------------------------------------------------------------------------------------------------------------------
 # Errors: each names the file and the key path
 
