@@ -24,6 +24,7 @@ from harness.scene import load_scene, sky
 STRESS_SCENES = ROOT / "scenes" / "stress"
 LIMITS = ("point-near-plane", "spot-narrow", "envmap-spike", "directional-grazing")
 TEXTURE_LIMITS = ("texture-one-texel", "texture-fine-checker", "texture-degenerate-uv")  # docs/stress.md
+SHADING_LIMITS = ("normals-flipping", "normalmap-grazing")  # docs/stress.md, "Shading-normal limits"
 RHO = 0.6  # every limit scene's plane
 
 
@@ -39,7 +40,8 @@ def test_the_suite_has_each_limit_under_the_default_strategy_and_mis():
     glossy = {("glossy-alpha-limits", "default"), ("glossy-alpha-limits", "bsdf"),
               ("dielectric-index-matched", "default"), ("glossy-grazing", "default"), ("glossy-grazing", "area"),
               ("conductor-k-zero", "default")}
-    assert seen == {(name, direct) for name in LIMITS + TEXTURE_LIMITS for direct in ("default", "mis")} | glossy
+    assert seen == {(name, direct) for name in LIMITS + TEXTURE_LIMITS + SHADING_LIMITS
+                    for direct in ("default", "mis")} | glossy
     # Only the spot is an expected fail (Mitsuba's float32 falloff, docs/stress.md); every case is the reference's.
     assert {c.scene.stem for c in _limit_cases() if c.expect == "fail"} == {"spot-narrow"}
     assert {c.renderer for c in _limit_cases()} == {"reference"}
