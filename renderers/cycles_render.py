@@ -430,14 +430,8 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
     geometry = nodes.new("ShaderNodeNewGeometry")
     surface = bsdf_node(tree, spec, where, textures).outputs[0]
     two_sided = spec["type"] in ("dielectric", "roughdielectric") or bool(spec.get("two_sided", False))
-    if isinstance(emission, dict) or (emission is not None and any(e != 0.0 for e in emission)):
-        glow = nodes.new("ShaderNodeEmission")
-        if isinstance(emission, dict):  # a textured radiance (Mitsuba's area emitter with a radiance texture)
-            set_colour(tree, glow, "Color", emission, textures, f"{shape_where}.emission")
-            socket(glow, "Strength").default_value = scale
-        else:
-            socket(glow, "Color").default_value = (*(float(e) * scale for e in emission), 1.0)
-            socket(glow, "Strength").default_value = 1.0
+    glow = emission_node(tree, emission, scale, textures, shape_where)
+    if glow is not None:
         add = nodes.new("ShaderNodeAddShader")
         links.new(surface, add.inputs[0])
         links.new(glow.outputs[0], add.inputs[1])

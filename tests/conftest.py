@@ -145,3 +145,15 @@ def render_reference(scene, spp: int, seed: int = 0, **settings):
 
     request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
     return get_renderer("reference").render(scene, request)
+
+
+def ply_ascii(vertices, faces, normals=None, uv=None) -> str:
+    """An ASCII PLY (:func:`harness.scene.mesh_assets.ply_text`) of ``vertices`` and ``faces``, with ``nx, ny, nz``
+    (written as given: "nan" stays nan) and ``u, v`` where given."""
+    import numpy as np
+
+    from harness.scene.mesh_assets import ply_text
+
+    return ply_text(np.asarray(vertices, float), np.asarray(faces),
+                    None if normals is None else np.asarray(normals, float),
+                    None if uv is None else np.asarray(uv, float)).decode()

@@ -29,13 +29,17 @@ DEFAULT_FOLDER = Path(__file__).resolve().parents[2] / "scenes" / "meshes"
 STRESS_FOLDER = DEFAULT_FOLDER.parent / "stress" / "meshes"
 
 
-def ply_text(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None) -> bytes:
-    """An ASCII PLY of the triangles (and vertex normals), each number with 9 significant digits."""
-    props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals is not None else [])
+def ply_text(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray | None = None,
+             uv: np.ndarray | None = None) -> bytes:
+    """An ASCII PLY of the triangles (and vertex normals ``nx, ny, nz``, texture coordinates ``u, v``), each number
+    with 9 significant digits (a NaN as ``nan``)."""
+    props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals is not None else []) + (["u", "v"] if uv is not None
+                                                                                       else [])
     lines = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}"]
     lines += [f"property float {p}" for p in props]
     lines += [f"element face {len(triangles)}", "property list uchar int vertex_indices", "end_header"]
-    columns = vertices if normals is None else np.hstack([vertices, normals])
+    columns = np.hstack([np.asarray(c, dtype=np.float64).reshape(len(vertices), -1)
+                         for c in (vertices, normals, uv) if c is not None])
     lines += [" ".join(f"{x:.9g}" for x in row) for row in columns]
     lines += ["3 " + " ".join(str(int(i)) for i in tri) for tri in triangles]
     return ("\n".join(lines) + "\n").encode()

@@ -38,7 +38,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from conftest import MINIMAL_SCENE
+from conftest import MINIMAL_SCENE, ply_ascii as _ply
 from harness.files.imageio import encode_png
 from harness.judges.chi2 import chi2_test, orthonormal_basis, sidak_alpha
 from harness.scene import load_scene
@@ -139,19 +139,6 @@ def _frame_vectors(frame):
 
 
 # ---- scenes, meshes and rays --------------------------------------------------------------------------------------
-
-
-def _ply(vertices, faces, normals=None, uv=None) -> str:
-    props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals is not None else []) + (["u", "v"] if uv is not None
-                                                                                       else [])
-    head = (f"ply\nformat ascii 1.0\nelement vertex {len(vertices)}\n"
-            + "".join(f"property float {p}\n" for p in props)
-            + f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
-    rows = []
-    for i, p in enumerate(vertices):
-        row = list(p) + (list(normals[i]) if normals is not None else []) + (list(uv[i]) if uv is not None else [])
-        rows.append(" ".join(repr(float(x)) for x in row))
-    return head + "\n".join(rows) + "\n" + "".join(f"3 {a} {b} {c}\n" for a, b, c in faces)
 
 
 def _obj(vertices, faces, normals=None, normal_index=None) -> str:

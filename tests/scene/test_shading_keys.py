@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import MINIMAL_SCENE
+from conftest import MINIMAL_SCENE, ply_ascii as _ply
 from harness.core.errors import HarnessError
 from harness.files.imageio import encode_png
 from harness.scene import load_scene
@@ -37,21 +37,6 @@ type = "checkerboard"
 color0 = 0.2
 color1 = 0.7
 """
-
-
-def _ply(vertices, faces, normals=None, uv=None) -> str:
-    """An ASCII PLY of ``vertices`` and ``faces``, with ``nx, ny, nz`` (written as given: "nan" stays nan) and
-    ``u, v`` where given."""
-    props = ["x", "y", "z"] + (["nx", "ny", "nz"] if normals is not None else []) + (["u", "v"] if uv is not None
-                                                                                       else [])
-    head = (f"ply\nformat ascii 1.0\nelement vertex {len(vertices)}\n"
-            + "".join(f"property float {p}\n" for p in props)
-            + f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
-    rows = []
-    for i, p in enumerate(vertices):
-        row = list(p) + (list(normals[i]) if normals is not None else []) + (list(uv[i]) if uv is not None else [])
-        rows.append(" ".join(str(float(x)) for x in row))
-    return head + "\n".join(rows) + "\n" + "".join(f"3 {a} {b} {c}\n" for a, b, c in faces)
 
 
 QUAD = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
