@@ -314,6 +314,9 @@ def fake_machine(monkeypatch):
     monkeypatch.setattr(mts, "probe_cache_path", lambda: None)
     monkeypatch.setattr(mts, "gpu_present", lambda: state["gpu"])
     monkeypatch.setattr(mts, "find_libllvm_candidates", lambda: list(state["libs"]))
+    # the machine's own libLLVM, which an earlier test's Mitsuba import in this worker may have put in the
+    # environment, is no part of the fake machine
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
     mts.reset_variant_cache()
     yield state
     mts.reset_variant_cache()
