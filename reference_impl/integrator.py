@@ -48,7 +48,7 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.materials import P_PERTURB, PERTURB_NONE, Materials, is_glossy
+from reference_impl.materials import Materials, is_glossy
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import CAPABILITIES, GLOSSY_DIRECT, Settings
 
@@ -269,8 +269,7 @@ class _Context:
         self.other_kinds = True if is_glossy(self.materials) else None
         # None where no triangle has vertex normals and no material a normal or bump map: the path loop compiles the
         # shading frame's side tests out
-        perturbs = bool(np.any(self.materials.params[:, P_PERTURB] != PERTURB_NONE))
-        self.shading = True if self.geometry.has_shading_normals or perturbs else None
+        self.shading = True if self.geometry.has_shading_normals or self.materials.perturbed else None
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -329,7 +328,7 @@ def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
         raise SettingsError("indirect_rays" if settings.indirect_rays > 1 else "engine",
                             "a textured area light is traced by the path loop alone: expected indirect_rays = 1 and "
                             f"engine = path, got {settings.indirect_rays} and {settings.engine!r}")
-    shading = geometry.has_shading_normals or bool(np.any(materials.params[:, P_PERTURB] != PERTURB_NONE))
+    shading = geometry.has_shading_normals or materials.perturbed
     if shading and (settings.engine == "wavefront" or settings.indirect_rays > 1):
         raise SettingsError("indirect_rays" if settings.indirect_rays > 1 else "engine",
                             "shading normals (vertex normals, a normal or bump map) are traced by the path loop "

@@ -129,6 +129,11 @@ class Materials:
         return bool(np.all(self.kind == DIFFUSE))
 
     @property
+    def perturbed(self) -> bool:
+        """True when a material is a normal or bump map around its kind (:data:`P_PERTURB`)."""
+        return bool(np.any(self.params[:, P_PERTURB] != PERTURB_NONE))
+
+    @property
     def textured(self) -> bool:
         """True when a texture drives a parameter of some material."""
         return bool(np.any(self.texture >= 0))

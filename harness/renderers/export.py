@@ -52,6 +52,8 @@ from pathlib import Path
 
 import numpy as np
 
+from reference_impl.sampling import coordinate_frame
+
 from harness.core.errors import HarnessError
 from harness.core.jsonsafe import plain
 from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, encode_png, make_folders
@@ -251,16 +253,6 @@ def carried_normal_map(material):
     return texture if texture is not None and texture.image is not None and texture.image.dtype == np.uint8 else None
 
 
-def _duff_tangent(normals: np.ndarray) -> np.ndarray:
-    """The first tangent of the core's frame about unit ``normals`` (N, 3) (Duff et al. 2017,
-    :func:`reference_impl.kernels.warps.tangent_frame`): s = (1 + sign n_x^2 a, sign n_x n_y a, -sign n_x) with
-    sign = +1 for n_z >= 0 else -1 and a = -1 / (sign + n_z)."""
-    x, y, z = normals.T
-    sign = np.where(z >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + z)
-    return np.stack([1.0 + sign * x * x * a, sign * x * y * a, -sign * x], axis=-1)
-
-
 def corner_frames(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarray,
                   normals: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Mitsuba's shading frame at the corners of each triangle, (normals, tangents), each (T, 3, 3): n = the corner's
@@ -268,7 +260,7 @@ def corner_frames(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarray,
     tangent s = normalize(dp/du - n (n . dp/du)), dp/du the triangle's from its corners and its (untransformed)
     texture coordinates ``uv`` (V, 2) (dp/du = (dv_2 e_1 - dv_1 e_2) / (du_1 dv_2 - dv_1 du_2), e_i = p_i - p_0:
     :func:`reference_impl.kernels.shading.position_derivatives`), or the core's tangent of n where the coordinates
-    are degenerate (:func:`_duff_tangent`). The bitangent is t = n x s (so glTF's ``TANGENT`` w is +1)."""
+    are degenerate (:func:`reference_impl.sampling.coordinate_frame`). The bitangent is t = n x s (so glTF's ``TANGENT`` w is +1)."""
     corners = np.asarray(vertices, np.float64)[triangles]
     e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
     with np.errstate(all="ignore"):
@@ -287,7 +279,7 @@ def corner_frames(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarray,
         s = s / length
     bad = ~((det != 0.0)[:, None] & (length[..., 0] > 0) & np.all(np.isfinite(s), axis=-1))
     if np.any(bad):
-        s[bad] = _duff_tangent(n[bad])
+        s[bad] = coordinate_frame(n[bad])[0]
     return n, s
 
 
@@ -328,7 +320,7 @@ def normal_mapped_mesh(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarr
     source, triangles, used, n, s = split_corners(triangles, len(vertices), corner_n, corner_s)
     if not np.all(used):
         n[~used] = (0.0, 0.0, 1.0) if normals is None else np.asarray(normals, np.float64)[source[~used]]
-        s[~used] = _duff_tangent(n[~used])
+        s[~used] = coordinate_frame(n[~used])[0]
     return np.asarray(vertices)[source], triangles, np.asarray(uv)[source], n, s
 
 

@@ -129,6 +129,8 @@ FLAT_ANGLE = 1e-4
 def emitter_shades_flat(shape: Shape) -> bool:
     """Whether the shape's vertex normals (:func:`vertex_normals`) are its triangles' own normals at every corner
     (within :data:`FLAT_ANGLE`), or it has none: an area light the reference shades flat."""
+    if shape.type != "mesh" or shape.face_normals:  # no vertex normals (vertex_normals): nothing to triangulate
+        return True
     vertices, triangles = shape_triangles(shape)
     normals = vertex_normals(shape, vertices, triangles)
     if normals is None:

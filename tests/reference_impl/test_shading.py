@@ -39,6 +39,7 @@ import pytest
 from numba import njit
 
 from conftest import MINIMAL_SCENE, ply_ascii as _ply
+from test_textures import _points as texel_points
 from harness.files.imageio import encode_png
 from harness.judges.chi2 import chi2_test, orthonormal_basis, sidak_alpha
 from harness.scene import load_scene
@@ -493,14 +494,8 @@ GREY8 = np.random.default_rng(8).integers(0, 256, size=(5, 7), dtype=np.uint8)
 
 
 def _points(width: int, height: int, seed: int = 0) -> np.ndarray:
-    """Texel centres, texel edges and corners (inside and one period out), and random points in [-2.5, 2.5]^2."""
-    g = np.random.default_rng(seed)
-    centres = np.stack(np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height),
-                       axis=-1).reshape(-1, 2)
-    edges = np.stack(np.meshgrid(np.arange(-1, width + 2) / width, np.arange(-1, height + 2) / height),
-                     axis=-1).reshape(-1, 2)
-    shifted = centres + g.integers(-2, 3, size=centres.shape)
-    return np.concatenate([centres, edges, shifted, g.uniform(-2.5, 2.5, size=(300, 2))])
+    """test_textures.py's points (texel centres, edges, corners, one period out), with 300 random ones."""
+    return texel_points(width, height, seed, random=300)
 
 
 def _compare_gradient(image: np.ndarray, plugin: dict, ours: Bitmap, uv: np.ndarray) -> float:

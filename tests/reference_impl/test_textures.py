@@ -36,15 +36,16 @@ def _mitsuba_eval(tex, uv) -> np.ndarray:
     return out
 
 
-def _points(width: int, height: int, seed: int = 0) -> np.ndarray:
-    """Texel centres, texel edges and corners (inside and one period out), and random points in [-2.5, 2.5]^2."""
+def _points(width: int, height: int, seed: int = 0, random: int = 400) -> np.ndarray:
+    """Texel centres, texel edges and corners (inside and one period out), and ``random`` random points in
+    [-2.5, 2.5]^2."""
     g = np.random.default_rng(seed)
     centres = np.stack(np.meshgrid((np.arange(width) + 0.5) / width, (np.arange(height) + 0.5) / height),
                        axis=-1).reshape(-1, 2)
     edges = np.stack(np.meshgrid(np.arange(-1, width + 2) / width, np.arange(-1, height + 2) / height),
                      axis=-1).reshape(-1, 2)
     shifted = centres + g.integers(-2, 3, size=centres.shape)
-    return np.concatenate([centres, edges, shifted, g.uniform(-2.5, 2.5, size=(400, 2))])
+    return np.concatenate([centres, edges, shifted, g.uniform(-2.5, 2.5, size=(random, 2))])
 
 
 def _reference(item, uv, mutant: int = 0, srgb_as_linear: bool = False) -> np.ndarray:

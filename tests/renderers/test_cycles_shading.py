@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import dataclasses
 import io
-import json
 import math
 import subprocess
 import sys
@@ -20,9 +19,9 @@ import pytest
 
 from harness.files.imageio import read_exr
 from harness.renderers.groundtruth import shaded_plate_means
-from harness.renderers.scene_json import scene_json
 from harness.scene import load_scene
 from test_cycles import _one_line_error
+from test_cycles_textures import write_scene_json
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / "renderers" / "cycles_render.py"
@@ -53,15 +52,7 @@ def _run(*args) -> subprocess.CompletedProcess:
 
 def _export(scene, out: Path, edit=None) -> Path:
     """``scene`` at SIZE x SIZE as scene.json in ``out`` (``edit(document)`` applied)."""
-    scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=SIZE, height=SIZE))
-    document, files = scene_json(scene)
-    if edit is not None:
-        edit(document)
-    for rel, data in files.items():
-        (out / rel).parent.mkdir(parents=True, exist_ok=True)
-        (out / rel).write_bytes(data)
-    (out / "scene.json").write_text(json.dumps(document), encoding="utf-8")
-    return out / "scene.json"
+    return write_scene_json(scene, out, SIZE, edit)
 
 
 def _render(scene_path: Path, *extra) -> np.ndarray:

@@ -73,10 +73,9 @@ def scenes(tmp_path_factory) -> Path:
     return folder
 
 
-def _export(toml: Path, out: Path, edit=None):
-    """The scene at 16 x 16 as scene.json in ``out`` (``edit(document)`` applied), and its closed form."""
-    scene = load_scene(toml)
-    scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=SIZE, height=SIZE))
+def write_scene_json(scene, out: Path, size: int, edit=None) -> Path:
+    """``scene`` at ``size`` x ``size`` as scene.json and its files in ``out`` (``edit(document)`` applied)."""
+    scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size, height=size))
     document, files = scene_json(scene)
     if edit is not None:
         edit(document)
@@ -84,7 +83,14 @@ def _export(toml: Path, out: Path, edit=None):
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         (out / rel).write_bytes(data)
     (out / "scene.json").write_text(json.dumps(document), encoding="utf-8")
-    return out / "scene.json", scene
+    return out / "scene.json"
+
+
+def _export(toml: Path, out: Path, edit=None):
+    """The scene at 16 x 16 as scene.json in ``out`` (``edit(document)`` applied), and its closed form."""
+    scene = load_scene(toml)
+    path = write_scene_json(scene, out, SIZE, edit)
+    return path, dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=SIZE, height=SIZE))
 
 
 def _run(*args) -> subprocess.CompletedProcess:

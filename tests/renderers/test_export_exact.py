@@ -248,6 +248,19 @@ def _trs(transform: dict) -> np.ndarray:
             @ np.diag([su, sv, 1.0]))
 
 
+def check_image_and_sampler(gltf: pygltflib.GLTF2, folder: Path, info, texture):
+    """glTF texture ``info``'s image (a PNG holding the scene's codes, bit for bit) and sampler (filter and wrap
+    mode) against the scene's ``texture``; returns the image."""
+    entry = gltf.textures[info.index]
+    image = gltf.images[entry.source]
+    assert image.uri.endswith(".png") and image.mimeType == "image/png"
+    np.testing.assert_array_equal(iio.imread(folder / image.uri), texture.image)
+    sampler = gltf.samplers[entry.sampler]
+    assert (sampler.magFilter, sampler.minFilter) == (GLTF_FILTERS[texture.filter_type],) * 2
+    assert (sampler.wrapS, sampler.wrapT) == (GLTF_WRAPS[texture.wrap_mode],) * 2
+    return image
+
+
 def check_gltf_textures(scene, gltf: pygltflib.GLTF2, folder: Path) -> None:
     """Every base colour texture glTF carries: its image (the scene's codes, bit for bit), its sampler (filter and
     wrap mode) and to_uv (KHR_texture_transform, the same matrix); every material's other textures nowhere."""
@@ -261,13 +274,7 @@ def check_gltf_textures(scene, gltf: pygltflib.GLTF2, folder: Path) -> None:
             assert info is None
             continue
         assert info.texCoord == 0 and primitive.attributes.TEXCOORD_0 is not None
-        entry = gltf.textures[info.index]
-        image = gltf.images[entry.source]
-        assert image.uri.endswith(".png") and image.mimeType == "image/png"
-        np.testing.assert_array_equal(iio.imread(folder / image.uri), texture.image)
-        sampler = gltf.samplers[entry.sampler]
-        assert (sampler.magFilter, sampler.minFilter) == (GLTF_FILTERS[texture.filter_type],) * 2
-        assert (sampler.wrapS, sampler.wrapT) == (GLTF_WRAPS[texture.wrap_mode],) * 2
+        check_image_and_sampler(gltf, folder, info, texture)
         transform = (info.extensions or {}).get("KHR_texture_transform")
         if np.array_equal(texture.to_uv, np.eye(3)):
             assert transform is None

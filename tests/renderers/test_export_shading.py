@@ -19,10 +19,11 @@ from trimesh.exchange.obj import parse_mtl
 from trimesh.resolvers import FilePathResolver
 
 from harness.files.imageio import write_exr
-from harness.renderers.export import GLTF_FILTERS, GLTF_WRAPS, export_losses, export_scene
+from harness.renderers.export import export_losses, export_scene
 from harness.renderers.meshfiles import ply_bytes
 from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles, vertex_normals
+from test_export_exact import _trs, check_image_and_sampler
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -129,28 +130,12 @@ def check_gltf_frame(gltf, folder: Path, primitive, corner_normals: np.ndarray, 
             "bitangent": bitangent_error, "green_along_v": float(np.sign(np.sum(bitangent * dpdv[:, None], -1)).min())}
 
 
-def _trs(transform: dict) -> np.ndarray:
-    """KHR_texture_transform's matrix T(offset) R(rotation) S(scale), R(r) = [[cos r, sin r], [-sin r, cos r]] (as
-    tests/renderers/test_export_exact.py reads baseColorTexture's)."""
-    (tu, tv), (su, sv) = transform.get("offset", [0, 0]), transform.get("scale", [1, 1])
-    r = transform.get("rotation", 0)
-    return (np.array([[1, 0, tu], [0, 1, tv], [0, 0, 1.0]])
-            @ np.array([[math.cos(r), math.sin(r), 0], [-math.sin(r), math.cos(r), 0], [0, 0, 1]])
-            @ np.diag([su, sv, 1.0]))
-
-
 def check_normal_texture(gltf, folder: Path, info, texture) -> None:
     """A ``normalTexture``: texCoord 0, glTF's default scale (n = normalize(2 rgb - 1), as Mitsuba's), the scene's
     codes bit for bit (catches an sRGB encoding, a flipped green or row order, a rounding through floats), the
     sampler (filter and wrap mode) and ``to_uv`` as KHR_texture_transform (the same matrix)."""
     assert info is not None and info.texCoord == 0 and info.scale in (None, 1.0)
-    entry = gltf.textures[info.index]
-    image = gltf.images[entry.source]
-    assert image.uri.endswith(".png") and image.mimeType == "image/png"
-    np.testing.assert_array_equal(iio.imread(folder / image.uri), texture.image)
-    sampler = gltf.samplers[entry.sampler]
-    assert (sampler.magFilter, sampler.minFilter) == (GLTF_FILTERS[texture.filter_type],) * 2
-    assert (sampler.wrapS, sampler.wrapT) == (GLTF_WRAPS[texture.wrap_mode],) * 2
+    image = check_image_and_sampler(gltf, folder, info, texture)
     transform = (info.extensions or {}).get("KHR_texture_transform")
     if np.array_equal(texture.to_uv, np.eye(3)):
         assert transform is None
