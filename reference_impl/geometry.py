@@ -1,4 +1,4 @@
-"""Scene geometry as flat triangle arrays: the only form of scene the core knows."""
+"""Scene geometry as flat triangle arrays, and the analytic spheres some of those triangles stand in for."""
 
 from __future__ import annotations
 
@@ -34,12 +34,16 @@ class Geometry:
     uv : (T, 3, 2) float64, optional
         The texture coordinates (u, v) at each triangle's corners, in the order of ``triangles``; a hit's are
         interpolated with its barycentrics. None: the triangles have none (0 everywhere).
-    uv_sphere : (T,) int64, optional
-        Per triangle: -1 (its ``uv`` are interpolated), or the sphere s of ``sphere_to_object`` the triangle
-        approximates, whose texture coordinates are Mitsuba's analytic ones at the hit's direction from the centre:
-        p = sphere_to_object[s] x, u = atan2(p_y, p_x) / (2 pi) mod 1, v = acos(p_z / |p|) / pi.
+    sphere_of : (T,) int64, optional
+        Per triangle: -1, or the analytic sphere s of ``sphere_to_object`` whose stand-in the triangle is. A
+        sphere's triangles (its icosphere, wound toward its front side) carry its material, emission and light id;
+        the core hits and samples the sphere itself (:mod:`reference_impl.intersect`, :mod:`reference_impl.lights`),
+        whose point x has the normal N = (x - c) / r (negated where the front side is inside, ``sphere_inward``)
+        and Mitsuba's texture coordinates p = sphere_to_object[s] x, u = atan2(p_y, p_x) / (2 pi) mod 1,
+        v = acos(p_z / |p|) / pi. None: no spheres.
     sphere_to_object : (S, 4, 4) float64, optional
-        Per sphere: the inverse of its object-to-world matrix (the unit sphere in its own space).
+        Per sphere: the inverse of its object-to-world matrix (the unit sphere in its own space), which may only
+        rotate, scale uniformly and translate (Mitsuba's sphere).
     emission_texture : (T,) int64, optional
         Per triangle: -1 (it emits ``emission``), or the texture (of the materials' ``Materials.textures``) whose
         value at the point's texture coordinates is its radiance (Mitsuba's ``area`` emitter with a textured
@@ -59,7 +63,7 @@ class Geometry:
     emission: np.ndarray
     light_id: np.ndarray
     uv: np.ndarray | None = None
-    uv_sphere: np.ndarray | None = None
+    sphere_of: np.ndarray | None = None
     sphere_to_object: np.ndarray | None = None
     emission_texture: np.ndarray | None = None
     normals: np.ndarray | None = None
@@ -68,6 +72,10 @@ class Geometry:
     area: np.ndarray = field(init=False, repr=False)  # (T,)
     corners: np.ndarray = field(init=False, repr=False)  # (T, 3, 3): v0, v1, v2 of each triangle
     smooth: np.ndarray = field(init=False, repr=False)  # (T,) bool: the triangle has vertex normals
+    sphere_center: np.ndarray = field(init=False, repr=False)  # (S, 3) c
+    sphere_radius: np.ndarray = field(init=False, repr=False)  # (S,) r
+    sphere_inward: np.ndarray = field(init=False, repr=False)  # (S,) bool: the front side is the inside
+    sphere_first: np.ndarray = field(init=False, repr=False)  # (S,) the first triangle of each sphere
 
     def __post_init__(self) -> None:
         set_ = object.__setattr__
@@ -124,9 +132,10 @@ class Geometry:
         set_(self, "corners", corners)
         set_(self, "normal", normal)
         set_(self, "area", 0.5 * double_area)
+        self._derive_spheres()
 
     def _check_uv(self, n_tri: int) -> None:
-        """``uv``, ``uv_sphere``, ``sphere_to_object`` and ``emission_texture`` as contiguous arrays (empty where
+        """``uv``, ``sphere_of``, ``sphere_to_object`` and ``emission_texture`` as contiguous arrays (empty where
         None), or SettingsError."""
         set_ = object.__setattr__
         uv = np.zeros((0, 3, 2)) if self.uv is None else np.ascontiguousarray(self.uv, dtype=np.float64)
@@ -136,12 +145,12 @@ class Geometry:
                    else np.ascontiguousarray(self.sphere_to_object, dtype=np.float64))
         if spheres.ndim != 3 or spheres.shape[1:] != (4, 4) or not np.all(np.isfinite(spheres)):
             raise SettingsError("sphere_to_object", "expected finite numbers in an array of shape (S, 4, 4)")
-        which = (np.zeros(0, np.int64) if self.uv_sphere is None
-                 else np.ascontiguousarray(self.uv_sphere, dtype=np.int64).reshape(-1))
+        which = (np.zeros(0, np.int64) if self.sphere_of is None
+                 else np.ascontiguousarray(self.sphere_of, dtype=np.int64).reshape(-1))
         if len(which) not in (0, n_tri) or np.any(which < -1) or np.any(which >= len(spheres)):
-            raise SettingsError("uv_sphere", f"expected one entry per triangle, -1 or a sphere below {len(spheres)}")
-        if len(which) and len(uv) == 0:
-            raise SettingsError("uv", "expected the triangles' uv with uv_sphere")
+            raise SettingsError("sphere_of", f"expected one entry per triangle, -1 or a sphere below {len(spheres)}")
+        if len(spheres) and not np.array_equal(np.unique(which[which >= 0]), np.arange(len(spheres))):
+            raise SettingsError("sphere_of", "expected at least one triangle for every sphere")
         textured = (np.zeros(0, np.int64) if self.emission_texture is None
                     else np.ascontiguousarray(self.emission_texture, dtype=np.int64).reshape(-1))
         if len(textured) not in (0, n_tri) or np.any(textured < -1):
@@ -150,8 +159,45 @@ class Geometry:
             raise SettingsError("uv", "expected the triangles' uv with emission_texture")
         set_(self, "emission_texture", textured)
         set_(self, "uv", uv)
-        set_(self, "uv_sphere", which)
+        set_(self, "sphere_of", which)
         set_(self, "sphere_to_object", spheres)
+
+    def _derive_spheres(self) -> None:
+        """Each sphere's centre, radius, side and first triangle, from ``sphere_to_object`` and its triangles, or
+        SettingsError where its placement is not a rotation, a uniform scale and a translation."""
+        set_ = object.__setattr__
+        n = len(self.sphere_to_object)
+        center, radius = np.zeros((n, 3)), np.zeros(n)
+        inward, first = np.zeros(n, bool), np.zeros(n, np.int64)
+        for s in range(n):
+            with np.errstate(all="ignore"):
+                to_world = np.linalg.inv(self.sphere_to_object[s])
+            linear = to_world[:3, :3]
+            r = abs(np.linalg.det(linear)) ** (1.0 / 3.0)
+            if not (np.isfinite(r) and r > 0 and np.allclose(linear.T @ linear, r * r * np.eye(3), rtol=0,
+                                                              atol=1e-9 * r * r)):
+                raise SettingsError("sphere_to_object", f"sphere {s}: expected a rotation, a uniform scale and a "
+                                                        "translation (Mitsuba's sphere allows nothing else)")
+            center[s], radius[s] = to_world[:3, 3], r
+            tris = np.flatnonzero(self.sphere_of == s)
+            first[s] = tris[0]
+            centroid = self.corners[tris].mean(axis=1)
+            inward[s] = float(np.sum(np.einsum("ij,ij->i", self.normal[tris] * self.area[tris, None],
+                                               centroid - center[s]))) < 0
+        set_(self, "sphere_center", center)
+        set_(self, "sphere_radius", radius)
+        set_(self, "sphere_inward", inward)
+        set_(self, "sphere_first", first)
+
+    @property
+    def num_spheres(self) -> int:
+        """S, the number of analytic spheres."""
+        return len(self.sphere_to_object)
+
+    @property
+    def sphere_area(self) -> np.ndarray:
+        """4 pi r^2 of each sphere."""
+        return 4.0 * np.pi * self.sphere_radius**2
 
     def _check_normals(self, n_tri: int) -> None:
         """``normals`` as a contiguous (T, 3, 3) array of unit vectors or zeros (empty where None) and ``smooth``,

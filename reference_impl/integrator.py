@@ -567,8 +567,9 @@ def _bounce(ctx: _Context, state: _PathState, depth: int, radiance: np.ndarray, 
             t0 = time.perf_counter()
             s_prim = intersector.closest_prims(o32[:s], d32[:s])
             clock.seconds += time.perf_counter() - t0
-            kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s], direction[:s],
-                                       s_prim, ctx.scene_tables, total, radiance, config, ctx.emitter_tables)
+            kernels.wavefront.resolve_hemisphere(state.root, state.beta, hits, nd, owner[:s], value[:s], aux[:s],
+                                                 o32[:s], direction[:s], s_prim, ctx.scene_tables, total, radiance,
+                                                 config, ctx.emitter_tables)
         else:
             t0 = time.perf_counter()
             s_hit = intersector.occluders(o32[:s], d32[:s], tfar[:s])

@@ -4,8 +4,9 @@ a time.
 The scene is built through Embree 4's C API (:mod:`reference_impl.embree_c`, the library the embreex wheel ships) and
 queried by compiled loops that call ``rtcIntersect1`` / ``rtcOccluded1``, the same functions embreex's ``run`` calls
 once per ray. Embree works in float32 and starts every ray at t = 0, so callers offset ray origins off the surface
-(:func:`offset_origin`). Hit distances are recomputed here in float64 from the triangle's plane, so hit points are
-as exact as the float64 ray allows, not rounded through Embree's float32 t.
+(:func:`offset_origin`). Hit distances are recomputed here in float64 from the triangle's plane (a sphere's from
+the sphere, :func:`sphere_distance`), so hit points are as exact as the float64 ray allows, not rounded through
+Embree's float32 t. A sphere is Embree's own sphere primitive, not the triangles that stand in for it.
 """
 
 from __future__ import annotations
@@ -32,11 +33,15 @@ class Intersector:
         self.scene_size = max(geometry.extent, 1e-30)
         self._embree = None
         usable = geometry.area > 0
+        if geometry.num_spheres:  # a sphere's triangles stand in for it: Embree gets the sphere itself
+            usable &= geometry.sphere_of < 0
         self._usable = usable
-        if np.any(usable):
-            # Degenerate triangles are left out; primID indexes the kept ones, mapped back with `_prim_to_tri`.
-            self._prim_to_tri = np.flatnonzero(usable)
-            self._embree = TriangleScene(geometry.vertices, geometry.triangles[usable])
+        if np.any(usable) or geometry.num_spheres:
+            # Degenerate triangles are left out; primID indexes the kept ones, then one primitive per sphere, all
+            # mapped back with `_prim_to_tri` (a sphere's to its first triangle).
+            self._prim_to_tri = np.concatenate([np.flatnonzero(usable), geometry.sphere_first])
+            spheres = np.column_stack([geometry.sphere_center, geometry.sphere_radius])
+            self._embree = TriangleScene(geometry.vertices, geometry.triangles[usable], spheres)
 
     @property
     def scene_pointer(self) -> int:
@@ -108,6 +113,12 @@ class Intersector:
             denom = np.einsum("ij,ij->i", directions[hit], normal)
             with np.errstate(divide="ignore", invalid="ignore"):
                 t_hit = np.einsum("ij,ij->i", v0 - origins[hit], normal) / denom
+            if self.geometry.num_spheres:
+                which = self.geometry.sphere_of[th]
+                on = which >= 0
+                t_hit[on] = sphere_distance(self.geometry.sphere_center[which[on]],
+                                            self.geometry.sphere_radius[which[on]], origins[hit][on],
+                                            directions[hit][on])
             # Grazing hits where the plane equation is ill-conditioned fall back to a tiny positive distance.
             t[hit] = np.where(np.isfinite(t_hit) & (t_hit > 0), t_hit, 0.0)
         return tri, t
@@ -123,6 +134,19 @@ class Intersector:
     def offset(self, points: np.ndarray) -> np.ndarray:
         """Per-point distance by which to move a ray origin off the surface along its normal."""
         return _OFFSET_REL * np.max(np.abs(points), axis=1) + _OFFSET_SCENE * self.scene_size
+
+
+def sphere_distance(center: np.ndarray, radius: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """The nearer root t > 0 of |o + t d - c| = r for rays (unit d) that Embree found on spheres, 0 where neither
+    root is: kernels.surface.sphere_hit_point, q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q."""
+    m = origins - center
+    b = np.einsum("ij,ij->i", m, directions)
+    k = np.einsum("ij,ij->i", m, m) - radius * radius
+    q = -(b + np.copysign(np.sqrt(np.maximum(b * b - k, 0.0)), b))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        other = np.where(q != 0.0, k / q, 0.0)
+    near, far = np.minimum(q, other), np.maximum(q, other)
+    return np.where(near > 0, near, np.where(far > 0, far, 0.0))
 
 
 def offset_origin(points: np.ndarray, normals: np.ndarray, distance: np.ndarray) -> np.ndarray:

@@ -11,7 +11,13 @@ parallelogram (a rectangle light), the whole parallelogram (:func:`parallelogram
     parallelogram  y = p0 + u1 e1 + u2 e2  (p0 one corner, e1 and e2 its two edges; Jacobian |e1 x e2| = A_k)
 
 One piece for a rectangle keeps a stratified (u1, u2) stratified over the whole rectangle: split into two triangles
-(one uniform picking the triangle, the sqrt warp in each) the strata of the net are folded and stretched.
+(one uniform picking the triangle, the sqrt warp in each) the strata of the net are folded and stretched. A sphere
+(``Geometry.sphere_of``) is one piece, the sphere itself, of area A = 4 pi r^2:
+
+    sphere         y = c + r (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi, z),  z = 1 - 2 u1, phi = 2 pi u2
+
+(uniform in area: Archimedes' hat-box theorem; Mitsuba's ``square_to_uniform_sphere``). Mitsuba samples a sphere
+seen from outside by the cone it subtends instead: the same expectation, less variance.
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_impl.geometry import Geometry
-from reference_impl.sampling import sample_discrete, square_to_uniform_triangle
+from reference_impl.sampling import sample_discrete, square_to_uniform_triangle, unit_circle
 
 LIGHT_SELECTIONS = ("power", "uniform")
 
@@ -37,6 +43,28 @@ class SurfacePoints:
     position: np.ndarray  # (n, 3)
     normal: np.ndarray  # (n, 3) unit geometric normal (front side)
     pdf_area: np.ndarray  # (n,) density per unit area of the whole sampling procedure
+
+
+def sphere_points(center: np.ndarray, radius: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Uniform points of spheres (centres (n, 3), radii (n,)): c + r (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi,
+    z), z = 1 - 2 u1, phi = 2 pi u2."""
+    z = 1.0 - 2.0 * u1
+    rho = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    cos_phi, sin_phi = unit_circle(u2)  # phi = 2 pi u2
+    return center + radius[:, None] * np.stack([rho * cos_phi, rho * sin_phi, z], axis=1)
+
+
+def front_normals(geometry: Geometry, tri: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """The unit front normal at points ``pos`` of triangles ``tri``: the triangle's, or on a sphere's triangle the
+    sphere's at the point, side (y - c) / |y - c| (kernels.surface.normal_at)."""
+    normal = geometry.normal[tri].copy()
+    if geometry.num_spheres:
+        s = geometry.sphere_of[tri]
+        on = s >= 0
+        m = pos[on] - geometry.sphere_center[s[on]]
+        side = np.where(geometry.sphere_inward[s[on]], -1.0, 1.0)
+        normal[on] = m * (side / np.linalg.norm(m, axis=1))[:, None]
+    return normal
 
 
 def _uniform_point_on(geometry: Geometry, tri: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
@@ -77,12 +105,25 @@ def parallelogram_frame(geometry: Geometry, t0: int, t1: int) -> np.ndarray | No
 
 
 class TriangleAreaSampler:
-    """Picks a triangle from a set with probability proportional to its area, then a uniform point on it."""
+    """Picks a triangle from a set with probability proportional to its area, then a uniform point on it. A sphere's
+    triangles in the set are replaced by one entry, its first triangle, of area 4 pi r^2, whose point is uniform on
+    the sphere (``sphere``: per entry its centre and radius, 0 for a triangle)."""
 
     def __init__(self, geometry: Geometry, triangles: np.ndarray):
         self.geometry = geometry
-        self.triangles = np.asarray(triangles, dtype=np.int64)
-        areas = geometry.area[self.triangles]
+        triangles = np.asarray(triangles, dtype=np.int64)
+        areas = geometry.area[triangles]
+        self.sphere = np.zeros((len(triangles), 4))
+        if geometry.num_spheres:
+            which = geometry.sphere_of[triangles]
+            keep = (which < 0) | (triangles == geometry.sphere_first[np.maximum(which, 0)])
+            triangles, which, areas = triangles[keep], which[keep], areas[keep]
+            on = which >= 0
+            areas = np.where(on, geometry.sphere_area[np.maximum(which, 0)], areas)
+            self.sphere = np.zeros((len(triangles), 4))
+            self.sphere[on, :3] = geometry.sphere_center[which[on]]
+            self.sphere[on, 3] = geometry.sphere_radius[which[on]]
+        self.triangles = triangles
         self.total_area = float(areas.sum())
         self.cdf = np.cumsum(areas) / self.total_area if self.total_area > 0 else np.ones(len(areas))
 
@@ -95,10 +136,13 @@ class TriangleAreaSampler:
 
     def sample(self, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray) -> SurfacePoints:
         """Points with pdf 1 / (total area of the set)."""
-        tri = self.triangles[sample_discrete(self.cdf, u_tri)]
+        entry = sample_discrete(self.cdf, u_tri)
+        tri = self.triangles[entry]
         pos = _uniform_point_on(self.geometry, tri, u1, u2)
+        on = self.sphere[entry, 3] > 0
+        pos[on] = sphere_points(self.sphere[entry[on], :3], self.sphere[entry[on], 3], u1[on], u2[on])
         pdf = np.full(len(tri), 1.0 / self.total_area)
-        return SurfacePoints(tri, pos, self.geometry.normal[tri], pdf)
+        return SurfacePoints(tri, pos, front_normals(self.geometry, tri, pos), pdf)
 
 
 class LightSampler:
@@ -125,12 +169,22 @@ class LightSampler:
         order = emissive[np.argsort(geometry.light_id[emissive], kind="stable")]
         ids = geometry.light_id[order]
         self.area = np.bincount(ids, weights=geometry.area[order], minlength=num_area)  # A_k
-        entries, other, frames, flags, cdfs, first, count = [], [], [], [], [], [], []
+        entries, other, frames, flags, cdfs, first, count, spheres = [], [], [], [], [], [], [], []
         for k in range(num_area):  # one pass per light, not per ray
             tris = order[np.searchsorted(ids, k):np.searchsorted(ids, k, side="right")]
             frame = parallelogram_frame(geometry, tris[0], tris[1]) if len(tris) == 2 else None
+            sphere = geometry.sphere_of[tris[0]] if geometry.num_spheres else -1
             first.append(len(entries))
-            if frame is not None:
+            spheres.extend([sphere >= 0] * (1 if sphere >= 0 or frame is not None else len(tris)))
+            if sphere >= 0:  # the sphere itself (load: a light is one shape)
+                self.area[k] = geometry.sphere_area[sphere]
+                entries.append(geometry.sphere_first[sphere])
+                other.append(geometry.sphere_first[sphere])
+                frames.append([geometry.sphere_center[sphere], [geometry.sphere_radius[sphere], 0.0, 0.0],
+                               [0.0, 0.0, 0.0]])
+                flags.append(False)
+                cdfs.append([1.0])
+            elif frame is not None:
                 entries.append(tris[0])
                 other.append(tris[1])
                 frames.append(frame)
@@ -148,13 +202,16 @@ class LightSampler:
         self.other = np.array(other, np.int64)  # per entry: the triangle where a + b > 1
         self.frames = np.array(frames, np.float64).reshape(-1, 3, 3)  # per entry: origin, edge 1, edge 2
         self.parallelogram = np.array(flags, bool)
+        self.sphere = np.array(spheres, bool)  # per entry: a whole sphere, frame (c, (r, 0, 0), 0)
         self.first = np.array(first, np.int64)  # first entry of each light
         self.count = np.array(count, np.int64)  # entries of each light
         self.within_cdf = np.concatenate(cdfs) if cdfs else np.zeros(0)
         if selection == "power":
             radiance = np.zeros(num_area)
-            # A light's power: sum over its triangles of pi * area * lum(Le).
+            # A light's power: sum over its triangles of pi * area * lum(Le); a sphere's pi 4 pi r^2 lum(Le).
             np.add.at(radiance, ids, np.pi * geometry.area[order] * (geometry.emission[order] @ _LUMINANCE))
+            for k in np.flatnonzero(self.sphere[self.first]) if num_area else ():
+                radiance[k] = np.pi * self.area[k] * float(geometry.emission[self.triangles[self.first[k]]] @ _LUMINANCE)
             weights = radiance  # > 0: every emitter has some positive channel and all luminance weights are > 0
             if len(extra):
                 weights = np.concatenate([weights, extra])
@@ -216,6 +273,8 @@ class LightSampler:
         for c in range(3):  # o + a e1 + b e2 per coordinate, from (entries,) columns (no (n, 3, 3) gather)
             f = self.frames[:, :, c]
             pos[:, c] = f[entry, 0] + a * f[entry, 1] + b * f[entry, 2]
+        on = self.sphere[entry]
+        pos[on] = sphere_points(self.frames[entry[on], 0], self.frames[entry[on], 1, 0], u1[on], u2[on])
         return np.where(a + b > 1.0, self.other[entry], self.triangles[entry]), pos
 
     def sample(self, u_select: np.ndarray, u_tri: np.ndarray, u1: np.ndarray, u2: np.ndarray):
@@ -224,7 +283,7 @@ class LightSampler:
         first = self.first[light]
         local = _search_within(self.within_cdf, first, self.count[light], u_tri)  # only within light k's pieces
         tri, pos = self.point_on_entry(first + local, u1, u2)
-        return light, SurfacePoints(tri, pos, self.geometry.normal[tri], self.pdf_area(light))
+        return light, SurfacePoints(tri, pos, front_normals(self.geometry, tri, pos), self.pdf_area(light))
 
 
 _BELOW_ONE = np.nextafter(1.0, 0.0)

@@ -87,5 +87,13 @@ NORMAL_MUTANTS: dict[str, str] = {
     "bumpmap-scale-ignored": "a bump map's scale ignored (taken as 1)",
 }
 
+# The analytic spheres' (the light samples of kernels/direct.py).
+SPHERE_MUTANTS: dict[str, str] = {
+    "sphere-points-uniform-theta": (
+        "a sphere light's points drawn uniform in the polar angle (z = cos(pi u1)) where their pdf says uniform in "
+        "area, 1 / (4 pi r^2): the poles oversampled, the equator under"
+    ),
+}
+
 ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS,
-                               **NORMAL_MUTANTS}
+                               **NORMAL_MUTANTS, **SPHERE_MUTANTS}

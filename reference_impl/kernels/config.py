@@ -89,6 +89,8 @@ MUTANT_BITS.update({"normals-not-renormalised": M_NORMALS_UNNORMALISED,
                     "shading-normal-side": M_SHADING_NORMAL_SIDE,
                     "normalmap-green-inverted": M_NORMALMAP_GREEN_INVERTED,
                     "bumpmap-scale-ignored": M_BUMP_SCALE_IGNORED})
+M_SPHERE_POINTS_THETA = 1 << 25  # the analytic spheres' light samples (kernels/direct.py planted_sphere_point)
+MUTANT_BITS["sphere-points-uniform-theta"] = M_SPHERE_POINTS_THETA
 
 
 class KernelConfig(NamedTuple):

@@ -42,8 +42,8 @@ from numba import njit
 
 from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, SPOT
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
-                                           JIT_BORROW, M_LIGHT_PDF_IGNORED, M_MIS_WEIGHTS_NOT_ONE, M_NO_COSINE,
-                                           M_NO_RAY_OFFSET)
+                                           JIT_BORROW, JIT_NONRT, M_LIGHT_PDF_IGNORED, M_MIS_WEIGHTS_NOT_ONE,
+                                           M_NO_COSINE, M_NO_RAY_OFFSET, M_SPHERE_POINTS_THETA)
 from reference_impl.kernels.emitters import emitter_direction, emitter_sample, split_light_uniform_all
 from reference_impl.kernels.light_sampling import (light_point, point_on_light, sample_light_point,
                                                    sample_surface_point, search_within, split_light_uniform,
@@ -55,6 +55,20 @@ from reference_impl.kernels.surface import emission_at, offset_origin, origin_of
 from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
 from reference_impl.rng import (COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT,
                                 LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2)
+
+
+@njit(**JIT_NONRT)
+def planted_sphere_point(cfg, scene, tri, y0, y1, y2, u1, u2):
+    """The light point y on triangle ``tri`` as drawn, or with the planted fault "sphere-points-uniform-theta" on a
+    sphere's the point at z = cos(pi u1) (uniform in the polar angle, not in area), its pdf left as it was."""
+    if not (cfg.mutant & M_SPHERE_POINTS_THETA and scene.sphere_of.shape[0] > 0 and scene.sphere_of[tri] >= 0):
+        return y0, y1, y2
+    sp = scene.sphere
+    s = scene.sphere_of[tri]
+    z = math.cos(math.pi * u1)
+    rho = math.sqrt(max(0.0, 1.0 - z * z))
+    return (sp[s, 0] + sp[s, 3] * rho * math.cos(2.0 * math.pi * u2),
+            sp[s, 1] + sp[s, 3] * rho * math.sin(2.0 * math.pi * u2), sp[s, 2] + sp[s, 3] * z)
 
 
 @njit(**JIT_BORROW)
@@ -82,6 +96,8 @@ def light_sample(cfg, sob, seeds, index, j, key, depth, scene, lights, surfaces)
         u_select = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
         u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
     light, tri, y0, y1, y2 = sample_light_point(lights, num_lights, u_select, u_tri, u_a, u_b)
+    if cfg.mutant:  # mutant "sphere-points-uniform-theta"
+        y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u_a, u_b)
     light_pmf, light_area = lights.pmf, lights.area
     if cfg.mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
         return num_lights > 1, tri, y0, y1, y2, 1.0 / light_area[light]
@@ -118,6 +134,8 @@ def light_sample_all(cfg, sob, seeds, index, j, key, depth, scene, lights, surfa
     pdf_select = 1.0 if cfg.mutant & M_LIGHT_PDF_IGNORED else light_pmf[light]  # mutant "light-pdf-ignored"
     if light < cfg.num_area_lights:
         tri, y0, y1, y2 = light_point(lights, light, u_tri, u_a, u_b)
+        if cfg.mutant:  # mutant "sphere-points-uniform-theta"
+            y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u_a, u_b)
         needed, so0, so1, so2, r0, r1, r2, tfar, v0, v1, v2 = shadow_ray(cfg, scene, x0, x1, x2, n0, n1, n2, ox0,
                                                                          ox1, ox2, f0, f1, f2, tri, y0, y1, y2,
                                                                          pdf_select / light_area[light])
@@ -286,6 +304,8 @@ def light_connection(cfg, scene, textures, lights, emitters, light, piece, pdf_s
     ``piece`` (:func:`light_piece`) from (u1, u2), or emitter k - N_A's own sample (:func:`emitter_connection`)."""
     if light < cfg.num_area_lights:
         tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
+        if cfg.mutant:  # mutant "sphere-points-uniform-theta"
+            y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u1, u2)
         return point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select / lights.area[light], x0, x1, x2)
     if emitters is not None:
         return emitter_connection(cfg, emitters, light - cfg.num_area_lights, pdf_select, u1, u2, x0, x1, x2, n0,

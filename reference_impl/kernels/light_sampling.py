@@ -5,8 +5,12 @@
     point on i       y = o + a e1 + b e2 of the piece's frame (o, e1, e2):
                        triangle (c0, c1 - c0, c2 - c0)   a = 1 - sqrt(u1), b = u2 sqrt(u1)
                        parallelogram (p0, e1, e2)        a = u1, b = u2      (a rectangle light as one piece)
+                     or on a sphere (frame (c, (r, 0, 0), 0)), uniform over its area 4 pi r^2:
+                       y = c + r (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi, z),  z = 1 - 2 u1, phi = 2 pi u2
+                       (Archimedes: z uniform on [-1, 1] is area-uniform; Mitsuba's square_to_uniform_sphere)
     global area      t with pdf A_t / A_scene over every surface: p(y) = 1 / A_scene                      (Fig. 5.13)
-                     y = c0 + b1 (c1 - c0) + b2 (c2 - c0), b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1)
+                     y = c0 + b1 (c1 - c0) + b2 (c2 - c0), b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1), or on a sphere
+                     as above
 
 The pieces of a light are its triangles, or the one parallelogram its two triangles form
 (lights.parallelogram_frame). The stratified sampler draws one 2D point per light sample and reuses its first
@@ -21,8 +25,9 @@ import math
 
 from numba import njit
 
-from reference_impl.kernels.config import JIT_INLINE
-from reference_impl.kernels.warps import dot3, rescale_within, sample_discrete
+from reference_impl.kernels.config import JIT, JIT_INLINE
+from reference_impl.kernels.surface import normal_at
+from reference_impl.kernels.warps import dot3, rescale_within, sample_discrete, unit_circle
 
 
 @njit(**JIT_INLINE)
@@ -37,12 +42,27 @@ def point_on_triangle(corners, tri, u1, u2):
     return p0, p1, p2
 
 
+@njit(**JIT)
+def point_on_sphere(c0, c1, c2, r, u1, u2):
+    """A uniform point of the sphere (centre c, radius r) from (u1, u2): c + r (sqrt(1 - z^2) cos phi,
+    sqrt(1 - z^2) sin phi, z), z = 1 - 2 u1, phi = 2 pi u2 (lights.sphere_points)."""
+    z = 1.0 - 2.0 * u1
+    rho = math.sqrt(max(0.0, 1.0 - z * z))
+    cos_phi, sin_phi = unit_circle(u2)
+    return c0 + r * (rho * cos_phi), c1 + r * (rho * sin_phi), c2 + r * z
+
+
 @njit(**JIT_INLINE)
 def point_on_light(lights, entry, u1, u2):
     """LightSampler.point_on_entry for one entry of the light table: (the triangle y lies in, y). Both warps are
-    computed and the entry's flag selects one (no branch on the kind of piece): a triangle's barycentrics
-    (1 - sqrt(u1), u2 sqrt(u1)) or a parallelogram's (u1, u2); y = o + a e1 + b e2 of the entry's frame."""
+    computed and the entry's flag selects one (no branch between the two): a triangle's barycentrics
+    (1 - sqrt(u1), u2 sqrt(u1)) or a parallelogram's (u1, u2); y = o + a e1 + b e2 of the entry's frame. A sphere's
+    entry (``lights.sphere``) is a uniform point of it (:func:`point_on_sphere`)."""
     triangles, frames, parallelogram, other = lights.triangles, lights.frames, lights.parallelogram, lights.other
+    if lights.sphere[entry]:  # a whole sphere: frame (c, (r, 0, 0), 0)
+        y0, y1, y2 = point_on_sphere(frames[entry, 0, 0], frames[entry, 0, 1], frames[entry, 0, 2],
+                                     frames[entry, 1, 0], u1, u2)
+        return triangles[entry], y0, y1, y2
     s = math.sqrt(u1)
     par = parallelogram[entry]
     a = u1 if par else 1.0 - s
@@ -66,14 +86,15 @@ def light_point(lights, light, u_tri, u1, u2):
 @njit(**JIT_INLINE)
 def toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2):
     """The light door's geometry for a point y on triangle ``tri`` of a light seen from x: (the unit direction wi
-    from x toward y, |y - x|^2, cos theta_y = -N_tri . wi, positive where y's front side faces x). Every engine's
-    light sample on an area light (and global area sampling's point) goes through it."""
-    tri_normal = scene.normal
+    from x toward y, |y - x|^2, cos theta_y = -N_y . wi, positive where y's front side faces x; N_y the triangle's
+    normal, or the sphere's at y, :func:`.surface.normal_at`). Every engine's light sample on an area light (and
+    global area sampling's point) goes through it."""
     l0, l1, l2 = y0 - x0, y1 - x1, y2 - x2
     dist2 = dot3(l0, l1, l2, l0, l1, l2)
     inv_dist = 1.0 / math.sqrt(dist2)  # one division, three products
     wi0, wi1, wi2 = l0 * inv_dist, l1 * inv_dist, l2 * inv_dist
-    cos_y = -dot3(tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2], wi0, wi1, wi2)
+    m0, m1, m2 = normal_at(scene, tri, y0, y1, y2)
+    cos_y = -dot3(m0, m1, m2, wi0, wi1, wi2)
     return wi0, wi1, wi2, dist2, cos_y
 
 
@@ -101,9 +122,15 @@ def sample_light_point(lights, num_lights, u_select, u_tri, u1, u2):
 
 @njit(**JIT_INLINE)
 def sample_surface_point(surfaces, corners, u_tri, u1, u2):
-    """TriangleAreaSampler.sample for one set of uniforms: (triangle, point y)."""
+    """TriangleAreaSampler.sample for one set of uniforms: (triangle, point y); on an entry that is a whole sphere
+    (``surfaces.sphere``: its centre and radius) a uniform point of it."""
     triangles, cdf = surfaces.triangles, surfaces.cdf
-    tri = triangles[sample_discrete(cdf, u_tri)]
+    i = sample_discrete(cdf, u_tri)
+    tri = triangles[i]
+    if surfaces.sphere[i, 3] > 0.0:
+        sp = surfaces.sphere
+        p0, p1, p2 = point_on_sphere(sp[i, 0], sp[i, 1], sp[i, 2], sp[i, 3], u1, u2)
+        return tri, p0, p1, p2
     p0, p1, p2 = point_on_triangle(corners, tri, u1, u2)
     return tri, p0, p1, p2
 

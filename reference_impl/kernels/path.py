@@ -71,7 +71,7 @@ from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
                                           pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
 from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map
-from reference_impl.kernels.surface import emission_at, hit_point, offset_origin, surface_hit
+from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED,
                                       ROUGHDIELECTRIC)
@@ -234,7 +234,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     the number of queries. ``record``: None in a render (compiled out), or buffers that receive every query's ray
     and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
-    emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
+    emission, light_id, prim_to_tri = scene.emission, scene.light_id, scene.prim_to_tri
     light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
@@ -448,15 +448,13 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                 continue
                         else:
                             htri = prim_to_tri[hp]
-                            if not (light_id[htri] >= 0 and dot3(h0, h1, h2, tri_normal[htri, 0], tri_normal[htri, 1],
-                                                                 tri_normal[htri, 2]) < 0):
+                            if light_id[htri] < 0:
+                                continue  # not an emitter
+                            _t, q0, q1, q2, hn0, hn1, hn2, _c = hit_at(scene, htri, ox0, ox1, ox2, h0, h1, h2)
+                            if not dot3(h0, h1, h2, hn0, hn1, hn2) < 0:
                                 continue  # not an emitter's front side
                             le0, le1, le2 = emission[htri, 0], emission[htri, 1], emission[htri, 2]
                             if textures is not None:  # Le at the point Psi found on a textured light
-                                _t, q0, q1, q2, _c = hit_point(ox0, ox1, ox2, h0, h1, h2, tri_normal[htri, 0],
-                                                               tri_normal[htri, 1], tri_normal[htri, 2],
-                                                               scene.corner0[htri, 0], scene.corner0[htri, 1],
-                                                               scene.corner0[htri, 2])
                                 le0, le1, le2 = emission_at(scene, textures, htri, q0, q1, q2, mutant)
                         hl0, hl1, hl2 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2), side * cos_h
                         keep = 1.0

@@ -40,13 +40,15 @@ def _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar):
 
 @njit(**JIT_INLINE)
 def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2):
-    """Embree's closest hit of one ray (float32 coordinates): the primitive id, or -1 for a miss."""
+    """Embree's closest hit of one ray (float32 coordinates): the primitive id (on a sphere its geometry id,
+    :class:`reference_impl.embree_c.TriangleScene`), or -1 for a miss."""
     _set_ray(words, floats, o0, o1, o2, d0, d1, d2, np.inf)
     words[embree_c.W_GEOM_ID] = embree_c.INVALID_ID
     embree_c.rtc_intersect1(scene_ptr, words.ctypes.data, 0)
-    if words[embree_c.W_GEOM_ID] == embree_c.INVALID_ID:
+    geom = words[embree_c.W_GEOM_ID]
+    if geom == embree_c.INVALID_ID:
         return -1
-    return np.int64(words[embree_c.W_PRIM_ID])
+    return np.int64(words[embree_c.W_PRIM_ID]) if geom == 0 else np.int64(geom)  # a sphere: its geometry id
 
 
 @njit(**JIT_INLINE)
@@ -109,10 +111,11 @@ def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at):
     else:
         embree_c.rtc_intersect4(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
     for lane in range(m):
-        if words[geom + lane] == embree_c.INVALID_ID:
+        g = words[geom + lane]
+        if g == embree_c.INVALID_ID:
             out[at + lane] = -1
         else:
-            out[at + lane] = np.int64(words[prim + lane])
+            out[at + lane] = np.int64(words[prim + lane]) if g == 0 else np.int64(g)  # a sphere: its geometry id
 
 
 @njit(**JIT)

@@ -43,10 +43,14 @@ class SceneTables(NamedTuple):
     uv : (T, 3, 2) or (0, 3, 2) float64
         The texture coordinates at the corners (``Geometry.uv``); empty where no material is textured (no hit
         computes them).
-    uv_sphere : (T,) or (0,) int64
-        ``Geometry.uv_sphere``: the sphere whose analytic coordinates a triangle takes, -1 for none.
+    sphere_of : (T,) or (0,) int64
+        ``Geometry.sphere_of``: the analytic sphere a triangle stands in for, -1 for none; empty in a scene without
+        spheres (no hit asks).
+    sphere : (S, 5) float64
+        Per sphere: its centre c, radius r and side, +1 where the front side is outside, -1 where inside
+        (``Geometry.sphere_inward``): the front normal at x is side (x - c) / r.
     sphere_to_object : (S, 4, 4) float64
-        ``Geometry.sphere_to_object``.
+        ``Geometry.sphere_to_object`` (its texture coordinates).
     emission_texture : (T,) or (0,) int64
         ``Geometry.emission_texture``, empty where no light is textured (a hit reads ``emission`` alone).
     normals : (T, 3, 3) or (0, 3, 3) float64
@@ -64,7 +68,8 @@ class SceneTables(NamedTuple):
     light_id: np.ndarray
     material: np.ndarray
     uv: np.ndarray
-    uv_sphere: np.ndarray
+    sphere_of: np.ndarray
+    sphere: np.ndarray
     sphere_to_object: np.ndarray
     emission_texture: np.ndarray
     normals: np.ndarray
@@ -75,18 +80,17 @@ def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> S
     """The :class:`SceneTables` of ``geometry`` (:class:`reference_impl.Geometry`) for Embree's primitives
     ``prim_to_tri``; the texture coordinates only where ``textured`` (a material has a texture) or a light is."""
     g = geometry
-    uv, uv_sphere, spheres = np.zeros((0, 3, 2)), np.zeros(0, np.int64), np.zeros((0, 4, 4))
+    uv = np.zeros((0, 3, 2))
     emission_texture = g.emission_texture if g.textured_lights else np.zeros(0, np.int64)
     if textured or g.textured_lights:
         uv = g.uv if len(g.uv) else np.zeros((len(g.triangles), 3, 2))
-        uv_sphere = g.uv_sphere if len(g.uv_sphere) else np.full(len(g.triangles), -1, np.int64)
-        spheres = g.sphere_to_object
+    sphere = np.column_stack([g.sphere_center, g.sphere_radius, np.where(g.sphere_inward, -1.0, 1.0)])
     smooth = g.has_shading_normals
     return SceneTables(
         prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
         corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
-        uv=_c(uv, dtype=np.float64), uv_sphere=_c(uv_sphere, dtype=np.int64),
-        sphere_to_object=_c(spheres, dtype=np.float64), emission_texture=_c(emission_texture, dtype=np.int64),
+        uv=_c(uv, dtype=np.float64), sphere_of=_c(g.sphere_of, dtype=np.int64),
+        sphere=_c(sphere.reshape(-1, 5), dtype=np.float64), sphere_to_object=_c(g.sphere_to_object, dtype=np.float64), emission_texture=_c(emission_texture, dtype=np.int64),
         normals=_c(g.normals if smooth else np.zeros((0, 3, 3)), dtype=np.float64),
         smooth=_c(g.smooth if smooth else np.zeros(0, bool), dtype=np.bool_))
 
@@ -117,6 +121,8 @@ class LightTables(NamedTuple):
         Per piece: (a, b) = (u1, u2) on a parallelogram, a triangle's barycentrics otherwise.
     other : (P,) int64
         Per piece: the triangle where a + b > 1 (a triangle's own otherwise).
+    sphere : (P,) bool
+        Per piece: a whole sphere, frame (c, (r, 0, 0), 0), its first triangle in ``triangles`` and ``other``.
     """
 
     cdf: np.ndarray
@@ -129,6 +135,7 @@ class LightTables(NamedTuple):
     frames: np.ndarray
     parallelogram: np.ndarray
     other: np.ndarray
+    sphere: np.ndarray
 
 
 def light_tables(sampler) -> LightTables:
@@ -136,13 +143,14 @@ def light_tables(sampler) -> LightTables:
     without lights)."""
     if sampler is None:
         f, i = np.zeros(0), np.zeros(0, np.int64)
-        return LightTables(f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i)
+        return LightTables(f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i, np.zeros(0, np.bool_))
     s = sampler
     return LightTables(
         cdf=_c(s.cdf, dtype=np.float64), triangles=_c(s.triangles, dtype=np.int64), first=_c(s.first, dtype=np.int64),
         count=_c(s.count, dtype=np.int64), within_cdf=_c(s.within_cdf, dtype=np.float64),
         pmf=_c(s.pmf, dtype=np.float64), area=_c(s.area, dtype=np.float64), frames=_c(s.frames, dtype=np.float64),
-        parallelogram=_c(s.parallelogram, dtype=np.bool_), other=_c(s.other, dtype=np.int64))
+        parallelogram=_c(s.parallelogram, dtype=np.bool_), other=_c(s.other, dtype=np.int64),
+        sphere=_c(s.sphere, dtype=np.bool_))
 
 
 class SurfaceTables(NamedTuple):
@@ -150,22 +158,26 @@ class SurfaceTables(NamedTuple):
 
     Attributes
     ----------
-    triangles : (S,) int64
-        The triangles of positive area.
-    cdf : (S,) float64
-        The cdf of A_t / A_scene over them.
+    triangles : (N,) int64
+        The triangles of positive area, and each sphere's first triangle in place of its own.
+    cdf : (N,) float64
+        The cdf of A_t / A_scene over them (a sphere's A_t = 4 pi r^2).
+    sphere : (N, 4) float64
+        Per entry: a sphere's centre and radius, or 0 for a triangle.
     """
 
     triangles: np.ndarray
     cdf: np.ndarray
+    sphere: np.ndarray
 
 
 def surface_tables(sampler) -> SurfaceTables:
     """The :class:`SurfaceTables` of a :class:`reference_impl.lights.TriangleAreaSampler`, or empty ones for None
     (a scene without area)."""
     if sampler is None:
-        return SurfaceTables(np.zeros(0, np.int64), np.zeros(0))
-    return SurfaceTables(_c(sampler.triangles, dtype=np.int64), _c(sampler.cdf, dtype=np.float64))
+        return SurfaceTables(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 4)))
+    return SurfaceTables(_c(sampler.triangles, dtype=np.int64), _c(sampler.cdf, dtype=np.float64),
+                         _c(sampler.sphere, dtype=np.float64))
 
 
 class EmitterTables(NamedTuple):

@@ -4,12 +4,14 @@ surface it leaves, and where a shadow ray stops.
 
     t            = ((v0 - o) . N) / (d . N)      float64, from the triangle's plane (Embree answers in float32);
                                                  0 where that is not a positive number
-    x            = o + t d,   cos(theta_out) = -d . N
+                 on a sphere (centre c, radius r), the nearer positive root of |o + t d - c| = r, in float64:
+                 b = (o - c) . d, k = |o - c|^2 - r^2, q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q
+    x            = o + t d,   cos(theta_out) = -d . N,   on a sphere N = side (x - c) / |x - c|
     (u, v)       = ((p x e2) . N, (e1 x p) . N) / ((e1 x e2) . N),   e1 = v1 - v0, e2 = v2 - v0, p = x - v0:
                  the barycentrics of x, x = (1 - u - v) v0 + u v1 + v v2 (ratios of signed areas; Moeller and
                  Trumbore 1997 find the same u, v along the ray)
     (s, t)       = (1 - u - v) uv_0 + u uv_1 + v uv_2    the texture coordinates, from the corners' (a textured scene);
-                 on a sphere's triangles Mitsuba's analytic ones, p = to_object x:
+                 on a sphere Mitsuba's analytic ones, p = to_object x:
                  s = atan2(p_y, p_x) / (2 pi) (+ 1 where negative), t = acos(p_z / |p|) / pi
     offset(p)    = 2^-20 max(|p_x|, |p_y|, |p_z|) + 2^-22 scene size        (a few float32 ulps of p)
     origin       = x + offset(x) N_x                                          (N_x on the side the ray leaves)
@@ -42,6 +44,57 @@ def hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, v0, v1, v2):
     return t, o0 + t * d0, o1 + t * d1, o2 + t * d2, -denom
 
 
+@njit(**JIT_BORROW)
+def sphere_normal(scene, s, x0, x1, x2):
+    """The unit front normal of sphere ``s`` (``scene.sphere``: c, r, side) at its point x: side (x - c) / |x - c|."""
+    sp = scene.sphere
+    m0, m1, m2 = x0 - sp[s, 0], x1 - sp[s, 1], x2 - sp[s, 2]
+    k = sp[s, 4] / math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    return m0 * k, m1 * k, m2 * k
+
+
+@njit(**JIT_NONRT)
+def sphere_hit_point(scene, s, o0, o1, o2, d0, d1, d2):
+    """Where a ray (origin o, unit direction d) that Embree found on sphere ``s`` meets it, in float64: the nearer
+    root t > 0 of |o + t d - c|^2 = r^2 (0 where neither is: a grazing ray Embree's float32 kept), computed as
+    q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q, b = (o - c) . d, k = |o - c|^2 - r^2 (no cancellation
+    between b and the root; Press et al., Numerical Recipes, 5.6): (t, x, N, cos(theta_out) = -d . N)."""
+    sp = scene.sphere
+    m0, m1, m2 = o0 - sp[s, 0], o1 - sp[s, 1], o2 - sp[s, 2]
+    b = dot3(m0, m1, m2, d0, d1, d2)
+    k = dot3(m0, m1, m2, m0, m1, m2) - sp[s, 3] * sp[s, 3]
+    q = -(b + math.copysign(math.sqrt(max(b * b - k, 0.0)), b))
+    t0 = q
+    t1 = k / q if q != 0.0 else 0.0
+    if t0 > t1:
+        t0, t1 = t1, t0
+    t = t0 if t0 > 0.0 else (t1 if t1 > 0.0 else 0.0)
+    x0, x1, x2 = o0 + t * d0, o1 + t * d1, o2 + t * d2
+    n0, n1, n2 = sphere_normal(scene, s, x0, x1, x2)
+    return t, x0, x1, x2, n0, n1, n2, -dot3(d0, d1, d2, n0, n1, n2)
+
+
+@njit(**JIT_BORROW)
+def normal_at(scene, tri, y0, y1, y2):
+    """The unit front normal at a point y of triangle ``tri``: the triangle's, or where it stands in for a sphere
+    (``scene.sphere_of``), the sphere's at y."""
+    if scene.sphere_of.shape[0] > 0 and scene.sphere_of[tri] >= 0:
+        return sphere_normal(scene, scene.sphere_of[tri], y0, y1, y2)
+    n = scene.normal
+    return n[tri, 0], n[tri, 1], n[tri, 2]
+
+
+@njit(**JIT_BORROW)
+def hit_at(scene, tri, o0, o1, o2, d0, d1, d2):
+    """:func:`hit_point` on triangle ``tri``, or on the sphere it stands in for: (t, x, N, cos(theta_out))."""
+    if scene.sphere_of.shape[0] > 0 and scene.sphere_of[tri] >= 0:
+        return sphere_hit_point(scene, scene.sphere_of[tri], o0, o1, o2, d0, d1, d2)
+    n, c = scene.normal, scene.corner0
+    n0, n1, n2 = n[tri, 0], n[tri, 1], n[tri, 2]
+    t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, c[tri, 0], c[tri, 1], c[tri, 2])
+    return t, x0, x1, x2, n0, n1, n2, cos_out
+
+
 class SurfaceHit(NamedTuple):
     """What a ray found: the surface record of one hit, built by :func:`surface_hit` (pbrt's SurfaceInteraction).
     The material step (:func:`.material.material_at`) and the BSDF read it; the shading frame is where a shading
@@ -50,7 +103,7 @@ class SurfaceHit(NamedTuple):
     Attributes
     ----------
     tri : int
-        The triangle hit.
+        The triangle hit (on a sphere, the sphere's first triangle: its material, emission and light).
     material : int
         Its material (a row of the material tables).
     t : float
@@ -58,11 +111,11 @@ class SurfaceHit(NamedTuple):
     x0, x1, x2 : float
         The hit point x = o + t d.
     n0, n1, n2 : float
-        The unit geometric normal N of the triangle's front side (never flipped).
+        The unit geometric normal N of the triangle's front side (never flipped); on a sphere its normal at x.
     cos_out : float
         cos(theta_out) = -d . N: > 0 where the ray came from the front.
     u, v : float
-        The barycentrics of x (:func:`barycentrics`).
+        The barycentrics of x (:func:`barycentrics`); 0 on a sphere.
     tex_u, tex_v : float
         The texture coordinates at x (:func:`texture_coordinates`); 0 in a scene without textures.
     ss0, ss1, ss2, st0, st1, st2, sn0, sn1, sn2 : float
@@ -119,9 +172,9 @@ def barycentrics(corners, tri, x0, x1, x2, n0, n1, n2):
 @njit(**JIT_NONRT)
 def texture_coordinates(scene, tri, u, v, x0, x1, x2):
     """The texture coordinates (s, t) of point x of triangle ``tri`` (barycentrics u, v): the corners' interpolated,
-    or on a sphere's triangle (``scene.uv_sphere``) Mitsuba's analytic ones at the direction of x from its centre
+    or on a sphere (``scene.sphere_of``) Mitsuba's analytic ones at the direction of x from its centre
     (``sphere.cpp``: u from the azimuth about local z, v from the polar angle)."""
-    sphere = scene.uv_sphere[tri]
+    sphere = scene.sphere_of[tri] if scene.sphere_of.shape[0] > 0 else -1
     if sphere >= 0:
         m = scene.sphere_to_object[sphere]
         p0 = m[0, 0] * x0 + m[0, 1] * x1 + m[0, 2] * x2 + m[0, 3]
@@ -143,9 +196,14 @@ def surface_hit(scene, p, o0, o1, o2, d0, d1, d2):
     """The :class:`SurfaceHit` of a ray (origin o, unit direction d) on Embree's primitive p."""
     tri_normal, tri_v0 = scene.normal, scene.corner0
     tri = scene.prim_to_tri[p]
-    n0, n1, n2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
-    t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, tri_v0[tri, 0], tri_v0[tri, 1], tri_v0[tri, 2])
-    u, v = barycentrics(scene.corners, tri, x0, x1, x2, n0, n1, n2)
+    if scene.sphere_of.shape[0] > 0 and scene.sphere_of[tri] >= 0:  # an analytic sphere (empty: none in the scene)
+        t, x0, x1, x2, n0, n1, n2, cos_out = sphere_hit_point(scene, scene.sphere_of[tri], o0, o1, o2, d0, d1, d2)
+        u, v = 0.0, 0.0
+    else:
+        n0, n1, n2 = tri_normal[tri, 0], tri_normal[tri, 1], tri_normal[tri, 2]
+        t, x0, x1, x2, cos_out = hit_point(o0, o1, o2, d0, d1, d2, n0, n1, n2, tri_v0[tri, 0], tri_v0[tri, 1],
+                                           tri_v0[tri, 2])
+        u, v = barycentrics(scene.corners, tri, x0, x1, x2, n0, n1, n2)
     tex_u, tex_v = 0.0, 0.0
     if scene.uv.shape[0] > 0:  # a scene with textures
         tex_u, tex_v = texture_coordinates(scene, tri, u, v, x0, x1, x2)

@@ -21,7 +21,7 @@ from reference_impl.kernels.direct import (complement_sample, hemisphere_sample,
                                            light_sample_all, shadow_ray)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.sobol import first_hit_seeds, pixel_first_hit_seeds, spot_point
-from reference_impl.kernels.surface import surface_hit
+from reference_impl.kernels.surface import hit_at, surface_hit
 from reference_impl.kernels.vertex import emitted, indirect_ray, roulette, shading_point, vertex_rules
 from reference_impl.materials import NUM_PARAMS
 
@@ -210,12 +210,12 @@ def resolve_shadow(root, beta, hits, nd, s_owner, s_value, s_hit, total, radianc
 
 
 @njit(**JIT)
-def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_prim, scene, total, radiance, cfg,
-                       emitters):
-    """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only), or the
-    environment's where it escaped, times f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0),
-    averaged over the Nd samples."""
-    prim_to_tri, tri_normal, emission = scene.prim_to_tri, scene.normal, scene.emission
+def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_o32, s_dir, s_prim, scene, total, radiance,
+                       cfg, emitters):
+    """Direct light by hemisphere sampling: emission Le of what each ray hit (its front side only: the normal where
+    the ray from ``s_o32`` meets it, :func:`.surface.hit_at`), or the environment's where it escaped, times
+    f_r cos / p (``s_value`` f_r, ``s_aux`` cos / p or -1 where p = 0), averaged over the Nd samples."""
+    prim_to_tri, emission = scene.prim_to_tri, scene.emission
     m = len(hits)
     total[:m] = 0.0
     for q in range(len(s_owner)):
@@ -230,8 +230,9 @@ def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_dir, s_p
                     total[h, 2] += le2 * s_value[q, 2] * s_aux[q]
             continue
         tri = prim_to_tri[p]
-        weight = hemisphere_weight(s_aux[q], s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], tri_normal[tri, 0],
-                                   tri_normal[tri, 1], tri_normal[tri, 2])
+        _t, _x0, _x1, _x2, m0, m1, m2, _c = hit_at(scene, tri, np.float64(s_o32[q, 0]), np.float64(s_o32[q, 1]),
+                                                  np.float64(s_o32[q, 2]), s_dir[q, 0], s_dir[q, 1], s_dir[q, 2])
+        weight = hemisphere_weight(s_aux[q], s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], m0, m1, m2)
         h = s_owner[q]
         total[h, 0] += emission[tri, 0] * s_value[q, 0] * weight
         total[h, 1] += emission[tri, 1] * s_value[q, 1] * weight

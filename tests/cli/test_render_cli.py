@@ -51,9 +51,11 @@ def test_render_writes_exr_with_variance_png_and_json(tmp_path):
         red = channels["R"].pixels.copy()
         var_red = channels["variance.R"].pixels.copy()
     assert (tmp_path / "furnace.png").is_file()
-    # Furnace, max_depth 3: L = 1 + rho + rho^2 in every pixel (red rho = 0.3); the variance is of the mean.
+    # Furnace, max_depth 3: L = 1 + rho + rho^2 in every pixel (red rho = 0.3); the variance is of the mean. Light
+    # sampling inside the analytic sphere has no variance (G / p(y) is one number there), so the tolerance adds the
+    # float32 image's rounding, 4 ulps of the value.
     se = np.sqrt(var_red.astype(float).sum()) / red.size
-    assert abs(red.astype(float).mean() - 1.39) < z_critical(FALSE_ALARM, 1) * se
+    assert abs(red.astype(float).mean() - 1.39) < z_critical(FALSE_ALARM, 1) * se + 4 * np.finfo(np.float32).eps * 1.39
 
 
 def test_variance_channel_is_variance_of_the_mean():

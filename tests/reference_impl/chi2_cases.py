@@ -368,6 +368,81 @@ def _global_area_case(name: str, seed: int) -> Chi2Result:
     return chi2_test_discrete(pts.triangle, areas / areas.sum(), name=name)
 
 
+SPHERE_CENTER, SPHERE_RADIUS = np.array([0.7, -1.2, 2.5]), 0.6
+
+
+def sphere_geometry(emits: bool = True, inward: bool = False, floor: bool = False) -> Geometry:
+    """One analytic sphere (centre :data:`SPHERE_CENTER`, radius :data:`SPHERE_RADIUS`; its stand-in the 2-times
+    subdivided icosphere, wound toward the front side, outside unless ``inward``), emitting 1 where ``emits``, and
+    with ``floor`` a 4 x 4 square below it that does not emit."""
+    from harness.scene.triangulate import unit_sphere
+
+    vertices, triangles = unit_sphere(2)
+    vertices = SPHERE_CENTER + SPHERE_RADIUS * np.asarray(vertices, float)
+    triangles = np.asarray(triangles, np.int64)[:, ::-1] if inward else np.asarray(triangles, np.int64)
+    t = len(triangles)
+    to_world = np.diag([SPHERE_RADIUS, SPHERE_RADIUS, SPHERE_RADIUS, 1.0])
+    to_world[:3, 3] = SPHERE_CENTER
+    emission = np.ones((t, 3)) if emits else np.zeros((t, 3))
+    light_id = np.zeros(t, np.int64) if emits else np.full(t, -1)
+    sphere_of = np.zeros(t, np.int64)
+    if floor:
+        square = np.array([[-2.0, -2.0, 0.0], [2.0, -2.0, 0.0], [2.0, 2.0, 0.0], [-2.0, 2.0, 0.0]])
+        triangles = np.vstack([triangles, len(vertices) + np.array([[0, 1, 2], [0, 2, 3]])])
+        vertices = np.vstack([vertices, square])
+        emission = np.vstack([emission, np.zeros((2, 3))])
+        light_id = np.concatenate([light_id, [-1, -1]])
+        sphere_of = np.concatenate([sphere_of, [-1, -1]])
+    n = len(triangles)
+    return Geometry(vertices=vertices, triangles=triangles, material=np.zeros(n, np.int64),
+                    reflectance=np.array([[0.5, 0.5, 0.5]]), two_sided=np.array([False]), emission=emission,
+                    light_id=light_id, sphere_of=sphere_of, sphere_to_object=np.linalg.inv(to_world)[None])
+
+
+def sphere_cos_phi(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(z, phi) of points on the sphere of :func:`sphere_geometry`: z the cosine of the polar angle, phi in
+    [0, 2 pi); NaN for a point off the sphere (by more than 1e-12 of the radius). A uniform point of the sphere has
+    the density 1 / (4 pi) in (z, phi), which is 1 / (4 pi r^2) per unit area times the Jacobian r^2."""
+    d = (points - SPHERE_CENTER) / SPHERE_RADIUS
+    off = np.abs(np.linalg.norm(d, axis=1) - 1.0) > 1e-12
+    z, phi = np.clip(d[:, 2], -1.0, 1.0), np.mod(np.arctan2(d[:, 1], d[:, 0]), 2 * np.pi)
+    return np.where(off, np.nan, z), np.where(off, np.nan, phi)
+
+
+def _sphere_light_case(name: str, seed: int, reuse: bool = False) -> Chi2Result:
+    """``LightSampler`` on a sphere light: one piece, the sphere itself, its points uniform in area (pdf(y) =
+    pdf_area = 1 / (4 pi r^2), i.e. 1 / (4 pi) in (z, phi)); with ``reuse``, from ``sample(*split_uniform(u1), u2)``."""
+    sampler = LightSampler(sphere_geometry(), "power")
+    assert sampler.sphere.tolist() == [True] and sampler.count.tolist() == [1]
+    g = np.random.default_rng(seed)
+
+    def sample(n):
+        if reuse:
+            u1, u2 = g.random(n), g.random(n)
+            _k, pts = sampler.sample(*sampler.split_uniform(u1), u2)
+        else:
+            _k, pts = sampler.sample(g.random(n), g.random(n), g.random(n), g.random(n))
+        return sphere_cos_phi(pts.position)
+
+    def pdf(z, phi):
+        return sampler.pdf_area(np.zeros(len(z), np.int64)) * SPHERE_RADIUS**2
+
+    return chi2_test_2d(sample, pdf, [(-1.0, 1.0), (0.0, 2 * np.pi)], (24, 48), N_SAMPLES, name=name,
+                        quadrature="midpoint", order=4)
+
+
+def _global_area_sphere_case(name: str, seed: int) -> Chi2Result:
+    """``TriangleAreaSampler`` over a sphere and a square floor: the sphere is one entry of area 4 pi r^2, chosen
+    against the floor's two triangles by area / total."""
+    geom = sphere_geometry(emits=False, floor=True)
+    sampler = TriangleAreaSampler(geom, np.arange(len(geom.triangles)))
+    assert sampler.triangles.tolist() == [0, len(geom.triangles) - 2, len(geom.triangles) - 1]
+    pts = sampler.sample(*_uniforms(seed, N_SAMPLES, 3))
+    choice = np.searchsorted(sampler.triangles, pts.triangle)
+    areas = np.array([4 * np.pi * SPHERE_RADIUS**2, 8.0, 8.0])
+    return chi2_test_discrete(choice, areas / areas.sum(), name=name)
+
+
 def _filter_case(name: str, filt: str, res: int, quadrature: str, order: int, seed: int) -> Chi2Result:
     f = make_filter(filt)
     return chi2_test_1d(
@@ -408,6 +483,10 @@ def standard_cases() -> dict[str, Callable[[], Chi2Result]]:
     cases["light_select_power"] = lambda: _selection_case("light_select_power", "power", 601)
     cases["light_select_uniform"] = lambda: _selection_case("light_select_uniform", "uniform", 602)
     cases["global_area_triangle_choice"] = lambda: _global_area_case("global_area_triangle_choice", 603)
+    cases["light_sphere_points"] = lambda: _sphere_light_case("light_sphere_points", 507)
+    cases["light_sphere_points_reused_uniform"] = lambda: _sphere_light_case("light_sphere_points_reused_uniform",
+                                                                             508, reuse=True)
+    cases["global_area_sphere_choice"] = lambda: _global_area_sphere_case("global_area_sphere_choice", 604)
     cases["filter_tent"] = lambda: _filter_case("filter_tent", "tent", 100, "gauss", 4, 701)
     cases["filter_gaussian"] = lambda: _filter_case("filter_gaussian", "gaussian", 128, "midpoint", 16, 702)
     return cases

@@ -219,7 +219,10 @@ def _seed_spread(scene, seeds: int, **settings):
 def test_sobol_renders_are_unbiased_on_the_furnace(settings):
     """The furnace's closed form (tests/reference_impl/test_estimators.py) against the mean of 24 seeds, each pixel's variance from
     the spread across seeds (honest for a stratified sampler, whose own variance is only an upper bound): the
-    image-wide mean per channel, Student's t with 23 degrees of freedom, false alarm 1e-3 over the three channels."""
+    image-wide mean per channel, Student's t with 23 degrees of freedom, false alarm 1e-3 over the three channels.
+    Light sampling inside the analytic sphere has no variance at all (from a point of a sphere, every point y of it
+    has cos_x cos_y / |x - y|^2 = 1 / (4 r^2): G / p(y) is one number), so where the spread is 0 the tolerance is
+    the float32 image's rounding, 4 ulps of the value."""
     from conftest import load_small
     from test_estimators import furnace_radiance
 
@@ -230,7 +233,7 @@ def test_sobol_renders_are_unbiased_on_the_furnace(settings):
     got = mean.reshape(-1, 3).mean(axis=0)
     se = np.sqrt(spread.reshape(-1, 3).sum(axis=0) / mean.shape[0] ** 2 / mean.shape[1] ** 2 / seeds)
     t_crit = stats.t.ppf(1 - 1e-3 / 6, seeds - 1)
-    assert np.all(np.abs(got - want) < t_crit * se + 1e-9), (got, want, se)
+    assert np.all(np.abs(got - want) < t_crit * se + 4 * np.finfo(np.float32).eps * want), (got, want, se)
 
 
 

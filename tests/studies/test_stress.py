@@ -214,35 +214,35 @@ def test_undersampled_light_flags_a_partly_covered_pixel(cornell):
 @pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
 def test_shadow_rays_inside_a_closed_sphere_are_never_blocked(scale):
     """Inside a convex enclosure nothing can block a shadow ray between two mutually visible points. 200000 pairs on
-    the furnace's tessellated sphere, the rays made as the kernels make them (origin offset along x's normal, end at
-    ``kernels.surface.shadow_t_max``): not one may be blocked. Stopping a fixed distance short of y, as before, left y's own
-    triangle within float32 rounding of grazing rays' ends: 60 of these pairs were blocked (3e-4), a 2.6e-4
-    loss of the furnace's direct light that the calibration found once the sampler's noise was low enough."""
+    the furnace's analytic sphere (the one the core traces: Embree's float32 sphere), the rays made as the kernels
+    make them (origin offset along x's normal, end at ``kernels.surface.shadow_t_max``): not one may be blocked.
+    Stopping a fixed distance short of y, as before, left y's own surface within float32 rounding of grazing rays'
+    ends: 60 of these pairs were blocked (3e-4) on the icosphere the core once traced, a 2.6e-4 loss of the
+    furnace's direct light that the calibration found once the sampler's noise was low enough."""
     from reference_impl.kernels import surface
     from reference_impl.intersect import Intersector
+    from reference_impl.lights import front_normals, sphere_points
 
     scene = load_small("furnace", 8)
     geometry = triangulate(scene)
-    geometry = dataclasses.replace(geometry, vertices=geometry.vertices * scale)
+    to_object = geometry.sphere_to_object @ np.diag([1 / scale, 1 / scale, 1 / scale, 1.0])
+    geometry = dataclasses.replace(geometry, vertices=geometry.vertices * scale, sphere_to_object=to_object)
+    assert geometry.sphere_radius[0] == pytest.approx(scale) and geometry.sphere_inward[0]
     ix = Intersector(geometry)
     gen = np.random.default_rng(0)
     n = 200_000
-    corners, normal = geometry.corners, geometry.normal
-    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
 
     def points():
-        tri = gen.choice(len(area), n, p=area / area.sum())
-        s, u2 = np.sqrt(gen.random(n)), gen.random(n)
-        c = corners[tri]
-        return tri, c[:, 0] + (1 - s)[:, None] * (c[:, 1] - c[:, 0]) + (u2 * s)[:, None] * (c[:, 2] - c[:, 0])
+        y = sphere_points(np.zeros((n, 3)), np.full(n, scale), gen.random(n), gen.random(n))
+        return y, front_normals(geometry, np.zeros(n, np.int64), y)
 
-    tx, x = points()
-    ty, y = points()
+    x, nx = points()
+    y, ny = points()
     wi = (y - x) / np.linalg.norm(y - x, axis=1)[:, None]
-    cos_x = np.einsum("ij,ij->i", normal[tx], wi)
-    cos_y = -np.einsum("ij,ij->i", normal[ty], wi)
+    cos_x = np.einsum("ij,ij->i", nx, wi)
+    cos_y = -np.einsum("ij,ij->i", ny, wi)
     ok = (cos_x > 0) & (cos_y > 0)
-    origin = x + ix.offset(x)[:, None] * normal[tx]
+    origin = x + ix.offset(x)[:, None] * nx
     seg = np.linalg.norm(y - origin, axis=1)
     t_max = np.array([surface.shadow_t_max(a, b, c) for a, b, c in zip(seg[ok], ix.offset(y)[ok], cos_y[ok])])
     blocked = ix.occluded(origin[ok], (y - origin)[ok] / seg[ok, None], t_max)
