@@ -69,7 +69,7 @@ from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
 from harness.scene.primitives import sphere_uv
-from harness.scene.triangulate import object_mesh, shape_triangles, vertex_normals, vertex_uv
+from harness.scene.triangulate import exported_normals, object_mesh, shape_triangles, vertex_uv
 
 FORMATS = ("mitsuba-xml", "json", "ply", "obj", "gltf")
 GLTF_LIGHTS = "KHR_lights_punctual"
@@ -231,11 +231,12 @@ def mapped_uv(uv: np.ndarray, to_uv) -> np.ndarray:
 
 def smooth_normals(shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
     """The world-space unit vertex normals a smooth-shaded shape is written with (glTF ``NORMAL``, OBJ ``vn``):
-    :func:`harness.scene.triangulate.vertex_normals` of its ``vertices`` and ``triangles`` (those of
-    :func:`shape_triangles`; a mesh's file normals or the angle-weighted ones Mitsuba computes), or None for a
-    shape shaded flat (``face_normals = true``, rectangles, cubes, spheres, and every emitting shape, as the reference
-    and scene.json take them), which both formats leave without normals: glTF's readers then MUST shade flat."""
-    return None if shape.is_emitter else vertex_normals(shape, vertices, triangles)
+    :func:`harness.scene.triangulate.exported_normals` of its ``vertices`` and ``triangles`` (those of
+    :func:`shape_triangles`; a mesh's file normals or the angle-weighted ones Mitsuba computes, a sphere's analytic
+    normals at its icosphere's vertices), or None for a shape shaded flat (``face_normals = true``, rectangles, cubes,
+    and every emitting shape, as scene.json takes them), which both formats leave without normals: glTF's readers
+    then MUST shade flat."""
+    return exported_normals(shape, vertices, triangles)
 
 
 def normal_map(material):

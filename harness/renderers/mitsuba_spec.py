@@ -74,9 +74,8 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
     """The scene as Mitsuba plugins: ``path`` integrator, the camera's sensor, one BSDF per material, one shape per
     shape, one emitter per ``[[emitters]]`` entry.
 
-    Rectangles, cubes and spheres keep their plugin and placement matrix; meshes are the loaded triangles, and so
-    are spheres in a scene with a material that is not diffuse (:func:`tessellates_spheres`: what a mirror or a
-    glass ball shows depends on its facets, so Mitsuba must trace the reference's icosphere).
+    Rectangles, cubes and spheres keep their plugin and placement matrix (the reference traces the same analytic
+    sphere); meshes are the loaded triangles.
 
     Parameters
     ----------
@@ -106,11 +105,10 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
         plugins[f"bsdf_{j}"], comments[f"bsdf_{j}"] = bsdf_dict(material), f"material {name}"
-    tessellated = tessellates_spheres(scene)
     for shape in scene.shapes:
         key = f"shape_{shape.index}"
         kind = SHAPES[shape.type]
-        as_mesh = not kind.analytic or (kind.curved and tessellated)
+        as_mesh = not kind.analytic
         material = scene.materials[shape.material]
         uv = vertex_uv(shape) if as_mesh and (material.textures or material.perturbation is not None) else None
         plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh, uv)
@@ -266,10 +264,3 @@ def film_dict(scene: Scene) -> dict:
 def path_integrator(max_depth: int) -> dict:
     """Mitsuba's ``path`` integrator with ``max_depth`` and ``rr_depth`` :data:`RR_DEPTH`."""
     return {"type": "path", "max_depth": int(max_depth), "rr_depth": RR_DEPTH}
-
-
-def tessellates_spheres(scene: Scene) -> bool:
-    """Whether Mitsuba gets the scene's spheres as the reference's icospheres (flat-shaded meshes) instead of analytic
-    spheres: in scenes with a material that is not diffuse (conductors and dielectrics mirror or refract the facets;
-    a Lambertian scene keeps its analytic spheres, and the ground truth it always had)."""
-    return scene.has_glossy_materials

@@ -18,14 +18,14 @@ import numpy as np
 
 from harness.files.imageio import encode_png, exr_bytes
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
-from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes, tessellates_spheres
+from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
-from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals, vertex_uv
+from harness.scene.triangulate import exported_normals, object_to_world, shape_triangles, vertex_uv
 
 FORMAT = "rendering-harness scene"
 VERSION = 1
@@ -73,10 +73,10 @@ def emitter_json(emitter, texture: str | None = None) -> dict:
 def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEXTURE_DIR) -> tuple[dict, dict]:
     """The scene as a JSON-ready dict and the files it names (``{relative path: bytes}``: PLY meshes, EXR maps).
 
-    Every shape has ``mesh`` (its world-space triangles as the reference core and, for spheres in scenes with a
-    material that is not diffuse, Mitsuba trace them) and, for rectangles, cubes and spheres, ``to_world``: the
-    object-to-world matrix of Mitsuba's analytic shape (a sphere's includes its centre and radius).
-    ``spheres_as_meshes`` says which of the two the ground truth renders.
+    Every shape has ``mesh`` (its world-space triangles; a sphere's icosphere with the sphere's normals at its
+    vertices, for a renderer without analytic spheres) and, for rectangles, cubes and spheres, ``to_world``: the
+    object-to-world matrix of Mitsuba's analytic shape (a sphere's includes its centre and radius), which the
+    reference and the ground truth trace. ``spheres_as_meshes`` is false (kept for readers of earlier files).
     """
     files: dict[str, bytes] = {}
     shapes = []
@@ -85,7 +85,7 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
         vertices, triangles = shape_triangles(shape)
         uv = vertex_uv(shape) if textured else None
-        normals = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)
+        normals = exported_normals(shape, vertices, triangles)
         files[rel] = ply_bytes(vertices, triangles, uv, normals)
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
                        "emission": (None if shape.emission is None else _floats(shape.emission)
@@ -117,7 +117,7 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         "film": {"width": int(scene.film.width), "height": int(scene.film.height),
                  "filter": dict(FILTERS[scene.film.filter])},
         "integrator": {"type": "path", "max_depth": int(scene.max_depth), "rr_depth": RR_DEPTH},
-        "spheres_as_meshes": bool(tessellates_spheres(scene)),
+        "spheres_as_meshes": False,
         "closed_form": scene.closed_form,
         "textures": texture_json(scene, files),
         "materials": {name: material_json(m) for name, m in scene.materials.items()},

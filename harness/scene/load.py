@@ -288,9 +288,8 @@ class _SceneReader(TypedReader):
         return {name: read[name] for name in table}
 
     def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
-        """Refuse a textured material on a shape without texture coordinates: a mesh file without them, and a
-        sphere in a scene with a material that is not diffuse (Mitsuba gets its icosphere, a mesh)."""
-        glossy = any(not m.is_diffuse for m in materials.values())
+        """Refuse a textured material on a shape without texture coordinates (a mesh file without them), a normal or
+        bump map on a sphere, and an emitting mesh whose vertex normals lean off its triangles."""
         for shape in shapes:
             material = materials[shape.material]
             if shape.is_emitter and not emitter_shades_flat(shape):
@@ -302,8 +301,7 @@ class _SceneReader(TypedReader):
                 raise self.error(f"shapes[{shape.index}].material",
                                  f"shape {shape.name!r} is a sphere and material {shape.material!r} a "
                                  f"{material.perturbation.type}: expected a {material.perturbation.type} on a "
-                                 "rectangle, cube or mesh (the reference traces a sphere as its icosphere, whose "
-                                 "tangents are not Mitsuba's analytic ones)")
+                                 "rectangle, cube or mesh (the reference has no sphere tangents yet)")
             textured = bool(material.textures or material.perturbation is not None)
             if not (textured or shape.emission_texture is not None):
                 continue
@@ -311,10 +309,6 @@ class _SceneReader(TypedReader):
             if shape.type == "mesh" and shape.mesh_uv is None:
                 raise self.error(key, f"shape {shape.name!r} is textured, but mesh {shape.file.name!r} has no "
                                       "texture coordinates (PLY u, v / s, t / texture_u, texture_v; OBJ vt)")
-            if shape.type == "sphere" and glossy:
-                raise self.error(key, f"shape {shape.name!r} is textured, but a sphere in a scene with a material "
-                                      "that is not diffuse is traced as its icosphere, which has no texture "
-                                      "coordinates: expected no texture on it")
 
     # ---- shapes --------------------------------------------------------------------------------------------------
 

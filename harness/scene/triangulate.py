@@ -121,6 +121,25 @@ def vertex_normals(shape: Shape, vertices: np.ndarray, triangles: np.ndarray) ->
     return normals / length[:, None]
 
 
+def exported_normals(shape: Shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
+    """The unit vertex normals (V, 3) a shape's triangles are written with where they leave the harness (scene.json's
+    PLY ``nx, ny, nz``, glTF ``NORMAL``, OBJ ``vn``): :func:`vertex_normals`, and for a sphere its analytic normal
+    at each icosphere vertex (the vertex's direction from the centre, toward the front side: what a renderer that
+    takes the mesh shades it with); None for a shape shaded flat and for every emitting shape (lights are flat)."""
+    if shape.is_emitter:
+        return None
+    sphere = SHAPES[shape.type].sphere
+    if sphere is None:
+        return vertex_normals(shape, vertices, triangles)
+    center = object_to_world(shape)[:3, 3]
+    radial = vertices - center
+    radial /= np.linalg.norm(radial, axis=1, keepdims=True)
+    corners = vertices[triangles]
+    face = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    inward = float(np.sum(np.einsum("ij,ij->i", face, corners.mean(axis=1) - center))) < 0  # as Geometry's
+    return -radial if inward else radial
+
+
 #: The largest angle (radians) between a corner's vertex normal and its triangle's normal at which a light is still
 #: shaded flat (its vertex normals those of its planar pieces, up to the file's rounding).
 FLAT_ANGLE = 1e-4
@@ -163,7 +182,7 @@ def triangulate(scene: Scene) -> Geometry:
     textured = bool(used)
     emission_texture = []
     all_vertices, all_triangles, material, emission, light_id = [], [], [], [], []
-    uv, uv_sphere, sphere_to_object = [], [], []
+    uv, sphere_of, sphere_to_object = [], [], []
     normals = []
     vertex_count = 0
     next_light = 0
@@ -176,12 +195,12 @@ def triangulate(scene: Scene) -> Geometry:
         material.append(np.full(count, material_index[shape.material]))
         shading = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)  # lights: flat (load)
         normals.append(np.zeros((count, 3, 3)) if shading is None else shading[triangles])
+        corners_uv, sphere = shape_uv(shape, triangles)
         if textured:
-            corners_uv, sphere = shape_uv(shape, triangles)
             uv.append(corners_uv)
-            if sphere is not None:
-                sphere_to_object.append(sphere)
-            uv_sphere.append(np.full(count, len(sphere_to_object) - 1 if sphere is not None else -1))
+        if sphere is not None:
+            sphere_to_object.append(sphere)
+        sphere_of.append(np.full(count, len(sphere_to_object) - 1 if sphere is not None else -1))
         emission_texture.append(np.full(count, texture_index.get(id(shape.emission_texture), -1)))
         if shape.is_emitter:
             emission.append(np.tile(np.asarray(shape.emission, dtype=np.float64), (count, 1)))
@@ -202,8 +221,8 @@ def triangulate(scene: Scene) -> Geometry:
             emission=np.concatenate(emission) if emission else np.zeros((0, 3)),
             light_id=np.concatenate(light_id) if light_id else np.zeros(0, dtype=np.int64),
             uv=np.concatenate(uv) if uv else None,
-            uv_sphere=np.concatenate(uv_sphere) if uv_sphere else None,
-            sphere_to_object=np.array(sphere_to_object).reshape(-1, 4, 4) if uv else None,
+            sphere_of=np.concatenate(sphere_of) if sphere_to_object else None,
+            sphere_to_object=np.array(sphere_to_object).reshape(-1, 4, 4) if sphere_to_object else None,
             emission_texture=np.concatenate(emission_texture) if textured else None,
             normals=np.concatenate(normals) if any(np.any(n) for n in normals) else None,
         )

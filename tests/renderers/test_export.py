@@ -15,7 +15,6 @@ import trimesh
 
 from harness.cli import main
 from harness.renderers.export import FORMATS, export_scene
-from harness.renderers.mitsuba_spec import tessellates_spheres
 from harness.scene import load_scene
 from harness.scene.triangulate import shape_triangles, triangle_areas
 from reference_impl import Film
@@ -101,7 +100,7 @@ def test_export_loads_back_with_the_same_triangles(name, fmt, mesh_scene, tmp_pa
     if fmt == "mitsuba-xml":
         root = ET.parse(files[0]).getroot()
         shapes = root.findall("shape")
-        as_mesh = ("mesh", "sphere") if tessellates_spheres(scene) else ("mesh",)  # glossy scenes: icospheres
+        as_mesh = ("mesh",)  # spheres stay analytic in every scene
         assert [s.get("type") for s in shapes] == [("ply" if s.type in as_mesh else s.type) for s in scene.shapes]
         assert len(root.findall("bsdf")) == len(scene.materials)
         assert len(root.findall("shape/emitter")) == len(scene.lights)

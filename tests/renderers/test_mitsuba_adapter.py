@@ -15,7 +15,7 @@ from harness.judges.mc import FALSE_ALARM, image_mean, tile_chi2, z_critical, z_
 import harness.renderers.mitsuba as mts
 from harness.core.errors import HarnessError
 from harness.renderers import RenderRequest, get_renderer
-from harness.renderers.mitsuba_spec import clip_planes, tessellates_spheres
+from harness.renderers.mitsuba_spec import clip_planes
 from harness.scene import load_scene
 from harness.scene.triangulate import (
     object_to_world,
@@ -57,8 +57,8 @@ def test_canonical_scene_dicts_load(name):
     loaded = mi.load_dict(scene_dict)
     # Mitsuba merges non-emitting meshes that share a BSDF, so count triangles and area rather than shape objects.
     shapes = loaded.shapes()
-    # spheres are analytic, except in scenes with a glossy or glass material (the reference's icosphere, as a mesh)
-    analytic = () if tessellates_spheres(scene) else ("sphere",)
+    # spheres are analytic in every scene (as in the reference)
+    analytic = ("sphere",)
     spheres = [s for s in scene.shapes if s.type in analytic]
     assert sum(not s.is_mesh() for s in shapes) == len(spheres)
     expected_triangles = sum(len(shape_triangles(s)[1]) for s in scene.shapes if s.type not in analytic)

@@ -140,6 +140,7 @@ PER_SAMPLE_RATIO = {
     "white-furnace-rough/mutant-mis-weights-not-one": 16.6,
     "veach-mis/mutant-conductor-fresnel-one": 2.4,
     "veach-mis/mutant-vndf-alpha-squared": 5.07,
+    "veach-mis/mutant-sphere-points-uniform-theta": 18.8,  # 2026-12-06: ratio 0.589 at 512 spp, 16384
     "underwater/mutant-refraction-no-eta2": 0.405,
     # measured 2026-12-05 (issue 35), llvm_ad_rgb; the textured furnace's ground truth is its closed form
     "textured-furnace/reference": 0.0,

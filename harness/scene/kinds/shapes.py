@@ -34,9 +34,6 @@ class ShapeKind:
         ``object_mesh(shape) -> (vertices, triangles)``: its triangles in object space, facing its front side.
     analytic : bool
         Mitsuba has it as a plugin of the same name placed by a ``to_world`` (otherwise: its triangles).
-    curved : bool
-        Its triangles approximate Mitsuba's exact surface: in a scene with a material that is not diffuse, Mitsuba
-        gets the triangles (:func:`harness.renderers.mitsuba_spec.tessellates_spheres`).
     keeps_front_when_mirrored : bool
         Mitsuba keeps its front side under a mirroring placement (it transforms the normals by the inverse
         transpose); the others swap sides with the winding (docs/scene-format.md, "Orientation").
@@ -57,7 +54,6 @@ class ShapeKind:
     read: Callable[[Any, dict, str], dict]
     object_mesh: Callable[[Shape], tuple[np.ndarray, np.ndarray]]
     analytic: bool = True
-    curved: bool = False
     keeps_front_when_mirrored: bool = False
     similarity_only: bool = False
     sphere: Callable[[Shape], tuple[np.ndarray, float]] | None = None
@@ -101,7 +97,7 @@ SHAPES: dict[str, ShapeKind] = {kind.name: kind for kind in (
     ShapeKind("cube", (), lambda reader, table, key: {}, lambda shape: unit_cube(), keeps_front_when_mirrored=True,
               object_uv=lambda shape, vertices: cube_uv(vertices)),
     ShapeKind("sphere", ("center", "radius", "subdivisions"), _read_sphere,
-              lambda shape: unit_sphere(shape.subdivisions), curved=True, similarity_only=True,
+              lambda shape: unit_sphere(shape.subdivisions), similarity_only=True,
               sphere=_world_sphere, json=_sphere_json),
     ShapeKind("mesh", ("file", "flip_tex_coords", "face_normals"), lambda reader, table, key: reader.mesh(table, key),
               lambda shape: (shape.mesh_vertices, shape.mesh_triangles), analytic=False,
