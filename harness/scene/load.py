@@ -288,8 +288,8 @@ class _SceneReader(TypedReader):
         return {name: read[name] for name in table}
 
     def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
-        """Refuse a textured material on a shape without texture coordinates (a mesh file without them), a normal or
-        bump map on a sphere, and an emitting mesh whose vertex normals lean off its triangles."""
+        """Refuse a textured material on a shape without texture coordinates (a mesh file without them) and an
+        emitting mesh whose vertex normals lean off its triangles."""
         for shape in shapes:
             material = materials[shape.material]
             if shape.is_emitter and not emitter_shades_flat(shape):
@@ -297,11 +297,6 @@ class _SceneReader(TypedReader):
                                  f"shape {shape.name!r} emits light and its vertex normals lean off its triangles' "
                                  "normals; Mitsuba 3.9.1 turns and samples an area light by them (docs/mitsuba.md, "
                                  "\"Shading normals\"): expected face_normals = true on it")
-            if material.perturbation is not None and shape.type == "sphere":
-                raise self.error(f"shapes[{shape.index}].material",
-                                 f"shape {shape.name!r} is a sphere and material {shape.material!r} a "
-                                 f"{material.perturbation.type}: expected a {material.perturbation.type} on a "
-                                 "rectangle, cube or mesh (the reference has no sphere tangents yet)")
             textured = bool(material.textures or material.perturbation is not None)
             if not (textured or shape.emission_texture is not None):
                 continue

@@ -4,7 +4,10 @@ its ``normalmap`` and ``bumpmap`` BSDFs; pbrt-v4's ``NormalMap`` / ``BumpMap``, 
     vertex normals   n_u = normalize((1 - u - v) n_0 + u n_1 + v n_2)        (a triangle with vertex normals;
                                                                             else n_u = N, the geometric normal)
     tangents         dp/du, dp/dv from the corners and their texture coordinates (det = du_1 dv_2 - dv_1 du_2):
-                     dp/du = (dv_2 e_1 - dv_1 e_2) / det,  dp/dv = (-du_2 e_1 + du_1 e_2) / det,  e_i = p_i - p_0
+                     dp/du = (dv_2 e_1 - dv_1 e_2) / det,  dp/dv = (-du_2 e_1 + du_1 e_2) / det,  e_i = p_i - p_0;
+                     on a sphere Mitsuba's analytic ones (sphere.cpp), at p = to_object x, rho = sqrt(p_x^2 + p_y^2):
+                     dp/du = 2 pi L (-p_y, p_x, 0),  dp/dv = pi L (p_z p_x / rho, p_z p_y / rho, -rho)
+                     (L the linear part of to_world; dp/dv = pi L (1, 0, 0) at a pole, rho = 0)
                      s_u = normalize(dp/du - n_u (n_u . dp/du)),  t_u = n_u x s_u
     normal map       n = 2 rgb - 1 in (s_u, t_u, n_u)           (the texture's raw value at the hit)
     bump map         dp/du' = dp/du + n_u (scale df/du - n_u . dp/du), dp/dv' likewise,
@@ -144,10 +147,34 @@ def position_derivatives(scene, tri):
             (-du2 * e10 + du1 * e20) * inv, (-du2 * e11 + du1 * e21) * inv, (-du2 * e12 + du1 * e22) * inv, True)
 
 
+@njit(**JIT_BORROW)
+def sphere_derivatives(scene, s, x0, x1, x2):
+    """(dp/du, dp/dv) of sphere ``s`` at its point x, Mitsuba's (module docstring), and True. L = r^2 M^T for the
+    linear part M of to_object (a rotation over r: its inverse is r^2 times its transpose)."""
+    m = scene.sphere_to_object[s]
+    p0 = m[0, 0] * x0 + m[0, 1] * x1 + m[0, 2] * x2 + m[0, 3]
+    p1 = m[1, 0] * x0 + m[1, 1] * x1 + m[1, 2] * x2 + m[1, 3]
+    p2 = m[2, 0] * x0 + m[2, 1] * x1 + m[2, 2] * x2 + m[2, 3]
+    rho = math.sqrt(p0 * p0 + p1 * p1)
+    a0, a1, a2 = -2.0 * math.pi * p1, 2.0 * math.pi * p0, 0.0
+    if rho > 0.0:
+        b0, b1, b2 = math.pi * p2 * p0 / rho, math.pi * p2 * p1 / rho, -math.pi * rho
+    else:
+        b0, b1, b2 = math.pi, 0.0, 0.0
+    r2 = scene.sphere[s, 3] * scene.sphere[s, 3]
+    return (r2 * (m[0, 0] * a0 + m[1, 0] * a1 + m[2, 0] * a2), r2 * (m[0, 1] * a0 + m[1, 1] * a1 + m[2, 1] * a2),
+            r2 * (m[0, 2] * a0 + m[1, 2] * a1 + m[2, 2] * a2), r2 * (m[0, 0] * b0 + m[1, 0] * b1 + m[2, 0] * b2),
+            r2 * (m[0, 1] * b0 + m[1, 1] * b1 + m[2, 1] * b2), r2 * (m[0, 2] * b0 + m[1, 2] * b1 + m[2, 2] * b2),
+            True)
+
+
 @njit(**JIT_NONRT)
 def perturbed_frame(scene, materials, hit, row, n0, n1, n2, wo0, wo1, wo2, mutant):
     """:func:`shading_frame` where a normal or bump map perturbs the shading normal n (module docstring)."""
-    du0, du1, du2, dv0, dv1, dv2, ok = position_derivatives(scene, hit.tri)
+    if scene.sphere_of.shape[0] > 0 and scene.sphere_of[hit.tri] >= 0:
+        du0, du1, du2, dv0, dv1, dv2, ok = sphere_derivatives(scene, scene.sphere_of[hit.tri], hit.x0, hit.x1, hit.x2)
+    else:
+        du0, du1, du2, dv0, dv1, dv2, ok = position_derivatives(scene, hit.tri)
     proj = dot3(n0, n1, n2, du0, du1, du2)
     s0, s1, s2, ok_s = _normalize(du0 - n0 * proj, du1 - n1 * proj, du2 - n2 * proj)
     if not (ok and ok_s):
@@ -209,5 +236,5 @@ def through_map(frame, w0, w1, w2, cos_w):
     return 2.0 / (1.0 + math.sqrt(1.0 + frame.alpha2 * tan2))
 
 
-__all__ = ["ShadingFrame", "geometric_frame", "position_derivatives", "shading_frame", "through_map",
-           "vertex_normal"]
+__all__ = ["ShadingFrame", "geometric_frame", "position_derivatives", "shading_frame", "sphere_derivatives",
+           "through_map", "vertex_normal"]

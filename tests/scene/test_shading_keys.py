@@ -166,11 +166,6 @@ REFUSALS = [
     ("bsdf-names-itself", _map(bsdf="m") + MAPPED_RECTANGLE, "materials.m.bsdf", "is a normalmap or bumpmap"),
     ("bsdf-not-a-string", '\n[materials.m]\ntype = "normalmap"\nnormalmap = { texture = "nm" }\nbsdf = 3\n'
                           + MAPPED_RECTANGLE, "materials.m.bsdf", "expected"),
-    ("normalmap-on-sphere", _map() + SHAPE.format(type="sphere", material="m", extra=""),
-     "shapes[0].material", "is a sphere and material 'm' a normalmap: expected a normalmap on a rectangle, cube or "
-                           "mesh"),
-    ("bumpmap-on-sphere", _map("bumpmap", "height") + SHAPE.format(type="sphere", material="m", extra=""),
-     "shapes[0].material", "is a sphere and material 'm' a bumpmap"),
     ("normalmap-on-mesh-without-uv", _map() + SHAPE.format(type="mesh", material="m", extra='file = "bare.ply"'),
      "shapes[0].material", "has no texture coordinates"),
     ("bumpmap-on-mesh-without-uv", _map("bumpmap", "height")
