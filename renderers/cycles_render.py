@@ -410,10 +410,14 @@ def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = No
 
 
 def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str,
-                   textures: "TextureNodes | None" = None, shape_where: str = "shape", smooth: bool = False):
+                   textures: "TextureNodes | None" = None, shape_where: str = "shape", smooth: bool = False,
+                   sphere: bool = False):
     """A Cycles material for one shape: its BSDF (black from behind unless two-sided; dielectrics are two-sided)
     plus its emission from the front side only. On a smooth-shaded shape, or under a normal or bump map, the side
-    is the shading normal's, as Mitsuba's (:func:`smooth_bsdf`, :func:`perturbed_bsdf`)."""
+    is the shading normal's, as Mitsuba's (:func:`smooth_bsdf`, :func:`perturbed_bsdf`). A dielectric on a sphere's
+    smooth-shaded icosphere is Cycles' own Glass BSDF, inside and outside from the triangle's side: the sphere's
+    normals lean off its faces by at most half a facet's angle, so the two sides disagree only for directions within
+    that angle of grazing."""
     mat, tree = new_material(bpy, name)
     nodes, links = tree.nodes, tree.links
     # Cycles' Bump Map Correction: Estevez's shadowing term on diffuse closures whose normal is not the shading
@@ -423,7 +427,7 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
     if spec["type"] in PERTURBED:
         surface, black_where = perturbed_bsdf(tree, spec, where, textures)
         return masked_material(mat, tree, surface, black_where, emission, scale, textures, shape_where)
-    if smooth:
+    if smooth and not (sphere and spec["type"] in ("dielectric", "roughdielectric")):
         surface, black_where = smooth_bsdf(tree, spec, where, textures)
         return masked_material(mat, tree, surface, black_where, emission, scale, textures, shape_where)
     output = nodes.new("ShaderNodeOutputMaterial")
@@ -1009,13 +1013,16 @@ def add_shapes(bpy, doc: dict, folder: Path, scale: float, texture_fault: str | 
                 if shape.get("type") != "sphere" or "to_world" not in shape:
                     raise SceneError(f"{where}: uv = 'analytic' on a {shape.get('type')!r}; only spheres have "
                                      "analytic texture coordinates")
+                if spec["type"] in PERTURBED:
+                    raise SceneError(f"{where}: a {spec['type']} on a sphere; this adapter builds a map's tangent "
+                                     "frame from a mesh's texture coordinates, and a sphere's are analytic")
             else:
                 raise SceneError(f"{where}: texture {names[0]!r} on a shape without texture coordinates (uv = "
                                  f"{source!r}); Mitsuba's fallback for such a mesh is not reproduced")
             textures = TextureNodes(images, source, shape.get("to_world"))
         mesh.materials.append(shape_material(bpy, spec, shape["emission"], scale, f"material-{i}",
                                              f"materials.{shape['material']}", textures, where,
-                                             smooth=shading == "smooth"))
+                                             smooth=shading == "smooth", sphere=shape.get("type") == "sphere"))
         obj = bpy.data.objects.new(f"shape-{i}", mesh)
         obj.cycles.shadow_terminator_geometry_offset = 0.0  # no offset of shadow rays off low-poly meshes
         obj.cycles.shadow_terminator_offset = 0.0

@@ -257,6 +257,16 @@ def test_a_map_without_mesh_coordinates_is_refused(tmp_path, bpy_present):
     _refused(tmp_path, _mapped_plates(), edit, "shapes[0] (normal-plate)", "uv = 'analytic'")
 
 
+def test_a_map_on_a_sphere_is_refused(tmp_path, bpy_present):
+    """The reference and Mitsuba take a map on a sphere (its analytic tangents); this adapter builds a map's frame
+    from a mesh's texture coordinates, which a sphere's icosphere does not carry."""
+    folder = tmp_path / "scene"
+    _plate_scene(folder, "", 'type = "normalmap"\nnormalmap = { texture = "map" }', np.full((4, 4, 3), 200))
+    text = (folder / "plate.toml").read_text(encoding="utf-8").replace('type = "rectangle"', 'type = "sphere"')
+    (folder / "plate.toml").write_text(text.replace("scale = 4.0\n", ""), encoding="utf-8")
+    _refused(tmp_path, load_scene(folder / "plate.toml"), None, "shapes[0] (plate)", "a normalmap on a sphere")
+
+
 def test_a_smooth_dielectric_is_refused(tmp_path, bpy_present):
     def edit(document):
         document["materials"]["copper"] = {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.0,
