@@ -229,14 +229,14 @@ def mapped_uv(uv: np.ndarray, to_uv) -> np.ndarray:
 # ---- shading normals and normal maps in glTF and OBJ ---------------------------------------------------------------
 
 
-def smooth_normals(shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
+def smooth_normals(scene: Scene, shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
     """The world-space unit vertex normals a smooth-shaded shape is written with (glTF ``NORMAL``, OBJ ``vn``):
     :func:`harness.scene.triangulate.exported_normals` of its ``vertices`` and ``triangles`` (those of
-    :func:`shape_triangles`; a mesh's file normals or the angle-weighted ones Mitsuba computes, a sphere's analytic
-    normals at its icosphere's vertices), or None for a shape shaded flat (``face_normals = true``, rectangles, cubes,
-    and every emitting shape, as scene.json takes them), which both formats leave without normals: glTF's readers
-    then MUST shade flat."""
-    return exported_normals(shape, vertices, triangles)
+    :func:`shape_triangles`; a mesh's file normals or the angle-weighted ones Mitsuba computes, the analytic normals
+    at the icosphere's vertices of a sphere that is not diffuse), or None for a shape shaded flat (``face_normals =
+    true``, rectangles, cubes, diffuse spheres, and every emitting shape, as scene.json takes them), which both
+    formats leave without normals: glTF's readers then MUST shade flat."""
+    return exported_normals(scene, shape, vertices, triangles)
 
 
 def normal_map(material):
@@ -471,7 +471,7 @@ def gltf_document(scene: Scene, buffer_name: str = "scene.bin",
             vertices, triangles, uv = textured_mesh(shape)
         else:
             (vertices, triangles), uv = shape_triangles(shape), None
-        normals, tangents = smooth_normals(shape, vertices, triangles), None
+        normals, tangents = smooth_normals(scene, shape, vertices, triangles), None
         normal_texture = carried_normal_map(material)
         if normal_texture is not None:  # a normal map: Mitsuba's frame at every corner (uv: the scene is textured)
             vertices, triangles, uv, normals, tangents = normal_mapped_mesh(vertices, triangles, uv, normals)
@@ -608,7 +608,7 @@ def obj_text(scene: Scene, mtl_name: str = "scene.mtl", files: dict[str, bytes] 
                 uv = mapped_uv(uv, carried.to_uv)
         else:
             (vertices, triangles), uv = shape_triangles(shape), None
-        normals = smooth_normals(shape, vertices, triangles)
+        normals = smooth_normals(scene, shape, vertices, triangles)
         obj += ["", f"o {_unique(safe_name(shape.name), taken_obj)}", f"usemtl {names[key]}"]
         obj += [f"v {_mtl_number(x)} {_mtl_number(y)} {_mtl_number(z)}" for x, y, z in np.asarray(vertices, np.float64)]
         if uv is not None:
@@ -746,7 +746,7 @@ def _shading_losses(scene: Scene, fmt: str) -> list[str]:
         material = scene.materials[shape.material]
         if (obj_normal_map(material) if not gltf else carried_normal_map(material)) is None:
             continue
-        if gltf and smooth_normals(shape, *shape_triangles(shape)) is not None:
+        if gltf and smooth_normals(scene, shape, *shape_triangles(shape)) is not None:
             add("interpolated", shape.name)
         if not gltf and np.any(_uv_handedness(shape) <= 0):
             add("mirrored", shape.name)

@@ -73,8 +73,8 @@ def emitter_json(emitter, texture: str | None = None) -> dict:
 def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEXTURE_DIR) -> tuple[dict, dict]:
     """The scene as a JSON-ready dict and the files it names (``{relative path: bytes}``: PLY meshes, EXR maps).
 
-    Every shape has ``mesh`` (its world-space triangles; a sphere's icosphere with the sphere's normals at its
-    vertices, for a renderer without analytic spheres) and, for rectangles, cubes and spheres, ``to_world``: the
+    Every shape has ``mesh`` (its world-space triangles; a sphere's icosphere, for a renderer without analytic
+    spheres, with the sphere's normals at its vertices where its material is not diffuse) and, for rectangles, cubes and spheres, ``to_world``: the
     object-to-world matrix of Mitsuba's analytic shape (a sphere's includes its centre and radius), which the
     reference and the ground truth trace. ``spheres_as_meshes`` is false (kept for readers of earlier files).
     """
@@ -85,7 +85,7 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         rel = f"{mesh_dir}/{shape.index}-{safe_name(shape.name)}.ply"
         vertices, triangles = shape_triangles(shape)
         uv = vertex_uv(shape) if textured else None
-        normals = exported_normals(shape, vertices, triangles)
+        normals = exported_normals(scene, shape, vertices, triangles)
         files[rel] = ply_bytes(vertices, triangles, uv, normals)
         entry: dict = {"index": shape.index, "name": shape.name, "type": shape.type, "material": shape.material,
                        "emission": (None if shape.emission is None else _floats(shape.emission)

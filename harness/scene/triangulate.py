@@ -121,16 +121,22 @@ def vertex_normals(shape: Shape, vertices: np.ndarray, triangles: np.ndarray) ->
     return normals / length[:, None]
 
 
-def exported_normals(shape: Shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
+def exported_normals(scene: Scene, shape: Shape, vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray | None:
     """The unit vertex normals (V, 3) a shape's triangles are written with where they leave the harness (scene.json's
-    PLY ``nx, ny, nz``, glTF ``NORMAL``, OBJ ``vn``): :func:`vertex_normals`, and for a sphere its analytic normal
-    at each icosphere vertex (the vertex's direction from the centre, toward the front side: what a renderer that
-    takes the mesh shades it with); None for a shape shaded flat and for every emitting shape (lights are flat)."""
+    PLY ``nx, ny, nz``, glTF ``NORMAL``, OBJ ``vn``): :func:`vertex_normals`, and for a sphere whose material is not
+    diffuse its analytic normal at each icosphere vertex (the vertex's direction from the centre, toward the front
+    side), so that a mirror or glass ball taken as its mesh shows no facets; None for a shape shaded flat, a diffuse
+    sphere and every emitting shape (lights are flat). A diffuse sphere stays flat: its facets change its shading
+    little, and radial normals on them darken it (directions the shading hemisphere admits below a facet's plane
+    enter the sphere: the white furnace 1.5e-4 dark, in the reference once and in Cycles, where the flat icosphere is
+    exact)."""
     if shape.is_emitter:
         return None
     sphere = SHAPES[shape.type].sphere
     if sphere is None:
         return vertex_normals(shape, vertices, triangles)
+    if scene.materials[shape.material].is_diffuse:
+        return None
     center = object_to_world(shape)[:3, 3]
     radial = vertices - center
     radial /= np.linalg.norm(radial, axis=1, keepdims=True)

@@ -1,6 +1,7 @@
 """Spheres in Mitsuba: analytic in every scene, the sphere the reference traces too (reference_impl/intersect.py),
 so a mirror or glass ball shows no facets in either; the icosphere of ``subdivisions`` is only what the exports
-and Cycles get, with the sphere's normals at its vertices (harness.scene.triangulate.exported_normals)."""
+and Cycles get, with the sphere's normals at its vertices where its material is not diffuse
+(harness.scene.triangulate.exported_normals)."""
 
 from __future__ import annotations
 
@@ -35,11 +36,13 @@ def test_the_core_knows_each_sphere():
     assert furnace.sphere_inward.tolist() == [True]
 
 
-def test_exported_sphere_normals_are_the_spheres():
+def test_exported_sphere_normals_are_the_spheres_where_its_material_is_not_diffuse():
     scene = load_scene(SCENES / "white-furnace-mirror.toml")
     shape = scene.shapes[0]
     vertices, triangles = shape_triangles(shape)
-    normals = exported_normals(shape, vertices, triangles)
+    normals = exported_normals(scene, shape, vertices, triangles)
     np.testing.assert_allclose(normals, vertices / np.linalg.norm(vertices, axis=1, keepdims=True), atol=1e-15)
-    furnace = load_scene(SCENES / "furnace.toml").shapes[0]
-    assert exported_normals(furnace, *shape_triangles(furnace)) is None  # an emitting shape is flat
+    furnace = load_scene(SCENES / "furnace.toml")
+    assert exported_normals(furnace, furnace.shapes[0], *shape_triangles(furnace.shapes[0])) is None  # a light: flat
+    diffuse = load_scene(SCENES / "white-furnace.toml")
+    assert exported_normals(diffuse, diffuse.shapes[0], *shape_triangles(diffuse.shapes[0])) is None  # flat
