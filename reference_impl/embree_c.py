@@ -27,9 +27,8 @@ from numba import types
 
 INVALID_ID = 0xFFFFFFFF  # RTC_INVALID_GEOMETRY_ID
 _GEOMETRY_TYPE_TRIANGLE = 0
-_GEOMETRY_TYPE_SPHERE_POINT = 50  # RTC_GEOMETRY_TYPE_SPHERE_POINT: spheres given as (x, y, z, r)
 _BUFFER_TYPE_INDEX, _BUFFER_TYPE_VERTEX = 0, 1
-_FORMAT_UINT3, _FORMAT_FLOAT3, _FORMAT_FLOAT4 = 0x5003, 0x9003, 0x9004
+_FORMAT_UINT3, _FORMAT_FLOAT3 = 0x5003, 0x9003
 RAY_WORDS = 32  # room for an RTCRayHit (at most 96 bytes with instance ids), in uint32 words
 # Word offsets in a ray buffer.
 W_TFAR, W_MASK, W_ID, W_FLAGS = 8, 9, 10, 11
@@ -66,7 +65,6 @@ def library() -> ctypes.CDLL:
                                          ctypes.c_size_t]),
         "rtcCommitGeometry": (None, [vp]),
         "rtcAttachGeometry": (ctypes.c_uint, [vp, vp]),
-        "rtcAttachGeometryByID": (None, [vp, vp, ctypes.c_uint]),
         "rtcReleaseGeometry": (None, [vp]),
         "rtcCommitScene": (None, [vp]),
         "rtcReleaseScene": (None, [vp]),
@@ -133,16 +131,14 @@ CLOCK_MONOTONIC = 1
 
 
 class TriangleScene:
-    """A committed Embree scene of one triangle mesh and any number of spheres. ``pointer`` is the RTCScene handle
-    the kernels take.
+    """A committed Embree scene of one triangle mesh (which may have no triangles: a scene of spheres alone, which
+    the queries test themselves, :mod:`reference_impl.kernels.queries`). ``pointer`` is the RTCScene handle the
+    kernels take.
 
-    Primitive ids: the rows of ``triangles`` (geometry 0), then one per sphere: sphere s is geometry P + s (P the
-    number of triangles), Embree's sphere primitive (``RTC_GEOMETRY_TYPE_SPHERE_POINT``, float32 centre and
-    radius), so a hit's primitive is its primID on geometry 0 and its geomID otherwise (with no triangles sphere 0
-    is geometry 0, primID 0: the same rule). Embree copies the buffers, so the arrays may go away.
+    Primitive ids are the rows of ``triangles``. Embree copies the vertices and indices, so the arrays may go away.
     """
 
-    def __init__(self, vertices: np.ndarray, triangles: np.ndarray, spheres: np.ndarray | None = None):
+    def __init__(self, vertices: np.ndarray, triangles: np.ndarray):
         lib = library()
         self._lib = lib
         self._device = lib.rtcNewDevice(None)
@@ -161,17 +157,7 @@ class TriangleScene:
             ctypes.memmove(vb, v.ctypes.data, v.nbytes)
             ctypes.memmove(ib, t.ctypes.data, t.nbytes)
             lib.rtcCommitGeometry(geometry)
-            lib.rtcAttachGeometryByID(self._scene, geometry, 0)
-            lib.rtcReleaseGeometry(geometry)
-        for s, sphere in enumerate(np.zeros((0, 4)) if spheres is None else spheres):
-            geometry = lib.rtcNewGeometry(self._device, _GEOMETRY_TYPE_SPHERE_POINT)
-            buf = lib.rtcSetNewGeometryBuffer(geometry, _BUFFER_TYPE_VERTEX, 0, _FORMAT_FLOAT4, 16, 1)
-            if not buf:
-                raise RuntimeError(f"Embree: cannot allocate a sphere (error {lib.rtcGetDeviceError(self._device)})")
-            point = np.ascontiguousarray(sphere, dtype=np.float32)
-            ctypes.memmove(buf, point.ctypes.data, 16)
-            lib.rtcCommitGeometry(geometry)
-            lib.rtcAttachGeometryByID(self._scene, geometry, len(t) + s)
+            lib.rtcAttachGeometry(self._scene, geometry)
             lib.rtcReleaseGeometry(geometry)
         lib.rtcCommitScene(self._scene)
         error = lib.rtcGetDeviceError(self._device)

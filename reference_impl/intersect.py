@@ -6,7 +6,8 @@ queried by compiled loops that call ``rtcIntersect1`` / ``rtcOccluded1``, the sa
 once per ray. Embree works in float32 and starts every ray at t = 0, so callers offset ray origins off the surface
 (:func:`offset_origin`). Hit distances are recomputed here in float64 from the triangle's plane (a sphere's from
 the sphere, :func:`sphere_distance`), so hit points are as exact as the float64 ray allows, not rounded through
-Embree's float32 t. A sphere is Embree's own sphere primitive, not the triangles that stand in for it.
+Embree's float32 t. Embree holds the triangles; the queries test each sphere themselves, in float64
+(:mod:`reference_impl.kernels.queries`), never the triangles that stand in for it.
 """
 
 from __future__ import annotations
@@ -36,12 +37,15 @@ class Intersector:
         if geometry.num_spheres:  # a sphere's triangles stand in for it: Embree gets the sphere itself
             usable &= geometry.sphere_of < 0
         self._usable = usable
+        # Each sphere's centre and radius, tested beside Embree's triangles by the queries (kernels.queries).
+        self.spheres = np.ascontiguousarray(np.column_stack([geometry.sphere_center, geometry.sphere_radius]),
+                                            dtype=np.float64).reshape(-1, 4)
         if np.any(usable) or geometry.num_spheres:
-            # Degenerate triangles are left out; primID indexes the kept ones, then one primitive per sphere, all
-            # mapped back with `_prim_to_tri` (a sphere's to its first triangle).
+            # Degenerate triangles are left out; primID indexes the kept ones, then one primitive per sphere (from
+            # `sphere_base` on), all mapped back with `_prim_to_tri` (a sphere's to its first triangle).
             self._prim_to_tri = np.concatenate([np.flatnonzero(usable), geometry.sphere_first])
-            spheres = np.column_stack([geometry.sphere_center, geometry.sphere_radius])
-            self._embree = TriangleScene(geometry.vertices, geometry.triangles[usable], spheres)
+            self._embree = TriangleScene(geometry.vertices, geometry.triangles[usable])
+        self.sphere_base = int(np.count_nonzero(usable))
 
     @property
     def scene_pointer(self) -> int:
@@ -77,7 +81,8 @@ class Intersector:
         if self._embree is not None and n:
             from reference_impl.kernels import queries  # optional: numba-compiled; loaded only when a scene is queried
 
-            queries.closest_prims_packets(self._embree.pointer, self.packet_width, origins, directions, out)
+            queries.closest_prims_packets(self._embree.pointer, self.packet_width, origins, directions, out,
+                                          self.spheres, self.sphere_base)
         return out
 
     def occluders(self, origins: np.ndarray, directions: np.ndarray, tfar: np.ndarray) -> np.ndarray:
@@ -86,14 +91,15 @@ class Intersector:
         return self._query("occluders", origins, directions, tfar)
 
     def _query(self, kernel: str, *rays: np.ndarray) -> np.ndarray:
-        """Run the batch query ``kernels.queries.<kernel>(scene, *rays, out)``: int32 per ray, -1 where nothing is
-        hit."""
+        """Run the batch query ``kernels.queries.<kernel>(scene, *rays, out, spheres[, base])``: int32 per ray, -1
+        where nothing is hit."""
         n = len(rays[0])
         out = np.full(n, -1, np.int32)
         if self._embree is not None and n:
             from reference_impl.kernels import queries  # optional: numba-compiled; loaded only when a scene is queried
 
-            getattr(queries, kernel)(self._embree.pointer, *rays, out)
+            extra = (self.spheres,) if kernel == "occluders" else (self.spheres, self.sphere_base)
+            getattr(queries, kernel)(self._embree.pointer, *rays, out, *extra)
         return out
 
     def closest_hit(self, origins: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -55,6 +55,8 @@ class RayLog:
 
     scene_pointer: int = 0
     packet_width: int = 16
+    spheres: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))  # tested beside Embree (kernels.queries)
+    sphere_base: int = 0
     threads: int = 1
     camera: list = field(default_factory=list)
     closest: list = field(default_factory=list)
@@ -136,6 +138,7 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
     ctx = integrator._Context(geometry, camera, film, settings, emitters, materials)
     settings = ctx.settings
     log = RayLog(scene_pointer=ctx.intersector.scene_pointer, packet_width=ctx.intersector.packet_width,
+                 spheres=ctx.intersector.spheres, sphere_base=ctx.intersector.sphere_base,
                  threads=settings.worker_threads(),
                  stats=dict.fromkeys(integrator.COUNTERS, 0) | {integrator.EMBREE_MICROSECONDS: 0},
                  owner=ctx.intersector)
@@ -212,17 +215,20 @@ class Replay:
         ptr, log = self.log.scene_pointer, self.log
         for index in share:
             o, d, _ = log.camera[index]
-            self._queries.closest_prims_packets(ptr, log.packet_width, o, d, self._camera_out[index])
+            self._queries.closest_prims_packets(ptr, log.packet_width, o, d, self._camera_out[index], log.spheres,
+                                                log.sphere_base)
 
     def _closest_share(self, bounds):
         a, b = bounds
         o, d, _ = self._closest
-        self._queries.closest_prims(self.log.scene_pointer, o[a:b], d[a:b], self._closest_out[a:b])
+        self._queries.closest_prims(self.log.scene_pointer, o[a:b], d[a:b], self._closest_out[a:b], self.log.spheres,
+                                    self.log.sphere_base)
 
     def _occlusion_share(self, bounds):
         a, b = bounds
         o, d, t, _ = self._occlusion
-        self._queries.occluders(self.log.scene_pointer, o[a:b], d[a:b], t[a:b], self._occlusion_out[a:b])
+        self._queries.occluders(self.log.scene_pointer, o[a:b], d[a:b], t[a:b], self._occlusion_out[a:b],
+                                self.log.spheres)
 
     def run(self) -> dict[str, tuple[float, float]]:
         """Replay every recorded query once, phase by phase: {phase: (wall seconds, process CPU seconds)}."""

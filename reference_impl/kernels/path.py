@@ -122,15 +122,16 @@ def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, 
 
 
 @njit(**JIT_BORROW)
-def shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns, record, ray):
+def shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns, record, ray, spheres):
     """Whether anything blocks the shadow ray ``ray`` (origin, unit direction, t_max: :func:`.direct.connection_ray`),
-    Embree's occlusion query timed as :func:`.queries.occluded_timed` times it, and recorded where ``record`` is
-    given: (blocked, queries, sampled_ns). Nothing blocks it in a scene without geometry (``scene_ptr`` 0)."""
+    the occlusion query (the scene's ``spheres``, then Embree's) timed as :func:`.queries.occluded_timed` times it,
+    and recorded where ``record`` is given: (blocked, queries, sampled_ns). Nothing blocks it in a scene without
+    geometry (``scene_ptr`` 0)."""
     so0, so1, so2, r0, r1, r2, tfar = ray
     if scene_ptr == 0:
         return False, queries, sampled_ns
     blocked, queries, sampled_ns = occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, so0, so1, so2, r0,
-                                                  r1, r2, np.float32(tfar))
+                                                  r1, r2, np.float32(tfar), spheres)
     if record is not None:
         record_occluded(record, so0, so1, so2, r0, r1, r2, np.float32(tfar), blocked)
     return blocked, queries, sampled_ns
@@ -235,6 +236,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     emission, light_id, prim_to_tri = scene.emission, scene.light_id, scene.prim_to_tri
+    spheres = scene.sphere  # tested beside Embree's triangles (.queries), primitives sphere_base + s
+    sphere_base = prim_to_tri.shape[0] - spheres.shape[0]
     light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
@@ -292,7 +295,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     packet_ns = 0
     if scene_ptr != 0:
         t_start = now_ns(ts)
-        closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim)
+        closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim, spheres, sphere_base)
         packet_ns = now_ns(ts) - t_start
         if record is not None:
             record_camera(record, o32, d32, first_prim)
@@ -336,7 +339,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 p = np.int64(first_prim[i])
             elif scene_ptr != 0:
                 p, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1,
-                                                            o2, d0, d1, d2)
+                                                            o2, d0, d1, d2, spheres, sphere_base)
                 if record is not None:
                     record_closest(record, o0, o1, o2, d0, d1, d2, p)
             else:
@@ -433,7 +436,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                         hp = np.int64(-1)
                         if scene_ptr != 0:
                             hp, queries, sampled_ns = closest_prim_timed(scene_ptr, words, floats, ts, queries,
-                                                                         sampled_ns, ox0, ox1, ox2, h0, h1, h2)
+                                                                         sampled_ns, ox0, ox1, ox2, h0, h1, h2,
+                                                                         spheres, sphere_base)
                             if record is not None:
                                 record_closest(record, ox0, ox1, ox2, h0, h1, h2, hp)
                         if not pdf_h > 0:
@@ -523,7 +527,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     count_shadow += 1
                     blocked, queries, sampled_ns = shadow_query(
                         scene_ptr, words, floats, ts, queries, sampled_ns, record,
-                        connection_ray(cfg, conn, cos_x, not front_only, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2))
+                        connection_ray(cfg, conn, cos_x, not front_only, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2),
+                        spheres)
                     if blocked:
                         continue
                     if j < points:

@@ -3,9 +3,19 @@ ray's closest hit or occlusion, 16-ray packets, the batch queries of the wavefro
 
 Rays go to Embree in float32 (origins and directions rounded as numpy's ``astype`` rounds), tnear 0; a shadow ray
 is an occlusion (any-hit) query on 0 < t < tfar, which Embree answers by setting tfar to -inf.
+
+Embree holds the triangles only. The scene's analytic spheres (``spheres``: per sphere its centre and radius, the
+first four columns of :attr:`.records.SceneTables.sphere`) are tested here, in float64, after Embree's query: the
+nearer root 0 < t of |o + t d - c| = r (:func:`sphere_nearest`) wins where it is nearer than Embree's triangle, and
+the hit is primitive ``base`` + s (``base``: the number of Embree's primitives; ``prim_to_tri`` maps it to the
+sphere's first triangle). One test per sphere and query, a few nanoseconds each: on the scenes measured, faster than
+Embree's own sphere primitive (a second acceleration structure to traverse: 91 against 51 ns a ray on envmap, whose
+icosphere's 5120 triangles took 73) and decided in float64.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -38,23 +48,55 @@ def _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar):
     words[embree_c.W_FLAGS] = 0
 
 
+@njit(**JIT)
+def sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, t_max):
+    """The sphere (a row of ``spheres``: c, r) whose nearer root 0 < t < ``t_max`` of |o + t d - c| = r is the
+    nearest (unit d), and that t; (-1, t_max) where none is. The roots as :func:`.surface.sphere_hit_point` takes
+    them: q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q, b = (o - c) . d, k = |o - c|^2 - r^2."""
+    best = -1
+    for s in range(spheres.shape[0]):
+        m0, m1, m2 = o0 - spheres[s, 0], o1 - spheres[s, 1], o2 - spheres[s, 2]
+        b = m0 * d0 + m1 * d1 + m2 * d2
+        k = m0 * m0 + m1 * m1 + m2 * m2 - spheres[s, 3] * spheres[s, 3]
+        disc = b * b - k
+        if disc < 0.0:
+            continue
+        q = -(b + math.copysign(math.sqrt(disc), b))
+        if q == 0.0:
+            continue
+        t0, t1 = q, k / q
+        if t0 > t1:
+            t0, t1 = t1, t0
+        t = t0 if t0 > 0.0 else t1
+        if 0.0 < t < t_max:
+            best, t_max = s, t
+    return best, t_max
+
+
 @njit(**JIT_INLINE)
-def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2):
-    """Embree's closest hit of one ray (float32 coordinates): the primitive id (on a sphere its geometry id,
-    :class:`reference_impl.embree_c.TriangleScene`), or -1 for a miss."""
+def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, spheres, base):
+    """The closest hit of one ray: Embree's triangle (float32 coordinates) or, nearer, a sphere (float64,
+    :func:`sphere_nearest`, primitive ``base`` + s); -1 for a miss."""
     _set_ray(words, floats, o0, o1, o2, d0, d1, d2, np.inf)
     words[embree_c.W_GEOM_ID] = embree_c.INVALID_ID
     embree_c.rtc_intersect1(scene_ptr, words.ctypes.data, 0)
-    geom = words[embree_c.W_GEOM_ID]
-    if geom == embree_c.INVALID_ID:
-        return -1
-    return np.int64(words[embree_c.W_PRIM_ID]) if geom == 0 else np.int64(geom)  # a sphere: its geometry id
+    p = np.int64(-1)
+    if words[embree_c.W_GEOM_ID] != embree_c.INVALID_ID:
+        p = np.int64(words[embree_c.W_PRIM_ID])
+    if spheres.shape[0] > 0:
+        t_max = np.float64(floats[embree_c.W_TFAR]) if p >= 0 else np.inf
+        s, _t = sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, t_max)
+        if s >= 0:
+            p = np.int64(base + s)
+    return p
 
 
 @njit(**JIT_INLINE)
-def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar):
-    """Embree's any-hit query on the segment 0 < t < ``tfar``: True where something blocks it (Embree sets tfar
-    to -inf)."""
+def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres):
+    """Whether anything blocks the segment 0 < t < ``tfar``: a sphere (float64, :func:`sphere_nearest`), or
+    Embree's any-hit query (it sets tfar to -inf)."""
+    if spheres.shape[0] > 0 and sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, np.float64(tfar))[0] >= 0:
+        return True
     _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar)
     embree_c.rtc_occluded1(scene_ptr, words.ctypes.data, 0)
     return floats[embree_c.W_TFAR] < 0
@@ -97,10 +139,11 @@ def packet_rest(words, floats, valid, width, m):
 
 
 @njit(**JIT_INLINE)
-def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at):
+def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at, spheres, base):
     """Closest hits of the m rays a packet of ``width`` holds (:func:`packet_lane`, :func:`packet_rest`), one query
-    (``rtcIntersect16``, ``8`` or ``4``): out[at + lane] = the primitive id, -1 for a miss. The hits of one query
-    per ray (:func:`closest_prim`)."""
+    (``rtcIntersect16``, ``8`` or ``4``), then the spheres lane by lane (from the float32 rays the packet holds):
+    out[at + lane] = the primitive id, -1 for a miss. The hits of one query per ray (:func:`closest_prim`) of the
+    same float32 rays."""
     geom, prim = embree_c.P_GEOM_ID * width, embree_c.P_PRIM_ID * width
     for lane in range(width):
         words[geom + lane] = embree_c.INVALID_ID
@@ -111,22 +154,30 @@ def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at):
     else:
         embree_c.rtc_intersect4(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
     for lane in range(m):
-        g = words[geom + lane]
-        if g == embree_c.INVALID_ID:
+        if words[geom + lane] == embree_c.INVALID_ID:
             out[at + lane] = -1
         else:
-            out[at + lane] = np.int64(words[prim + lane]) if g == 0 else np.int64(g)  # a sphere: its geometry id
+            out[at + lane] = np.int64(words[prim + lane])
+    if spheres.shape[0] > 0:
+        for lane in range(m):
+            t_max = np.float64(floats[8 * width + lane]) if out[at + lane] >= 0 else np.inf
+            s, _t = sphere_nearest(spheres, np.float64(floats[lane]), np.float64(floats[width + lane]),
+                                   np.float64(floats[2 * width + lane]), np.float64(floats[4 * width + lane]),
+                                   np.float64(floats[5 * width + lane]), np.float64(floats[6 * width + lane]), t_max)
+            if s >= 0:
+                out[at + lane] = base + s
 
 
 @njit(**JIT)
-def closest_prims_coherent(scene_ptr, width, o32, d32, out, start, stop, words, floats, valid):
+def closest_prims_coherent(scene_ptr, width, o32, d32, out, start, stop, words, floats, valid, spheres, base):
     """Closest hits of rays ``start:stop``, ``width`` per packet query (:func:`intersect_packet`; one query per ray
     where ``width`` is 1): for rays that start together and point nearly the same way (one pixel's camera rays),
     Embree traverses its tree once for a packet. The same hits as one query per ray (:func:`closest_prim`)."""
     if width == 1:
         for i in range(start, stop):
-            out[i] = closest_prim(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
-                                  d32[i, 2])
+            out[i] = closest_prim(scene_ptr, words, floats, np.float64(o32[i, 0]), np.float64(o32[i, 1]),
+                                  np.float64(o32[i, 2]), np.float64(d32[i, 0]), np.float64(d32[i, 1]),
+                                  np.float64(d32[i, 2]), spheres, base)
         return
     hits = np.empty(embree_c.PACKET, np.int64)
     for s0 in range(start, stop, width):
@@ -136,34 +187,36 @@ def closest_prims_coherent(scene_ptr, width, o32, d32, out, start, stop, words, 
             packet_lane(words, floats, valid, width, lane, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
                         d32[i, 2], np.inf)
         packet_rest(words, floats, valid, width, m)
-        intersect_packet(scene_ptr, width, words, floats, valid, m, hits, 0)
+        intersect_packet(scene_ptr, width, words, floats, valid, m, hits, 0, spheres, base)
         for lane in range(m):
             out[s0 + lane] = hits[lane]
 
 
 @njit(**JIT)
-def closest_prims_packets(scene_ptr, width, o32, d32, out):
+def closest_prims_packets(scene_ptr, width, o32, d32, out, spheres, base):
     """Closest hits of a batch of camera rays, ``width`` consecutive rays per packet query."""
     words, floats, valid = packet_buffer()
-    closest_prims_coherent(scene_ptr, width, o32, d32, out, 0, o32.shape[0], words, floats, valid)
+    closest_prims_coherent(scene_ptr, width, o32, d32, out, 0, o32.shape[0], words, floats, valid, spheres, base)
 
 
 @njit(**JIT)
-def closest_prims(scene_ptr, o32, d32, out):
+def closest_prims(scene_ptr, o32, d32, out, spheres, base):
     """Closest hits of a batch of float32 rays (Intersector.closest_prims): primitive ids, -1 for a miss."""
     words, floats = ray_buffer()
     for i in range(o32.shape[0]):
-        out[i] = closest_prim(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
-                              d32[i, 2])
+        out[i] = closest_prim(scene_ptr, words, floats, np.float64(o32[i, 0]), np.float64(o32[i, 1]),
+                              np.float64(o32[i, 2]), np.float64(d32[i, 0]), np.float64(d32[i, 1]),
+                              np.float64(d32[i, 2]), spheres, base)
 
 
 @njit(**JIT)
-def occluders(scene_ptr, o32, d32, tfar, out):
+def occluders(scene_ptr, o32, d32, tfar, out, spheres):
     """Any-hit queries of a batch (Intersector.occluders): 0 where something blocks the segment, -1 where not."""
     words, floats = ray_buffer()
     for i in range(o32.shape[0]):
-        blocked = occluded(scene_ptr, words, floats, o32[i, 0], o32[i, 1], o32[i, 2], d32[i, 0], d32[i, 1],
-                           d32[i, 2], tfar[i])
+        blocked = occluded(scene_ptr, words, floats, np.float64(o32[i, 0]), np.float64(o32[i, 1]),
+                           np.float64(o32[i, 2]), np.float64(d32[i, 0]), np.float64(d32[i, 1]), np.float64(d32[i, 2]),
+                           np.float64(tfar[i]), spheres)
         out[i] = 0 if blocked else -1
 
 
@@ -175,24 +228,24 @@ def now_ns(ts):
 
 
 @njit(**JIT_BORROW)
-def closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2):
+def closest_prim_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2, spheres, base):
     """:func:`closest_prim`, counted, and timed when it is query number TIMING_STRIDE, 2 TIMING_STRIDE, ...:
     (primitive, queries, sampled_ns) with the count and the sampled nanoseconds brought up to date."""
     queries += 1
     if queries % TIMING_STRIDE == 0:
         t_start = now_ns(ts)
-        p = closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2)
+        p = closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, spheres, base)
         return p, queries, sampled_ns + (now_ns(ts) - t_start)
-    return closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2), queries, sampled_ns
+    return closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, spheres, base), queries, sampled_ns
 
 
 @njit(**JIT_BORROW)
-def occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2, tfar):
+def occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2, tfar, spheres):
     """:func:`occluded`, counted and timed as :func:`closest_prim_timed`: (blocked, queries, sampled_ns)."""
     queries += 1
     if queries % TIMING_STRIDE == 0:
         t_start = now_ns(ts)
-        blocked = occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar)
+        blocked = occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres)
         return blocked, queries, sampled_ns + (now_ns(ts) - t_start)
-    return occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar), queries, sampled_ns
+    return occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres), queries, sampled_ns
 
