@@ -1,5 +1,5 @@
-"""The analytic sphere in the core: Embree's sphere primitive and the float64 hit (``intersect.sphere_distance``,
-``kernels.surface.sphere_hit_point``), a sphere light sampled uniformly in area (``lights.sphere_points``,
+"""The analytic sphere in the core: the queries' float64 sphere test (``kernels.queries.sphere_nearest``) and hit
+(``intersect.sphere_distance``, ``kernels.surface.sphere_hit_point``), a sphere light sampled uniformly in area (``lights.sphere_points``,
 ``kernels.light_sampling.point_on_sphere``) and global area sampling's sphere entry. The densities are the chi-square
 tests' (``light_sphere_points*``, ``global_area_sphere_choice`` in ``chi2_cases.py``); here the kernels' bits, a
 planted wrong warp the chi-square test must reject, and the weight Le G / p(y) against the irradiance a sphere
@@ -93,7 +93,7 @@ def test_light_samples_weigh_to_the_irradiance_of_a_sphere(distance):
 
 
 def test_rays_hit_the_analytic_sphere_in_float64():
-    """Rays from outside, from inside and along chords, through Embree's float32 sphere: the hit is the nearer root
+    """Rays from outside, from inside and along chords, through the queries' sphere test: the hit is the nearer root
     of |o + t d - c| = r to float64 precision (|x - c| = r within 1e-12 of the rays' scale, about 5: the root of a
     grazing ray is ill-conditioned, a few hundred ulps; Embree's float32 t would be off by 1e-7), reported on the
     sphere's first triangle, and a floor below it keeps its own triangles."""

@@ -214,8 +214,8 @@ def test_undersampled_light_flags_a_partly_covered_pixel(cornell):
 @pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
 def test_shadow_rays_inside_a_closed_sphere_are_never_blocked(scale):
     """Inside a convex enclosure nothing can block a shadow ray between two mutually visible points. 200000 pairs on
-    the furnace's analytic sphere (the one the core traces: Embree's float32 sphere), the rays made as the kernels
-    make them (origin offset along x's normal, end at ``kernels.surface.shadow_t_max``): not one may be blocked.
+    the furnace's analytic sphere (the one the core traces, tested by the queries in float64), the rays made as the
+    kernels make them (origin offset along x's normal, end at ``kernels.surface.shadow_t_max``): none may be blocked.
     Stopping a fixed distance short of y, as before, left y's own surface within float32 rounding of grazing rays'
     ends: 60 of these pairs were blocked (3e-4) on the icosphere the core once traced, a 2.6e-4 loss of the
     furnace's direct light that the calibration found once the sampler's noise was low enough."""
