@@ -498,7 +498,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                  ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
                                  film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record,
-                                 ctx.shading)
+                                 ctx.shading, ctx.scene_tables.sphere if ctx.geometry.num_spheres else None)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

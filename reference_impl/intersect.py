@@ -142,7 +142,8 @@ class Intersector:
         return _OFFSET_REL * np.max(np.abs(points), axis=1) + _OFFSET_SCENE * self.scene_size
 
 
-def sphere_distance(center: np.ndarray, radius: np.ndarray, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+def sphere_distance(center: np.ndarray, radius: np.ndarray, origins: np.ndarray,
+                    directions: np.ndarray) -> np.ndarray:
     """The nearer root t > 0 of |o + t d - c| = r for rays (unit d) that Embree found on spheres, 0 where neither
     root is: kernels.surface.sphere_hit_point, q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q."""
     m = origins - center

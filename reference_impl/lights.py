@@ -116,9 +116,11 @@ class TriangleAreaSampler:
         self.sphere = np.zeros((len(triangles), 4))
         if geometry.num_spheres:
             which = geometry.sphere_of[triangles]
-            keep = (which < 0) | (triangles == geometry.sphere_first[np.maximum(which, 0)])
+            keep = which < 0
+            keep[np.unique(which, return_index=True)[1][np.unique(which) >= 0]] = True  # each sphere's first entry
             triangles, which, areas = triangles[keep], which[keep], areas[keep]
             on = which >= 0
+            triangles[on] = geometry.sphere_first[which[on]]
             areas = np.where(on, geometry.sphere_area[np.maximum(which, 0)], areas)
             self.sphere = np.zeros((len(triangles), 4))
             self.sphere[on, :3] = geometry.sphere_center[which[on]]
@@ -211,7 +213,8 @@ class LightSampler:
             # A light's power: sum over its triangles of pi * area * lum(Le); a sphere's pi 4 pi r^2 lum(Le).
             np.add.at(radiance, ids, np.pi * geometry.area[order] * (geometry.emission[order] @ _LUMINANCE))
             for k in np.flatnonzero(self.sphere[self.first]) if num_area else ():
-                radiance[k] = np.pi * self.area[k] * float(geometry.emission[self.triangles[self.first[k]]] @ _LUMINANCE)
+                emission = geometry.emission[self.triangles[self.first[k]]]
+                radiance[k] = np.pi * self.area[k] * float(emission @ _LUMINANCE)
             weights = radiance  # > 0: every emitter has some positive channel and all luminance weights are > 0
             if len(extra):
                 weights = np.concatenate([weights, extra])

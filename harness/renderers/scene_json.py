@@ -74,9 +74,10 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
     """The scene as a JSON-ready dict and the files it names (``{relative path: bytes}``: PLY meshes, EXR maps).
 
     Every shape has ``mesh`` (its world-space triangles; a sphere's icosphere, for a renderer without analytic
-    spheres, with the sphere's normals at its vertices where its material is not diffuse) and, for rectangles, cubes and spheres, ``to_world``: the
-    object-to-world matrix of Mitsuba's analytic shape (a sphere's includes its centre and radius), which the
-    reference and the ground truth trace. ``spheres_as_meshes`` is false (kept for readers of earlier files).
+    spheres, with the sphere's normals at its vertices where its material is not diffuse) and, for rectangles,
+    cubes and spheres, ``to_world``: the object-to-world matrix of Mitsuba's analytic shape (a sphere's includes its
+    centre and radius), which the reference and the ground truth trace. ``spheres_as_meshes`` is false (kept for
+    readers of earlier files).
     """
     files: dict[str, bytes] = {}
     shapes = []

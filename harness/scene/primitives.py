@@ -133,8 +133,9 @@ def cube_uv(vertices: np.ndarray) -> np.ndarray:
 #: The regular icosahedron the icosphere starts from: its 12 vertices (the cyclic permutations of (0, +-a, +-b), a
 #: and b = 1 and the golden ratio scaled onto the unit sphere) and 20 faces wound outward. These are the numbers
 #: trimesh ships (its creation.json), to the last bit and in its order (b has only 14 digits there), so that
-#: :func:`unit_sphere` gives the triangles the images and their checksums were made with (trimesh.creation.icosphere's;
-#: tests/scene/test_icosphere.py compares the two at every level).
+#: :func:`unit_sphere` gives trimesh.creation.icosphere's triangles (tests/scene/test_icosphere.py compares the two at
+#: every level): the mesh the exports and Cycles get for a sphere, which the core traced until it hit the analytic
+#: sphere.
 ICOSAHEDRON_VERTICES = (
     (-0.5257311121191336, 0.85065080835204, 0.0), (0.5257311121191336, 0.85065080835204, 0.0),
     (-0.5257311121191336, -0.85065080835204, 0.0), (0.5257311121191336, -0.85065080835204, 0.0),

@@ -216,7 +216,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
 
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
-                emitters, other_kinds, textures=None, record=None, shading=None):
+                emitters, other_kinds, textures=None, record=None, shading=None, spheres=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
     (module docstring), adding each path's radiance to ``radiance[root]``.
 
@@ -228,16 +228,16 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     textured (every Le is its triangle's row: the lookups compiled out), else the materials' texture tables;
     ``shading`` likewise: None where no triangle has vertex normals and no material a normal or bump map (every
     frame the geometric one, :func:`.shading.geometric_frame`, whose constant flags fold the side tests away), else
-    True (:func:`.shading.shading_frame`).
+    True (:func:`.shading.shading_frame`); ``spheres`` likewise: None in a scene without spheres (the queries' sphere
+    tests compiled out), else ``scene.sphere``.
     ``cfg``: the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
     the number of queries. ``record``: None in a render (compiled out), or buffers that receive every query's ray
     and answer (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
-    emission, light_id, prim_to_tri = scene.emission, scene.light_id, scene.prim_to_tri
-    spheres = scene.sphere  # tested beside Embree's triangles (.queries), primitives sphere_base + s
-    sphere_base = prim_to_tri.shape[0] - spheres.shape[0]
+    emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
+    sphere_base = prim_to_tri.shape[0] - scene.sphere.shape[0]  # spheres: tested beside Embree's triangles (.queries)
     light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
@@ -454,11 +454,15 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                             htri = prim_to_tri[hp]
                             if light_id[htri] < 0:
                                 continue  # not an emitter
-                            _t, q0, q1, q2, hn0, hn1, hn2, _c = hit_at(scene, htri, ox0, ox1, ox2, h0, h1, h2)
+                            if spheres is not None and hp >= sphere_base:  # a sphere light: its normal at the point
+                                _t, q0, q1, q2, hn0, hn1, hn2, _c = hit_at(scene, htri, ox0, ox1, ox2, h0, h1, h2)
+                            else:
+                                hn0, hn1, hn2 = tri_normal[htri, 0], tri_normal[htri, 1], tri_normal[htri, 2]
                             if not dot3(h0, h1, h2, hn0, hn1, hn2) < 0:
                                 continue  # not an emitter's front side
                             le0, le1, le2 = emission[htri, 0], emission[htri, 1], emission[htri, 2]
                             if textures is not None:  # Le at the point Psi found on a textured light
+                                _t, q0, q1, q2, _n0, _n1, _n2, _c = hit_at(scene, htri, ox0, ox1, ox2, h0, h1, h2)
                                 le0, le1, le2 = emission_at(scene, textures, htri, q0, q1, q2, mutant)
                         hl0, hl1, hl2 = dot3(s0, s1, s2, h0, h1, h2), dot3(t0, t1, t2, h0, h1, h2), side * cos_h
                         keep = 1.0

@@ -5,7 +5,7 @@ Rays go to Embree in float32 (origins and directions rounded as numpy's ``astype
 is an occlusion (any-hit) query on 0 < t < tfar, which Embree answers by setting tfar to -inf.
 
 Embree holds the triangles only. The scene's analytic spheres (``spheres``: per sphere its centre and radius, the
-first four columns of :attr:`.records.SceneTables.sphere`) are tested here, in float64, after Embree's query: the
+first four columns of :attr:`.records.SceneTables.sphere`; None compiles the tests out) are tested here, in float64, after Embree's query: the
 nearer root 0 < t of |o + t d - c| = r (:func:`sphere_nearest`) wins where it is nearer than Embree's triangle, and
 the hit is primitive ``base`` + s (``base``: the number of Embree's primitives; ``prim_to_tri`` maps it to the
 sphere's first triangle). One test per sphere and query, a few nanoseconds each: on the scenes measured, faster than
@@ -83,7 +83,7 @@ def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, spheres, base
     p = np.int64(-1)
     if words[embree_c.W_GEOM_ID] != embree_c.INVALID_ID:
         p = np.int64(words[embree_c.W_PRIM_ID])
-    if spheres.shape[0] > 0:
+    if spheres is not None and spheres.shape[0] > 0:
         t_max = np.float64(floats[embree_c.W_TFAR]) if p >= 0 else np.inf
         s, _t = sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, t_max)
         if s >= 0:
@@ -95,7 +95,8 @@ def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, spheres, base
 def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres):
     """Whether anything blocks the segment 0 < t < ``tfar``: a sphere (float64, :func:`sphere_nearest`), or
     Embree's any-hit query (it sets tfar to -inf)."""
-    if spheres.shape[0] > 0 and sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, np.float64(tfar))[0] >= 0:
+    if spheres is not None and spheres.shape[0] > 0 and sphere_nearest(spheres, o0, o1, o2, d0, d1, d2,
+                                                                           np.float64(tfar))[0] >= 0:
         return True
     _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar)
     embree_c.rtc_occluded1(scene_ptr, words.ctypes.data, 0)
@@ -158,7 +159,7 @@ def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at, spheres
             out[at + lane] = -1
         else:
             out[at + lane] = np.int64(words[prim + lane])
-    if spheres.shape[0] > 0:
+    if spheres is not None and spheres.shape[0] > 0:
         for lane in range(m):
             t_max = np.float64(floats[8 * width + lane]) if out[at + lane] >= 0 else np.inf
             s, _t = sphere_nearest(spheres, np.float64(floats[lane]), np.float64(floats[width + lane]),

@@ -90,7 +90,8 @@ def scene_tables(geometry, prim_to_tri: np.ndarray, textured: bool = False) -> S
         prim_to_tri=_c(prim_to_tri, dtype=np.int64), normal=_c(g.normal), corner0=_c(g.corners[:, 0]),
         corners=_c(g.corners), emission=_c(g.emission), light_id=_c(g.light_id), material=_c(g.material),
         uv=_c(uv, dtype=np.float64), sphere_of=_c(g.sphere_of, dtype=np.int64),
-        sphere=_c(sphere.reshape(-1, 5), dtype=np.float64), sphere_to_object=_c(g.sphere_to_object, dtype=np.float64), emission_texture=_c(emission_texture, dtype=np.int64),
+        sphere=_c(sphere.reshape(-1, 5), dtype=np.float64), sphere_to_object=_c(g.sphere_to_object, dtype=np.float64),
+        emission_texture=_c(emission_texture, dtype=np.int64),
         normals=_c(g.normals if smooth else np.zeros((0, 3, 3)), dtype=np.float64),
         smooth=_c(g.smooth if smooth else np.zeros(0, bool), dtype=np.bool_))
 

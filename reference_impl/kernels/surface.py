@@ -55,8 +55,10 @@ def sphere_normal(scene, s, x0, x1, x2):
 
 @njit(**JIT_NONRT)
 def sphere_hit_point(scene, s, o0, o1, o2, d0, d1, d2):
-    """Where a ray (origin o, unit direction d) that Embree found on sphere ``s`` meets it, in float64: the nearer
-    root t > 0 of |o + t d - c|^2 = r^2 (0 where neither is: a grazing ray Embree's float32 kept), computed as
+    """Where a ray (origin o, unit direction d) that a query found on sphere ``s`` (:func:`.queries.sphere_nearest`,
+    from the float32 copy of a batch's or packet's ray) meets it, in float64 from o itself: the nearer root t > 0 of
+    |o + t d - c|^2 = r^2 (the closest approach where the float64 ray just misses; 0 where no root is positive),
+    computed as
     q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q, b = (o - c) . d, k = |o - c|^2 - r^2 (no cancellation
     between b and the root; Press et al., Numerical Recipes, 5.6): (t, x, N, cos(theta_out) = -d . N)."""
     sp = scene.sphere

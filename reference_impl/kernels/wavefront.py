@@ -230,8 +230,11 @@ def resolve_hemisphere(root, beta, hits, nd, s_owner, s_value, s_aux, s_o32, s_d
                     total[h, 2] += le2 * s_value[q, 2] * s_aux[q]
             continue
         tri = prim_to_tri[p]
-        _t, _x0, _x1, _x2, m0, m1, m2, _c = hit_at(scene, tri, np.float64(s_o32[q, 0]), np.float64(s_o32[q, 1]),
-                                                  np.float64(s_o32[q, 2]), s_dir[q, 0], s_dir[q, 1], s_dir[q, 2])
+        if scene.sphere_of.shape[0] > 0 and scene.sphere_of[tri] >= 0:  # a sphere: its normal where the ray meets it
+            _t, _x0, _x1, _x2, m0, m1, m2, _c = hit_at(scene, tri, np.float64(s_o32[q, 0]), np.float64(s_o32[q, 1]),
+                                                      np.float64(s_o32[q, 2]), s_dir[q, 0], s_dir[q, 1], s_dir[q, 2])
+        else:
+            m0, m1, m2 = scene.normal[tri, 0], scene.normal[tri, 1], scene.normal[tri, 2]
         weight = hemisphere_weight(s_aux[q], s_dir[q, 0], s_dir[q, 1], s_dir[q, 2], m0, m1, m2)
         h = s_owner[q]
         total[h, 0] += emission[tri, 0] * s_value[q, 0] * weight

@@ -55,7 +55,8 @@ def test_render_writes_exr_with_variance_png_and_json(tmp_path):
     # sampling inside the analytic sphere has no variance (G / p(y) is one number there), so the tolerance adds the
     # float32 image's rounding, 4 ulps of the value.
     se = np.sqrt(var_red.astype(float).sum()) / red.size
-    assert abs(red.astype(float).mean() - 1.39) < z_critical(FALSE_ALARM, 1) * se + 4 * np.finfo(np.float32).eps * 1.39
+    rounding = 4 * np.finfo(np.float32).eps * 1.39
+    assert abs(red.astype(float).mean() - 1.39) < z_critical(FALSE_ALARM, 1) * se + rounding
 
 
 def test_variance_channel_is_variance_of_the_mean():

@@ -411,7 +411,8 @@ def sphere_cos_phi(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _sphere_light_case(name: str, seed: int, reuse: bool = False) -> Chi2Result:
     """``LightSampler`` on a sphere light: one piece, the sphere itself, its points uniform in area (pdf(y) =
-    pdf_area = 1 / (4 pi r^2), i.e. 1 / (4 pi) in (z, phi)); with ``reuse``, from ``sample(*split_uniform(u1), u2)``."""
+    pdf_area = 1 / (4 pi r^2), i.e. 1 / (4 pi) in (z, phi)); with ``reuse``, from
+    ``sample(*split_uniform(u1), u2)``."""
     sampler = LightSampler(sphere_geometry(), "power")
     assert sampler.sphere.tolist() == [True] and sampler.count.tolist() == [1]
     g = np.random.default_rng(seed)

@@ -1,9 +1,9 @@
 """The analytic sphere in the core: the queries' float64 sphere test (``kernels.queries.sphere_nearest``) and hit
-(``intersect.sphere_distance``, ``kernels.surface.sphere_hit_point``), a sphere light sampled uniformly in area (``lights.sphere_points``,
-``kernels.light_sampling.point_on_sphere``) and global area sampling's sphere entry. The densities are the chi-square
-tests' (``light_sphere_points*``, ``global_area_sphere_choice`` in ``chi2_cases.py``); here the kernels' bits, a
-planted wrong warp the chi-square test must reject, and the weight Le G / p(y) against the irradiance a sphere
-gives in closed form."""
+(``intersect.sphere_distance``, ``kernels.surface.sphere_hit_point``), a sphere light sampled uniformly in area
+(``lights.sphere_points``, ``kernels.light_sampling.point_on_sphere``) and global area sampling's sphere entry. The
+densities are the chi-square tests' (``light_sphere_points*``, ``global_area_sphere_choice`` in ``chi2_cases.py``);
+here the kernels' bits, a planted wrong warp the chi-square test must reject, and the weight Le G / p(y) against
+the irradiance a sphere gives in closed form."""
 
 from __future__ import annotations
 
