@@ -127,7 +127,7 @@ def sample_surface_point(surfaces, corners, u_tri, u1, u2):
     triangles, cdf = surfaces.triangles, surfaces.cdf
     i = sample_discrete(cdf, u_tri)
     tri = triangles[i]
-    if surfaces.sphere[i, 3] > 0.0:
+    if surfaces.sphere.shape[0] > 0 and surfaces.sphere[i, 3] > 0.0:  # empty: no sphere in the scene
         sp = surfaces.sphere
         p0, p1, p2 = point_on_sphere(sp[i, 0], sp[i, 1], sp[i, 2], sp[i, 3], u1, u2)
         return tri, p0, p1, p2

@@ -163,8 +163,8 @@ class SurfaceTables(NamedTuple):
         The triangles of positive area, and each sphere's first triangle in place of its own.
     cdf : (N,) float64
         The cdf of A_t / A_scene over them (a sphere's A_t = 4 pi r^2).
-    sphere : (N, 4) float64
-        Per entry: a sphere's centre and radius, or 0 for a triangle.
+    sphere : (N, 4) or (0, 4) float64
+        Per entry: a sphere's centre and radius, or 0 for a triangle; empty in a scene without spheres.
     """
 
     triangles: np.ndarray
@@ -177,8 +177,9 @@ def surface_tables(sampler) -> SurfaceTables:
     (a scene without area)."""
     if sampler is None:
         return SurfaceTables(np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 4)))
+    spheres = sampler.sphere if np.any(sampler.sphere[:, 3] > 0) else np.zeros((0, 4))
     return SurfaceTables(_c(sampler.triangles, dtype=np.int64), _c(sampler.cdf, dtype=np.float64),
-                         _c(sampler.sphere, dtype=np.float64))
+                         _c(spheres, dtype=np.float64))
 
 
 class EmitterTables(NamedTuple):
