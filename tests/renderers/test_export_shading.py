@@ -190,6 +190,33 @@ def test_gltf_carries_the_vertex_normals_of_smooth_shapes(tmp_path):
     assert np.degrees(np.arccos(np.clip(np.sum(computed[triangles] * facets[:, None], -1), -1, 1))).max() > 5.0
 
 
+def test_a_glossy_spheres_icosphere_carries_the_spheres_normals_and_a_diffuse_ones_none(tmp_path):
+    """The icosphere every export carries for a sphere: where its material is not diffuse (cornell-box-specular's
+    mirror and glass balls) glTF ``NORMAL`` and OBJ ``vn`` are the sphere's analytic normals at its vertices, each
+    vertex's direction from the centre (so a reader's mirror ball shows no facets); a diffuse sphere (the white
+    furnace's) carries none. Catches normals left off a glossy sphere, or put on a diffuse one."""
+    glossy = load_scene(ROOT / "scenes" / "cornell-box-specular.toml")
+    gltf, shapes = _gltf(glossy, tmp_path / "gltf")
+    balls = [(shape, primitive) for shape, _node, primitive in shapes if shape.type == "sphere"]
+    assert len(balls) == 2
+    for shape, primitive in balls:
+        vertices, _triangles = shape_triangles(shape)
+        radial = (vertices - np.asarray(shape.center)) / np.linalg.norm(vertices - np.asarray(shape.center), axis=1,
+                                                                         keepdims=True)
+        np.testing.assert_allclose(_accessor(gltf, tmp_path / "gltf", primitive.attributes.NORMAL), radial,
+                                   rtol=0, atol=1e-7, err_msg=shape.name)
+    text = export_scene(glossy, "obj", tmp_path / "obj")[0].read_text()
+    for shape, obj in zip(glossy.shapes, _obj_objects(text)):
+        if shape.type == "sphere":
+            vertices = np.array(obj["v"])
+            radial = (vertices - np.asarray(shape.center))
+            np.testing.assert_allclose(np.array(obj["vn"]), radial / np.linalg.norm(radial, axis=1, keepdims=True),
+                                       rtol=0, atol=1e-6, err_msg=shape.name)
+    diffuse = load_scene(ROOT / "scenes" / "white-furnace.toml")
+    _gltf_doc, [(_shape, _node, primitive)] = _gltf(diffuse, tmp_path / "diffuse")
+    assert primitive.attributes.NORMAL is None
+
+
 def test_obj_carries_the_vertex_normals_of_smooth_shapes(tmp_path):
     scene = load_scene(ROOT / "scenes" / "smooth-twins.toml")
     files = export_scene(scene, "obj", tmp_path)
