@@ -168,7 +168,6 @@ class Geometry:
         set_ = object.__setattr__
         n = len(self.sphere_to_object)
         center, radius = np.zeros((n, 3)), np.zeros(n)
-        inward, first = np.zeros(n, bool), np.zeros(n, np.int64)
         for s in range(n):
             with np.errstate(all="ignore"):
                 to_world = np.linalg.inv(self.sphere_to_object[s])
@@ -179,11 +178,15 @@ class Geometry:
                 raise SettingsError("sphere_to_object", f"sphere {s}: expected a rotation, a uniform scale and a "
                                                         "translation (Mitsuba's sphere allows nothing else)")
             center[s], radius[s] = to_world[:3, 3], r
-            tris = np.flatnonzero(self.sphere_of == s)
-            first[s] = tris[0]
-            centroid = self.corners[tris].mean(axis=1)
-            inward[s] = float(np.sum(np.einsum("ij,ij->i", self.normal[tris] * self.area[tris, None],
-                                               centroid - center[s]))) < 0
+        # Its first triangle, and its side: the area-weighted normals of its triangles against their directions from
+        # the centre, summed (negative: wound toward the inside).
+        tris = np.flatnonzero(self.sphere_of >= 0)
+        which = self.sphere_of[tris]
+        values, index = np.unique(self.sphere_of, return_index=True)
+        first = index[values >= 0].astype(np.int64)
+        outward = np.einsum("ij,ij->i", self.normal[tris] * self.area[tris, None],
+                            self.corners[tris].mean(axis=1) - center[which])
+        inward = np.bincount(which, weights=outward, minlength=n) < 0
         set_(self, "sphere_center", center)
         set_(self, "sphere_radius", radius)
         set_(self, "sphere_inward", inward)

@@ -117,7 +117,8 @@ class TriangleAreaSampler:
         if geometry.num_spheres:
             which = geometry.sphere_of[triangles]
             keep = which < 0
-            keep[np.unique(which, return_index=True)[1][np.unique(which) >= 0]] = True  # each sphere's first entry
+            values, index = np.unique(which, return_index=True)
+            keep[index[values >= 0]] = True  # each sphere's first entry
             triangles, which, areas = triangles[keep], which[keep], areas[keep]
             on = which >= 0
             triangles[on] = geometry.sphere_first[which[on]]

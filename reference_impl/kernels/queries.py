@@ -15,13 +15,12 @@ icosphere's 5120 triangles took 73) and decided in float64.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
 from reference_impl import embree_c
 from reference_impl.kernels.config import JIT, JIT_BORROW, JIT_INLINE
+from reference_impl.kernels.surface import sphere_roots
 
 # One query in TIMING_STRIDE is timed (two clock reads); the time in Embree is the sampled time, less the cost of a
 # clock read (measured at the start of each call), times the stride.
@@ -51,22 +50,14 @@ def _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar):
 @njit(**JIT)
 def sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, t_max):
     """The sphere (a row of ``spheres``: c, r) whose nearer root 0 < t < ``t_max`` of |o + t d - c| = r is the
-    nearest (unit d), and that t; (-1, t_max) where none is. The roots as :func:`.surface.sphere_hit_point` takes
-    them: q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q, b = (o - c) . d, k = |o - c|^2 - r^2."""
+    nearest (unit d), and that t; (-1, t_max) where none is. The roots are :func:`.surface.sphere_roots`', which
+    :func:`.surface.sphere_hit_point` takes too."""
     best = -1
     for s in range(spheres.shape[0]):
-        m0, m1, m2 = o0 - spheres[s, 0], o1 - spheres[s, 1], o2 - spheres[s, 2]
-        b = m0 * d0 + m1 * d1 + m2 * d2
-        k = m0 * m0 + m1 * m1 + m2 * m2 - spheres[s, 3] * spheres[s, 3]
-        disc = b * b - k
+        t0, t1, disc = sphere_roots(spheres[s, 0], spheres[s, 1], spheres[s, 2], spheres[s, 3], o0, o1, o2, d0, d1,
+                                    d2)
         if disc < 0.0:
             continue
-        q = -(b + math.copysign(math.sqrt(disc), b))
-        if q == 0.0:
-            continue
-        t0, t1 = q, k / q
-        if t0 > t1:
-            t0, t1 = t1, t0
         t = t0 if t0 > 0.0 else t1
         if 0.0 < t < t_max:
             best, t_max = s, t

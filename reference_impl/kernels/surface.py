@@ -53,23 +53,29 @@ def sphere_normal(scene, s, x0, x1, x2):
     return m0 * k, m1 * k, m2 * k
 
 
+@njit(**JIT_BORROW)
+def sphere_roots(c0, c1, c2, r, o0, o1, o2, d0, d1, d2):
+    """The roots t0 <= t1 of |o + t d - c|^2 = r^2 (unit d) and the discriminant b^2 - k, b = (o - c) . d,
+    k = |o - c|^2 - r^2, computed as q = -(b + sign(b) sqrt(max(b^2 - k, 0))), roots q and k / q (no cancellation
+    between b and the root; Press et al., Numerical Recipes, 5.6); both 0 where q is. Where the discriminant is
+    negative (a miss) the roots are those of the closest approach, t0 = t1 = -b."""
+    m0, m1, m2 = o0 - c0, o1 - c1, o2 - c2
+    b = dot3(m0, m1, m2, d0, d1, d2)
+    k = dot3(m0, m1, m2, m0, m1, m2) - r * r
+    disc = b * b - k
+    q = -(b + math.copysign(math.sqrt(max(disc, 0.0)), b))
+    t1 = k / q if q != 0.0 else 0.0
+    return min(q, t1), max(q, t1), disc
+
+
 @njit(**JIT_NONRT)
 def sphere_hit_point(scene, s, o0, o1, o2, d0, d1, d2):
     """Where a ray (origin o, unit direction d) that a query found on sphere ``s`` (:func:`.queries.sphere_nearest`,
     from the float32 copy of a batch's or packet's ray) meets it, in float64 from o itself: the nearer root t > 0 of
-    |o + t d - c|^2 = r^2 (the closest approach where the float64 ray just misses; 0 where no root is positive),
-    computed as
-    q = -(b + sign(b) sqrt(b^2 - k)), roots q and k / q, b = (o - c) . d, k = |o - c|^2 - r^2 (no cancellation
-    between b and the root; Press et al., Numerical Recipes, 5.6): (t, x, N, cos(theta_out) = -d . N)."""
+    |o + t d - c|^2 = r^2 (the closest approach where the float64 ray just misses; 0 where no root is positive;
+    :func:`sphere_roots`): (t, x, N, cos(theta_out) = -d . N)."""
     sp = scene.sphere
-    m0, m1, m2 = o0 - sp[s, 0], o1 - sp[s, 1], o2 - sp[s, 2]
-    b = dot3(m0, m1, m2, d0, d1, d2)
-    k = dot3(m0, m1, m2, m0, m1, m2) - sp[s, 3] * sp[s, 3]
-    q = -(b + math.copysign(math.sqrt(max(b * b - k, 0.0)), b))
-    t0 = q
-    t1 = k / q if q != 0.0 else 0.0
-    if t0 > t1:
-        t0, t1 = t1, t0
+    t0, t1, _disc = sphere_roots(sp[s, 0], sp[s, 1], sp[s, 2], sp[s, 3], o0, o1, o2, d0, d1, d2)
     t = t0 if t0 > 0.0 else (t1 if t1 > 0.0 else 0.0)
     x0, x1, x2 = o0 + t * d0, o1 + t * d1, o2 + t * d2
     n0, n1, n2 = sphere_normal(scene, s, x0, x1, x2)

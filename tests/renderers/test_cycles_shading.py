@@ -115,9 +115,11 @@ def _png(codes: np.ndarray) -> bytes:
     return buffer.getvalue()
 
 
-def _plate_scene(folder: Path, texture: str, material: str, codes: np.ndarray):
+def _plate_scene(folder: Path, texture: str, material: str, codes: np.ndarray,
+                 shape: str = 'type = "rectangle"\nscale = 4.0'):
     """A diffuse 8 x 8 plate (z = 0, u along +x, v along +y: Mitsuba's rectangle) covering the film of a camera 3
-    above it, under one sun, with ``material`` (a [materials.mapped] table's body) on the texture ``codes``."""
+    above it, under one sun, with ``material`` (a [materials.mapped] table's body) on the texture ``codes``;
+    ``shape``: the plate's type and placement."""
     (folder / "textures").mkdir(parents=True, exist_ok=True)
     (folder / "textures" / "map.png").write_bytes(_png(codes))
     (folder / "plate.toml").write_text(f"""name = "mapped-plate"
@@ -145,9 +147,8 @@ reflectance = {RHO.tolist()}
 bsdf = "base"
 [[shapes]]
 name = "plate"
-type = "rectangle"
 material = "mapped"
-scale = 4.0
+{shape}
 [[emitters]]
 name = "sun"
 type = "directional"
@@ -260,11 +261,9 @@ def test_a_map_without_mesh_coordinates_is_refused(tmp_path, bpy_present):
 def test_a_map_on_a_sphere_is_refused(tmp_path, bpy_present):
     """The reference and Mitsuba take a map on a sphere (its analytic tangents); this adapter builds a map's frame
     from a mesh's texture coordinates, which a sphere's icosphere does not carry."""
-    folder = tmp_path / "scene"
-    _plate_scene(folder, "", 'type = "normalmap"\nnormalmap = { texture = "map" }', np.full((4, 4, 3), 200))
-    text = (folder / "plate.toml").read_text(encoding="utf-8").replace('type = "rectangle"', 'type = "sphere"')
-    (folder / "plate.toml").write_text(text.replace("scale = 4.0\n", ""), encoding="utf-8")
-    _refused(tmp_path, load_scene(folder / "plate.toml"), None, "shapes[0] (plate)", "a normalmap on a sphere")
+    scene = _plate_scene(tmp_path / "scene", "", 'type = "normalmap"\nnormalmap = { texture = "map" }',
+                         np.full((4, 4, 3), 200), shape='type = "sphere"')
+    _refused(tmp_path, scene, None, "shapes[0] (plate)", "a normalmap on a sphere")
 
 
 def test_a_smooth_dielectric_is_refused(tmp_path, bpy_present):
