@@ -95,5 +95,33 @@ SPHERE_MUTANTS: dict[str, str] = {
     ),
 }
 
+# The cameras' (the lens and the orthographic rays of kernels/camera.py).
+CAMERA_MUTANTS: dict[str, str] = {
+    "lens-sampled-on-square": (
+        "the thin lens's aperture point drawn uniform on the square [-r, r]^2 instead of the disk of radius r (the "
+        "concentric map skipped): a square bokeh, out-of-focus light spread wider"
+    ),
+    "focus-along-ray": (
+        "the thin lens focused at the distance focus_distance along each pixel's ray (a sphere of focus) instead of "
+        "on the plane z = focus_distance along the camera's axis (Mitsuba's meaning)"
+    ),
+    "orthographic-origin-not-offset": (
+        "an orthographic ray starting at the camera's origin for every pixel instead of at the pixel's own point on "
+        "the near plane (the extent not applied to the origins)"
+    ),
+}
+
+# The thin dielectric's and the plastic's (kernels/bsdf.py).
+MATERIAL_MUTANTS: dict[str, str] = {
+    "thin-glass-refracts": (
+        "thindielectric's transmission bent as a refraction through one interface (the direction Snell's law gives) "
+        "instead of passing straight through the thin sheet"
+    ),
+    "plastic-no-internal-reflection": (
+        "plastic's diffuse base without its internal reflection: the 1 / (1 - F_dr) multiple-scattering term under "
+        "the coating dropped (Mitsuba's plastic, nonlinear = false)"
+    ),
+}
+
 ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS,
-                               **NORMAL_MUTANTS, **SPHERE_MUTANTS}
+                               **NORMAL_MUTANTS, **SPHERE_MUTANTS, **CAMERA_MUTANTS, **MATERIAL_MUTANTS}

@@ -91,6 +91,15 @@ MUTANT_BITS.update({"normals-not-renormalised": M_NORMALS_UNNORMALISED,
                     "bumpmap-scale-ignored": M_BUMP_SCALE_IGNORED})
 M_SPHERE_POINTS_THETA = 1 << 25  # the analytic spheres' light samples (kernels/direct.py planted_sphere_point)
 MUTANT_BITS["sphere-points-uniform-theta"] = M_SPHERE_POINTS_THETA
+# The cameras' planted faults (reference_impl/kernels/camera.py; reference_impl.mutants.CAMERA_MUTANTS).
+M_LENS_SQUARE, M_FOCUS_ALONG_RAY, M_ORTHO_ORIGIN_NOT_OFFSET = (1 << b for b in range(26, 29))
+MUTANT_BITS.update({"lens-sampled-on-square": M_LENS_SQUARE, "focus-along-ray": M_FOCUS_ALONG_RAY,
+                    "orthographic-origin-not-offset": M_ORTHO_ORIGIN_NOT_OFFSET})
+# The thin dielectric's and the plastic's planted faults (reference_impl/kernels/bsdf.py;
+# reference_impl.mutants.MATERIAL_MUTANTS).
+M_THIN_GLASS_REFRACTS, M_PLASTIC_NO_INTERNAL_REFLECTION = (1 << b for b in range(29, 31))
+MUTANT_BITS.update({"thin-glass-refracts": M_THIN_GLASS_REFRACTS,
+                    "plastic-no-internal-reflection": M_PLASTIC_NO_INTERNAL_REFLECTION})
 
 
 class KernelConfig(NamedTuple):
