@@ -1,8 +1,9 @@
 """The material table of the core: one row per material, as plain arrays the BSDF kernels read.
 
 Each material is a kind (:data:`DIFFUSE`, :data:`CONDUCTOR`, :data:`ROUGHCONDUCTOR`, :data:`DIELECTRIC`,
-:data:`ROUGHDIELECTRIC`, Mitsuba 3's plugins ``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
-``roughdielectric``) and a row of :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
+:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, Mitsuba 3's plugins ``diffuse``, ``conductor``,
+``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``) and a row of
+:data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
 The kernels of :mod:`reference_impl.kernels.bsdf` evaluate and sample them; the harness builds the table from the
 scene's ``[materials.NAME]`` in the order ``Geometry.material`` indexes.
 """
@@ -16,30 +17,36 @@ import numpy as np
 from reference_impl.errors import SettingsError
 from reference_impl.textures import Bitmap, Textures
 
-DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC = range(5)
+DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC, PLASTIC = range(7)
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
-              DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric"}
+              DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",
+              PLASTIC: "plastic"}
+#: The kinds that light crosses (the path loop's ``transmits``; no ``two_sided`` flag: both sides by nature).
+TRANSMITTING = (DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC)
 BECKMANN, GGX = 0, 1
 DISTRIBUTIONS = {"beckmann": BECKMANN, "ggx": GGX}
 
 # Columns of Materials.params.
-P_REFLECTANCE = 0  # 0-2: reflectance (diffuse) | specular_reflectance (the others)
+P_REFLECTANCE = 0  # 0-2: reflectance (diffuse) | specular_reflectance (the others, plastic's coating included)
 P_ETA = 3  # 3-5: conductor eta (real part of the complex index), per channel
 P_K = 6  # 6-8: conductor k (imaginary part)
-P_TRANSMITTANCE = 9  # 9-11: specular_transmittance (dielectrics)
+P_TRANSMITTANCE = 9  # 9-11: specular_transmittance (dielectrics, thindielectric)
 P_ALPHA = 12  # microfacet roughness (rough kinds)
 P_DISTRIBUTION = 13  # BECKMANN | GGX
 P_SAMPLE_VISIBLE = 14  # 1: visible-normal sampling, 0: sampling of D(m) cos(theta_m)
-P_IOR = 15  # dielectrics: eta = int_ior / ext_ior
-P_TWO_SIDED = 16  # 1: Mitsuba's twosided wrapper (diffuse and conductors only)
+P_IOR = 15  # dielectrics, thindielectric, plastic: eta = int_ior / ext_ior
+P_TWO_SIDED = 16  # 1: Mitsuba's twosided wrapper (diffuse, conductors and plastic only)
 P_MIRROR = 17  # 1: conductor with material = "none" (Fresnel = 1)
 P_PERTURB = 18  # PERTURB_NONE | PERTURB_NORMALMAP | PERTURB_BUMPMAP: Mitsuba's normalmap / bumpmap around the kind
 P_BUMP_SCALE = 19  # bumpmap: scale
 P_NORMAL = 20  # 20-22: normalmap: the tangent-space normal's texture value (rgb, n = 2 rgb - 1), at a hit the texture's
 P_FLIP_INVALID = 23  # normalmap, bumpmap: 1: flip_invalid_normals
 P_SHADOWING = 24  # normalmap, bumpmap: 1: use_shadowing_function (the shadow terminator)
-NUM_PARAMS = 26  # 25 spare
+P_DIFFUSE = 25  # 25-27: plastic's diffuse_reflectance
+P_NONLINEAR = 28  # plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff / (1 - F_dr)
+P_SPECULAR_WEIGHT = 29  # plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
+NUM_PARAMS = 30
 
 PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP = 0, 1, 2
 #: Mitsuba's plugin name of each perturbation.
@@ -49,7 +56,7 @@ PERTURB_NAMES = {PERTURB_NORMALMAP: "normalmap", PERTURB_BUMPMAP: "bumpmap"}
 #: in the order of the columns of ``Materials.texture``. The bump map's height (channels 0) is not written into the
 #: row: its gradient is looked up where the frame is perturbed (kernels/shading.py).
 TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1),
-                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0)}
+                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0), "diffuse": (P_DIFFUSE, 3)}
 NUM_SLOTS = len(TEXTURE_SLOTS)
 
 #: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
@@ -61,6 +68,11 @@ DEFAULT_SAMPLE_VISIBLE = True
 DEFAULT_INT_IOR = 1.5046
 DEFAULT_EXT_IOR = 1.000277
 DEFAULT_SPECULAR = (1.0, 1.0, 1.0)
+#: Mitsuba 3.9.1's plastic (src/bsdfs/plastic.cpp): int_ior "polypropylene" = 1.49, diffuse_reflectance 0.5,
+#: nonlinear false.
+PLASTIC_INT_IOR = 1.49
+DEFAULT_DIFFUSE = (0.5, 0.5, 0.5)
+DEFAULT_NONLINEAR = False
 MIRROR_ETA = (0.0, 0.0, 0.0)
 MIRROR_K = (1.0, 1.0, 1.0)
 
@@ -72,7 +84,7 @@ class Materials:
     Attributes
     ----------
     kind : (M,) int64
-        :data:`DIFFUSE` .. :data:`ROUGHDIELECTRIC`.
+        :data:`DIFFUSE` .. :data:`PLASTIC`.
     params : (M, NUM_PARAMS) float64
         The columns ``P_*`` of this module; columns a kind does not use are ignored (keep them 0).
     texture : (M, NUM_SLOTS) int64, optional
@@ -83,8 +95,10 @@ class Materials:
         The textures ``texture`` names.
 
     Validation (:class:`SettingsError` naming ``materials.kind`` or ``materials.params``): known kinds; finite
-    parameters; reflectances and transmittances in [0, 1]; alpha > 0 on rough kinds; eta > 0 on dielectrics (and != 1 on the rough one, as Mitsuba); k >= 0
-    on conductors; the distribution, sample_visible, two_sided and mirror flags 0 or 1; two_sided 0 on dielectrics.
+    parameters; reflectances and transmittances in [0, 1]; alpha > 0 on rough kinds; eta > 0 on dielectrics, the
+    thin dielectric and plastic (and != 1 on the rough one, as Mitsuba); k >= 0 on conductors; the distribution,
+    sample_visible, two_sided, mirror and nonlinear flags 0 or 1; two_sided 0 on the kinds light crosses; plastic's
+    diffuse_reflectance in [0, 1] and its specular sampling weight in (0, 1].
     """
 
     kind: np.ndarray
@@ -98,8 +112,8 @@ class Materials:
         if params.ndim != 2 or params.shape != (len(kind), NUM_PARAMS):
             raise SettingsError("materials.params", f"expected an array of shape ({len(kind)}, {NUM_PARAMS}), "
                                 f"got {params.shape}")
-        if np.any((kind < DIFFUSE) | (kind > ROUGHDIELECTRIC)):
-            raise SettingsError("materials.kind", f"expected kinds {DIFFUSE} .. {ROUGHDIELECTRIC} "
+        if np.any((kind < DIFFUSE) | (kind > PLASTIC)):
+            raise SettingsError("materials.kind", f"expected kinds {DIFFUSE} .. {PLASTIC} "
                                 f"({', '.join(KIND_NAMES.values())})")
         _check_params(kind, params)
         texture, textures = _check_textures(kind, self.texture, self.textures)
@@ -158,7 +172,7 @@ def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Te
         name = list(TEXTURE_SLOTS)[slot]
         top = textures.max_value(int(texture[m, slot]))
         where = f"materials.texture[{m}] ({KIND_NAMES[int(kind[m])]})"
-        if name in ("reflectance", "transmittance") and np.any(top > 1):
+        if name in ("reflectance", "transmittance", "diffuse") and np.any(top > 1):
             raise SettingsError(where, f"expected the texture of {name} in [0, 1], got values up to {top.max():g}")
         if name == "alpha":
             low, high = textures.scalar_range(int(texture[m, slot]))
@@ -207,15 +221,20 @@ def is_glossy(materials: Materials | None) -> bool:
 def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=MIRROR_K,
                  transmittance=DEFAULT_SPECULAR, alpha: float = DEFAULT_ALPHA,
                  distribution: int = DISTRIBUTIONS[DEFAULT_DISTRIBUTION],
-                 sample_visible: bool = DEFAULT_SAMPLE_VISIBLE, int_ior: float = DEFAULT_INT_IOR, ext_ior: float = DEFAULT_EXT_IOR,
+                 sample_visible: bool = DEFAULT_SAMPLE_VISIBLE, int_ior: float | None = None,
+                 ext_ior: float = DEFAULT_EXT_IOR,
                  two_sided: bool = False, mirror: bool = False, perturb: int = PERTURB_NONE, bump_scale: float = 1.0,
-                 flip_invalid_normals: bool = True, use_shadowing_function: bool = True) -> np.ndarray:
+                 flip_invalid_normals: bool = True, use_shadowing_function: bool = True, diffuse=DEFAULT_DIFFUSE,
+                 nonlinear: bool = DEFAULT_NONLINEAR, specular_sampling_weight: float | None = None) -> np.ndarray:
     """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
 
     ``reflectance`` is the diffuse albedo or the specular_reflectance; ``eta``, ``k`` the conductor's complex index
     (Mitsuba's default without a named material is eta = 0, k = 1: Fresnel = 1); ``int_ior / ext_ior`` becomes
     :data:`P_IOR`. ``perturb``, ``bump_scale``, ``flip_invalid_normals``, ``use_shadowing_function``: Mitsuba's
     ``normalmap`` or ``bumpmap`` around the kind (its normal map's value is the texture's, at each hit).
+    ``diffuse``, ``nonlinear``: plastic's diffuse_reflectance and nonlinear; ``specular_sampling_weight`` its
+    probability weight of the specular lobe, by default :func:`plastic_sampling_weight` of ``reflectance`` and
+    ``diffuse`` (a textured parameter's mean is the harness's to give).
     """
     row = np.zeros(NUM_PARAMS)
     row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), 3)
@@ -225,6 +244,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_ALPHA] = alpha
     row[P_DISTRIBUTION] = distribution
     row[P_SAMPLE_VISIBLE] = bool(sample_visible)
+    if int_ior is None:  # Mitsuba's default: bk7, polypropylene for plastic
+        int_ior = PLASTIC_INT_IOR if kind == PLASTIC else DEFAULT_INT_IOR
     row[P_IOR] = int_ior / ext_ior
     row[P_TWO_SIDED] = bool(two_sided)
     row[P_MIRROR] = bool(mirror)
@@ -233,7 +254,36 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_NORMAL:P_NORMAL + 3] = (0.5, 0.5, 1.0)  # n = (0, 0, 1): the frame unperturbed
     row[P_FLIP_INVALID] = bool(flip_invalid_normals)
     row[P_SHADOWING] = bool(use_shadowing_function)
+    if kind == PLASTIC:  # the other kinds keep the plastic's columns 0
+        row[P_DIFFUSE:P_DIFFUSE + 3] = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), 3)
+        row[P_NONLINEAR] = bool(nonlinear)
+        if specular_sampling_weight is None:
+            specular_sampling_weight = plastic_sampling_weight(np.mean(row[P_REFLECTANCE:P_REFLECTANCE + 3]),
+                                                               np.mean(row[P_DIFFUSE:P_DIFFUSE + 3]))
+        row[P_SPECULAR_WEIGHT] = specular_sampling_weight
     return row
+
+
+def fresnel_diffuse_reflectance(eta: float) -> float:
+    """The diffuse Fresnel reflectance F_dr of a dielectric interface of relative index ``eta`` (the fraction of
+    uniformly diffuse light it reflects), Mitsuba 3.9.1's fit (include/mitsuba/render/fresnel.h,
+    ``fresnel_diffuse_reflectance``): for eta < 1 Egan and Hilgeman's (1973)
+    F_dr = -1.4399 eta^2 + 0.7099 eta + 0.6681 + 0.0636 / eta, else d'Eon and Irving's (2011)
+    F_dr = 0.919317 - 3.4793 x + 6.75335 x^2 - 7.80989 x^3 + 4.98554 x^4 - 1.36881 x^5, x = 1 / eta.
+    Plastic's base sees F_dr(1 / eta) from inside its coating."""
+    if eta < 1.0:
+        return 0.0636 / eta + eta * (eta * -1.4399 + 0.7099) + 0.6681
+    x = 1.0 / eta
+    return 0.919317 + x * (-3.4793 + x * (6.75335 + x * (-7.80989 + x * (4.98554 + x * -1.36881))))
+
+
+def plastic_sampling_weight(specular_mean: float, diffuse_mean: float) -> float:
+    """Plastic's weight of its specular lobe in the choice of lobe: s_mean / (d_mean + s_mean), the means of
+    specular_reflectance and diffuse_reflectance over their channels (a texture's over its texels), as Mitsuba
+    3.9.1's ``SmoothPlastic::parameters_changed`` (src/bsdfs/plastic.cpp); 1/2 where both are 0 (a black
+    material, which Mitsuba leaves undefined)."""
+    total = float(specular_mean) + float(diffuse_mean)
+    return float(specular_mean) / total if total > 0 else 0.5
 
 
 def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
@@ -271,3 +321,36 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
                                     "index-matched interface; use a dielectric)")
             if row[P_TWO_SIDED]:
                 raise SettingsError(name, "two_sided does not apply to dielectrics")
+        if kd == THINDIELECTRIC:
+            _check_thin(name, row)
+        if kd == PLASTIC:
+            _check_plastic(name, row)
+
+
+def _check_thin(name: str, row: np.ndarray) -> None:
+    """The thin dielectric's columns: transmittance in [0, 1], eta > 0, not two-sided (both sides by nature)."""
+    trans = row[P_TRANSMITTANCE:P_TRANSMITTANCE + 3]
+    if np.any(trans < 0) or np.any(trans > 1):
+        raise SettingsError(name, "expected the specular_transmittance in [0, 1]")
+    if not row[P_IOR] > 0:
+        raise SettingsError(name, f"expected eta = int_ior / ext_ior > 0, got {row[P_IOR]!r}")
+    if row[P_TWO_SIDED]:
+        raise SettingsError(name, "two_sided does not apply to a thindielectric (it is two-sided by nature)")
+
+
+def _check_plastic(name: str, row: np.ndarray) -> None:
+    """Plastic's columns: diffuse_reflectance in [0, 1], eta > 0, the nonlinear flag 0 or 1, the specular sampling
+    weight in [0, 1]."""
+    diffuse = row[P_DIFFUSE:P_DIFFUSE + 3]
+    if np.any(diffuse < 0) or np.any(diffuse > 1):
+        raise SettingsError(name, "expected the diffuse_reflectance in [0, 1]")
+    if not row[P_IOR] > 0:
+        raise SettingsError(name, f"expected eta = int_ior / ext_ior > 0, got {row[P_IOR]!r}")
+    fdr = fresnel_diffuse_reflectance(1.0 / row[P_IOR])
+    if not 0.0 <= fdr < 1.0:
+        raise SettingsError(name, f"expected eta = int_ior / ext_ior whose internal diffuse Fresnel reflectance "
+                                  f"F_dr(1 / eta) is in [0, 1) (Mitsuba's fit), got eta {row[P_IOR]!r}, F_dr {fdr:.4g}")
+    if row[P_NONLINEAR] not in (0.0, 1.0):
+        raise SettingsError(name, f"expected nonlinear 0 or 1, got {row[P_NONLINEAR]!r}")
+    if not 0.0 <= row[P_SPECULAR_WEIGHT] <= 1.0:
+        raise SettingsError(name, f"expected the specular sampling weight in [0, 1], got {row[P_SPECULAR_WEIGHT]!r}")

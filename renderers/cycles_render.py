@@ -406,7 +406,84 @@ def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = No
         socket(node, "IOR").default_value = float(spec["int_ior"]) / float(spec["ext_ior"])
         socket(node, "Roughness").default_value = math.sqrt(float(spec.get("alpha", 0.0)))
         return node
+    if kind == "thindielectric":
+        return thin_sheet_node(tree, spec, where, textures)
+    if kind == "plastic":
+        return plastic_node(tree, spec, where)
     raise SceneError(f"{where}.type = {kind!r}: not a material this adapter maps to Cycles")
+
+
+def thin_sheet_node(tree, spec: dict, where: str, textures: "TextureNodes | None"):
+    """Mitsuba's thindielectric: a Mix shader of a mirror (Glossy, roughness 0, colour specular_reflectance) and a
+    Transparent BSDF (colour specular_transmittance; light straight through) by R' = 2 F / (1 + F), F the Fresnel
+    node's reflectance of eta = int_ior / ext_ior on either side (its IOR input is 1 / eta on a back face, where the
+    node inverts it). Exact: R' per shading point as Mitsuba's, both lobes deltas (docs/cycles.md)."""
+    nodes, links = tree.nodes, tree.links
+    eta = float(spec["int_ior"]) / float(spec["ext_ior"])
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    fresnel = nodes.new("ShaderNodeFresnel")
+    links.new(math_node(tree, "ADD", eta, math_node(tree, "MULTIPLY", geometry.outputs["Backfacing"], 1.0 / eta - eta)),
+              socket(fresnel, "IOR"))
+    f = fresnel.outputs[0]
+    r = math_node(tree, "DIVIDE", math_node(tree, "MULTIPLY", f, 2.0), math_node(tree, "ADD", f, 1.0))
+    mirror = nodes.new("ShaderNodeBsdfGlossy")
+    socket(mirror, "Roughness").default_value = 0.0
+    set_colour(tree, mirror, "Color", spec["specular_reflectance"], textures, f"{where}.specular_reflectance")
+    through = nodes.new("ShaderNodeBsdfTransparent")
+    set_colour(tree, through, "Color", spec["specular_transmittance"], textures, f"{where}.specular_transmittance")
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(r, mix.inputs[0])
+    links.new(through.outputs[0], mix.inputs[1])
+    links.new(mirror.outputs[0], mix.inputs[2])
+    return mix
+
+
+def fresnel_diffuse_reflectance(eta: float) -> float:
+    """Mitsuba 3.9.1's F_dr(eta) (fresnel.h ``fresnel_diffuse_reflectance``): Egan and Hilgeman's fit for eta < 1,
+    d'Eon and Irving's for eta >= 1 (reference_impl.materials has the same; this script imports nothing of the
+    project)."""
+    if eta < 1.0:
+        return 0.0636 / eta + eta * (eta * -1.4399 + 0.7099) + 0.6681
+    x = 1.0 / eta
+    return 0.919317 + x * (-3.4793 + x * (6.75335 + x * (-7.80989 + x * (4.98554 + x * -1.36881))))
+
+
+def plastic_diffuse_colour(spec: dict) -> list[float]:
+    """The Diffuse BSDF colour of :func:`plastic_node`: Mitsuba's diff = rho / (1 - F_dr(1 / eta)) (nonlinear: rho /
+    (1 - rho F_dr(1 / eta))) times (1 - F_dr(eta)) / eta^2, the cosine-weighted mean over the light's directions of
+    Mitsuba's (1 - F(cos theta_i)) / eta^2."""
+    eta = float(spec["int_ior"]) / float(spec["ext_ior"])
+    fdr_int, fdr_ext = fresnel_diffuse_reflectance(1.0 / eta), fresnel_diffuse_reflectance(eta)
+    out = []
+    for rho in spec["diffuse_reflectance"]:
+        diff = rho / (1.0 - (rho * fdr_int if spec["nonlinear"] else fdr_int))
+        out.append(diff * (1.0 - fdr_ext) / (eta * eta))
+    return out
+
+
+def plastic_node(tree, spec: dict, where: str):
+    """Mitsuba's plastic, approximately: a Mix shader of a Diffuse BSDF (:func:`plastic_diffuse_colour`) and a mirror
+    (Glossy, roughness 0, colour specular_reflectance) by the Fresnel node's F(cos theta_o) of eta. Exact for the
+    coating's reflection and the diffuse part's (1 - F(cos theta_o)); Mitsuba's (1 - F(cos theta_i)) on the light's
+    side is replaced by its cosine-weighted mean 1 - F_dr(eta) (docs/cycles.md). Textured parameters are refused."""
+    for item in ("diffuse_reflectance", "specular_reflectance"):
+        if isinstance(spec[item], dict):
+            raise SceneError(f"{where}.{item} = texture {spec[item].get('texture')!r}: a textured plastic is not "
+                             "mapped to Cycles (its diffuse colour is a non-linear function of the texture)")
+    nodes, links = tree.nodes, tree.links
+    fresnel = nodes.new("ShaderNodeFresnel")
+    socket(fresnel, "IOR").default_value = float(spec["int_ior"]) / float(spec["ext_ior"])
+    base = nodes.new("ShaderNodeBsdfDiffuse")
+    socket(base, "Color").default_value = (*plastic_diffuse_colour(spec), 1.0)
+    socket(base, "Roughness").default_value = 0.0
+    coat = nodes.new("ShaderNodeBsdfGlossy")
+    socket(coat, "Roughness").default_value = 0.0
+    socket(coat, "Color").default_value = (*spec["specular_reflectance"], 1.0)
+    mix = nodes.new("ShaderNodeMixShader")
+    links.new(fresnel.outputs[0], mix.inputs[0])
+    links.new(base.outputs[0], mix.inputs[1])
+    links.new(coat.outputs[0], mix.inputs[2])
+    return mix
 
 
 def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str,
@@ -427,13 +504,14 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
     if spec["type"] in PERTURBED:
         surface, black_where = perturbed_bsdf(tree, spec, where, textures)
         return masked_material(mat, tree, surface, black_where, emission, scale, textures, shape_where)
-    if smooth and not (sphere and spec["type"] in ("dielectric", "roughdielectric")):
+    if smooth and not (sphere and spec["type"] in ("dielectric", "roughdielectric", "thindielectric")):
         surface, black_where = smooth_bsdf(tree, spec, where, textures)
         return masked_material(mat, tree, surface, black_where, emission, scale, textures, shape_where)
     output = nodes.new("ShaderNodeOutputMaterial")
     geometry = nodes.new("ShaderNodeNewGeometry")
     surface = bsdf_node(tree, spec, where, textures).outputs[0]
-    two_sided = spec["type"] in ("dielectric", "roughdielectric") or bool(spec.get("two_sided", False))
+    two_sided = spec["type"] in ("dielectric", "roughdielectric", "thindielectric") or bool(spec.get("two_sided",
+                                                                                                      False))
     glow = emission_node(tree, emission, scale, textures, shape_where)
     if glow is not None:
         add = nodes.new("ShaderNodeAddShader")
@@ -879,6 +957,9 @@ def smooth_bsdf(tree, spec: dict, where: str, textures: "TextureNodes | None"):
     wi . n_s <= 0 (Mitsuba's diffuse and conductors need cos theta_i > 0; Cycles' diffuse never looks at wi, and
     takes the turned N on a back face), n_s on its Normal input. Two-sided (Mitsuba's twosided): the side of n_s
     that wi is on. A dielectric is refused: Cycles' Glass BSDF takes inside and outside from the triangle's side."""
+    if spec["type"] in ("thindielectric", "plastic"):
+        raise SceneError(f"{where}.type = {spec['type']!r} on a smooth-shaded shape (or under a normal or bump map): "
+                         "not mapped to Cycles (its Mix shader has no Normal input to take the shading normal)")
     if spec["type"] in ("dielectric", "roughdielectric"):
         raise SceneError(f"{where}.type = {spec['type']!r} on a smooth-shaded shape: Cycles' Glass BSDF takes "
                          "inside and outside from the triangle's side, Mitsuba's dielectric from the shading "

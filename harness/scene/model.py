@@ -14,8 +14,9 @@ import numpy as np
 
 from reference_impl.camera import Camera, Film
 from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DEFAULT_SCALE
-from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
-                                      DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR, MIRROR_ETA, MIRROR_K)
+from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR,
+                                      DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR,
+                                      MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
 from reference_impl import textures as core_textures
 from reference_impl.textures import Texture as CoreTexture
@@ -85,9 +86,10 @@ class Texture:
         return tuple(float(c) for c in self.core.values().max(axis=0))
 
 
-MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric")  # Mitsuba's plugins
+MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
+                  "plastic")  # Mitsuba's plugins
 CONDUCTOR_TYPES = ("conductor", "roughconductor")
-DIELECTRIC_TYPES = ("dielectric", "roughdielectric")
+DIELECTRIC_TYPES = ("dielectric", "roughdielectric", "thindielectric")  # int_ior, ext_ior, specular_transmittance
 ROUGH_TYPES = ("roughconductor", "roughdielectric")
 DISTRIBUTIONS = tuple(CORE_DISTRIBUTIONS)  # Mitsuba's microfacet distributions
 # The defaults of the fields below are the core's (reference_impl.materials, reference_impl.emitters): Mitsuba's.
@@ -117,12 +119,14 @@ class Material:
 
     ``type = "diffuse"`` (the default): a Lambertian BRDF f_r = reflectance / pi (Mitsuba's ``diffuse``);
     ``two_sided = False`` reflects on the front side of a surface only (the back side is black), like Mitsuba's
-    BSDFs; ``True`` reflects on both sides (Mitsuba's ``twosided`` wrapper). Conductors take the same meaning of
-    ``two_sided``; dielectrics have no ``two_sided`` (light crosses them from either side).
+    BSDFs; ``True`` reflects on both sides (Mitsuba's ``twosided`` wrapper). Conductors and plastic take the same
+    meaning of ``two_sided``; dielectrics (the thin one too) have no ``two_sided`` (light crosses them from either
+    side).
 
     The fields of the other types keep Mitsuba's defaults where a type does not use them. ``reflectance`` of a
     non-diffuse material is a per-channel bound of what one bounce keeps: ``specular_reflectance`` for conductors
-    (Fresnel <= 1), the larger of ``specular_reflectance`` and ``specular_transmittance`` for dielectrics.
+    (Fresnel <= 1), the larger of ``specular_reflectance`` and ``specular_transmittance`` for dielectrics, the
+    larger of ``specular_reflectance`` and ``diffuse_reflectance`` for plastic (each part keeps at most its own).
     """
 
     name: str
@@ -138,6 +142,8 @@ class Material:
     sample_visible: bool = DEFAULT_SAMPLE_VISIBLE  # rough types: sample the visible normals
     int_ior: float = DEFAULT_INT_IOR  # dielectrics: the index inside (behind the front side)
     ext_ior: float = DEFAULT_EXT_IOR  # dielectrics: the index outside (on the front side)
+    diffuse_reflectance: Vector3 = DEFAULT_DIFFUSE  # plastic: the albedo of the base under the coating
+    nonlinear: bool = DEFAULT_NONLINEAR  # plastic: the base's internal reflections tinted by its own colour
     # (parameter, texture) of every parameter a texture drives, in the order of the type's keys; the parameter's own
     # field then holds the texture's largest value (a bound of what one bounce keeps)
     textures: tuple[tuple[str, Texture], ...] = ()

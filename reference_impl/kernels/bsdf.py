@@ -1,8 +1,8 @@
 r"""BSDF kernels: evaluation, pdf and sampling of the materials of :mod:`reference_impl.materials`.
 
 The physics is Mitsuba 3.9.1's (src/bsdfs/diffuse.cpp, conductor.cpp, roughconductor.cpp, dielectric.cpp,
-roughdielectric.cpp, twosided.cpp; include/mitsuba/render/microfacet.h, fresnel.h), written afresh for scalars in
-numba. Everything is in the LOCAL frame of the surface: z is the triangle's front geometric normal (never flipped
+roughdielectric.cpp, thindielectric.cpp, plastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
+fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the triangle's front geometric normal (never flipped
 by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
 radiance mode (transmission carries the ``1 / eta^2`` solid-angle compression of radiance).
@@ -22,10 +22,26 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
                      f |cos| = T (1 - F) D G |wo.h| |wi.h| / (|cos theta_o| (wo.h + eta wi.h)^2), the
                      generalised half vector h = -(wo + eta wi) (Walter et al. 2007, eqs. 16 and 21, with the
                      radiance scaling 1 / eta^2 of Mitsuba), lobe chosen with probability F(wo.h)
+    thindielectric   a sheet of two parallel interfaces, both sides alike: with R' = 2 F / (1 + F), F = F(|cos theta_o|)
+                     (the sum R + T^2 R + T^2 R^3 + ... of the reflections inside the sheet, T = 1 - F),
+                     delta reflection (-wo_x, -wo_y, wo_z) with probability R' (weight R), or delta transmission
+                     straight through, wi = -wo, with 1 - R' (weight T; no eta^2: the ray leaves into the medium it
+                     came from, Mitsuba's bs.eta = 1)
+    plastic          a smooth dielectric coating (Fresnel F) over a Lambertian base, one-sided (or inside Mitsuba's
+                     twosided): delta reflection (-wo_x, -wo_y, wo_z) with weight R F(cos theta_o) / P_s, and the
+                     diffuse part f |cos| = (1 - F(cos theta_o)) (1 - F(cos theta_i)) / eta^2 diff / pi cos theta_i,
+                     diff = rho / (1 - F_dr) (nonlinear = false) or rho / (1 - rho F_dr) (nonlinear = true),
+                     F_dr = F_dr(1 / eta) the base's internal diffuse reflectance (rho = diffuse_reflectance);
+                     lobe chosen with P_s = F w / (F w + (1 - F)(1 - w)), F = F(cos theta_o), w the specular
+                     sampling weight s_mean / (s_mean + d_mean) (the channel means of R and rho); the diffuse lobe
+                     cosine-weighted, pdf (1 - P_s) cos theta_i / pi
 
     F_c            unpolarised Fresnel reflectance of a conductor with complex index eta + i k (fresnel.h's
                    ``fresnel_conductor``, after K. D. Moeller, "Optics", 1988); 1 for ``material = "none"``
     F              exact unpolarised dielectric Fresnel reflectance (fresnel.h's ``fresnel``)
+    F_dr(eta)      diffuse Fresnel reflectance, fresnel.h's ``fresnel_diffuse_reflectance``: for eta < 1 Egan &
+                   Hilgeman's fit -1.4399 eta^2 + 0.7099 eta + 0.6681 + 0.0636 / eta (1973), else d'Eon & Irving's
+                   quintic in 1 / eta (2011)
     D              Beckmann exp(-tan^2 theta_h / alpha^2) / (pi alpha^2 cos^4 theta_h) or GGX
                    1 / (pi alpha^2 cos^4 theta_h (1 + tan^2 theta_h / alpha^2)^2)
     G1             Smith's masking: GGX 2 / (1 + sqrt(1 + alpha^2 tan^2 theta)); Beckmann Mitsuba's rational fit
@@ -53,12 +69,16 @@ Where this differs from Mitsuba on purpose
   Mitsuba's ``eval``.
 * The rough dielectric with sample_visible = 0 weighs its samples by eval / pdf (the ratio D / D_scaled of Walter's
   trick included); Mitsuba's weight omits that ratio.
-* The lobe of a dielectric is reflection when u_lobe < F (Mitsuba: <=), so a lobe of probability 0 is never chosen.
+* The lobe of a dielectric and of a thin dielectric is reflection when u_lobe < F (Mitsuba: <=), so a lobe of
+  probability 0 is never chosen.
+* Plastic's lobe choice where F w + (1 - F)(1 - w) = 0 (eta = 1 and a black base) is the diffuse lobe (Mitsuba:
+  0 / 0); the diffuse lobe is cosine-weighted whatever ``hemisphere`` says (that setting is the diffuse kind's).
 * The Beckmann slope inversion runs Newton's method to convergence in double precision (Mitsuba: 3 steps in
   single precision).
 
 Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each place marked by a comment:
-"microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared".
+"microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared",
+"thin-glass-refracts", "plastic-no-internal-reflection".
 """
 
 from __future__ import annotations
@@ -69,13 +89,16 @@ import numpy as np
 from numba import njit
 
 from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCTOR_FRESNEL_ONE,
-                                           M_MICROFACET_PDF_NO_JACOBIAN, M_REFRACTION_NO_ETA2, M_VNDF_ALPHA_SQUARED)
+                                           M_MICROFACET_PDF_NO_JACOBIAN, M_PLASTIC_NO_INTERNAL_REFLECTION,
+                                           M_REFRACTION_NO_ETA2, M_THIN_GLASS_REFRACTS, M_VNDF_ALPHA_SQUARED)
 from reference_impl.kernels.material import material_params
 from reference_impl.kernels.records import material_tables
 from reference_impl.kernels.warps import cosine_hemisphere, uniform_hemisphere
-from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_DISTRIBUTION,
-                                      P_ETA, P_IOR, P_K, P_MIRROR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_TRANSMITTANCE,
-                                      P_TWO_SIDED, ROUGHCONDUCTOR, ROUGHDIELECTRIC)
+from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_DIFFUSE,
+                                      P_DISTRIBUTION, P_ETA, P_IOR, P_K, P_MIRROR, P_NONLINEAR, P_REFLECTANCE,
+                                      P_SAMPLE_VISIBLE, P_SPECULAR_WEIGHT, P_TRANSMITTANCE, P_TWO_SIDED, PLASTIC,
+                                      ROUGHCONDUCTOR, ROUGHDIELECTRIC, THINDIELECTRIC)
+from reference_impl.materials import fresnel_diffuse_reflectance as _fresnel_diffuse_reflectance
 
 INV_PI = 1.0 / np.pi
 INV_2PI = 0.5 / np.pi
@@ -136,6 +159,11 @@ def fresnel_conductor(cos_theta_i, eta, k):
     # eta = k = 0 at normal incidence leaves 0 / 0 (no physical conductor): take r_p = r_s there
     r_p = r_s * (term3 - term4) / (term3 + term4) if term3 + term4 > 0.0 else r_s
     return 0.5 * (r_s + r_p)
+
+
+#: F_dr(eta), compiled (reference_impl.materials.fresnel_diffuse_reflectance: the one formula, which the table's
+#: validation also reads).
+fresnel_diffuse_reflectance = njit(**JIT)(_fresnel_diffuse_reflectance)
 
 
 @njit(**JIT_NONRT)
@@ -461,10 +489,101 @@ def _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz):
     return p * (1.0 - f) * abs(eta * eta * wi_h / (denom * denom))
 
 
+@njit(**JIT_NONRT)
+def _thin_reflectance(row, cos_theta_o):
+    """The thin dielectric's reflectance R' = 2 F / (1 + F), F = F(|cos theta_o|, eta): the light that the two
+    interfaces of the sheet reflect in all, F + (1 - F)^2 F + (1 - F)^2 F^3 + ... (thindielectric.cpp)."""
+    r = fresnel_dielectric(abs(cos_theta_o), row[P_IOR])[0]
+    return 2.0 * r / (1.0 + r)
+
+
+@njit(**JIT_NONRT)
+def _thin_sample(row, mutant, wox, woy, woz, u_lobe):
+    """The thin dielectric's sample (both lobes delta): reflection with probability R' (weight R), else straight
+    through, wi = -wo (weight T)."""
+    if woz == 0.0:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    r = _thin_reflectance(row, woz)
+    if u_lobe < r:
+        return (True, -wox, -woy, woz, row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2], r,
+                True)
+    wix, wiy, wiz = -wox, -woy, -woz
+    if mutant & M_THIN_GLASS_REFRACTS:  # mutant "thin-glass-refracts": bent by Snell's law at one interface
+        _f, cos_t, _eta_it, eta_ti = fresnel_dielectric(abs(woz), row[P_IOR])
+        wix, wiy, wiz = -eta_ti * wox, -eta_ti * woy, cos_t if woz > 0.0 else -cos_t
+    return (True, wix, wiy, wiz, row[P_TRANSMITTANCE], row[P_TRANSMITTANCE + 1], row[P_TRANSMITTANCE + 2],
+            1.0 - r, True)
+
+
+@njit(**JIT_NONRT)
+def _plastic_prob_specular(row, f_o):
+    """Plastic's probability of its specular lobe, P_s = F w / (F w + (1 - F)(1 - w)), F = F(cos theta_o), w the
+    specular sampling weight (plastic.cpp); 0 where the denominator is 0."""
+    w = row[P_SPECULAR_WEIGHT]
+    ps = f_o * w
+    total = ps + (1.0 - f_o) * (1.0 - w)
+    return ps / total if total > 0.0 else 0.0
+
+
+@njit(**JIT_NONRT)
+def _plastic_diffuse(row, mutant, c):
+    """diff of channel ``c``: rho / (1 - F_dr) or, nonlinear, rho / (1 - rho F_dr), F_dr = F_dr(1 / eta) (the light
+    that the coating reflects back onto the base, over and over); rho under "plastic-no-internal-reflection"."""
+    rho = row[P_DIFFUSE + c]
+    if mutant & M_PLASTIC_NO_INTERNAL_REFLECTION:  # mutant "plastic-no-internal-reflection": no 1 / (1 - F_dr)
+        return rho
+    fdr = fresnel_diffuse_reflectance(1.0 / row[P_IOR])
+    return rho / (1.0 - (rho * fdr if row[P_NONLINEAR] != 0.0 else fdr))
+
+
+@njit(**JIT_NONRT)
+def _plastic_eval(row, mutant, woz, wiz):
+    """Plastic's diffuse part for wo, wi above (woz, wiz > 0): (1 - F(cos theta_o)) (1 - F(cos theta_i)) / eta^2
+    diff / pi cos theta_i, per channel."""
+    if woz <= 0.0 or wiz <= 0.0:
+        return 0.0, 0.0, 0.0
+    eta = row[P_IOR]
+    v = ((1.0 - fresnel_dielectric(woz, eta)[0]) * (1.0 - fresnel_dielectric(wiz, eta)[0]) / (eta * eta)
+         * wiz * INV_PI)
+    return (v * _plastic_diffuse(row, mutant, 0), v * _plastic_diffuse(row, mutant, 1),
+            v * _plastic_diffuse(row, mutant, 2))
+
+
+@njit(**JIT_NONRT)
+def _plastic_pdf(row, woz, wiz):
+    """The diffuse lobe's density for wo, wi above: (1 - P_s) cos theta_i / pi."""
+    if woz <= 0.0 or wiz <= 0.0:
+        return 0.0
+    return (1.0 - _plastic_prob_specular(row, fresnel_dielectric(woz, row[P_IOR])[0])) * wiz * INV_PI
+
+
+@njit(**JIT_NONRT)
+def _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
+    """Plastic's sample: the specular lobe with probability P_s (delta, weight R F / P_s), else the diffuse lobe
+    cosine-weighted (weight f |cos| / pdf); wo behind a one-sided plastic samples nothing."""
+    ok, sgn = _side(row, woz, 0.0)
+    if not ok:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    woz = sgn * woz
+    f_o = fresnel_dielectric(woz, row[P_IOR])[0]
+    ps = _plastic_prob_specular(row, f_o)
+    if u_lobe < ps:
+        c = f_o / ps
+        return (True, -wox, -woy, sgn * woz, c * row[P_REFLECTANCE], c * row[P_REFLECTANCE + 1],
+                c * row[P_REFLECTANCE + 2], ps, True)
+    lx, ly, lz = cosine_hemisphere(u1, u2)
+    p = (1.0 - ps) * lz * INV_PI
+    if not (lz > 0.0 and p > 0.0):
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    v0, v1, v2 = _plastic_eval(row, mutant, woz, lz)
+    return True, lx, ly, sgn * lz, v0 / p, v1 / p, v2 / p, p, False
+
+
 @njit(**JIT_BORROW)
 def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
     """f(wo, wi) |cos theta_i| of a material of ``kind`` with the parameters ``row`` at the hit (the material
-    step's, :func:`.material.material_at`), per channel (v0, v1, v2); 0 for delta BSDFs and impossible pairs.
+    step's, :func:`.material.material_at`), per channel (v0, v1, v2); 0 for delta BSDFs (and delta lobes) and
+    impossible pairs.
     Directions local (z = the front normal)."""
     if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
         ok, sgn = _side(row, woz, wiz)
@@ -479,6 +598,11 @@ def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
         return _roughconductor_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
     if kind == ROUGHDIELECTRIC:
         return _roughdielectric_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
+    if kind == PLASTIC:
+        ok, sgn = _side(row, woz, wiz)
+        if not ok:
+            return 0.0, 0.0, 0.0
+        return _plastic_eval(row, mutant, sgn * woz, sgn * wiz)
     return 0.0, 0.0, 0.0
 
 
@@ -498,19 +622,26 @@ def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz):
         return _roughconductor_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
     if kind == ROUGHDIELECTRIC:
         return _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
+    if kind == PLASTIC:
+        ok, sgn = _side(row, woz, wiz)
+        if not ok:
+            return 0.0
+        return _plastic_pdf(row, sgn * woz, sgn * wiz)
     return 0.0
 
 
 @njit(**JIT)
 def is_delta(kind):
-    """True for the kinds whose every lobe is a Dirac delta (conductor, dielectric)."""
-    return kind == CONDUCTOR or kind == DIELECTRIC
+    """True for the kinds whose every lobe is a Dirac delta (conductor, dielectric, thin dielectric; plastic has a
+    diffuse lobe too: light is sampled at it, and its samples say which lobe they are off)."""
+    return kind == CONDUCTOR or kind == DIELECTRIC or kind == THINDIELECTRIC
 
 
 @njit(**JIT_BORROW)
 def sample_eta(kind, row, woz, wiz):
     """The relative index of refraction of a sampled (wo, wi) in the direction of travel (Mitsuba's ``bs.eta``, for
-    the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1."""
+    the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1 (the thin dielectric's
+    straight-through light leaves into the medium it came from)."""
     if (kind == DIELECTRIC or kind == ROUGHDIELECTRIC) and woz * wiz < 0.0:
         eta = row[P_IOR]
         return eta if woz > 0.0 else 1.0 / eta
@@ -599,6 +730,10 @@ def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u
         if not (p > 0.0) or (v0 == 0.0 and v1 == 0.0 and v2 == 0.0):
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         return True, wix, wiy, wiz, v0 / p, v1 / p, v2 / p, p, False
+    if kind == THINDIELECTRIC:
+        return _thin_sample(row, mutant, wox, woy, woz, u_lobe)
+    if kind == PLASTIC:
+        return _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
     return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
 
 

@@ -73,8 +73,8 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead
 from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map
 from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
-from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED,
-                                      ROUGHDIELECTRIC)
+from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED, PLASTIC,
+                                      ROUGHDIELECTRIC, THINDIELECTRIC)
 from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
                                 DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
 
@@ -274,8 +274,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     # the first hits' BSDF and roulette points are computed ahead only where a first hit's next ray can be drawn
     # without a delta lobe (else the few a delta material draws come from their seeds: the same points)
     next_ray_drawn = finds_emission or max_depth == -1 or max_depth >= 3
-    # the (lobe, roulette) pair only where a first hit reads it: a lobe of a glossy scene's dielectric, or roulette
-    # played at the first hit
+    # the (lobe, roulette) pair only where a first hit reads it: a lobe of a glossy scene's dielectric or plastic, or
+    # roulette played at the first hit
     first_roulette = cfg.rr != RR_OFF and cfg.rr_depth <= 1
     lobe_roulette_drawn = first_roulette
     if other_kinds is not None:
@@ -375,7 +375,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             kind = material_at(materials, hit, row, mutant)  # the material step: the BSDF's kind and parameters at x
             if other_kinds is None:
                 kind = DIFFUSE  # what the table says, known to the compiler
-            transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC
+            transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == THINDIELECTRIC
+            lobed = transmits or kind == PLASTIC  # the kinds that choose a lobe read u_lobe
             if not (cos_out > 0 or row[P_TWO_SIDED] != 0 or transmits):
                 count_back_face += 1  # the back of a one-sided surface: black
                 break
@@ -406,10 +407,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if sob:
                     bu1, bu2 = pair_point(held_point(fh.bsdf, bx, by, held.bsdf, si), si)
                     u_lobe, u_rr = 0.0, -1.0
-                    if transmits or first_roulette:  # only they read the pair
+                    if lobed or first_roulette:  # only they read the pair
                         u_lobe, u_rr = pair_point(held_point(fh.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
                 else:
-                    u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0)) if transmits else 0.0  # only they read it
+                    u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0)) if lobed else 0.0  # only they read it
                     bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                     bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
                     u_rr = -1.0  # drawn by next_ray only where roulette is played

@@ -608,7 +608,7 @@ SCENE_BAD = {  # a value certainly refused at this key
     ("integrator", "max_depth"): [0, -2, 1.5, "3", 10**30, True],
     ("material", "reflectance"): [[1.2, 0, 0], [-0.1, 0, 0], [NAN, 0.5, 0.5], [0.5, 0.5], "x", [INF, 0, 0]],
     ("material", "two_sided"): ["yes", 1],
-    ("material", "type"): ["plastic", "", 1, "Diffuse", ["diffuse"], "twosided"],
+    ("material", "type"): ["velvet", "", 1, "Diffuse", ["diffuse"], "twosided"],
     ("shape", "emission"): [[-1, 1, 1], [INF, 1, 1], [NAN, 1, 1], [1e308, 1, 1], [0, 0, 0], [1, 1], "x"],
     ("shape", "scale"): [0, [1, 0, 1], NAN, "2", [1, 1], INF],
     ("shape", "type"): ["cylinder", "", 1],

@@ -105,7 +105,7 @@ BAD_SCENES = {
                      "shapes[0].emission", "finite"),
     "reflectance-above-1": (lambda s: s.replace("0.8, 0.8, 0.8", "1.2, 0.8, 0.8"), "materials.white.reflectance", "[0, 1]"),
     "nan-reflectance": (lambda s: s.replace("0.8, 0.8, 0.8", "0.8, nan, 0.8"), "materials.white.reflectance", "[0, 1]"),
-    "unknown-material-type": (lambda s: s.replace("reflectance = [0.8", 'type = "plastic"\nreflectance = [0.8'),
+    "unknown-material-type": (lambda s: s.replace("reflectance = [0.8", 'type = "velvet"\nreflectance = [0.8'),
                               "materials.white.type", "expected one of diffuse, conductor"),
     "reflectance-of-a-mirror": (lambda s: s.replace("reflectance = [0.8", 'type = "conductor"\nreflectance = [0.8'),
                                 "materials.white.reflectance", "applies only to materials of type 'diffuse'"),

@@ -7,8 +7,9 @@ the mirror direction of wo (about the normal for the diffuse BSDF); chart 1 thos
 angle to the axis is ``c = sign(g) (1 - (1 - |g|)^4)``, so bins are narrow near the axis, where a narrow lobe
 (alpha = 0.05) lies, and ``d omega = dc dphi = 4 (1 - |g|)^3 dg dphi``. A third cell counts the samples that failed
 (``ok`` False); it expects ``n (1 - integral of the pdf)``, the mass that the pdf does not put on any direction (a
-microfacet sample below the horizon). The expected counts integrate the pdf over every bin (midpoint rule, which is
-robust at the horizon, where the pdf jumps to 0); Pearson's statistic over the cells after pooling those expecting
+microfacet sample below the horizon); the samples off a delta lobe (plastic's coating) join it, since the pdf of
+the other lobes leaves exactly the delta lobe's probability off the sphere. The expected counts integrate the pdf
+over every bin (midpoint rule, which is robust at the horizon, where the pdf jumps to 0); Pearson's statistic over the cells after pooling those expecting
 fewer than 5 (:func:`harness.judges.chi2.pooled_statistic`) gives the p-value. Samples at which the pdf is 0 or
 that are not unit vectors are counted as ``impossible``, a hard failure.
 """
@@ -102,7 +103,7 @@ class BsdfChi2:
     statistic: float
     dof: int
     pdf_integral: float  # the pdf integrated over the sphere (both charts)
-    fail_fraction: float  # fraction of the samples with ok False
+    fail_fraction: float  # fraction of the samples with ok False or off a delta lobe
     impossible: int  # samples at which the pdf is 0 or wi is not a unit vector
 
     def line(self) -> str:
@@ -116,7 +117,7 @@ def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = ""
     evaluated with, default ``mutant``; ``hemisphere``: the diffuse kind's sampling, both sides alike)."""
     pdf_mutant = mutant if pdf_mutant is None else pdf_mutant
     s = bsdf.sample(materials, 0, wo, uniforms(seed, n), mutant=mutant, hemisphere=hemisphere)
-    ok = s["ok"]
+    ok = s["ok"] & ~s["delta"]  # a delta lobe's samples: the cell of what the pdf leaves off the sphere
     wi = s["wi"][ok]
     same = wi[:, 2] * wo[2] > 0
     frames = [_frame(a) for a in chart_axes(materials, wo)]

@@ -30,7 +30,8 @@ from reference_impl import Materials, SettingsError
 from reference_impl.kernels import bsdf
 from reference_impl.kernels.config import MUTANT_BITS
 from reference_impl.materials import (BECKMANN, CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_IOR,
-                                      P_REFLECTANCE, P_TWO_SIDED, ROUGHCONDUCTOR, ROUGHDIELECTRIC, material_row)
+                                      P_REFLECTANCE, P_TWO_SIDED, PLASTIC, ROUGHCONDUCTOR, ROUGHDIELECTRIC,
+                                      THINDIELECTRIC, material_row)
 
 N = 20_000
 ROUGH = [(kind, dist, visible, alpha) for kind in (ROUGHCONDUCTOR, ROUGHDIELECTRIC) for dist in (BECKMANN, GGX)
@@ -224,12 +225,15 @@ def test_reciprocity(case):
         np.testing.assert_allclose(f_oi, f_io, rtol=1e-9, atol=1e-300)
 
 
-@pytest.mark.parametrize("kind", [DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC])
+@pytest.mark.parametrize("kind", [DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC,
+                                  PLASTIC])
 def test_numerical_limits_stay_finite(kind):
     variants = [dict(alpha=1e-4), dict(alpha=1.0), dict(alpha=0.3, eta=(1.5, 0.2, 0.0), k=(0.0, 0.0, 0.0)),
                 dict(alpha=0.3, int_ior=1.0001, ext_ior=1.0), dict(alpha=0.3, distribution=GGX, sample_visible=False)]
-    if kind == DIELECTRIC:
+    if kind in (DIELECTRIC, THINDIELECTRIC, PLASTIC):
         variants.append(dict(int_ior=1.0, ext_ior=1.0))
+    if kind == PLASTIC:
+        variants += [dict(diffuse=0.0, reflectance=0.0), dict(diffuse=1.0, nonlinear=True, int_ior=3.5, ext_ior=1.0)]
     g = np.random.default_rng(11)
     dirs = g.normal(size=(4000, 3))
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]

@@ -6,9 +6,11 @@ roughdielectric Beckmann and GGX, alpha 0.05 .. 1) at direction pairs on both si
 ``BSDF.pdf``, to 2e-5 relative + 1e-6 absolute (Mitsuba computes in float32: ~1e-6 relative over the dozen
 operations; the narrowest lobe's peak, f ~ 250, loses 4e-6). One documented exception: the Beckmann visible-normal
 pdf uses the exact Smith G1, Mitsuba's pdf its rational fit (< 0.35 %), compared to 4e-3. The delta BSDFs
-(conductor, dielectric) are compared through ``BSDF.sample``: same direction and weight, for the reflection
-(sample1 = 0) and the transmission (sample1 -> 1) lobes. The mutants "conductor-fresnel-one" and
-"refraction-no-eta2" must disagree with Mitsuba.
+(conductor, dielectric, thindielectric) are compared through ``BSDF.sample``: same direction and weight, for the
+reflection (sample1 = 0) and the transmission (sample1 -> 1) lobes. The mutants "conductor-fresnel-one",
+"refraction-no-eta2" and "thin-glass-refracts" must disagree with Mitsuba
+(tests/reference_impl/test_bsdf_thin_plastic.py has the thin dielectric's and plastic's own grid and
+"plastic-no-internal-reflection").
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ except ImportError:  # tests/ imported as a package
 from reference_impl.kernels import bsdf
 from reference_impl.kernels.config import MUTANT_BITS
 from reference_impl.materials import (BECKMANN, CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, ROUGHCONDUCTOR,
-                                      ROUGHDIELECTRIC)
+                                      ROUGHDIELECTRIC, THINDIELECTRIC)
 
 mi = pytest.importorskip("mitsuba")
 mi.set_variant("scalar_rgb")
@@ -119,10 +121,13 @@ DELTA_CASES = [
     ("dielectric", {"type": "dielectric", "int_ior": 1.5, "ext_ior": 1.2,
                     "specular_transmittance": {"type": "rgb", "value": [0.9, 0.8, 0.7]}}, DIELECTRIC,
      dict(int_ior=1.5, ext_ior=1.2, transmittance=(0.9, 0.8, 0.7))),
+    ("thindielectric", {"type": "thindielectric", "int_ior": 1.5, "ext_ior": 1.2,
+                        "specular_transmittance": {"type": "rgb", "value": [0.9, 0.8, 0.7]}}, THINDIELECTRIC,
+     dict(int_ior=1.5, ext_ior=1.2, transmittance=(0.9, 0.8, 0.7))),
 ]
 
 
-@pytest.mark.parametrize("mutant", ["", "conductor-fresnel-one", "refraction-no-eta2"])
+@pytest.mark.parametrize("mutant", ["", "conductor-fresnel-one", "refraction-no-eta2", "thin-glass-refracts"])
 @pytest.mark.parametrize("name, spec, kind, kw", DELTA_CASES, ids=[c[0] for c in DELTA_CASES])
 def test_delta_samples_agree_with_mitsuba(name, spec, kind, kw, mutant):
     plugin = mi.load_dict(spec)
@@ -139,8 +144,9 @@ def test_delta_samples_agree_with_mitsuba(name, spec, kind, kw, mutant):
                 assert not s["ok"][0] or not s["weight"][0].any()
                 continue
             assert s["ok"][0] and s["delta"][0]
-            np.testing.assert_allclose(s["wi"][0], np.array(bs.wo), rtol=1e-5, atol=1e-6)
+            agree_all &= bool(np.allclose(s["wi"][0], np.array(bs.wo), rtol=1e-5, atol=1e-6))
             agree_all &= bool(np.allclose(s["weight"][0], w_mi, rtol=RTOL, atol=ATOL))
     affected = (mutant == "conductor-fresnel-one" and name in ("conductor-cu", "conductor-k0")
-                or mutant == "refraction-no-eta2" and name == "dielectric")
+                or mutant == "refraction-no-eta2" and name == "dielectric"
+                or mutant == "thin-glass-refracts" and name == "thindielectric")
     assert agree_all != affected

@@ -82,6 +82,13 @@ type = "roughdielectric"
 alpha = 0.2
 distribution = "ggx"
 
+[materials.pane]
+type = "thindielectric"
+
+[materials.coat]
+type = "plastic"
+nonlinear = true
+
 [[shapes]]
 name = "floor"
 type = "rectangle"

@@ -93,6 +93,8 @@ def expected_base_colour(material) -> list[float]:
     if material.is_conductor:
         f0 = normal_incidence_reflectance(material.eta, material.k)
         return [min(1.0, f * r) for f, r in zip(f0, colour or material.specular_reflectance)]
+    if material.type == "plastic":
+        return list(colour or material.diffuse_reflectance)
     return list(colour or material.specular_transmittance)
 
 

@@ -30,9 +30,9 @@ emission = [1, 2, 3]
 translate = [0, 0, -1]
 """
 # scene_digest of LAMBERTIAN, the scene's content key (harness.scene.content_key); a change of it makes every cached
-# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 4 since
-# the model grew shading normals and normal and bump maps)
-LAMBERTIAN_DIGEST = "92ddc689049124629bde900a71a1fbd1731fc2c76b2cb24e0d7565c55c66fcb4"
+# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 5 since
+# the materials grew plastic's diffuse_reflectance and nonlinear)
+LAMBERTIAN_DIGEST = "f03b7553697fa3f3e70a221b311adcc35477070e1436527cb81f9f7e049cab6e"
 
 
 def test_the_key_of_a_lambertian_scene_is_pinned(tmp_path):
@@ -53,6 +53,7 @@ radius = 0.5
 BODIES = {
     "roughconductor": 'type = "roughconductor"\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.1]\nalpha = 0.3',
     "roughdielectric": 'type = "roughdielectric"\nalpha = 0.3\nspecular_transmittance = 0.5',
+    "plastic": 'type = "plastic"\ndiffuse_reflectance = 0.4',
 }
 # every field a material type reads, and a value other than the one in BODIES
 CHANGES = {
@@ -62,6 +63,8 @@ CHANGES = {
     "roughdielectric": {"alpha": 0.29, "int_ior": 1.33, "ext_ior": 1.1, "specular_transmittance": (0.5, 0.5, 0.4),
                         "specular_reflectance": (0.9, 1.0, 1.0), "distribution": "ggx", "sample_visible": False,
                         "type": "dielectric"},
+    "plastic": {"diffuse_reflectance": (0.4, 0.4, 0.5), "nonlinear": True, "int_ior": 1.5, "ext_ior": 1.1,
+                "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "type": "thindielectric"},
 }
 
 

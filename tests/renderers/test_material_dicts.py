@@ -37,6 +37,12 @@ MATERIALS = {
     "rough-glass": 'type = "roughdielectric"\nalpha = 0.2',
     "rough-glass-ggx": 'type = "roughdielectric"\nalpha = 1\ndistribution = "ggx"\nsample_visible = false\n'
                        'int_ior = 1.0\next_ior = 1.5',
+    "thin-glass": 'type = "thindielectric"',
+    "thin-glass-tinted": 'type = "thindielectric"\nint_ior = 1.33\next_ior = 1.0\nspecular_reflectance = 0.5\n'
+                         'specular_transmittance = [0.9, 0.6, 0.3]',
+    "plastic": 'type = "plastic"',
+    "plastic-nonlinear-two-sided": 'type = "plastic"\ndiffuse_reflectance = [0.7, 0.2, 0.1]\nnonlinear = true\n'
+                                   'specular_reflectance = [1, 0.8, 0.6]\nint_ior = 1.6\ntwo_sided = true',
 }
 BODY = """
 [[shapes]]
@@ -106,6 +112,11 @@ def test_every_material_loads_and_renders_in_mitsuba(mi, tmp_path, name):
         np.testing.assert_allclose(value("specular_transmittance.value") * np.ones(3),
                                    material.specular_transmittance, rtol=1e-6)
         assert "TwoSided" not in text
+    if material.type == "plastic":
+        np.testing.assert_allclose(value("diffuse_reflectance.value") * np.ones(3), material.diffuse_reflectance,
+                                   rtol=1e-6)
+        assert float(value("eta")[0]) == pytest.approx(material.int_ior / material.ext_ior, rel=1e-6)
+        assert f"nonlinear = {int(material.nonlinear)}" in text
     if material.is_rough:
         assert float(value("alpha.value")[0]) == pytest.approx(material.alpha, rel=1e-6)
         assert f"distribution = {material.distribution}" in text

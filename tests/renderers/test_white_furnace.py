@@ -102,6 +102,9 @@ GLOSSY_REFUSED = {
     "copper": ('type = "conductor"\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.1]', -1,
                "this scene has a conductor with eta / k (Fresnel < 1)"),
     "rough-mirror": ('type = "roughconductor"', -1, "needs a perfect mirror"),
+    "plastic": ('type = "plastic"', -1, "the white-furnace closed form has no plastic sphere"),
+    "tinted-thin-glass": ('type = "thindielectric"\nspecular_reflectance = 0.5', -1,
+                          "this scene has a thindielectric at max_depth = -1"),
 }
 
 

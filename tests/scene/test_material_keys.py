@@ -96,7 +96,7 @@ def test_roughdielectric(tmp_path):
 
 BAD = [
     # (id, [materials.m] body, key, fragment of the message)
-    ("unknown-type", 'type = "plastic"', "type", "expected one of diffuse, conductor, roughconductor, dielectric"),
+    ("unknown-type", 'type = "velvet"', "type", "expected one of diffuse, conductor, roughconductor, dielectric"),
     ("type-hint", 'type = "condutor"', "type", "did you mean 'conductor'?"),
     ("type-number", "type = 3", "type", "got 3"),
     ("typo", 'type = "roughconductor"\nalhpa = 0.2', "alhpa", "did you mean 'alpha'?"),

@@ -16,9 +16,9 @@ from reference_impl import materials as core
 from harness.scene.kinds.mitsuba_values import rgb
 from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.textures import TEXTURES, texture_reference
-from harness.scene.model import (DEFAULT_ALPHA, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
-                                 DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS, MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, Material,
-                                 Texture)
+from harness.scene.model import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR,
+                                 DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS,
+                                 MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR, Material, Texture)
 
 DEFAULT_TYPE = "diffuse"
 CONDUCTOR_MATERIALS = ("none",)  # Mitsuba's named conductors but "none" (a perfect mirror) are refused
@@ -30,12 +30,13 @@ CU_K = (3.91326, 2.45305, 2.14209)
 # indices and extinction coefficients of every real material, with room to spare.
 MIN_ALPHA, MAX_ALPHA = 1e-4, 1.0
 MIN_IOR, MAX_IOR = 0.01, 100.0
+MAX_PLASTIC_ETA = 3.8  # about where Mitsuba's F_dr(1 / eta) (the Egan-Hilgeman fit) reaches 1
 MAX_CONDUCTOR_INDEX = 100.0
 #: Mitsuba's keys of anisotropic roughness, refused in one line (the reference's microfacet models are isotropic).
 ANISOTROPIC_KEYS = ("alpha_u", "alpha_v")
 #: The core's texture slot (:data:`reference_impl.materials.TEXTURE_SLOTS`) of each parameter a texture may drive.
 TEXTURE_SLOTS = {"reflectance": "reflectance", "specular_reflectance": "reflectance",
-                 "specular_transmittance": "transmittance", "alpha": "alpha"}
+                 "specular_transmittance": "transmittance", "alpha": "alpha", "diffuse_reflectance": "diffuse"}
 
 
 @dataclass(frozen=True)
@@ -109,6 +110,11 @@ class MaterialKind:
     def _core_row(self, material: Material) -> np.ndarray:
         if self.core_kind == core.DIFFUSE:
             return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
+        if self.core_kind == core.PLASTIC:
+            return core.material_row(
+                core.PLASTIC, reflectance=material.specular_reflectance, diffuse=material.diffuse_reflectance,
+                int_ior=material.int_ior, ext_ior=material.ext_ior, two_sided=material.two_sided,
+                nonlinear=material.nonlinear, specular_sampling_weight=_plastic_sampling_weight(material))
         return core.material_row(
             self.core_kind, reflectance=material.specular_reflectance, eta=material.eta, k=material.k,
             transmittance=material.specular_transmittance, alpha=material.alpha,
@@ -251,6 +257,37 @@ def _read_dielectric(reader, entry: dict, key: str) -> dict:
     return fields
 
 
+def _read_plastic(reader, entry: dict, key: str) -> dict:
+    """A plastic's fields (Mitsuba's defaults: diffuse_reflectance 0.5, specular_reflectance 1, int_ior 1.49
+    (polypropylene), ext_ior 1.000277 (air), nonlinear false); ``reflectance`` is the larger of its specular and
+    diffuse reflectances."""
+    fields: dict[str, Any] = {
+        "diffuse_reflectance": _unit_colour(reader, entry, "diffuse_reflectance", key, DEFAULT_DIFFUSE[0]),
+        "specular_reflectance": _unit_colour(reader, entry, "specular_reflectance", key),
+        "nonlinear": reader.boolean(entry.get("nonlinear", DEFAULT_NONLINEAR), f"{key}.nonlinear")}
+    for item, default in (("int_ior", PLASTIC_INT_IOR), ("ext_ior", DEFAULT_EXT_IOR)):
+        fields[item] = _index_of_refraction(reader, entry.get(item, default), f"{key}.{item}")
+    eta = fields["int_ior"] / fields["ext_ior"]
+    fdr = core.fresnel_diffuse_reflectance(1.0 / eta)
+    if not 0.0 <= fdr < 1.0:
+        item = "int_ior" if "int_ior" in entry else "ext_ior"
+        raise reader.error(f"{key}.{item}", (
+            f"expected int_ior / ext_ior below {MAX_PLASTIC_ETA:g} for a plastic (Mitsuba's fit of the coating's "
+            f"internal diffuse reflectance exceeds 1 beyond), got {eta:.6g}"))
+    fields["reflectance"] = tuple(max(s, d) for s, d in zip(fields["specular_reflectance"],
+                                                            fields["diffuse_reflectance"]))
+    return fields
+
+
+def _plastic_sampling_weight(material: Material) -> float:
+    """Plastic's specular sampling weight from the channel means of its specular and diffuse reflectances, a
+    texture's mean over its texels where one drives them (Mitsuba's ``Texture::mean``)."""
+    def mean(item: str) -> float:
+        texture = material.texture(item)
+        return float(np.mean(texture.mean_value if texture is not None else getattr(material, item)))
+    return core.plastic_sampling_weight(mean("specular_reflectance"), mean("diffuse_reflectance"))
+
+
 def _read_roughdielectric(reader, entry: dict, key: str) -> dict:
     fields = _read_dielectric(reader, entry, key)
     if np.float32(fields["int_ior"]) == np.float32(fields["ext_ior"]):
@@ -274,10 +311,11 @@ def _roughness(reader, entry: dict, key: str) -> dict:
                                              f"{key}.sample_visible")}
 
 
-def _unit_colour(reader, entry: dict, item: str, key: str) -> tuple[float, float, float]:
-    """``specular_reflectance`` / ``specular_transmittance``: a number or [r, g, b], each in [0, 1]; default 1."""
+def _unit_colour(reader, entry: dict, item: str, key: str, default: float = 1.0) -> tuple[float, float, float]:
+    """``specular_reflectance`` / ``specular_transmittance`` / ``diffuse_reflectance``: a number or [r, g, b], each
+    in [0, 1]; default ``default`` (1)."""
     what = "a number or a list of 3 numbers, each in [0, 1]"
-    colour = reader.colour_or_number(entry.get(item, 1.0), f"{key}.{item}", what)
+    colour = reader.colour_or_number(entry.get(item, default), f"{key}.{item}", what)
     if not all(0.0 <= channel <= 1.0 for channel in colour):
         raise reader.expected(f"{key}.{item}", what, entry[item])
     return colour
@@ -351,6 +389,18 @@ def _dielectric_parameters(material: Material) -> dict:
             "specular_transmittance": rgb(material.specular_transmittance)}
 
 
+def _plastic_parameters(material: Material) -> dict:
+    return {"diffuse_reflectance": rgb(material.diffuse_reflectance),
+            "specular_reflectance": rgb(material.specular_reflectance), "int_ior": float(material.int_ior),
+            "ext_ior": float(material.ext_ior), "nonlinear": bool(material.nonlinear)}
+
+
+def _plastic_json(material: Material) -> dict:
+    return {"diffuse_reflectance": _numbers(material.diffuse_reflectance),
+            "specular_reflectance": _numbers(material.specular_reflectance), "int_ior": float(material.int_ior),
+            "ext_ior": float(material.ext_ior), "nonlinear": bool(material.nonlinear)}
+
+
 def _conductor_json(material: Material) -> dict:
     return {"eta": _numbers(material.eta), "k": _numbers(material.k),
             "specular_reflectance": _numbers(material.specular_reflectance)}
@@ -373,6 +423,11 @@ GLTF_LOSSES: dict[str, str] = {
     "beckmann": "glTF's microfacets are GGX: {materials} (beckmann) written with roughness sqrt(alpha)",
     "tint": "glTF's transmission has no reflection tint: specular_reflectance of {materials} left out",
     "culled": "glTF's single-sided materials are culled from behind, not black: {materials}",
+    "thin": ("glTF's thin-walled transmission (KHR_materials_volume absent) reflects as one interface, not as the "
+             "sheet's two, R' = 2 F / (1 + F): {materials}"),
+    "coating": ("glTF's dielectric base (metallic 0) has no light reflected back and forth under its coating: "
+                "{materials} written with base colour = diffuse_reflectance (the 1 / (1 - F_dr) term and nonlinear "
+                "lost)"),
 }
 _WHITE = (1.0, 1.0, 1.0)
 
@@ -408,6 +463,27 @@ def _dielectric_gltf(material: Material, roughness: float) -> tuple[dict, dict]:
             "roughnessFactor": roughness}, extensions
 
 
+def _thindielectric_gltf(material: Material) -> tuple[dict, dict]:
+    """Metallic 0, roughness 0, base colour = specular_transmittance, ``KHR_materials_transmission`` 1,
+    ``KHR_materials_ior`` = int_ior / ext_ior, no ``KHR_materials_volume`` (glTF's thin-walled material: light
+    passes straight through)."""
+    extensions = {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                  "KHR_materials_ior": {"ior": float(material.int_ior / material.ext_ior)}}
+    return {"baseColorFactor": [*material.specular_transmittance, 1.0], "metallicFactor": 0.0,
+            "roughnessFactor": 0.0}, extensions
+
+
+def _plastic_gltf(material: Material) -> tuple[dict, dict]:
+    """Metallic 0, roughness 0 (a smooth dielectric over a diffuse base), base colour = diffuse_reflectance,
+    ``KHR_materials_ior`` = int_ior / ext_ior and, where specular_reflectance is not white,
+    ``KHR_materials_specular``'s specularColorFactor = specular_reflectance (the tint of the coating's Fresnel)."""
+    extensions: dict = {"KHR_materials_ior": {"ior": float(material.int_ior / material.ext_ior)}}
+    if material.specular_reflectance != _WHITE:
+        extensions["KHR_materials_specular"] = {"specularColorFactor": _numbers(material.specular_reflectance)}
+    return {"baseColorFactor": [*material.diffuse_reflectance, 1.0], "metallicFactor": 0.0,
+            "roughnessFactor": 0.0}, extensions
+
+
 def _rough_gltf_roughness(material: Material) -> float:
     """glTF's roughness of a rough type: sqrt(alpha) (glTF's GGX alpha is roughness^2: exact for ggx)."""
     return math.sqrt(material.alpha)
@@ -427,12 +503,24 @@ def _dielectric_gltf_losses(material: Material) -> tuple[str, ...]:
     return ("tint",) if material.specular_reflectance != _WHITE else ()
 
 
+def _thindielectric_gltf_losses(material: Material) -> tuple[str, ...]:
+    return ("thin",) + _dielectric_gltf_losses(material)
+
+
+def _plastic_gltf_losses(material: Material) -> tuple[str, ...]:
+    return ("coating",) + (() if material.two_sided else ("culled",))
+
+
 _CONDUCTOR_KEYS = ("type", "material", "eta", "k", "specular_reflectance", "two_sided")
+_PLASTIC_KEYS = ("type", "diffuse_reflectance", "specular_reflectance", "int_ior", "ext_ior", "nonlinear",
+                 "two_sided")
 _DIELECTRIC_KEYS = ("type", "int_ior", "ext_ior", "specular_reflectance", "specular_transmittance")
 _ROUGH_KEYS = ("alpha", "distribution", "sample_visible")
 _NOT_TWO_SIDED = (("two_sided", "light crosses it from either side (Mitsuba's twosided wrapper takes no "
                                 "transmitting BSDF); int_ior is the index behind the front side, ext_ior the one in "
                                 "front"),)
+_THIN_NOT_TWO_SIDED = (("two_sided", "a thin sheet is two-sided by nature (both sides reflect and transmit "
+                                     "alike)"),)
 
 #: Every material type by its name, in :data:`harness.scene.model.MATERIAL_TYPES`'s order.
 MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
@@ -464,6 +552,13 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  gltf_losses=lambda m: _beckmann_gltf_losses(m) + _dielectric_gltf_losses(m),
                  textured=("specular_reflectance", "specular_transmittance", "alpha"),
                  gltf_base="specular_transmittance"),
+    MaterialKind("thindielectric", core.THINDIELECTRIC, _DIELECTRIC_KEYS, _read_dielectric,
+                 parameters=_dielectric_parameters, json=_dielectric_json, gltf=_thindielectric_gltf,
+                 refused=_THIN_NOT_TWO_SIDED, gltf_losses=_thindielectric_gltf_losses,
+                 textured=("specular_reflectance", "specular_transmittance"), gltf_base="specular_transmittance"),
+    MaterialKind("plastic", core.PLASTIC, _PLASTIC_KEYS, _read_plastic, parameters=_plastic_parameters,
+                 json=_plastic_json, gltf=_plastic_gltf, gltf_losses=_plastic_gltf_losses,
+                 textured=("diffuse_reflectance", "specular_reflectance"), gltf_base="diffuse_reflectance"),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.
