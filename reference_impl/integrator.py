@@ -277,7 +277,7 @@ class _Context:
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
-        self.pinhole = records.pinhole(self.camera, self.film.width, self.film.height)
+        self.camera_record = records.camera_record(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
         self.sampling = _Sampling(s.spp, s.seed, self.seed_key, self.config)
 
@@ -488,7 +488,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     first = _view(ctx.workspace().state(0, n), n)
     film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
     pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
-    kernels.camera.camera_paths(film_samples, config, ctx.pinhole, pixel_filter, first)
+    kernels.camera.camera_paths(film_samples, config, ctx.camera_record, pixel_filter, first)
     radiance = ctx.workspace().radiance(n)
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n

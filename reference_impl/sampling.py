@@ -75,6 +75,26 @@ def square_to_uniform_triangle(u1: np.ndarray, u2: np.ndarray) -> tuple[np.ndarr
     return 1.0 - s, u2 * s
 
 
+def square_to_uniform_disk_concentric(u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """Points (x, y) uniform on the unit disk by Shirley and Chiu's concentric map ("A Low Distortion Map Between
+    Disk and Square", JGT 2(3), 1997), as Mitsuba's ``square_to_uniform_disk_concentric``: with a = 2 u1 - 1,
+    b = 2 u2 - 1, where |a| >= |b| r = a, phi = (pi / 4) b / a, else r = b, phi = pi / 2 - (pi / 4) a / b;
+    (x, y) = r (cos phi, sin phi); pdf = 1 / pi per unit area (:func:`uniform_disk_pdf`)."""
+    a = 2.0 * np.asarray(u1, dtype=np.float64) - 1.0
+    b = 2.0 * np.asarray(u2, dtype=np.float64) - 1.0
+    first = np.abs(a) >= np.abs(b)
+    r = np.where(first, a, b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        phi = np.where(first, 0.25 * np.pi * (b / a), _HALF_PI - 0.25 * np.pi * (a / b))
+    phi = np.where(r == 0.0, 0.0, phi)
+    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=-1)
+
+
+def uniform_disk_pdf(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """1 / pi inside the unit disk, 0 outside."""
+    return np.where(np.asarray(x) ** 2 + np.asarray(y) ** 2 <= 1.0, INV_PI, 0.0)
+
+
 def sample_discrete(cdf: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Index i with probability cdf[i] - cdf[i-1]; ``cdf`` is the normalised cumulative sum (last entry 1)."""
     idx = np.searchsorted(cdf, u, side="right")

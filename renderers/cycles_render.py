@@ -311,14 +311,28 @@ def setup_render(bpy, doc: dict, args) -> None:
 
 
 def setup_camera(bpy, doc: dict) -> None:
+    """The scene.json camera as Blender's: perspective (its horizontal field of view), thin lens (the same with
+    Cycles' depth of field: a round aperture of radius r is f-stop = focal length / (2 r), the focal length in
+    scene units, and Cycles focuses on the plane at ``focus_distance`` along the axis, as Mitsuba), orthographic
+    (``ortho_scale`` = the film's full width, the sensor fitted horizontally)."""
     camera = doc["camera"]
-    if camera["type"] != "perspective":
-        raise SceneError(f"camera.type = {camera['type']!r}: only perspective cameras")
+    if camera["type"] not in ("perspective", "thinlens", "orthographic"):
+        raise SceneError(f"camera.type = {camera['type']!r}: only perspective, thinlens and orthographic cameras")
     data = bpy.data.cameras.new("camera")
-    data.type = "PERSP"
-    data.lens_unit = "FOV"
     data.sensor_fit = "HORIZONTAL"
-    data.angle = math.radians(float(camera["fov_x"]))
+    if camera["type"] == "orthographic":
+        data.type = "ORTHO"
+        data.ortho_scale = 2.0 * float(camera["half_width"])
+    else:
+        data.type = "PERSP"
+        data.lens_unit = "FOV"
+        data.angle = math.radians(float(camera["fov_x"]))
+    if camera["type"] == "thinlens" and float(camera["aperture_radius"]) > 0:
+        data.dof.use_dof = True
+        data.dof.focus_distance = float(camera["focus_distance"])
+        data.dof.aperture_blades = 0  # round
+        data.dof.aperture_ratio = 1.0
+        data.dof.aperture_fstop = data.lens * 1e-3 / (2.0 * float(camera["aperture_radius"]))
     data.shift_x = data.shift_y = 0.0
     data.clip_start = float(camera["near_clip"])
     data.clip_end = float(camera["far_clip"])

@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reference_impl.camera import OrthographicCamera, ThinLensCamera
 from reference_impl.sampling import coordinate_frame
 
 from harness.core.errors import HarnessError
@@ -327,20 +328,32 @@ def normal_mapped_mesh(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarr
 
 
 def gltf_camera(scene: Scene) -> tuple[dict, dict]:
-    """The scene's camera as a glTF perspective camera and the node that places it.
+    """The scene's camera as a glTF camera and the node that places it.
 
-    ``yfov`` = the resolved vertical field of view (radians; Mitsuba's ``fov`` / ``fov_axis`` for this film),
-    ``aspectRatio`` = width / height, ``znear`` / ``zfar`` = the clip planes. The node's ``matrix`` (column-major)
-    is Mitsuba's camera-to-world matrix with its x and z columns negated: a glTF camera looks down its -z with +x
-    to the image's right, Mitsuba's looks down +z with +x to the image's left, so both see the same image.
+    A perspective or thin-lens camera: glTF's perspective camera, ``yfov`` = the resolved vertical field of view
+    (radians; Mitsuba's ``fov`` / ``fov_axis`` for this film), ``aspectRatio`` = width / height; a thin lens's
+    ``aperture_radius`` and ``focus_distance`` (along the axis) under the camera's ``extras``, which glTF has no
+    place for. An orthographic camera: glTF's orthographic camera, ``xmag`` / ``ymag`` = half the film's width and
+    height in scene units (:meth:`reference_impl.camera.OrthographicCamera.extent`). ``znear`` / ``zfar`` = the
+    clip planes. The node's ``matrix`` (column-major) is Mitsuba's camera-to-world matrix of the look-at (without an
+    orthographic scale) with its x and z columns negated: a glTF camera looks down its -z with +x to the image's
+    right, Mitsuba's looks down +z with +x to the image's left, so both see the same image.
     """
     camera, film = scene.camera, scene.film
-    _tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
     near, far = clip_planes(scene)
     to_world = camera_to_world(camera) @ np.diag([-1.0, 1.0, -1.0, 1.0])  # negate the x and z columns
-    gltf = {"name": "camera", "type": "perspective",
-            "perspective": {"yfov": 2.0 * math.atan(tan_y), "aspectRatio": film.width / film.height,
-                            "znear": float(near), "zfar": float(far)}}
+    if isinstance(camera, OrthographicCamera):
+        half_x, half_y = camera.extent(film.width, film.height)
+        gltf = {"name": "camera", "type": "orthographic",
+                "orthographic": {"xmag": half_x, "ymag": half_y, "znear": float(near), "zfar": float(far)}}
+    else:
+        _tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
+        gltf = {"name": "camera", "type": "perspective",
+                "perspective": {"yfov": 2.0 * math.atan(tan_y), "aspectRatio": film.width / film.height,
+                                "znear": float(near), "zfar": float(far)}}
+        if isinstance(camera, ThinLensCamera):
+            gltf["extras"] = {"aperture_radius": float(camera.aperture_radius),
+                              "focus_distance": float(camera.focus_distance)}
     return gltf, {"name": "camera", "camera": 0, "matrix": [float(x) + 0.0 for x in to_world.T.ravel()]}
 
 

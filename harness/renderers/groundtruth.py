@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reference_impl.camera import OrthographicCamera, ThinLensCamera
 from reference_impl.textures import Textures
 
 from harness.core.errors import HarnessError
@@ -275,7 +276,7 @@ _PLATE_MEANS: dict[str, np.ndarray] = {}
 PLATE_QUADRATURE_SIDE = 16
 
 
-def shaded_plate_means(scene: Scene, side: int = PLATE_QUADRATURE_SIDE) -> np.ndarray:
+def shaded_plate_means(scene: Scene, side: int = PLATE_QUADRATURE_SIDE, misses: bool = False) -> np.ndarray:
     """(H, W, 3): each pixel's mean over its box footprint, by the midpoint rule on ``side`` x ``side`` points, of
     the light a one-sided diffuse mesh (the scene's one shape) reflects toward the camera from directional lights:
 
@@ -284,7 +285,7 @@ def shaded_plate_means(scene: Scene, side: int = PLATE_QUADRATURE_SIDE) -> np.nd
     n_s the normalised barycentric blend of the vertex normals (:func:`harness.scene.triangulate.vertex_normals`),
     N the triangle's geometric normal, which decides the side (no light through the plate), l_k the direction toward
     sun k, wo toward the camera. Every point's ray must meet the mesh (HarnessError otherwise): the mesh covers the
-    film, nothing else is in the scene."""
+    film, nothing else is in the scene; with ``misses``, a ray that misses it adds 0 (nothing else is there)."""
     shape = scene.shapes[0]
     vertices, triangles = shape_triangles(shape)
     corners = vertices[triangles]
@@ -320,7 +321,7 @@ def shaded_plate_means(scene: Scene, side: int = PLATE_QUADRATURE_SIDE) -> np.nd
                      + v[:, None] * normals[triangles[tri, 2]])
             shading[hit] = blend[hit] / np.linalg.norm(blend[hit], axis=1, keepdims=True)
             face[hit] = geometric[tri]
-        if not np.all(np.isfinite(best_t)):
+        if not misses and not np.all(np.isfinite(best_t)):
             raise HarnessError(f"{scene.path}: closed_form", "the leaning-plate closed form needs the mesh to cover "
                                                              "every pixel's footprint")
         wo = -directions
@@ -333,8 +334,88 @@ def shaded_plate_means(scene: Scene, side: int = PLATE_QUADRATURE_SIDE) -> np.nd
     return out
 
 
+def _sunlit_floor(scene: Scene) -> np.ndarray:
+    """(H, W, 3): a flat one-sided diffuse mesh under suns, alone, seen by an orthographic camera: each pixel the
+    mean over its box footprint of rho / pi sum_k E_k max(0, N . l_k) where the pixel's parallel ray meets the
+    mesh, 0 where it misses (nothing else is in the scene) (:func:`shaded_plate_means`)."""
+    where = f"{scene.path}: closed_form"
+    if not isinstance(scene.camera, OrthographicCamera):
+        raise HarnessError(where, "the sunlit-floor closed form needs an orthographic [camera]")
+    if len(scene.shapes) != 1 or scene.shapes[0].emission is not None:
+        raise HarnessError(where, "the sunlit-floor closed form needs exactly one shape that does not emit")
+    material = scene.materials[scene.shapes[0].material]
+    if not material.is_diffuse or material.textures or material.perturbation or material.two_sided:
+        raise HarnessError(where, "the sunlit-floor closed form needs a one-sided diffuse material without textures")
+    if not scene.emitters or any(e.type != "directional" for e in scene.emitters):
+        raise HarnessError(where, "the sunlit-floor closed form needs [[emitters]] that are all directional")
+    if scene.film.filter != "box" or scene.max_depth == 1:
+        raise HarnessError(where, "the sunlit-floor closed form needs the box filter and max_depth >= 2 or -1")
+    return shaded_plate_means(scene, misses=True)
+
+
+#: Points per pixel side of :func:`focused_plane_means`' quadrature.
+FOCUS_QUADRATURE_SIDE = 8
+
+
+def _focused_plane(scene: Scene) -> np.ndarray:
+    """(H, W, 3): an emitting rectangle on a thin lens's plane of focus, alone: every ray through a film point p,
+    whatever its aperture point, meets the plane z_cam = focus_distance where the pinhole ray of p meets it, so each
+    pixel is the mean of the rectangle's Le over its box footprint through the pinhole, whatever the aperture
+    (:func:`focused_plane_means`)."""
+    where = f"{scene.path}: closed_form"
+    camera = scene.camera
+    if not isinstance(camera, ThinLensCamera):
+        raise HarnessError(where, "the focused-plane closed form needs a thinlens [camera]")
+    if len(scene.shapes) != 1 or scene.shapes[0].type != "rectangle" or scene.shapes[0].emission is None:
+        raise HarnessError(where, "the focused-plane closed form needs exactly one shape, an emitting rectangle")
+    if scene.emitters or scene.film.filter != "box":
+        raise HarnessError(where, "the focused-plane closed form needs no [[emitters]] and the box filter")
+    to_world = object_to_world(scene.shapes[0])
+    normal = np.linalg.inv(to_world[:3, :3]).T @ np.array([0.0, 0.0, 1.0])
+    normal /= np.linalg.norm(normal)
+    frame = camera.frame()
+    depth = float((to_world[:3, 3] - np.asarray(camera.origin, dtype=np.float64)) @ frame[:, 2])
+    if abs(abs(normal @ frame[:, 2]) - 1.0) > 1e-12 or abs(depth - camera.focus_distance) > 1e-9 * depth:
+        raise HarnessError(where, "the focused-plane closed form needs the rectangle square to the camera's axis at "
+                                  f"focus_distance ({camera.focus_distance:g}) along it, got {depth:g}")
+    return focused_plane_means(scene)
+
+
+def focused_plane_means(scene: Scene, side: int = FOCUS_QUADRATURE_SIDE) -> np.ndarray:
+    """(H, W, 3): each pixel's mean, by the midpoint rule on ``side`` x ``side`` points, of the emission Le(x) of
+    the scene's one shape, a rectangle, at the point x where each point's pinhole ray meets it (0 where it misses,
+    or meets its back); a textured Le looked up at Mitsuba's rectangle coordinates ((x_l + 1) / 2, (y_l + 1) / 2) of
+    the local point x_l by the reference's lookup (kernels/texture.py, checked against Mitsuba's textures in
+    tests/reference_impl/test_textures.py)."""
+    from reference_impl.kernels import records, texture as lookup  # optional: numba's kernels, closed forms only
+
+    shape = scene.shapes[0]
+    to_world = object_to_world(shape)
+    to_object = np.linalg.inv(to_world)
+    width, height = scene.film.width, scene.film.height
+    tables = None
+    if shape.emission_texture is not None:
+        tables = records.texture_tables(Textures((shape.emission_texture.core,)))
+    out = np.empty((height, width, 3))
+    for y, origins, directions in footprint_rays(scene, side):
+        o = origins @ to_object[:3, :3].T + to_object[:3, 3]
+        d = directions @ to_object[:3, :3].T
+        with np.errstate(all="ignore"):
+            t = -o[:, 2] / d[:, 2]
+        local = o + t[:, None] * d
+        inside = (t > 0) & (np.abs(local[:, 0]) <= 1) & (np.abs(local[:, 1]) <= 1) & (d[:, 2] < 0)
+        if tables is None:
+            values = np.broadcast_to(np.asarray(shape.emission, dtype=np.float64), (len(o), 3))
+        else:
+            values = lookup.evaluate(tables, 0, (local[:, :2] + 1.0) / 2.0)
+        out[y] = (values * inside[:, None]).reshape(width, side * side, 3).mean(axis=1)
+    return out
+
+
 CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace,
-                                                          "leaning-plate": _leaning_plate}
+                                                          "leaning-plate": _leaning_plate,
+                                                          "sunlit-floor": _sunlit_floor,
+                                                          "focused-plane": _focused_plane}
 
 
 # ---- the cache -------------------------------------------------------------------------------------------------

@@ -439,7 +439,8 @@ def _load_dict_value(mi, value, plugins: dict):
     if isinstance(value, np.ndarray):
         return mi.ScalarTransform4f(np.asarray(value, dtype=np.float64).tolist())
     if isinstance(value, LookAt):
-        return mi.ScalarTransform4f.look_at(origin=list(value.origin), target=list(value.target), up=list(value.up))
+        look_at = mi.ScalarTransform4f.look_at(origin=list(value.origin), target=list(value.target), up=list(value.up))
+        return look_at if value.scale is None else look_at @ mi.ScalarTransform4f.scale(list(value.scale))
     if isinstance(value, (Point, Vector)):
         return list(value.xyz)
     if isinstance(value, Parameter):

@@ -27,7 +27,7 @@ INDENT = "    "
 #: the category (XML element) of each Mitsuba plugin type a spec holds
 CATEGORIES = {
     **dict.fromkeys(("path", "moment", "aov"), "integrator"),
-    "perspective": "sensor",
+    **dict.fromkeys(("perspective", "thinlens", "orthographic"), "sensor"),
     "hdrfilm": "film",
     **dict.fromkeys(("box", "tent", "gaussian"), "rfilter"),
     **dict.fromkeys(("independent", "stratified", "multijitter", "orthogonal", "ldsampler"), "sampler"),
@@ -108,6 +108,9 @@ def _property(key: str, value, indent: str, files: dict) -> list[str]:
         return [f"{indent}<ref{label} id={quoteattr(value['id'])}/>"]
     if isinstance(value, dict):
         return _plugin(key, value, indent, files)
+    if isinstance(value, LookAt) and value.scale is not None:  # the scale acts first: listed first
+        return [f"{indent}<transform {name}>", f'{indent}{INDENT}<scale value="{_numbers(value.scale)}"/>',
+                f"{indent}{INDENT}{_transform(value)}", f"{indent}</transform>"]
     if isinstance(value, (np.ndarray, LookAt)):
         return [f"{indent}<transform {name}>", f"{indent}{INDENT}{_transform(value)}", f"{indent}</transform>"]
     if isinstance(value, UVTransform):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reference_impl.camera import Camera, Film
+from reference_impl.camera import Camera, Film, OrthographicCamera, ThinLensCamera
 from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DEFAULT_SCALE
 from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR,
                                       DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR,
@@ -342,7 +342,7 @@ class Scene:
 
     name: str
     description: str
-    camera: Camera
+    camera: Camera | ThinLensCamera | OrthographicCamera
     film: Film
     max_depth: int
     materials: dict[str, Material]

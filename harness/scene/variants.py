@@ -48,6 +48,7 @@ from harness.scene.triangulate import (
     unit_rectangle,
 )
 from reference_impl import SettingsError
+from reference_impl.camera import OrthographicCamera, ThinLensCamera
 
 INVARIANT, STRAIN = "invariant", "strain"
 #: Direction of the translation variants (unit vector): no axis is spared.
@@ -181,7 +182,8 @@ def _number(value: float) -> str:
 def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     """Every shape, point and spot light and the camera (origin, target) moved by the 4x4 similarity ``matrix``
     (uniform positive scale s, translation), the lights' intensities times s^2; the camera's up vector and fov are
-    unchanged, so the image is unchanged."""
+    unchanged, a thin lens's aperture and focus distance and an orthographic film's extent scaled by s, so the image
+    is unchanged."""
     matrix = np.asarray(matrix, dtype=np.float64)
     shapes = [dataclasses.replace(s, to_world=matrix @ s.to_world) for s in scene.shapes]
     cam = scene.camera
@@ -191,6 +193,12 @@ def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
         return tuple(float(x) for x in matrix[:3, :3] @ np.asarray(p, float) + matrix[:3, 3])
 
     camera = dataclasses.replace(cam, origin=point(cam.origin), target=point(cam.target))
+    s = area ** 0.5
+    if isinstance(cam, ThinLensCamera):  # the lens and its plane of focus scale with the scene
+        camera = dataclasses.replace(camera, aperture_radius=cam.aperture_radius * s,
+                                     focus_distance=cam.focus_distance * s)
+    elif isinstance(cam, OrthographicCamera):  # the film's extent scales with the scene
+        camera = dataclasses.replace(camera, scale=tuple(float(x) * s for x in cam.scale))
     return dataclasses.replace(scene, shapes=shapes, camera=camera,
                                emitters=tuple(EMITTERS[e.type].moved(e, matrix, area) for e in scene.emitters))
 

@@ -15,6 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from reference_impl import textures as tx
+from reference_impl.camera import OrthographicCamera, ThinLensCamera
 from reference_impl.materials import NUM_SLOTS
 
 _c = np.ascontiguousarray
@@ -345,35 +346,61 @@ def film_samples(pixel: np.ndarray, sample: np.ndarray, seed_key: np.uint64) -> 
     return FilmSamples(_c(pixel, dtype=np.int64), _c(sample, dtype=np.int64), np.uint64(seed_key))
 
 
-class Pinhole(NamedTuple):
-    """The camera as the viewing rays need it (:class:`reference_impl.Camera` on a film of ``width`` x ``height``):
-    the ray through film point (p_x, p_y) leaves ``eye`` along normalize(frame (l_0, l_1, 1)),
-    l = ((1 - 2 p_x / W) tan_x, (1 - 2 p_y / H) tan_y).
+class CameraRecord(NamedTuple):
+    """The camera as the viewing rays need it (a camera of :mod:`reference_impl.camera` on a film of ``width`` x
+    ``height``). ``model`` :data:`PERSPECTIVE`: the ray through film point (p_x, p_y) leaves ``eye`` along
+    normalize(frame l), l = ((1 - 2 p_x / W) tan_x, (1 - 2 p_y / H) tan_y, 1); :data:`THINLENS`: it leaves
+    eye + frame a, a = aperture_radius (disk point, 0), along normalize(frame (focus_distance l - a));
+    :data:`ORTHOGRAPHIC`: it leaves eye + frame ((1 - 2 p_x / W) half_x, (1 - 2 p_y / H) half_y, 0) along frame's
+    +z.
 
     Attributes
     ----------
+    model : int
+        :data:`PERSPECTIVE`, :data:`THINLENS` or :data:`ORTHOGRAPHIC`.
     eye : (3,) float64
     frame : (3, 3) float64
         Columns: camera +x (left), +y (up), +z (forward) in world space.
     tan_x, tan_y : float
-        tan of half the field of view along x and y.
+        tan of half the field of view along x and y (perspective, thin lens).
     width, height : int
         The film's size in pixels.
+    aperture_radius, focus_distance : float
+        The thin lens's (0 otherwise).
+    half_x, half_y : float
+        Half the orthographic film's width and height in scene units (0 otherwise).
     """
 
+    model: int
     eye: np.ndarray
     frame: np.ndarray
     tan_x: float
     tan_y: float
     width: int
     height: int
+    aperture_radius: float
+    focus_distance: float
+    half_x: float
+    half_y: float
 
 
-def pinhole(camera, width: int, height: int) -> Pinhole:
-    """The :class:`Pinhole` of ``camera`` (:class:`reference_impl.Camera`) on a film of ``width`` x ``height``."""
+PERSPECTIVE, THINLENS, ORTHOGRAPHIC = range(3)
+
+
+def camera_record(camera, width: int, height: int) -> CameraRecord:
+    """The :class:`CameraRecord` of ``camera`` (:class:`reference_impl.Camera`, :class:`.ThinLensCamera` or
+    :class:`.OrthographicCamera`) on a film of ``width`` x ``height``."""
+    eye = np.asarray(camera.origin, dtype=np.float64)
+    frame = _c(camera.frame(), dtype=np.float64)
+    if isinstance(camera, OrthographicCamera):
+        half_x, half_y = camera.extent(width, height)
+        return CameraRecord(ORTHOGRAPHIC, eye, frame, 0.0, 0.0, int(width), int(height), 0.0, 0.0, half_x, half_y)
     tan_x, tan_y = camera.tan_half_fov(width, height)
-    return Pinhole(np.asarray(camera.origin, dtype=np.float64), _c(camera.frame(), dtype=np.float64), float(tan_x),
-                   float(tan_y), int(width), int(height))
+    if isinstance(camera, ThinLensCamera):
+        return CameraRecord(THINLENS, eye, frame, float(tan_x), float(tan_y), int(width), int(height),
+                            float(camera.aperture_radius), float(camera.focus_distance), 0.0, 0.0)
+    return CameraRecord(PERSPECTIVE, eye, frame, float(tan_x), float(tan_y), int(width), int(height), 0.0, 0.0, 0.0,
+                        0.0)
 
 
 class FilterSamples(NamedTuple):

@@ -5,6 +5,7 @@
     to world             the orthonormal frame of N_x of Duff et al., "Building an Orthonormal Basis, Revisited"
                          (JCGT 6(1), 2017)
     discrete choice      the i with cdf[i-1] <= u < cdf[i] (numpy's searchsorted, side="right")
+    concentric disk      Shirley and Chiu's map of the square to the unit disk, p = 1 / pi (a thin lens's aperture)
 
 The slides' cosine sampling (p = cos / pi) and the indirect estimator it gives (Fig. 5.14); the hemisphere sampling
 of direct light (Fig. 5.12) uses the same warps.
@@ -67,6 +68,20 @@ def unit_circle(u):
     x = sin_a if odd else cos_a
     y = cos_a if odd else sin_a
     return x * (1.0 - 2.0 * (((k + 1) >> 1) & 1)), y * (1.0 - 2.0 * ((k >> 1) & 1))
+
+
+@njit(**JIT)
+def concentric_disk(u1, u2):
+    """sampling.square_to_uniform_disk_concentric for one pair of uniforms: (x, y) uniform on the unit disk."""
+    a = 2.0 * u1 - 1.0
+    b = 2.0 * u2 - 1.0
+    if a == 0.0 and b == 0.0:
+        return 0.0, 0.0
+    if abs(a) >= abs(b):
+        r, phi = a, 0.25 * PI * (b / a)
+    else:
+        r, phi = b, HALF_PI - 0.25 * PI * (a / b)
+    return r * math.cos(phi), r * math.sin(phi)
 
 
 @njit(**JIT)

@@ -33,6 +33,7 @@ from harness.scene import load_scene
 from harness.scene.kinds.materials import normal_incidence_reflectance
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.triangulate import shape_triangles, vertex_uv
+from reference_impl.camera import OrthographicCamera, ThinLensCamera
 from reference_impl.textures import srgb_to_linear
 from reference_impl import Film
 
@@ -156,6 +157,34 @@ def _gltf_ndc(node_matrix, camera, directions) -> np.ndarray:
     return np.stack([local[:, 0] / depth / (camera.aspectRatio * tan_y), local[:, 1] / depth / tan_y], axis=1)
 
 
+def check_gltf_perspective(scene, camera, camera_node):
+    """A perspective (or thin-lens) glTF camera: its frustum and the same four image corners as the scene's."""
+    film = scene.film
+    if isinstance(scene.camera, ThinLensCamera):  # a thin lens's two numbers in the camera's extras
+        assert camera.extras == {"aperture_radius": scene.camera.aperture_radius,
+                                 "focus_distance": scene.camera.focus_distance}
+    _tan_x, tan_y = scene.camera.tan_half_fov(film.width, film.height)
+    perspective = camera.perspective
+    assert camera.type == "perspective" and perspective.yfov == pytest.approx(2 * math.atan(tan_y), rel=1e-15)
+    assert perspective.aspectRatio == film.width / film.height
+    assert (perspective.znear, perspective.zfar) == clip_planes(scene)
+    placement = np.array(camera_node.matrix).reshape(4, 4).T
+    np.testing.assert_array_equal(placement[:3, 3], scene.camera.origin)
+    forward = np.subtract(scene.camera.target, scene.camera.origin)
+    np.testing.assert_allclose(-placement[:3, 2], forward / np.linalg.norm(forward), atol=1e-15)
+    np.testing.assert_allclose(placement[:3, :3].T @ placement[:3, :3], np.eye(3), atol=1e-15)  # a rotation
+    assert np.dot(placement[:3, 1], scene.camera.up) > 0  # the image's up
+    corners_x = np.array([0.0, film.width, 0.0, film.width, film.width / 2])
+    corners_y = np.array([0.0, 0.0, film.height, film.height, film.height / 2])
+    _origins, directions = scene.camera.generate_rays(corners_x, corners_y, film.width, film.height)
+    want = np.stack([2 * corners_x / film.width - 1, 1 - 2 * corners_y / film.height], axis=1)
+    np.testing.assert_allclose(_gltf_ndc(camera_node.matrix, perspective, directions), want, atol=1e-12)
+    mitsuba_to_world = np.eye(4)  # the planted fault: Mitsuba's matrix as it is would mirror the image left-right
+    mitsuba_to_world[:3, :3] = scene.camera.frame()
+    wrong = _gltf_ndc(mitsuba_to_world.T.ravel(), perspective, directions)
+    assert not np.allclose(wrong, want, atol=1e-6)
+
+
 @pytest.mark.parametrize("name", CANONICAL)
 def test_gltf_reads_back_exactly(name, tmp_path):
     scene = load_scene(ROOT / "scenes" / f"{name}.toml")
@@ -203,26 +232,13 @@ def test_gltf_reads_back_exactly(name, tmp_path):
     (camera,) = gltf.cameras
     (camera_node,) = [n for n in gltf.nodes if n.camera is not None]
     film = scene.film
-    _tan_x, tan_y = scene.camera.tan_half_fov(film.width, film.height)
-    perspective = camera.perspective
-    assert camera.type == "perspective" and perspective.yfov == pytest.approx(2 * math.atan(tan_y), rel=1e-15)
-    assert perspective.aspectRatio == film.width / film.height
-    assert (perspective.znear, perspective.zfar) == clip_planes(scene)
-    placement = np.array(camera_node.matrix).reshape(4, 4).T
-    np.testing.assert_array_equal(placement[:3, 3], scene.camera.origin)
-    forward = np.subtract(scene.camera.target, scene.camera.origin)
-    np.testing.assert_allclose(-placement[:3, 2], forward / np.linalg.norm(forward), atol=1e-15)
-    np.testing.assert_allclose(placement[:3, :3].T @ placement[:3, :3], np.eye(3), atol=1e-15)  # a rotation
-    assert np.dot(placement[:3, 1], scene.camera.up) > 0  # the image's up
-    corners_x = np.array([0.0, film.width, 0.0, film.width, film.width / 2])
-    corners_y = np.array([0.0, 0.0, film.height, film.height, film.height / 2])
-    _origins, directions = scene.camera.generate_rays(corners_x, corners_y, film.width, film.height)
-    want = np.stack([2 * corners_x / film.width - 1, 1 - 2 * corners_y / film.height], axis=1)
-    np.testing.assert_allclose(_gltf_ndc(camera_node.matrix, perspective, directions), want, atol=1e-12)
-    mitsuba_to_world = np.eye(4)  # the planted fault: Mitsuba's matrix as it is would mirror the image left-right
-    mitsuba_to_world[:3, :3] = scene.camera.frame()
-    wrong = _gltf_ndc(mitsuba_to_world.T.ravel(), perspective, directions)
-    assert not np.allclose(wrong, want, atol=1e-6)
+    if isinstance(scene.camera, OrthographicCamera):  # glTF's orthographic camera: its half width and height
+        half_x, half_y = scene.camera.extent(film.width, film.height)
+        assert camera.type == "orthographic" and (camera.orthographic.xmag, camera.orthographic.ymag) == (half_x,
+                                                                                                          half_y)
+        assert (camera.orthographic.znear, camera.orthographic.zfar) == clip_planes(scene)
+    else:
+        check_gltf_perspective(scene, camera, camera_node)
     # the render settings
     extras = dict(gltf.asset.extras)
     textures = extras.pop("textures", None)
@@ -506,6 +522,11 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
     np.testing.assert_array_equal(to_world[:3, :3], scene.camera.frame())
     np.testing.assert_array_equal(to_world[:3, 3], scene.camera.origin)
     np.testing.assert_array_equal(to_world[3], [0, 0, 0, 1])
+    if isinstance(scene.camera, OrthographicCamera):
+        half_x, half_y = scene.camera.extent(film.width, film.height)
+        assert (camera["half_width"], camera["half_height"]) == (half_x, half_y)
+        assert camera["scale"] == list(scene.camera.scale)
+        return
     tan_x, tan_y = scene.camera.tan_half_fov(film.width, film.height)
     assert camera["fov_x"] == pytest.approx(math.degrees(2 * math.atan(tan_x)), rel=1e-15)
     assert camera["fov_y"] == pytest.approx(math.degrees(2 * math.atan(tan_y)), rel=1e-15)

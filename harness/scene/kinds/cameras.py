@@ -13,7 +13,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from reference_impl.camera import Camera, Film
+from reference_impl.camera import DEFAULT_FOCUS_DISTANCE, Camera, Film, OrthographicCamera, ThinLensCamera
 
 from harness.scene.kinds.mitsuba_values import LookAt, xyz
 
@@ -56,9 +56,11 @@ class CameraKind:
 
     def to_mitsuba(self, camera, near_clip: float, far_clip: float) -> dict:
         """Mitsuba's sensor of ``camera`` without its sampler and film: its parameters, the clip planes (the
-        scene's, :func:`harness.renderers.mitsuba_spec.clip_planes`) and its look-at."""
+        scene's, :func:`harness.renderers.mitsuba_spec.clip_planes`) and its look-at (an orthographic camera's
+        with its ``scale`` after it: ``to_world = look_at @ scale``)."""
+        scale = xyz(camera.scale) if isinstance(camera, OrthographicCamera) else None
         return {"type": self.name, **self.parameters(camera), "near_clip": near_clip, "far_clip": far_clip,
-                "to_world": LookAt(xyz(camera.origin), xyz(camera.target), xyz(camera.up))}
+                "to_world": LookAt(xyz(camera.origin), xyz(camera.target), xyz(camera.up), scale)}
 
     def to_scene_json(self, camera, film: Film) -> dict:
         """The scene.json entry of ``camera`` but its clip planes: type, look-at, its parameters and the
@@ -122,6 +124,10 @@ def _read_perspective(reader, table: dict, look_at: tuple) -> Camera:
     return reader.settings(lambda: Camera(*look_at, fov, fov_axis))
 
 
+def _perspective_parameters(camera: Camera) -> dict:
+    return {"fov": float(camera.fov), "fov_axis": camera.fov_axis}
+
+
 def _perspective_json(camera: Camera, film: Film) -> dict:
     """Mitsuba's ``fov`` / ``fov_axis``, the full angles they resolve to on ``film`` and its aspect ratio."""
     tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
@@ -130,10 +136,57 @@ def _perspective_json(camera: Camera, film: Film) -> dict:
             "aspect": film.width / film.height}
 
 
+# ---- thinlens ------------------------------------------------------------------------------------------------------
+
+
+def _read_thinlens(reader, table: dict, look_at: tuple) -> ThinLensCamera:
+    """The perspective keys, ``aperture_radius`` (required, as in Mitsuba; >= 0) and ``focus_distance`` (> 0; Mitsuba's
+    default, its default far_clip 10^4)."""
+    fov = reader.number(reader.require(table, "fov", "camera", "degrees"), "camera.fov", "degrees in (0, 180)")
+    fov_axis = reader.string(table.get("fov_axis", DEFAULT_FOV_AXIS), "camera.fov_axis")
+    radius = reader.number(reader.require(table, "aperture_radius", "camera", "a number >= 0 (scene units)"),
+                           "camera.aperture_radius", "a finite number >= 0 (scene units)")
+    focus = reader.number(table.get("focus_distance", DEFAULT_FOCUS_DISTANCE), "camera.focus_distance",
+                          "a finite number > 0 (scene units)")
+    return reader.settings(lambda: ThinLensCamera(*look_at, fov, fov_axis, aperture_radius=radius,
+                                                  focus_distance=focus))
+
+
+def _thinlens_parameters(camera: ThinLensCamera) -> dict:
+    return {**_perspective_parameters(camera), "aperture_radius": float(camera.aperture_radius),
+            "focus_distance": float(camera.focus_distance)}
+
+
+def _thinlens_json(camera: ThinLensCamera, film: Film) -> dict:
+    """The perspective entry, ``aperture_radius`` and ``focus_distance`` (along the camera's axis)."""
+    return {**_perspective_json(camera, film), "aperture_radius": float(camera.aperture_radius),
+            "focus_distance": float(camera.focus_distance)}
+
+
+# ---- orthographic --------------------------------------------------------------------------------------------------
+
+
+def _read_orthographic(reader, table: dict, look_at: tuple) -> OrthographicCamera:
+    """``scale``: one factor or three (Mitsuba's ``to_world = look_at @ scale``), default 1."""
+    scale = reader.scale(table.get("scale", 1.0), "camera.scale")
+    return reader.settings(lambda: OrthographicCamera(*look_at, scale=scale))
+
+
+def _orthographic_json(camera: OrthographicCamera, film: Film) -> dict:
+    """``scale``, the half width and height of the film in scene units it gives on ``film``, its aspect ratio."""
+    half_x, half_y = camera.extent(film.width, film.height)
+    return {"scale": _floats(camera.scale), "half_width": half_x, "half_height": half_y,
+            "aspect": film.width / film.height}
+
+
 #: Every camera type by its name.
 CAMERAS: dict[str, CameraKind] = {kind.name: kind for kind in (
-    CameraKind("perspective", Camera, ("fov", "fov_axis"), _read_perspective,
-               lambda camera: {"fov": float(camera.fov), "fov_axis": camera.fov_axis}, _perspective_json),
+    CameraKind("perspective", Camera, ("fov", "fov_axis"), _read_perspective, _perspective_parameters,
+               _perspective_json),
+    CameraKind("thinlens", ThinLensCamera, ("fov", "fov_axis", "aperture_radius", "focus_distance"), _read_thinlens,
+               _thinlens_parameters, _thinlens_json),
+    CameraKind("orthographic", OrthographicCamera, ("scale",), _read_orthographic, lambda camera: {},
+               _orthographic_json),
 )}
 CAMERA_MODELS = {kind.model: kind for kind in CAMERAS.values()}
 #: The keys a ``[camera]`` table may hold, in the order a refusal lists them.

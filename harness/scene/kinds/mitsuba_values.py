@@ -11,11 +11,13 @@ import numpy as np
 
 @dataclass(frozen=True)
 class LookAt:
-    """A camera's look-at transform: its eye, the point it looks at and its up direction."""
+    """A camera's look-at transform: its eye, the point it looks at and its up direction, and where given a scale
+    applied before it (``look_at @ scale``: an orthographic sensor's extent)."""
 
     origin: tuple[float, ...]
     target: tuple[float, ...]
     up: tuple[float, ...]
+    scale: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ def cornell():
     ws = ctx.workspace()
     first = integrator._view(ws.state(0, N_RAYS), N_RAYS)
     film_samples = records.film_samples(pixel, sample, ctx.seed_key)
-    camera_args = (film_samples, ctx.config, ctx.pinhole, records.filter_samples(ctx.filter_kind), first)
+    camera_args = (film_samples, ctx.config, ctx.camera_record, records.filter_samples(ctx.filter_kind), first)
     camera.camera_paths(*camera_args)
     state = integrator._PathState(*first)
     prim = ctx.intersector.closest_prims(state.origin32, state.direction32)
