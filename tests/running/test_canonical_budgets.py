@@ -190,6 +190,10 @@ PER_SAMPLE_RATIO = {
     "orthographic-floor/mitsuba-vs-closed-form": 0.0,
     "depth-of-field/reference": 1.10,  # 2026-12-06: ratio 0.0342 at 256 spp, 8192 spp of ground truth
     "depth-of-field/mutant-lens-sampled-on-square": 0.99,  # 2026-12-06: ratio 0.124 at 1024 spp
+    "thin-glass-window/reference": 14.4,  # 2026-12-06
+    "thin-glass-window/mutant-thin-glass-refracts": 15.5,
+    "plastic-cornell-box/reference": 4.14,
+    "plastic-cornell-box/mutant-plastic-no-internal-reflection": 4.52,
 }
 
 #: Cases whose ground truth has no variance to compare, or whose test render reports none (``ground_truth_noise``
