@@ -138,7 +138,8 @@ class ThinLensCamera(Camera):
     def __post_init__(self) -> None:
         radius, focus = float(self.aperture_radius), float(self.focus_distance)
         if not (math.isfinite(radius) and radius >= 0.0):
-            raise SettingsError("camera.aperture_radius", f"expected a finite number >= 0, got {self.aperture_radius!r}")
+            raise SettingsError("camera.aperture_radius",
+                                f"expected a finite number >= 0, got {self.aperture_radius!r}")
         if not (math.isfinite(focus) and focus > 0.0):
             raise SettingsError("camera.focus_distance", f"expected a finite number > 0, got {self.focus_distance!r}")
         super().__post_init__()

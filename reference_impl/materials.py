@@ -310,7 +310,7 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
             raise SettingsError(name, "expected k >= 0")
         if kd in (CONDUCTOR, ROUGHCONDUCTOR) and np.any(row[P_ETA:P_ETA + 3] < 0):
             raise SettingsError(name, "expected eta >= 0")
-        if kd in (DIELECTRIC, ROUGHDIELECTRIC):
+        if kd in TRANSMITTING:
             trans = row[P_TRANSMITTANCE:P_TRANSMITTANCE + 3]
             if np.any(trans < 0) or np.any(trans > 1):
                 raise SettingsError(name, "expected the specular_transmittance in [0, 1]")
@@ -319,23 +319,12 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
             if kd == ROUGHDIELECTRIC and row[P_IOR] == 1.0:
                 raise SettingsError(name, "expected int_ior != ext_ior (Mitsuba's roughdielectric refuses an "
                                     "index-matched interface; use a dielectric)")
+            if row[P_TWO_SIDED] and kd == THINDIELECTRIC:
+                raise SettingsError(name, "two_sided does not apply to a thindielectric (it is two-sided by nature)")
             if row[P_TWO_SIDED]:
                 raise SettingsError(name, "two_sided does not apply to dielectrics")
-        if kd == THINDIELECTRIC:
-            _check_thin(name, row)
         if kd == PLASTIC:
             _check_plastic(name, row)
-
-
-def _check_thin(name: str, row: np.ndarray) -> None:
-    """The thin dielectric's columns: transmittance in [0, 1], eta > 0, not two-sided (both sides by nature)."""
-    trans = row[P_TRANSMITTANCE:P_TRANSMITTANCE + 3]
-    if np.any(trans < 0) or np.any(trans > 1):
-        raise SettingsError(name, "expected the specular_transmittance in [0, 1]")
-    if not row[P_IOR] > 0:
-        raise SettingsError(name, f"expected eta = int_ior / ext_ior > 0, got {row[P_IOR]!r}")
-    if row[P_TWO_SIDED]:
-        raise SettingsError(name, "two_sided does not apply to a thindielectric (it is two-sided by nature)")
 
 
 def _check_plastic(name: str, row: np.ndarray) -> None:

@@ -52,7 +52,6 @@ from pathlib import Path
 
 import numpy as np
 
-from reference_impl.camera import OrthographicCamera, ThinLensCamera
 from reference_impl.sampling import coordinate_frame
 
 from harness.core.errors import HarnessError
@@ -63,7 +62,7 @@ from harness.renderers.mitsuba_spec import RR_DEPTH, Parameter, bsdf_dict, clip_
 from harness.renderers.mitsuba_xml import spec_xml
 from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
-from harness.scene.kinds.cameras import camera_to_world
+from harness.scene.kinds.cameras import camera_kind, camera_to_world
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
 from harness.scene.kinds.perturbations import PERTURBATIONS
@@ -263,7 +262,8 @@ def corner_frames(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarray,
     tangent s = normalize(dp/du - n (n . dp/du)), dp/du the triangle's from its corners and its (untransformed)
     texture coordinates ``uv`` (V, 2) (dp/du = (dv_2 e_1 - dv_1 e_2) / (du_1 dv_2 - dv_1 du_2), e_i = p_i - p_0:
     :func:`reference_impl.kernels.shading.position_derivatives`), or the core's tangent of n where the coordinates
-    are degenerate (:func:`reference_impl.sampling.coordinate_frame`). The bitangent is t = n x s (so glTF's ``TANGENT`` w is +1)."""
+    are degenerate (:func:`reference_impl.sampling.coordinate_frame`). The bitangent is t = n x s (so glTF's
+    ``TANGENT`` w is +1)."""
     corners = np.asarray(vertices, np.float64)[triangles]
     e1, e2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
     with np.errstate(all="ignore"):
@@ -328,32 +328,18 @@ def normal_mapped_mesh(vertices: np.ndarray, triangles: np.ndarray, uv: np.ndarr
 
 
 def gltf_camera(scene: Scene) -> tuple[dict, dict]:
-    """The scene's camera as a glTF camera and the node that places it.
+    """The scene's camera as a glTF camera (its type's form, :attr:`harness.scene.kinds.cameras.CameraKind.gltf`:
+    perspective with ``yfov`` and ``aspectRatio``, a thin lens's two numbers under ``extras``, or orthographic
+    with ``xmag`` / ``ymag``; ``znear`` / ``zfar`` the clip planes) and the node that places it.
 
-    A perspective or thin-lens camera: glTF's perspective camera, ``yfov`` = the resolved vertical field of view
-    (radians; Mitsuba's ``fov`` / ``fov_axis`` for this film), ``aspectRatio`` = width / height; a thin lens's
-    ``aperture_radius`` and ``focus_distance`` (along the axis) under the camera's ``extras``, which glTF has no
-    place for. An orthographic camera: glTF's orthographic camera, ``xmag`` / ``ymag`` = half the film's width and
-    height in scene units (:meth:`reference_impl.camera.OrthographicCamera.extent`). ``znear`` / ``zfar`` = the
-    clip planes. The node's ``matrix`` (column-major) is Mitsuba's camera-to-world matrix of the look-at (without an
+    The node's ``matrix`` (column-major) is Mitsuba's camera-to-world matrix of the look-at (without an
     orthographic scale) with its x and z columns negated: a glTF camera looks down its -z with +x to the image's
     right, Mitsuba's looks down +z with +x to the image's left, so both see the same image.
     """
-    camera, film = scene.camera, scene.film
+    camera = scene.camera
     near, far = clip_planes(scene)
     to_world = camera_to_world(camera) @ np.diag([-1.0, 1.0, -1.0, 1.0])  # negate the x and z columns
-    if isinstance(camera, OrthographicCamera):
-        half_x, half_y = camera.extent(film.width, film.height)
-        gltf = {"name": "camera", "type": "orthographic",
-                "orthographic": {"xmag": half_x, "ymag": half_y, "znear": float(near), "zfar": float(far)}}
-    else:
-        _tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
-        gltf = {"name": "camera", "type": "perspective",
-                "perspective": {"yfov": 2.0 * math.atan(tan_y), "aspectRatio": film.width / film.height,
-                                "znear": float(near), "zfar": float(far)}}
-        if isinstance(camera, ThinLensCamera):
-            gltf["extras"] = {"aperture_radius": float(camera.aperture_radius),
-                              "focus_distance": float(camera.focus_distance)}
+    gltf = {"name": "camera", **camera_kind(camera).gltf(camera, scene.film, near, far)}
     return gltf, {"name": "camera", "camera": 0, "matrix": [float(x) + 0.0 for x in to_world.T.ravel()]}
 
 

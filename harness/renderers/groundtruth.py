@@ -81,8 +81,8 @@ def closed_form(scene: Scene) -> GroundTruth:
     white-furnace: one diffuse sphere of albedo rho under a ``constant`` environment L, covering every pixel's
     footprint: a convex surface sees only the environment, so every pixel is rho L for max_depth >= 2 or -1
     (one bounce, then the ray escapes), and 0 for max_depth = 1 (the sphere does not emit). A textured rho makes
-    each pixel L times the texture's mean over the pixel's footprint on the sphere (:func:`textured_sphere_means`). A perfect mirror
-    (conductor, material "none") gives specular_reflectance L the same way; a smooth dielectric with
+    each pixel L times the texture's mean over the pixel's footprint on the sphere (:func:`textured_sphere_means`).
+    A perfect mirror (conductor, material "none") gives specular_reflectance L the same way; a smooth dielectric with
     specular_reflectance = specular_transmittance = 1 conserves energy, so every pixel is L at max_depth = -1.
     """
     if scene.closed_form not in CLOSED_FORMS:
@@ -255,18 +255,25 @@ def _leaning_plate(scene: Scene) -> np.ndarray:
     where = f"{scene.path}: closed_form"
     if len(scene.shapes) != 1 or scene.shapes[0].type != "mesh" or scene.shapes[0].emission is not None:
         raise HarnessError(where, "the leaning-plate closed form needs exactly one shape, a mesh that does not emit")
-    material = scene.materials[scene.shapes[0].material]
-    if not material.is_diffuse or material.textures or material.perturbation or material.two_sided:
-        raise HarnessError(where, "the leaning-plate closed form needs a one-sided diffuse material without textures")
-    if not scene.emitters or any(e.type != "directional" for e in scene.emitters):
-        raise HarnessError(where, "the leaning-plate closed form needs [[emitters]] that are all directional")
-    if scene.film.filter != "box" or scene.max_depth == 1:
-        raise HarnessError(where, "the leaning-plate closed form needs the box filter and max_depth >= 2 or -1")
+    _check_sunlit_diffuse(scene, "leaning-plate")
     key = scene_digest(scene)
     if key not in _PLATE_MEANS:  # a suite's cases of one scene share it (seconds each)
         _PLATE_MEANS.clear()
         _PLATE_MEANS[key] = shaded_plate_means(scene)
     return _PLATE_MEANS[key]
+
+
+def _check_sunlit_diffuse(scene: Scene, name: str) -> None:
+    """What :func:`shaded_plate_means` needs of the closed form ``name``'s one shape and lights: a one-sided diffuse
+    material without textures, [[emitters]] that are all directional, the box filter and max_depth >= 2 or -1."""
+    where = f"{scene.path}: closed_form"
+    material = scene.materials[scene.shapes[0].material]
+    if not material.is_diffuse or material.textures or material.perturbation or material.two_sided:
+        raise HarnessError(where, f"the {name} closed form needs a one-sided diffuse material without textures")
+    if not scene.emitters or any(e.type != "directional" for e in scene.emitters):
+        raise HarnessError(where, f"the {name} closed form needs [[emitters]] that are all directional")
+    if scene.film.filter != "box" or scene.max_depth == 1:
+        raise HarnessError(where, f"the {name} closed form needs the box filter and max_depth >= 2 or -1")
 
 
 _PLATE_MEANS: dict[str, np.ndarray] = {}
@@ -343,13 +350,7 @@ def _sunlit_floor(scene: Scene) -> np.ndarray:
         raise HarnessError(where, "the sunlit-floor closed form needs an orthographic [camera]")
     if len(scene.shapes) != 1 or scene.shapes[0].emission is not None:
         raise HarnessError(where, "the sunlit-floor closed form needs exactly one shape that does not emit")
-    material = scene.materials[scene.shapes[0].material]
-    if not material.is_diffuse or material.textures or material.perturbation or material.two_sided:
-        raise HarnessError(where, "the sunlit-floor closed form needs a one-sided diffuse material without textures")
-    if not scene.emitters or any(e.type != "directional" for e in scene.emitters):
-        raise HarnessError(where, "the sunlit-floor closed form needs [[emitters]] that are all directional")
-    if scene.film.filter != "box" or scene.max_depth == 1:
-        raise HarnessError(where, "the sunlit-floor closed form needs the box filter and max_depth >= 2 or -1")
+    _check_sunlit_diffuse(scene, "sunlit-floor")
     return shaded_plate_means(scene, misses=True)
 
 

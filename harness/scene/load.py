@@ -53,7 +53,8 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "textures", "materials",
                   "shapes", "emitters", "regions")
-CLOSED_FORMS = ("furnace", "white-furnace", "leaning-plate", "sunlit-floor", "focused-plane")  # harness.renderers.groundtruth.CLOSED_FORMS
+# harness.renderers.groundtruth.CLOSED_FORMS
+CLOSED_FORMS = ("furnace", "white-furnace", "leaning-plate", "sunlit-floor", "focused-plane")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.model import Scene, Shape
 from harness.scene.primitives import rectangle_uv
@@ -48,7 +49,6 @@ from harness.scene.triangulate import (
     unit_rectangle,
 )
 from reference_impl import SettingsError
-from reference_impl.camera import OrthographicCamera, ThinLensCamera
 
 INVARIANT, STRAIN = "invariant", "strain"
 #: Direction of the translation variants (unit vector): no axis is spared.
@@ -192,13 +192,7 @@ def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     def point(p):
         return tuple(float(x) for x in matrix[:3, :3] @ np.asarray(p, float) + matrix[:3, 3])
 
-    camera = dataclasses.replace(cam, origin=point(cam.origin), target=point(cam.target))
-    s = area ** 0.5
-    if isinstance(cam, ThinLensCamera):  # the lens and its plane of focus scale with the scene
-        camera = dataclasses.replace(camera, aperture_radius=cam.aperture_radius * s,
-                                     focus_distance=cam.focus_distance * s)
-    elif isinstance(cam, OrthographicCamera):  # the film's extent scales with the scene
-        camera = dataclasses.replace(camera, scale=tuple(float(x) * s for x in cam.scale))
+    camera = camera_kind(cam).moved(cam, point, area ** 0.5)
     return dataclasses.replace(scene, shapes=shapes, camera=camera,
                                emitters=tuple(EMITTERS[e.type].moved(e, matrix, area) for e in scene.emitters))
 

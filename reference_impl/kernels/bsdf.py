@@ -2,8 +2,8 @@ r"""BSDF kernels: evaluation, pdf and sampling of the materials of :mod:`referen
 
 The physics is Mitsuba 3.9.1's (src/bsdfs/diffuse.cpp, conductor.cpp, roughconductor.cpp, dielectric.cpp,
 roughdielectric.cpp, thindielectric.cpp, plastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
-fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the triangle's front geometric normal (never flipped
-by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
+fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
+triangle's front geometric normal (never flipped by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
 radiance mode (transmission carries the ``1 / eta^2`` solid-angle compression of radiance).
 The parameters are the material step's (:func:`.material.material_at`): each entry point takes the kind and the
@@ -526,13 +526,12 @@ def _plastic_prob_specular(row, f_o):
 
 
 @njit(**JIT_NONRT)
-def _plastic_diffuse(row, mutant, c):
-    """diff of channel ``c``: rho / (1 - F_dr) or, nonlinear, rho / (1 - rho F_dr), F_dr = F_dr(1 / eta) (the light
-    that the coating reflects back onto the base, over and over); rho under "plastic-no-internal-reflection"."""
+def _plastic_diffuse(row, mutant, c, fdr):
+    """diff of channel ``c``: rho / (1 - F_dr) or, nonlinear, rho / (1 - rho F_dr), ``fdr`` = F_dr(1 / eta) (the
+    light that the coating reflects back onto the base, over and over); rho under "plastic-no-internal-reflection"."""
     rho = row[P_DIFFUSE + c]
     if mutant & M_PLASTIC_NO_INTERNAL_REFLECTION:  # mutant "plastic-no-internal-reflection": no 1 / (1 - F_dr)
         return rho
-    fdr = fresnel_diffuse_reflectance(1.0 / row[P_IOR])
     return rho / (1.0 - (rho * fdr if row[P_NONLINEAR] != 0.0 else fdr))
 
 
@@ -545,8 +544,9 @@ def _plastic_eval(row, mutant, woz, wiz):
     eta = row[P_IOR]
     v = ((1.0 - fresnel_dielectric(woz, eta)[0]) * (1.0 - fresnel_dielectric(wiz, eta)[0]) / (eta * eta)
          * wiz * INV_PI)
-    return (v * _plastic_diffuse(row, mutant, 0), v * _plastic_diffuse(row, mutant, 1),
-            v * _plastic_diffuse(row, mutant, 2))
+    fdr = fresnel_diffuse_reflectance(1.0 / eta)  # once for the three channels
+    return (v * _plastic_diffuse(row, mutant, 0, fdr), v * _plastic_diffuse(row, mutant, 1, fdr),
+            v * _plastic_diffuse(row, mutant, 2, fdr))
 
 
 @njit(**JIT_NONRT)

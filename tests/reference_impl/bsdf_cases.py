@@ -43,6 +43,22 @@ def direction(cos_theta: float, phi: float = 0.3) -> np.ndarray:
     return np.array([s * np.cos(phi), s * np.sin(phi), cos_theta])
 
 
+def mitsuba_interaction(mi, wo):
+    """A Mitsuba surface interaction at the origin of the local frame (normal and shading frame +z) seen from
+    ``wo`` (Mitsuba's ``si.wi``), for calling a BSDF object of Mitsuba (``mi``: the module, its variant set)."""
+    si = mi.SurfaceInteraction3f()
+    si.wi = mi.Vector3f(*wo)
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
+    si.n = mi.Normal3f(0, 0, 1)
+    return si
+
+
+def mitsuba_eval_pdf(mi, plugin, wo, wi):
+    """Mitsuba's BSDF ``plugin``: its eval (f |cos theta_i|, per channel) and pdf of (wo, wi), local directions."""
+    si, ctx = mitsuba_interaction(mi, wo), mi.BSDFContext()
+    return np.array(plugin.eval(ctx, si, mi.Vector3f(*wi))), float(plugin.pdf(ctx, si, mi.Vector3f(*wi)))
+
+
 def uniforms(seed: int, n: int) -> np.ndarray:
     return np.random.default_rng(seed).random((n, 3))
 

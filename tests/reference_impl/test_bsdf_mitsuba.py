@@ -68,19 +68,6 @@ ROUGH_CASES += [
 ]
 
 
-def _si(wo):
-    si = mi.SurfaceInteraction3f()
-    si.wi = mi.Vector3f(*wo)
-    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-    si.n = mi.Normal3f(0, 0, 1)
-    return si
-
-
-def _mitsuba_eval_pdf(plugin, wo, wi):
-    si, ctx = _si(wo), mi.BSDFContext()
-    return np.array(plugin.eval(ctx, si, mi.Vector3f(*wi))), float(plugin.pdf(ctx, si, mi.Vector3f(*wi)))
-
-
 @pytest.mark.parametrize("name, spec, kind, kw", ROUGH_CASES, ids=[c[0] for c in ROUGH_CASES])
 def test_eval_and_pdf_agree_with_mitsuba(name, spec, kind, kw):
     plugin = mi.load_dict(spec)
@@ -89,7 +76,7 @@ def test_eval_and_pdf_agree_with_mitsuba(name, spec, kind, kw):
                         and kw.get("sample_visible", True)) else RTOL
     nonzero = 0
     for wo, wi in PAIRS:
-        f_mi, p_mi = _mitsuba_eval_pdf(plugin, wo, wi)
+        f_mi, p_mi = cases.mitsuba_eval_pdf(mi, plugin, wo, wi)
         f, p = bsdf.eval_pdf(materials, 0, wo, wi[None])
         np.testing.assert_allclose(f[0], f_mi, rtol=RTOL, atol=ATOL, err_msg=f"{name} eval at {wo}, {wi}")
         np.testing.assert_allclose(p[0], p_mi, rtol=pdf_rtol, atol=ATOL, err_msg=f"{name} pdf at {wo}, {wi}")
@@ -106,7 +93,7 @@ def test_eval_and_pdf_agree_with_mitsuba(name, spec, kind, kw):
 def test_mutants_disagree_with_mitsuba(mutant, spec, kind, kw, pair):
     plugin = mi.load_dict(spec)
     materials = cases.one(kind, **kw)
-    f_mi, _ = _mitsuba_eval_pdf(plugin, *pair)
+    f_mi, _ = cases.mitsuba_eval_pdf(mi, plugin, *pair)
     f_ok, _ = bsdf.eval_pdf(materials, 0, pair[0], pair[1][None])
     f_bad, _ = bsdf.eval_pdf(materials, 0, pair[0], pair[1][None], mutant=MUTANT_BITS[mutant])
     np.testing.assert_allclose(f_ok[0], f_mi, rtol=RTOL, atol=ATOL)
@@ -137,7 +124,7 @@ def test_delta_samples_agree_with_mitsuba(name, spec, kind, kw, mutant):
     for c in (0.95, 0.4, 0.05, -0.3, -0.9):
         wo = cases.direction(c)
         for u_lobe in (0.0, 1.0 - 1e-7):
-            bs, w_mi = plugin.sample(mi.BSDFContext(), _si(wo), u_lobe, mi.Point2f(0.5, 0.5))
+            bs, w_mi = plugin.sample(mi.BSDFContext(), cases.mitsuba_interaction(mi, wo), u_lobe, mi.Point2f(0.5, 0.5))
             w_mi = np.array(w_mi)
             s = bsdf.sample(materials, 0, wo, [[u_lobe, 0.5, 0.5]], mutant=bit)
             if not w_mi.any():

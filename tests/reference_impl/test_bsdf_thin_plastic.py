@@ -32,8 +32,8 @@ except ImportError:  # tests/ imported as a package
 from reference_impl import Materials, SettingsError
 from reference_impl.kernels import bsdf
 from reference_impl.kernels.config import M_PLASTIC_NO_INTERNAL_REFLECTION, M_THIN_GLASS_REFRACTS
-from reference_impl.materials import (P_IOR, P_SPECULAR_WEIGHT, PLASTIC, THINDIELECTRIC, fresnel_diffuse_reflectance,
-                                      material_row)
+from reference_impl.materials import (P_IOR, P_SPECULAR_WEIGHT, PLASTIC, THINDIELECTRIC,
+                                      fresnel_diffuse_reflectance, material_row)
 
 mi = pytest.importorskip("mitsuba")
 mi.set_variant("scalar_rgb")
@@ -77,22 +77,9 @@ def _one(kind, kw) -> Materials:
     return cases.one(kind, **kw)
 
 
-def _si(wo):
-    si = mi.SurfaceInteraction3f()
-    si.wi = mi.Vector3f(*wo)
-    si.sh_frame = mi.Frame3f(mi.Vector3f(0, 0, 1))
-    si.n = mi.Normal3f(0, 0, 1)
-    return si
-
-
 def _mi_sample(plugin, wo, u_lobe, u=(0.3, 0.7)):
-    bs, w = plugin.sample(mi.BSDFContext(), _si(wo), u_lobe, mi.Point2f(*u))
+    bs, w = plugin.sample(mi.BSDFContext(), cases.mitsuba_interaction(mi, wo), u_lobe, mi.Point2f(*u))
     return np.array(bs.wo), np.array(w), float(bs.pdf)
-
-
-def _mi_eval_pdf(plugin, wo, wi):
-    si, ctx = _si(wo), mi.BSDFContext()
-    return np.array(plugin.eval(ctx, si, mi.Vector3f(*wi))), float(plugin.pdf(ctx, si, mi.Vector3f(*wi)))
 
 
 def _thin_r(eta, c):
@@ -127,7 +114,7 @@ def test_plastic_agrees_with_mitsuba(name, spec, kw):
         wo = cases.direction(c, phi=0.4)
         for ci in (0.9, 0.5, 0.1, -0.4):
             wi = cases.direction(ci, phi=g.uniform(0, 2 * np.pi))
-            f_mi, p_mi = _mi_eval_pdf(plugin, wo, wi)
+            f_mi, p_mi = cases.mitsuba_eval_pdf(mi, plugin, wo, wi)
             f, p = bsdf.eval_pdf(materials, 0, wo, wi[None])
             np.testing.assert_allclose(f[0], f_mi, rtol=RTOL, atol=ATOL, err_msg=f"{name} eval {c} {ci}")
             np.testing.assert_allclose(p[0], p_mi, rtol=RTOL, atol=ATOL, err_msg=f"{name} pdf {c} {ci}")
@@ -277,7 +264,7 @@ def _albedo_mitsuba(plugin, wo, thin):
             delta += w * p
             lobes.add(bool(wi[2] * wo[2] > 0))
     wi = np.stack([np.sqrt(1 - CI**2), np.zeros_like(CI), np.sign(wo[2]) * CI], axis=1)
-    f = np.array([_mi_eval_pdf(plugin, wo, d)[0] for d in wi]) if not thin else np.zeros((len(CI), 3))
+    f = np.array([cases.mitsuba_eval_pdf(mi, plugin, wo, d)[0] for d in wi]) if not thin else np.zeros((len(CI), 3))
     return delta + QW @ f
 
 

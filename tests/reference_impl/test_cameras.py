@@ -29,7 +29,8 @@ def _geometry() -> Geometry:
                     light_id=np.full(2, -1))
 
 
-def camera_rays(camera, width: int = 64, height: int = 32, spp: int = 200, mutant: str = "", sampler: str = "independent"):
+def camera_rays(camera, width: int = 64, height: int = 32, spp: int = 200, mutant: str = "",
+                sampler: str = "independent"):
     """The kernel's viewing rays (origins, directions) of every pixel's ``spp`` samples, and the film points'
     pixels."""
     settings = Settings(spp=spp, seed=3, max_depth=2, threads=1, mutant=mutant, sampler=sampler)
@@ -61,8 +62,8 @@ def _disk_chi2(points: np.ndarray, name: str):
     r2 = np.sum(points**2, axis=1)
     phi = np.mod(np.arctan2(points[:, 1], points[:, 0]), 2 * np.pi)
     it = iter([(r2, phi)])
-    return chi2_test_2d(lambda n: next(it), lambda a, b: np.full(np.shape(a), 0.5 / np.pi), [(0.0, 1.0), (0.0, 2 * np.pi)],
-                        (20, 40), len(r2), name=name)
+    return chi2_test_2d(lambda n: next(it), lambda a, b: np.full(np.shape(a), 0.5 / np.pi),
+                        [(0.0, 1.0), (0.0, 2 * np.pi)], (20, 40), len(r2), name=name)
 
 
 @pytest.mark.parametrize("sampler", ["independent", "sobol"])

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import MINIMAL_SCENE
@@ -15,6 +16,7 @@ from harness.renderers.mitsuba_spec import scene_spec
 from harness.renderers.scene_json import camera_json
 from harness.scene import load_scene
 from harness.scene.content_key import content_key
+from harness.scene.variants import scaled
 from harness.renderers.mitsuba_xml import spec_xml
 from harness.scene.kinds.cameras import ALL_CAMERA_KEYS, CAMERA_KEYS, CAMERAS, camera_kind
 from reference_impl.camera import OrthographicCamera, ThinLensCamera
@@ -136,3 +138,17 @@ def test_a_bad_thin_lens_or_orthographic_key_is_one_line(tmp_path, text, line):
     with pytest.raises(HarnessError) as info:
         load_scene(path)
     assert str(info.value) == f"{path}: {line}"
+
+
+@pytest.mark.parametrize("text", [LENS, ORTHO], ids=["thinlens", "orthographic"])
+def test_a_scene_scaled_by_the_stress_suite_keeps_its_image(tmp_path, text):
+    """The stress suite's ``scale`` variant scales a lens's aperture and focus and an orthographic film's extent with
+    the scene, so every ray is the scaled ray: the same directions from scaled origins."""
+    scene = load_scene(write(tmp_path, text))
+    big = scaled(scene, 3.0)
+    fx, fy = np.array([0.5, 7.25, 16.0]), np.array([0.0, 9.5, 16.0])
+    lens = (np.array([0.1, 0.5, 0.9]), np.array([0.7, 0.2, 0.5]))
+    origins, directions = scene.camera.generate_rays(fx, fy, 16, 16, lens=lens)
+    big_origins, big_directions = big.camera.generate_rays(fx, fy, 16, 16, lens=lens)
+    np.testing.assert_allclose(big_origins, 3.0 * origins, atol=1e-12)
+    np.testing.assert_allclose(big_directions, directions, atol=1e-12)

@@ -7,6 +7,7 @@ Every type is placed by Mitsuba's ``look_at(origin, target, up)``: those keys an
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -45,6 +46,15 @@ class CameraKind:
         film aside).
     json : callable
         ``json(camera, film) -> dict``: its own parameters in the scene.json entry.
+    gltf : callable
+        ``gltf(camera, film, near, far) -> dict``: its glTF camera (``type`` and that type's object; what glTF has
+        no place for under ``extras``), without the node that places it.
+    scale : callable
+        ``scale(camera) -> (s_x, s_y, s_z) or None``: the scale its Mitsuba ``to_world`` applies before the
+        look-at (an orthographic film's extent), None for none.
+    scaled : callable
+        ``scaled(camera, s) -> camera``: the camera of the scene scaled by s about any point, its look-at already
+        moved (what else a uniform scale changes: a lens and its focus, an orthographic film's extent).
     """
 
     name: str
@@ -53,14 +63,23 @@ class CameraKind:
     read: Callable[[Any, dict, tuple], Any]
     parameters: Callable[[Any], dict]
     json: Callable[[Any, Film], dict]
+    gltf: Callable[[Any, Film, float, float], dict]
+    scale: Callable[[Any], tuple | None] = lambda camera: None
+    scaled: Callable[[Any, float], Any] = lambda camera, s: camera
 
     def to_mitsuba(self, camera, near_clip: float, far_clip: float) -> dict:
         """Mitsuba's sensor of ``camera`` without its sampler and film: its parameters, the clip planes (the
-        scene's, :func:`harness.renderers.mitsuba_spec.clip_planes`) and its look-at (an orthographic camera's
-        with its ``scale`` after it: ``to_world = look_at @ scale``)."""
-        scale = xyz(camera.scale) if isinstance(camera, OrthographicCamera) else None
+        scene's, :func:`harness.renderers.mitsuba_spec.clip_planes`) and its look-at, after its :attr:`scale`
+        where it has one (``to_world = look_at @ scale``)."""
+        scale = self.scale(camera)
         return {"type": self.name, **self.parameters(camera), "near_clip": near_clip, "far_clip": far_clip,
-                "to_world": LookAt(xyz(camera.origin), xyz(camera.target), xyz(camera.up), scale)}
+                "to_world": LookAt(xyz(camera.origin), xyz(camera.target), xyz(camera.up),
+                                   None if scale is None else xyz(scale))}
+
+    def moved(self, camera, point: Callable, s: float):
+        """``camera`` in the scene moved by a similarity (uniform scale ``s``): its origin and target through
+        ``point``, then :attr:`scaled`; up and the field of view unchanged, so the image is unchanged."""
+        return self.scaled(dataclasses.replace(camera, origin=point(camera.origin), target=point(camera.target)), s)
 
     def to_scene_json(self, camera, film: Film) -> dict:
         """The scene.json entry of ``camera`` but its clip planes: type, look-at, its parameters and the
@@ -118,9 +137,14 @@ def _floats(values) -> list:
 # ---- perspective ---------------------------------------------------------------------------------------------------
 
 
-def _read_perspective(reader, table: dict, look_at: tuple) -> Camera:
+def _read_fov(reader, table: dict) -> tuple[float, str]:
+    """``fov`` (required) and ``fov_axis``: the perspective and thin-lens cameras' field of view."""
     fov = reader.number(reader.require(table, "fov", "camera", "degrees"), "camera.fov", "degrees in (0, 180)")
-    fov_axis = reader.string(table.get("fov_axis", DEFAULT_FOV_AXIS), "camera.fov_axis")
+    return fov, reader.string(table.get("fov_axis", DEFAULT_FOV_AXIS), "camera.fov_axis")
+
+
+def _read_perspective(reader, table: dict, look_at: tuple) -> Camera:
+    fov, fov_axis = _read_fov(reader, table)
     return reader.settings(lambda: Camera(*look_at, fov, fov_axis))
 
 
@@ -136,14 +160,22 @@ def _perspective_json(camera: Camera, film: Film) -> dict:
             "aspect": film.width / film.height}
 
 
+def _perspective_gltf(camera: Camera, film: Film, near: float, far: float) -> dict:
+    """glTF's perspective camera: ``yfov`` the resolved vertical field of view (radians; Mitsuba's ``fov`` /
+    ``fov_axis`` for this film), ``aspectRatio`` width / height."""
+    _tan_x, tan_y = camera.tan_half_fov(film.width, film.height)
+    return {"type": "perspective", "perspective": {"yfov": 2.0 * math.atan(tan_y),
+                                                   "aspectRatio": film.width / film.height, "znear": float(near),
+                                                   "zfar": float(far)}}
+
+
 # ---- thinlens ------------------------------------------------------------------------------------------------------
 
 
 def _read_thinlens(reader, table: dict, look_at: tuple) -> ThinLensCamera:
     """The perspective keys, ``aperture_radius`` (required, as in Mitsuba; >= 0) and ``focus_distance`` (> 0; Mitsuba's
     default, its default far_clip 10^4)."""
-    fov = reader.number(reader.require(table, "fov", "camera", "degrees"), "camera.fov", "degrees in (0, 180)")
-    fov_axis = reader.string(table.get("fov_axis", DEFAULT_FOV_AXIS), "camera.fov_axis")
+    fov, fov_axis = _read_fov(reader, table)
     radius = reader.number(reader.require(table, "aperture_radius", "camera", "a number >= 0 (scene units)"),
                            "camera.aperture_radius", "a finite number >= 0 (scene units)")
     focus = reader.number(table.get("focus_distance", DEFAULT_FOCUS_DISTANCE), "camera.focus_distance",
@@ -163,6 +195,19 @@ def _thinlens_json(camera: ThinLensCamera, film: Film) -> dict:
             "focus_distance": float(camera.focus_distance)}
 
 
+def _thinlens_gltf(camera: ThinLensCamera, film: Film, near: float, far: float) -> dict:
+    """The perspective camera, the lens's ``aperture_radius`` and ``focus_distance`` (along the axis) under
+    ``extras``: glTF has no depth of field."""
+    return {**_perspective_gltf(camera, film, near, far),
+            "extras": {"aperture_radius": float(camera.aperture_radius),
+                       "focus_distance": float(camera.focus_distance)}}
+
+
+def _thinlens_scaled(camera: ThinLensCamera, s: float) -> ThinLensCamera:
+    return dataclasses.replace(camera, aperture_radius=camera.aperture_radius * s,
+                               focus_distance=camera.focus_distance * s)
+
+
 # ---- orthographic --------------------------------------------------------------------------------------------------
 
 
@@ -179,14 +224,26 @@ def _orthographic_json(camera: OrthographicCamera, film: Film) -> dict:
             "aspect": film.width / film.height}
 
 
+def _orthographic_gltf(camera: OrthographicCamera, film: Film, near: float, far: float) -> dict:
+    """glTF's orthographic camera: ``xmag`` / ``ymag`` half the film's width and height in scene units."""
+    half_x, half_y = camera.extent(film.width, film.height)
+    return {"type": "orthographic", "orthographic": {"xmag": half_x, "ymag": half_y, "znear": float(near),
+                                                     "zfar": float(far)}}
+
+
+def _orthographic_scaled(camera: OrthographicCamera, s: float) -> OrthographicCamera:
+    return dataclasses.replace(camera, scale=tuple(float(x) * s for x in camera.scale))
+
+
 #: Every camera type by its name.
 CAMERAS: dict[str, CameraKind] = {kind.name: kind for kind in (
     CameraKind("perspective", Camera, ("fov", "fov_axis"), _read_perspective, _perspective_parameters,
-               _perspective_json),
+               _perspective_json, _perspective_gltf),
     CameraKind("thinlens", ThinLensCamera, ("fov", "fov_axis", "aperture_radius", "focus_distance"), _read_thinlens,
-               _thinlens_parameters, _thinlens_json),
+               _thinlens_parameters, _thinlens_json, _thinlens_gltf, scaled=_thinlens_scaled),
     CameraKind("orthographic", OrthographicCamera, ("scale",), _read_orthographic, lambda camera: {},
-               _orthographic_json),
+               _orthographic_json, _orthographic_gltf, scale=lambda camera: camera.scale,
+               scaled=_orthographic_scaled),
 )}
 CAMERA_MODELS = {kind.model: kind for kind in CAMERAS.values()}
 #: The keys a ``[camera]`` table may hold, in the order a refusal lists them.
