@@ -31,7 +31,7 @@ SUITE_KEYS = ("name", "description", "defaults", "cases", "baseline")  # [baseli
 CASE_KEYS = (
     "name", "scene", "renderer", "settings", "spp", "seconds", "chunk_spp", "seed", "against", "film",
     "metrics", "thresholds", "expect", "alpha", "tile", "ground_truth_spp", "max_depth", "timeout",
-    "variant", "requires",
+    "variant", "requires", "studies",
 )
 DEFAULT_KEYS = tuple(k for k in CASE_KEYS if k not in ("name", "scene"))
 AGAINST_KEYS = ("renderer", "spp", "seed", "settings")
@@ -84,6 +84,7 @@ class Case:
     timeout: float | None = None  # seconds before a worker running the case is killed (None: derived, executors.py)
     variant: str | None = None  # a transformed scene (harness/scene/variants.py), e.g. "scale=1e3"
     requires: tuple[str, ...] = ()  # Mitsuba variants that must work here, else the case is skipped (REQUIREMENTS)
+    studies: bool = True  # False: left out of the suite's studies (harness/studies/suite_studies.py)
 
 
 @dataclass(frozen=True)
@@ -201,6 +202,7 @@ def _case(reader: TypedReader, folder: Path, where: str, d: dict[str, Any], know
         timeout=(None if d.get("timeout") is None else _timeout(reader, key("timeout"), d["timeout"])),
         variant=_stress_variant(reader, key("variant"), d.get("variant")),
         requires=_requires(reader, key("requires"), d.get("requires", [])),
+        studies=reader.boolean(d.get("studies", True), key("studies")),
     )
 
 

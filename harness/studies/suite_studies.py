@@ -180,8 +180,10 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
     try:
         t0 = time.perf_counter()
         wanted = options.convergence or options.shadow_rays or options.strategies
+        studied = [(i, r) for i, r in enumerate(records if wanted else [])
+                   if getattr(suite_cases.get(r.get("name")), "studies", True)]  # a case's `studies = false` leaves it out
         items = [_load_case(StudyCase(record=r, index=i, case=suite_cases.get(r.get("name"))), results_dir, progress)
-                 for i, r in enumerate(records if wanted else [])]
+                 for i, r in studied]
         timings["cases"] = time.perf_counter() - t0
         bases = _scene_bases(items)
         if options.convergence:

@@ -741,3 +741,20 @@ def test_harness_run_still_imports_what_it_runs():
               "print('harness.renderers' in sys.modules)")
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120, check=True)
     assert done.stdout.strip() == "True"
+
+
+def test_a_case_with_studies_false_is_left_out_of_the_studies(report_dir, monkeypatch, tmp_path):
+    """``studies = false`` (docs/suites.md): the case's scene gets no study when no other case of it takes part."""
+    from harness.studies import suite_studies
+    from harness.studies.suite_studies import write_suite_studies
+
+    monkeypatch.setattr(suite_studies._Plots, "draw", lambda self: None)
+    results = json.loads((report_dir / "results.json").read_text())
+    suite = tmp_path / "tiny.toml"
+    suite.write_text(SUITE.replace("SCENES", str(ROOT / "scenes")).replace(
+        'name = "soft-shadows/vs-reference"\n', 'name = "soft-shadows/vs-reference"\nstudies = false\n'))
+    results["suite_file"] = str(suite)
+    write_suite_studies(results, report_dir, fast_options(shadow_rays=False, strategies=False), out_dir=tmp_path / "s")
+    studies = json.loads((tmp_path / "s" / "studies.json").read_text())
+    assert [s["scene_name"] for s in studies["convergence"]["scenes"]] == ["furnace"]
+    assert "soft-shadows/vs-reference" not in [c["name"] for c in studies["cases"]]

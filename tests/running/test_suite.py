@@ -89,6 +89,7 @@ def test_repository_suites_load():
     ('[[cases]]\nscene = "nope"\n', "cases[0].scene"),
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nrenderer = "blender"\n', "cases[0].renderer"),
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nexpect = "maybe"\n', "cases[0].expect"),
+    ('[[cases]]\nscene = "SCENES/furnace.toml"\nstudies = "no"\n', "cases[0].studies"),
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nagainst = "oracle"\n', "cases[0].against"),
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nthresholds = { rmse = "low" }\n', "cases[0].thresholds.rmse"),
     ('[[cases]]\nscene = "SCENES/furnace.toml"\nspp = -3\n', "cases[0].spp"),
