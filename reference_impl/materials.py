@@ -43,7 +43,8 @@ P_BUMP_SCALE = 19  # bumpmap: scale
 P_NORMAL = 20  # 20-22: normalmap: the tangent-space normal's texture value (rgb, n = 2 rgb - 1), at a hit the texture's
 P_FLIP_INVALID = 23  # normalmap, bumpmap: 1: flip_invalid_normals
 P_SHADOWING = 24  # normalmap, bumpmap: 1: use_shadowing_function (the shadow terminator)
-P_DIFFUSE = 25  # 25-27: plastic's diffuse_reflectance
+P_DIFFUSE = 25  # 25-27: plastic's diffuse_reflectance (from here on plastic's own: the material step copies them
+#                 for a plastic only, kernels/material.py)
 P_NONLINEAR = 28  # plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff / (1 - F_dr)
 P_SPECULAR_WEIGHT = 29  # plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
 NUM_PARAMS = 30

@@ -361,6 +361,10 @@ class _SceneReader(TypedReader):
         if texture is None:
             return {"emission": self.emission(value, key)}
         top, mean = texture.max_value, texture.mean_value
+        if texture.type == "checkerboard" and max(top) > 1:
+            raise self.error(key, f"checkerboard {texture.name!r} has colours up to {max(top):.6g}: Mitsuba 3.9.1's "
+                                  "checkerboard takes colours in [0, 1] only (a reflectance's), also as a radiance; "
+                                  "use a bitmap (an OpenEXR file) for a brighter textured emission")
         if max(top) > MAX_EMISSION or max(mean) <= 0:
             raise self.error(key, f"texture {texture.name!r} has values up to {max(top):.6g} and a mean of "
                                   f"{max(mean):.6g}: expected an emitted radiance at most {MAX_EMISSION:g}, not all 0")

@@ -489,7 +489,7 @@ def _roughdielectric_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz):
     return p * (1.0 - f) * abs(eta * eta * wi_h / (denom * denom))
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _thin_reflectance(row, cos_theta_o):
     """The thin dielectric's reflectance R' = 2 F / (1 + F), F = F(|cos theta_o|, eta): the light that the two
     interfaces of the sheet reflect in all, F + (1 - F)^2 F + (1 - F)^2 F^3 + ... (thindielectric.cpp)."""
@@ -497,7 +497,7 @@ def _thin_reflectance(row, cos_theta_o):
     return 2.0 * r / (1.0 + r)
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _thin_sample(row, mutant, wox, woy, woz, u_lobe):
     """The thin dielectric's sample (both lobes delta): reflection with probability R' (weight R), else straight
     through, wi = -wo (weight T)."""
@@ -515,7 +515,7 @@ def _thin_sample(row, mutant, wox, woy, woz, u_lobe):
             1.0 - r, True)
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _plastic_prob_specular(row, f_o):
     """Plastic's probability of its specular lobe, P_s = F w / (F w + (1 - F)(1 - w)), F = F(cos theta_o), w the
     specular sampling weight (plastic.cpp); 0 where the denominator is 0."""
@@ -525,7 +525,7 @@ def _plastic_prob_specular(row, f_o):
     return ps / total if total > 0.0 else 0.0
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _plastic_diffuse(row, mutant, c, fdr):
     """diff of channel ``c``: rho / (1 - F_dr) or, nonlinear, rho / (1 - rho F_dr), ``fdr`` = F_dr(1 / eta) (the
     light that the coating reflects back onto the base, over and over); rho under "plastic-no-internal-reflection"."""
@@ -535,7 +535,7 @@ def _plastic_diffuse(row, mutant, c, fdr):
     return rho / (1.0 - (rho * fdr if row[P_NONLINEAR] != 0.0 else fdr))
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _plastic_eval(row, mutant, woz, wiz):
     """Plastic's diffuse part for wo, wi above (woz, wiz > 0): (1 - F(cos theta_o)) (1 - F(cos theta_i)) / eta^2
     diff / pi cos theta_i, per channel."""
@@ -549,7 +549,7 @@ def _plastic_eval(row, mutant, woz, wiz):
             v * _plastic_diffuse(row, mutant, 2, fdr))
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _plastic_pdf(row, woz, wiz):
     """The diffuse lobe's density for wo, wi above: (1 - P_s) cos theta_i / pi."""
     if woz <= 0.0 or wiz <= 0.0:
@@ -557,7 +557,7 @@ def _plastic_pdf(row, woz, wiz):
     return (1.0 - _plastic_prob_specular(row, fresnel_dielectric(woz, row[P_IOR])[0])) * wiz * INV_PI
 
 
-@njit(**JIT_NONRT)
+@njit(**JIT_BORROW)
 def _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
     """Plastic's sample: the specular lobe with probability P_s (delta, weight R F / P_s), else the diffuse lobe
     cosine-weighted (weight f |cos| / pdf); wo behind a one-sided plastic samples nothing."""

@@ -324,6 +324,18 @@ def test_a_lights_texture_that_emits_nothing_or_is_missing_is_refused(tmp_path, 
     assert "shapes[0].emission" in err.value.where and message in err.value.message
 
 
+def test_a_checkerboard_brighter_than_1_as_a_lights_emission_is_refused(tmp_path):
+    """Mitsuba 3.9.1's checkerboard takes colours in [0, 1] only (scalar_rgb refuses 2.0 as "Invalid RGB reflectance
+    value"), also as an area light's radiance: the scene is refused at load, not at its ground truth."""
+    body = ('[textures.bright]\ntype = "checkerboard"\ncolor0 = [2.0, 1.5, 1.0]\ncolor1 = 0.1\n'
+            + SHAPE.format(type="rectangle", material="white", extra='emission = { texture = "bright" }'))
+    with pytest.raises(HarnessError) as err:
+        load_scene(_write(tmp_path, body))
+    assert "shapes[0].emission" in err.value.where and "colours up to 2" in err.value.message
+    assert "\n" not in str(err.value)
+    load_scene(_write(tmp_path, body.replace("color0 = [2.0, 1.5, 1.0]", "color0 = [1.0, 0.75, 0.5]")))
+
+
 def test_the_wavefront_refuses_a_textured_light_in_one_line(tmp_path):
     from reference_impl import Settings, render
     from reference_impl.errors import SettingsError
