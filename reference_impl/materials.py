@@ -43,11 +43,11 @@ P_BUMP_SCALE = 19  # bumpmap: scale
 P_NORMAL = 20  # 20-22: normalmap: the tangent-space normal's texture value (rgb, n = 2 rgb - 1), at a hit the texture's
 P_FLIP_INVALID = 23  # normalmap, bumpmap: 1: flip_invalid_normals
 P_SHADOWING = 24  # normalmap, bumpmap: 1: use_shadowing_function (the shadow terminator)
-P_DIFFUSE = 25  # 25-27: plastic's diffuse_reflectance (from here on plastic's own: the material step copies them
-#                 for a plastic only, kernels/material.py)
-P_NONLINEAR = 28  # plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff / (1 - F_dr)
-P_SPECULAR_WEIGHT = 29  # plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
-NUM_PARAMS = 30
+# plastic's own parameters, in columns no plastic reads otherwise (a conductor's eta and k)
+P_DIFFUSE = P_ETA  # 3-5: plastic's diffuse_reflectance
+P_NONLINEAR = P_K  # 6: plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff / (1 - F_dr)
+P_SPECULAR_WEIGHT = P_K + 1  # 7: plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
+NUM_PARAMS = 26  # 25 spare
 
 PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP = 0, 1, 2
 #: Mitsuba's plugin name of each perturbation.
@@ -255,7 +255,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_NORMAL:P_NORMAL + 3] = (0.5, 0.5, 1.0)  # n = (0, 0, 1): the frame unperturbed
     row[P_FLIP_INVALID] = bool(flip_invalid_normals)
     row[P_SHADOWING] = bool(use_shadowing_function)
-    if kind == PLASTIC:  # the other kinds keep the plastic's columns 0
+    if kind == PLASTIC:  # its own columns, in place of a conductor's eta and k
+        row[P_ETA:P_K + 3] = 0.0
         row[P_DIFFUSE:P_DIFFUSE + 3] = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), 3)
         row[P_NONLINEAR] = bool(nonlinear)
         if specular_sampling_weight is None:

@@ -20,7 +20,7 @@ from numba import njit
 
 from reference_impl.kernels.config import JIT_BORROW, JIT_NONRT
 from reference_impl.kernels.texture import texture_eval, texture_eval_1
-from reference_impl.materials import NUM_PARAMS, NUM_SLOTS, P_DIFFUSE, PLASTIC, TEXTURE_SLOTS
+from reference_impl.materials import NUM_PARAMS, NUM_SLOTS, TEXTURE_SLOTS
 
 _SLOT_COLUMN = tuple(column for column, _ in TEXTURE_SLOTS.values())
 _SLOT_CHANNELS = tuple(channels for _, channels in TEXTURE_SLOTS.values())
@@ -29,13 +29,11 @@ _SLOT_CHANNELS = tuple(channels for _, channels in TEXTURE_SLOTS.values())
 @njit(**JIT_BORROW)
 def material_params(materials, m, params):
     """Material ``m`` of ``materials`` (:class:`.records.MaterialTables`): its row of parameters, unchanged, written
-    into ``params``; returns its kind. The plastic's own columns (from ``P_DIFFUSE`` on) are copied for a plastic
-    only: no other kind reads them, and every hit copies its row."""
+    into ``params``; returns its kind."""
     table = materials.params
-    kind = materials.kind[m]
-    for c in range(NUM_PARAMS if kind == PLASTIC else P_DIFFUSE):
+    for c in range(NUM_PARAMS):
         params[c] = table[m, c]
-    return kind
+    return materials.kind[m]
 
 
 @njit(**JIT_BORROW)
