@@ -18,6 +18,9 @@ from reference_impl.errors import SettingsError
 from reference_impl.textures import Bitmap, Textures
 
 DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC, PLASTIC = range(7)
+#: Reserved for issue 36's other plugins (each joins KIND_NAMES with its kernels): ``roughplastic``, ``principled``,
+#: ``blendbsdf``, ``mask``.
+ROUGHPLASTIC, PRINCIPLED, BLENDBSDF, MASK = range(7, 11)
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
               DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",

@@ -121,6 +121,14 @@ MATERIAL_MUTANTS: dict[str, str] = {
         "plastic's diffuse base without its internal reflection: the 1 / (1 - F_dr) multiple-scattering term under "
         "the coating dropped (Mitsuba's plastic, nonlinear = false)"
     ),
+    "principled-clearcoat-pdf-jacobian": (
+        "the principled BSDF's clearcoat lobe's direction pdf without the reflection Jacobian 1 / (4 |wo.h|): its "
+        "half-vector density taken for the direction's (the weights of clearcoat samples and the MIS weights wrong)"
+    ),
+    "mask-opacity-1-in-shadow-rays": (
+        "a mask's cut-out treated as opaque by shadow rays (opacity 1) while paths still pass through its holes: the "
+        "light seen through the holes by next-event estimation lost"
+    ),
 }
 
 ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS,

@@ -100,6 +100,11 @@ MUTANT_BITS.update({"lens-sampled-on-square": M_LENS_SQUARE, "focus-along-ray": 
 M_THIN_GLASS_REFRACTS, M_PLASTIC_NO_INTERNAL_REFLECTION = (1 << b for b in range(29, 31))
 MUTANT_BITS.update({"thin-glass-refracts": M_THIN_GLASS_REFRACTS,
                     "plastic-no-internal-reflection": M_PLASTIC_NO_INTERNAL_REFLECTION})
+# The principled BSDF's and the mask's (reference_impl/kernels/bsdf.py, kernels/path.py;
+# reference_impl.mutants.MATERIAL_MUTANTS).
+M_CLEARCOAT_PDF_NO_JACOBIAN, M_MASK_OPAQUE_TO_SHADOWS = (1 << b for b in range(31, 33))
+MUTANT_BITS.update({"principled-clearcoat-pdf-jacobian": M_CLEARCOAT_PDF_NO_JACOBIAN,
+                    "mask-opacity-1-in-shadow-rays": M_MASK_OPAQUE_TO_SHADOWS})
 
 
 class KernelConfig(NamedTuple):
