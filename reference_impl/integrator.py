@@ -270,6 +270,10 @@ class _Context:
         # None where no triangle has vertex normals and no material a normal or bump map: the path loop compiles the
         # shading frame's side tests out
         self.shading = True if self.geometry.has_shading_normals or self.materials.perturbed else None
+        # None where no material is made of others (blendbsdf, twosided of two, mask) / is a mask: the path loop
+        # compiles the material step's resolution / the cut-outs' holes out
+        self.masks = True if self.materials is not None and self.materials.masked else None
+        self.nested = True if self.materials is not None and (self.materials.nested or self.masks) else None
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -498,7 +502,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
                                  ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
                                  film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record,
-                                 ctx.shading, ctx.scene_tables.sphere if ctx.geometry.num_spheres else None)
+                                 ctx.shading, ctx.scene_tables.sphere if ctx.geometry.num_spheres else None,
+                                 ctx.nested, ctx.masks)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

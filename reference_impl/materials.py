@@ -18,13 +18,17 @@ from reference_impl.errors import SettingsError
 from reference_impl.textures import Bitmap, Textures
 
 DIFFUSE, CONDUCTOR, ROUGHCONDUCTOR, DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC, PLASTIC = range(7)
-#: Reserved for issue 36's other plugins (each joins KIND_NAMES with its kernels): ``roughplastic``, ``principled``,
-#: ``blendbsdf``, ``mask``.
-ROUGHPLASTIC, PRINCIPLED, BLENDBSDF, MASK = range(7, 11)
+#: Reserved for issue 36's other plugins (each joins KIND_NAMES with its kernels): ``roughplastic``, ``principled``.
+ROUGHPLASTIC, PRINCIPLED = 7, 8
+#: The kinds made of other materials (Mitsuba's ``blendbsdf``, ``mask`` and ``twosided`` with its own nested
+#: materials): their rows name the nested materials' rows (:data:`P_NESTED`), and the material step
+#: (kernels/material.py) resolves them to one of the kinds above at each hit.
+BLENDBSDF, MASK, TWOSIDED = 9, 10, 11
+COMPOSITES = (BLENDBSDF, MASK, TWOSIDED)
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
               DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",
-              PLASTIC: "plastic"}
+              PLASTIC: "plastic", BLENDBSDF: "blendbsdf", MASK: "mask", TWOSIDED: "twosided"}
 #: The kinds that light crosses (the path loop's ``transmits``; no ``two_sided`` flag: both sides by nature).
 TRANSMITTING = (DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC)
 BECKMANN, GGX = 0, 1
@@ -50,6 +54,10 @@ P_SHADOWING = 24  # normalmap, bumpmap: 1: use_shadowing_function (the shadow te
 P_DIFFUSE = P_ETA  # 3-5: plastic's diffuse_reflectance
 P_NONLINEAR = P_K  # 6: plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff / (1 - F_dr)
 P_SPECULAR_WEIGHT = P_K + 1  # 7: plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
+# the composites' columns (their rows read nothing else)
+P_WEIGHT = P_ALPHA  # 12: blendbsdf's weight (of its second material), mask's opacity
+P_NESTED = P_ETA  # 3-4: the rows of the nested materials (blendbsdf: bsdf_0, bsdf_1; mask: its one, twice;
+#                   twosided: the front's, the back's)
 NUM_PARAMS = 26  # 25 spare
 
 PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP = 0, 1, 2
@@ -60,7 +68,8 @@ PERTURB_NAMES = {PERTURB_NORMALMAP: "normalmap", PERTURB_BUMPMAP: "bumpmap"}
 #: in the order of the columns of ``Materials.texture``. The bump map's height (channels 0) is not written into the
 #: row: its gradient is looked up where the frame is perturbed (kernels/shading.py).
 TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1),
-                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0), "diffuse": (P_DIFFUSE, 3)}
+                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0), "diffuse": (P_DIFFUSE, 3),
+                 "weight": (P_WEIGHT, 1)}
 NUM_SLOTS = len(TEXTURE_SLOTS)
 
 #: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
@@ -77,6 +86,9 @@ DEFAULT_SPECULAR = (1.0, 1.0, 1.0)
 PLASTIC_INT_IOR = 1.49
 DEFAULT_DIFFUSE = (0.5, 0.5, 0.5)
 DEFAULT_NONLINEAR = False
+#: Mitsuba 3.9.1's blendbsdf and mask (src/bsdfs/blendbsdf.cpp, mask.cpp): weight (required there) and opacity
+#: default 0.5.
+DEFAULT_WEIGHT = 0.5
 MIRROR_ETA = (0.0, 0.0, 0.0)
 MIRROR_K = (1.0, 1.0, 1.0)
 
@@ -116,8 +128,8 @@ class Materials:
         if params.ndim != 2 or params.shape != (len(kind), NUM_PARAMS):
             raise SettingsError("materials.params", f"expected an array of shape ({len(kind)}, {NUM_PARAMS}), "
                                 f"got {params.shape}")
-        if np.any((kind < DIFFUSE) | (kind > PLASTIC)):
-            raise SettingsError("materials.kind", f"expected kinds {DIFFUSE} .. {PLASTIC} "
+        if not np.all(np.isin(kind, list(KIND_NAMES))):
+            raise SettingsError("materials.kind", f"expected kinds {', '.join(map(str, KIND_NAMES))} "
                                 f"({', '.join(KIND_NAMES.values())})")
         _check_params(kind, params)
         texture, textures = _check_textures(kind, self.texture, self.textures)
@@ -145,6 +157,17 @@ class Materials:
     def all_diffuse(self) -> bool:
         """True when every material is Lambertian (the scene runs the engines that predate this table)."""
         return bool(np.all(self.kind == DIFFUSE))
+
+    @property
+    def nested(self) -> bool:
+        """True when a material is a blendbsdf or a twosided of its own nested materials (the material step resolves
+        them at every hit)."""
+        return bool(np.any((self.kind == BLENDBSDF) | (self.kind == TWOSIDED)))
+
+    @property
+    def masked(self) -> bool:
+        """True when a material is a mask (a cut-out: paths and shadow rays pass its holes)."""
+        return bool(np.any(self.kind == MASK))
 
     @property
     def perturbed(self) -> bool:
@@ -229,7 +252,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
                  ext_ior: float = DEFAULT_EXT_IOR,
                  two_sided: bool = False, mirror: bool = False, perturb: int = PERTURB_NONE, bump_scale: float = 1.0,
                  flip_invalid_normals: bool = True, use_shadowing_function: bool = True, diffuse=DEFAULT_DIFFUSE,
-                 nonlinear: bool = DEFAULT_NONLINEAR, specular_sampling_weight: float | None = None) -> np.ndarray:
+                 nonlinear: bool = DEFAULT_NONLINEAR, specular_sampling_weight: float | None = None,
+                 weight: float = DEFAULT_WEIGHT, nested: tuple[int, int] = (0, 0)) -> np.ndarray:
     """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
 
     ``reflectance`` is the diffuse albedo or the specular_reflectance; ``eta``, ``k`` the conductor's complex index
@@ -238,9 +262,15 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     ``normalmap`` or ``bumpmap`` around the kind (its normal map's value is the texture's, at each hit).
     ``diffuse``, ``nonlinear``: plastic's diffuse_reflectance and nonlinear; ``specular_sampling_weight`` its
     probability weight of the specular lobe, by default :func:`plastic_sampling_weight` of ``reflectance`` and
-    ``diffuse`` (a textured parameter's mean is the harness's to give).
+    ``diffuse`` (a textured parameter's mean is the harness's to give). ``weight``, ``nested``: a composite's
+    (:data:`COMPOSITES`) weight or opacity and the rows of its nested materials (a mask's and a twosided's one
+    material: the same row twice); a composite's row holds nothing else.
     """
     row = np.zeros(NUM_PARAMS)
+    if kind in COMPOSITES:
+        row[P_WEIGHT] = weight
+        row[P_NESTED], row[P_NESTED + 1] = nested
+        return row
     row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), 3)
     row[P_ETA:P_ETA + 3] = np.broadcast_to(np.asarray(eta, dtype=np.float64), 3)
     row[P_K:P_K + 3] = np.broadcast_to(np.asarray(k, dtype=np.float64), 3)
@@ -298,6 +328,9 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         raise SettingsError(where, "expected finite numbers")
     for m, (kd, row) in enumerate(zip(kind, params)):
         name = f"{where}[{m}] ({KIND_NAMES[int(kd)]})"
+        if kd in COMPOSITES:
+            _check_composite(name, m, kind, params)
+            continue
         rgb = row[P_REFLECTANCE:P_REFLECTANCE + 3]
         if np.any(rgb < 0) or np.any(rgb > 1):
             raise SettingsError(name, "expected the reflectance in [0, 1]")
@@ -330,6 +363,58 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
                 raise SettingsError(name, "two_sided does not apply to dielectrics")
         if kd == PLASTIC:
             _check_plastic(name, row)
+
+
+def nested_rows(kind: np.ndarray, params: np.ndarray, m: int) -> tuple[int, int]:
+    """The two rows a composite material ``m`` names (:data:`P_NESTED`)."""
+    return int(params[m, P_NESTED]), int(params[m, P_NESTED + 1])
+
+
+def leaves(kind: np.ndarray, params: np.ndarray, m: int) -> set[int]:
+    """The materials that are no composite reached from ``m`` through its nested ones (``m`` itself if it is none)."""
+    out, todo, seen = set(), [m], set()
+    while todo:
+        r = todo.pop()
+        if r in seen:
+            continue
+        seen.add(r)
+        if kind[r] in COMPOSITES:
+            todo.extend(nested_rows(kind, params, r))
+        else:
+            out.add(r)
+    return out
+
+
+def _check_composite(name: str, m: int, kind: np.ndarray, params: np.ndarray) -> None:
+    """A composite's columns: its nested rows exist, are not itself nor (through others) lead back to it, none is a
+    mask (a mask is a shape's own material: the path meets its holes where the ray meets the shape); a blendbsdf's
+    weight and a mask's opacity in [0, 1]; a twosided's nested materials transmit nothing (Mitsuba's twosided
+    refuses them)."""
+    row = params[m]
+    for c in (P_NESTED, P_NESTED + 1):
+        r = row[c]
+        if not (r == int(r) and 0 <= r < len(kind)):
+            raise SettingsError(name, f"expected nested material rows in 0 .. {len(kind) - 1}, got {r!r}")
+    todo, seen = list(nested_rows(kind, params, m)), set()
+    while todo:
+        r = todo.pop()
+        if r == m:
+            raise SettingsError(name, "expected nested materials that do not contain the material itself")
+        if r in seen:
+            continue
+        seen.add(r)
+        if kind[r] == MASK:
+            raise SettingsError(name, f"material {r} is a mask: a mask is a shape's own material, not nested")
+        if kind[r] in COMPOSITES:
+            todo.extend(nested_rows(kind, params, r))
+    if kind[m] in (BLENDBSDF, MASK) and not 0.0 <= row[P_WEIGHT] <= 1.0:
+        label = "weight" if kind[m] == BLENDBSDF else "opacity"
+        raise SettingsError(name, f"expected the {label} in [0, 1], got {row[P_WEIGHT]!r}")
+    if kind[m] == TWOSIDED:
+        for r in leaves(kind, params, m):
+            if kind[r] in TRANSMITTING:
+                raise SettingsError(name, f"material {r} ({KIND_NAMES[int(kind[r])]}) transmits: a twosided takes "
+                                    "materials without transmission (as Mitsuba's)")
 
 
 def _check_plastic(name: str, row: np.ndarray) -> None:

@@ -77,6 +77,8 @@ INDIRECT_U1, INDIRECT_U2 = 9, 10
 COMPLEMENT_U1, COMPLEMENT_U2 = 11, 12  # an environment's direction where the direct strategy cannot find it
 BSDF_LOBE, BSDF_U1, BSDF_U2 = 13, 14, 15  # the path loop's BSDF sample: which lobe, then the direction
 LENS_U1, LENS_U2 = 16, 17  # a thin lens's aperture point (at depth 0, with the film's)
+BLEND = 18  # the material step's choice among a blendbsdf's materials (kernels/material.py)
+MASK_PASS = 19  # whether a ray passes a mask's hole, index: the how-manieth mask the ray meets (kernels/path.py)
 
 
 def dimension(depth: int, purpose: int, index: int = 0) -> int:

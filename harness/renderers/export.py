@@ -64,7 +64,8 @@ from harness.renderers.scene_json import FILTERS, scene_json
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind, camera_to_world
 from harness.scene.kinds.emitters import EMITTERS
-from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
+from harness.scene.kinds.composites import ALL_MATERIALS
+from harness.scene.kinds.materials import GLTF_LOSSES
 from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
@@ -97,7 +98,7 @@ def gltf_material(material) -> tuple[dict, dict]:
     """The glTF 2.0 metallic-roughness factors of a material (the keys of ``pbrMetallicRoughness``) and its
     glTF extensions (docs/external-renderers.md, "glTF materials"): its type's
     (:meth:`harness.scene.kinds.materials.MaterialKind.to_gltf`)."""
-    return MATERIALS[material.type].to_gltf(material)
+    return ALL_MATERIALS[material.type].to_gltf(material)
 
 
 def gltf_light(emitter) -> tuple[dict, dict]:
@@ -129,7 +130,7 @@ def base_colour_parameter(material) -> str:
     """The parameter glTF's base colour (and OBJ's ``Kd``) is made from: its type's ``gltf_base`` (a diffuse
     material's ``reflectance``, a conductor's ``specular_reflectance``, a dielectric's ``specular_transmittance``, a
     plastic's ``diffuse_reflectance``)."""
-    return MATERIALS[material.type].gltf_base
+    return ALL_MATERIALS[material.type].gltf_base
 
 
 def image_texture(texture) -> bool:
@@ -363,7 +364,7 @@ def _gltf_shape_material(shape, material, base_texture: dict | None = None,
     if base_texture is not None:
         factors["baseColorTexture"] = base_texture
     entry: dict = {"name": safe_name(shape.material), "pbrMetallicRoughness": factors,
-                   "doubleSided": MATERIALS[material.type].gltf_double_sided(material)}
+                   "doubleSided": ALL_MATERIALS[material.type].gltf_double_sided(material)}
     if normal_texture is not None:
         entry["normalTexture"] = normal_texture
     extensions = dict(extensions)
@@ -838,7 +839,7 @@ def _gltf_material_losses(glossy) -> list[str]:
     ``gltf_losses``)."""
     losses = []
     for loss, message in GLTF_LOSSES.items():
-        materials = [m for m in glossy if loss in MATERIALS[m.type].gltf_losses(m)]
+        materials = [m for m in glossy if loss in ALL_MATERIALS[m.type].gltf_losses(m)]
         if materials:
             losses.append(message.format(materials=", ".join(f"{m.name} ({m.type})" for m in materials)))
     return losses

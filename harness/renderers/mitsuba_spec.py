@@ -32,7 +32,7 @@ from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, safe_name
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
-from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.composites import ALL_MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES
 from harness.scene.kinds.mitsuba_values import (  # noqa: F401 (the spec's values, importable from here)
@@ -110,7 +110,7 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
         kind = SHAPES[shape.type]
         as_mesh = not kind.analytic
         material = scene.materials[shape.material]
-        uv = vertex_uv(shape) if as_mesh and (material.textures or material.perturbation is not None) else None
+        uv = vertex_uv(shape) if as_mesh and material.looks_up_textures else None
         plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh, uv)
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:
@@ -217,7 +217,7 @@ def bsdf_dict(material) -> dict:
     """Mitsuba's dict of ``material``: its plugin (``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
     ``roughdielectric``, ``thindielectric``, ``plastic``) with every parameter written out (so Mitsuba's defaults
     never decide), inside ``twosided`` when two-sided. A conductor with eta = 0, k = 1 is written as Mitsuba's ``material = "none"``."""
-    return MATERIALS[material.type].to_mitsuba(material)
+    return ALL_MATERIALS[material.type].to_mitsuba(material)
 
 
 def emitter_dict(shape) -> dict:

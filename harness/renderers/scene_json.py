@@ -22,7 +22,7 @@ from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
-from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.composites import ALL_MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
 from harness.scene.triangulate import exported_normals, object_to_world, shape_triangles, vertex_uv
@@ -51,7 +51,7 @@ def camera_json(scene: Scene) -> dict:
 def material_json(material) -> dict:
     """One material with every parameter of its Mitsuba plugin (``two_sided`` for diffuse, conductors and
     plastic)."""
-    return MATERIALS[material.type].to_scene_json(material)
+    return ALL_MATERIALS[material.type].to_scene_json(material)
 
 
 def texture_json(scene: Scene, files: dict) -> dict:

@@ -28,6 +28,7 @@ from harness.files.imageio import exr_size, read_exr
 from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
+from harness.scene.kinds.composites import is_composite, read_composites
 from harness.scene.kinds.perturbations import PERTURBATIONS, read_perturbed
 from harness.scene.triangulate import emitter_shades_flat
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
@@ -281,11 +282,14 @@ class _SceneReader(TypedReader):
         table = self.table(document.get("materials", {}), "materials")
         perturbing = {name: entry for name, entry in table.items()
                       if isinstance(entry, dict) and isinstance(entry.get("type"), str) and entry["type"] in PERTURBATIONS}
+        composite = {name: entry for name, entry in table.items() if is_composite(entry)}
         self.perturbing_names = set(perturbing)
-        plain = {name: read_material(self, name, entry) for name, entry in table.items() if name not in perturbing}
+        plain = {name: read_material(self, name, entry) for name, entry in table.items()
+                 if name not in perturbing and name not in composite}
         read = dict(plain)
         for name, entry in perturbing.items():
             read[name] = read_perturbed(self, name, entry, self.join("materials", name), plain)
+        read.update(read_composites(self, composite, read))
         return {name: read[name] for name in table}
 
     def check_textured_shapes(self, shapes: list[Shape], materials: dict[str, Material]) -> None:
@@ -298,7 +302,11 @@ class _SceneReader(TypedReader):
                                  f"shape {shape.name!r} emits light and its vertex normals lean off its triangles' "
                                  "normals; Mitsuba 3.9.1 turns and samples an area light by them (docs/mitsuba.md, "
                                  "\"Shading normals\"): expected face_normals = true on it")
-            textured = bool(material.textures or material.perturbation is not None)
+            if shape.is_emitter and material.type == "mask":
+                raise self.error(f"shapes[{shape.index}].material",
+                                 f"shape {shape.name!r} emits light and its material {shape.material!r} is a mask: "
+                                 "expected an emitter without holes (a light's emission does not pass a mask)")
+            textured = material.looks_up_textures
             if not (textured or shape.emission_texture is not None):
                 continue
             key = f"shapes[{shape.index}].{'material' if textured else 'emission'}"

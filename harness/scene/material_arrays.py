@@ -12,26 +12,28 @@ from reference_impl.errors import SettingsError
 from reference_impl.textures import Textures
 
 from harness.core.errors import HarnessError
-from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.composites import ALL_MATERIALS
 from harness.scene.model import Material, Scene
 
 
 def material_row(material: Material) -> np.ndarray:
     """The core's parameter row of one material of the scene model (its type's
     :meth:`~harness.scene.kinds.materials.MaterialKind.to_core`)."""
-    return MATERIALS[material.type].to_core(material)
+    return ALL_MATERIALS[material.type].to_core(material)
 
 
 def material_table(scene: Scene) -> reference_impl.Materials:
     """Every material of ``scene`` as the core's table, in file order."""
     materials = list(scene.materials.values())
-    kind = np.array([MATERIALS[m.type].core_kind for m in materials], dtype=np.int64)
-    params = np.array([material_row(m) for m in materials], dtype=np.float64).reshape(-1, core.NUM_PARAMS)
+    kind = np.array([ALL_MATERIALS[m.type].core_kind for m in materials], dtype=np.int64)
+    rows = {m.name: j for j, m in enumerate(materials)}
+    params = np.array([ALL_MATERIALS[m.type].to_core(m, rows) if m.nested else material_row(m) for m in materials],
+                      dtype=np.float64).reshape(-1, core.NUM_PARAMS)
     used = scene.used_textures
     number = {texture.name: k for k, texture in enumerate(used)}
     texture = np.full((len(materials), core.NUM_SLOTS), -1, dtype=np.int64)
     for m, material in enumerate(materials):
-        for slot, name in MATERIALS[material.type].core_slots(material).items():
+        for slot, name in ALL_MATERIALS[material.type].core_slots(material).items():
             texture[m, list(core.TEXTURE_SLOTS).index(slot)] = number[name]
     try:
         textures = Textures(tuple(t.core for t in used))

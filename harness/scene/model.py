@@ -16,7 +16,7 @@ from reference_impl.camera import Camera, Film, OrthographicCamera, ThinLensCame
 from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DEFAULT_SCALE
 from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR,
                                       DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR,
-                                      MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR)
+                                      DEFAULT_WEIGHT, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
 from reference_impl import textures as core_textures
 from reference_impl.textures import Texture as CoreTexture
@@ -149,10 +149,19 @@ class Material:
     textures: tuple[tuple[str, Texture], ...] = ()
     # a normalmap or bumpmap material: its map; the fields above are those of the material its ``bsdf`` names
     perturbation: Perturbation | None = None
+    # blendbsdf: the weight of its second material; mask: its opacity (harness/scene/kinds/composites.py)
+    weight: float = DEFAULT_WEIGHT
+    # blendbsdf, mask, twosided: the materials it is made of (a mask's and a one-material twosided's, twice)
+    nested: tuple["Material", ...] = ()
 
     def texture(self, parameter: str) -> Texture | None:
         """The texture that drives ``parameter``, or None."""
         return dict(self.textures).get(parameter)
+
+    @property
+    def looks_up_textures(self) -> bool:
+        """Whether a hit on it reads texture coordinates: a texture, a map, or a nested material that does."""
+        return bool(self.textures or self.perturbation is not None or any(m.looks_up_textures for m in self.nested))
 
     @property
     def is_diffuse(self) -> bool:

@@ -63,7 +63,8 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            light_sample, point_connection, power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
-from reference_impl.kernels.material import material_at
+from reference_impl.kernels.cutout import shadow_transmittance, through_holes
+from reference_impl.kernels.material import material_at, material_at_nested
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
                                             occluded_timed, ray_buffer)
 from reference_impl.kernels.record import record_camera, record_closest, record_occluded
@@ -75,7 +76,7 @@ from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, s
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED, PLASTIC,
                                       ROUGHDIELECTRIC, THINDIELECTRIC)
-from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
+from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
                                 DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
 
 MAX_VERTICES = 1 << 16
@@ -216,7 +217,8 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
 
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
-                emitters, other_kinds, textures=None, record=None, shading=None, spheres=None):
+                emitters, other_kinds, textures=None, record=None, shading=None, spheres=None, nested=None,
+                masks=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
     (module docstring), adding each path's radiance to ``radiance[root]``.
 
@@ -229,7 +231,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     ``shading`` likewise: None where no triangle has vertex normals and no material a normal or bump map (every
     frame the geometric one, :func:`.shading.geometric_frame`, whose constant flags fold the side tests away), else
     True (:func:`.shading.shading_frame`); ``spheres`` likewise: None in a scene without spheres (the queries' sphere
-    tests compiled out), else ``scene.sphere``.
+    tests compiled out), else ``scene.sphere``; ``nested`` likewise: None where no material is made of others, else
+    True (the material step resolves them, :func:`.material.material_at_nested`); ``masks`` likewise: None where no
+    material is a mask, else True (rays pass their holes and shadow rays cross them, :mod:`.cutout`).
     ``cfg``: the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
@@ -344,6 +348,11 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     record_closest(record, o0, o1, o2, d0, d1, d2, p)
             else:
                 p = -1
+            travelled = 0.0  # the distance to the last query's origin: past a mask's holes (kernels/cutout.py)
+            if masks is not None and p >= 0:
+                p, o0, o1, o2, travelled, queries, sampled_ns = through_holes(
+                    cfg, scene_ptr, words, floats, ts, queries, sampled_ns, scene, materials, spheres, sphere_base, p,
+                    k, depth, o0, o1, o2, d0, d1, d2)
             if p < 0:
                 count_escaped += 1
                 if emitters is not None:
@@ -358,7 +367,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                         rad2 += b2 * e2 * w
                 break
             hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
-            tri, t, cos_out = hit.tri, hit.t, hit.cos_out
+            tri, t, cos_out = hit.tri, hit.t + travelled, hit.cos_out
             if counts:
                 light = light_id[tri]
                 if light >= 0 and cos_out > 0:
@@ -372,7 +381,10 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     rad2 += b2 * le2 * w
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
-            kind = material_at(materials, hit, row, mutant)  # the material step: the BSDF's kind and parameters at x
+            if nested is None:
+                kind = material_at(materials, hit, row, mutant)  # the material step: the BSDF's kind and parameters
+            else:  # ... of the material a blend or a twosided is at x
+                kind = material_at_nested(materials, hit, row, mutant, uniform(k, dim_salt(depth, BLEND, 0)))
             if other_kinds is None:
                 kind = DIFFUSE  # what the table says, known to the compiler
             transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == THINDIELECTRIC
@@ -530,12 +542,19 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                         count_shadow_skipped += 1
                         continue
                     count_shadow += 1
-                    blocked, queries, sampled_ns = shadow_query(
-                        scene_ptr, words, floats, ts, queries, sampled_ns, record,
-                        connection_ray(cfg, conn, cos_x, not front_only, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2),
-                        spheres)
-                    if blocked:
-                        continue
+                    ray = connection_ray(cfg, conn, cos_x, not front_only, x0, x1, x2, nx0, nx1, nx2, ox0, ox1, ox2)
+                    if masks is None:
+                        blocked, queries, sampled_ns = shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns,
+                                                                    record, ray, spheres)
+                        if blocked:
+                            continue
+                    else:  # the masks it crosses let 1 - opacity through (kernels/cutout.py)
+                        tr, queries, sampled_ns = shadow_transmittance(cfg, scene_ptr, words, floats, ts, queries,
+                                                                       sampled_ns, scene, materials, spheres,
+                                                                       sphere_base, ray)
+                        if tr == 0.0:
+                            continue
+                        v0, v1, v2 = v0 * tr, v1 * tr, v2 * tr
                     if j < points:
                         tot0 += v0
                         tot1 += v1

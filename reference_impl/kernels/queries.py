@@ -83,6 +83,25 @@ def closest_prim(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, spheres, base
 
 
 @njit(**JIT_INLINE)
+def closest_prim_within(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres, base):
+    """:func:`closest_prim` on the segment 0 < t < ``tfar`` only (a shadow ray that must know what it met: the
+    cut-outs' transmittance, :mod:`.cutout`); -1 where nothing is met."""
+    _set_ray(words, floats, o0, o1, o2, d0, d1, d2, tfar)
+    words[embree_c.W_GEOM_ID] = embree_c.INVALID_ID
+    embree_c.rtc_intersect1(scene_ptr, words.ctypes.data, 0)
+    p = np.int64(-1)
+    t_max = np.float64(tfar)
+    if words[embree_c.W_GEOM_ID] != embree_c.INVALID_ID:
+        p = np.int64(words[embree_c.W_PRIM_ID])
+        t_max = np.float64(floats[embree_c.W_TFAR])
+    if spheres is not None and spheres.shape[0] > 0:
+        s, _t = sphere_nearest(spheres, o0, o1, o2, d0, d1, d2, t_max)
+        if s >= 0:
+            p = np.int64(base + s)
+    return p
+
+
+@njit(**JIT_INLINE)
 def occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres):
     """Whether anything blocks the segment 0 < t < ``tfar``: a sphere (float64, :func:`sphere_nearest`), or
     Embree's any-hit query (it sets tfar to -inf)."""
@@ -241,3 +260,17 @@ def occluded_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2
         return blocked, queries, sampled_ns + (now_ns(ts) - t_start)
     return occluded(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres), queries, sampled_ns
 
+
+
+@njit(**JIT_BORROW)
+def closest_prim_within_timed(scene_ptr, words, floats, ts, queries, sampled_ns, o0, o1, o2, d0, d1, d2, tfar,
+                              spheres, base):
+    """:func:`closest_prim_within`, counted and timed as :func:`closest_prim_timed`: (primitive, queries,
+    sampled_ns)."""
+    queries += 1
+    if queries % TIMING_STRIDE == 0:
+        t_start = now_ns(ts)
+        p = closest_prim_within(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres, base)
+        return p, queries, sampled_ns + (now_ns(ts) - t_start)
+    return (closest_prim_within(scene_ptr, words, floats, o0, o1, o2, d0, d1, d2, tfar, spheres, base), queries,
+            sampled_ns)

@@ -425,6 +425,10 @@ GLTF_LOSSES: dict[str, str] = {
     "culled": "glTF's single-sided materials are culled from behind, not black: {materials}",
     "thin": ("glTF's thin-walled transmission (KHR_materials_volume absent) reflects as one interface, not as the "
              "sheet's two, R' = 2 F / (1 + F): {materials}"),
+    "blend": ("glTF has no blend of materials: {materials} written as the material of the larger weight"),
+    "mask": ("glTF's alpha blending is not a cut-out's hole: {materials} written as the nested material with alphaMode "
+             "BLEND and the opacity as base colour alpha"),
+    "back": "glTF has one material per side pair: {materials} written as the front material, double-sided",
     "coating": ("glTF's dielectric base (metallic 0) has no light reflected back and forth under its coating: "
                 "{materials} written with base colour = diffuse_reflectance (the 1 / (1 - F_dr) term and nonlinear "
                 "lost)"),
