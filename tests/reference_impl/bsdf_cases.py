@@ -23,7 +23,7 @@ from scipy import stats
 
 from harness.judges.chi2 import bin_integrals, pooled_statistic
 from reference_impl.kernels import bsdf
-from reference_impl.materials import (BECKMANN, DIFFUSE, GGX, ROUGHCONDUCTOR,
+from reference_impl.materials import (BECKMANN, COMPOSITES, DIFFUSE, GGX, ROUGHCONDUCTOR,
                                       P_IOR, ROUGHDIELECTRIC, Materials, material_row)
 
 CU = dict(eta=(0.2004, 0.9240, 1.1022), k=(3.9129, 2.4528, 2.1421))  # Mitsuba 3's "Cu"
@@ -78,6 +78,8 @@ def chart_axes(materials: Materials, wo: np.ndarray):
     if kind == DIFFUSE:
         return np.array([0.0, 0.0, side]), np.array([0.0, 0.0, -side])
     refl = np.array([-wo[0], -wo[1], wo[2]])
+    if kind in COMPOSITES:  # their transmission, a mask's hole, is straight through
+        return refl, -wo
     eta = materials.params[0, P_IOR]
     eta_ti = 1.0 / eta if wo[2] > 0 else eta
     c2 = 1.0 - (1.0 - wo[2] ** 2) * eta_ti ** 2
@@ -128,10 +130,18 @@ class BsdfChi2:
 
 
 def bsdf_chi2(materials: Materials, wo: np.ndarray, seed: int, *, name: str = "", mutant: int = 0,
-              pdf_mutant: int | None = None, n: int = N_SAMPLES, hemisphere: str = "cosine") -> BsdfChi2:
+              pdf_mutant: int | None = None, n: int = N_SAMPLES, hemisphere: str = "cosine", door=None) -> BsdfChi2:
     """Chi^2 of material 0's sampler for ``wo`` against its pdf (``pdf_mutant``: the mutant bits the pdf is
-    evaluated with, default ``mutant``; ``hemisphere``: the diffuse kind's sampling, both sides alike)."""
+    evaluated with, default ``mutant``; ``hemisphere``: the diffuse kind's sampling, both sides alike; ``door``: the
+    module whose ``sample`` and ``pdf`` are tested, default :mod:`reference_impl.kernels.bsdf`, e.g.
+    :mod:`reference_impl.kernels.composite`, whose functions take no ``hemisphere``)."""
     pdf_mutant = mutant if pdf_mutant is None else pdf_mutant
+    if door is not None:
+        class bsdf:  # noqa: N801 - the door under test, spelt as the default's module
+            sample = staticmethod(lambda mat, m, wo_, u, mutant=0, hemisphere="": door.sample(mat, m, wo_, u, mutant))
+            pdf = staticmethod(lambda mat, m, wo_, wi, mutant=0, hemisphere="": door.pdf(mat, m, wo_, wi, mutant))
+    else:
+        from reference_impl.kernels import bsdf
     s = bsdf.sample(materials, 0, wo, uniforms(seed, n), mutant=mutant, hemisphere=hemisphere)
     ok = s["ok"] & ~s["delta"]  # a delta lobe's samples: the cell of what the pdf leaves off the sphere
     wi = s["wi"][ok]
