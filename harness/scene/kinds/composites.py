@@ -21,7 +21,7 @@ from reference_impl import materials as core
 
 from harness.scene.kinds.materials import MATERIALS, MaterialKind
 from harness.scene.kinds.textures import TEXTURES, texture_reference
-from harness.scene.model import DIELECTRIC_TYPES, Material
+from harness.scene.model import Material
 
 COMPOSITE_TYPES = ("blendbsdf", "mask", "twosided")
 _KEYS = {"blendbsdf": ("type", "weight", "bsdf"), "mask": ("type", "opacity", "bsdf"), "twosided": ("type", "bsdf")}
@@ -73,10 +73,11 @@ def read_composites(reader, entries: dict[str, dict], materials: dict[str, Mater
                 raise reader.error(f"{key}.bsdf", f"unknown material {n!r} (defined in [materials]: {defined})")
         if kind == "twosided":
             for m in nested:
-                crossing = [leaf.name for leaf in _leaves(m) if leaf.type in DIELECTRIC_TYPES]
+                crossing = [leaf for leaf in _leaves(m) if not MATERIALS[leaf.type].two_sided]
                 if crossing:
-                    raise reader.error(f"{key}.bsdf", f"material {crossing[0]!r} transmits light: a twosided takes "
-                                                      "materials without transmission (as Mitsuba's)")
+                    raise reader.error(f"{key}.bsdf", f"material {crossing[0].name!r} ({crossing[0].type}) transmits "
+                                                      "light: a twosided takes materials without transmission (as "
+                                                      "Mitsuba's), those that take two_sided")
             if len(nested) == 1:
                 nested = nested * 2
         weight, textures = core.DEFAULT_WEIGHT, ()
