@@ -511,6 +511,9 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
     that angle of grazing."""
     mat, tree = new_material(bpy, name)
     nodes, links = tree.nodes, tree.links
+    if spec["type"] in COMPOSITES:  # (on a smooth shape, the side of each one-sided material is the triangle's)
+        return masked_material(mat, tree, composite_surface(tree, spec, where, textures, False), None, emission,
+                               scale, textures, shape_where)
     # Cycles' Bump Map Correction: Estevez's shadowing term on diffuse closures whose normal is not the shading
     # normal (Mitsuba's use_shadowing_function), and, on glossy closures, a normal turned so that the mirror
     # direction stays above the triangle, which Mitsuba never does: off unless a map asks for the term
@@ -550,6 +553,79 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
         surface = mix.outputs[0]
     links.new(surface, output.inputs["Surface"])
     return mat
+
+
+#: Mitsuba's materials made of others (scene.json names the nested materials in ``bsdf``)
+COMPOSITES = ("blendbsdf", "mask", "twosided")
+
+
+def inline_composites(materials: dict) -> dict:
+    """scene.json's materials with each composite's nested materials' entries under ``nested`` (in ``bsdf``'s
+    order; a one-material twosided's twice), so that a material's entry holds all it is made of."""
+    def inline(name: str, seen: tuple) -> dict:
+        spec = materials[name]
+        if spec.get("type") not in COMPOSITES:
+            return spec
+        if name in seen:
+            raise SceneError(f"materials.{name}.bsdf: a material that contains itself")
+        names = spec["bsdf"] if isinstance(spec["bsdf"], list) else [spec["bsdf"]]
+        for n in names:
+            if n not in materials:
+                raise SceneError(f"materials.{name}.bsdf: unknown material {n!r}")
+        nested = [inline(n, seen + (name,)) for n in names]
+        if spec["type"] == "twosided" and len(nested) == 1:
+            nested *= 2
+        return {**spec, "nested": nested, "names": names}
+    return {name: inline(name, ()) for name in materials}
+
+
+def composite_surface(tree, spec: dict, where: str, textures: "TextureNodes | None", both_sides: bool):
+    """The surface shader of a material that may be made of others (Mitsuba's blendbsdf, mask, twosided; the
+    leaves' BSDFs black from behind unless two-sided, or ``both_sides`` inside a twosided): a blend is Cycles' Mix
+    Shader of its two materials by ``weight``; a mask a Mix of a Transparent BSDF (the hole: Cycles passes paths and
+    shadow rays through it) and its material by ``opacity``; a twosided a Mix of its front and back materials by
+    the Backfacing output (Cycles turns the shading normal toward the side seen, so the back material reflects on
+    its own side)."""
+    nodes, links = tree.nodes, tree.links
+    kind = spec["type"]
+    if kind in PERTURBED:
+        raise SceneError(f"{where}: a {kind} inside a material made of others is not mapped to Cycles")
+    if kind not in COMPOSITES:
+        surface = bsdf_node(tree, spec, where, textures).outputs[0]
+        two_sided = both_sides or kind in ("dielectric", "roughdielectric", "thindielectric") or bool(
+            spec.get("two_sided", False))
+        if two_sided:
+            return surface
+        black = nodes.new("ShaderNodeBsdfDiffuse")
+        socket(black, "Color").default_value = (0.0, 0.0, 0.0, 1.0)
+        mix = nodes.new("ShaderNodeMixShader")
+        links.new(nodes.new("ShaderNodeNewGeometry").outputs["Backfacing"], mix.inputs[0])
+        links.new(surface, mix.inputs[1])
+        links.new(black.outputs[0], mix.inputs[2])
+        return mix.outputs[0]
+    inner = [composite_surface(tree, nested, f"materials.{name}", textures, both_sides or kind == "twosided")
+             for nested, name in zip(spec["nested"], spec["names"] * (2 if len(spec["names"]) == 1 else 1))]
+    mix = nodes.new("ShaderNodeMixShader")
+    if kind == "twosided":
+        links.new(nodes.new("ShaderNodeNewGeometry").outputs["Backfacing"], mix.inputs[0])
+        links.new(inner[0], mix.inputs[1])
+        links.new(inner[1], mix.inputs[2])
+        return mix.outputs[0]
+    item = "weight" if kind == "blendbsdf" else "opacity"
+    value = spec.get(item, 0.5)
+    if isinstance(value, dict):
+        grey = nodes.new("ShaderNodeRGBToBW")  # Cycles' luminance: a grey or black-and-white texture's own value
+        links.new(textures.colour(tree, value, f"{where}.{item}"), grey.inputs[0])
+        links.new(grey.outputs[0], mix.inputs[0])
+    else:
+        mix.inputs[0].default_value = float(value)
+    if kind == "blendbsdf":
+        links.new(inner[0], mix.inputs[1])
+        links.new(inner[1], mix.inputs[2])
+    else:
+        links.new(nodes.new("ShaderNodeBsdfTransparent").outputs[0], mix.inputs[1])
+        links.new(inner[0], mix.inputs[2])
+    return mix.outputs[0]
 
 
 def emission_node(tree, emission, scale: float, textures: "TextureNodes | None", shape_where: str):
@@ -886,6 +962,8 @@ def textured(spec: dict) -> list[str]:
     names = [v["texture"] for v in spec.values() if isinstance(v, dict) and "texture" in v]
     if spec.get("type") in PERTURBED:
         names += textured(spec["bsdf"])
+    for nested in spec.get("nested", ()):  # a composite's (inline_composites)
+        names += textured(nested)
     return names
 
 
@@ -1075,7 +1153,7 @@ def perturbed_bsdf(tree, spec: dict, where: str, textures: "TextureNodes | None"
 
 
 def add_shapes(bpy, doc: dict, folder: Path, scale: float, texture_fault: str | None = None) -> None:
-    materials = doc["materials"]
+    materials = inline_composites(doc["materials"])
     images = TextureImages(bpy, doc.get("textures") or {}, folder, texture_fault)
     for i, shape in enumerate(doc["shapes"]):
         where = f"shapes[{i}] ({shape['name']})"
