@@ -7,6 +7,7 @@ texel, filtered nearest for bilinear, wrapped by clamping for repeating, or deco
 * ``wall.png`` (32 x 32): the textured Cornell box's left wall (scenes/textured-cornell-box.toml), a gradient from
   top to bottom in red, across in green, and blue stripes four texels wide, so that no flip or shift maps it onto
   itself;
+* ``leaf.png`` (64 x 64): the cut-out leaf's opacity, 0 or 1 (:func:`leaf`);
 * ``glow.exr`` (8 x 4, float32): the textured Cornell box's light, its radiance 0.4 to 1.6 times the Cornell box
   light's in a pattern of sevenths.
 
@@ -90,8 +91,30 @@ def ridges() -> np.ndarray:
     return np.repeat(np.rint(_height(64) * 255.0).astype(np.uint8)[..., None], 3, axis=2)
 
 
+def leaf() -> np.ndarray:
+    """(64, 64, 3) uint8, black (0) or white (255): the cut-out leaf's opacity (scenes/cutout-leaf.toml). White
+    inside a leaf, (x / 0.42)^2 + (y / a(x))^2 < 1 with a(x) = 0.24 (1 - x / 0.42)^0.35 (1 + x / 0.42)^0.9 in texel
+    units scaled to [-0.5, 0.5] (a rounded base at the left, a pointed tip at the right), but black along the
+    midrib (|y| < 0.012 from x = -0.3), along four veins leaving it at 40 degrees toward the tip on the upper side
+    only, and in two round bites near the lower edge: lopsided in u and v, so that no flip maps it onto itself."""
+    v, u = (np.mgrid[0:64, 0:64] + 0.5) / 64.0
+    x, y = u - 0.5, 0.5 - v
+    t = np.clip(x / 0.42, -1.0, 1.0)
+    half_width = 0.24 * (1.0 - t) ** 0.35 * (1.0 + t) ** 0.9
+    inside = (np.abs(x) < 0.42) & (np.abs(y) < half_width)
+    holes = (np.abs(y) < 0.012) & (x > -0.3)
+    for x0 in (-0.22, -0.08, 0.06, 0.18):
+        along = (x - x0) * np.cos(np.radians(40)) + y * np.sin(np.radians(40))
+        across = -(x - x0) * np.sin(np.radians(40)) + y * np.cos(np.radians(40))
+        holes |= (np.abs(across) < 0.011) & (along > 0) & (y > 0)
+    for cx, cy, r in ((-0.05, -0.13, 0.05), (0.17, -0.07, 0.035)):
+        holes |= (x - cx) ** 2 + (y - cy) ** 2 < r * r
+    opaque = inside & ~holes
+    return np.repeat((opaque * 255).astype(np.uint8)[..., None], 3, axis=2)
+
+
 IMAGES = {"tiles.png": tiles, "wall.png": wall, "glow.exr": glow, "bumps-normal.png": bumps_normal,
-          "ridges.png": ridges}
+          "ridges.png": ridges, "leaf.png": leaf}
 def grazing_normals() -> np.ndarray:
     """(4, 4, 3) uint8: a raw tangent-space normal map whose normals lean 80 to 98 degrees from the surface's, in
     azimuths 45 degrees apart (a lean past 90 points below the surface: the flip of invalid normals), rgb = (n + 1) / 2
