@@ -240,7 +240,7 @@ class MaterialTables(NamedTuple):
     Attributes
     ----------
     kind : (M,) int64
-        DIFFUSE .. ROUGHDIELECTRIC (:mod:`reference_impl.materials`).
+        DIFFUSE .. ROUGHPLASTIC (:mod:`reference_impl.materials`).
     params : (M, NUM_PARAMS) float64
         One row per material, its columns the ``P_*`` of :mod:`reference_impl.materials`.
     texture : (M, NUM_SLOTS) or (0, NUM_SLOTS) int64
@@ -248,12 +248,15 @@ class MaterialTables(NamedTuple):
         is textured (the material step then copies rows only).
     textures : TextureTables
         The textures.
+    lut : (M, LUT_SIZE) float64
+        ``Materials.lut``: a rough plastic's table, which the material step appends to its row.
     """
 
     kind: np.ndarray
     params: np.ndarray
     texture: np.ndarray
     textures: "TextureTables"
+    lut: np.ndarray
 
 
 class TextureTables(NamedTuple):
@@ -321,7 +324,8 @@ def material_tables(materials, mutant: str = "") -> MaterialTables:
     texture = materials.texture if materials.textured else np.zeros((0, NUM_SLOTS), np.int64)
     return MaterialTables(_c(materials.kind, dtype=np.int64), _c(materials.params, dtype=np.float64),
                           _c(texture, dtype=np.int64),
-                          texture_tables(materials.textures, mutant == "texture-srgb-as-linear"))
+                          texture_tables(materials.textures, mutant == "texture-srgb-as-linear"),
+                          _c(materials.lut, dtype=np.float64))
 
 
 class FilmSamples(NamedTuple):
