@@ -54,6 +54,7 @@ BODIES = {
     "roughconductor": 'type = "roughconductor"\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.1]\nalpha = 0.3',
     "roughdielectric": 'type = "roughdielectric"\nalpha = 0.3\nspecular_transmittance = 0.5',
     "plastic": 'type = "plastic"\ndiffuse_reflectance = 0.4',
+    "roughplastic": 'type = "roughplastic"\ndiffuse_reflectance = 0.4',
 }
 # every field a material type reads, and a value other than the one in BODIES
 CHANGES = {
@@ -65,6 +66,9 @@ CHANGES = {
                         "type": "dielectric"},
     "plastic": {"diffuse_reflectance": (0.4, 0.4, 0.5), "nonlinear": True, "int_ior": 1.5, "ext_ior": 1.1,
                 "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "type": "thindielectric"},
+    "roughplastic": {"diffuse_reflectance": (0.4, 0.4, 0.5), "nonlinear": True, "int_ior": 1.5, "ext_ior": 1.1,
+                     "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "alpha": 0.2,
+                     "distribution": "ggx", "sample_visible": False, "type": "plastic"},
 }
 
 
