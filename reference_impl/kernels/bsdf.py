@@ -1,7 +1,7 @@
 r"""BSDF kernels: evaluation, pdf and sampling of the materials of :mod:`reference_impl.materials`.
 
 The physics is Mitsuba 3.9.1's (src/bsdfs/diffuse.cpp, conductor.cpp, roughconductor.cpp, dielectric.cpp,
-roughdielectric.cpp, thindielectric.cpp, plastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
+roughdielectric.cpp, thindielectric.cpp, plastic.cpp, roughplastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
 fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
 triangle's front geometric normal (never flipped by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
@@ -35,6 +35,20 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
                      lobe chosen with P_s = F w / (F w + (1 - F)(1 - w)), F = F(cos theta_o), w the specular
                      sampling weight s_mean / (s_mean + d_mean) (the channel means of R and rho); the diffuse lobe
                      cosine-weighted, pdf (1 - P_s) cos theta_i / pi
+    roughplastic     the plastic's layers with a rough coating, one-sided (or inside twosided): the glossy lobe
+                     f |cos| = R F(wo.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o) (the rough conductor's with the
+                     dielectric Fresnel term) plus the diffuse part diff / (pi eta^2) T(cos theta_o) T(cos theta_i)
+                     cos theta_i, diff = rho / (1 - R_i) or, nonlinear, rho / (1 - rho R_i); T the rough coating's
+                     external transmittance, tabulated at cos theta = max(1e-6, k / 63), k = 0 .. 63, and read by
+                     linear interpolation (Mitsuba's ``lerp_gather``), R_i its internal reflectance
+                     (:func:`roughplastic_lut`: Mitsuba's ``eval_transmittance`` and ``eval_reflectance`` of
+                     microfacet.h, tensor Gauss-Legendre quadratures of 32^2 nodes, 128^2 where the relative index
+                     is below 1, over the visible normals' sample space; R_i = 2 mean_k(R(mu_k; 1 / eta) mu_k)).
+                     Lobe chosen with P_s = (1 - T) w / ((1 - T) w + T (1 - w)), T = T(cos theta_o), w the specular
+                     sampling weight; the glossy lobe sampled as the rough conductor's, the diffuse one
+                     cosine-weighted; pdf P_s p_h(h) / (4 wi.h) + (1 - P_s) cos theta_i / pi, weight eval / pdf.
+                     The table (LUT_SIZE numbers) is not in the material's row but follows it in the hit's row
+                     buffer (columns P_LUT .., reference_impl/materials.py), where the material step copies it
 
     F_c            unpolarised Fresnel reflectance of a conductor with complex index eta + i k (fresnel.h's
                    ``fresnel_conductor``, after K. D. Moeller, "Optics", 1988); 1 for ``material = "none"``
@@ -75,6 +89,10 @@ Where this differs from Mitsuba on purpose
   0 / 0); the diffuse lobe is cosine-weighted whatever ``hemisphere`` says (that setting is the diffuse kind's).
 * The Beckmann slope inversion runs Newton's method to convergence in double precision (Mitsuba: 3 steps in
   single precision).
+* The rough plastic's table is integrated in double precision with the converged Beckmann inversion (Mitsuba: float32
+  throughout): equal to 2e-5 for int_ior > ext_ior; an inverted coating (int_ior < ext_ior, 128^2 nodes over an
+  integrand with a total-internal-reflection edge) to about 1e-3. Its Beckmann visible-normal pdf takes the exact G1
+  as the rough conductor's. No planted fault acts on it ("vndf-alpha-squared" acts through the shared sampler).
 
 Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each place marked by a comment:
 "microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared",
