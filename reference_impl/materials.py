@@ -4,16 +4,17 @@ Each material is a kind (:data:`DIFFUSE`, :data:`CONDUCTOR`, :data:`ROUGHCONDUCT
 :data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, :data:`ROUGHPLASTIC`, Mitsuba 3's plugins
 ``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``,
 ``roughplastic``) and a row of :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
-A rough plastic also has a table (``Materials.lut``, :data:`LUT_SIZE` numbers: its coating's transmittance over cos
-theta and its internal reflectance, computed here from alpha, the distribution and eta) that the material step
-appends to the hit's row, after its NUM_PARAMS columns (:data:`ROW_SIZE`, :data:`P_LUT`).
+A rough plastic also has a table (:data:`LUT_SIZE` numbers: its coating's transmittance over cos theta and its
+internal reflectance, from alpha, the distribution and eta: ``reference_impl.kernels.bsdf.roughplastic_luts``, which
+the kernels' ``MaterialTables.lut`` holds) that the material step appends to the hit's row, after its NUM_PARAMS
+columns (:data:`ROW_SIZE`, :data:`P_LUT`).
 The kernels of :mod:`reference_impl.kernels.bsdf` evaluate and sample them; the harness builds the table from the
 scene's ``[materials.NAME]`` in the order ``Geometry.material`` indexes.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,7 +56,7 @@ P_NONLINEAR = P_K  # 6: plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff 
 P_SPECULAR_WEIGHT = P_K + 1  # 7: plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
 NUM_PARAMS = 26  # 25 spare
 # roughplastic: its table (Mitsuba's roughplastic.cpp precomputes it in parameters_changed), not in the material
-# table's row but in Materials.lut, which the material step copies into the hit's row after the NUM_PARAMS columns
+# table's row but in MaterialTables.lut, which the material step copies into the hit's row after the NUM_PARAMS columns
 LUT_RES = 64  # MI_ROUGH_TRANSMITTANCE_RES: the external transmittance at cos theta = max(1e-6, i / 63), i = 0 .. 63
 LUT_SIZE = LUT_RES + 1  # ... and the internal reflectance
 P_LUT = NUM_PARAMS  # in the hit's row: LUT_RES transmittances, then the internal reflectance
@@ -107,9 +108,6 @@ class Materials:
         where none does. None: no texture anywhere.
     textures : reference_impl.textures.Textures, optional
         The textures ``texture`` names.
-    lut : (M, LUT_SIZE) float64
-        Computed, not given: a rough plastic's table (:func:`reference_impl.kernels.bsdf.roughplastic_lut` of its
-        distribution, alpha and eta), zeros on the other kinds.
 
     Validation (:class:`SettingsError` naming ``materials.kind`` or ``materials.params``): known kinds; finite
     parameters; reflectances and transmittances in [0, 1]; alpha > 0 on rough kinds; eta > 0 on dielectrics, the
@@ -123,7 +121,6 @@ class Materials:
     params: np.ndarray
     texture: np.ndarray | None = None
     textures: Textures | None = None
-    lut: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         kind = np.ascontiguousarray(self.kind, dtype=np.int64).reshape(-1)
@@ -143,7 +140,6 @@ class Materials:
         kind.setflags(write=False)
         object.__setattr__(self, "kind", kind)
         object.__setattr__(self, "params", params)
-        object.__setattr__(self, "lut", _luts(kind, params))
 
     @classmethod
     def diffuse(cls, reflectance, two_sided) -> "Materials":
@@ -351,18 +347,6 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         if kd == ROUGHPLASTIC and row[P_IOR] == 1.0:
             raise SettingsError(name, "expected int_ior != ext_ior (Mitsuba's roughplastic refuses an index-matched "
                                 "coating)")
-
-
-def _luts(kind: np.ndarray, params: np.ndarray) -> np.ndarray:
-    """``Materials.lut``: each rough plastic's table, zeros elsewhere (read-only)."""
-    lut = np.zeros((len(kind), LUT_SIZE))
-    if np.any(kind == ROUGHPLASTIC):
-        from reference_impl.kernels.bsdf import roughplastic_lut  # the kernels import this module
-        for m in np.nonzero(kind == ROUGHPLASTIC)[0]:
-            row = params[m]
-            lut[m] = roughplastic_lut(int(row[P_DISTRIBUTION]), float(row[P_ALPHA]), float(row[P_IOR]))
-    lut.setflags(write=False)
-    return lut
 
 
 def _check_plastic(name: str, row: np.ndarray, rough: bool = False) -> None:

@@ -645,8 +645,18 @@ def _roughplastic_lut_cached(ggx: bool, alpha: float, eta: float) -> np.ndarray:
     return lut
 
 
+def roughplastic_luts(materials) -> np.ndarray:
+    """(M, LUT_SIZE): each rough plastic's table (:func:`roughplastic_lut` of its row), zeros on the other kinds: the
+    ``lut`` of :func:`.records.material_tables`."""
+    lut = np.zeros((len(materials.kind), LUT_SIZE))
+    for m in np.nonzero(materials.kind == ROUGHPLASTIC)[0]:
+        row = materials.params[m]
+        lut[m] = roughplastic_lut(int(row[P_DISTRIBUTION]), float(row[P_ALPHA]), float(row[P_IOR]))
+    return lut
+
+
 def roughplastic_lut(distribution: int, alpha: float, eta: float) -> np.ndarray:
-    """A rough plastic's table (``Materials.lut``, LUT_SIZE numbers), as Mitsuba 3.9.1's
+    """A rough plastic's table (LUT_SIZE numbers, ``MaterialTables.lut``), as Mitsuba 3.9.1's
     ``RoughPlastic::parameters_changed`` (src/bsdfs/roughplastic.cpp) computes it: the external transmittance
     T(mu) = 1 - (the rough coating's reflectance, including the light its microfacets reflect back out) at the
     LUT_RES cosines mu_i = max(1e-6, i / (LUT_RES - 1)), by :func:`_roughplastic_table` with 32 x 32 nodes (128 x 128
@@ -956,6 +966,10 @@ def _sample_many(materials, m, mutant, uniform_diffuse, wo, u, ok, wi, w, pdf, d
         delta[i] = delta_i
 
 
+def _tables(materials):
+    return material_tables(materials, lut=roughplastic_luts(materials))
+
+
 def _uniform(hemisphere: str) -> bool:
     if hemisphere not in ("cosine", "uniform"):
         raise ValueError(f"hemisphere: expected 'cosine' or 'uniform', got {hemisphere!r}")
@@ -977,7 +991,7 @@ def eval_pdf(materials, m: int, wo, wi, mutant: int = 0, hemisphere: str = "cosi
     wo = _directions(wo, len(wi))
     f = np.empty((len(wi), 3))
     p = np.empty(len(wi))
-    _eval_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, f, p)
+    _eval_many(_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, f, p)
     return f, p
 
 
@@ -987,7 +1001,7 @@ def pdf(materials, m: int, wo, wi, mutant: int = 0, hemisphere: str = "cosine") 
     wi = _directions(wi)
     wo = _directions(wo, len(wi))
     p = np.empty(len(wi))
-    _eval_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, np.empty((0, 3)), p)
+    _eval_many(_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, np.empty((0, 3)), p)
     return p
 
 
@@ -999,6 +1013,6 @@ def sample(materials, m: int, wo, u, mutant: int = 0, hemisphere: str = "cosine"
     n = len(u)
     out = dict(ok=np.empty(n, dtype=np.bool_), wi=np.empty((n, 3)), weight=np.empty((n, 3)), pdf=np.empty(n),
                delta=np.empty(n, dtype=np.bool_))
-    _sample_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, u, out["ok"], out["wi"],
+    _sample_many(_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, u, out["ok"], out["wi"],
                  out["weight"], out["pdf"], out["delta"])
     return out

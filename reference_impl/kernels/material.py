@@ -10,8 +10,8 @@ The step hands on material m's kind and its row of :class:`reference_impl.Materi
 its parameters only from the row this step writes.
 
 The row is written into the caller's room for it (``params``, NUM_PARAMS float64 -- ROW_SIZE where a rough plastic
-may be hit: its table follows the row --, one per engine call, reused at every hit): a step that alters it needs no other buffer, and a hit costs no allocation, no reference count and no
-registers held across the vertex.
+may be hit: its table follows the row --, one per engine call, reused at every hit): a step that alters it needs no
+other buffer, and a hit costs no allocation, no reference count and no registers held across the vertex.
 """
 
 from __future__ import annotations

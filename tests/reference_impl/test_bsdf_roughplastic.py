@@ -1,7 +1,7 @@
 """The rough plastic (reference_impl/kernels/bsdf.py, kind ROUGHPLASTIC) against Mitsuba 3.9.1's own
 ``roughplastic`` plugin (variant scalar_rgb), against its own pdf, and in the white furnace.
 
-* The table (``Materials.lut``): Mitsuba's external transmittance T(mu) at its 64 cosines and internal reflectance,
+* The table (``bsdf.roughplastic_luts``): Mitsuba's external transmittance T(mu) at its 64 cosines and internal reflectance,
   read back from Mitsuba's diffuse component (``BSDFContext.component = 1``: diff / (pi eta^2) T(mu_o) T(mu_i)
   cos theta_i), to 2e-5 relative for eta > 1 (Mitsuba integrates in float32).
 * Mitsuba agreement of ``eval`` and ``pdf`` over a grid of angles x alpha in {0.01, 0.1, 0.3, 0.7} x both
@@ -87,7 +87,7 @@ def test_the_table_is_mitsubas(dist, alpha, ior):
     one entry there), and R_i from the absolute value."""
     plugin, materials = _pair(dist, alpha, True, False, {"int_ior": ior, "ext_ior": 1.0}, dict(int_ior=ior,
                                                                                             ext_ior=1.0))
-    lut = materials.lut[0]
+    lut = bsdf.roughplastic_luts(materials)[0]
     top = cases.direction(1.0)
     ref = _mi_diffuse(plugin, top, top)
     for k in range(1, LUT_RES):
@@ -103,12 +103,14 @@ def test_the_material_step_appends_the_table():
     materials = cases.one(ROUGHPLASTIC, alpha=0.2)
     from reference_impl.kernels.records import material_tables
     from reference_impl.kernels.material import material_params
-    tables = material_tables(materials)
+    tables = material_tables(materials, lut=bsdf.roughplastic_luts(materials))
     row = np.full(ROW_SIZE, np.nan)
     assert material_params(tables, 0, row) == ROUGHPLASTIC
     np.testing.assert_array_equal(row[:NUM_PARAMS], materials.params[0])
-    np.testing.assert_array_equal(row[P_LUT:], materials.lut[0])
+    np.testing.assert_array_equal(row[P_LUT:], tables.lut[0])
     assert 0 < row[P_INTERNAL_REFLECTANCE] < 1
+    with pytest.raises(SettingsError, match="a rough plastic needs its table"):
+        material_tables(materials)
     short = np.full(NUM_PARAMS, np.nan)  # an engine of Lambertian scenes: the row alone
     material_params(tables, 0, short)
     np.testing.assert_array_equal(short, materials.params[0])
@@ -340,7 +342,7 @@ def test_a_dense_coating_is_no_error_for_the_rough_plastic():
     with pytest.raises(SettingsError):
         Materials(np.array([PLASTIC]), material_row(PLASTIC, int_ior=5.0, ext_ior=1.0)[None])
     materials = Materials(np.array([ROUGHPLASTIC]), material_row(ROUGHPLASTIC, int_ior=5.0, ext_ior=1.0)[None])
-    assert 0 < materials.lut[0, -1] < 1
+    assert 0 < bsdf.roughplastic_luts(materials)[0, -1] < 1
 
 
 def test_a_textured_alpha_is_refused():

@@ -16,6 +16,7 @@ from harness.renderers.mitsuba_spec import bsdf_dict
 from harness.renderers.scene_json import scene_json
 from harness.scene import load_scene, material_arrays
 from reference_impl import materials as core
+from reference_impl.kernels.bsdf import roughplastic_luts
 
 SHAPE = '\n[[shapes]]\ntype = "rectangle"\nmaterial = "m"\n\n[[shapes]]\ntype = "sphere"\nmaterial = "white"\n' \
         'emission = [1, 1, 1]\ncenter = [0, 0, 3]\nradius = 0.1\n'
@@ -92,9 +93,10 @@ def test_the_core_row_and_table(tmp_path):
     assert row[core.P_NONLINEAR] == 1 and row[core.P_IOR] == pytest.approx(1.49 / 1.000277)
     assert (row[core.P_ALPHA], row[core.P_DISTRIBUTION], row[core.P_SAMPLE_VISIBLE]) == (0.25, core.GGX, 0)
     assert row[core.P_SPECULAR_WEIGHT] == pytest.approx(0.8 / (0.8 + 0.4))
-    lut = table.lut[m]
+    luts = roughplastic_luts(table)
+    lut = luts[m]
     assert lut.shape == (core.LUT_SIZE,) and np.all((lut > 0) & (lut < 1))  # transmittances and R_i in (0, 1)
-    assert not table.lut[list(scene.materials).index("white")].any()
+    assert not luts[list(scene.materials).index("white")].any()
 
 
 def test_textures_drive_the_reflectances(tmp_path):
