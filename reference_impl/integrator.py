@@ -74,7 +74,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import camera, config, film, path, records, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import bsdf, camera, config, film, path, records, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
@@ -262,7 +262,8 @@ class _Context:
         self.config = kernels.config.kernel_config(s, num_lights, self.intersector.offset_scene, surface_pdf,
                                                    num_area_lights=self.geometry.num_lights, env_light=env_light,
                                                    packet_width=self.intersector.packet_width)
-        self.material_tables = records.material_tables(self.materials, self.mutant)
+        self.material_tables = records.material_tables(self.materials, self.mutant,
+                                                       kernels.bsdf.roughplastic_luts(self.materials))
         # None where no area light is textured: the path loop compiles the emission lookups out
         self.light_textures = self.material_tables.textures if self.geometry.textured_lights else None
         # None where every material is diffuse: the path loop compiles the BSDF door's other kinds out

@@ -1,9 +1,13 @@
 """The material table of the core: one row per material, as plain arrays the BSDF kernels read.
 
 Each material is a kind (:data:`DIFFUSE`, :data:`CONDUCTOR`, :data:`ROUGHCONDUCTOR`, :data:`DIELECTRIC`,
-:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, Mitsuba 3's plugins ``diffuse``, ``conductor``,
-``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``) and a row of
-:data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
+:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, :data:`ROUGHPLASTIC`, Mitsuba 3's plugins
+``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``,
+``roughplastic``) and a row of :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
+A rough plastic also has a table (:data:`LUT_SIZE` numbers: its coating's transmittance over cos theta and its
+internal reflectance, from alpha, the distribution and eta: ``reference_impl.kernels.bsdf.roughplastic_luts``, which
+the kernels' ``MaterialTables.lut`` holds) that the material step appends to the hit's row, after its NUM_PARAMS
+columns (:data:`ROW_SIZE`, :data:`P_LUT`).
 The kernels of :mod:`reference_impl.kernels.bsdf` evaluate and sample them; the harness builds the table from the
 scene's ``[materials.NAME]`` in the order ``Geometry.material`` indexes.
 """
@@ -28,7 +32,8 @@ COMPOSITES = (BLENDBSDF, MASK, TWOSIDED)
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
               DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",
-              PLASTIC: "plastic", BLENDBSDF: "blendbsdf", MASK: "mask", TWOSIDED: "twosided"}
+              PLASTIC: "plastic", ROUGHPLASTIC: "roughplastic", BLENDBSDF: "blendbsdf", MASK: "mask",
+              TWOSIDED: "twosided"}
 #: The kinds that light crosses (the path loop's ``transmits``; no ``two_sided`` flag: both sides by nature).
 TRANSMITTING = (DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC)
 BECKMANN, GGX = 0, 1
@@ -59,6 +64,13 @@ P_WEIGHT = P_ALPHA  # 12: blendbsdf's weight (of its second material), mask's op
 P_NESTED = P_ETA  # 3-4: the rows of the nested materials (blendbsdf: bsdf_0, bsdf_1; mask: its one, twice;
 #                   twosided: the front's, the back's)
 NUM_PARAMS = 26  # 25 spare
+# roughplastic: its table (Mitsuba's roughplastic.cpp precomputes it in parameters_changed), not in the material
+# table's row but in MaterialTables.lut, which the material step copies into the hit's row after the NUM_PARAMS columns
+LUT_RES = 64  # MI_ROUGH_TRANSMITTANCE_RES: the external transmittance at cos theta = max(1e-6, i / 63), i = 0 .. 63
+LUT_SIZE = LUT_RES + 1  # ... and the internal reflectance
+P_LUT = NUM_PARAMS  # in the hit's row: LUT_RES transmittances, then the internal reflectance
+P_INTERNAL_REFLECTANCE = P_LUT + LUT_RES
+ROW_SIZE = NUM_PARAMS + LUT_SIZE  # the length of the row buffer a glossy engine gives the material step
 
 PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP = 0, 1, 2
 #: Mitsuba's plugin name of each perturbation.
@@ -100,7 +112,7 @@ class Materials:
     Attributes
     ----------
     kind : (M,) int64
-        :data:`DIFFUSE` .. :data:`PLASTIC`.
+        :data:`DIFFUSE` .. :data:`ROUGHPLASTIC`.
     params : (M, NUM_PARAMS) float64
         The columns ``P_*`` of this module; columns a kind does not use are ignored (keep them 0).
     texture : (M, NUM_SLOTS) int64, optional
@@ -112,9 +124,10 @@ class Materials:
 
     Validation (:class:`SettingsError` naming ``materials.kind`` or ``materials.params``): known kinds; finite
     parameters; reflectances and transmittances in [0, 1]; alpha > 0 on rough kinds; eta > 0 on dielectrics, the
-    thin dielectric and plastic (and != 1 on the rough one, as Mitsuba); k >= 0 on conductors; the distribution,
+    thin dielectric and the plastics (and != 1 on the rough ones, as Mitsuba); k >= 0 on conductors; the distribution,
     sample_visible, two_sided, mirror and nonlinear flags 0 or 1; two_sided 0 on the kinds light crosses; plastic's
-    diffuse_reflectance in [0, 1] and its specular sampling weight in (0, 1].
+    diffuse_reflectance in [0, 1] and its specular sampling weight in (0, 1]; no texture for a rough plastic's alpha
+    (Mitsuba's roughplastic takes a float).
     """
 
     kind: np.ndarray
@@ -201,6 +214,8 @@ def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Te
         where = f"materials.texture[{m}] ({KIND_NAMES[int(kind[m])]})"
         if name in ("reflectance", "transmittance", "diffuse") and np.any(top > 1):
             raise SettingsError(where, f"expected the texture of {name} in [0, 1], got values up to {top.max():g}")
+        if name == "alpha" and kind[m] == ROUGHPLASTIC:
+            raise SettingsError(where, "expected a number for alpha (Mitsuba's roughplastic takes no texture for it)")
         if name == "alpha":
             low, high = textures.scalar_range(int(texture[m, slot]))
             if not (low > 0 and high < np.inf):
@@ -278,8 +293,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_ALPHA] = alpha
     row[P_DISTRIBUTION] = distribution
     row[P_SAMPLE_VISIBLE] = bool(sample_visible)
-    if int_ior is None:  # Mitsuba's default: bk7, polypropylene for plastic
-        int_ior = PLASTIC_INT_IOR if kind == PLASTIC else DEFAULT_INT_IOR
+    if int_ior is None:  # Mitsuba's default: bk7, polypropylene for the plastics
+        int_ior = PLASTIC_INT_IOR if kind in (PLASTIC, ROUGHPLASTIC) else DEFAULT_INT_IOR
     row[P_IOR] = int_ior / ext_ior
     row[P_TWO_SIDED] = bool(two_sided)
     row[P_MIRROR] = bool(mirror)
@@ -288,7 +303,7 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_NORMAL:P_NORMAL + 3] = (0.5, 0.5, 1.0)  # n = (0, 0, 1): the frame unperturbed
     row[P_FLIP_INVALID] = bool(flip_invalid_normals)
     row[P_SHADOWING] = bool(use_shadowing_function)
-    if kind == PLASTIC:  # its own columns, in place of a conductor's eta and k
+    if kind in (PLASTIC, ROUGHPLASTIC):  # their own columns, in place of a conductor's eta and k
         row[P_ETA:P_K + 3] = 0.0
         row[P_DIFFUSE:P_DIFFUSE + 3] = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), 3)
         row[P_NONLINEAR] = bool(nonlinear)
@@ -342,7 +357,7 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         if row[P_PERTURB] not in (PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP):
             raise SettingsError(name, f"expected perturb {PERTURB_NONE}, {PERTURB_NORMALMAP} or {PERTURB_BUMPMAP}, "
                                 f"got {row[P_PERTURB]!r}")
-        if kd in (ROUGHCONDUCTOR, ROUGHDIELECTRIC) and not row[P_ALPHA] > 0:
+        if kd in (ROUGHCONDUCTOR, ROUGHDIELECTRIC, ROUGHPLASTIC) and not row[P_ALPHA] > 0:
             raise SettingsError(name, f"expected alpha > 0, got {row[P_ALPHA]!r}")
         if kd in (CONDUCTOR, ROUGHCONDUCTOR) and np.any(row[P_K:P_K + 3] < 0):
             raise SettingsError(name, "expected k >= 0")
@@ -361,8 +376,11 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
                 raise SettingsError(name, "two_sided does not apply to a thindielectric (it is two-sided by nature)")
             if row[P_TWO_SIDED]:
                 raise SettingsError(name, "two_sided does not apply to dielectrics")
-        if kd == PLASTIC:
-            _check_plastic(name, row)
+        if kd in (PLASTIC, ROUGHPLASTIC):
+            _check_plastic(name, row, rough=kd == ROUGHPLASTIC)
+        if kd == ROUGHPLASTIC and row[P_IOR] == 1.0:
+            raise SettingsError(name, "expected int_ior != ext_ior (Mitsuba's roughplastic refuses an index-matched "
+                                "coating)")
 
 
 def nested_rows(kind: np.ndarray, params: np.ndarray, m: int) -> tuple[int, int]:
@@ -417,15 +435,16 @@ def _check_composite(name: str, m: int, kind: np.ndarray, params: np.ndarray) ->
                                     "materials without transmission (as Mitsuba's)")
 
 
-def _check_plastic(name: str, row: np.ndarray) -> None:
-    """Plastic's columns: diffuse_reflectance in [0, 1], eta > 0, the nonlinear flag 0 or 1, the specular sampling
+def _check_plastic(name: str, row: np.ndarray, rough: bool = False) -> None:
+    """Plastic's columns: diffuse_reflectance in [0, 1], eta > 0 (and, smooth, F_dr(1 / eta) < 1: the rough one
+    integrates its internal reflectance, which is always below 1), the nonlinear flag 0 or 1, the specular sampling
     weight in [0, 1]."""
     diffuse = row[P_DIFFUSE:P_DIFFUSE + 3]
     if np.any(diffuse < 0) or np.any(diffuse > 1):
         raise SettingsError(name, "expected the diffuse_reflectance in [0, 1]")
     if not row[P_IOR] > 0:
         raise SettingsError(name, f"expected eta = int_ior / ext_ior > 0, got {row[P_IOR]!r}")
-    fdr = fresnel_diffuse_reflectance(1.0 / row[P_IOR])
+    fdr = 0.0 if rough else fresnel_diffuse_reflectance(1.0 / row[P_IOR])
     if not 0.0 <= fdr < 1.0:
         raise SettingsError(name, f"expected eta = int_ior / ext_ior whose internal diffuse Fresnel reflectance "
                                   f"F_dr(1 / eta) is in [0, 1) (Mitsuba's fit), got eta {row[P_IOR]!r}, F_dr {fdr:.4g}")

@@ -422,7 +422,7 @@ def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = No
         return node
     if kind == "thindielectric":
         return thin_sheet_node(tree, spec, where, textures)
-    if kind == "plastic":
+    if kind in ("plastic", "roughplastic"):
         return plastic_node(tree, spec, where)
     raise SceneError(f"{where}.type = {kind!r}: not a material this adapter maps to Cycles")
 
@@ -479,7 +479,12 @@ def plastic_node(tree, spec: dict, where: str):
     """Mitsuba's plastic, approximately: a Mix shader of a Diffuse BSDF (:func:`plastic_diffuse_colour`) and a mirror
     (Glossy, roughness 0, colour specular_reflectance) by the Fresnel node's F(cos theta_o) of eta. Exact for the
     coating's reflection and the diffuse part's (1 - F(cos theta_o)); Mitsuba's (1 - F(cos theta_i)) on the light's
-    side is replaced by its cosine-weighted mean 1 - F_dr(eta) (docs/cycles.md). Textured parameters are refused."""
+    side is replaced by its cosine-weighted mean 1 - F_dr(eta) (docs/cycles.md). Textured parameters are refused.
+
+    Mitsuba's roughplastic, more approximately, the same Mix shader with a rough Glossy BSDF (roughness sqrt(alpha),
+    its distribution) for the mirror: the smooth interface's F(cos theta_o) and F_dr stand in for the rough
+    coating's tabulated transmittance and internal reflectance, and the Glossy BSDF has no Fresnel of its own (the
+    mix weighs its whole lobe by F(cos theta_o), Mitsuba each microfacet by F(wo.h)) (docs/cycles.md)."""
     for item in ("diffuse_reflectance", "specular_reflectance"):
         if isinstance(spec[item], dict):
             raise SceneError(f"{where}.{item} = texture {spec[item].get('texture')!r}: a textured plastic is not "
@@ -491,7 +496,12 @@ def plastic_node(tree, spec: dict, where: str):
     socket(base, "Color").default_value = (*plastic_diffuse_colour(spec), 1.0)
     socket(base, "Roughness").default_value = 0.0
     coat = nodes.new("ShaderNodeBsdfGlossy")
-    socket(coat, "Roughness").default_value = 0.0
+    socket(coat, "Roughness").default_value = math.sqrt(float(spec.get("alpha", 0.0)))
+    if spec["type"] == "roughplastic":
+        distribution = spec["distribution"]
+        if distribution not in ("ggx", "beckmann"):
+            raise SceneError(f"{where}.distribution = {distribution!r}: Cycles has ggx and beckmann")
+        coat.distribution = "BECKMANN" if distribution == "beckmann" else "GGX"
     socket(coat, "Color").default_value = (*spec["specular_reflectance"], 1.0)
     mix = nodes.new("ShaderNodeMixShader")
     links.new(fresnel.outputs[0], mix.inputs[0])
@@ -1049,7 +1059,7 @@ def smooth_bsdf(tree, spec: dict, where: str, textures: "TextureNodes | None"):
     wi . n_s <= 0 (Mitsuba's diffuse and conductors need cos theta_i > 0; Cycles' diffuse never looks at wi, and
     takes the turned N on a back face), n_s on its Normal input. Two-sided (Mitsuba's twosided): the side of n_s
     that wi is on. A dielectric is refused: Cycles' Glass BSDF takes inside and outside from the triangle's side."""
-    if spec["type"] in ("thindielectric", "plastic"):
+    if spec["type"] in ("thindielectric", "plastic", "roughplastic"):
         raise SceneError(f"{where}.type = {spec['type']!r} on a smooth-shaded shape (or under a normal or bump map): "
                          "not mapped to Cycles (its Mix shader has no Normal input to take the shading normal)")
     if spec["type"] in ("dielectric", "roughdielectric"):

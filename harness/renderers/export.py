@@ -129,7 +129,7 @@ def _unique(name: str, taken: set[str]) -> str:
 def base_colour_parameter(material) -> str:
     """The parameter glTF's base colour (and OBJ's ``Kd``) is made from: its type's ``gltf_base`` (a diffuse
     material's ``reflectance``, a conductor's ``specular_reflectance``, a dielectric's ``specular_transmittance``, a
-    plastic's ``diffuse_reflectance``)."""
+    plastic's and a rough plastic's ``diffuse_reflectance``)."""
     return ALL_MATERIALS[material.type].gltf_base
 
 

@@ -46,7 +46,7 @@ from harness.scene.content_key import content_key
 from harness.scene.primitives import sphere_uv
 from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals
 
-FORMAT_VERSION = 5  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
+FORMAT_VERSION = 6  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
 DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
@@ -140,9 +140,10 @@ def _white_furnace(scene: Scene) -> np.ndarray:
                                   f"footprint: {problem}")
     material = scene.materials[scene.shapes[0].material]
     radiance = np.array(scene.emitters[0].radiance, dtype=np.float64)
-    if material.type == "plastic":
-        raise HarnessError(where, "the white-furnace closed form has no plastic sphere (its albedo varies with the "
-                                  "angle: tests/reference_impl/test_bsdf_thin_plastic.py tabulates it)")
+    if material.type in ("plastic", "roughplastic"):
+        raise HarnessError(where, f"the white-furnace closed form has no {material.type} sphere (its albedo varies "
+                                  "with the angle: tests/reference_impl/test_bsdf_thin_plastic.py and "
+                                  "test_bsdf_roughplastic.py tabulate it)")
     if material.is_dielectric:
         # a smooth dielectric (or thin sheet) loses nothing (each bounce keeps F / F or (1 - F) / (1 - F), and the
         # eta^2 of entering and leaving cancel), but only an unbounded path gets all of it out again

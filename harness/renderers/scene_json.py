@@ -49,8 +49,8 @@ def camera_json(scene: Scene) -> dict:
 
 
 def material_json(material) -> dict:
-    """One material with every parameter of its Mitsuba plugin (``two_sided`` for diffuse, conductors and
-    plastic)."""
+    """One material with every parameter of its Mitsuba plugin (``two_sided`` for diffuse, conductors and the
+    plastics)."""
     return ALL_MATERIALS[material.type].to_scene_json(material)
 
 

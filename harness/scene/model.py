@@ -87,10 +87,10 @@ class Texture:
 
 
 MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                  "plastic")  # Mitsuba's plugins
+                  "plastic", "roughplastic")  # Mitsuba's plugins
 CONDUCTOR_TYPES = ("conductor", "roughconductor")
 DIELECTRIC_TYPES = ("dielectric", "roughdielectric", "thindielectric")  # int_ior, ext_ior, specular_transmittance
-ROUGH_TYPES = ("roughconductor", "roughdielectric")
+ROUGH_TYPES = ("roughconductor", "roughdielectric", "roughplastic")
 DISTRIBUTIONS = tuple(CORE_DISTRIBUTIONS)  # Mitsuba's microfacet distributions
 # The defaults of the fields below are the core's (reference_impl.materials, reference_impl.emitters): Mitsuba's.
 
@@ -119,14 +119,15 @@ class Material:
 
     ``type = "diffuse"`` (the default): a Lambertian BRDF f_r = reflectance / pi (Mitsuba's ``diffuse``);
     ``two_sided = False`` reflects on the front side of a surface only (the back side is black), like Mitsuba's
-    BSDFs; ``True`` reflects on both sides (Mitsuba's ``twosided`` wrapper). Conductors and plastic take the same
+    BSDFs; ``True`` reflects on both sides (Mitsuba's ``twosided`` wrapper). Conductors and the plastics take the same
     meaning of ``two_sided``; dielectrics (the thin one too) have no ``two_sided`` (light crosses them from either
     side).
 
     The fields of the other types keep Mitsuba's defaults where a type does not use them. ``reflectance`` of a
     non-diffuse material is a per-channel bound of what one bounce keeps: ``specular_reflectance`` for conductors
     (Fresnel <= 1), the larger of ``specular_reflectance`` and ``specular_transmittance`` for dielectrics, the
-    larger of ``specular_reflectance`` and ``diffuse_reflectance`` for plastic (each part keeps at most its own).
+    larger of ``specular_reflectance`` and ``diffuse_reflectance`` for the plastics (each part keeps at most its
+    own).
     """
 
     name: str

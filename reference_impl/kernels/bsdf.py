@@ -1,7 +1,7 @@
 r"""BSDF kernels: evaluation, pdf and sampling of the materials of :mod:`reference_impl.materials`.
 
 The physics is Mitsuba 3.9.1's (src/bsdfs/diffuse.cpp, conductor.cpp, roughconductor.cpp, dielectric.cpp,
-roughdielectric.cpp, thindielectric.cpp, plastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
+roughdielectric.cpp, thindielectric.cpp, plastic.cpp, roughplastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
 fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
 triangle's front geometric normal (never flipped by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
@@ -35,6 +35,20 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
                      lobe chosen with P_s = F w / (F w + (1 - F)(1 - w)), F = F(cos theta_o), w the specular
                      sampling weight s_mean / (s_mean + d_mean) (the channel means of R and rho); the diffuse lobe
                      cosine-weighted, pdf (1 - P_s) cos theta_i / pi
+    roughplastic     the plastic's layers with a rough coating, one-sided (or inside twosided): the glossy lobe
+                     f |cos| = R F(wo.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o) (the rough conductor's with the
+                     dielectric Fresnel term) plus the diffuse part diff / (pi eta^2) T(cos theta_o) T(cos theta_i)
+                     cos theta_i, diff = rho / (1 - R_i) or, nonlinear, rho / (1 - rho R_i); T the rough coating's
+                     external transmittance, tabulated at cos theta = max(1e-6, k / 63), k = 0 .. 63, and read by
+                     linear interpolation (Mitsuba's ``lerp_gather``), R_i its internal reflectance
+                     (:func:`roughplastic_lut`: Mitsuba's ``eval_transmittance`` and ``eval_reflectance`` of
+                     microfacet.h, tensor Gauss-Legendre quadratures of 32^2 nodes, 128^2 where the relative index
+                     is below 1, over the visible normals' sample space; R_i = 2 mean_k(R(mu_k; 1 / eta) mu_k)).
+                     Lobe chosen with P_s = (1 - T) w / ((1 - T) w + T (1 - w)), T = T(cos theta_o), w the specular
+                     sampling weight; the glossy lobe sampled as the rough conductor's, the diffuse one
+                     cosine-weighted; pdf P_s p_h(h) / (4 wi.h) + (1 - P_s) cos theta_i / pi, weight eval / pdf.
+                     The table (LUT_SIZE numbers) is not in the material's row but follows it in the hit's row
+                     buffer (columns P_LUT .., reference_impl/materials.py), where the material step copies it
 
     F_c            unpolarised Fresnel reflectance of a conductor with complex index eta + i k (fresnel.h's
                    ``fresnel_conductor``, after K. D. Moeller, "Optics", 1988); 1 for ``material = "none"``
@@ -75,6 +89,10 @@ Where this differs from Mitsuba on purpose
   0 / 0); the diffuse lobe is cosine-weighted whatever ``hemisphere`` says (that setting is the diffuse kind's).
 * The Beckmann slope inversion runs Newton's method to convergence in double precision (Mitsuba: 3 steps in
   single precision).
+* The rough plastic's table is integrated in double precision with the converged Beckmann inversion (Mitsuba: float32
+  throughout): equal to 2e-5 for int_ior > ext_ior; an inverted coating (int_ior < ext_ior, 128^2 nodes over an
+  integrand with a total-internal-reflection edge) to about 1e-3. Its Beckmann visible-normal pdf takes the exact G1
+  as the rough conductor's. No planted fault acts on it ("vndf-alpha-squared" acts through the shared sampler).
 
 Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each place marked by a comment:
 "microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared",
@@ -83,6 +101,7 @@ Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -94,10 +113,11 @@ from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCT
 from reference_impl.kernels.material import material_params
 from reference_impl.kernels.records import material_tables
 from reference_impl.kernels.warps import cosine_hemisphere, uniform_hemisphere
-from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, NUM_PARAMS, P_ALPHA, P_DIFFUSE,
-                                      P_DISTRIBUTION, P_ETA, P_IOR, P_K, P_MIRROR, P_NONLINEAR, P_REFLECTANCE,
-                                      P_SAMPLE_VISIBLE, P_SPECULAR_WEIGHT, P_TRANSMITTANCE, P_TWO_SIDED, PLASTIC,
-                                      ROUGHCONDUCTOR, ROUGHDIELECTRIC, THINDIELECTRIC)
+from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, LUT_RES, LUT_SIZE, P_ALPHA, P_DIFFUSE,
+                                      P_DISTRIBUTION, P_ETA, P_INTERNAL_REFLECTANCE, P_IOR, P_K, P_LUT, P_MIRROR,
+                                      P_NONLINEAR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_SPECULAR_WEIGHT,
+                                      P_TRANSMITTANCE, P_TWO_SIDED, PLASTIC, ROUGHCONDUCTOR, ROUGHDIELECTRIC,
+                                      ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.materials import fresnel_diffuse_reflectance as _fresnel_diffuse_reflectance
 
 INV_PI = 1.0 / np.pi
@@ -579,6 +599,172 @@ def _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
     return True, lx, ly, sgn * lz, v0 / p, v1 / p, v2 / p, p, False
 
 
+# ---------------------------------------------------------------------------------------------- rough plastic
+
+
+@njit(**JIT)
+def _roughplastic_table(ggx, alpha, eta, mu, nodes, weights, transmit):
+    """Mitsuba's ``eval_transmittance`` (``transmit``) or ``eval_reflectance`` (include/mitsuba/render/microfacet.h)
+    of a rough dielectric interface of relative index ``eta`` seen from cos theta = mu[k], wi = (sqrt(1 - mu^2), 0,
+    mu): the tensor Gauss-Legendre quadrature (``nodes``, ``weights`` on [-1, 1], mapped to [0, 1]^2) of the visible
+    normals' sample space, sum of w_x w_y / 4 G1(wo, m) (1 - F(wi.m)) over the samples m whose refraction wo crosses
+    the interface, or G1(wo, m) F(wi.m) over those whose reflection stays above."""
+    out = np.zeros(len(mu))
+    for k in range(len(mu)):
+        wz = mu[k]
+        wx = math.sqrt(1.0 - wz * wz)
+        acc = 0.0
+        for a in range(len(nodes)):
+            for b in range(len(nodes)):
+                hx, hy, hz, _p = mf_sample(ggx, alpha, True, 0, wx, 0.0, wz, 0.5 * nodes[b] + 0.5,
+                                           0.5 * nodes[a] + 0.5)
+                c = wx * hx + wz * hz
+                f, cos_t, _eta_it, eta_ti = fresnel_dielectric(c, eta)
+                if transmit:
+                    s = c * eta_ti + cos_t
+                    ox, oy, oz = hx * s - wx * eta_ti, hy * s, hz * s - wz * eta_ti
+                    v = (1.0 - f) if oz * wz < 0.0 else 0.0
+                else:
+                    ox, oy, oz = 2.0 * c * hx - wx, 2.0 * c * hy, 2.0 * c * hz - wz
+                    v = f if oz > 0.0 else 0.0
+                if v != 0.0:
+                    acc += v * mf_g1(ggx, alpha, ox, oy, oz, hx, hy, hz) * weights[a] * weights[b] * 0.25
+        out[k] = acc
+    return out
+
+
+@functools.lru_cache(maxsize=256)
+def _roughplastic_lut_cached(ggx: bool, alpha: float, eta: float) -> np.ndarray:
+    mu = np.maximum(1e-6, np.linspace(0.0, 1.0, LUT_RES))
+    lut = np.empty(LUT_SIZE)
+    nodes, weights = np.polynomial.legendre.leggauss(32 if eta > 1.0 else 128)
+    lut[:LUT_RES] = _roughplastic_table(ggx, alpha, eta, mu, nodes, weights, True)
+    nodes, weights = np.polynomial.legendre.leggauss(32 if 1.0 / eta > 1.0 else 128)
+    lut[LUT_RES] = 2.0 * np.mean(_roughplastic_table(ggx, alpha, 1.0 / eta, mu, nodes, weights, False) * mu)
+    lut.setflags(write=False)
+    return lut
+
+
+def roughplastic_luts(materials) -> np.ndarray:
+    """(M, LUT_SIZE): each rough plastic's table (:func:`roughplastic_lut` of its row), zeros on the other kinds: the
+    ``lut`` of :func:`.records.material_tables`."""
+    lut = np.zeros((len(materials.kind), LUT_SIZE))
+    for m in np.nonzero(materials.kind == ROUGHPLASTIC)[0]:
+        row = materials.params[m]
+        lut[m] = roughplastic_lut(int(row[P_DISTRIBUTION]), float(row[P_ALPHA]), float(row[P_IOR]))
+    return lut
+
+
+def roughplastic_lut(distribution: int, alpha: float, eta: float) -> np.ndarray:
+    """A rough plastic's table (LUT_SIZE numbers, ``MaterialTables.lut``), as Mitsuba 3.9.1's
+    ``RoughPlastic::parameters_changed`` (src/bsdfs/roughplastic.cpp) computes it: the external transmittance
+    T(mu) = 1 - (the rough coating's reflectance, including the light its microfacets reflect back out) at the
+    LUT_RES cosines mu_i = max(1e-6, i / (LUT_RES - 1)), by :func:`_roughplastic_table` with 32 x 32 nodes (128 x 128
+    when eta <= 1), visible-normal sampling whatever ``sample_visible`` says; then the internal reflectance
+    R_i = 2 mean_i(R(mu_i; 1 / eta) mu_i), the coating's reflectance from inside averaged over a cosine-weighted
+    hemisphere (a left Riemann sum of 2 int R mu dmu, as Mitsuba). alpha clamped as the kernels' (MIN_ALPHA)."""
+    return _roughplastic_lut_cached(int(distribution) == GGX, max(float(alpha), MIN_ALPHA), float(eta))
+
+
+@njit(**JIT_BORROW)
+def _roughplastic_transmittance(row, cos_theta):
+    """T(cos_theta) from the row's table, linearly interpolated as Mitsuba's ``lerp_gather``: x = 63 cos_theta,
+    i = min(floor(x), 62), T_i + (x - i)(T_{i+1} - T_i)."""
+    x = cos_theta * (LUT_RES - 1)
+    i = min(int(x), LUT_RES - 2)
+    t0 = row[P_LUT + i]
+    return t0 + (row[P_LUT + i + 1] - t0) * (x - i)
+
+
+@njit(**JIT_BORROW)
+def _roughplastic_prob_specular(row, woz):
+    """The probability of the glossy lobe, (1 - T(cos theta_o)) w / ((1 - T) w + T (1 - w)), w the specular
+    sampling weight (roughplastic.cpp); 0 where the denominator is 0."""
+    t_o = _roughplastic_transmittance(row, woz)
+    w = row[P_SPECULAR_WEIGHT]
+    ps = (1.0 - t_o) * w
+    total = ps + t_o * (1.0 - w)
+    return ps / total if total > 0.0 else 0.0
+
+
+@njit(**JIT_BORROW)
+def _roughplastic_diffuse(row, c):
+    """diff of channel ``c``: rho / (1 - R_i) or, nonlinear, rho / (1 - rho R_i), R_i the table's internal
+    reflectance."""
+    rho = row[P_DIFFUSE + c]
+    ri = row[P_INTERNAL_REFLECTANCE]
+    return rho / (1.0 - (rho * ri if row[P_NONLINEAR] != 0.0 else ri))
+
+
+@njit(**JIT_BORROW)
+def _roughplastic_eval(row, wox, woy, woz, wix, wiy, wiz):
+    """Rough plastic for wo, wi above (woz, wiz > 0): R F(wo.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o) +
+    diff / (pi eta^2) T(cos theta_o) T(cos theta_i) cos theta_i, diff = rho / (1 - R_i) or, nonlinear,
+    rho / (1 - rho R_i); per channel."""
+    if woz <= 0.0 or wiz <= 0.0:
+        return 0.0, 0.0, 0.0
+    ggx = row[P_DISTRIBUTION] == GGX
+    alpha = _alpha(row)
+    eta = row[P_IOR]
+    hx, hy, hz = wox + wix, woy + wiy, woz + wiz
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    hx, hy, hz = hx * inv, hy * inv, hz * inv
+    spec = mf_d(ggx, alpha, hx, hy, hz)
+    if spec != 0.0:
+        spec *= (mf_g1(ggx, alpha, wox, woy, woz, hx, hy, hz) * mf_g1(ggx, alpha, wix, wiy, wiz, hx, hy, hz)
+                 * fresnel_dielectric(wox * hx + woy * hy + woz * hz, eta)[0] / (4.0 * woz))
+    v = (_roughplastic_transmittance(row, woz) * _roughplastic_transmittance(row, wiz) * wiz * INV_PI
+         / (eta * eta))
+    return (spec * row[P_REFLECTANCE] + v * _roughplastic_diffuse(row, 0),
+            spec * row[P_REFLECTANCE + 1] + v * _roughplastic_diffuse(row, 1),
+            spec * row[P_REFLECTANCE + 2] + v * _roughplastic_diffuse(row, 2))
+
+
+@njit(**JIT_BORROW)
+def _roughplastic_pdf(row, wox, woy, woz, wix, wiy, wiz):
+    """P_s p_h(h) / (4 wi.h) + (1 - P_s) cos theta_i / pi for wo, wi above, p_h :func:`mf_pdf` (visible normals:
+    D G1(wo, h) / (4 cos theta_o) with the exact G1; all normals: D cos theta_h / (4 wi.h))."""
+    if woz <= 0.0 or wiz <= 0.0:
+        return 0.0
+    ps = _roughplastic_prob_specular(row, woz)
+    hx, hy, hz = wox + wix, woy + wiy, woz + wiz
+    inv = 1.0 / math.sqrt(hx * hx + hy * hy + hz * hz)
+    hx, hy, hz = hx * inv, hy * inv, hz * inv
+    wi_h = wix * hx + wiy * hy + wiz * hz
+    p = (1.0 - ps) * wiz * INV_PI
+    if ps > 0.0 and wi_h > 0.0:
+        p += ps * mf_pdf(row[P_DISTRIBUTION] == GGX, _alpha(row), row[P_SAMPLE_VISIBLE] != 0.0,
+                         wox, woy, woz, hx, hy, hz) / (4.0 * wi_h)
+    return p
+
+
+@njit(**JIT_BORROW)
+def _roughplastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
+    """The glossy lobe with probability P_s (a microfacet normal as the rough conductor's, wi its reflection), else
+    the diffuse lobe cosine-weighted; weight f |cos| / pdf with the mixture's pdf (:func:`_roughplastic_pdf`); wo
+    behind a one-sided plastic samples nothing."""
+    ok, sgn = _side(row, woz, 0.0)
+    if not ok:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    woz = sgn * woz
+    if u_lobe < _roughplastic_prob_specular(row, woz):
+        hx, hy, hz, ph = mf_sample(row[P_DISTRIBUTION] == GGX, _alpha(row), row[P_SAMPLE_VISIBLE] != 0.0, mutant,
+                                   wox, woy, woz, u1, u2)
+        wo_h = wox * hx + woy * hy + woz * hz
+        wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
+        if not (ph > 0.0 and wo_h > 0.0):
+            return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    else:
+        wix, wiy, wiz = cosine_hemisphere(u1, u2)
+    if not wiz > 0.0:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    p = _roughplastic_pdf(row, wox, woy, woz, wix, wiy, wiz)
+    v0, v1, v2 = _roughplastic_eval(row, wox, woy, woz, wix, wiy, wiz)
+    if not (p > 0.0) or (v0 == 0.0 and v1 == 0.0 and v2 == 0.0):
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    return True, wix, wiy, sgn * wiz, v0 / p, v1 / p, v2 / p, p, False
+
+
 @njit(**JIT_BORROW)
 def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
     """f(wo, wi) |cos theta_i| of a material of ``kind`` with the parameters ``row`` at the hit (the material
@@ -603,6 +789,11 @@ def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
         if not ok:
             return 0.0, 0.0, 0.0
         return _plastic_eval(row, mutant, sgn * woz, sgn * wiz)
+    if kind == ROUGHPLASTIC:
+        ok, sgn = _side(row, woz, wiz)
+        if not ok:
+            return 0.0, 0.0, 0.0
+        return _roughplastic_eval(row, wox, woy, sgn * woz, wix, wiy, sgn * wiz)
     return 0.0, 0.0, 0.0
 
 
@@ -627,6 +818,11 @@ def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz):
         if not ok:
             return 0.0
         return _plastic_pdf(row, sgn * woz, sgn * wiz)
+    if kind == ROUGHPLASTIC:
+        ok, sgn = _side(row, woz, wiz)
+        if not ok:
+            return 0.0
+        return _roughplastic_pdf(row, wox, woy, sgn * woz, wix, wiy, sgn * wiz)
     return 0.0
 
 
@@ -734,6 +930,8 @@ def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u
         return _thin_sample(row, mutant, wox, woy, woz, u_lobe)
     if kind == PLASTIC:
         return _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
+    if kind == ROUGHPLASTIC:
+        return _roughplastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
     return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
 
 
@@ -742,7 +940,7 @@ def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u
 
 @njit(**JIT)
 def _eval_many(materials, m, mutant, uniform_diffuse, wo, wi, out_f, out_p):
-    row = np.empty(NUM_PARAMS)
+    row = np.empty(ROW_SIZE)
     kind = material_params(materials, m, row)
     with_f = len(out_f) > 0  # an empty out_f: the pdf only
     for i in range(len(wi)):
@@ -755,7 +953,7 @@ def _eval_many(materials, m, mutant, uniform_diffuse, wo, wi, out_f, out_p):
 
 @njit(**JIT)
 def _sample_many(materials, m, mutant, uniform_diffuse, wo, u, ok, wi, w, pdf, delta):
-    row = np.empty(NUM_PARAMS)
+    row = np.empty(ROW_SIZE)
     kind = material_params(materials, m, row)
     for i in range(len(u)):
         j = i if len(wo) > 1 else 0
@@ -766,6 +964,10 @@ def _sample_many(materials, m, mutant, uniform_diffuse, wo, u, ok, wi, w, pdf, d
         w[i, 0], w[i, 1], w[i, 2] = w0, w1, w2
         pdf[i] = pdf_i
         delta[i] = delta_i
+
+
+def _tables(materials):
+    return material_tables(materials, lut=roughplastic_luts(materials))
 
 
 def _uniform(hemisphere: str) -> bool:
@@ -789,7 +991,7 @@ def eval_pdf(materials, m: int, wo, wi, mutant: int = 0, hemisphere: str = "cosi
     wo = _directions(wo, len(wi))
     f = np.empty((len(wi), 3))
     p = np.empty(len(wi))
-    _eval_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, f, p)
+    _eval_many(_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, f, p)
     return f, p
 
 
@@ -799,7 +1001,7 @@ def pdf(materials, m: int, wo, wi, mutant: int = 0, hemisphere: str = "cosine") 
     wi = _directions(wi)
     wo = _directions(wo, len(wi))
     p = np.empty(len(wi))
-    _eval_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, np.empty((0, 3)), p)
+    _eval_many(_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, wi, np.empty((0, 3)), p)
     return p
 
 
@@ -811,6 +1013,6 @@ def sample(materials, m: int, wo, u, mutant: int = 0, hemisphere: str = "cosine"
     n = len(u)
     out = dict(ok=np.empty(n, dtype=np.bool_), wi=np.empty((n, 3)), weight=np.empty((n, 3)), pdf=np.empty(n),
                delta=np.empty(n, dtype=np.bool_))
-    _sample_many(material_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, u, out["ok"], out["wi"],
+    _sample_many(_tables(materials), int(m), int(mutant), _uniform(hemisphere), wo, u, out["ok"], out["wi"],
                  out["weight"], out["pdf"], out["delta"])
     return out

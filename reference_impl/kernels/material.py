@@ -9,9 +9,9 @@ The step hands on material m's kind and its row of :class:`reference_impl.Materi
 (:class:`.surface.SurfaceHit`'s ``tex_u``, ``tex_v``; :func:`.texture.texture_eval`); the BSDF (:mod:`.bsdf`) reads
 its parameters only from the row this step writes.
 
-The row is written into the caller's room for it (``params``, NUM_PARAMS float64, one per engine call, reused at
-every hit): a step that alters it needs no other buffer, and a hit costs no allocation, no reference count and no
-registers held across the vertex.
+The row is written into the caller's room for it (``params``, NUM_PARAMS float64 -- ROW_SIZE where a rough plastic
+may be hit: its table follows the row --, one per engine call, reused at every hit): a step that alters it needs no
+other buffer, and a hit costs no allocation, no reference count and no registers held across the vertex.
 
 A material made of others (:data:`reference_impl.materials.COMPOSITES`) is resolved here to one of them, as
 pbrt-v4's ``MixMaterial`` is (``ChooseMaterial``, src/pbrt/materials.h): a ``blendbsdf`` of weight w is its second
@@ -31,8 +31,8 @@ from numba import njit
 
 from reference_impl.kernels.config import JIT_BORROW, JIT_NONRT
 from reference_impl.kernels.texture import texture_eval, texture_eval_1
-from reference_impl.materials import (BLENDBSDF, MASK, NUM_PARAMS, NUM_SLOTS, P_NESTED, P_TWO_SIDED, P_WEIGHT,
-                                      TEXTURE_SLOTS, TWOSIDED)
+from reference_impl.materials import (BLENDBSDF, LUT_SIZE, MASK, NUM_PARAMS, NUM_SLOTS, P_LUT, P_NESTED, P_TWO_SIDED,
+                                      P_WEIGHT, ROUGHPLASTIC, ROW_SIZE, TEXTURE_SLOTS, TWOSIDED)
 
 _SLOT_COLUMN = tuple(column for column, _ in TEXTURE_SLOTS.values())
 _SLOT_CHANNELS = tuple(channels for _, channels in TEXTURE_SLOTS.values())
@@ -41,11 +41,17 @@ _SLOT_CHANNELS = tuple(channels for _, channels in TEXTURE_SLOTS.values())
 @njit(**JIT_BORROW)
 def material_params(materials, m, params):
     """Material ``m`` of ``materials`` (:class:`.records.MaterialTables`): its row of parameters, unchanged, written
-    into ``params``; returns its kind."""
+    into ``params``; returns its kind. A rough plastic's table (``materials.lut``) follows, in columns
+    ``P_LUT ..`` of a buffer of ``ROW_SIZE`` (a shorter buffer, an engine's that runs Lambertian scenes, gets none)."""
     table = materials.params
     for c in range(NUM_PARAMS):
         params[c] = table[m, c]
-    return materials.kind[m]
+    kind = materials.kind[m]
+    if kind == ROUGHPLASTIC and params.shape[0] >= ROW_SIZE:
+        lut = materials.lut
+        for c in range(LUT_SIZE):
+            params[P_LUT + c] = lut[m, c]
+    return kind
 
 
 @njit(**JIT_BORROW)

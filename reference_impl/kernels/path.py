@@ -74,8 +74,8 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead
 from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map
 from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
-from reference_impl.materials import (DIELECTRIC, DIFFUSE, NUM_PARAMS, P_REFLECTANCE, P_TWO_SIDED, PLASTIC,
-                                      ROUGHDIELECTRIC, THINDIELECTRIC)
+from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_REFLECTANCE, P_TWO_SIDED, PLASTIC,
+                                      ROUGHDIELECTRIC, ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
                                 DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
 
@@ -284,7 +284,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     lobe_roulette_drawn = first_roulette
     if other_kinds is not None:
         lobe_roulette_drawn = True
-    row = np.empty(NUM_PARAMS)  # the material step's parameters at the current vertex
+    row = np.empty(ROW_SIZE)  # the material step's parameters at the current vertex (and a rough plastic's table)
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
     queries = 0
@@ -388,7 +388,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             if other_kinds is None:
                 kind = DIFFUSE  # what the table says, known to the compiler
             transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == THINDIELECTRIC
-            lobed = transmits or kind == PLASTIC  # the kinds that choose a lobe read u_lobe
+            lobed = transmits or kind == PLASTIC or kind == ROUGHPLASTIC  # the kinds that choose a lobe read u_lobe
             if not (cos_out > 0 or row[P_TWO_SIDED] != 0 or transmits):
                 count_back_face += 1  # the back of a one-sided surface: black
                 break

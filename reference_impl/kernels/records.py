@@ -16,7 +16,8 @@ import numpy as np
 
 from reference_impl import textures as tx
 from reference_impl.camera import OrthographicCamera, ThinLensCamera
-from reference_impl.materials import NUM_SLOTS
+from reference_impl.errors import SettingsError
+from reference_impl.materials import LUT_SIZE, NUM_SLOTS, ROUGHPLASTIC
 
 _c = np.ascontiguousarray
 
@@ -240,7 +241,7 @@ class MaterialTables(NamedTuple):
     Attributes
     ----------
     kind : (M,) int64
-        DIFFUSE .. ROUGHDIELECTRIC (:mod:`reference_impl.materials`).
+        DIFFUSE .. ROUGHPLASTIC (:mod:`reference_impl.materials`).
     params : (M, NUM_PARAMS) float64
         One row per material, its columns the ``P_*`` of :mod:`reference_impl.materials`.
     texture : (M, NUM_SLOTS) or (0, NUM_SLOTS) int64
@@ -248,12 +249,16 @@ class MaterialTables(NamedTuple):
         is textured (the material step then copies rows only).
     textures : TextureTables
         The textures.
+    lut : (M, LUT_SIZE) float64
+        A rough plastic's table (:func:`.bsdf.roughplastic_luts`), which the material step appends to its row; zeros
+        on the other kinds.
     """
 
     kind: np.ndarray
     params: np.ndarray
     texture: np.ndarray
     textures: "TextureTables"
+    lut: np.ndarray
 
 
 class TextureTables(NamedTuple):
@@ -315,13 +320,23 @@ def texture_tables(textures, srgb_as_linear: bool = False) -> TextureTables:
                          _c(np.concatenate(texels) if texels else np.zeros((0, 3)), dtype=np.float64), to_uv, colors)
 
 
-def material_tables(materials, mutant: str = "") -> MaterialTables:
+def material_tables(materials, mutant: str = "", lut: np.ndarray | None = None) -> MaterialTables:
     """The :class:`MaterialTables` of a :class:`reference_impl.Materials` (``mutant``: the render's planted fault,
-    "texture-srgb-as-linear" changes the texels)."""
+    "texture-srgb-as-linear" changes the texels; ``lut``: the rough plastics' tables, :func:`.bsdf.roughplastic_luts`
+    of ``materials``, required where there is one: SettingsError without)."""
+    if lut is None:
+        if np.any(materials.kind == ROUGHPLASTIC):
+            raise SettingsError("materials.lut", "a rough plastic needs its table: pass "
+                                "reference_impl.kernels.bsdf.roughplastic_luts(materials)")
+        lut = np.zeros((len(materials.kind), LUT_SIZE))
+    if np.shape(lut) != (len(materials.kind), LUT_SIZE):
+        raise SettingsError("materials.lut", f"expected an array of shape ({len(materials.kind)}, {LUT_SIZE}), "
+                            f"got {np.shape(lut)}")
     texture = materials.texture if materials.textured else np.zeros((0, NUM_SLOTS), np.int64)
     return MaterialTables(_c(materials.kind, dtype=np.int64), _c(materials.params, dtype=np.float64),
                           _c(texture, dtype=np.int64),
-                          texture_tables(materials.textures, mutant == "texture-srgb-as-linear"))
+                          texture_tables(materials.textures, mutant == "texture-srgb-as-linear"),
+                          _c(lut, dtype=np.float64))
 
 
 class FilmSamples(NamedTuple):

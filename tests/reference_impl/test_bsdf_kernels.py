@@ -300,7 +300,7 @@ def test_validation_shapes_and_kinds():
     with pytest.raises(SettingsError, match="shape"):
         Materials(np.array([DIFFUSE]), np.zeros((1, NUM_PARAMS - 1)))
     with pytest.raises(SettingsError, match="kinds"):
-        Materials(np.array([7]), np.zeros((1, NUM_PARAMS)))
+        Materials(np.array([99]), np.zeros((1, NUM_PARAMS)))
     bad = material_row(DIFFUSE)
     bad[P_ALPHA] = np.nan
     with pytest.raises(SettingsError, match="finite"):

@@ -89,6 +89,10 @@ type = "thindielectric"
 type = "plastic"
 nonlinear = true
 
+[materials.satin]
+type = "roughplastic"
+alpha = 0.3
+
 [[shapes]]
 name = "floor"
 type = "rectangle"

@@ -30,9 +30,9 @@ emission = [1, 2, 3]
 translate = [0, 0, -1]
 """
 # scene_digest of LAMBERTIAN, the scene's content key (harness.scene.content_key); a change of it makes every cached
-# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 5 since
-# the materials grew plastic's diffuse_reflectance and nonlinear)
-LAMBERTIAN_DIGEST = "f03b7553697fa3f3e70a221b311adcc35477070e1436527cb81f9f7e049cab6e"
+# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 6 since
+# the materials grew the composites' weight and nested materials)
+LAMBERTIAN_DIGEST = "a1ef5468fb0ee3ef883a0a9d438799f63413f941173c6a2f87674d49cb87e5ed"
 
 
 def test_the_key_of_a_lambertian_scene_is_pinned(tmp_path):
@@ -54,6 +54,7 @@ BODIES = {
     "roughconductor": 'type = "roughconductor"\neta = [0.2, 0.9, 1.1]\nk = [3.9, 2.4, 2.1]\nalpha = 0.3',
     "roughdielectric": 'type = "roughdielectric"\nalpha = 0.3\nspecular_transmittance = 0.5',
     "plastic": 'type = "plastic"\ndiffuse_reflectance = 0.4',
+    "roughplastic": 'type = "roughplastic"\ndiffuse_reflectance = 0.4',
 }
 # every field a material type reads, and a value other than the one in BODIES
 CHANGES = {
@@ -65,6 +66,9 @@ CHANGES = {
                         "type": "dielectric"},
     "plastic": {"diffuse_reflectance": (0.4, 0.4, 0.5), "nonlinear": True, "int_ior": 1.5, "ext_ior": 1.1,
                 "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "type": "thindielectric"},
+    "roughplastic": {"diffuse_reflectance": (0.4, 0.4, 0.5), "nonlinear": True, "int_ior": 1.5, "ext_ior": 1.1,
+                     "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "alpha": 0.2,
+                     "distribution": "ggx", "sample_visible": False, "type": "plastic"},
 }
 
 

@@ -107,7 +107,7 @@ BAD = [
      "anisotropic roughness (Mitsuba's alpha_u and alpha_v) is not in the reference's microfacet models"),
     ("alpha-v-on-diffuse", 'reflectance = 0.5\nalpha_v = 0.3', "alpha_v", "expected alpha (isotropic)"),
     ("alpha-on-smooth", 'type = "conductor"\nalpha = 0.1', "alpha",
-     "applies only to materials of type 'roughconductor' or 'roughdielectric', not 'conductor'"),
+     "applies only to materials of type 'roughconductor' or 'roughdielectric' or 'roughplastic', not 'conductor'"),
     ("eta-on-diffuse", 'reflectance = [1, 1, 1]\neta = 1', "eta", "'conductor' or 'roughconductor', not 'diffuse'"),
     ("int-ior-on-conductor", 'type = "conductor"\nint_ior = 1.5', "int_ior", "not 'conductor'"),
     ("transmittance-on-conductor", 'type = "conductor"\nspecular_transmittance = 1', "specular_transmittance",

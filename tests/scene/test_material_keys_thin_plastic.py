@@ -56,7 +56,7 @@ BAD = [
     ("thin-two-sided", 'type = "thindielectric"\ntwo_sided = true', "two_sided",
      "a thindielectric has no two_sided: a thin sheet is two-sided by nature"),
     ("thin-diffuse", 'type = "thindielectric"\ndiffuse_reflectance = 0.5', "diffuse_reflectance",
-     "applies only to materials of type 'plastic', not 'thindielectric'"),
+     "applies only to materials of type 'plastic' or 'roughplastic', not 'thindielectric'"),
     ("thin-named-ior", 'type = "thindielectric"\nint_ior = "bk7"', "int_ior", "named indices are not supported"),
     ("thin-transmittance", 'type = "thindielectric"\nspecular_transmittance = 1.5', "specular_transmittance",
      "each in [0, 1]"),
@@ -68,7 +68,7 @@ BAD = [
      "not 'plastic'"),
     ("plastic-alpha", 'type = "plastic"\nalpha = 0.1', "alpha", "not 'plastic'"),
     ("nonlinear-on-dielectric", 'type = "dielectric"\nnonlinear = true', "nonlinear",
-     "applies only to materials of type 'plastic', not 'dielectric'"),
+     "applies only to materials of type 'plastic' or 'roughplastic', not 'dielectric'"),
     ("plastic-ior-texture", 'type = "plastic"\nint_ior = { texture = "checks" }', "int_ior",
      "int_ior of a plastic takes no texture (textures drive: diffuse_reflectance, specular_reflectance)"),
 ]

@@ -115,6 +115,13 @@ class MaterialKind:
                 core.PLASTIC, reflectance=material.specular_reflectance, diffuse=material.diffuse_reflectance,
                 int_ior=material.int_ior, ext_ior=material.ext_ior, two_sided=material.two_sided,
                 nonlinear=material.nonlinear, specular_sampling_weight=_plastic_sampling_weight(material))
+        if self.core_kind == core.ROUGHPLASTIC:
+            return core.material_row(
+                core.ROUGHPLASTIC, reflectance=material.specular_reflectance, diffuse=material.diffuse_reflectance,
+                int_ior=material.int_ior, ext_ior=material.ext_ior, two_sided=material.two_sided,
+                nonlinear=material.nonlinear, specular_sampling_weight=_plastic_sampling_weight(material),
+                alpha=material.alpha, distribution=core.DISTRIBUTIONS[material.distribution],
+                sample_visible=material.sample_visible)
         return core.material_row(
             self.core_kind, reflectance=material.specular_reflectance, eta=material.eta, k=material.k,
             transmittance=material.specular_transmittance, alpha=material.alpha,
@@ -201,6 +208,9 @@ def _textured_parameters(reader, kind: MaterialKind, entry: dict, key: str,
     for item, value in list(entry.items()):
         if not (isinstance(value, dict) and "texture" in value):
             continue
+        if item == "alpha" and kind.name == "roughplastic":
+            raise reader.error(f"{key}.{item}", "alpha of a roughplastic takes no texture: Mitsuba's roughplastic "
+                                                "takes a number (it tabulates its coating for one roughness)")
         if item not in kind.textured:
             takes = ", ".join(kind.textured) or "none of its parameters"
             raise reader.error(f"{key}.{item}", f"{item} of a {kind.name} takes no texture (textures drive: {takes})")
@@ -257,7 +267,7 @@ def _read_dielectric(reader, entry: dict, key: str) -> dict:
     return fields
 
 
-def _read_plastic(reader, entry: dict, key: str) -> dict:
+def _read_plastic(reader, entry: dict, key: str, rough: bool = False) -> dict:
     """A plastic's fields (Mitsuba's defaults: diffuse_reflectance 0.5, specular_reflectance 1, int_ior 1.49
     (polypropylene), ext_ior 1.000277 (air), nonlinear false); ``reflectance`` is the larger of its specular and
     diffuse reflectances."""
@@ -269,7 +279,7 @@ def _read_plastic(reader, entry: dict, key: str) -> dict:
         fields[item] = _index_of_refraction(reader, entry.get(item, default), f"{key}.{item}")
     eta = fields["int_ior"] / fields["ext_ior"]
     fdr = core.fresnel_diffuse_reflectance(1.0 / eta)
-    if not 0.0 <= fdr < 1.0:
+    if not rough and not 0.0 <= fdr < 1.0:
         item = "int_ior" if "int_ior" in entry else "ext_ior"
         raise reader.error(f"{key}.{item}", (
             f"expected int_ior / ext_ior below {MAX_PLASTIC_ETA:g} for a plastic (Mitsuba's fit of the coating's "
@@ -277,6 +287,19 @@ def _read_plastic(reader, entry: dict, key: str) -> dict:
     fields["reflectance"] = tuple(max(s, d) for s, d in zip(fields["specular_reflectance"],
                                                             fields["diffuse_reflectance"]))
     return fields
+
+
+def _read_roughplastic(reader, entry: dict, key: str) -> dict:
+    """A rough plastic's fields: a plastic's (Mitsuba's same defaults; no bound on int_ior / ext_ior from F_dr, which
+    it does not use: its internal reflectance is integrated) but int_ior != ext_ior (Mitsuba refuses an index-matched
+    coating), and alpha, distribution, sample_visible (Mitsuba's defaults 0.1, beckmann, true)."""
+    fields = _read_plastic(reader, entry, key, rough=True)
+    if np.float32(fields["int_ior"]) == np.float32(fields["ext_ior"]):
+        item = "int_ior" if "int_ior" in entry else "ext_ior"
+        raise reader.error(f"{key}.{item}", (
+            f"expected int_ior != ext_ior for a roughplastic (Mitsuba refuses an index-matched coating), got both "
+            f"{fields['int_ior']:g}"))
+    return {**fields, **_roughness(reader, entry, key)}
 
 
 def _plastic_sampling_weight(material: Material) -> float:
@@ -401,6 +424,14 @@ def _plastic_json(material: Material) -> dict:
             "ext_ior": float(material.ext_ior), "nonlinear": bool(material.nonlinear)}
 
 
+def _roughplastic_parameters(material: Material) -> dict:
+    return {**_plastic_parameters(material), **_rough_parameters(material)}
+
+
+def _roughplastic_json(material: Material) -> dict:
+    return {**_plastic_json(material), **_rough_parameters(material)}
+
+
 def _conductor_json(material: Material) -> dict:
     return {"eta": _numbers(material.eta), "k": _numbers(material.k),
             "specular_reflectance": _numbers(material.specular_reflectance)}
@@ -488,6 +519,13 @@ def _plastic_gltf(material: Material) -> tuple[dict, dict]:
             "roughnessFactor": 0.0}, extensions
 
 
+def _roughplastic_gltf(material: Material) -> tuple[dict, dict]:
+    """As :func:`_plastic_gltf`, with roughness sqrt(alpha) (glTF's dielectric specular is GGX of alpha =
+    roughness^2)."""
+    factors, extensions = _plastic_gltf(material)
+    return {**factors, "roughnessFactor": _rough_gltf_roughness(material)}, extensions
+
+
 def _rough_gltf_roughness(material: Material) -> float:
     """glTF's roughness of a rough type: sqrt(alpha) (glTF's GGX alpha is roughness^2: exact for ggx)."""
     return math.sqrt(material.alpha)
@@ -562,6 +600,10 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  textured=("specular_reflectance", "specular_transmittance"), gltf_base="specular_transmittance"),
     MaterialKind("plastic", core.PLASTIC, _PLASTIC_KEYS, _read_plastic, parameters=_plastic_parameters,
                  json=_plastic_json, gltf=_plastic_gltf, gltf_losses=_plastic_gltf_losses,
+                 textured=("diffuse_reflectance", "specular_reflectance"), gltf_base="diffuse_reflectance"),
+    MaterialKind("roughplastic", core.ROUGHPLASTIC, _PLASTIC_KEYS + _ROUGH_KEYS, _read_roughplastic,
+                 parameters=_roughplastic_parameters, json=_roughplastic_json, gltf=_roughplastic_gltf,
+                 gltf_losses=lambda m: _plastic_gltf_losses(m) + _beckmann_gltf_losses(m),
                  textured=("diffuse_reflectance", "specular_reflectance"), gltf_base="diffuse_reflectance"),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
