@@ -1,8 +1,9 @@
 """The material table of the core: one row per material, as plain arrays the BSDF kernels read.
 
 Each material is a kind (:data:`DIFFUSE`, :data:`CONDUCTOR`, :data:`ROUGHCONDUCTOR`, :data:`DIELECTRIC`,
-:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, Mitsuba 3's plugins ``diffuse``, ``conductor``,
-``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``) and a row of
+:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, :data:`PRINCIPLED`, Mitsuba 3's plugins
+``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``,
+``principled``) and a row of
 :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
 The kernels of :mod:`reference_impl.kernels.bsdf` evaluate and sample them; the harness builds the table from the
 scene's ``[materials.NAME]`` in the order ``Geometry.material`` indexes.
@@ -24,7 +25,7 @@ ROUGHPLASTIC, PRINCIPLED, BLENDBSDF, MASK = range(7, 11)
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
               DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",
-              PLASTIC: "plastic"}
+              PLASTIC: "plastic", PRINCIPLED: "principled"}
 #: The kinds that light crosses (the path loop's ``transmits``; no ``two_sided`` flag: both sides by nature).
 TRANSMITTING = (DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC)
 BECKMANN, GGX = 0, 1
@@ -50,6 +51,21 @@ P_SHADOWING = 24  # normalmap, bumpmap: 1: use_shadowing_function (the shadow te
 P_DIFFUSE = P_ETA  # 3-5: plastic's diffuse_reflectance
 P_NONLINEAR = P_K  # 6: plastic: 1: nonlinear (diff / (1 - diff F_dr)), 0: diff / (1 - F_dr)
 P_SPECULAR_WEIGHT = P_K + 1  # 7: plastic: Mitsuba's specular_sampling_weight s_mean / (d_mean + s_mean)
+# principled's own parameters, in columns no principled reads otherwise (its base_color is P_REFLECTANCE, its eta
+# P_IOR; the map columns 18-24 keep their meaning)
+P_METALLIC = P_ETA  # 3
+P_SPEC_TINT = P_ETA + 1  # 4
+P_ANISOTROPIC = P_ETA + 2  # 5
+P_SHEEN = P_K  # 6
+P_SHEEN_TINT = P_K + 1  # 7
+P_CLEARCOAT = P_K + 2  # 8
+P_CLEARCOAT_GLOSS = P_TRANSMITTANCE  # 9
+P_SPEC_TRANS = P_TRANSMITTANCE + 1  # 10
+P_FLATNESS = P_TRANSMITTANCE + 2  # 11
+P_ROUGHNESS = P_ALPHA  # 12
+P_SPECULAR_RATE = P_DISTRIBUTION  # 13: main_specular_sampling_rate
+P_CLEARCOAT_RATE = P_SAMPLE_VISIBLE  # 14: clearcoat_sampling_rate
+P_DIFFUSE_RATE = P_MIRROR  # 17: diffuse_reflectance_sampling_rate
 NUM_PARAMS = 26  # 25 spare
 
 PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP = 0, 1, 2
@@ -60,7 +76,15 @@ PERTURB_NAMES = {PERTURB_NORMALMAP: "normalmap", PERTURB_BUMPMAP: "bumpmap"}
 #: in the order of the columns of ``Materials.texture``. The bump map's height (channels 0) is not written into the
 #: row: its gradient is looked up where the frame is perturbed (kernels/shading.py).
 TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1),
-                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0), "diffuse": (P_DIFFUSE, 3)}
+                 "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0), "diffuse": (P_DIFFUSE, 3),
+                 # principled's one-number parameters (its base_color is the reflectance slot)
+                 "roughness": (P_ROUGHNESS, 1), "metallic": (P_METALLIC, 1), "spec_tint": (P_SPEC_TINT, 1),
+                 "anisotropic": (P_ANISOTROPIC, 1), "sheen": (P_SHEEN, 1), "sheen_tint": (P_SHEEN_TINT, 1),
+                 "clearcoat": (P_CLEARCOAT, 1), "clearcoat_gloss": (P_CLEARCOAT_GLOSS, 1),
+                 "spec_trans": (P_SPEC_TRANS, 1), "flatness": (P_FLATNESS, 1)}
+#: principled's one-number parameters in [0, 1] (the slots of the same names).
+PRINCIPLED_UNIT = ("roughness", "metallic", "spec_tint", "anisotropic", "sheen", "sheen_tint", "clearcoat",
+                   "clearcoat_gloss", "spec_trans", "flatness")
 NUM_SLOTS = len(TEXTURE_SLOTS)
 
 #: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
@@ -79,6 +103,12 @@ DEFAULT_DIFFUSE = (0.5, 0.5, 0.5)
 DEFAULT_NONLINEAR = False
 MIRROR_ETA = (0.0, 0.0, 0.0)
 MIRROR_K = (1.0, 1.0, 1.0)
+#: Mitsuba 3.9.1's principled (src/bsdfs/principled.cpp): base_color 0.5, roughness 0.5, specular 0.5 (eta from it,
+#: :func:`principled_eta`), every other weight 0, the three sampling rates 1.
+PRINCIPLED_DEFAULTS = {"base_color": (0.5, 0.5, 0.5), "roughness": 0.5, "metallic": 0.0, "spec_tint": 0.0,
+                       "anisotropic": 0.0, "sheen": 0.0, "sheen_tint": 0.0, "clearcoat": 0.0, "clearcoat_gloss": 0.0,
+                       "spec_trans": 0.0, "flatness": 0.0, "specular": 0.5, "main_specular_sampling_rate": 1.0,
+                       "clearcoat_sampling_rate": 1.0, "diffuse_reflectance_sampling_rate": 1.0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -116,8 +146,8 @@ class Materials:
         if params.ndim != 2 or params.shape != (len(kind), NUM_PARAMS):
             raise SettingsError("materials.params", f"expected an array of shape ({len(kind)}, {NUM_PARAMS}), "
                                 f"got {params.shape}")
-        if np.any((kind < DIFFUSE) | (kind > PLASTIC)):
-            raise SettingsError("materials.kind", f"expected kinds {DIFFUSE} .. {PLASTIC} "
+        if not np.all(np.isin(kind, list(KIND_NAMES))):
+            raise SettingsError("materials.kind", f"expected kinds {', '.join(map(str, KIND_NAMES))} "
                                 f"({', '.join(KIND_NAMES.values())})")
         _check_params(kind, params)
         texture, textures = _check_textures(kind, self.texture, self.textures)
@@ -182,6 +212,11 @@ def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Te
             low, high = textures.scalar_range(int(texture[m, slot]))
             if not (low > 0 and high < np.inf):
                 raise SettingsError(where, f"expected the texture of alpha > 0, got values from {low:g}")
+        if name in PRINCIPLED_UNIT:
+            low, high = textures.scalar_range(int(texture[m, slot]))
+            if not (low >= 0 and high <= 1):
+                raise SettingsError(where, f"expected the texture of {name} in [0, 1], got values from {low:g} to "
+                                           f"{high:g}")
     texture.setflags(write=False)
     return texture, textures
 
@@ -229,7 +264,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
                  ext_ior: float = DEFAULT_EXT_IOR,
                  two_sided: bool = False, mirror: bool = False, perturb: int = PERTURB_NONE, bump_scale: float = 1.0,
                  flip_invalid_normals: bool = True, use_shadowing_function: bool = True, diffuse=DEFAULT_DIFFUSE,
-                 nonlinear: bool = DEFAULT_NONLINEAR, specular_sampling_weight: float | None = None) -> np.ndarray:
+                 nonlinear: bool = DEFAULT_NONLINEAR, specular_sampling_weight: float | None = None,
+                 **principled) -> np.ndarray:
     """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
 
     ``reflectance`` is the diffuse albedo or the specular_reflectance; ``eta``, ``k`` the conductor's complex index
@@ -239,7 +275,19 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     ``diffuse``, ``nonlinear``: plastic's diffuse_reflectance and nonlinear; ``specular_sampling_weight`` its
     probability weight of the specular lobe, by default :func:`plastic_sampling_weight` of ``reflectance`` and
     ``diffuse`` (a textured parameter's mean is the harness's to give).
+    ``principled``: a principled row's parameters by Mitsuba's names (:data:`PRINCIPLED_DEFAULTS`' keys, and ``eta``
+    as a number or ``specular``; ``base_color`` or ``reflectance``), Mitsuba's defaults for the others
+    (:func:`_principled_columns`); TypeError for them on another kind.
     """
+    if kind == PRINCIPLED:
+        principled = dict(principled)
+        if eta is not MIRROR_ETA:
+            principled["eta"] = eta
+        if reflectance is not DEFAULT_SPECULAR:
+            principled.setdefault("base_color", reflectance)
+        eta = MIRROR_ETA
+    elif principled:
+        raise TypeError(f"material_row: unexpected keywords {sorted(principled)} for kind {kind}")
     row = np.zeros(NUM_PARAMS)
     row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(reflectance, dtype=np.float64), 3)
     row[P_ETA:P_ETA + 3] = np.broadcast_to(np.asarray(eta, dtype=np.float64), 3)
@@ -258,6 +306,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_NORMAL:P_NORMAL + 3] = (0.5, 0.5, 1.0)  # n = (0, 0, 1): the frame unperturbed
     row[P_FLIP_INVALID] = bool(flip_invalid_normals)
     row[P_SHADOWING] = bool(use_shadowing_function)
+    if kind == PRINCIPLED:  # its own columns, in place of the conductors', dielectrics' and rough kinds'
+        _principled_columns(row, principled)
     if kind == PLASTIC:  # its own columns, in place of a conductor's eta and k
         row[P_ETA:P_K + 3] = 0.0
         row[P_DIFFUSE:P_DIFFUSE + 3] = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), 3)
@@ -301,9 +351,12 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         rgb = row[P_REFLECTANCE:P_REFLECTANCE + 3]
         if np.any(rgb < 0) or np.any(rgb > 1):
             raise SettingsError(name, "expected the reflectance in [0, 1]")
-        for col, label in ((P_TWO_SIDED, "two_sided"), (P_MIRROR, "mirror"), (P_SAMPLE_VISIBLE, "sample_visible"),
-                           (P_DISTRIBUTION, "distribution"), (P_FLIP_INVALID, "flip_invalid_normals"),
-                           (P_SHADOWING, "use_shadowing_function")):
+        flags = ((P_TWO_SIDED, "two_sided"), (P_MIRROR, "mirror"), (P_SAMPLE_VISIBLE, "sample_visible"),
+                 (P_DISTRIBUTION, "distribution"), (P_FLIP_INVALID, "flip_invalid_normals"),
+                 (P_SHADOWING, "use_shadowing_function"))
+        if kd == PRINCIPLED:  # its sampling rates sit in the distribution, sample_visible and mirror columns
+            flags = tuple(f for f in flags if f[0] not in (P_SPECULAR_RATE, P_CLEARCOAT_RATE, P_DIFFUSE_RATE))
+        for col, label in flags:
             if row[col] not in (0.0, 1.0):
                 raise SettingsError(name, f"expected {label} 0 or 1, got {row[col]!r}")
         if row[P_PERTURB] not in (PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP):
@@ -330,6 +383,8 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
                 raise SettingsError(name, "two_sided does not apply to dielectrics")
         if kd == PLASTIC:
             _check_plastic(name, row)
+        if kd == PRINCIPLED:
+            _check_principled(name, row)
 
 
 def _check_plastic(name: str, row: np.ndarray) -> None:
@@ -348,3 +403,63 @@ def _check_plastic(name: str, row: np.ndarray) -> None:
         raise SettingsError(name, f"expected nonlinear 0 or 1, got {row[P_NONLINEAR]!r}")
     if not 0.0 <= row[P_SPECULAR_WEIGHT] <= 1.0:
         raise SettingsError(name, f"expected the specular sampling weight in [0, 1], got {row[P_SPECULAR_WEIGHT]!r}")
+
+
+def _check_principled(name: str, row: np.ndarray) -> None:
+    """Principled's columns: its one-number weights in [0, 1], eta > 0, the sampling rates > 0, one-sided."""
+    for slot in PRINCIPLED_UNIT:
+        value = row[TEXTURE_SLOTS[slot][0]]
+        if not 0.0 <= value <= 1.0:
+            raise SettingsError(name, f"expected {slot} in [0, 1], got {value!r}")
+    if not row[P_IOR] > 0:
+        raise SettingsError(name, f"expected eta > 0, got {row[P_IOR]!r}")
+    for col, label in ((P_SPECULAR_RATE, "main_specular_sampling_rate"), (P_CLEARCOAT_RATE, "clearcoat_sampling_rate"),
+                       (P_DIFFUSE_RATE, "diffuse_reflectance_sampling_rate")):
+        if not row[col] > 0:
+            raise SettingsError(name, f"expected {label} > 0, got {row[col]!r}")
+    if row[P_TWO_SIDED]:
+        raise SettingsError(name, "two_sided does not apply to a principled material (Mitsuba's principled "
+                                  "reflects on its front, and transmits from both sides where spec_trans > 0)")
+
+
+def principled_eta(specular: float, spec_trans: bool = False) -> float:
+    """Mitsuba 3.9.1's principled eta from its ``specular``: eta = 2 / (1 - sqrt(0.08 specular)) - 1 (the inverse of
+    specular = (eta - 1)^2 / (eta + 1)^2 / 0.08); specular 0 becomes 1e-3 where the material transmits
+    (``spec_trans`` given and not 0: eta = 1 is no interface to refract at), as Mitsuba's constructor does."""
+    if spec_trans and specular == 0.0:
+        specular = 1e-3
+    return 2.0 / (1.0 - np.sqrt(0.08 * specular)) - 1.0
+
+
+def principled_row(**principled) -> np.ndarray:
+    """One principled row: :func:`material_row` (``PRINCIPLED``, ``**principled``)."""
+    return material_row(PRINCIPLED, **principled)
+
+
+def _principled_columns(row: np.ndarray, principled: dict) -> None:
+    """Principled's columns of ``row`` from Mitsuba's parameter names (``base_color``, ``roughness``, ``metallic``,
+    ``spec_tint``, ``anisotropic``, ``sheen``, ``sheen_tint``, ``clearcoat``, ``clearcoat_gloss``, ``spec_trans``,
+    ``flatness``, ``eta`` or ``specular``, the three ``*_sampling_rate``), Mitsuba's defaults for the others;
+    ``eta`` = 1 becomes 1.001 where spec_trans is not 0, as Mitsuba's constructor does. Both ``eta`` and
+    ``specular``: ValueError (Mitsuba: "either use eta or specular")."""
+    eta, specular = principled.pop("eta", None), principled.pop("specular", None)
+    if eta is not None and specular is not None:
+        raise ValueError("principled: either eta or specular, not both (Mitsuba's two spellings of one thing)")
+    unknown = set(principled) - set(PRINCIPLED_DEFAULTS)
+    if unknown:
+        raise TypeError(f"principled: unexpected keywords {sorted(unknown)}")
+    values = {**PRINCIPLED_DEFAULTS, **principled}
+    transmits = values["spec_trans"] != 0.0
+    if eta is None:
+        eta = principled_eta(PRINCIPLED_DEFAULTS["specular"] if specular is None else specular, transmits)
+    elif transmits and eta == 1.0:
+        eta = 1.001
+    row[P_ETA:P_ALPHA + 1] = 0.0
+    row[P_DISTRIBUTION] = row[P_SAMPLE_VISIBLE] = row[P_MIRROR] = 0.0
+    row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(values["base_color"], dtype=np.float64), 3)
+    row[P_IOR] = float(eta)
+    for slot in PRINCIPLED_UNIT:
+        row[TEXTURE_SLOTS[slot][0]] = values[slot]
+    row[P_SPECULAR_RATE] = values["main_specular_sampling_rate"]
+    row[P_CLEARCOAT_RATE] = values["clearcoat_sampling_rate"]
+    row[P_DIFFUSE_RATE] = values["diffuse_reflectance_sampling_rate"]
