@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reference_impl.materials import TEXTURE_SLOTS as CORE_TEXTURE_SLOTS
 from reference_impl.sampling import coordinate_frame
 
 from harness.core.errors import HarnessError
@@ -65,6 +66,7 @@ from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind, camera_to_world
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.materials import GLTF_LOSSES, MATERIALS
+from harness.scene.kinds.materials import TEXTURE_SLOTS as HARNESS_TEXTURE_SLOTS
 from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
@@ -151,9 +153,18 @@ def exported_material(material):
     format multiplies its factor by the texture), every other textured parameter its texture's mean
     (:attr:`~harness.scene.model.Texture.mean_value`, a loss :func:`export_losses` names)."""
     carried = carried_texture(material)
-    changes = {item: (WHITE if texture is carried else texture.scalar_mean if item == "alpha" else texture.mean_value)
+    changes = {item: (WHITE if texture is carried else texture.scalar_mean if len(texture_slot_columns(item)) == 1
+                      else texture.mean_value)
                for item, texture in material.textures}
+    if changes and material.principled is not None:  # a principled material's parameters are its own record's
+        return dataclasses.replace(material, textures=(), principled=dataclasses.replace(material.principled, **changes))
     return dataclasses.replace(material, textures=(), **changes) if changes else material
+
+
+def texture_slot_columns(item: str) -> range:
+    """The core's columns of the textured parameter ``item`` (one for a one-number parameter, three for a colour)."""
+    column, channels = CORE_TEXTURE_SLOTS[HARNESS_TEXTURE_SLOTS[item]]
+    return range(column, column + channels)
 
 
 def gltf_uv_transform(to_uv) -> dict | None:

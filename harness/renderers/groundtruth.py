@@ -46,7 +46,7 @@ from harness.scene.content_key import content_key
 from harness.scene.primitives import sphere_uv
 from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals
 
-FORMAT_VERSION = 5  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
+FORMAT_VERSION = 6  # of the key: a new format makes every entry a miss once (the cache is content-addressed)
 DEFAULT_SPP = 1024
 DEFAULT_CHUNK_SPP = 256
 DATA_FILES = ("estimate.npz", "image.exr")  # the files of an entry that meta.json's checksums cover
@@ -143,6 +143,10 @@ def _white_furnace(scene: Scene) -> np.ndarray:
     if material.type == "plastic":
         raise HarnessError(where, "the white-furnace closed form has no plastic sphere (its albedo varies with the "
                                   "angle: tests/reference_impl/test_bsdf_thin_plastic.py tabulates it)")
+    if material.type == "principled":
+        raise HarnessError(where, "the white-furnace closed form has no principled sphere (its albedo varies with "
+                                  "the angle and exceeds 1: tests/reference_impl/test_bsdf_principled.py tabulates "
+                                  "it)")
     if material.is_dielectric:
         # a smooth dielectric (or thin sheet) loses nothing (each bounce keeps F / F or (1 - F) / (1 - F), and the
         # eta^2 of entering and leaving cancel), but only an unbounded path gets all of it out again

@@ -89,6 +89,10 @@ type = "thindielectric"
 type = "plastic"
 nonlinear = true
 
+[materials.burley]
+type = "principled"
+clearcoat = 0.5
+
 [[shapes]]
 name = "floor"
 type = "rectangle"

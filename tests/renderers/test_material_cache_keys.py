@@ -30,9 +30,9 @@ emission = [1, 2, 3]
 translate = [0, 0, -1]
 """
 # scene_digest of LAMBERTIAN, the scene's content key (harness.scene.content_key); a change of it makes every cached
-# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 5 since
-# the materials grew plastic's diffuse_reflectance and nonlinear)
-LAMBERTIAN_DIGEST = "f03b7553697fa3f3e70a221b311adcc35477070e1436527cb81f9f7e049cab6e"
+# ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 6 since
+# the materials grew principled's parameters)
+LAMBERTIAN_DIGEST = "2ace723403fbb6a19db0f6fa0d6203667a617e8cc7c72d7ecc44d897a4af9ea4"
 
 
 def test_the_key_of_a_lambertian_scene_is_pinned(tmp_path):
@@ -66,6 +66,22 @@ CHANGES = {
     "plastic": {"diffuse_reflectance": (0.4, 0.4, 0.5), "nonlinear": True, "int_ior": 1.5, "ext_ior": 1.1,
                 "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "type": "thindielectric"},
 }
+
+
+def test_every_principled_field_is_in_the_key(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(GLOSSY.format(body='type = "principled"'))
+    scene = load_scene(path)
+    material = scene.materials["m"]
+    digests = {scene_digest(scene)}
+    fields = dataclasses.fields(material.principled)
+    for field in fields:
+        value = getattr(material.principled, field.name)
+        value = (0.4, 0.5, 0.6) if field.name == "base_color" else value + 0.125
+        changed = dataclasses.replace(material, principled=dataclasses.replace(material.principled,
+                                                                               **{field.name: value}))
+        digests.add(scene_digest(dataclasses.replace(scene, materials={"m": changed})))
+    assert len(digests) == 1 + len(fields) == 16
 
 
 @pytest.mark.parametrize("kind", list(BODIES))

@@ -103,6 +103,7 @@ GLOSSY_REFUSED = {
                "this scene has a conductor with eta / k (Fresnel < 1)"),
     "rough-mirror": ('type = "roughconductor"', -1, "needs a perfect mirror"),
     "plastic": ('type = "plastic"', -1, "the white-furnace closed form has no plastic sphere"),
+    "principled": ('type = "principled"', -1, "the white-furnace closed form has no principled sphere"),
     "tinted-thin-glass": ('type = "thindielectric"\nspecular_reflectance = 0.5', -1,
                           "this scene has a thindielectric at max_depth = -1"),
 }
