@@ -1,8 +1,8 @@
 r"""BSDF kernels: evaluation, pdf and sampling of the materials of :mod:`reference_impl.materials`.
 
 The physics is Mitsuba 3.9.1's (src/bsdfs/diffuse.cpp, conductor.cpp, roughconductor.cpp, dielectric.cpp,
-roughdielectric.cpp, thindielectric.cpp, plastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
-fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
+roughdielectric.cpp, thindielectric.cpp, plastic.cpp, principled.cpp with principledhelpers.h, twosided.cpp;
+include/mitsuba/render/microfacet.h, fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
 triangle's front geometric normal (never flipped by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
 radiance mode (transmission carries the ``1 / eta^2`` solid-angle compression of radiance).
@@ -35,6 +35,7 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
                      lobe chosen with P_s = F w / (F w + (1 - F)(1 - w)), F = F(cos theta_o), w the specular
                      sampling weight s_mean / (s_mean + d_mean) (the channel means of R and rho); the diffuse lobe
                      cosine-weighted, pdf (1 - P_s) cos theta_i / pi
+    principled       Burley's BSDF as Mitsuba's principled writes it (below)
 
     F_c            unpolarised Fresnel reflectance of a conductor with complex index eta + i k (fresnel.h's
                    ``fresnel_conductor``, after K. D. Moeller, "Optics", 1988); 1 for ``material = "none"``
@@ -47,6 +48,37 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
     G1             Smith's masking: GGX 2 / (1 + sqrt(1 + alpha^2 tan^2 theta)); Beckmann Mitsuba's rational fit
                    (3.535 a + 2.181 a^2) / (1 + 2.276 a + 2.577 a^2) for a = 1 / (alpha tan theta) < 1.6, else 1
                    (Walter et al. 2007, eq. 27); 0 where v.h and v_z differ in sign; G = G1(wo) G1(wi)
+
+The principled BSDF (B = base_color, m = metallic, s = spec_trans, lum(B) = 0.212671 B_r + 0.715160 B_g +
+0.072169 B_b, C = B / lum(B) (1 where lum = 0), SW(c) = (1 - c)^5 on [0, 1], wo on the front where cos theta_o > 0)
+
+    weights          brdf = (1 - m)(1 - s), bsdf = (1 - m) s
+    main lobes       anisotropic GGX, alpha_u = max(0.001, r^2 / a), alpha_v = max(0.001, r^2 a), r = roughness,
+                     a = sqrt(1 - 0.9 anisotropic); h the half vector of the pair (reflection: wo + wi; transmission:
+                     wo + eta_path wi, eta_path = eta from the front, 1 / eta from behind), flipped to h_z > 0; each
+                     lobe only where wo.h and wi.h lie on the sides the lobe says (principledhelpers.h's
+                     ``mac_mic_compatibility``); F = the exact dielectric Fresnel F(wo.h, eta)
+    reflection       F_p D G / (4 |cos theta_o|); from the front F_p = (1 - m)(1 - spec_tint) F
+                     + m Schlick(B) + (1 - m) spec_tint Schlick(C R0(eta)), R0 = ((eta - 1) / (eta + 1))^2, Schlick(R)
+                     = R + (1 - R) SW(|wo.h|) where the light enters the denser side, else SW(cos theta_t) of the
+                     refracted direction (1 under total internal reflection); from behind F_p = bsdf F
+    transmission     sqrt(B) bsdf (1 - F) D G |wo.h| |wi.h| / (|cos theta_o| (wo.h + eta_path wi.h)^2) (radiance:
+                     Walter's eta^2 cancels the 1 / eta^2 of radiance)
+    clearcoat        (front) 0.25 cc Schlick_0.04(wo.h) D_GTR1(h) G_cc |cos theta_i|, D_GTR1 = (a^2 - 1) /
+                     (pi ln(a^2) (1 + (a^2 - 1) cos^2 theta_h)), a = 0.1 (1 - gloss) + 0.001 gloss, G_cc the Smith GGX
+                     masking of alpha 0.25 of wo and wi (exactly as principled.cpp writes it: no 1 / (4 cos theta_o))
+    diffuse          (front) brdf B / pi |cos theta_i| ((1 - F_o / 2)(1 - F_i / 2) + R_R (F_o + F_i + F_o F_i (R_R - 1)))
+                     with F_o = SW(|cos theta_i|), F_i = SW(|cos theta_o|), R_R = 2 r cos^2 theta_d, cos theta_d =
+                     h.wi; with flatness f the bracket lerps toward 1.25 (F_ss (1 / (|cos theta_o| + |cos theta_i|)
+                     - 1 / 2) + 1 / 2), F_ss = (1 + (R_R / 2 - 1) F_o)(1 + (R_R / 2 - 1) F_i)
+    sheen            (front) sheen (1 - m) SW(|cos theta_d|) ((1 - sheen_tint) + sheen_tint C) |cos theta_i|
+    lobe choice      from the front p_d = brdf r_d, p_cc = cc / 4 r_cc, p_t = r_s bsdf (1 - F), p_r = r_s (1 - bsdf
+                     (1 - F)) over their sum (r_* the sampling rates; p_t + p_r = r_s, so only the split between the
+                     two main lobes depends on F, at the sampled normal); from behind p_t = 1 - F, p_r = F. Diffuse
+                     cosine-weighted, clearcoat a GTR1 half vector (cos^2 theta_h = (1 - a^2^(1 - u)) / (1 - a^2))
+                     reflected, main lobes a visible GGX normal (anisotropic) reflected or refracted
+    pdf              the sum of each lobe's probability times its density: p_r D_vis / (4 |wi.h|), p_t D_vis eta_path^2
+                     |wi.h| / (wo.h + eta_path wi.h)^2, p_cc D_GTR1 cos theta_h / (4 |wi.h|), p_d cos theta_i / pi
 
 Sampling of the microfacet normal h
 
@@ -75,10 +107,17 @@ Where this differs from Mitsuba on purpose
   0 / 0); the diffuse lobe is cosine-weighted whatever ``hemisphere`` says (that setting is the diffuse kind's).
 * The Beckmann slope inversion runs Newton's method to convergence in double precision (Mitsuba: 3 steps in
   single precision).
+* The principled BSDF from behind where nothing transmits (spec_trans or 1 - metallic 0): its pdf is 0, as its
+  sampler draws nothing there (Mitsuba's ``pdf`` gives F / F = the main lobe's density there; both evals are 0).
+* Principled's sheen where spec_trans = 1: kept, as Mitsuba's vectorised variants (llvm_ad_rgb, cuda_ad_rgb, the
+  ground truth's) keep it; its scalar variant skips it (the sheen sits inside the diffuse lobe's branch, which a
+  scalar skips when brdf = 0).
+* Principled's lobe choice draws the main lobe's normal only when a main lobe is chosen (Mitsuba draws it first, for
+  every sample): the same probabilities, since only the split between reflection and transmission depends on it.
 
 Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each place marked by a comment:
 "microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared",
-"thin-glass-refracts", "plastic-no-internal-reflection".
+"thin-glass-refracts", "plastic-no-internal-reflection", "principled-clearcoat-pdf-jacobian".
 """
 
 from __future__ import annotations
