@@ -61,6 +61,8 @@ def base_texture(material):
     """The texture of the parameter a material's glTF base colour comes from, or None."""
     if material.is_diffuse:
         return material.texture("reflectance")
+    if material.type in ("plastic", "principled"):
+        return material.texture("diffuse_reflectance" if material.type == "plastic" else "base_color")
     return material.texture("specular_reflectance" if material.is_conductor else "specular_transmittance")
 
 
@@ -96,6 +98,8 @@ def expected_base_colour(material) -> list[float]:
         return [min(1.0, f * r) for f, r in zip(f0, colour or material.specular_reflectance)]
     if material.type == "plastic":
         return list(colour or material.diffuse_reflectance)
+    if material.type == "principled":
+        return list(colour or material.principled.base_color)
     return list(colour or material.specular_transmittance)
 
 
@@ -552,6 +556,8 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
             texture = material.texture(parameter)
             if texture is not None:
                 assert value == {"texture": texture.name}, (key, parameter, value)
+            elif material.principled is not None and parameter != "type":  # principled's record
+                assert _equal(value, getattr(material.principled, parameter)), (key, parameter, value)
             else:
                 assert _equal(value, getattr(material, parameter)), (key, parameter, value)
     assert set(document.get("textures", {})) == {t.name for t in scene.used_textures}
