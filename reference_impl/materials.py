@@ -1,9 +1,10 @@
 """The material table of the core: one row per material, as plain arrays the BSDF kernels read.
 
 Each material is a kind (:data:`DIFFUSE`, :data:`CONDUCTOR`, :data:`ROUGHCONDUCTOR`, :data:`DIELECTRIC`,
-:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, :data:`ROUGHPLASTIC`, Mitsuba 3's plugins
+:data:`ROUGHDIELECTRIC`, :data:`THINDIELECTRIC`, :data:`PLASTIC`, :data:`ROUGHPLASTIC`, :data:`PRINCIPLED`, Mitsuba 3's
+plugins
 ``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``, ``roughdielectric``, ``thindielectric``, ``plastic``,
-``roughplastic``) and a row of :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
+``roughplastic``, ``principled``; and the composites, :data:`COMPOSITES`) and a row of :data:`NUM_PARAMS` float64 numbers whose columns are the ``P_*`` constants below.
 A rough plastic also has a table (:data:`LUT_SIZE` numbers: its coating's transmittance over cos theta and its
 internal reflectance, from alpha, the distribution and eta: ``reference_impl.kernels.bsdf.roughplastic_luts``, which
 the kernels' ``MaterialTables.lut`` holds) that the material step appends to the hit's row, after its NUM_PARAMS
@@ -32,8 +33,8 @@ COMPOSITES = (BLENDBSDF, MASK, TWOSIDED)
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
               DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",
-              PLASTIC: "plastic", ROUGHPLASTIC: "roughplastic", BLENDBSDF: "blendbsdf", MASK: "mask",
-              TWOSIDED: "twosided"}
+              PLASTIC: "plastic", ROUGHPLASTIC: "roughplastic", PRINCIPLED: "principled", BLENDBSDF: "blendbsdf",
+              MASK: "mask", TWOSIDED: "twosided"}
 #: The kinds that light crosses (the path loop's ``transmits``; no ``two_sided`` flag: both sides by nature).
 TRANSMITTING = (DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC)
 BECKMANN, GGX = 0, 1
@@ -63,6 +64,21 @@ P_SPECULAR_WEIGHT = P_K + 1  # 7: plastic: Mitsuba's specular_sampling_weight s_
 P_WEIGHT = P_ALPHA  # 12: blendbsdf's weight (of its second material), mask's opacity
 P_NESTED = P_ETA  # 3-4: the rows of the nested materials (blendbsdf: bsdf_0, bsdf_1; mask: its one, twice;
 #                   twosided: the front's, the back's)
+# principled's own parameters, in columns no principled reads otherwise (its base_color is P_REFLECTANCE, its eta
+# P_IOR; the map columns 18-24 keep their meaning)
+P_METALLIC = P_ETA  # 3
+P_SPEC_TINT = P_ETA + 1  # 4
+P_ANISOTROPIC = P_ETA + 2  # 5
+P_SHEEN = P_K  # 6
+P_SHEEN_TINT = P_K + 1  # 7
+P_CLEARCOAT = P_K + 2  # 8
+P_CLEARCOAT_GLOSS = P_TRANSMITTANCE  # 9
+P_SPEC_TRANS = P_TRANSMITTANCE + 1  # 10
+P_FLATNESS = P_TRANSMITTANCE + 2  # 11
+P_ROUGHNESS = P_ALPHA  # 12
+P_SPECULAR_RATE = P_DISTRIBUTION  # 13: main_specular_sampling_rate
+P_CLEARCOAT_RATE = P_SAMPLE_VISIBLE  # 14: clearcoat_sampling_rate
+P_DIFFUSE_RATE = P_MIRROR  # 17: diffuse_reflectance_sampling_rate
 NUM_PARAMS = 26  # 25 spare
 # roughplastic: its table (Mitsuba's roughplastic.cpp precomputes it in parameters_changed), not in the material
 # table's row but in MaterialTables.lut, which the material step copies into the hit's row after the NUM_PARAMS columns
@@ -81,7 +97,15 @@ PERTURB_NAMES = {PERTURB_NORMALMAP: "normalmap", PERTURB_BUMPMAP: "bumpmap"}
 #: row: its gradient is looked up where the frame is perturbed (kernels/shading.py).
 TEXTURE_SLOTS = {"reflectance": (P_REFLECTANCE, 3), "transmittance": (P_TRANSMITTANCE, 3), "alpha": (P_ALPHA, 1),
                  "normalmap": (P_NORMAL, 3), "bumpmap": (P_BUMP_SCALE, 0), "diffuse": (P_DIFFUSE, 3),
+                 # principled's one-number parameters (its base_color is the reflectance slot)
+                 "roughness": (P_ROUGHNESS, 1), "metallic": (P_METALLIC, 1), "spec_tint": (P_SPEC_TINT, 1),
+                 "anisotropic": (P_ANISOTROPIC, 1), "sheen": (P_SHEEN, 1), "sheen_tint": (P_SHEEN_TINT, 1),
+                 "clearcoat": (P_CLEARCOAT, 1), "clearcoat_gloss": (P_CLEARCOAT_GLOSS, 1),
+                 "spec_trans": (P_SPEC_TRANS, 1), "flatness": (P_FLATNESS, 1),
                  "weight": (P_WEIGHT, 1)}
+#: principled's one-number parameters in [0, 1] (the slots of the same names).
+PRINCIPLED_UNIT = ("roughness", "metallic", "spec_tint", "anisotropic", "sheen", "sheen_tint", "clearcoat",
+                   "clearcoat_gloss", "spec_trans", "flatness")
 NUM_SLOTS = len(TEXTURE_SLOTS)
 
 #: Mitsuba 3.9.1's defaults (its plugins' constructors, src/bsdfs/*.cpp): alpha 0.1, the Beckmann distribution with
@@ -103,6 +127,12 @@ DEFAULT_NONLINEAR = False
 DEFAULT_WEIGHT = 0.5
 MIRROR_ETA = (0.0, 0.0, 0.0)
 MIRROR_K = (1.0, 1.0, 1.0)
+#: Mitsuba 3.9.1's principled (src/bsdfs/principled.cpp): base_color 0.5, roughness 0.5, specular 0.5 (eta from it,
+#: :func:`principled_eta`), every other weight 0, the three sampling rates 1.
+PRINCIPLED_DEFAULTS = {"base_color": (0.5, 0.5, 0.5), "roughness": 0.5, "metallic": 0.0, "spec_tint": 0.0,
+                       "anisotropic": 0.0, "sheen": 0.0, "sheen_tint": 0.0, "clearcoat": 0.0, "clearcoat_gloss": 0.0,
+                       "spec_trans": 0.0, "flatness": 0.0, "specular": 0.5, "main_specular_sampling_rate": 1.0,
+                       "clearcoat_sampling_rate": 1.0, "diffuse_reflectance_sampling_rate": 1.0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -220,6 +250,11 @@ def _check_textures(kind: np.ndarray, texture, textures) -> tuple[np.ndarray, Te
             low, high = textures.scalar_range(int(texture[m, slot]))
             if not (low > 0 and high < np.inf):
                 raise SettingsError(where, f"expected the texture of alpha > 0, got values from {low:g}")
+        if name in PRINCIPLED_UNIT:
+            low, high = textures.scalar_range(int(texture[m, slot]))
+            if not (low >= 0 and high <= 1):
+                raise SettingsError(where, f"expected the texture of {name} in [0, 1], got values from {low:g} to "
+                                           f"{high:g}")
     texture.setflags(write=False)
     return texture, textures
 
@@ -268,7 +303,7 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
                  two_sided: bool = False, mirror: bool = False, perturb: int = PERTURB_NONE, bump_scale: float = 1.0,
                  flip_invalid_normals: bool = True, use_shadowing_function: bool = True, diffuse=DEFAULT_DIFFUSE,
                  nonlinear: bool = DEFAULT_NONLINEAR, specular_sampling_weight: float | None = None,
-                 weight: float = DEFAULT_WEIGHT, nested: tuple[int, int] = (0, 0)) -> np.ndarray:
+                 weight: float = DEFAULT_WEIGHT, nested: tuple[int, int] = (0, 0), **principled) -> np.ndarray:
     """One row of ``Materials.params`` from named values (for tests and for the harness's builder).
 
     ``reflectance`` is the diffuse albedo or the specular_reflectance; ``eta``, ``k`` the conductor's complex index
@@ -280,7 +315,19 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     ``diffuse`` (a textured parameter's mean is the harness's to give). ``weight``, ``nested``: a composite's
     (:data:`COMPOSITES`) weight or opacity and the rows of its nested materials (a mask's and a twosided's one
     material: the same row twice); a composite's row holds nothing else.
+    ``principled``: a principled row's parameters by Mitsuba's names (:data:`PRINCIPLED_DEFAULTS`' keys, and ``eta``
+    as a number or ``specular``; ``base_color`` or ``reflectance``), Mitsuba's defaults for the others
+    (:func:`_principled_columns`); TypeError for them on another kind.
     """
+    if kind == PRINCIPLED:
+        principled = dict(principled)
+        if eta is not MIRROR_ETA:
+            principled["eta"] = eta
+        if reflectance is not DEFAULT_SPECULAR:
+            principled.setdefault("base_color", reflectance)
+        eta = MIRROR_ETA
+    elif principled:
+        raise TypeError(f"material_row: unexpected keywords {sorted(principled)} for kind {kind}")
     row = np.zeros(NUM_PARAMS)
     if kind in COMPOSITES:
         row[P_WEIGHT] = weight
@@ -303,6 +350,8 @@ def material_row(kind: int, *, reflectance=DEFAULT_SPECULAR, eta=MIRROR_ETA, k=M
     row[P_NORMAL:P_NORMAL + 3] = (0.5, 0.5, 1.0)  # n = (0, 0, 1): the frame unperturbed
     row[P_FLIP_INVALID] = bool(flip_invalid_normals)
     row[P_SHADOWING] = bool(use_shadowing_function)
+    if kind == PRINCIPLED:  # its own columns, in place of the conductors', dielectrics' and rough kinds'
+        _principled_columns(row, principled)
     if kind in (PLASTIC, ROUGHPLASTIC):  # their own columns, in place of a conductor's eta and k
         row[P_ETA:P_K + 3] = 0.0
         row[P_DIFFUSE:P_DIFFUSE + 3] = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), 3)
@@ -349,9 +398,12 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         rgb = row[P_REFLECTANCE:P_REFLECTANCE + 3]
         if np.any(rgb < 0) or np.any(rgb > 1):
             raise SettingsError(name, "expected the reflectance in [0, 1]")
-        for col, label in ((P_TWO_SIDED, "two_sided"), (P_MIRROR, "mirror"), (P_SAMPLE_VISIBLE, "sample_visible"),
-                           (P_DISTRIBUTION, "distribution"), (P_FLIP_INVALID, "flip_invalid_normals"),
-                           (P_SHADOWING, "use_shadowing_function")):
+        flags = ((P_TWO_SIDED, "two_sided"), (P_MIRROR, "mirror"), (P_SAMPLE_VISIBLE, "sample_visible"),
+                 (P_DISTRIBUTION, "distribution"), (P_FLIP_INVALID, "flip_invalid_normals"),
+                 (P_SHADOWING, "use_shadowing_function"))
+        if kd == PRINCIPLED:  # its sampling rates sit in the distribution, sample_visible and mirror columns
+            flags = tuple(f for f in flags if f[0] not in (P_SPECULAR_RATE, P_CLEARCOAT_RATE, P_DIFFUSE_RATE))
+        for col, label in flags:
             if row[col] not in (0.0, 1.0):
                 raise SettingsError(name, f"expected {label} 0 or 1, got {row[col]!r}")
         if row[P_PERTURB] not in (PERTURB_NONE, PERTURB_NORMALMAP, PERTURB_BUMPMAP):
@@ -381,6 +433,8 @@ def _check_params(kind: np.ndarray, params: np.ndarray) -> None:
         if kd == ROUGHPLASTIC and row[P_IOR] == 1.0:
             raise SettingsError(name, "expected int_ior != ext_ior (Mitsuba's roughplastic refuses an index-matched "
                                 "coating)")
+        if kd == PRINCIPLED:
+            _check_principled(name, row)
 
 
 def nested_rows(kind: np.ndarray, params: np.ndarray, m: int) -> tuple[int, int]:
@@ -452,3 +506,63 @@ def _check_plastic(name: str, row: np.ndarray, rough: bool = False) -> None:
         raise SettingsError(name, f"expected nonlinear 0 or 1, got {row[P_NONLINEAR]!r}")
     if not 0.0 <= row[P_SPECULAR_WEIGHT] <= 1.0:
         raise SettingsError(name, f"expected the specular sampling weight in [0, 1], got {row[P_SPECULAR_WEIGHT]!r}")
+
+
+def _check_principled(name: str, row: np.ndarray) -> None:
+    """Principled's columns: its one-number weights in [0, 1], eta > 0, the sampling rates > 0, one-sided."""
+    for slot in PRINCIPLED_UNIT:
+        value = row[TEXTURE_SLOTS[slot][0]]
+        if not 0.0 <= value <= 1.0:
+            raise SettingsError(name, f"expected {slot} in [0, 1], got {value!r}")
+    if not row[P_IOR] > 0:
+        raise SettingsError(name, f"expected eta > 0, got {row[P_IOR]!r}")
+    for col, label in ((P_SPECULAR_RATE, "main_specular_sampling_rate"), (P_CLEARCOAT_RATE, "clearcoat_sampling_rate"),
+                       (P_DIFFUSE_RATE, "diffuse_reflectance_sampling_rate")):
+        if not row[col] > 0:
+            raise SettingsError(name, f"expected {label} > 0, got {row[col]!r}")
+    if row[P_TWO_SIDED]:
+        raise SettingsError(name, "two_sided does not apply to a principled material (Mitsuba's principled "
+                                  "reflects on its front, and transmits from both sides where spec_trans > 0)")
+
+
+def principled_eta(specular: float, spec_trans: bool = False) -> float:
+    """Mitsuba 3.9.1's principled eta from its ``specular``: eta = 2 / (1 - sqrt(0.08 specular)) - 1 (the inverse of
+    specular = (eta - 1)^2 / (eta + 1)^2 / 0.08); specular 0 becomes 1e-3 where the material transmits
+    (``spec_trans`` given and not 0: eta = 1 is no interface to refract at), as Mitsuba's constructor does."""
+    if spec_trans and specular == 0.0:
+        specular = 1e-3
+    return 2.0 / (1.0 - np.sqrt(0.08 * specular)) - 1.0
+
+
+def principled_row(**principled) -> np.ndarray:
+    """One principled row: :func:`material_row` (``PRINCIPLED``, ``**principled``)."""
+    return material_row(PRINCIPLED, **principled)
+
+
+def _principled_columns(row: np.ndarray, principled: dict) -> None:
+    """Principled's columns of ``row`` from Mitsuba's parameter names (``base_color``, ``roughness``, ``metallic``,
+    ``spec_tint``, ``anisotropic``, ``sheen``, ``sheen_tint``, ``clearcoat``, ``clearcoat_gloss``, ``spec_trans``,
+    ``flatness``, ``eta`` or ``specular``, the three ``*_sampling_rate``), Mitsuba's defaults for the others;
+    ``eta`` = 1 becomes 1.001 where spec_trans is not 0, as Mitsuba's constructor does. Both ``eta`` and
+    ``specular``: ValueError (Mitsuba: "either use eta or specular")."""
+    eta, specular = principled.pop("eta", None), principled.pop("specular", None)
+    if eta is not None and specular is not None:
+        raise ValueError("principled: either eta or specular, not both (Mitsuba's two spellings of one thing)")
+    unknown = set(principled) - set(PRINCIPLED_DEFAULTS)
+    if unknown:
+        raise TypeError(f"principled: unexpected keywords {sorted(unknown)}")
+    values = {**PRINCIPLED_DEFAULTS, **principled}
+    transmits = values["spec_trans"] != 0.0
+    if eta is None:
+        eta = principled_eta(PRINCIPLED_DEFAULTS["specular"] if specular is None else specular, transmits)
+    elif transmits and eta == 1.0:
+        eta = 1.001
+    row[P_ETA:P_ALPHA + 1] = 0.0
+    row[P_DISTRIBUTION] = row[P_SAMPLE_VISIBLE] = row[P_MIRROR] = 0.0
+    row[P_REFLECTANCE:P_REFLECTANCE + 3] = np.broadcast_to(np.asarray(values["base_color"], dtype=np.float64), 3)
+    row[P_IOR] = float(eta)
+    for slot in PRINCIPLED_UNIT:
+        row[TEXTURE_SLOTS[slot][0]] = values[slot]
+    row[P_SPECULAR_RATE] = values["main_specular_sampling_rate"]
+    row[P_CLEARCOAT_RATE] = values["clearcoat_sampling_rate"]
+    row[P_DIFFUSE_RATE] = values["diffuse_reflectance_sampling_rate"]

@@ -424,6 +424,8 @@ def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = No
         return thin_sheet_node(tree, spec, where, textures)
     if kind in ("plastic", "roughplastic"):
         return plastic_node(tree, spec, where)
+    if kind == "principled":
+        return principled_node(tree, spec, where, textures)
     raise SceneError(f"{where}.type = {kind!r}: not a material this adapter maps to Cycles")
 
 
@@ -510,6 +512,53 @@ def plastic_node(tree, spec: dict, where: str):
     return mix
 
 
+#: Mitsuba's principled parameters that are one number (a texture on them is refused here).
+PRINCIPLED_WEIGHTS = ("roughness", "metallic", "spec_tint", "anisotropic", "sheen", "sheen_tint", "clearcoat",
+                      "clearcoat_gloss", "spec_trans", "flatness")
+
+
+def principled_transmits(spec: dict) -> bool:
+    """Whether light crosses a principled material (spec_trans > 0 and metallic < 1): two-sided in Cycles then."""
+    return spec["type"] == "principled" and spec["spec_trans"] > 0 and spec["metallic"] < 1
+
+
+def principled_node(tree, spec: dict, where: str, textures: "TextureNodes | None"):
+    """Mitsuba's principled as Cycles' Principled BSDF (its v2 model, a different one: docs/cycles.md): Base Color,
+    Metallic, Roughness (both alpha = roughness^2), IOR = eta, Transmission Weight = spec_trans, Coat Weight =
+    clearcoat with Coat Roughness sqrt(0.1 (1 - gloss) + 0.001 gloss), Sheen Weight = sheen with Sheen Tint
+    (1 - sheen_tint) + sheen_tint C, Specular Tint (1 - spec_tint) + spec_tint C (C = base_color / its luminance),
+    Anisotropic = anisotropic, single-scattering GGX. Textured one-number parameters are refused; flatness is
+    refused (Cycles has no fake subsurface)."""
+    for item in PRINCIPLED_WEIGHTS:
+        if isinstance(spec[item], dict):
+            raise SceneError(f"{where}.{item} = texture {spec[item].get('texture')!r}: a textured principled "
+                             "weight is not mapped to Cycles (only base_color takes a texture there)")
+    if spec["flatness"] != 0.0:
+        raise SceneError(f"{where}.flatness = {spec['flatness']}: Cycles' Principled BSDF has no fake subsurface")
+    node = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    node.distribution = "GGX"
+    set_colour(tree, node, "Base Color", spec["base_color"], textures, f"{where}.base_color")
+    base = spec["base_color"] if not isinstance(spec["base_color"], dict) else (1.0, 1.0, 1.0)
+    lum = 0.212671 * base[0] + 0.715160 * base[1] + 0.072169 * base[2]
+    tint = [b / lum for b in base] if lum > 0 else [1.0, 1.0, 1.0]
+
+    def tinted(weight):
+        return (*[(1.0 - weight) + weight * t for t in tint], 1.0)
+
+    socket(node, "Metallic").default_value = float(spec["metallic"])
+    socket(node, "Roughness").default_value = float(spec["roughness"])
+    socket(node, "IOR").default_value = float(spec["eta"])
+    socket(node, "Transmission Weight", "Transmission").default_value = float(spec["spec_trans"])
+    socket(node, "Anisotropic").default_value = float(spec["anisotropic"])
+    socket(node, "Specular Tint").default_value = tinted(float(spec["spec_tint"]))
+    gloss = float(spec["clearcoat_gloss"])
+    socket(node, "Coat Weight", "Clearcoat").default_value = float(spec["clearcoat"])
+    socket(node, "Coat Roughness", "Clearcoat Roughness").default_value = math.sqrt(0.1 * (1 - gloss) + 0.001 * gloss)
+    socket(node, "Sheen Weight", "Sheen").default_value = float(spec["sheen"])
+    socket(node, "Sheen Tint").default_value = tinted(float(spec["sheen_tint"]))
+    return node
+
+
 def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str,
                    textures: "TextureNodes | None" = None, shape_where: str = "shape", smooth: bool = False,
                    sphere: bool = False):
@@ -531,14 +580,15 @@ def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: st
     if spec["type"] in PERTURBED:
         surface, black_where = perturbed_bsdf(tree, spec, where, textures)
         return masked_material(mat, tree, surface, black_where, emission, scale, textures, shape_where)
-    if smooth and not (sphere and spec["type"] in ("dielectric", "roughdielectric", "thindielectric")):
+    if smooth and not (sphere and (spec["type"] in ("dielectric", "roughdielectric", "thindielectric")
+                                   or principled_transmits(spec))):
         surface, black_where = smooth_bsdf(tree, spec, where, textures)
         return masked_material(mat, tree, surface, black_where, emission, scale, textures, shape_where)
     output = nodes.new("ShaderNodeOutputMaterial")
     geometry = nodes.new("ShaderNodeNewGeometry")
     surface = bsdf_node(tree, spec, where, textures).outputs[0]
-    two_sided = spec["type"] in ("dielectric", "roughdielectric", "thindielectric") or bool(spec.get("two_sided",
-                                                                                                      False))
+    two_sided = (spec["type"] in ("dielectric", "roughdielectric", "thindielectric") or principled_transmits(spec)
+                 or bool(spec.get("two_sided", False)))
     glow = emission_node(tree, emission, scale, textures, shape_where)
     if glow is not None:
         add = nodes.new("ShaderNodeAddShader")
@@ -1062,6 +1112,10 @@ def smooth_bsdf(tree, spec: dict, where: str, textures: "TextureNodes | None"):
     if spec["type"] in ("thindielectric", "plastic", "roughplastic"):
         raise SceneError(f"{where}.type = {spec['type']!r} on a smooth-shaded shape (or under a normal or bump map): "
                          "not mapped to Cycles (its Mix shader has no Normal input to take the shading normal)")
+    if principled_transmits(spec):
+        raise SceneError(f"{where}.type = 'principled' with spec_trans > 0 on a smooth-shaded shape (not a sphere): "
+                         "Cycles' Principled BSDF takes inside and outside from the triangle's side, Mitsuba's "
+                         "from the shading normal's")
     if spec["type"] in ("dielectric", "roughdielectric"):
         raise SceneError(f"{where}.type = {spec['type']!r} on a smooth-shaded shape: Cycles' Glass BSDF takes "
                          "inside and outside from the triangle's side, Mitsuba's dielectric from the shading "

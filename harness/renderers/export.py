@@ -52,6 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reference_impl.materials import TEXTURE_SLOTS as CORE_TEXTURE_SLOTS
 from reference_impl.sampling import coordinate_frame
 
 from harness.core.errors import HarnessError
@@ -66,6 +67,7 @@ from harness.scene.kinds.cameras import camera_kind, camera_to_world
 from harness.scene.kinds.emitters import EMITTERS
 from harness.scene.kinds.composites import ALL_MATERIALS
 from harness.scene.kinds.materials import GLTF_LOSSES
+from harness.scene.kinds.materials import TEXTURE_SLOTS as HARNESS_TEXTURE_SLOTS
 from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
@@ -152,9 +154,22 @@ def exported_material(material):
     format multiplies its factor by the texture), every other textured parameter its texture's mean
     (:attr:`~harness.scene.model.Texture.mean_value`, a loss :func:`export_losses` names)."""
     carried = carried_texture(material)
-    changes = {item: (WHITE if texture is carried else texture.scalar_mean if item == "alpha" else texture.mean_value)
+    changes = {COMPOSITE_FIELDS.get(item, item): (WHITE if texture is carried else texture.scalar_mean
+                                                  if len(texture_slot_columns(item)) == 1 else texture.mean_value)
                for item, texture in material.textures}
+    if changes and material.principled is not None:  # a principled material's parameters are its own record's
+        return dataclasses.replace(material, textures=(), principled=dataclasses.replace(material.principled, **changes))
     return dataclasses.replace(material, textures=(), **changes) if changes else material
+
+
+#: The field of a composite's textured parameter (a blend's weight and a mask's opacity are its ``weight``).
+COMPOSITE_FIELDS = {"opacity": "weight"}
+
+
+def texture_slot_columns(item: str) -> range:
+    """The core's columns of the textured parameter ``item`` (one for a one-number parameter, three for a colour)."""
+    column, channels = CORE_TEXTURE_SLOTS[HARNESS_TEXTURE_SLOTS[item]]
+    return range(column, column + channels)
 
 
 def gltf_uv_transform(to_uv) -> dict | None:
@@ -383,7 +398,7 @@ def _extras_bsdf(material) -> dict:
     """A material's Mitsuba plugin dict as JSON values, each textured parameter as ``{"texture": NAME}`` (as in
     scene.json; the texture itself is in ``asset.extras.textures``)."""
     spec = bsdf_dict(material)
-    inner = spec["bsdf"] if spec.get("type") == "twosided" else spec
+    inner = spec["bsdf"] if spec.get("type") == "twosided" and not material.nested else spec
     for item, texture in material.textures:
         inner[item] = {"texture": texture.name}
     return plain(spec)

@@ -144,6 +144,10 @@ def _white_furnace(scene: Scene) -> np.ndarray:
         raise HarnessError(where, f"the white-furnace closed form has no {material.type} sphere (its albedo varies "
                                   "with the angle: tests/reference_impl/test_bsdf_thin_plastic.py and "
                                   "test_bsdf_roughplastic.py tabulate it)")
+    if material.type == "principled":
+        raise HarnessError(where, "the white-furnace closed form has no principled sphere (its albedo varies with "
+                                  "the angle and exceeds 1: tests/reference_impl/test_bsdf_principled.py tabulates "
+                                  "it)")
     if material.is_dielectric:
         # a smooth dielectric (or thin sheet) loses nothing (each bounce keeps F / F or (1 - F) / (1 - F), and the
         # eta^2 of entering and leaving cancel), but only an unbounded path gets all of it out again

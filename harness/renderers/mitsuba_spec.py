@@ -215,7 +215,8 @@ def clip_planes(scene: Scene) -> tuple[float, float]:
 
 def bsdf_dict(material) -> dict:
     """Mitsuba's dict of ``material``: its plugin (``diffuse``, ``conductor``, ``roughconductor``, ``dielectric``,
-    ``roughdielectric``, ``thindielectric``, ``plastic``, ``roughplastic``) with every parameter written out (so Mitsuba's defaults
+    ``roughdielectric``, ``thindielectric``, ``plastic``, ``roughplastic``,
+    ``principled``, ``blendbsdf``, ``mask``) with every parameter written out (so Mitsuba's defaults
     never decide), inside ``twosided`` when two-sided. A conductor with eta = 0, k = 1 is written as Mitsuba's ``material = "none"``."""
     return ALL_MATERIALS[material.type].to_mitsuba(material)
 

@@ -32,7 +32,7 @@ CATEGORIES = {
     **dict.fromkeys(("box", "tent", "gaussian"), "rfilter"),
     **dict.fromkeys(("independent", "stratified", "multijitter", "orthogonal", "ldsampler"), "sampler"),
     **dict.fromkeys(("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                      "plastic", "roughplastic", "twosided", "normalmap", "bumpmap", "blendbsdf", "mask"),
+                      "plastic", "roughplastic", "principled", "twosided", "normalmap", "bumpmap", "blendbsdf", "mask"),
                      "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap"), "emitter"),
     **dict.fromkeys(("rectangle", "cube", "sphere", "ply"), "shape"),

@@ -16,7 +16,7 @@ from reference_impl.camera import Camera, Film, OrthographicCamera, ThinLensCame
 from reference_impl.emitters import DEFAULT_BEAM_WIDTH, DEFAULT_CUTOFF_ANGLE, DEFAULT_SCALE
 from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR,
                                       DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR,
-                                      DEFAULT_WEIGHT, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR)
+                                      DEFAULT_WEIGHT, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR, PRINCIPLED_DEFAULTS)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
 from reference_impl import textures as core_textures
 from reference_impl.textures import Texture as CoreTexture
@@ -87,7 +87,7 @@ class Texture:
 
 
 MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                  "plastic", "roughplastic")  # Mitsuba's plugins
+                  "plastic", "roughplastic", "principled")  # Mitsuba's plugins
 CONDUCTOR_TYPES = ("conductor", "roughconductor")
 DIELECTRIC_TYPES = ("dielectric", "roughdielectric", "thindielectric")  # int_ior, ext_ior, specular_transmittance
 ROUGH_TYPES = ("roughconductor", "roughdielectric", "roughplastic")
@@ -114,6 +114,30 @@ class Perturbation:
 
 
 @dataclass(frozen=True)
+class Principled:
+    """A ``principled`` material's parameters (Mitsuba 3.9.1's ``principled``, its names and defaults,
+    :data:`reference_impl.materials.PRINCIPLED_DEFAULTS`): ``eta`` is the interior / exterior index the material
+    uses, whether the file gave ``eta`` or ``specular`` (:func:`reference_impl.materials.principled_eta`), with
+    Mitsuba's nudges where spec_trans is given (eta 1 -> 1.001, specular 0 -> 1e-3)."""
+
+    base_color: Vector3 = PRINCIPLED_DEFAULTS["base_color"]
+    roughness: float = PRINCIPLED_DEFAULTS["roughness"]
+    metallic: float = 0.0
+    spec_tint: float = 0.0
+    anisotropic: float = 0.0
+    sheen: float = 0.0
+    sheen_tint: float = 0.0
+    clearcoat: float = 0.0
+    clearcoat_gloss: float = 0.0
+    spec_trans: float = 0.0
+    flatness: float = 0.0
+    eta: float = 1.5
+    main_specular_sampling_rate: float = 1.0
+    clearcoat_sampling_rate: float = 1.0
+    diffuse_reflectance_sampling_rate: float = 1.0
+
+
+@dataclass(frozen=True)
 class Material:
     """One ``[materials.NAME]`` table: Mitsuba's BSDF plugin ``type`` with its parameters (docs/scene-format.md).
 
@@ -126,8 +150,9 @@ class Material:
     The fields of the other types keep Mitsuba's defaults where a type does not use them. ``reflectance`` of a
     non-diffuse material is a per-channel bound of what one bounce keeps: ``specular_reflectance`` for conductors
     (Fresnel <= 1), the larger of ``specular_reflectance`` and ``specular_transmittance`` for dielectrics, the
-    larger of ``specular_reflectance`` and ``diffuse_reflectance`` for the plastics (each part keeps at most its
-    own).
+    larger of ``specular_reflectance`` and ``diffuse_reflectance`` for the plastics (each part keeps at most its own),
+    1 for principled (whose model does not conserve energy: its retro-reflection and sheen can return more than
+    comes in, tests/reference_impl/test_bsdf_principled.py's furnace table).
     """
 
     name: str
@@ -145,6 +170,7 @@ class Material:
     ext_ior: float = DEFAULT_EXT_IOR  # dielectrics: the index outside (on the front side)
     diffuse_reflectance: Vector3 = DEFAULT_DIFFUSE  # plastic: the albedo of the base under the coating
     nonlinear: bool = DEFAULT_NONLINEAR  # plastic: the base's internal reflections tinted by its own colour
+    principled: Principled | None = None  # principled: its parameters
     # (parameter, texture) of every parameter a texture drives, in the order of the type's keys; the parameter's own
     # field then holds the texture's largest value (a bound of what one bounce keeps)
     textures: tuple[tuple[str, Texture], ...] = ()

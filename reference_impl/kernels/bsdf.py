@@ -1,8 +1,8 @@
 r"""BSDF kernels: evaluation, pdf and sampling of the materials of :mod:`reference_impl.materials`.
 
 The physics is Mitsuba 3.9.1's (src/bsdfs/diffuse.cpp, conductor.cpp, roughconductor.cpp, dielectric.cpp,
-roughdielectric.cpp, thindielectric.cpp, plastic.cpp, roughplastic.cpp, twosided.cpp; include/mitsuba/render/microfacet.h,
-fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
+roughdielectric.cpp, thindielectric.cpp, plastic.cpp, roughplastic.cpp, principled.cpp with principledhelpers.h,
+twosided.cpp; include/mitsuba/render/microfacet.h, fresnel.h), written afresh for scalars in numba. Everything is in the LOCAL frame of the surface: z is the
 triangle's front geometric normal (never flipped by the caller); ``wo`` points toward the previous vertex (Mitsuba's ``si.wi``), ``wi`` is the other direction
 (Mitsuba's ``bs.wo``). Values follow Mitsuba's ``eval`` convention: ``f(wo, wi) |cos theta_i|``, cosine included, in
 radiance mode (transmission carries the ``1 / eta^2`` solid-angle compression of radiance).
@@ -49,6 +49,7 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
                      cosine-weighted; pdf P_s p_h(h) / (4 wi.h) + (1 - P_s) cos theta_i / pi, weight eval / pdf.
                      The table (LUT_SIZE numbers) is not in the material's row but follows it in the hit's row
                      buffer (columns P_LUT .., reference_impl/materials.py), where the material step copies it
+    principled       Burley's BSDF as Mitsuba's principled writes it (below)
 
     F_c            unpolarised Fresnel reflectance of a conductor with complex index eta + i k (fresnel.h's
                    ``fresnel_conductor``, after K. D. Moeller, "Optics", 1988); 1 for ``material = "none"``
@@ -61,6 +62,37 @@ Models (R = specular_reflectance or the diffuse albedo, T = specular_transmittan
     G1             Smith's masking: GGX 2 / (1 + sqrt(1 + alpha^2 tan^2 theta)); Beckmann Mitsuba's rational fit
                    (3.535 a + 2.181 a^2) / (1 + 2.276 a + 2.577 a^2) for a = 1 / (alpha tan theta) < 1.6, else 1
                    (Walter et al. 2007, eq. 27); 0 where v.h and v_z differ in sign; G = G1(wo) G1(wi)
+
+The principled BSDF (B = base_color, m = metallic, s = spec_trans, lum(B) = 0.212671 B_r + 0.715160 B_g +
+0.072169 B_b, C = B / lum(B) (1 where lum = 0), SW(c) = (1 - c)^5 on [0, 1], wo on the front where cos theta_o > 0)
+
+    weights          brdf = (1 - m)(1 - s), bsdf = (1 - m) s
+    main lobes       anisotropic GGX, alpha_u = max(0.001, r^2 / a), alpha_v = max(0.001, r^2 a), r = roughness,
+                     a = sqrt(1 - 0.9 anisotropic); h the half vector of the pair (reflection: wo + wi; transmission:
+                     wo + eta_path wi, eta_path = eta from the front, 1 / eta from behind), flipped to h_z > 0; each
+                     lobe only where wo.h and wi.h lie on the sides the lobe says (principledhelpers.h's
+                     ``mac_mic_compatibility``); F = the exact dielectric Fresnel F(wo.h, eta)
+    reflection       F_p D G / (4 |cos theta_o|); from the front F_p = (1 - m)(1 - spec_tint) F
+                     + m Schlick(B) + (1 - m) spec_tint Schlick(C R0(eta)), R0 = ((eta - 1) / (eta + 1))^2, Schlick(R)
+                     = R + (1 - R) SW(|wo.h|) where the light enters the denser side, else SW(cos theta_t) of the
+                     refracted direction (1 under total internal reflection); from behind F_p = bsdf F
+    transmission     sqrt(B) bsdf (1 - F) D G |wo.h| |wi.h| / (|cos theta_o| (wo.h + eta_path wi.h)^2) (radiance:
+                     Walter's eta^2 cancels the 1 / eta^2 of radiance)
+    clearcoat        (front) 0.25 cc Schlick_0.04(wo.h) D_GTR1(h) G_cc |cos theta_i|, D_GTR1 = (a^2 - 1) /
+                     (pi ln(a^2) (1 + (a^2 - 1) cos^2 theta_h)), a = 0.1 (1 - gloss) + 0.001 gloss, G_cc the Smith GGX
+                     masking of alpha 0.25 of wo and wi (exactly as principled.cpp writes it: no 1 / (4 cos theta_o))
+    diffuse          (front) brdf B / pi |cos theta_i| ((1 - F_o / 2)(1 - F_i / 2) + R_R (F_o + F_i + F_o F_i (R_R - 1)))
+                     with F_o = SW(|cos theta_i|), F_i = SW(|cos theta_o|), R_R = 2 r cos^2 theta_d, cos theta_d =
+                     h.wi; with flatness f the bracket lerps toward 1.25 (F_ss (1 / (|cos theta_o| + |cos theta_i|)
+                     - 1 / 2) + 1 / 2), F_ss = (1 + (R_R / 2 - 1) F_o)(1 + (R_R / 2 - 1) F_i)
+    sheen            (front) sheen (1 - m) SW(|cos theta_d|) ((1 - sheen_tint) + sheen_tint C) |cos theta_i|
+    lobe choice      from the front p_d = brdf r_d, p_cc = cc / 4 r_cc, p_t = r_s bsdf (1 - F), p_r = r_s (1 - bsdf
+                     (1 - F)) over their sum (r_* the sampling rates; p_t + p_r = r_s, so only the split between the
+                     two main lobes depends on F, at the sampled normal); from behind p_t = 1 - F, p_r = F. Diffuse
+                     cosine-weighted, clearcoat a GTR1 half vector (cos^2 theta_h = (1 - a^2^(1 - u)) / (1 - a^2))
+                     reflected, main lobes a visible GGX normal (anisotropic) reflected or refracted
+    pdf              the sum of each lobe's probability times its density: p_r D_vis / (4 |wi.h|), p_t D_vis eta_path^2
+                     |wi.h| / (wo.h + eta_path wi.h)^2, p_cc D_GTR1 cos theta_h / (4 |wi.h|), p_d cos theta_i / pi
 
 Sampling of the microfacet normal h
 
@@ -93,10 +125,17 @@ Where this differs from Mitsuba on purpose
   throughout): equal to 2e-5 for int_ior > ext_ior; an inverted coating (int_ior < ext_ior, 128^2 nodes over an
   integrand with a total-internal-reflection edge) to about 1e-3. Its Beckmann visible-normal pdf takes the exact G1
   as the rough conductor's. No planted fault acts on it ("vndf-alpha-squared" acts through the shared sampler).
+* The principled BSDF from behind where nothing transmits (spec_trans or 1 - metallic 0): its pdf is 0, as its
+  sampler draws nothing there (Mitsuba's ``pdf`` gives F / F = the main lobe's density there; both evals are 0).
+* Principled's sheen where spec_trans = 1: kept, as Mitsuba's vectorised variants (llvm_ad_rgb, cuda_ad_rgb, the
+  ground truth's) keep it; its scalar variant skips it (the sheen sits inside the diffuse lobe's branch, which a
+  scalar skips when brdf = 0).
+* Principled's lobe choice draws the main lobe's normal only when a main lobe is chosen (Mitsuba draws it first, for
+  every sample): the same probabilities, since only the split between reflection and transmission depends on it.
 
 Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each place marked by a comment:
 "microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared",
-"thin-glass-refracts", "plastic-no-internal-reflection".
+"thin-glass-refracts", "plastic-no-internal-reflection", "principled-clearcoat-pdf-jacobian".
 """
 
 from __future__ import annotations
@@ -107,23 +146,28 @@ import math
 import numpy as np
 from numba import njit
 
-from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CONDUCTOR_FRESNEL_ONE,
-                                           M_MICROFACET_PDF_NO_JACOBIAN, M_PLASTIC_NO_INTERNAL_REFLECTION,
-                                           M_REFRACTION_NO_ETA2, M_THIN_GLASS_REFRACTS, M_VNDF_ALPHA_SQUARED)
+from reference_impl.kernels.config import (JIT, JIT_BORROW, JIT_NONRT, M_CLEARCOAT_PDF_NO_JACOBIAN,
+                                           M_CONDUCTOR_FRESNEL_ONE, M_MICROFACET_PDF_NO_JACOBIAN,
+                                           M_PLASTIC_NO_INTERNAL_REFLECTION, M_REFRACTION_NO_ETA2,
+                                           M_THIN_GLASS_REFRACTS, M_VNDF_ALPHA_SQUARED)
 from reference_impl.kernels.material import material_params
 from reference_impl.kernels.records import material_tables
 from reference_impl.kernels.warps import cosine_hemisphere, uniform_hemisphere
-from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, LUT_RES, LUT_SIZE, P_ALPHA, P_DIFFUSE,
-                                      P_DISTRIBUTION, P_ETA, P_INTERNAL_REFLECTANCE, P_IOR, P_K, P_LUT, P_MIRROR,
-                                      P_NONLINEAR, P_REFLECTANCE, P_SAMPLE_VISIBLE, P_SPECULAR_WEIGHT,
-                                      P_TRANSMITTANCE, P_TWO_SIDED, PLASTIC, ROUGHCONDUCTOR, ROUGHDIELECTRIC,
-                                      ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
+from reference_impl.materials import (CONDUCTOR, DIELECTRIC, DIFFUSE, GGX, LUT_RES, LUT_SIZE, NUM_PARAMS, P_ALPHA,
+                                      P_ANISOTROPIC, P_CLEARCOAT, P_CLEARCOAT_GLOSS, P_CLEARCOAT_RATE, P_DIFFUSE,
+                                      P_DIFFUSE_RATE, P_DISTRIBUTION, P_ETA, P_FLATNESS, P_INTERNAL_REFLECTANCE, P_IOR,
+                                      P_K, P_LUT, P_METALLIC, P_MIRROR, P_NONLINEAR, P_REFLECTANCE, P_ROUGHNESS,
+                                      P_SAMPLE_VISIBLE, P_SHEEN, P_SHEEN_TINT, P_SPEC_TINT, P_SPEC_TRANS,
+                                      P_SPECULAR_RATE, P_SPECULAR_WEIGHT, P_TRANSMITTANCE, P_TWO_SIDED, PLASTIC,
+                                      PRINCIPLED, ROUGHCONDUCTOR, ROUGHDIELECTRIC, ROUGHPLASTIC, ROW_SIZE,
+                                      THINDIELECTRIC)
 from reference_impl.materials import fresnel_diffuse_reflectance as _fresnel_diffuse_reflectance
 
 INV_PI = 1.0 / np.pi
 INV_2PI = 0.5 / np.pi
 INV_SQRT_PI = 1.0 / math.sqrt(np.pi)
 MIN_ALPHA = 1e-4  # Mitsuba's MicrofacetDistribution::configure clamps alpha to at least this
+LUM_R, LUM_G, LUM_B = 0.212671, 0.715160, 0.072169  # Mitsuba's luminance of a linear sRGB colour
 
 
 # ----------------------------------------------------------------------------------------------------- Fresnel
@@ -763,6 +807,334 @@ def _roughplastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
     if not (p > 0.0) or (v0 == 0.0 and v1 == 0.0 and v2 == 0.0):
         return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
     return True, wix, wiy, sgn * wiz, v0 / p, v1 / p, v2 / p, p, False
+# ------------------------------------------------------------------------------------------------- principled
+
+
+@njit(**JIT)
+def ggx_aniso_d(au, av, hx, hy, hz):
+    """The anisotropic GGX distribution D(h) = 1 / (pi a_u a_v (h_x^2 / a_u^2 + h_y^2 / a_v^2 + h_z^2)^2)
+    (microfacet.h ``eval``), 0 where D cos theta_h <= 1e-20 (:func:`mf_d` is its isotropic case, kept apart so that
+    the isotropic kinds' bits stay as they are)."""
+    x, y = hx / au, hy / av
+    t = x * x + y * y + hz * hz
+    r = 1.0 / (np.pi * au * av * t * t)
+    return r if r * hz > 1e-20 else 0.0
+
+
+@njit(**JIT)
+def ggx_aniso_g1(au, av, vx, vy, vz, hx, hy, hz):
+    """Smith's anisotropic GGX masking G1(v, h) = 2 / (1 + sqrt(1 + (a_u^2 v_x^2 + a_v^2 v_y^2) / v_z^2)), 1 at
+    normal incidence, 0 where v.h and v_z differ in sign (microfacet.h ``smith_g1``)."""
+    if (vx * hx + vy * hy + vz * hz) * vz <= 0.0:
+        return 0.0
+    ax, ay = au * vx, av * vy
+    xy = ax * ax + ay * ay
+    if xy == 0.0:
+        return 1.0
+    return 2.0 / (1.0 + math.sqrt(1.0 + xy / (vz * vz)))
+
+
+@njit(**JIT)
+def ggx_aniso_pdf(au, av, wx, wy, wz, hx, hy, hz):
+    """Density of :func:`ggx_aniso_sample`'s h per unit solid angle of h, for wz > 0: the visible normals'
+    D(h) G1(w, h) |w.h| / w_z."""
+    return (ggx_aniso_d(au, av, hx, hy, hz) * ggx_aniso_g1(au, av, wx, wy, wz, hx, hy, hz)
+            * abs(wx * hx + wy * hy + wz * hz) / wz)
+
+
+@njit(**JIT)
+def ggx_aniso_sample(au, av, wx, wy, wz, u1, u2):
+    """A visible normal h of the anisotropic GGX surface seen from w (wz > 0): stretch w by (a_u, a_v), Heitz's
+    unit-roughness sample (:func:`_sample_visible_11`), rotate, unstretch (microfacet.h ``sample``)."""
+    sx, sy, sz = au * wx, av * wy, wz
+    inv = 1.0 / math.sqrt(sx * sx + sy * sy + sz * sz)
+    sx, sy, sz = sx * inv, sy * inv, sz * inv
+    sin2 = sx * sx + sy * sy
+    if sin2 > 0.0:
+        inv_s = 1.0 / math.sqrt(sin2)
+        cos_phi = min(max(sx * inv_s, -1.0), 1.0)
+        sin_phi = min(max(sy * inv_s, -1.0), 1.0)
+    else:
+        cos_phi, sin_phi = 1.0, 0.0
+    slope_x, slope_y = _sample_visible_11(True, sz, u1, u2)
+    tx = (cos_phi * slope_x - sin_phi * slope_y) * au
+    ty = (sin_phi * slope_x + cos_phi * slope_y) * av
+    inv = 1.0 / math.sqrt(tx * tx + ty * ty + 1.0)
+    return -tx * inv, -ty * inv, inv
+
+
+@njit(**JIT)
+def schlick_weight(c):
+    """(1 - c)^5, 1 - c clipped to [0, 1] (principledhelpers.h ``schlick_weight``)."""
+    m = min(max(1.0 - c, 0.0), 1.0)
+    m2 = m * m
+    return m2 * m2 * m
+
+
+@njit(**JIT)
+def calc_schlick(r0, cos_theta_i, eta):
+    """Schlick's Fresnel R0 + (1 - R0)(1 - cos)^5 of an interface of relative index ``eta`` seen at
+    ``cos_theta_i`` (its sign says the side): the cosine is |cos theta_i| where the light goes into the denser
+    medium (eta_it > 1), else that of the refracted direction (0 under total internal reflection: F = 1)
+    (principledhelpers.h ``calc_schlick``)."""
+    outside = cos_theta_i >= 0.0
+    eta_it = eta if outside else 1.0 / eta
+    eta_ti = 1.0 / eta if outside else eta
+    if eta_it > 1.0:
+        w = schlick_weight(abs(cos_theta_i))
+    else:
+        ct2 = 1.0 - (1.0 - cos_theta_i * cos_theta_i) * (eta_ti * eta_ti)
+        w = schlick_weight(math.sqrt(ct2) if ct2 > 0.0 else 0.0)
+    return r0 + (1.0 - r0) * w
+
+
+@njit(**JIT)
+def gtr1_d(alpha, hz):
+    """Burley's GTR1 (Berry) distribution of the clearcoat, D(h) = (a^2 - 1) / (pi ln(a^2) (1 + (a^2 - 1)
+    cos^2 theta_h)), 0 where D cos theta_h <= 1e-20 (principledhelpers.h ``GTR1Isotropic::eval``)."""
+    a2 = alpha * alpha
+    r = (a2 - 1.0) / (np.pi * math.log(a2) * (1.0 + (a2 - 1.0) * hz * hz))
+    return r if r * hz > 1e-20 else 0.0
+
+
+@njit(**JIT)
+def smith_ggx1(alpha, vx, vy, vz, hx, hy, hz):
+    """The clearcoat's Smith GGX masking 2 / (1 + sqrt(1 + alpha^2 tan^2 theta)) (alpha 0.25), 1 at v_z = 1, 0 where
+    v.h and v_z differ in sign (principledhelpers.h ``smith_ggx1``)."""
+    if (vx * hx + vy * hy + vz * hz) * vz <= 0.0:
+        return 0.0
+    if vz == 1.0:
+        return 1.0
+    c2 = vz * vz
+    return 2.0 / (1.0 + math.sqrt(1.0 + alpha * alpha * ((1.0 - c2) / c2)))
+
+
+@njit(**JIT_NONRT)
+def _principled_alphas(row):
+    """(a_u, a_v) of the main lobe: roughness^2 stretched by 1 / aspect and aspect, aspect = sqrt(1 - 0.9
+    anisotropic), each at least 0.001 (principledhelpers.h ``calc_dist_params``)."""
+    r2 = row[P_ROUGHNESS] * row[P_ROUGHNESS]
+    aspect = math.sqrt(1.0 - 0.9 * row[P_ANISOTROPIC])
+    return max(0.001, r2 / aspect), max(0.001, r2 * aspect)
+
+
+@njit(**JIT_NONRT)
+def _principled_half(row, wox, woy, woz, wix, wiy, wiz):
+    """(ok, reflect, eta_path, hx, hy, hz): the half vector of a reflection, the generalised one -(wo + eta wi) of
+    a refraction (eta_path: eta from the front, 1 / eta from behind), flipped to h_z >= 0."""
+    reflect = woz * wiz > 0.0
+    eta = row[P_IOR]
+    eta_path = eta if woz > 0.0 else 1.0 / eta
+    s = 1.0 if reflect else eta_path
+    hx, hy, hz = wox + wix * s, woy + wiy * s, woz + wiz * s
+    n2 = hx * hx + hy * hy + hz * hz
+    if not (n2 > 0.0) or woz * wiz == 0.0:
+        return False, reflect, eta_path, 0.0, 0.0, 1.0
+    inv = 1.0 / math.sqrt(n2)
+    if hz < 0.0:
+        inv = -inv
+    return True, reflect, eta_path, hx * inv, hy * inv, hz * inv
+
+
+@njit(**JIT_NONRT)
+def _principled_probs(row, front, f):
+    """The lobe probabilities (diffuse, clearcoat, transmission, reflection) for wo on side ``front`` and the
+    dielectric Fresnel ``f`` of the main lobe's normal: from the front brdf r_d, cc / 4 r_c, r_s bsdf (1 - F),
+    r_s (1 - bsdf (1 - F)) over their sum (r_* the sampling rates), from behind 0, 0, 1 - F, F (principled.cpp)."""
+    metallic, trans = row[P_METALLIC], row[P_SPEC_TRANS]
+    bsdf_w = (1.0 - metallic) * trans
+    if not front:
+        return 0.0, 0.0, 1.0 - f, f
+    rs = row[P_SPECULAR_RATE]
+    p_d = (1.0 - metallic) * (1.0 - trans) * row[P_DIFFUSE_RATE]
+    p_cc = 0.25 * row[P_CLEARCOAT] * row[P_CLEARCOAT_RATE]
+    p_st = rs * bsdf_w * (1.0 - f)
+    p_sr = rs * (1.0 - bsdf_w * (1.0 - f))
+    inv = 1.0 / (p_sr + p_st + p_cc + p_d)
+    return p_d * inv, p_cc * inv, p_st * inv, p_sr * inv
+
+
+@njit(**JIT_NONRT)
+def _principled_eval(row, mutant, wox, woy, woz, wix, wiy, wiz):
+    """The principled BSDF's f |cos theta_i| (module docstring), per channel."""
+    metallic, trans = row[P_METALLIC], row[P_SPEC_TRANS]
+    bsdf_w = (1.0 - metallic) * trans
+    brdf_w = (1.0 - metallic) * (1.0 - trans)
+    front = woz > 0.0
+    if woz == 0.0 or not (front or bsdf_w > 0.0):
+        return 0.0, 0.0, 0.0
+    ok, reflect, eta_path, hx, hy, hz = _principled_half(row, wox, woy, woz, wix, wiy, wiz)
+    if not ok:
+        return 0.0, 0.0, 0.0
+    eta = row[P_IOR]
+    wo_h = wox * hx + woy * hy + woz * hz
+    wi_h = wix * hx + wiy * hy + wiz * hz
+    sgn = 1.0 if front else -1.0
+    if reflect:
+        compatible = wo_h * sgn > 0.0 and wi_h * sgn > 0.0
+    else:
+        compatible = wo_h * sgn > 0.0 and wi_h * sgn < 0.0
+    f = fresnel_dielectric(wo_h, eta)[0]
+    b0, b1, b2 = row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2]
+    v0, v1, v2 = 0.0, 0.0, 0.0
+    if compatible:
+        au, av = _principled_alphas(row)
+        dg = (ggx_aniso_d(au, av, hx, hy, hz) * ggx_aniso_g1(au, av, wox, woy, woz, hx, hy, hz)
+              * ggx_aniso_g1(au, av, wix, wiy, wiz, hx, hy, hz))
+        if reflect and f > 0.0:  # the main specular reflection
+            c = dg / (4.0 * abs(woz))
+            if front:  # metallic and tinted Schlick over the dielectric Fresnel
+                tint = row[P_SPEC_TINT]
+                lum = LUM_R * b0 + LUM_G * b1 + LUM_B * b2
+                eta_it = eta if wo_h >= 0.0 else 1.0 / eta
+                r0 = (eta_it - 1.0) / (eta_it + 1.0)
+                r0 = r0 * r0
+                fd = (1.0 - metallic) * (1.0 - tint) * f
+                s0 = s1 = s2 = 0.0
+                if metallic != 0.0:
+                    s0 = metallic * calc_schlick(b0, wo_h, eta)
+                    s1 = metallic * calc_schlick(b1, wo_h, eta)
+                    s2 = metallic * calc_schlick(b2, wo_h, eta)
+                if tint != 0.0:
+                    k = (1.0 - metallic) * tint
+                    t0, t1, t2 = (b0 / lum, b1 / lum, b2 / lum) if lum > 0.0 else (1.0, 1.0, 1.0)
+                    s0 += k * calc_schlick(t0 * r0, wo_h, eta)
+                    s1 += k * calc_schlick(t1 * r0, wo_h, eta)
+                    s2 += k * calc_schlick(t2 * r0, wo_h, eta)
+                v0, v1, v2 = (fd + s0) * c, (fd + s1) * c, (fd + s2) * c
+            else:  # from inside: the dielectric alone
+                v0 = v1 = v2 = bsdf_w * f * c
+        elif not reflect and bsdf_w > 0.0 and f < 1.0:  # the main specular transmission (radiance: 1 / eta_path^2)
+            denom = wo_h + eta_path * wi_h
+            c = bsdf_w * abs((1.0 - f) * dg * wo_h * wi_h / (woz * denom * denom))
+            v0, v1, v2 = math.sqrt(b0) * c, math.sqrt(b1) * c, math.sqrt(b2) * c
+        clearcoat = row[P_CLEARCOAT]
+        if reflect and front and clearcoat > 0.0:  # Burley's clearcoat, as principled.cpp writes it
+            g = row[P_CLEARCOAT_GLOSS]
+            alpha_cc = 0.1 * (1.0 - g) + 0.001 * g
+            c = (0.25 * clearcoat * calc_schlick(0.04, wo_h, eta) * gtr1_d(alpha_cc, hz)
+                 * smith_ggx1(0.25, wox, woy, woz, hx, hy, hz) * smith_ggx1(0.25, wix, wiy, wiz, hx, hy, hz)
+                 * abs(wiz))
+            v0, v1, v2 = v0 + c, v1 + c, v2 + c
+    if reflect and front:
+        f_o, f_i = schlick_weight(abs(wiz)), schlick_weight(abs(woz))  # principled.cpp's Fo (its wo: our wi), Fi
+        cos_d = hx * wix + hy * wiy + hz * wiz
+        if brdf_w > 0.0:  # diffuse with retro-reflection, and the fake subsurface where flatness > 0
+            rr = 2.0 * row[P_ROUGHNESS] * cos_d * cos_d
+            lobe = (1.0 - 0.5 * f_i) * (1.0 - 0.5 * f_o) + rr * (f_o + f_i + f_o * f_i * (rr - 1.0))
+            flatness = row[P_FLATNESS]
+            if flatness != 0.0:
+                fss90 = 0.5 * rr
+                fss = (1.0 + (fss90 - 1.0) * f_o) * (1.0 + (fss90 - 1.0) * f_i)
+                f_ss = 1.25 * (fss * (1.0 / (abs(woz) + abs(wiz)) - 0.5) + 0.5)
+                lobe = lobe * (1.0 - flatness) + f_ss * flatness
+            c = brdf_w * abs(wiz) * INV_PI * lobe
+            v0, v1, v2 = v0 + c * b0, v1 + c * b1, v2 + c * b2
+        sheen = row[P_SHEEN]
+        if sheen > 0.0 and 1.0 - metallic > 0.0:
+            c = sheen * (1.0 - metallic) * schlick_weight(abs(cos_d)) * abs(wiz)
+            tint = row[P_SHEEN_TINT]
+            if tint != 0.0:
+                lum = LUM_R * b0 + LUM_G * b1 + LUM_B * b2
+                t0, t1, t2 = (b0 / lum, b1 / lum, b2 / lum) if lum > 0.0 else (1.0, 1.0, 1.0)
+                v0 += c * (1.0 - tint + t0 * tint)
+                v1 += c * (1.0 - tint + t1 * tint)
+                v2 += c * (1.0 - tint + t2 * tint)
+            else:
+                v0, v1, v2 = v0 + c, v1 + c, v2 + c
+    return v0, v1, v2
+
+
+@njit(**JIT_NONRT)
+def _principled_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz):
+    """Density of :func:`_principled_sample`'s wi: the lobes' densities times their probabilities
+    (:func:`_principled_probs` with F at the pair's half vector); 0 from behind where nothing transmits."""
+    bsdf_w = (1.0 - row[P_METALLIC]) * row[P_SPEC_TRANS]
+    front = woz > 0.0
+    if woz == 0.0 or not (front or bsdf_w > 0.0):
+        return 0.0
+    ok, reflect, eta_path, hx, hy, hz = _principled_half(row, wox, woy, woz, wix, wiy, wiz)
+    if not ok:
+        return 0.0
+    wo_h = wox * hx + woy * hy + woz * hz
+    wi_h = wix * hx + wiy * hy + wiz * hz
+    sgn = 1.0 if front else -1.0
+    if reflect:
+        compatible = wo_h * sgn > 0.0 and wi_h * sgn > 0.0
+    else:
+        compatible = wo_h * sgn > 0.0 and wi_h * sgn < 0.0
+    p_d, p_cc, p_st, p_sr = _principled_probs(row, front, fresnel_dielectric(wo_h, row[P_IOR])[0])
+    p = 0.0
+    if reflect:
+        if compatible:
+            jacobian = 1.0 / (4.0 * abs(wi_h))
+            au, av = _principled_alphas(row)
+            p += p_sr * ggx_aniso_pdf(au, av, sgn * wox, sgn * woy, sgn * woz, hx, hy, hz) * jacobian
+            if p_cc > 0.0:
+                g = row[P_CLEARCOAT_GLOSS]
+                p_h = hz * gtr1_d(0.1 * (1.0 - g) + 0.001 * g, hz)
+                if mutant & M_CLEARCOAT_PDF_NO_JACOBIAN:  # mutant "principled-clearcoat-pdf-jacobian"
+                    jacobian = 1.0  # the half vector's density taken for the direction's: no 1 / (4 |wi.h|)
+                p += p_cc * p_h * jacobian
+        p += p_d * abs(wiz) * INV_PI
+    elif compatible and p_st > 0.0:
+        au, av = _principled_alphas(row)
+        denom = wo_h + eta_path * wi_h
+        p += (p_st * ggx_aniso_pdf(au, av, sgn * wox, sgn * woy, sgn * woz, hx, hy, hz)
+              * abs(eta_path * eta_path * wi_h / (denom * denom)))
+    return p
+
+
+@njit(**JIT_NONRT)
+def _principled_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
+    """The principled sample: a lobe by u_lobe (diffuse, clearcoat, transmission, reflection, principled.cpp's
+    order, the last two by F at the main lobe's sampled normal), its direction by (u1, u2) -- cosine-weighted, a
+    GTR1 half vector reflected, or a visible GGX normal refracted or reflected -- weight eval / pdf."""
+    bsdf_w = (1.0 - row[P_METALLIC]) * row[P_SPEC_TRANS]
+    front = woz > 0.0
+    if woz == 0.0 or not (front or bsdf_w > 0.0):
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    p_d, p_cc, _p_st, _p_sr = _principled_probs(row, front, 0.0)  # the first two do not depend on F
+    if u_lobe < p_d:
+        wix, wiy, wiz = cosine_hemisphere(u1, u2)
+    elif u_lobe < p_d + p_cc:
+        g = row[P_CLEARCOAT_GLOSS]
+        alpha = 0.1 * (1.0 - g) + 0.001 * g
+        a2 = alpha * alpha
+        cos2 = (1.0 - a2 ** (1.0 - u2)) / (1.0 - a2)
+        sin_t = math.sqrt(max(0.0, 1.0 - cos2))
+        cos_t = math.sqrt(max(0.0, cos2))
+        phi = 2.0 * np.pi * u1
+        hx, hy, hz = math.cos(phi) * sin_t, math.sin(phi) * sin_t, cos_t
+        wo_h = wox * hx + woy * hy + woz * hz
+        wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
+        if wiz * woz <= 0.0:  # reflected below the surface: no sample (not a transmission)
+            return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    else:
+        sgn = 1.0 if front else -1.0
+        au, av = _principled_alphas(row)
+        hx, hy, hz = ggx_aniso_sample(au, av, sgn * wox, sgn * woy, sgn * woz, u1, u2)
+        wo_h = wox * hx + woy * hy + woz * hz
+        f, cos_t, _eta_it, eta_ti = fresnel_dielectric(wo_h, row[P_IOR])
+        p_st = _principled_probs(row, front, f)[2]
+        if u_lobe < p_d + p_cc + p_st:
+            c = wo_h * eta_ti + cos_t
+            wix, wiy, wiz = hx * c - wox * eta_ti, hy * c - woy * eta_ti, hz * c - woz * eta_ti
+            if wiz * woz >= 0.0:
+                return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+        else:
+            wix, wiy, wiz = 2.0 * wo_h * hx - wox, 2.0 * wo_h * hy - woy, 2.0 * wo_h * hz - woz
+            if wiz * woz <= 0.0:  # reflected below the surface: no sample (not a transmission)
+                return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    if wiz * woz == 0.0:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    p = _principled_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
+    if not p > 0.0:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    v0, v1, v2 = _principled_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
+    if v0 == 0.0 and v1 == 0.0 and v2 == 0.0:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    return True, wix, wiy, wiz, v0 / p, v1 / p, v2 / p, p, False
 
 
 @njit(**JIT_BORROW)
@@ -794,6 +1166,8 @@ def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
         if not ok:
             return 0.0, 0.0, 0.0
         return _roughplastic_eval(row, wox, woy, sgn * woz, wix, wiy, sgn * wiz)
+    if kind == PRINCIPLED:
+        return _principled_eval(row, mutant, wox, woy, woz, wix, wiy, wiz)
     return 0.0, 0.0, 0.0
 
 
@@ -823,6 +1197,8 @@ def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz):
         if not ok:
             return 0.0
         return _roughplastic_pdf(row, wox, woy, sgn * woz, wix, wiy, sgn * wiz)
+    if kind == PRINCIPLED:
+        return _principled_pdf(row, mutant, wox, woy, woz, wix, wiy, wiz)
     return 0.0
 
 
@@ -838,7 +1214,7 @@ def sample_eta(kind, row, woz, wiz):
     """The relative index of refraction of a sampled (wo, wi) in the direction of travel (Mitsuba's ``bs.eta``, for
     the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1 (the thin dielectric's
     straight-through light leaves into the medium it came from)."""
-    if (kind == DIELECTRIC or kind == ROUGHDIELECTRIC) and woz * wiz < 0.0:
+    if (kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == PRINCIPLED) and woz * wiz < 0.0:
         eta = row[P_IOR]
         return eta if woz > 0.0 else 1.0 / eta
     return 1.0
@@ -932,6 +1308,8 @@ def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u
         return _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
     if kind == ROUGHPLASTIC:
         return _roughplastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
+    if kind == PRINCIPLED:
+        return _principled_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
     return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
 
 

@@ -74,8 +74,8 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead
 from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map
 from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
-from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_REFLECTANCE, P_TWO_SIDED, PLASTIC,
-                                      ROUGHDIELECTRIC, ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
+from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_METALLIC, P_REFLECTANCE, P_SPEC_TRANS, P_TWO_SIDED,
+                                      PLASTIC, PRINCIPLED, ROUGHDIELECTRIC, ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
                                 DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
 
@@ -388,7 +388,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             if other_kinds is None:
                 kind = DIFFUSE  # what the table says, known to the compiler
             transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == THINDIELECTRIC
-            lobed = transmits or kind == PLASTIC or kind == ROUGHPLASTIC  # the kinds that choose a lobe read u_lobe
+            if kind == PRINCIPLED:  # light crosses it where its transmission lobe has a weight at x
+                transmits = (1.0 - row[P_METALLIC]) * row[P_SPEC_TRANS] > 0
+            lobed = transmits or kind == PLASTIC or kind == ROUGHPLASTIC or kind == PRINCIPLED  # the kinds that choose a lobe read u_lobe
             if not (cos_out > 0 or row[P_TWO_SIDED] != 0 or transmits):
                 count_back_face += 1  # the back of a one-sided surface: black
                 break

@@ -92,6 +92,9 @@ nonlinear = true
 [materials.satin]
 type = "roughplastic"
 alpha = 0.3
+[materials.burley]
+type = "principled"
+clearcoat = 0.5
 
 [[shapes]]
 name = "floor"

@@ -21,7 +21,7 @@ from trimesh.resolvers import FilePathResolver
 
 from harness.files.imageio import read_exr, write_exr
 from harness.renderers import RenderRequest, get_renderer
-from harness.renderers.export import (GLTF_FILTERS, GLTF_WRAPS, export_losses, export_scene, gltf_uv_transform,
+from harness.renderers.export import (exported_material, GLTF_FILTERS, GLTF_WRAPS, export_losses, export_scene, gltf_uv_transform,
                                       sphere_corner_uv)
 from harness.renderers.meshfiles import safe_name
 from harness.scene.kinds.textures import export_path
@@ -30,6 +30,7 @@ from harness.renderers.scene_json import FILTERS
 from harness.running.cases import load_suite
 from harness.running.judge import case_scene
 from harness.scene import load_scene
+from harness.scene.kinds.composites import stand_in
 from harness.scene.kinds.materials import normal_incidence_reflectance
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.triangulate import shape_triangles, vertex_uv
@@ -61,6 +62,8 @@ def base_texture(material):
     """The texture of the parameter a material's glTF base colour comes from, or None."""
     if material.is_diffuse:
         return material.texture("reflectance")
+    if material.type in ("plastic", "principled"):
+        return material.texture("diffuse_reflectance" if material.type == "plastic" else "base_color")
     return material.texture("specular_reflectance" if material.is_conductor else "specular_transmittance")
 
 
@@ -87,6 +90,8 @@ def texture_mean(texture) -> list[float]:
 def expected_base_colour(material) -> list[float]:
     """The glTF base colour factor of a material (docs/external-renderers.md, "glTF materials"), computed here: the
     texture's parameter white where the format carries the texture (it multiplies the factor), else its mean."""
+    if material.nested:  # a material made of others: glTF's and OBJ's stand-in (harness/scene/kinds/composites.py)
+        return expected_base_colour(stand_in(material))
     texture = base_texture(material)
     colour = None if texture is None else ([1.0, 1.0, 1.0] if carried(texture) else texture_mean(texture))
     if material.is_diffuse:
@@ -94,15 +99,17 @@ def expected_base_colour(material) -> list[float]:
     if material.is_conductor:
         f0 = normal_incidence_reflectance(material.eta, material.k)
         return [min(1.0, f * r) for f, r in zip(f0, colour or material.specular_reflectance)]
-    if material.type == "plastic":
+    if material.type in ("plastic", "roughplastic"):
         return list(colour or material.diffuse_reflectance)
+    if material.type == "principled":
+        return list(colour or material.principled.base_color)
     return list(colour or material.specular_transmittance)
 
 
 def expected_extras_bsdf(material) -> dict:
     """A node's extras.bsdf: the Mitsuba plugin dict as JSON, each textured parameter ``{"texture": NAME}``."""
     spec = bsdf_dict(material)
-    inner = spec["bsdf"] if spec["type"] == "twosided" else spec
+    inner = spec["bsdf"] if spec["type"] == "twosided" and not material.nested else spec
     for item, texture in material.textures:
         inner[item] = {"texture": texture.name}
     return json.loads(json.dumps(spec))
@@ -198,7 +205,8 @@ def test_gltf_reads_back_exactly(name, tmp_path):
         (primitive,) = gltf.meshes[node.mesh].primitives
         entry = gltf.materials[primitive.material]
         pbr = entry.pbrMetallicRoughness
-        assert same32(pbr.baseColorFactor, [*expected_base_colour(material), 1.0]), (shape.name, pbr.baseColorFactor)
+        alpha = exported_material(material).weight if material.type == "mask" else 1.0  # a mask's opacity
+        assert same32(pbr.baseColorFactor, [*expected_base_colour(material), alpha]), (shape.name, pbr.baseColorFactor)
         assert same32(node.extras["reflectance"], material.reflectance)
         assert (node.extras.get("bsdf") is None) == material.is_diffuse
         if not material.is_diffuse:
@@ -547,11 +555,21 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
             assert entry.get("scale", 1.0) == p.scale
             assert entry["bsdf"] == document["materials"][p.bsdf]
             continue
+        if material.nested:  # a material made of others: its weight or opacity and its materials' names
+            names = [m.name for m in material.nested]
+            assert entry["bsdf"] in (names, names[0]) and entry["type"] == material.type, (key, entry)
+            texture = material.textures[0][1] if material.textures else None
+            for item in ("weight", "opacity"):
+                if item in entry:
+                    assert entry[item] == ({"texture": texture.name} if texture else material.weight), (key, entry)
+            continue
         assert entry["type"] == material.type and len(entry) > 2
         for parameter, value in entry.items():
             texture = material.texture(parameter)
             if texture is not None:
                 assert value == {"texture": texture.name}, (key, parameter, value)
+            elif material.principled is not None and parameter != "type":  # principled's record
+                assert _equal(value, getattr(material.principled, parameter)), (key, parameter, value)
             else:
                 assert _equal(value, getattr(material, parameter)), (key, parameter, value)
     assert set(document.get("textures", {})) == {t.name for t in scene.used_textures}

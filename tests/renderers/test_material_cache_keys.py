@@ -31,8 +31,8 @@ translate = [0, 0, -1]
 """
 # scene_digest of LAMBERTIAN, the scene's content key (harness.scene.content_key); a change of it makes every cached
 # ground truth a miss, so it changes only with the key's format (harness.renderers.groundtruth.FORMAT_VERSION; 6 since
-# the materials grew the composites' weight and nested materials)
-LAMBERTIAN_DIGEST = "a1ef5468fb0ee3ef883a0a9d438799f63413f941173c6a2f87674d49cb87e5ed"
+# the materials grew the composites', roughplastic's and principled's fields)
+LAMBERTIAN_DIGEST = "11075a576d410d965d32a543ef1a519894c18e14b9b247b74490ac65da9bda4d"
 
 
 def test_the_key_of_a_lambertian_scene_is_pinned(tmp_path):
@@ -70,6 +70,22 @@ CHANGES = {
                      "specular_reflectance": (0.9, 1.0, 1.0), "two_sided": True, "alpha": 0.2,
                      "distribution": "ggx", "sample_visible": False, "type": "plastic"},
 }
+
+
+def test_every_principled_field_is_in_the_key(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(GLOSSY.format(body='type = "principled"'))
+    scene = load_scene(path)
+    material = scene.materials["m"]
+    digests = {scene_digest(scene)}
+    fields = dataclasses.fields(material.principled)
+    for field in fields:
+        value = getattr(material.principled, field.name)
+        value = (0.4, 0.5, 0.6) if field.name == "base_color" else value + 0.125
+        changed = dataclasses.replace(material, principled=dataclasses.replace(material.principled,
+                                                                               **{field.name: value}))
+        digests.add(scene_digest(dataclasses.replace(scene, materials={"m": changed})))
+    assert len(digests) == 1 + len(fields) == 16
 
 
 @pytest.mark.parametrize("kind", list(BODIES))

@@ -43,6 +43,10 @@ MATERIALS = {
     "plastic": 'type = "plastic"',
     "plastic-nonlinear-two-sided": 'type = "plastic"\ndiffuse_reflectance = [0.7, 0.2, 0.1]\nnonlinear = true\n'
                                    'specular_reflectance = [1, 0.8, 0.6]\nint_ior = 1.6\ntwo_sided = true',
+    "principled": 'type = "principled"',
+    "principled-all": 'type = "principled"\nbase_color = [0.8, 0.4, 0.2]\nmetallic = 0.3\nspecular = 0.7\n'
+                      'roughness = 0.4\nanisotropic = 0.5\nsheen = 0.4\nclearcoat = 0.6\nspec_trans = 0.3',
+
 }
 BODY = """
 [[shapes]]
@@ -101,6 +105,12 @@ def test_every_material_loads_and_renders_in_mitsuba(mi, tmp_path, name):
     text = bsdf_text(loaded.shapes()[0].bsdf())
     if material.is_diffuse:
         np.testing.assert_allclose(value("reflectance.value"), material.reflectance, rtol=1e-6)
+    elif material.type == "principled":
+        p = material.principled
+        np.testing.assert_allclose(value("base_color.value"), p.base_color, rtol=1e-6)
+        assert float(value("eta")[0]) == pytest.approx(p.eta, rel=1e-6)
+        for item in ("roughness", "metallic", "anisotropic", "sheen", "clearcoat", "spec_trans"):
+            assert float(value(f"{item}.value")[0]) == pytest.approx(getattr(p, item), rel=1e-6), item
     else:
         np.testing.assert_allclose(value("specular_reflectance.value") * np.ones(3), material.specular_reflectance,
                                    rtol=1e-6)

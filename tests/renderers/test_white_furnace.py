@@ -104,6 +104,7 @@ GLOSSY_REFUSED = {
     "rough-mirror": ('type = "roughconductor"', -1, "needs a perfect mirror"),
     "plastic": ('type = "plastic"', -1, "the white-furnace closed form has no plastic sphere"),
     "roughplastic": ('type = "roughplastic"', -1, "the white-furnace closed form has no roughplastic sphere"),
+    "principled": ('type = "principled"', -1, "the white-furnace closed form has no principled sphere"),
     "tinted-thin-glass": ('type = "thindielectric"\nspecular_reflectance = 0.5', -1,
                           "this scene has a thindielectric at max_depth = -1"),
 }

@@ -196,6 +196,10 @@ PER_SAMPLE_RATIO = {
     "plastic-cornell-box/mutant-plastic-no-internal-reflection": 4.52,
     "cutout-leaf/reference": 65.4,  # 2026-12-06: Mitsuba finds the light through the holes by BSDF sampling only
     "cutout-leaf/mutant-mask-opacity-1-in-shadow-rays": 81.2,
+    "principled-grid/reference": 1.54,
+    "principled-grid/mutant-principled-clearcoat-pdf-jacobian": 1.52,
+    "material-balls-furnace/reference": 1.90,
+    "material-balls/reference": 1.16,
 }
 
 #: Cases whose ground truth has no variance to compare, or whose test render reports none (``ground_truth_noise``

@@ -50,7 +50,8 @@ def test_repository_suites_load():
     glossy_scenes |= {"smooth-twins"}
     lambertian_mapped = {"mapped-plates"}
     camera_scenes = {"focused-plane", "orthographic-floor", "depth-of-field"}  # their cases: the camera's
-    material_scenes = {"thin-glass-window", "plastic-cornell-box", "cutout-leaf"}  # their reference case and planted fault
+    material_scenes = {"thin-glass-window", "plastic-cornell-box", "cutout-leaf", "principled-grid",
+                       "material-balls-furnace", "material-balls"}  # their reference case and planted fault
     assert reference_scenes == ({"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes
                                 | glossy_scenes | lambertian_mapped | camera_scenes | material_scenes)
     assert names == reference_scenes

@@ -5,6 +5,7 @@ its scene.json entry and its glTF 2.0 material with what that form loses."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
@@ -18,7 +19,8 @@ from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.kinds.textures import TEXTURES, texture_reference
 from harness.scene.model import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DISTRIBUTION, DEFAULT_EXT_IOR,
                                  DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DISTRIBUTIONS,
-                                 MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR, Material, Texture)
+                                 MATERIAL_TYPES, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR, Material, Principled,
+                                 Texture)
 
 DEFAULT_TYPE = "diffuse"
 CONDUCTOR_MATERIALS = ("none",)  # Mitsuba's named conductors but "none" (a perfect mirror) are refused
@@ -36,7 +38,11 @@ MAX_CONDUCTOR_INDEX = 100.0
 ANISOTROPIC_KEYS = ("alpha_u", "alpha_v")
 #: The core's texture slot (:data:`reference_impl.materials.TEXTURE_SLOTS`) of each parameter a texture may drive.
 TEXTURE_SLOTS = {"reflectance": "reflectance", "specular_reflectance": "reflectance",
-                 "specular_transmittance": "transmittance", "alpha": "alpha", "diffuse_reflectance": "diffuse"}
+                 "specular_transmittance": "transmittance", "alpha": "alpha", "diffuse_reflectance": "diffuse",
+                 "base_color": "reflectance", **{item: item for item in core.PRINCIPLED_UNIT},
+                 "weight": "weight", "opacity": "weight"}
+#: The one-number parameters a texture may drive (Mitsuba's ``eval_1``: a bitmap's luminance) and their ranges.
+ONE_NUMBER_RANGES = {"alpha": (MIN_ALPHA, MAX_ALPHA), **{item: (0.0, 1.0) for item in core.PRINCIPLED_UNIT}}
 
 
 @dataclass(frozen=True)
@@ -110,6 +116,9 @@ class MaterialKind:
     def _core_row(self, material: Material) -> np.ndarray:
         if self.core_kind == core.DIFFUSE:
             return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
+        if self.core_kind == core.PRINCIPLED:
+            values = dataclasses.asdict(material.principled)
+            return core.material_row(core.PRINCIPLED, **values)
         if self.core_kind == core.PLASTIC:
             return core.material_row(
                 core.PLASTIC, reflectance=material.specular_reflectance, diffuse=material.diffuse_reflectance,
@@ -157,7 +166,9 @@ class MaterialKind:
 
     def gltf_double_sided(self, material: Material) -> bool:
         """glTF's ``doubleSided`` of ``material``: two-sided, or of a type that light crosses from either side (one
-        without ``two_sided``, a dielectric)."""
+        without ``two_sided``, a dielectric; a principled one whose spec_trans is not 0)."""
+        if material.principled is not None:
+            return _principled_transmits(material)
         return bool(material.two_sided or not self.two_sided)
 
 
@@ -215,16 +226,16 @@ def _textured_parameters(reader, kind: MaterialKind, entry: dict, key: str,
             takes = ", ".join(kind.textured) or "none of its parameters"
             raise reader.error(f"{key}.{item}", f"{item} of a {kind.name} takes no texture (textures drive: {takes})")
         texture = texture_reference(reader, value, f"{key}.{item}", textures)
-        if item == "alpha":  # one number: Mitsuba's eval_1 (a bitmap's luminance)
+        if item in ONE_NUMBER_RANGES:  # one number: Mitsuba's eval_1 (a bitmap's luminance)
             if texture.type != "bitmap":
-                raise reader.error(f"{key}.{item}", f"texture {texture.name!r} is a {texture.type}: alpha takes a "
+                raise reader.error(f"{key}.{item}", f"texture {texture.name!r} is a {texture.type}: {item} takes a "
                                                     "bitmap (Mitsuba 3.9.1's checkerboard as one number swaps its "
                                                     "two colours, tests/reference_impl/test_textures.py)")
             low, high = texture.scalar_range
-            if not (MIN_ALPHA <= low and high <= MAX_ALPHA):
+            least, most = ONE_NUMBER_RANGES[item]
+            if not (least <= low and high <= most):
                 raise reader.error(f"{key}.{item}", f"texture {texture.name!r} has luminances from {low:.6g} to "
-                                                    f"{high:.6g}; alpha takes values in [{MIN_ALPHA:g}, "
-                                                    f"{MAX_ALPHA:g}]")
+                                                    f"{high:.6g}; {item} takes values in [{least:g}, {most:g}]")
             entry[item] = high
         else:
             top = texture.max_value
@@ -309,6 +320,57 @@ def _plastic_sampling_weight(material: Material) -> float:
         texture = material.texture(item)
         return float(np.mean(texture.mean_value if texture is not None else getattr(material, item)))
     return core.plastic_sampling_weight(mean("specular_reflectance"), mean("diffuse_reflectance"))
+
+
+def _principled_transmits(material: Material) -> bool:
+    """Mitsuba's ``m_has_spec_trans``: spec_trans given as a texture or a number other than 0."""
+    return material.principled.spec_trans != 0.0 or material.texture("spec_trans") is not None
+
+
+def _read_principled(reader, entry: dict, key: str) -> dict:
+    """A principled material's fields (Mitsuba 3.9.1's names and defaults: base_color 0.5, roughness 0.5,
+    specular 0.5, the other weights 0, the sampling rates 1); ``eta`` and ``specular`` are one parameter (eta =
+    2 / (1 - sqrt(0.08 specular)) - 1), given once at most, nudged as Mitsuba does where spec_trans is given
+    (eta 1 -> 1.001, specular 0 -> 1e-3)."""
+    if "eta" in entry and "specular" in entry:
+        raise reader.error(f"{key}.specular", "expected either eta or specular, not both (Mitsuba's principled "
+                                              "takes one: specular = ((eta - 1) / (eta + 1))^2 / 0.08)")
+    values: dict[str, Any] = {"base_color": _unit_colour(reader, entry, "base_color", key,
+                                                         core.PRINCIPLED_DEFAULTS["base_color"][0])}
+    what = "a finite number in [0, 1]"
+    for item in core.PRINCIPLED_UNIT:
+        values[item] = reader.number(entry.get(item, core.PRINCIPLED_DEFAULTS[item]), f"{key}.{item}", what)
+        if not 0.0 <= values[item] <= 1.0:
+            raise reader.expected(f"{key}.{item}", what, entry[item])
+    rate = "a finite number > 0 (a lobe's weight in the choice of lobe)"
+    for item in ("main_specular_sampling_rate", "clearcoat_sampling_rate", "diffuse_reflectance_sampling_rate"):
+        values[item] = reader.number(entry.get(item, 1.0), f"{key}.{item}", rate)
+        if not values[item] > 0.0:
+            raise reader.expected(f"{key}.{item}", rate, entry[item])
+    transmits = "spec_trans" in entry and (isinstance(entry["spec_trans"], list) or values["spec_trans"] != 0.0)
+    if "eta" in entry:
+        eta = _index_of_refraction(reader, entry["eta"], f"{key}.eta")
+        values["eta"] = 1.001 if transmits and eta == 1.0 else eta
+    else:
+        specular = reader.number(entry.get("specular", core.PRINCIPLED_DEFAULTS["specular"]), f"{key}.specular",
+                                 what)
+        if not 0.0 <= specular <= 1.0:
+            raise reader.expected(f"{key}.specular", what, entry["specular"])
+        values["eta"] = core.principled_eta(specular, transmits)
+    return {"principled": Principled(**values), "reflectance": (1.0, 1.0, 1.0)}
+
+
+def _principled_parameters(material: Material) -> dict:
+    """Mitsuba's parameters: every one written out, the index as ``eta`` (whichever spelling the file used)."""
+    values = dataclasses.asdict(material.principled)
+    values["base_color"] = rgb(values["base_color"])
+    return {item: (value if item == "base_color" else float(value)) for item, value in values.items()}
+
+
+def _principled_json(material: Material) -> dict:
+    values = dataclasses.asdict(material.principled)
+    values["base_color"] = _numbers(values["base_color"])
+    return {item: (value if item == "base_color" else float(value)) for item, value in values.items()}
 
 
 def _read_roughdielectric(reader, entry: dict, key: str) -> dict:
@@ -460,6 +522,9 @@ GLTF_LOSSES: dict[str, str] = {
     "mask": ("glTF's alpha blending is not a cut-out's hole: {materials} written as the nested material with alphaMode "
              "BLEND and the opacity as base colour alpha"),
     "back": "glTF has one material per side pair: {materials} written as the front material, double-sided",
+    "burley": ("glTF's metallic-roughness model is not Burley's principled one: {materials} written with its base "
+               "colour, metallic, roughness and the clearcoat, sheen, transmission, ior and specular extensions "
+               "(approximately); its retro-reflection, flatness, anisotropy and sampling rates lost"),
     "coating": ("glTF's dielectric base (metallic 0) has no light reflected back and forth under its coating: "
                 "{materials} written with base colour = diffuse_reflectance (the 1 / (1 - F_dr) term and nonlinear "
                 "lost)"),
@@ -524,6 +589,39 @@ def _roughplastic_gltf(material: Material) -> tuple[dict, dict]:
     roughness^2)."""
     factors, extensions = _plastic_gltf(material)
     return {**factors, "roughnessFactor": _rough_gltf_roughness(material)}, extensions
+def _principled_gltf(material: Material) -> tuple[dict, dict]:
+    """glTF's metallic-roughness of a principled material: base colour, metallic and roughness directly (glTF's GGX
+    alpha is roughness^2, as principled's); the rest where an extension carries it: ``KHR_materials_ior`` = eta,
+    ``KHR_materials_transmission`` = spec_trans (with ``KHR_materials_volume``: a solid that refracts),
+    ``KHR_materials_clearcoat`` = clearcoat with roughness sqrt(alpha_cc), alpha_cc = 0.1 (1 - gloss) + 0.001 gloss
+    (GTR1's alpha read as GGX's), ``KHR_materials_sheen`` = sheen x the tinted sheen colour (roughness 0.5: glTF's
+    Charlie sheen is not Burley's Schlick-weighted one), ``KHR_materials_specular``'s specularColorFactor = the
+    tinted F0 scale (1 - spec_tint) + spec_tint base_color / luminance(base_color)."""
+    p = material.principled
+    base = np.asarray(p.base_color, dtype=np.float64)
+    lum = float(base @ np.array([0.212671, 0.715160, 0.072169]))
+    tint = base / lum if lum > 0 else np.ones(3)
+    extensions: dict = {"KHR_materials_ior": {"ior": float(p.eta)}}
+    if p.spec_trans > 0 or material.texture("spec_trans") is not None:
+        extensions["KHR_materials_transmission"] = {"transmissionFactor": float(p.spec_trans)}
+        extensions["KHR_materials_volume"] = {"thicknessFactor": 1.0}
+    if p.clearcoat > 0:
+        alpha_cc = 0.1 * (1.0 - p.clearcoat_gloss) + 0.001 * p.clearcoat_gloss
+        extensions["KHR_materials_clearcoat"] = {"clearcoatFactor": float(p.clearcoat),
+                                                 "clearcoatRoughnessFactor": float(math.sqrt(alpha_cc))}
+    if p.sheen > 0:
+        colour = p.sheen * ((1.0 - p.sheen_tint) + p.sheen_tint * tint)
+        extensions["KHR_materials_sheen"] = {"sheenColorFactor": _numbers(np.minimum(colour, 1.0)),
+                                             "sheenRoughnessFactor": 0.5}
+    if p.spec_tint > 0:
+        extensions["KHR_materials_specular"] = {
+            "specularColorFactor": _numbers((1.0 - p.spec_tint) + p.spec_tint * tint)}
+    return {"baseColorFactor": [*map(float, base), 1.0], "metallicFactor": float(p.metallic),
+            "roughnessFactor": float(p.roughness)}, extensions
+
+
+def _principled_gltf_losses(material: Material) -> tuple[str, ...]:
+    return ("burley",) + (() if _principled_transmits(material) else ("culled",))
 
 
 def _rough_gltf_roughness(material: Material) -> float:
@@ -561,6 +659,11 @@ _ROUGH_KEYS = ("alpha", "distribution", "sample_visible")
 _NOT_TWO_SIDED = (("two_sided", "light crosses it from either side (Mitsuba's twosided wrapper takes no "
                                 "transmitting BSDF); int_ior is the index behind the front side, ext_ior the one in "
                                 "front"),)
+_PRINCIPLED_KEYS = ("type", "base_color", "roughness", "metallic", "specular", "eta", "spec_tint", "anisotropic",
+                    "sheen", "sheen_tint", "clearcoat", "clearcoat_gloss", "spec_trans", "flatness",
+                    "main_specular_sampling_rate", "clearcoat_sampling_rate", "diffuse_reflectance_sampling_rate")
+_PRINCIPLED_NOT_TWO_SIDED = (("two_sided", "Mitsuba's principled reflects on its front side and, where spec_trans "
+                                           "> 0, transmits from both (its twosided wrapper is not taken here)"),)
 _THIN_NOT_TWO_SIDED = (("two_sided", "a thin sheet is two-sided by nature (both sides reflect and transmit "
                                      "alike)"),)
 
@@ -605,6 +708,10 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  parameters=_roughplastic_parameters, json=_roughplastic_json, gltf=_roughplastic_gltf,
                  gltf_losses=lambda m: _plastic_gltf_losses(m) + _beckmann_gltf_losses(m),
                  textured=("diffuse_reflectance", "specular_reflectance"), gltf_base="diffuse_reflectance"),
+    MaterialKind("principled", core.PRINCIPLED, _PRINCIPLED_KEYS, _read_principled,
+                 parameters=_principled_parameters, json=_principled_json, gltf=_principled_gltf,
+                 refused=_PRINCIPLED_NOT_TWO_SIDED, gltf_losses=_principled_gltf_losses,
+                 textured=("base_color",) + core.PRINCIPLED_UNIT, gltf_base="base_color"),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.
