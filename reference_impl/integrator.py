@@ -252,7 +252,8 @@ class _Context:
         kernels = _kernels()
         records = kernels.records
         s = self.settings
-        self.scene_tables = records.scene_tables(self.geometry, self.intersector.prim_to_tri, self.materials.textured)
+        self.scene_tables = records.scene_tables(self.geometry, self.intersector.prim_to_tri,
+                                                 self.materials.textured or self.materials.anisotropic)
         self.light_tables = records.light_tables(self.lights)
         self.surface_tables = records.surface_tables(self.all_surfaces)
         surface_pdf = 1.0 / self.all_surfaces.total_area if self.all_surfaces is not None else 0.0
@@ -270,7 +271,8 @@ class _Context:
         self.other_kinds = True if is_glossy(self.materials) else None
         # None where no triangle has vertex normals and no material a normal or bump map: the path loop compiles the
         # shading frame's side tests out
-        self.shading = True if self.geometry.has_shading_normals or self.materials.perturbed else None
+        self.shading = True if (self.geometry.has_shading_normals or self.materials.perturbed
+                                or self.materials.anisotropic) else None
         # None where no material is made of others (blendbsdf, twosided of two, mask) / is a mask: the path loop
         # compiles the material step's resolution / the cut-outs' holes out
         self.masks = True if self.materials is not None and self.materials.masked else None

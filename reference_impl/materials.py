@@ -208,6 +208,14 @@ class Materials:
         return bool(np.any((self.kind == BLENDBSDF) | (self.kind == TWOSIDED)))
 
     @property
+    def anisotropic(self) -> bool:
+        """True when a principled material is anisotropic (its frame follows the surface's dp/du: the path loop's
+        shading frame and the texture coordinates are needed)."""
+        principled = self.kind == PRINCIPLED
+        return bool(np.any(principled & (self.params[:, P_ANISOTROPIC] != 0))
+                    or np.any(self.texture[principled, list(TEXTURE_SLOTS).index("anisotropic")] >= 0))
+
+    @property
     def masked(self) -> bool:
         """True when a material is a mask (a cut-out: paths and shadow rays pass its holes)."""
         return bool(np.any(self.kind == MASK))

@@ -110,7 +110,7 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
         kind = SHAPES[shape.type]
         as_mesh = not kind.analytic
         material = scene.materials[shape.material]
-        uv = vertex_uv(shape) if as_mesh and material.looks_up_textures else None
+        uv = vertex_uv(shape) if as_mesh and material.needs_coordinates else None
         plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh, uv)
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:

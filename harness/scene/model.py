@@ -187,8 +187,16 @@ class Material:
 
     @property
     def looks_up_textures(self) -> bool:
-        """Whether a hit on it reads texture coordinates: a texture, a map, or a nested material that does."""
+        """Whether a hit on it looks a texture up: a texture, a map, or a nested material that does."""
         return bool(self.textures or self.perturbation is not None or any(m.looks_up_textures for m in self.nested))
+
+    @property
+    def needs_coordinates(self) -> bool:
+        """Whether a hit on it reads texture coordinates: it looks a texture up, or it is (or holds) an anisotropic
+        principled, whose frame follows dp/du (where a mesh has none, Mitsuba's frame of the normal alone)."""
+        anisotropic = self.principled is not None and (self.principled.anisotropic != 0
+                                                       or self.texture("anisotropic") is not None)
+        return self.looks_up_textures or anisotropic or any(m.needs_coordinates for m in self.nested)
 
     @property
     def is_diffuse(self) -> bool:

@@ -186,6 +186,8 @@ def triangulate(scene: Scene) -> Geometry:
     used = scene.used_textures
     texture_index = {id(texture): k for k, texture in enumerate(used)}
     textured = bool(used)
+    # texture coordinates where a hit reads them: a texture, or an anisotropic lobe's frame (dp/du)
+    coordinates = textured or any(m.needs_coordinates for m in scene.materials.values())
     emission_texture = []
     all_vertices, all_triangles, material, emission, light_id = [], [], [], [], []
     uv, sphere_of, sphere_to_object = [], [], []
@@ -202,7 +204,7 @@ def triangulate(scene: Scene) -> Geometry:
         shading = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)  # lights: flat (load)
         normals.append(np.zeros((count, 3, 3)) if shading is None else shading[triangles])
         corners_uv, sphere = shape_uv(shape, triangles)
-        if textured:
+        if coordinates:
             uv.append(corners_uv)
         if sphere is not None:
             sphere_to_object.append(sphere)

@@ -71,10 +71,10 @@ from reference_impl.kernels.record import record_camera, record_closest, record_
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
                                           pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
-from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map
+from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map, uv_aligned
 from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
-from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_METALLIC, P_REFLECTANCE, P_SPEC_TRANS, P_TWO_SIDED,
+from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_ANISOTROPIC, P_METALLIC, P_REFLECTANCE, P_SPEC_TRANS, P_TWO_SIDED,
                                       PLASTIC, PRINCIPLED, ROUGHDIELECTRIC, ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
                                 DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
@@ -405,6 +405,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 sf = geometric_frame(hit)
             else:
                 sf = shading_frame(scene, materials, hit, row, wo0, wo1, wo2, mutant)
+                if kind == PRINCIPLED and row[P_ANISOTROPIC] != 0.0:  # its lobe's axes along dp/du and n x dp/du
+                    sf = uv_aligned(scene, hit, sf)
             s0, s1, s2, t0, t1, t2 = sf.s0, sf.s1, sf.s2, sf.t0, sf.t1, sf.t2
             lo0, lo1 = dot3(s0, s1, s2, wo0, wo1, wo2), dot3(t0, t1, t2, wo0, wo1, wo2)
             lo2 = dot3(sf.n0, sf.n1, sf.n2, wo0, wo1, wo2) if sf.differs else cos_out

@@ -22,7 +22,8 @@ A direction w counts through a perturbed frame only where (n_u . w)(n' . w) > 0 
 f cos is multiplied by G(w) (the pdf is the nested BSDF's). Which side of the surface a direction is on is the
 geometric normal's to decide (the path loop, :mod:`.path`); the cosines are the shading frame's. Mitsuba's bump map
 takes s' from the world dp/du against the local n' (normalmap.h); here s' is the normal map's rule for both, which
-only an anisotropic BSDF could tell apart (there is none).
+only an anisotropic BSDF could tell apart. An anisotropic principled's frame is turned about n so that s follows
+dp/du (:func:`uv_aligned`, Mitsuba's ``initialize_sh_frame``): its lobe's long axis lies along the texture's u.
 """
 
 from __future__ import annotations
@@ -166,6 +167,29 @@ def sphere_derivatives(scene, s, x0, x1, x2):
             r2 * (m[0, 2] * a0 + m[1, 2] * a1 + m[2, 2] * a2), r2 * (m[0, 0] * b0 + m[1, 0] * b1 + m[2, 0] * b2),
             r2 * (m[0, 1] * b0 + m[1, 1] * b1 + m[2, 1] * b2), r2 * (m[0, 2] * b0 + m[1, 2] * b1 + m[2, 2] * b2),
             True)
+
+
+@njit(**JIT_NONRT)
+def uv_aligned(scene, hit, frame):
+    """``frame`` turned about its normal n so that its s follows the surface's dp/du, as Mitsuba's shading frame
+    does (``SurfaceInteraction::initialize_sh_frame``: s = normalize(dp/du - n (n . dp/du)), t = n x s), for a BSDF
+    that is not symmetric about n (an anisotropic principled); dp/du a sphere's analytic one or a triangle's from its
+    texture coordinates (:func:`position_derivatives`); ``frame`` unchanged where there is none (a triangle without
+    coordinates: Mitsuba's frame there is Duff et al.'s of the normal, this one's)."""
+    if scene.sphere_of.shape[0] > 0 and scene.sphere_of[hit.tri] >= 0:
+        du0, du1, du2, _dv0, _dv1, _dv2, ok = sphere_derivatives(scene, scene.sphere_of[hit.tri], hit.x0, hit.x1,
+                                                                 hit.x2)
+    elif scene.uv.shape[0] > 0:
+        du0, du1, du2, _dv0, _dv1, _dv2, ok = position_derivatives(scene, hit.tri)
+    else:
+        return frame
+    n0, n1, n2 = frame.n0, frame.n1, frame.n2
+    proj = dot3(n0, n1, n2, du0, du1, du2)
+    s0, s1, s2, ok_s = _normalize(du0 - n0 * proj, du1 - n1 * proj, du2 - n2 * proj)
+    if not (ok and ok_s):
+        return frame
+    return ShadingFrame(s0, s1, s2, n1 * s2 - n2 * s1, n2 * s0 - n0 * s2, n0 * s1 - n1 * s0, n0, n1, n2, frame.u0,
+                        frame.u1, frame.u2, frame.alpha2, frame.differs, frame.perturbed)
 
 
 @njit(**JIT_NONRT)
