@@ -740,7 +740,7 @@ def _roughplastic_diffuse(row, c):
     return rho / (1.0 - (rho * ri if row[P_NONLINEAR] != 0.0 else ri))
 
 
-@njit(**JIT_BORROW)
+@njit(**JIT_NONRT)
 def _roughplastic_eval(row, wox, woy, woz, wix, wiy, wiz):
     """Rough plastic for wo, wi above (woz, wiz > 0): R F(wo.h) D(h) G1(wo, h) G1(wi, h) / (4 cos theta_o) +
     diff / (pi eta^2) T(cos theta_o) T(cos theta_i) cos theta_i, diff = rho / (1 - R_i) or, nonlinear,
@@ -764,7 +764,7 @@ def _roughplastic_eval(row, wox, woy, woz, wix, wiy, wiz):
             spec * row[P_REFLECTANCE + 2] + v * _roughplastic_diffuse(row, 2))
 
 
-@njit(**JIT_BORROW)
+@njit(**JIT_NONRT)
 def _roughplastic_pdf(row, wox, woy, woz, wix, wiy, wiz):
     """P_s p_h(h) / (4 wi.h) + (1 - P_s) cos theta_i / pi for wo, wi above, p_h :func:`mf_pdf` (visible normals:
     D G1(wo, h) / (4 cos theta_o) with the exact G1; all normals: D cos theta_h / (4 wi.h))."""
@@ -782,7 +782,7 @@ def _roughplastic_pdf(row, wox, woy, woz, wix, wiy, wiz):
     return p
 
 
-@njit(**JIT_BORROW)
+@njit(**JIT_NONRT)
 def _roughplastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
     """The glossy lobe with probability P_s (a microfacet normal as the rough conductor's, wi its reflection), else
     the diffuse lobe cosine-weighted; weight f |cos| / pdf with the mixture's pdf (:func:`_roughplastic_pdf`); wo
