@@ -21,8 +21,9 @@ def test_reference_and_mitsuba_keep_the_same_energy():
                                         "principled metallic 1 roughness 0.9")]
     table = material_table(rows, spp=32, size=8, mitsuba_variant="scalar_rgb")
     by_name = {r["material"]: r for r in table}
-    assert abs(by_name["mask 0.5 of a twosided diffuse"]["reference"] - 1.0) < 1e-9  # lossless: L in every pixel
-    assert all(abs(r["z"]) < 3.9 or r["reference_se"] == 0 for r in table), table
+    mask = by_name["mask 0.5 of a twosided diffuse"]  # lossless: L in expectation (its holes are chosen at random)
+    assert abs(mask["reference"] - 1.0) < 5 * mask["reference_se"], mask
+    assert all(abs(r["z"]) < 3.9 for r in table), table
     assert by_name["principled metallic 1 roughness 0.9"]["reference"] < 0.95  # single scattering loses energy
     assert "| roughplastic ggx alpha 0.3 |" in format_table(table)
 
