@@ -396,7 +396,16 @@ def mf_sample(ggx, alpha, visible, mutant, wx, wy, wz, u1, u2):
     a = alpha
     if mutant & M_VNDF_ALPHA_SQUARED:  # mutant "vndf-alpha-squared": stretched by alpha^2, the pdf unchanged
         a = alpha * alpha
-    sx, sy, sz = a * wx, a * wy, wz
+    hx, hy, hz = visible_normal(ggx, a, a, wx, wy, wz, u1, u2)
+    return hx, hy, hz, mf_pdf(ggx, alpha, visible, wx, wy, wz, hx, hy, hz)
+
+
+@njit(**JIT)
+def visible_normal(ggx, ax, ay, wx, wy, wz, u1, u2):
+    """A visible normal h of the surface of roughnesses (ax, ay) seen from w (wz > 0): stretch w by (ax, ay), sample
+    the unit-roughness slopes (:func:`_sample_visible_11`), rotate, unstretch (Heitz and d'Eon 2014; microfacet.h
+    ``sample``)."""
+    sx, sy, sz = ax * wx, ay * wy, wz
     inv = 1.0 / math.sqrt(sx * sx + sy * sy + sz * sz)
     sx, sy, sz = sx * inv, sy * inv, sz * inv
     sin2 = sx * sx + sy * sy
@@ -407,11 +416,10 @@ def mf_sample(ggx, alpha, visible, mutant, wx, wy, wz, u1, u2):
     else:
         cos_phi, sin_phi = 1.0, 0.0
     slope_x, slope_y = _sample_visible_11(ggx, sz, u1, u2)
-    tx = (cos_phi * slope_x - sin_phi * slope_y) * a
-    ty = (sin_phi * slope_x + cos_phi * slope_y) * a
+    tx = (cos_phi * slope_x - sin_phi * slope_y) * ax
+    ty = (sin_phi * slope_x + cos_phi * slope_y) * ay
     inv = 1.0 / math.sqrt(tx * tx + ty * ty + 1.0)
-    hx, hy, hz = -tx * inv, -ty * inv, inv
-    return hx, hy, hz, mf_pdf(ggx, alpha, visible, wx, wy, wz, hx, hy, hz)
+    return -tx * inv, -ty * inv, inv
 
 
 @njit(**JIT_NONRT)
@@ -846,21 +854,7 @@ def ggx_aniso_pdf(au, av, wx, wy, wz, hx, hy, hz):
 def ggx_aniso_sample(au, av, wx, wy, wz, u1, u2):
     """A visible normal h of the anisotropic GGX surface seen from w (wz > 0): stretch w by (a_u, a_v), Heitz's
     unit-roughness sample (:func:`_sample_visible_11`), rotate, unstretch (microfacet.h ``sample``)."""
-    sx, sy, sz = au * wx, av * wy, wz
-    inv = 1.0 / math.sqrt(sx * sx + sy * sy + sz * sz)
-    sx, sy, sz = sx * inv, sy * inv, sz * inv
-    sin2 = sx * sx + sy * sy
-    if sin2 > 0.0:
-        inv_s = 1.0 / math.sqrt(sin2)
-        cos_phi = min(max(sx * inv_s, -1.0), 1.0)
-        sin_phi = min(max(sy * inv_s, -1.0), 1.0)
-    else:
-        cos_phi, sin_phi = 1.0, 0.0
-    slope_x, slope_y = _sample_visible_11(True, sz, u1, u2)
-    tx = (cos_phi * slope_x - sin_phi * slope_y) * au
-    ty = (sin_phi * slope_x + cos_phi * slope_y) * av
-    inv = 1.0 / math.sqrt(tx * tx + ty * ty + 1.0)
-    return -tx * inv, -ty * inv, inv
+    return visible_normal(True, au, av, wx, wy, wz, u1, u2)
 
 
 @njit(**JIT)
