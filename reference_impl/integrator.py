@@ -48,7 +48,7 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.materials import Materials, is_glossy
+from reference_impl.materials import PRINCIPLED, ROUGHPLASTIC, Materials, is_glossy
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import CAPABILITIES, GLOSSY_DIRECT, Settings
 
@@ -277,6 +277,8 @@ class _Context:
         # compiles the material step's resolution / the cut-outs' holes out
         self.masks = True if self.materials is not None and self.materials.masked else None
         self.nested = True if self.materials is not None and (self.materials.nested or self.masks) else None
+        # None where no material is a rough plastic or a principled: the BSDF door's branches for them compiled out
+        self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -506,7 +508,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
                                  ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
                                  film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record,
                                  ctx.shading, ctx.scene_tables.sphere if ctx.geometry.num_spheres else None,
-                                 ctx.nested, ctx.masks)
+                                 ctx.nested, ctx.masks, ctx.later)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

@@ -133,6 +133,10 @@ Where this differs from Mitsuba on purpose
 * Principled's lobe choice draws the main lobe's normal only when a main lobe is chosen (Mitsuba draws it first, for
   every sample): the same probabilities, since only the split between reflection and transmission depends on it.
 
+The door's ``later`` argument: None compiles the rough plastic's and principled's branches out (the path loop of a
+scene without them passes None: their code made every glossy scene's loop slower to compile, not to run); True, the
+default, keeps them.
+
 Planted faults (bits of :data:`reference_impl.kernels.config.MUTANT_BITS`), each place marked by a comment:
 "microfacet-pdf-no-jacobian", "conductor-fresnel-one", "refraction-no-eta2", "vndf-alpha-squared",
 "thin-glass-refracts", "plastic-no-internal-reflection", "principled-clearcoat-pdf-jacobian".
@@ -1132,7 +1136,7 @@ def _principled_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2):
 
 
 @njit(**JIT_BORROW)
-def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
+def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz, later=True):
     """f(wo, wi) |cos theta_i| of a material of ``kind`` with the parameters ``row`` at the hit (the material
     step's, :func:`.material.material_at`), per channel (v0, v1, v2); 0 for delta BSDFs (and delta lobes) and
     impossible pairs.
@@ -1155,6 +1159,8 @@ def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
         if not ok:
             return 0.0, 0.0, 0.0
         return _plastic_eval(row, mutant, sgn * woz, sgn * wiz)
+    if later is None:  # a scene without them: their code compiled out (module docstring)
+        return 0.0, 0.0, 0.0
     if kind == ROUGHPLASTIC:
         ok, sgn = _side(row, woz, wiz)
         if not ok:
@@ -1166,7 +1172,7 @@ def bsdf_eval(kind, row, mutant, wox, woy, woz, wix, wiy, wiz):
 
 
 @njit(**JIT_BORROW)
-def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz):
+def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz, later=True):
     """Density of :func:`bsdf_sample`'s wi per unit solid angle (``uniform_diffuse`` as there); 0 for delta BSDFs
     and impossible pairs."""
     if kind == DIFFUSE or kind == ROUGHCONDUCTOR:
@@ -1186,6 +1192,8 @@ def bsdf_pdf(kind, row, mutant, uniform_diffuse, wox, woy, woz, wix, wiy, wiz):
         if not ok:
             return 0.0
         return _plastic_pdf(row, sgn * woz, sgn * wiz)
+    if later is None:
+        return 0.0
     if kind == ROUGHPLASTIC:
         ok, sgn = _side(row, woz, wiz)
         if not ok:
@@ -1215,7 +1223,7 @@ def sample_eta(kind, row, woz, wiz):
 
 
 @njit(**JIT_BORROW)
-def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u2):
+def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u2, later=True):
     """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta). The diffuse kind samples the cosine-weighted
     hemisphere (p = cos / pi, w = rho), or with ``uniform_diffuse`` (``hemisphere = "uniform"``, the slides'
     other choice, Fig. 5.14) the uniform one (p = 1 / (2 pi), w = 2 rho cos).
@@ -1300,6 +1308,8 @@ def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u
         return _thin_sample(row, mutant, wox, woy, woz, u_lobe)
     if kind == PLASTIC:
         return _plastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
+    if later is None:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
     if kind == ROUGHPLASTIC:
         return _roughplastic_sample(row, mutant, wox, woy, woz, u_lobe, u1, u2)
     if kind == PRINCIPLED:

@@ -84,7 +84,7 @@ RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
 
 
 @njit(**JIT_BORROW)
-def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, n1, n2, sf, lo0, lo1, lo2):
+def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, n1, n2, sf, lo0, lo1, lo2, later):
     """What connection ``conn`` (:class:`.direct.Connection`) brings through x's BSDF where nothing blocks it: (whether it needs
     a shadow ray at all, N . wi, and Le G f |cos_x| / p with its MIS weight, per channel). The geometric normal N
     decides the side: None where wi is on the side a surface that does not transmit does not reflect from (``side``
@@ -106,7 +106,7 @@ def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, 
         keep = through_map(sf, wi0, wi1, wi2, li2)
         if keep == 0.0:
             return False, cos_x, 0.0, 0.0, 0.0
-    f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2)
+    f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, li0, li1, li2, later)
     if not (f0 > 0 or f1 > 0 or f2 > 0):
         return False, cos_x, 0.0, 0.0, 0.0
     if sf.perturbed:
@@ -117,7 +117,7 @@ def connect(mutant, kind, row, uniform_diffuse, mis, conn, transmits, side, n0, 
     w = 1.0
     p_l = conn.p_l
     if mis and p_l > 0:
-        p_b = bsdf_pdf(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, li0, li1, li2)
+        p_b = bsdf_pdf(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, li0, li1, li2, later)
         w = power_weight(mutant, p_l, p_b, True)
     return True, cos_x, conn.v0 * f0 * w, conn.v1 * f1 * w, conn.v2 * f2 * w
 
@@ -140,7 +140,7 @@ def shadow_query(scene_ptr, words, floats, ts, queries, sampled_ns, record, ray,
 
 @njit(**JIT_BORROW)
 def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key, depth, lo, beta, eta2, sf, geo, side,
-             x, ox):
+             x, ox, later):
     """The next ray from x, sampled from the BSDF (:func:`.bsdf.bsdf_sample`, uniforms u_lobe, u1, u2), then Russian
     roulette (module docstring; u_rr, or where it is negative a hash of ``key`` drawn here) and the planted faults of
     the indirect estimate. ``wanted``: whether the next vertex can add anything but direct light (max_depth); a
@@ -157,7 +157,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
     nx0, nx1, nx2 = geo
     x0, x1, x2 = x
     ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, u_lobe,
-                                                            u1, u2)
+                                                            u1, u2, later)
     # nothing sampled (below the horizon, a zero weight): the path carries no more light
     if not (ok and (wanted or delta)):
         return False, False, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
@@ -218,7 +218,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
                 emitters, other_kinds, textures=None, record=None, shading=None, spheres=None, nested=None,
-                masks=None):
+                masks=None, later=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
     (module docstring), adding each path's radiance to ``radiance[root]``.
 
@@ -233,7 +233,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     True (:func:`.shading.shading_frame`); ``spheres`` likewise: None in a scene without spheres (the queries' sphere
     tests compiled out), else ``scene.sphere``; ``nested`` likewise: None where no material is made of others, else
     True (the material step resolves them, :func:`.material.material_at_nested`); ``masks`` likewise: None where no
-    material is a mask, else True (rays pass their holes and shadow rays cross them, :mod:`.cutout`).
+    material is a mask, else True (rays pass their holes and shadow rays cross them, :mod:`.cutout`); ``later``
+    likewise: None where no material is a rough plastic or a principled (the BSDF door's branches for them compiled
+    out, :mod:`.bsdf`), else True.
     ``cfg``: the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
@@ -438,7 +440,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if drawn:
                     (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
                      delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
-                                       lo, thru, eta2, sf, geo, side, xs, oxs)
+                                       lo, thru, eta2, sf, geo, side, xs, oxs, later)
 
             # Direct light (none at a delta BSDF).
             if not delta_bsdf:
@@ -486,7 +488,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                         if sf.differs:  # Psi is on wo's side of N: the shading frame's cosine, a map's terminator
                             hl2 = dot3(sf.n0, sf.n1, sf.n2, h0, h1, h2)
                             keep = through_map(sf, h0, h1, h2, hl2)
-                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, hl0, hl1, hl2)
+                        f0, f1, f2 = bsdf_eval(kind, row, mutant, lo0, lo1, lo2, hl0, hl1, hl2, later)
                         f0, f1, f2 = f0 * keep, f1 * keep, f2 * keep
                         inv_p = 1.0 / pdf_h
                         tot0 += le0 * f0 * inv_p
@@ -541,7 +543,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                     else:
                         continue
                     needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, mis and j < points, conn,
-                                                        transmits, side, nx0, nx1, nx2, sf, lo0, lo1, lo2)
+                                                        transmits, side, nx0, nx1, nx2, sf, lo0, lo1, lo2, later)
                     if not needed:
                         count_shadow_skipped += 1
                         continue
@@ -579,7 +581,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if drawn:
                     (go_on, cut, n0, n1, n2, m0, m1, m2, pn0, pn1, pn2, nb0, nb1, nb2, eta2, pdf,
                      delta) = next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, bu1, bu2, u_rr, k, depth,
-                                       lo, thru, eta2, sf, geo, side, xs, oxs)
+                                       lo, thru, eta2, sf, geo, side, xs, oxs, later)
             count_roulette += cut
             if not go_on:
                 break

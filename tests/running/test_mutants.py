@@ -26,7 +26,7 @@ CANONICAL = load_suite(ROOT / "suites" / "canonical.toml")
 #: 1e-104 or less), and the largest |z| of a tile is 6.6 or more (9.1 at 1024 spp). Closed-form scenes need none.
 TEST_GROUND_TRUTH_SPP = {"cornell-box": 256, "multi-light": 256, "soft-shadows": 256, "underwater": 256,
                          "white-furnace-rough": 256, "veach-mis": 512, "sun-sky": 1024, "envmap": 128,
-                         "point-spot": 128, "plastic-cornell-box": 2048, "cutout-leaf": 16384}
+                         "point-spot": 128, "plastic-cornell-box": 2048, "cutout-leaf": 8192}
 MUTANT_CASES = {c.settings["mutant"]: dataclasses.replace(
                     c, ground_truth_spp=min(c.ground_truth_spp, TEST_GROUND_TRUTH_SPP.get(c.scene.stem, 1024)))
                 for c in CANONICAL.cases if "mutant" in c.settings}
