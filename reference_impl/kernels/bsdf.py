@@ -918,20 +918,11 @@ def _principled_alphas(row):
 
 @njit(**JIT_NONRT)
 def _principled_half(row, wox, woy, woz, wix, wiy, wiz):
-    """(ok, reflect, eta_path, hx, hy, hz): the half vector of a reflection, the generalised one -(wo + eta wi) of
-    a refraction (eta_path: eta from the front, 1 / eta from behind), flipped to h_z >= 0."""
-    reflect = woz * wiz > 0.0
-    eta = row[P_IOR]
-    eta_path = eta if woz > 0.0 else 1.0 / eta
-    s = 1.0 if reflect else eta_path
-    hx, hy, hz = wox + wix * s, woy + wiy * s, woz + wiz * s
-    n2 = hx * hx + hy * hy + hz * hz
-    if not (n2 > 0.0) or woz * wiz == 0.0:
-        return False, reflect, eta_path, 0.0, 0.0, 1.0
-    inv = 1.0 / math.sqrt(n2)
-    if hz < 0.0:
-        inv = -inv
-    return True, reflect, eta_path, hx * inv, hy * inv, hz * inv
+    """(ok, reflect, eta_path, hx, hy, hz): the rough dielectric's half vector (:func:`_roughdielectric_half`,
+    eta_path the relative index of wo's side), not ok where wo or wi is in the surface's plane."""
+    if woz * wiz == 0.0:
+        return False, woz * wiz > 0.0, row[P_IOR] if woz > 0.0 else 1.0 / row[P_IOR], 0.0, 0.0, 1.0
+    return _roughdielectric_half(row, wox, woy, woz, wix, wiy, wiz)
 
 
 @njit(**JIT_NONRT)
