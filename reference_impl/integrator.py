@@ -74,7 +74,7 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import bsdf, camera, config, film, path, records, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import bsdf, camera, compile_once, config, film, path, records, wavefront  # optional: numba; noqa: F401
 
     return kernels
 
@@ -279,6 +279,7 @@ class _Context:
         self.nested = True if self.materials is not None and (self.materials.nested or self.masks) else None
         # None where no material is a rough plastic or a principled: the BSDF door's branches for them compiled out
         self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
+        self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
         if em is not None:
@@ -504,11 +505,14 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     clock = _Clock()
     if ctx.engine == "path":
         timing = np.zeros(2, np.int64)
-        kernels.path.trace_paths(first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables,
-                                 ctx.surface_tables, ctx.material_tables, config, radiance, counters, timing,
-                                 film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures, record,
-                                 ctx.shading, ctx.scene_tables.sphere if ctx.geometry.num_spheres else None,
-                                 ctx.nested, ctx.masks, ctx.later)
+        args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
+                ctx.material_tables, config, radiance, counters, timing, film_samples, ctx.emitter_tables,
+                ctx.other_kinds, ctx.light_textures, record, ctx.shading,
+                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.nested, ctx.masks, ctx.later)
+        if not ctx.compiled:  # the first call of this render: another process may be compiling the same loop
+            kernels.compile_once.compile_once(kernels.path.trace_paths, args)
+            ctx.compiled = True
+        kernels.path.trace_paths(*args)
         clock.seconds += timing[0] * 1e-9
     else:
         _trace(ctx, _PathState(*first), 1, radiance, counters, clock, film_samples, config)

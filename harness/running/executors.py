@@ -109,23 +109,27 @@ def _run_after(task: Task, _deps: list):
 def plan(cases: Sequence[tuple[int, Any]], out_dir: Path, *, run_case: Callable[..., Any],
          case_scenes: Callable[[Any], tuple], cache_dir=None, variant=None, timeout: float | None = None,
          chunks: bool = True) -> list[Task]:
-    """The tasks of a run: the missing ground-truth chunks of the ``(index, case)`` pairs (once each), then the
-    cases in suite order, each depending on its chunks. ``run_case(case, out_dir, cache_dir=, variant=)`` runs a
+    """The tasks of a run: the cases in suite order, each depending on its missing ground-truth chunks, which come
+    just before it (once each: a chunk two cases need comes before the first). Workers take the first task that is
+    ready, so a case starts as soon as its chunks are done while other workers render the chunks of the next cases:
+    a case's single-threaded parts (numba compiling its path loop, its verdict) overlap Mitsuba's renders. ``run_case(case, out_dir, cache_dir=, variant=)`` runs a
     case (in a worker: a module-level function) and ``case_scenes(case)`` gives (the scene it renders, the scene
     of its ground truth), to find the chunks."""
     cache_dir = str(cache_dir if cache_dir is not None else groundtruth.default_cache_dir())  # here, not by workers
-    chunk_tasks: dict[str, Task] = {}
-    case_tasks = []
+    tasks: list[Task] = []
+    planned: set[str] = set()
     for index, case in cases:
         deps = []
         if chunks:
             for job in _chunk_jobs(case, cache_dir, variant, case_scenes):
                 key = f"chunk:{job.key}"
-                chunk_tasks.setdefault(key, Task(key, "chunk", job, max(CHUNK_TIMEOUT, timeout or 0.0)))
+                if key not in planned:
+                    planned.add(key)
+                    tasks.append(Task(key, "chunk", job, max(CHUNK_TIMEOUT, timeout or 0.0)))
                 deps.append(key)
-        case_tasks.append(Task(f"case:{index}", "case", (case, str(out_dir), cache_dir, variant),
-                               case_timeout(case, timeout), tuple(dict.fromkeys(deps)), run_case))
-    return [*chunk_tasks.values(), *case_tasks]
+        tasks.append(Task(f"case:{index}", "case", (case, str(out_dir), cache_dir, variant),
+                          case_timeout(case, timeout), tuple(dict.fromkeys(deps)), run_case))
+    return tasks
 
 
 def _chunk_jobs(case, cache_dir, variant, case_scenes: Callable[[Any], tuple]) -> list:
