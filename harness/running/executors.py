@@ -4,8 +4,8 @@ A suite run is a list of ``Task``s, each a case or one chunk of a Mitsuba ground
 What runs a case, and what gives its scenes, are handed in by the caller (:func:`plan`'s ``run_case`` and
 ``case_scenes``; :func:`harness.running.schedule.run_suite` hands in :mod:`harness.running.judge`'s): this module
 imports nothing from the modules that call it. They must be module-level functions, so that worker processes and
-Dask can unpickle them by name. Chunk tasks come first and are deduplicated by cache key, so two workers never render
-the same chunk; a case depends on the chunks of its ground truth and, when it runs, ``ground_truth()`` finds them
+Dask can unpickle them by name. A case's missing chunks come just before it, deduplicated by cache key, so two workers
+never render the same chunk; a case depends on the chunks of its ground truth and, when it runs, ``ground_truth()`` finds them
 cached and merges them exactly (``harness.judges.moments``), giving the same image as a serial run, bit for bit.
 
 Executors (``harness run --executor``):
@@ -74,6 +74,8 @@ class Task:
     timeout: float
     deps: tuple[str, ...] = ()  # keys of tasks that must finish first (whatever their outcome)
     run_case: Callable[..., Any] | None = None  # a case's: run_case(case, out_dir, cache_dir=, variant=) -> record
+    group: str = ""  # a case's scene: the local executor runs two cases of one scene side by side only when nothing
+    #                  else is ready (they would compile the same kernels, one waiting for the other)
 
 
 def case_timeout(case, override: float | None = None) -> float:
@@ -128,7 +130,7 @@ def plan(cases: Sequence[tuple[int, Any]], out_dir: Path, *, run_case: Callable[
                     tasks.append(Task(key, "chunk", job, max(CHUNK_TIMEOUT, timeout or 0.0)))
                 deps.append(key)
         tasks.append(Task(f"case:{index}", "case", (case, str(out_dir), cache_dir, variant),
-                          case_timeout(case, timeout), tuple(dict.fromkeys(deps)), run_case))
+                          case_timeout(case, timeout), tuple(dict.fromkeys(deps)), run_case, str(case.scene)))
     return tasks
 
 
@@ -159,6 +161,18 @@ def _chunk_jobs(case, cache_dir, variant, case_scenes: Callable[[Any], tuple]) -
 
 
 # ---- executors -------------------------------------------------------------------------------------------------
+
+
+def _next_ready(pending: Sequence[Task], done: set[str], busy: set[str]) -> Task | None:
+    """The first pending task whose dependencies are done and whose group no running task has; else the first
+    whose dependencies are done; else None."""
+    first = None
+    for task in pending:
+        if all(d in done for d in task.deps):
+            if task.group not in busy:
+                return task
+            first = first or task
+    return first
 
 
 class SerialExecutor:
@@ -254,7 +268,7 @@ class LocalExecutor:
         try:
             while pending or running:
                 while pending and (idle or len(idle) + len(running) < self.workers):
-                    ready = next((t for t in pending if all(d in done for d in t.deps)), None)
+                    ready = _next_ready(pending, done, {t.group for t, _, _ in running.values() if t.group})
                     if ready is None:
                         break
                     pending.remove(ready)
