@@ -227,8 +227,10 @@ class _Context:
         self.has_lights = geometry.num_lights > 0 or self.emitters is not None
         extra_power = None
         if self.emitters is not None:
-            extra_power = self.emitters.powers(scene_radius(geometry.vertices[np.unique(geometry.triangles)]
-                                                            if len(geometry.triangles) else geometry.vertices))
+            used = np.zeros(len(geometry.vertices), bool)  # the vertices of triangles (np.unique sorts: slower)
+            used[geometry.triangles.ravel()] = True
+            extra_power = self.emitters.powers(scene_radius(geometry.vertices[used] if len(geometry.triangles)
+                                                            else geometry.vertices))
         self.lights = LightSampler(geometry, settings.light_selection, extra_power) if self.has_lights else None
         usable = np.flatnonzero(geometry.area > 0)
         self.all_surfaces = TriangleAreaSampler(geometry, usable) if len(usable) else None

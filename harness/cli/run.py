@@ -31,7 +31,7 @@ def register(sub, common) -> None:
                         "serial (in this process), dask (a Dask LocalCluster) or tcp://HOST:PORT (a Dask scheduler, "
                         "which has 10 s to answer Dask's handshake)")
     parser.add_argument("--workers", type=options.positive_int,
-                        help="worker processes of local (default 1) or dask (default 2)")
+                        help="worker processes of local (default 2; 1 on a one-core machine) or dask (default 2)")
     parser.add_argument("--timeout", type=options.seconds,
                         help="seconds before a case's worker is killed (default: the case's "
                         "timeout key, else 600 s for an spp budget, max(120 s, 20 x the budget) for a seconds budget)")

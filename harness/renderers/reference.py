@@ -41,15 +41,18 @@ class ReferenceRenderer:
         """Refuse bad ``--set`` values before any work (HarnessError at ``--set KEY``)."""
         self.settings_for(scene, request)
 
-    #: the arrays of the last scene rendered (scene, geometry, emitters, materials): renders of one scene object in a
-    #: row (the studies time a small render by repeating it) triangulate it once
+    #: the arrays of the last scene rendered by any ReferenceRenderer of this process (scene, geometry, emitters,
+    #: materials): renders of one scene object in a row (the studies render each scene hundreds of times, each through
+    #: a renderer of its own) triangulate it once
     _prepared: tuple | None = None
 
     def _arrays(self, scene: Scene) -> tuple:
-        if self._prepared is None or self._prepared[0] is not scene:
+        prepared = ReferenceRenderer._prepared
+        if prepared is None or prepared[0] is not scene:
             # None on Lambertian-only scenes: the engines they always ran
-            self._prepared = (scene, triangulate(scene), emitter_arrays(scene), material_arrays(scene))
-        return self._prepared[1:]
+            prepared = ReferenceRenderer._prepared = (scene, triangulate(scene), emitter_arrays(scene),
+                                                      material_arrays(scene))
+        return prepared[1:]
 
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         settings = self.settings_for(scene, request)

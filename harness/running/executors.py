@@ -11,10 +11,10 @@ cached and merges them exactly (``harness.judges.moments``), giving the same ima
 Executors (``harness run --executor``):
 
 ``serial``       every task in this process, one after another; no isolation (a crash ends the run).
-``local``        a pool of ``workers`` processes on this machine (the default). Each task runs in a worker; a task
-                 that runs past its timeout has its worker killed and is recorded as "timed out after X s"; a
-                 worker that dies (a segfault, ``os._exit``) fails its task with the signal or exit code. Dead
-                 workers are replaced and the run goes on.
+``local``        a pool of ``workers`` processes on this machine (the default; two by default). Each task runs in a
+                 worker; a task that runs past its timeout has its worker killed and is recorded as "timed out
+                 after X s"; a worker that dies (a segfault, ``os._exit``) fails its task with the signal or exit
+                 code. Dead workers are replaced and the run goes on.
 ``dask``         a ``distributed.LocalCluster`` (processes, ``workers`` x 1 thread), or ``tcp://HOST:PORT``: an
                  existing Dask scheduler. Workers must see the ground-truth cache and the output folder at the same
                  paths (one machine, or a shared file system). A worker that dies is retried by Dask, then the
@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import pickle
 import re
 import signal
@@ -56,7 +57,9 @@ from harness.running import runstate
 CHUNK_TIMEOUT = 600.0  # seconds for one Mitsuba ground-truth chunk (256 spp by default)
 SPP_CASE_TIMEOUT = 600.0  # seconds for a case with an spp budget
 MIN_SECONDS_TIMEOUT, SECONDS_FACTOR = 120.0, 20.0  # a case with a seconds budget: max(120 s, 20 x the budget)
-DEFAULT_WORKERS = 1  # measured in docs/robustness.md ("Executors")
+#: local worker processes by default: two (one where the machine has one core), measured in docs/robustness.md
+#: ("Executors"): one worker's single-threaded parts (numba compiling a path loop, a verdict) leave a core idle
+DEFAULT_WORKERS = min(2, os.cpu_count() or 1)
 #: seconds a Dask scheduler named by ``--executor tcp://HOST:PORT`` has to accept the connection and answer Dask's
 #: handshake (:func:`check_scheduler`), and Dask's own connection timeout after it
 CONNECT_TIMEOUT = 10.0
