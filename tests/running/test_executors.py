@@ -106,8 +106,9 @@ scene = "SCENES/furnace.toml"
     chunks = [t for t in tasks if t.kind == "chunk"]
     cases = [t for t in tasks if t.kind == "case"]
     assert [c.payload.count for c in chunks] == [256, 256, 88]  # 600 spp in chunks of 256, once for both cases
-    assert tasks[:3] == chunks  # chunks first, then the cases in suite order
+    assert tasks[:4] == [*chunks, cases[0]]  # a case's chunks just before it, then the cases in suite order
     assert [t.key for t in cases] == ["case:0", "case:1", "case:2"]
+    assert [t.group for t in cases] == [str(c.scene) for c in suite.cases]
     assert cases[0].deps == cases[1].deps == tuple(t.key for t in chunks)
     assert cases[2].deps == ()  # a closed form needs no chunk
 
@@ -226,3 +227,16 @@ def test_the_case_runner_is_handed_in_not_imported(tmp_path):
             imported |= {a.name for a in node.names}
     callers = {"harness.running.schedule", "harness.running.judge", "harness.running.cases", "harness.running.suite"}
     assert not imported & callers
+
+
+def test_two_cases_of_one_scene_run_side_by_side_only_when_nothing_else_is_ready():
+    """The local executor's choice (_next_ready): the first ready task whose group no running task has, else the
+    first ready task; a task waits for its dependencies."""
+    task = lambda key, group="", deps=(): executors.Task(key, "case", None, 1.0, deps, None, group)  # noqa: E731
+    a1, a2, b1 = task("a1", "scene-a"), task("a2", "scene-a"), task("b1", "scene-b", deps=("chunk",))
+    chunk = executors.Task("chunk", "chunk", None, 1.0)
+    assert executors._next_ready([a2, chunk, b1], set(), {"scene-a"}) is chunk  # not a second case of scene a
+    assert executors._next_ready([a2, b1], set(), {"scene-a"}) is a2  # nothing else ready: side by side after all
+    assert executors._next_ready([a2, b1], {"chunk"}, {"scene-a"}) is b1  # b1's chunk done: another scene first
+    assert executors._next_ready([b1], set(), set()) is None  # its chunk is not done
+    assert executors._next_ready([a1, a2], set(), set()) is a1  # suite order otherwise
