@@ -36,7 +36,8 @@ from harness.scene.kinds.emitters import LUMENS_PER_WATT
 
 #: The extensions this importer reads (docs/import.md); any other in ``extensionsUsed`` or on an element is refused.
 SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_texture_transform",
-                        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume")
+                        "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_volume",
+                        "KHR_materials_clearcoat")
 #: glTF accessor component types: numpy dtype and the divisor of a normalized integer (glTF 2.0, 3.11).
 COMPONENTS = {5120: ("<i1", 127.0), 5121: ("<u1", 255.0), 5122: ("<i2", 32767.0), 5123: ("<u2", 65535.0),
               5125: ("<u4", None), 5126: ("<f4", None)}
@@ -247,9 +248,6 @@ class _Importer:
             if name not in SUPPORTED_EXTENSIONS:
                 raise self.fail(f"/extensionsRequired/{name}", "a required extension this importer does not read "
                                                                 f"(read: {', '.join(SUPPORTED_EXTENSIONS)})")
-        for i, name in enumerate(doc.get("extensionsUsed") or []):
-            if name not in SUPPORTED_EXTENSIONS:
-                self.refuse(f"/extensionsUsed/{i}", f"extension {name}: the scene format has no counterpart")
         for key in ("animations", "skins"):
             if doc.get(key):
                 self.refuse(f"/{key}", f"{key} are not part of the scene format (a still scene)")
@@ -258,6 +256,7 @@ class _Importer:
         index = doc.get("scene", 0)
         if not scenes:
             raise self.fail("/scenes", "expected a scene to import; the file has none")
+        self.check_extensions(self.item("scenes", index, "/scene"), f"/scenes/{index}")
         roots = self.item("scenes", index, "/scene").get("nodes") or []
         for root in roots:
             self.walk(root, np.eye(4), set())
@@ -331,6 +330,7 @@ class _Importer:
     def view_bytes(self, index: int, where: str) -> tuple[bytes, int | None]:
         """A buffer view's bytes and its byteStride."""
         view = self.item("bufferViews", index, where)
+        self.check_extensions(view, f"/bufferViews/{index}")
         data = self.buffer(view.get("buffer"), f"/bufferViews/{index}/buffer")
         start, length = int(view.get("byteOffset", 0)), int(view["byteLength"])
         if start + length > len(data):
@@ -342,6 +342,7 @@ class _Importer:
         for a sparse accessor that is refused leniently."""
         entry = self.item("accessors", index, where)
         here = f"/accessors/{index}"
+        self.check_extensions(entry, here)
         if "sparse" in entry:
             self.refuse(f"{here}/sparse", "sparse accessors are not read")
             return None
@@ -457,6 +458,7 @@ class _Importer:
         if index not in self.images:
             entry = self.item("images", index, where)
             here = f"/images/{index}"
+            self.check_extensions(entry, here)
             if "uri" in entry:
                 data = self.uri_bytes(entry["uri"], f"{here}/uri")
             elif "bufferView" in entry:
@@ -555,6 +557,7 @@ class _Importer:
         has one wrap mode)."""
         where = f"/samplers/{index}"
         sampler = self.item("samplers", index, where)
+        self.check_extensions(sampler, where)
         out = {}
         mag, mini = sampler.get("magFilter"), sampler.get("minFilter")
         if mag is not None:
@@ -678,6 +681,9 @@ class _Importer:
                     out[key] = {"texture": texture}
         if ior != 1.5:
             out["eta"] = ior
+        clearcoat = extensions.get("KHR_materials_clearcoat")
+        if clearcoat is not None:
+            out.update(self.clearcoat(clearcoat, f"{here}/extensions/KHR_materials_clearcoat"))
         if transmission is not None and factor > 0:
             if "transmissionTexture" in transmission:
                 self.refuse(f"{here}/extensions/KHR_materials_transmission/transmissionTexture",
@@ -685,6 +691,29 @@ class _Importer:
             out["spec_trans"] = factor
         self.materials[name] = out
         return name
+
+    def clearcoat(self, coat: dict, where: str) -> dict:
+        """``KHR_materials_clearcoat`` as principled's ``clearcoat`` and ``clearcoat_gloss``: clearcoat = the factor;
+        the coat's GGX alpha = roughness^2 (the extension's) read as principled's GTR1 alpha = 0.1 (1 - gloss) +
+        0.001 gloss (principled.cpp), so gloss = (0.1 - roughness^2) / 0.099, the inverse of the harness's export;
+        a roughness outside [sqrt(0.001), sqrt(0.1)] (no gloss in [0, 1] gives it), a coat texture or normal
+        texture is refused. The lobes differ (GTR1 against GGX; Schlick from 0.04 both): an approximation."""
+        for key in ("clearcoatTexture", "clearcoatRoughnessTexture", "clearcoatNormalTexture"):
+            if key in coat:
+                self.refuse(f"{where}/{key}", "a clear coat texture (the factors are read)")
+        factor = float(coat.get("clearcoatFactor", 0.0))
+        if factor == 0.0:
+            return {}
+        alpha = float(coat.get("clearcoatRoughnessFactor", 0.0)) ** 2
+        gloss = (0.1 - alpha) / 0.099
+        if not -1e-12 <= gloss <= 1.0 + 1e-12:
+            self.refuse(f"{where}/clearcoatRoughnessFactor", f"a coat roughness outside [{math.sqrt(0.001):.4g}, "
+                                                             f"{math.sqrt(0.1):.4g}] (principled's clear coat "
+                                                             "alpha runs from 0.001 to 0.1)")
+            gloss = min(max(gloss, 0.0), 1.0)
+        self.notes.append(f"{where}: GGX coat of alpha {alpha:.6g} as principled's GTR1 clear coat of gloss "
+                          f"{gloss:.6g}")
+        return {"clearcoat": factor, "clearcoat_gloss": min(max(gloss, 0.0), 1.0)}
 
     def emission(self, entry: dict, extensions: dict, here: str):
         """``emissiveFactor`` x ``KHR_materials_emissive_strength`` (default 1) as the shape's radiance Le (the

@@ -29,9 +29,7 @@ pygltflib = pytest.importorskip("pygltflib")
 
 SCENES = sorted(Path(__file__).resolve().parents[2].joinpath("scenes").glob("*.toml"))
 #: Canonical scenes whose glTF export holds extensions the importer refuses: imported with ``lenient``.
-LENIENT = {"material-balls": "KHR_materials_clearcoat, KHR_materials_sheen, KHR_materials_specular",
-           "material-balls-furnace": "KHR_materials_clearcoat, KHR_materials_sheen, KHR_materials_specular",
-           "principled-grid": "KHR_materials_clearcoat, KHR_materials_sheen, KHR_materials_specular",
+LENIENT = {"principled-grid": "KHR_materials_sheen and KHR_materials_specular (sheen and spec_tint)",
            "plastic-cornell-box": "KHR_materials_specular (the coating's tint)"}
 #: What glTF's metallic-roughness model cannot carry of each material type: the import gives the principled material
 #: of the glTF factors, so only those are compared.
@@ -46,7 +44,7 @@ MATERIAL_LOSSES = {
     "blendbsdf": "glTF has no blend: the material of the larger weight",
     "normalmap": "compared through its nested material and its map",
     "bumpmap": "glTF has no bump map: the nested material, unperturbed",
-    "principled": "clearcoat, sheen and specular extensions refused (lenient: dropped); the rest compared",
+    "principled": "sheen and specular extensions refused (lenient: dropped); the rest compared",
 }
 
 
@@ -73,7 +71,7 @@ def test_round_trip(path, tmp_path):
     export_scene(original, "gltf", tmp_path / "gltf")
     lenient = path.stem in LENIENT
     if lenient:
-        with pytest.raises(HarnessError, match="/extensionsUsed/"):
+        with pytest.raises(HarnessError, match=r"/materials/\d+/extensions/KHR_materials_(sheen|specular): "):
             import_gltf(tmp_path / "gltf" / "scene.gltf")
     imported_scene = import_gltf(tmp_path / "gltf" / "scene.gltf", lenient=lenient)
     assert bool(imported_scene.dropped) == lenient
@@ -144,6 +142,9 @@ def check_material(x, y):
         assert (p.metallic, p.roughness, p.spec_trans) == (x.principled.metallic, x.principled.roughness,
                                                           x.principled.spec_trans)
         assert p.eta == pytest.approx(x.principled.eta, rel=1e-15)
+        assert p.clearcoat == x.principled.clearcoat
+        if p.clearcoat > 0:  # KHR_materials_clearcoat's roughness sqrt(alpha_cc) back to the gloss
+            assert p.clearcoat_gloss == pytest.approx(x.principled.clearcoat_gloss, rel=1e-12, abs=1e-12)
         return
     if not y.textures:
         assert list(p.base_color) == factors["baseColorFactor"][:3]
@@ -393,6 +394,36 @@ def test_factor_times_texture_is_baked_exactly(tmp_path):
     c = codes / 255.0
     linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4) * [0.5, 1.0, 0.25]
     np.testing.assert_allclose(texture.image, linear.astype(np.float32), rtol=0, atol=0)
+
+
+def test_emissive_texture_and_clearcoat(tmp_path):
+    """An emissive texture: the PNG as it is at factor x strength 1, a float EXR of the decoded codes times them
+    otherwise; KHR_materials_clearcoat as principled's clearcoat, gloss = (0.1 - roughness^2) / 0.099."""
+    doc = Doc()
+    codes = np.array([[[255, 128, 0]]], np.uint8)
+    doc.quad({"name": "sign", "emissiveFactor": [1, 1, 1], "emissiveTexture": {"index": doc.image(codes)}})
+    doc.quad({"name": "neon", "emissiveFactor": [1, 0.5, 1], "emissiveTexture": {"index": doc.image(codes)},
+              "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}})
+    doc.quad({"name": "coated", "extensions": {"KHR_materials_clearcoat": {
+        "clearcoatFactor": 0.6, "clearcoatRoughnessFactor": math.sqrt(0.05)}}})
+    result, scene, _ = imported(doc, tmp_path)
+    sign, neon = (s.emission_texture for s in scene.shapes[:2])
+    assert sign.file.suffix == ".png" and not sign.raw
+    np.testing.assert_array_equal(sign.image, codes)
+    c = codes / 255.0
+    linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4) * [4.0, 2.0, 4.0]
+    np.testing.assert_array_equal(neon.image, linear.astype(np.float32))
+    coat = scene.materials["coated"].principled
+    assert coat.clearcoat == 0.6 and coat.clearcoat_gloss == pytest.approx(0.05 / 0.099, rel=1e-12)
+    assert "clear coat of gloss" in scene.description
+
+
+def test_a_required_extension_it_does_not_read_is_refused_even_leniently(tmp_path):
+    doc = Doc()
+    doc.quad({})
+    doc.json["extensionsRequired"] = doc.json["extensionsUsed"] = ["KHR_draco_mesh_compression"]
+    with pytest.raises(HarnessError, match="/extensionsRequired/KHR_draco_mesh_compression: a required extension"):
+        import_gltf(doc.save(tmp_path / "in.gltf"), lenient=True)
 
 
 def test_alpha_modes(tmp_path):
