@@ -359,10 +359,9 @@ class _Importer:
         start = int(entry.get("byteOffset", 0))
         if count and start + stride * (count - 1) + item > len(data):
             raise self.fail(here, "its elements run past the end of its buffer view")
-        raw = np.frombuffer(data, np.uint8, count * stride if count else 0, start) if count else np.zeros(0, np.uint8)
-        if count and len(raw) < stride * count:  # the last element needs only its own bytes
-            raw = np.concatenate([raw, np.zeros(stride * count - len(raw), np.uint8)])
-        values = np.ndarray((count, width), dtype, raw.tobytes() if count else b"", 0, (stride, np.dtype(dtype).itemsize))
+        if count == 0:
+            return np.zeros((0, width))
+        values = np.ndarray((count, width), dtype, data, start, (stride, np.dtype(dtype).itemsize))  # strided view
         out = values.astype(np.float64)
         if entry.get("normalized") and divisor is not None:
             out = np.maximum(out / divisor, -1.0)

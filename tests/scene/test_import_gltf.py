@@ -18,7 +18,13 @@ import numpy as np
 import pytest
 
 from harness.core.errors import HarnessError
-from harness.renderers.export import export_scene, exported_material, gltf_material, gltf_uv_transform
+from harness.renderers.export import (
+    carried_texture,
+    export_scene,
+    exported_material,
+    gltf_material,
+    gltf_uv_transform,
+)
 from harness.renderers.import_gltf import import_gltf, uv_matrix
 from harness.renderers.imports import ImportedScene
 from harness.scene import load_scene, triangulate
@@ -46,6 +52,11 @@ MATERIAL_LOSSES = {
     "bumpmap": "glTF has no bump map: the nested material, unperturbed",
     "principled": "sheen and specular extensions refused (lenient: dropped); the rest compared",
 }
+
+
+#: The imported material's parameter that holds glTF's base colour texture, by the imported type.
+BASE_PARAMETER = (("dielectric", "specular_transmittance"), ("thindielectric", "specular_transmittance"),
+                  ("roughdielectric", "specular_transmittance"))
 
 
 def write_imported(imported: ImportedScene, folder: Path) -> Path:
@@ -127,6 +138,13 @@ def check_material(x, y):
         if x.type == "roughdielectric":
             assert y.alpha == pytest.approx(x.alpha, rel=1e-15)
         return
+    carried = carried_texture(x)
+    if carried is not None:  # the base colour's 8-bit sRGB bitmap: its codes, sampler and transform
+        y_texture = dict(y.textures)[dict(BASE_PARAMETER).get(y.type, "base_color")]
+        np.testing.assert_array_equal(y_texture.image, carried.image)
+        assert (y_texture.filter_type, y_texture.wrap_mode, y_texture.raw) == (
+            carried.filter_type, carried.wrap_mode, False)
+        np.testing.assert_allclose(y_texture.to_uv, carried.to_uv, rtol=1e-12, atol=1e-12)
     assert x.type in MATERIAL_LOSSES
     factors, _ = gltf_material(exported_material(x))
     if x.type == "principled" and x.principled.spec_trans == 1 and x.principled.metallic == 0:
@@ -324,6 +342,26 @@ def test_mirroring_node_keeps_the_front_side(tmp_path):
     c = corners(triangulate(scene))
     normals = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
     assert np.all(normals[:, 2] > 0)
+
+
+def test_interleaved_accessors_and_a_short_buffer(tmp_path):
+    """POSITION and NORMAL interleaved in one view (byteStride 24, NORMAL at byteOffset 12); then a view shorter
+    than its accessor's elements is refused naming the accessor."""
+    doc = Doc()
+    doc.quad({}, normals=False)
+    interleaved = np.concatenate([Doc.QUAD, np.tile(np.float32([0, 0, 1]), (4, 1))], axis=1)
+    position = doc.accessor(interleaved, 5126, "VEC3")
+    doc.json["bufferViews"][-1]["byteStride"] = 24
+    doc.json["accessors"].append({**doc.json["accessors"][position], "byteOffset": 12})
+    attributes = doc.json["meshes"][0]["primitives"][0]["attributes"]
+    attributes.update(POSITION=position, NORMAL=len(doc.json["accessors"]) - 1)
+    _, scene, _ = imported(doc, tmp_path)
+    geometry = triangulate(scene)
+    np.testing.assert_array_equal(geometry.vertices, Doc.QUAD)
+    np.testing.assert_array_equal(geometry.normals, np.tile([0.0, 0.0, 1.0], (2, 3, 1)))
+    doc.json["accessors"][-1]["count"] = 5
+    with pytest.raises(HarnessError, match=r"/accessors/\d+: its elements run past the end of its buffer view"):
+        imported(doc, tmp_path / "short")
 
 
 @pytest.mark.parametrize("container", ["glb", "gltf", "embedded"])
