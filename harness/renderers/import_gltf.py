@@ -63,7 +63,12 @@ def import_gltf(path: Path, *, lenient: bool = False) -> ImportedScene:
     ``lenient`` drops it instead and lists it in ``dropped`` and the description."""
     path = Path(path)
     document, glb_blob = read_container(path)
-    return _Importer(path, document, glb_blob, lenient).scene()
+    try:
+        return _Importer(path, document, glb_blob, lenient).scene()
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as err:
+        # a value of the wrong JSON type or a missing required property (the schema's), past the checks above
+        raise HarnessError(str(path), f"a malformed glTF document ({type(err).__name__}: {err}); "
+                                      "check it with the Khronos glTF validator") from None
 
 
 # ---- the container --------------------------------------------------------------------------------------------------
@@ -200,7 +205,7 @@ class _Importer:
         self.buffers: dict[int, bytes] = {}
         self.textures: dict[str, dict] = {}
         self.materials: dict[str, dict] = {}
-        self.material_names: dict[tuple, str] = {}
+        self.material_names: dict[int | None, str] = {}
         self.shapes: list[dict] = []
         self.emitters: list[dict] = []
         self.camera: dict | None = None
@@ -644,7 +649,8 @@ class _Importer:
         out: dict
         factor = float((transmission or {}).get("transmissionFactor", 0.0))
         if (transmission is not None and factor == 1.0 and "transmissionTexture" not in transmission
-                and metallic == 0.0 and "metallicRoughnessTexture" not in pbr and (volume is not None or roughness == 0)):
+                and metallic == 0.0 and "metallicRoughnessTexture" not in pbr
+                and (volume is not None or roughness == 0)):
             colour3 = colour[:3]
             out = {"int_ior": ior, "ext_ior": 1.0}
             if volume is None:

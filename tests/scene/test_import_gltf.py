@@ -456,6 +456,14 @@ def test_emissive_texture_and_clearcoat(tmp_path):
     assert "clear coat of gloss" in scene.description
 
 
+def test_a_malformed_document_is_one_line(tmp_path):
+    doc = Doc()
+    doc.quad({})
+    doc.json["cameras"][0]["perspective"] = {"aspectRatio": 1.0}  # yfov is required
+    with pytest.raises(HarnessError, match=r"in.gltf: a malformed glTF document \(KeyError: 'yfov'\)"):
+        import_gltf(doc.save(tmp_path / "in.gltf"))
+
+
 def test_a_required_extension_it_does_not_read_is_refused_even_leniently(tmp_path):
     doc = Doc()
     doc.quad({})
@@ -570,7 +578,7 @@ def test_cameras(tmp_path):
     assert scene.camera.extent(scene.film.width, scene.film.height) == pytest.approx((2.0, 1.0))
 
 
-# ---- refusals ---------------------------------------------------------------------------------------------------------
+# ---- refusals -------------------------------------------------------------------------------------------------
 
 
 def _skin(doc):
