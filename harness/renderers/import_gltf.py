@@ -205,13 +205,12 @@ class _Importer:
         self.buffers: dict[int, bytes] = {}
         self.textures: dict[str, dict] = {}
         self.materials: dict[str, dict] = {}
-        self.material_names: dict[int | None, str] = {}
+        self.material_names: dict[int | None, dict] = {}
         self.shapes: list[dict] = []
         self.emitters: list[dict] = []
         self.camera: dict | None = None
         self.texture_names: dict[tuple, str] = {}
         self.images: dict[int, tuple[str, bytes]] = {}
-        self.emissions: dict = {}
         self.film: dict = {}
 
     # -- refusals --
@@ -437,13 +436,18 @@ class _Importer:
         if "TEXCOORD_0" in attributes:
             uv = self.accessor(attributes["TEXCOORD_0"], f"{where}/attributes/TEXCOORD_0")
         material = self.material(primitive.get("material"), f"{where}/material")
+        if material["textured"] and uv is None:
+            raise self.fail(f"{where}/attributes", "a textured material on a primitive without TEXCOORD_0")
         shape_name = self.unique_shape_name(name)
         rel = f"{MESH_DIR}/{len(self.shapes)}-{safe_name(shape_name)}.ply"
         self.files[rel] = ply_bytes(vertices, triangles, uv, normals)
         shape = {"name": shape_name, "type": "mesh", "file": rel, "material": material["name"]}
-        if normals is None:
+        if material["emission"] is not None and normals is not None:
+            self.notes.append(f"{where}/attributes/NORMAL: an emitting shape shades flat (the format's lights are "
+                              "flat: Mitsuba turns and samples an area light by its vertex normals)")
+        if normals is None or material["emission"] is not None:
             shape["face_normals"] = True
-        if material.get("emission") is not None:
+        if material["emission"] is not None:
             shape["emission"] = material["emission"]
         self.shapes.append(shape)
 
@@ -583,10 +587,12 @@ class _Importer:
     # -- materials --
 
     def material(self, index: int | None, where: str) -> dict:
-        """The scene material of glTF material ``index`` (None: glTF's default material, 3.9.6): its name, and the
-        emission the shape carries (:meth:`emission`)."""
+        """The scene material of glTF material ``index`` (None: glTF's default material, 3.9.6): its ``name``, the
+        ``emission`` the shape carries (:meth:`emission`) and whether it is ``textured`` (its shapes need
+        TEXCOORD_0)."""
         if index in self.material_names:
-            return {"name": self.material_names[index], "emission": self.emissions[index]}
+            return self.material_names[index]
+        textures_before = len(self.texture_names)
         entry = {} if index is None else self.item("materials", index, where)
         here = "/materials/default" if index is None else f"/materials/{index}"
         extensions = self.check_extensions(entry, here)
@@ -605,9 +611,9 @@ class _Importer:
             self.refuse(f"{here}/occlusionTexture", "ambient occlusion is a rasteriser's stand-in for indirect light, "
                                                     "which a path tracer computes")
         name = self.alpha(entry, name, here, base_name, emission is not None)
-        self.material_names[index] = name
-        self.emissions[index] = emission
-        return {"name": name, "emission": emission}
+        self.material_names[index] = {"name": name, "emission": emission,
+                                      "textured": len(self.texture_names) > textures_before}
+        return self.material_names[index]
 
     def unique_material_name(self, name: str) -> str:
         out, n = name, 1

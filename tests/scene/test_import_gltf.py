@@ -456,6 +456,25 @@ def test_emissive_texture_and_clearcoat(tmp_path):
     assert "clear coat of gloss" in scene.description
 
 
+def test_a_textured_material_needs_texture_coordinates(tmp_path):
+    doc = Doc()
+    doc.quad({"pbrMetallicRoughness": {"baseColorTexture": {"index": doc.image(np.zeros((1, 1, 3), np.uint8))}}},
+             uv=False)
+    with pytest.raises(HarnessError, match="/meshes/0/primitives/0/attributes: a textured material on a primitive "
+                                           "without TEXCOORD_0"):
+        import_gltf(doc.save(tmp_path / "in.gltf"))
+
+
+def test_an_emitting_shape_shades_flat(tmp_path):
+    """The format's lights are flat: an emitting primitive's NORMAL is not used (face_normals), and the description
+    says so."""
+    doc = Doc()
+    doc.quad({"emissiveFactor": [1, 1, 1]})
+    _, scene, toml = imported(doc, tmp_path)
+    assert toml["shapes"][0]["face_normals"] is True
+    assert "/meshes/0/primitives/0/attributes/NORMAL: an emitting shape shades flat" in scene.description
+
+
 def test_a_malformed_document_is_one_line(tmp_path):
     doc = Doc()
     doc.quad({})
