@@ -908,7 +908,8 @@ class _Importer:
         lines += [f"dropped: {d}" for d in self.dropped]
         out = [f"name = {toml_value(stem)}", f"description = {toml_value('; '.join(lines))}"]
         out += toml_table("camera", self.camera)
-        out += toml_table("film", {"filter": "box", **self.film})
+        out += toml_table("film", {"width": self.film["width"], "height": self.film["height"],
+                                   "filter": self.film.get("filter", "box")})
         if isinstance(extras.get("max_depth"), int) and not isinstance(extras.get("max_depth"), bool):
             out += toml_table("integrator", {"max_depth": extras["max_depth"]})
         for name, entry in self.textures.items():

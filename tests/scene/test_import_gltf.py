@@ -28,6 +28,7 @@ from harness.renderers.export import (
 from harness.renderers.import_gltf import import_gltf, uv_matrix
 from harness.renderers.imports import ImportedScene
 from harness.scene import load_scene, triangulate
+from harness.scene.triangulate import shape_triangles
 from harness.scene.kinds.emitters import LUMENS_PER_WATT
 from harness.scene.material_arrays import material_row
 
@@ -454,6 +455,32 @@ def test_emissive_texture_and_clearcoat(tmp_path):
     coat = scene.materials["coated"].principled
     assert coat.clearcoat == 0.6 and coat.clearcoat_gloss == pytest.approx(0.05 / 0.099, rel=1e-12)
     assert "clear coat of gloss" in scene.description
+
+
+def test_a_file_trimesh_writes(tmp_path):
+    """Another writer's conventions (trimesh's GLB: node matrices, a PBR material, a primitive without material or
+    normals, mesh extras): imported without refusals, the box turned by its node, the ball in glTF's default
+    material."""
+    trimesh = pytest.importorskip("trimesh")
+    scene = trimesh.Scene()
+    box = trimesh.creation.box()
+    box.visual = trimesh.visual.TextureVisuals(material=trimesh.visual.material.PBRMaterial(
+        baseColorFactor=[255, 128, 0, 255], metallicFactor=0.25, roughnessFactor=0.5))
+    turn = trimesh.transformations.rotation_matrix(0.5, [0, 1, 0])
+    scene.add_geometry(box, node_name="box", transform=turn)
+    scene.add_geometry(trimesh.creation.icosphere(), node_name="ball",
+                       transform=trimesh.transformations.translation_matrix([2, 0, 0]))
+    scene.camera_transform = trimesh.transformations.translation_matrix([0, 0, 6])
+    (tmp_path / "tm.glb").write_bytes(scene.export(file_type="glb"))
+    result = import_gltf(tmp_path / "tm.glb")
+    assert result.dropped == []
+    loaded = load_scene(write_imported(result, tmp_path / "out"))
+    box_shape = loaded.shapes[0]
+    p = loaded.materials[box_shape.material].principled
+    assert (p.metallic, p.roughness) == (0.25, 0.5) and p.base_color[0] == 1.0
+    vertices, _ = shape_triangles(box_shape)
+    np.testing.assert_allclose(vertices, np.float32(box.vertices @ turn[:3, :3].T), atol=1e-6)
+    assert loaded.materials[loaded.shapes[1].material].principled.metallic == 1.0  # glTF's default material
 
 
 def test_a_textured_material_needs_texture_coordinates(tmp_path):
