@@ -382,6 +382,8 @@ def _gltf_shape_material(shape, material, base_texture: dict | None = None,
                    "doubleSided": ALL_MATERIALS[material.type].gltf_double_sided(material)}
     if normal_texture is not None:
         entry["normalTexture"] = normal_texture
+    if material.type == "mask":  # its opacity is the base colour's alpha (composites._gltf), blended
+        entry["alphaMode"] = "BLEND"
     extensions = dict(extensions)
     if shape.is_emitter:
         emission = np.asarray(shape.emission, dtype=np.float64)

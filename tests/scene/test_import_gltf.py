@@ -47,7 +47,7 @@ MATERIAL_LOSSES = {
     "plastic": "glTF has no coated diffuse: imported as principled metallic 0 with the base colour",
     "roughplastic": "as plastic",
     "twosided": "glTF has one material per side pair: the front material",
-    "mask": "the export writes a mask's opacity as base colour alpha without alphaMode: read as OPAQUE",
+    "mask": "the export writes a mask's opacity as base colour alpha, alphaMode BLEND (a textured opacity: its mean)",
     "blendbsdf": "glTF has no blend: the material of the larger weight",
     "normalmap": "compared through its nested material and its map",
     "bumpmap": "glTF has no bump map: the nested material, unperturbed",
