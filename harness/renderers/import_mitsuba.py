@@ -76,6 +76,14 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".exr")
 #: scene keys that take a colour only (a Mitsuba float there is the grey of that value)
 COLOUR_ONLY = ("reflectance", "intensity", "irradiance", "radiance")
 BSDF_REFS = ("bsdf", "bsdf_0", "bsdf_1")
+#: Mitsuba 3.9.1's defaults of the properties the scene format requires, written out where the XML leaves them
+MITSUBA_DEFAULTS = {
+    "diffuse": {"reflectance": [0.5, 0.5, 0.5]},
+    "point": {"intensity": [1.0, 1.0, 1.0], "position": [0.0, 0.0, 0.0]},
+    "spot": {"intensity": [1.0, 1.0, 1.0], "to_world": np.eye(4).tolist()},
+    "directional": {"irradiance": [1.0, 1.0, 1.0], "direction": [0.0, 0.0, 1.0]},
+    "constant": {"radiance": [1.0, 1.0, 1.0]},
+}
 
 
 class _Dropped(Exception):
@@ -490,7 +498,7 @@ class _Importer:
                 table[key] = {"texture": self.texture(self.nested(node, key))}
             else:
                 table[key] = self.value(node, key, colour=key in COLOUR_ONLY)
-        return table
+        return {**table, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in table}}
 
     def nested_bsdfs(self, node) -> list[tuple[str, object]]:
         return [(key, self.nested(node, key)) for key in node.props.keys()
@@ -684,7 +692,7 @@ class _Importer:
             if key in values:
                 props[key] = values.pop(key) if key != "filename" else str(source)
         values.pop("filename", None)
-        mesh = self.mi.PluginManager.instance().create_object(props, self.mi.Shape)
+        mesh = self.mi.PluginManager.instance().create_object(props)
         vertices = np.array(mesh.vertex_positions_buffer(), dtype=np.float32).reshape(-1, 3)
         triangles = np.array(mesh.faces_buffer(), dtype=np.int64).reshape(-1, 3)
         uv = (np.array(mesh.vertex_texcoords_buffer(), dtype=np.float32).reshape(-1, 2)
@@ -739,7 +747,7 @@ class _Importer:
             del entry["filename"]
         if kind in ("point", "directional") and "to_world" in entry:
             entry.update(self.placed(node, kind, entry.pop("to_world")))
-        return entry
+        return {**entry, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in entry}}
 
     def placed(self, node, kind: str, matrix: list) -> dict:
         """A point light's to_world as its position (the translation), a directional's as its direction (the
