@@ -279,7 +279,8 @@ class _Importer:
         elif kind == "sensor":
             self.sensor(node)
         elif kind == "bsdf":
-            self.material(node, node.props.id() or f"bsdf{len(self.materials)}", top=True)
+            name = self.material(node, node.props.id() or f"bsdf{len(self.materials)}", top=True)
+            self.nested_names.discard(name)  # a shape before it may have named it first
         elif kind == "texture":
             pass  # read where a material names it
         elif kind == "shape" and name == "shapegroup":
@@ -375,25 +376,38 @@ class _Importer:
         self.camera = camera
 
     def look_at(self, node) -> dict:
-        """origin, target, up (and an orthographic ``scale``) of the sensor's ``<lookat>``, as written in the XML;
-        another transform is refused."""
+        """origin, target, up (and an orthographic ``scale``) of the sensor's ``<lookat>``, as written in the XML,
+        checked against the matrix Mitsuba made of them; another transform is refused."""
         found = self.facts[node.file_index].lookats.get(node.offset)
         if found is None:
             self.refuse_property(node, "to_world", "expected a <lookat> (after a <scale> for an orthographic "
                                                    "sensor) and nothing else: the scene's camera is a look-at")
         look, scale, _ = found
-        out = {key: _numbers_text(look.get(key, "0, 1, 0" if key == "up" else "")) for key in
-               ("origin", "target", "up")}
-        if scale is not None:
-            if node.props.plugin_name() != "orthographic":
-                self.refuse_property(node, "to_world", "expected a <lookat> alone: only an orthographic sensor "
-                                                       "takes a <scale>")
-            if "value" in scale:
-                values = _numbers_text(scale["value"])
+        try:
+            out = {key: _numbers_text(look[key]) for key in ("origin", "target", "up")}
+            if scale is not None:
+                values = (_numbers_text(scale["value"]) if "value" in scale
+                          else [float(scale.get(axis, 1.0)) for axis in "xyz"])
                 out["scale"] = values * 3 if len(values) == 1 else values
-            else:
-                out["scale"] = [float(scale.get(axis, 1.0)) for axis in "xyz"]
+        except (KeyError, ValueError):
+            out = {}
+        if scale is not None and node.props.plugin_name() != "orthographic":
+            self.refuse_property(node, "to_world", "expected a <lookat> alone: only an orthographic sensor takes "
+                                                   "a <scale>")
+        if not out or not self.same_look_at(node, out):
+            self.refuse_property(node, "to_world", "expected a <lookat> with origin, target and up written as "
+                                                   "numbers (as the scene's camera takes them)")
         return out
+
+    def same_look_at(self, node, camera: dict) -> bool:
+        """Whether Mitsuba's matrix of the sensor is the look-at (times the scale) read from the XML, exactly."""
+        mi = self.mi
+        if any(len(camera[key]) != 3 for key in ("origin", "target", "up")) or len(camera.get("scale", [1] * 3)) != 3:
+            return False
+        transform = mi.ScalarTransform4d.look_at(origin=camera["origin"], target=camera["target"], up=camera["up"])
+        if "scale" in camera:
+            transform = transform @ mi.ScalarTransform4d.scale(camera["scale"])
+        return np.array_equal(np.array(transform.matrix), np.array(node.props["to_world"].matrix))
 
     def sensor_part(self, node) -> None:
         kind = self.tag(node)
@@ -797,6 +811,8 @@ class _Importer:
         if self.dropped:
             description += " Dropped (--lenient): " + "; ".join(self.dropped)
         lines = [f"name = {_toml_value(safe_name(self.path.stem))}", f"description = {_toml_value(description)}", ""]
+        _unique_names(self.shapes)
+        _unique_names(self.emitters)
         lines += _table("camera", self.camera) + _table("film", self.film)
         if self.max_depth is not None:
             lines += _table("integrator", {"max_depth": self.max_depth})
@@ -809,6 +825,14 @@ class _Importer:
         for entry in self.emitters:
             lines += _table("emitters", entry, array=True)
         return "\n".join(lines)
+
+
+def _unique_names(entries: list[dict]) -> None:
+    """Each entry's ``name`` made unique (an id may be another entry's made-up name): ``-2``, ``-3``, ... added."""
+    taken: dict = {}
+    for entry in entries:
+        entry["name"] = _Importer.unique(entry["name"], taken)
+        taken[entry["name"]] = True
 
 
 def _table(key: str, table: dict, array: bool = False) -> list[str]:
