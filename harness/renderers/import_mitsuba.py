@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -237,6 +238,10 @@ class _Importer:
         except Exception as err:  # Mitsuba's own one-line reason (a syntax error, an unknown reference, ...)
             raise HarnessError(str(self.path), _first_line(str(err))) from None
         for index, name in enumerate(self.state.files):
+            if not Path(str(name)).resolve().is_relative_to(self.folder):  # however Mitsuba found it
+                raise HarnessError(f"{self.path}: <include filename={str(name)!r}>",
+                                   f"expected a file inside the scene's folder {str(self.folder)!r} (an include "
+                                   f"outside it is not followed)")
             self.raw[index] = Path(str(name)).read_bytes()
             self.facts[index] = _read_xml_facts(self.raw[index])
         self.walk_scene()
@@ -369,6 +374,9 @@ class _Importer:
             elif key not in SENSOR_IGNORED:
                 self.refuse_property(node, key, f"expected one of the {name} properties the scene format has: "
                                                 f"{', '.join(SENSOR_KEYS[name] + ('to_world',) + SENSOR_IGNORED)}")
+        if name != "orthographic" and "fov" not in camera:
+            self.refuse_node(node, "expected fov (without it Mitsuba takes a 50 mm focal_length along the image's "
+                                   "diagonal, an axis the scene format has not)")
         if "origin" not in camera:
             self.refuse_node(node, "expected a to_world transform with a <lookat> (the scene's camera is a look-at)")
         if name == "thinlens" and "aperture_radius" not in camera:
@@ -858,5 +866,6 @@ def _toml_value(value) -> str:
 
 
 def _first_line(text: str) -> str:
+    """The first line of Mitsuba's message, without its source file's place (``[parser.cpp:451]``)."""
     lines = [line.strip() for line in text.strip().splitlines() if line.strip()]
-    return lines[0] if lines else "Mitsuba could not read it"
+    return re.sub(r"^\[[\w.]+:\d+\]\s*", "", lines[0]) if lines else "Mitsuba could not read it"

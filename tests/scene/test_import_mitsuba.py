@@ -288,6 +288,18 @@ def test_a_film_crop_and_a_filter_the_reference_has_not_are_refused(tmp_path):
                             '<translate z="5"/>')
     with pytest.raises(HarnessError, match="property 'to_world': expected a <lookat>"):
         import_mitsuba(write(tmp_path, "", sensor=matrix))
+    with pytest.raises(HarnessError, match="property 'to_world': expected a <lookat> with origin, target and up"):
+        import_mitsuba(write(tmp_path, "", sensor='<default name="z" value="5"/>' + SENSOR.replace("0.2, 5", "0.2, $z")))
+    with pytest.raises(HarnessError, match=r"<sensor type='perspective'>: expected fov \(without it"):
+        import_mitsuba(write(tmp_path, "", sensor=SENSOR.replace('<float name="fov" value="45.5"/>', "")))
+
+
+def test_what_mitsuba_s_parser_refuses_is_its_one_line(tmp_path):
+    path = write(tmp_path, '<bsdf type="diffuse"><rgb name="reflectance" value="$nothing"/></bsdf>')
+    with pytest.raises(HarnessError) as caught:
+        import_mitsuba(path)
+    assert str(caught.value).startswith(f"{path}: Error while loading {path} (line ") and "\n" not in str(caught.value)
+    assert "undefined parameter: $nothing" in str(caught.value)
 
 
 def test_an_include_outside_the_folder_is_refused(tmp_path):
