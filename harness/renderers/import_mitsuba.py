@@ -229,10 +229,19 @@ class _Importer:
         if mi.__version__ != MITSUBA_VERSION:
             raise HarnessError("mitsuba", f"expected Mitsuba {MITSUBA_VERSION} (the version this importer is pinned "
                                           f"to), found {mi.__version__}")
-        mi.set_variant(VARIANT)
         if not self.path.is_file():
             raise HarnessError(str(self.path), "expected a Mitsuba 3 XML file: no such file")
         self.check_includes(self.path, set())
+        previous = mi.variant()
+        mi.set_variant(VARIANT)
+        try:
+            return self.read(mi)
+        finally:
+            if previous is not None and previous != VARIANT:  # the process's Mitsuba renders keep their variant
+                mi.set_variant(previous)
+
+    def read(self, mi) -> ImportedScene:
+        """Parse, check the files read, walk the plugins; the scene's text."""
         try:
             self.state = mi.parser.parse_file(mi.parser.ParserConfig(VARIANT), str(self.path))
         except Exception as err:  # Mitsuba's own one-line reason (a syntax error, an unknown reference, ...)
@@ -268,15 +277,14 @@ class _Importer:
 
     def walk_scene(self) -> None:
         root = self.state.nodes[0]
-        groups = {}
         for key in root.props.keys():
             node = self.child(root.props, key)
             try:
-                self.top_level(node, groups)
+                self.top_level(node)
             except _Dropped:
                 pass
 
-    def top_level(self, node, groups: dict) -> None:
+    def top_level(self, node) -> None:
         kind = self.tag(node)
         name = node.props.plugin_name()
         if kind == "integrator":
