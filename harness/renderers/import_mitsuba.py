@@ -287,9 +287,13 @@ class _Importer:
     def top_level(self, node) -> None:
         kind = self.tag(node)
         name = node.props.plugin_name()
+        if kind in ("integrator", "sensor") and getattr(self, f"seen_{kind}", False):
+            self.refuse_node(node, f"expected one {kind} (the scene format has one {kind}), got a second")
         if kind == "integrator":
+            self.seen_integrator = True
             self.integrator(node)
         elif kind == "sensor":
+            self.seen_sensor = True
             self.sensor(node)
         elif kind == "bsdf":
             name = self.material(node, node.props.id() or f"bsdf{len(self.materials)}", top=True)

@@ -253,6 +253,8 @@ REFUSED = [
     ('<shape type="disk"/>', "<shape type='disk'>", "expected a shape of type"),
     ('<emitter type="sunsky"/>', "<emitter type='sunsky'>", "expected an emitter of type"),
     ('<integrator type="direct"/>', "<integrator type='direct'>", "expected Mitsuba's path integrator"),
+    (SENSOR.strip(), "<sensor type='perspective'>", "expected one sensor (the scene format has one sensor), got a "
+                                                    "second"),
     ('<shape type="rectangle"><emitter type="area"><float name="sampling_weight" value="2"/></emitter></shape>',
      "<emitter type='area'> property 'sampling_weight'", "expected radiance only"),
     ('<bsdf type="diffuse" id="x"><texture type="bitmap" name="reflectance"><string name="filename" value="a.bmp"/>'
@@ -270,7 +272,7 @@ def test_an_element_the_format_cannot_express_is_refused_in_one_line(tmp_path, b
     assert "\n" not in message and element in message and expected in message
     text = path.read_text()
     tag = element.split()[0][1:]
-    offset = text.index(f"<{tag} type=\"{element.split(chr(39))[1]}\"") + 1
+    offset = text.rindex(f"<{tag} type=\"{element.split(chr(39))[1]}\"") + 1  # the last: the sensor's second
     line, col = line_column(text.encode(), offset)
     assert message.startswith(f"{path}:{line}:{col}: {element}"), message
 
