@@ -472,7 +472,7 @@ class _Importer:
         if index in self.material_of_node:
             return self.material_of_node[index]
         if index in self.failed:
-            self.refuse(self.where(node), self.element(node), "it was dropped above")
+            raise _Dropped()  # listed once, where it was dropped
         try:
             return self._material(node, name, index, top)
         except _Dropped:
@@ -667,7 +667,11 @@ class _Importer:
                 continue
             child = self.nested(node, key)
             if self.tag(child) == "bsdf":
-                material = self.material(child, child.props.id() or f"{entry['name']}-bsdf")
+                try:
+                    material = self.material(child, child.props.id() or f"{entry['name']}-bsdf")
+                except _Dropped:
+                    self.refuse_node(node, f"expected a bsdf the scene format has: its {self.element(child)} was "
+                                           f"dropped")
             elif self.tag(child) == "emitter":
                 emission = self.area(child)
             else:

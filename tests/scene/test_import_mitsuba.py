@@ -324,5 +324,8 @@ def test_lenient_drops_and_lists_what_it_cannot_express(tmp_path):
     doc, scene, result = imported(tmp_path, body, lenient=True)
     assert [s.name for s in scene.shapes] == ["plain"] and list(scene.materials) == ["ok"]
     assert len(result.dropped) == 3
-    assert "<bsdf type='hair' id='fur'>" in result.dropped[0] and "<emitter type='sunsky'>" in result.dropped[2]
+    assert "<bsdf type='hair' id='fur'>: expected a bsdf of type" in result.dropped[0]
+    assert "<shape type='rectangle' id='furry'>: expected a bsdf the scene format has: its <bsdf type='hair' " \
+           "id='fur'> was dropped" in result.dropped[1]
+    assert "<emitter type='sunsky'>" in result.dropped[2]
     assert all(line in doc["description"] for line in result.dropped)
