@@ -286,6 +286,9 @@ def test_a_film_crop_and_a_filter_the_reference_has_not_are_refused(tmp_path):
         import_mitsuba(write(tmp_path, "", sensor=SENSOR.replace("tent", "mitchell")))
     with pytest.raises(HarnessError, match="property 'sample_border': expected true"):
         import_mitsuba(write(tmp_path, "", sensor=SENSOR.replace('value="true"', 'value="false"')))
+    lenient = import_mitsuba(write(tmp_path, "", sensor=SENSOR.replace('value="true"', 'value="false"')), lenient=True)
+    assert len(lenient.dropped) == 1 and "property 'sample_border'" in lenient.dropped[0]
+    assert tomllib.loads(lenient.toml)["film"]["filter"] == "tent"  # the film kept, with the reference's border
     matrix = SENSOR.replace('<lookat origin="0.1, 0.2, 5" target="0, 0.30000000000000004, 0" up="0, 1, 0"/>',
                             '<translate z="5"/>')
     with pytest.raises(HarnessError, match="property 'to_world': expected a <lookat>"):
