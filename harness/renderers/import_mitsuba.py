@@ -57,7 +57,7 @@ SENSOR_KEYS = {"perspective": ("fov", "fov_axis"), "thinlens": ("fov", "fov_axis
 SENSOR_IGNORED = ("near_clip", "far_clip")
 FILM_IGNORED = ("pixel_format", "component_format", "sample_border")
 FILTERS = {"box": {}, "tent": {"radius": 1.0}, "gaussian": {"stddev": 0.5}}
-#: emitter plugin (not area) -> {Mitsuba property: scene key}
+#: emitter plugin (not area) -> its properties, each the scene key of the same name
 EMITTER_KEYS = {
     "point": ("position", "intensity", "to_world"),
     "spot": ("to_world", "intensity", "cutoff_angle", "beam_width"),
