@@ -39,7 +39,6 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
-from harness.core.text import toml_key
 from harness.renderers.imports import ImportedScene
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.composites import COMPOSITES
@@ -870,6 +869,11 @@ def _table(key: str, table: dict, array: bool = False) -> list[str]:
     return [head] + [f"{toml_key(k)} = {_toml_value(v)}" for k, v in table.items()] + [""]
 
 
+def toml_key(name: str) -> str:
+    """A key as TOML reads it back: bare where it can be, else a basic string (:func:`_toml_value`)."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml_value(name)
+
+
 def _toml_value(value) -> str:
     """A TOML value: floats by repr (the same float64 read back), strings as JSON's (TOML's basic strings)."""
     if isinstance(value, bool):
@@ -878,8 +882,8 @@ def _toml_value(value) -> str:
         return str(value)
     if isinstance(value, float):
         return repr(value)
-    if isinstance(value, str):
-        return json.dumps(value)
+    if isinstance(value, str):  # JSON's escapes are TOML's; DEL, which TOML refuses raw, escaped too
+        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     if isinstance(value, dict):

@@ -332,3 +332,11 @@ def test_lenient_drops_and_lists_what_it_cannot_express(tmp_path):
            "id='fur'> was dropped" in result.dropped[1]
     assert "<emitter type='sunsky'>" in result.dropped[2]
     assert all(line in doc["description"] for line in result.dropped)
+
+
+def test_ids_with_odd_characters_are_kept_as_names(tmp_path):
+    name = 'odd "name" é😀 \\ x'
+    xml = name.replace('"', "&quot;")
+    body = f'<bsdf type="diffuse" id="{xml}"/><shape type="rectangle" id="{xml} 2"><ref id="{xml}"/></shape>'
+    doc, scene, _ = imported(tmp_path, body)
+    assert list(scene.materials) == [name] and scene.shapes[0].name == f"{name} 2"
