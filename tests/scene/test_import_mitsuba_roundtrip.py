@@ -1,8 +1,8 @@
 """The acceptance test of ``harness import`` for Mitsuba 3 XML (issue 37): every canonical scene, exported as Mitsuba
 XML (as ``harness export SCENE --format mitsuba-xml`` writes it) and imported back, is the same scene to the core:
 the same triangles, texture coordinates and normals (bit for bit, where the XML carries them in float32: against
-the float32 of the original), the same material and emitter tables, camera, film and depth; three of them render
-bit-identical images with the reference.
+the float32 of the original), the same material and emitter tables, camera, film and depth; every one but
+smooth-twins renders a bit-identical image with the reference (three at their own film, all on a small one).
 
 What the XML does not carry, and so is compared apart:
 
@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import SCENES
+from reference_impl import Film
 
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.export import export_scene
@@ -33,9 +34,13 @@ from harness.scene.triangulate import shape_triangles, shape_uv, vertex_normals
 mi = pytest.importorskip("mitsuba")
 
 CANONICAL = sorted(p.stem for p in SCENES.glob("*.toml"))
-#: scenes whose reference renders are compared bit for bit (small, no meshes: the PLY's float32 normals are
-#: renormalised in float64 on load, within 3e-8 of the original's)
+#: scenes whose reference renders at their own film are compared bit for bit (every scene is, on a 16 x 16 film)
 RENDERED = ["cutout-leaf", "textured-cornell-box", "point-spot"]
+#: scenes whose images are not the same bit for bit, and why
+NOT_BIT_IDENTICAL = {
+    "smooth-twins": "its eggs' vertex normals come back as the float32 the PLY holds, renormalised in float64 on "
+                    "load (within 3e-8 of the original's): 26 of 256 pixels differ by at most 9e-8",
+}
 
 
 def round_trip(name: str, folder: Path):
@@ -143,4 +148,19 @@ def test_an_imported_canonical_scene_renders_the_same_image(name, tmp_path):
     renderer = get_renderer("reference")
     a = renderer.render(original, RenderRequest(spp=2, seed=0))
     b = renderer.render(back, RenderRequest(spp=2, seed=0))
+    assert np.array_equal(a.image, b.image, equal_nan=True)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.xfail(reason=NOT_BIT_IDENTICAL[n], strict=True))
+                                  if n in NOT_BIT_IDENTICAL else n for n in CANONICAL])
+def test_every_imported_canonical_scene_renders_the_same_small_image(name, tmp_path):
+    """On a 16 x 16 film at 1 spp, against the scene file itself (its spheres' own subdivisions: the reference
+    traces the analytic sphere, so they change no pixel)."""
+    _, back = round_trip(name, tmp_path)
+    original = load_scene(SCENES / f"{name}.toml")
+    film = Film(16, 16, original.film.filter)
+    renderer = get_renderer("reference")
+    a = renderer.render(dataclasses.replace(original, film=film), RenderRequest(spp=1, seed=0))
+    b = renderer.render(dataclasses.replace(back, film=film), RenderRequest(spp=1, seed=0))
     assert np.array_equal(a.image, b.image, equal_nan=True)
