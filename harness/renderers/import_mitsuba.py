@@ -29,6 +29,7 @@ listed (:attr:`ImportedScene.dropped`, and the scene's description).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import re
@@ -51,8 +52,8 @@ VARIANT = "scalar_rgb"
 #: sensor plugin -> its properties kept (besides to_world, the sampler and the film)
 SENSOR_KEYS = {"perspective": ("fov", "fov_axis"), "thinlens": ("fov", "fov_axis", "aperture_radius", "focus_distance"),
                "orthographic": ()}
-#: properties read and not kept: the harness picks its clip planes from the scene's extent, and a render's own spp
-#: and seed (docs/import.md)
+#: properties read and not kept: the harness picks its clip planes from the scene's extent (docs/import.md); a
+#: ``focus_distance`` is kept only on a thin lens (without a lens it changes nothing)
 SENSOR_IGNORED = ("near_clip", "far_clip")
 FILM_IGNORED = ("pixel_format", "component_format", "sample_border")
 FILTERS = {"box": {}, "tent": {"radius": 1.0}, "gaussian": {"stddev": 0.5}}
@@ -88,6 +89,11 @@ MITSUBA_DEFAULTS = {
 
 class _Dropped(Exception):
     """An element left out by ``lenient``: its enclosing top-level element goes too."""
+
+
+class _SkipProperty(_Dropped):
+    """A property left out by ``lenient``: its element stays (caught where the element reads its properties)."""
+
 
 
 @dataclass
@@ -224,7 +230,12 @@ class _Importer:
         self.refuse(self.where(node), self.element(node), expected)
 
     def refuse_property(self, node, key: str, expected: str) -> None:
-        self.refuse(self.where(node), f"{self.element(node)} property {key!r}", expected)
+        """Refuse a property; lenient, list it and leave it out (:class:`_SkipProperty`)."""
+        where, element = self.where(node), f"{self.element(node)} property {key!r}"
+        if not self.lenient:
+            raise HarnessError(f"{where}: {element}", expected)
+        self.dropped.append(f"{where}: {element}: {expected}")
+        raise _SkipProperty()
 
     # ---- the parse -------------------------------------------------------------------------------------------------
 
@@ -345,12 +356,13 @@ class _Importer:
         """``{key: value}`` of the node's plain properties, each of ``allowed``; nested plugins are left out."""
         out = {}
         for key in node.props.keys():
-            if self.is_nested(node, key):
-                continue
-            if key not in allowed:
-                self.refuse_property(node, key, f"expected one of the {what} properties the scene format has: "
-                                                f"{', '.join(allowed) or 'none'}")
-            out[key] = self.value(node, key, colour=key in COLOUR_ONLY)
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if self.is_nested(node, key):
+                    continue
+                if key not in allowed:
+                    self.refuse_property(node, key, f"expected one of the {what} properties the scene format has: "
+                                                    f"{', '.join(allowed) or 'none'}")
+                out[key] = self.value(node, key, colour=key in COLOUR_ONLY)
         return out
 
     def is_nested(self, node, key: str) -> bool:
@@ -382,15 +394,16 @@ class _Importer:
             self.refuse_node(node, f"expected a sensor of type {', '.join(SENSOR_KEYS)}")
         camera: dict = {"type": name}
         for key in node.props.keys():
-            if self.is_nested(node, key):
-                self.sensor_part(self.nested(node, key))
-            elif key == "to_world":
-                camera.update(self.look_at(node))
-            elif key in SENSOR_KEYS[name]:
-                camera[key] = self.value(node, key)
-            elif key not in SENSOR_IGNORED:
-                self.refuse_property(node, key, f"expected one of the {name} properties the scene format has: "
-                                                f"{', '.join(SENSOR_KEYS[name] + ('to_world',) + SENSOR_IGNORED)}")
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if self.is_nested(node, key):
+                    self.sensor_part(self.nested(node, key))
+                elif key == "to_world":
+                    camera.update(self.look_at(node))
+                elif key in SENSOR_KEYS[name]:
+                    camera[key] = self.value(node, key)
+                elif key not in SENSOR_IGNORED and not (key == "focus_distance" and name != "thinlens"):
+                    self.refuse_property(node, key, f"expected one of the {name} properties the scene format has: "
+                                                    f"{', '.join(SENSOR_KEYS[name] + ('to_world',) + SENSOR_IGNORED)}")
         if name != "orthographic" and "fov" not in camera:
             self.refuse_node(node, "expected fov (without it Mitsuba takes a 50 mm focal_length along the image's "
                                    "diagonal, an axis the scene format has not)")
@@ -442,21 +455,21 @@ class _Importer:
             self.refuse_node(node, "expected an hdrfilm film and a sampler in the sensor")
         film: dict = {"filter": "gaussian"}  # Mitsuba's default filter
         for key in node.props.keys():
-            if self.is_nested(node, key):
-                film["filter"] = self.rfilter(self.nested(node, key))
-            elif key in ("width", "height"):
-                film[key] = self.value(node, key)
-            elif key not in FILM_IGNORED:
-                self.refuse_property(node, key, "expected width, height, an rfilter (and the output's "
-                                                f"{', '.join(FILM_IGNORED)}): the scene's film has no crop")
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if self.is_nested(node, key):
+                    film["filter"] = self.rfilter(self.nested(node, key))
+                elif key in ("width", "height"):
+                    film[key] = self.value(node, key)
+                elif key not in FILM_IGNORED:
+                    self.refuse_property(node, key, "expected width, height, an rfilter (and the output's "
+                                                    f"{', '.join(FILM_IGNORED)}): the scene's film has no crop")
         film.setdefault("width", 768)
         film.setdefault("height", 576)  # Mitsuba's defaults
         border = bool(node.props["sample_border"]) if "sample_border" in node.props.keys() else False
         if border != (film["filter"] != "box"):  # lenient: the film kept, its border pixels the reference's
-            self.note(self.where(node), f"{self.element(node)} property 'sample_border'", f"expected {str(film['filter'] != 'box').lower()} with "
-                                                        f"the {film['filter']} filter: the reference's border pixels "
-                                                        f"take samples from outside the image exactly when the "
-                                                        f"filter reaches beyond its pixel")
+            self.note(self.where(node), f"{self.element(node)} property 'sample_border'",
+                      f"expected {str(not border).lower()} with the {film['filter']} filter: the reference's border "
+                      f"pixels take samples from outside the image exactly when the filter reaches beyond its pixel")
         self.film = film
 
     def rfilter(self, node) -> str:
@@ -464,9 +477,10 @@ class _Importer:
         if name not in FILTERS:
             self.refuse_node(node, f"expected an rfilter of type {', '.join(FILTERS)}")
         for key in node.props.keys():
-            if key not in FILTERS[name] or self.value(node, key) != FILTERS[name][key]:
-                self.refuse_property(node, key, f"expected Mitsuba's default {name} filter "
-                                                f"{FILTERS[name] or ''} (the scene format's)")
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if key not in FILTERS[name] or self.value(node, key) != FILTERS[name][key]:
+                    self.refuse_property(node, key, f"expected Mitsuba's default {name} filter "
+                                                    f"{FILTERS[name] or ''} (the scene format's)")
         return name
 
     # ---- materials -------------------------------------------------------------------------------------------------
@@ -527,16 +541,17 @@ class _Importer:
         allowed = [k for k in MATERIALS[kind].keys if k not in ("type", "two_sided")]
         table: dict = {"type": kind}
         for key in node.props.keys():
-            if key not in allowed:
-                self.refuse_property(node, key, f"expected one of the {kind} properties the scene format has: "
-                                                f"{', '.join(allowed)}")
-            if self.is_nested(node, key):
-                if key not in MATERIALS[kind].textured:
-                    self.refuse_property(node, key, f"expected a value: {kind}'s textured properties are "
-                                                    f"{', '.join(MATERIALS[kind].textured) or 'none'}")
-                table[key] = {"texture": self.texture(self.nested(node, key))}
-            else:
-                table[key] = self.value(node, key, colour=key in COLOUR_ONLY)
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if key not in allowed:
+                    self.refuse_property(node, key, f"expected one of the {kind} properties the scene format has: "
+                                                    f"{', '.join(allowed)}")
+                if self.is_nested(node, key):
+                    if key not in MATERIALS[kind].textured:
+                        self.refuse_property(node, key, f"expected a value: {kind}'s textured properties are "
+                                                        f"{', '.join(MATERIALS[kind].textured) or 'none'}")
+                    table[key] = {"texture": self.texture(self.nested(node, key))}
+                else:
+                    table[key] = self.value(node, key, colour=key in COLOUR_ONLY)
         return {**table, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in table}}
 
     def nested_bsdfs(self, node) -> list[tuple[str, object]]:
@@ -568,12 +583,13 @@ class _Importer:
         inner = self.nested_bsdfs(node)
         table: dict = {"type": kind}
         for key in node.props.keys():
-            if key in dict(inner):
-                continue
-            if key != item:
-                self.refuse_property(node, key, f"expected {item} and the nested bsdfs")
-            table[item] = ({"texture": self.texture(self.nested(node, key))} if self.is_nested(node, key)
-                           else self.value(node, key))
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if key in dict(inner):
+                    continue
+                if key != item:
+                    self.refuse_property(node, key, f"expected {item} and the nested bsdfs")
+                table[item] = ({"texture": self.texture(self.nested(node, key))} if self.is_nested(node, key)
+                               else self.value(node, key))
         names = [self.material(child, f"{name}-{key}") for key, child in inner]
         want = 2 if kind == "blendbsdf" else 1
         if len(names) != want:
@@ -588,15 +604,16 @@ class _Importer:
         table: dict = {"type": kind}
         allowed = [k for k in perturbation.keys if k not in ("type", "bsdf", perturbation.texture_key)]
         for key in node.props.keys():
-            if key in dict(inner):
-                continue
-            if key == perturbation.mitsuba_texture_key and self.is_nested(node, key):
-                table[perturbation.texture_key] = {"texture": self.texture(self.nested(node, key))}
-            elif key in allowed and not self.is_nested(node, key):
-                table[key] = self.value(node, key)
-            else:
-                self.refuse_property(node, key, f"expected {perturbation.mitsuba_texture_key} (a texture), "
-                                                f"{', '.join(allowed)} and one nested bsdf")
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if key in dict(inner):
+                    continue
+                if key == perturbation.mitsuba_texture_key and self.is_nested(node, key):
+                    table[perturbation.texture_key] = {"texture": self.texture(self.nested(node, key))}
+                elif key in allowed and not self.is_nested(node, key):
+                    table[key] = self.value(node, key)
+                else:
+                    self.refuse_property(node, key, f"expected {perturbation.mitsuba_texture_key} (a texture), "
+                                                    f"{', '.join(allowed)} and one nested bsdf")
         if len(inner) != 1:
             self.refuse_node(node, f"expected one nested bsdf, got {len(inner)}")
         table["bsdf"] = self.material(inner[0][1], f"{name}-bsdf")
@@ -636,6 +653,8 @@ class _Importer:
 
     def copy_file(self, node, key: str, suffixes: tuple, folder: str) -> tuple[str, str]:
         """Copy the file a property names (inside the scene's folder) into ``folder``; its stem and new path."""
+        if key not in node.props.keys():
+            self.refuse_node(node, f"expected a {key}")
         name = str(node.props[key])
         source = self.resolve(name)
         if source is None or not source.is_file():
@@ -780,9 +799,10 @@ class _Importer:
             self.refuse_node(node, f"expected an emitter of type {', '.join(EMITTER_KEYS)} (an area emitter "
                                    f"belongs in a shape)")
         for key in node.props.keys():
-            if self.is_nested(node, key):
-                self.refuse_property(node, key, "expected a value (the scene format's emitters take no texture "
-                                                "but an envmap's file)")
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if self.is_nested(node, key):
+                    self.refuse_property(node, key, "expected a value (the scene format's emitters take no texture "
+                                                    "but an envmap's file)")
         entry: dict = {"type": kind, "name": node.props.id() or f"emitter{len(self.emitters)}",
                        **self.plain_keys(node, EMITTER_KEYS[kind], kind)}
         if kind == "envmap":

@@ -26,7 +26,9 @@ SENSOR = """
   <sensor type="perspective">
     <float name="fov" value="45.5"/>
     <string name="fov_axis" value="y"/>
-    <transform name="to_world"><lookat origin="0.1, 0.2, 5" target="0, 0.30000000000000004, 0" up="0, 1, 0"/></transform>
+    <transform name="to_world">
+      <lookat origin="0.1, 0.2, 5" target="0, 0.30000000000000004, 0" up="0, 1, 0"/>
+    </transform>
     <sampler type="independent"><integer name="sample_count" value="4"/></sampler>
     <film type="hdrfilm">
       <integer name="width" value="8"/><integer name="height" value="6"/>
@@ -53,7 +55,7 @@ def imported(folder: Path, body: str, sensor: str = SENSOR, lenient: bool = Fals
     return tomllib.loads(result.toml), scene, result
 
 
-# ---- what is imported -------------------------------------------------------------------------------------------------
+# ---- what is imported ------------------------------------------------------------------------------------------
 
 
 def test_the_sensor_film_and_integrator_keep_their_values(tmp_path):
@@ -205,7 +207,8 @@ def test_emitters_keep_their_values(tmp_path):
   <shape type="rectangle"><bsdf type="diffuse"/></shape>
 """
     doc, scene, result = imported(tmp_path, body)
-    envmap = '<emitter type="envmap" id="map"><string name="filename" value="sky.exr"/><float name="scale" value="2"/>' \
+    envmap = '<emitter type="envmap" id="map"><string name="filename" value="sky.exr"/>' \
+             '<float name="scale" value="2"/>' \
              '</emitter>'
     map_doc, map_scene, map_result = imported(tmp_path, envmap)
     e = {x["name"]: x for x in doc["emitters"]}
@@ -294,7 +297,8 @@ def test_a_film_crop_and_a_filter_the_reference_has_not_are_refused(tmp_path):
     with pytest.raises(HarnessError, match="property 'to_world': expected a <lookat>"):
         import_mitsuba(write(tmp_path, "", sensor=matrix))
     with pytest.raises(HarnessError, match="property 'to_world': expected a <lookat> with origin, target and up"):
-        import_mitsuba(write(tmp_path, "", sensor='<default name="z" value="5"/>' + SENSOR.replace("0.2, 5", "0.2, $z")))
+        sensor = '<default name="z" value="5"/>' + SENSOR.replace("0.2, 5", "0.2, $z")
+        import_mitsuba(write(tmp_path, "", sensor=sensor))
     with pytest.raises(HarnessError, match=r"<sensor type='perspective'>: expected fov \(without it"):
         import_mitsuba(write(tmp_path, "", sensor=SENSOR.replace('<float name="fov" value="45.5"/>', "")))
 
@@ -340,3 +344,30 @@ def test_ids_with_odd_characters_are_kept_as_names(tmp_path):
     body = f'<bsdf type="diffuse" id="{xml}"/><shape type="rectangle" id="{xml} 2"><ref id="{xml}"/></shape>'
     doc, scene, _ = imported(tmp_path, body)
     assert list(scene.materials) == [name] and scene.shapes[0].name == f"{name} 2"
+
+
+def test_lenient_leaves_out_a_property_and_keeps_its_element(tmp_path):
+    body = '<bsdf type="diffuse" id="a"><spectrum name="reflectance" value="400:0.1, 700:0.5"/></bsdf>' \
+           '<bsdf type="roughconductor" id="b"><float name="alpha_u" value="0.1"/><float name="alpha" value="0.2"/>' \
+           '</bsdf><shape type="rectangle"><ref id="a"/></shape><shape type="cube"><ref id="b"/></shape>'
+    doc, scene, result = imported(tmp_path, body, lenient=True)
+    assert len(scene.shapes) == 2 and [line.split(": ")[1] for line in result.dropped] == [
+        "<bsdf type='diffuse' id='a'> property 'reflectance'", "<bsdf type='roughconductor' id='b'> property 'alpha_u'"]
+    assert doc["materials"]["a"]["reflectance"] == [0.5] * 3  # Mitsuba's default, and listed
+    assert doc["materials"]["b"] == {"type": "roughconductor", "alpha": 0.2}
+
+
+def test_mitsuba_s_own_cornell_box_written_as_xml(tmp_path):
+    """``mi.cornell_box()`` as Mitsuba's parser writes it: refused for its film (a Gaussian filter without
+    sample_border), imported with --lenient, which lists that one difference."""
+    path = tmp_path / "cbox.xml"
+    mi.set_variant("scalar_rgb")
+    mi.parser.write_file(mi.parser.parse_dict(mi.parser.ParserConfig("scalar_rgb"), mi.cornell_box()), str(path))
+    with pytest.raises(HarnessError, match=r"<film type='hdrfilm'> property 'sample_border': expected true with the "
+                                           r"gaussian filter"):
+        import_mitsuba(path)
+    result = import_mitsuba(path, lenient=True)
+    assert len(result.dropped) == 1
+    scene = load_scene(write_imported(result, tmp_path / "out"))
+    assert scene.film.filter == "gaussian" and scene.max_depth == 8 and len(scene.shapes) == 8
+    assert sum(s.is_emitter for s in scene.shapes) == 1
