@@ -6,7 +6,9 @@ test_import_mitsuba_roundtrip.py."""
 
 from __future__ import annotations
 
+import struct
 import tomllib
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +21,7 @@ from harness.renderers.importers import import_scene
 from harness.renderers.imports import write_imported
 from harness.renderers.meshfiles import ply_bytes
 from harness.scene import load_scene, triangulate
+from harness.scene.triangulate import shape_triangles
 
 mi = pytest.importorskip("mitsuba")
 
@@ -371,3 +374,26 @@ def test_mitsuba_s_own_cornell_box_written_as_xml(tmp_path):
     scene = load_scene(write_imported(result, tmp_path / "out"))
     assert scene.film.filter == "gaussian" and scene.max_depth == 8 and len(scene.shapes) == 8
     assert sum(s.is_emitter for s in scene.shapes) == 1
+
+
+def serialized_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A Mitsuba ``serialized`` file of one mesh (format 4: header, a zlib stream of flags, name, counts, float32
+    positions and uint32 indices, then the offsets' dictionary)."""
+    body = struct.pack("<I", 0x1000) + b"mesh\x00" + struct.pack("<QQ", len(vertices), len(faces))
+    body += np.asarray(vertices, np.float32).tobytes() + np.asarray(faces, np.uint32).tobytes()
+    return struct.pack("<HH", 0x041C, 4) + zlib.compress(body) + struct.pack("<QI", 0, 1)
+
+
+def test_a_serialized_mesh_is_the_mesh_mitsuba_reads(tmp_path):
+    tmp_path.mkdir(exist_ok=True)
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.25]])
+    (tmp_path / "m.serialized").write_bytes(serialized_bytes(vertices, [[0, 1, 2], [1, 3, 2]]))
+    body = '<shape type="serialized" id="s"><string name="filename" value="m.serialized"/>' \
+           '<boolean name="face_normals" value="true"/><transform name="to_world"><translate z="1"/></transform>' \
+           '<bsdf type="diffuse"/></shape>'
+    doc, scene, result = imported(tmp_path, body)
+    shape = doc["shapes"][0]
+    assert shape["type"] == "mesh" and shape["face_normals"] is True and shape["to_world"][2][3] == 1.0
+    mesh = scene.shapes[0]
+    vertices_world, triangles = shape_triangles(mesh)
+    assert np.array_equal(vertices_world, vertices + [0, 0, 1]) and triangles.tolist() == [[0, 1, 2], [1, 3, 2]]
