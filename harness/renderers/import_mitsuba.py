@@ -101,7 +101,7 @@ class _XmlFacts:
     """What Mitsuba's parser does not keep, read from the XML itself: each sensor's ``<lookat>`` (and a
     ``<scale>`` before it) by the sensor's byte offset, and every ``include`` with its offset."""
 
-    lookats: dict[int, tuple[dict, dict | None, int]] = field(default_factory=dict)
+    lookats: dict[int, tuple[dict, dict | None]] = field(default_factory=dict)
     includes: list[tuple[str, int]] = field(default_factory=list)
 
 
@@ -146,7 +146,7 @@ def _read_xml_facts(data: bytes) -> _XmlFacts:
             pending[offset] = []
         if len(stack) >= 3 and stack[-2][0] == "transform" and stack[-3][0] == "sensor" \
                 and stack[-2][2].get("name") == "to_world":
-            pending[stack[-3][1]].append((tag, attrs, offset))
+            pending[stack[-3][1]].append((tag, attrs))
 
     def end(tag):
         _, offset, _ = stack.pop()
@@ -154,9 +154,9 @@ def _read_xml_facts(data: bytes) -> _XmlFacts:
             ops = pending.pop(offset)
             names = [op[0] for op in ops]
             if names == ["lookat"]:
-                facts.lookats[offset] = (ops[0][1], None, ops[0][2])
+                facts.lookats[offset] = (ops[0][1], None)
             elif names == ["scale", "lookat"]:
-                facts.lookats[offset] = (ops[1][1], ops[0][1], ops[1][2])
+                facts.lookats[offset] = (ops[1][1], ops[0][1])
 
     parser.StartElementHandler, parser.EndElementHandler = start, end
     try:
@@ -420,7 +420,7 @@ class _Importer:
         if found is None:
             self.refuse_property(node, "to_world", "expected a <lookat> (after a <scale> for an orthographic "
                                                    "sensor) and nothing else: the scene's camera is a look-at")
-        look, scale, _ = found
+        look, scale = found
         try:
             out = {key: _numbers_text(look[key]) for key in ("origin", "target", "up")}
             if scale is not None:
