@@ -13,6 +13,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from harness.files.imageio import StagedFolder, atomic_write_bytes, atomic_write_text, make_folders
+
+#: the scene file an import writes
+SCENE_FILE = "scene.toml"
+
 
 @dataclass
 class ImportedScene:
@@ -28,3 +33,19 @@ class ImportedScene:
     files: dict[str, bytes] = field(default_factory=dict)
     dropped: list[str] = field(default_factory=list)
     source: Path | None = None
+
+
+def write_imported(imported: ImportedScene, out_dir: str | Path) -> Path:
+    """Write ``scene.toml`` and the files it names into the folder ``out_dir`` (created if needed), as ``harness
+    export`` writes its files: staged and moved into place together (:class:`harness.files.imageio.StagedFolder`),
+    replacing files of the same names, so a failed write leaves ``out_dir`` as it was. Returns the scene file's path.
+    """
+    out_dir = Path(out_dir)
+    with StagedFolder(out_dir, "--out") as stage:
+        for rel, data in imported.files.items():
+            path = stage.root / rel
+            make_folders(path.parent)
+            atomic_write_bytes(path, data)
+        atomic_write_text(stage.root / SCENE_FILE, imported.toml)
+        stage.commit(last=(SCENE_FILE,))  # the scene file last: it names the others
+    return out_dir / SCENE_FILE

@@ -169,6 +169,7 @@ def test_baseline_file_writes_non_finite_numbers_as_null(tmp_path):
     ("report", "DIR/results.json"),
     ("convergence", "SCENE", "--spp", "2"),
     ("export", "SCENE", "--format", "obj"),
+    ("import", "DIR/scene.xml"),
     ("bench", "--scene", "SCENE"),
     ("stress", "SCENE"),
     ("run", "SUITE", "--executor", "serial"),

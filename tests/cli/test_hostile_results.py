@@ -448,6 +448,18 @@ def test_export_on_a_full_disk_leaves_no_folder(folders, tmp_path, disk, capfd):
 
 
 @pytest.mark.parametrize("folders", [False, True], ids=["files", "files-and-folders"])
+def test_import_on_a_full_disk_leaves_no_folder(folders, tmp_path, disk, capfd):
+    pytest.importorskip("mitsuba")
+    assert cli(capfd, "export", ROOT / "scenes" / "cutout-leaf.toml", "--format", "mitsuba-xml", "--out",
+               tmp_path / "in")[0] == 0
+    before = listing(tmp_path)
+    disk.fill(folders=folders)
+    assert_one_line(*cli(capfd, "import", tmp_path / "in" / "scene.xml", "--out", tmp_path / "new" / "imported"),
+                    "No space left on device")
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize("folders", [False, True], ids=["files", "files-and-folders"])
 def test_report_on_a_full_disk_leaves_no_folder(folders, real, tmp_path, disk, capfd):
     path = write_results(tmp_path / "in", raw=real["text"])
     disk.fill(folders=folders)
