@@ -38,7 +38,7 @@ def register(sub, common) -> None:
 def run(args: argparse.Namespace) -> int:
     """``baseline save``: run the suite (or read ``--from``) and write the baseline; exit 1 when some case did not
     end as expected (unless ``--allow-unexpected``)."""
-    suite = load_suite(args.suite)
+    suite = load_suite(args.suite, args.cache_dir)
     if not args.out.strip():
         raise HarnessError("--out", "expected a file name, got an empty string")
     out = Path(args.out)

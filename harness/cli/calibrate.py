@@ -59,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     """Calibrate the suite's cases into ``--out``/calibration.json and print the summary."""
     require_positive("--seeds", args.seeds)
     sweep_options = _sweep_options(args)
-    suite = load_suite(args.suite)
+    suite = load_suite(args.suite, args.cache_dir)
     cases = calibrate.select_cases(suite, args.cases)  # a --cases matching no case: one line, before any render
     if sweep_options is not None:
         calibrate.check_cost(cases, args.seeds, sweep_options=sweep_options)  # and each case's films and replicates

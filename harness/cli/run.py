@@ -60,7 +60,7 @@ def register(sub, common) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the suite into ``--out`` (resuming an earlier run there unless ``--fresh``), print the summary, gate on
     ``--baseline``, write JUnit XML and the report."""
-    suite = load_suite(args.suite)
+    suite = load_suite(args.suite, args.cache_dir)
     cache_mode = result_cache.mode(fresh=args.fresh, no_cache=args.no_cache)
     executor = executors.make_executor(args.executor, args.workers)  # checked before anything is written
     if args.timeout is not None and not args.timeout > 0:

@@ -20,6 +20,7 @@ from harness.files.cases import slug  # the folder name of a case: files/cases.p
 from harness.core.limits import MAX_FILM_SIDE, MAX_TIMEOUT_SECONDS, check_render_cost, film_problem, float_or_inf
 from harness.core.text import hint, short
 from harness.renderers import RenderRequest, external, get_renderer, renderer_names
+from harness.running import imported_scenes
 from harness.running.tolerances import check_table
 from harness.scene import load_scene
 from harness.scene.load import find_scene
@@ -99,8 +100,10 @@ class Suite:
 # ---- loading ---------------------------------------------------------------------------------------------------
 
 
-def load_suite(path: str | Path) -> Suite:
-    """Read and validate a suite file; every problem is a one-line HarnessError naming the file and key."""
+def load_suite(path: str | Path, cache_dir: str | Path | None = None) -> Suite:
+    """Read and validate a suite file; every problem is a one-line HarnessError naming the file and key. A case's
+    scene of another format (Mitsuba 3 XML, glTF 2.0) is imported and kept under ``cache_dir`` (default: the
+    ground-truth cache's folder; :mod:`harness.running.imported_scenes`)."""
     path = Path(path)
     reader = TypedReader(str(path), PYTHON_PHRASING)
     doc = read_user_toml(path, missing="no such suite file")
@@ -122,7 +125,7 @@ def load_suite(path: str | Path) -> Suite:
         entry = reader.table(entry, where)
         reader.check_keys(entry, CASE_KEYS, where)
         merged = {**defaults, **entry}
-        case = _case(reader, path.parent, where, merged, known)
+        case = _case(reader, path.parent, where, merged, known, cache_dir)
         if case.name in names:
             raise reader.error(f"{where}.name", f"duplicate case name {short(case.name)}")
         _check_folder_unique(reader, where, case.name, folders)
@@ -132,30 +135,34 @@ def load_suite(path: str | Path) -> Suite:
         names.add(case.name)
         cases.append(case)
     if "settings" in defaults and all("settings" in entry for entry in entries):
-        _check_unused_default_settings(reader, path.parent, defaults, entries[0], known)
+        _check_unused_default_settings(reader, path.parent, defaults, entries[0], known, cache_dir)
     return Suite(name, description, path, tuple(cases), baseline)
 
 
-def _check_unused_default_settings(reader: TypedReader, folder: Path, defaults: dict, entry: dict, known) -> None:
+def _check_unused_default_settings(reader: TypedReader, folder: Path, defaults: dict, entry: dict, known,
+                                   cache_dir: str | Path | None = None) -> None:
     """``defaults.settings`` that every case replaces with its own, checked all the same (as the first case would
     use them), so that a typo there is one line naming ``defaults.settings.KEY`` rather than silently unused."""
     merged = {**defaults, **{k: v for k, v in entry.items() if k != "settings"}}
-    case = _case(reader, folder, "defaults", merged, known)
+    case = _case(reader, folder, "defaults", merged, known, cache_dir)
     scenes: dict = {}
     _check_case_cost(reader, "defaults", case, scenes)
     _check_case_settings(reader, "defaults", case, with_case_overrides(scenes[case.scene], case))
 
 
-def _case(reader: TypedReader, folder: Path, where: str, d: dict[str, Any], known: list[str]) -> Case:
-    """One case of a suite; ``known``: the renderer names (:func:`harness.renderers.renderer_names`)."""
+def _case(reader: TypedReader, folder: Path, where: str, d: dict[str, Any], known: list[str],
+          cache_dir: str | Path | None = None) -> Case:
+    """One case of a suite; ``known``: the renderer names (:func:`harness.renderers.renderer_names`); a scene of
+    another format imported under ``cache_dir`` (:func:`harness.running.imported_scenes.scene_file`)."""
 
     def key(k: str) -> str:
         return f"{where}.{k}"
 
     if "scene" not in d:
         raise reader.error(key("scene"), "missing: expected a scene name or a path to a scene file")
-    scene = find_scene(reader.string(d["scene"], key("scene")), reader.where(key("scene")), folder)
-    name = _case_name(reader, key("name"), d.get("name", scene.stem), "name" not in d)
+    source = find_scene(reader.string(d["scene"], key("scene")), reader.where(key("scene")), folder)
+    scene = imported_scenes.scene_file(source, cache_dir) if imported_scenes.is_foreign(source) else source
+    name = _case_name(reader, key("name"), d.get("name", source.stem), "name" not in d)
     renderer = reader.string(d.get("renderer", "reference"), key("renderer"))
     renderer = _renderer_known(reader, key("renderer"), renderer, known, folder)
     settings = judged_settings(renderer, _settings(reader, key("settings"), d.get("settings", {})))

@@ -172,7 +172,7 @@ def _call(fn, *args, **kwargs) -> tuple[bytes | None, str | None]:
 
 def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions) -> dict:
     records = results.get("cases", [])
-    suite_cases, suite_note = _suite_cases(results)
+    suite_cases, suite_note = _suite_cases(results, options.cache_dir)
     progress = Progress(options.progress, len(records), "studies")
     timings: dict[str, float] = {}
     sections: dict[str, Any] = {}
@@ -216,12 +216,12 @@ def _studies(results: dict, results_dir: Path, out: Path, options: StudyOptions)
 # ---- the cases, their scenes and ground truths ------------------------------------------------------------------
 
 
-def _suite_cases(results: dict) -> tuple[dict, str | None]:
+def _suite_cases(results: dict, cache_dir=None) -> tuple[dict, str | None]:
     suite_file = results.get("suite_file")
     if not suite_file:
         return {}, "results.json names no suite file"
     try:
-        suite = load_suite(suite_file)
+        suite = load_suite(suite_file, cache_dir)
     except HarnessError as err:
         return {}, f"suite file not readable now ({err}); settings are taken from results.json"
     return {c.name: c for c in suite.cases}, None
