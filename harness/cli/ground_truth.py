@@ -19,7 +19,7 @@ from harness.core.errors import HarnessError
 from harness.core.options import parse_set, require_non_negative, require_positive
 from harness.files import imageio
 from harness.renderers import RenderRequest, get_renderer, groundtruth
-from harness.running import runstate
+from harness.running import executors, runstate
 from harness.scene import load_scene, scene_argument
 
 
@@ -42,6 +42,13 @@ def register(sub, common) -> None:
                         help="samples per cached chunk (default 256)")
     parser.add_argument("--no-closed-form", action="store_true",
                         help="render with Mitsuba even if the scene has a closed form")
+    parser.add_argument("--executor", default=None,
+                        help="render the chunks not cached on: local (worker processes on this machine), dask (a Dask "
+                        "LocalCluster) or tcp://HOST:PORT (a Dask scheduler whose workers see the cache folder at the "
+                        "same path), then merge them here (default: here, one after another); the same image, bit for "
+                        "bit")
+    parser.add_argument("--workers", type=options.positive_int, default=None,
+                        help="with --executor: worker processes of local (default 2) or dask (default 2)")
     parser.set_defaults(func=run)
     sub.add_parser(
         "ground-truth", parents=[parser, common.film(),
@@ -72,11 +79,33 @@ def _compute(args: argparse.Namespace, scene, auto: bool, test_settings: dict, p
         args.spp = 1  # a closed form: nothing to render
     for option, value in (("--spp", args.spp), ("--chunk-spp", args.chunk_spp)):
         check_cost(scene, value, option)  # with a closed form too: a budget no render could meet is a typo
+    if args.executor is not None and not (scene.closed_form and not args.no_closed_form):
+        _render_chunks(args, scene, progress)
     gt = groundtruth.ground_truth(
         scene, spp=args.spp, seed=args.seed, cache_dir=args.cache_dir, variant=args.mitsuba_variant,
         chunk_spp=args.chunk_spp, use_closed_form=not args.no_closed_form, progress=progress,
     )
     return chosen, gt
+
+
+def _render_chunks(args: argparse.Namespace, scene, progress) -> None:
+    """``--executor``: the chunks the cache lacks rendered as tasks of that executor (each a cache entry, written
+    where every worker sees the cache), before ``ground_truth()`` merges them here as it merges its own. A chunk that
+    failed there is rendered here by the merge, which says why if it fails again."""
+    jobs = groundtruth.missing_chunks(scene, spp=args.spp, seed=args.seed, cache_dir=args.cache_dir,
+                                      variant=args.mitsuba_variant, chunk_spp=args.chunk_spp)
+    if not jobs:
+        return
+    executor = executors.make_executor(args.executor, args.workers)
+    tasks = [executors.Task(f"chunk:{job.key}", "chunk", job, executors.CHUNK_TIMEOUT) for job in jobs]
+    total = math.ceil(args.spp / args.chunk_spp)
+    done = total - len(jobs)
+    for _task, outcome in executor.run(tasks):
+        if outcome[0] == "harness-error":
+            raise HarnessError(outcome[1], outcome[2])
+        done += 1
+        if progress is not None:
+            progress(min(args.spp, done * args.chunk_spp), args.spp)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -90,6 +119,10 @@ def run(args: argparse.Namespace) -> int:
                 raise HarnessError(option, "applies only with --spp auto")
     require_positive("--chunk-spp", args.chunk_spp)
     require_non_negative("--seed", args.seed)
+    if args.workers is not None and args.executor is None:
+        raise HarnessError("--workers", "applies only with --executor")
+    if args.executor is not None:
+        executors.make_executor(args.executor, args.workers)  # a bad --executor or --workers: one line, now
     out = exr_out_path(args.out) if args.out is not None else None
     scene = with_film(load_scene(scene_argument(args.scene)), args.film)
     test_settings = parse_set(args.test_set)
