@@ -754,9 +754,12 @@ class _Importer:
                     raise HarnessError(f"{self.where(tok, file)}: {element}", "expected \"string filename\"")
                 target = self.inside(file, tok, fname)
                 try:
-                    P, idx, N, uv = read_ply(target.read_bytes())
-                except (ValueError, IndexError) as err:
+                    P, idx, N, uv, nonplanar = read_ply(target.read_bytes())
+                except (ValueError, IndexError, KeyError) as err:
                     raise HarnessError(f"{self.where(tok, file)}: {element}", f"{fname!r}: {err}") from None
+                if nonplanar:
+                    self.notes.append(f"{self.where(tok, file)}: {element}: {nonplanar} non-planar quads (pbrt-v4's "
+                                      "bilinear patches) as two triangles each, split along their 0-2 diagonal")
             else:
                 idx = self.take(params, "indices", ("integer",), None)
                 P = self.take(params, "P", ("point3",), None)
@@ -888,9 +891,10 @@ PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": 
 
 
 def read_ply(data: bytes):
-    """A PLY file's (points (V, 3), triangles (F, 3), normals or None, uv or None), as pbrt-v4's plymesh reads one:
-    ``x y z``, ``nx ny nz``, ``u v`` (or ``s t``, ``texture_u texture_v``), faces of 3 or 4 vertices (a quad split
-    into (0 1 2), (0 2 3)). ASCII or binary; every face list as long as the first (else ValueError)."""
+    """A PLY file's (points (V, 3), triangles (F, 3), normals or None, uv or None, the number of non-planar quads) as
+    pbrt-v4's plymesh reads one: ``x y z``, ``nx ny nz``, ``u v`` (or ``s t``, ``texture_u texture_v``), faces of 3
+    or 4 vertices (a quad split into (0 1 2), (0 2 3): pbrt-v4 makes it a bilinear patch, the same surface where the
+    quad is planar). ASCII or binary; in a binary file every face list as long as the first (else ValueError)."""
     end = data.find(b"end_header")
     if not data.startswith(b"ply") or end < 0:
         raise ValueError("expected a PLY file (ply ... end_header)")
@@ -947,7 +951,7 @@ def read_ply(data: bytes):
     normals = np.column_stack([col["nx"], col["ny"], col["nz"]]) if "nx" in col else None
     uv = next((np.column_stack([col[a], col[b]]) for a, b in (("u", "v"), ("s", "t"), ("texture_u", "texture_v"))
                if a in col and b in col), None)
-    triangles = []
+    triangles, quads = [], []
     for row in tables.get("face", ([], []))[1]:
         n = int(row[0])
         v = [int(x) for x in row[1:1 + n]]
@@ -955,12 +959,16 @@ def read_ply(data: bytes):
             triangles.append(v)
         elif n == 4:
             triangles += [[v[0], v[1], v[2]], [v[0], v[2], v[3]]]
+            quads.append(v)
         else:
             raise ValueError(f"a face of {n} vertices (pbrt reads triangles and quads)")
     idx = np.asarray(triangles, np.int64).reshape(-1, 3)
     if len(idx) == 0 or idx.min() < 0 or idx.max() >= len(points):
         raise ValueError(f"expected faces indexing the {len(points)} vertices")
-    return points, idx, normals, uv
+    q = points[np.asarray(quads, np.int64).reshape(-1, 4)]
+    nonplanar = int((np.abs(np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]),
+                                      q[:, 3] - q[:, 0])) > 1e-9 * np.abs(q).max(initial=1.0) ** 3).sum())
+    return points, idx, normals, uv, nonplanar
 
 
 def point(m: np.ndarray, p) -> list:

@@ -311,3 +311,19 @@ def test_lenient_drops_and_lists(tmp_path):
     result, doc, scene = imported(tmp_path, HEAD + 'Shape "disk"\n' + QUAD, lenient=True)
     assert len(result.dropped) == 1 and 'scene.pbrt:6:1: Shape "disk"' in result.dropped[0]
     assert "dropped:" in doc["description"] and len(doc["shapes"]) == 1
+
+
+def test_an_ascii_plymesh_with_a_quad_normals_and_uv(tmp_path):
+    ply = ("ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+           "property float nx\nproperty float ny\nproperty float nz\nproperty float u\nproperty float v\n"
+           "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+           "0 0 0 0 0 -1 0 0\n1 0 0 0 0 -1 1 0\n1 1 0 0 0 -1 1 1\n0 1 0 0 0 -1 0 1\n4 0 1 2 3\n")
+    (tmp_path / "in").mkdir(parents=True)
+    (tmp_path / "in" / "quad.ply").write_text(ply)
+    result, doc, scene = imported(tmp_path, HEAD + 'Shape "plymesh" "string filename" "quad.ply"\n')
+    geometry = triangulate(scene)
+    corners = np.asarray(geometry.vertices)[np.asarray(geometry.triangles)]
+    assert corners.shape == (2, 3, 3)
+    # the file's normals face -z: pbrt's front side is theirs, kept through the mirror
+    assert all(np.cross(c[1] - c[0], c[2] - c[0])[2] < 0 for c in corners)
+    assert "non-planar" not in doc["description"]
