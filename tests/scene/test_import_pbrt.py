@@ -327,3 +327,104 @@ def test_an_ascii_plymesh_with_a_quad_normals_and_uv(tmp_path):
     # the file's normals face -z: pbrt's front side is theirs, kept through the mirror
     assert all(np.cross(c[1] - c[0], c[2] - c[0])[2] < 0 for c in corners)
     assert "non-planar" not in doc["description"]
+
+
+# ---- against the same scene written by hand --------------------------------------------------------------------------
+
+
+HANDMADE_PBRT = """Scale -1 1 1
+LookAt 0 1 3   0 1 0   0 1 0
+Camera "perspective" "float fov" 50
+Film "rgb" "integer xresolution" 12 "integer yresolution" 8
+PixelFilter "triangle" "float xradius" 1 "float yradius" 1
+Integrator "path" "integer maxdepth" 2
+WorldBegin
+LightSource "point" "rgb I" [ 3 2 1 ] "point3 from" [ 0 1.5 0 ]
+LightSource "distant" "rgb L" [ 0.5 0.5 0.5 ] "point3 from" [ 1 1 0 ] "point3 to" [ 0 0 0 ]
+MakeNamedMaterial "floor" "string type" "diffuse" "rgb reflectance" [ 0.6 0.5 0.4 ]
+MakeNamedMaterial "metal" "string type" "conductor" "rgb eta" [ 0.2 0.9 1.1 ] "rgb k" [ 3.9 2.4 2.1 ]
+  "float roughness" 0.01
+NamedMaterial "floor"
+Shape "trianglemesh" "integer indices" [ 0 1 2 0 2 3 ] "point3 P" [ -1 0 -1  -1 0 1  1 0 1  1 0 -1 ]
+AttributeBegin
+  NamedMaterial "metal"
+  Translate 0.25 0.5 0
+  Shape "sphere" "float radius" 0.5
+AttributeEnd
+"""
+
+HANDMADE_TOML = """name = "handmade"
+[camera]
+origin = [0, 1, 3]
+target = [0, 1, 2]
+up = [0, 1, 0]
+fov = 50
+fov_axis = "smaller"
+[film]
+width = 12
+height = 8
+filter = "tent"
+[integrator]
+max_depth = 3
+[materials.floor]
+reflectance = [0.6, 0.5, 0.4]
+two_sided = true
+[materials.metal]
+type = "roughconductor"
+eta = [0.2, 0.9, 1.1]
+k = [3.9, 2.4, 2.1]
+alpha = 0.1
+distribution = "ggx"
+two_sided = true
+[[shapes]]
+type = "mesh"
+file = "floor.ply"
+material = "floor"
+face_normals = true
+[[shapes]]
+type = "sphere"
+material = "metal"
+center = [0.25, 0.5, 0]
+radius = 0.5
+[[emitters]]
+type = "point"
+position = [0, 1.5, 0]
+intensity = [3, 2, 1]
+[[emitters]]
+type = "directional"
+direction = [-0.7071067811865475, -0.7071067811865475, 0]
+irradiance = [0.5, 0.5, 0.5]
+"""
+
+
+def assert_same_arrays(a, b):
+    assert (a is None) == (b is None)
+    if a is None:
+        return
+    for key, value in vars(a).items():
+        other = vars(b)[key]
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value, other, err_msg=key)
+        elif hasattr(value, "__dict__"):
+            assert_same_arrays(value, other)
+        else:
+            assert value == other, key
+
+
+def test_an_imported_scene_equals_the_same_scene_written_by_hand(tmp_path):
+    from harness.scene import emitter_arrays
+    _, _, scene = imported(tmp_path, HANDMADE_PBRT)
+    hand = tmp_path / "hand"
+    hand.mkdir()
+    # the floor's corners in pbrt's order, wound the way pbrt's front side (+y) is the format's
+    (hand / "floor.ply").write_bytes(ply_bytes(np.array([[-1, 0, -1], [-1, 0, 1], [1, 0, 1], [1, 0, -1.0]]),
+                                               np.array([[0, 1, 2], [0, 2, 3]])))
+    (hand / "scene.toml").write_text(HANDMADE_TOML)
+    expected = load_scene(hand / "scene.toml")
+    assert_same_arrays(triangulate(scene), triangulate(expected))
+    assert_same_arrays(material_arrays(scene), material_arrays(expected))
+    assert_same_arrays(emitter_arrays(scene), emitter_arrays(expected))
+    assert (scene.film.width, scene.film.height, scene.film.filter) == (12, 8, "tent")
+    fx, fy = np.array([0.0, 3.5, 12.0]), np.array([0.0, 4.25, 8.0])
+    for got, want in zip(scene.camera.generate_rays(fx, fy, 12, 8), expected.camera.generate_rays(fx, fy, 12, 8)):
+        np.testing.assert_array_equal(got, want)
