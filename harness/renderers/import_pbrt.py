@@ -166,6 +166,8 @@ class _Importer:
         self.max_depth = 6
         self.world = False
         self.serial = 0  # each Material directive's number: its material's key
+        self.object: tuple[str, list] | None = None  # the ObjectBegin being read: its name and shapes
+        self.objects: dict[str, list] = {}
 
     # -- refusals --
 
@@ -338,15 +340,41 @@ class _Importer:
                 raise HarnessError(self.where(tok, file), f"{name}: more than {MAX_INCLUDE_DEPTH} nested files")
             self.parse_file(target, depth + 1)
             return j
-        if name in ("ObjectBegin", "ObjectEnd", "ObjectInstance", "MakeNamedMedium", "MediumInterface",
-                    "Attribute", "ActiveTransform", "TransformTimes"):
-            # skip the arguments: strings and a parameter list
+        if name == "ObjectBegin":
+            s_, j = self.string_arg(tokens, i, file, name)
+            if self.object is not None:
+                raise HarnessError(self.where(tok, file), "ObjectBegin inside ObjectBegin")
+            self.stack.append(State(st.ctm.copy(), st.material, st.area_light, st.reverse))
+            self.object = (s_, [])
+            return j
+        if name == "ObjectEnd":
+            if self.object is None or not self.stack:
+                raise HarnessError(self.where(tok, file), "ObjectEnd without ObjectBegin")
+            self.objects[self.object[0]] = self.object[1]
+            self.object = None
+            self.state = self.stack.pop()
+            return i + 1
+        if name == "ObjectInstance":
+            s_, j = self.string_arg(tokens, i, file, name)
+            if s_ not in self.objects:
+                raise HarnessError(self.where(tok, file), f"ObjectInstance \"{s_}\": no such object")
+            saved = self.state
+            for kind, params, sfile, stok, element, defined in self.objects[s_]:
+                # pbrt-v4: world-from-instance (the CTM here) times the shape's CTM where the object defined it
+                self.state = State(st.ctm @ defined.ctm, defined.material, None, defined.reverse)
+                self.on_shape(kind, dict(params), sfile, stok, element)
+            self.state = saved
+            return j
+        if name in ("MakeNamedMedium", "MediumInterface", "Attribute", "ActiveTransform", "TransformTimes"):
+            # skip the arguments: strings, numbers and a parameter list (ActiveTransform: one bare word)
             j = i + 1
+            if name == "ActiveTransform" and j < len(tokens):
+                j += 1
             while j < len(tokens) and (tokens[j].quoted or tokens[j].text in "[]" or
                                        re.fullmatch(r"[-+.0-9eE]+", tokens[j].text)):
                 j += 1
-            self.refuse(file, tok, name, "not imported (instancing, media, attributes and motion are not part "
-                                         "of the scene format)")
+            self.refuse(file, tok, name, "not imported (media, attribute defaults and motion are not part of the "
+                                         "scene format)")
             return j
         if name == "MakeNamedMaterial":
             s, j = self.string_arg(tokens, i, file, name)
@@ -716,6 +744,13 @@ class _Importer:
 
     def on_shape(self, kind, params, file, tok, element):
         self.cur_file = file
+        if self.object is not None:  # a prototype's shape: placed by each ObjectInstance
+            if self.state.area_light is not None:
+                self.refuse(file, tok, element, "an area light in an object instance (pbrt-v4 does not support it)")
+                return
+            self.object[1].append((kind, dict(params), file, tok, element,
+                                   State(self.state.ctm.copy(), self.state.material, None, self.state.reverse)))
+            return
         m = self.state.ctm
         if kind not in ("trianglemesh", "plymesh", "sphere"):
             self.refuse(file, tok, element, "expected trianglemesh, plymesh or sphere")

@@ -216,6 +216,17 @@ def test_a_thin_lens_and_an_orthographic_camera(tmp_path):
     np.testing.assert_allclose(origins[0], [-4 / 3, 2.0, 4.0], atol=1e-12)
 
 
+def test_object_instances_are_flattened(tmp_path):
+    text = HEAD + ('ObjectBegin "ball"\nTranslate 0 1 0\nMaterial "diffuse"\nShape "sphere" "float radius" 0.5\n'
+                   'ObjectEnd\nShape "sphere"\n'
+                   'AttributeBegin\nTranslate 2 0 0\nObjectInstance "ball"\nAttributeEnd\n'
+                   'AttributeBegin\nScale 2 2 2\nObjectInstance "ball"\nAttributeEnd\n')
+    _, doc, _ = imported(tmp_path, text)
+    centres = [s["center"] for s in doc["shapes"]]
+    np.testing.assert_allclose(centres, [[0, 0, 0], [-2, 1, 0], [0, 2, 0]], atol=1e-12)  # x mirrored
+    assert [s["radius"] for s in doc["shapes"]] == [1.0, 0.5, pytest.approx(1.0)]
+
+
 def test_materials(tmp_path):
     text = HEAD + ('Material "conductor" "rgb eta" [ .2 .9 1.1 ] "rgb k" [ 3.9 2.4 2.1 ] "float roughness" 0.04\n'
                    + QUAD + 'Material "conductor" "rgb eta" [ .2 .9 1.1 ] "rgb k" [ 3.9 2.4 2.1 ]\n' + QUAD +
@@ -288,7 +299,8 @@ def test_lights(tmp_path):
                                                            'infinite light'),
     ('LightSource "point" "float power" 10', 'scene.pbrt:6:1: LightSource "point": "power"'),
     ('AreaLightSource "diffuse" "bool twosided" true', 'scene.pbrt:6:1: AreaLightSource "diffuse": twosided'),
-    ('ObjectBegin "a"', 'scene.pbrt:6:1: ObjectBegin: not imported'),
+    ('MakeNamedMedium "fog" "string type" "homogeneous"', 'scene.pbrt:6:1: MakeNamedMedium: not imported'),
+    ('ActiveTransform StartTime', 'scene.pbrt:6:1: ActiveTransform: not imported'),
     ('Material "diffuse" "spectrum reflectance" "metal-Au-eta"\nShape "sphere"',
      'scene.pbrt:6:20: "spectrum reflectance": a named or sampled spectrum'),
     ('LightSource "point" "blackbody I" 3000', 'scene.pbrt:6:21: "blackbody I": expected type rgb'),
