@@ -440,3 +440,20 @@ def test_an_imported_scene_equals_the_same_scene_written_by_hand(tmp_path):
     fx, fy = np.array([0.0, 3.5, 12.0]), np.array([0.0, 4.25, 8.0])
     for got, want in zip(scene.camera.generate_rays(fx, fy, 12, 8), expected.camera.generate_rays(fx, fy, 12, 8)):
         np.testing.assert_array_equal(got, want)
+
+
+def test_front_sides_follow_pbrts_rules_and_the_default_depth(tmp_path):
+    """Without N: the winding's side, flipped by ReverseOrientation (and by a transform that swaps handedness); with
+    N: the normals' side. The emitting quad under ReverseOrientation faces down."""
+    text = HEAD + ('AttributeBegin\nAreaLightSource "diffuse" "rgb L" [ 4 4 4 ]\nReverseOrientation\n' + QUAD +
+                   'AttributeEnd\n'
+                   'AttributeBegin\nScale 1 1 -1\n' + QUAD + 'AttributeEnd\n'
+                   'Shape "trianglemesh" "integer indices" [ 0 1 2 ] "point3 P" [ -1 0 -1  -1 0 1  1 0 1 ] '
+                   '"normal N" [ 0 -1 0  0 -1 0  0 -1 0 ]\n')
+    _, doc, scene = imported(tmp_path, text)
+    assert doc["integrator"] == {"max_depth": 6}  # pbrt-v4's default maxdepth 5
+    geometry = triangulate(scene)
+    corners = np.asarray(geometry.vertices)[np.asarray(geometry.triangles)]
+    ny = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])[:, 1]
+    assert list(np.sign(ny)) == [-1, -1, 1, 1, -1]  # reversed light; Scale z -1 swaps handedness: pbrt keeps +y
+    assert np.asarray(geometry.light_id)[:2].tolist() == [0, 0]
