@@ -35,7 +35,7 @@ COMMANDS = (
      "write a scene as Mitsuba 3 XML (+ PLY meshes), scene.json (+ PLY meshes; docs/scene-json.md), PLY, OBJ or glTF "
      "for other renderers (docs/external-renderers.md)"),
     ("import", "harness.cli.import_scene",
-     "read a Mitsuba 3 XML or glTF 2.0 scene into this project's scene format (TOML + PLY meshes + textures)"),
+     "read a Mitsuba 3 XML, glTF 2.0 or pbrt-v4 scene into this project's scene format (TOML + PLY + textures)"),
     ("bench", "harness.cli.bench",
      "the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, MSE against "
      "ground truth, efficiency 1/(MSE x s) and their ratios"),

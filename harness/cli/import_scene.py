@@ -1,5 +1,5 @@
-"""``harness import FILE --out DIR [--lenient] [--json]``: a Mitsuba 3 XML or glTF 2.0 scene read into the scene
-format (TOML + PLY meshes + textures; :mod:`harness.renderers.importers`, docs/import.md).
+"""``harness import FILE --out DIR [--lenient] [--json]``: a Mitsuba 3 XML, glTF 2.0 or pbrt-v4 scene read into
+the scene format (TOML + PLY meshes + textures; :mod:`harness.renderers.importers`, docs/import.md).
 
 The imported scene is loaded (:func:`harness.scene.load_scene`) before anything is written, so a file the scene
 format cannot hold is refused in one line and ``--out`` is left as it was.
@@ -23,7 +23,8 @@ from harness.scene import load_scene
 def register(sub, common) -> None:
     """Add ``import`` to the subparsers ``sub``."""
     parser = common.own()
-    parser.add_argument("file", help="the scene to read: a Mitsuba 3 XML file (.xml) or glTF 2.0 (.gltf, .glb)")
+    parser.add_argument("file",
+                        help="the scene to read: a Mitsuba 3 XML file (.xml), glTF 2.0 (.gltf, .glb) or pbrt-v4 (.pbrt)")
     parser.add_argument("--lenient", action="store_true",
                         help="drop what the scene format cannot express (a warning each) instead of refusing the file")
     parser.set_defaults(func=run)

@@ -55,7 +55,7 @@ def test_bad_input_is_one_line_exit_2_and_nothing_written(tmp_path, capfd):
     assert err.startswith(f"harness: error: {source}:9:4: <emitter type='sunsky'>: expected an emitter of type")
     assert not (tmp_path / "out").exists()
     code, _, err = cli(capfd, "import", tmp_path / "scene.obj", "--out", tmp_path / "out")
-    assert code == 2 and "expected a Mitsuba 3 .xml, a glTF 2.0 .gltf or .glb file" in err
+    assert code == 2 and "expected a Mitsuba 3 .xml, a glTF 2.0 .gltf or .glb, or a pbrt-v4 .pbrt file" in err
     assert not (tmp_path / "out").exists()
 
 

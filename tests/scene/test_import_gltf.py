@@ -26,7 +26,7 @@ from harness.renderers.export import (
     gltf_uv_transform,
 )
 from harness.renderers.import_gltf import import_gltf, uv_matrix
-from harness.renderers.imports import ImportedScene
+from harness.renderers.imports import write_imported
 from harness.scene import load_scene, triangulate
 from harness.scene.triangulate import shape_triangles
 from harness.scene.kinds.emitters import LUMENS_PER_WATT
@@ -58,16 +58,6 @@ MATERIAL_LOSSES = {
 #: The imported material's parameter that holds glTF's base colour texture, by the imported type.
 BASE_PARAMETER = (("dielectric", "specular_transmittance"), ("thindielectric", "specular_transmittance"),
                   ("roughdielectric", "specular_transmittance"))
-
-
-def write_imported(imported: ImportedScene, folder: Path) -> Path:
-    """The imported scene's files and ``scene.toml`` in ``folder`` (the real writer is ``imports.write_imported``)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    for rel, data in imported.files.items():
-        (folder / rel).parent.mkdir(parents=True, exist_ok=True)
-        (folder / rel).write_bytes(data)
-    (folder / "scene.toml").write_text(imported.toml, encoding="utf-8")
-    return folder / "scene.toml"
 
 
 def corners(geometry) -> np.ndarray:

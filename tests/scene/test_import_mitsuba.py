@@ -234,8 +234,8 @@ def test_an_include_inside_the_folder_is_followed(tmp_path):
     assert doc["materials"]["red"]["reflectance"] == [0.9, 0.1, 0.1]
 
 
-def test_the_dispatch_takes_xml_gltf_and_glb(tmp_path):
-    with pytest.raises(HarnessError, match=r"expected a Mitsuba 3 \.xml, a glTF 2\.0 \.gltf or \.glb file"):
+def test_the_dispatch_takes_xml_gltf_glb_and_pbrt(tmp_path):
+    with pytest.raises(HarnessError, match=r"expected a Mitsuba 3 \.xml, a glTF 2\.0 \.gltf or \.glb, or a pbrt-v4 \.pbrt file"):
         import_scene(tmp_path / "scene.obj")
 
 

@@ -16,19 +16,9 @@ import pytest
 
 from harness.core.errors import HarnessError
 from harness.renderers.import_pbrt import import_pbrt, tokenize
-from harness.renderers.imports import ImportedScene
+from harness.renderers.imports import write_imported
 from harness.renderers.meshfiles import ply_bytes
 from harness.scene import load_scene, material_arrays, triangulate
-
-
-def write_imported(imported: ImportedScene, folder: Path) -> Path:
-    """The imported scene's files and ``scene.toml`` in ``folder`` (the real writer is ``imports.write_imported``)."""
-    folder.mkdir(parents=True, exist_ok=True)
-    for rel, data in imported.files.items():
-        (folder / rel).parent.mkdir(parents=True, exist_ok=True)
-        (folder / rel).write_bytes(data)
-    (folder / "scene.toml").write_text(imported.toml, encoding="utf-8")
-    return folder / "scene.toml"
 
 
 def pbrt(tmp_path: Path, text: str, name: str = "scene.pbrt") -> Path:
