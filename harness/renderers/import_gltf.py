@@ -30,7 +30,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import encode_png, exr_bytes
-from harness.renderers.imports import ImportedScene
+from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.emitters import LUMENS_PER_WATT
 
@@ -154,40 +154,6 @@ def srgb_decode(codes: np.ndarray) -> np.ndarray:
     """8-bit sRGB codes to linear values (IEC 61966-2-1: c / 12.92 below 0.04045, else ((c + 0.055) / 1.055)^2.4)."""
     c = np.asarray(codes, np.float64) / 255.0
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-# ---- the TOML text --------------------------------------------------------------------------------------------------
-
-
-def toml_value(value) -> str:
-    """A TOML value: booleans, finite numbers (their shortest repr), strings (JSON's escapes, which TOML's basic
-    strings share), lists and inline tables."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    if isinstance(value, (float, np.floating)):
-        if not math.isfinite(float(value)):
-            raise ValueError(f"not a finite number: {value!r}")
-        return repr(float(value) + 0.0)
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + " }"
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    return "[" + ", ".join(toml_value(v) for v in value) + "]"
-
-
-def toml_table(header: str, entries: dict) -> list[str]:
-    """``[header]`` (or ``[[header]]`` given with its brackets) and its ``key = value`` lines."""
-    head = header if header.startswith("[[") else f"[{header}]"
-    return ["", head] + [f"{key} = {toml_value(value)}" for key, value in entries.items()]
-
-
-def _table_key(name: str) -> str:
-    """A TOML key for a name: bare where it can be, else quoted."""
-    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
 
 
 # ---- the importer ---------------------------------------------------------------------------------------------------
@@ -913,9 +879,9 @@ class _Importer:
         if isinstance(extras.get("max_depth"), int) and not isinstance(extras.get("max_depth"), bool):
             out += toml_table("integrator", {"max_depth": extras["max_depth"]})
         for name, entry in self.textures.items():
-            out += toml_table(f"textures.{_table_key(name)}", entry)
+            out += toml_table(f"textures.{toml_key(name)}", entry)
         for name, entry in self.materials.items():
-            out += toml_table(f"materials.{_table_key(name)}", entry)
+            out += toml_table(f"materials.{toml_key(name)}", entry)
         for shape in self.shapes:
             out += toml_table("[[shapes]]", shape)
         for emitter in self.emitters:

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
-from harness.renderers.imports import ImportedScene
+from harness.renderers.imports import ImportedScene, toml_key, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.composites import COMPOSITES
 from harness.scene.kinds.materials import MATERIALS
@@ -859,7 +859,7 @@ class _Importer:
         description = f"Imported from {self.path.name} (Mitsuba 3 XML) by harness import."
         if self.dropped:
             description += " Dropped (--lenient): " + "; ".join(self.dropped)
-        lines = [f"name = {_toml_value(safe_name(self.path.stem))}", f"description = {_toml_value(description)}", ""]
+        lines = [f"name = {toml_value(safe_name(self.path.stem))}", f"description = {toml_value(description)}", ""]
         _unique_names(self.shapes)
         _unique_names(self.emitters)
         lines += _table("camera", self.camera) + _table("film", self.film)
@@ -886,29 +886,7 @@ def _unique_names(entries: list[dict]) -> None:
 
 def _table(key: str, table: dict, array: bool = False) -> list[str]:
     head = f"[[{key}]]" if array else f"[{key}]"
-    return [head] + [f"{toml_key(k)} = {_toml_value(v)}" for k, v in table.items()] + [""]
-
-
-def toml_key(name: str) -> str:
-    """A key as TOML reads it back: bare where it can be, else a basic string (:func:`_toml_value`)."""
-    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else _toml_value(name)
-
-
-def _toml_value(value) -> str:
-    """A TOML value: floats by repr (the same float64 read back), strings as JSON's (TOML's basic strings)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, str):  # JSON's escapes are TOML's; DEL, which TOML refuses raw, escaped too
-        return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{ " + ", ".join(f"{toml_key(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
-    raise TypeError(f"cannot write {value!r} as TOML")
+    return [head] + [f"{toml_key(k)} = {toml_value(v)}" for k, v in table.items()] + [""]
 
 
 def _first_line(text: str) -> str:

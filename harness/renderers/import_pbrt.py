@@ -25,9 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
-from harness.renderers.imports import ImportedScene
+from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
-from harness.renderers.import_gltf import _table_key, toml_table, toml_value
 
 MAX_FILE_BYTES = 64 << 20
 MAX_INCLUDE_DEPTH = 16
@@ -893,9 +892,9 @@ class _Importer:
         out += toml_table("integrator", {"max_depth": self.max_depth})
         for name, entry in self.textures.items():
             if any(e.get("reflectance") == {"texture": name} for e in self.materials.values()):
-                out += toml_table(f"textures.{_table_key(name)}", entry)
+                out += toml_table(f"textures.{toml_key(name)}", entry)
         for name, entry in self.materials.items():
-            out += toml_table(f"materials.{_table_key(name)}", entry)
+            out += toml_table(f"materials.{toml_key(name)}", entry)
         for shape in self.shapes:
             s = {k: v for k, v in shape.items() if not k.startswith("_")}
             if shape["type"] == "sphere":
