@@ -74,7 +74,8 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import bsdf, camera, compile_once, config, film, path, records, wavefront  # optional: numba; noqa: F401
+    from reference_impl.kernels import (bsdf, camera, compile_once, config, film, path,  # optional: numba; noqa: F401
+                                        records, wavefront)
 
     return kernels
 

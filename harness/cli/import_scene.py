@@ -24,7 +24,7 @@ def register(sub, common) -> None:
     """Add ``import`` to the subparsers ``sub``."""
     parser = common.own()
     parser.add_argument("file",
-                        help="the scene to read: a Mitsuba 3 XML file (.xml), glTF 2.0 (.gltf, .glb) or pbrt-v4 (.pbrt)")
+                        help="the scene to read: Mitsuba 3 XML (.xml), glTF 2.0 (.gltf, .glb) or pbrt-v4 (.pbrt)")
     parser.add_argument("--lenient", action="store_true",
                         help="drop what the scene format cannot express (a warning each) instead of refusing the file")
     parser.set_defaults(func=run)

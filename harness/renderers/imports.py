@@ -1,11 +1,12 @@
 """Scenes written for other renderers read into this project's scene format (``harness import FILE --out DIR``).
 
 Each format has a module of its own (``import_mitsuba``: Mitsuba 3 XML; ``import_gltf``: glTF 2.0; ``import_pbrt``:
-pbrt-v4), chosen by the file's suffix in :mod:`harness.renderers.importers`, and each gives an :class:`ImportedScene`: the text of a scene file in the TOML format (docs/scene-format.md) and the files it names
+pbrt-v4), chosen by the file's suffix in :mod:`harness.renderers.importers`, and each gives an
+:class:`ImportedScene`: the text of a scene file in the TOML format (docs/scene-format.md) and the files it names
 (PLY meshes, texture images), which :func:`write_imported` writes into a folder. Whatever a format holds that the
-scene format cannot express is refused in one line naming the element and its place in the file (line and column,
-or the glTF JSON path); with ``lenient`` it is dropped instead, listed in ``dropped`` and in the scene's
-description, never silently changed.
+scene format cannot express is refused in one line naming the element and its place in the file (line and column, or
+the glTF JSON path); with ``lenient`` it is dropped instead, listed in ``dropped`` and in the scene's description,
+never silently changed.
 """
 
 from __future__ import annotations

@@ -4,9 +4,10 @@ A suite run is a list of ``Task``s, each a case or one chunk of a Mitsuba ground
 What runs a case, and what gives its scenes, are handed in by the caller (:func:`plan`'s ``run_case`` and
 ``case_scenes``; :func:`harness.running.schedule.run_suite` hands in :mod:`harness.running.judge`'s): this module
 imports nothing from the modules that call it. They must be module-level functions, so that worker processes and
-Dask can unpickle them by name. A case's missing chunks come just before it, deduplicated by cache key, so two workers
-never render the same chunk; a case depends on the chunks of its ground truth and, when it runs, ``ground_truth()`` finds them
-cached and merges them exactly (``harness.judges.moments``), giving the same image as a serial run, bit for bit.
+Dask can unpickle them by name. A case's missing chunks come just before it, deduplicated by cache key, so two
+workers never render the same chunk; a case depends on the chunks of its ground truth and, when it runs,
+``ground_truth()`` finds them cached and merges them exactly (``harness.judges.moments``), giving the same image as a
+serial run, bit for bit.
 
 Executors (``harness run --executor``):
 
@@ -114,12 +115,12 @@ def _run_after(task: Task, _deps: list):
 def plan(cases: Sequence[tuple[int, Any]], out_dir: Path, *, run_case: Callable[..., Any],
          case_scenes: Callable[[Any], tuple], cache_dir=None, variant=None, timeout: float | None = None,
          chunks: bool = True) -> list[Task]:
-    """The tasks of a run: the cases in suite order, each depending on its missing ground-truth chunks, which come
-    just before it (once each: a chunk two cases need comes before the first). Workers take the first task that is
-    ready, so a case starts as soon as its chunks are done while other workers render the chunks of the next cases:
-    a case's single-threaded parts (numba compiling its path loop, its verdict) overlap Mitsuba's renders. ``run_case(case, out_dir, cache_dir=, variant=)`` runs a
-    case (in a worker: a module-level function) and ``case_scenes(case)`` gives (the scene it renders, the scene
-    of its ground truth), to find the chunks."""
+    """The tasks of a run: the cases in suite order, each depending on its missing ground-truth chunks, which come just
+    before it (once each: a chunk two cases need comes before the first). Workers take the first task that is ready, so
+    a case starts as soon as its chunks are done while other workers render the chunks of the next cases: a case's
+    single-threaded parts (numba compiling its path loop, its verdict) overlap Mitsuba's renders. ``run_case(case,
+    out_dir, cache_dir=, variant=)`` runs a case (in a worker: a module-level function) and ``case_scenes(case)`` gives
+    (the scene it renders, the scene of its ground truth), to find the chunks."""
     cache_dir = str(cache_dir if cache_dir is not None else groundtruth.default_cache_dir())  # here, not by workers
     tasks: list[Task] = []
     planned: set[str] = set()

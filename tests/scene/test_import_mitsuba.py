@@ -235,7 +235,8 @@ def test_an_include_inside_the_folder_is_followed(tmp_path):
 
 
 def test_the_dispatch_takes_xml_gltf_glb_and_pbrt(tmp_path):
-    with pytest.raises(HarnessError, match=r"expected a Mitsuba 3 \.xml, a glTF 2\.0 \.gltf or \.glb, or a pbrt-v4 \.pbrt file"):
+    expected = r"expected a Mitsuba 3 \.xml, a glTF 2\.0 \.gltf or \.glb, or a pbrt-v4 \.pbrt file"
+    with pytest.raises(HarnessError, match=expected):
         import_scene(tmp_path / "scene.obj")
 
 
