@@ -28,7 +28,7 @@ from urllib.parse import unquote
 
 import numpy as np
 
-from harness.core.errors import HarnessError
+from harness.core.errors import HarnessError, not_regular
 from harness.files.imageio import encode_png, exr_bytes
 from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
@@ -77,6 +77,9 @@ def import_gltf(path: Path, *, lenient: bool = False) -> ImportedScene:
 def read_container(path: Path) -> tuple[dict, bytes | None]:
     """The JSON document and a GLB's BIN chunk (None for a ``.gltf``): GLB per glTF 2.0, 4.4 (a 12-byte header
     ``glTF``, version 2, length; then chunks of length, type, data: JSON first, BIN optional second)."""
+    irregular = not_regular(path)  # a named pipe would block the read
+    if irregular is not None:
+        raise irregular
     try:
         data = path.read_bytes()
     except OSError as err:
@@ -276,6 +279,8 @@ class _Importer:
         target = (self.folder / relative).resolve()
         if self.folder not in target.parents:
             raise self.fail(where, f"expected a path inside the file's folder {self.folder}, got {uri!r}")
+        if not_regular(target) is not None:  # a named pipe would block the read
+            raise self.fail(where, f"{uri!r} is {not_regular(target).message}")
         try:
             return target.read_bytes()
         except OSError as err:

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core.errors import HarnessError
+from harness.core.errors import HarnessError, not_regular
 from harness.renderers.imports import ImportedScene, toml_key, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.composites import COMPOSITES
@@ -245,6 +245,9 @@ class _Importer:
         if mi.__version__ != MITSUBA_VERSION:
             raise HarnessError("mitsuba", f"expected Mitsuba {MITSUBA_VERSION} (the version this importer is pinned "
                                           f"to), found {mi.__version__}")
+        irregular = not_regular(self.path)  # a named pipe would block Mitsuba's parser
+        if irregular is not None:
+            raise irregular
         if not self.path.is_file():
             raise HarnessError(str(self.path), "expected a Mitsuba 3 XML file: no such file")
         self.check_includes(self.path, set())
@@ -280,11 +283,14 @@ class _Importer:
         data = path.read_bytes()
         for name, offset in _read_xml_facts(data).includes:
             target = (path.parent / name).resolve()
+            line, col = line_column(data, offset)
             if not target.is_relative_to(self.folder):
-                line, col = line_column(data, offset)
                 raise HarnessError(f"{path}:{line}:{col}: <include filename={name!r}>",
                                    f"expected a file inside the scene's folder {str(self.folder)!r} (an include "
                                    f"outside it is not followed)")
+            irregular = not_regular(target, f"{path}:{line}:{col}: <include filename={name!r}>")
+            if irregular is not None:  # before Mitsuba's parser opens it: a named pipe would block it
+                raise irregular
             if target.is_file():
                 self.check_includes(target, seen)
 

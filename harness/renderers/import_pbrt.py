@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.core.errors import HarnessError
+from harness.core.errors import HarnessError, not_regular
 from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 
@@ -185,6 +185,9 @@ class _Importer:
         if Path(name).is_absolute() or not target.is_relative_to(self.folder):
             raise HarnessError(self.where(token, file),
                                f"{name!r}: expected a file inside the scene's folder {self.folder}")
+        irregular = not_regular(target, self.where(token, file))
+        if irregular is not None:
+            raise HarnessError(irregular.where, f"{name!r}: {irregular.message}")
         if not target.is_file():
             raise HarnessError(self.where(token, file), f"{name!r}: no such file")
         return target
@@ -1015,6 +1018,9 @@ def import_pbrt(path: Path, *, lenient: bool = False) -> ImportedScene:
     Refuses (:class:`HarnessError` ``FILE:LINE:COL: Directive "type": why``) what the scene format cannot express;
     with ``lenient`` drops it instead and lists it in ``dropped`` and the description."""
     path = Path(path)
+    irregular = not_regular(path)  # a named pipe would block the read
+    if irregular is not None:
+        raise irregular
     if not path.is_file():
         raise HarnessError(str(path), "no such file")
     importer = _Importer(path, lenient)

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import os
 import shlex
 
 import pytest
@@ -91,3 +92,28 @@ def test_the_commands_of_docs_import_run_as_printed(tmp_path, monkeypatch, capfd
         code, out, err = cli(capfd, *shlex.split(command, comments=True)[1:])
         assert code == 0, (command, err)
     assert (tmp_path / "cornell-imported" / "scene.toml").is_file() and (tmp_path / "imported.exr").is_file()
+
+
+@pytest.mark.parametrize("name, body, fifo, where", [
+    ("scene.xml", None, "scene.xml", "scene.xml"),
+    ("scene.gltf", None, "scene.gltf", "scene.gltf"),
+    ("scene.pbrt", None, "scene.pbrt", "scene.pbrt"),
+    ("scene.xml", '<scene version="3.0.0">\n<include filename="part.xml"/>\n</scene>\n', "part.xml",
+     "scene.xml:2:2: <include filename='part.xml'>"),
+    ("scene.pbrt", 'WorldBegin\nInclude "part.pbrt"\n', "part.pbrt", "scene.pbrt:2:9"),
+    ("scene.gltf", '{"asset": {"version": "2.0"}, "buffers": [{"uri": "part.bin", "byteLength": 12}], '
+                   '"bufferViews": [{"buffer": 0, "byteLength": 12}], "accessors": [{"bufferView": 0, '
+                   '"componentType": 5126, "count": 1, "type": "VEC3"}], "meshes": [{"primitives": [{"attributes": '
+                   '{"POSITION": 0}}]}], "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0}',
+     "part.bin", "scene.gltf: /buffers/0/uri"),
+])
+def test_a_named_pipe_is_refused_before_anything_opens_it(tmp_path, capfd, monkeypatch, name, body, fifo, where):
+    """Opening a named pipe waits for a writer: the file itself or one it names is refused in one line instead."""
+    monkeypatch.chdir(tmp_path)
+    if body is not None:
+        (tmp_path / name).write_text(body)
+    os.mkfifo(tmp_path / fifo)
+    code, out, err = cli(capfd, "import", name, "--out", "out")
+    assert code == 2 and out == "" and err.count("\n") == 1, err
+    assert err.startswith(f"harness: error: {where}") and "not a regular file (a named pipe)" in err
+    assert not (tmp_path / "out").exists()
