@@ -33,6 +33,7 @@ from harness.files.imageio import encode_png, exr_bytes
 from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.emitters import LUMENS_PER_WATT
+from reference_impl.textures import srgb_to_linear
 
 #: The extensions this importer reads (docs/import.md); any other in ``extensionsUsed`` or on an element is refused.
 SUPPORTED_EXTENSIONS = ("KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_texture_transform",
@@ -151,12 +152,6 @@ def uv_matrix(transform: dict) -> np.ndarray:
     tu, tv = (float(x) for x in transform.get("offset", [0.0, 0.0]))
     c, s = math.cos(r), math.sin(r)
     return np.array([[c * su, s * sv, tu], [-s * su, c * sv, tv], [0.0, 0.0, 1.0]])
-
-
-def srgb_decode(codes: np.ndarray) -> np.ndarray:
-    """8-bit sRGB codes to linear values (IEC 61966-2-1: c / 12.92 below 0.04045, else ((c + 0.055) / 1.055)^2.4)."""
-    c = np.asarray(codes, np.float64) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 # ---- the importer ---------------------------------------------------------------------------------------------------
@@ -525,7 +520,8 @@ class _Importer:
             rel = f"{TEXTURE_DIR}/{name}.png"
             self.files[rel] = encode_png(np.ascontiguousarray(codes))
             return rel, raw
-        linear = (codes / 255.0 if raw else srgb_decode(codes)) * np.broadcast_to(np.asarray(factor, np.float64), (3,))
+        factor = np.broadcast_to(np.asarray(factor, np.float64), (3,))
+        linear = (codes / 255.0 if raw else srgb_to_linear(codes)) * factor
         rel = f"{TEXTURE_DIR}/{name}.exr"
         self.files[rel] = exr_bytes(linear.astype(np.float32))
         return rel, False
