@@ -258,6 +258,8 @@ class _Context:
         self.scene_tables = records.scene_tables(self.geometry, self.intersector.prim_to_tri,
                                                  self.materials.textured or self.materials.anisotropic)
         self.light_tables = records.light_tables(self.lights)
+        # None unless light_selection = "tree": the path loop compiles the tree out
+        self.tree_tables = records.tree_tables(self.lights)
         self.surface_tables = records.surface_tables(self.all_surfaces)
         surface_pdf = 1.0 / self.all_surfaces.total_area if self.all_surfaces is not None else 0.0
         num_lights = self.lights.num_lights if self.lights is not None else 0
@@ -511,7 +513,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
                 ctx.material_tables, config, radiance, counters, timing, film_samples, ctx.emitter_tables,
                 ctx.other_kinds, ctx.light_textures, record, ctx.shading,
-                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.nested, ctx.masks, ctx.later)
+                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.nested, ctx.masks, ctx.later,
+                ctx.tree_tables)
         if not ctx.compiled:  # the first call of this render: another process may be compiling the same loop
             kernels.compile_once.compile_once(kernels.path.trace_paths, args)
             ctx.compiled = True

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_impl.geometry import Geometry
+from reference_impl.light_tree import LightTree
 from reference_impl.sampling import sample_discrete, square_to_uniform_triangle, unit_circle
 
-LIGHT_SELECTIONS = ("power", "uniform")
+LIGHT_SELECTIONS = ("power", "uniform", "tree")
 
 # Luminance weights of linear sRGB / Rec. 709 primaries (the scalar "power" of an RGB radiance).
 _LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -149,8 +150,10 @@ class TriangleAreaSampler:
 
 
 class LightSampler:
-    """Light selection with pdf(k) ("power": proportional to Phi_k = pi A_k lum(Le_k); "uniform": 1 / N_L) and a
-    point y on light k with pdf(y | k) = 1 / A_k. The combined density per unit area is pdf(k) / A_k.
+    """Light selection with pdf(k) ("power": proportional to Phi_k = pi A_k lum(Le_k); "uniform": 1 / N_L; "tree":
+    pdf(k | x) from the light tree at the shading point, :mod:`reference_impl.light_tree`, ``tree``, whose area
+    lights' ``pmf`` is NaN: only the kernels choose by it) and a point y on light k with pdf(y | k) = 1 / A_k. The
+    combined density per unit area is pdf(k) / A_k.
 
     Within light k the table has one entry per piece (``first[k]``, ``count[k]``, ``within_cdf``: a triangle, or a
     whole parallelogram, :func:`parallelogram_frame`), each with a float64 frame (origin, edge 1, edge 2: c0, c1 - c0,
@@ -224,6 +227,14 @@ class LightSampler:
         else:
             weights = np.ones(self.num_lights)
         self.pmf = weights / weights.sum() if self.num_lights else weights
+        self.tree = None
+        if selection == "tree":  # pdf(k | x) of an area light is the tree's (kernels.light_tree); the others'
+            spheres = geometry.sphere_of[self.triangles[self.first]] if geometry.num_spheres else np.full(num_area, -1)
+            self.tree = LightTree(geometry, self.area, spheres, len(extra))
+            if not num_area:
+                self.tree.p_tree = 0.0
+            self.pmf = np.concatenate([np.full(num_area, np.nan),  # per shading point: no table holds it
+                                       np.full(len(extra), (1.0 - self.tree.p_tree) / max(len(extra), 1))])
         self.cdf = np.cumsum(self.pmf)
         if self.num_lights:
             self.cdf[-1] = 1.0

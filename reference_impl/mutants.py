@@ -131,5 +131,19 @@ MATERIAL_MUTANTS: dict[str, str] = {
     ),
 }
 
+# The light tree's (light_selection = "tree": kernels/light_tree.py, the MIS weight in kernels/path.py); run by
+# suites/many-lights.toml, not the canonical suite (docs/suites.md).
+TREE_MUTANTS: dict[str, str] = {
+    "light-tree-no-bound-angle": (
+        "the light tree's importance without the angle theta_b its box subtends from x (each node taken as a point "
+        "at its centre): nodes and lights that can light x get importance 0 and are never chosen"
+    ),
+    "light-tree-pmf-at-hit": (
+        "direct = mis with the tree: the MIS weight of a BSDF sample that hits a light reads pdf(k | y) at the light's "
+        "own point y instead of pdf(k | x) at the vertex the ray left"
+    ),
+}
+
 ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS,
-                               **NORMAL_MUTANTS, **SPHERE_MUTANTS, **CAMERA_MUTANTS, **MATERIAL_MUTANTS}
+                               **NORMAL_MUTANTS, **SPHERE_MUTANTS, **CAMERA_MUTANTS, **MATERIAL_MUTANTS,
+                               **TREE_MUTANTS}

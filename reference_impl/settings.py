@@ -44,6 +44,9 @@ CAPABILITIES: dict[tuple[str, str], tuple[str, ...]] = {
     ("env_sampling", "importance"): _ALL,
     ("env_sampling", "uniform"): _ALL,
     ("env_sampling", "cosine"): _LAMBERTIAN,
+    ("light_selection", "power"): _ALL,
+    ("light_selection", "uniform"): _ALL,
+    ("light_selection", "tree"): _PATH,
 }
 #: the direct strategies of scenes with a material that is not diffuse
 GLOSSY_DIRECT = tuple(v for (k, v), engines in CAPABILITIES.items() if k == "direct" and "glossy" in engines)
@@ -83,7 +86,9 @@ class Settings:
                     (no light samples: the emission the BSDF-sampled rays find; the path loop), or "auto", the
                     default: "area" on Lambertian-only scenes, "mis" where a material is not diffuse
                     (:meth:`resolved`).
-    light_selection pdf(k): "power" (proportional to emitted power) or "uniform".
+    light_selection pdf(k): "power" (proportional to emitted power), "uniform", or "tree" (pdf(k | x): a light
+                    tree over the area lights, each node's importance at the shading point; pbrt-v4's
+                    BVHLightSampler; the path loop only; :mod:`reference_impl.light_tree`).
     env_sampling    directions toward an environment, as light samples: "importance" (an envmap by its luminance
                     times solid angle, cell by cell; a constant environment uniformly), "uniform" (over the sphere) or
                     "cosine" (about the normal at x). Scenes without an environment ignore it.
@@ -206,7 +211,8 @@ class Settings:
     def strategies(self, environment: bool) -> list[tuple[str, str]]:
         """The rows of :data:`CAPABILITIES` these resolved settings choose, ``env_sampling``'s only on a scene with
         an ``environment``."""
-        rows = [("direct", self.direct), ("rr", self.rr), ("indirect_rays", "1" if self.indirect_rays == 1 else "> 1")]
+        rows = [("direct", self.direct), ("rr", self.rr), ("indirect_rays", "1" if self.indirect_rays == 1 else "> 1"),
+                ("light_selection", self.light_selection)]
         return rows + [("env_sampling", self.env_sampling)] if environment else rows
 
     def replicate_sizes(self) -> tuple[int, ...]:

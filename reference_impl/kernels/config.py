@@ -105,6 +105,10 @@ MUTANT_BITS.update({"thin-glass-refracts": M_THIN_GLASS_REFRACTS,
 M_CLEARCOAT_PDF_NO_JACOBIAN, M_MASK_OPAQUE_TO_SHADOWS = (1 << b for b in range(31, 33))
 MUTANT_BITS.update({"principled-clearcoat-pdf-jacobian": M_CLEARCOAT_PDF_NO_JACOBIAN,
                     "mask-opacity-1-in-shadow-rays": M_MASK_OPAQUE_TO_SHADOWS})
+# The light tree's planted faults (reference_impl/kernels/light_tree.py, kernels/path.py;
+# reference_impl.mutants.TREE_MUTANTS).
+M_TREE_NO_BOUND_ANGLE, M_TREE_PMF_AT_HIT = (1 << b for b in range(33, 35))
+MUTANT_BITS.update({"light-tree-no-bound-angle": M_TREE_NO_BOUND_ANGLE, "light-tree-pmf-at-hit": M_TREE_PMF_AT_HIT})
 
 
 class KernelConfig(NamedTuple):

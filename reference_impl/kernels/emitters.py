@@ -289,18 +289,26 @@ def _split_light(lights, num_lights, num_area, u):
     """The choices one uniform u makes among area lights and emitters (pbrt-v4's sample reuse): (light k, what is
     left of u inside k's interval of the cdf, the piece of k that picks (a row of the light tables; -1 for an
     emitter), what is left of that inside the piece's interval)."""
-    cdf, first, count, within_cdf = lights.cdf, lights.first, lights.count, lights.within_cdf
+    cdf = lights.cdf
     light = 0
     u_tri = u
     if num_lights > 1:
         light = sample_discrete(cdf, u)
         u_tri = rescale_within(u, cdf[light - 1] if light > 0 else 0.0, cdf[light])
+    piece, u1 = piece_within(lights, num_area, light, u_tri)
+    return light, u_tri, piece, u1
+
+
+@njit(**JIT_BORROW)
+def piece_within(lights, num_area, light, u_tri):
+    """The piece of light k = ``light`` that u_tri picks within k's cdf (a row of the light tables; -1 for an emitter,
+    k >= num_area) and what is left of u_tri inside the piece's interval (u_tri itself for an emitter)."""
     if light >= num_area:
-        return light, u_tri, np.int64(-1), u_tri
+        return np.int64(-1), u_tri
+    first, count, within_cdf = lights.first, lights.count, lights.within_cdf
     f = first[light]
     lo = search_within(within_cdf, f, count[light], u_tri)
-    return light, u_tri, np.int64(f + lo), rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0,
-                                                          within_cdf[f + lo])
+    return np.int64(f + lo), rescale_within(u_tri, within_cdf[f + lo - 1] if lo > 0 else 0.0, within_cdf[f + lo])
 
 
 @njit(**JIT_BORROW)
@@ -323,4 +331,4 @@ def split_light_piece_all(lights, num_lights, num_area, u):
 
 
 __all__ = ["INV_FOUR_PI", "emitter_direction", "emitter_sample", "env_light_pdf", "env_pdf", "env_radiance", "env_sample",
-           "split_light_piece_all", "split_light_uniform_all", "spot_falloff", "uniform_sphere"]
+           "piece_within", "split_light_piece_all", "split_light_uniform_all", "spot_falloff", "uniform_sphere"]

@@ -59,10 +59,11 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
                                            DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
                                            HEMI_UNIFORM, JIT, JIT_BORROW, M_COSINE_PDF_PI, M_DOUBLE_EMISSION,
                                            M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, M_SHADING_NORMAL_SIDE,
-                                           RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
+                                           M_TREE_PMF_AT_HIT, RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            light_sample, point_connection, power_weight)
-from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within, split_light_piece_all
+from reference_impl.kernels.light_tree import pmf_of, select
 from reference_impl.kernels.cutout import shadow_transmittance, through_holes
 from reference_impl.kernels.material import material_at, material_at_nested
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
@@ -218,7 +219,7 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
 @njit(**JIT)
 def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radiance, counters, timing, film_samples,
                 emitters, other_kinds, textures=None, record=None, shading=None, spheres=None, nested=None,
-                masks=None, later=None):
+                masks=None, later=None, tree=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end, one at a time
     (module docstring), adding each path's radiance to ``radiance[root]``.
 
@@ -325,6 +326,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
         prev_delta = True  # the camera ray: what it finds, no light sample could have found
         prev_pdf = 0.0  # the BSDF's solid-angle pdf of the ray that reached this vertex
         pn0, pn1, pn2 = 0.0, 0.0, 1.0  # the previous vertex's normal on the side the ray left (env_light_pdf)
+        qx0, qx1, qx2, qn0, qn1, qn2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # the previous vertex and its N (the tree's pmf)
         eta2 = 1.0  # product of the relative ior^2 of the refractions so far (rr = "throughput", "pbrt")
         if sobol:
             if film_pixel[r] != fh_pixel:  # a pixel's samples come together: its seeds and points once
@@ -375,7 +377,13 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if light >= 0 and cos_out > 0:
                     w = 1.0
                     if weighted:
-                        p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
+                        if tree is None:
+                            p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
+                        else:  # pdf(k | x) at the vertex the ray left
+                            if mutant & M_TREE_PMF_AT_HIT:  # mutant "light-tree-pmf-at-hit": at the light's point
+                                qx0, qx1, qx2, qn0, qn1, qn2 = hit.x0, hit.x1, hit.x2, hit.n0, hit.n1, hit.n2
+                            pmf_k = pmf_of(tree, light, qx0, qx1, qx2, qn0, qn1, qn2, mutant)
+                            p_light = nd * (pmf_k / light_area[light]) * (t * t) / cos_out
                         w = power_weight(mutant, prev_pdf, p_light, False)
                     le0, le1, le2 = emission_at(scene, textures, tri, hit.x0, hit.x1, hit.x2, mutant)
                     rad0 += b0 * le0 * w
@@ -513,7 +521,24 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                 scene, lights, surfaces)
                             conn = point_connection(cfg, scene, textures, gtri, y0, y1, y2, pdf_area, x0, x1, x2)
                         else:
-                            if sob:  # one 2D point: its first coordinate picks the light and the piece too
+                            if tree is not None:  # pdf(k | x) from the light tree (kernels/light_tree.py)
+                                if sob:
+                                    u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
+                                                         si * nd + j)
+                                    sel, tree_pmf_k, u_rest = select(tree, cfg.num_area_lights, num_lights, u_a, x0,
+                                                                     x1, x2, nx0, nx1, nx2, mutant)
+                                    piece, u1 = piece_within(lights, cfg.num_area_lights, sel, u_rest)
+                                else:
+                                    u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
+                                    u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
+                                    u1 = uniform(k, dim_salt(depth, LIGHT_U1, j))
+                                    u2 = uniform(k, dim_salt(depth, LIGHT_U2, j))
+                                    sel, tree_pmf_k, _rest = select(tree, cfg.num_area_lights, num_lights, u_sel, x0,
+                                                                    x1, x2, nx0, nx1, nx2, mutant)
+                                    piece = light_piece(cfg, lights, sel, u_tri)
+                                if sel < 0:  # nothing in the tree can light x
+                                    continue
+                            elif sob:  # one 2D point: its first coordinate picks the light and the piece too
                                 u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
                                                      si * nd + j)
                                 sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
@@ -528,6 +553,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                 count_light_select += 1
                             # mutant "light-pdf-ignored": pdf(y|k) alone
                             pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
+                            if tree is not None and not mutant & M_LIGHT_PDF_IGNORED:
+                                pdf_select = tree_pmf_k
                             conn = light_connection(cfg, scene, textures, lights, emitters, sel, piece, pdf_select, u1,
                                                     u2, x0, x1, x2, ns0, ns1, ns2, front_only)
                     elif emitters is not None:
@@ -591,6 +618,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             b0, b1, b2 = nb0, nb1, nb2
             prev_delta = delta
             prev_pdf = pdf
+            if tree is not None:
+                qx0, qx1, qx2, qn0, qn1, qn2 = x0, x1, x2, nx0, nx1, nx2
             depth += 1
         radiance[r, 0], radiance[r, 1], radiance[r, 2] = rad0, rad1, rad2
     counters[C_BACK_FACE] += count_back_face

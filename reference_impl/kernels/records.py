@@ -156,6 +156,53 @@ def light_tables(sampler) -> LightTables:
         sphere=_c(s.sphere, dtype=np.bool_))
 
 
+class TreeTables(NamedTuple):
+    """The light tree of ``light_selection = "tree"`` (:class:`reference_impl.light_tree.LightTree`, whose
+    attributes these are; M nodes over the N_A area lights).
+
+    Attributes
+    ----------
+    lo, hi : (M, 3) float64
+        Each node's box.
+    phi : (M,) float64
+        Its power.
+    w : (M, 3) float64
+        Its cone's axis.
+    cos_o : (M,) float64
+        Its cone's cos theta_o.
+    child : (M,) int64
+        An inner node's second child (its first is index + 1); a leaf's light.
+    leaf : (M,) bool
+    trail : (N_A,) uint64
+        Per light, its path from the root (bit j: the second child at depth j).
+    p_tree : (1,) float64
+        The probability of choosing the tree rather than an emitter that is not a surface.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    phi: np.ndarray
+    w: np.ndarray
+    cos_o: np.ndarray
+    child: np.ndarray
+    leaf: np.ndarray
+    trail: np.ndarray
+    p_tree: np.ndarray
+
+
+def tree_tables(sampler) -> "TreeTables | None":
+    """The :class:`TreeTables` of a :class:`reference_impl.lights.LightSampler` whose selection is "tree", else None
+    (which compiles the tree out of the path loop)."""
+    tree = getattr(sampler, "tree", None)
+    if tree is None:
+        return None
+    return TreeTables(lo=_c(tree.lo, dtype=np.float64), hi=_c(tree.hi, dtype=np.float64),
+                      phi=_c(tree.phi, dtype=np.float64), w=_c(tree.w, dtype=np.float64),
+                      cos_o=_c(tree.cos_o, dtype=np.float64), child=_c(tree.child, dtype=np.int64),
+                      leaf=_c(tree.leaf, dtype=np.bool_), trail=_c(tree.trail, dtype=np.uint64),
+                      p_tree=np.array([tree.p_tree], np.float64))
+
+
 class SurfaceTables(NamedTuple):
     """Every surface, for global area sampling (:class:`reference_impl.lights.TriangleAreaSampler`).
 
