@@ -48,6 +48,11 @@ GLOSSY_STRATEGIES: dict[str, tuple[str, ...]] = {
     "rr": ("pbrt", "albedo", "fixed", "throughput", "off"),
     "env_sampling": ("importance", "uniform"),
 }
+#: light_selection = "tree" is a row on scenes with at least this many emissive shapes (on fewer, a tree's choice
+#: differs little from power's and its table row would cost the canonical run a compilation for nothing)
+MANY_LIGHTS = 8
+#: the rows a scene with MANY_LIGHTS area lights adds
+MANY_LIGHT_STRATEGIES: dict[str, tuple[str, ...]] = {"light_selection": ("tree",)}
 FALLBACK_DEFAULTS = {"direct": "area", "light_selection": "power", "hemisphere": "cosine", "rr": "albedo",
                      "env_sampling": "importance"}
 #: strategy keys that change nothing on a scene without an environment (constant or envmap emitter)
@@ -204,11 +209,16 @@ def image_level(image: np.ndarray | None) -> float | None:
     return float(finite.mean()) if finite.size else None
 
 
-def strategy_choices(defaults: dict[str, str], environment: bool, glossy: bool = False) -> list[tuple[str, str]]:
+def strategy_choices(defaults: dict[str, str], environment: bool, glossy: bool = False,
+                     many_lights: bool = False) -> list[tuple[str, str]]:
     """Every (key, value) of :data:`STRATEGIES` (:data:`GLOSSY_STRATEGIES` on a scene with a material that is not
     diffuse) but the defaults: the rows of a strategy table besides "default" (the environment's keys only where
-    the scene has an environment)."""
-    return [(k, v) for k, values in (GLOSSY_STRATEGIES if glossy else STRATEGIES).items() for v in values
+    the scene has an environment; :data:`MANY_LIGHT_STRATEGIES` where it has :data:`MANY_LIGHTS` area lights or
+    more, ``many_lights``)."""
+    table = GLOSSY_STRATEGIES if glossy else STRATEGIES
+    if many_lights:
+        table = {k: v + MANY_LIGHT_STRATEGIES.get(k, ()) for k, v in table.items()}
+    return [(k, v) for k, values in table.items() for v in values
             if v != defaults.get(k) and (environment or k not in ENVIRONMENT_KEYS)]
 
 
@@ -217,7 +227,8 @@ def strategy_label(key: str, value: str) -> str:
 
 
 def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict[str, str], int, int], dict] | None,
-                  bounded: bool, defaults: dict[str, str], environment: bool = False, glossy: bool = False, *,
+                  bounded: bool, defaults: dict[str, str], environment: bool = False, glossy: bool = False,
+                  many_lights: bool = False, *,
                   spp: int = DEFAULT_STRATEGY_SPP, repeats: int = STRATEGY_REPEATS,
                   min_seconds: float = MIN_STRATEGY_SECONDS, spp_step: int = 1, level: float = LEVEL) -> dict:
     """Assemble a scene's strategy table: every strategy at equal spp and at equal time, ``repeats`` seeds each.
@@ -235,9 +246,9 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     "variance", "seconds", "pixels", "spp", "film"}), one render each at its own spp: shown, never ranked.
     ``bounded``: the scene's max_depth is finite (rr=off allowed). ``environment``: the scene has a constant or
     envmap emitter (the :data:`ENVIRONMENT_KEYS` rows apply). ``glossy``: a material of the scene is not diffuse
-    (the rows of :data:`GLOSSY_STRATEGIES`).
+    (the rows of :data:`GLOSSY_STRATEGIES`). ``many_lights``: it has :data:`MANY_LIGHTS` area lights or more.
     """
-    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment, glossy)]
+    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment, glossy, many_lights)]
     if render is None:
         return _case_table(scene_name, case_rows, wanted, bounded, defaults)
     rows: list[dict] = []

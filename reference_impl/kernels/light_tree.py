@@ -43,13 +43,9 @@ def _sin_minus(sin_a, cos_a, sin_b, cos_b):
 @njit(**JIT_BORROW)
 def importance(tree, node, x0, x1, x2, n0, n1, n2, mutant=0):
     """I(x, n) of ``node`` (module docstring; reference_impl.light_tree for the terms)."""
-    lo, hi = tree.lo, tree.hi
-    c0 = 0.5 * (lo[node, 0] + hi[node, 0])
-    c1 = 0.5 * (lo[node, 1] + hi[node, 1])
-    c2 = 0.5 * (lo[node, 2] + hi[node, 2])
-    h0, h1, h2 = 0.5 * (hi[node, 0] - lo[node, 0]), 0.5 * (hi[node, 1] - lo[node, 1]), 0.5 * (hi[node, 2] - lo[node, 2])
-    r2 = h0 * h0 + h1 * h1 + h2 * h2  # the bounding sphere's radius^2 = (|diag| / 2)^2
-    v0, v1, v2 = x0 - c0, x1 - c1, x2 - c2
+    centre = tree.centre
+    r2 = tree.r2[node]  # the bounding sphere's radius^2 = (|diag| / 2)^2
+    v0, v1, v2 = x0 - centre[node, 0], x1 - centre[node, 1], x2 - centre[node, 2]
     dist2 = v0 * v0 + v1 * v1 + v2 * v2
     d2 = max(dist2, r2)
     if not d2 > 0.0:
@@ -67,8 +63,7 @@ def importance(tree, node, x0, x1, x2, n0, n1, n2, mutant=0):
     wi0, wi1, wi2 = v0 * inv, v1 * inv, v2 * inv  # from the box toward x
     cos_w = tree.w[node, 0] * wi0 + tree.w[node, 1] * wi1 + tree.w[node, 2] * wi2
     sin_w = math.sqrt(max(0.0, 1.0 - cos_w * cos_w))
-    cos_o = tree.cos_o[node]
-    sin_o = math.sqrt(max(0.0, 1.0 - cos_o * cos_o))
+    cos_o, sin_o = tree.cos_o[node], tree.sin_o[node]
     cos_x = _cos_minus(sin_w, cos_w, sin_o, cos_o)  # theta_w - theta_o
     sin_x = _sin_minus(sin_w, cos_w, sin_o, cos_o)
     cos_p = _cos_minus(sin_x, cos_x, sin_b, cos_b)  # ... - theta_b

@@ -168,8 +168,12 @@ class TreeTables(NamedTuple):
         Its power.
     w : (M, 3) float64
         Its cone's axis.
-    cos_o : (M,) float64
-        Its cone's cos theta_o.
+    cos_o, sin_o : (M,) float64
+        Its cone's cos theta_o and sin theta_o.
+    centre : (M, 3) float64
+        Its box's centre (lo + hi) / 2.
+    r2 : (M,) float64
+        The squared radius of the box's bounding sphere, |hi - lo|^2 / 4.
     child : (M,) int64
         An inner node's second child (its first is index + 1); a leaf's light.
     leaf : (M,) bool
@@ -184,6 +188,9 @@ class TreeTables(NamedTuple):
     phi: np.ndarray
     w: np.ndarray
     cos_o: np.ndarray
+    sin_o: np.ndarray
+    centre: np.ndarray
+    r2: np.ndarray
     child: np.ndarray
     leaf: np.ndarray
     trail: np.ndarray
@@ -196,9 +203,13 @@ def tree_tables(sampler) -> "TreeTables | None":
     tree = getattr(sampler, "tree", None)
     if tree is None:
         return None
+    half = 0.5 * (tree.hi - tree.lo)
     return TreeTables(lo=_c(tree.lo, dtype=np.float64), hi=_c(tree.hi, dtype=np.float64),
                       phi=_c(tree.phi, dtype=np.float64), w=_c(tree.w, dtype=np.float64),
-                      cos_o=_c(tree.cos_o, dtype=np.float64), child=_c(tree.child, dtype=np.int64),
+                      cos_o=_c(tree.cos_o, dtype=np.float64),
+                      sin_o=_c(np.sqrt(np.maximum(0.0, 1.0 - tree.cos_o * tree.cos_o)), dtype=np.float64),
+                      centre=_c(0.5 * (tree.lo + tree.hi), dtype=np.float64),
+                      r2=_c((half * half).sum(axis=1), dtype=np.float64), child=_c(tree.child, dtype=np.int64),
                       leaf=_c(tree.leaf, dtype=np.bool_), trail=_c(tree.trail, dtype=np.uint64),
                       p_tree=np.array([tree.p_tree], np.float64))
 

@@ -159,8 +159,8 @@ def test_trails_reach_their_leaves_and_depth_stays_under_64():
         depths.append(depth)
     assert max(depths) <= MAX_DEPTH
     # and a pmf over all of them sums to 1 at a point above the line
-    tables = records.TreeTables(tree.lo, tree.hi, tree.phi, tree.w, tree.cos_o, tree.child, tree.leaf, tree.trail,
-                                np.array([1.0]))
+    tree.p_tree = 1.0
+    tables = records.tree_tables(type("Sampler", (), {"tree": tree})())
     x = np.repeat([[500.0, 1.0, 3.0]], n, axis=0)
     pmf = pmf_many(tables, np.arange(n), x, np.repeat([[0.0, 0.0, 1.0]], n, axis=0))
     assert pmf.sum() == pytest.approx(1.0, abs=1e-9)
