@@ -148,7 +148,7 @@ def test_engine_packet_is_refused_naming_the_engines_that_remain():
 
 def test_the_capability_table_of_the_docs_is_the_core_s():
     """docs/reference-renderer.md shows ``settings.CAPABILITIES`` (strategy x engine) as one table, row for row; every
-    resolved value of ``direct``, ``rr`` and ``env_sampling`` has its row."""
+    resolved value of ``direct``, ``rr``, ``env_sampling`` and ``light_selection`` has its row."""
     from pathlib import Path
 
     from reference_impl.emitters import ENV_SAMPLINGS
@@ -162,6 +162,9 @@ def test_the_capability_table_of_the_docs_is_the_core_s():
     doc = (Path(__file__).resolve().parents[2] / "docs" / "reference-renderer.md").read_text(encoding="utf-8")
     assert "\n" + "\n".join(lines) + "\n\n" in doc
     rows = {(key, value) for key, value in CAPABILITIES}
-    for key, values in (("direct", DIRECT_STRATEGIES), ("rr", ROULETTES), ("env_sampling", ENV_SAMPLINGS)):
+    from reference_impl.lights import LIGHT_SELECTIONS
+
+    for key, values in (("direct", DIRECT_STRATEGIES), ("rr", ROULETTES), ("env_sampling", ENV_SAMPLINGS),
+                        ("light_selection", LIGHT_SELECTIONS)):
         assert {(key, v) for v in values if v != "auto"} <= rows, key
     assert all(set(engines) <= set(columns) and engines for engines in CAPABILITIES.values())

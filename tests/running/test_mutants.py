@@ -1,5 +1,6 @@
 """The verdict is sharp: every planted fault of reference_impl/mutants.py fails at the canonical suite's budget,
-on the scene the canonical suite runs it on, while the same case without the fault passes."""
+on the scene the canonical suite runs it on (the light tree's: suites/many-lights.toml's), while the same case
+without the fault passes."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from reference_impl.mutants import ALL_MUTANTS
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
 CANONICAL = load_suite(ROOT / "suites" / "canonical.toml")
+MANY_LIGHTS = load_suite(ROOT / "suites" / "many-lights.toml")
 #: The Mitsuba ground truth of each scene's cases here: the smallest power of two at which the suite's own check of a
 #: ground truth's noise (``ground_truth_noise``: its variance at most 1/4 of the test render's, docs/suites.md) holds
 #: for the scene's case without the fault (the reference at the case's budget), from that case's share at 1024 spp,
@@ -29,7 +31,7 @@ TEST_GROUND_TRUTH_SPP = {"cornell-box": 256, "multi-light": 256, "soft-shadows":
                          "point-spot": 128, "plastic-cornell-box": 2048, "cutout-leaf": 8192}
 MUTANT_CASES = {c.settings["mutant"]: dataclasses.replace(
                     c, ground_truth_spp=min(c.ground_truth_spp, TEST_GROUND_TRUTH_SPP.get(c.scene.stem, 1024)))
-                for c in CANONICAL.cases if "mutant" in c.settings}
+                for c in CANONICAL.cases + MANY_LIGHTS.cases if "mutant" in c.settings}
 
 
 def test_every_mutant_has_a_canonical_case():
@@ -49,6 +51,7 @@ def test_mutant_is_caught_at_the_suite_budget(mutant, tmp_path):
 @pytest.mark.parametrize("scene", sorted({c.scene.stem for c in MUTANT_CASES.values()}))
 def test_the_same_cases_without_a_fault_pass(scene, tmp_path):
     case = next(c for c in MUTANT_CASES.values() if c.scene.stem == scene)
-    clean = dataclasses.replace(case, name=f"{scene}/clean", settings={}, expect="pass")
+    settings = {k: v for k, v in case.settings.items() if k == "light_selection"}  # the tree's faults: the tree
+    clean = dataclasses.replace(case, name=f"{scene}/clean", settings=settings, expect="pass")
     record = run_case(clean, tmp_path)
     assert record["status"] == "pass", record.get("reason")

@@ -15,7 +15,7 @@ from harness.files.imageio import read_exr
 from harness.files.results import read_results
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
-from reference_impl.mutants import ALL_MUTANTS
+from reference_impl.mutants import ALL_MUTANTS, TREE_MUTANTS
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
@@ -79,9 +79,14 @@ def test_repository_suites_load():
     for scene in emitter_scenes - {"white-furnace-albedo-1", "textured-furnace", "leaning-plate"}:  # (suns alone)
         seen = {c.settings.get("env_sampling") for c in canonical.cases if c.scene.stem == scene}
         assert scene in {"point-spot"} or {"uniform", "cosine"} <= seen, (scene, seen)
-    # Every planted fault is a case the verdict must fail.
+    # Every planted fault is a case the verdict must fail: in the canonical suite, the light tree's in
+    # suites/many-lights.toml (kept out of the canonical run's 10 minutes).
     mutant_cases = {c.settings.get("mutant") for c in canonical.cases if c.expect == "fail"}
-    assert set(ALL_MUTANTS) <= mutant_cases
+    assert set(ALL_MUTANTS) - set(TREE_MUTANTS) <= mutant_cases
+    many = load_suite(SUITES / "many-lights.toml")
+    assert set(TREE_MUTANTS) <= {c.settings.get("mutant") for c in many.cases if c.expect == "fail"}
+    assert {c.settings.get("light_selection", "power") for c in many.cases if c.expect == "pass"} == {
+        "power", "uniform", "tree"}
     # The material scenes' direct-light strategies: light samples alone and BSDF samples alone beside the default,
     # against the canonical reference case's ground truth (the same film, spp and ground-truth spp).
     materials = load_suite(SUITES / "materials.toml")
