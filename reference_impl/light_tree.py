@@ -23,7 +23,7 @@ walks down from the root choosing a child with probability I_child / (I_left + I
 product of its choices' probabilities along the path: pdf(k | x, n) > 0 wherever light k can light x (I is a bound,
 never 0 where the light can send anything to x), and the estimator stays unbiased.
 
-Building (here, with numpy): top-down, splitting the lights of a node at one of 11 planes (12 buckets of their box
+Building (numba, when a render starts): top-down, splitting the lights of a node at one of 11 planes (12 buckets of their box
 centres along each axis) that minimises pbrt-v4's cost, the sum over the two sides of phi M_Omega K_r S (M_Omega the
 cone's solid-angle measure, K_r the node's longest extent over the axis's, S the box's surface area); lights whose
 centres coincide are split in half by count. A node's cone here is not pbrt-v4's pairwise union but one cone around
@@ -41,8 +41,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
 from reference_impl.geometry import Geometry
+from reference_impl.kernels.config import JIT
 
 BUCKETS = 12  # candidate planes per axis: BUCKETS - 1 (pbrt-v4's 12 buckets)
 MAX_DEPTH = 63  # a light's path from the root: at most 63 choices (its trail's 64 bits)
@@ -93,34 +95,155 @@ def light_bounds(geometry: Geometry, area: np.ndarray, spheres: np.ndarray) -> d
     return {"lo": lo, "hi": hi, "phi": phi, "w": w, "cos_o": cos_o}
 
 
-def _angle(cos: np.ndarray) -> np.ndarray:
-    return np.arccos(np.clip(cos, -1.0, 1.0))
+@njit(**JIT)
+def _cone_of(members, w, theta, phi):
+    """(axis, half-angle) of one cone holding the cones of ``members``: the axis the normalised sum of phi_i w_i
+    (pbrt-v4 would union pairwise), the half-angle max_i (angle(axis, w_i) + theta_i), capped at pi; (0, 0, 1) and
+    pi where the axes cancel."""
+    a0 = a1 = a2 = 0.0
+    for i in members:
+        a0 += phi[i] * w[i, 0]
+        a1 += phi[i] * w[i, 1]
+        a2 += phi[i] * w[i, 2]
+    length = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+    if not length > 1e-12:
+        return 0.0, 0.0, 1.0, math.pi
+    a0, a1, a2 = a0 / length, a1 / length, a2 / length
+    half = 0.0
+    for i in members:
+        c = min(1.0, max(-1.0, a0 * w[i, 0] + a1 * w[i, 1] + a2 * w[i, 2]))
+        half = max(half, math.acos(c) + theta[i])
+    return a0, a1, a2, min(half, math.pi)
 
 
-def _cones(w: np.ndarray, theta: np.ndarray, phi: np.ndarray, groups: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A cone holding the cones of each group of lights: ``groups`` (G, n) bool, whether light i is in group g.
-    Axis a_g = normalised sum of phi_i w_i over the group (pbrt-v4 would union pairwise), half-angle
-    max_i (angle(a_g, w_i) + theta_i), capped at pi; (0, 0, 1) and pi where the axes cancel."""
-    weighted = groups.astype(np.float64) @ (phi[:, None] * w)  # (G, 3)
-    length = np.linalg.norm(weighted, axis=1)
-    axis = np.where(length[:, None] > 1e-12, weighted / np.maximum(length, 1e-300)[:, None], [0.0, 0.0, 1.0])
-    spread = _angle(axis @ w.T) + theta[None, :]  # (G, n)
-    half = np.where(groups, spread, -np.inf).max(axis=1)
-    half = np.where(length > 1e-12, np.minimum(half, np.pi), np.pi)
-    return axis, half
-
-
-def _cost(lo: np.ndarray, hi: np.ndarray, phi: np.ndarray, theta_o: np.ndarray, k_r: float) -> np.ndarray:
+@njit(**JIT)
+def _cost(lo, hi, phi, theta_o, k_r):
     """pbrt-v4's cost of light bounds (``EvaluateCost``, theta_e = pi / 2): phi M_Omega K_r S, with
     M_Omega = 2 pi (1 - cos theta_o) + pi / 2 (2 theta_w sin theta_o - cos(theta_o - 2 theta_w)
     - 2 theta_o sin theta_o + cos theta_o), theta_w = min(theta_o + theta_e, pi), S the box's surface area."""
-    theta_w = np.minimum(theta_o + np.pi / 2, np.pi)
-    cos_o, sin_o = np.cos(theta_o), np.sin(theta_o)
-    m_omega = 2 * np.pi * (1 - cos_o) + np.pi / 2 * (2 * theta_w * sin_o - np.cos(theta_o - 2 * theta_w)
-                                                      - 2 * theta_o * sin_o + cos_o)
-    d = np.maximum(hi - lo, 0.0)
-    surface = 2 * (d[:, 0] * d[:, 1] + d[:, 1] * d[:, 2] + d[:, 2] * d[:, 0])
-    return phi * m_omega * k_r * surface
+    theta_w = min(theta_o + math.pi / 2, math.pi)
+    cos_o, sin_o = math.cos(theta_o), math.sin(theta_o)
+    m_omega = 2 * math.pi * (1 - cos_o) + math.pi / 2 * (2 * theta_w * sin_o - math.cos(theta_o - 2 * theta_w)
+                                                          - 2 * theta_o * sin_o + cos_o)
+    d0, d1, d2 = max(hi[0] - lo[0], 0.0), max(hi[1] - lo[1], 0.0), max(hi[2] - lo[2], 0.0)
+    return phi * m_omega * k_r * 2 * (d0 * d1 + d1 * d2 + d2 * d0)
+
+
+@njit(**JIT)
+def _split(members, depth, lo, hi, phi, w, theta, centre):
+    """The number of ``members`` (reordered in place) on the left side of the cheapest of the candidate planes
+    (module docstring); by count, along the centres' longest extent, where the centres coincide or depth must stay
+    under MAX_DEPTH."""
+    n = len(members)
+    c_lo = np.full(3, np.inf)
+    c_hi = np.full(3, -np.inf)
+    n_lo = np.full(3, np.inf)
+    n_hi = np.full(3, -np.inf)
+    for i in members:
+        for a in range(3):
+            c_lo[a] = min(c_lo[a], centre[i, a])
+            c_hi[a] = max(c_hi[a], centre[i, a])
+            n_lo[a] = min(n_lo[a], lo[i, a])
+            n_hi[a] = max(n_hi[a], hi[i, a])
+    extent = c_hi - c_lo
+    node_extent = n_hi - n_lo
+    longest = 0
+    for a in range(3):
+        if extent[a] > extent[longest]:
+            longest = a
+    by_count = not extent[longest] > 0 or MAX_DEPTH - depth <= math.ceil(math.log2(n)) + 1
+    best_cost, best_axis, best_cut = np.inf, -1, 0
+    if not by_count:
+        box_lo, box_hi = np.empty(3), np.empty(3)
+        for axis in range(3):
+            if not extent[axis] > 0:
+                continue
+            order = members[np.argsort(centre[members, axis], kind="mergesort")]
+            k_r = node_extent.max() / node_extent[axis] if node_extent[axis] > 0 else 1.0
+            previous = 0
+            for b in range(1, BUCKETS):  # the cut before the first member of bucket b
+                cut = previous
+                while cut < n and min(int(BUCKETS * (centre[order[cut], axis] - c_lo[axis]) / extent[axis]),
+                                      BUCKETS - 1) < b:
+                    cut += 1
+                previous = cut
+                if cut == 0 or cut == n:
+                    continue
+                cost = 0.0
+                for side in range(2):
+                    part = order[:cut] if side == 0 else order[cut:]
+                    box_lo[:] = np.inf
+                    box_hi[:] = -np.inf
+                    total = 0.0
+                    for i in part:
+                        total += phi[i]
+                        for a in range(3):
+                            box_lo[a] = min(box_lo[a], lo[i, a])
+                            box_hi[a] = max(box_hi[a], hi[i, a])
+                    half = _cone_of(part, w, theta, phi)[3]
+                    cost += _cost(box_lo, box_hi, total, half, k_r)
+                if cost < best_cost:
+                    best_cost, best_axis, best_cut = cost, axis, cut
+    if best_axis < 0:  # by count (also where every cost is infinite or nan)
+        best_axis, best_cut = longest, n // 2
+    members[:] = members[np.argsort(centre[members, best_axis], kind="mergesort")]
+    return best_cut
+
+
+@njit(**JIT)
+def _build(lo, hi, phi, w, theta, centre):
+    """The nodes in depth-first order (a node's first child the next node) and each light's trail (module
+    docstring): node arrays (lo, hi, phi, w, cos_o, child, leaf) and trail."""
+    n = len(phi)
+    m = 2 * n - 1
+    n_lo, n_hi, n_w = np.empty((m, 3)), np.empty((m, 3)), np.empty((m, 3))
+    n_phi, n_cos = np.empty(m), np.empty(m)
+    child = np.full(m, -1, np.int64)
+    leaf = np.zeros(m, np.bool_)
+    trail = np.zeros(n, np.uint64)
+    members = np.arange(n)
+    # stack of (start, end, depth, trail bits, parent whose second child this is, or -1)
+    stack = np.empty((2 * MAX_DEPTH + 4, 5), np.int64)
+    top = 0
+    stack[0] = (0, n, 0, 0, -1)
+    top = 1
+    count = 0
+    while top > 0:
+        top -= 1
+        start, end, depth, bits, parent = stack[top]
+        index = count
+        count += 1
+        if parent >= 0:
+            child[parent] = index
+        part = members[start:end]
+        for a in range(3):
+            n_lo[index, a] = np.inf
+            n_hi[index, a] = -np.inf
+        total = 0.0
+        for i in part:
+            total += phi[i]
+            for a in range(3):
+                n_lo[index, a] = min(n_lo[index, a], lo[i, a])
+                n_hi[index, a] = max(n_hi[index, a], hi[i, a])
+        if end - start == 1:
+            i = part[0]
+            n_phi[index] = phi[i]
+            n_w[index] = w[i]
+            n_cos[index] = math.cos(theta[i])
+            child[index] = i
+            leaf[index] = True
+            trail[i] = np.uint64(bits)
+            continue
+        a0, a1, a2, half = _cone_of(part, w, theta, phi)
+        n_phi[index] = total
+        n_w[index, 0], n_w[index, 1], n_w[index, 2] = a0, a1, a2
+        n_cos[index] = math.cos(half)
+        cut = _split(part, depth, lo, hi, phi, w, theta, centre)
+        # the second child first onto the stack, so that the first is numbered next (index + 1)
+        stack[top] = (start + cut, end, depth + 1, bits | (1 << depth), index)
+        stack[top + 1] = (start, start + cut, depth + 1, bits, -1)
+        top += 2
+    return n_lo, n_hi, n_phi, n_w, n_cos, child, leaf, trail
 
 
 class LightTree:
@@ -146,85 +269,17 @@ class LightTree:
     """
 
     def __init__(self, geometry: Geometry, area: np.ndarray, spheres: np.ndarray, num_other: int = 0):
-        bounds = light_bounds(geometry, area, spheres)
+        b = light_bounds(geometry, area, spheres)
         self.p_tree = 1.0 / (num_other + 1)
-        n = len(bounds["phi"])
-        self._b = bounds
-        self._theta = _angle(bounds["cos_o"])
-        self._centre = 0.5 * (bounds["lo"] + bounds["hi"])
-        nodes: list[list] = []  # per node: [lo, hi, phi, w, cos_o, child, leaf]
-        self.trail = np.zeros(n, np.uint64)
-        if n:
-            self._build(np.arange(n), 0, 0, nodes)
-        self.lo = np.array([v[0] for v in nodes], np.float64).reshape(-1, 3)
-        self.hi = np.array([v[1] for v in nodes], np.float64).reshape(-1, 3)
-        self.phi = np.array([v[2] for v in nodes], np.float64)
-        self.w = np.array([v[3] for v in nodes], np.float64).reshape(-1, 3)
-        self.cos_o = np.array([v[4] for v in nodes], np.float64)
-        self.child = np.array([v[5] for v in nodes], np.int64)
-        self.leaf = np.array([v[6] for v in nodes], np.bool_)
-        del self._b, self._theta, self._centre
+        theta = np.arccos(np.clip(b["cos_o"], -1.0, 1.0))
+        centre = 0.5 * (b["lo"] + b["hi"])
+        if len(b["phi"]):
+            (self.lo, self.hi, self.phi, self.w, self.cos_o, self.child, self.leaf,
+             self.trail) = _build(b["lo"], b["hi"], b["phi"], b["w"], theta, centre)
+        else:
+            self.lo, self.hi, self.w = np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3))
+            self.phi, self.cos_o = np.zeros(0), np.zeros(0)
+            self.child, self.leaf, self.trail = np.zeros(0, np.int64), np.zeros(0, bool), np.zeros(0, np.uint64)
 
     def __len__(self) -> int:
         return len(self.phi)
-
-    def _node(self, members: np.ndarray) -> list:
-        b = self._b
-        lo, hi = b["lo"][members].min(axis=0), b["hi"][members].max(axis=0)
-        if len(members) == 1:
-            i = members[0]
-            return [lo, hi, b["phi"][i], b["w"][i], b["cos_o"][i], int(i), True]
-        axis, half = _cones(b["w"][members], self._theta[members], b["phi"][members], np.ones((1, len(members)), bool))
-        return [lo, hi, b["phi"][members].sum(), axis[0], math.cos(half[0]), -1, False]
-
-    def _build(self, members: np.ndarray, depth: int, trail_bits: int, nodes: list) -> None:
-        index = len(nodes)
-        nodes.append(self._node(members))
-        if len(members) == 1:
-            self.trail[members[0]] = np.uint64(trail_bits)
-            return
-        left, right = self._split(members, depth)
-        self._build(left, depth + 1, trail_bits, nodes)
-        nodes[index][5] = len(nodes)
-        self._build(right, depth + 1, trail_bits | (1 << depth), nodes)
-
-    def _split(self, members: np.ndarray, depth: int) -> tuple[np.ndarray, np.ndarray]:
-        """The two sides of the cheapest of the candidate planes (module docstring); by count, along the centres'
-        longest extent, where the centres coincide or depth must stay under :data:`MAX_DEPTH`."""
-        b, centre = self._b, self._centre[members]
-        c_lo, c_hi = centre.min(axis=0), centre.max(axis=0)
-        extent = c_hi - c_lo
-        n = len(members)
-        node_extent = b["hi"][members].max(axis=0) - b["lo"][members].min(axis=0)
-        by_count = extent.max() <= 0 or MAX_DEPTH - depth <= math.ceil(math.log2(n)) + 1
-        best = (np.inf, None)
-        for axis in range(3) if not by_count else ():
-            if extent[axis] <= 0:
-                continue
-            order = np.argsort(centre[:, axis], kind="stable")
-            sorted_members = members[order]
-            bucket = np.minimum((BUCKETS * (centre[order, axis] - c_lo[axis]) / extent[axis]).astype(np.int64),
-                                BUCKETS - 1)
-            cuts = np.unique(np.searchsorted(bucket, np.arange(1, BUCKETS), side="left"))
-            cuts = cuts[(cuts > 0) & (cuts < n)]
-            if not len(cuts):
-                continue
-            positions = np.arange(n)
-            left = positions[None, :] < cuts[:, None]  # (C, n): light i on the left of cut c
-            phi, theta = b["phi"][sorted_members], self._theta[sorted_members]
-            w = b["w"][sorted_members]
-            k_r = node_extent.max() / node_extent[axis] if node_extent[axis] > 0 else 1.0
-            cost = np.zeros(len(cuts))
-            for side in (left, ~left):
-                _axes, half = _cones(w, theta, phi, side)
-                lo = np.where(side[:, :, None], b["lo"][sorted_members][None], np.inf).min(axis=1)
-                hi = np.where(side[:, :, None], b["hi"][sorted_members][None], -np.inf).max(axis=1)
-                cost += _cost(lo, hi, side.astype(np.float64) @ phi, half, k_r)
-            c = int(np.argmin(cost))
-            if cost[c] < best[0]:
-                best = (cost[c], (sorted_members[:cuts[c]], sorted_members[cuts[c]:]))
-        if best[1] is None:  # by count (also where every cost is infinite or nan)
-            axis = int(np.argmax(extent))
-            order = np.argsort(centre[:, axis], kind="stable")
-            return members[order[:n // 2]], members[order[n // 2:]]
-        return best[1]
