@@ -23,17 +23,19 @@ walks down from the root choosing a child with probability I_child / (I_left + I
 product of its choices' probabilities along the path: pdf(k | x, n) > 0 wherever light k can light x (I is a bound,
 never 0 where the light can send anything to x), and the estimator stays unbiased.
 
-Building (numba, when a render starts): top-down, splitting the lights of a node at one of 11 planes (12 buckets of their box
-centres along each axis) that minimises pbrt-v4's cost, the sum over the two sides of phi M_Omega K_r S (M_Omega the
-cone's solid-angle measure, K_r the node's longest extent over the axis's, S the box's surface area); lights whose
-centres coincide are split in half by count. A node's cone here is not pbrt-v4's pairwise union but one cone around
-the power-weighted mean axis a holding each light's cone, theta = max_k (angle(a, w_k) + theta_o_k) (capped at pi;
-the whole sphere where the weighted axes cancel): it holds every normal too (so importance stays a bound), and it
-is computed for many candidate splits at once. Depth is held under 64 so that each light's path from the root fits
-the 64 bits of ``trail`` (bit j: the child taken at depth j, 1 the second); near that depth the split is by count.
+Building (compiled with numba; it runs when a render starts): top-down, splitting the lights of a node at one of
+11 planes (12 buckets of their box centres along each axis) that minimises pbrt-v4's cost, the sum over the two sides
+of phi M_Omega K_r S (M_Omega the cone's solid-angle measure, K_r the node's longest extent over the axis's, S the
+box's surface area); lights whose centres coincide are split in half by count. A node's cone here is not pbrt-v4's
+pairwise union but one cone around the power-weighted mean axis a holding each light's cone, theta = max_k
+(angle(a, w_k) + theta_o_k) (capped at pi; the whole sphere where the weighted axes cancel): it holds every normal
+too (so importance stays a bound), in one pass over the node's lights. Depth is held under 64 so that each light's
+path from the root fits the 64 bits of ``trail`` (bit j: the child taken at depth j, 1 the second); near that depth
+the split is by count.
 
 Emitters that are not surfaces (point, spot, directional, environments) are not in the tree: as in pbrt-v4 each is
-chosen with probability 1 / (n_other + 1) and the tree with 1 / (n_other + 1) (pbrt-v4's ``pInfinite``).
+chosen with probability 1 / (n_other + 1) and the tree with 1 / (n_other + 1) (pbrt-v4's ``pInfinite``; 0 without
+area lights).
 """
 
 from __future__ import annotations

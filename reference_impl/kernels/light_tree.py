@@ -1,7 +1,8 @@
 """Light selection by the light tree (``light_selection = "tree"``, :mod:`reference_impl.light_tree`): the importance
 of a node at a shading point, a light drawn by walking down the tree, and the pmf of a given light.
 
-    I(x, n)   = phi cos(theta') / d^2 cos(theta'_i), 0 where theta' >= theta_e = pi / 2   (pbrt-v4 LightBounds::Importance)
+    I(x, n)   = phi cos(theta') / d^2 cos(theta'_i), 0 where theta' >= theta_e = pi / 2
+                (pbrt-v4's LightBounds::Importance)
     walk      at each inner node the first child with p0 = I_0 / (I_0 + I_1), the second with I_1 / (I_0 + I_1);
               the uniform rescaled into the chosen interval each time (sample reuse)
     pdf(k|x)  = p_tree prod over k's path of I_taken / (I_0 + I_1)

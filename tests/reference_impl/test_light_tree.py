@@ -1,8 +1,9 @@
 """The light tree (``light_selection = "tree"``): its choices follow its own pmf, the pmf a sample carries is the pmf
 of its light, every light that can light a point has pdf(k | x) > 0, and its paths fit their 64-bit trails.
 
-Scenes: 60 lights (quads of random size, orientation, power and colour in a 20-unit box), and the same with two emitters that are not surfaces (``num_other = 2``). Shading points: 6 fixed points
-with their normals, some inside the lights' box.
+Scenes: 60 lights (quads of random size, orientation, power and colour in a 20-unit box), and the same with two
+emitters that are not surfaces (``num_other = 2``). Shading points: 6 fixed points with their normals, some inside
+the lights' box.
 
 Chi-square: the choices of 10^6 uniforms at each shading point against ``pmf_many`` at that point
 (:func:`harness.judges.chi2.chi2_test_discrete`), m = 12 tests (6 points x 2 scenes) at Sidak's
@@ -241,5 +242,6 @@ def test_tree_and_power_agree_in_expectation(direct):
     assert mean_z(a, b).max() <= Z_MAX
     if direct == "area":  # the comparison can fail: the planted fault that loses lights (light samples alone)
         a = _render(scene, spp=1024, direct=direct, light_selection="power")
-        c = _render(scene, spp=1024, seed=13, direct=direct, light_selection="tree", mutant="light-tree-no-bound-angle")
+        c = _render(scene, spp=1024, seed=13, direct=direct, light_selection="tree",
+                    mutant="light-tree-no-bound-angle")
         assert mean_z(a, c).max() > Z_MAX
