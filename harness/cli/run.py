@@ -82,7 +82,10 @@ def run(args: argparse.Namespace) -> int:
     with imageio.removed_on_failure(created), runstate.locked(out):
         bar = progress_bar(args, suite.name, "case", total=len(suite.cases), leave=True)
 
+        finished = [0]  # cases ended so far: the progress lines count them in the order they end
+
         def on_case(index: int, record: dict) -> None:
+            finished[0] += 1
             if gate is not None:
                 gate.check(suite.cases[index], record)
             warning = (record.get("ground_truth_noise") or {}).get("warning")
@@ -97,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
                 bar.update(1)
             elif not args.quiet:
                 mark = "ok " if record["ok"] else "BAD"
-                print(f"[{index + 1}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}"
+                print(f"[{finished[0]}/{len(suite.cases)}] {mark} {record['name']}: {record['status']}"
                       + (f" ({record['reason']})" if record.get("reason") else ""), file=sys.stderr)
 
         done = [0]

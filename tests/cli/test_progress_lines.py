@@ -53,3 +53,18 @@ def test_studies_show_progress_off_a_terminal(monkeypatch):
     monkeypatch.setattr(sys, "stderr", io.StringIO())
     assert studies.progress(argparse.Namespace(quiet=False)) is True
     assert studies.progress(argparse.Namespace(quiet=True)) is False
+
+
+def test_run_counts_cases_in_the_order_they_end(tmp_path, capfd):
+    """With two workers cases end out of order; each line's [k/N] counts the cases ended so far, so the lines read
+    1, 2, 3 whatever the order."""
+    from test_hostile_input import SCENE, cli
+
+    (tmp_path / "scene.toml").write_text(SCENE)
+    case = '[[cases]]\nname = "c{}"\nscene = "scene.toml"\nspp = {}\nagainst = {{ renderer = "reference", spp = 2 }}\n'
+    (tmp_path / "s.toml").write_text("".join(case.format(i, spp) for i, spp in enumerate((64, 2, 2))))
+    code, _out, err = cli(capfd, "run", tmp_path / "s.toml", "--out", tmp_path / "out", "--no-report",
+                          "--workers", "2")
+    assert code == 0, err
+    counts = [line.split("]")[0] for line in err.splitlines() if line.startswith("[")]
+    assert counts == ["[1/3", "[2/3", "[3/3"], err
