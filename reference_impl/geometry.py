@@ -215,9 +215,13 @@ class Geometry:
             raise SettingsError("normals", f"expected finite numbers in an array of shape ({n_tri}, 3, 3)")
         length = np.linalg.norm(normals, axis=2)
         smooth = np.any(length > 0, axis=1)
-        if np.any(length[smooth] == 0):
+        every = bool(np.all(smooth))  # a smooth mesh alone: no masked copies of the (T, 3, 3) table
+        if np.any(length == 0) if every else np.any(length[smooth] == 0):
             raise SettingsError("normals", "expected a non-zero normal at every corner of a smooth triangle")
-        normals[smooth] /= length[smooth][:, :, None]
+        if every:
+            normals /= length[:, :, None]
+        else:
+            normals[smooth] /= length[smooth][:, :, None]
         set_(self, "normals", normals)
         set_(self, "smooth", smooth)
 
