@@ -30,7 +30,7 @@ from harness.core.errors import HarnessError
 from harness.files.imageio import atomic_write_bytes, atomic_write_text
 
 #: waves summed, the highest frequency (cycles over the square's side of 2) and the relief's amplitude A
-WAVES, TOP_FREQUENCY, AMPLITUDE = 24, 48.0, 0.12
+WAVES, TOP_FREQUENCY, AMPLITUDE = 24, 48.0, 0.05
 MATERIALS = ("diffuse", "glossy")
 
 
@@ -116,10 +116,10 @@ A heightfield terrain of {triangles} triangles (seed {seed}, harness/studies/ter
 {material}: the scale study's scene (harness bench --scaling)."""
 
 [camera]
-origin = [0.0, -2.4, 1.5]
-target = [0.0, 0.1, -0.1]
+origin = [0.0, -1.9, 1.9]
+target = [0.0, 0.05, -0.05]
 up = [0.0, 0.0, 1.0]
-fov = 45.0
+fov = 50.0
 fov_axis = "x"
 
 [film]
