@@ -494,7 +494,8 @@ def scaling(scene, *, spp_list=(8, 16, 32), sizes=(64, 128, 256), seed: int = 1,
 
 
 _MEMORY_CHILD = """
-import dataclasses, json, resource, sys
+import dataclasses, json, sys
+from harness.core.memory import peak_rss_bytes
 from harness.renderers import RenderRequest, get_renderer
 from harness.scene import load_scene
 scene = load_scene(sys.argv[1])
@@ -502,13 +503,14 @@ size, spp = int(sys.argv[2]), int(sys.argv[3])
 scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size, height=size))
 result = get_renderer("reference").render(scene, RenderRequest(spp=spp, seed=1))
 print(json.dumps({"seconds": result.seconds, "paths_per_second": result.paths / result.seconds,
-                  "peak_rss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
+                  "peak_rss_kib": peak_rss_bytes() / 1024}))
 """
 
 
 def peak_memory(scene_path: Path, size: int, spp: int) -> dict:
     """Peak resident memory of a reference render of ``scene_path`` at ``size`` x ``size`` and ``spp``, in a child
-    process (its ru_maxrss: the interpreter, numba, Embree, the film's sums and the batches' buffers)."""
+    process (its VmHWM, :func:`harness.core.memory.peak_rss_bytes`: the interpreter, numba, Embree, the film's sums
+    and the batches' buffers; not ru_maxrss, which the child inherits from this process)."""
     load_scene(scene_path)  # bad input fails here, with its one line
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, str(scene_path), str(size), str(spp)],

@@ -13,8 +13,12 @@ both. A child process measures, in its own clock:
   ``mi.load_dict`` (its meshes, its own acceleration structure: Mitsuba's BVH is inside its load);
 - ``bvh``: the reference's Embree scene commit (``rtcCommitScene``: :class:`reference_impl.embree_c.TriangleScene`);
 - ``render``: the render's own clock (no loading), and paths per second = pixels x spp / render;
-- ``peak_rss``: the child's peak resident set (``ru_maxrss``), and ``rss_per_triangle`` = (peak - the RSS after its
-  imports, before the scene) / N, the bytes the scene costs per triangle (kernel code and buffers included);
+- ``peak_rss``: the child's peak resident set (``VmHWM``: :func:`harness.core.memory.peak_rss_bytes`, not
+  ``ru_maxrss``, which a child inherits from its parent), and ``rss_per_triangle`` = (peak - the peak after its
+  imports, before the scene) / N, the bytes the scene and the render cost per triangle (the film's and the batches'
+  buffers included: a constant that dominates small meshes; the table's footer gives the marginal bytes per
+  triangle between consecutive sizes, (peak_b - peak_a) / (N_b - N_a)); the reference's ``load_rss``, its peak
+  before the render (the arrays, before Embree and the render's buffers);
 - ``mse``: mean over pixels and channels of (render - ground truth)^2 less the ground truth's own mean variance
   (:func:`harness.studies.bench.mse_against`), and ``efficiency`` = 1 / (MSE x render seconds) (Veach's efficiency of
   an estimator: 1 / (variance x cost); :func:`harness.studies.bench.efficiency`), from the mean MSE over the rounds
@@ -32,7 +36,6 @@ import json
 import math
 import os
 import re
-import resource
 import statistics
 import subprocess
 import sys
@@ -44,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
+from harness.core.memory import peak_rss_bytes
 from harness.files.entries import default_cache_dir
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import ground_truth
@@ -57,6 +61,7 @@ DEFAULT_SIZE, DEFAULT_SPP, DEFAULT_ROUNDS, DEFAULT_GT_SPP = 256, 64, 3, 1024
 #: the most triangles one size may ask (10 M take about 6 GiB in the reference, docs/performance.md, "Scale")
 MAX_TRIANGLES = 100_000_000
 CONTENDERS = ("reference", "mitsuba")
+PACKAGE_ROOT = Path(__file__).resolve().parents[2]
 SEED = 1
 _SUFFIX = {"": 1, "k": 1_000, "K": 1_000, "M": 1_000_000}
 
@@ -98,11 +103,6 @@ def mitsuba_variant() -> str:
 # ---- the child: one render of one contender in a fresh process -------------------------------------------------
 
 
-def _rss_bytes() -> int:
-    """This process's peak resident set so far, in bytes (Linux reports ``ru_maxrss`` in KiB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-
-
 def _child_reference(scene_path: str, spp: int, seed: int) -> tuple[dict, np.ndarray]:
     import reference_impl.embree_c as embree_c  # optional: loads numba; the reference's child alone needs it
 
@@ -115,7 +115,7 @@ def _child_reference(scene_path: str, spp: int, seed: int) -> tuple[dict, np.nda
         commit[0] += time.perf_counter() - start
 
     embree_c.TriangleScene.__init__ = timed_init
-    base = _rss_bytes()
+    base = peak_rss_bytes()
     start = time.perf_counter()
     scene = load_scene(scene_path)
     scene_seconds = time.perf_counter() - start
@@ -123,6 +123,7 @@ def _child_reference(scene_path: str, spp: int, seed: int) -> tuple[dict, np.nda
     start = time.perf_counter()
     geometry = renderer._arrays(scene)[0]  # the arrays the render below takes (it keeps them)
     array_seconds = time.perf_counter() - start
+    load_rss = peak_rss_bytes()
     start = time.perf_counter()
     result = renderer.render(scene, RenderRequest(spp=spp, seed=seed))
     wall = time.perf_counter() - start
@@ -130,12 +131,12 @@ def _child_reference(scene_path: str, spp: int, seed: int) -> tuple[dict, np.nda
     return ({"scene_seconds": scene_seconds, "array_seconds": array_seconds, "setup_seconds": setup,
              "load_seconds": scene_seconds + array_seconds + setup, "bvh_seconds": commit[0],
              "render_seconds": result.seconds, "paths": result.paths, "triangles": int(len(geometry.triangles)),
-             "base_rss": base, "peak_rss": _rss_bytes(), "variant": None}, result.image)
+             "base_rss": base, "load_rss": load_rss, "peak_rss": peak_rss_bytes(), "variant": None}, result.image)
 
 
 def _child_mitsuba(scene_path: str, spp: int, seed: int, variant: str) -> tuple[dict, np.ndarray]:
     import_mitsuba(resolve_variant(variant).variant)  # Mitsuba's import and its JIT backend: not the scene's
-    base = _rss_bytes()
+    base = peak_rss_bytes()
     start = time.perf_counter()
     scene = load_scene(scene_path)
     scene_seconds = time.perf_counter() - start
@@ -147,7 +148,7 @@ def _child_mitsuba(scene_path: str, spp: int, seed: int, variant: str) -> tuple[
     setup = wall - result.seconds  # the dict, mi.load_dict (meshes, Mitsuba's BVH), the film read back
     return ({"scene_seconds": scene_seconds, "array_seconds": 0.0, "setup_seconds": setup,
              "load_seconds": scene_seconds + setup, "bvh_seconds": None, "render_seconds": result.seconds,
-             "paths": result.paths, "triangles": None, "base_rss": base, "peak_rss": _rss_bytes(),
+             "paths": result.paths, "triangles": None, "base_rss": base, "peak_rss": peak_rss_bytes(),
              "variant": result.info.get("variant")}, result.image)
 
 
@@ -173,7 +174,9 @@ def run_child(contender: str, scene: Path, spp: int, seed: int, variant: str, fo
     image_path = folder / f"{contender}.npy"
     argv = [sys.executable, "-m", "harness.studies.scaling", contender, str(scene), str(spp), str(seed),
             str(image_path), variant]
-    proc = subprocess.run(argv, capture_output=True, text=True)
+    env = dict(os.environ)  # the child imports this harness, wherever it was started from
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(PACKAGE_ROOT), env.get("PYTHONPATH")]))
+    proc = subprocess.run(argv, capture_output=True, text=True, env=env)
     if proc.returncode != 0:
         if proc.returncode < 0:
             return {"error": f"killed by signal {-proc.returncode} (out of memory?)"}, None
@@ -308,13 +311,29 @@ def format_table(result: dict) -> str:
         ratio = result["ratios"].get(str(n), {}).get("efficiency") if row["contender"] == "reference" else None
         cells = (count_text(n), row["contender"], _cell(row["load_seconds"]), _cell(row["bvh_seconds"]),
                  _cell(row["render_seconds"]),
-                 f"{row['paths_per_second'] / 1e6:.2f}" if row["paths_per_second"] else "-",
+                 f"{row['paths_per_second'] / 1e6:.3g}" if row["paths_per_second"] else "-",
                  _cell(row["peak_rss"], 1 / 2**20, 0), _cell(row["rss_per_triangle"], 1.0, 0),
                  f"{row['mse']:.3g}" if row["mse"] is not None else "-",
                  f"{row['efficiency']:.3g}" if row["efficiency"] else "-",
                  f"{ratio:.2f}" if ratio else "")
         lines.append("  ".join(f"{c:<{w}}" for c, w in zip(cells, widths)).rstrip())
+    marginal = marginal_bytes(result)
+    for contender, steps in marginal.items():
+        if steps:
+            lines.append(f"{contender}: peak RSS per added triangle " + ", ".join(
+                f"{count_text(a)}->{count_text(b)} {v:.0f} B" for a, b, v in steps))
     return "\n".join(lines)
+
+
+def marginal_bytes(result: dict) -> dict[str, list[tuple[int, int, float]]]:
+    """Per contender, (N_a, N_b, (peak_b - peak_a) / (N_b - N_a)) between consecutive triangle counts measured:
+    the bytes one more triangle costs, free of the constant (interpreter, kernels, film and batch buffers)."""
+    out: dict[str, list] = {}
+    for contender in CONTENDERS:
+        points = sorted((row["triangles"], row["peak_rss"]["median"]) for row in result["rows"]
+                        if row["contender"] == contender and row["peak_rss"]["median"] is not None)
+        out[contender] = [(a, b, (pb - pa) / (b - a)) for (a, pa), (b, pb) in zip(points, points[1:])]
+    return out
 
 
 if __name__ == "__main__":
