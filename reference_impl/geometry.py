@@ -210,14 +210,19 @@ class Geometry:
             set_(self, "normals", np.zeros((0, 3, 3)))
             set_(self, "smooth", np.zeros(0, bool))
             return
-        normals = np.array(self.normals, dtype=np.float64)
-        if normals.shape != (n_tri, 3, 3) or not np.all(np.isfinite(normals)):
+        given = np.asarray(self.normals, dtype=np.float64)  # the caller's, read only: divided into a new table
+        if given.shape != (n_tri, 3, 3) or not np.all(np.isfinite(given)):
             raise SettingsError("normals", f"expected finite numbers in an array of shape ({n_tri}, 3, 3)")
-        length = np.linalg.norm(normals, axis=2)
+        length = np.linalg.norm(given, axis=2)
         smooth = np.any(length > 0, axis=1)
-        if np.any(length[smooth] == 0):
+        every = bool(np.all(smooth))  # a smooth mesh alone: one division, no copy, no masked copies
+        if np.any(length == 0) if every else np.any(length[smooth] == 0):
             raise SettingsError("normals", "expected a non-zero normal at every corner of a smooth triangle")
-        normals[smooth] /= length[smooth][:, :, None]
+        if every:
+            normals = given / length[:, :, None]
+        else:
+            normals = np.array(given)  # a copy, in the layout np.array keeps
+            normals[smooth] /= length[smooth][:, :, None]
         set_(self, "normals", normals)
         set_(self, "smooth", smooth)
 

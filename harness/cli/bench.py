@@ -18,7 +18,7 @@ from harness.core.options import require_positive
 from harness.files.imageio import atomic_write_text
 from harness.renderers import get_renderer
 from harness.scene import load_scene, scene_argument
-from harness.studies import bench
+from harness.studies import bench, scaling
 
 MAX_REPEATS = 1000  # timed renders per contender: more only repeats the measurement
 
@@ -36,15 +36,27 @@ def register(sub, common) -> None:
     parser.add_argument("--spp", type=options.positive_int, default=64,
                         help="samples per pixel of every render (default 64)")
     parser.add_argument("--repeats", type=options.int_type(1, MAX_REPEATS, f"an integer from 1 to {MAX_REPEATS}"),
-                        default=3, help="timed renders per contender after a warm-up (default 3)")
-    parser.add_argument("--ground-truth-spp", type=options.positive_int, default=4096,
-                        help="spp of the (cached) Mitsuba ground truth (default 4096)")
+                        default=None, help="timed renders per contender after a warm-up (default 3)")
+    parser.add_argument("--ground-truth-spp", type=options.positive_int, default=None,
+                        help="spp of the (cached) Mitsuba ground truth (default 4096; with --scaling "
+                             f"{scaling.DEFAULT_GT_SPP})")
     parser.add_argument("--renderer", action="append", default=[], metavar="NAME",
                         help="also race this renderer (a renderer file, renderers/NAME.toml or an entry point; "
                              "repeatable) at the same spp, its render time without process start-up "
                              "(docs/external-renderers.md, Timing)")
     parser.add_argument("--no-strategies", action="store_true", help="skip the reference's strategy variations")
-    parser.add_argument("--scaling", action="store_true", help="also time the reference against spp and pixel count")
+    parser.add_argument("--scaling", action="store_true",
+                        help="instead of the race over scenes, the scale study: the reference and Mitsuba on a "
+                             "generated terrain of each --triangles count, in fresh processes taking turns (load "
+                             "time, BVH build, peak RSS and RSS per triangle, render time, paths/s, efficiency "
+                             "against a Mitsuba ground truth of --ground-truth-spp; docs/performance.md, \"Scale\")")
+    parser.add_argument("--triangles", type=_triangles_option, metavar="N,N,...",
+                        help="with --scaling: the terrain sizes in triangles (default "
+                             f"{','.join(scaling.count_text(n) for n in scaling.DEFAULT_TRIANGLES)})")
+    parser.add_argument("--size", type=options.int_type(1, 8192, "an integer from 1 to 8192"), metavar="PIXELS",
+                        help=f"with --scaling: the film's width and height (default {scaling.DEFAULT_SIZE})")
+    parser.add_argument("--rounds", type=options.int_type(1, 100, "an integer from 1 to 100"),
+                        help=f"with --scaling: rounds of one render each (default {scaling.DEFAULT_ROUNDS})")
     parser.add_argument("--memory", metavar="SIZExSPP", nargs="?", const="1024x256",
                         help="also measure the peak RSS of a SIZE x SIZE render at SPP (default 1024x256)")
     parser.add_argument("--no-embree-rate", action="store_true",
@@ -73,6 +85,41 @@ def register(sub, common) -> None:
                  common.json(), common.quiet(), common.cache_dir(), common.allow_outside_paths()])
 
 
+def _triangles_option(text: str) -> list[int]:
+    return scaling.parse_triangles(text)
+
+
+#: the race's options, which the scale study does not take (each refused with --scaling)
+RACE_ONLY = (("scene", "--scene"), ("renderer", "--renderer"), ("check", "--check"), ("memory", "--memory"),
+             ("no_strategies", "--no-strategies"), ("no_embree_rate", "--no-embree-rate"), ("film", "--film"))
+#: the scale study's options, refused without --scaling
+SCALING_ONLY = (("triangles", "--triangles"), ("size", "--size"), ("rounds", "--rounds"))
+
+
+def _run_scaling(args: argparse.Namespace) -> int:
+    """``harness bench --scaling``: the scale study and its table (or JSON)."""
+    for attribute, option in RACE_ONLY:
+        if getattr(args, attribute, None):
+            raise HarnessError(option, "the race's option, not taken by --scaling (the scale study renders its own "
+                                       "terrain: --triangles, --size, --spp, --rounds, --ground-truth-spp)")
+    if args.repeats is not None:
+        raise HarnessError("--repeats", "not taken by --scaling: its rounds are --rounds")
+    size = args.size or scaling.DEFAULT_SIZE
+    gt_spp = args.ground_truth_spp or scaling.DEFAULT_GT_SPP
+    for option, spp in (("--spp", args.spp), ("--ground-truth-spp", gt_spp)):
+        check_render_cost(size, size, spp, film_where="--size", spp_where=option, film_keys="--size",
+                          spp_name=option)
+    say = (lambda text: print(f"  {text}", file=sys.stderr, flush=True)) if not args.quiet else None
+    result = scaling.run_scaling(triangles=args.triangles or scaling.DEFAULT_TRIANGLES, size=size, spp=args.spp,
+                                 rounds=args.rounds or scaling.DEFAULT_ROUNDS, gt_spp=gt_spp,
+                                 cache_dir=args.cache_dir, say=say)
+    text = jsonsafe.dumps(result, indent=2, default=float)
+    if args.out:
+        atomic_write_text(Path(args.out), text)
+    print(text if args.json else scaling.format_table(result))
+    return EXIT_OK
+
+
 def _memory_option(text: str) -> tuple[int, int]:
     match = re.fullmatch(r"([0-9]+)[xX]([0-9]+)", text)
     if not match or int(match[1]) < 1 or int(match[2]) < 1:
@@ -92,13 +139,23 @@ def _check_costs(scene, args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace) -> int:
     """Race the contenders on each scene and print the table (or the JSON); with ``--check``, exit 1 when a
     target is not met."""
-    for option, value in (("--spp", args.spp), ("--repeats", args.repeats), ("--ground-truth-spp", args.ground_truth_spp)):
+    for option, value in (("--spp", args.spp), ("--repeats", args.repeats or bench.DEFAULT_REPEATS),
+                          ("--ground-truth-spp", args.ground_truth_spp or bench.DEFAULT_GT_SPP)):
         require_positive(option, value)
     memory = _memory_option(args.memory) if args.memory is not None else None  # "" is refused, not "no --memory"
     if args.out:
         out = Path(args.out)
         if not out.parent.is_dir():
             raise HarnessError("--out", f"folder {str(out.parent)!r} does not exist")
+    if args.scaling:
+        return _run_scaling(args)
+    for attribute, option in SCALING_ONLY:
+        if getattr(args, attribute) is not None:
+            raise HarnessError(option, "only with --scaling (the scale study)")
+    if args.ground_truth_spp is None:
+        args.ground_truth_spp = bench.DEFAULT_GT_SPP
+    if args.repeats is None:
+        args.repeats = bench.DEFAULT_REPEATS
     scenes = args.scene or list(bench.BENCH_SCENES)
     if args.check:  # the scenes the targets are checked on, after those asked for
         given = {Path(name).stem for name in scenes}
@@ -121,8 +178,6 @@ def run(args: argparse.Namespace) -> int:
                              strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say,
                              renderers=tuple(args.renderer), embree=not args.no_embree_rate,
                              film=film_pixels(args.film))
-    if args.scaling:
-        result["scaling"] = bench.scaling(load_scene(resolved[0]), on_render=say)
     if memory is not None:
         result["memory"] = bench.peak_memory(Path(resolved[0]), memory[0], memory[1])
     text = jsonsafe.dumps(result, indent=2, default=float)  # NaN / inf as null

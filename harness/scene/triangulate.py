@@ -176,6 +176,15 @@ def triangle_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
         return 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
 
 
+def _joined(parts: list[np.ndarray], empty):
+    """The shapes' arrays end to end: ``np.concatenate(parts)``, the one array itself where there is one (every
+    part is an array made here, so nothing else holds it; a scene of one 10 M-triangle mesh saves a copy of each
+    table, 0.7 GiB of its corners' normals alone), ``empty`` where there is none."""
+    if not parts:
+        return empty
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
 def triangulate(scene: Scene) -> Geometry:
     """All shapes of ``scene`` as one :class:`Geometry`.
 
@@ -198,7 +207,7 @@ def triangulate(scene: Scene) -> Geometry:
         vertices, triangles = shape_triangles(shape)
         count = len(triangles)
         all_vertices.append(vertices)
-        all_triangles.append(triangles + vertex_count)
+        all_triangles.append(triangles + vertex_count if vertex_count else triangles)  # a fresh array either way
         vertex_count += len(vertices)
         material.append(np.full(count, material_index[shape.material]))
         shading = None if shape.is_emitter else vertex_normals(shape, vertices, triangles)  # lights: flat (load)
@@ -221,18 +230,18 @@ def triangulate(scene: Scene) -> Geometry:
     materials = list(scene.materials.values())
     try:
         return Geometry(
-            vertices=np.concatenate(all_vertices) if all_vertices else np.zeros((0, 3)),
-            triangles=np.concatenate(all_triangles) if all_triangles else np.zeros((0, 3), dtype=np.int64),
-            material=np.concatenate(material) if material else np.zeros(0, dtype=np.int64),
+            vertices=_joined(all_vertices, np.zeros((0, 3))),
+            triangles=_joined(all_triangles, np.zeros((0, 3), dtype=np.int64)),
+            material=_joined(material, np.zeros(0, dtype=np.int64)),
             reflectance=np.array([m.reflectance for m in materials], dtype=np.float64).reshape(-1, 3),
             two_sided=np.array([m.two_sided for m in materials], dtype=bool),
-            emission=np.concatenate(emission) if emission else np.zeros((0, 3)),
-            light_id=np.concatenate(light_id) if light_id else np.zeros(0, dtype=np.int64),
-            uv=np.concatenate(uv) if uv else None,
-            sphere_of=np.concatenate(sphere_of) if sphere_to_object else None,
+            emission=_joined(emission, np.zeros((0, 3))),
+            light_id=_joined(light_id, np.zeros(0, dtype=np.int64)),
+            uv=_joined(uv, None),
+            sphere_of=_joined(sphere_of, None) if sphere_to_object else None,
             sphere_to_object=np.array(sphere_to_object).reshape(-1, 4, 4) if sphere_to_object else None,
-            emission_texture=np.concatenate(emission_texture) if textured else None,
-            normals=np.concatenate(normals) if any(np.any(n) for n in normals) else None,
+            emission_texture=_joined(emission_texture, None) if textured else None,
+            normals=_joined(normals, None) if any(np.any(n) for n in normals) else None,
         )
     except SettingsError as err:
         raise HarnessError(str(scene.path), f"cannot triangulate the scene: {err}") from err

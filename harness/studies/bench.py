@@ -464,37 +464,9 @@ def targets_met(checked: Sequence[dict]) -> bool:
     return all(t["met"] is True for t in checked)
 
 
-def scaling(scene, *, spp_list=(8, 16, 32), sizes=(64, 128, 256), seed: int = 1,
-            on_render: Callable[[str], None] | None = None) -> dict:
-    """The reference's render time against spp (at the scene's film) and against pixel count (at ``spp_list[0]``
-    spp, square films of ``sizes``), with the seconds per path of each; linear cost means a flat seconds/path."""
-    renderer = get_renderer("reference")
-    renderer.render(scene, RenderRequest(spp=1, seed=seed))  # load the compiled kernels
-
-    def timed(s, n_spp):
-        best = math.inf
-        for attempt in range(2):
-            best = min(best, renderer.render(s, RenderRequest(spp=n_spp, seed=seed + attempt)).seconds)
-        if on_render is not None:
-            on_render(f"scaling: {s.film.width}x{s.film.height} at {n_spp} spp")
-        return best
-
-    by_spp = []
-    for n_spp in spp_list:
-        secs = timed(scene, n_spp)
-        by_spp.append({"spp": n_spp, "seconds": secs,
-                       "microseconds_per_path": secs / (scene.film.width * scene.film.height * n_spp) * 1e6})
-    by_pixels = []
-    for size in sizes:
-        resized = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size, height=size))
-        secs = timed(resized, spp_list[-1])
-        by_pixels.append({"pixels": size * size, "seconds": secs,
-                          "microseconds_per_path": secs / (size * size * spp_list[-1]) * 1e6})
-    return {"scene": scene.name, "by_spp": by_spp, "by_pixels": by_pixels}
-
-
 _MEMORY_CHILD = """
-import dataclasses, json, resource, sys
+import dataclasses, json, sys
+from harness.core.memory import peak_rss_bytes
 from harness.renderers import RenderRequest, get_renderer
 from harness.scene import load_scene
 scene = load_scene(sys.argv[1])
@@ -502,13 +474,14 @@ size, spp = int(sys.argv[2]), int(sys.argv[3])
 scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size, height=size))
 result = get_renderer("reference").render(scene, RenderRequest(spp=spp, seed=1))
 print(json.dumps({"seconds": result.seconds, "paths_per_second": result.paths / result.seconds,
-                  "peak_rss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
+                  "peak_rss_kib": peak_rss_bytes() / 1024}))
 """
 
 
 def peak_memory(scene_path: Path, size: int, spp: int) -> dict:
     """Peak resident memory of a reference render of ``scene_path`` at ``size`` x ``size`` and ``spp``, in a child
-    process (its ru_maxrss: the interpreter, numba, Embree, the film's sums and the batches' buffers)."""
+    process (its VmHWM, :func:`harness.core.memory.peak_rss_bytes`: the interpreter, numba, Embree, the film's sums
+    and the batches' buffers; not ru_maxrss, which the child inherits from this process)."""
     load_scene(scene_path)  # bad input fails here, with its one line
     start = time.perf_counter()
     proc = subprocess.run([sys.executable, "-c", _MEMORY_CHILD, str(scene_path), str(size), str(spp)],
@@ -716,11 +689,6 @@ def format_report(result: dict) -> str:
         measured = "not measured" if target["measured"] is None else f"{target['measured']:.2f}"
         state = "met" if target["met"] else "NOT met"
         out.append(f"target {target['name']} on {target['scene']} >= {target['minimum']:.2f}: {measured} ({state})")
-    if "scaling" in result:
-        s = result["scaling"]
-        out.append(f"scaling ({s['scene']}): microseconds per path by spp "
-                   + ", ".join(f"{e['spp']}: {e['microseconds_per_path']:.3f}" for e in s["by_spp"])
-                   + "; by pixels " + ", ".join(f"{e['pixels']}: {e['microseconds_per_path']:.3f}" for e in s["by_pixels"]))
     if "memory" in result:
         m = result["memory"]
         out.append(f"peak memory: {m['peak_rss_mib']:.0f} MiB for {m['width']}x{m['height']} at {m['spp']} spp "
