@@ -27,7 +27,9 @@ both. A child process measures, in its own clock:
 Each figure is the median over the rounds, with its spread (the smallest and the largest). Before the rounds, both
 renderers render the smallest terrain once, untimed, so that numba's and Dr.Jit's kernel caches are filled and no
 round pays a compile. Mitsuba runs ``llvm_ad_rgb`` where it works, else ``scalar_rgb``, its plain ``path``
-integrator in one pass (``moments = off``), as ``harness bench`` runs it.
+integrator in one pass (``moments = off``), with its low-discrepancy ``ldsampler`` where that draws exactly the spp
+(powers of 4; the like of the reference's stratified default, as ``harness bench``'s sampler-matched row), else its
+independent sampler.
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ from harness.core.memory import peak_rss_bytes
 from harness.files.entries import default_cache_dir
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import ground_truth
-from harness.renderers.mitsuba import import_mitsuba, resolve_variant
+from harness.renderers.mitsuba import import_mitsuba, resolve_variant, sampler_takes
 from harness.scene import load_scene
 from harness.studies import terrain
 from harness.studies.bench import efficiency, mse_against
@@ -140,8 +142,10 @@ def _child_mitsuba(scene_path: str, spp: int, seed: int, variant: str) -> tuple[
     start = time.perf_counter()
     scene = load_scene(scene_path)
     scene_seconds = time.perf_counter() - start
-    request = RenderRequest(spp=spp, seed=seed, settings={"variant": variant, "moments": "off",
-                                                          "chunk_spp": str(spp)})
+    settings = {"variant": variant, "moments": "off", "chunk_spp": str(spp)}
+    if sampler_takes("ldsampler", spp):  # sampler-matched: a (0,2)-sequence, as the reference's default
+        settings["sampler"] = "ldsampler"
+    request = RenderRequest(spp=spp, seed=seed, settings=settings)
     start = time.perf_counter()
     result = get_renderer("mitsuba").render(scene, request)
     wall = time.perf_counter() - start
