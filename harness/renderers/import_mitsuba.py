@@ -45,6 +45,7 @@ from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_n
 from harness.scene.kinds.composites import COMPOSITES
 from harness.scene.kinds.materials import MATERIALS
 from harness.scene.kinds.perturbations import PERTURBATIONS
+from harness.scene.mesh_files import confined_path
 
 MITSUBA_VERSION = "3.9.1"
 VARIANT = "scalar_rgb"
@@ -55,7 +56,7 @@ SENSOR_KEYS = {"perspective": ("fov", "fov_axis"), "thinlens": ("fov", "fov_axis
 #: properties read and not kept: the harness picks its clip planes from the scene's extent (docs/import.md); a
 #: ``focus_distance`` is kept only on a thin lens (without a lens it changes nothing)
 SENSOR_IGNORED = ("near_clip", "far_clip")
-FILM_IGNORED = ("pixel_format", "component_format", "sample_border")
+FILM_IGNORED = ("pixel_format", "component_format", "file_format", "sample_border")
 FILTERS = {"box": {}, "tent": {"radius": 1.0}, "gaussian": {"stddev": 0.5}}
 #: emitter plugin (not area) -> its properties, each the scene key of the same name
 EMITTER_KEYS = {
@@ -265,12 +266,10 @@ class _Importer:
             self.state = mi.parser.parse_file(mi.parser.ParserConfig(VARIANT), str(self.path))
         except Exception as err:  # Mitsuba's own one-line reason (a syntax error, an unknown reference, ...)
             raise HarnessError(str(self.path), _first_line(str(err))) from None
-        for index, name in enumerate(self.state.files):
-            if not Path(str(name)).resolve().is_relative_to(self.folder):  # however Mitsuba found it
-                raise HarnessError(f"{self.path}: <include filename={str(name)!r}>",
-                                   f"expected a file inside the scene's folder {str(self.folder)!r} (an include "
-                                   f"outside it is not followed)")
-            self.raw[index] = Path(str(name)).read_bytes()
+        for index, name in enumerate(self.state.files):  # however Mitsuba found them
+            path = confined_path(self.folder, str(name), "include", f"{self.path}: <include filename={str(name)!r}>",
+                                 outside_hint="an include outside it is not followed")
+            self.raw[index] = path.read_bytes()
             self.facts[index] = _read_xml_facts(self.raw[index])
         self.walk_scene()
         return ImportedScene(self.toml(), self.files, list(self.dropped), self.path)
@@ -282,17 +281,11 @@ class _Importer:
         seen.add(path)
         data = path.read_bytes()
         for name, offset in _read_xml_facts(data).includes:
-            target = (path.parent / name).resolve()
             line, col = line_column(data, offset)
-            if not target.is_relative_to(self.folder):
-                raise HarnessError(f"{path}:{line}:{col}: <include filename={name!r}>",
-                                   f"expected a file inside the scene's folder {str(self.folder)!r} (an include "
-                                   f"outside it is not followed)")
-            irregular = not_regular(target, f"{path}:{line}:{col}: <include filename={name!r}>")
-            if irregular is not None:  # before Mitsuba's parser opens it: a named pipe would block it
-                raise irregular
-            if target.is_file():
-                self.check_includes(target, seen)
+            # before Mitsuba's parser opens it: outside the folder, missing, or a named pipe (which would block it)
+            target = confined_path(self.folder, name, "include", f"{path}:{line}:{col}: <include filename={name!r}>",
+                                   base=path.parent, outside_hint="an include outside it is not followed")
+            self.check_includes(target, seen)
 
     def child(self, props, key):
         return self.state.nodes[props[key].index()]
@@ -322,6 +315,8 @@ class _Importer:
             self.nested_names.discard(name)  # a shape before it may have named it first
         elif kind == "texture":
             pass  # read where a material names it
+        elif kind == "sampler":
+            pass  # a sampler by id (a sensor's <ref>): the sample count and seed are a render's, not the scene's
         elif kind == "shape" and name == "shapegroup":
             pass  # placed by its instances
         elif kind == "shape" and name == "instance":
@@ -613,7 +608,12 @@ class _Importer:
             with contextlib.suppress(_SkipProperty):  # lenient: this property left out
                 if key in dict(inner):
                     continue
-                if key == perturbation.mitsuba_texture_key and self.is_nested(node, key):
+                if self.is_nested(node, key) and (key == perturbation.mitsuba_texture_key or (
+                        kind == "bumpmap" and self.tag(self.nested(node, key)) == "texture")):
+                    # Mitsuba's bumpmap takes its one nested texture under any name (bumpmap.cpp), its normalmap
+                    # only under "normalmap"
+                    if perturbation.texture_key in table:
+                        self.refuse_property(node, key, "expected one nested texture, got a second")
                     table[perturbation.texture_key] = {"texture": self.texture(self.nested(node, key))}
                 elif key in allowed and not self.is_nested(node, key):
                     table[key] = self.value(node, key)
@@ -662,10 +662,7 @@ class _Importer:
         if key not in node.props.keys():
             self.refuse_node(node, f"expected a {key}")
         name = str(node.props[key])
-        source = self.resolve(name)
-        if source is None or not source.is_file():
-            self.refuse_property(node, key, f"expected a file inside the scene's folder {str(self.folder)!r}, "
-                                            f"got {name!r}")
+        source = self.resolve(node, key, name)
         if source.suffix.lower() not in suffixes:
             self.refuse_property(node, key, f"expected a {', '.join(suffixes)} file, got {name!r}")
         data = source.read_bytes()
@@ -678,10 +675,15 @@ class _Importer:
         self.files[rel] = data
         return stem, rel
 
-    def resolve(self, name: str) -> Path | None:
-        """A file name as Mitsuba's resolver finds it (relative to the scene's folder), None outside that folder."""
-        path = (self.folder / name).resolve()
-        return path if path.is_relative_to(self.folder) else None
+    def resolve(self, node, key: str, name: str) -> Path:
+        """The file property ``key`` names, as Mitsuba's resolver finds it (relative to the scene's folder), through
+        :func:`harness.scene.mesh_files.confined_path`: a regular file inside the scene's folder, else the property
+        refused (a ``<path>`` element's folders are not searched: their files lie outside)."""
+        try:
+            return confined_path(self.folder, name, node.props.plugin_name(), "", outside_hint="")
+        except HarnessError as err:
+            self.refuse_property(node, key, err.message)
+            raise  # not reached: refuse_property raises
 
     # ---- shapes ----------------------------------------------------------------------------------------------------
 
@@ -751,10 +753,7 @@ class _Importer:
             stem, rel = self.copy_file(node, "filename", (".ply",), MESH_DIR)
             values.pop("filename")
             return {"type": "mesh", "file": rel}
-        source = self.resolve(str(values.get("filename", "")))
-        if source is None or not source.is_file():
-            self.refuse_property(node, "filename", f"expected a file inside the scene's folder "
-                                                   f"{str(self.folder)!r}")
+        source = self.resolve(node, "filename", str(values.get("filename", "")))
         props = self.mi.Properties(kind)
         for key in ("filename", "face_normals", "flip_tex_coords", "shape_index"):
             if key in values:

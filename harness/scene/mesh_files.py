@@ -29,7 +29,7 @@ PLY_TYPES = {"char": "i1", "uchar": "u1", "int8": "i1", "uint8": "u1", "short": 
 
 
 def confined_path(folder: Path, name: str, what: str, where: str, *, allow_outside: bool = False,
-                  base: Path | None = None) -> Path:
+                  base: Path | None = None, outside_hint: str = "--allow-outside-paths allows others") -> Path:
     """The absolute, symlink-resolved path of a file named ``name`` relative to ``base`` (default: ``folder``, the
     scene file's folder), which must exist, be a regular file and, unless ``allow_outside``, lie inside ``folder``.
 
@@ -47,6 +47,9 @@ def confined_path(folder: Path, name: str, what: str, where: str, *, allow_outsi
         ``--allow-outside-paths``: the folder rule is lifted (the file rules are not).
     base : Path, optional
         The folder ``name`` is relative to, where that is not the scene's (an OBJ's ``mtllib``: the OBJ's folder).
+    outside_hint : str
+        What the message of a file outside the folder adds in parentheses (a command without
+        ``--allow-outside-paths``, such as ``harness import``, passes "").
 
     Raises
     ------
@@ -63,7 +66,7 @@ def confined_path(folder: Path, name: str, what: str, where: str, *, allow_outsi
     if not allow_outside and not path.is_relative_to(root):
         raise HarnessError(where, (
             f"{what} file {name!r} resolves to {str(path)!r}, outside the scene's folder {str(root)!r}; "
-            "expected a file inside it (--allow-outside-paths allows others)"))
+            f"expected a file inside it{f' ({outside_hint})' if outside_hint else ''}"))
     irregular = not_regular(path, where)
     if irregular is not None:
         raise HarnessError(where, f"{what} file {name!r} is {irregular.message}") from None

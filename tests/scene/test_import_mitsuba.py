@@ -321,8 +321,10 @@ def test_an_include_outside_the_folder_is_refused(tmp_path):
     with pytest.raises(HarnessError) as caught:
         import_mitsuba(path)
     line, col = line_column(path.read_bytes(), path.read_bytes().index(b"<include") + 1)
-    assert str(caught.value).startswith(f"{path}:{line}:{col}: <include filename='../outside.xml'>: expected a file "
-                                        f"inside the scene's folder")
+    assert str(caught.value).startswith(f"{path}:{line}:{col}: <include filename='../outside.xml'>: include file "
+                                        f"'../outside.xml' resolves to ")
+    assert str(caught.value).endswith("outside the scene's folder " + repr(str(path.parent.resolve())) +
+                                      "; expected a file inside it (an include outside it is not followed)")
 
 
 def test_lenient_drops_and_lists_what_it_cannot_express(tmp_path):
@@ -398,3 +400,70 @@ def test_a_serialized_mesh_is_the_mesh_mitsuba_reads(tmp_path):
     mesh = scene.shapes[0]
     vertices_world, triangles = shape_triangles(mesh)
     assert np.array_equal(vertices_world, vertices + [0, 0, 1]) and triangles.tolist() == [[0, 1, 2], [1, 3, 2]]
+
+
+# ---- found on third-party files (docs/import.md, "Tried on third-party files"), each written here small -----------
+
+
+def test_a_bumpmap_takes_its_texture_under_any_name_as_mitsuba_does(tmp_path):
+    """Mitsuba's bumpmap takes its one nested texture whatever its name (its docs' scenes name it by the file); the
+    import read only ``height`` and refused the rest."""
+    (tmp_path / "a.png").write_bytes(encode_png(np.full((4, 4, 3), 200, np.uint8)))
+    body = """
+  <bsdf type="bumpmap" id="ridged"><float name="scale" value="0.02"/>
+    <texture type="bitmap" name="tiles_height"><boolean name="raw" value="true"/>
+      <string name="filename" value="a.png"/></texture>
+    <bsdf type="diffuse"/></bsdf>
+  <shape type="rectangle"><ref id="ridged"/></shape>"""
+    doc, scene, _ = imported(tmp_path, body)
+    assert doc["materials"]["ridged"]["texture"] == {"texture": "a"} and doc["materials"]["ridged"]["scale"] == 0.02
+    two = body.replace("<bsdf type=\"diffuse\"/>", '<texture type="bitmap" name="other"><string name="filename" '
+                                                    'value="a.png"/></texture><bsdf type="diffuse"/>')
+    with pytest.raises(HarnessError, match="property 'other': expected one nested texture, got a second"):
+        import_mitsuba(write(tmp_path, two, name="two.xml"))
+
+
+def test_a_normalmap_still_takes_only_normalmap(tmp_path):
+    """Mitsuba's normalmap reads its texture only as ``normalmap`` (it refuses another name)."""
+    (tmp_path / "n.png").write_bytes(encode_png(np.full((4, 4, 3), [128, 128, 255], np.uint8)))
+    body = """
+  <bsdf type="normalmap" id="bumpy"><texture type="bitmap" name="nm"><string name="filename" value="n.png"/>
+    </texture><bsdf type="diffuse"/></bsdf>
+  <shape type="rectangle"><ref id="bumpy"/></shape>"""
+    with pytest.raises(HarnessError, match="<bsdf type='normalmap' id='bumpy'> property 'nm': expected normalmap"):
+        import_mitsuba(write(tmp_path, body))
+
+
+def test_a_sampler_by_id_and_the_film_s_file_format_are_not_kept(tmp_path):
+    """A top-level ``<sampler id=...>`` (a sensor's ``<ref>``) and the film's ``file_format`` are a render's output
+    and sampling, as the sensor's own sampler and ``pixel_format`` are: read, not kept, nothing refused."""
+    sensor = SENSOR.replace('<sampler type="independent"><integer name="sample_count" value="4"/></sampler>',
+                            '<ref id="my_sampler"/>').replace(
+        '<rfilter type="tent"/>', '<rfilter type="tent"/><string name="file_format" value="openexr"/>')
+    body = '<sampler type="independent" id="my_sampler"><integer name="sample_count" value="16"/></sampler>'
+    path = write(tmp_path, body, sensor="")
+    path.write_text(path.read_text().replace("<scene version=\"3.0.0\">", "<scene version=\"3.0.0\">" + body)
+                    .replace(body + "\n" + body, body).replace("</scene>", sensor + "\n</scene>"))
+    result = import_mitsuba(path)
+    doc = tomllib.loads(result.toml)
+    assert doc["film"] == {"filter": "tent", "width": 8, "height": 6} and result.dropped == []
+
+
+def test_a_file_found_only_through_a_path_element_is_refused_as_missing(tmp_path):
+    """Mitsuba's ``<path>`` adds folders to its resolver (its docs' scenes take textures from ../../common); the
+    import reads files inside the scene's folder only, and says which file is missing, one line
+    (harness.scene.mesh_files.confined_path)."""
+    (tmp_path / "common" / "textures").mkdir(parents=True)
+    (tmp_path / "common" / "textures" / "a.png").write_bytes(encode_png(np.full((4, 4, 3), 9, np.uint8)))
+    body = """<path value="../common"/>
+  <bsdf type="diffuse" id="d"><texture type="bitmap" name="reflectance">
+    <string name="filename" value="textures/a.png"/></texture></bsdf>
+  <shape type="rectangle"><ref id="d"/></shape>"""
+    path = write(tmp_path / "scene", body)
+    with pytest.raises(HarnessError) as caught:
+        import_mitsuba(path)
+    assert str(caught.value).endswith("<texture type='bitmap'> property 'filename': no such bitmap file: "
+                                      f"'textures/a.png' (relative to {str(path.parent.resolve())!r})")
+    assert "\n" not in str(caught.value)
+    result = import_mitsuba(path, lenient=True)  # lenient: the property left out, the diffuse's default kept
+    assert tomllib.loads(result.toml)["materials"]["d"] == {"type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}
