@@ -664,7 +664,7 @@ class _Importer:
         name = str(node.props[key])
         source = self.resolve(node, key, name)
         if source.suffix.lower() not in suffixes:
-            self.refuse_property(node, key, f"expected a {', '.join(suffixes)} file, got {name!r}")
+            self.refuse_file(node, key, f"expected a {', '.join(suffixes)} file, got {name!r}")
         data = source.read_bytes()
         stem = safe_name(source.stem)
         rel = f"{folder}/{stem}{source.suffix.lower()}"
@@ -677,13 +677,19 @@ class _Importer:
 
     def resolve(self, node, key: str, name: str) -> Path:
         """The file property ``key`` names, as Mitsuba's resolver finds it (relative to the scene's folder), through
-        :func:`harness.scene.mesh_files.confined_path`: a regular file inside the scene's folder, else the property
-        refused (a ``<path>`` element's folders are not searched: their files lie outside)."""
+        :func:`harness.scene.mesh_files.confined_path`: a regular file inside the scene's folder, else refused
+        (:meth:`refuse_file`; a ``<path>`` element's folders are not searched: their files lie outside)."""
         try:
             return confined_path(self.folder, name, node.props.plugin_name(), "", outside_hint="")
         except HarnessError as err:
-            self.refuse_property(node, key, err.message)
-            raise  # not reached: refuse_property raises
+            self.refuse_file(node, key, err.message)
+            raise  # not reached: refuse_file raises
+
+    def refuse_file(self, node, key: str, expected: str) -> None:
+        """Refuse the file a plugin cannot be without (a bitmap's, a mesh's, an envmap's): the property's line, but
+        with ``lenient`` the plugin goes, and the top-level element it sits in with it (a bitmap without its image
+        is no texture; leaving the property out kept the plugin and its parent lost the texture's key)."""
+        self.refuse(self.where(node), f"{self.element(node)} property {key!r}", expected)
 
     # ---- shapes ----------------------------------------------------------------------------------------------------
 

@@ -465,5 +465,23 @@ def test_a_file_found_only_through_a_path_element_is_refused_as_missing(tmp_path
     assert str(caught.value).endswith("<texture type='bitmap'> property 'filename': no such bitmap file: "
                                       f"'textures/a.png' (relative to {str(path.parent.resolve())!r})")
     assert "\n" not in str(caught.value)
-    result = import_mitsuba(path, lenient=True)  # lenient: the property left out, the diffuse's default kept
-    assert tomllib.loads(result.toml)["materials"]["d"] == {"type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}
+    result = import_mitsuba(path, lenient=True)  # lenient: the bitmap goes, with its material and their shape
+    assert "materials" not in tomllib.loads(result.toml) and "shapes" not in tomllib.loads(result.toml)
+    assert len(result.dropped) == 2 and "was dropped" in result.dropped[1]
+
+
+def test_lenient_drops_a_texture_without_its_file_with_its_element(tmp_path):
+    """mitsuba-data's bsdf_blendbsdf.xml: a blendbsdf's ``weight`` bitmap whose file is not in the folder. Lenient
+    left out the bitmap's ``filename`` and so the blendbsdf's ``weight`` key, keeping a blendbsdf of the format's
+    default weight (a changed value); a plugin without its file now goes with its top-level element and the shapes
+    that use it, as any refused plugin."""
+    body = """
+  <bsdf type="blendbsdf" id="mix">
+    <texture name="weight" type="bitmap"><string name="filename" value="textures/gone.jpg"/></texture>
+    <bsdf type="diffuse"/><bsdf type="conductor"/></bsdf>
+  <bsdf type="diffuse" id="plain"/>
+  <shape type="rectangle" id="mixed"><ref id="mix"/></shape>
+  <shape type="rectangle" id="kept"><ref id="plain"/></shape>"""
+    doc, scene, result = imported(tmp_path, body, lenient=True)
+    assert "mix" not in doc["materials"] and [s["name"] for s in doc["shapes"]] == ["kept"]
+    assert "<texture type='bitmap'> property 'filename': no such bitmap file: 'textures/gone.jpg'" in result.dropped[0]
