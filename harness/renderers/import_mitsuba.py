@@ -323,10 +323,23 @@ class _Importer:
             self.instance(node)
         elif kind == "shape":
             self.shapes.append(self.shape(node, None))
+        elif kind == "emitter" and name == "area" and self.named_by_a_shape(node):
+            pass  # an area emitter by id, read where a shape's <ref> names it (mitsuba-data's cbox)
         elif kind == "emitter":
             self.emitters.append(self.emitter(node))
         else:
-            self.refuse_node(node, "expected an integrator, a sensor, a bsdf, a texture, a shape or an emitter")
+            self.refuse_node(node, "expected an integrator, a sensor, a sampler, a bsdf, a texture, a shape or an "
+                                   "emitter")
+
+    def named_by_a_shape(self, node) -> bool:
+        """Whether some shape of the file names ``node`` (a top-level plugin with an id) through a ``<ref>``."""
+        ident = node.props.id()
+        for other in self.state.nodes:
+            if ident and self.tag(other) == "shape":
+                for key in other.props.keys():
+                    if self.is_nested(other, key) and self.nested(other, key) is node:
+                        return True
+        return False
 
     # ---- values ----------------------------------------------------------------------------------------------------
 

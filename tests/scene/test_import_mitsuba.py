@@ -485,3 +485,18 @@ def test_lenient_drops_a_texture_without_its_file_with_its_element(tmp_path):
     doc, scene, result = imported(tmp_path, body, lenient=True)
     assert "mix" not in doc["materials"] and [s["name"] for s in doc["shapes"]] == ["kept"]
     assert "<texture type='bitmap'> property 'filename': no such bitmap file: 'textures/gone.jpg'" in result.dropped[0]
+
+
+def test_an_area_emitter_by_id_is_read_where_a_shape_names_it(tmp_path):
+    """mitsuba-data's cbox: the area emitter written at the top level with an id and named by the luminaire's
+    ``<ref>``. It was refused at the top level ("an area emitter belongs in a shape") though the shape took it; one
+    no shape names is still refused."""
+    body = """
+  <emitter type="area" id="lamp"><rgb name="radiance" value="18.387, 10.9873, 2.75357"/></emitter>
+  <shape type="rectangle" id="luminaire"><ref id="lamp"/></shape>"""
+    doc, scene, result = imported(tmp_path, body)
+    assert doc["shapes"][0]["emission"] == [18.387, 10.9873, 2.75357] and "emitters" not in doc
+    assert result.dropped == []
+    alone = '<emitter type="area" id="lamp"><rgb name="radiance" value="1, 1, 1"/></emitter>'
+    with pytest.raises(HarnessError, match="<emitter type='area' id='lamp'>: expected an emitter of type point"):
+        import_mitsuba(write(tmp_path, alone, name="alone.xml"))
