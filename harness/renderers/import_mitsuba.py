@@ -267,7 +267,8 @@ class _Importer:
         except Exception as err:  # Mitsuba's own one-line reason (a syntax error, an unknown reference, ...)
             raise HarnessError(str(self.path), _first_line(str(err))) from None
         for index, name in enumerate(self.state.files):  # however Mitsuba found them
-            path = confined_path(self.folder, str(name), "include", f"{self.path}: <include filename={str(name)!r}>",
+            path = confined_path(self.folder, str(Path(str(name)).resolve()), "include",  # as Mitsuba named it
+                                 f"{self.path}: <include filename={str(name)!r}>",
                                  outside_hint="an include outside it is not followed")
             self.raw[index] = path.read_bytes()
             self.facts[index] = _read_xml_facts(self.raw[index])
