@@ -276,7 +276,11 @@ class _Importer:
         return ImportedScene(self.toml(), self.files, list(self.dropped), self.path)
 
     def check_includes(self, path: Path, seen: set) -> None:
-        """Every ``include`` (followed through the files it names) must name a file inside the scene's folder."""
+        """Every ``include`` (followed through the files it names) must name a file inside the scene's folder.
+
+        A name is relative to the scene's folder, in an included file too: Mitsuba resolves an include through its
+        file resolver, whose first folder is the scene's (the including file's folder is not searched; mitsuba-data's
+        participating_media/include/test-scene-base.xml includes ``include/preamble.xml`` so)."""
         if path in seen:
             return
         seen.add(path)
@@ -285,7 +289,7 @@ class _Importer:
             line, col = line_column(data, offset)
             # before Mitsuba's parser opens it: outside the folder, missing, or a named pipe (which would block it)
             target = confined_path(self.folder, name, "include", f"{path}:{line}:{col}: <include filename={name!r}>",
-                                   base=path.parent, outside_hint="an include outside it is not followed")
+                                   outside_hint="an include outside it is not followed")
             self.check_includes(target, seen)
 
     def child(self, props, key):

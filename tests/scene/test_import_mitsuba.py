@@ -500,3 +500,14 @@ def test_an_area_emitter_by_id_is_read_where_a_shape_names_it(tmp_path):
     alone = '<emitter type="area" id="lamp"><rgb name="radiance" value="1, 1, 1"/></emitter>'
     with pytest.raises(HarnessError, match="<emitter type='area' id='lamp'>: expected an emitter of type point"):
         import_mitsuba(write(tmp_path, alone, name="alone.xml"))
+
+
+def test_an_include_in_an_included_file_is_relative_to_the_scene_s_folder(tmp_path):
+    """Mitsuba resolves every include through its file resolver, whose folder is the scene's, not the including
+    file's (mitsuba-data's participating_media scenes): the check before Mitsuba's parser follows the same rule."""
+    write(tmp_path, '<include filename="include/preamble.xml"/>', name="include/base.xml", sensor="")
+    write(tmp_path, '<bsdf type="diffuse" id="red"><rgb name="reflectance" value="0.5, 0, 0"/></bsdf>',
+          name="include/preamble.xml", sensor="")
+    doc, _, _ = imported(tmp_path, '<include filename="include/base.xml"/>'
+                                   '<shape type="rectangle"><ref id="red"/></shape>')
+    assert doc["materials"]["red"]["reflectance"] == [0.5, 0.0, 0.0]
