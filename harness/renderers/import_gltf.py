@@ -184,7 +184,7 @@ class _Importer:
         """Refuse the element at JSON path ``where``: raise, or with ``lenient`` record it as dropped."""
         if not self.lenient:
             raise HarnessError(f"{self.path}: {where}", message)
-        self.dropped.append(f"{where}: {message} (dropped)")
+        self.dropped.append(f"{self.path}: {where}: {message} (dropped)")  # the strict line, as the other importers
 
     def fail(self, where: str, message: str) -> HarnessError:
         """An error no leniency drops (a broken file, or a scene without what the format requires)."""

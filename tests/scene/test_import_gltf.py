@@ -692,9 +692,9 @@ def test_refusal_names_the_json_path(change, where, tmp_path):
     assert caught.value.where == f"{source}: {where}"
     assert "\n" not in str(caught.value)
     result = import_gltf(source, lenient=True)  # lenient: dropped, listed, and the rest still a scene
-    assert any(line.startswith(f"{where}: ") for line in result.dropped)
+    assert f"{source}: {where}: {caught.value.message} (dropped)" in result.dropped  # the strict line, named
     scene = load_scene(write_imported(result, tmp_path / "out"))
-    assert f"dropped: {where}" in scene.description
+    assert f"dropped: {source}: {where}" in scene.description
 
 
 def test_a_file_without_camera_is_refused_even_leniently(tmp_path):
