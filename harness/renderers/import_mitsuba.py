@@ -837,6 +837,9 @@ class _Importer:
         if kind == "envmap":
             _, entry["file"] = self.copy_file(node, "filename", (".exr",), TEXTURE_DIR)
             del entry["filename"]
+            if "to_world" in entry:  # Mitsuba turns only directions by it (envmap.cpp): its translation is left out,
+                entry["to_world"] = [row[:3] + [0.0] for row in entry["to_world"][:3]] + [entry["to_world"][3]]
+                # which the scene format refuses (mitsuba-data's matpreview.xml places its envmap at z = 8.87)
         if kind in ("point", "directional") and "to_world" in entry:
             entry.update(self.placed(node, kind, entry.pop("to_world")))
         return {**entry, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in entry}}

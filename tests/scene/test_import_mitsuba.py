@@ -511,3 +511,18 @@ def test_an_include_in_an_included_file_is_relative_to_the_scene_s_folder(tmp_pa
     doc, _, _ = imported(tmp_path, '<include filename="include/base.xml"/>'
                                    '<shape type="rectangle"><ref id="red"/></shape>')
     assert doc["materials"]["red"]["reflectance"] == [0.5, 0.0, 0.0]
+
+
+def test_an_envmap_s_translation_is_left_out_as_mitsuba_ignores_it(tmp_path):
+    """mitsuba-data's matpreview.xml places its envmap with a translation (z = 8.87): Mitsuba turns only directions
+    by an envmap's to_world, and the scene format refuses a translation there, so the import wrote a scene its own
+    loader refused; the rotation is kept exactly, the translation left out."""
+    (tmp_path / "sky.exr").write_bytes(exr_bytes(np.full((8, 16, 3), 0.5, np.float32)))
+    body = ('<emitter type="envmap" id="map"><string name="filename" value="sky.exr"/>'
+            '<transform name="to_world"><rotate y="1" angle="90"/><translate z="8.87"/></transform></emitter>')
+    doc, scene, result = imported(tmp_path, body)
+    m = np.array(doc["emitters"][0]["to_world"])
+    expected = np.array(mi.ScalarTransform4d.rotate([0, 1, 0], 90).matrix)
+    np.testing.assert_array_equal(m[:3, :3], expected[:3, :3])
+    assert list(m[:, 3]) == [0.0, 0.0, 0.0, 1.0] and result.dropped == []
+    assert scene.emitters[0].type == "envmap"
