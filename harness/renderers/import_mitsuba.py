@@ -437,8 +437,8 @@ class _Importer:
         checked against the matrix Mitsuba made of them; another transform is refused."""
         found = self.facts[node.file_index].lookats.get(node.offset)
         if found is None:
-            self.refuse_property(node, "to_world", "expected a <lookat> (after a <scale> for an orthographic "
-                                                   "sensor) and nothing else: the scene's camera is a look-at")
+            self.refuse_placement(node, "expected a <lookat> (after a <scale> for an orthographic "
+                                      "sensor) and nothing else: the scene's camera is a look-at")
         look, scale = found
         try:
             out = {key: _numbers_text(look[key]) for key in ("origin", "target", "up")}
@@ -449,12 +449,18 @@ class _Importer:
         except (KeyError, ValueError):
             out = {}
         if scale is not None and node.props.plugin_name() != "orthographic":
-            self.refuse_property(node, "to_world", "expected a <lookat> alone: only an orthographic sensor takes "
-                                                   "a <scale>")
+            self.refuse_placement(node, "expected a <lookat> alone: only an orthographic sensor takes "
+                                      "a <scale>")
         if not out or not self.same_look_at(node, out):
-            self.refuse_property(node, "to_world", "expected a <lookat> with origin, target and up written as "
-                                                   "numbers (as the scene's camera takes them)")
+            self.refuse_placement(node, "expected a <lookat> with origin, target and up written as "
+                                      "numbers (as the scene's camera takes them)")
         return out
+
+    def refuse_placement(self, node, expected: str) -> None:
+        """A sensor's ``to_world`` refused, even with ``lenient``: the scene needs its camera, and leaving the
+        placement out left none, so the line said "expected a sensor with a film" instead of why (mitsuba-data's
+        veach_mis.xml: ``<scale x="-1"/>`` twice before its ``<lookat>``)."""
+        raise HarnessError(f"{self.where(node)}: {self.element(node)} property 'to_world'", expected)
 
     def same_look_at(self, node, camera: dict) -> bool:
         """Whether Mitsuba's matrix of the sensor is the look-at (times the scale) read from the XML, exactly."""
@@ -570,7 +576,15 @@ class _Importer:
                                                         f"{', '.join(MATERIALS[kind].textured) or 'none'}")
                     table[key] = {"texture": self.texture(self.nested(node, key))}
                 else:
-                    table[key] = self.value(node, key, colour=key in COLOUR_ONLY)
+                    value = self.value(node, key, colour=key in COLOUR_ONLY)
+                    if isinstance(value, str) and (key in ("int_ior", "ext_ior") or
+                                                   (key == "material" and value != "none")):
+                        # mitsuba-data's docs scenes ("bk7", "Au"): the import wrote the name, which the format's
+                        # loader then refused, so lenient could not leave it out
+                        self.refuse_property(node, key, f"a named {'conductor' if key == 'material' else 'index'} "
+                                                        f"{value!r}: Mitsuba's tables are not imported; the scene "
+                                                        "format takes numbers (eta and k, int_ior, ext_ior)")
+                    table[key] = value
         return {**table, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in table}}
 
     def nested_bsdfs(self, node) -> list[tuple[str, object]]:

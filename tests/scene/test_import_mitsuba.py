@@ -526,3 +526,31 @@ def test_an_envmap_s_translation_is_left_out_as_mitsuba_ignores_it(tmp_path):
     np.testing.assert_array_equal(m[:3, :3], expected[:3, :3])
     assert list(m[:, 3]) == [0.0, 0.0, 0.0, 1.0] and result.dropped == []
     assert scene.emitters[0].type == "envmap"
+
+
+def test_a_named_index_or_conductor_is_refused_at_its_property(tmp_path):
+    """mitsuba-data's docs scenes name indices and conductors ("bk7", "air", "Au"): the import wrote the names,
+    which the scene format's loader refused afterwards, so even lenient stopped; now the property is refused at
+    its element (lenient: left out, Mitsuba's default written)."""
+    body = """
+  <bsdf type="dielectric" id="glass"><string name="int_ior" value="bk7"/><string name="ext_ior" value="air"/></bsdf>
+  <bsdf type="conductor" id="gold"><string name="material" value="Au"/></bsdf>
+  <bsdf type="conductor" id="mirror"><string name="material" value="none"/></bsdf>
+  <shape type="rectangle"><ref id="glass"/></shape><shape type="cube"><ref id="gold"/></shape>
+  <shape type="sphere"><ref id="mirror"/></shape>"""
+    with pytest.raises(HarnessError, match="<bsdf type='dielectric' id='glass'> property 'int_ior': a named index "
+                                           "'bk7': Mitsuba's tables are not imported"):
+        import_mitsuba(write(tmp_path, body))
+    doc, scene, result = imported(tmp_path / "lenient", body, lenient=True)
+    assert [line.split("property ")[1].split(":")[0] for line in result.dropped] == ["'int_ior'", "'ext_ior'",
+                                                                                     "'material'"]
+    assert doc["materials"]["glass"] == {"type": "dielectric"} and doc["materials"]["gold"] == {"type": "conductor"}
+    assert doc["materials"]["mirror"]["material"] == "none"
+
+
+def test_a_sensor_placement_it_cannot_read_is_refused_even_leniently(tmp_path):
+    """mitsuba-data's veach_mis.xml writes ``<scale x="-1"/>`` twice before its ``<lookat>``: lenient left the
+    placement out, which left no camera, and the line said "expected a sensor with a film"; it names why now."""
+    sensor = SENSOR.replace('<lookat', '<scale x="-1"/><scale x="-1"/><lookat')
+    with pytest.raises(HarnessError, match="<sensor type='perspective'> property 'to_world': expected a <lookat>"):
+        import_mitsuba(write(tmp_path, "", sensor=sensor), lenient=True)
