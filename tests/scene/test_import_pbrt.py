@@ -293,7 +293,8 @@ def test_lights(tmp_path):
     ('ActiveTransform StartTime', 'scene.pbrt:6:1: ActiveTransform: not imported'),
     ('Material "diffuse" "spectrum reflectance" "metal-Au-eta"\nShape "sphere"',
      'scene.pbrt:6:20: "spectrum reflectance": a named or sampled spectrum'),
-    ('LightSource "point" "blackbody I" 3000', 'scene.pbrt:6:21: "blackbody I": expected "rgb I" (the scene format is RGB)'),
+    ('LightSource "point" "blackbody I" 3000',
+     'scene.pbrt:6:21: "blackbody I": expected "rgb I" (the scene format is RGB)'),
 ])
 def test_a_refusal_is_one_line_with_its_place(tmp_path, line, message):
     with pytest.raises(HarnessError) as err:
@@ -481,7 +482,8 @@ def test_lenient_drops_a_material_whose_texture_was_dropped(tmp_path):
                    'Material "diffuse"\n' + QUAD)
     result, doc, scene = imported(tmp_path, text, lenient=True)
     assert 'Texture "half" "spectrum" "scale"' in result.dropped[0]
-    assert "\"texture reflectance\": the texture 'half' was refused: Material \"diffuse\" (dropped)" in result.dropped[1]
+    assert ("\"texture reflectance\": the texture 'half' was refused: Material \"diffuse\" (dropped)"
+            in result.dropped[1])
     assert "its material was refused" in result.dropped[2] and len(doc["shapes"]) == 1
     with pytest.raises(HarnessError, match="no such spectrum texture 'nothing'"):
         import_pbrt(pbrt(tmp_path, HEAD + 'Material "diffuse" "texture reflectance" [ "nothing" ]\n' + QUAD),
