@@ -901,7 +901,11 @@ class _Importer:
     def toml(self) -> str:
         self.merge_copies()
         if self.camera is None or self.film is None:
-            raise HarnessError(str(self.path), "expected a sensor with a film (the scene format needs a camera)")
+            # lenient: the sensor was refused and dropped; the line says why (mitsuba-data's test scenes: a
+            # perspective sensor without fov)
+            why = next((f"; its sensor was refused: {line}" for line in self.dropped
+                        if "<sensor " in line or "<film " in line), "")
+            raise HarnessError(str(self.path), f"expected a sensor with a film (the scene format needs a camera){why}")
         description = f"Imported from {self.path.name} (Mitsuba 3 XML) by harness import."
         if self.dropped:
             description += " Dropped (--lenient): " + "; ".join(self.dropped)

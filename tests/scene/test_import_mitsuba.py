@@ -554,3 +554,14 @@ def test_a_sensor_placement_it_cannot_read_is_refused_even_leniently(tmp_path):
     sensor = SENSOR.replace('<lookat', '<scale x="-1"/><scale x="-1"/><lookat')
     with pytest.raises(HarnessError, match="<sensor type='perspective'> property 'to_world': expected a <lookat>"):
         import_mitsuba(write(tmp_path, "", sensor=sensor), lenient=True)
+
+
+def test_a_refused_sensor_is_named_when_lenient_has_no_camera_left(tmp_path):
+    """mitsuba-data's test scenes' sensors have no ``fov`` (Mitsuba's default is a focal length along the diagonal):
+    lenient dropped the sensor and then said only "expected a sensor with a film"; the line now names the sensor's
+    refusal."""
+    sensor = SENSOR.replace('<float name="fov" value="45.5"/>', "")
+    with pytest.raises(HarnessError) as caught:
+        import_mitsuba(write(tmp_path, "", sensor=sensor), lenient=True)
+    assert "expected a sensor with a film (the scene format needs a camera); its sensor was refused: " in str(
+        caught.value) and "<sensor type='perspective'>" in str(caught.value) and "\n" not in str(caught.value)
