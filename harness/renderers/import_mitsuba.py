@@ -43,7 +43,7 @@ from harness.core.errors import HarnessError, not_regular
 from harness.renderers.imports import ImportedScene, toml_key, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.composites import COMPOSITES
-from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.materials import MATERIALS, ONE_NUMBER_RANGES
 from harness.scene.kinds.perturbations import PERTURBATIONS
 from harness.scene.mesh_files import confined_path
 
@@ -574,7 +574,14 @@ class _Importer:
                     if key not in MATERIALS[kind].textured:
                         self.refuse_property(node, key, f"expected a value: {kind}'s textured properties are "
                                                         f"{', '.join(MATERIALS[kind].textured) or 'none'}")
-                    table[key] = {"texture": self.texture(self.nested(node, key))}
+                    texture = self.nested(node, key)
+                    if key in ONE_NUMBER_RANGES and texture.props.plugin_name() != "bitmap":
+                        # the format's loader refuses it (Mitsuba's checkerboard as one number swaps its colours);
+                        # the import wrote it and failed even leniently (bsdf_roughconductor_textured_carbon.xml)
+                        self.refuse_property(node, key, f"a {texture.props.plugin_name()} texture: {key} takes a "
+                                                        "bitmap (Mitsuba 3.9.1's checkerboard as one number swaps "
+                                                        "its two colours)")
+                    table[key] = {"texture": self.texture(texture)}
                 else:
                     value = self.value(node, key, colour=key in COLOUR_ONLY)
                     if isinstance(value, str) and (key in ("int_ior", "ext_ior") or

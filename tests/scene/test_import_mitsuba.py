@@ -565,3 +565,16 @@ def test_a_refused_sensor_is_named_when_lenient_has_no_camera_left(tmp_path):
         import_mitsuba(write(tmp_path, "", sensor=sensor), lenient=True)
     assert "expected a sensor with a film (the scene format needs a camera); its sensor was refused: " in str(
         caught.value) and "<sensor type='perspective'>" in str(caught.value) and "\n" not in str(caught.value)
+
+
+def test_a_checkerboard_on_a_one_number_parameter_is_refused_at_its_property(tmp_path):
+    """mitsuba-data's bsdf_roughconductor_textured_carbon.xml drives a roughness with a checkerboard: the import
+    wrote it, the loader refused it, and lenient stopped; it is refused at the property now (lenient: left out)."""
+    body = """
+  <bsdf type="roughconductor" id="carbon"><texture type="checkerboard" name="alpha"/></bsdf>
+  <shape type="rectangle"><ref id="carbon"/></shape>"""
+    with pytest.raises(HarnessError, match="<bsdf type='roughconductor' id='carbon'> property 'alpha': a "
+                                           "checkerboard texture: alpha takes a bitmap"):
+        import_mitsuba(write(tmp_path, body))
+    doc, _, result = imported(tmp_path / "lenient", body, lenient=True)
+    assert "alpha" not in doc["materials"]["carbon"] and len(result.dropped) == 1
