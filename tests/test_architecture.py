@@ -39,7 +39,7 @@ LOADED_BY_NAME = {"harness.cli": "COMMANDS", "harness.cli.report": "STUDY_COMPUT
 # the studies' plots.
 HEAVY_ONLY_IN = {
     "colour": (),
-    "trimesh": ("harness.scene.load", "harness.renderers.meshfiles"),
+    "trimesh": ("harness.scene.mesh_files", "harness.renderers.meshfiles"),
     "scipy.stats": ("harness.judges.power", "harness.running.calibrate"),
     "matplotlib": ("harness.files.previews", "harness.studies.figures"),
     "skimage": ("harness.judges.metrics",),

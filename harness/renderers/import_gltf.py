@@ -33,6 +33,7 @@ from harness.files.imageio import encode_png, exr_bytes
 from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.emitters import LUMENS_PER_WATT
+from harness.scene.mesh_files import confined_path
 from reference_impl.textures import srgb_to_linear
 
 #: The extensions this importer reads (docs/import.md); any other in ``extensionsUsed`` or on an element is refused.
@@ -183,7 +184,7 @@ class _Importer:
         """Refuse the element at JSON path ``where``: raise, or with ``lenient`` record it as dropped."""
         if not self.lenient:
             raise HarnessError(f"{self.path}: {where}", message)
-        self.dropped.append(f"{where}: {message} (dropped)")
+        self.dropped.append(f"{self.path}: {where}: {message} (dropped)")  # the strict line, as the other importers
 
     def fail(self, where: str, message: str) -> HarnessError:
         """An error no leniency drops (a broken file, or a scene without what the format requires)."""
@@ -270,12 +271,10 @@ class _Importer:
                 raise self.fail(where, f"a data URI that is not base64: {err}") from None
         if re.match(r"^[A-Za-z][A-Za-z0-9+.-]*:", uri) or uri.startswith(("/", "\\")):
             raise self.fail(where, f"expected a data URI or a relative path inside {self.folder}, got {uri!r}")
-        relative = PurePosixPath(unquote(uri))
-        target = (self.folder / relative).resolve()
-        if self.folder not in target.parents:
-            raise self.fail(where, f"expected a path inside the file's folder {self.folder}, got {uri!r}")
-        if not_regular(target) is not None:  # a named pipe would block the read
-            raise self.fail(where, f"{uri!r} is {not_regular(target).message}")
+        try:  # inside the file's folder after symlinks, a regular file (a named pipe would block the read)
+            target = confined_path(self.folder, str(PurePosixPath(unquote(uri))), "URI", where, outside_hint="")
+        except HarnessError as err:
+            raise self.fail(where, err.message) from None
         try:
             return target.read_bytes()
         except OSError as err:
@@ -747,6 +746,10 @@ class _Importer:
             name = self.texture(texture, f"{here}/pbrMetallicRoughness/baseColorTexture", raw=True, factor=alpha,
                                 channel=3 if cutoff is None else None, threshold=cutoff)
             opacity = {"texture": name} if name is not None else alpha
+            if name is not None and cutoff is not None and self.textures[name].get("filter_type") != "nearest":
+                self.notes.append(f"{where}: MASK of a texture's alpha cut per texel (cutoff {cutoff:g}) and read "
+                                  "bilinearly: glTF cuts the filtered alpha, a sharp edge; the mask's edge is a "
+                                  "texel wide and partly transparent")
         else:
             opacity = alpha if cutoff is None else (1.0 if alpha >= cutoff else 0.0)
         if texture is None and opacity == 1.0:

@@ -43,8 +43,9 @@ from harness.core.errors import HarnessError, not_regular
 from harness.renderers.imports import ImportedScene, toml_key, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
 from harness.scene.kinds.composites import COMPOSITES
-from harness.scene.kinds.materials import MATERIALS
+from harness.scene.kinds.materials import MATERIALS, ONE_NUMBER_RANGES
 from harness.scene.kinds.perturbations import PERTURBATIONS
+from harness.scene.mesh_files import confined_path
 
 MITSUBA_VERSION = "3.9.1"
 VARIANT = "scalar_rgb"
@@ -55,7 +56,7 @@ SENSOR_KEYS = {"perspective": ("fov", "fov_axis"), "thinlens": ("fov", "fov_axis
 #: properties read and not kept: the harness picks its clip planes from the scene's extent (docs/import.md); a
 #: ``focus_distance`` is kept only on a thin lens (without a lens it changes nothing)
 SENSOR_IGNORED = ("near_clip", "far_clip")
-FILM_IGNORED = ("pixel_format", "component_format", "sample_border")
+FILM_IGNORED = ("pixel_format", "component_format", "file_format", "sample_border")
 FILTERS = {"box": {}, "tent": {"radius": 1.0}, "gaussian": {"stddev": 0.5}}
 #: emitter plugin (not area) -> its properties, each the scene key of the same name
 EMITTER_KEYS = {
@@ -265,34 +266,31 @@ class _Importer:
             self.state = mi.parser.parse_file(mi.parser.ParserConfig(VARIANT), str(self.path))
         except Exception as err:  # Mitsuba's own one-line reason (a syntax error, an unknown reference, ...)
             raise HarnessError(str(self.path), _first_line(str(err))) from None
-        for index, name in enumerate(self.state.files):
-            if not Path(str(name)).resolve().is_relative_to(self.folder):  # however Mitsuba found it
-                raise HarnessError(f"{self.path}: <include filename={str(name)!r}>",
-                                   f"expected a file inside the scene's folder {str(self.folder)!r} (an include "
-                                   f"outside it is not followed)")
-            self.raw[index] = Path(str(name)).read_bytes()
+        for index, name in enumerate(self.state.files):  # however Mitsuba found them
+            path = confined_path(self.folder, str(Path(str(name)).resolve()), "include",  # as Mitsuba named it
+                                 f"{self.path}: <include filename={str(name)!r}>",
+                                 outside_hint="an include outside it is not followed")
+            self.raw[index] = path.read_bytes()
             self.facts[index] = _read_xml_facts(self.raw[index])
         self.walk_scene()
         return ImportedScene(self.toml(), self.files, list(self.dropped), self.path)
 
     def check_includes(self, path: Path, seen: set) -> None:
-        """Every ``include`` (followed through the files it names) must name a file inside the scene's folder."""
+        """Every ``include`` (followed through the files it names) must name a file inside the scene's folder.
+
+        A name is relative to the scene's folder, in an included file too: Mitsuba resolves an include through its
+        file resolver, whose first folder is the scene's (the including file's folder is not searched; mitsuba-data's
+        participating_media/include/test-scene-base.xml includes ``include/preamble.xml`` so)."""
         if path in seen:
             return
         seen.add(path)
         data = path.read_bytes()
         for name, offset in _read_xml_facts(data).includes:
-            target = (path.parent / name).resolve()
             line, col = line_column(data, offset)
-            if not target.is_relative_to(self.folder):
-                raise HarnessError(f"{path}:{line}:{col}: <include filename={name!r}>",
-                                   f"expected a file inside the scene's folder {str(self.folder)!r} (an include "
-                                   f"outside it is not followed)")
-            irregular = not_regular(target, f"{path}:{line}:{col}: <include filename={name!r}>")
-            if irregular is not None:  # before Mitsuba's parser opens it: a named pipe would block it
-                raise irregular
-            if target.is_file():
-                self.check_includes(target, seen)
+            # before Mitsuba's parser opens it: outside the folder, missing, or a named pipe (which would block it)
+            target = confined_path(self.folder, name, "include", f"{path}:{line}:{col}: <include filename={name!r}>",
+                                   outside_hint="an include outside it is not followed")
+            self.check_includes(target, seen)
 
     def child(self, props, key):
         return self.state.nodes[props[key].index()]
@@ -322,16 +320,31 @@ class _Importer:
             self.nested_names.discard(name)  # a shape before it may have named it first
         elif kind == "texture":
             pass  # read where a material names it
+        elif kind == "sampler":
+            pass  # a sampler by id (a sensor's <ref>): the sample count and seed are a render's, not the scene's
         elif kind == "shape" and name == "shapegroup":
             pass  # placed by its instances
         elif kind == "shape" and name == "instance":
             self.instance(node)
         elif kind == "shape":
             self.shapes.append(self.shape(node, None))
+        elif kind == "emitter" and name == "area" and self.named_by_a_shape(node):
+            pass  # an area emitter by id, read where a shape's <ref> names it (mitsuba-data's cbox)
         elif kind == "emitter":
             self.emitters.append(self.emitter(node))
         else:
-            self.refuse_node(node, "expected an integrator, a sensor, a bsdf, a texture, a shape or an emitter")
+            self.refuse_node(node, "expected an integrator, a sensor, a sampler, a bsdf, a texture, a shape or an "
+                                   "emitter")
+
+    def named_by_a_shape(self, node) -> bool:
+        """Whether some shape of the file names ``node`` (a top-level plugin with an id) through a ``<ref>``."""
+        ident = node.props.id()
+        for other in self.state.nodes:
+            if ident and self.tag(other) == "shape":
+                for key in other.props.keys():
+                    if self.is_nested(other, key) and self.nested(other, key) is node:
+                        return True
+        return False
 
     # ---- values ----------------------------------------------------------------------------------------------------
 
@@ -424,8 +437,8 @@ class _Importer:
         checked against the matrix Mitsuba made of them; another transform is refused."""
         found = self.facts[node.file_index].lookats.get(node.offset)
         if found is None:
-            self.refuse_property(node, "to_world", "expected a <lookat> (after a <scale> for an orthographic "
-                                                   "sensor) and nothing else: the scene's camera is a look-at")
+            self.refuse_placement(node, "expected a <lookat> (after a <scale> for an orthographic "
+                                      "sensor) and nothing else: the scene's camera is a look-at")
         look, scale = found
         try:
             out = {key: _numbers_text(look[key]) for key in ("origin", "target", "up")}
@@ -436,12 +449,18 @@ class _Importer:
         except (KeyError, ValueError):
             out = {}
         if scale is not None and node.props.plugin_name() != "orthographic":
-            self.refuse_property(node, "to_world", "expected a <lookat> alone: only an orthographic sensor takes "
-                                                   "a <scale>")
+            self.refuse_placement(node, "expected a <lookat> alone: only an orthographic sensor takes "
+                                      "a <scale>")
         if not out or not self.same_look_at(node, out):
-            self.refuse_property(node, "to_world", "expected a <lookat> with origin, target and up written as "
-                                                   "numbers (as the scene's camera takes them)")
+            self.refuse_placement(node, "expected a <lookat> with origin, target and up written as "
+                                      "numbers (as the scene's camera takes them)")
         return out
+
+    def refuse_placement(self, node, expected: str) -> None:
+        """A sensor's ``to_world`` refused, even with ``lenient``: the scene needs its camera, and leaving the
+        placement out left none, so the line said "expected a sensor with a film" instead of why (mitsuba-data's
+        veach_mis.xml: ``<scale x="-1"/>`` twice before its ``<lookat>``)."""
+        raise HarnessError(f"{self.where(node)}: {self.element(node)} property 'to_world'", expected)
 
     def same_look_at(self, node, camera: dict) -> bool:
         """Whether Mitsuba's matrix of the sensor is the look-at (times the scale) read from the XML, exactly."""
@@ -555,9 +574,24 @@ class _Importer:
                     if key not in MATERIALS[kind].textured:
                         self.refuse_property(node, key, f"expected a value: {kind}'s textured properties are "
                                                         f"{', '.join(MATERIALS[kind].textured) or 'none'}")
-                    table[key] = {"texture": self.texture(self.nested(node, key))}
+                    texture = self.nested(node, key)
+                    if key in ONE_NUMBER_RANGES and texture.props.plugin_name() != "bitmap":
+                        # the format's loader refuses it (Mitsuba's checkerboard as one number swaps its colours);
+                        # the import wrote it and failed even leniently (bsdf_roughconductor_textured_carbon.xml)
+                        self.refuse_property(node, key, f"a {texture.props.plugin_name()} texture: {key} takes a "
+                                                        "bitmap (Mitsuba 3.9.1's checkerboard as one number swaps "
+                                                        "its two colours)")
+                    table[key] = {"texture": self.texture(texture)}
                 else:
-                    table[key] = self.value(node, key, colour=key in COLOUR_ONLY)
+                    value = self.value(node, key, colour=key in COLOUR_ONLY)
+                    if isinstance(value, str) and (key in ("int_ior", "ext_ior") or
+                                                   (key == "material" and value != "none")):
+                        # mitsuba-data's docs scenes ("bk7", "Au"): the import wrote the name, which the format's
+                        # loader then refused, so lenient could not leave it out
+                        self.refuse_property(node, key, f"a named {'conductor' if key == 'material' else 'index'} "
+                                                        f"{value!r}: Mitsuba's tables are not imported; the scene "
+                                                        "format takes numbers (eta and k, int_ior, ext_ior)")
+                    table[key] = value
         return {**table, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in table}}
 
     def nested_bsdfs(self, node) -> list[tuple[str, object]]:
@@ -613,7 +647,12 @@ class _Importer:
             with contextlib.suppress(_SkipProperty):  # lenient: this property left out
                 if key in dict(inner):
                     continue
-                if key == perturbation.mitsuba_texture_key and self.is_nested(node, key):
+                if self.is_nested(node, key) and (key == perturbation.mitsuba_texture_key or (
+                        kind == "bumpmap" and self.tag(self.nested(node, key)) == "texture")):
+                    # Mitsuba's bumpmap takes its one nested texture under any name (bumpmap.cpp), its normalmap
+                    # only under "normalmap"
+                    if perturbation.texture_key in table:
+                        self.refuse_property(node, key, "expected one nested texture, got a second")
                     table[perturbation.texture_key] = {"texture": self.texture(self.nested(node, key))}
                 elif key in allowed and not self.is_nested(node, key):
                     table[key] = self.value(node, key)
@@ -662,12 +701,9 @@ class _Importer:
         if key not in node.props.keys():
             self.refuse_node(node, f"expected a {key}")
         name = str(node.props[key])
-        source = self.resolve(name)
-        if source is None or not source.is_file():
-            self.refuse_property(node, key, f"expected a file inside the scene's folder {str(self.folder)!r}, "
-                                            f"got {name!r}")
+        source = self.resolve(node, key, name)
         if source.suffix.lower() not in suffixes:
-            self.refuse_property(node, key, f"expected a {', '.join(suffixes)} file, got {name!r}")
+            self.refuse_file(node, key, f"expected a {', '.join(suffixes)} file, got {name!r}")
         data = source.read_bytes()
         stem = safe_name(source.stem)
         rel = f"{folder}/{stem}{source.suffix.lower()}"
@@ -678,10 +714,21 @@ class _Importer:
         self.files[rel] = data
         return stem, rel
 
-    def resolve(self, name: str) -> Path | None:
-        """A file name as Mitsuba's resolver finds it (relative to the scene's folder), None outside that folder."""
-        path = (self.folder / name).resolve()
-        return path if path.is_relative_to(self.folder) else None
+    def resolve(self, node, key: str, name: str) -> Path:
+        """The file property ``key`` names, as Mitsuba's resolver finds it (relative to the scene's folder), through
+        :func:`harness.scene.mesh_files.confined_path`: a regular file inside the scene's folder, else refused
+        (:meth:`refuse_file`; a ``<path>`` element's folders are not searched: their files lie outside)."""
+        try:
+            return confined_path(self.folder, name, node.props.plugin_name(), "", outside_hint="")
+        except HarnessError as err:
+            self.refuse_file(node, key, err.message)
+            raise  # not reached: refuse_file raises
+
+    def refuse_file(self, node, key: str, expected: str) -> None:
+        """Refuse the file a plugin cannot be without (a bitmap's, a mesh's, an envmap's): the property's line, but
+        with ``lenient`` the plugin goes, and the top-level element it sits in with it (a bitmap without its image
+        is no texture; leaving the property out kept the plugin and its parent lost the texture's key)."""
+        self.refuse(self.where(node), f"{self.element(node)} property {key!r}", expected)
 
     # ---- shapes ----------------------------------------------------------------------------------------------------
 
@@ -751,10 +798,7 @@ class _Importer:
             stem, rel = self.copy_file(node, "filename", (".ply",), MESH_DIR)
             values.pop("filename")
             return {"type": "mesh", "file": rel}
-        source = self.resolve(str(values.get("filename", "")))
-        if source is None or not source.is_file():
-            self.refuse_property(node, "filename", f"expected a file inside the scene's folder "
-                                                   f"{str(self.folder)!r}")
+        source = self.resolve(node, "filename", str(values.get("filename", "")))
         props = self.mi.Properties(kind)
         for key in ("filename", "face_normals", "flip_tex_coords", "shape_index"):
             if key in values:
@@ -814,6 +858,9 @@ class _Importer:
         if kind == "envmap":
             _, entry["file"] = self.copy_file(node, "filename", (".exr",), TEXTURE_DIR)
             del entry["filename"]
+            if "to_world" in entry:  # Mitsuba turns only directions by it (envmap.cpp): its translation is left out,
+                entry["to_world"] = [row[:3] + [0.0] for row in entry["to_world"][:3]] + [entry["to_world"][3]]
+                # which the scene format refuses (mitsuba-data's matpreview.xml places its envmap at z = 8.87)
         if kind in ("point", "directional") and "to_world" in entry:
             entry.update(self.placed(node, kind, entry.pop("to_world")))
         return {**entry, **{k: v for k, v in MITSUBA_DEFAULTS.get(kind, {}).items() if k not in entry}}
@@ -861,7 +908,11 @@ class _Importer:
     def toml(self) -> str:
         self.merge_copies()
         if self.camera is None or self.film is None:
-            raise HarnessError(str(self.path), "expected a sensor with a film (the scene format needs a camera)")
+            # lenient: the sensor was refused and dropped; the line says why (mitsuba-data's test scenes: a
+            # perspective sensor without fov)
+            why = next((f"; its sensor was refused: {line}" for line in self.dropped
+                        if "<sensor " in line or "<film " in line), "")
+            raise HarnessError(str(self.path), f"expected a sensor with a film (the scene format needs a camera){why}")
         description = f"Imported from {self.path.name} (Mitsuba 3 XML) by harness import."
         if self.dropped:
             description += " Dropped (--lenient): " + "; ".join(self.dropped)

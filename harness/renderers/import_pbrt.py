@@ -27,6 +27,7 @@ import numpy as np
 from harness.core.errors import HarnessError, not_regular
 from harness.renderers.imports import ImportedScene, toml_key, toml_table, toml_value
 from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, ply_bytes, safe_name
+from harness.scene.mesh_files import confined_path, read_mesh
 
 MAX_FILE_BYTES = 64 << 20
 MAX_INCLUDE_DEPTH = 16
@@ -38,6 +39,12 @@ IGNORED = ("Sampler", "Option", "ColorSpace", "Accelerator")
 #: The mirror through x = 0 (see the module's docstring).
 DEFAULT_PARAMS: dict = {}  # pbrt-v4's default material: diffuse of reflectance 0.5
 MIRROR = np.diag([-1.0, 1.0, 1.0, 1.0])
+
+
+class ValueRefused(HarnessError):
+    """A parameter's value the scene format cannot hold (a named or sampled spectrum, a blackbody, a texture that was
+    itself refused), at the parameter's place: the element it belongs to is refused, and with ``lenient`` dropped
+    (the material with its shapes, the light)."""
 
 
 @dataclass
@@ -155,6 +162,7 @@ class _Importer:
         self.named_coords: dict[str, np.ndarray] = {}
         self.named_materials: dict[str, tuple] = {}
         self.textures: dict[str, dict] = {}
+        self.refused_textures: set[str] = set()  # lenient: textures dropped, which a material may still name
         self.materials: dict[str, dict] = {}
         self.material_keys: dict[tuple, str] = {}
         self.shapes: list[dict] = []       # world-space shapes, before the mirror
@@ -178,19 +186,23 @@ class _Importer:
             raise HarnessError(f"{self.where(token, file)}: {element}", message)
         self.dropped.append(f"{self.where(token, file)}: {element}: {message} (dropped)")
 
+    def refuse_value(self, err: ValueRefused, element: str) -> None:
+        """A :class:`ValueRefused` raised again, or (lenient) its element listed as dropped."""
+        if not self.lenient:
+            raise err
+        self.dropped.append(f"{err.where}: {err.message}: {element} (dropped)")
+
     # -- files --
 
-    def inside(self, file: str, token: Token, name: str) -> Path:
-        target = (Path(file).resolve().parent / name).resolve()
-        if Path(name).is_absolute() or not target.is_relative_to(self.folder):
-            raise HarnessError(self.where(token, file),
-                               f"{name!r}: expected a file inside the scene's folder {self.folder}")
-        irregular = not_regular(target, self.where(token, file))
-        if irregular is not None:
-            raise HarnessError(irregular.where, f"{name!r}: {irregular.message}")
-        if not target.is_file():
-            raise HarnessError(self.where(token, file), f"{name!r}: no such file")
-        return target
+    def inside(self, file: str, token: Token, name: str, what: str) -> Path:
+        """The file ``name`` (relative to the folder of ``file``, the pbrt file naming it) through
+        :func:`harness.scene.mesh_files.confined_path`: a regular file inside the scene's folder, refused in one line
+        even with ``lenient``; an absolute name is refused too (pbrt-v4 reads it, a scene folder would not move)."""
+        where = self.where(token, file)
+        if Path(name).is_absolute():
+            raise HarnessError(where, f"{what} file {name!r}: expected a relative path inside the scene's folder "
+                                      f"{str(self.folder)!r}")
+        return confined_path(self.folder, name, what, where, base=Path(file).resolve().parent, outside_hint="")
 
     def read_text(self, path: Path, where: str) -> str:
         if path.stat().st_size > MAX_FILE_BYTES:
@@ -337,7 +349,7 @@ class _Importer:
             return i + 1
         if name in ("Include", "Import"):
             s, j = self.string_arg(tokens, i, file, name)
-            target = self.inside(file, tokens[i + 1], s)
+            target = self.inside(file, tokens[i + 1], s, name)
             if depth >= MAX_INCLUDE_DEPTH:
                 raise HarnessError(self.where(tok, file), f"{name}: more than {MAX_INCLUDE_DEPTH} nested files")
             self.parse_file(target, depth + 1)
@@ -398,7 +410,14 @@ class _Importer:
             ttype, j = self.string_arg(tokens, j - 1, file, name)
             tclass, j = self.string_arg(tokens, j - 1, file, name)
             params, j = self.params(tokens, j, file)
-            self.texture(tname, ttype, tclass, params, file, tok)
+            try:
+                self.texture(tname, ttype, tclass, params, file, tok)
+            except ValueRefused as err:
+                self.refuse_value(err, f'Texture "{tname}"')
+            if tname not in self.textures:  # lenient: dropped, so a material naming it goes too
+                self.refused_textures.add(tname)
+            else:
+                self.refused_textures.discard(tname)
             return j
         if name not in ("Camera", "Film", "Sampler", "Integrator", "PixelFilter", "Shape", "Material",
                         "AreaLightSource", "LightSource", "Option", "ColorSpace", "Accelerator", "MakeNamedMedium"):
@@ -412,7 +431,10 @@ class _Importer:
             elif name == "ColorSpace" and kind != "srgb":
                 self.refuse(file, tok, element, "expected srgb (the scene format's colours are linear sRGB)")
             return j
-        getattr(self, "on_" + name.lower())(kind, params, file, tok, element)
+        try:
+            getattr(self, "on_" + name.lower())(kind, params, file, tok, element)
+        except ValueRefused as err:
+            self.refuse_value(err, element)
         return j
 
     # -- parameters --
@@ -421,12 +443,15 @@ class _Importer:
         p = params.pop(name, None)
         if p is None:
             return default
+        if p.type == "blackbody" and "rgb" in types:
+            raise ValueRefused(self.where(p.token, self.cur_file),
+                               f"\"blackbody {name}\": expected \"rgb {name}\" (the scene format is RGB)")
         if p.type not in types:
             raise HarnessError(self.where(p.token, self.cur_file), f"\"{p.type} {name}\": expected type "
                                                                    f"{' or '.join(types)}")
         if p.type == "spectrum":
             if len(p.values) != 1 or isinstance(p.values[0], str):
-                raise HarnessError(self.where(p.token, self.cur_file),
+                raise ValueRefused(self.where(p.token, self.cur_file),
                                    f"\"spectrum {name}\": a named or sampled spectrum; expected \"rgb {name}\" or "
                                    f"one constant value (the scene format is RGB)")
             return [p.values[0]] * 3 if count == 3 else p.values[0]
@@ -500,10 +525,15 @@ class _Importer:
         self.filter_seen = True
         radius = self.take(params, "xradius", ("float",), None, 1)
         yradius = self.take(params, "yradius", ("float",), None, 1)
+        sigma = self.take(params, "sigma", ("float",), None, 1) if kind == "gaussian" else None
         if kind == "box" and radius in (None, 0.5) and yradius in (None, 0.5):
             self.film["filter"] = "box"
         elif kind == "triangle" and radius == 1 and yradius == 1:
             self.film["filter"] = "tent"
+        elif kind == "gaussian" and radius in (None, 1.5) and yradius in (None, 1.5) and sigma in (None, 0.5):
+            self.film["filter"] = "gaussian"  # pbrt-v4's default filter written out: as no PixelFilter (run)
+            self.notes.append(f"{self.where(tok, file)}: {element}: pbrt-v4's Gaussian (radius 1.5, sigma 0.5) "
+                              "read as the format's gaussian (sigma 0.5, radius 2)")
         else:
             self.film["filter"] = "box"
             self.refuse(file, tok, element, "expected box of radius 0.5 or triangle of radius 1 (the format's "
@@ -535,7 +565,7 @@ class _Importer:
         fname = self.take(params, "filename", ("string",), None, 1)
         if fname is None:
             raise HarnessError(f"{self.where(tok, file)}: {element}", "expected \"string filename\"")
-        target = self.inside(file, tok, fname)
+        target = self.inside(file, tok, fname, "imagemap")
         if target.suffix.lower() not in (".png", ".exr", ".jpg", ".jpeg"):
             raise HarnessError(f"{self.where(tok, file)}: {element}", f"{fname!r}: expected PNG, JPEG or EXR")
         entry = {"filename": f"{TEXTURE_DIR}/{safe_name(tname)}{target.suffix.lower()}"}
@@ -584,6 +614,9 @@ class _Importer:
         if p is not None and p.type == "texture":
             params.pop(name)
             tname = p.values[0]
+            if tname in self.refused_textures:
+                raise ValueRefused(self.where(p.token, file), f"\"texture {name}\": the texture {tname!r} was "
+                                                              "refused")
             if tname not in self.textures:
                 raise HarnessError(self.where(p.token, file), f"\"texture {name}\": no such spectrum texture "
                                                               f"{tname!r}")
@@ -663,8 +696,13 @@ class _Importer:
         if key in self.material_keys:
             return self.material_keys[key]
         element = f'Material "{kind}"' if label is None else f'MakeNamedMaterial "{label}"'
-        entry = self.material_entry(kind, params, file, tok, element)
+        try:
+            entry = self.material_entry(kind, params, file, tok, element)
+        except ValueRefused as err:
+            self.refuse_value(err, element)
+            entry = None
         if entry is None:
+            self.material_keys[key] = None  # refused once, listed once; each of its shapes says so
             return None
         name = label or f"material{len(self.materials)}"
         while name in self.materials:
@@ -789,10 +827,10 @@ class _Importer:
                 fname = self.take(params, "filename", ("string",), None, 1)
                 if fname is None:
                     raise HarnessError(f"{self.where(tok, file)}: {element}", "expected \"string filename\"")
-                target = self.inside(file, tok, fname)
+                target = self.inside(file, tok, fname, "plymesh")
                 try:
-                    P, idx, N, uv, nonplanar = read_ply(target.read_bytes())
-                except (ValueError, IndexError, KeyError) as err:
+                    P, idx, N, uv, nonplanar = plymesh(target.read_bytes())
+                except ValueError as err:
                     raise HarnessError(f"{self.where(tok, file)}: {element}", f"{fname!r}: {err}") from None
                 if nonplanar:
                     self.notes.append(f"{self.where(tok, file)}: {element}: {nonplanar} non-planar quads (pbrt-v4's "
@@ -922,87 +960,20 @@ class _Importer:
         return "\n".join(out) + "\n"
 
 
-PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1", "short": "i2", "int16": "i2",
-             "ushort": "u2", "uint16": "u2", "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-             "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
-
-
-def read_ply(data: bytes):
+def plymesh(data: bytes):
     """A PLY file's (points (V, 3), triangles (F, 3), normals or None, uv or None, the number of non-planar quads) as
-    pbrt-v4's plymesh reads one: ``x y z``, ``nx ny nz``, ``u v`` (or ``s t``, ``texture_u texture_v``), faces of 3
-    or 4 vertices (a quad split into (0 1 2), (0 2 3): pbrt-v4 makes it a bilinear patch, the same surface where the
-    quad is planar). ASCII or binary; in a binary file every face list as long as the first (else ValueError)."""
-    end = data.find(b"end_header")
-    if not data.startswith(b"ply") or end < 0:
-        raise ValueError("expected a PLY file (ply ... end_header)")
-    header = data[:end].decode("ascii", "replace").splitlines()
-    body = data[end + len(b"end_header"):]
-    body = body[2:] if body.startswith(b"\r\n") else body[1:]
-    fmt, elements = None, []
-    for line in header[1:]:
-        f = line.split()
-        if not f or f[0] in ("comment", "obj_info"):
-            continue
-        if f[0] == "format":
-            fmt = f[1]
-        elif f[0] == "element":
-            elements.append((f[1], int(f[2]), []))
-        elif f[0] == "property":
-            elements[-1][2].append(("list", f[2], f[3], f[4]) if f[1] == "list" else (f[1], f[2]))
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise ValueError(f"expected an ascii or binary PLY, got format {fmt!r}")
-    order = ">" if fmt == "binary_big_endian" else "<"
-    tables = {}
-    if fmt == "ascii":
-        rows = iter(body.decode("ascii").split("\n"))
-        for name, count, props in elements:
-            out = []
-            for _ in range(count):
-                out.append([float(x) for x in next(rows).split()])
-            tables[name] = (props, out)
-    else:
-        offset = 0
-        for name, count, props in elements:
-            if props and props[0][0] == "list":
-                n = int(np.frombuffer(body, order + PLY_TYPES[props[0][1]], 1, offset)[0])
-                fields = [("n", order + PLY_TYPES[props[0][1]]), ("v", order + PLY_TYPES[props[0][2]], (n,))]
-                fields += [(f"p{i}", order + PLY_TYPES[p[0]]) for i, p in enumerate(props[1:])]
-                dtype = np.dtype(fields)
-                rows = np.frombuffer(body, dtype, count, offset)
-                if (rows["n"] != n).any():
-                    raise ValueError("faces of different lengths")
-                tables[name] = (props, np.column_stack([rows["n"], rows["v"]]).tolist())
-            else:
-                if any(p[0] == "list" for p in props):
-                    raise ValueError(f"element {name!r}: a list after other properties")
-                dtype = np.dtype([(p[1], order + PLY_TYPES[p[0]]) for p in props])
-                rows = np.frombuffer(body, dtype, count, offset)
-                tables[name] = (props, np.column_stack([rows[p[1]].astype(float) for p in props]).tolist()
-                                if count else [])
-            offset += dtype.itemsize * count
-    vprops, vrows = tables["vertex"]
-    names = [p[1] for p in vprops]
-    vertex = np.asarray(vrows, float).reshape(len(vrows), len(names))
-    col = {n: vertex[:, i] for i, n in enumerate(names)}
-    points = np.column_stack([col["x"], col["y"], col["z"]])
-    normals = np.column_stack([col["nx"], col["ny"], col["nz"]]) if "nx" in col else None
-    uv = next((np.column_stack([col[a], col[b]]) for a, b in (("u", "v"), ("s", "t"), ("texture_u", "texture_v"))
-               if a in col and b in col), None)
-    triangles, quads = [], []
-    for row in tables.get("face", ([], []))[1]:
-        n = int(row[0])
-        v = [int(x) for x in row[1:1 + n]]
-        if n == 3:
-            triangles.append(v)
-        elif n == 4:
-            triangles += [[v[0], v[1], v[2]], [v[0], v[2], v[3]]]
-            quads.append(v)
-        else:
-            raise ValueError(f"a face of {n} vertices (pbrt reads triangles and quads)")
-    idx = np.asarray(triangles, np.int64).reshape(-1, 3)
+    pbrt-v4's plymesh reads one, through the harness's one mesh reader (:func:`harness.scene.mesh_files.read_mesh`,
+    with its refusals): ``x y z``, ``nx ny nz``, ``u v`` (or ``s t``, ``texture_u texture_v``), faces of 3 or 4
+    vertices (a quad split into (0 1 2), (2 3 0): pbrt-v4 makes it a bilinear patch, the same surface where the quad
+    is planar; a quad is non-planar where its fourth corner leaves the plane of the first three by more than 1e-9
+    of the largest coordinate cubed, the triple product's scale). ValueError: one line why not."""
+    points, idx, normals, uv, polygons = read_mesh(data, "ply")
+    sizes = {len(face) for face in polygons}
+    if sizes - {3, 4}:
+        raise ValueError(f"a face of {min(sizes - {3, 4})} vertices (pbrt reads triangles and quads)")
     if len(idx) == 0 or idx.min() < 0 or idx.max() >= len(points):
         raise ValueError(f"expected faces indexing the {len(points)} vertices")
-    q = points[np.asarray(quads, np.int64).reshape(-1, 4)]
+    q = points[np.asarray([face for face in polygons if len(face) == 4], np.int64).reshape(-1, 4)]
     nonplanar = int((np.abs(np.einsum("ij,ij->i", np.cross(q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]),
                                       q[:, 3] - q[:, 0])) > 1e-9 * np.abs(q).max(initial=1.0) ** 3).sum())
     return points, idx, normals, uv, nonplanar

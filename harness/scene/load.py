@@ -6,7 +6,6 @@ Every problem with the file raises :class:`HarnessError` whose ``where`` is ``"<
 
 from __future__ import annotations
 
-import io
 import math
 import os
 import re
@@ -38,7 +37,7 @@ from harness.scene.mesh_files import (
     MAX_MESH_BYTES,
     ConfinedResolver,
     confined_path,
-    ply_count_problem,
+    read_mesh,
 )
 from harness.scene.typed_reader import TOML_PHRASING, TypedReader, show_value
 from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's frame, read by the tests)
@@ -433,8 +432,8 @@ class _SceneReader(TypedReader):
         return (factor, factor, factor)
 
     def mesh(self, table: dict, key: str) -> dict[str, Any]:
-        """The mesh file's absolute path and its triangles, read with trimesh from the bytes read here (its
-        materials and textures skipped: it opens no file the mesh names; harness.scene.mesh_files)."""
+        """The mesh file's absolute path and its triangles, read by :func:`harness.scene.mesh_files.read_mesh`
+        (trimesh) from the bytes read here (its materials and textures skipped: it opens no file the mesh names)."""
         file_key = f"{key}.file"
         name = self.string(self.require(table, "file", key, "a PLY or OBJ file name"), file_key)
         if not name.lower().endswith(MESH_SUFFIXES):
@@ -451,32 +450,12 @@ class _SceneReader(TypedReader):
             problem = obj_face_problem(data)
             if problem:
                 raise self.error(file_key, f"mesh {name!r}: {problem}")
-        else:
-            problem = ply_count_problem(data)
-            if problem:
-                raise self.error(file_key, f"cannot read the mesh file {name!r}: {problem}")
         resolver = ConfinedResolver(self.folder, path.parent, where, allow_outside=self.allow_outside,
                                     opened=self.opened)
         try:
-            import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
-            mesh = trimesh.load(io.BytesIO(data), file_type=file_type, resolver=resolver, process=False,
-                                skip_materials=True)
-            if isinstance(mesh, trimesh.Scene):  # several parts: one mesh, as Mitsuba reads the file
-                mesh = trimesh.util.concatenate(mesh.dump())
-            # the file's vertex normals (PLY nx, ny, nz; OBJ vn), which trimesh keeps in its cache as read
-            normals = mesh._cache.cache.get("vertex_normals")
-            vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
-            triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
-            uv = getattr(mesh.visual, "uv", None)  # PLY u, v / s, t / texture_u, texture_v; OBJ vt (Mitsuba's)
-            uv = None if uv is None or len(uv) != len(vertices) else np.array(uv, dtype=np.float64).reshape(-1, 2)
-            if normals is not None:
-                normals = np.array(normals, dtype=np.float64).reshape(-1, 3)
-                normals = normals if len(normals) == len(vertices) else None
-        except HarnessError:
-            raise
-        except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
-            reason = " ".join(str(err).split()) or type(err).__name__
-            raise self.error(file_key, f"cannot read the mesh file {name!r}: {reason[:300]}") from None
+            vertices, triangles, normals, uv, _ = read_mesh(data, file_type, resolver)
+        except ValueError as err:
+            raise self.error(file_key, f"cannot read the mesh file {name!r}: {err}") from None
         if len(triangles) == 0:
             raise self.error(file_key, f"expected a mesh with at least one triangle, got none in {name!r}")
         if triangles.min() < 0 or triangles.max() >= len(vertices):

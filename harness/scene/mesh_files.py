@@ -12,8 +12,10 @@ the open, a device never ends the read); the scene's own ``file`` keys go throug
 
 from __future__ import annotations
 
+import io
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +31,7 @@ PLY_TYPES = {"char": "i1", "uchar": "u1", "int8": "i1", "uint8": "u1", "short": 
 
 
 def confined_path(folder: Path, name: str, what: str, where: str, *, allow_outside: bool = False,
-                  base: Path | None = None) -> Path:
+                  base: Path | None = None, outside_hint: str = "--allow-outside-paths allows others") -> Path:
     """The absolute, symlink-resolved path of a file named ``name`` relative to ``base`` (default: ``folder``, the
     scene file's folder), which must exist, be a regular file and, unless ``allow_outside``, lie inside ``folder``.
 
@@ -47,6 +49,9 @@ def confined_path(folder: Path, name: str, what: str, where: str, *, allow_outsi
         ``--allow-outside-paths``: the folder rule is lifted (the file rules are not).
     base : Path, optional
         The folder ``name`` is relative to, where that is not the scene's (an OBJ's ``mtllib``: the OBJ's folder).
+    outside_hint : str
+        What the message of a file outside the folder adds in parentheses (a command without
+        ``--allow-outside-paths``, such as ``harness import``, passes "").
 
     Raises
     ------
@@ -63,7 +68,7 @@ def confined_path(folder: Path, name: str, what: str, where: str, *, allow_outsi
     if not allow_outside and not path.is_relative_to(root):
         raise HarnessError(where, (
             f"{what} file {name!r} resolves to {str(path)!r}, outside the scene's folder {str(root)!r}; "
-            "expected a file inside it (--allow-outside-paths allows others)"))
+            f"expected a file inside it{f' ({outside_hint})' if outside_hint else ''}"))
     irregular = not_regular(path, where)
     if irregular is not None:
         raise HarnessError(where, f"{what} file {name!r} is {irregular.message}") from None
@@ -245,3 +250,75 @@ def _ply_binary_problem(data: bytes, offset: int, elements: list, endian: str) -
     if offset != len(data):
         return f"{len(data) - offset} bytes of data after the elements its header declares"
     return None
+
+
+def read_mesh(data: bytes, file_type: str, resolver: ConfinedResolver | None = None):
+    """A PLY or OBJ file's mesh as the harness reads every mesh file: trimesh, from bytes read by the caller.
+
+    The scene loader (:meth:`harness.scene.load`'s mesh) and the pbrt importer's ``plymesh`` read their files here,
+    so a file the one takes the other takes, with the same one-line refusals. A PLY's rows are first checked
+    against its header (:func:`ply_count_problem`); trimesh is told to skip materials and textures and to leave the
+    mesh as the file holds it (``process=False``: no vertex merged, no face dropped); a PLY's quads are split as
+    trimesh splits them, (0 1 2) and (2 3 0).
+
+    Parameters
+    ----------
+    data : bytes
+        The file's bytes.
+    file_type : str
+        ``"ply"`` or ``"obj"``.
+    resolver : ConfinedResolver, optional
+        The road to the files the mesh file names (an OBJ's ``mtllib``); None: a PLY alone.
+
+    Returns
+    -------
+    tuple
+        ``(vertices (V, 3) float64, triangles (F, 3) int64, normals (V, 3) float64 or None, uv (V, 2) float64 or
+        None, polygons)``: the file's vertex normals (PLY ``nx ny nz``, OBJ ``vn``) and texture coordinates (PLY
+        ``u v`` / ``s t`` / ``texture_u texture_v``, OBJ ``vt``) as the file holds them (no flip), None where absent
+        or not one per vertex; ``polygons`` a PLY's faces as its header's first list property holds them (a list
+        of index arrays; None for an OBJ), for a reader that must know which were quads.
+
+    Raises
+    ------
+    ValueError
+        One line: what is wrong with the file (its rows against its header, or trimesh's own reason).
+    HarnessError
+        A file the mesh names that ``resolver`` refuses.
+    """
+    if file_type == "ply":
+        problem = ply_count_problem(data)
+        if problem:
+            raise ValueError(problem)
+    try:
+        import trimesh  # optional: 0.6 s (scipy, networkx) at every command's start; only mesh files need it
+        mesh = trimesh.load(io.BytesIO(data), file_type=file_type, resolver=resolver, process=False,
+                            skip_materials=True)
+        if isinstance(mesh, trimesh.Scene):  # several parts: one mesh, as Mitsuba reads the file
+            mesh = trimesh.util.concatenate(mesh.dump())
+        # the file's vertex normals (PLY nx, ny, nz; OBJ vn), which trimesh keeps in its cache as read
+        normals = mesh._cache.cache.get("vertex_normals")
+        vertices = np.array(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+        triangles = np.array(getattr(mesh, "faces", np.zeros((0, 3))), dtype=np.int64).reshape(-1, 3)
+        uv = getattr(mesh.visual, "uv", None)  # PLY u, v / s, t / texture_u, texture_v; OBJ vt (Mitsuba's)
+        uv = None if uv is None or len(uv) != len(vertices) else np.array(uv, dtype=np.float64).reshape(-1, 2)
+        if normals is not None:
+            normals = np.array(normals, dtype=np.float64).reshape(-1, 3)
+            normals = normals if len(normals) == len(vertices) else None
+        polygons = None
+        if file_type == "ply":
+            raw = mesh.metadata.get("_ply_raw", {}).get("face", {}).get("data")
+            rows: Any = []
+            if isinstance(raw, np.ndarray) and raw.dtype.names:  # binary: records, the list their first field
+                rows = raw[raw.dtype.names[0]]
+                if rows.dtype.names:  # (count, indices) records of equal lists
+                    rows = rows[rows.dtype.names[-1]]
+            elif isinstance(raw, dict) and raw:  # ASCII: the lists by property name
+                rows = next(iter(raw.values()))
+            polygons = [np.asarray(row, np.int64).ravel() for row in rows]
+    except HarnessError:
+        raise
+    except Exception as err:  # trimesh's parsers raise many kinds of exceptions for broken files
+        reason = " ".join(str(err).split()) or type(err).__name__
+        raise ValueError(reason[:300]) from None
+    return vertices, triangles, normals, uv, polygons

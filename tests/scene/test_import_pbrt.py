@@ -293,7 +293,8 @@ def test_lights(tmp_path):
     ('ActiveTransform StartTime', 'scene.pbrt:6:1: ActiveTransform: not imported'),
     ('Material "diffuse" "spectrum reflectance" "metal-Au-eta"\nShape "sphere"',
      'scene.pbrt:6:20: "spectrum reflectance": a named or sampled spectrum'),
-    ('LightSource "point" "blackbody I" 3000', 'scene.pbrt:6:21: "blackbody I": expected type rgb'),
+    ('LightSource "point" "blackbody I" 3000',
+     'scene.pbrt:6:21: "blackbody I": expected "rgb I" (the scene format is RGB)'),
 ])
 def test_a_refusal_is_one_line_with_its_place(tmp_path, line, message):
     with pytest.raises(HarnessError) as err:
@@ -305,7 +306,8 @@ def test_a_refusal_is_one_line_with_its_place(tmp_path, line, message):
 
 def test_a_file_outside_the_folder_is_refused_even_lenient(tmp_path):
     (tmp_path / "outside.pbrt").write_text("")
-    with pytest.raises(HarnessError, match="expected a file inside the scene's folder"):
+    with pytest.raises(HarnessError, match="Include file '../outside.pbrt' resolves to .*, outside the scene's "
+                                           "folder .*; expected a file inside it$"):
         import_pbrt(pbrt(tmp_path, HEAD + 'Include "../outside.pbrt"\n'), lenient=True)
 
 
@@ -447,3 +449,88 @@ def test_front_sides_follow_pbrts_rules_and_the_default_depth(tmp_path):
     ny = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])[:, 1]
     assert list(np.sign(ny)) == [-1, -1, 1, 1, -1]  # reversed light; Scale z -1 swaps handedness: pbrt keeps +y
     assert np.asarray(geometry.light_id)[:2].tolist() == [0, 0]
+
+
+# ---- found on third-party files (docs/import.md, "Tried on third-party files"), each written here small -----------
+
+
+def test_lenient_drops_a_material_or_light_whose_value_is_a_named_spectrum_or_a_blackbody(tmp_path):
+    """pbrt-v4-scenes' Cornell boxes name metal spectra ("metal-Ag-eta") and caustic-glass lights a blackbody: the
+    element is refused in one line at the parameter (strict), and lenient drops it (the material with its shapes,
+    the light) where it stopped the whole file before."""
+    text = HEAD + ('Material "conductor" "spectrum eta" [ "metal-Ag-eta" ] "spectrum k" [ "metal-Ag-k" ]\n' + QUAD +
+                   'LightSource "spot" "blackbody I" [ 5500 ] "point3 from" [ 0 5 0 ] "point3 to" [ 0 0 0 ]\n'
+                   'LightSource "point" "rgb I" [ 1 1 1 ] "point3 from" [ 0 2 0 ]\n'
+                   'Material "diffuse"\n' + QUAD)
+    with pytest.raises(HarnessError, match=r'scene\.pbrt:6:22: "spectrum eta": a named or sampled spectrum'):
+        import_pbrt(pbrt(tmp_path, text))
+    result, doc, scene = imported(tmp_path, text, lenient=True)
+    assert [line.split(": ", 1)[0].rsplit("/", 1)[-1] for line in result.dropped] == [
+        "scene.pbrt:6:22", "scene.pbrt:7:1", "scene.pbrt:9:20"]
+    assert result.dropped[0].endswith('Material "conductor" (dropped)')
+    assert "its material was refused" in result.dropped[1]
+    assert result.dropped[2].endswith('"blackbody I": expected "rgb I" (the scene format is RGB): '
+                                      'LightSource "spot" (dropped)')
+    assert len(doc["shapes"]) == 1 and [e["type"] for e in doc["emitters"]] == ["point"]
+
+
+def test_lenient_drops_a_material_whose_texture_was_dropped(tmp_path):
+    """killeroo-gold's floor names a "scale" texture, which the import refuses: lenient dropped the texture and then
+    stopped at the material that names it ("no such spectrum texture"); now the material goes with its shapes."""
+    text = HEAD + ('Texture "half" "spectrum" "scale" "float scale" [ 0.5 ]\n'
+                   'Material "diffuse" "texture reflectance" [ "half" ]\n' + QUAD +
+                   'Material "diffuse"\n' + QUAD)
+    result, doc, scene = imported(tmp_path, text, lenient=True)
+    assert 'Texture "half" "spectrum" "scale"' in result.dropped[0]
+    assert ("\"texture reflectance\": the texture 'half' was refused: Material \"diffuse\" (dropped)"
+            in result.dropped[1])
+    assert "its material was refused" in result.dropped[2] and len(doc["shapes"]) == 1
+    with pytest.raises(HarnessError, match="no such spectrum texture 'nothing'"):
+        import_pbrt(pbrt(tmp_path, HEAD + 'Material "diffuse" "texture reflectance" [ "nothing" ]\n' + QUAD),
+                    lenient=True)
+
+
+def test_an_explicit_default_gaussian_filter_is_read_as_no_pixel_filter(tmp_path):
+    """sssdragon and ganesha write pbrt-v4's default filter out (``PixelFilter "gaussian"``): the format's
+    gaussian, approximated and noted, as for no PixelFilter; another radius or sigma stays refused."""
+    for line in ('PixelFilter "gaussian"', 'PixelFilter "gaussian" "float xradius" 1.5 "float sigma" 0.5'):
+        _, doc, _ = imported(tmp_path, HEAD.replace('PixelFilter "box"', line) + QUAD)
+        assert doc["film"]["filter"] == "gaussian"
+        assert "pbrt-v4's Gaussian (radius 1.5, sigma 0.5) read as the format's gaussian" in doc["description"]
+    with pytest.raises(HarnessError, match='PixelFilter "gaussian": expected box of radius 0.5'):
+        import_pbrt(pbrt(tmp_path, HEAD.replace('PixelFilter "box"', 'PixelFilter "gaussian" "float sigma" 1') +
+                         QUAD))
+
+
+@pytest.mark.parametrize("body, message", [
+    (b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+     b"element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n",
+     "its header declares 3 vertex elements but the file holds 2 (truncated, or a header that lies)"),
+    (b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+     b"element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 2 0\n"
+     b"5 0 1 2 3 4\n", "a face of 5 vertices (pbrt reads triangles and quads)"),
+    (b"OFF\n3 1 0\n", "expected a PLY file starting with 'ply'"),
+])
+def test_a_bad_plymesh_is_one_line_from_the_harness_s_one_mesh_reader(tmp_path, body, message):
+    """plymesh reads through harness.scene.mesh_files.read_mesh (the loader's reader): its refusals, one line."""
+    (tmp_path / "in").mkdir(parents=True)
+    (tmp_path / "in" / "bad.ply").write_bytes(body)
+    with pytest.raises(HarnessError) as caught:
+        import_pbrt(pbrt(tmp_path, HEAD + 'Shape "plymesh" "string filename" "bad.ply"\n'), lenient=True)
+    assert str(caught.value).endswith(f"scene.pbrt:6:1: Shape \"plymesh\": 'bad.ply': {message}")
+    assert "\n" not in str(caught.value)
+
+
+def test_a_binary_plymesh_of_quads_is_read_as_the_loader_reads_it(tmp_path):
+    """A binary PLY of quads (pbrt-v4-scenes' meshes) gives the loader's triangles (trimesh's split) and a
+    non-planar quad is counted in the description."""
+    points = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 1, 0.5]], np.float32)
+    header = (b"ply\nformat binary_little_endian 1.0\nelement vertex 6\nproperty float x\nproperty float y\n"
+              b"property float z\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n")
+    faces = b"".join(bytes([4]) + np.array(q, "<i4").tobytes() for q in ([0, 1, 2, 3], [1, 4, 5, 2]))
+    (tmp_path / "in").mkdir(parents=True)
+    (tmp_path / "in" / "quads.ply").write_bytes(header + points.astype("<f4").tobytes() + faces)
+    result, doc, scene = imported(tmp_path, HEAD + 'Scale -1 1 1\nShape "plymesh" "string filename" "quads.ply"\n')
+    geometry = triangulate(scene)
+    assert np.asarray(geometry.triangles).shape == (4, 3)
+    assert "1 non-planar quads" in doc["description"]
