@@ -52,7 +52,10 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     scratch = make_scratch(out)
     try:
-        generator(scratch, **params)
+        try:
+            generator(scratch, **params)
+        except HarnessError as err:  # parameters the generator cannot meet together
+            raise HarnessError("NAME", err.message) from None
         replace(scratch, out)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)

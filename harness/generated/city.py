@@ -4,8 +4,9 @@ colour, spread through space: the scene where choosing lights well matters.
 A 80 x 80 ground (z = 0, dark asphalt) under ``blocks`` x ``blocks`` buildings (cubes on a 12-unit pitch, footprints
 5 to 8 across, heights 3 to 16, greys 0.3 to 0.6). ``lights`` emissive rectangles, each its own shape and light:
 
-* windows (3 in 4): 0.5 x 0.7 rectangles 1 cm off a facade, facing out, radiance log-uniform in [0.3, 6] times a
-  warm (tungsten) or cool (fluorescent) colour;
+* windows (3 in 4): 0.5 x 0.7 rectangles 1 cm off a facade, facing out, each in a place of its own on a grid of
+  floors and columns (:func:`window_slots`: no two overlap), radiance log-uniform in [0.3, 6] times a warm
+  (tungsten) or cool (fluorescent) colour;
 * street lamps (1 in 4): 0.3 x 0.3 rectangles at height 4.5 to 5.5 over the streets, facing down, radiance
   log-uniform in [20, 400] times a sodium orange or a white;
 
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from harness.core.errors import HarnessError
 from harness.generated.scenefile import SceneFiles, table, value
 
 DEFAULTS = {"lights": 4096, "blocks": 6, "seed": 1}
@@ -32,6 +34,23 @@ FACING = {(1, 0): ([0.0, 1.0, 0.0], 90.0), (-1, 0): ([0.0, 1.0, 0.0], -90.0),
           (0, 1): ([1.0, 0.0, 0.0], -90.0), (0, -1): ([1.0, 0.0, 0.0], 90.0)}
 WARM, COOL = np.array([1.0, 0.72, 0.42]), np.array([0.75, 0.85, 1.0])
 SODIUM, WHITE = np.array([1.0, 0.55, 0.18]), np.array([0.95, 0.95, 1.0])
+
+
+def window_slots(buildings: list) -> np.ndarray:
+    """Every place a window may take, as rows (building, face 0..3, offset along the facade, height): columns 1.0
+    apart across 85 % of each facade's width, floors 1.2 apart from 0.8 up to 0.6 below the roof. Windows take
+    distinct places, so no two overlap: two coplanar overlapping lights of different radiance would make what a ray
+    sees there a matter of rounding, which two renderers settle differently."""
+    rows = []
+    for b, (_center, half, height, _grey) in enumerate(buildings):
+        floors = np.arange(0.8, height - 0.6, 1.2)
+        for f in range(4):
+            width = half[1] if f < 2 else half[0]
+            count = int(np.floor(1.7 * width / 1.0)) + 1
+            columns = (np.arange(count) - (count - 1) / 2.0) * 1.0
+            for z in floors:
+                rows += [(b, f, a, z) for a in columns]
+    return np.array(rows, dtype=np.float64).reshape(-1, 4)
 
 
 def triangle_count(lights: int, blocks: int) -> int:
@@ -70,12 +89,18 @@ def generate(lights: int = 4096, blocks: int = 6, seed: int = 1) -> SceneFiles:
                                           "translate": [center[0], center[1], height / 2.0],
                                           "scale": [half[0], half[1], height / 2.0]}))
     windows = int(round(lights * 0.75))
+    slots = window_slots(buildings)
+    if windows > len(slots):
+        raise HarnessError(f"generated:city?lights={lights}", f"{windows} windows need more than the {len(slots)} "
+                                                             f"window places of {blocks} x {blocks} buildings; "
+                                                             "lower lights or raise blocks")
+    chosen = slots[np.sort(rng.choice(len(slots), size=windows, replace=False))]
     for n in range(lights):
         if n < windows:
-            center, half, height, _ = buildings[int(rng.integers(len(buildings)))]
-            face = [(1, 0), (-1, 0), (0, 1), (0, -1)][int(rng.integers(4))]
-            along = float(rng.uniform(-0.85, 0.85)) * (half[1] if face[0] else half[0])
-            z = float(rng.uniform(0.8, height - 0.6))
+            b, f, along, z = chosen[n]
+            center, half, height, _ = buildings[int(b)]
+            face = [(1, 0), (-1, 0), (0, 1), (0, -1)][int(f)]
+            along, z = float(along), float(z)
             normal = np.array([face[0], face[1]], np.float64)
             position = center + normal * (half * np.abs(normal)).sum() + normal * 0.01
             position = position + (np.array([0.0, along]) if face[0] else np.array([along, 0.0]))

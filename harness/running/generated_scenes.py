@@ -47,7 +47,10 @@ def scene_file(value: str, where: str, cache_dir: str | Path | None = None) -> P
         raise HarnessError(where, f"cannot write the generated scene under {folder.parent}: "
                                   f"{err.strerror or err}") from None
     try:
-        generator(scratch, **params)
+        try:
+            generator(scratch, **params)
+        except HarnessError as err:  # parameters the generator cannot meet together: at the suite's key
+            raise HarnessError(where, err.message) from None
         try:
             os.rename(scratch, folder)
         except OSError:

@@ -70,6 +70,8 @@ def test_the_counts_are_the_documented_ones(name, tmp_path):
                   if s.is_emitter]
         assert max(powers) / min(powers) > 100  # powers over decades: choosing lights matters
         assert city.triangle_count(4096, 6) == 8_626
+        windows = [(s.to_world[:3, 3].round(6).tobytes()) for s in scene.shapes if s.name.startswith("window-")]
+        assert len(set(windows)) == len(windows) == 30  # each in a place of its own
     else:
         assert triangles == forest.triangle_count(5, 12) == 5 * (24 + 256) + 2 and [e.type for e in scene.emitters] == ["constant"]
         assert forest.triangle_count(1000, 4872) == 10_000_002
@@ -126,6 +128,7 @@ def test_a_suite_naming_a_generated_scene_generates_it_once(tmp_path):
     ("generated:room?detail=4.5", "expected an integer, got '4.5'"),
     ("generated:forest?tree=3", "unknown parameter 'tree' of forest; did you mean 'trees'?"),
     ("generated:city?lights", "expected key=value"),
+    ("generated:city?lights=1000&blocks=1", "750 windows need more than the 78 window places"),
 ])
 def test_a_bad_generated_scene_in_a_suite_is_one_line(scene, fragment, tmp_path, capfd):
     suite = tmp_path / "s.toml"
@@ -142,6 +145,7 @@ def test_a_bad_generated_scene_in_a_suite_is_one_line(scene, fragment, tmp_path,
     (["forest?leaves=-1"], "expected an integer in [1, 1000000], got -1"),
     (["city?colour=red"], "unknown parameter 'colour' of city"),
     ([], "NAME: expected a scene to generate"),
+    (["city?lights=1000&blocks=1"], "NAME: 750 windows need more than the 78 window places"),
 ])
 def test_a_bad_generate_command_is_one_line(argv, fragment, tmp_path, capfd):
     assert_one_line(*cli(capfd, "generate", *argv, "--out", tmp_path / "out"), fragment)
