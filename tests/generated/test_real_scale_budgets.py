@@ -15,10 +15,10 @@ SUITE = ROOT / "suites" / "real-scale.toml"
 #: k of each case, measured by `harness run suites/real-scale.toml` with an empty cache (2026-12-06, llvm_ad_rgb, at
 #: the budgets of the file). A new case needs its k: run it and read ground_truth_noise in results.json.
 PER_SAMPLE_RATIO = {
-    "room/reference": 0.59,
-    "city/light-selection-power": 1.47,
-    "city/light-selection-uniform": 0.43,
-    "forest/reference": 0.89,
+    "room/reference": 0.508,
+    "city/light-selection-power": 1.26,
+    "city/light-selection-uniform": 0.265,
+    "forest/reference": 3.24,
 }
 
 
