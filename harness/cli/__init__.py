@@ -36,6 +36,9 @@ COMMANDS = (
      "for other renderers (docs/external-renderers.md)"),
     ("import", "harness.cli.import_scene",
      "read a Mitsuba 3 XML, glTF 2.0 or pbrt-v4 scene into this project's scene format (TOML + PLY + textures)"),
+    ("generate", "harness.cli.generate",
+     "write one of the project's generated scenes (a ~1 M-triangle room, a city of thousands of lights, a ~10 "
+     "M-triangle forest; docs/generated-scenes.md) into a folder, or --list them"),
     ("bench", "harness.cli.bench",
      "the reference against Mitsuba (llvm_ad_rgb, scalar_rgb) at equal spp: seconds, paths/s, rays/s, MSE against "
      "ground truth, efficiency 1/(MSE x s) and their ratios"),

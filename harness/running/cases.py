@@ -20,7 +20,7 @@ from harness.files.cases import slug  # the folder name of a case: files/cases.p
 from harness.core.limits import MAX_FILM_SIDE, MAX_TIMEOUT_SECONDS, check_render_cost, film_problem, float_or_inf
 from harness.core.text import hint, short
 from harness.renderers import RenderRequest, external, get_renderer, renderer_names
-from harness.running import imported_scenes
+from harness.running import generated_scenes, imported_scenes
 from harness.running.tolerances import check_table
 from harness.scene import load_scene
 from harness.scene.load import find_scene
@@ -103,7 +103,8 @@ class Suite:
 def load_suite(path: str | Path, cache_dir: str | Path | None = None) -> Suite:
     """Read and validate a suite file; every problem is a one-line HarnessError naming the file and key. A case's
     scene of another format (Mitsuba 3 XML, glTF 2.0) is imported and kept under ``cache_dir`` (default: the
-    ground-truth cache's folder; :mod:`harness.running.imported_scenes`)."""
+    ground-truth cache's folder; :mod:`harness.running.imported_scenes`), and a generated one (``generated:NAME``)
+    generated there once (:mod:`harness.running.generated_scenes`)."""
     path = Path(path)
     reader = TypedReader(str(path), PYTHON_PHRASING)
     doc = read_user_toml(path, missing="no such suite file")
@@ -160,9 +161,15 @@ def _case(reader: TypedReader, folder: Path, where: str, d: dict[str, Any], know
 
     if "scene" not in d:
         raise reader.error(key("scene"), "missing: expected a scene name or a path to a scene file")
-    source = find_scene(reader.string(d["scene"], key("scene")), reader.where(key("scene")), folder)
-    scene = imported_scenes.scene_file(source, cache_dir) if imported_scenes.is_foreign(source) else source
-    name = _case_name(reader, key("name"), d.get("name", source.stem), "name" not in d)
+    value = reader.string(d["scene"], key("scene"))
+    if generated_scenes.is_generated(value):
+        scene = source = generated_scenes.scene_file(value, reader.where(key("scene")), cache_dir)
+        stem = value[len("generated:"):].partition("?")[0]
+    else:
+        source = find_scene(value, reader.where(key("scene")), folder)
+        scene = imported_scenes.scene_file(source, cache_dir) if imported_scenes.is_foreign(source) else source
+        stem = source.stem
+    name = _case_name(reader, key("name"), d.get("name", stem), "name" not in d)
     renderer = reader.string(d.get("renderer", "reference"), key("renderer"))
     renderer = _renderer_known(reader, key("renderer"), renderer, known, folder)
     settings = judged_settings(renderer, _settings(reader, key("settings"), d.get("settings", {})))

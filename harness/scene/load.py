@@ -187,6 +187,9 @@ class _SceneReader(TypedReader):
         self.allow_outside = allow_outside
         self.files: list[Path] = []
         self.scene_textures: dict[str, Texture] = {}  # [textures], once read (materials and lights name them)
+        # a mesh file's parse, by its resolved path, for every later shape that names it (a forest's thousands of
+        # trees naming a few files: each file read and parsed once; harness.generated.forest)
+        self.parsed_meshes: dict[Path, tuple] = {}
 
     def opened(self, path: Path) -> Path:
         """``path``, recorded among the files the scene is read from: every file the loader reads passes through
@@ -318,12 +321,13 @@ class _SceneReader(TypedReader):
     def shapes(self, document: dict, materials: dict[str, Material]) -> list[Shape]:
         entries = self.array(document.get("shapes", []), "shapes", "an array of tables ([[shapes]])")
         shapes: list[Shape] = []
+        seen: dict[str, int] = {}  # each name's first index: a dict, not a scan (thousands of shapes)
         for index, entry in enumerate(entries):
             shape = self.shape(index, entry, materials)
-            for other in shapes:
-                if other.name == shape.name:
-                    message = f"duplicate shape name {shape.name!r} (also shapes[{other.index}])"
-                    raise self.error(f"shapes[{index}].name", message)
+            if shape.name in seen:
+                message = f"duplicate shape name {shape.name!r} (also shapes[{seen[shape.name]}])"
+                raise self.error(f"shapes[{index}].name", message)
+            seen[shape.name] = shape.index
             shapes.append(shape)
         return shapes
 
@@ -439,6 +443,28 @@ class _SceneReader(TypedReader):
         if not name.lower().endswith(MESH_SUFFIXES):
             raise self.expected(file_key, "a .ply or .obj file name", name)
         path = self.file_path(name, file_key, "mesh")
+        if path not in self.parsed_meshes:
+            self.parsed_meshes[path] = self.parse_mesh(path, name, file_key)
+        vertices, triangles, uv, normals, file_type = self.parsed_meshes[path]
+        flip = self.boolean(table.get("flip_tex_coords", file_type == "obj"), f"{key}.flip_tex_coords")
+        face_normals = self.boolean(table.get("face_normals", False), f"{key}.face_normals")
+        if normals is not None and not face_normals:
+            length = np.linalg.norm(normals, axis=1)
+            if not (np.all(np.isfinite(normals)) and np.all(length > 0)):
+                raise self.error(file_key, f"mesh {name!r} has a vertex normal that is zero or not finite "
+                                           "(or set face_normals = true to shade it flat)")
+        if uv is not None and flip:
+            uv = uv.copy()
+            uv[:, 1] = 1.0 - uv[:, 1]
+            uv.setflags(write=False)
+        return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles, "mesh_uv": uv,
+                "flip_tex_coords": flip, "face_normals": face_normals,
+                "mesh_normals": None if face_normals else normals}
+
+    def parse_mesh(self, path: Path, name: str, file_key: str) -> tuple:
+        """A mesh file's vertices, triangles, texture coordinates (as in the file, or None), vertex normals (or
+        None) and type (``ply`` or ``obj``), checked; the arrays read-only, since every shape naming the file
+        shares them."""
         size = path.stat().st_size
         if size > MAX_MESH_BYTES:
             raise self.error(file_key, f"mesh file {name!r} is {size / 2**20:.0f} MiB; expected at most "
@@ -462,21 +488,12 @@ class _SceneReader(TypedReader):
             raise self.error(file_key, f"mesh {name!r} has a triangle with a vertex index out of range")
         if not np.all(np.isfinite(vertices)):
             raise self.error(file_key, f"mesh {name!r} has non-finite vertex coordinates")
-        flip = self.boolean(table.get("flip_tex_coords", file_type == "obj"), f"{key}.flip_tex_coords")
-        face_normals = self.boolean(table.get("face_normals", False), f"{key}.face_normals")
-        if normals is not None and not face_normals:
-            length = np.linalg.norm(normals, axis=1)
-            if not (np.all(np.isfinite(normals)) and np.all(length > 0)):
-                raise self.error(file_key, f"mesh {name!r} has a vertex normal that is zero or not finite "
-                                           "(or set face_normals = true to shade it flat)")
-        if uv is not None:
-            if not np.all(np.isfinite(uv)):
-                raise self.error(file_key, f"mesh {name!r} has non-finite texture coordinates")
-            if flip:
-                uv[:, 1] = 1.0 - uv[:, 1]
-        return {"file": path, "mesh_vertices": vertices, "mesh_triangles": triangles, "mesh_uv": uv,
-                "flip_tex_coords": flip, "face_normals": face_normals,
-                "mesh_normals": None if face_normals else normals}
+        if uv is not None and not np.all(np.isfinite(uv)):
+            raise self.error(file_key, f"mesh {name!r} has non-finite texture coordinates")
+        for array in (vertices, triangles, uv, normals):
+            if array is not None:
+                array.setflags(write=False)
+        return vertices, triangles, uv, normals, file_type
 
     def file_path(self, name: str, key: str, what: str) -> Path:
         """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist,

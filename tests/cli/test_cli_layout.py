@@ -18,7 +18,7 @@ from harness.core.options import parse_set
 
 # The commands in the order `harness --help` lists them (it did so before the split, too).
 ORDER = ["render", "ground-truth", "compare", "run", "baseline", "report", "view", "convergence", "calibrate",
-         "export", "import", "bench", "stress"]
+         "export", "import", "generate", "bench", "stress"]
 # The commands that load scene files (and so follow their mesh paths).
 LOADS_SCENES = ["render", "ground-truth", "run", "report", "convergence", "calibrate", "export", "bench", "stress",
                 "baseline save"]
