@@ -18,7 +18,7 @@ from pathlib import Path
 
 from harness.cli.common import EXIT_OK
 from harness.core.errors import HarnessError
-from harness.generated import GENERATORS, PREFIX, parse_spec
+from harness.generated import GENERATORS, PREFIX, parse_spec, scene_file_name
 from harness.generated.scenefile import MANIFEST
 
 
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     counts = manifest["counts"]
     size = sum(p.stat().st_size for p in out.rglob("*") if p.is_file())
     shown = ", ".join(f"{k}={v}" for k, v in manifest["params"].items())
-    print(f"wrote {out / 'scene.toml'}: {generator.name} ({shown}): {counts['triangles']:,} triangles, "
+    print(f"wrote {out / scene_file_name(generator.name)}: {generator.name} ({shown}): {counts['triangles']:,} triangles, "
           f"{counts['lights']:,} lights, {counts['shapes']:,} shapes, {len(manifest['files']) + 2} files "
           f"({size / 2**20:.1f} MiB) in {time.perf_counter() - start:.1f} s")
     return EXIT_OK

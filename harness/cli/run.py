@@ -88,8 +88,8 @@ def run(args: argparse.Namespace) -> int:
             finished[0] += 1
             if gate is not None:
                 gate.check(suite.cases[index], record)
-            warning = (record.get("ground_truth_noise") or {}).get("warning")
-            if warning:  # once per case; above the bar where there is one
+            warnings = [(record.get("ground_truth_noise") or {}).get("warning"), record.get("ground_truth_caveat")]
+            for warning in filter(None, warnings):  # once per case; above the bar where there is one
                 line = f"warning: {record['name']}: {warning}"
                 if bar is not None:
                     bar.write(line, file=sys.stderr)

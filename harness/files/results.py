@@ -339,7 +339,7 @@ VIEWER = Obj({"folder": STR, "data": FILE_NAME, "thumbnail": FILE_NAME, "pvalue"
 
 CASE_OPTIONAL = {"ground_truth": GROUND_TRUTH, "resumed": BOOL, "traceback": STR, "report_images": REPORT_IMAGES,
                  "verdict_maps": VERDICT_MAPS, "viewer": VIEWER, "cached": CACHED,
-                 "ground_truth_noise": GROUND_TRUTH_NOISE, "requires": ListOf(STR)}
+                 "ground_truth_noise": GROUND_TRUTH_NOISE, "ground_truth_caveat": STR, "requires": ListOf(STR)}
 
 
 class _Case(Spec):

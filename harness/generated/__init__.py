@@ -20,7 +20,7 @@ from types import ModuleType
 from harness.core.errors import HarnessError
 from harness.core.text import hint
 from harness.generated import city, forest, room
-from harness.generated.scenefile import SCENE_FILE, SceneFiles, write_scene
+from harness.generated.scenefile import SceneFiles, scene_file_name, write_scene
 
 #: the prefix of a suite's ``scene`` that names a generated scene
 PREFIX = "generated:"
@@ -112,4 +112,4 @@ def parse_spec(spec: str, where: str) -> tuple[Generator, dict]:
     return generator, generator.checked(params, where)
 
 
-__all__ = ["GENERATORS", "Generator", "PREFIX", "SCENE_FILE", "generation_key", "parse_spec", "source_digest"]
+__all__ = ["GENERATORS", "Generator", "PREFIX", "generation_key", "parse_spec", "scene_file_name", "source_digest"]

@@ -15,8 +15,10 @@ import numpy as np
 
 from harness.files.imageio import atomic_write_bytes
 
-#: the scene file's name inside a generated folder
-SCENE_FILE = "scene.toml"
+def scene_file_name(generator: str) -> str:
+    """The scene file's name inside a generated folder: the generator's name (``city.toml``), which the studies and
+    the report name the scene by."""
+    return f"{generator}.toml"
 #: the record of what made the folder (generator, parameters, key, counts), beside the scene file
 MANIFEST = "generated.json"
 
@@ -67,4 +69,4 @@ def write_scene(scene: SceneFiles, folder: Path, manifest: dict) -> Path:
         atomic_write_bytes(folder / name, scene.files[name])
     record = {**manifest, "counts": scene.counts, "files": sorted(scene.files)}
     atomic_write_bytes(folder / MANIFEST, (json.dumps(record, indent=1, sort_keys=True) + "\n").encode())
-    return atomic_write_bytes(folder / SCENE_FILE, scene.toml.encode())
+    return atomic_write_bytes(folder / scene_file_name(manifest["generator"]), scene.toml.encode())

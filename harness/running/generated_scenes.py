@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 
 from harness.core.errors import HarnessError
-from harness.generated import PREFIX, SCENE_FILE, generation_key, parse_spec
+from harness.generated import PREFIX, generation_key, parse_spec, scene_file_name
 from harness.renderers import groundtruth
 
 #: the ground-truth cache's folder of generated scenes
@@ -38,8 +38,9 @@ def scene_file(value: str, where: str, cache_dir: str | Path | None = None) -> P
     unless already there; an unknown name or a bad parameter is one HarnessError at ``where``."""
     generator, params = parse_spec(value[len(PREFIX):], where)
     folder = generated_folder(cache_dir) / f"{generator.name}-{generation_key(generator.name, params)}"
-    if (folder / SCENE_FILE).is_file():
-        return folder / SCENE_FILE
+    name = scene_file_name(generator.name)
+    if (folder / name).is_file():
+        return folder / name
     try:
         folder.parent.mkdir(parents=True, exist_ok=True)
         scratch = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
@@ -54,10 +55,10 @@ def scene_file(value: str, where: str, cache_dir: str | Path | None = None) -> P
         try:
             os.rename(scratch, folder)
         except OSError:
-            if not (folder / SCENE_FILE).is_file():  # another process's rename won: its folder is the same bytes
+            if not (folder / name).is_file():  # another process's rename won: its folder is the same bytes
                 raise
     except OSError as err:
         raise HarnessError(where, f"cannot write the generated scene into {folder}: {err.strerror or err}") from None
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
-    return folder / SCENE_FILE
+    return folder / name

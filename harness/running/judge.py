@@ -200,6 +200,9 @@ def _judge_into(stage: imageio.StagedFolder, case: Case, scene, result, gt, reco
     noise = ground_truth_noise(case, result, gt, outcome)
     if noise is not None:
         record["ground_truth_noise"] = noise
+    caveat = groundtruth.mitsuba_caveat(scene) if gt.source == "mitsuba" else None
+    if caveat is not None:
+        record["ground_truth_caveat"] = caveat
     reason = verdict.get("reason", "") if verdict["verdict"] != "pass" else ""
     if broken:
         reason = "; ".join(filter(None, [reason, "threshold: " + ", ".join(broken)]))

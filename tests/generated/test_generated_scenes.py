@@ -44,7 +44,7 @@ def counts(scene) -> tuple[int, int]:
 def test_a_generator_writes_the_same_bytes_twice(name, tmp_path):
     first = GENERATORS[name](tmp_path / "a", **SMALL[name])
     second = GENERATORS[name](tmp_path / "b", **SMALL[name])
-    assert first.name == second.name == "scene.toml"
+    assert first.name == second.name == f"{name}.toml"  # the studies and the report name it so
     a, b = digests(tmp_path / "a"), digests(tmp_path / "b")
     assert a == b and len(a) >= 2
     assert any(n.endswith(".png") for n in a) == (name != "city")
@@ -82,7 +82,7 @@ def test_the_counts_are_the_documented_ones(name, tmp_path):
 
 def test_shapes_naming_one_mesh_file_share_one_parse(tmp_path):
     GENERATORS["forest"](tmp_path, trees=6, leaves=3, variants=1)
-    scene = load_scene(tmp_path / "scene.toml")
+    scene = load_scene(tmp_path / "forest.toml")
     crowns = [s for s in scene.shapes if s.name.startswith("crown-")]
     assert len(crowns) == 6 and all(c.mesh_vertices is crowns[0].mesh_vertices for c in crowns)
     assert not crowns[0].mesh_vertices.flags.writeable
@@ -113,11 +113,11 @@ def test_a_suite_naming_a_generated_scene_generates_it_once(tmp_path):
     assert loaded.cases[0].name == "city" and loaded.cases[0].scene == loaded.cases[1].scene
     key = generation_key("city", {"lights": 6, "blocks": 1, "seed": 1})
     folder = generated_folder(cache) / f"city-{key}"
-    assert loaded.cases[0].scene == folder / "scene.toml"
+    assert loaded.cases[0].scene == folder / "city.toml"
     assert [p.name for p in generated_folder(cache).iterdir()] == [folder.name]  # no scratch folder left
-    stamp = (folder / "scene.toml").stat().st_mtime_ns
+    stamp = (folder / "city.toml").stat().st_mtime_ns
     load_suite(suite, cache)
-    assert (folder / "scene.toml").stat().st_mtime_ns == stamp  # found, not generated again
+    assert (folder / "city.toml").stat().st_mtime_ns == stamp  # found, not generated again
     assert generation_key("city", {"lights": 7, "blocks": 1, "seed": 1}) != key
 
 
@@ -191,7 +191,8 @@ def test_a_generate_command_of_the_docs_runs_as_printed(command, tmp_path, monke
     if "--list" in argv:
         assert [line.split(":")[0] for line in out.splitlines()] == list(GENERATORS)
     else:
-        assert out.startswith("wrote ") and load_scene(tmp_path / argv[argv.index("--out") + 1] / "scene.toml")
+        assert out.startswith("wrote ") and load_scene(tmp_path / argv[argv.index("--out") + 1]
+                                                               / f"{argv[1].split('?')[0]}.toml")
 
 
 def test_the_real_scale_suite_names_the_three_scenes():
