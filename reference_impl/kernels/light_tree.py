@@ -79,6 +79,15 @@ def importance(tree, node, x0, x1, x2, n0, n1, n2, mutant=0):
 
 
 @njit(**JIT_BORROW)
+def _children(tree, node, x0, x1, x2, n0, n1, n2, mutant):
+    """The importances (I_first, I_second) of an inner node's two children and their sum: what both walks read, in
+    one order."""
+    i0 = importance(tree, node + 1, x0, x1, x2, n0, n1, n2, mutant)
+    i1 = importance(tree, tree.child[node], x0, x1, x2, n0, n1, n2, mutant)
+    return i0, i1, i0 + i1
+
+
+@njit(**JIT_BORROW)
 def tree_select(tree, u, x0, x1, x2, n0, n1, n2, mutant=0):
     """An area light drawn by the tree at x, for a uniform u already rescaled to the tree's share (:func:`select`):
     (light, its pmf within the tree, what is left of u inside the light's interval); light -1 where no node of the
@@ -87,9 +96,7 @@ def tree_select(tree, u, x0, x1, x2, n0, n1, n2, mutant=0):
     pmf = 1.0
     child, leaf = tree.child, tree.leaf
     while not leaf[node]:
-        i0 = importance(tree, node + 1, x0, x1, x2, n0, n1, n2, mutant)
-        i1 = importance(tree, child[node], x0, x1, x2, n0, n1, n2, mutant)
-        total = i0 + i1
+        i0, i1, total = _children(tree, node, x0, x1, x2, n0, n1, n2, mutant)
         if not total > 0.0:
             return -1, 0.0, u
         p0 = i0 / total
@@ -114,9 +121,7 @@ def tree_pmf(tree, light, x0, x1, x2, n0, n1, n2, mutant=0):
     bits = tree.trail[light]
     child, leaf = tree.child, tree.leaf
     while not leaf[node]:
-        i0 = importance(tree, node + 1, x0, x1, x2, n0, n1, n2, mutant)
-        i1 = importance(tree, child[node], x0, x1, x2, n0, n1, n2, mutant)
-        total = i0 + i1
+        i0, i1, total = _children(tree, node, x0, x1, x2, n0, n1, n2, mutant)
         if not total > 0.0:
             return 0.0
         if bits & np.uint64(1):

@@ -157,28 +157,18 @@ def light_tables(sampler) -> LightTables:
 
 
 class TreeTables(NamedTuple):
-    """The light tree of ``light_selection = "tree"`` (:class:`reference_impl.light_tree.LightTree`, whose
-    attributes these are; M nodes over the N_A area lights).
+    """The light tree of ``light_selection = "tree"``: the attributes of
+    :class:`reference_impl.light_tree.LightTree` (``lo``, ``hi``, ``phi``, ``w``, ``cos_o``, ``child``, ``leaf``,
+    ``trail``; M nodes over the N_A area lights), and what the importance reads of each node ready made.
 
     Attributes
     ----------
-    lo, hi : (M, 3) float64
-        Each node's box.
-    phi : (M,) float64
-        Its power.
-    w : (M, 3) float64
-        Its cone's axis.
-    cos_o, sin_o : (M,) float64
-        Its cone's cos theta_o and sin theta_o.
+    sin_o : (M,) float64
+        Its cone's sin theta_o.
     centre : (M, 3) float64
         Its box's centre (lo + hi) / 2.
     r2 : (M,) float64
         The squared radius of the box's bounding sphere, |hi - lo|^2 / 4.
-    child : (M,) int64
-        An inner node's second child (its first is index + 1); a leaf's light.
-    leaf : (M,) bool
-    trail : (N_A,) uint64
-        Per light, its path from the root (bit j: the second child at depth j).
     p_tree : (1,) float64
         The probability of choosing the tree rather than an emitter that is not a surface.
     """

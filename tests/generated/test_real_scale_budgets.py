@@ -18,6 +18,7 @@ PER_SAMPLE_RATIO = {
     "room/reference": 0.508,
     "city/light-selection-power": 1.26,
     "city/light-selection-uniform": 0.265,
+    "city/light-selection-tree": 10.5,  # its variance per sample is a tenth of power's: 64 spp (2026-12-06, main)
     "forest/reference": 3.24,
 }
 
