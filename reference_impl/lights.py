@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_impl.geometry import Geometry
-from reference_impl.light_tree import LightTree
 from reference_impl.sampling import sample_discrete, square_to_uniform_triangle, unit_circle
 
 LIGHT_SELECTIONS = ("power", "uniform", "tree")
@@ -228,7 +227,9 @@ class LightSampler:
             weights = np.ones(self.num_lights)
         self.pmf = weights / weights.sum() if self.num_lights else weights
         self.tree = None
-        if selection == "tree":  # pdf(k | x) of an area light is the tree's (kernels.light_tree); the others'
+        if selection == "tree":  # an area light's pdf(k | x) is the tree's (kernels.light_tree), an emitter's 1 / (n + 1)
+            from reference_impl.light_tree import LightTree  # numba: imported where a tree is built, not at start-up
+
             spheres = geometry.sphere_of[self.triangles[self.first]] if geometry.num_spheres else np.full(num_area, -1)
             self.tree = LightTree(geometry, self.area, spheres, len(extra))
             if not num_area:
