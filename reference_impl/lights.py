@@ -227,8 +227,8 @@ class LightSampler:
             weights = np.ones(self.num_lights)
         self.pmf = weights / weights.sum() if self.num_lights else weights
         self.tree = None
-        if selection == "tree":  # an area light's pdf(k | x) is the tree's (kernels.light_tree), an emitter's 1 / (n + 1)
-            from reference_impl.light_tree import LightTree  # numba: imported where a tree is built, not at start-up
+        if selection == "tree":  # an area light's pdf(k | x) is the tree's (kernels.light_tree); an emitter's 1/(n+1)
+            from reference_impl.light_tree import LightTree  # optional: numba, imported where a tree is built only
 
             spheres = geometry.sphere_of[self.triangles[self.first]] if geometry.num_spheres else np.full(num_area, -1)
             self.tree = LightTree(geometry, self.area, spheres, len(extra))

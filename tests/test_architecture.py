@@ -19,7 +19,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("reference_impl",),
     ("harness.core",),
     ("harness.judges",),
-    ("harness.scene", "harness.files", "harness.generated"),
+    ("harness.scene", "harness.files", "harness.generators"),
     ("harness.renderers",),
     ("harness.running",),
     ("harness.studies",),

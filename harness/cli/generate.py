@@ -1,5 +1,5 @@
 """``harness generate NAME[?key=value&...] --out DIR`` and ``harness generate --list``: one of the project's
-generated scenes (:mod:`harness.generated`, docs/generated-scenes.md) written where the user asks.
+generated scenes (:mod:`harness.generators`, docs/generated-scenes.md) written where the user asks.
 
 ``--out`` must be missing, empty, or a folder this command wrote before (it holds ``generated.json``): such a
 folder is replaced whole. Anything else is refused in one line, and nothing is written. The scene is written into a
@@ -18,8 +18,8 @@ from pathlib import Path
 
 from harness.cli.common import EXIT_OK
 from harness.core.errors import HarnessError
-from harness.generated import GENERATORS, PREFIX, parse_spec, scene_file_name
-from harness.generated.scenefile import MANIFEST
+from harness.generators import GENERATORS, PREFIX, parse_spec, scene_file_name
+from harness.generators.scenefile import MANIFEST
 
 
 def register(sub, common) -> None:

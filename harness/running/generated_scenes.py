@@ -1,8 +1,8 @@
 """A suite's ``scene = "generated:NAME"`` (or ``"generated:NAME?key=value&..."``): a scene the project generates
-(:mod:`harness.generated`), written once into the ground-truth cache and then used like any scene file.
+(:mod:`harness.generators`), written once into the ground-truth cache and then used like any scene file.
 
 The folder is ``GENERATED/<name>-<key>/`` (``GENERATED``: the ``generated`` folder of the ground-truth cache; the key
-:func:`harness.generated.generation_key`, a SHA-256 of the generators' source files and the full parameters), written
+:func:`harness.generators.generation_key`, a SHA-256 of the generators' source files and the full parameters), written
 into a temporary folder beside it and renamed into place, so a folder that exists is whole: a second load, in this
 process or another, finds it and generates nothing. A generator that changes (any of its source files) gives a new
 folder; the scene's content key (its ground truth, the results cache) follows the bytes it writes.
@@ -16,7 +16,7 @@ import tempfile
 from pathlib import Path
 
 from harness.core.errors import HarnessError
-from harness.generated import PREFIX, generation_key, parse_spec, scene_file_name
+from harness.generators import PREFIX, generation_key, parse_spec, scene_file_name
 from harness.renderers import groundtruth
 
 #: the ground-truth cache's folder of generated scenes

@@ -188,7 +188,7 @@ class _SceneReader(TypedReader):
         self.files: list[Path] = []
         self.scene_textures: dict[str, Texture] = {}  # [textures], once read (materials and lights name them)
         # a mesh file's parse, by its resolved path, for every later shape that names it (a forest's thousands of
-        # trees naming a few files: each file read and parsed once; harness.generated.forest)
+        # trees naming a few files: each file read and parsed once; harness.generators.forest)
         self.parsed_meshes: dict[Path, tuple] = {}
 
     def opened(self, path: Path) -> Path:

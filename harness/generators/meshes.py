@@ -30,7 +30,7 @@ def ply_binary(vertices: np.ndarray, triangles: np.ndarray, normals: np.ndarray 
     face = np.empty(len(triangles), dtype=[("n", "u1"), ("i", "<i4", (3,))])
     face["n"] = 3
     face["i"] = triangles
-    header = ["ply", "format binary_little_endian 1.0", "comment made by harness.generated (no third-party asset)",
+    header = ["ply", "format binary_little_endian 1.0", "comment made by harness.generators (no third-party asset)",
               f"element vertex {len(vertices)}"] + [f"property float {n}" for n in names]
     header += [f"element face {len(triangles)}", "property list uchar int vertex_indices", "end_header"]
     return ("\n".join(header) + "\n").encode() + vertex.tobytes() + face.tobytes()

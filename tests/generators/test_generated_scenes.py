@@ -1,4 +1,4 @@
-"""The generated scenes (harness/generated, docs/generated-scenes.md): the same bytes on every run, the counts the
+"""The generated scenes (harness/generators, docs/generated-scenes.md): the same bytes on every run, the counts the
 docs give, a suite's ``generated:NAME`` generated once into the cache, ``harness generate``, and every bad name or
 parameter one line with exit 2. All at small parameters: nothing here renders."""
 
@@ -15,8 +15,8 @@ import pytest
 from conftest import ROOT
 from harness.cli import main
 from harness.core.errors import HarnessError
-from harness.generated import GENERATORS, city, forest, generation_key, parse_spec, room
-from harness.generated.meshes import ply_binary
+from harness.generators import GENERATORS, city, forest, generation_key, parse_spec, room
+from harness.generators.meshes import ply_binary
 from harness.running.cases import load_suite
 from harness.running.generated_scenes import generated_folder
 from harness.scene import load_scene

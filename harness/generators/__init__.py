@@ -19,8 +19,8 @@ from types import ModuleType
 
 from harness.core.errors import HarnessError
 from harness.core.text import hint
-from harness.generated import city, forest, room
-from harness.generated.scenefile import SceneFiles, scene_file_name, write_scene
+from harness.generators import city, forest, room
+from harness.generators.scenefile import SceneFiles, scene_file_name, write_scene
 
 #: the prefix of a suite's ``scene`` that names a generated scene
 PREFIX = "generated:"
