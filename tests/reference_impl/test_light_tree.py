@@ -245,3 +245,20 @@ def test_tree_and_power_agree_in_expectation(direct):
         c = _render(scene, spp=1024, seed=13, direct=direct, light_selection="tree",
                     mutant="light-tree-no-bound-angle")
         assert mean_z(a, c).max() > Z_MAX
+
+
+@pytest.mark.parametrize("name", ["point-spot", "sun-sky"])
+def test_the_tree_on_a_scene_without_area_lights(name):
+    """No area light: the tree is empty and every emitter is chosen uniformly, 1 / n_other (pbrt-v4's infinite
+    lights); the image agrees with power's in expectation."""
+    from conftest import load_small
+
+    try:
+        from engine_agreement import Z_MAX, mean_z
+    except ImportError:  # tests/ imported as a package
+        from tests.reference_impl.engine_agreement import Z_MAX, mean_z
+
+    scene = load_small(name, 16)
+    a = _render(scene, spp=256, light_selection="power")
+    b = _render(scene, spp=256, seed=12, light_selection="tree")
+    assert mean_z(a, b).max() <= Z_MAX
