@@ -42,6 +42,7 @@ from harness.judges.moments import Estimate, merge
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.mitsuba import choose_variant
 from harness.scene import Scene
+from harness.scene.model import DirectionalLight, PointLight, SpotLight
 from harness.scene.content_key import content_key
 from harness.scene.primitives import sphere_uv
 from harness.scene.triangulate import object_to_world, shape_triangles, vertex_normals
@@ -73,17 +74,17 @@ def mitsuba_caveat(scene: Scene) -> str | None:
     """Why Mitsuba's image of ``scene`` is not its expected image, where a known difference says so (docs/mitsuba.md,
     "Known differences"), else None: a cut-out (``mask``) with a point, spot or directional light, whose light
     Mitsuba's path loses through the holes (its shadow rays stop at a mask; only they reach a delta light)."""
-    delta = sorted({type(e).__name__ for e in scene.emitters if type(e).__name__ in DELTA_LIGHTS})
+    delta = sorted({DELTA_LIGHTS[type(e)] for e in scene.emitters if type(e) in DELTA_LIGHTS})
     masks = sorted(name for name, m in scene.materials.items() if m.type == "mask")
     if not (delta and masks):
         return None
-    return (f"Mitsuba's path loses the light of {', '.join(DELTA_LIGHTS[k] for k in delta)} through the holes of "
+    return (f"Mitsuba's path loses the light of {', '.join(delta)} through the holes of "
             f"{', '.join(masks)} (mask): its image is darker than the expected one there, and a fail may be "
             "Mitsuba's (docs/mitsuba.md, \"Known differences\")")
 
 
 #: the emitters only a light sample reaches, by their model class: what a caveat calls them
-DELTA_LIGHTS = {"DirectionalLight": "a directional light", "PointLight": "a point light", "SpotLight": "a spot light"}
+DELTA_LIGHTS = {DirectionalLight: "a directional light", PointLight: "a point light", SpotLight: "a spot light"}
 
 
 # ---- closed forms ----------------------------------------------------------------------------------------------

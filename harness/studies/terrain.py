@@ -28,6 +28,7 @@ import numpy as np
 
 from harness.core.errors import HarnessError
 from harness.files.imageio import atomic_write_bytes, atomic_write_text
+from harness.generators.meshes import ply_binary
 
 #: waves summed, the highest frequency (cycles over the square's side of 2) and the relief's amplitude A
 WAVES, TOP_FREQUENCY, AMPLITUDE = 24, 48.0, 0.05
@@ -92,19 +93,6 @@ def heightfield(triangles: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.n
     return vertices.astype(np.float32), normals.astype(np.float32), tris[:triangles].astype(np.int32)
 
 
-def ply_bytes(vertices: np.ndarray, normals: np.ndarray, triangles: np.ndarray) -> bytes:
-    """A binary little-endian PLY of float32 positions and normals and uchar-counted int32 faces."""
-    header = ("ply\nformat binary_little_endian 1.0\n"
-              f"element vertex {len(vertices)}\n"
-              + "".join(f"property float {name}\n" for name in ("x", "y", "z", "nx", "ny", "nz"))
-              + f"element face {len(triangles)}\nproperty list uchar int vertex_indices\nend_header\n")
-    vertex = np.empty(len(vertices), dtype=[("p", "<f4", 3), ("n", "<f4", 3)])
-    vertex["p"], vertex["n"] = vertices, normals
-    face = np.empty(len(triangles), dtype=[("count", "u1"), ("index", "<i4", 3)])
-    face["count"], face["index"] = 3, triangles
-    return header.encode("ascii") + vertex.tobytes() + face.tobytes()
-
-
 def scene_text(mesh_name: str, triangles: int, seed: int, size: int, material: str) -> str:
     """The scene file of the terrain (``mesh_name`` beside it) on a ``size`` x ``size`` film."""
     surface = ('[materials.ground]\nreflectance = [0.45, 0.42, 0.36]\n' if material == "diffuse" else
@@ -165,7 +153,7 @@ def write_terrain(folder: Path, triangles: int, *, seed: int = 1, size: int = 25
     stem = f"terrain-{triangles}-s{seed}"
     mesh = folder / f"{stem}.ply"
     vertices, normals, tris = heightfield(triangles, seed)
-    atomic_write_bytes(mesh, ply_bytes(vertices, normals, tris))
+    atomic_write_bytes(mesh, ply_binary(vertices, tris, normals))
     scene = folder / f"{stem}-{size}-{material}.toml"
     atomic_write_text(scene, scene_text(mesh.name, triangles, seed, size, material))
     return Terrain(scene, mesh, triangles, len(vertices))

@@ -552,9 +552,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                             if num_lights > 1:
                                 count_light_select += 1
                             # mutant "light-pdf-ignored": pdf(y|k) alone
-                            pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
-                            if tree is not None and not mutant & M_LIGHT_PDF_IGNORED:
-                                pdf_select = tree_pmf_k
+                            pdf_select = light_pmf[sel] if tree is None else tree_pmf_k
+                            if mutant & M_LIGHT_PDF_IGNORED:
+                                pdf_select = 1.0
                             conn = light_connection(cfg, scene, textures, lights, emitters, sel, piece, pdf_select, u1,
                                                     u2, x0, x1, x2, ns0, ns1, ns2, front_only)
                     elif emitters is not None:
