@@ -445,14 +445,12 @@ class _SceneReader(TypedReader):
         path = self.file_path(name, file_key, "mesh")
         if path not in self.parsed_meshes:
             self.parsed_meshes[path] = self.parse_mesh(path, name, file_key)
-        vertices, triangles, uv, normals, file_type = self.parsed_meshes[path]
+        vertices, triangles, uv, normals, file_type, normals_usable = self.parsed_meshes[path]
         flip = self.boolean(table.get("flip_tex_coords", file_type == "obj"), f"{key}.flip_tex_coords")
         face_normals = self.boolean(table.get("face_normals", False), f"{key}.face_normals")
-        if normals is not None and not face_normals:
-            length = np.linalg.norm(normals, axis=1)
-            if not (np.all(np.isfinite(normals)) and np.all(length > 0)):
-                raise self.error(file_key, f"mesh {name!r} has a vertex normal that is zero or not finite "
-                                           "(or set face_normals = true to shade it flat)")
+        if normals is not None and not face_normals and not normals_usable:
+            raise self.error(file_key, f"mesh {name!r} has a vertex normal that is zero or not finite "
+                                       "(or set face_normals = true to shade it flat)")
         if uv is not None and flip:
             uv = uv.copy()
             uv[:, 1] = 1.0 - uv[:, 1]
@@ -463,7 +461,8 @@ class _SceneReader(TypedReader):
 
     def parse_mesh(self, path: Path, name: str, file_key: str) -> tuple:
         """A mesh file's vertices, triangles, texture coordinates (as in the file, or None), vertex normals (or
-        None) and type (``ply`` or ``obj``), checked; the arrays read-only, since every shape naming the file
+        None), type (``ply`` or ``obj``) and whether its normals are all finite and non-zero (checked once per file,
+        for the shapes that shade with them), checked; the arrays read-only, since every shape naming the file
         shares them."""
         size = path.stat().st_size
         if size > MAX_MESH_BYTES:
@@ -493,7 +492,8 @@ class _SceneReader(TypedReader):
         for array in (vertices, triangles, uv, normals):
             if array is not None:
                 array.setflags(write=False)
-        return vertices, triangles, uv, normals, file_type
+        usable = normals is None or bool(np.all(np.isfinite(normals)) and np.all(np.linalg.norm(normals, axis=1) > 0))
+        return vertices, triangles, uv, normals, file_type, usable
 
     def file_path(self, name: str, key: str, what: str) -> Path:
         """The absolute, symlink-resolved path of a file the scene names (relative to its folder), which must exist,
