@@ -48,7 +48,8 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.materials import PRINCIPLED, ROUGHPLASTIC, Materials, is_glossy
+from reference_impl.materials import NULL, PRINCIPLED, ROUGHPLASTIC, Materials, is_glossy
+from reference_impl.media import Media
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import CAPABILITIES, GLOSSY_DIRECT, Settings
 
@@ -211,11 +212,16 @@ class _Context:
     """Everything shared by all batches of one render (read-only once built)."""
 
     def __init__(self, geometry: Geometry, camera: Camera, film: Film, settings: Settings,
-                 emitters: Emitters | None = None, materials: Materials | None = None):
+                 emitters: Emitters | None = None, materials: Materials | None = None, media: Media | None = None):
         if settings.max_depth is None:
             raise SettingsError("max_depth", "expected the scene's max_depth to be resolved before rendering")
         settings = settings.resolved(is_glossy(materials))  # direct = auto and rr = auto: the one place
         self.engine, self.materials = _engine(geometry, settings, emitters, materials)
+        self.media = media if media is not None and len(media) else None
+        if media is not None:
+            media.check_triangles(len(geometry.triangles))
+        if self.media is not None or np.any(self.materials.kind == NULL):
+            self.engine = _volpath_engine(geometry, settings, emitters, self.materials)
         self.max_depth = settings.resolved_max_depth(settings.max_depth)
         self.geometry = geometry
         self.camera = camera
@@ -321,6 +327,12 @@ _GLOSSY_REFUSALS = {
 }
 
 
+def _volpath_engine(geometry: Geometry, settings: Settings, emitters: Emitters | None, materials: Materials) -> str:
+    """"volpath" (kernels/volpath.py), the engine of a scene with media or a ``null`` material, or SettingsError
+    naming what it does not trace."""
+    raise SettingsError("media", "participating media are not traced yet (issue 38)")
+
+
 def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
             materials: Materials | None) -> tuple[str, Materials]:
     """Which engine traces the render, "path" (kernels/path.py) or "wavefront" (kernels/wavefront.py), by
@@ -366,7 +378,8 @@ def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
 
 
 def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, progress=None,
-           emitters: Emitters | None = None, materials: Materials | None = None) -> RenderOutput:
+           emitters: Emitters | None = None, materials: Materials | None = None,
+           media: Media | None = None) -> RenderOutput:
     """Render an image with the slides' algorithm (Fig. 5.16).
 
     ``settings.max_depth`` must be set (the harness fills in the scene's). ``progress``, if given, is called from
@@ -377,9 +390,11 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     ``geometry.reflectance`` says). None or all diffuse runs ``settings.engine`` (or the other engine where a
     strategy needs it: :func:`_engine`); a material that is not diffuse the path loop (kernels/path.py).
     ``direct = auto`` and ``rr = auto`` are resolved by the render's context (:meth:`Settings.resolved`, for
-    :func:`~reference_impl.materials.is_glossy`); the output's settings hold the resolved ones.
+    :func:`~reference_impl.materials.is_glossy`); the output's settings hold the resolved ones. ``media``: the
+    scene's participating media and its triangles' medium transitions (:class:`~reference_impl.media.Media`), or
+    None; a scene with media or a ``null`` material runs the volumetric path loop (kernels/volpath.py).
     """
-    ctx = _Context(geometry, camera, film, settings, emitters, materials)
+    ctx = _Context(geometry, camera, film, settings, emitters, materials, media)
     settings = ctx.settings
     kernels = _kernels()
     width, height, spp = film.width, film.height, settings.spp

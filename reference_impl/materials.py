@@ -30,11 +30,14 @@ ROUGHPLASTIC, PRINCIPLED = 7, 8
 #: (kernels/material.py) resolves them to one of the kinds above at each hit.
 BLENDBSDF, MASK, TWOSIDED = 9, 10, 11
 COMPOSITES = (BLENDBSDF, MASK, TWOSIDED)
+#: Mitsuba's ``null`` BSDF: an index-matched boundary that light crosses unchanged (a medium's surface); not a
+#: vertex of the path (the volumetric path loop, kernels/volpath.py, passes it; its row reads nothing)
+NULL = 12
 #: Mitsuba's plugin name of each kind.
 KIND_NAMES = {DIFFUSE: "diffuse", CONDUCTOR: "conductor", ROUGHCONDUCTOR: "roughconductor",
               DIELECTRIC: "dielectric", ROUGHDIELECTRIC: "roughdielectric", THINDIELECTRIC: "thindielectric",
               PLASTIC: "plastic", ROUGHPLASTIC: "roughplastic", PRINCIPLED: "principled", BLENDBSDF: "blendbsdf",
-              MASK: "mask", TWOSIDED: "twosided"}
+              MASK: "mask", TWOSIDED: "twosided", NULL: "null"}
 #: The kinds that light crosses (the path loop's ``transmits``; no ``two_sided`` flag: both sides by nature).
 TRANSMITTING = (DIELECTRIC, ROUGHDIELECTRIC, THINDIELECTRIC)
 BECKMANN, GGX = 0, 1
