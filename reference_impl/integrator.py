@@ -48,7 +48,7 @@ from reference_impl.errors import SettingsError
 from reference_impl.geometry import Geometry
 from reference_impl.intersect import Intersector
 from reference_impl.lights import LightSampler, TriangleAreaSampler
-from reference_impl.materials import NULL, PRINCIPLED, ROUGHPLASTIC, Materials, is_glossy
+from reference_impl.materials import NULL, PRINCIPLED, ROUGHPLASTIC, THINDIELECTRIC, Materials, is_glossy
 from reference_impl.media import Media
 from reference_impl.sampling import INV_PI
 from reference_impl.settings import CAPABILITIES, GLOSSY_DIRECT, Settings
@@ -76,7 +76,7 @@ def _kernels():
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
     from reference_impl.kernels import (bsdf, camera, compile_once, config, film, path,  # optional: numba; noqa: F401
-                                        records, wavefront)
+                                        records, volpath, wavefront)
 
     return kernels
 
@@ -290,6 +290,7 @@ class _Context:
         self.nested = True if self.materials is not None and (self.materials.nested or self.masks) else None
         # None where no material is a rough plastic or a principled: the BSDF door's branches for them compiled out
         self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
+        self.medium_tables = records.medium_tables(self.media, len(self.geometry.triangles))
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
@@ -329,8 +330,24 @@ _GLOSSY_REFUSALS = {
 
 def _volpath_engine(geometry: Geometry, settings: Settings, emitters: Emitters | None, materials: Materials) -> str:
     """"volpath" (kernels/volpath.py), the engine of a scene with media or a ``null`` material, or SettingsError
-    naming what it does not trace."""
-    raise SettingsError("media", "participating media are not traced yet (issue 38)")
+    naming what it does not trace: a strategy whose row of CAPABILITIES lacks "volpath", and the scene words it does
+    not carry yet (textured lights, shading normals, composite materials, the thin dielectric, whose Mitsuba volpath
+    lets shadow rays through as a null boundary)."""
+    rows = settings.strategies(emitters is not None and emitters.env >= 0, media=True)
+    for (key, value), engines in ((row, CAPABILITIES.get(row, ())) for row in rows):
+        if "volpath" not in engines:
+            allowed = [v for (k, v), e in CAPABILITIES.items() if k == key and "volpath" in e]
+            raise SettingsError(key, f"scenes with media take {key} = {' or '.join(allowed)}, got "
+                                     f"{getattr(settings, key)!r}")
+    words = (("textured area lights", geometry.textured_lights),
+             ("shading normals (vertex normals, normal or bump maps)",
+              geometry.has_shading_normals or materials.perturbed or materials.anisotropic),
+             ("composite materials (blendbsdf, mask, twosided of two)", materials.nested or materials.masked),
+             ("a thindielectric", bool(np.any(materials.kind == THINDIELECTRIC))))
+    for word, present in words:
+        if present:
+            raise SettingsError("media", f"the volumetric path loop does not trace {word} yet")
+    return "volpath"
 
 
 def _engine(geometry: Geometry, settings: Settings, emitters: Emitters | None,
@@ -523,7 +540,19 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
-    if ctx.engine == "path":
+    if ctx.engine == "volpath":
+        if record is not None:
+            raise SettingsError("media", "the volumetric path loop's rays are not recorded (replay)")
+        timing = np.zeros(2, np.int64)
+        args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
+                radiance, counters, timing, ctx.emitter_tables, ctx.medium_tables,
+                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.later)
+        if not ctx.compiled:
+            kernels.compile_once.compile_once(kernels.volpath.trace_volpaths, args)
+            ctx.compiled = True
+        kernels.volpath.trace_volpaths(*args)
+        clock.seconds += timing[0] * 1e-9
+    elif ctx.engine == "path":
         timing = np.zeros(2, np.int64)
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
                 ctx.material_tables, config, radiance, counters, timing, film_samples, ctx.emitter_tables,

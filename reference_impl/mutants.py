@@ -144,6 +144,23 @@ TREE_MUTANTS: dict[str, str] = {
     ),
 }
 
+# The participating media's (kernels/volpath.py); run by the canonical suite's media scenes.
+MEDIA_MUTANTS: dict[str, str] = {
+    "nee-no-transmittance": (
+        "next-event estimation from a medium or a surface without the shadow ray's transmittance through the media "
+        "it crosses (surfaces still block it)"
+    ),
+    "hg-g-flipped": "Henyey-Greenstein sampled and evaluated with -g: forward scattering taken as backward",
+    "free-flight-pdf-no-sigma-t": (
+        "a free flight's density taken as exp(-sigma_t t) instead of sigma_t exp(-sigma_t t): every scattering "
+        "weighted by sigma_t too much"
+    ),
+    "albedo-applied-twice": "a scattering event weighted by albedo^2 instead of albedo",
+    "null-boundary-as-bounce": (
+        "crossing a null (index-matched) boundary counted as a vertex of the path: max_depth reached too soon"
+    ),
+}
+
 ALL_MUTANTS: dict[str, str] = {**MUTANTS, **EMITTER_MUTANTS, **BSDF_MUTANTS, **GLOSSY_MUTANTS, **TEXTURE_MUTANTS,
                                **NORMAL_MUTANTS, **SPHERE_MUTANTS, **CAMERA_MUTANTS, **MATERIAL_MUTANTS,
-                               **TREE_MUTANTS}
+                               **TREE_MUTANTS, **MEDIA_MUTANTS}

@@ -79,6 +79,11 @@ BSDF_LOBE, BSDF_U1, BSDF_U2 = 13, 14, 15  # the path loop's BSDF sample: which l
 LENS_U1, LENS_U2 = 16, 17  # a thin lens's aperture point (at depth 0, with the film's)
 BLEND = 18  # the material step's choice among a blendbsdf's materials (kernels/material.py)
 MASK_PASS = 19  # whether a ray passes a mask's hole, index: the how-manieth mask the ray meets (kernels/path.py)
+# the volumetric path loop's (kernels/volpath.py); index: the how-manieth null boundary the ray has crossed (free
+# flights), or light sample j's crossing (delta tracking of a shadow ray: (j << 16) | crossing)
+FLIGHT_CHANNEL, FLIGHT = 20, 21  # a free flight's channel, then its distance
+PHASE_U1, PHASE_U2 = 22, 23  # a direction from the phase function
+TRACK_CHANNEL, TRACK = 24, 25  # a shadow ray's free flight with transmittance = "track"
 
 
 def dimension(depth: int, purpose: int, index: int = 0) -> int:

@@ -18,15 +18,18 @@ ROULETTES = ("auto", "albedo", "fixed", "throughput", "pbrt", "off")
 #: the values of ``engine``: how paths are traced (the path loop, or the wavefront, which alone branches, Ni > 1)
 ENGINES = ("path", "wavefront")
 _LAMBERTIAN = ENGINES
-_ALL = ENGINES + ("glossy",)
-_PATH = ("path", "glossy")
+_ALL = ENGINES + ("glossy", "volpath")
+_PATH = ("path", "glossy", "volpath")
+_SURFACES = ("path", "glossy")
+_MEDIA = ("volpath",)
 #: The capability matrix: each strategy (a setting's resolved value; ``indirect_rays`` as 1 or more, ``env_sampling``
-#: on scenes with an environment) and where it runs. "path" (kernels/path.py: each path to its end in one loop) and
-#: "wavefront" (kernels/wavefront.py: every bounce of a batch at once) are ``engine``'s values on scenes whose
-#: materials are all diffuse; "glossy" is a scene with a material that is not diffuse, which the path loop runs
-#: whatever ``engine`` says. The engine selection reads it (``integrator._engine``): a strategy that ``engine`` does
-#: not run takes the render to the other engine; one that a glossy scene does not take is refused there.
-#: docs/reference-renderer.md shows it as a table.
+#: on scenes with an environment, ``medium_direct`` and ``transmittance`` on scenes with media) and where it runs.
+#: "path" (kernels/path.py: each path to its end in one loop) and "wavefront" (kernels/wavefront.py: every bounce of
+#: a batch at once) are ``engine``'s values on scenes whose materials are all diffuse; "glossy" is a scene with a
+#: material that is not diffuse, which the path loop runs whatever ``engine`` says; "volpath" a scene with media or a
+#: ``null`` material, which the volumetric path loop (kernels/volpath.py) runs. The engine selection reads it
+#: (``integrator._engine``): a strategy that ``engine`` does not run takes the render to the other engine; one that a
+#: glossy scene or a scene with media does not take is refused there. docs/reference-renderer.md shows it as a table.
 CAPABILITIES: dict[tuple[str, str], tuple[str, ...]] = {
     ("direct", "area"): _ALL,
     ("direct", "hemisphere-cosine"): _LAMBERTIAN,
@@ -46,11 +49,19 @@ CAPABILITIES: dict[tuple[str, str], tuple[str, ...]] = {
     ("env_sampling", "cosine"): _LAMBERTIAN,
     ("light_selection", "power"): _ALL,
     ("light_selection", "uniform"): _ALL,
-    ("light_selection", "tree"): _PATH,
+    ("light_selection", "tree"): _SURFACES,
+    ("medium_direct", "mis"): _MEDIA,
+    ("medium_direct", "light"): _MEDIA,
+    ("medium_direct", "phase"): _MEDIA,
+    ("transmittance", "ratio"): _MEDIA,
+    ("transmittance", "track"): _MEDIA,
 }
 #: the direct strategies of scenes with a material that is not diffuse
 GLOSSY_DIRECT = tuple(v for (k, v), engines in CAPABILITIES.items() if k == "direct" and "glossy" in engines)
 SAMPLERS = ("sobol", "independent")
+#: the values of ``medium_direct`` and ``transmittance`` (scenes with media: kernels/volpath.py)
+MEDIUM_DIRECT = ("mis", "light", "phase")
+TRANSMITTANCES = ("ratio", "track")
 #: what ``direct = "auto"`` runs on a Lambertian-only scene (False) and on a glossy one (True): Settings.resolved
 AUTO_DIRECT = {False: "area", True: "mis"}
 #: what ``rr = "auto"`` plays on a Lambertian-only scene (False) and on a glossy one (True; pbrt-v4's throughput
@@ -107,6 +118,14 @@ class Settings:
                     -1 = unbounded); None = the scene's.
     batch_size      camera paths traced together (memory / speed only: the image does not depend on it).
     threads         worker threads (speed only: the image does not depend on it); 0 = all cores.
+    medium_direct   direct light at a scattering point in a medium (scenes with media): "mis" (light samples and
+                    phase-sampled rays combined by the power heuristic), "light" (light samples only: emission a
+                    phase-sampled ray finds is not counted) or "phase" (no light samples but those of delta lights:
+                    the emission the phase-sampled rays find).
+    transmittance   a shadow ray's transmittance through media: "ratio" (ratio tracking, whose control extinction
+                    is the homogeneous medium's own sigma_t: exp(-sigma_t s) exactly, Novak et al. 2014's residual
+                    ratio tracking with a zero residual) or "track" (delta tracking: 0 or 1 by a free flight over
+                    the segment, weighted per channel; Woodcock et al. 1965).
     engine          how paths are traced on scenes whose materials are all Lambertian (the same estimator either way,
                     not the same bits): "path", each path from its camera ray to its end in one compiled loop that
                     queries Embree itself (Ni = 1 only; with Ni > 1 the wavefront is used); or "wavefront", every
@@ -131,6 +150,8 @@ class Settings:
     max_depth: int | None = None
     batch_size: int = 1 << 15
     threads: int = 0
+    medium_direct: str = "mis"
+    transmittance: str = "ratio"
     engine: str = "path"
     mutant: str = ""
 
@@ -152,6 +173,8 @@ class Settings:
         _choice(self, "rr", ROULETTES)
         _choice(self, "engine", ENGINES)
         _choice(self, "sampler", SAMPLERS)
+        _choice(self, "medium_direct", MEDIUM_DIRECT)
+        _choice(self, "transmittance", TRANSMITTANCES)
         if self.sampler == "sobol" and self.spp * max(self.shadow_rays, self.indirect_rays) >= 1 << 32:
             raise SettingsError("spp", "sampler = sobol takes spp x max(shadow_rays, indirect_rays) < 2^32 points per pixel")
         if not isinstance(self.absorption, (int, float)) or not (0.0 <= self.absorption < 1.0):
@@ -208,12 +231,16 @@ class Settings:
             return self
         return replace(self, direct=direct, rr=rr)
 
-    def strategies(self, environment: bool) -> list[tuple[str, str]]:
+    def strategies(self, environment: bool, media: bool = False) -> list[tuple[str, str]]:
         """The rows of :data:`CAPABILITIES` these resolved settings choose, ``env_sampling``'s only on a scene with
-        an ``environment``."""
+        an ``environment``, ``medium_direct``'s and ``transmittance``'s only on a scene with ``media``."""
         rows = [("direct", self.direct), ("rr", self.rr), ("indirect_rays", "1" if self.indirect_rays == 1 else "> 1"),
                 ("light_selection", self.light_selection)]
-        return rows + [("env_sampling", self.env_sampling)] if environment else rows
+        if environment:
+            rows.append(("env_sampling", self.env_sampling))
+        if media:
+            rows += [("medium_direct", self.medium_direct), ("transmittance", self.transmittance)]
+        return rows
 
     def replicate_sizes(self) -> tuple[int, ...]:
         """The samples per pixel of each of the ``min(replicates, spp)`` replicates: ``spp`` split as evenly as

@@ -109,6 +109,16 @@ MUTANT_BITS.update({"principled-clearcoat-pdf-jacobian": M_CLEARCOAT_PDF_NO_JACO
 # reference_impl.mutants.TREE_MUTANTS).
 M_TREE_NO_BOUND_ANGLE, M_TREE_PMF_AT_HIT = (1 << b for b in range(33, 35))
 MUTANT_BITS.update({"light-tree-no-bound-angle": M_TREE_NO_BOUND_ANGLE, "light-tree-pmf-at-hit": M_TREE_PMF_AT_HIT})
+# The participating media's planted faults (reference_impl/kernels/volpath.py; reference_impl.mutants.MEDIA_MUTANTS).
+M_NEE_NO_TRANSMITTANCE, M_HG_G_FLIPPED, M_FLIGHT_PDF_NO_SIGMA_T, M_ALBEDO_TWICE, M_NULL_AS_BOUNCE = (
+    1 << b for b in range(35, 40))
+MUTANT_BITS.update({"nee-no-transmittance": M_NEE_NO_TRANSMITTANCE, "hg-g-flipped": M_HG_G_FLIPPED,
+                    "free-flight-pdf-no-sigma-t": M_FLIGHT_PDF_NO_SIGMA_T, "albedo-applied-twice": M_ALBEDO_TWICE,
+                    "null-boundary-as-bounce": M_NULL_AS_BOUNCE})
+MEDIUM_LIGHT, MEDIUM_PHASE, MEDIUM_MIS = range(3)
+MEDIUM_DIRECT_MODES = {"light": MEDIUM_LIGHT, "phase": MEDIUM_PHASE, "mis": MEDIUM_MIS}
+TR_RATIO, TR_TRACK = range(2)
+TRANSMITTANCE_MODES = {"ratio": TR_RATIO, "track": TR_TRACK}
 
 
 class KernelConfig(NamedTuple):
@@ -135,6 +145,8 @@ class KernelConfig(NamedTuple):
     num_area_lights: int  # N_A: lights 0 .. N_A - 1 are area lights, N_A .. N_L - 1 the emitters that are not
     env_light: int  # the light index k of the environment, -1 without one
     packet_width: int  # rays per packet query: the widest Embree traces natively here (16, 8 or 4; 1: no packets)
+    medium_direct: int  # MEDIUM_*: direct light at a medium's scattering points (kernels/volpath.py)
+    transmittance: int  # TR_*: a shadow ray's transmittance through media (kernels/volpath.py)
 
 
 # The scene as the kernels take it: the records of reference_impl.kernels.records (SceneTables, LightTables,
@@ -157,6 +169,8 @@ FROM_SETTINGS = {
     "sampler": ("sampler", SAMPLER_MODES.__getitem__),
     "spp": ("spp", int),
     "env_sampling": ("env_sampling", ENV_SAMPLING_MODES.__getitem__),
+    "medium_direct": ("medium_direct", MEDIUM_DIRECT_MODES.__getitem__),
+    "transmittance": ("transmittance", TRANSMITTANCE_MODES.__getitem__),
 }
 # The slots the render fills from the scene (integrator._Context), and depth per wavefront bounce.
 FROM_SCENE = ("depth", "num_lights", "offset_scene", "surface_pdf", "num_area_lights", "env_light", "packet_width")

@@ -544,3 +544,45 @@ def ray_record(cameras: int, closest: int, occlusion: int) -> RayRecord:
                      np.empty((closest, 3), f32), np.empty((closest, 3), f32), np.empty(closest, np.int32),
                      np.empty((occlusion, 3), f32), np.empty((occlusion, 3), f32), np.empty(occlusion, f32),
                      np.empty(occlusion, np.int8), np.zeros(2, np.int64))
+
+
+class MediumTables(NamedTuple):
+    """The participating media and the triangles' medium transitions (:class:`reference_impl.media.Media`, whose
+    attributes these are), as the volumetric path loop reads them (:mod:`.volpath`).
+
+    Attributes
+    ----------
+    sigma_t, albedo : (M, 3) float64
+        Extinction per unit length (scale applied) and single-scattering albedo, per channel.
+    phase : (M,) int64
+        ``reference_impl.media.ISOTROPIC`` or ``HG``.
+    g : (M,) float64
+        HG's asymmetry.
+    interior, exterior : (T,) int64
+        Per triangle: the medium behind / in front of its front normal, -1 for none.
+    transition : (T,) bool
+        Per triangle: whether leaving it sets the ray's medium by side.
+    camera : int
+        The medium the camera's rays start in, -1 for none.
+    """
+
+    sigma_t: np.ndarray
+    albedo: np.ndarray
+    phase: np.ndarray
+    g: np.ndarray
+    interior: np.ndarray
+    exterior: np.ndarray
+    transition: np.ndarray
+    camera: int
+
+
+def medium_tables(media, num_triangles: int) -> MediumTables:
+    """The :class:`MediumTables` of a :class:`reference_impl.media.Media`, or of none (``media`` None: a scene whose
+    only medium word is a ``null`` material) over ``num_triangles`` triangles."""
+    if media is None:
+        none = np.full(num_triangles, -1, np.int64)
+        return MediumTables(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0), none, none.copy(),
+                            np.zeros(num_triangles, np.bool_), -1)
+    return MediumTables(_c(media.sigma_t), _c(media.albedo), _c(media.phase, dtype=np.int64), _c(media.g),
+                        _c(media.interior, dtype=np.int64), _c(media.exterior, dtype=np.int64),
+                        _c(media.transition, dtype=np.bool_), int(media.camera))
