@@ -494,5 +494,17 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
     timing[1] += queries
 
 
-__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_rgb", "phase_eval", "phase_sample",
+__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_rgb", "free_flight_rgb_many", "phase_eval", "phase_sample",
            "shadow_transmittance", "target_medium", "trace_volpaths"]
+
+
+@njit(**JIT)
+def free_flight_rgb_many(media, m, s, u_c, u_t, mutant):
+    """:func:`free_flight_rgb` for each (u_c[i], u_t[i]) (tests): (scatters (n,), t (n,), weights (n, 3))."""
+    n = len(u_c)
+    scatters = np.empty(n, np.bool_)
+    t = np.empty(n)
+    w = np.empty((n, 3))
+    for i in range(n):
+        scatters[i], t[i], w[i, 0], w[i, 1], w[i, 2] = free_flight_rgb(media, m, s, u_c[i], u_t[i], mutant)
+    return scatters, t, w

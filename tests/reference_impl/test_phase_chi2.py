@@ -5,7 +5,9 @@ homogeneous medium, with the weight test (sample weight = eval / pdf) of each.
 Chi-square (:mod:`harness.judges.chi2`), 10^6 samples each from a fixed seed: HG's mu = d . w in 200 bins of
 [-1, 1] against 2 pi p(mu) (Gauss-Legendre, 16 nodes a bin: the peak at |g| = 0.9 is 1000 x the floor), and
 (mu, phi) about a tilted d in 40 x 20 bins against p (g = 0.3 and isotropic: the azimuth and the frame); free flights
-over a segment of length s as 40 bins of [0, s) plus "passed" against p(t) and T(s). m = 10 tests at Sidak's alpha
+over a segment of length s as 40 bins of [0, s) plus "passed" against p(t) and T(s), and the volumetric loop's
+free flights with a per-channel sigma_t (one channel drawn, the density the channels' mean: spectral MIS) against
+that mixture, each with its weights' expectations. m = 13 tests at Sidak's alpha
 for a 1 % family false alarm; the seeds are fixed, so a tree passes or fails reproducibly. The planted fault of
 issue 38, HG with g's sign flipped, and a free-flight pdf without its sigma_t factor are rejected (p < 1e-9): the
 tests can fail.
@@ -23,7 +25,7 @@ from reference_impl.kernels.phase import (INV_FOUR_PI, free_flight_many, free_fl
                                           sample_isotropic, transmittance)
 
 N = 1_000_000
-M_TESTS = 10
+M_TESTS = 13
 ALPHA = 1 - 0.99 ** (1 / M_TESTS)
 GS = (-0.9, -0.3, 0.0, 0.3, 0.9)
 D = np.array([0.3, -0.5, 0.8124038404635961])  # a unit travel direction off every axis
@@ -117,3 +119,56 @@ def test_the_tests_reject_a_flipped_g_and_a_pdf_without_sigma_t():
     wrong = _flight_probabilities(lambda st, x: math.exp(-st * x), 4.0, 1.0)  # p(t) without the sigma_t factor
     result = chi2.chi2_test_discrete(_flight_outcomes(4.0, 1.0, t), wrong / wrong.sum())
     assert result.p_value < 1e-9
+
+
+RGB_SIGMA = (0.5, 2.0, 6.0)
+RGB_ALBEDO = (0.9, 0.5, 0.2)
+
+
+def _rgb_tables():
+    from reference_impl.kernels.records import medium_tables
+    from reference_impl.media import ISOTROPIC, Media
+    media = Media(sigma_t=[RGB_SIGMA], albedo=[RGB_ALBEDO], phase=[ISOTROPIC], g=[0.0], interior=[], exterior=[],
+                  transition=[])
+    return medium_tables(media, 0)
+
+
+def _rgb_flights(s: float, seed: int, n: int = N, mutant: int = 0):
+    from reference_impl.kernels.volpath import free_flight_rgb_many
+    u_c, u_t = _uniforms(seed, n)
+    return free_flight_rgb_many(_rgb_tables(), 0, s, u_c, u_t, mutant)
+
+
+@pytest.mark.parametrize("s", [0.3, 1.0, 4.0])
+def test_rgb_free_flights_follow_the_channel_mixture(s):
+    """kernels/volpath.free_flight_rgb: p(t) = 1/3 sum_c sigma_c exp(-sigma_c t), P(pass) = 1/3 sum_c T_c(s); the
+    weights: a scattering's a_c sigma_c T_c(t) / p(t), a pass's T_c(s) / P(pass), whose expectations are
+    a_c (1 - T_c(s)) and T_c(s) (each channel's own medium: the estimator is unbiased per channel)."""
+    scatters, t, w = _rgb_flights(s, seed=int(20 + 10 * s))
+    mixture = lambda _st, x: sum(sc * math.exp(-sc * x) for sc in RGB_SIGMA) / 3.0  # noqa: E731
+    p = _flight_probabilities(mixture, 0.0, s)
+    p[-1] = sum(math.exp(-sc * s) for sc in RGB_SIGMA) / 3.0
+    assert p.sum() == pytest.approx(1.0, abs=1e-9)
+    result = chi2.chi2_test_discrete(_flight_outcomes(0.0, s, np.where(scatters, t, 2 * s)), p,
+                                     name=f"rgb free flight s = {s}")
+    print(result.line())
+    assert not result.failures(ALPHA), result.failures(ALPHA)
+    inside = np.flatnonzero(scatters)[:1000]
+    for c in range(3):
+        expected = [RGB_ALBEDO[c] * RGB_SIGMA[c] * math.exp(-RGB_SIGMA[c] * x) / mixture(0, x) for x in t[inside]]
+        np.testing.assert_allclose(w[inside, c], expected, rtol=1e-12)
+        tc = math.exp(-RGB_SIGMA[c] * s)
+        for mask, mean in ((scatters, RGB_ALBEDO[c] * (1 - tc)), (~scatters, tc)):
+            values = np.where(mask, w[:, c], 0.0)
+            assert abs(values.mean() - mean) < 5 * values.std() / math.sqrt(len(values)) + 1e-12
+
+
+def test_rgb_free_flight_faults_move_the_expectation():
+    """The planted faults "free-flight-pdf-no-sigma-t" and "albedo-applied-twice" change the scattering weights'
+    expectation far beyond its noise (10^6 flights)."""
+    from reference_impl.kernels.config import M_ALBEDO_TWICE, M_FLIGHT_PDF_NO_SIGMA_T
+    for bit in (M_FLIGHT_PDF_NO_SIGMA_T, M_ALBEDO_TWICE):
+        scatters, _t, w = _rgb_flights(1.0, seed=31, mutant=bit)
+        values = np.where(scatters, w[:, 2], 0.0)
+        truth = RGB_ALBEDO[2] * (1 - math.exp(-RGB_SIGMA[2]))
+        assert abs(values.mean() - truth) > 20 * values.std() / math.sqrt(len(values))
