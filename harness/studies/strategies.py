@@ -48,13 +48,17 @@ GLOSSY_STRATEGIES: dict[str, tuple[str, ...]] = {
     "rr": ("pbrt", "albedo", "fixed", "throughput", "off"),
     "env_sampling": ("importance", "uniform"),
 }
+#: the same on scenes with participating media or a null material (the volumetric path loop: the glossy scenes' rows and
+#: the media's own, ``medium_direct`` and ``transmittance``)
+MEDIA_STRATEGIES: dict[str, tuple[str, ...]] = dict(GLOSSY_STRATEGIES, medium_direct=("mis", "light", "phase"),
+                                                   transmittance=("ratio", "track"))
 #: light_selection = "tree" is a row on scenes with at least this many emissive shapes (on fewer, a tree's choice
 #: differs little from power's and its table row would cost the canonical run a compilation for nothing)
 MANY_LIGHTS = 8
 #: the rows a scene with MANY_LIGHTS area lights adds
 MANY_LIGHT_STRATEGIES: dict[str, tuple[str, ...]] = {"light_selection": ("tree",)}
 FALLBACK_DEFAULTS = {"direct": "area", "light_selection": "power", "hemisphere": "cosine", "rr": "albedo",
-                     "env_sampling": "importance"}
+                     "env_sampling": "importance", "medium_direct": "mis", "transmittance": "ratio"}
 #: strategy keys that change nothing on a scene without an environment (constant or envmap emitter)
 ENVIRONMENT_KEYS = ("env_sampling",)
 #: settings that only parameterise a strategy (they may accompany it in a case)
@@ -210,12 +214,12 @@ def image_level(image: np.ndarray | None) -> float | None:
 
 
 def strategy_choices(defaults: dict[str, str], environment: bool, glossy: bool = False,
-                     many_lights: bool = False) -> list[tuple[str, str]]:
+                     many_lights: bool = False, media: bool = False) -> list[tuple[str, str]]:
     """Every (key, value) of :data:`STRATEGIES` (:data:`GLOSSY_STRATEGIES` on a scene with a material that is not
-    diffuse) but the defaults: the rows of a strategy table besides "default" (the environment's keys only where
-    the scene has an environment; :data:`MANY_LIGHT_STRATEGIES` where it has :data:`MANY_LIGHTS` area lights or
-    more, ``many_lights``)."""
-    table = GLOSSY_STRATEGIES if glossy else STRATEGIES
+    diffuse, :data:`MEDIA_STRATEGIES` on one with ``media``) but the defaults: the rows of a strategy table besides
+    "default" (the environment's keys only where the scene has an environment; :data:`MANY_LIGHT_STRATEGIES` where it
+    has :data:`MANY_LIGHTS` area lights or more, ``many_lights``)."""
+    table = MEDIA_STRATEGIES if media else (GLOSSY_STRATEGIES if glossy else STRATEGIES)
     if many_lights:
         table = {k: v + MANY_LIGHT_STRATEGIES.get(k, ()) for k, v in table.items()}
     return [(k, v) for k, values in table.items() for v in values
@@ -228,7 +232,7 @@ def strategy_label(key: str, value: str) -> str:
 
 def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict[str, str], int, int], dict] | None,
                   bounded: bool, defaults: dict[str, str], environment: bool = False, glossy: bool = False,
-                  many_lights: bool = False, *,
+                  many_lights: bool = False, media: bool = False, *,
                   spp: int = DEFAULT_STRATEGY_SPP, repeats: int = STRATEGY_REPEATS,
                   min_seconds: float = MIN_STRATEGY_SECONDS, spp_step: int = 1, level: float = LEVEL) -> dict:
     """Assemble a scene's strategy table: every strategy at equal spp and at equal time, ``repeats`` seeds each.
@@ -247,8 +251,10 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     ``bounded``: the scene's max_depth is finite (rr=off allowed). ``environment``: the scene has a constant or
     envmap emitter (the :data:`ENVIRONMENT_KEYS` rows apply). ``glossy``: a material of the scene is not diffuse
     (the rows of :data:`GLOSSY_STRATEGIES`). ``many_lights``: it has :data:`MANY_LIGHTS` area lights or more.
+    ``media``: it has participating media or a null material (the rows of :data:`MEDIA_STRATEGIES`).
     """
-    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment, glossy, many_lights)]
+    wanted: list[Any] = ["default"] + [(k, v) for k, v in strategy_choices(defaults, environment, glossy, many_lights,
+                                                                            media)]
     if render is None:
         return _case_table(scene_name, case_rows, wanted, bounded, defaults)
     rows: list[dict] = []

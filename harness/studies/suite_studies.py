@@ -443,12 +443,13 @@ def _strategies_section(items: list[StudyCase], bases: dict[str, StudyCase], out
 
         environment = any(e.type in ("constant", "envmap") for e in base.scene.emitters)
         many_lights = sum(1 for shape in base.scene.shapes if shape.is_emitter) >= studies.MANY_LIGHTS
-        wanted = 1 + len(studies.strategy_choices(defaults, environment, glossy, many_lights))
+        media = base.scene.has_media
+        wanted = 1 + len(studies.strategy_choices(defaults, environment, glossy, many_lights, media))
         progress.add(2 * wanted if options.render_strategies else 0)
         try:
             table = studies.strategy_rows(Path(key).stem, case_rows, render if options.render_strategies else None,
                                           bounded, defaults, environment=environment, glossy=glossy,
-                                          many_lights=many_lights, spp=options.strategy_spp, repeats=options.strategy_repeats,
+                                          many_lights=many_lights, media=media, spp=options.strategy_spp, repeats=options.strategy_repeats,
                                           min_seconds=options.strategy_min_seconds,
                                           spp_step=int(judged_settings("reference", {}).get("replicates", 1)))
             plot = f"strategies/{slug(Path(key).stem)}.png"

@@ -154,8 +154,8 @@ def test_the_capability_table_of_the_docs_is_the_core_s():
     from reference_impl.emitters import ENV_SAMPLINGS
     from reference_impl.settings import CAPABILITIES, DIRECT_STRATEGIES, ROULETTES
 
-    columns = ("path", "wavefront", "glossy")
-    lines = ["| strategy | `path` | `wavefront` | glossy |", "|---|---|---|---|"]
+    columns = ("path", "wavefront", "glossy", "volpath")
+    lines = ["| strategy | `path` | `wavefront` | glossy | media |", "|---|---|---|---|---|"]
     for (key, value), engines in CAPABILITIES.items():
         label = f"`{key} {value}`" if value.startswith(">") else f"`{key} = {value}`"
         lines.append(f"| {label} | " + " | ".join("yes" if c in engines else "no" for c in columns) + " |")
