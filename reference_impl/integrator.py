@@ -291,6 +291,7 @@ class _Context:
         # None where no material is a rough plastic or a principled: the BSDF door's branches for them compiled out
         self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
         self.medium_tables = records.medium_tables(self.media, len(self.geometry.triangles))
+        self.volpath_emitters = records.emitter_tables(self.emitters if self.emitters is not None else Emitters([]))
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
@@ -544,9 +545,10 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         if record is not None:
             raise SettingsError("media", "the volumetric path loop's rays are not recorded (replay)")
         timing = np.zeros(2, np.int64)
+        # one specialization for every scene with media (emitters and spheres always given, possibly empty; every
+        # BSDF kind compiled in): one compilation, whatever the scene
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
-                radiance, counters, timing, ctx.emitter_tables, ctx.medium_tables,
-                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.later)
+                radiance, counters, timing, ctx.volpath_emitters, ctx.medium_tables, ctx.scene_tables.sphere, True)
         if not ctx.compiled:
             kernels.compile_once.compile_once(kernels.volpath.trace_volpaths, args)
             ctx.compiled = True

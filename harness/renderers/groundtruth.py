@@ -436,10 +436,83 @@ def focused_plane_means(scene: Scene, side: int = FOCUS_QUADRATURE_SIDE) -> np.n
     return out
 
 
+#: Points per pixel side of :func:`absorbing_cube_means`' quadrature.
+CHORD_QUADRATURE_SIDE = 8
+
+
+def _one_constant_environment(scene: Scene, name: str) -> np.ndarray:
+    """The radiance L of the scene's one emitter, a constant environment, and no emitting shape; else HarnessError."""
+    where = f"{scene.path}: closed_form"
+    kinds = [e.type for e in scene.emitters]
+    if kinds != ["constant"] or any(s.emission is not None for s in scene.shapes):
+        raise HarnessError(where, f"the {name} closed form needs exactly one [[emitters]] entry, a constant "
+                                  f"environment, and no emitting shape; this scene has {', '.join(kinds) or 'none'}")
+    return np.array(scene.emitters[0].radiance, dtype=np.float64)
+
+
+def _beer_lambert(scene: Scene) -> np.ndarray:
+    """(H, W, 3): null-bounded cubes of absorbing media (albedo 0) before a constant environment L, seen from
+    vacuum: each ray through them carries L exp(-sum_k sigma_t,k s_k), s_k its chord through cube k (Beer-Lambert;
+    nothing scatters light into it), each pixel the mean over its box footprint (:func:`absorbing_cube_means`)."""
+    where = f"{scene.path}: closed_form"
+    radiance = _one_constant_environment(scene, "beer-lambert")
+    if scene.camera_medium is not None or scene.film.filter != "box":
+        raise HarnessError(where, "the beer-lambert closed form needs the camera in vacuum and the box filter")
+    for shape in scene.shapes:
+        medium = scene.media.get(shape.interior) if shape.interior else None
+        if (shape.type != "cube" or scene.materials[shape.material].type != "null" or shape.exterior is not None
+                or medium is None or any(a != 0 for a in medium.albedo)):
+            raise HarnessError(where, "the beer-lambert closed form needs every shape a cube of the null material "
+                                      "around an absorbing medium (albedo 0) in vacuum; shape "
+                                      f"{shape.name!r} is not")
+    return absorbing_cube_means(scene, radiance)
+
+
+def absorbing_cube_means(scene: Scene, radiance: np.ndarray, side: int = CHORD_QUADRATURE_SIDE) -> np.ndarray:
+    """(H, W, 3): each pixel's mean, by the midpoint rule on ``side`` x ``side`` points, of L exp(-sum_k sigma_k s_k)
+    with s_k the chord of the point's camera ray through cube k (Mitsuba's [-1, 1]^3 under ``to_world``: the slab
+    method in the cube's own space, where the ray's parameter t is the world one's). The scene's checks are the
+    caller's."""
+    width, height = scene.film.width, scene.film.height
+    out = np.empty((height, width, 3))
+    cubes = [(np.linalg.inv(object_to_world(s)), np.array(scene.media[s.interior].extinction)) for s in scene.shapes]
+    for y, origins, directions in footprint_rays(scene, side):
+        depth = np.zeros((len(origins), 3))
+        for to_object, sigma in cubes:
+            o = origins @ to_object[:3, :3].T + to_object[:3, 3]
+            d = directions @ to_object[:3, :3].T
+            with np.errstate(divide="ignore", invalid="ignore"):
+                t1, t2 = (-1.0 - o) / d, (1.0 - o) / d
+            near = np.nanmax(np.where(np.isnan(t1), -np.inf, np.minimum(t1, t2)), axis=1)
+            far = np.nanmin(np.where(np.isnan(t2), np.inf, np.maximum(t1, t2)), axis=1)
+            inside_slabs = np.all((d != 0) | (np.abs(o) <= 1), axis=1)
+            chord = np.where(inside_slabs, np.clip(far - np.maximum(near, 0.0), 0.0, None), 0.0)
+            depth += chord[:, None] * sigma[None, :]
+        out[y] = (radiance[None, :] * np.exp(-depth)).reshape(width, side * side, 3).mean(axis=1)
+    return out
+
+
+def _medium_furnace(scene: Scene) -> np.ndarray:
+    """Every pixel's radiance in a medium furnace: media of albedo 1 behind null boundaries (or around the camera)
+    under a constant environment L and nothing else: radiance is conserved along and between scatterings, so the
+    uniform field L solves the volume rendering equation: every pixel is L (max_depth = -1)."""
+    where = f"{scene.path}: closed_form"
+    radiance = _one_constant_environment(scene, "medium-furnace")
+    if scene.max_depth != -1:
+        raise HarnessError(where, "the medium-furnace closed form needs max_depth = -1 (unbounded)")
+    if any(scene.materials[s.material].type != "null" for s in scene.shapes):
+        raise HarnessError(where, "the medium-furnace closed form needs every shape of the null material")
+    if not scene.media or any(any(a != 1 for a in m.albedo) for m in scene.media.values()):
+        raise HarnessError(where, "the medium-furnace closed form needs media, every one of albedo 1")
+    return radiance
+
+
 CLOSED_FORMS: dict[str, Callable[[Scene], np.ndarray]] = {"furnace": _furnace, "white-furnace": _white_furnace,
                                                           "leaning-plate": _leaning_plate,
                                                           "sunlit-floor": _sunlit_floor,
-                                                          "focused-plane": _focused_plane}
+                                                          "focused-plane": _focused_plane,
+                                                          "beer-lambert": _beer_lambert,
+                                                          "medium-furnace": _medium_furnace}
 
 
 # ---- the cache -------------------------------------------------------------------------------------------------

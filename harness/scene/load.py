@@ -55,7 +55,8 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "textures", "materials",
                   "media", "shapes", "emitters", "regions")
 # harness.renderers.groundtruth.CLOSED_FORMS
-CLOSED_FORMS = ("furnace", "white-furnace", "leaning-plate", "sunlit-floor", "focused-plane")
+CLOSED_FORMS = ("furnace", "white-furnace", "leaning-plate", "sunlit-floor", "focused-plane", "beer-lambert",
+                "medium-furnace")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (

@@ -4,12 +4,16 @@ media (:mod:`reference_impl.media`) or ``null`` boundaries.
 
 Along a ray in medium m (extinction sigma_t per channel c, albedo a) toward the closest surface at distance s:
 
-* a free flight (:func:`.phase.free_flight`) with one channel's extinction, the channel c' drawn uniformly; its
-  density is the mean over the channels (one-sample MIS over the channels with the balance heuristic, pbrt-v4's
-  spectral MIS): p(t) = 1/3 sum_c sigma_c exp(-sigma_c t) for t < s, P(pass) = 1/3 sum_c exp(-sigma_c s). A
-  scattering at t < s weights the path by a_c sigma_c exp(-sigma_c t) / p(t) (with one sigma_t for all channels,
-  the albedo), a pass by exp(-sigma_c s) / P(pass) (1). With the planted fault "free-flight-pdf-no-sigma-t"
-  p(t) = 1/3 sum_c exp(-sigma_c t); with "albedo-applied-twice" the scattering weight has a_c^2.
+* a free flight (:func:`.phase.free_flight`) with the extinction of the path's hero channel c, drawn uniformly once
+  per path: p_c(t) = sigma_c exp(-sigma_c t) for t < s, P_c(pass) = exp(-sigma_c s). The path's estimate is
+  one-sample MIS over the three channels' sampling of its free flights with the balance heuristic (Mitsuba's volpath
+  draws its channel so, and weights by the hero's density alone; pbrt-v4's spectral MIS divides by the mean, as here):
+  f / mean_k p_k(path) = beta / mean_k r_k, beta = f / p_c(path) and r_k = p_k(path) / p_c(path) (every other
+  decision's density is the same for every channel), so a channel of small extinction carries no weight larger than
+  3 x its own. A scattering at t < s multiplies beta_k by a_k sigma_k exp(-sigma_k t) / p_c(t) and r_k by
+  sigma_k exp(-sigma_k t) / p_c(t); a pass both by exp(-sigma_k s) / P_c(pass); with one sigma_t for all channels
+  the weights are the albedo and 1. With the planted fault "free-flight-pdf-no-sigma-t" p_k(t) = exp(-sigma_k t);
+  with "albedo-applied-twice" the scattering weight has a_k^2.
 * at a scattering point x: direct light by ``medium_direct``: "light" and "mis", Nd light samples (light k with
   pdf(k), a point or an emitter's own sample: :func:`.direct.light_connection`), each times the phase function
   p(d, wi) and the shadow ray's transmittance (below), weighted with "mis" by the power heuristic against the phase
@@ -26,8 +30,9 @@ Along a ray in medium m (extinction sigma_t per channel c, albedo a) toward the 
 
 A shadow ray's transmittance (``transmittance``): it crosses null surfaces (any other surface blocks it), through
 each medium a segment of length s at a time: "ratio", exp(-sigma_c s) per channel (ratio tracking whose control
-extinction is the medium's own, exact for a homogeneous medium); "track", a free flight over the segment drawn as
-above: 0 where it stops inside, else exp(-sigma_c s) / P(pass). With "nee-no-transmittance" every segment passes
+extinction is the medium's own, exact for a homogeneous medium); "track", a free flight over the segment, its channel drawn
+uniformly and its density the channels' mean (one-sample MIS over the channels within the shadow ray): 0 where it
+stops inside, else exp(-sigma_c s) / (1/3 sum_k exp(-sigma_k s)). With "nee-no-transmittance" every segment passes
 with 1.
 
 Path lengths follow Mitsuba's volpath: a vertex (a surface that is not null, or a scattering point) i draws light
@@ -110,6 +115,35 @@ def free_flight_rgb(media, m, s, u_c, u_t, mutant):
         return False, s, 0.0, 0.0, 0.0
     inv = 1.0 / passes
     return False, s, tr0 * inv, tr1 * inv, tr2 * inv
+
+
+@njit(**JIT_BORROW)
+def free_flight_hero(media, m, s, c, u_t, mutant):
+    """A free flight of a path whose hero channel is c (module docstring): t drawn with sigma_c over a segment of
+    length s (inf: unbounded): (whether it scatters before s, t, the throughput's factors per channel k, a scattering's
+    a_k sigma_k T_k(t) / p_c(t) or a pass's T_k(s) / P_c(pass), and the factors of the ratios r_k = p_k / p_c of the
+    path's densities, sigma_k T_k(t) / (sigma_c T_c(t)) or T_k(s) / T_c(s))."""
+    s0, s1, s2 = media.sigma_t[m, 0], media.sigma_t[m, 1], media.sigma_t[m, 2]
+    sc = s0 if c == 0 else (s1 if c == 1 else s2)
+    t = np.inf
+    if sc > 0.0:
+        t = -math.log1p(-u_t) / sc
+    if t < s:
+        tr0, tr1, tr2 = channel_transmittance(s0, t), channel_transmittance(s1, t), channel_transmittance(s2, t)
+        p0, p1, p2 = s0 * tr0, s1 * tr1, s2 * tr2
+        if mutant & M_FLIGHT_PDF_NO_SIGMA_T:  # planted fault "free-flight-pdf-no-sigma-t"
+            p0, p1, p2 = tr0, tr1, tr2
+        pc = p0 if c == 0 else (p1 if c == 1 else p2)
+        a0, a1, a2 = media.albedo[m, 0], media.albedo[m, 1], media.albedo[m, 2]
+        if mutant & M_ALBEDO_TWICE:  # planted fault "albedo-applied-twice"
+            a0, a1, a2 = a0 * a0, a1 * a1, a2 * a2
+        inv = 1.0 / pc
+        return (True, t, a0 * s0 * tr0 * inv, a1 * s1 * tr1 * inv, a2 * s2 * tr2 * inv, p0 * inv, p1 * inv,
+                p2 * inv)
+    tr0, tr1, tr2 = channel_transmittance(s0, s), channel_transmittance(s1, s), channel_transmittance(s2, s)
+    pc = tr0 if c == 0 else (tr1 if c == 1 else tr2)
+    inv = 1.0 / pc
+    return False, s, tr0 * inv, tr1 * inv, tr2 * inv, tr0 * inv, tr1 * inv, tr2 * inv
 
 
 @njit(**JIT_BORROW)
@@ -277,6 +311,8 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]
         medium = media.camera
+        hero = min(int(uniform(k, dim_salt(0, FLIGHT_CHANNEL, 0)) * 3.0), 2)  # the channel free flights follow
+        r0, r1, r2 = 1.0, 1.0, 1.0  # the path's densities per channel over the hero's: p_k / p_hero
         depth = 1  # the vertex the current ray will find (the camera is 0)
         emit = EMIT_FULL  # how emission this ray finds counts
         prev_pdf = 0.0  # the density of the current ray's direction at the vertex it left (MIS)
@@ -294,10 +330,14 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
                 t_hit = hit.t
             if medium >= 0:
-                scatters, t, w0, w1, w2 = free_flight_rgb(media, medium, t_hit,
-                                                          uniform(k, dim_salt(depth, FLIGHT_CHANNEL, crossings)),
-                                                          uniform(k, dim_salt(depth, FLIGHT, crossings)), mutant)
-                b0, b1, b2 = b0 * w0, b1 * w1, b2 * w2
+                scatters, t, w0, w1, w2, q0, q1, q2 = free_flight_hero(media, medium, t_hit, hero,
+                                                                       uniform(k, dim_salt(depth, FLIGHT, crossings)),
+                                                                       mutant)
+                # b is the throughput over the mean of the channels' densities (one-sample MIS over the hero)
+                rm = (r0 + r1 + r2) / 3.0
+                r0, r1, r2 = r0 * q0, r1 * q1, r2 * q2
+                ratio = 3.0 * rm / (r0 + r1 + r2)
+                b0, b1, b2 = b0 * w0 * ratio, b1 * w1 * ratio, b2 * w2 * ratio
                 if not (b0 > 0 or b1 > 0 or b2 > 0):
                     count_roulette += 1
                     break
@@ -424,7 +464,10 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
             delta_bsdf = is_delta(kind)
             front_only = not transmits
             if not delta_bsdf:
-                own = len(emitters.kind) if (emitters is not None and not surface_lights) else 0
+                own = 0
+                if emitters is not None:
+                    if not surface_lights:
+                        own = len(emitters.kind)
                 points = nd if surface_lights else 0
                 tot0, tot1, tot2 = 0.0, 0.0, 0.0
                 for j in range(points + own):
@@ -436,7 +479,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                         conn = light_connection(cfg, scene, None, lights, emitters, sel, piece, pdf_select, u1, u2,
                                                 x0, x1, x2, ns0, ns1, ns2, front_only)
                         scale = inv_nd
-                    else:
+                    elif emitters is not None:
                         e = j - points
                         ek = emitters.kind[e]
                         if not (ek == POINT or ek == SPOT or ek == DIRECTIONAL):
@@ -445,6 +488,8 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                                                   uniform(k, dim_salt(depth, COMPLEMENT_U2, e)), x0, x1, x2, ns0, ns1,
                                                   ns2, front_only)
                         scale = 1.0
+                    else:
+                        continue
                     needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, surface_mis and j < points, conn,
                                                         transmits, side, nx0, nx1, nx2, sf, lo0, lo1, lo2, later)
                     if not needed:
@@ -494,7 +539,8 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
     timing[1] += queries
 
 
-__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_rgb", "free_flight_rgb_many", "phase_eval", "phase_sample",
+__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_hero", "free_flight_rgb", "free_flight_rgb_many",
+           "phase_eval", "phase_sample",
            "shadow_transmittance", "target_medium", "trace_volpaths"]
 
 

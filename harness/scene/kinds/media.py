@@ -58,9 +58,11 @@ class MediumKind:
                 "g": float(medium.g) if medium.phase == "hg" else 0.0}
 
     def to_mitsuba(self, medium: Medium) -> dict:
-        """Mitsuba's plugin of ``medium``, every parameter written out: ``sigma_t`` and ``albedo`` as ``rgb``,
-        ``scale`` and the ``phase`` plugin (``{"type": "hg", "g": g}`` or ``{"type": "isotropic"}``)."""
-        return {"type": self.name, "albedo": rgb(medium.albedo), "sigma_t": rgb(medium.sigma_t),
+        """Mitsuba's plugin of ``medium``, every parameter written out: ``albedo`` as ``rgb``, ``sigma_t`` as a
+        ``constvolume`` of an ``rgb`` (a bare ``rgb`` is a reflectance to Mitsuba, refused above 1), ``scale`` and the
+        ``phase`` plugin (``{"type": "hg", "g": g}`` or ``{"type": "isotropic"}``)."""
+        return {"type": self.name, "albedo": rgb(medium.albedo),
+                "sigma_t": {"type": "constvolume", "value": rgb(medium.sigma_t)},
                 "scale": float(medium.scale), "phase": phase_plugin(medium)}
 
     def to_scene_json(self, medium: Medium) -> dict:
