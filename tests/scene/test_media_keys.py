@@ -240,3 +240,15 @@ def test_the_null_material_takes_no_keys(tmp_path, capfd):
     _, stderr = capfd.readouterr()
     assert code == 2 and f"{path}: materials.boundary.reflectance: key 'reflectance' applies only to materials " \
                           "of type 'diffuse', not 'null'" in stderr, stderr
+
+
+def test_the_example_in_scene_format_md_loads(tmp_path):
+    """docs/scene-format.md's example of "Participating media", with a film, loads as it says."""
+    text = (SCENES.parent / "docs" / "scene-format.md").read_text()
+    section = text[text.index("## Participating media"):text.index("## `[[shapes]]`")]
+    example = section[section.index("```toml\n") + 8:section.index("```\n", section.index("```toml"))]
+    path = tmp_path / "example.toml"
+    path.write_text(example + "\n[film]\nwidth = 8\nheight = 8\n")
+    scene = load_scene(path)
+    assert scene.camera_medium == "air" and scene.media["smoke"].extinction == (2.0, 1.0, 0.5)
+    assert (scene.shapes[0].interior, scene.shapes[0].exterior) == ("smoke", "air")
