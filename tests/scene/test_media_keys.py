@@ -184,8 +184,8 @@ def test_the_mitsuba_spec(tmp_path):
 
 def test_exports_that_have_no_media_say_so(tmp_path):
     scene = load_scene(media_scene(tmp_path, "[media.fog]\n"))
-    for fmt in ("ply", "obj", "gltf"):
-        assert f"{fmt} has no participating media: left out media fog (homogeneous)" in export_losses(scene, fmt)
+    for fmt, shown in (("ply", "PLY"), ("obj", "OBJ"), ("gltf", "glTF 2.0")):
+        assert f"{shown} has no participating media: left out media fog (homogeneous)" in export_losses(scene, fmt)
     assert any("index-matched" in line and "boundary (null)" in line for line in export_losses(scene, "gltf"))
     assert export_losses(scene, "json") == [] and export_losses(scene, "mitsuba-xml") == []
 
