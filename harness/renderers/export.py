@@ -695,7 +695,8 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
         losses.append("OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials " + ", ".join(
             f"{m.name} ({m.type})" for m in glossy) + " written with Kd = their glTF base colour")
     if scene.media and fmt in ("ply", "obj", "gltf"):
-        losses.append(f"{fmt} has no participating media: left out media " + ", ".join(
+        shown = {"ply": "PLY", "obj": "OBJ", "gltf": "glTF 2.0"}[fmt]
+        losses.append(f"{shown} has no participating media: left out media " + ", ".join(
             f"{m.name} ({m.type})" for m in scene.media.values()))
     if fmt == "gltf":
         lost = [e for e in scene.emitters if not _in_gltf(e)]

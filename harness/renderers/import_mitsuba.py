@@ -19,7 +19,11 @@ What maps to what:
   copy of the file; ``obj`` / ``serialized`` -> a ``mesh`` naming a binary PLY of the mesh Mitsuba reads (object
   space, its ``to_world`` kept); a ``shapegroup``'s shapes placed by each ``instance`` -> shapes of their own (the
   instance's ``to_world`` times the shape's); an ``area`` emitter -> the shape's ``emission``;
-* ``point`` / ``spot`` / ``directional`` / ``constant`` / ``envmap`` -> ``[[emitters]]`` (an envmap's file copied).
+* ``point`` / ``spot`` / ``directional`` / ``constant`` / ``envmap`` -> ``[[emitters]]`` (an envmap's file copied);
+* ``volpath`` integrator -> ``[integrator] max_depth`` as ``path`` (the scene format picks volpath by its media);
+* a ``homogeneous`` medium (its ``isotropic`` / ``hg`` phase) -> ``[media.NAME]`` (NAME: its ``id``, or its
+  parent's name and key), a shape's ``interior`` / ``exterior`` and the sensor's ``medium`` -> the same keys naming
+  it; the ``null`` BSDF -> a ``null`` material; ``heterogeneous`` is refused (not supported yet).
 
 Anything else (another plugin type, a property the scene format does not have, a spectrum where RGB is expected, a
 film crop, an include outside the scene's folder, ...) raises one :class:`HarnessError` naming the element and its
@@ -78,6 +82,13 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".exr")
 #: scene keys that take a colour only (a Mitsuba float there is the grey of that value)
 COLOUR_ONLY = ("reflectance", "intensity", "irradiance", "radiance")
 BSDF_REFS = ("bsdf", "bsdf_0", "bsdf_1")
+#: the integrators whose ``max_depth`` the scene format keeps (``volpath``: a scene with media or a null material)
+INTEGRATORS = ("path", "volpath")
+#: a ``homogeneous`` medium's properties the scene format has (``sample_emitters`` changes the noise only)
+MEDIUM_KEYS = ("albedo", "sigma_t", "scale")
+MEDIUM_IGNORED = ("sample_emitters",)
+#: phase plugin -> its properties
+PHASE_KEYS = {"isotropic": (), "hg": ("g",)}
 #: Mitsuba 3.9.1's defaults of the properties the scene format requires, written out where the XML leaves them
 MITSUBA_DEFAULTS = {
     "diffuse": {"reflectance": [0.5, 0.5, 0.5]},
@@ -190,6 +201,8 @@ class _Importer:
         self.emitters: list[dict] = []
         self.camera: dict | None = None
         self.film: dict | None = None
+        self.media: dict[str, dict] = {}  # name -> [media.NAME] table, in order
+        self.medium_of_node: dict[int, str] = {}
         self.max_depth: int | None = None
         self.raw: dict[int, bytes] = {}
         self.facts: dict[int, _XmlFacts] = {}
@@ -225,7 +238,8 @@ class _Importer:
         name = node.type.name
         return {"Integrator": "integrator", "Sensor": "sensor", "Film": "film", "Sampler": "sampler",
                 "ReconstructionFilter": "rfilter", "BSDF": "bsdf", "Emitter": "emitter", "Shape": "shape",
-                "Texture": "texture", "Scene": "scene"}.get(name, name.lower())
+                "Texture": "texture", "Scene": "scene", "Medium": "medium",
+                "PhaseFunction": "phase"}.get(name, name.lower())
 
     def refuse_node(self, node, expected: str) -> None:
         self.refuse(self.where(node), self.element(node), expected)
@@ -320,6 +334,8 @@ class _Importer:
             self.nested_names.discard(name)  # a shape before it may have named it first
         elif kind == "texture":
             pass  # read where a material names it
+        elif kind == "medium":
+            self.medium(node, node.props.id() or f"medium{len(self.media)}")
         elif kind == "sampler":
             pass  # a sampler by id (a sensor's <ref>): the sample count and seed are a render's, not the scene's
         elif kind == "shape" and name == "shapegroup":
@@ -333,8 +349,8 @@ class _Importer:
         elif kind == "emitter":
             self.emitters.append(self.emitter(node))
         else:
-            self.refuse_node(node, "expected an integrator, a sensor, a sampler, a bsdf, a texture, a shape or an "
-                                   "emitter")
+            self.refuse_node(node, "expected an integrator, a sensor, a sampler, a bsdf, a texture, a medium, a "
+                                   "shape or an emitter")
 
     def named_by_a_shape(self, node) -> bool:
         """Whether some shape of the file names ``node`` (a top-level plugin with an id) through a ``<ref>``."""
@@ -399,10 +415,11 @@ class _Importer:
     # ---- integrator, sensor, film ----------------------------------------------------------------------------------
 
     def integrator(self, node) -> None:
-        if node.props.plugin_name() != "path":
-            self.refuse_node(node, "expected Mitsuba's path integrator (the only one the reference is judged "
+        if node.props.plugin_name() not in INTEGRATORS:
+            self.refuse_node(node, "expected Mitsuba's path integrator, or volpath (the ones the reference is judged "
                                    "against)")
-        values = self.plain_keys(node, ("max_depth", "rr_depth", "hide_emitters"), "path integrator")
+        values = self.plain_keys(node, ("max_depth", "rr_depth", "hide_emitters"),
+                                 f"{node.props.plugin_name()} integrator")
         if values.get("hide_emitters"):
             self.refuse_property(node, "hide_emitters", "expected false: the scene format has no hidden emitters")
         self.max_depth = values.get("max_depth", -1)
@@ -414,7 +431,9 @@ class _Importer:
         camera: dict = {"type": name}
         for key in node.props.keys():
             with contextlib.suppress(_SkipProperty):  # lenient: this property left out
-                if self.is_nested(node, key):
+                if self.is_nested(node, key) and self.tag(self.nested(node, key)) == "medium":
+                    camera["medium"] = self.medium(self.nested(node, key), f"{name}-{key}")
+                elif self.is_nested(node, key):
                     self.sensor_part(self.nested(node, key))
                 elif key == "to_world":
                     camera.update(self.look_at(node))
@@ -751,8 +770,11 @@ class _Importer:
                                            f"dropped")
             elif self.tag(child) == "emitter":
                 emission = self.area(child)
+            elif self.tag(child) == "medium" and key in ("interior", "exterior"):
+                entry[key] = self.medium(child, f"{entry['name']}-{key}")
             else:
-                self.refuse_node(child, "expected a bsdf or an area emitter in a shape")
+                self.refuse_node(child, "expected a bsdf, an area emitter or an interior / exterior medium in a "
+                                        "shape")
         values = self.plain_keys(node, SHAPE_KEYS[kind], kind)
         to_world = np.asarray(values.pop("to_world", np.eye(4).tolist()))
         if placement is not None:
@@ -770,6 +792,44 @@ class _Importer:
         if emission is not None:
             entry["emission"] = emission
         return entry
+
+    def medium(self, node, name: str) -> str:
+        """The ``[media.NAME]`` table of a medium node (a node read before keeps its name): Mitsuba's
+        ``homogeneous`` with its ``albedo``, ``sigma_t``, ``scale`` and its phase plugin (``isotropic`` or ``hg``);
+        anything else refused in one line."""
+        index = self.node_index(node)
+        if index in self.medium_of_node:
+            return self.medium_of_node[index]
+        kind = node.props.plugin_name()
+        if kind == "heterogeneous":
+            self.refuse_node(node, "expected a homogeneous medium: heterogeneous media are not supported yet")
+        if kind != "homogeneous":
+            self.refuse_node(node, "expected a homogeneous medium")
+        table: dict = {"type": kind}
+        for key in node.props.keys():
+            with contextlib.suppress(_SkipProperty):  # lenient: this property left out
+                if self.is_nested(node, key):
+                    child = self.nested(node, key)
+                    if self.tag(child) != "phase":
+                        self.refuse_property(node, key, "expected a number or an rgb colour (a volume is not "
+                                                        "taken: the scene format's media are homogeneous)")
+                    table["phase"] = self.phase(child)
+                elif key in MEDIUM_KEYS:
+                    table[key] = self.value(node, key)
+                elif key not in MEDIUM_IGNORED:
+                    self.refuse_property(node, key, "expected one of the homogeneous properties the scene format "
+                                                    f"has: {', '.join(MEDIUM_KEYS)}, phase")
+        name = self.unique(node.props.id() or name, self.media)
+        self.media[name] = table
+        self.medium_of_node[index] = name
+        return name
+
+    def phase(self, node) -> dict:
+        """A phase plugin as the scene format's ``phase`` inline table."""
+        kind = node.props.plugin_name()
+        if kind not in PHASE_KEYS:
+            self.refuse_node(node, f"expected a phase function of type {', '.join(PHASE_KEYS)}")
+        return {"type": kind, **self.plain_keys(node, PHASE_KEYS[kind], f"{kind} phase")}
 
     def default_material(self) -> str:
         """Mitsuba's BSDF of a shape without one: diffuse, reflectance 0.5."""
@@ -926,6 +986,8 @@ class _Importer:
             lines += _table(f"textures.{toml_key(name)}", table)
         for name, table in self.materials.items():
             lines += _table(f"materials.{toml_key(name)}", table)
+        for name, table in self.media.items():
+            lines += _table(f"media.{toml_key(name)}", table)
         for entry in self.shapes:
             lines += _table("shapes", entry, array=True)
         for entry in self.emitters:

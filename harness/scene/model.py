@@ -417,7 +417,8 @@ class Scene:
     was given to :func:`load_scene`. ``closed_form`` names a known analytic solution of the scene ("furnace"), or
     None. ``files`` is every file the loader read to build the scene, once each in the order read: the scene file
     first, then each file it names (meshes, environment maps, any file a later key names); the content key
-    (:mod:`harness.scene.content_key`) hashes their bytes.
+    (:mod:`harness.scene.content_key`) hashes their bytes. ``media`` keeps the file's ``[media]`` order (the core's
+    medium ids); ``camera_medium`` names the medium the camera sits in, or None (vacuum).
     """
 
     name: str

@@ -13,11 +13,15 @@ sqrt(p (1 - p) / N), and the test allows 5 of them. The environment's pixels are
 from __future__ import annotations
 
 import math
+import shlex
 
 import numpy as np
 import pytest
 
-from conftest import SCENES
+from conftest import ROOT, SCENES
+from harness.cli import main
+from harness.files.imageio import read_exr
+from test_new_user import shell_blocks
 from harness.renderers.export import export_scene
 from harness.renderers.mitsuba import import_mitsuba, load_dict_form
 from harness.renderers.mitsuba_spec import scene_spec
@@ -83,3 +87,24 @@ def test_the_camera_medium_reaches_mitsuba(mi, tmp_path):
     from_dict = np.asarray(mi.render(mi.load_dict(load_dict_form(mi, scene_spec(fog, spp=1))), seed=2))
     # the same paths: the XML's decimal numbers differ from the dict's float64 in their last bits only
     np.testing.assert_allclose(from_xml, from_dict, rtol=5e-3, atol=1e-5)
+
+
+DOC_COMMANDS = [command for block in shell_blocks((ROOT / "docs" / "mitsuba.md").read_text(encoding="utf-8"))
+                for command in block if command.startswith("harness ground-truth media-slab")]
+
+
+def test_the_docs_print_the_slab_command():
+    assert DOC_COMMANDS == ["harness ground-truth media-slab --spp 1024 --out slab.exr"]
+
+
+@pytest.mark.slow  # Mitsuba's llvm variant
+@pytest.mark.parametrize("command", DOC_COMMANDS)
+def test_the_slab_command_of_the_docs_gives_its_figures(command, tmp_path, monkeypatch, capfd):
+    """docs/mitsuba.md's measurement, run as printed: the slab's mean 0.369129 (1.3 binomial standard deviations
+    from exp(-1)), the environment exactly 1."""
+    monkeypatch.chdir(tmp_path)
+    assert main(shlex.split(command)[1:]) == 0, capfd.readouterr().err
+    slab, environment = slab_pixels(read_exr(tmp_path / "slab.exr").image.astype(np.float64))
+    assert slab.mean() == pytest.approx(0.369129, abs=1e-6)
+    assert abs(slab.mean() - math.exp(-1.0)) < 5 * math.sqrt(math.exp(-1) * (1 - math.exp(-1)) / (256 * 1024))
+    np.testing.assert_array_equal(environment, 1.0)

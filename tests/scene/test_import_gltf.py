@@ -52,6 +52,8 @@ MATERIAL_LOSSES = {
     "normalmap": "compared through its nested material and its map",
     "bumpmap": "glTF has no bump map: the nested material, unperturbed",
     "principled": "sheen and specular extensions refused (lenient: dropped); the rest compared",
+    "null": "glTF has no index-matched boundary: the export's transparent material (base colour alpha 0, alphaMode "
+            "BLEND) imports as a mask of opacity 0; the media are left out",
 }
 
 

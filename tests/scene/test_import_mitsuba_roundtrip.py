@@ -11,7 +11,11 @@ What the XML does not carry, and so is compared apart:
 * the names of shapes, materials and textures (``shape_3``, ``bsdf_0``, the texture file's stem) and so the order
   of the textures in the core's list: the material table is compared with each texture slot resolved to the
   texture it names;
-* ``regions`` and ``description`` (the harness's own keys).
+* ``regions`` and ``description`` (the harness's own keys);
+* the names of media (``medium_0``): the core's media tables are compared without them.
+
+A scene with media renders with the reference once the volumetric path loop is on the branch (until then the core
+refuses it, and its render tests are skipped).
 """
 
 from __future__ import annotations
@@ -28,7 +32,8 @@ from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.export import export_scene
 from harness.renderers.importers import import_scene
 from harness.renderers.imports import write_imported
-from harness.scene import emitter_arrays, load_scene, material_arrays, triangulate
+from harness.core.errors import HarnessError
+from harness.scene import emitter_arrays, load_scene, material_arrays, media_arrays, triangulate
 from harness.scene.triangulate import shape_triangles, shape_uv, vertex_normals
 
 mi = pytest.importorskip("mitsuba")
@@ -114,6 +119,7 @@ def test_a_canonical_scene_round_trips_through_mitsuba_xml(name, tmp_path):
     assert_same(emission_textures(original, geometry_a), emission_textures(back, geometry_b), "emission textures")
     assert_same(resolved_materials(original), resolved_materials(back), "materials")
     assert_same(emitter_arrays(original), emitter_arrays(back), "emitters")
+    assert_same(media_arrays(original, geometry_a), media_arrays(back, geometry_b), "media", skip=("names",))
     assert_same(original.camera, back.camera, "camera")
     assert_same(original.film, back.film, "film")
     assert original.max_depth == back.max_depth
@@ -141,6 +147,16 @@ def resolved_materials(scene):
     return table.kind, table.params, slots
 
 
+def render(scene, request: RenderRequest):
+    """The reference's render of ``scene``; skipped for a scene with media while the core refuses them."""
+    try:
+        return get_renderer("reference").render(scene, request)
+    except HarnessError as err:
+        if scene.media and "not traced yet" in err.message:
+            pytest.skip("the volumetric path loop is not on this branch yet")
+        raise
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("name", RENDERED)
 def test_an_imported_canonical_scene_renders_the_same_image(name, tmp_path):
@@ -160,7 +176,6 @@ def test_every_imported_canonical_scene_renders_the_same_small_image(name, tmp_p
     _, back = round_trip(name, tmp_path)
     original = load_scene(SCENES / f"{name}.toml")
     film = Film(16, 16, original.film.filter)
-    renderer = get_renderer("reference")
-    a = renderer.render(dataclasses.replace(original, film=film), RenderRequest(spp=1, seed=0))
-    b = renderer.render(dataclasses.replace(back, film=film), RenderRequest(spp=1, seed=0))
+    a = render(dataclasses.replace(original, film=film), RenderRequest(spp=1, seed=0))
+    b = render(dataclasses.replace(back, film=film), RenderRequest(spp=1, seed=0))
     assert np.array_equal(a.image, b.image, equal_nan=True)

@@ -184,8 +184,8 @@ def test_the_mitsuba_spec(tmp_path):
 
 def test_exports_that_have_no_media_say_so(tmp_path):
     scene = load_scene(media_scene(tmp_path, "[media.fog]\n"))
-    for fmt in ("ply", "obj", "gltf"):
-        assert f"{fmt} has no participating media: left out media fog (homogeneous)" in export_losses(scene, fmt)
+    for fmt, shown in (("ply", "PLY"), ("obj", "OBJ"), ("gltf", "glTF 2.0")):
+        assert f"{shown} has no participating media: left out media fog (homogeneous)" in export_losses(scene, fmt)
     assert any("index-matched" in line and "boundary (null)" in line for line in export_losses(scene, "gltf"))
     assert export_losses(scene, "json") == [] and export_losses(scene, "mitsuba-xml") == []
 
@@ -240,3 +240,46 @@ def test_the_null_material_takes_no_keys(tmp_path, capfd):
     _, stderr = capfd.readouterr()
     assert code == 2 and f"{path}: materials.boundary.reflectance: key 'reflectance' applies only to materials " \
                           "of type 'diffuse', not 'null'" in stderr, stderr
+
+
+def test_the_example_in_scene_format_md_loads(tmp_path):
+    """docs/scene-format.md's example of "Participating media", with a film, loads as it says."""
+    text = (SCENES.parent / "docs" / "scene-format.md").read_text()
+    section = text[text.index("## Participating media"):text.index("## `[[shapes]]`")]
+    example = section[section.index("```toml\n") + 8:section.index("```\n", section.index("```toml"))]
+    path = tmp_path / "example.toml"
+    path.write_text(example + "\n[film]\nwidth = 8\nheight = 8\n")
+    scene = load_scene(path)
+    assert scene.camera_medium == "air" and scene.media["smoke"].extinction == (2.0, 1.0, 0.5)
+    assert (scene.shapes[0].interior, scene.shapes[0].exterior) == ("smoke", "air")
+
+
+# ---- the reference's inputs -----------------------------------------------------------------------------------------
+
+
+def test_the_reference_adapter_hands_the_core_its_media(monkeypatch):
+    """harness/renderers/reference.py passes media_arrays' table (one entry per triangle) to reference_impl.render."""
+    import reference_impl
+    from harness.renderers import RenderRequest, get_renderer
+
+    seen = {}
+
+    def fake_render(geometry, camera, film, settings, **kwargs):
+        seen.update(kwargs, triangles=len(geometry.triangles))
+        raise reference_impl.SettingsError("media", "stopped by the test")
+
+    monkeypatch.setattr(reference_impl, "render", fake_render)
+    scene = load_scene(SCENES / "fog-box.toml")
+    with pytest.raises(Exception, match="stopped by the test"):
+        get_renderer("reference").render(scene, RenderRequest(spp=1, seed=0))
+    media = seen["media"]
+    assert isinstance(media, core_media.Media) and media.camera == 0 and len(media.interior) == seen["triangles"]
+    assert not media.transition.any() and media.names == ("fog",)
+
+
+def test_the_embree_rate_refuses_a_volumetric_scene():
+    from harness.core.errors import HarnessError
+    from harness.studies.embree_rate import EmbreeRate
+
+    with pytest.raises(HarnessError, match="the Embree rate replays the rays of the surface path loop"):
+        EmbreeRate(load_scene(SCENES / "media-slab.toml"), spp=1)

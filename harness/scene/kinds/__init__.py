@@ -4,6 +4,8 @@ scene.json entry (:mod:`harness.renderers.scene_json`).
 
 * :mod:`harness.scene.kinds.materials`: ``[materials.NAME]``, :data:`~harness.scene.kinds.materials.MATERIALS`;
 * :mod:`harness.scene.kinds.emitters`: ``[[emitters]]``, :data:`~harness.scene.kinds.emitters.EMITTERS`;
+* :mod:`harness.scene.kinds.media`: ``[media.NAME]``, :data:`~harness.scene.kinds.media.MEDIA` (their core rows:
+  :func:`harness.scene.media_arrays.media_arrays`, with the shapes' medium transitions per triangle);
 * :mod:`harness.scene.kinds.shapes`: ``[[shapes]]``, :data:`~harness.scene.kinds.shapes.SHAPES` (their triangles and
   placement instead of a core row: :func:`harness.scene.triangulate.triangulate` joins them);
 * :mod:`harness.scene.kinds.mitsuba_values`: the neutral values a Mitsuba plugin dict holds (transforms, points,
