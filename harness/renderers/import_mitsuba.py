@@ -810,9 +810,13 @@ class _Importer:
             with contextlib.suppress(_SkipProperty):  # lenient: this property left out
                 if self.is_nested(node, key):
                     child = self.nested(node, key)
+                    if key in MEDIUM_KEYS and self.tag(child) == "volume" and child.props.plugin_name() == "constvolume":
+                        table[key] = self.value(child, "value")  # a constant volume: its one value
+                        continue
                     if self.tag(child) != "phase":
-                        self.refuse_property(node, key, "expected a number or an rgb colour (a volume is not "
-                                                        "taken: the scene format's media are homogeneous)")
+                        self.refuse_property(node, key, "expected a number, an rgb colour or a constvolume (another "
+                                                        "volume is not taken: the scene format's media are "
+                                                        "homogeneous)")
                     table["phase"] = self.phase(child)
                 elif key in MEDIUM_KEYS:
                     table[key] = self.value(node, key)

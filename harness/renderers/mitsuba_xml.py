@@ -38,6 +38,7 @@ CATEGORIES = {
     **dict.fromkeys(("rectangle", "cube", "sphere", "ply"), "shape"),
     **dict.fromkeys(("bitmap", "checkerboard"), "texture"),
     "homogeneous": "medium",
+    "constvolume": "volume",
     **dict.fromkeys(("isotropic", "hg"), "phase"),
 }
 TAGS = frozenset(CATEGORIES.values())

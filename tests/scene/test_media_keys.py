@@ -170,7 +170,9 @@ def test_the_mitsuba_spec(tmp_path):
     plugins = scene_spec(scene).plugins
     assert plugins["integrator"] == {"type": "volpath", "max_depth": -1, "rr_depth": 5}
     assert plugins["medium_0"] == {"type": "homogeneous", "albedo": {"type": "rgb", "value": [0.75, 0.75, 0.75]},
-                                   "sigma_t": {"type": "rgb", "value": [1.0, 0.5, 0.25]}, "scale": 2.0,
+                                   "sigma_t": {"type": "constvolume",
+                                               "value": {"type": "rgb", "value": [1.0, 0.5, 0.25]}},
+                                   "scale": 2.0,
                                    "phase": {"type": "hg", "g": -0.4}}
     assert list(plugins).index("medium_0") < list(plugins).index("sensor")  # defined before it is named
     assert plugins["sensor"]["medium"] == {"type": "ref", "id": "medium_0"}
