@@ -382,7 +382,7 @@ def _gltf_shape_material(shape, material, base_texture: dict | None = None,
                    "doubleSided": ALL_MATERIALS[material.type].gltf_double_sided(material)}
     if normal_texture is not None:
         entry["normalTexture"] = normal_texture
-    if material.type == "mask":  # its opacity is the base colour's alpha (composites._gltf), blended
+    if material.type in ("mask", "null"):  # its opacity is the base colour's alpha (composites._gltf), blended
         entry["alphaMode"] = "BLEND"
     extensions = dict(extensions)
     if shape.is_emitter:
@@ -694,6 +694,9 @@ def export_losses(scene: Scene, fmt: str) -> list[str]:
     if fmt == "obj" and glossy:
         losses.append("OBJ's MTL holds diffuse colours (Kd) and emission (Ke) only: materials " + ", ".join(
             f"{m.name} ({m.type})" for m in glossy) + " written with Kd = their glTF base colour")
+    if scene.media and fmt in ("ply", "obj", "gltf"):
+        losses.append(f"{fmt} has no participating media: left out media " + ", ".join(
+            f"{m.name} ({m.type})" for m in scene.media.values()))
     if fmt == "gltf":
         lost = [e for e in scene.emitters if not _in_gltf(e)]
         if lost:

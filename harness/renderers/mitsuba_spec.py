@@ -18,7 +18,8 @@ them) and are importable from here. A material's and an emitter's plugin are the
 (:data:`harness.scene.kinds.materials.MATERIALS`, :data:`harness.scene.kinds.emitters.EMITTERS`).
 
 Keys: ``bsdf_<j>`` for material j (file order), ``shape_<i>`` for shape i, ``emitter_<k>`` for ``[[emitters]]``
-entry k (docs/mitsuba.md, "Scene conversion").
+entry k, ``medium_<m>`` for ``[media]`` entry m (file order; before the sensor and the shapes, which name it by
+reference: a shape's ``interior`` / ``exterior``, the sensor's ``medium``) (docs/mitsuba.md, "Scene conversion").
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from harness.renderers.meshfiles import MESH_DIR, TEXTURE_DIR, safe_name
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.kinds.media import MEDIA
 from harness.scene.kinds.composites import ALL_MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES
@@ -71,8 +73,9 @@ class MitsubaSpec:
 
 def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Parameter = 4,
                seed: Parameter | None = None, sampler: str = "independent") -> MitsubaSpec:
-    """The scene as Mitsuba plugins: ``path`` integrator, the camera's sensor, one BSDF per material, one shape per
-    shape, one emitter per ``[[emitters]]`` entry.
+    """The scene as Mitsuba plugins: ``path`` integrator (``volpath`` for a scene with media or a ``null``
+    material: :attr:`Scene.has_media`), one medium per ``[media]`` entry, the camera's sensor, one BSDF per material,
+    one shape per shape, one emitter per ``[[emitters]]`` entry.
 
     Rectangles, cubes and spheres keep their plugin and placement matrix (the reference traces the same analytic
     sphere); meshes are the loaded triangles.
@@ -95,12 +98,17 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
     MitsubaSpec
         The plugins and a comment per material, shape and emitter.
     """
-    plugins: dict = {
-        "type": "scene",
-        "integrator": path_integrator(scene.max_depth if max_depth is None else max_depth),
-        "sensor": sensor_plugin(scene, spp, seed, sampler),
-    }
+    depth = scene.max_depth if max_depth is None else max_depth
+    plugins: dict = {"type": "scene",
+                     "integrator": volpath_integrator(depth) if scene.has_media else path_integrator(depth)}
     comments: dict = {}
+    medium_key = {name: f"medium_{m}" for m, name in enumerate(scene.media)}
+    for name, medium in scene.media.items():
+        plugins[medium_key[name]] = MEDIA[medium.type].to_mitsuba(medium)
+        comments[medium_key[name]] = f"medium {name}"
+    plugins["sensor"] = sensor_plugin(scene, spp, seed, sampler)
+    if scene.camera_medium is not None:
+        plugins["sensor"]["medium"] = {"type": "ref", "id": medium_key[scene.camera_medium]}
     material_key = {}
     for j, (name, material) in enumerate(scene.materials.items()):
         material_key[name] = f"bsdf_{j}"
@@ -112,6 +120,9 @@ def scene_spec(scene: Scene, *, max_depth: int | None = None, spp: int | Paramet
         material = scene.materials[shape.material]
         uv = vertex_uv(shape) if as_mesh and material.needs_coordinates else None
         plugins[key] = shape_plugin(shape, material_key[shape.material], as_mesh, uv)
+        for side in ("interior", "exterior"):  # Mitsuba's medium transition, by reference
+            if getattr(shape, side) is not None:
+                plugins[key][side] = {"type": "ref", "id": medium_key[getattr(shape, side)]}
         comments[key] = f"shape {shape.index}: {shape.name}"
     for emitter in scene.emitters:
         plugins[f"emitter_{emitter.index}"] = light_spec(emitter)
@@ -260,6 +271,12 @@ def film_dict(scene: Scene) -> dict:
         "component_format": "float32",
         "sample_border": scene.film.filter != "box",
     }
+
+
+def volpath_integrator(max_depth: int) -> dict:
+    """Mitsuba's ``volpath`` integrator (a scene with media or a ``null`` material) with the ``max_depth`` and
+    ``rr_depth`` the ``path`` integrator gets (:func:`path_integrator`)."""
+    return {**path_integrator(max_depth), "type": "volpath"}
 
 
 def path_integrator(max_depth: int) -> dict:

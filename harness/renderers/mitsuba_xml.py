@@ -26,17 +26,19 @@ from harness.renderers.mitsuba_spec import (ImageFile, LookAt, MeshFile, Mitsuba
 INDENT = "    "
 #: the category (XML element) of each Mitsuba plugin type a spec holds
 CATEGORIES = {
-    **dict.fromkeys(("path", "moment", "aov"), "integrator"),
+    **dict.fromkeys(("path", "volpath", "moment", "aov"), "integrator"),
     **dict.fromkeys(("perspective", "thinlens", "orthographic"), "sensor"),
     "hdrfilm": "film",
     **dict.fromkeys(("box", "tent", "gaussian"), "rfilter"),
     **dict.fromkeys(("independent", "stratified", "multijitter", "orthogonal", "ldsampler"), "sampler"),
     **dict.fromkeys(("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                      "plastic", "roughplastic", "principled", "twosided", "normalmap", "bumpmap", "blendbsdf", "mask"),
+                      "plastic", "roughplastic", "principled", "twosided", "normalmap", "bumpmap", "blendbsdf", "mask", "null"),
                      "bsdf"),
     **dict.fromkeys(("area", "point", "spot", "directional", "constant", "envmap"), "emitter"),
     **dict.fromkeys(("rectangle", "cube", "sphere", "ply"), "shape"),
     **dict.fromkeys(("bitmap", "checkerboard"), "texture"),
+    "homogeneous": "medium",
+    **dict.fromkeys(("isotropic", "hg"), "phase"),
 }
 TAGS = frozenset(CATEGORIES.values())
 
@@ -105,7 +107,7 @@ def _property(key: str, value, indent: str, files: dict) -> list[str]:
     if isinstance(value, dict) and value["type"] == "rgb":
         return [f'{indent}<rgb {name} value="{_numbers(value["value"])}"/>']
     if isinstance(value, dict) and value["type"] == "ref":
-        label = "" if key in TAGS else f" {name}"
+        label = "" if key in TAGS and key != "medium" else f" {name}"  # a sensor's medium: named, as Mitsuba's docs
         return [f"{indent}<ref{label} id={quoteattr(value['id'])}/>"]
     if isinstance(value, dict):
         return _plugin(key, value, indent, files)

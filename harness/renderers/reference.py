@@ -9,7 +9,7 @@ import reference_impl
 from harness.core.errors import HarnessError
 from harness.core.limits import check_reference_cost
 from harness.renderers.base import RenderRequest, RenderResult
-from harness.scene import Scene, emitter_arrays, material_arrays, triangulate
+from harness.scene import Scene, emitter_arrays, material_arrays, media_arrays, triangulate
 from harness.scene.kinds.emitters import EMITTERS
 
 
@@ -42,7 +42,7 @@ class ReferenceRenderer:
         self.settings_for(scene, request)
 
     #: the arrays of the last scene rendered by any ReferenceRenderer of this process (scene, geometry, emitters,
-    #: materials): renders of one scene object in a row (the studies render each scene hundreds of times, each through
+    #: materials, media): renders of one scene object in a row (the studies render each scene hundreds of times, each through
     #: a renderer of its own) triangulate it once
     _prepared: tuple | None = None
 
@@ -50,14 +50,17 @@ class ReferenceRenderer:
         prepared = ReferenceRenderer._prepared
         if prepared is None or prepared[0] is not scene:
             # None on Lambertian-only scenes: the engines they always ran
-            prepared = ReferenceRenderer._prepared = (scene, triangulate(scene), emitter_arrays(scene),
-                                                      material_arrays(scene))
+            geometry = triangulate(scene)
+            prepared = ReferenceRenderer._prepared = (scene, geometry, emitter_arrays(scene), material_arrays(scene),
+                                                      media_arrays(scene, geometry))
         return prepared[1:]
 
     def render(self, scene: Scene, request: RenderRequest) -> RenderResult:
         settings = self.settings_for(scene, request)
-        geometry, emitters, materials = self._arrays(scene)
+        geometry, emitters, materials, media = self._arrays(scene)
         extra = {} if materials is None else {"materials": materials}
+        if media is not None:
+            extra["media"] = media
         try:
             out = reference_impl.render(geometry, scene.camera, scene.film, settings, progress=request.progress,
                                         emitters=emitters, **extra)

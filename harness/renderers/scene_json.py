@@ -22,6 +22,7 @@ from harness.renderers.mitsuba_spec import RR_DEPTH, clip_planes
 from harness.scene import Scene
 from harness.scene.kinds.cameras import camera_kind
 from harness.scene.kinds.emitters import EMITTERS
+from harness.scene.kinds.media import MEDIA
 from harness.scene.kinds.composites import ALL_MATERIALS
 from harness.scene.kinds.shapes import SHAPES
 from harness.scene.kinds.textures import TEXTURES, export_path
@@ -45,7 +46,7 @@ def camera_json(scene: Scene) -> dict:
     camera-to-world matrix (columns: +x = image left, +y = image up, +z = forward, origin) and the clip planes."""
     near, far = clip_planes(scene)
     return {**camera_kind(scene.camera).to_scene_json(scene.camera, scene.film),
-            "near_clip": float(near), "far_clip": float(far)}
+            "near_clip": float(near), "far_clip": float(far), "medium": scene.camera_medium}
 
 
 def material_json(material) -> dict:
@@ -94,7 +95,9 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
                                     if shape.emission_texture is None else {"texture": shape.emission_texture.name}),
                        "mesh": rel, "triangles": int(len(triangles)),
                        # smooth: the PLY's nx, ny, nz are the shading normals (Mitsuba's vertex normals)
-                       "shading": "flat" if normals is None else "smooth"}
+                       "shading": "flat" if normals is None else "smooth",
+                       # Mitsuba's medium transition: the media behind and in front of its front side, or null
+                       "interior": shape.interior, "exterior": shape.exterior}
         if textured:
             entry["uv"] = "analytic" if SHAPES[shape.type].sphere is not None else ("mesh" if uv is not None
                                                                                      else None)
@@ -127,4 +130,6 @@ def scene_json(scene: Scene, *, mesh_dir: str = MESH_DIR, texture_dir: str = TEX
         "emitters": emitters,
         "regions": list(scene.regions),
     }
+    if scene.media:  # absent from a scene without media
+        document["media"] = {name: MEDIA[m.type].to_scene_json(m) for name, m in scene.media.items()}
     return document, files

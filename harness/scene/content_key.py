@@ -3,7 +3,8 @@
 The key walks the scene's values recursively and hashes each by its kind, so a field added to any scene dataclass
 (the scene, its camera and film, a material, a shape, an emitter) enters the key without a line written for it:
 
-* a dataclass: its class name, then every field by name (but :data:`EXCLUDED_FIELDS`);
+* a dataclass: its class name, then every field by name (but :data:`EXCLUDED_FIELDS`, and :data:`WHERE_SET_FIELDS`
+  where they hold their defaults);
 * a dict: its items in order; a list or tuple: its items in order;
 * a numpy array: its shape, dtype and the SHA-256 of its bytes; a numpy scalar as the Python number it holds;
 * a float, int, bool, str, enum member or None: its ``repr``;
@@ -28,7 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError, file_kind
-from harness.scene.model import ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, SpotLight
+from harness.scene.model import (ConstantEnvironment, DirectionalLight, EnvironmentMap, PointLight, Scene, Shape,
+                                 SpotLight)
 
 #: The fields left out of the key, by class: the only ones, each because it changes no image and no measurement.
 #: An ``[[emitters]]`` entry's ``index`` is its position in ``Scene.emitters``, which the key holds already (the
@@ -37,6 +39,16 @@ from harness.scene.model import ConstantEnvironment, DirectionalLight, Environme
 EXCLUDED_FIELDS: dict[type, frozenset[str]] = {
     kind: frozenset({"index", "name"})
     for kind in (PointLight, SpotLight, DirectionalLight, ConstantEnvironment, EnvironmentMap)
+}
+
+
+#: The fields a scene's key holds only where they are not their default, by class: fields added after the key's
+#: format 6 (issue 38's media) that a scene without them leaves at their defaults, so that such a scene keeps the key
+#: (and the cached ground truths) it had before the fields existed. A value other than the default enters the key
+#: as every field does.
+WHERE_SET_FIELDS: dict[type, frozenset[str]] = {
+    Scene: frozenset({"media", "camera_medium"}),
+    Shape: frozenset({"interior", "exterior"}),
 }
 
 
@@ -113,9 +125,12 @@ def content_tokens(value, where: str, files: dict[Path, str]) -> Iterator[str]:
 
 def keyed_fields(value) -> list[dataclasses.Field]:
     """The fields of the dataclass instance ``value`` that the key holds: all of them but those
-    :data:`EXCLUDED_FIELDS` names for its very class."""
+    :data:`EXCLUDED_FIELDS` names for its very class, and those :data:`WHERE_SET_FIELDS` names where they hold
+    their default (None, an empty dict)."""
     excluded = EXCLUDED_FIELDS.get(type(value), frozenset())
-    return [field for field in dataclasses.fields(value) if field.name not in excluded]
+    where_set = WHERE_SET_FIELDS.get(type(value), frozenset())
+    return [field for field in dataclasses.fields(value) if field.name not in excluded
+            and not (field.name in where_set and getattr(value, field.name) in (None, {}))]
 
 
 def array_token(array: np.ndarray, where: str) -> str:

@@ -26,13 +26,14 @@ from harness.core.text import short
 from harness.files.imageio import exr_size, read_exr
 from harness.scene.kinds.cameras import read_camera
 from harness.scene.kinds.emitters import read_emitters
+from harness.scene.kinds.media import read_media
 from harness.scene.kinds.materials import CU_ETA, CU_K, MATERIAL_KEYS, read_material  # noqa: F401 (CU_*: hints)
 from harness.scene.kinds.composites import is_composite, read_composites
 from harness.scene.kinds.perturbations import PERTURBATIONS, read_perturbed
 from harness.scene.triangulate import emitter_shades_flat
 from harness.scene.kinds.shapes import MAX_SUBDIVISIONS, ONE_TYPE_KEYS, SHAPES  # noqa: F401 (MAX_*: the tests)
 from harness.scene.kinds.textures import read_texture, texture_reference
-from harness.scene.model import Emitter, Material, Scene, Shape, Texture
+from harness.scene.model import Emitter, Material, Medium, Scene, Shape, Texture
 from harness.scene.mesh_files import (
     MAX_MESH_BYTES,
     ConfinedResolver,
@@ -52,14 +53,14 @@ from harness.scene.triangulate import (  # noqa: F401 (frame_to_world: a spot's 
 )
 
 TOP_LEVEL_KEYS = ("name", "description", "closed_form", "camera", "film", "integrator", "textures", "materials",
-                  "shapes", "emitters", "regions")
+                  "media", "shapes", "emitters", "regions")
 # harness.renderers.groundtruth.CLOSED_FORMS
 CLOSED_FORMS = ("furnace", "white-furnace", "leaning-plate", "sunlit-floor", "focused-plane")
 FILM_KEYS = ("width", "height", "filter")
 INTEGRATOR_KEYS = ("max_depth",)
 SHAPE_KEYS = (
     "name", "type", "material", "to_world", "translate", "rotate", "scale", "emission", "flip_normals",
-    "file", "flip_tex_coords", "face_normals", "center", "radius", "subdivisions",
+    "file", "flip_tex_coords", "face_normals", "center", "radius", "subdivisions", "interior", "exterior",
 )  # fmt: skip
 ROTATE_KEYS = ("axis", "angle")
 MESH_SUFFIXES = (".ply", ".obj")
@@ -190,6 +191,7 @@ class _SceneReader(TypedReader):
         # a mesh file's parse, by its resolved path, for every later shape that names it (a forest's thousands of
         # trees naming a few files: each file read and parsed once; harness.generators.forest)
         self.parsed_meshes: dict[Path, tuple] = {}
+        self.scene_media: dict[str, Medium] = {}  # [media], once read (shapes and the camera name them)
 
     def opened(self, path: Path) -> Path:
         """``path``, recorded among the files the scene is read from: every file the loader reads passes through
@@ -216,6 +218,8 @@ class _SceneReader(TypedReader):
         max_depth = self.max_depth(document)
         textures = self.textures(document)
         materials = self.materials(document)
+        self.scene_media = read_media(self, document)
+        camera_medium = self.camera_medium(document)
         shapes = self.shapes(document, materials)
         self.check_textured_shapes(shapes, materials)
         emitters = self.emitters(document)
@@ -224,7 +228,8 @@ class _SceneReader(TypedReader):
             closed_form = self.choice(document["closed_form"], "closed_form", CLOSED_FORMS)
         regions = self.regions(document, shapes)
         return Scene(name, description, camera, film, max_depth, materials, shapes, path, closed_form,
-                     emitters=emitters, regions=regions, files=tuple(dict.fromkeys(self.files)), textures=textures)
+                     emitters=emitters, regions=regions, files=tuple(dict.fromkeys(self.files)), textures=textures,
+                     media=self.scene_media, camera_medium=camera_medium)
 
     def regions(self, document: dict, shapes: list[Shape]) -> tuple[str, ...]:
         """``regions``: names of shapes whose pixels the strategy table measures apart (docs/scene-format.md)."""
@@ -241,6 +246,22 @@ class _SceneReader(TypedReader):
 
     def camera(self, document: dict) -> Camera:
         return read_camera(self, document)
+
+    def camera_medium(self, document: dict) -> str | None:
+        """``[camera] medium``: the medium the camera sits in (a name of ``[media]``), or None."""
+        table = document["camera"]
+        return self.medium_name(table["medium"], "camera.medium") if "medium" in table else None
+
+    def medium_name(self, value: Any, key: str) -> str:
+        """A name of ``[media]`` (read before the shapes and the camera's medium), with the closest one
+        suggested."""
+        name = self.string(value, key)
+        media: dict[str, Medium] = self.scene_media
+        if name not in media:
+            defined = ", ".join(repr(m) for m in media) or "none"
+            raise self.error(key, f"unknown medium {name!r}{suggestion(name, media)} (defined in [media]: "
+                                  f"{defined})")
+        return name
 
     def film(self, document: dict) -> Film:
         table = self.required_table(document, "film")
@@ -349,6 +370,9 @@ class _SceneReader(TypedReader):
             "material": self.material_name(table, key, materials),
             "flip_normals": self.boolean(table.get("flip_normals", False), f"{key}.flip_normals"),
         }
+        for side in ("interior", "exterior"):  # Mitsuba's medium transition: the media on its two sides
+            if side in table:
+                fields[side] = self.medium_name(table[side], f"{key}.{side}")
         fields["to_world"], placement_key = self.placement(table, key)
         if "emission" in table:
             fields.update(self.emission_fields(table["emission"], f"{key}.emission"))

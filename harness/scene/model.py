@@ -18,6 +18,7 @@ from reference_impl.materials import (DEFAULT_ALPHA, DEFAULT_DIFFUSE, DEFAULT_DI
                                       DEFAULT_INT_IOR, DEFAULT_NONLINEAR, DEFAULT_SAMPLE_VISIBLE, DEFAULT_SPECULAR,
                                       DEFAULT_WEIGHT, MIRROR_ETA, MIRROR_K, PLASTIC_INT_IOR, PRINCIPLED_DEFAULTS)
 from reference_impl.materials import DISTRIBUTIONS as CORE_DISTRIBUTIONS
+from reference_impl import media as core_media
 from reference_impl import textures as core_textures
 from reference_impl.textures import Texture as CoreTexture
 
@@ -87,12 +88,40 @@ class Texture:
 
 
 MATERIAL_TYPES = ("diffuse", "conductor", "roughconductor", "dielectric", "roughdielectric", "thindielectric",
-                  "plastic", "roughplastic", "principled")  # Mitsuba's plugins
+                  "plastic", "roughplastic", "principled", "null")  # Mitsuba's plugins
 CONDUCTOR_TYPES = ("conductor", "roughconductor")
 DIELECTRIC_TYPES = ("dielectric", "roughdielectric", "thindielectric")  # int_ior, ext_ior, specular_transmittance
 ROUGH_TYPES = ("roughconductor", "roughdielectric", "roughplastic")
 DISTRIBUTIONS = tuple(CORE_DISTRIBUTIONS)  # Mitsuba's microfacet distributions
 # The defaults of the fields below are the core's (reference_impl.materials, reference_impl.emitters): Mitsuba's.
+
+
+MEDIUM_TYPES = ("homogeneous",)  # Mitsuba's medium plugins the scene format takes
+PHASE_TYPES = ("isotropic", "hg")  # Mitsuba's phase function plugins
+
+
+@dataclass(frozen=True)
+class Medium:
+    """One ``[media.NAME]`` table: Mitsuba 3's ``homogeneous`` medium (docs/scene-format.md, "Participating media").
+
+    The extinction per unit length is ``sigma_t * scale`` per channel (Mitsuba's ``sigma_t`` and ``scale``), the
+    single-scattering albedo ``albedo`` (sigma_s = albedo sigma_t, sigma_a = (1 - albedo) sigma_t); ``phase`` is
+    Mitsuba's phase plugin, ``isotropic`` (p = 1 / (4 pi)) or ``hg`` (Henyey-Greenstein with asymmetry ``g``, g > 0
+    forward). Defaults are Mitsuba's (:mod:`reference_impl.media`).
+    """
+
+    name: str
+    type: str = "homogeneous"
+    albedo: Vector3 = core_media.DEFAULT_ALBEDO
+    sigma_t: Vector3 = (core_media.DEFAULT_SIGMA_T,) * 3
+    scale: float = core_media.DEFAULT_SCALE
+    phase: str = "isotropic"
+    g: float = core_media.DEFAULT_G
+
+    @property
+    def extinction(self) -> Vector3:
+        """sigma_t x scale per channel: the extinction per unit length the core and scene.json take."""
+        return tuple(float(s) * float(self.scale) for s in self.sigma_t)
 
 
 @dataclass(frozen=True)
@@ -285,6 +314,13 @@ class Shape:
     emission_texture: Texture | None = None
     face_normals: bool = False
     mesh_normals: np.ndarray | None = None
+    interior: str | None = None  # the medium behind its front side (a name of Scene.media), Mitsuba's meaning
+    exterior: str | None = None  # the medium in front of its front side
+
+    @property
+    def is_medium_transition(self) -> bool:
+        """Whether the shape names a medium on either side (Mitsuba's ``is_medium_transition``)."""
+        return self.interior is not None or self.exterior is not None
 
     @property
     def is_emitter(self) -> bool:
@@ -397,6 +433,14 @@ class Scene:
     regions: tuple[str, ...] = ()  # shape names: the strategy table's per-region efficiencies (their pixels)
     files: tuple[Path, ...] = ()  # every file read to load the scene (the scene file first)
     textures: dict[str, Texture] = field(default_factory=dict)  # [textures.NAME] in the file's order
+    media: dict[str, Medium] = field(default_factory=dict)  # [media.NAME] in the file's order
+    camera_medium: str | None = None  # [camera] medium: the medium the camera sits in, a name of ``media``
+
+    @property
+    def has_media(self) -> bool:
+        """Whether the scene is volumetric: it defines a medium or uses a ``null`` material (Mitsuba's ``volpath``
+        integrator then, and the reference's volumetric path loop)."""
+        return bool(self.media) or any(m.type == "null" for m in self.materials.values())
 
     @property
     def used_textures(self) -> list[Texture]:

@@ -181,8 +181,8 @@ def _number(value: float) -> str:
 
 def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
     """Every shape, point and spot light and the camera (origin, target) moved by the 4x4 similarity ``matrix``
-    (uniform positive scale s, translation), the lights' intensities times s^2; the camera's up vector and fov are
-    unchanged, a thin lens's aperture and focus distance and an orthographic film's extent scaled by s, so the image
+    (uniform positive scale s, translation), the lights' intensities times s^2, the media's ``scale`` divided by s; the camera's up
+    vector and fov are unchanged, a thin lens's aperture and focus distance and an orthographic film's extent scaled by s, so the image
     is unchanged."""
     matrix = np.asarray(matrix, dtype=np.float64)
     shapes = [dataclasses.replace(s, to_world=matrix @ s.to_world) for s in scene.shapes]
@@ -193,7 +193,9 @@ def transform_scene(scene: Scene, matrix: np.ndarray) -> Scene:
         return tuple(float(x) for x in matrix[:3, :3] @ np.asarray(p, float) + matrix[:3, 3])
 
     camera = camera_kind(cam).moved(cam, point, area ** 0.5)
-    return dataclasses.replace(scene, shapes=shapes, camera=camera,
+    # a medium's optical depth sigma_t x length is unchanged where its scale divides by s
+    media = {name: dataclasses.replace(m, scale=m.scale / area ** 0.5) for name, m in scene.media.items()}
+    return dataclasses.replace(scene, shapes=shapes, camera=camera, media=media,
                                emitters=tuple(EMITTERS[e.type].moved(e, matrix, area) for e in scene.emitters))
 
 

@@ -22,6 +22,7 @@ import time
 from reference_impl import replay
 
 from harness.renderers import RenderRequest, get_renderer
+from harness.core.errors import HarnessError
 from harness.scene import emitter_arrays, material_arrays, triangulate
 
 LABEL = "embree (own rays)"
@@ -33,6 +34,9 @@ class EmbreeRate:
 
     def __init__(self, scene, *, spp: int, seed: int = 1, max_rays: int = DEFAULT_MAX_RAYS,
                  settings: dict | None = None):
+        if scene.has_media:  # replay.record_rays records the surface path loop's rays, not the volumetric one's
+            raise HarnessError(str(scene.path), "the Embree rate replays the rays of the surface path loop; a scene "
+                                                "with media or a null material runs the volumetric one")
         reference = get_renderer("reference")
         core = reference.settings_for(scene, RenderRequest(spp=spp, seed=seed, settings=dict(settings or {})))
         start = time.perf_counter()

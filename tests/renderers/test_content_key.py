@@ -52,6 +52,7 @@ target = [0, 0, 0]
 up = [0, 1, 0]
 fov = 40
 fov_axis = "y"
+medium = "air"
 
 [film]
 width = 16
@@ -96,6 +97,18 @@ alpha = 0.3
 type = "principled"
 clearcoat = 0.5
 
+[materials.boundary]
+type = "null"
+
+[media.air]
+sigma_t = 0.01
+
+[media.smoke]
+sigma_t = [1.0, 0.5, 0.25]
+albedo = 0.9
+scale = 2.0
+phase = { type = "hg", g = 0.3 }
+
 [[shapes]]
 name = "floor"
 type = "rectangle"
@@ -110,6 +123,8 @@ type = "cube"
 material = "mirror"
 translate = [1, 0, 0]
 scale = 0.3
+interior = "smoke"
+exterior = "air"
 
 [[shapes]]
 name = "ball"
@@ -274,7 +289,7 @@ def test_a_change_of_every_field_of_every_scene_dataclass_changes_the_key(scene,
     assert not missed, f"{len(missed)} of {count} changes left the key as it was: {'; '.join(missed)}"
     # the scenes hold one of every kind, so every dataclass of the model was planted in
     kinds = {kind_of(instance) for _, instance in dataclass_sites(scene)}
-    assert {"Scene", "Camera", "Film", "Material", "Shape"} <= kinds
+    assert {"Scene", "Camera", "Film", "Material", "Shape", "Medium"} <= kinds
     assert {m.type for m in scene.materials.values()} == set(MATERIAL_TYPES)
     assert {s.type for s in scene.shapes} == set(SHAPE_TYPES)
     assert {s.file.suffix for s in scene.shapes if s.file} == {".ply", ".obj"}

@@ -206,6 +206,7 @@ def test_gltf_reads_back_exactly(name, tmp_path):
         entry = gltf.materials[primitive.material]
         pbr = entry.pbrMetallicRoughness
         alpha = exported_material(material).weight if material.type == "mask" else 1.0  # a mask's opacity
+        alpha = 0.0 if material.type == "null" else alpha  # a null boundary: transparent
         assert same32(pbr.baseColorFactor, [*expected_base_colour(material), alpha]), (shape.name, pbr.baseColorFactor)
         assert same32(node.extras["reflectance"], material.reflectance)
         assert (node.extras.get("bsdf") is None) == material.is_diffuse
@@ -563,7 +564,7 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
                 if item in entry:
                     assert entry[item] == ({"texture": texture.name} if texture else material.weight), (key, entry)
             continue
-        assert entry["type"] == material.type and len(entry) > 2
+        assert entry["type"] == material.type and (len(entry) > 2 or entry == {"type": "null"})
         for parameter, value in entry.items():
             texture = material.texture(parameter)
             if texture is not None:
@@ -592,6 +593,7 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
                 assert emitter.image.shape[:2] == (entry["height"], entry["width"])
             else:
                 assert _equal(value, getattr(emitter, parameter)), (emitter.name, parameter, value)
+    check_scene_json_media(scene, document)
     assert len(document["shapes"]) == len(scene.shapes)
     for entry, shape in zip(document["shapes"], scene.shapes):
         assert (entry["name"], entry["material"]) == (shape.name, shape.material)
@@ -607,6 +609,24 @@ def test_scene_json_reads_back_exactly(name, tmp_path):
         if scene.used_textures and uv is not None:  # Mitsuba's coordinates, as the PLY's s, t
             assert entry["uv"] == "mesh"
             np.testing.assert_array_equal(mesh.visual.uv, uv)
+
+
+def check_scene_json_media(scene, document: dict) -> None:
+    """scene.json's media (issue 38): each medium's numbers exactly (sigma_t with scale applied, as float64
+    multiplies them), the shapes' interior / exterior and the camera's medium by name; no ``media`` without any."""
+    assert document["camera"]["medium"] == scene.camera_medium
+    assert [(e["interior"], e["exterior"]) for e in document["shapes"]] == [(s.interior, s.exterior)
+                                                                          for s in scene.shapes]
+    if not scene.media:
+        assert "media" not in document
+        return
+    assert list(document["media"]) == list(scene.media)
+    for name, entry in document["media"].items():
+        medium = scene.media[name]
+        assert entry["type"] == medium.type
+        assert entry["sigma_t"] == [s * medium.scale for s in medium.sigma_t]
+        assert entry["albedo"] == list(medium.albedo)
+        assert entry["phase"] == ({"type": "hg", "g": medium.g} if medium.phase == "hg" else {"type": "isotropic"})
 
 
 # ---- the placeholders -----------------------------------------------------------------------------------------------

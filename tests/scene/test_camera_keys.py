@@ -62,7 +62,7 @@ def test_an_unknown_key_lists_the_type_among_the_keys(tmp_path):
     with pytest.raises(HarnessError) as info:
         load_scene(path)
     assert str(info.value) == (f"{path}: camera.zoom: unknown key 'zoom'; expected one of: origin, target, up, fov, "
-                               "fov_axis, aperture_radius, focus_distance, scale, type")
+                               "fov_axis, aperture_radius, focus_distance, scale, type, medium")
 
 
 def test_every_entry_holds_its_plugin_and_its_scene_json_entry(tmp_path):

@@ -21,8 +21,9 @@ from harness.scene.kinds.mitsuba_values import LookAt, xyz
 DEFAULT_TYPE = "perspective"
 DEFAULT_FOV_AXIS = Camera.fov_axis  # the core's default: "x", as in Mitsuba
 LOOK_AT_KEYS = ("origin", "target", "up")
-#: The keys every camera type takes: its look-at and its type.
-CAMERA_KEYS = (*LOOK_AT_KEYS, "type")
+#: The keys every camera type takes: its look-at, its type and the medium it sits in (``medium``, a name of
+#: ``[media]``, read by the scene's loader: harness.scene.load).
+CAMERA_KEYS = (*LOOK_AT_KEYS, "type", "medium")
 
 
 @dataclass(frozen=True)
@@ -247,4 +248,5 @@ CAMERAS: dict[str, CameraKind] = {kind.name: kind for kind in (
 )}
 CAMERA_MODELS = {kind.model: kind for kind in CAMERAS.values()}
 #: The keys a ``[camera]`` table may hold, in the order a refusal lists them.
-ALL_CAMERA_KEYS = (*LOOK_AT_KEYS, *dict.fromkeys(key for kind in CAMERAS.values() for key in kind.keys), "type")
+ALL_CAMERA_KEYS = (*LOOK_AT_KEYS, *dict.fromkeys(key for kind in CAMERAS.values() for key in kind.keys), "type",
+                   "medium")

@@ -114,6 +114,8 @@ class MaterialKind:
         return row
 
     def _core_row(self, material: Material) -> np.ndarray:
+        if self.core_kind == core.NULL:  # Mitsuba's null BSDF: a row the kernels never read
+            return np.zeros(core.NUM_PARAMS, dtype=np.float64)
         if self.core_kind == core.DIFFUSE:
             return core.material_row(core.DIFFUSE, reflectance=material.reflectance, two_sided=material.two_sided)
         if self.core_kind == core.PRINCIPLED:
@@ -525,6 +527,8 @@ GLTF_LOSSES: dict[str, str] = {
     "burley": ("glTF's metallic-roughness model is not Burley's principled one: {materials} written with its base "
                "colour, metallic, roughness and the clearcoat, sheen, transmission, ior and specular extensions "
                "(approximately); its retro-reflection, flatness, anisotropy and sampling rates lost"),
+    "null": ("glTF has no index-matched boundary (Mitsuba's null BSDF, a medium's surface): {materials} written as a "
+             "transparent material (base colour alpha 0, alphaMode BLEND), its medium left out"),
     "coating": ("glTF's dielectric base (metallic 0) has no light reflected back and forth under its coating: "
                 "{materials} written with base colour = diffuse_reflectance (the 1 / (1 - F_dr) term and nonlinear "
                 "lost)"),
@@ -667,6 +671,11 @@ _PRINCIPLED_NOT_TWO_SIDED = (("two_sided", "Mitsuba's principled reflects on its
 _THIN_NOT_TWO_SIDED = (("two_sided", "a thin sheet is two-sided by nature (both sides reflect and transmit "
                                      "alike)"),)
 
+def _null_gltf(material: Material) -> tuple[dict, dict]:
+    """A fully transparent material (base colour alpha 0; the export blends it, alphaMode BLEND)."""
+    return {"baseColorFactor": [1.0, 1.0, 1.0, 0.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}, {}
+
+
 #: Every material type by its name, in :data:`harness.scene.model.MATERIAL_TYPES`'s order.
 MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
     MaterialKind("diffuse", core.DIFFUSE, ("type", "reflectance", "two_sided"), _read_diffuse,
@@ -712,6 +721,10 @@ MATERIALS: dict[str, MaterialKind] = {kind.name: kind for kind in (
                  parameters=_principled_parameters, json=_principled_json, gltf=_principled_gltf,
                  refused=_PRINCIPLED_NOT_TWO_SIDED, gltf_losses=_principled_gltf_losses,
                  textured=("base_color",) + core.PRINCIPLED_UNIT, gltf_base="base_color"),
+    # Mitsuba's null BSDF: no keys; light crosses it unchanged (it passes everything: reflectance, the bound of one
+    # bounce, is 1)
+    MaterialKind("null", core.NULL, ("type",), lambda reader, entry, key: {"reflectance": _WHITE},
+                 parameters=lambda m: {}, json=lambda m: {}, gltf=_null_gltf, gltf_losses=lambda m: ("null",)),
 )}
 assert tuple(MATERIALS) == MATERIAL_TYPES
 #: Every key of any type, for did-you-mean hints.
