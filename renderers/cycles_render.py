@@ -12,6 +12,8 @@ Cycles' own scene sync, done by an untimed 1-sample render first, excluded). Eve
 bias a comparison with Mitsuba is turned off; docs/external-renderers.md, "Cycles", lists each with its reason,
 and the conventions (one-sided emitters and BSDFs, max_bounces = max_depth - 2, a box filter of one pixel, the unit
 conversions of point and spot lights).
+Homogeneous media, the null material and the camera's medium become Cycles volumes (Volume Coefficients on a
+shape's Volume output or the World's; docs/cycles.md, "Participating media").
 
 Scenes it cannot express exit with code 2 and one line on stderr (``cycles_render: error: ...``).
 ``--emission-scale F``, ``--extra-bounces N``, ``--texture-fault`` and ``--keep-first-sample`` are planted faults for
