@@ -74,7 +74,7 @@ def _medium(sigma_t=SIGMA_T, albedo=(0.0, 0.0, 0.0), phase=None) -> dict:
             "phase": phase or {"type": "isotropic"}}
 
 
-def _slab(folder: Path, medium: dict | None = None, **shape) -> Path:
+def _slab(folder: Path, medium: dict | None = None, max_depth: int = -1, **shape) -> Path:
     """The slab as scene.json in ``folder``: a null cube whose interior is ``medium`` (or as ``shape`` says)."""
     toml = folder / "slab.toml"
     toml.write_text(SLAB, encoding="utf-8")
@@ -84,6 +84,7 @@ def _slab(folder: Path, medium: dict | None = None, **shape) -> Path:
         document["media"] = {"absorber": medium or _medium()}
         document["camera"]["medium"] = None
         document["shapes"][0].update({"interior": "absorber", "exterior": None, **shape})
+        document["integrator"]["max_depth"] = max_depth
     return write_scene_json(load_scene(toml), folder, SIZE, edit)
 
 
@@ -229,9 +230,23 @@ def test_the_media_reach_cycles_node_tree(tmp_path, bpy_present):
     assert tree["biased"] is False
 
 
-def test_the_absorbing_slab_is_beer_lambert(tmp_path, bpy_present):
-    """exp(-sigma_t d) per channel through the slab (d = 1), the sky's 1 around it."""
-    image = _render(_slab(tmp_path))
+def test_a_scene_without_media_keeps_its_transparent_bounces(tmp_path, bpy_present):
+    """The transparent limit is lifted only where Mitsuba's integrator is volpath (a medium or a null material)."""
+    path = _slab(tmp_path, max_depth=6)
+    document = json.loads(path.read_text())
+    document["materials"]["boundary"] = {"type": "diffuse", "reflectance": [0.5, 0.5, 0.5]}
+    document.pop("media")
+    document["shapes"][0]["interior"] = None
+    path.write_text(json.dumps(document))
+    tree = _nodes(path)
+    assert tree["transparent"] == 4 and tree["volume"] is None and tree["world"] is None
+
+
+@pytest.mark.parametrize("max_depth", [-1, 2])
+def test_the_absorbing_slab_is_beer_lambert(tmp_path, bpy_present, max_depth):
+    """exp(-sigma_t d) per channel through the slab (d = 1), the sky's 1 around it; at max_depth 2 too (Cycles'
+    0 bounces: its two null boundaries are no bounces, as in Mitsuba's volpath)."""
+    image = _render(_slab(tmp_path, max_depth=max_depth))
     inside = np.zeros((SIZE, SIZE), bool)
     inside[4:12, 4:12] = True
     expected = np.exp(-np.asarray(SIGMA_T))
@@ -241,8 +256,11 @@ def test_the_absorbing_slab_is_beer_lambert(tmp_path, bpy_present):
     assert np.abs(image[inside] - np.exp(-np.asarray(SIGMA_T[::-1]))).max() > 0.2
 
 
-def test_a_null_shape_without_a_medium_is_invisible(tmp_path, bpy_present):
-    image = _render(_slab(tmp_path, interior=None))
+@pytest.mark.parametrize("max_depth", [-1, 2])
+def test_a_null_shape_without_a_medium_is_invisible(tmp_path, bpy_present, max_depth):
+    """A white Transparent BSDF: Cycles counts it as a transparent bounce (measured: black behind it at max_depth 2
+    with transparent_max_bounces = max_depth - 2 = 0), so the adapter lifts that limit where Mitsuba uses volpath."""
+    image = _render(_slab(tmp_path, max_depth=max_depth, interior=None))
     assert np.abs(image - 1.0).max() < CLOSE
 
 
