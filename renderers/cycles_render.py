@@ -853,9 +853,11 @@ def add_volume(mat, tree, spec: dict, where: str) -> None:
 
 def null_material(mat, tree, emission, interior: bool, shape_where: str):
     """Mitsuba's null BSDF on a shape: with a medium inside, no surface shader at all, only the Volume output (Cycles
-    then passes every path and shadow ray through the boundary as a transparent bounce, counted against
-    transparent_max_bounces only, as Mitsuba's volpath does not count a null interaction as depth); without one, a
-    white Transparent BSDF (the same pass-through). An emitting null shape is refused."""
+    then passes every path and shadow ray through the boundary, which is no bounce: measured, the absorbing slab at
+    max_depth 2 renders exp(-sigma_t d) even with transparent_max_bounces 0, as Mitsuba's volpath counts no null
+    interaction as depth); without one, a white Transparent BSDF (the same pass-through, which Cycles counts as a
+    transparent bounce: :func:`setup_render` lifts that limit where Mitsuba uses volpath). An emitting null shape is
+    refused."""
     if emission_node(tree, emission, 1.0, None, shape_where) is not None:
         raise SceneError(f"{shape_where}: an emitting shape with a null material is not mapped to Cycles")
     output = tree.nodes.new("ShaderNodeOutputMaterial")
