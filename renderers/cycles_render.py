@@ -12,6 +12,8 @@ Cycles' own scene sync, done by an untimed 1-sample render first, excluded). Eve
 bias a comparison with Mitsuba is turned off; docs/external-renderers.md, "Cycles", lists each with its reason,
 and the conventions (one-sided emitters and BSDFs, max_bounces = max_depth - 2, a box filter of one pixel, the unit
 conversions of point and spot lights).
+Homogeneous media, the null material and the camera's medium become Cycles volumes (Volume Coefficients on a
+shape's Volume output or the World's; docs/cycles.md, "Participating media").
 
 Scenes it cannot express exit with code 2 and one line on stderr (``cycles_render: error: ...``).
 ``--emission-scale F``, ``--extra-bounces N``, ``--texture-fault`` and ``--keep-first-sample`` are planted faults for
@@ -280,6 +282,11 @@ def setup_render(bpy, doc: dict, args) -> None:
     for name in ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
                  "transparent_max_bounces"):
         setattr(cycles, name, bounces)
+    if uses_volpath(doc):  # Mitsuba's volpath counts no null interaction as depth: nor does Cycles here
+        cycles.transparent_max_bounces = UNBOUNDED_BOUNCES
+    cycles.volume_biased = False  # null scattering (unbiased); the biased ray marching's step size is not Mitsuba's
+    if hasattr(cycles, "use_volume_guiding"):
+        cycles.use_volume_guiding = False  # (guiding is off; this keeps volume directions the phase function's)
     cycles.min_light_bounces = args.min_light_bounces  # Russian roulette from this bounce on (unbiased)
     cycles.min_transparent_bounces = 0
     render = scene.render
@@ -422,6 +429,10 @@ def bsdf_node(tree, spec: dict, where: str, textures: "TextureNodes | None" = No
         return node
     if kind == "thindielectric":
         return thin_sheet_node(tree, spec, where, textures)
+    if kind == "null":  # Mitsuba's null BSDF: every path and shadow ray straight through, unweighted
+        node = nodes.new("ShaderNodeBsdfTransparent")
+        socket(node, "Color").default_value = (1.0, 1.0, 1.0, 1.0)
+        return node
     if kind in ("plastic", "roughplastic"):
         return plastic_node(tree, spec, where)
     if kind == "principled":
@@ -561,15 +572,17 @@ def principled_node(tree, spec: dict, where: str, textures: "TextureNodes | None
 
 def shape_material(bpy, spec: dict, emission, scale: float, name: str, where: str,
                    textures: "TextureNodes | None" = None, shape_where: str = "shape", smooth: bool = False,
-                   sphere: bool = False):
+                   sphere: bool = False, interior: bool = False):
     """A Cycles material for one shape: its BSDF (black from behind unless two-sided; dielectrics are two-sided)
     plus its emission from the front side only. On a smooth-shaded shape, or under a normal or bump map, the side
     is the shading normal's, as Mitsuba's (:func:`smooth_bsdf`, :func:`perturbed_bsdf`). A dielectric on a sphere's
     smooth-shaded icosphere is Cycles' own Glass BSDF, inside and outside from the triangle's side: the sphere's
     normals lean off its faces by at most half a facet's angle, so the two sides disagree only for directions within
-    that angle of grazing."""
+    that angle of grazing. A null material is :func:`null_material` (``interior``: the shape holds a medium)."""
     mat, tree = new_material(bpy, name)
     nodes, links = tree.nodes, tree.links
+    if spec["type"] == "null":
+        return null_material(mat, tree, emission, interior, shape_where)
     if spec["type"] in COMPOSITES:  # (on a smooth shape, the side of each one-sided material is the triangle's)
         return masked_material(mat, tree, composite_surface(tree, spec, where, textures, False), None, emission,
                                scale, textures, shape_where)
@@ -652,7 +665,7 @@ def composite_surface(tree, spec: dict, where: str, textures: "TextureNodes | No
         raise SceneError(f"{where}: a {kind} inside a material made of others is not mapped to Cycles")
     if kind not in COMPOSITES:
         surface = bsdf_node(tree, spec, where, textures).outputs[0]
-        two_sided = both_sides or kind in ("dielectric", "roughdielectric", "thindielectric") or bool(
+        two_sided = both_sides or kind in ("dielectric", "roughdielectric", "thindielectric", "null") or bool(
             spec.get("two_sided", False))
         if two_sided:
             return surface
@@ -728,6 +741,137 @@ def masked_material(mat, tree, surface, black_where, emission, scale: float, tex
         surface = back.outputs[0]
     links.new(surface, output.inputs["Surface"])
     return mat
+
+
+# ---- participating media (docs/cycles.md, "Participating media") ------------------------------------------------
+
+#: Cycles' sampling of distances in a volume (the material's and the world's ``volume_sampling``): DISTANCE, free
+#: flights with pdf proportional to the transmittance, is Mitsuba's homogeneous medium's own strategy, so the two
+#: estimators' noise is alike; Cycles' EQUIANGULAR and MULTIPLE_IMPORTANCE are unbiased too (measured: the same
+#: means, docs/cycles.md)
+VOLUME_SAMPLING = "DISTANCE"
+#: the materials through which a path can enter the inside of their shape (a medium there is reached)
+LETS_LIGHT_IN = ("null", "dielectric", "roughdielectric", "thindielectric", "mask")
+
+
+def medium_coefficients(spec: dict, where: str) -> tuple[list[float], list[float], float]:
+    """A scene.json medium as Cycles' Volume Coefficients: (sigma_s, sigma_a, g), per unit length, per channel:
+    sigma_s = albedo sigma_t, sigma_a = (1 - albedo) sigma_t (Mitsuba's homogeneous medium, ``sigma_t`` already
+    times ``scale``); g the Henyey-Greenstein anisotropy (0 isotropic; g > 0 forward in both Mitsuba and Cycles:
+    Cycles' phase is (1 - g^2) / (4 pi (1 + g^2 - 2 g cos theta)^1.5), theta from the ray's own direction)."""
+    if spec.get("type") != "homogeneous":
+        raise SceneError(f"{where}.type = {spec.get('type')!r}: only homogeneous media are mapped to Cycles")
+    sigma_t = [float(x) for x in spec["sigma_t"]]
+    albedo = [float(x) for x in spec["albedo"]]
+    if len(sigma_t) != 3 or len(albedo) != 3 or not all(math.isfinite(x) and x >= 0 for x in sigma_t) \
+            or not all(0.0 <= a <= 1.0 for a in albedo):
+        raise SceneError(f"{where}: expected sigma_t as 3 finite numbers >= 0 and albedo as 3 numbers in [0, 1]")
+    phase = spec.get("phase") or {"type": "isotropic"}
+    if phase.get("type") == "isotropic":
+        g = 0.0
+    elif phase.get("type") == "hg":
+        g = float(phase["g"])
+        if not -1.0 < g < 1.0:
+            raise SceneError(f"{where}.phase.g = {g}: expected a number in (-1, 1)")
+    else:
+        raise SceneError(f"{where}.phase.type = {phase.get('type')!r}: expected 'isotropic' or 'hg'")
+    return ([a * t for a, t in zip(albedo, sigma_t)], [(1.0 - a) * t for a, t in zip(albedo, sigma_t)], g)
+
+
+def volume_node(tree, spec: dict, where: str):
+    """Cycles' Volume Coefficients node of a medium (:func:`medium_coefficients`): its Scatter and Absorption
+    Coefficients are sigma_s and sigma_a per channel as given, exactly (Cycles' extinction is their sum), its phase
+    Henyey-Greenstein with Anisotropy g. Volume Scatter (sigma_s = Color x Density) with Volume Absorption
+    (sigma_a = (1 - Color) x Density) says the same with Density = max sigma_t and the colours divided by it;
+    Principled Volume ties its absorption to its scattering colour, so it is not used."""
+    sigma_s, sigma_a, g = medium_coefficients(spec, where)
+    node = tree.nodes.new("ShaderNodeVolumeCoefficients")
+    node.phase = "HENYEY_GREENSTEIN"
+    socket(node, "Scatter Coefficients").default_value = sigma_s
+    socket(node, "Absorption Coefficients").default_value = sigma_a
+    socket(node, "Emission Coefficients").default_value = (0.0, 0.0, 0.0)
+    socket(node, "Anisotropy").default_value = g
+    return node
+
+
+def world_medium(doc: dict) -> str | None:
+    """The medium Cycles' World volume holds (None: none), after refusing what Cycles' volumes cannot say.
+
+    Cycles has one medium outside every object, the World's, which also fills every object without a volume of its
+    own, and it adds up the volumes of the objects a point is inside. Mitsuba's media are named per boundary
+    (a ray leaving a surface along d is in ``exterior`` where d . N > 0, else in ``interior``; a shape naming neither
+    is no transition). So: every shape's ``exterior`` names one medium W, the camera's (the World's volume), or none;
+    the camera's medium is W, or, where no shape names an exterior, any medium (a shape's interior: the camera is
+    inside that shape, which Cycles finds by tracing from the camera; otherwise W); with a W, a shape with an
+    interior has exterior W and an interior other than W (Cycles would add W's coefficients to it), and a shape
+    light can enter (null, dielectrics, mask) naming exterior W names an interior (Cycles would fill it with W,
+    where Mitsuba's inside is empty)."""
+    media = doc.get("media") or {}
+    shapes = doc["shapes"]
+    camera = doc["camera"].get("medium")
+    for key, name in [("camera.medium", camera)] + [
+            (f"shapes[{i}] ({s['name']}).{side}", s.get(side)) for i, s in enumerate(shapes)
+            for side in ("interior", "exterior")]:
+        if name is not None and name not in media:
+            raise SceneError(f"{key} = {name!r}: not a medium of the scene's media")
+    exteriors = {s["exterior"] for s in shapes if s.get("exterior") is not None}
+    interiors = {s["interior"] for s in shapes if s.get("interior") is not None}
+    if len(exteriors) > 1:
+        raise SceneError(f"shapes' exteriors name {sorted(exteriors)}: Cycles has one medium outside its objects "
+                         "(the World's volume); nested or side-by-side media with other outsides are not mapped")
+    world = next(iter(exteriors), None)
+    if world is not None and camera != world:
+        raise SceneError(f"camera.medium = {camera!r} but shapes' exterior = {world!r}: Cycles' medium outside its "
+                         "objects (the World's volume) is the camera's too")
+    if world is None and camera is not None and camera not in interiors:
+        world = camera
+    if world is None:
+        return None
+    for i, shape in enumerate(shapes):
+        where = f"shapes[{i}] ({shape['name']})"
+        inside, outside = shape.get("interior"), shape.get("exterior")
+        if inside == world:
+            raise SceneError(f"{where}.interior = {world!r}, the medium outside every object (the World's volume): "
+                             "Cycles would add its coefficients twice inside")
+        if inside is not None and outside != world:
+            raise SceneError(f"{where}: interior {inside!r} with exterior {outside!r} in the medium {world!r}: "
+                             "Cycles' outside of every object is the World's volume")
+        material = doc["materials"][shape["material"]]
+        if inside is None and outside == world and material.get("type") in LETS_LIGHT_IN:
+            raise SceneError(f"{where}: exterior {world!r} and no interior on a {material.get('type')} shape: Cycles "
+                             "fills an object without a volume with the World's, where Mitsuba's inside is empty")
+    return world
+
+
+def add_volume(mat, tree, spec: dict, where: str) -> None:
+    """The medium ``spec`` on the Volume output of the material ``mat`` (its Cycles distance sampling
+    :data:`VOLUME_SAMPLING`)."""
+    output = next(n for n in tree.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    tree.links.new(volume_node(tree, spec, where).outputs[0], output.inputs["Volume"])
+    mat.cycles.volume_sampling = VOLUME_SAMPLING
+
+
+def null_material(mat, tree, emission, interior: bool, shape_where: str):
+    """Mitsuba's null BSDF on a shape: with a medium inside, no surface shader at all, only the Volume output (Cycles
+    then passes every path and shadow ray through the boundary, which is no bounce: measured, the absorbing slab at
+    max_depth 2 renders exp(-sigma_t d) even with transparent_max_bounces 0, as Mitsuba's volpath counts no null
+    interaction as depth); without one, a white Transparent BSDF (the same pass-through, which Cycles counts as a
+    transparent bounce: :func:`setup_render` lifts that limit where Mitsuba uses volpath). An emitting null shape is
+    refused."""
+    if emission_node(tree, emission, 1.0, None, shape_where) is not None:
+        raise SceneError(f"{shape_where}: an emitting shape with a null material is not mapped to Cycles")
+    output = tree.nodes.new("ShaderNodeOutputMaterial")
+    if not interior:
+        clear = tree.nodes.new("ShaderNodeBsdfTransparent")
+        socket(clear, "Color").default_value = (1.0, 1.0, 1.0, 1.0)
+        tree.links.new(clear.outputs[0], output.inputs["Surface"])
+    return mat
+
+
+def uses_volpath(doc: dict) -> bool:
+    """Mitsuba's integrator is volpath (its null interactions not counted as depth) where the scene has a medium or
+    a null material."""
+    return bool(doc.get("media")) or any(m.get("type") == "null" for m in doc["materials"].values())
 
 
 # ---- textures (docs/cycles.md, "Textures") -------------------------------------------------------------------------
@@ -1257,9 +1401,13 @@ def add_shapes(bpy, doc: dict, folder: Path, scale: float, texture_fault: str | 
                 raise SceneError(f"{where}: texture {names[0]!r} on a shape without texture coordinates (uv = "
                                  f"{source!r}); Mitsuba's fallback for such a mesh is not reproduced")
             textures = TextureNodes(images, source, shape.get("to_world"))
-        mesh.materials.append(shape_material(bpy, spec, shape["emission"], scale, f"material-{i}",
-                                             f"materials.{shape['material']}", textures, where,
-                                             smooth=shading == "smooth", sphere=shape.get("type") == "sphere"))
+        inside = shape.get("interior")
+        mat = shape_material(bpy, spec, shape["emission"], scale, f"material-{i}", f"materials.{shape['material']}",
+                             textures, where, smooth=shading == "smooth", sphere=shape.get("type") == "sphere",
+                             interior=inside is not None)
+        if inside is not None:
+            add_volume(mat, mat.node_tree, doc["media"][inside], f"media.{inside}")
+        mesh.materials.append(mat)
         obj = bpy.data.objects.new(f"shape-{i}", mesh)
         obj.cycles.shadow_terminator_geometry_offset = 0.0  # no offset of shadow rays off low-poly meshes
         obj.cycles.shadow_terminator_offset = 0.0
@@ -1369,6 +1517,10 @@ def setup_world(bpy, doc: dict, folder: Path, scale: float) -> None:
         else:
             add_envmap(bpy, tree, background, emitter, folder, scale)
     world.cycles.sampling_method = "AUTOMATIC"  # importance-sampled as a light (unbiased with MIS)
+    medium = world_medium(doc)
+    if medium is not None:  # the camera's medium, outside every object
+        tree.links.new(volume_node(tree, doc["media"][medium], f"media.{medium}").outputs[0], output.inputs["Volume"])
+        world.cycles.volume_sampling = VOLUME_SAMPLING
 
 
 #: rows of the map Cycles gets per row interval of the scene's map: Mitsuba's bilinear lookup has its rows at
@@ -1431,6 +1583,7 @@ def build_scene(bpy, doc: dict, folder: Path, args) -> None:
     if filt != "box":
         raise SceneError(f"film.filter = {filt!r}: Cycles' Gaussian and Blackman-Harris filters are not "
                          "Mitsuba's tent or gaussian; only box (one pixel) is exact")
+    world_medium(doc)  # refuse what Cycles' volumes cannot say before building anything
     bpy.ops.wm.read_factory_settings(use_empty=True)
     setup_render(bpy, doc, args)
     setup_camera(bpy, doc)
