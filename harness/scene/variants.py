@@ -24,6 +24,10 @@ Two groups:
   - ``light-near-wall=g``: every light moved along its normal until it sits ``g`` times the scene size in front of
     the surface behind it.
   - ``light-edge-on``: the camera moved into the plane of the first light, looking at its centre.
+  - ``medium-density=f``: every medium's extinction (its ``scale``) multiplied by ``f`` (1e-6 .. 1e6: a medium that
+    all but vanishes, or one so dense that light barely enters it).
+  - ``hg-g=g``: every medium's phase function Henyey-Greenstein with asymmetry ``g`` (-0.999 .. 0.999: scattering
+    that is almost a straight line forward or a reflection back).
 """
 
 from __future__ import annotations
@@ -91,6 +95,8 @@ _KINDS: dict[str, tuple[str, float | None, str]] = {
     "grazing-camera": (STRAIN, 1.0, "camera {v} deg above the largest surface, looking along it"),
     "light-near-wall": (STRAIN, 1e-5, "light {v} x scene size in front of the wall behind it"),
     "light-edge-on": (STRAIN, None, "camera in the plane of the light"),
+    "medium-density": (STRAIN, 1e3, "every medium's extinction x {v}"),
+    "hg-g": (STRAIN, 0.99, "every medium's phase Henyey-Greenstein with g = {v}"),
 }
 _NEEDS_VALUE = ("scale", "translate")
 _NO_VALUE = ("original", "light-edge-on")
@@ -101,6 +107,7 @@ _NO_VALUE = ("original", "light-edge-on")
 #: by every camera sample of any practical budget.
 BOUNDS: dict[str, tuple[float, float]] = {
     "scale": (1e-6, 1e6), "translate": (-1e6, 1e6), "sliver": (1.0, 1e9), "light-shrink": (1.0, 1e9),
+    "medium-density": (1e-6, 1e6), "hg-g": (-0.999, 0.999),
 }
 #: The largest coordinate a transformed scene may have: float32 squares of larger ones (squared distances in
 #: ray-triangle tests) overflow.
@@ -136,7 +143,7 @@ def parse_variant(text: str, where: str = "variant") -> Variant:
             raise HarnessError(where, f"expected a number after '{kind}=', got {raw.strip()!r}") from None
     if not math.isfinite(value):
         raise HarnessError(where, f"expected a finite number after '{kind}=', got {raw.strip()!r}")
-    if kind == "scale" and value <= 0:
+    if kind in ("scale", "medium-density") and value <= 0:
         raise HarnessError(where, f"expected a positive scale factor, got {value:g}")
     if kind in ("sliver", "light-shrink") and value < 1:
         raise HarnessError(where, f"expected a factor >= 1, got {value:g}")
@@ -378,6 +385,24 @@ def sliver_walls(scene: Scene, aspect: float) -> Scene:
     return dataclasses.replace(scene, shapes=shapes)
 
 
+def denser_media(scene: Scene, factor: float) -> Scene:
+    """Every medium's ``scale`` multiplied by ``factor`` (its extinction, sigma_t x scale, with it); HarnessError on
+    a scene without media."""
+    if not scene.media:
+        raise HarnessError(str(scene.path), "variant medium-density: the scene has no [media]")
+    media = {name: dataclasses.replace(m, scale=m.scale * factor) for name, m in scene.media.items()}
+    return dataclasses.replace(scene, media=media)
+
+
+def hg_media(scene: Scene, g: float) -> Scene:
+    """Every medium's phase function Henyey-Greenstein with asymmetry ``g``; HarnessError on a scene without
+    media."""
+    if not scene.media:
+        raise HarnessError(str(scene.path), "variant hg-g: the scene has no [media]")
+    return dataclasses.replace(scene, media={name: dataclasses.replace(m, phase="hg", g=g)
+                                             for name, m in scene.media.items()})
+
+
 _APPLY: dict[str, Callable[[Scene, float | None], Scene]] = {
     "original": lambda scene, _v: scene,
     "scale": scaled,
@@ -387,4 +412,6 @@ _APPLY: dict[str, Callable[[Scene, float | None], Scene]] = {
     "grazing-camera": grazing_camera,
     "light-near-wall": light_near_wall,
     "light-edge-on": lambda scene, _v: light_edge_on(scene),
+    "medium-density": denser_media,
+    "hg-g": hg_media,
 }
