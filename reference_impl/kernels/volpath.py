@@ -539,9 +539,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
     timing[1] += queries
 
 
-__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_hero", "free_flight_rgb", "free_flight_rgb_many",
-           "phase_eval", "phase_sample",
-           "shadow_transmittance", "target_medium", "trace_volpaths"]
+
 
 
 @njit(**JIT)
@@ -554,3 +552,23 @@ def free_flight_rgb_many(media, m, s, u_c, u_t, mutant):
     for i in range(n):
         scatters[i], t[i], w[i, 0], w[i, 1], w[i, 2] = free_flight_rgb(media, m, s, u_c[i], u_t[i], mutant)
     return scatters, t, w
+
+
+@njit(**JIT)
+def free_flight_hero_many(media, m, s, c, u_t, mutant):
+    """:func:`free_flight_hero` for each (c[i], u_t[i]) (tests): (scatters (n,), t (n,), weights (n, 3), ratios
+    (n, 3))."""
+    n = len(c)
+    scatters = np.empty(n, np.bool_)
+    t = np.empty(n)
+    w = np.empty((n, 3))
+    q = np.empty((n, 3))
+    for i in range(n):
+        (scatters[i], t[i], w[i, 0], w[i, 1], w[i, 2], q[i, 0], q[i, 1],
+         q[i, 2]) = free_flight_hero(media, m, s, c[i], u_t[i], mutant)
+    return scatters, t, w, q
+
+
+__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_hero", "free_flight_hero_many", "free_flight_rgb",
+           "free_flight_rgb_many", "phase_eval", "phase_sample", "shadow_transmittance", "target_medium",
+           "trace_volpaths"]

@@ -172,3 +172,30 @@ def test_rgb_free_flight_faults_move_the_expectation():
         values = np.where(scatters, w[:, 2], 0.0)
         truth = RGB_ALBEDO[2] * (1 - math.exp(-RGB_SIGMA[2]))
         assert abs(values.mean() - truth) > 20 * values.std() / math.sqrt(len(values))
+
+
+@pytest.mark.parametrize("s", [0.3, 4.0])
+def test_hero_channel_flights_weigh_each_channel_without_bias(s):
+    """kernels/volpath.free_flight_hero, the path loop's free flight: a hero channel c drawn uniformly, t from
+    sigma_c exp(-sigma_c t) (the free flight tested above); the path's estimate beta_k / mean_j r_j (one-sample MIS
+    over the channels, balance heuristic) has the expectations a_k (1 - T_k(s)) over scatterings and T_k(s) over
+    passes, each channel its own medium's; its weights are the formulas of the module docstring; and no channel's
+    weight exceeds 3 x its own medium's single-channel weight (a_k for a scattering, 1 for a pass)."""
+    from reference_impl.kernels.volpath import free_flight_hero_many
+    rng = np.random.default_rng(int(40 + 10 * s))
+    c = rng.integers(0, 3, N)
+    u = rng.random(N)
+    scatters, t, w, q = free_flight_hero_many(_rgb_tables(), 0, s, c, u, 0)
+    estimate = w / q.mean(axis=1, keepdims=True)
+    sigma, albedo = np.array(RGB_SIGMA), np.array(RGB_ALBEDO)
+    for k in range(3):
+        tk = math.exp(-sigma[k] * s)
+        for mask, mean in ((scatters, albedo[k] * (1 - tk)), (~scatters, tk)):
+            values = np.where(mask, estimate[:, k], 0.0)
+            assert abs(values.mean() - mean) < 5 * values.std() / math.sqrt(N), (k, values.mean(), mean)
+    assert np.all(estimate[scatters] <= 3 * albedo + 1e-12) and np.all(estimate[~scatters] <= 3 + 1e-12)
+    i = np.flatnonzero(scatters)[:200]
+    hero = sigma[c[i]] * np.exp(-sigma[c[i]] * t[i])  # p_c(t)
+    density = sigma * np.exp(-np.outer(t[i], sigma))  # p_k(t)
+    np.testing.assert_allclose(w[i], albedo * density / hero[:, None], rtol=1e-12)
+    np.testing.assert_allclose(q[i], density / hero[:, None], rtol=1e-12)
