@@ -15,7 +15,7 @@ from harness.files.imageio import read_exr
 from harness.files.results import read_results
 from harness.running.cases import load_suite
 from harness.running.schedule import run_suite
-from reference_impl.mutants import ALL_MUTANTS, TREE_MUTANTS
+from reference_impl.mutants import ALL_MUTANTS, MEDIA_MUTANTS, TREE_MUTANTS
 
 pytestmark = pytest.mark.slow  # renders or starts processes: outside the inner loop (pytest -m "not slow")
 
@@ -52,8 +52,11 @@ def test_repository_suites_load():
     camera_scenes = {"focused-plane", "orthographic-floor", "depth-of-field"}  # their cases: the camera's
     material_scenes = {"thin-glass-window", "plastic-cornell-box", "cutout-leaf", "principled-grid",
                        "material-balls-furnace", "material-balls"}  # their reference case and planted fault
+    # the media scenes: their reference case and the media's planted faults; every media strategy, the stress variants
+    # and the studies are suites/media.toml's (below), which the 10-minute budget leaves out of this one
+    media_scenes = {"fog-box", "media-slab", "medium-furnace", "hg-cloud", "medium-emitter", "glass-medium"}
     assert reference_scenes == ({"cornell-box", "furnace", "soft-shadows", "multi-light"} | emitter_scenes
-                                | glossy_scenes | lambertian_mapped | camera_scenes | material_scenes)
+                                | glossy_scenes | lambertian_mapped | camera_scenes | material_scenes | media_scenes)
     assert names == reference_scenes
     # A glossy scene's strategies (direct = auto is mis there) on every glossy scene.
     for scene in glossy_scenes:
@@ -63,7 +66,8 @@ def test_repository_suites_load():
     # rho = 1 cases).
     # (issue 36's camera and material scenes have their reference case and planted faults here; the material scenes'
     # strategy rows and studies are suites/materials.toml's, below, which the 10-minute budget leaves out of this one)
-    for scene in reference_scenes - {"white-furnace-albedo-1"} - glossy_scenes - camera_scenes - material_scenes:
+    for scene in (reference_scenes - {"white-furnace-albedo-1"} - glossy_scenes - camera_scenes - material_scenes
+                  - media_scenes):
         settings = [c.settings for c in canonical.cases if c.scene.stem == scene and c.renderer == "reference"]
         seen = {(k, v) for s in settings for k, v in s.items()}
         for pair in [("direct", "hemisphere-cosine"), ("direct", "hemisphere-uniform"), ("direct", "global-area"),
@@ -87,6 +91,12 @@ def test_repository_suites_load():
     assert set(TREE_MUTANTS) <= {c.settings.get("mutant") for c in many.cases if c.expect == "fail"}
     assert {c.settings.get("light_selection", "power") for c in many.cases if c.expect == "pass"} == {
         "power", "uniform", "tree"}
+    # The media suite: every media scene's reference case, each media strategy, each planted fault of the media.
+    media = load_suite(SUITES / "media.toml")
+    assert media_scenes <= {c.scene.stem for c in media.cases if c.name.endswith("/reference")}
+    media_settings = {(k, v) for c in media.cases if c.expect == "pass" for k, v in c.settings.items()}
+    assert {("medium_direct", "light"), ("medium_direct", "phase"), ("transmittance", "track")} <= media_settings
+    assert set(MEDIA_MUTANTS) <= {c.settings.get("mutant") for c in media.cases if c.expect == "fail"}
     # The material scenes' direct-light strategies: light samples alone and BSDF samples alone beside the default,
     # against the canonical reference case's ground truth (the same film, spp and ground-truth spp).
     materials = load_suite(SUITES / "materials.toml")
