@@ -54,15 +54,27 @@ ROWS: tuple[tuple[str, str], ...] = (
      '[materials.ball]\ntype = "mask"\nopacity = 0.5\nbsdf = "sides"\n'),
     ("twosided of diffuse and roughplastic", _WHITE_DIFFUSE + '[materials.coat]\ntype = "roughplastic"\nalpha = 0.3\n'
      'diffuse_reflectance = 1.0\n[materials.ball]\ntype = "twosided"\nbsdf = ["white", "coat"]\n'),
+    # issue 38's null material, and the media inside a null and a glass boundary (a table [media.inside] is the
+    # ball's interior, furnace_with): an albedo-1 medium loses nothing
+    ("null", '[materials.ball]\ntype = "null"\n'),
+    ("null around an albedo-1 medium (sigma_t 2, HG g 0.5)", '[media.inside]\nsigma_t = 2.0\nalbedo = 1.0\n'
+     'phase = { type = "hg", g = 0.5 }\n[materials.ball]\ntype = "null"\n'),
+    ("dielectric around an albedo-1 medium (sigma_t 2)", '[media.inside]\nsigma_t = 2.0\nalbedo = 1.0\n'
+     '[materials.ball]\ntype = "dielectric"\n'),
 )
+#: a row's medium table of this name fills the ball (its interior)
+INSIDE = "inside"
 
 
 def furnace_with(materials: str, folder: Path, size: int):
-    """The furnace scene with its sphere's material replaced by the tables ``materials`` (its main one ``ball``),
-    at ``size`` x ``size`` pixels, written into ``folder`` and loaded."""
+    """The furnace scene with its sphere's material replaced by the tables ``materials`` (its main one ``ball``; a
+    ``[media.inside]`` table among them the sphere's interior), at ``size`` x ``size`` pixels, written into
+    ``folder`` and loaded."""
     text = FURNACE.read_text()
     start, end = text.index("[materials.ball]"), text.index("[[shapes]]")
     text = text[:start] + materials + "\n" + text[end:]
+    if f"[media.{INSIDE}]" in materials:
+        text = text.replace('material = "ball"\n', f'material = "ball"\ninterior = "{INSIDE}"\n', 1)
     text = text.replace("width = 64", f"width = {size}").replace("height = 64", f"height = {size}")
     path = folder / "furnace.toml"
     path.write_text(text)
