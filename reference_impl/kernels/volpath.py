@@ -88,16 +88,23 @@ def channel_transmittance(sigma, s):
 
 
 @njit(**JIT_BORROW)
-def free_flight_rgb(media, m, s, u_c, u_t, mutant):
-    """A free flight in medium m over a segment of length s (inf: unbounded), the channel drawn by u_c and the
-    distance by u_t (module docstring): (whether it scatters before s, t, the weight per channel: a scattering's
-    sigma_s T / p(t) or a pass's T / P(pass))."""
-    c = min(int(u_c * 3.0), 2)
+def flight_distance(media, m, c, u_t):
+    """Medium m's extinction per channel and a free flight's distance drawn with channel c's, t = -log(1 - u_t) /
+    sigma_c (:func:`.phase.free_flight`; inf where sigma_c = 0): (sigma_0, sigma_1, sigma_2, t)."""
     s0, s1, s2 = media.sigma_t[m, 0], media.sigma_t[m, 1], media.sigma_t[m, 2]
     sc = s0 if c == 0 else (s1 if c == 1 else s2)
     t = np.inf
     if sc > 0.0:
         t = -math.log1p(-u_t) / sc
+    return s0, s1, s2, t
+
+
+@njit(**JIT_BORROW)
+def free_flight_rgb(media, m, s, u_c, u_t, mutant):
+    """A free flight in medium m over a segment of length s (inf: unbounded), the channel drawn by u_c and the
+    distance by u_t (module docstring): (whether it scatters before s, t, the weight per channel: a scattering's
+    sigma_s T / p(t) or a pass's T / P(pass))."""
+    s0, s1, s2, t = flight_distance(media, m, min(int(u_c * 3.0), 2), u_t)
     if t < s:
         tr0, tr1, tr2 = channel_transmittance(s0, t), channel_transmittance(s1, t), channel_transmittance(s2, t)
         if mutant & M_FLIGHT_PDF_NO_SIGMA_T:  # planted fault "free-flight-pdf-no-sigma-t"
@@ -123,11 +130,7 @@ def free_flight_hero(media, m, s, c, u_t, mutant):
     length s (inf: unbounded): (whether it scatters before s, t, the throughput's factors per channel k, a scattering's
     a_k sigma_k T_k(t) / p_c(t) or a pass's T_k(s) / P_c(pass), and the factors of the ratios r_k = p_k / p_c of the
     path's densities, sigma_k T_k(t) / (sigma_c T_c(t)) or T_k(s) / T_c(s))."""
-    s0, s1, s2 = media.sigma_t[m, 0], media.sigma_t[m, 1], media.sigma_t[m, 2]
-    sc = s0 if c == 0 else (s1 if c == 1 else s2)
-    t = np.inf
-    if sc > 0.0:
-        t = -math.log1p(-u_t) / sc
+    s0, s1, s2, t = flight_distance(media, m, c, u_t)
     if t < s:
         tr0, tr1, tr2 = channel_transmittance(s0, t), channel_transmittance(s1, t), channel_transmittance(s2, t)
         p0, p1, p2 = s0 * tr0, s1 * tr1, s2 * tr2
@@ -569,6 +572,6 @@ def free_flight_hero_many(media, m, s, c, u_t, mutant):
     return scatters, t, w, q
 
 
-__all__ = ["MAX_CROSSINGS", "channel_transmittance", "free_flight_hero", "free_flight_hero_many", "free_flight_rgb",
+__all__ = ["MAX_CROSSINGS", "channel_transmittance", "flight_distance", "free_flight_hero", "free_flight_hero_many", "free_flight_rgb",
            "free_flight_rgb_many", "phase_eval", "phase_sample", "shadow_transmittance", "target_medium",
            "trace_volpaths"]
