@@ -59,7 +59,11 @@ VARIANT_ORDER = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 MIN_LLVM_VERSION = 16  # Dr.Jit 1.5's LLVM backend aborts the process on LLVM 15 ("Cannot select: fminimum")
 DEFAULT_CHUNK_SPP = 64
 MAX_PASS_SAMPLES = 2**31  # camera samples per pass at most (Mitsuba's wavefront index is 32-bit)
-SETTING_KEYS = ("chunk_spp", "max_depth", "moments", "sampler", "variant")
+SETTING_KEYS = ("chunk_spp", "integrator", "max_depth", "moments", "sampler", "variant")
+#: ``--set integrator``: Mitsuba's integrator, in place of the scene's (``path``, or ``volpath`` for a scene with
+#: media or a ``null`` material: mitsuba_spec.scene_spec): ``volpathmis``, the volumetric path tracer with spectral
+#: MIS, is the media's second estimator (suites/media.toml)
+INTEGRATORS = ("path", "volpath", "volpathmis")
 # Mitsuba's samplers (``--set sampler=...``); "independent" is its default and the ground truth's.
 SAMPLERS = ("independent", "stratified", "multijitter", "orthogonal", "ldsampler")
 
@@ -603,13 +607,15 @@ class MitsubaSettings:
     max_depth: int
     moments: bool = True
     sampler: str = "independent"
+    integrator: str | None = None  # None: the scene's (path or volpath)
 
 
 def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
     """``--set`` values: ``variant``, ``chunk_spp`` (spp per pass, default 64), ``max_depth`` (default: the scene's),
     ``moments`` (``on``, the default: per-pixel variances through ``moment(aov(path))``; ``off``: Mitsuba's plain
     ``path`` integrator as a user runs it, no variance, used to time Mitsuba at its defaults), ``sampler`` (one of
-    :data:`SAMPLERS`; default ``independent``: a stratified one makes the moment variances an upper bound)."""
+    :data:`SAMPLERS`; default ``independent``: a stratified one makes the moment variances an upper bound),
+    ``integrator`` (one of :data:`INTEGRATORS`; default: the scene's, ``path`` or ``volpath``)."""
     for key in settings:
         if key in ("spp", "seed"):
             raise HarnessError(f"--set {key}", f"give {key} with --{key}, not --set")
@@ -628,7 +634,11 @@ def parse_settings(scene: Scene, settings: dict[str, str]) -> MitsubaSettings:
     sampler = str(settings.get("sampler", "independent")).strip()
     if sampler not in SAMPLERS:
         raise HarnessError("--set sampler", f"expected one of {', '.join(SAMPLERS)}, got {settings['sampler']!r}")
-    return MitsubaSettings(variant.strip() if variant else None, chunk, depth, moments == "on", sampler)
+    integrator = settings.get("integrator")
+    if integrator is not None and str(integrator).strip() not in INTEGRATORS:
+        raise HarnessError("--set integrator", f"expected one of {', '.join(INTEGRATORS)}, got {integrator!r}")
+    return MitsubaSettings(variant.strip() if variant else None, chunk, depth, moments == "on", sampler,
+                           str(integrator).strip() if integrator is not None else None)
 
 
 def check_sampler_count(options: MitsubaSettings, spp: int) -> None:
@@ -661,6 +671,8 @@ class MitsubaRenderer:
 
         scene_dict = scene_to_mitsuba_dict(scene, choice.variant, max_depth=options.max_depth,
                                            spp=min(options.chunk_spp, request.spp), sampler=options.sampler)
+        if options.integrator is not None:
+            scene_dict["integrator"] = {**scene_dict["integrator"], "type": options.integrator}
         if options.moments:
             scene_dict["integrator"] = moment_integrator(scene_dict["integrator"])
         logger, level = mi.logger(), mi.logger().log_level()

@@ -108,3 +108,23 @@ def test_the_slab_command_of_the_docs_gives_its_figures(command, tmp_path, monke
     assert slab.mean() == pytest.approx(0.369129, abs=1e-6)
     assert abs(slab.mean() - math.exp(-1.0)) < 5 * math.sqrt(math.exp(-1) * (1 - math.exp(-1)) / (256 * 1024))
     np.testing.assert_array_equal(environment, 1.0)
+
+
+def test_the_second_estimator_is_volpathmis_and_a_wrong_name_is_one_line(capfd, tmp_path):
+    """``--set integrator=volpathmis`` swaps the scene's integrator for Mitsuba's spectral-MIS volumetric path tracer
+    (docs/mitsuba.md, "volpathmis"), and it renders the absorbing slab like volpath (its environment pixels exactly 1,
+    the slab's near exp(-1)); a name that is none of INTEGRATORS is one line naming the setting, exit 2."""
+    from harness.renderers import RenderRequest, get_renderer
+    from harness.renderers.mitsuba import INTEGRATORS, parse_settings
+
+    scene = load_scene(SCENES / "media-slab.toml")
+    assert parse_settings(scene, {"integrator": "volpathmis"}).integrator == "volpathmis" and "volpathmis" in INTEGRATORS
+    out = get_renderer("mitsuba").render(scene, RenderRequest(spp=64, seed=1, settings={
+        "integrator": "volpathmis", "variant": "scalar_rgb"}))
+    slab, environment = slab_pixels(out.image.astype(np.float64))
+    np.testing.assert_array_equal(environment, 1.0)
+    assert abs(slab.mean() - math.exp(-1.0)) < 5 * math.sqrt(math.exp(-1) * (1 - math.exp(-1)) / slab.size / 64)
+    code = main(["render", str(SCENES / "media-slab.toml"), "--renderer", "mitsuba", "--spp", "1",
+                 "--set", "integrator=volpathmiss", "--out", str(tmp_path / "x.exr")])
+    err = capfd.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--set integrator: expected one of path, volpath, volpathmis" in err
