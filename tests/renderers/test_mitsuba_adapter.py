@@ -458,7 +458,7 @@ def test_bad_settings_are_user_errors(settings, where):
         get_renderer("mitsuba").render(scene, RenderRequest(spp=8, settings=settings))
     assert err.value.where == where
     if where == "--set shadow_rays":
-        assert "chunk_spp, max_depth, moments, sampler, variant" in str(err.value)
+        assert "chunk_spp, integrator, max_depth, moments, sampler, variant" in str(err.value)
 
 
 def test_sampler_counts_mitsuba_draws_exactly():
