@@ -49,8 +49,8 @@ from pathlib import Path
 import numpy as np
 
 from harness.core.errors import HarnessError
-from harness.judges.efficiency import (best_separated, efficiency_ratio, equal_time_spp, float_resolution, shown_mse,
-                                       zero_variance)
+from harness.judges.efficiency import (LEVEL, best_separated, efficiency_ratio, equal_time_spp, float_resolution,
+                                       ratio_interval, shown_mse, zero_variance)
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import ground_truth
 from harness.renderers.external import ExternalRendererError
@@ -63,6 +63,13 @@ BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
 DEFAULT_SPP = 64
 DEFAULT_REPEATS = 3
 DEFAULT_GT_SPP = 4096
+#: --check's fewest rounds: each ratio's interval comes from the contenders' per-round MSEs and seconds
+MIN_CHECK_REPEATS = 5
+#: a machine whose 1-minute load average before the race is above this many per core is busy: its figures are
+#: measured and shown, its targets never certified (docs/performance.md, "The method")
+BUSY_LOAD_PER_CORE = 0.5
+#: where Linux's cpufreq says each core's frequency governor
+GOVERNORS = "/sys/devices/system/cpu/cpu[0-9]*/cpufreq/scaling_governor"
 
 # Reference settings tried for "the best strategy" (the first is the defaults). Each is a one-change variation, so
 # the table says which choice pays on which scene.
@@ -417,6 +424,62 @@ def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
     return out
 
 
+def ratio_intervals(rows: Sequence[Row], label: str = "reference", level: float = LEVEL) -> dict[str, dict]:
+    """The ratios of :func:`ratios` (the same keys) with their ``level`` confidence intervals over the timed rounds:
+    efficiency (mean MSE x mean seconds of the other row over row ``label``'s) and paths/s (mean seconds of the other
+    over ``label``'s: the same paths), each by :func:`harness.judges.efficiency.ratio_interval` (the delta method
+    on the log, Welch's degrees of freedom). Each dict: {value, low, high, level, dof, seeds}; low and high None
+    with fewer than two rounds or an MSE at the ground truth's noise."""
+    mine = next((r for r in rows if r.label == label), None)
+    out: dict[str, dict] = {}
+    if mine is None or mine.error:
+        return out
+    for row in rows:
+        if row.renderer != "mitsuba" or row.error:
+            continue
+        variant = row.settings.get("variant") or row.variant or "mitsuba"
+        if row.settings.get("sampler", "independent") != "independent":
+            variant += "_" + row.settings["sampler"]
+        out[f"efficiency_vs_{variant}"] = efficiency_ratio(mine.mse_all, mine.seconds_all, row.mse_all,
+                                                           row.seconds_all, level)
+        out[f"paths_per_second_vs_{variant}"] = ratio_interval((row.seconds_all,), (mine.seconds_all,), level)
+    best = best_mitsuba(rows)
+    if best is not None:
+        out["efficiency_vs_mitsuba_best"] = efficiency_ratio(mine.mse_all, mine.seconds_all, best.mse_all,
+                                                             best.seconds_all, level)
+    return out
+
+
+def machine_state() -> dict:
+    """The machine as a race found it: the 1-, 5- and 15-minute load averages, the cores, and the CPU frequency
+    governors of its cores (Linux's cpufreq; None where the kernel shows none)."""
+    try:
+        load = [round(x, 2) for x in os.getloadavg()]
+    except OSError:
+        load = None
+    governors = set()
+    for path in sorted(Path("/").glob(GOVERNORS.lstrip("/"))):
+        try:
+            governors.add(path.read_text().strip())
+        except OSError:
+            continue
+    return {"load_average": load, "cpu_count": os.cpu_count(), "governors": sorted(governors) or None}
+
+
+def busy_reason(before: dict) -> str | None:
+    """Why a race that started on a machine in state ``before`` (:func:`machine_state`) cannot certify a target:
+    a 1-minute load average above :data:`BUSY_LOAD_PER_CORE` per core (other work shares the cores, and Mitsuba's
+    and the reference's times do not slow alike); None on an idle machine."""
+    load, cores = before.get("load_average"), before.get("cpu_count") or 1
+    if load is None:
+        return None
+    limit = BUSY_LOAD_PER_CORE * cores
+    if load[0] > limit:
+        return (f"the machine was busy: load average {load[0]:.2f} before the race on {cores} cores (at most "
+                f"{limit:.2f} to certify)")
+    return None
+
+
 def contender_ratios(rows: Sequence[Row], label: str) -> dict[str, float]:
     """Efficiency and paths/s of row ``label`` (a renderer given with ``--renderer``) over the reference's (at its
     defaults) and over every Mitsuba row's (:func:`ratios`)."""
@@ -439,8 +502,11 @@ def renderer_label(name: str) -> str:
 
 def check_targets(scenes: dict[str, dict]) -> list[dict]:
     """Each target of :func:`targets` on each of its scenes that was benched (``scenes``: the result's
-    ``scenes``, by name): {name, scene, ratio (the measure), minimum, measured, met}; ``measured`` None and ``met``
-    None where the figure is missing or not finite (a contender skipped, an MSE at the ground truth's noise)."""
+    ``scenes``, by name): {name, scene, ratio (the measure), minimum, measured, low, high, met}; ``measured`` None
+    and ``met`` None where the figure is missing or not finite (a contender skipped, an MSE at the ground truth's
+    noise). Where the scene's block has the ratio's interval (``ratio_intervals``: every race's) ``measured`` is
+    its value and a target is met only when its lower bound ``low`` clears the minimum (None without a bound:
+    fewer than two rounds); the cores target compares its one figure."""
     out = []
     for target in targets():
         for name in target.scenes:
@@ -454,8 +520,14 @@ def check_targets(scenes: dict[str, dict]) -> list[dict]:
                 measured = block["ratios"].get(target.measure)
             if measured is not None and not math.isfinite(measured):
                 measured = None
+            met = None if measured is None else bool(measured >= target.minimum)
+            low = high = None
+            interval = (block.get("ratio_intervals") or {}).get(target.measure)
+            if interval is not None:
+                measured, low, high = interval.get("value"), interval.get("low"), interval.get("high")
+                met = None if low is None else bool(low >= target.minimum)
             out.append({"name": target.measure, "scene": name, "ratio": target.measure, "minimum": target.minimum,
-                        "measured": measured, "met": None if measured is None else bool(measured >= target.minimum)})
+                        "measured": measured, "low": low, "high": high, "met": met})
     return out
 
 
@@ -538,7 +610,9 @@ def format_table(rows: Sequence[Row], replayed: dict | None = None) -> str:
 
 
 def _interval_text(interval: dict) -> str:
-    """"1.33 [0.99, 1.80]", or the value alone without an interval (one repeat)."""
+    """"1.33 [0.99, 1.80]", or the value alone without an interval (one repeat), or "not measured"."""
+    if interval.get("value") is None:
+        return "not measured"
     if interval.get("low") is None:
         return f"{interval['value']:.3g}"
     return f"{interval['value']:.3g} [{interval['low']:.3g}, {interval['high']:.3g}]"
@@ -610,7 +684,7 @@ def run_bench(
     attempt; the targets (:func:`check_targets`) on the scenes benched. ``film``: (width, height) replacing every
     scene's film (``--film``; its filter kept), recorded in the result."""
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
-                    **({"film": list(film)} if film else {}), "scenes": {}}
+                    **({"film": list(film)} if film else {}), "machine": {"before": machine_state()}, "scenes": {}}
     for name in scenes:
         path = Path(name)
         if not path.suffix:
@@ -650,6 +724,7 @@ def run_bench(
                              or gt.info.get("info", {}).get("variant")},
             "rows": [row_dict(r) for r in rows],
             "ratios": ratios(rows),
+            "ratio_intervals": ratio_intervals(rows),
             "contenders": {renderer_label(name): contender_ratios(rows, renderer_label(name)) for name in renderers},
             "best_strategy": dict(best, ratios=ratios(rows, best["leader"]) if best["leader"] else {}),
             "mitsuba_best": mitsuba.label if (mitsuba := best_mitsuba(rows)) is not None else None,
@@ -659,6 +734,8 @@ def run_bench(
             result["scenes"][scene.name]["embree_rate"] = (
                 rate.result(ref.rays_per_second if ref is not None else None) if rate is not None
                 else {"label": embree_rate.LABEL, "error": rate_error})
+    result["machine"]["after"] = machine_state()
+    result["machine"]["busy"] = busy_reason(result["machine"]["before"])
     result["targets"] = check_targets(result["scenes"])
     return result
 
@@ -678,6 +755,11 @@ def format_report(result: dict) -> str:
         ratio_text = ", ".join(f"{k} {v:.2f}" for k, v in block["ratios"].items())
         out.append(f"reference / Mitsuba: {ratio_text}"
                    + (f" (Mitsuba's best: {block['mitsuba_best']})" if block.get("mitsuba_best") else ""))
+        intervals = block.get("ratio_intervals") or {}
+        if intervals:
+            level = next(iter(intervals.values())).get("level", LEVEL)
+            out.append(f"reference / Mitsuba over the {result['repeats']} rounds, {level:.0%} intervals: "
+                       + ", ".join(f"{k} {_interval_text(v)}" for k, v in intervals.items()))
         for label, values in (block.get("contenders") or {}).items():
             row = next((r for r in rows if r.label == label), None)
             text = ", ".join(f"{k} {v:.3g}" for k, v in values.items() if isinstance(v, float) and math.isfinite(v))
@@ -687,8 +769,17 @@ def format_report(result: dict) -> str:
         out.append("")
     for target in result.get("targets", []):
         measured = "not measured" if target["measured"] is None else f"{target['measured']:.2f}"
+        if target.get("low") is not None:
+            measured += f" [{target['low']:.2f}, {target['high']:.2f}]"
         state = "met" if target["met"] else "NOT met"
         out.append(f"target {target['name']} on {target['scene']} >= {target['minimum']:.2f}: {measured} ({state})")
+    machine = result.get("machine") or {}
+    if machine.get("before") is not None:
+        out.append("machine: load average " + " -> ".join(
+            str(machine[k].get("load_average")) for k in ("before", "after") if k in machine)
+            + f", governors {machine['before'].get('governors')}")
+    if machine.get("busy"):
+        out.append(f"not certified: {machine['busy']}")
     if "memory" in result:
         m = result["memory"]
         out.append(f"peak memory: {m['peak_rss_mib']:.0f} MiB for {m['width']}x{m['height']} at {m['spp']} spp "

@@ -6,6 +6,7 @@ shape of the result and the command's errors.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -178,3 +179,58 @@ def test_bench_races_another_renderer_at_equal_spp_without_start_up(tmp_path, ca
     assert main(["bench", "--renderer", str(tmp_path / "missing.toml"), "--quiet"]) == 2
     stderr = capfd.readouterr().err
     assert "--renderer" in stderr and "missing.toml" in stderr and len(stderr.strip().splitlines()) == 1
+
+
+def _row(label, renderer, settings, mse, seconds):
+    return bench.Row("s", label, renderer, settings, 4, 8, 8, mse_all=list(mse), seconds_all=list(seconds),
+                     efficiency=bench.efficiency(float(np.mean(mse)), float(np.median(seconds))),
+                     paths_per_second=256 / float(np.median(seconds)))
+
+
+def test_ratio_intervals_and_the_targets_lower_bound():
+    """Each ratio of the race with its interval over the rounds (harness.judges.efficiency.ratio_interval): the
+    reference twice as efficient as one contender, its MSE half at the same time; a target is met only when the
+    interval's lower bound clears it, and not measured with one round (no bound)."""
+    rng = np.random.default_rng(3)
+    times = 1.0 + 0.02 * rng.standard_normal(8)
+    rows = [_row("reference", "reference", {}, 0.01 * (1 + 0.05 * rng.standard_normal(8)), times),
+            _row("mitsuba llvm_ad_rgb", "mitsuba", {"variant": "llvm_ad_rgb"},
+                 0.02 * (1 + 0.05 * rng.standard_normal(8)), times[::-1]),
+            _row("mitsuba llvm_ad_rgb ldsampler", "mitsuba", {"variant": "llvm_ad_rgb", "sampler": "ldsampler"},
+                 0.0105 * (1 + 0.05 * rng.standard_normal(8)), times)]
+    intervals = bench.ratio_intervals(rows)
+    assert set(intervals) == set(bench.ratios(rows))
+    eff = intervals["efficiency_vs_llvm_ad_rgb"]
+    assert eff["low"] < 2.0 < eff["high"] and eff["low"] > 1.8 and eff["level"] == 0.95
+    paths = intervals["paths_per_second_vs_llvm_ad_rgb"]
+    assert paths["low"] < 1.0 < paths["high"]
+    block = {"ratios": bench.ratios(rows), "ratio_intervals": intervals,
+             "rows": [bench.row_dict(r) | {"cores_busy": 2.0} for r in rows]}
+    checked = {t["name"]: t for t in bench.check_targets({"cornell-box": block})}
+    ld = checked["efficiency_vs_llvm_ad_rgb_ldsampler"]  # about 1.05: its interval straddles 1, so not met
+    assert ld["low"] < 1.0 < ld["high"] and ld["met"] is False and ld["measured"] == intervals[
+        "efficiency_vs_llvm_ad_rgb_ldsampler"]["value"]
+    one = [dataclasses.replace(r, mse_all=r.mse_all[:1], seconds_all=r.seconds_all[:1]) for r in rows]
+    single = {"ratios": bench.ratios(one), "ratio_intervals": bench.ratio_intervals(one), "rows": block["rows"]}
+    assert bench.check_targets({"cornell-box": single})[0]["met"] is None
+    text = bench.format_report({"spp": 4, "repeats": 8, "scenes": {}, "targets": bench.check_targets(
+        {"cornell-box": block}), "machine": {"before": {"load_average": [0.1, 0.2, 0.3], "governors": None},
+                                             "after": {"load_average": [1.9, 1.0, 0.5]}, "busy": None}})
+    assert "[" in text.splitlines()[0] and "machine: load average [0.1, 0.2, 0.3] -> [1.9, 1.0, 0.5]" in text
+
+
+def test_a_busy_machine_certifies_nothing_and_check_takes_five_rounds(monkeypatch, capfd):
+    """A load average above BUSY_LOAD_PER_CORE per core before the race: the reason says so (figures are kept,
+    no target certified); --check with fewer than MIN_CHECK_REPEATS rounds is one line naming --repeats."""
+    cores = 2
+    assert bench.busy_reason({"load_average": [0.4, 0.3, 0.3], "cpu_count": cores}) is None
+    reason = bench.busy_reason({"load_average": [1.7, 1.2, 0.9], "cpu_count": cores})
+    assert "busy" in reason and "1.70" in reason and "2 cores" in reason
+    assert bench.busy_reason({"load_average": None, "cpu_count": cores}) is None
+    state = bench.machine_state()
+    assert set(state) == {"load_average", "cpu_count", "governors"} and len(state["load_average"]) == 3
+    from harness.cli import main
+
+    code = main(["bench", "--check", "--repeats", "3", "--quiet"])
+    err = capfd.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--repeats: --check takes at least 5 rounds" in err, err
