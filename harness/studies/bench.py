@@ -429,13 +429,13 @@ def ratio_intervals(rows: Sequence[Row], label: str = "reference", level: float 
     efficiency (mean MSE x mean seconds of the other row over row ``label``'s) and paths/s (mean seconds of the other
     over ``label``'s: the same paths), each by :func:`harness.judges.efficiency.ratio_interval` (the delta method
     on the log, Welch's degrees of freedom). Each dict: {value, low, high, level, dof, seeds}; low and high None
-    with fewer than two rounds or an MSE at the ground truth's noise."""
+    with fewer than two rounds or an MSE at the ground truth's noise; no entry for a row without its rounds."""
     mine = next((r for r in rows if r.label == label), None)
     out: dict[str, dict] = {}
-    if mine is None or mine.error:
+    if mine is None or mine.error or not _rounds(mine):
         return out
     for row in rows:
-        if row.renderer != "mitsuba" or row.error:
+        if row.renderer != "mitsuba" or row.error or not _rounds(row):
             continue
         variant = row.settings.get("variant") or row.variant or "mitsuba"
         if row.settings.get("sampler", "independent") != "independent":
@@ -444,10 +444,16 @@ def ratio_intervals(rows: Sequence[Row], label: str = "reference", level: float 
                                                            row.seconds_all, level)
         out[f"paths_per_second_vs_{variant}"] = ratio_interval((row.seconds_all,), (mine.seconds_all,), level)
     best = best_mitsuba(rows)
-    if best is not None:
+    if best is not None and _rounds(best):
         out["efficiency_vs_mitsuba_best"] = efficiency_ratio(mine.mse_all, mine.seconds_all, best.mse_all,
                                                              best.seconds_all, level)
     return out
+
+
+def _rounds(row: Row) -> bool:
+    """Whether ``row`` holds its rounds' MSEs and seconds, paired (a row without them has no interval: its ratios
+    are the point values alone)."""
+    return len(row.mse_all) > 0 and len(row.mse_all) == len(row.seconds_all)
 
 
 def machine_state() -> dict:
