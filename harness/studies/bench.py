@@ -402,6 +402,15 @@ def best_mitsuba(rows: Sequence[Row]) -> Row | None:
     return max(raced, key=lambda r: r.efficiency, default=None)
 
 
+def mitsuba_key(row: Row) -> str:
+    """A Mitsuba row's name in the ratios' keys: its variant, with ``_<sampler>`` for a sampler other than Mitsuba's
+    default (``efficiency_vs_llvm_ad_rgb_ldsampler``)."""
+    variant = row.settings.get("variant") or row.variant or "mitsuba"
+    if row.settings.get("sampler", "independent") != "independent":
+        variant += "_" + row.settings["sampler"]
+    return variant
+
+
 def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
     """Efficiency and paths/s of row ``label`` over every Mitsuba row, keyed ``efficiency_vs_<variant>`` (with
     ``_<sampler>`` added for a sampler other than Mitsuba's default), and its efficiency over the best Mitsuba
@@ -413,9 +422,7 @@ def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
     for row in rows:
         if row.renderer != "mitsuba" or row.error:
             continue
-        variant = row.settings.get("variant") or row.variant or "mitsuba"
-        if row.settings.get("sampler", "independent") != "independent":
-            variant += "_" + row.settings["sampler"]
+        variant = mitsuba_key(row)
         out[f"efficiency_vs_{variant}"] = mine.efficiency / row.efficiency
         out[f"paths_per_second_vs_{variant}"] = mine.paths_per_second / row.paths_per_second
     best = best_mitsuba(rows)
@@ -437,9 +444,7 @@ def ratio_intervals(rows: Sequence[Row], label: str = "reference", level: float 
     for row in rows:
         if row.renderer != "mitsuba" or row.error or not _rounds(row):
             continue
-        variant = row.settings.get("variant") or row.variant or "mitsuba"
-        if row.settings.get("sampler", "independent") != "independent":
-            variant += "_" + row.settings["sampler"]
+        variant = mitsuba_key(row)
         out[f"efficiency_vs_{variant}"] = efficiency_ratio(mine.mse_all, mine.seconds_all, row.mse_all,
                                                            row.seconds_all, level)
         out[f"paths_per_second_vs_{variant}"] = ratio_interval((row.seconds_all,), (mine.seconds_all,), level)

@@ -547,24 +547,8 @@ def ray_record(cameras: int, closest: int, occlusion: int) -> RayRecord:
 
 
 class MediumTables(NamedTuple):
-    """The participating media and the triangles' medium transitions (:class:`reference_impl.media.Media`, whose
-    attributes these are), as the volumetric path loop reads them (:mod:`.volpath`).
-
-    Attributes
-    ----------
-    sigma_t, albedo : (M, 3) float64
-        Extinction per unit length (scale applied) and single-scattering albedo, per channel.
-    phase : (M,) int64
-        ``reference_impl.media.ISOTROPIC`` or ``HG``.
-    g : (M,) float64
-        HG's asymmetry.
-    interior, exterior : (T,) int64
-        Per triangle: the medium behind / in front of its front normal, -1 for none.
-    transition : (T,) bool
-        Per triangle: whether leaving it sets the ray's medium by side.
-    camera : int
-        The medium the camera's rays start in, -1 for none.
-    """
+    """The participating media and the triangles' medium transitions as the volumetric path loop reads them
+    (:mod:`.volpath`): the attributes of :class:`reference_impl.media.Media` of the same names, contiguous."""
 
     sigma_t: np.ndarray
     albedo: np.ndarray

@@ -434,9 +434,8 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                     rad0 += b0 * le0 * w
                     rad1 += b1 * le1 * w
                     rad2 += b2 * le2 * w
-            kind = material_at(materials, hit, row, mutant)
             nx0, nx1, nx2 = hit.n0, hit.n1, hit.n2
-            if kind == NULL:  # an index-matched boundary: crossed, no vertex
+            if materials.kind[hit.material] == NULL:  # an index-matched boundary: crossed, no vertex (no material step)
                 medium = target_medium(media, tri, medium, d0, d1, d2, nx0, nx1, nx2)
                 side = 1.0 if dot3(d0, d1, d2, nx0, nx1, nx2) > 0 else -1.0
                 o0, o1, o2 = offset_origin(cfg.offset_scene, hit.x0, hit.x1, hit.x2, side * nx0, side * nx1,
@@ -452,6 +451,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 continue
             if not (max_depth == -1 or depth + 1 <= max_depth) or depth >= MAX_VERTICES:
                 break
+            kind = material_at(materials, hit, row, mutant)  # the material step: the BSDF's kind and parameters
             transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == THINDIELECTRIC
             if not (cos_out > 0 or row[P_TWO_SIDED] != 0 or transmits):  # the back of a one-sided surface: black
                 break
@@ -572,6 +572,6 @@ def free_flight_hero_many(media, m, s, c, u_t, mutant):
     return scatters, t, w, q
 
 
-__all__ = ["MAX_CROSSINGS", "channel_transmittance", "flight_distance", "free_flight_hero", "free_flight_hero_many", "free_flight_rgb",
-           "free_flight_rgb_many", "phase_eval", "phase_sample", "shadow_transmittance", "target_medium",
-           "trace_volpaths"]
+__all__ = ["MAX_CROSSINGS", "channel_transmittance", "flight_distance", "free_flight_hero", "free_flight_hero_many",
+           "free_flight_rgb", "free_flight_rgb_many", "phase_eval", "phase_sample", "shadow_transmittance",
+           "target_medium", "trace_volpaths"]

@@ -17,34 +17,17 @@ import numpy as np
 import pytest
 
 import reference_impl as ri
+from harness.scene.primitives import unit_cube
 from reference_impl.materials import DIFFUSE, NULL, NUM_PARAMS, P_REFLECTANCE, Materials
 from reference_impl.media import HG, ISOTROPIC, Media
 
 Z = 5.0
 
 
-def _cube():
-    """The 12 triangles of [-1, 1]^3, their normals outward."""
-    v = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
-    tris = []
-    for axis in range(3):
-        a, b = [i for i in range(3) if i != axis]
-        for s in (-1, 1):
-            def corner(u, w, axis=axis, a=a, b=b, s=s):
-                p = [0, 0, 0]
-                p[axis], p[a], p[b] = s, u, w
-                return (p[0] > 0) * 4 + (p[1] > 0) * 2 + (p[2] > 0)
-            q = [corner(-1, -1), corner(1, -1), corner(1, 1), corner(-1, 1)]
-            for t in ([q[0], q[1], q[2]], [q[0], q[2], q[3]]):
-                n = np.cross(v[t[1]] - v[t[0]], v[t[2]] - v[t[0]])
-                tris.append(t if n[axis] * s > 0 else [t[0], t[2], t[1]])
-    return v, np.array(tris)
-
-
 def render(sigma_t=(1.0, 1.0, 1.0), albedo=(0.0, 0.0, 0.0), g=0.0, spp=64, max_depth=-1, emitters=None, floor=None,
            **settings):
     """The cube under the environment (or ``emitters``), ``floor``: a diffuse square of that albedo at z = -1.5."""
-    v, t = _cube()
+    v, t = unit_cube()  # Mitsuba's cube [-1, 1]^3, its normals outward
     kinds, rows = [NULL], [np.zeros(NUM_PARAMS)]
     material = np.zeros(len(t), int)
     if floor is not None:
