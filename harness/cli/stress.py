@@ -19,7 +19,7 @@ from harness.renderers import RenderRequest, renderer_names
 from harness.renderers.reference import ReferenceRenderer
 from harness.running.runstate import output_folder
 from harness.scene import Scene, load_scene, scene_argument
-from harness.scene.variants import parse_variant
+from harness.scene.variants import parse_variant, variant_kinds
 from harness.studies import stress
 from reference_impl import Film
 
@@ -30,7 +30,9 @@ def register(sub, common) -> None:
     parser.add_argument("scene", help=SCENE_HELP)
     parser.add_argument("--renderer", action="append", help="renderer (repeatable; default: reference and mitsuba)")
     parser.add_argument("--variant", action="append", metavar="KIND[=VALUE]",
-                        help=f"a variant (repeatable; default: all of {', '.join(stress.DEFAULT_VARIANTS)})")
+                        help=f"a variant (repeatable; default: all of {', '.join(stress.DEFAULT_VARIANTS)}); the "
+                             f"kinds: {', '.join(variant_kinds())} (medium-density and hg-g: scenes with media "
+                             "only; docs/stress.md)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="a reference renderer setting (repeatable), e.g. direct=mis or mutant=double-emission")
     parser.add_argument("--spp", type=options.positive_int, default=64,
