@@ -48,8 +48,9 @@ class RayLog:
 
     camera    list of (o32 (n, 3), d32 (n, 3), prim (n,) int32): one entry per batch of camera rays, as traced in
               packets of 16 consecutive rays
-    closest   list of (o32, d32, prim int32): closest-hit rays past the camera (-1: a miss)
-    occlusion list of (o32, d32, tfar32 (n,), blocked (n,) int8 1/0): occlusion rays
+    closest   list of (o64, d64, prim int32): closest-hit rays past the camera (-1: a miss), in float64 as the
+              sphere tests take them (Embree's query rounds them to float32; the wavefront's are float32 already)
+    occlusion list of (o64, d64, tfar32 (n,), blocked (n,) int8 1/0): occlusion rays
     paths     camera paths traced; ``stats`` their counters (integrator.COUNTERS)
     """
 
@@ -195,10 +196,11 @@ class Replay:
         def joined(entries, columns):
             if not entries:
                 return tuple(np.empty((0, 3) if c < 2 else 0, dt) for c, dt in enumerate(columns))
-            return tuple(np.ascontiguousarray(np.concatenate([e[c] for e in entries])) for c in range(len(columns)))
+            return tuple(np.ascontiguousarray(np.concatenate([e[c] for e in entries]), dtype=dt)
+                         for c, dt in enumerate(columns))
 
-        self._closest = joined(log.closest, (np.float32, np.float32, np.int32))
-        self._occlusion = joined(log.occlusion, (np.float32, np.float32, np.float32, np.int8))
+        self._closest = joined(log.closest, (np.float64, np.float64, np.int32))
+        self._occlusion = joined(log.occlusion, (np.float64, np.float64, np.float32, np.int8))
         self._camera_out = [np.full(len(e[2]), -1, np.int32) for e in log.camera]
         self._closest_out = np.full(self.counts["closest"], -1, np.int32)
         self._occlusion_out = np.full(self.counts["occlusion"], -1, np.int32)

@@ -1,4 +1,4 @@
-"""Recording the rays an engine traces, for :mod:`reference_impl.replay`: each query's float32 ray and Embree's answer,
+"""Recording the rays an engine traces, for :mod:`reference_impl.replay`: each query's ray and Embree's answer,
 written into buffers the caller sized (:class:`.records.RayRecord`).
 
 The camera rays of the batch and their hits take exactly one row per camera ray; the closest-hit rays past the
@@ -30,7 +30,8 @@ def record_camera(record, o32, d32, prim):
 
 @njit(**JIT_INLINE)
 def record_closest(record, o0, o1, o2, d0, d1, d2, prim):
-    """One closest-hit query past the camera: its ray, rounded to float32 as the query rounds it, and its hit."""
+    """One closest-hit query past the camera: its float64 ray (as the sphere tests take it; Embree's query rounds it
+    to float32) and its hit."""
     o, d, out, counts = record.closest_origin, record.closest_direction, record.closest_prim, record.counts
     q = counts[COUNT_CLOSEST]
     if q < len(out):
@@ -42,7 +43,7 @@ def record_closest(record, o0, o1, o2, d0, d1, d2, prim):
 
 @njit(**JIT_INLINE)
 def record_occluded(record, o0, o1, o2, d0, d1, d2, tfar, blocked):
-    """One occlusion query: its ray, its float32 ``tfar`` and whether it was blocked."""
+    """One occlusion query: its float64 ray, its float32 ``tfar`` and whether it was blocked."""
     o, d, t, out = record.occlusion_origin, record.occlusion_direction, record.occlusion_tfar, record.occlusion_blocked
     counts = record.counts
     q = counts[COUNT_OCCLUSION]

@@ -500,7 +500,8 @@ COUNT_CLOSEST, COUNT_OCCLUSION = 0, 1  # the entries of RayRecord.counts
 
 class RayRecord(NamedTuple):
     """Room for the queries of one batch of the path loop and Embree's answers (:mod:`.record`, for
-    :mod:`reference_impl.replay`): float32 rays as the queries round them.
+    :mod:`reference_impl.replay`): the camera rays in float32 as their packets take them; the other rays in float64,
+    as the sphere tests take them (Embree's query rounds them to float32 itself), so that a replay asks the same.
 
     Attributes
     ----------
@@ -508,11 +509,11 @@ class RayRecord(NamedTuple):
         The batch's camera rays, one row each.
     camera_prim : (n,) int32
         Their closest hits (-1: a miss).
-    closest_origin, closest_direction : (q, 3) float32
+    closest_origin, closest_direction : (q, 3) float64
         The closest-hit rays past the camera.
     closest_prim : (q,) int32
         Their hits.
-    occlusion_origin, occlusion_direction : (s, 3) float32
+    occlusion_origin, occlusion_direction : (s, 3) float64
         The occlusion rays.
     occlusion_tfar : (s,) float32
         Where each stops.
@@ -539,10 +540,10 @@ class RayRecord(NamedTuple):
 def ray_record(cameras: int, closest: int, occlusion: int) -> RayRecord:
     """An empty :class:`RayRecord` with room for ``cameras`` camera rays, ``closest`` closest-hit and ``occlusion``
     occlusion queries."""
-    f32 = np.float32
+    f32, f64 = np.float32, np.float64
     return RayRecord(np.empty((cameras, 3), f32), np.empty((cameras, 3), f32), np.empty(cameras, np.int32),
-                     np.empty((closest, 3), f32), np.empty((closest, 3), f32), np.empty(closest, np.int32),
-                     np.empty((occlusion, 3), f32), np.empty((occlusion, 3), f32), np.empty(occlusion, f32),
+                     np.empty((closest, 3), f64), np.empty((closest, 3), f64), np.empty(closest, np.int32),
+                     np.empty((occlusion, 3), f64), np.empty((occlusion, 3), f64), np.empty(occlusion, f32),
                      np.empty(occlusion, np.int8), np.zeros(2, np.int64))
 
 
