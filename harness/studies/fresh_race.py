@@ -152,6 +152,10 @@ def fresh_race(scene_path: str | Path, *, spp: int, rounds: int, film: tuple[int
     return result
 
 
+def _cell(value: float | None, width: int) -> str:
+    return f"{value:{width}.3f}" if value is not None else f"{'n/a':>{width}}"
+
+
 def format_fresh(fresh: dict) -> str:
     """The lines under a scene's table: per contender the medians of render, start-up and wall seconds (and the
     reference's kernel load), or why it was skipped; then the ratio with its interval."""
@@ -163,12 +167,8 @@ def format_fresh(fresh: dict) -> str:
         if entry.get("error"):
             lines.append(f"  {label:<22} skipped: {entry['error']}")
             continue
-
-        def cell(value, width):
-            return f"{value:{width}.3f}" if value is not None else f"{'n/a':>{width}}"
-
-        lines.append(f"  {label:<22} {cell(entry['seconds'], 9)} {cell(entry['startup_seconds'], 10)} "
-                     f"{cell(entry['wall_seconds'], 8)} {cell(entry['load_seconds'], 13)}")
+        lines.append(f"  {label:<22} {_cell(entry['seconds'], 9)} {_cell(entry['startup_seconds'], 10)} "
+                     f"{_cell(entry['wall_seconds'], 8)} {_cell(entry['load_seconds'], 13)}")
     interval = (fresh.get("ratio_intervals") or {}).get(RATIO)
     if interval is not None and interval.get("value") is not None:
         bound = (f" [{interval['low']:.3g}, {interval['high']:.3g}]" if interval.get("low") is not None else "")
