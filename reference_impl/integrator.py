@@ -91,7 +91,10 @@ class RenderOutput:
              pixel are stratified (docs/reference-renderer.md).
     stats    counters (see ``COUNTERS``) plus ``paths`` (camera paths traced) and ``embree_microseconds`` (time in
              Embree queries, summed over threads).
-    seconds  wall time of the render alone (no scene loading, no file writing).
+    seconds  wall time of the render alone (no scene loading, no file writing, no kernel loading).
+    load_seconds  wall time of loading, before the clock starts, every compiled kernel specialisation the render
+             calls (:func:`_load_kernels`: from numba's cache in a fresh process, nothing to do in one that
+             rendered the same kinds of scene before).
     variance_dof  degrees of freedom of ``variance``: R - 1 with R > 1 replicates (``Settings.replicates``), else
              Np - 1; None when Np = 1.
     """
@@ -102,6 +105,7 @@ class RenderOutput:
     seconds: float
     settings: Settings = field(repr=False, default=None)
     variance_dof: int | None = None
+    load_seconds: float = 0.0
 
 
 class _Sampling(NamedTuple):
@@ -431,9 +435,11 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     total_sq = np.zeros((num_pixels, 3))
     stats = dict.fromkeys(COUNTERS, 0)
     stats[EMBREE_MICROSECONDS] = 0
-    start = time.perf_counter()
-
     scale = 0.98 if ctx.mutant == "energy-loss-2pct" else 1.0
+    loaded = time.perf_counter()
+    if units and ctx.has_lights:
+        _load_kernels(ctx, passes[0], scale)
+    start = time.perf_counter()
 
     def run_pass(unit, sampling, sums, sums_sq, offset, unit_stats):
         """Every sample of ``sampling`` (one replicate, or the render) of the unit's pixels, summed into
@@ -509,7 +515,41 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
         seconds=seconds,
         settings=settings,
         variance_dof=dof,
+        load_seconds=start - loaded,
     )
+
+
+#: how many pixels, spread over the film, the warm step traces (:func:`_load_kernels`)
+WARM_PIXELS = 64
+#: camera samples of each of them
+WARM_SAMPLES = 4
+
+
+def _load_kernels(ctx: _Context, sampling: _Sampling, scale: float) -> None:
+    """Make every compiled kernel specialisation the render's workers will call ready in this process before the
+    render's clock starts, so that ``RenderOutput.seconds`` is the render alone: a fresh process would otherwise load
+    them from numba's cache (about half a second for the path loop) inside the timed region, in the first batch of
+    each worker.
+
+    Loaded by calling them, with the render's own argument types, on a warm batch that the render never reads:
+    :data:`WARM_SAMPLES` camera samples of each of :data:`WARM_PIXELS` pixels spread evenly over the film (the same
+    buffers' kinds as :func:`render`'s batches: the calling thread's workspace, pixel sums and counters of its own).
+    The path and volumetric loops are one kernel each, loaded whatever the batch meets; the wavefront calls a kernel
+    per step (shadow rays, hemisphere rays, the next bounce's queries), which a batch spread over the film meets on
+    any scene with light. The random streams are keyed by (seed, pixel, sample), counters rather than states
+    (:mod:`reference_impl.rng`), so the warm batch changes no bit of the image, and its counters are dropped."""
+    kernels = _kernels()
+    num_pixels = ctx.film.width * ctx.film.height
+    chosen = np.unique(np.linspace(0, num_pixels - 1, min(WARM_PIXELS, num_pixels)).astype(np.int64))
+    count = min(WARM_SAMPLES, sampling.spp)
+    pixel, sample = ctx.workspace().samples(len(chosen) * count)
+    for k, p in enumerate(chosen.tolist()):
+        kernels.film.unit_samples(p, p + 1, 0, count, pixel[k * count:(k + 1) * count], sample[k * count:(k + 1) * count])
+    dropped = dict.fromkeys(COUNTERS, 0)
+    dropped[EMBREE_MICROSECONDS] = 0
+    values = _trace_camera_paths(ctx, pixel, sample, dropped, sampling=sampling, finish=False)
+    sums = np.zeros((len(chosen), 3))
+    kernels.film.finish_and_accumulate(sums, np.zeros_like(sums), 0, values, count, scale)
 
 
 def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None,

@@ -63,8 +63,17 @@ def register(sub, common) -> None:
     parser.add_argument("--no-embree-rate", action="store_true",
                         help="skip the row 'embree (own rays)': Embree's own rate on the scene's rays, recorded "
                              f"(at most about {bench.embree_rate.DEFAULT_MAX_RAYS // 10**6} M) and replayed")
+    parser.add_argument("--fresh", action="store_true",
+                        help="also race `harness render` in fresh processes on every scene: the reference and "
+                             "Mitsuba llvm_ad_rgb (moments=off), a new process per render, taking turns for "
+                             "--repeats rounds after a warm-up process each; their render, start-up and wall "
+                             "seconds (the reference's kernel load apart) and fresh_seconds_vs_llvm_ad_rgb, Mitsuba's "
+                             "render seconds over the reference's (--check does this on "
+                             f"{', '.join(sorted(bench.fresh_scenes()))})")
     parser.add_argument("--check", action="store_true",
-                        help=f"also race every scene a target needs ({', '.join(bench.target_scenes())}), at least "
+                        help=f"also race every scene a target needs ({', '.join(bench.target_scenes())}; without "
+                             "--film, " + ", ".join(f"{name} at {w}x{h}" for name, (w, h) in bench.CHECK_FILMS.items())
+                             + f"; in fresh processes too on {', '.join(sorted(bench.fresh_scenes()))}), at least "
                              f"{bench.MIN_CHECK_REPEATS} rounds (the default then), and exit 1 when a target's "
                              "interval's lower bound does not clear it, or the machine was busy before the race "
                              f"(its load average over {bench.BUSY_LOAD_PER_CORE:g} per core: not certified): the "
@@ -79,6 +88,7 @@ def register(sub, common) -> None:
                     "with its ldsampler when spp is a power of 4 (and its stratified, multijitter and orthogonal "
                     "samplers where they draw spp, on the scenes where a target compares with Mitsuba's best sampler), "
                     "Embree's own rate on the rays the reference traces (the row 'embree (own rays)'), "
+                    "with --fresh (and --check's fresh target) harness render in fresh processes, "
                     "and the reference's strategy rows (one setting "
                     "changed, e.g. sampler=independent; also rendered at equal time, the spp that takes the "
                     "defaults' time, where the best is decided); --renderer adds any other renderer (e.g. cycles, "
@@ -94,7 +104,8 @@ def _triangles_option(text: str) -> list[int]:
 
 #: the race's options, which the scale study does not take (each refused with --scaling)
 RACE_ONLY = (("scene", "--scene"), ("renderer", "--renderer"), ("check", "--check"), ("memory", "--memory"),
-             ("no_strategies", "--no-strategies"), ("no_embree_rate", "--no-embree-rate"), ("film", "--film"))
+             ("no_strategies", "--no-strategies"), ("no_embree_rate", "--no-embree-rate"), ("film", "--film"),
+             ("fresh", "--fresh"))
 #: the scale study's options, refused without --scaling
 SCALING_ONLY = (("triangles", "--triangles"), ("size", "--size"), ("rounds", "--rounds"))
 
@@ -172,8 +183,11 @@ def run(args: argparse.Namespace) -> int:
         if not path.is_file():
             raise HarnessError("--scene", f"expected a scene name or a scene file, got {name!r}")
         resolved.append(str(path))
+    films = dict(bench.CHECK_FILMS) if args.check and not args.film else {}
     for path in resolved:  # absurd budgets refused before the first render, as harness render does
-        _check_costs(with_film(load_scene(path), args.film), args)
+        scene = load_scene(path)
+        size = films.get(scene.name)
+        _check_costs(with_film(scene, args.film or (f"{size[0]}x{size[1]}" if size else None)), args)
     if memory is not None:
         check_render_cost(memory[0], memory[0], memory[1], film_where="--memory", spp_where="--memory",
                           film_keys="SIZE in --memory", spp_name="SPP in --memory")
@@ -183,7 +197,8 @@ def run(args: argparse.Namespace) -> int:
     result = bench.run_bench(scenes=resolved, spp=args.spp, repeats=args.repeats, gt_spp=args.ground_truth_spp,
                              strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say,
                              renderers=tuple(args.renderer), embree=not args.no_embree_rate,
-                             film=film_pixels(args.film))
+                             film=film_pixels(args.film), films=films,
+                             fresh=True if args.fresh else sorted(bench.fresh_scenes()) if args.check else False)
     if memory is not None:
         result["memory"] = bench.peak_memory(Path(resolved[0]), memory[0], memory[1])
     text = jsonsafe.dumps(result, indent=2, default=float)  # NaN / inf as null

@@ -95,9 +95,12 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2, sort_keys=False))
     else:
+        loaded = (f"; kernels loaded in {result.load_seconds:.2f} s before the clock"
+                  if result.load_seconds is not None else "")
         print(
             f"{result.renderer}: {scene.name} {scene.film.width}x{scene.film.height}, {result.spp} spp in "
-            f"{result.seconds:.2f} s ({_rates_text(summary)}); {summary['nonfinite_pixels']} non-finite pixels\n"
+            f"{result.seconds:.2f} s{loaded} ({_rates_text(summary)}); {summary['nonfinite_pixels']} non-finite "
+            f"pixels\n"
             f"wrote {out} and {preview}"
         )
     return EXIT_OK
@@ -115,7 +118,9 @@ def _rates_text(summary: dict) -> str:
 
 
 def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
-    """What ``--json`` prints: the render's timings, counters and files. The rates are None (null) where the render
+    """What ``--json`` prints: the render's timings (``seconds``, the render alone; ``load_seconds``, what the
+    renderer loaded before its clock started, the reference's compiled kernels, null where a renderer does not
+    say), counters and files. The rates are None (null) where the render
     time is not above :data:`CLOCK_RESOLUTION` (all of an external renderer's time was its start-up): a rate divided
     by nothing is no measurement."""
     total_rays = sum(result.rays.values())
@@ -128,6 +133,7 @@ def _summary(result, scene, out: Path, preview: Path, seed: int) -> dict:
         "spp": result.spp,
         "seed": seed,
         "seconds": result.seconds,
+        "load_seconds": result.load_seconds,
         "paths": result.paths,
         "paths_per_second": result.paths / seconds if seconds else None,
         "rays": dict(result.rays, total=total_rays),

@@ -33,6 +33,8 @@ class RenderResult:
     image     (H, W, 3) float32 linear radiance, row 0 at the top.
     variance  (H, W, 3) float32 variance of each pixel's estimate (of the mean, not of one sample), or None.
     seconds   render time alone.
+    load_seconds  time spent before the clock started loading what the render runs (the reference's compiled
+              kernels: ``reference_impl.RenderOutput.load_seconds``), or None where the renderer does not say.
     rays      {"camera": .., "shadow": .., "indirect": ..} ray counts where the renderer knows them.
     stats     further counters.
     settings  every setting actually used, resolved (JSON-serialisable).
@@ -47,6 +49,7 @@ class RenderResult:
     stats: dict[str, int]
     settings: dict
     info: dict = field(default_factory=dict)
+    load_seconds: float | None = None
 
     @property
     def paths(self) -> int:

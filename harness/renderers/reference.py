@@ -82,6 +82,7 @@ class ReferenceRenderer:
             stats=stats,
             settings=settings.as_dict(),
             info=_info(settings, geometry, out),
+            load_seconds=out.load_seconds,
         )
 
 

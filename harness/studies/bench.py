@@ -27,8 +27,10 @@ an exact estimator reads "zero variance", without an efficiency (:func:`is_exact
 
 Each scene also gets the row "embree (own rays)": Embree's own rate on the rays the reference traces there, recorded
 once and replayed once per attempt (:mod:`harness.studies.embree_rate`), and the reference's rays per second as a
-fraction of it. The targets of the performance issue (:func:`targets`) are checked on the scenes benched
-(:func:`check_targets`).
+fraction of it, with its interval over the rounds (:func:`embree_fraction_interval`). A scene can also race
+``harness render`` in fresh processes, the reference against Mitsuba ``llvm_ad_rgb`` (:mod:`harness.studies.fresh_race`:
+render, start-up and wall seconds; ``--fresh``, and with ``--check`` the scenes of the fresh target). The targets of
+the performance issues (:func:`targets`) are checked on the scenes benched (:func:`check_targets`).
 """
 
 from __future__ import annotations
@@ -56,10 +58,18 @@ from harness.renderers.groundtruth import ground_truth
 from harness.renderers.external import ExternalRendererError
 from harness.renderers.mitsuba import sampler_takes
 from harness.scene import load_scene
-from harness.studies import embree_rate
+from harness.studies import embree_rate, fresh_race
 
 ROOT = Path(__file__).resolve().parents[2]
 BENCH_SCENES = ("cornell-box", "soft-shadows", "multi-light")
+#: issue 39's canonical scene families: the Lambertian three, veach-mis, cornell-box-specular, one textured, one with
+#: many lights, one with a participating medium
+CANONICAL_SCENES = BENCH_SCENES + ("veach-mis", "cornell-box-specular", "textured-cornell-box", "lamp-grid",
+                                   "fog-box")
+#: the film ``--check`` renders a scene at when no ``--film`` is given, where the scene's own would make the check
+#: long: the fog box's 256 x 256 takes 2.9 s a reference render at 64 spp (14 contenders x 6 attempts and the
+#: equal-time phase: minutes); at 64 x 64 it is the film of docs/performance.md's media race
+CHECK_FILMS: dict[str, tuple[int, int]] = {"fog-box": (64, 64)}
 DEFAULT_SPP = 64
 DEFAULT_REPEATS = 3
 DEFAULT_GT_SPP = 4096
@@ -104,18 +114,33 @@ class Target:
     words: str
 
 
+#: a target's measure: the reference's rays per second over Embree's own rate on the same rays (the row "embree (own
+#: rays)", ``embree_rate.reference_fraction``), with its interval over the rounds (:func:`embree_fraction_interval`)
+EMBREE_FRACTION = "embree_fraction"
+
+
 def targets() -> tuple[Target, ...]:
-    """The targets of the performance issue, each checked from figures measured in the same run. The cores target
-    asks 0.9 of this machine's cores (1.8 on 2 cores) of the reference's Cornell box renders."""
+    """The targets of the performance issues, each checked from figures measured in the same run. The cores target
+    asks 0.9 of this machine's cores (1.8 on 2 cores) of the reference's Cornell box renders. Issue 39's: efficiency
+    >= 1 x Mitsuba's best sampler on every canonical scene (:data:`CANONICAL_SCENES`), rays/s >= 0.6 of Embree's own
+    rate where the rays are recorded (not the fog box: the volumetric loop records none), and a fresh ``harness
+    render`` of soft-shadows within 2x of Mitsuba's fresh render time (:mod:`harness.studies.fresh_race`)."""
     cores = 0.9 * (os.cpu_count() or 1)
+    recorded = tuple(name for name in CANONICAL_SCENES if name != "fog-box")
     return (
-        Target("efficiency_vs_llvm_ad_rgb_ldsampler", ("cornell-box", "soft-shadows", "multi-light"), 1.0,
+        Target("efficiency_vs_llvm_ad_rgb_ldsampler", BENCH_SCENES, 1.0,
                "efficiency >= 1 x Mitsuba llvm_ad_rgb ldsampler's on cornell-box, soft-shadows and multi-light"),
-        Target("efficiency_vs_mitsuba_best", ("veach-mis", "cornell-box-specular"), 1.0,
-               "efficiency >= 1 x Mitsuba's best sampler's on veach-mis and cornell-box-specular"),
+        Target("efficiency_vs_mitsuba_best", CANONICAL_SCENES, 1.0,
+               f"efficiency >= 1 x Mitsuba's best sampler's on {', '.join(CANONICAL_SCENES)}"),
         Target("paths_per_second_vs_llvm_ad_rgb", ("cornell-box",), 0.8,
                "paths/s >= 0.8 x Mitsuba llvm_ad_rgb's on cornell-box"),
         Target("cores_busy", ("cornell-box",), cores, f"with >= {cores:.3g} cores busy there"),
+        Target(EMBREE_FRACTION, recorded, 0.6,
+               "rays/s >= 0.6 x Embree's own rate on the same rays on each of those but fog-box (whose rays are "
+               "not recorded)"),
+        Target(fresh_race.RATIO, ("soft-shadows",), 0.5,
+               "a fresh harness render's render time within 2x of Mitsuba llvm_ad_rgb's fresh one (Mitsuba's / "
+               "the reference's >= 0.5) on soft-shadows"),
     )
 
 
@@ -127,6 +152,30 @@ def target_scenes() -> list[str]:
 def best_sampler_scenes() -> set[str]:
     """The scenes where a target compares with Mitsuba's best sampler (they race :data:`EXTRA_SAMPLERS` too)."""
     return {name for t in targets() if t.measure == "efficiency_vs_mitsuba_best" for name in t.scenes}
+
+
+def fresh_scenes() -> set[str]:
+    """The scenes where a target compares fresh processes (``--check`` races them in fresh processes too)."""
+    return {name for t in targets() if t.measure == fresh_race.RATIO for name in t.scenes}
+
+
+def embree_fraction_interval(reference: Row, embree: dict, level: float = LEVEL) -> dict | None:
+    """The reference's rays per second over Embree's own rate on the scene's recorded rays, with its ``level``
+    interval over the rounds: fraction = (R / t_ref) / (E / t_embree) = (R / E) x t_embree / t_ref, with R the
+    reference's rays per render (its rays per path x pixels x spp), E the recorded rays, t_ref the reference's
+    render seconds and t_embree the replay's seconds (all phases) of each round (the replay runs once per round,
+    between the renders: ``embree["seconds_all"]``); :func:`harness.judges.efficiency.ratio_interval` on the two
+    columns of seconds (the ratio of their means, as the paths/s ratio), scaled by R / E. None where a figure is
+    missing (a skipped row, a scene whose rays are not recorded, fewer replays than rounds)."""
+    if (reference.error or reference.rays_per_path is None or embree.get("error") or not embree.get("recorded_rays")
+            or not reference.seconds_all or len(embree.get("seconds_all") or []) != len(reference.seconds_all)):
+        return None
+    scale = reference.rays_per_path * reference.width * reference.height * reference.spp / embree["recorded_rays"]
+    interval = ratio_interval((embree["seconds_all"],), (reference.seconds_all,), level)
+    for key in ("value", "low", "high"):
+        if interval.get(key) is not None:
+            interval[key] *= scale
+    return interval
 
 
 @dataclass(frozen=True)
@@ -511,11 +560,28 @@ def renderer_label(name: str) -> str:
     return Path(name).stem if name.endswith(".toml") or "/" in name else name
 
 
+def target_figures(block: dict) -> tuple[dict[str, float], dict[str, dict]]:
+    """A scene's figures that targets name, and their intervals: the race's ``ratios`` and ``ratio_intervals``,
+    :data:`EMBREE_FRACTION` (``embree_rate.reference_fraction`` and ``embree_rate.fraction_interval``) and the
+    fresh-process race's ratio (``fresh.ratios``, ``fresh.ratio_intervals``)."""
+    figures, intervals = dict(block.get("ratios") or {}), dict(block.get("ratio_intervals") or {})
+    embree = block.get("embree_rate") or {}
+    if embree and not embree.get("error"):
+        figures[EMBREE_FRACTION] = embree.get("reference_fraction")
+        if embree.get("fraction_interval") is not None:
+            intervals[EMBREE_FRACTION] = embree["fraction_interval"]
+    fresh = block.get("fresh") or {}
+    figures.update(fresh.get("ratios") or {})
+    intervals.update(fresh.get("ratio_intervals") or {})
+    return figures, intervals
+
+
 def check_targets(scenes: dict[str, dict]) -> list[dict]:
     """Each target of :func:`targets` on each of its scenes that was benched (``scenes``: the result's
     ``scenes``, by name): {name, scene, ratio (the measure), minimum, measured, low, high, met}; ``measured`` None
     and ``met`` None where the figure is missing or not finite (a contender skipped, an MSE at the ground truth's
-    noise). Where the scene's block has the ratio's interval (``ratio_intervals``: every race's) ``measured`` is
+    noise; the Embree row or the fresh race not run). The figures are :func:`target_figures`'. Where the scene's
+    block has the figure's interval (``ratio_intervals``: every race's) ``measured`` is
     its value and a target is met only when its lower bound ``low`` clears the minimum (None without a bound:
     fewer than two rounds); the cores target compares its one figure."""
     out = []
@@ -524,16 +590,17 @@ def check_targets(scenes: dict[str, dict]) -> list[dict]:
             block = scenes.get(name)
             if block is None:
                 continue
+            figures, intervals = target_figures(block)
             if target.measure == "cores_busy":
                 ref = next((r for r in block["rows"] if r["label"] == "reference" and not r.get("error")), None)
                 measured = ref["cores_busy"] if ref is not None else None
             else:
-                measured = block["ratios"].get(target.measure)
+                measured = figures.get(target.measure)
             if measured is not None and not math.isfinite(measured):
                 measured = None
             met = None if measured is None else bool(measured >= target.minimum)
             low = high = None
-            interval = (block.get("ratio_intervals") or {}).get(target.measure)
+            interval = intervals.get(target.measure)
             if interval is not None:
                 measured, low, high = interval.get("value"), interval.get("low"), interval.get("high")
                 met = None if low is None else bool(low >= target.minimum)
@@ -670,7 +737,9 @@ def format_embree(embree: dict) -> str:
             f"replays on {embree['threads']} threads, the same answers: closest-hit "
             f"{embree['closest_hit_rays_per_second'] / 1e6:.2f} Mrays/s, occlusion "
             f"{embree['occlusion_rays_per_second'] / 1e6:.2f} Mrays/s, combined {embree['rays_per_second'] / 1e6:.2f} "
-            f"Mrays/s; reference rays/s / Embree's = {embree['reference_fraction']:.2f}")
+            f"Mrays/s; reference rays/s / Embree's = {embree['reference_fraction']:.2f}"
+            + (f" ({_interval_text(embree['fraction_interval'])}, {embree['fraction_interval'].get('level', LEVEL):.0%}"
+               " interval over the rounds)" if embree.get("fraction_interval") else ""))
 
 
 def run_bench(
@@ -686,6 +755,8 @@ def run_bench(
     embree: bool = True,
     embree_rays: int = embree_rate.DEFAULT_MAX_RAYS,
     film: tuple[int, int] | None = None,
+    films: dict[str, tuple[int, int]] | None = None,
+    fresh: bool | Sequence[str] = False,
 ) -> dict:
     """The whole benchmark: per scene, the default contenders (:func:`default_contenders`, with the extra Mitsuba
     samplers on :func:`best_sampler_scenes`), each of ``renderers`` (any renderer name or file, at the same spp, its
@@ -693,7 +764,10 @@ def run_bench(
     ratios (and each other renderer's over the reference and Mitsuba); with ``embree``, Embree's own rate on the
     scene's rays (at most about ``embree_rays`` recorded: :mod:`harness.studies.embree_rate`), replayed once per
     attempt; the targets (:func:`check_targets`) on the scenes benched. ``film``: (width, height) replacing every
-    scene's film (``--film``; its filter kept), recorded in the result."""
+    scene's film (``--film``; its filter kept), recorded in the result; ``films``: the same by scene name, for the
+    scenes ``film`` does not cover (``--check``'s :data:`CHECK_FILMS`), recorded in the scene's block. ``fresh``:
+    True, or the names of the scenes, to race ``harness render`` in fresh processes after the warm race
+    (:func:`harness.studies.fresh_race.fresh_race`, ``repeats`` rounds, the scene's block's ``fresh``)."""
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
                     **({"film": list(film)} if film else {}), "machine": {"before": machine_state()}, "scenes": {}}
     for name in scenes:
@@ -701,8 +775,9 @@ def run_bench(
         if not path.suffix:
             path = ROOT / "scenes" / f"{name}.toml"
         scene = load_scene(path)
-        if film:
-            scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=film[0], height=film[1]))
+        size = film or (films or {}).get(scene.name)
+        if size:
+            scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, width=size[0], height=size[1]))
         gt = ground_truth(scene, spp=gt_spp, cache_dir=cache_dir, use_closed_form=True)
         contenders = default_contenders(spp, extra_samplers=scene.name in best_sampler_scenes())
         contenders += [Contender(renderer_label(name), name) for name in renderers]
@@ -740,11 +815,18 @@ def run_bench(
             "best_strategy": dict(best, ratios=ratios(rows, best["leader"]) if best["leader"] else {}),
             "mitsuba_best": mitsuba.label if (mitsuba := best_mitsuba(rows)) is not None else None,
         }
+        if size and not film:
+            result["scenes"][scene.name]["film"] = list(size)
         if rate is not None or rate_error is not None:
             ref = next((r for r in rows if r.label == "reference" and not r.error), None)
-            result["scenes"][scene.name]["embree_rate"] = (
-                rate.result(ref.rays_per_second if ref is not None else None) if rate is not None
-                else {"label": embree_rate.LABEL, "error": rate_error})
+            block = (rate.result(ref.rays_per_second if ref is not None else None) if rate is not None
+                     else {"label": embree_rate.LABEL, "error": rate_error})
+            if ref is not None and not block.get("error"):
+                block["fraction_interval"] = embree_fraction_interval(ref, block)
+            result["scenes"][scene.name]["embree_rate"] = block
+        if fresh is True or (fresh and scene.name in fresh):
+            result["scenes"][scene.name]["fresh"] = fresh_race.fresh_race(
+                path, spp=spp, rounds=repeats, film=size or None, on_render=on_render)
     result["machine"]["after"] = machine_state()
     result["machine"]["busy"] = busy_reason(result["machine"]["before"])
     result["targets"] = check_targets(result["scenes"])
@@ -757,12 +839,15 @@ def format_report(result: dict) -> str:
     for name, block in result["scenes"].items():
         rows = [Row(**r) for r in block["rows"]]
         gt = block["ground_truth"]
-        out.append(f"{name}: {rows[0].width}x{rows[0].height}, {result['spp']} spp, median of {result['repeats']} "
+        out.append(f"{name}: {rows[0].width}x{rows[0].height}"
+                   + (" (--check's film for it)" if block.get("film") else "") + f", {result['spp']} spp, median of {result['repeats']} "
                    f"timed renders after a warm-up; ground truth: {gt['source']} {gt['spp'] or ''} spp "
                    f"{gt['variant'] or ''}".rstrip())
         out.append(format_table(rows, block.get("embree_rate")))
         if block.get("embree_rate") is not None:
             out.append(format_embree(block["embree_rate"]))
+        if block.get("fresh") is not None:
+            out.append(fresh_race.format_fresh(block["fresh"]))
         ratio_text = ", ".join(f"{k} {v:.2f}" for k, v in block["ratios"].items())
         out.append(f"reference / Mitsuba: {ratio_text}"
                    + (f" (Mitsuba's best: {block['mitsuba_best']})" if block.get("mitsuba_best") else ""))

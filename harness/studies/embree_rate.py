@@ -72,6 +72,9 @@ class EmbreeRate:
             "rays_per_path": log.rays / log.paths if log.paths else math.nan,
             "record_seconds": self.record_seconds,
             "replays": len(self.runs),
+            # per timed replay, the wall seconds of all its phases (the reference fraction's interval pairs them
+            # with the reference's rounds: harness.studies.bench.embree_fraction_interval)
+            "seconds_all": [sum(run[phase][0] for phase in run) for run in self.runs],
             "mismatches": mismatches,
             "reference_rays_per_second": reference_rays_per_second,
             "reference_fraction": (reference_rays_per_second / combined

@@ -9,7 +9,7 @@ both. A child process measures, in its own clock:
 - ``load``: the scene file to the arrays the kernels take. The reference: :func:`harness.scene.load_scene` (the
   TOML, the PLY through trimesh, the placement checks), the arrays (:func:`harness.scene.triangulate` and the
   emitter and material tables) and the render's set-up less the Embree commit (the light and surface samplers, the
-  kernels' records). Mitsuba: the same :func:`~harness.scene.load_scene`, then the scene as Mitsuba's dict and
+  kernels' records, the compiled kernels loaded before the render's clock starts). Mitsuba: the same :func:`~harness.scene.load_scene`, then the scene as Mitsuba's dict and
   ``mi.load_dict`` (its meshes, its own acceleration structure: Mitsuba's BVH is inside its load);
 - ``bvh``: the reference's Embree scene commit (``rtcCommitScene``: :class:`reference_impl.embree_c.TriangleScene`);
 - ``render``: the render's own clock (no loading), and paths per second = pixels x spp / render;

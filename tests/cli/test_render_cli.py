@@ -37,13 +37,15 @@ def test_render_writes_exr_with_variance_png_and_json(tmp_path):
                                    "--set", "max_depth=3", "--out", str(out), "--json")
     assert code == 0, stderr
     summary = json.loads(stdout)
-    for key in ("renderer", "spp", "seconds", "paths_per_second", "rays", "nonfinite_pixels", "settings"):
+    for key in ("renderer", "spp", "seconds", "load_seconds", "paths_per_second", "rays", "nonfinite_pixels",
+                "settings"):
         assert key in summary
     assert summary["renderer"] == "reference" and summary["spp"] == 4 and summary["nonfinite_pixels"] == 0
     assert set(summary["rays"]) >= {"camera", "shadow", "indirect"}
     assert summary["rays"]["camera"] == 64 * 64 * 4
     assert summary["settings"]["max_depth"] == 3 and summary["settings"]["seed"] == 3
     assert summary["seconds"] > 0 and summary["paths_per_second"] > 0
+    assert summary["load_seconds"] > 0  # a fresh process loads the kernels, before the clock
     with OpenEXR.File(str(out), separate_channels=True) as exr:
         channels = exr.channels()
         assert set(channels) == {"R", "G", "B", "variance.R", "variance.G", "variance.B"}

@@ -17,7 +17,7 @@ from harness.cli import main
 from harness.renderers import RenderRequest, get_renderer
 from harness.renderers.groundtruth import GroundTruth
 from harness.scene import emitter_arrays, material_arrays, triangulate
-from harness.studies import bench, embree_rate
+from harness.studies import bench, embree_rate, fresh_race
 from reference_impl import replay
 
 pytestmark = pytest.mark.slow  # renders: outside the inner loop (pytest -m "not slow")
@@ -94,8 +94,9 @@ def _fake_rows(values: dict[str, tuple[float, float, float]]):
         for c in contenders:
             eff, pps, cores = values.get(c.label, (1.0, 1.0, 1.0))
             rows.append(bench.Row(scene.name, c.label, c.renderer, dict(c.settings), spp, scene.film.width,
-                                  scene.film.height, seconds=1.0, seconds_all=[1.0], paths_per_second=pps,
-                                  rays_per_second=5e6 if c.renderer == "reference" else None, cores_busy=cores,
+                                  scene.film.height, seconds=1.0, seconds_all=[1.0] * repeats,
+                                  paths_per_second=pps, rays_per_second=5e6 if c.renderer == "reference" else None,
+                                  rays_per_path=5e6 / pps if c.renderer == "reference" else None, cores_busy=cores,
                                   mse=1.0 / eff, efficiency=eff))
         for attempt in range(repeats + 1):
             if between is not None:
@@ -105,8 +106,46 @@ def _fake_rows(values: dict[str, tuple[float, float, float]]):
     return fake
 
 
-def _fake_race(monkeypatch, values):
+class _FakeRate:
+    """An EmbreeRate without a recording: the reference's fraction of Embree's rate is ``FRACTION`` (its point
+    value: no per-round replays, so no interval), and a scene with media is refused as the real one refuses it."""
+
+    FRACTION = 0.8
+
+    def __init__(self, scene, *, spp, max_rays):
+        if scene.has_media:
+            raise bench.HarnessError(str(scene.path), "the Embree rate replays the rays of the surface path loop")
+
+    def warm_up(self):
+        pass
+
+    def measure(self):
+        pass
+
+    def result(self, reference_rays_per_second):
+        rays = {"camera": 1, "closest": 1, "occlusion": 1}
+        return {"label": embree_rate.LABEL, "error": None, "rays": rays, "seconds": dict.fromkeys(rays, 0.1),
+                "recorded_rays": 3, "recorded_paths": 1, "rays_per_path": 3.0, "replays": 0, "threads": 2,
+                "closest_hit_rays_per_second": 1.0, "occlusion_rays_per_second": 1.0, "rays_per_second": 1.0,
+                "cores_busy": 1.0, "seconds_all": [], "reference_fraction": self.FRACTION}
+
+
+def _fake_fresh(monkeypatch, reference=0.1, mitsuba=0.08):
+    """Fresh processes that report ``reference`` and ``mitsuba`` render seconds (harness.studies.fresh_race)."""
+
+    def run(argv):
+        seconds = mitsuba if "mitsuba" in argv else reference
+        return {"seconds": seconds, "load_seconds": None, "wall_seconds": seconds + 1, "startup_seconds": 1.0}
+
+    monkeypatch.setattr(fresh_race, "run_once", run)
+
+
+def _fake_race(monkeypatch, values, *, rate=False):
+    """The race's renders faked (``values``), and with ``rate`` the Embree row and the fresh processes too."""
     monkeypatch.setattr(bench, "bench_scene", _fake_rows(values))
+    if rate:
+        monkeypatch.setattr(embree_rate, "EmbreeRate", _FakeRate)
+        _fake_fresh(monkeypatch)
     # an idle machine, whatever the test run's own load (a busy one certifies nothing: test_bench.py)
     monkeypatch.setattr(bench, "machine_state", lambda: {"load_average": [0.0, 0.0, 0.0], "cpu_count": 2,
                                                           "governors": None})
@@ -120,33 +159,58 @@ def _all_met(cpus):
 
 
 def test_check_exits_1_with_a_target_not_met_and_0_when_all_are_met(monkeypatch, capsys):
-    """``--check`` races the five target scenes (from the default three: veach-mis and cornell-box-specular added,
-    with the extra Mitsuba samplers there), prints each target as ``target NAME on SCENE >= X: VALUE (met|NOT met)``
-    and exits 1 when one is not met (the faked rows hold no rounds: their point ratios decide; the lower bound's rule
-    is test_bench.py's)."""
+    """``--check`` races the eight target scenes (from the default three: veach-mis, cornell-box-specular,
+    textured-cornell-box, lamp-grid and fog-box added, with the extra Mitsuba samplers on all; fog-box at its --check
+    film), soft-shadows in fresh processes too, prints each target as ``target NAME on SCENE >= X: VALUE (met|NOT
+    met)`` and exits 1 when one is not met (the faked rows hold no rounds: their point ratios decide; the lower
+    bound's rule is test_bench.py's). Without the Embree row its targets are not measured, so not met."""
     cpus = os.cpu_count() or 1
-    _fake_race(monkeypatch, _all_met(cpus))
-    assert main(["bench", "--check", "--quiet", "--no-embree-rate", "--no-strategies", "--repeats", "5"]) == 0
+    check = ["bench", "--check", "--quiet", "--no-strategies", "--repeats", "5"]
+    _fake_race(monkeypatch, _all_met(cpus), rate=True)
+    assert main(check) == 0
     text = capsys.readouterr().out
     lines = [line for line in text.splitlines() if line.startswith("target ")]
-    assert len(lines) == 3 + 2 + 1 + 1 and all(line.endswith("(met)") for line in lines), lines
+    assert len(lines) == 3 + 8 + 1 + 1 + 7 + 1 and all(line.endswith("(met)") for line in lines), lines
     assert "target efficiency_vs_mitsuba_best on veach-mis >= 1.00: 10.00 (met)" in lines
+    assert "target efficiency_vs_mitsuba_best on fog-box >= 1.00: 10.00 (met)" in lines
+    assert "target embree_fraction on lamp-grid >= 0.60: 0.80 (met)" in lines
+    assert not any("embree_fraction on fog-box" in line for line in lines)
+    assert any(line.startswith("target fresh_seconds_vs_llvm_ad_rgb on soft-shadows >= 0.50: 0.80 [")
+               and line.endswith("(met)") for line in lines), lines
     assert f"target cores_busy on cornell-box >= {0.9 * cpus:.2f}: {cpus:.2f} (met)" in lines
     assert "mitsuba llvm_ad_rgb stratified" in text and "mitsuba llvm_ad_rgb multijitter" in text
+    assert "fog-box: 64x64 (--check's film for it)" in text and "fresh processes (harness render, 64 spp" in text
 
-    # the best sampler on cornell-box-specular beats the reference there (multijitter: efficiency 20 > 10)
-    _fake_race(monkeypatch, _all_met(cpus) | {"mitsuba llvm_ad_rgb multijitter": (20.0, 1.0, 1.0)})
-    assert main(["bench", "--check", "--quiet", "--no-embree-rate", "--no-strategies", "--repeats", "5"]) == 1
+    # the best sampler beats the reference (multijitter: efficiency 20 > 10), raced on every canonical scene
+    _fake_race(monkeypatch, _all_met(cpus) | {"mitsuba llvm_ad_rgb multijitter": (20.0, 1.0, 1.0)}, rate=True)
+    assert main(check) == 1
     lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("target ")]
     assert "target efficiency_vs_mitsuba_best on cornell-box-specular >= 1.00: 0.50 (NOT met)" in lines
-    assert sum(line.endswith("(NOT met)") for line in lines) == 2  # on both best-sampler scenes
+    assert sum(line.endswith("(NOT met)") for line in lines) == 8  # on every scene
 
-    # both cores not busy: the paths/s target alone is met
-    _fake_race(monkeypatch, _all_met(cpus) | {"reference": (10.0, 10.0, 0.5 * cpus)})
-    assert main(["bench", "--check", "--quiet", "--no-embree-rate", "--no-strategies", "--repeats", "5",
-                 "--scene", "cornell-box"]) == 1
-    lines = [line for line in capsys.readouterr().out.splitlines() if line.startswith("target ")]
-    assert [line.endswith("(NOT met)") for line in lines] == [False, False, False, False, False, False, True]
+    # Mitsuba's fresh render 4x faster: the fresh target alone is not met
+    _fake_race(monkeypatch, _all_met(cpus), rate=True)
+    _fake_fresh(monkeypatch, reference=0.1, mitsuba=0.025)
+    assert main(check) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.endswith("(NOT met)")]
+    assert len(lines) == 1 and lines[0].startswith("target fresh_seconds_vs_llvm_ad_rgb on soft-shadows"), lines
+
+    # the reference at half of Embree's rate: the Embree targets alone are not met
+    _fake_race(monkeypatch, _all_met(cpus), rate=True)
+    monkeypatch.setattr(_FakeRate, "FRACTION", 0.5)
+    assert main(check) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.endswith("(NOT met)")]
+    assert len(lines) == 7 and all(line.startswith("target embree_fraction on ") for line in lines), lines
+    monkeypatch.undo()
+
+    # both cores not busy: the cores target alone is not met; --no-embree-rate: its targets not measured
+    _fake_race(monkeypatch, _all_met(cpus) | {"reference": (10.0, 10.0, 0.5 * cpus)}, rate=True)
+    assert main(check + ["--scene", "cornell-box"]) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.endswith("(NOT met)")]
+    assert lines == [f"target cores_busy on cornell-box >= {0.9 * cpus:.2f}: {0.5 * cpus:.2f} (NOT met)"]
+    assert main(check + ["--no-embree-rate"]) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if line.endswith("(NOT met)")]
+    assert len(lines) == 1 + 7 and all("not measured" in line for line in lines[1:]), lines
 
 
 def test_the_json_holds_the_embree_rate_and_the_targets(monkeypatch, capsys, tmp_path):
@@ -169,8 +233,11 @@ def test_the_json_holds_the_embree_rate_and_the_targets(monkeypatch, capsys, tmp
     assert rate["reference_fraction"] == pytest.approx(5e6 / rate["rays_per_second"])
     targets = result["targets"]
     assert [(t["name"], t["scene"]) for t in targets] == [
-        ("efficiency_vs_llvm_ad_rgb_ldsampler", "cornell-box"), ("paths_per_second_vs_llvm_ad_rgb", "cornell-box"),
-        ("cores_busy", "cornell-box")]
+        ("efficiency_vs_llvm_ad_rgb_ldsampler", "cornell-box"), ("efficiency_vs_mitsuba_best", "cornell-box"),
+        ("paths_per_second_vs_llvm_ad_rgb", "cornell-box"), ("cores_busy", "cornell-box"),
+        ("embree_fraction", "cornell-box")]
+    # two replays paired with two rounds of the reference: the fraction's interval (test_bench_fresh.py's rule)
+    assert len(rate["seconds_all"]) == 2 and rate["fraction_interval"]["low"] is not None
     assert all(set(t) >= {"ratio", "minimum", "measured", "met"} for t in targets)
     assert block["mitsuba_best"] is not None and "efficiency_vs_mitsuba_best" in block["ratios"]
     assert main(["bench", "--scene", str(small), "--spp", "4", "--repeats", "1", "--no-strategies", "--quiet",
