@@ -10,7 +10,8 @@ Point i of the n points of a pixel and pair (docs/reference-renderer.md, "The st
     y = nus(sobol_1(i'), s_y)       dimension 1: sobol_1(i') = reverse(pascal32(i'))   (Burley, JCGT 9(4) 2020, list. 3)
 
 with every seed a hash of (seed, pixel, the pair's first dimension). For n = 2^m the points form a (0, m, 2)-net.
-The camera sample (depth 0) and the first hit's decisions (depth 1) use it; deeper vertices draw independent numbers
+The camera sample (depth 0) and the first hit's decisions (depth 1; in the volumetric path loop the first vertex's,
+:func:`volpath_first_vertex_seeds`) use it; deeper vertices draw independent numbers
 (:mod:`reference_impl.kernels.rng`). (Measured on the Cornell box at 64 spp: the first hit gives nearly all of the
 gain, MSE 5.6e-4 -> 1.5e-4; going on to depth 2 took 3 % more time for 3 % less MSE.)
 """
