@@ -588,7 +588,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         # one specialization for every scene with media (emitters and spheres always given, possibly empty; every
         # BSDF kind compiled in): one compilation, whatever the scene
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
-                radiance, counters, timing, ctx.volpath_emitters, ctx.medium_tables, ctx.scene_tables.sphere, True)
+                radiance, counters, timing, film_samples, ctx.volpath_emitters, ctx.medium_tables, ctx.scene_tables.sphere, True)
         if not ctx.compiled:
             kernels.compile_once.compile_once(kernels.volpath.trace_volpaths, args)
             ctx.compiled = True

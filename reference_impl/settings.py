@@ -76,7 +76,8 @@ class Settings:
     spp             [Np] viewing rays per pixel, placed over the support of the pixel filter h.
     seed            seed of every random stream.
     sampler         where the uniforms come from: "sobol" (beyond the slides: each pixel's Np camera samples, and the
-                    Np x Nd light samples, Np roulette numbers and Np x Ni indirect directions of the first hits,
+                    Np x Nd light samples, Np roulette numbers and Np x Ni indirect directions of the first hits
+                    (in the volumetric path loop: the first vertex's free flight, light samples and direction),
                     are stratified point sets: a shuffled, Owen-scrambled Sobol (0,2)-sequence per pixel and pair of
                     dimensions, Burley 2020; deeper vertices as "independent"), or "independent" (every uniform an
                     independent hash of the path, the dimension and the seed: the slides' plain Monte Carlo). Each

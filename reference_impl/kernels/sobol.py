@@ -10,7 +10,8 @@ Point i of the n points of a pixel and pair (docs/reference-renderer.md, "The st
     y = nus(sobol_1(i'), s_y)       dimension 1: sobol_1(i') = reverse(pascal32(i'))   (Burley, JCGT 9(4) 2020, list. 3)
 
 with every seed a hash of (seed, pixel, the pair's first dimension). For n = 2^m the points form a (0, m, 2)-net.
-The camera sample (depth 0) and the first hit's decisions (depth 1) use it; deeper vertices draw independent numbers
+The camera sample (depth 0) and the first hit's decisions (depth 1; in the volumetric path loop the first vertex's,
+:func:`volpath_first_vertex_seeds`) use it; deeper vertices draw independent numbers
 (:mod:`reference_impl.kernels.rng`). (Measured on the Cornell box at 64 spp: the first hit gives nearly all of the
 gain, MSE 5.6e-4 -> 1.5e-4; going on to depth 2 took 3 % more time for 3 % less MSE.)
 """
@@ -25,7 +26,7 @@ from numba import njit
 from reference_impl.kernels.config import JIT, JIT_BORROW
 from reference_impl.kernels.rng import dim_salt, mix64, pixel_key, uniform
 from reference_impl.rng import (_GOLDEN, _LK, _ROUND_MULTIPLIER, _TO_UNIT32, BSDF_LOBE, BSDF_U1, DIRECT_DIR_U1,
-                                INDIRECT_U1, LIGHT_U1, ROULETTE)
+                                FLIGHT_CHANNEL, INDIRECT_U1, LIGHT_U1, ROULETTE)
 
 _U32 = np.uint64(32)
 _ONE = np.uint64(1)
@@ -55,6 +56,16 @@ class PathFirstHitPairs(NamedTuple):
     direction: tuple  # hemisphere sampling's direct-light direction; Np x Nd
     bsdf: tuple  # the BSDF sample's direction; Np
     lobe_roulette: tuple  # the BSDF's lobe (x) and Russian roulette (y); Np
+
+
+class VolpathFirstVertexPairs(NamedTuple):
+    """One entry per pair of dimensions a pixel's first vertex draws from its stratified sets in the volumetric path
+    loop (:func:`volpath_first_vertex_seeds`): the (base, count) of its points computed ahead, or the pair's seeds."""
+
+    flight: tuple  # the path's hero channel (x) and its first free flight's distance (y); Np
+    light: tuple  # the light sample's point (its first coordinate also picks the light and the piece); Np x Nd
+    direction: tuple  # the phase function's or the BSDF's direction, whichever the first vertex is; Np
+    lobe_roulette: tuple  # the BSDF's lobe (x) and Russian roulette (y, also at a scattering point); Np
 
 
 NOTHING_HELD = (np.int64(0), np.int64(0))  # (base, count) of the points of a pair computed ahead: none
@@ -216,6 +227,21 @@ def path_first_hit_seeds(seed_key, pixel, spp, nd):
                              sobol_seeds(pk, dim_salt(1, DIRECT_DIR_U1, 0), spp * nd),
                              sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
                              sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
+
+
+@njit(**JIT)
+def volpath_first_vertex_seeds(seed_key, pixel, spp, nd):
+    """The ``sobol_seeds`` of a pixel's first-vertex pairs in the volumetric path loop: (hero channel and first free
+    flight, light sample, phase or BSDF direction, BSDF lobe and roulette); Np, Np x Nd, Np and Np points. The first
+    vertex is a scattering point or a surface, never both, so the direction and (lobe, roulette) sets serve either
+    (each of a pixel's samples takes its own point of each set once; a set per kind of vertex would hand each a
+    random subset of its points); the light sample's choices of light and piece reuse its point's first coordinate
+    (as :func:`path_first_hit_seeds`')."""
+    pk = pixel_key(seed_key, pixel)
+    return VolpathFirstVertexPairs(sobol_seeds(pk, dim_salt(1, FLIGHT_CHANNEL, 0), spp),
+                                   sobol_seeds(pk, dim_salt(1, LIGHT_U1, 0), spp * nd),
+                                   sobol_seeds(pk, dim_salt(1, BSDF_U1, 0), spp),
+                                   sobol_seeds(pk, dim_salt(1, BSDF_LOBE, 0), spp))
 
 
 @njit(**JIT_BORROW)

@@ -37,8 +37,14 @@ with 1.
 
 Path lengths follow Mitsuba's volpath: a vertex (a surface that is not null, or a scattering point) i draws light
 samples and scatters when i < max_depth, and its emission counts when i <= max_depth. Random numbers are hashes
-``uniform(key, dim_salt(depth, PURPOSE, j))`` at every depth whatever ``sampler`` says (the camera's film samples
-are the sampler's).
+``uniform(key, dim_salt(depth, PURPOSE, j))``, except with ``sampler = sobol`` (the film samples, and) the first
+vertex's: each pixel's Np (hero channel, first free flight) pairs of the camera ray, Np x Nd light samples (one 2D
+point whose first coordinate also picks the light and its piece, as the path loop's), Np phase or BSDF directions and
+Np (lobe, roulette) pairs are stratified sets (:func:`.sobol.volpath_first_vertex_seeds`), computed ahead for the
+pixel's run of samples; a shadow ray's "track" flights, the emitters' own samples and every later vertex keep hashes.
+(Measured at 64 spp over 8 seeds, docs/performance.md: on fog-box the first free flight gives all of the gain, MSE
+5.09e-3 -> 8.6e-4; on medium-emitter the flight 2.1x, with the light samples and directions 2.65x; on hg-cloud the
+phase direction 1.17x.)
 """
 
 from __future__ import annotations
@@ -55,19 +61,22 @@ from reference_impl.kernels.config import (C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT
                                            M_ALBEDO_TWICE, M_FLIGHT_PDF_NO_SIGMA_T, M_HG_G_FLIPPED,
                                            M_LIGHT_PDF_IGNORED, M_NEE_NO_TRANSMITTANCE, M_NULL_AS_BOUNCE,
                                            MEDIUM_LIGHT, MEDIUM_MIS, MEDIUM_PHASE, RR_ALBEDO, RR_OFF, RR_PBRT,
-                                           RR_THROUGHPUT, TR_TRACK)
+                                           RR_THROUGHPUT, SAMPLER_SOBOL, TR_TRACK)
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            power_weight)
-from reference_impl.kernels.emitters import env_light_pdf, env_radiance
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.path import RR_THROUGHPUT_CAP, connect, next_ray
 from reference_impl.kernels.phase import hg_pdf, sample_hg, sample_isotropic, INV_FOUR_PI
 from reference_impl.kernels.queries import TIMING_STRIDE, closest_prim_timed, now_ns, ray_buffer
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.shading import geometric_frame
+from reference_impl.kernels.sobol import (NOTHING_HELD, VolpathFirstVertexPairs, ahead, held_point, longest_run,
+                                          pair_point, pixel_run, volpath_first_vertex_seeds)
 from reference_impl.kernels.surface import emission_at, offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
-from reference_impl.materials import DIELECTRIC, NULL, P_TWO_SIDED, ROUGHDIELECTRIC, ROW_SIZE, THINDIELECTRIC
+from reference_impl.materials import (DIELECTRIC, NULL, P_TWO_SIDED, PLASTIC, PRINCIPLED, ROUGHDIELECTRIC, ROUGHPLASTIC,
+                                      ROW_SIZE, THINDIELECTRIC)
 from reference_impl.media import HG
 from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, FLIGHT, FLIGHT_CHANNEL,
                                 LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, PHASE_U1, PHASE_U2, ROULETTE, TRACK,
@@ -228,9 +237,10 @@ def shadow_transmittance(cfg, scene_ptr, words, floats, ts, queries, sampled_ns,
 
 
 @njit(**JIT_BORROW)
-def roulette(cfg, depth, key, b0, b1, b2, eta2, q_albedo):
+def roulette(cfg, depth, key, b0, b1, b2, eta2, q_albedo, u_rr):
     """Russian roulette at a vertex of depth ``depth`` (the path loop's rules; ``q_albedo``: the survival of
-    ``rr = albedo`` at this vertex): (survives, b / q)."""
+    ``rr = albedo`` at this vertex) with the uniform u_rr, or where it is negative a hash of ``key``: (survives,
+    b / q)."""
     if cfg.rr == RR_OFF or depth < cfg.rr_depth:
         return True, b0, b1, b2
     if cfg.rr == RR_THROUGHPUT:
@@ -241,7 +251,9 @@ def roulette(cfg, depth, key, b0, b1, b2, eta2, q_albedo):
         q = min(q_albedo, 1.0)
     else:
         q = cfg.survival
-    if not (uniform(key, dim_salt(depth, ROULETTE, 0)) < q):
+    if u_rr < 0:
+        u_rr = uniform(key, dim_salt(depth, ROULETTE, 0))
+    if not (u_rr < q):
         return False, 0.0, 0.0, 0.0
     inv_q = 1.0 / q
     return True, b0 * inv_q, b1 * inv_q, b2 * inv_q
@@ -270,12 +282,13 @@ def medium_ray(cfg, conn, x0, x1, x2):
 
 
 @njit(**JIT)
-def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, counters, timing, emitters, media,
-                   spheres=None, later=None):
+def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, counters, timing, film_samples, emitters,
+                   media, spheres=None, later=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) to its end through the
     scene's media (module docstring), adding each path's radiance to ``radiance[root]``. The tables as the path loop
     takes them (:func:`.path.trace_paths`; ``emitters``, ``spheres`` and ``later`` None compile their branches out);
-    ``media`` the :class:`.records.MediumTables`. ``timing`` as the path loop's."""
+    ``media`` the :class:`.records.MediumTables`. ``timing`` as the path loop's; ``film_samples``
+    (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler."""
     root, key, origin, direction, _o32, _d32, beta, _pdf_dir, _env_pdf = state
     light_id, light_pmf, light_area = scene.light_id, lights.pmf, lights.area
     sphere_base = scene.prim_to_tri.shape[0] - scene.sphere.shape[0]
@@ -290,6 +303,21 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
     medium_emit = EMIT_MIS if cfg.medium_direct == MEDIUM_MIS else (
         EMIT_FULL if cfg.medium_direct == MEDIUM_PHASE else EMIT_NONE)
     uniform_diffuse = cfg.hemisphere == HEMI_UNIFORM
+    sobol = cfg.sampler == SAMPLER_SOBOL
+    film_pixel, film_sample, seed_key = film_samples.pixel, film_samples.sample, film_samples.seed_key
+    # The first vertex's points of each pixel's run of samples, computed ahead (kernels.sobol.sobol_points); the
+    # (lobe, roulette) pair only where roulette is played at the first vertex (a lobed BSDF's few from the seeds)
+    fv = volpath_first_vertex_seeds(seed_key, 0, 1, 1)
+    fv_pixel = -1
+    si = 0
+    run = longest_run(film_samples) if sobol else 0
+    fx, fy = np.empty(run), np.empty(run)
+    lx, ly = np.empty(run * nd), np.empty(run * nd)
+    wx, wy = np.empty(run), np.empty(run)
+    cx, cy = np.empty(run), np.empty(run)
+    held = VolpathFirstVertexPairs(NOTHING_HELD, NOTHING_HELD, NOTHING_HELD, NOTHING_HELD)
+    first_roulette = cfg.rr != RR_OFF and cfg.rr_depth <= 1
+    lights_drawn = medium_lights or surface_lights
     row = np.empty(ROW_SIZE)
     words, floats = ray_buffer()
     ts = np.zeros(2, np.int64)
@@ -314,7 +342,21 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
         b0, b1, b2 = beta[i, 0], beta[i, 1], beta[i, 2]
         rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]
         medium = media.camera
-        hero = min(int(uniform(k, dim_salt(0, FLIGHT_CHANNEL, 0)) * 3.0), 2)  # the channel free flights follow
+        u_flight = -1.0  # the camera ray's first free flight's uniform (sobol), or none: hashes
+        if sobol:
+            if film_pixel[r] != fv_pixel:  # a pixel's samples come together: its seeds and points once
+                fv_pixel = film_pixel[r]
+                fv = volpath_first_vertex_seeds(seed_key, fv_pixel, cfg.spp, nd)
+                first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
+                held = VolpathFirstVertexPairs(ahead(fv.flight, first, m_run, fx, fy, True),
+                                               ahead(fv.light, first * nd, m_run * nd, lx, ly, lights_drawn),
+                                               ahead(fv.direction, first, m_run, wx, wy, True),
+                                               ahead(fv.lobe_roulette, first, m_run, cx, cy, first_roulette))
+            si = film_sample[r]
+            u_c, u_flight = pair_point(held_point(fv.flight, fx, fy, held.flight, si), si)
+            hero = min(int(u_c * 3.0), 2)  # the channel free flights follow
+        else:
+            hero = min(int(uniform(k, dim_salt(0, FLIGHT_CHANNEL, 0)) * 3.0), 2)  # the channel free flights follow
         r0, r1, r2 = 1.0, 1.0, 1.0  # the path's densities per channel over the hero's: p_k / p_hero
         depth = 1  # the vertex the current ray will find (the camera is 0)
         emit = EMIT_FULL  # how emission this ray finds counts
@@ -332,10 +374,14 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
             if p >= 0:
                 hit = surface_hit(scene, p, o0, o1, o2, d0, d1, d2)
                 t_hit = hit.t
+            sob = sobol and depth == 1  # the first vertex's numbers from the pixel's stratified sets
             if medium >= 0:
-                scatters, t, w0, w1, w2, q0, q1, q2 = free_flight_hero(media, medium, t_hit, hero,
-                                                                       uniform(k, dim_salt(depth, FLIGHT, crossings)),
-                                                                       mutant)
+                if u_flight >= 0 and depth == 1:  # the camera ray's first free flight
+                    u_t = u_flight
+                    u_flight = -1.0
+                else:
+                    u_t = uniform(k, dim_salt(depth, FLIGHT, crossings))
+                scatters, t, w0, w1, w2, q0, q1, q2 = free_flight_hero(media, medium, t_hit, hero, u_t, mutant)
                 # b is the throughput over the mean of the channels' densities (one-sample MIS over the hero)
                 rm = (r0 + r1 + r2) / 3.0
                 r0, r1, r2 = r0 * q0, r1 * q1, r2 * q2
@@ -352,7 +398,12 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                     if medium_lights:
                         tot0, tot1, tot2 = 0.0, 0.0, 0.0
                         for j in range(nd):
-                            sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j)
+                            if sob:  # one 2D point: its first coordinate picks the light and piece
+                                u_a, u2 = pair_point(held_point(fv.light, lx, ly, held.light, si * nd + j), si * nd + j)
+                                sel, piece, u1 = split_light_piece_all(lights, cfg.num_lights, cfg.num_area_lights,
+                                                                       u_a)
+                            else:
+                                sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j)
                             if cfg.num_lights > 1:
                                 count_light_select += 1
                             pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
@@ -391,10 +442,16 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                             rad0 += b0 * conn.v0 * f * tr0
                             rad1 += b1 * conn.v1 * f * tr1
                             rad2 += b2 * conn.v2 * f * tr2
-                    n0, n1, n2, pdf = phase_sample(media, medium, mutant, uniform(k, dim_salt(depth, PHASE_U1, 0)),
-                                                   uniform(k, dim_salt(depth, PHASE_U2, 0)), d0, d1, d2)
+                    if sob:
+                        pu1, pu2 = pair_point(held_point(fv.direction, wx, wy, held.direction, si), si)
+                    else:
+                        pu1, pu2 = uniform(k, dim_salt(depth, PHASE_U1, 0)), uniform(k, dim_salt(depth, PHASE_U2, 0))
+                    n0, n1, n2, pdf = phase_sample(media, medium, mutant, pu1, pu2, d0, d1, d2)
                     a = media.albedo[medium]
-                    alive, b0, b1, b2 = roulette(cfg, depth, k, b0, b1, b2, eta2, max(a[0], a[1], a[2]))
+                    u_rr = -1.0
+                    if sob and first_roulette:
+                        _u_lobe, u_rr = pair_point(held_point(fv.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
+                    alive, b0, b1, b2 = roulette(cfg, depth, k, b0, b1, b2, eta2, max(a[0], a[1], a[2]), u_rr)
                     if not alive:
                         count_roulette += 1
                         break
@@ -475,7 +532,11 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 tot0, tot1, tot2 = 0.0, 0.0, 0.0
                 for j in range(points + own):
                     if j < points:
-                        sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j)
+                        if sob:  # as at a scattering point
+                            u_a, u2 = pair_point(held_point(fv.light, lx, ly, held.light, si * nd + j), si * nd + j)
+                            sel, piece, u1 = split_light_piece_all(lights, cfg.num_lights, cfg.num_area_lights, u_a)
+                        else:
+                            sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j)
                         if cfg.num_lights > 1:
                             count_light_select += 1
                         pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
@@ -510,11 +571,21 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 rad0 += b0 * tot0
                 rad1 += b1 * tot1
                 rad2 += b2 * tot2
-            u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
-            bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
-            bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
+            u_rr = -1.0  # drawn by next_ray where roulette is played
+            if sob:
+                u_lobe = 0.0
+                lobed = transmits or kind == PLASTIC or kind == ROUGHPLASTIC or kind == PRINCIPLED
+                if lobed or first_roulette:  # only they read the pair
+                    u_lobe, u_rr = pair_point(held_point(fv.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
+            else:
+                u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
+            if sob:
+                bu1, bu2 = pair_point(held_point(fv.direction, wx, wy, held.direction, si), si)
+            else:
+                bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
+                bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
             (go_on, cut, n0, n1, n2, m0, m1, m2, qn0, qn1, qn2, nb0, nb1, nb2, eta2, pdf,
-             delta) = next_ray(cfg, kind, row, uniform_diffuse, True, u_lobe, bu1, bu2, -1.0, k, depth, (lo0, lo1, lo2),
+             delta) = next_ray(cfg, kind, row, uniform_diffuse, True, u_lobe, bu1, bu2, u_rr, k, depth, (lo0, lo1, lo2),
                                (b0, b1, b2), eta2, sf, (nx0, nx1, nx2), side, (x0, x1, x2), (ox0, ox1, ox2), later)
             count_roulette += cut
             if not go_on:

@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 from conftest import load_small
 
-from harness.scene import emitter_arrays, material_arrays, triangulate
+from harness.scene import emitter_arrays, material_arrays, media_arrays, triangulate
 
 DATA = Path(__file__).resolve().parent / "data" / "image_checksums.json"
 REGENERATE = "REGENERATE_IMAGE_CHECKSUMS"
@@ -95,11 +95,28 @@ LOOP_CASES = [
     ("mapped-plates", {"direct": "hemisphere-cosine"}),
     ("leaning-plate", {"direct": "mis"}),
 ]
+# Scenes with media or null boundaries: the volumetric path loop's alone (whatever ``engine`` says), both samplers
+# (``independent`` keeps the hashes of every number; ``sobol`` draws the first vertex from the pixel's sets).
+MEDIA_CASES = [
+    ("fog-box", {}),
+    ("fog-box", {"transmittance": "track", "rr": "albedo", "rr_depth": 1}),
+    ("media-slab", {}),
+    ("medium-furnace", {}),
+    ("hg-cloud", {}),
+    ("hg-cloud", {"medium_direct": "phase"}),
+    ("medium-emitter", {}),
+    ("medium-emitter", {"medium_direct": "light"}),
+    ("glass-medium", {}),
+    ("glass-medium", {"rr_depth": 1}),
+    ("glass-sphere-medium", {}),
+]
 GLOSSY = {"veach-mis", "cornell-box-specular", "underwater", "white-furnace-rough", "smooth-twins", "mapped-plates",
           "leaning-plate"}  # (and the scenes with shading normals: no wavefront)
 CASES = [(scene, {**settings, "engine": engine, "sampler": sampler})
          for scene, settings in BASE_CASES + LOOP_CASES for engine in ("path", "wavefront")
          for sampler in ("sobol", "independent") if not (engine == "wavefront" and scene in GLOSSY)]
+CASES += [(scene, {**settings, "engine": "path", "sampler": sampler}) for scene, settings in MEDIA_CASES
+          for sampler in ("sobol", "independent")]
 
 
 def _case_id(scene: str, settings: dict) -> str:
@@ -115,8 +132,12 @@ def _inputs(name: str, pixel_filter: str | None):
     if pixel_filter is not None:
         scene = dataclasses.replace(scene, film=dataclasses.replace(scene.film, filter=pixel_filter))
     materials = material_arrays(scene)
-    return (triangulate(scene), scene.camera, scene.film, scene.max_depth, emitter_arrays(scene),
-            {} if materials is None else {"materials": materials})
+    geometry = triangulate(scene)
+    media = media_arrays(scene, geometry)
+    extra = {} if materials is None else {"materials": materials}
+    if media is not None:
+        extra["media"] = media
+    return geometry, scene.camera, scene.film, scene.max_depth, emitter_arrays(scene), extra
 
 
 @functools.cache
