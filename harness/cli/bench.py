@@ -74,7 +74,9 @@ def register(sub, common) -> None:
                         help=f"also race every scene a target needs ({', '.join(bench.target_scenes())}; without "
                              "--film, " + ", ".join(f"{name} at {w}x{h}" for name, (w, h) in bench.CHECK_FILMS.items())
                              + f"; in fresh processes too on {', '.join(sorted(bench.fresh_scenes()))}), at least "
-                             f"{bench.MIN_CHECK_REPEATS} rounds (the default then), and exit 1 when a target's "
+                             f"{bench.MIN_CHECK_REPEATS} rounds (the default then; "
+                             + ", ".join(f"{name} {n}" for name, n in bench.CHECK_ROUNDS.items())
+                             + ": their MSE per round is heavy-tailed), and exit 1 when a target's "
                              "interval's lower bound does not clear it, or the machine was busy before the race "
                              f"(its load average over {bench.BUSY_LOAD_PER_CORE:g} per core: not certified): the "
                              f"reference's {_targets_text()} (docs/performance.md)")
@@ -198,7 +200,8 @@ def run(args: argparse.Namespace) -> int:
                              strategies=not args.no_strategies, cache_dir=args.cache_dir, on_render=say,
                              renderers=tuple(args.renderer), embree=not args.no_embree_rate,
                              film=film_pixels(args.film), films=films,
-                             fresh=True if args.fresh else sorted(bench.fresh_scenes()) if args.check else False)
+                             fresh=True if args.fresh else sorted(bench.fresh_scenes()) if args.check else False,
+                             rounds=dict(bench.CHECK_ROUNDS) if args.check else {})
     if memory is not None:
         result["memory"] = bench.peak_memory(Path(resolved[0]), memory[0], memory[1])
     text = jsonsafe.dumps(result, indent=2, default=float)  # NaN / inf as null

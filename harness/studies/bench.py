@@ -70,6 +70,10 @@ CANONICAL_SCENES = BENCH_SCENES + ("veach-mis", "cornell-box-specular", "texture
 #: long: the fog box's 256 x 256 takes 2.9 s a reference render at 64 spp (14 contenders x 6 attempts and the
 #: equal-time phase: minutes); at 64 x 64 it is the film of docs/performance.md's media race
 CHECK_FILMS: dict[str, tuple[int, int]] = {"fog-box": (64, 64)}
+#: the fewest rounds ``--check`` races a scene in, where the default would leave its efficiency undecided: a round's MSE
+#: on veach-mis and lamp-grid is heavy-tailed (small bright lights), and in 5 rounds the efficiency's interval spanned
+#: 0.29-1.04 and 0.67-1.51 (docs/performance.md, "Issue 39's targets"); their renders take about 0.05 s
+CHECK_ROUNDS: dict[str, int] = {"veach-mis": 20, "lamp-grid": 20}
 DEFAULT_SPP = 64
 DEFAULT_REPEATS = 3
 DEFAULT_GT_SPP = 4096
@@ -757,6 +761,7 @@ def run_bench(
     film: tuple[int, int] | None = None,
     films: dict[str, tuple[int, int]] | None = None,
     fresh: bool | Sequence[str] = False,
+    rounds: dict[str, int] | None = None,
 ) -> dict:
     """The whole benchmark: per scene, the default contenders (:func:`default_contenders`, with the extra Mitsuba
     samplers on :func:`best_sampler_scenes`), each of ``renderers`` (any renderer name or file, at the same spp, its
@@ -767,7 +772,9 @@ def run_bench(
     scene's film (``--film``; its filter kept), recorded in the result; ``films``: the same by scene name, for the
     scenes ``film`` does not cover (``--check``'s :data:`CHECK_FILMS`), recorded in the scene's block. ``fresh``:
     True, or the names of the scenes, to race ``harness render`` in fresh processes after the warm race
-    (:func:`harness.studies.fresh_race.fresh_race`, ``repeats`` rounds, the scene's block's ``fresh``)."""
+    (:func:`harness.studies.fresh_race.fresh_race`, ``repeats`` rounds, the scene's block's ``fresh``).
+    ``rounds``: at least this many rounds for the scenes it names (``--check``'s :data:`CHECK_ROUNDS`), recorded in
+    the scene's block as ``repeats`` where it differs from ``repeats``."""
     result: dict = {"spp": spp, "repeats": repeats, "ground_truth_spp": gt_spp, "cpu_count": os.cpu_count(),
                     **({"film": list(film)} if film else {}), "machine": {"before": machine_state()}, "scenes": {}}
     for name in scenes:
@@ -799,10 +806,11 @@ def run_bench(
             if on_render is not None:
                 on_render(f"{scene.name}: {embree_rate.LABEL}" + (" (warm-up)" if attempt == 0 else ""))
 
-        rows = bench_scene(scene, contenders, spp=spp, repeats=repeats, gt=gt, on_render=on_render,
+        scene_repeats = max(repeats, (rounds or {}).get(scene.name, 0))
+        rows = bench_scene(scene, contenders, spp=spp, repeats=scene_repeats, gt=gt, on_render=on_render,
                            between=between if rate is not None else None)
         if strategies:
-            equal_time_renders(scene, rows, repeats=repeats, gt=gt, on_render=on_render)
+            equal_time_renders(scene, rows, repeats=scene_repeats, gt=gt, on_render=on_render)
         best = strategy_verdict(rows)
         result["scenes"][scene.name] = {
             "scene_file": str(path),
@@ -817,6 +825,8 @@ def run_bench(
         }
         if size and not film:
             result["scenes"][scene.name]["film"] = list(size)
+        if scene_repeats != repeats:
+            result["scenes"][scene.name]["repeats"] = scene_repeats
         if rate is not None or rate_error is not None:
             ref = next((r for r in rows if r.label == "reference" and not r.error), None)
             block = (rate.result(ref.rays_per_second if ref is not None else None) if rate is not None
@@ -826,7 +836,7 @@ def run_bench(
             result["scenes"][scene.name]["embree_rate"] = block
         if fresh is True or (fresh and scene.name in fresh):
             result["scenes"][scene.name]["fresh"] = fresh_race.fresh_race(
-                path, spp=spp, rounds=repeats, film=size or None, on_render=on_render)
+                path, spp=spp, rounds=scene_repeats, film=size or None, on_render=on_render)
     result["machine"]["after"] = machine_state()
     result["machine"]["busy"] = busy_reason(result["machine"]["before"])
     result["targets"] = check_targets(result["scenes"])
@@ -840,7 +850,8 @@ def format_report(result: dict) -> str:
         rows = [Row(**r) for r in block["rows"]]
         gt = block["ground_truth"]
         out.append(f"{name}: {rows[0].width}x{rows[0].height}"
-                   + (" (--check's film for it)" if block.get("film") else "") + f", {result['spp']} spp, median of {result['repeats']} "
+                   + (" (--check's film for it)" if block.get("film") else "") + f", {result['spp']} spp, median of "
+                   f"{block.get('repeats', result['repeats'])} "
                    f"timed renders after a warm-up; ground truth: {gt['source']} {gt['spp'] or ''} spp "
                    f"{gt['variant'] or ''}".rstrip())
         out.append(format_table(rows, block.get("embree_rate")))
@@ -854,7 +865,8 @@ def format_report(result: dict) -> str:
         intervals = block.get("ratio_intervals") or {}
         if intervals:
             level = next(iter(intervals.values())).get("level", LEVEL)
-            out.append(f"reference / Mitsuba over the {result['repeats']} rounds, {level:.0%} intervals: "
+            out.append(f"reference / Mitsuba over the {block.get('repeats', result['repeats'])} rounds, "
+                       f"{level:.0%} intervals: "
                        + ", ".join(f"{k} {_interval_text(v)}" for k, v in intervals.items()))
         for label, values in (block.get("contenders") or {}).items():
             row = next((r for r in rows if r.label == label), None)

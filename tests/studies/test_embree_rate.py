@@ -243,3 +243,39 @@ def test_the_json_holds_the_embree_rate_and_the_targets(monkeypatch, capsys, tmp
     assert main(["bench", "--scene", str(small), "--spp", "4", "--repeats", "1", "--no-strategies", "--quiet",
                  "--json", "--allow-outside-paths", "--no-embree-rate"]) == 0
     assert "embree_rate" not in json.loads(capsys.readouterr().out)["scenes"]["cornell-box"]
+
+
+def test_check_races_the_heavy_tailed_scenes_in_more_rounds(monkeypatch, capsys, tmp_path):
+    """``--check`` races veach-mis and lamp-grid in at least CHECK_ROUNDS' rounds (their MSE per round is
+    heavy-tailed), every other scene in ``--repeats``; a larger ``--repeats`` wins; without ``--check`` every scene
+    takes ``--repeats``. The scene's block and its lines say its own number of rounds."""
+    cpus = os.cpu_count() or 1
+    seen: dict[str, int] = {}
+    fake = _fake_rows(_all_met(cpus))
+
+    def counting(scene, contenders, *, repeats, **kw):
+        seen[scene.name] = repeats
+        return fake(scene, contenders, repeats=repeats, **kw)
+
+    _fake_race(monkeypatch, _all_met(cpus), rate=True)
+    monkeypatch.setattr(bench, "bench_scene", counting)
+    out = tmp_path / "check.json"
+    assert main(["bench", "--check", "--quiet", "--no-strategies", "--repeats", "5", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert seen == {name: bench.CHECK_ROUNDS.get(name, 5) for name in bench.CANONICAL_SCENES}, seen
+    assert seen["veach-mis"] == seen["lamp-grid"] == 20 and seen["cornell-box"] == 5
+    assert "veach-mis: 64x64, 64 spp, median of 20 timed renders" in text
+    assert "cornell-box: 256x256, 64 spp, median of 5 timed renders" in text
+    blocks = json.loads(out.read_text())["scenes"]
+    assert blocks["lamp-grid"]["repeats"] == 20 and "repeats" not in blocks["cornell-box"]
+
+    seen.clear()
+    assert main(["bench", "--check", "--quiet", "--no-strategies", "--repeats", "30"]) == 0
+    capsys.readouterr()
+    assert set(seen.values()) == {30}
+
+    seen.clear()
+    assert main(["bench", "--scene", "veach-mis", "--quiet", "--no-strategies", "--repeats", "2",
+                 "--no-embree-rate"]) == 0
+    capsys.readouterr()
+    assert seen == {"veach-mis": 2}
