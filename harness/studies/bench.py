@@ -479,8 +479,8 @@ def ratios(rows: Sequence[Row], label: str = "reference") -> dict[str, float]:
         out[f"efficiency_vs_{variant}"] = mine.efficiency / row.efficiency
         out[f"paths_per_second_vs_{variant}"] = mine.paths_per_second / row.paths_per_second
     best = best_mitsuba(rows)
-    if best is not None:
-        out["efficiency_vs_mitsuba_best"] = mine.efficiency / best.efficiency
+    if best is not None:  # one of the rows above
+        out["efficiency_vs_mitsuba_best"] = out[f"efficiency_vs_{mitsuba_key(best)}"]
     return out
 
 
@@ -502,9 +502,8 @@ def ratio_intervals(rows: Sequence[Row], label: str = "reference", level: float 
                                                            row.seconds_all, level)
         out[f"paths_per_second_vs_{variant}"] = ratio_interval((row.seconds_all,), (mine.seconds_all,), level)
     best = best_mitsuba(rows)
-    if best is not None and _rounds(best):
-        out["efficiency_vs_mitsuba_best"] = efficiency_ratio(mine.mse_all, mine.seconds_all, best.mse_all,
-                                                             best.seconds_all, level)
+    if best is not None and _rounds(best):  # one of the rows above: its interval, not computed again
+        out["efficiency_vs_mitsuba_best"] = dict(out[f"efficiency_vs_{mitsuba_key(best)}"])
     return out
 
 
