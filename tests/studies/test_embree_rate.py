@@ -8,6 +8,8 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
+import shlex
 
 import numpy as np
 import pytest
@@ -279,3 +281,31 @@ def test_check_races_the_heavy_tailed_scenes_in_more_rounds(monkeypatch, capsys,
                  "--no-embree-rate"]) == 0
     capsys.readouterr()
     assert seen == {"veach-mis": 2}
+
+
+def _issue39_doc_commands() -> list[str]:
+    """The ``harness bench`` commands docs/performance.md prints for issue 39's measurement: the code block's lines
+    with ``--check`` or ``--fresh`` (their comments cut), and every one quoted in the section "Issue 39's targets"."""
+    text = (bench.ROOT / "docs" / "performance.md").read_text()
+    block = text.split("```sh\n", 1)[1].split("```", 1)[0]
+    commands = [line.split("#", 1)[0].strip() for line in block.splitlines()
+                if line.startswith("harness bench") and ("--check" in line or "--fresh" in line)]
+    section = text.split("## Issue 39's targets", 1)[1].split("\n## ", 1)[0]
+    commands += [" ".join(c.split()) for c in re.findall(r"`(harness bench [^`]+)`", section)]
+    return list(dict.fromkeys(commands))
+
+
+def test_the_docs_issue39_bench_commands_run_as_printed(monkeypatch, tmp_path, capsys):
+    """Each command of :func:`_issue39_doc_commands` runs as printed (its renders, the strategy rows' equal-time
+    renders, Embree replays and fresh processes faked, every target met) and exits 0; the list holds the ones the
+    docs quote."""
+    commands = _issue39_doc_commands()
+    assert "harness bench --check --out bench.json" in commands
+    assert "harness bench --scene soft-shadows --repeats 2 --no-strategies --fresh" in commands
+    monkeypatch.chdir(tmp_path)
+    for command in commands:
+        _fake_race(monkeypatch, _all_met(os.cpu_count() or 1), rate=True)
+        monkeypatch.setattr(bench, "equal_time_renders", lambda *args, **kwargs: None)
+        argv = shlex.split(command)[1:]
+        assert main(argv) == 0, command
+        capsys.readouterr()
