@@ -283,29 +283,50 @@ def test_check_races_the_heavy_tailed_scenes_in_more_rounds(monkeypatch, capsys,
     assert seen == {"veach-mis": 2}
 
 
-def _issue39_doc_commands() -> list[str]:
-    """The ``harness bench`` commands docs/performance.md prints for issue 39's measurement: the code block's lines
-    with ``--check`` or ``--fresh`` (their comments cut), and every one quoted in the section "Issue 39's targets"."""
-    text = (bench.ROOT / "docs" / "performance.md").read_text()
-    block = text.split("```sh\n", 1)[1].split("```", 1)[0]
-    commands = [line.split("#", 1)[0].strip() for line in block.splitlines()
-                if line.startswith("harness bench") and ("--check" in line or "--fresh" in line)]
-    section = text.split("## Issue 39's targets", 1)[1].split("\n## ", 1)[0]
-    commands += [" ".join(c.split()) for c in re.findall(r"`(harness bench [^`]+)`", section)]
-    return list(dict.fromkeys(commands))
+def _doc_bench_commands() -> dict[str, str]:
+    """Every ``harness bench`` command the README and docs/ print, as {command: the file that prints it first}: the
+    lines of their code blocks (comments cut) and the commands quoted inline (a quote may wrap), whitespace joined.
+    Left out: ``--scaling`` (test_scaling.py runs those) and the README's synopsis, whose brackets are not a
+    command."""
+    root = bench.ROOT
+    commands: dict[str, str] = {}
+    for path in sorted((root / "docs").glob("*.md")) + [root / "README.md"]:
+        text = path.read_text()
+        for block in re.findall(r"```[a-z]*\n(.*?)```", text, re.S):
+            for line in block.splitlines():
+                if line.startswith("harness bench"):
+                    commands.setdefault(" ".join(line.split("#", 1)[0].split()), path.name)
+        for quoted in re.findall(r"`(harness bench[^`]*)`", re.sub(r"```.*?```", "", text, flags=re.S)):
+            commands.setdefault(" ".join(quoted.split()), path.name)
+    return {c: f for c, f in commands.items() if "--scaling" not in c and "[" not in c}
 
 
-def test_the_docs_issue39_bench_commands_run_as_printed(monkeypatch, tmp_path, capsys):
-    """Each command of :func:`_issue39_doc_commands` runs as printed (its renders, the strategy rows' equal-time
-    renders, Embree replays and fresh processes faked, every target met) and exits 0; the list holds the ones the
-    docs quote."""
-    commands = _issue39_doc_commands()
-    assert "harness bench --check --out bench.json" in commands
-    assert "harness bench --scene soft-shadows --repeats 2 --no-strategies --fresh" in commands
+def test_every_bench_command_the_docs_print_runs_as_printed(monkeypatch, tmp_path, capsys):
+    """Each command of :func:`_doc_bench_commands` runs as printed and exits 0: its renders, the strategy rows'
+    equal-time renders, the Embree replays, the fresh processes and the child process of ``--memory`` faked, every
+    target met, the other renderers (cycles, a renderer file) raced as faked rows like the rest. The list holds the
+    ones the docs quote, from docs/performance.md's code block and its sections and from the other docs."""
+    commands = _doc_bench_commands()
+    for printed in ("harness bench --check --out bench.json", "harness bench --check",
+                    "harness bench --scene soft-shadows --repeats 2 --no-strategies --fresh", "harness bench",
+                    "harness bench --memory 1024x256 --out bench.json", "harness bench --scene furnace --spp 16 --json",
+                    "harness bench --no-embree-rate", "harness bench --renderer cycles --no-strategies",
+                    "harness bench --scene veach-mis --scene lamp-grid --repeats 20 --no-strategies",
+                    "harness bench --no-strategies --no-embree-rate --scene soft-shadows --scene cornell-box "
+                    "--scene multi-light"):
+        assert printed in commands, printed
     monkeypatch.chdir(tmp_path)
-    for command in commands:
+    memory = []
+
+    def fake_memory(scene_path, size, spp):
+        memory.append((size, spp))
+        return {"scene": str(scene_path), "width": size, "height": size, "spp": spp, "peak_rss_mib": 512.0,
+                "seconds": 1.0, "wall_seconds": 2.0, "paths_per_second": 1e6}
+
+    for command, doc in commands.items():
         _fake_race(monkeypatch, _all_met(os.cpu_count() or 1), rate=True)
         monkeypatch.setattr(bench, "equal_time_renders", lambda *args, **kwargs: None)
-        argv = shlex.split(command)[1:]
-        assert main(argv) == 0, command
+        monkeypatch.setattr(bench, "peak_memory", fake_memory)
+        assert main(shlex.split(command)[1:]) == 0, f"{doc}: {command}"
         capsys.readouterr()
+    assert (1024, 256) in memory
