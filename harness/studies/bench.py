@@ -408,6 +408,61 @@ def equal_time_renders(scene, rows: Sequence[Row], *, repeats: int, gt, seed: in
                                                    statistics.median(row.equal_time_seconds_all))
 
 
+def equal_time_against_best(scene, rows: Sequence[Row], *, repeats: int, gt, seed: int = 1,
+                            on_render: Callable[[str], None] | None = None) -> dict | None:
+    """The reference's efficiency over Mitsuba's best sampler (:func:`best_mitsuba`) at equal time: the reference at
+    its defaults at the spp that takes the best row's mean render time (:func:`harness.judges.efficiency.equal_time_spp`,
+    s* = spp x t_best / t_reference), taken to the nearest power of two (the reference's stratified sampler is a
+    (0, 2)-sequence per pixel, whose sets are whole there: at 30 spp its MSE on soft-shadows was well above what 32
+    give; the efficiency's 1 / (MSE x s) corrects the rest of the time's difference), against the best row at its spp, ``repeats`` renders each with seeds of their
+    own, the two taking turns (so that drift falls on both alike); the ratio and its interval from those pairs
+    (:func:`harness.judges.efficiency.efficiency_ratio`). Where s* is the race's spp (within 1.25 x), the race's own
+    rounds serve and nothing renders again.
+
+    Beside the race's figure at equal spp, because 1 / (MSE x s) depends on the spp where the error falls faster
+    than 1 / N: with the stratified samplers both sides use, MSE ~ N^-1.2 to N^-1.6 between 16 and 256 spp on the
+    Lambertian scenes (docs/performance.md), so at equal spp the slower contender's efficiency is counted at more
+    samples than it could draw in the other's time, which flatters it.
+
+    Returns None where there is no reference row or no Mitsuba row to compare; else {"mitsuba": the best row's label,
+    "spp": s*, "mitsuba_spp", "mse_all", "seconds_all", "mitsuba_mse_all", "mitsuba_seconds_all", "ratio": the
+    interval, "rendered": whether the pairs were rendered here, "error": None or what failed}."""
+    ref = next((r for r in rows if r.label == "reference" and r.renderer == "reference" and not r.error
+                and r.seconds_all and r.mse_all), None)
+    best = best_mitsuba(rows)
+    if ref is None or best is None or not best.seconds_all or not best.mse_all:
+        return None
+    spp = equal_time_spp(ref.spp, float(np.mean(ref.seconds_all)), float(np.mean(best.seconds_all)))
+    spp = 1 << max(0, round(math.log2(spp)))  # the nearest power of two: where the Sobol sets are whole
+    out = {"mitsuba": best.label, "spp": spp, "mitsuba_spp": best.spp, "rendered": spp != ref.spp, "error": None,
+           "mse_all": list(ref.mse_all), "seconds_all": list(ref.seconds_all),
+           "mitsuba_mse_all": list(best.mse_all), "mitsuba_seconds_all": list(best.seconds_all)}
+    if spp != ref.spp:
+        sides = {"reference": (get_renderer("reference"), spp, {}, [], []),
+                 "mitsuba": (get_renderer(best.renderer), best.spp, dict(best.settings), [], [])}
+        for attempt in range(1, repeats + 1):
+            order = ("reference", "mitsuba") if attempt % 2 else ("mitsuba", "reference")
+            for side in order:
+                renderer, side_spp, settings, mse, seconds = sides[side]
+                request = RenderRequest(spp=side_spp, seed=seed + 2 * repeats + attempt, settings=settings)
+                try:
+                    result = renderer.render(scene, request)
+                except (HarnessError, ExternalRendererError) as err:
+                    out["error"] = f"{err.where}: {err.message}" if isinstance(err, HarnessError) else str(err)
+                    return dict(out, ratio=None)
+                seconds.append(result.seconds)
+                mse.append(mse_against(result.image, gt.image, gt.variance)[0])
+                if on_render is not None:
+                    label = f"reference at {spp} spp" if side == "reference" else best.label
+                    on_render(f"{scene.name}: {label} (equal time)")
+        out["mse_all"], out["seconds_all"] = sides["reference"][3], sides["reference"][4]
+        out["mitsuba_mse_all"], out["mitsuba_seconds_all"] = sides["mitsuba"][3], sides["mitsuba"][4]
+    usable = all(m > 0 for m in out["mse_all"] + out["mitsuba_mse_all"])
+    out["ratio"] = (efficiency_ratio(out["mse_all"], out["seconds_all"], out["mitsuba_mse_all"],
+                                     out["mitsuba_seconds_all"]) if usable else None)
+    return out
+
+
 def strategy_verdict(rows: Sequence[Row]) -> dict:
     """The reference's strategy rows (one setting changed from the defaults), each one's efficiency over the
     defaults' ("reference") with its 95 % interval over the repeats (per-seed MSE and seconds:
@@ -729,6 +784,17 @@ def format_best_strategy(best: dict) -> str:
     return f"{head}: none measured{tail}"
 
 
+def format_equal_time(block: dict) -> str:
+    """The line of :func:`equal_time_against_best`'s figure."""
+    where = (f"the reference at {block['spp']} spp against {block['mitsuba']} at {block['mitsuba_spp']}"
+             if block["rendered"] else f"both at {block['spp']} spp (the race's rounds: their times within 1.25 x)")
+    if block.get("error"):
+        return f"reference / Mitsuba's best at equal time ({where}): not measured ({block['error']})"
+    ratio = block.get("ratio")
+    value = _interval_text(ratio) if ratio is not None else "not measured (an MSE at or below the ground truth's noise)"
+    return f"reference / Mitsuba's best at equal time ({where}): efficiency {value} (not a target: the targets are at equal spp)"
+
+
 def format_embree(embree: dict) -> str:
     """The line under a scene's table that says what the Embree row replayed and the reference's fraction of it."""
     if embree.get("error"):
@@ -811,6 +877,8 @@ def run_bench(
         if strategies:
             equal_time_renders(scene, rows, repeats=scene_repeats, gt=gt, on_render=on_render)
         best = strategy_verdict(rows)
+        equal_time = (equal_time_against_best(scene, rows, repeats=scene_repeats, gt=gt, on_render=on_render)
+                      if scene.name in best_sampler_scenes() else None)
         result["scenes"][scene.name] = {
             "scene_file": str(path),
             "ground_truth": {"source": gt.source, "spp": gt.spp, "variant": gt.info.get("variant")
@@ -822,6 +890,8 @@ def run_bench(
             "best_strategy": dict(best, ratios=ratios(rows, best["leader"]) if best["leader"] else {}),
             "mitsuba_best": mitsuba.label if (mitsuba := best_mitsuba(rows)) is not None else None,
         }
+        if equal_time is not None:
+            result["scenes"][scene.name]["equal_time_vs_mitsuba_best"] = equal_time
         if size and not film:
             result["scenes"][scene.name]["film"] = list(size)
         if scene_repeats != repeats:
@@ -867,6 +937,8 @@ def format_report(result: dict) -> str:
             out.append(f"reference / Mitsuba over the {block.get('repeats', result['repeats'])} rounds, "
                        f"{level:.0%} intervals: "
                        + ", ".join(f"{k} {_interval_text(v)}" for k, v in intervals.items()))
+        if block.get("equal_time_vs_mitsuba_best") is not None:
+            out.append(format_equal_time(block["equal_time_vs_mitsuba_best"]))
         for label, values in (block.get("contenders") or {}).items():
             row = next((r for r in rows if r.label == label), None)
             text = ", ".join(f"{k} {v:.3g}" for k, v in values.items() if isinstance(v, float) and math.isfinite(v))

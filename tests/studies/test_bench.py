@@ -237,3 +237,85 @@ def test_a_busy_machine_certifies_nothing_and_check_takes_five_rounds(monkeypatc
     code = main(["bench", "--check", "--repeats", "3", "--quiet"])
     err = capfd.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "--repeats: --check takes at least 5 rounds" in err, err
+
+
+class _ScriptedRenderer:
+    """A renderer whose renders take ``seconds`` and leave an image of uniform error sqrt(``mse``) over a black
+    ground truth; it records each request (or raises ``fail``)."""
+
+    def __init__(self, seconds, mse, log, name, fail=None):
+        self.seconds, self.mse, self.log, self.name, self.fail = seconds, mse, log, name, fail
+
+    def render(self, scene, request):
+        self.log.append((self.name, request.spp, request.seed, dict(request.settings)))
+        if self.fail is not None:
+            raise self.fail
+        image = np.full((scene.film.height, scene.film.width, 3), math.sqrt(self.mse(request.spp)))
+        return type("Out", (), {"image": image, "seconds": self.seconds(request.spp), "spp": request.spp,
+                                "info": {}})()
+
+
+def _equal_time_rows(ref_seconds, best_seconds, spp=64):
+    ref = bench.Row("s", "reference", "reference", {}, spp, 8, 8, seconds_all=[ref_seconds] * 3,
+                    mse_all=[1e-4] * 3, efficiency=1.0 / (1e-4 * ref_seconds))
+    best = bench.Row("s", "mitsuba llvm_ad_rgb multijitter", "mitsuba",
+                     {"variant": "llvm_ad_rgb", "sampler": "multijitter", "moments": "off"}, spp, 8, 8,
+                     seconds_all=[best_seconds] * 3, mse_all=[1e-4] * 3, efficiency=1.0 / (1e-4 * best_seconds))
+    worse = bench.Row("s", "mitsuba llvm_ad_rgb", "mitsuba", {"variant": "llvm_ad_rgb"}, spp, 8, 8,
+                      seconds_all=[best_seconds] * 3, mse_all=[1e-3] * 3, efficiency=1.0 / (1e-3 * best_seconds))
+    return [ref, best, worse]
+
+
+def test_equal_time_against_best_renders_the_reference_at_the_best_rows_time(monkeypatch):
+    """The reference twice as slow as Mitsuba's best: it renders at 32 spp (64 x 1 / 2), the best row at its 64,
+    taking turns with seeds of their own; the ratio is (MSE_best t_best) / (MSE_ref t_ref) from those pairs, with an
+    interval. A time ratio that gives a spp that is not a power of two takes the nearest one (30 -> 32)."""
+    log = []
+    renderers = {"reference": _ScriptedRenderer(lambda spp: spp / 32.0, lambda spp: 4e-4 * 32 / spp,
+                                                log, "reference"),
+                 "mitsuba": _ScriptedRenderer(lambda spp: 1.0, lambda spp: 1e-4, log, "mitsuba")}
+    monkeypatch.setattr(bench, "get_renderer", lambda name: renderers[name])
+    scene = load_small("furnace", 8)
+    gt = closed_form(scene)
+    gt = dataclasses.replace(gt, image=np.zeros_like(gt.image), variance=None)
+    lines = []
+    out = bench.equal_time_against_best(scene, _equal_time_rows(2.0, 1.0), repeats=3, gt=gt, seed=1,
+                                        on_render=lines.append)
+    assert out["rendered"] and out["spp"] == 32 and out["mitsuba_spp"] == 64 and out["error"] is None
+    assert out["mitsuba"] == "mitsuba llvm_ad_rgb multijitter"
+    assert [(name, spp) for name, spp, _seed, _s in log] == [
+        ("reference", 32), ("mitsuba", 64), ("mitsuba", 64), ("reference", 32), ("reference", 32), ("mitsuba", 64)]
+    assert {seed for _name, _spp, seed, _settings in log} == {8, 9, 10}  # 1 + 2 x 3 + attempt: not the race's
+    assert log[1][3]["sampler"] == "multijitter"
+    # the reference at 32 spp: MSE 4e-4, 1 s; Mitsuba's best: 1e-4, 1 s -> a quarter of its efficiency
+    assert out["ratio"]["value"] == pytest.approx(0.25) and out["ratio"]["low"] == pytest.approx(0.25)
+    assert len(lines) == 6 and lines[0] == "furnace: reference at 32 spp (equal time)"
+    text = bench.format_equal_time(out)
+    assert text.startswith("reference / Mitsuba's best at equal time (the reference at 32 spp against mitsuba "
+                           "llvm_ad_rgb multijitter at 64): efficiency 0.25")
+    log.clear()
+    out = bench.equal_time_against_best(scene, _equal_time_rows(2.1, 1.0), repeats=1, gt=gt)
+    assert out["spp"] == 32 and log[0][1] == 32  # s* = 30.5: the nearest power of two
+
+
+def test_equal_time_against_best_uses_the_race_where_the_times_match_and_says_what_failed(monkeypatch):
+    """Times within 1.25 x: the race's own rounds, nothing rendered; no reference or no Mitsuba row: None; a render
+    that fails: the error, no ratio."""
+    log = []
+    monkeypatch.setattr(bench, "get_renderer", lambda name: _ScriptedRenderer(lambda spp: 1.0, lambda spp: 1e-4, log,
+                                                                              name))
+    scene = load_small("furnace", 8)
+    gt = closed_form(scene)
+    out = bench.equal_time_against_best(scene, _equal_time_rows(1.1, 1.0), repeats=3, gt=gt)
+    assert not out["rendered"] and out["spp"] == 64 and not log
+    assert out["ratio"]["value"] == pytest.approx(1.0 / 1.1)
+    assert "both at 64 spp (the race's rounds" in bench.format_equal_time(out)
+    rows = _equal_time_rows(2.0, 1.0)
+    assert bench.equal_time_against_best(scene, rows[:1], repeats=3, gt=gt) is None
+    assert bench.equal_time_against_best(scene, rows[1:], repeats=3, gt=gt) is None
+    failing = _ScriptedRenderer(lambda spp: 1.0, lambda spp: 1e-4, log, "mitsuba",
+                                fail=bench.HarnessError("--set sampler", "no such sampler"))
+    monkeypatch.setattr(bench, "get_renderer", lambda name: failing)
+    out = bench.equal_time_against_best(scene, rows, repeats=2, gt=gt)
+    assert out["ratio"] is None and out["error"] == "--set sampler: no such sampler"
+    assert bench.format_equal_time(out).endswith("not measured (--set sampler: no such sampler)")
