@@ -410,14 +410,16 @@ def equal_time_renders(scene, rows: Sequence[Row], *, repeats: int, gt, seed: in
 
 def equal_time_against_best(scene, rows: Sequence[Row], *, repeats: int, gt, seed: int = 1,
                             on_render: Callable[[str], None] | None = None) -> dict | None:
-    """The reference's efficiency over Mitsuba's best sampler (:func:`best_mitsuba`) at equal time: the reference at
-    its defaults at the spp that takes the best row's mean render time (:func:`harness.judges.efficiency.equal_time_spp`,
-    s* = spp x t_best / t_reference), taken to the nearest power of two (the reference's stratified sampler is a
-    (0, 2)-sequence per pixel, whose sets are whole there: at 30 spp its MSE on soft-shadows was well above what 32
-    give; the efficiency's 1 / (MSE x s) corrects the rest of the time's difference), against the best row at its spp, ``repeats`` renders each with seeds of their
-    own, the two taking turns (so that drift falls on both alike); the ratio and its interval from those pairs
-    (:func:`harness.judges.efficiency.efficiency_ratio`). Where s* is the race's spp (within 1.25 x), the race's own
-    rounds serve and nothing renders again.
+    """The reference's efficiency over Mitsuba's best sampler (:func:`best_mitsuba`) at equal time.
+
+    The reference at its defaults renders at the spp that takes the best row's mean render time
+    (:func:`harness.judges.efficiency.equal_time_spp`: s* = spp x t_best / t_reference, the race's spp where that is
+    within 1.25 x), taken to the nearest power of two: the reference's stratified sampler is a (0, 2)-sequence per
+    pixel, whose sets are whole there (at 30 spp its MSE on soft-shadows was well above what 32 give), and the
+    efficiency's 1 / (MSE x s) corrects the rest of the time's difference. The best row renders at its own spp.
+    ``repeats`` renders each, with seeds of their own, the two taking turns (so that drift falls on both alike); the
+    ratio and its interval from those pairs (:func:`harness.judges.efficiency.efficiency_ratio`). Where s* comes to
+    the race's spp, the race's own rounds serve and nothing renders again.
 
     Beside the race's figure at equal spp, because 1 / (MSE x s) depends on the spp where the error falls faster
     than 1 / N: with the stratified samplers both sides use, MSE ~ N^-1.2 to N^-1.6 between 16 and 256 spp on the
@@ -787,12 +789,14 @@ def format_best_strategy(best: dict) -> str:
 def format_equal_time(block: dict) -> str:
     """The line of :func:`equal_time_against_best`'s figure."""
     where = (f"the reference at {block['spp']} spp against {block['mitsuba']} at {block['mitsuba_spp']}"
-             if block["rendered"] else f"both at {block['spp']} spp (the race's rounds: their times within 1.25 x)")
+             if block["rendered"] else f"both at {block['spp']} spp, the race's rounds")
+    head = f"reference / Mitsuba's best at equal time ({where})"
     if block.get("error"):
-        return f"reference / Mitsuba's best at equal time ({where}): not measured ({block['error']})"
+        return f"{head}: not measured ({block['error']})"
     ratio = block.get("ratio")
-    value = _interval_text(ratio) if ratio is not None else "not measured (an MSE at or below the ground truth's noise)"
-    return f"reference / Mitsuba's best at equal time ({where}): efficiency {value} (not a target: the targets are at equal spp)"
+    if ratio is None:
+        return f"{head}: not measured (an MSE at or below the ground truth's noise)"
+    return f"{head}: efficiency {_interval_text(ratio)} (not a target: the targets are at equal spp)"
 
 
 def format_embree(embree: dict) -> str:
