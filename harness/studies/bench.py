@@ -435,7 +435,8 @@ def equal_time_against_best(scene, rows: Sequence[Row], *, repeats: int, gt, see
     if ref is None or best is None or not best.seconds_all or not best.mse_all:
         return None
     spp = equal_time_spp(ref.spp, float(np.mean(ref.seconds_all)), float(np.mean(best.seconds_all)))
-    spp = 1 << max(0, round(math.log2(spp)))  # the nearest power of two: where the Sobol sets are whole
+    if spp != ref.spp:  # the nearest power of two: where the Sobol sets are whole
+        spp = 1 << max(0, round(math.log2(spp)))
     out = {"mitsuba": best.label, "spp": spp, "mitsuba_spp": best.spp, "rendered": spp != ref.spp, "error": None,
            "mse_all": list(ref.mse_all), "seconds_all": list(ref.seconds_all),
            "mitsuba_mse_all": list(best.mse_all), "mitsuba_seconds_all": list(best.seconds_all)}

@@ -310,6 +310,10 @@ def test_equal_time_against_best_uses_the_race_where_the_times_match_and_says_wh
     assert not out["rendered"] and out["spp"] == 64 and not log
     assert out["ratio"]["value"] == pytest.approx(1.0 / 1.1)
     assert "(both at 64 spp, the race's rounds): efficiency 0.909" in bench.format_equal_time(out)
+    out = bench.equal_time_against_best(scene, _equal_time_rows(1.1, 1.0, spp=100), repeats=3, gt=gt)
+    assert not out["rendered"] and out["spp"] == 100 and not log  # a race at 100 spp: its rounds, not 128's
+    out = bench.equal_time_against_best(scene, _equal_time_rows(1.4, 1.0), repeats=3, gt=gt)
+    assert not out["rendered"] and out["spp"] == 64 and not log  # s* = 46 comes to the race's 64
     rows = _equal_time_rows(2.0, 1.0)
     assert bench.equal_time_against_best(scene, rows[:1], repeats=3, gt=gt) is None
     assert bench.equal_time_against_best(scene, rows[1:], repeats=3, gt=gt) is None
