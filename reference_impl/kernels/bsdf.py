@@ -1203,6 +1203,14 @@ def is_delta(kind):
 
 
 @njit(**JIT_BORROW)
+def chooses_lobe(kind, transmits):
+    """True for a BSDF whose sample picks a lobe with its first uniform (u_lobe): one that transmits at the hit
+    (``transmits``), a plastic, a rough plastic or a principled. The others never read u_lobe, so the engines draw it
+    only for these."""
+    return transmits or kind == PLASTIC or kind == ROUGHPLASTIC or kind == PRINCIPLED
+
+
+@njit(**JIT_BORROW)
 def sample_eta(kind, row, woz, wiz):
     """The relative index of refraction of a sampled (wo, wi) in the direction of travel (Mitsuba's ``bs.eta``, for
     the throughput roulette's eta^2): eta_it of a transmission through a dielectric, else 1 (the thin dielectric's

@@ -53,7 +53,7 @@ import numpy as np
 from numba import njit
 
 from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, SPOT
-from reference_impl.kernels.bsdf import bsdf_eval, bsdf_pdf, bsdf_sample, is_delta, sample_eta
+from reference_impl.kernels.bsdf import bsdf_eval, bsdf_pdf, bsdf_sample, chooses_lobe, is_delta, sample_eta
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT, C_INDIRECT, C_LIGHT_SELECT,
                                            C_ROULETTE, C_SHADOW, C_SHADOW_SKIPPED, DIRECT_AREA, DIRECT_BSDF,
                                            DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
@@ -76,7 +76,7 @@ from reference_impl.kernels.shading import geometric_frame, shading_frame, throu
 from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_ANISOTROPIC, P_METALLIC, P_REFLECTANCE, P_SPEC_TRANS, P_TWO_SIDED,
-                                      PLASTIC, PRINCIPLED, ROUGHDIELECTRIC, ROUGHPLASTIC, ROW_SIZE, THINDIELECTRIC)
+                                      PRINCIPLED, ROUGHDIELECTRIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
                                 DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
 
@@ -400,7 +400,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             transmits = kind == DIELECTRIC or kind == ROUGHDIELECTRIC or kind == THINDIELECTRIC
             if kind == PRINCIPLED:  # light crosses it where its transmission lobe has a weight at x
                 transmits = (1.0 - row[P_METALLIC]) * row[P_SPEC_TRANS] > 0
-            lobed = transmits or kind == PLASTIC or kind == ROUGHPLASTIC or kind == PRINCIPLED  # the kinds that choose a lobe read u_lobe
+            lobed = chooses_lobe(kind, transmits)  # the kinds that choose a lobe read u_lobe
             if not (cos_out > 0 or row[P_TWO_SIDED] != 0 or transmits):
                 count_back_face += 1  # the back of a one-sided surface: black
                 break

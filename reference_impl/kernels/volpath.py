@@ -55,7 +55,7 @@ import numpy as np
 from numba import njit
 
 from reference_impl.emitters import DIRECTIONAL, POINT, SPOT
-from reference_impl.kernels.bsdf import is_delta
+from reference_impl.kernels.bsdf import chooses_lobe, is_delta
 from reference_impl.kernels.config import (C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT, C_ROULETTE, C_SHADOW,
                                            C_SHADOW_SKIPPED, DIRECT_BSDF, DIRECT_MIS, HEMI_UNIFORM, JIT, JIT_BORROW,
                                            M_ALBEDO_TWICE, M_FLIGHT_PDF_NO_SIGMA_T, M_HG_G_FLIPPED,
@@ -75,8 +75,7 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, VolpathFirstVertexPairs,
                                           pair_point, pixel_run, volpath_first_vertex_seeds)
 from reference_impl.kernels.surface import emission_at, offset_origin, origin_offset, shadow_t_max, surface_hit
 from reference_impl.kernels.warps import dot3, sample_discrete
-from reference_impl.materials import (DIELECTRIC, NULL, P_TWO_SIDED, PLASTIC, PRINCIPLED, ROUGHDIELECTRIC, ROUGHPLASTIC,
-                                      ROW_SIZE, THINDIELECTRIC)
+from reference_impl.materials import DIELECTRIC, NULL, P_TWO_SIDED, ROUGHDIELECTRIC, ROW_SIZE, THINDIELECTRIC
 from reference_impl.media import HG
 from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, FLIGHT, FLIGHT_CHANNEL,
                                 LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, PHASE_U1, PHASE_U2, ROULETTE, TRACK,
@@ -260,8 +259,13 @@ def roulette(cfg, depth, key, b0, b1, b2, eta2, q_albedo, u_rr):
 
 
 @njit(**JIT_BORROW)
-def choose_light(cfg, lights, key, depth, j):
-    """Light sample j's light k (pdf(k) from the light table), its piece and the two uniforms of its point."""
+def choose_light(cfg, lights, key, depth, j, u_a=-1.0, u_b=0.0):
+    """Light sample j's light k (pdf(k) from the light table), its piece and the two uniforms of its point: from the
+    stratified 2D point (u_a, u_b), whose first coordinate also picks the light and the piece
+    (:func:`.emitters.split_light_piece_all`), or where u_a is negative from the path's hashes."""
+    if u_a >= 0:
+        sel, piece, u1 = split_light_piece_all(lights, cfg.num_lights, cfg.num_area_lights, u_a)
+        return sel, piece, u1, u_b
     num_lights = cfg.num_lights
     u_sel = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
     sel = sample_discrete(lights.cdf, u_sel) if num_lights > 1 else 0
@@ -398,12 +402,10 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                     if medium_lights:
                         tot0, tot1, tot2 = 0.0, 0.0, 0.0
                         for j in range(nd):
-                            if sob:  # one 2D point: its first coordinate picks the light and piece
-                                u_a, u2 = pair_point(held_point(fv.light, lx, ly, held.light, si * nd + j), si * nd + j)
-                                sel, piece, u1 = split_light_piece_all(lights, cfg.num_lights, cfg.num_area_lights,
-                                                                       u_a)
-                            else:
-                                sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j)
+                            u_a, u_b = -1.0, 0.0  # the pixel's stratified point (sob), else hashes
+                            if sob:
+                                u_a, u_b = pair_point(held_point(fv.light, lx, ly, held.light, si * nd + j), si * nd + j)
+                            sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j, u_a, u_b)
                             if cfg.num_lights > 1:
                                 count_light_select += 1
                             pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
@@ -532,11 +534,10 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 tot0, tot1, tot2 = 0.0, 0.0, 0.0
                 for j in range(points + own):
                     if j < points:
-                        if sob:  # as at a scattering point
-                            u_a, u2 = pair_point(held_point(fv.light, lx, ly, held.light, si * nd + j), si * nd + j)
-                            sel, piece, u1 = split_light_piece_all(lights, cfg.num_lights, cfg.num_area_lights, u_a)
-                        else:
-                            sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j)
+                        u_a, u_b = -1.0, 0.0  # as at a scattering point
+                        if sob:
+                            u_a, u_b = pair_point(held_point(fv.light, lx, ly, held.light, si * nd + j), si * nd + j)
+                        sel, piece, u1, u2 = choose_light(cfg, lights, k, depth, j, u_a, u_b)
                         if cfg.num_lights > 1:
                             count_light_select += 1
                         pdf_select = 1.0 if mutant & M_LIGHT_PDF_IGNORED else light_pmf[sel]
@@ -574,14 +575,11 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
             u_rr = -1.0  # drawn by next_ray where roulette is played
             if sob:
                 u_lobe = 0.0
-                lobed = transmits or kind == PLASTIC or kind == ROUGHPLASTIC or kind == PRINCIPLED
-                if lobed or first_roulette:  # only they read the pair
+                if chooses_lobe(kind, transmits) or first_roulette:  # only they read the pair
                     u_lobe, u_rr = pair_point(held_point(fv.lobe_roulette, cx, cy, held.lobe_roulette, si), si)
-            else:
-                u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
-            if sob:
                 bu1, bu2 = pair_point(held_point(fv.direction, wx, wy, held.direction, si), si)
             else:
+                u_lobe = uniform(k, dim_salt(depth, BSDF_LOBE, 0))
                 bu1 = uniform(k, dim_salt(depth, BSDF_U1, 0))
                 bu2 = uniform(k, dim_salt(depth, BSDF_U2, 0))
             (go_on, cut, n0, n1, n2, m0, m1, m2, qn0, qn1, qn2, nb0, nb1, nb2, eta2, pdf,
