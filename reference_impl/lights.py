@@ -16,8 +16,20 @@ One piece for a rectangle keeps a stratified (u1, u2) stratified over the whole 
 
     sphere         y = c + r (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi, z),  z = 1 - 2 u1, phi = 2 pi u2
 
-(uniform in area: Archimedes' hat-box theorem; Mitsuba's ``square_to_uniform_sphere``). Mitsuba samples a sphere
-seen from outside by the cone it subtends instead: the same expectation, less variance.
+(uniform in area: Archimedes' hat-box theorem; Mitsuba's ``square_to_uniform_sphere``). The path loops sample a
+sphere light seen from a point x outside it by the cone it subtends instead (:func:`cone_points`, as Mitsuba's
+``sphere`` and pbrt-v4's ``Sphere::Sample`` do): every point of the cone's cap is one x can see, where half the
+sphere's area faces away from x. With D = |c - x| and sin^2 theta_max = r^2 / D^2,
+
+    1 - cos theta_max = sin^2 theta_max / (1 + cos theta_max)     (no cancellation for a far sphere)
+    1 - cos theta     = u1 (1 - cos theta_max),  phi = 2 pi u2     (uniform in the cone's solid angle)
+    y                 = the nearer point of the sphere along x + t w, t = D (cos theta - sqrt(sin^2 theta_max -
+                        sin^2 theta)), w the direction (theta, phi) about (c - x) / D; taken back onto the sphere,
+                        c + r (y - c) / |y - c|
+    p(w)              = 1 / (2 pi (1 - cos theta_max))  per unit solid angle at x
+
+A sphere light whose emission faces inward (``Geometry.sphere_inward``), or an x on or inside the sphere, keeps the
+area sampling above.
 """
 
 from __future__ import annotations
@@ -27,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from reference_impl.geometry import Geometry
-from reference_impl.sampling import sample_discrete, square_to_uniform_triangle, unit_circle
+from reference_impl.sampling import sample_discrete, square_to_uniform_triangle, to_world, unit_circle
 
 LIGHT_SELECTIONS = ("power", "uniform", "tree")
 
@@ -52,6 +64,39 @@ def sphere_points(center: np.ndarray, radius: np.ndarray, u1: np.ndarray, u2: np
     rho = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     cos_phi, sin_phi = unit_circle(u2)  # phi = 2 pi u2
     return center + radius[:, None] * np.stack([rho * cos_phi, rho * sin_phi, z], axis=1)
+
+
+def sphere_cone(center: np.ndarray, radius: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The cones that spheres (centres (n, 3), radii (n,)) subtend from points x (n, 3): (D^2 = |c - x|^2,
+    sin^2 theta_max = r^2 / D^2, 1 - cos theta_max = sin^2 theta_max / (1 + cos theta_max)), the last 0 where x is
+    not outside its sphere (no cone)."""
+    w = center - x
+    d2 = w[:, 0] * w[:, 0] + w[:, 1] * w[:, 1] + w[:, 2] * w[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s2 = (radius * radius) / d2
+    outside = s2 < 1.0
+    cos_max = np.sqrt(np.where(outside, 1.0 - s2, 0.0))
+    return d2, s2, np.where(outside, s2 / (1.0 + cos_max), 0.0)
+
+
+def cone_points(center: np.ndarray, radius: np.ndarray, x: np.ndarray, u1: np.ndarray,
+                u2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points of spheres (centres (n, 3), radii (n,)) uniform in the solid angle of the cone each subtends from x
+    (n, 3), all outside their spheres (module docstring): (the points y (n, 3), p(w) = 1 / (2 pi (1 - cos
+    theta_max)) per unit solid angle at x)."""
+    d2, s2, one_minus = sphere_cone(center, radius, x)
+    h = u1 * one_minus  # 1 - cos theta
+    cos_t = 1.0 - h
+    sin2 = h * (2.0 - h)
+    sin_t = np.sqrt(np.maximum(0.0, sin2))
+    cos_phi, sin_phi = unit_circle(u2)  # phi = 2 pi u2
+    d = np.sqrt(d2)
+    axis = (center - x) / d[:, None]
+    w = to_world(np.stack([sin_t * cos_phi, sin_t * sin_phi, cos_t], axis=1), axis)
+    t = d * (cos_t - np.sqrt(np.maximum(0.0, s2 - sin2)))
+    m = x + t[:, None] * w - center
+    scale = radius / np.sqrt(m[:, 0] * m[:, 0] + m[:, 1] * m[:, 1] + m[:, 2] * m[:, 2])
+    return center + m * scale[:, None], (0.5 * (1.0 / np.pi)) / one_minus
 
 
 def front_normals(geometry: Geometry, tri: np.ndarray, pos: np.ndarray) -> np.ndarray:
@@ -152,7 +197,9 @@ class LightSampler:
     """Light selection with pdf(k) ("power": proportional to Phi_k = pi A_k lum(Le_k); "uniform": 1 / N_L; "tree":
     pdf(k | x) from the light tree at the shading point, :mod:`reference_impl.light_tree`, ``tree``, whose area
     lights' ``pmf`` is NaN: only the kernels choose by it) and a point y on light k with pdf(y | k) = 1 / A_k. The
-    combined density per unit area is pdf(k) / A_k.
+    combined density per unit area is pdf(k) / A_k. A sphere light whose emission faces outward is also listed in
+    ``cone`` (its centre and radius; zeros for every other light): the path loops draw its point from a shading point
+    outside it by the cone it subtends (:func:`cone_points`).
 
     Within light k the table has one entry per piece (``first[k]``, ``count[k]``, ``within_cdf``: a triangle, or a
     whole parallelogram, :func:`parallelogram_frame`), each with a float64 frame (origin, edge 1, edge 2: c0, c1 - c0,
@@ -211,6 +258,13 @@ class LightSampler:
         self.first = np.array(first, np.int64)  # first entry of each light
         self.count = np.array(count, np.int64)  # entries of each light
         self.within_cdf = np.concatenate(cdfs) if cdfs else np.zeros(0)
+        # per area light: the centre and radius of a sphere sampled by its cone from outside (emission outward), 0
+        self.cone = np.zeros((num_area, 4))
+        for k in np.flatnonzero(self.sphere[self.first]) if num_area else ():
+            sphere = geometry.sphere_of[self.triangles[self.first[k]]]
+            if not geometry.sphere_inward[sphere]:
+                self.cone[k, :3] = geometry.sphere_center[sphere]
+                self.cone[k, 3] = geometry.sphere_radius[sphere]
         if selection == "power":
             radiance = np.zeros(num_area)
             # A light's power: sum over its triangles of pi * area * lum(Le); a sphere's pi 4 pi r^2 lum(Le).

@@ -91,7 +91,13 @@ NORMAL_MUTANTS: dict[str, str] = {
 SPHERE_MUTANTS: dict[str, str] = {
     "sphere-points-uniform-theta": (
         "a sphere light's points drawn uniform in the polar angle (z = cos(pi u1)) where their pdf says uniform in "
-        "area, 1 / (4 pi r^2): the poles oversampled, the equator under"
+        "area, 1 / (4 pi r^2): the poles oversampled, the equator under (a fault of the area sampler, which an x "
+        "inside the sphere and the wavefront use; with it, sphere lights are drawn by area from outside too)"
+    ),
+    "sphere-cone-pdf-area": (
+        "a sphere light's points drawn by the cone it subtends from x but weighed with the area density pdf(k) / "
+        "(4 pi r^2), the measure of the area sampler they replaced, where the cone's is 1 / (2 pi (1 - cos "
+        "theta_max)) per unit solid angle"
     ),
 }
 

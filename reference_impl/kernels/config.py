@@ -115,6 +115,9 @@ M_NEE_NO_TRANSMITTANCE, M_HG_G_FLIPPED, M_FLIGHT_PDF_NO_SIGMA_T, M_ALBEDO_TWICE,
 MUTANT_BITS.update({"nee-no-transmittance": M_NEE_NO_TRANSMITTANCE, "hg-g-flipped": M_HG_G_FLIPPED,
                     "free-flight-pdf-no-sigma-t": M_FLIGHT_PDF_NO_SIGMA_T, "albedo-applied-twice": M_ALBEDO_TWICE,
                     "null-boundary-as-bounce": M_NULL_AS_BOUNCE})
+# The sphere lights' cone (reference_impl/kernels/direct.py light_connection; reference_impl.mutants.SPHERE_MUTANTS).
+M_SPHERE_CONE_PDF_AREA = 1 << 40
+MUTANT_BITS["sphere-cone-pdf-area"] = M_SPHERE_CONE_PDF_AREA
 MEDIUM_LIGHT, MEDIUM_PHASE, MEDIUM_MIS = range(3)
 MEDIUM_DIRECT_MODES = {"light": MEDIUM_LIGHT, "phase": MEDIUM_PHASE, "mis": MEDIUM_MIS}
 TR_RATIO, TR_TRACK = range(2)

@@ -43,16 +43,17 @@ from numba import njit
 from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, SPOT
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
                                            JIT_BORROW, JIT_NONRT, M_LIGHT_PDF_IGNORED, M_MIS_WEIGHTS_NOT_ONE,
-                                           M_NO_COSINE, M_NO_RAY_OFFSET, M_SPHERE_POINTS_THETA)
+                                           M_NO_COSINE, M_NO_RAY_OFFSET, M_SPHERE_CONE_PDF_AREA,
+                                           M_SPHERE_POINTS_THETA)
 from reference_impl.kernels.emitters import emitter_direction, emitter_sample, split_light_uniform_all
-from reference_impl.kernels.light_sampling import (light_point, point_on_light, sample_light_point,
-                                                   sample_surface_point, search_within, split_light_uniform,
-                                                   split_surface_uniform, toward_light_point)
+from reference_impl.kernels.light_sampling import (light_point, point_in_cone, point_on_light, sample_light_point,
+                                                   sample_surface_point, search_within, sphere_cone,
+                                                   split_light_uniform, split_surface_uniform, toward_light_point)
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import pair_point, uniform_2d
 from reference_impl.kernels.surface import emission_at, offset_origin, origin_offset, shadow_t_max
-from reference_impl.kernels.warps import dot3, hemisphere_pdf, sample_hemisphere
+from reference_impl.kernels.warps import HALF_INV_PI, dot3, hemisphere_pdf, sample_hemisphere
 from reference_impl.rng import (COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1, DIRECT_DIR_U2, LIGHT_SELECT,
                                 LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2)
 
@@ -275,6 +276,22 @@ def point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_area, x0, x1, x2
 
 
 @njit(**JIT_BORROW)
+def cone_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select, p_cone, x0, x1, x2):
+    """The connection (above) of a point y of a sphere light (its first triangle ``tri``) drawn from x by the cone
+    the sphere subtends (:func:`.light_sampling.point_in_cone`, density ``p_cone`` per unit solid angle), the light
+    chosen with ``pdf_select``: Le(y) / (pdf(k) p(w)), p_l = Nd pdf(k) p(w). None where y does not face x (a point
+    on the cap's rim, by rounding)."""
+    wi0, wi1, wi2, dist2, cos_y = toward_light_point(scene, tri, y0, y1, y2, x0, x1, x2)
+    if not (dist2 > 0 and cos_y > 0):
+        return no_connection()
+    e0, e1, e2 = emission_at(scene, textures, tri, y0, y1, y2, cfg.mutant)
+    p = pdf_select * p_cone
+    scale = 1.0 / p
+    return Connection(True, wi0, wi1, wi2, e0 * scale, e1 * scale, e2 * scale, cfg.shadow_rays * p, False, y0, y1,
+                      y2, cos_y, True)
+
+
+@njit(**JIT_BORROW)
 def emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1, n2, front_only):
     """The connection (above) of emitter e, which is not a surface, chosen with ``pdf_select``, from the light door
     (:func:`.emitters.emitter_direction`; ``front_only``: only directions above N): Le s / (r^2 pdf(k)) for a point
@@ -301,8 +318,23 @@ def emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1,
 def light_connection(cfg, scene, textures, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1,
                      n2, front_only):
     """The connection (above) of light k = ``light`` (chosen with ``pdf_select``): a point on area light k's
-    ``piece`` (:func:`light_piece`) from (u1, u2), or emitter k - N_A's own sample (:func:`emitter_connection`)."""
+    ``piece`` (:func:`light_piece`) from (u1, u2), or emitter k - N_A's own sample (:func:`emitter_connection`). A
+    sphere light seen from outside (``lights.cone``) gives a point of the cone it subtends from x
+    (:func:`cone_connection`); with the planted fault "sphere-cone-pdf-area" weighed with the area density pdf(k) / A_k
+    instead, and with "sphere-points-uniform-theta" (a fault of the area sampler) drawn by area."""
     if light < cfg.num_area_lights:
+        r = lights.cone[light, 3]
+        if r > 0.0 and not cfg.mutant & M_SPHERE_POINTS_THETA:
+            c0, c1, c2 = lights.cone[light, 0], lights.cone[light, 1], lights.cone[light, 2]
+            d2, s2, one_minus = sphere_cone(c0, c1, c2, r, x0, x1, x2)
+            if one_minus > 0.0:
+                tri = lights.triangles[piece]
+                y0, y1, y2 = point_in_cone(c0, c1, c2, r, x0, x1, x2, d2, s2, one_minus, u1, u2)
+                if cfg.mutant & M_SPHERE_CONE_PDF_AREA:  # mutant "sphere-cone-pdf-area"
+                    return point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select / lights.area[light],
+                                            x0, x1, x2)
+                return cone_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select, HALF_INV_PI / one_minus,
+                                       x0, x1, x2)
         tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
         if cfg.mutant:  # mutant "sphere-points-uniform-theta"
             y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u1, u2)

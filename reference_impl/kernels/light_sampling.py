@@ -8,6 +8,9 @@
                      or on a sphere (frame (c, (r, 0, 0), 0)), uniform over its area 4 pi r^2:
                        y = c + r (sqrt(1 - z^2) cos phi, sqrt(1 - z^2) sin phi, z),  z = 1 - 2 u1, phi = 2 pi u2
                        (Archimedes: z uniform on [-1, 1] is area-uniform; Mitsuba's square_to_uniform_sphere)
+    sphere's cone    from x outside an outward sphere light (``lights.cone``; lights.cone_points):
+                       1 - cos theta = u1 (1 - cos theta_max), phi = 2 pi u2, y the sphere's nearer point along
+                       the direction (theta, phi) about c - x, p(w) = 1 / (2 pi (1 - cos theta_max))
     global area      t with pdf A_t / A_scene over every surface: p(y) = 1 / A_scene                      (Fig. 5.13)
                      y = c0 + b1 (c1 - c0) + b2 (c2 - c0), b1 = 1 - sqrt(u1), b2 = u2 sqrt(u1), or on a sphere
                      as above
@@ -27,7 +30,7 @@ from numba import njit
 
 from reference_impl.kernels.config import JIT, JIT_INLINE
 from reference_impl.kernels.surface import normal_at
-from reference_impl.kernels.warps import dot3, rescale_within, sample_discrete, unit_circle
+from reference_impl.kernels.warps import HALF_INV_PI, dot3, rescale_within, sample_discrete, to_world, unit_circle
 
 
 @njit(**JIT_INLINE)
@@ -50,6 +53,49 @@ def point_on_sphere(c0, c1, c2, r, u1, u2):
     rho = math.sqrt(max(0.0, 1.0 - z * z))
     cos_phi, sin_phi = unit_circle(u2)
     return c0 + r * (rho * cos_phi), c1 + r * (rho * sin_phi), c2 + r * z
+
+
+@njit(**JIT)
+def sphere_cone(c0, c1, c2, r, x0, x1, x2):
+    """lights.sphere_cone for one sphere and point: (D^2, sin^2 theta_max, 1 - cos theta_max), the last 0 where x
+    is not outside the sphere."""
+    w0, w1, w2 = c0 - x0, c1 - x1, c2 - x2
+    d2 = w0 * w0 + w1 * w1 + w2 * w2
+    s2 = (r * r) / d2 if d2 > 0.0 else 2.0
+    if not s2 < 1.0:
+        return d2, s2, 0.0
+    cos_max = math.sqrt(1.0 - s2)
+    return d2, s2, s2 / (1.0 + cos_max)
+
+
+@njit(**JIT)
+def point_in_cone(c0, c1, c2, r, x0, x1, x2, d2, s2, one_minus, u1, u2):
+    """lights.cone_points for one sphere seen from x outside it (``d2``, ``s2``, ``one_minus``: its
+    :func:`sphere_cone`): the point y."""
+    h = u1 * one_minus  # 1 - cos theta
+    cos_t = 1.0 - h
+    sin2 = h * (2.0 - h)
+    sin_t = math.sqrt(max(0.0, sin2))
+    cos_phi, sin_phi = unit_circle(u2)  # phi = 2 pi u2
+    d = math.sqrt(d2)
+    a0, a1, a2 = (c0 - x0) / d, (c1 - x1) / d, (c2 - x2) / d
+    w0, w1, w2 = to_world(sin_t * cos_phi, sin_t * sin_phi, cos_t, a0, a1, a2)
+    t = d * (cos_t - math.sqrt(max(0.0, s2 - sin2)))
+    m0, m1, m2 = x0 + t * w0 - c0, x1 + t * w1 - c1, x2 + t * w2 - c2
+    scale = r / math.sqrt(m0 * m0 + m1 * m1 + m2 * m2)
+    return c0 + m0 * scale, c1 + m1 * scale, c2 + m2 * scale
+
+
+@njit(**JIT_INLINE)
+def cone_pdf(lights, light, x0, x1, x2):
+    """The solid-angle density at x of area light k's points drawn by its cone, 1 / (2 pi (1 - cos theta_max))
+    (:func:`point_in_cone`), or 0 where k is not a sphere drawn that way from x (drawn by area)."""
+    cone = lights.cone
+    r = cone[light, 3]
+    if not r > 0.0:
+        return 0.0
+    _d2, _s2, one_minus = sphere_cone(cone[light, 0], cone[light, 1], cone[light, 2], r, x0, x1, x2)
+    return HALF_INV_PI / one_minus if one_minus > 0.0 else 0.0
 
 
 @njit(**JIT_INLINE)

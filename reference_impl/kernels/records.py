@@ -126,6 +126,8 @@ class LightTables(NamedTuple):
         Per piece: the triangle where a + b > 1 (a triangle's own otherwise).
     sphere : (P,) bool
         Per piece: a whole sphere, frame (c, (r, 0, 0), 0), its first triangle in ``triangles`` and ``other``.
+    cone : (N_A, 4) float64
+        Per area light: the centre and radius of a sphere drawn by its cone from outside (emission outward), else 0.
     """
 
     cdf: np.ndarray
@@ -139,6 +141,7 @@ class LightTables(NamedTuple):
     parallelogram: np.ndarray
     other: np.ndarray
     sphere: np.ndarray
+    cone: np.ndarray
 
 
 def light_tables(sampler) -> LightTables:
@@ -146,14 +149,15 @@ def light_tables(sampler) -> LightTables:
     without lights)."""
     if sampler is None:
         f, i = np.zeros(0), np.zeros(0, np.int64)
-        return LightTables(f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i, np.zeros(0, np.bool_))
+        return LightTables(f, i, i, i, f, f, f, np.zeros((0, 3, 3)), np.zeros(0, np.bool_), i, np.zeros(0, np.bool_),
+                           np.zeros((0, 4)))
     s = sampler
     return LightTables(
         cdf=_c(s.cdf, dtype=np.float64), triangles=_c(s.triangles, dtype=np.int64), first=_c(s.first, dtype=np.int64),
         count=_c(s.count, dtype=np.int64), within_cdf=_c(s.within_cdf, dtype=np.float64),
         pmf=_c(s.pmf, dtype=np.float64), area=_c(s.area, dtype=np.float64), frames=_c(s.frames, dtype=np.float64),
         parallelogram=_c(s.parallelogram, dtype=np.bool_), other=_c(s.other, dtype=np.int64),
-        sphere=_c(s.sphere, dtype=np.bool_))
+        sphere=_c(s.sphere, dtype=np.bool_), cone=_c(s.cone, dtype=np.float64))
 
 
 class TreeTables(NamedTuple):

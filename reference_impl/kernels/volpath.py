@@ -60,11 +60,12 @@ from reference_impl.kernels.config import (C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT
                                            C_SHADOW_SKIPPED, DIRECT_BSDF, DIRECT_MIS, HEMI_UNIFORM, JIT, JIT_BORROW,
                                            M_ALBEDO_TWICE, M_FLIGHT_PDF_NO_SIGMA_T, M_HG_G_FLIPPED,
                                            M_LIGHT_PDF_IGNORED, M_NEE_NO_TRANSMITTANCE, M_NULL_AS_BOUNCE,
-                                           MEDIUM_LIGHT, MEDIUM_MIS, MEDIUM_PHASE, RR_ALBEDO, RR_OFF, RR_PBRT,
-                                           RR_THROUGHPUT, SAMPLER_SOBOL, TR_TRACK)
+                                           M_SPHERE_POINTS_THETA, MEDIUM_LIGHT, MEDIUM_MIS, MEDIUM_PHASE, RR_ALBEDO,
+                                           RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL, TR_TRACK)
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
+from reference_impl.kernels.light_sampling import cone_pdf
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.path import RR_THROUGHPUT_CAP, connect, next_ray
 from reference_impl.kernels.phase import hg_pdf, sample_hg, sample_isotropic, INV_FOUR_PI
@@ -367,6 +368,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
         prev_pdf = 0.0  # the density of the current ray's direction at the vertex it left (MIS)
         pn0, pn1, pn2 = 0.0, 0.0, 1.0  # that vertex's normal on the side the ray left (env_light_pdf)
         t_acc = 0.0  # the distance from that vertex to the current ray's origin (across null boundaries)
+        px0, px1, px2 = 0.0, 0.0, 0.0  # that vertex (a sphere light's cone from it: cone_pdf)
         crossings = 0  # null boundaries the current ray has crossed
         eta2 = 1.0
         while True:
@@ -463,6 +465,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                     emit = medium_emit
                     prev_pdf = pdf
                     pn0, pn1, pn2 = n0, n1, n2
+                    px0, px1, px2 = x0, x1, x2
                     t_acc = 0.0
                     crossings = 0
                     depth += 1
@@ -487,7 +490,12 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 if light >= 0 and cos_out > 0:
                     w = 1.0
                     if emit == EMIT_MIS:
-                        p_light = nd * (light_pmf[light] / light_area[light]) * (t_total * t_total) / cos_out
+                        p_cone = (0.0 if mutant & M_SPHERE_POINTS_THETA else  # drawn by area then
+                                  cone_pdf(lights, light, px0, px1, px2))  # a sphere drawn by its cone from x
+                        if p_cone > 0.0:
+                            p_light = nd * light_pmf[light] * p_cone
+                        else:
+                            p_light = nd * (light_pmf[light] / light_area[light]) * (t_total * t_total) / cos_out
                         w = power_weight(mutant, prev_pdf, p_light, False)
                     le0, le1, le2 = emission_at(scene, None, tri, hit.x0, hit.x1, hit.x2, mutant)
                     rad0 += b0 * le0 * w
@@ -596,6 +604,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
             emit = EMIT_FULL if delta else surface_emit
             prev_pdf = pdf
             pn0, pn1, pn2 = qn0, qn1, qn2
+            px0, px1, px2 = x0, x1, x2
             t_acc = 0.0
             crossings = 0
             depth += 1

@@ -28,7 +28,7 @@ from harness.judges.chi2 import (
 from reference_impl import rng, sampling
 from reference_impl.filters import make_filter
 from reference_impl.geometry import Geometry
-from reference_impl.lights import LightSampler, TriangleAreaSampler
+from reference_impl.lights import LightSampler, TriangleAreaSampler, cone_points, sphere_cone
 from reference_impl.sampling import hemisphere_pdf, sample_hemisphere, square_to_uniform_triangle
 
 # ------------------------------------------------------------------------------ standard set (reference_impl)
@@ -432,6 +432,40 @@ def _sphere_light_case(name: str, seed: int, reuse: bool = False) -> Chi2Result:
                         quadrature="midpoint", order=4)
 
 
+def cone_coordinates(points: np.ndarray, x: np.ndarray, center: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points y seen from x as (h, phi) about the axis (c - x) / |c - x|: h = 1 - cos theta = 2 sin^2(theta / 2)
+    (from atan2, exact for a far sphere's thin cone), phi in [0, 2 pi) in the frame of ``sampling.coordinate_frame``.
+    A solid angle is dh dphi."""
+    axis = (center - x) / np.linalg.norm(center - x)
+    s, t = sampling.coordinate_frame(axis[None, :])
+    w = points - x
+    w /= np.linalg.norm(w, axis=1)[:, None]
+    along = w @ axis
+    across = np.linalg.norm(np.cross(w, axis), axis=1)
+    theta = np.arctan2(across, along)
+    phi = np.mod(np.arctan2(w @ t[0], w @ s[0]), 2 * np.pi)
+    return 2.0 * np.sin(0.5 * theta) ** 2, phi
+
+
+def _sphere_cone_case(name: str, seed: int, distance: float) -> Chi2Result:
+    """``lights.cone_points``: a sphere light seen from x at ``distance`` radii, its points uniform in the solid angle
+    of the cone it subtends: p(w) = 1 / (2 pi (1 - cos theta_max)), the routine's own density, in (h, phi)."""
+    x = SPHERE_CENTER + distance * SPHERE_RADIUS * np.array([0.6, -0.8, 0.0])
+    g = np.random.default_rng(seed)
+    one = (SPHERE_CENTER[None, :], np.array([SPHERE_RADIUS]), x[None, :])
+    _d2, _s2, one_minus = sphere_cone(*one)
+    density = cone_points(*one, np.array([0.5]), np.array([0.5]))[1][0]
+
+    def sample(n):
+        pts, pdf = cone_points(np.repeat(SPHERE_CENTER[None, :], n, axis=0), np.full(n, SPHERE_RADIUS),
+                               np.repeat(x[None, :], n, axis=0), g.random(n), g.random(n))
+        assert np.all(pdf == density)
+        return cone_coordinates(pts, x, SPHERE_CENTER)
+
+    return chi2_test_2d(sample, lambda h, phi: np.full(len(h), density), [(0.0, float(one_minus[0])), (0.0, 2 * np.pi)],
+                        (24, 48), N_SAMPLES, name=name, quadrature="midpoint", order=4)
+
+
 def _global_area_sphere_case(name: str, seed: int) -> Chi2Result:
     """``TriangleAreaSampler`` over a sphere and a square floor: the sphere is one entry of area 4 pi r^2, chosen
     against the floor's two triangles by area / total."""
@@ -488,6 +522,8 @@ def standard_cases() -> dict[str, Callable[[], Chi2Result]]:
     cases["light_sphere_points_reused_uniform"] = lambda: _sphere_light_case("light_sphere_points_reused_uniform",
                                                                              508, reuse=True)
     cases["global_area_sphere_choice"] = lambda: _global_area_sphere_case("global_area_sphere_choice", 604)
+    cases["light_sphere_cone"] = lambda: _sphere_cone_case("light_sphere_cone", 509, 1.7)
+    cases["light_sphere_cone_far"] = lambda: _sphere_cone_case("light_sphere_cone_far", 510, 3000.0)
     cases["filter_tent"] = lambda: _filter_case("filter_tent", "tent", 100, "gauss", 4, 701)
     cases["filter_gaussian"] = lambda: _filter_case("filter_gaussian", "gaussian", 128, "midpoint", 16, 702)
     return cases

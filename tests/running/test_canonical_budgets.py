@@ -119,13 +119,14 @@ PER_SAMPLE_RATIO = {
     "point-spot/rr-fixed": 3.13,
     "sun-sky/rr-off": 15.1,
     "envmap/rr-fixed": 1.03,
-    "veach-mis/reference": 8.57,
-    "veach-mis/direct-area": 2.56,
-    "veach-mis/light-selection-uniform": 4.06,
-    "veach-mis/rr-throughput": 4.06,
-    "veach-mis/rr-fixed": 3.38,
-    "veach-mis/rr-off": 4.06,
-    "veach-mis/direct-bsdf": 0.73,
+    # veach-mis and medium-emitter re-measured 2026-12-07: their sphere lights drawn by the cone they subtend
+    "veach-mis/reference": 8.15,
+    "veach-mis/direct-area": 2.34,
+    "veach-mis/light-selection-uniform": 4.69,
+    "veach-mis/rr-throughput": 4.69,
+    "veach-mis/rr-fixed": 4.67,
+    "veach-mis/rr-off": 4.69,
+    "veach-mis/direct-bsdf": 0.681,
     "cornell-box-specular/reference": 3.26,
     "cornell-box-specular/direct-area": 3.26,
     "cornell-box-specular/direct-bsdf": 0.538,
@@ -138,9 +139,10 @@ PER_SAMPLE_RATIO = {
     "white-furnace-rough/direct-bsdf": 5.72,
     "veach-mis/mutant-microfacet-pdf-no-jacobian": 4.79,
     "white-furnace-rough/mutant-mis-weights-not-one": 16.6,
-    "veach-mis/mutant-conductor-fresnel-one": 2.4,
+    "veach-mis/mutant-conductor-fresnel-one": 3.42,
     "veach-mis/mutant-vndf-alpha-squared": 5.07,
     "veach-mis/mutant-sphere-points-uniform-theta": 18.8,  # 2026-12-06: ratio 0.589 at 512 spp, 16384
+    "veach-mis/mutant-sphere-cone-pdf-area": 2.56,  # 2026-12-07: ratio 0.0100 at 64 spp, 16384
     "underwater/mutant-refraction-no-eta2": 0.405,
     # measured 2026-12-05 (issue 35), llvm_ad_rgb; the textured furnace's ground truth is its closed form
     "textured-furnace/reference": 0.0,
@@ -210,8 +212,8 @@ PER_SAMPLE_RATIO = {
     "medium-furnace/reference": 0.0,
     "hg-cloud/reference": 1.5,
     "hg-cloud/mutant-hg-g-flipped": 20.3,
-    "medium-emitter/reference": 2.33,
-    "medium-emitter/mutant-null-boundary-as-bounce": 0.76,
+    "medium-emitter/reference": 7.26,
+    "medium-emitter/mutant-null-boundary-as-bounce": 0.959,
     "glass-medium/reference": 1.09,
 }
 
