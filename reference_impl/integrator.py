@@ -423,9 +423,10 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     num_pixels = width * height
     threads = settings.worker_threads()
     # Units of work: ranges of whole pixels, all their samples in order, so every pixel's sum is formed in sample
-    # order whatever the decomposition. Small enough to keep every thread busy.
+    # order whatever the decomposition. Small enough to keep every thread busy: at most batch_size paths, and at least
+    # UNITS_PER_THREAD units a thread.
     pixels_per_unit = max(1, settings.batch_size // spp)
-    pixels_per_unit = min(pixels_per_unit, max(1, math.ceil(num_pixels / (4 * threads))))
+    pixels_per_unit = min(pixels_per_unit, max(1, math.ceil(num_pixels / (UNITS_PER_THREAD * threads))))
     samples_per_chunk = max(1, min(spp, settings.batch_size // pixels_per_unit))
     units = [(p0, min(num_pixels, p0 + pixels_per_unit)) for p0 in range(0, num_pixels, pixels_per_unit)]
 
@@ -518,6 +519,10 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
         load_seconds=start - loaded,
     )
 
+
+#: the least number of units of work a render's pixels are cut into, per worker thread: enough that the units' unequal
+#: costs (a film's bright and dark rows) even out between the threads (docs/performance.md, "Units of work")
+UNITS_PER_THREAD = 8
 
 #: how many pixels, spread over the film, the warm step traces (:func:`_load_kernels`)
 WARM_PIXELS = 64
