@@ -46,9 +46,10 @@ from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSIN
                                            M_NO_COSINE, M_NO_RAY_OFFSET, M_SPHERE_CONE_PDF_AREA,
                                            M_SPHERE_POINTS_THETA)
 from reference_impl.kernels.emitters import emitter_direction, emitter_sample, split_light_uniform_all
-from reference_impl.kernels.light_sampling import (light_point, point_in_cone, point_on_light, sample_light_point,
-                                                   sample_surface_point, search_within, sphere_cone,
-                                                   split_light_uniform, split_surface_uniform, toward_light_point)
+from reference_impl.kernels.light_sampling import (drawn_by_cone, light_point, point_in_cone, point_on_light,
+                                                   sample_light_point, sample_surface_point, search_within,
+                                                   sphere_cone, split_light_uniform, split_surface_uniform,
+                                                   toward_light_point)
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import pair_point, uniform_2d
@@ -323,9 +324,8 @@ def light_connection(cfg, scene, textures, lights, emitters, light, piece, pdf_s
     (:func:`cone_connection`); with the planted fault "sphere-cone-pdf-area" weighed with the area density pdf(k) / A_k
     instead, and with "sphere-points-uniform-theta" (a fault of the area sampler) drawn by area."""
     if light < cfg.num_area_lights:
-        r = lights.cone[light, 3]
-        if r > 0.0 and not cfg.mutant & M_SPHERE_POINTS_THETA:
-            c0, c1, c2 = lights.cone[light, 0], lights.cone[light, 1], lights.cone[light, 2]
+        if drawn_by_cone(lights, light, cfg.mutant):
+            c0, c1, c2, r = lights.cone[light, 0], lights.cone[light, 1], lights.cone[light, 2], lights.cone[light, 3]
             d2, s2, one_minus = sphere_cone(c0, c1, c2, r, x0, x1, x2)
             if one_minus > 0.0:
                 tri = lights.triangles[piece]

@@ -28,7 +28,7 @@ import math
 
 from numba import njit
 
-from reference_impl.kernels.config import JIT, JIT_INLINE
+from reference_impl.kernels.config import JIT, JIT_INLINE, M_SPHERE_POINTS_THETA
 from reference_impl.kernels.surface import normal_at
 from reference_impl.kernels.warps import HALF_INV_PI, dot3, rescale_within, sample_discrete, to_world, unit_circle
 
@@ -87,14 +87,21 @@ def point_in_cone(c0, c1, c2, r, x0, x1, x2, d2, s2, one_minus, u1, u2):
 
 
 @njit(**JIT_INLINE)
-def cone_pdf(lights, light, x0, x1, x2):
+def drawn_by_cone(lights, light, mutant):
+    """Whether area light k's points are drawn by its cone from a point outside it: a sphere whose emission faces
+    outward (``lights.cone``), unless the planted fault "sphere-points-uniform-theta" is planted (a fault of the area
+    sampler, which then draws every sphere light)."""
+    return lights.cone[light, 3] > 0.0 and not mutant & M_SPHERE_POINTS_THETA
+
+
+@njit(**JIT_INLINE)
+def cone_pdf(lights, light, x0, x1, x2, mutant):
     """The solid-angle density at x of area light k's points drawn by its cone, 1 / (2 pi (1 - cos theta_max))
     (:func:`point_in_cone`), or 0 where k is not a sphere drawn that way from x (drawn by area)."""
-    cone = lights.cone
-    r = cone[light, 3]
-    if not r > 0.0:
+    if not drawn_by_cone(lights, light, mutant):
         return 0.0
-    _d2, _s2, one_minus = sphere_cone(cone[light, 0], cone[light, 1], cone[light, 2], r, x0, x1, x2)
+    cone = lights.cone
+    _d2, _s2, one_minus = sphere_cone(cone[light, 0], cone[light, 1], cone[light, 2], cone[light, 3], x0, x1, x2)
     return HALF_INV_PI / one_minus if one_minus > 0.0 else 0.0
 
 

@@ -61,8 +61,7 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
                                            DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
                                            HEMI_UNIFORM, JIT, JIT_BORROW, M_COSINE_PDF_PI, M_DOUBLE_EMISSION,
                                            M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, M_SHADING_NORMAL_SIDE,
-                                           M_SPHERE_POINTS_THETA, M_TREE_PMF_AT_HIT, RR_ALBEDO, RR_OFF, RR_PBRT,
-                                           RR_THROUGHPUT, SAMPLER_SOBOL)
+                                           M_TREE_PMF_AT_HIT, RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            light_sample, point_connection, power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within, split_light_piece_all
@@ -382,8 +381,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if light >= 0 and cos_out > 0:
                     w = 1.0
                     if weighted:
-                        p_cone = (0.0 if mutant & M_SPHERE_POINTS_THETA else  # drawn by area then
-                                  cone_pdf(lights, light, px0, px1, px2))  # a sphere drawn by its cone from x
+                        p_cone = cone_pdf(lights, light, px0, px1, px2, mutant)  # a sphere drawn by its cone from x
                         if tree is None:
                             if p_cone > 0.0:
                                 p_light = nd * light_pmf[light] * p_cone

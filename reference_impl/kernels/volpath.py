@@ -60,8 +60,8 @@ from reference_impl.kernels.config import (C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT
                                            C_SHADOW_SKIPPED, DIRECT_BSDF, DIRECT_MIS, HEMI_UNIFORM, JIT, JIT_BORROW,
                                            M_ALBEDO_TWICE, M_FLIGHT_PDF_NO_SIGMA_T, M_HG_G_FLIPPED,
                                            M_LIGHT_PDF_IGNORED, M_NEE_NO_TRANSMITTANCE, M_NULL_AS_BOUNCE,
-                                           M_SPHERE_POINTS_THETA, MEDIUM_LIGHT, MEDIUM_MIS, MEDIUM_PHASE, RR_ALBEDO,
-                                           RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL, TR_TRACK)
+                                           MEDIUM_LIGHT, MEDIUM_MIS, MEDIUM_PHASE, RR_ALBEDO, RR_OFF, RR_PBRT,
+                                           RR_THROUGHPUT, SAMPLER_SOBOL, TR_TRACK)
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
@@ -490,8 +490,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 if light >= 0 and cos_out > 0:
                     w = 1.0
                     if emit == EMIT_MIS:
-                        p_cone = (0.0 if mutant & M_SPHERE_POINTS_THETA else  # drawn by area then
-                                  cone_pdf(lights, light, px0, px1, px2))  # a sphere drawn by its cone from x
+                        p_cone = cone_pdf(lights, light, px0, px1, px2, mutant)  # a sphere drawn by its cone from x
                         if p_cone > 0.0:
                             p_light = nd * light_pmf[light] * p_cone
                         else:

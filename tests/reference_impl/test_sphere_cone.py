@@ -48,7 +48,7 @@ def test_the_kernels_draw_the_cone_points_of_the_spec_bit_for_bit():
     tables = k_records.light_tables(LightSampler(geometry, "power"))
     c = geometry.sphere_center[0]  # C through the shape's matrix: within an ulp
     assert tables.cone.tolist() == [[*c, R]] and np.allclose(c, C, rtol=0, atol=1e-15)
-    dens = np.array([k_lights.cone_pdf(tables, 0, *xi) for xi in x])
+    dens = np.array([k_lights.cone_pdf(tables, 0, *xi, 0) for xi in x])
     want_pdf = cone_points(np.repeat(c[None, :], n, axis=0), np.full(n, R), x, u1, u2)[1]
     assert dens.tobytes() == want_pdf.tobytes()
 
@@ -123,18 +123,22 @@ def test_a_bsdf_ray_that_finds_the_sphere_is_weighed_with_the_density_it_was_dra
     tables = k_records.light_tables(LightSampler(geometry, "power"))
     for x in _outside(500, 5):
         _d2, _s2, one_minus = k_lights.sphere_cone(*geometry.sphere_center[0], R, *x)
-        assert k_lights.cone_pdf(tables, 0, *x) == k_lights.HALF_INV_PI / one_minus
+        assert k_lights.cone_pdf(tables, 0, *x, 0) == k_lights.HALF_INV_PI / one_minus
 
 
 def test_no_cone_from_inside_or_for_a_sphere_that_emits_inward():
     """From x on or inside the sphere there is no cone: cone_pdf is 0 and the light keeps its area samples. A sphere
-    whose emission faces inward (the furnace's enclosure) is not in the cone table at all."""
+    whose emission faces inward (the furnace's enclosure) is not in the cone table at all; with the planted fault
+    "sphere-points-uniform-theta" (the area sampler's) no sphere is drawn by its cone."""
     tables = k_records.light_tables(LightSampler(cases.sphere_geometry(), "power"))
     g = np.random.default_rng(6)
     for x in C + R * (g.random((200, 3)) - 0.5) * 1.1:
-        assert k_lights.cone_pdf(tables, 0, *x) == 0.0
-    assert k_lights.cone_pdf(tables, 0, *C) == 0.0
+        assert k_lights.cone_pdf(tables, 0, *x, 0) == 0.0
+    assert k_lights.cone_pdf(tables, 0, *C, 0) == 0.0
     assert k_lights.sphere_cone(*C, R, *C)[2] == 0.0
+    from reference_impl.kernels.config import M_SPHERE_POINTS_THETA
+    assert k_lights.cone_pdf(tables, 0, *(C + 3 * R), 0) > 0.0
+    assert k_lights.cone_pdf(tables, 0, *(C + 3 * R), M_SPHERE_POINTS_THETA) == 0.0  # that fault draws by area
     inward = LightSampler(cases.sphere_geometry(inward=True), "power")
     assert inward.cone.tolist() == [[0.0, 0.0, 0.0, 0.0]]
-    assert k_lights.cone_pdf(k_records.light_tables(inward), 0, *(C + 3 * R)) == 0.0
+    assert k_lights.cone_pdf(k_records.light_tables(inward), 0, *(C + 3 * R), 0) == 0.0
