@@ -285,6 +285,11 @@ def _cpu_seconds(children: bool = False) -> float:
     return total
 
 
+def _error_text(err: HarnessError | ExternalRendererError) -> str:
+    """A failed render's one line: where and what for the harness's errors, the message for an external renderer's."""
+    return f"{err.where}: {err.message}" if isinstance(err, HarnessError) else str(err)
+
+
 def bench_scene(
     scene,
     contenders: Sequence[Contender],
@@ -319,7 +324,7 @@ def bench_scene(
             try:
                 result = renderer.render(scene, request)
             except (HarnessError, ExternalRendererError) as err:
-                row.error = f"{err.where}: {err.message}" if isinstance(err, HarnessError) else str(err)
+                row.error = _error_text(err)
                 continue
             cpu1, wall1 = _cpu_seconds(external), time.perf_counter()
             if on_render is not None:
@@ -451,7 +456,7 @@ def equal_time_against_best(scene, rows: Sequence[Row], *, repeats: int, gt, see
                 try:
                     result = renderer.render(scene, request)
                 except (HarnessError, ExternalRendererError) as err:
-                    out["error"] = f"{err.where}: {err.message}" if isinstance(err, HarnessError) else str(err)
+                    out["error"] = _error_text(err)
                     return dict(out, ratio=None)
                 seconds.append(result.seconds)
                 mse.append(mse_against(result.image, gt.image, gt.variance)[0])

@@ -106,6 +106,18 @@ def cone_pdf(lights, light, x0, x1, x2, mutant):
 
 
 @njit(**JIT_INLINE)
+def light_density(lights, light, nd, pmf_k, x0, x1, x2, t, cos_out, mutant):
+    """The Nd light samples' density, per unit solid angle at x, of the direction toward a point of area light k
+    (chosen with ``pmf_k``) that a ray from x found at distance t, cos_out there: Nd pdf(k) / (2 pi (1 - cos
+    theta_max)) where k is a sphere drawn by its cone from x (:func:`cone_pdf`), else Nd pdf(k) / A_k t^2 / cos_out.
+    The MIS weight of emission that a BSDF or phase ray finds (the path loop's and the volumetric loop's)."""
+    p_cone = cone_pdf(lights, light, x0, x1, x2, mutant)
+    if p_cone > 0.0:
+        return nd * pmf_k * p_cone
+    return nd * (pmf_k / lights.area[light]) * (t * t) / cos_out
+
+
+@njit(**JIT_INLINE)
 def point_on_light(lights, entry, u1, u2):
     """LightSampler.point_on_entry for one entry of the light table: (the triangle y lies in, y). Both warps are
     computed and the entry's flag selects one (no branch between the two): a triangle's barycentrics

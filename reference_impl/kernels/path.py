@@ -12,8 +12,8 @@ material step, :func:`.material.material_at`) the path adds
   slides' L_r recursion, eq. 5.2); with ``direct = mis`` the power heuristic (Veach 1997, ch. 9)
   w_b = p_b^2 / (p_b^2 + p_l^2), p_b the BSDF's solid-angle pdf of that ray at the previous vertex and
   p_l = Nd pdf(k) / A_k |x - y|^2 / cos_y the light samples' density of the same direction (Nd pdf(k) /
-  (2 pi (1 - cos theta_max)) on a sphere light they draw by its cone from x: ``light_sampling.cone_pdf``, at the
-  previous vertex); the environment met
+  (2 pi (1 - cos theta_max)) on a sphere light they draw by its cone from x: ``light_sampling.light_density``, at
+  the previous vertex); the environment met
   by an escaping ray likewise, with p_l = Nd pdf(k_env) p_env(w). With the planted fault "double-emission", 1 at
   every hit (the pseudo-code's computeRadiance taken literally).
 * direct light (none at a delta BSDF; :mod:`.direct`), 1/Nd sum of Le G V f|cos_x| / p over Nd samples, by
@@ -65,7 +65,7 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            light_sample, point_connection, power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within, split_light_piece_all
-from reference_impl.kernels.light_sampling import cone_pdf
+from reference_impl.kernels.light_sampling import light_density
 from reference_impl.kernels.light_tree import pmf_of, select
 from reference_impl.kernels.cutout import shadow_transmittance, through_holes
 from reference_impl.kernels.material import material_at, material_at_nested
@@ -248,7 +248,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
     sphere_base = prim_to_tri.shape[0] - scene.sphere.shape[0]  # spheres: tested beside Embree's triangles (.queries)
-    light_cdf, light_pmf, light_area = lights.cdf, lights.pmf, lights.area
+    light_cdf, light_pmf = lights.cdf, lights.pmf
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
     direct = cfg.direct
@@ -329,8 +329,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
         prev_delta = True  # the camera ray: what it finds, no light sample could have found
         prev_pdf = 0.0  # the BSDF's solid-angle pdf of the ray that reached this vertex
         pn0, pn1, pn2 = 0.0, 0.0, 1.0  # the previous vertex's normal on the side the ray left (env_light_pdf)
-        qx0, qx1, qx2, qn0, qn1, qn2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0  # the previous vertex and its N (the tree's pmf)
-        px0, px1, px2 = 0.0, 0.0, 0.0  # the previous vertex (a sphere light's cone from it: cone_pdf)
+        # the previous vertex (the light tree's pmf, a sphere light's cone: light_density) and its N (the tree's)
+        px0, px1, px2, qn0, qn1, qn2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         eta2 = 1.0  # product of the relative ior^2 of the refractions so far (rr = "throughput", "pbrt")
         if sobol:
             if film_pixel[r] != fh_pixel:  # a pixel's samples come together: its seeds and points once
@@ -381,20 +381,14 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 if light >= 0 and cos_out > 0:
                     w = 1.0
                     if weighted:
-                        p_cone = cone_pdf(lights, light, px0, px1, px2, mutant)  # a sphere drawn by its cone from x
                         if tree is None:
-                            if p_cone > 0.0:
-                                p_light = nd * light_pmf[light] * p_cone
-                            else:
-                                p_light = nd * (light_pmf[light] / light_area[light]) * (t * t) / cos_out
+                            pmf_k = light_pmf[light]
                         else:  # pdf(k | x) at the vertex the ray left
+                            tx0, tx1, tx2, tn0, tn1, tn2 = px0, px1, px2, qn0, qn1, qn2
                             if mutant & M_TREE_PMF_AT_HIT:  # mutant "light-tree-pmf-at-hit": at the light's point
-                                qx0, qx1, qx2, qn0, qn1, qn2 = hit.x0, hit.x1, hit.x2, hit.n0, hit.n1, hit.n2
-                            pmf_k = pmf_of(tree, light, qx0, qx1, qx2, qn0, qn1, qn2, mutant)
-                            if p_cone > 0.0:
-                                p_light = nd * pmf_k * p_cone
-                            else:
-                                p_light = nd * (pmf_k / light_area[light]) * (t * t) / cos_out
+                                tx0, tx1, tx2, tn0, tn1, tn2 = hit.x0, hit.x1, hit.x2, hit.n0, hit.n1, hit.n2
+                            pmf_k = pmf_of(tree, light, tx0, tx1, tx2, tn0, tn1, tn2, mutant)
+                        p_light = light_density(lights, light, nd, pmf_k, px0, px1, px2, t, cos_out, mutant)
                         w = power_weight(mutant, prev_pdf, p_light, False)
                     le0, le1, le2 = emission_at(scene, textures, tri, hit.x0, hit.x1, hit.x2, mutant)
                     rad0 += b0 * le0 * w
@@ -631,7 +625,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
             prev_pdf = pdf
             px0, px1, px2 = x0, x1, x2
             if tree is not None:
-                qx0, qx1, qx2, qn0, qn1, qn2 = x0, x1, x2, nx0, nx1, nx2
+                qn0, qn1, qn2 = nx0, nx1, nx2
             depth += 1
         radiance[r, 0], radiance[r, 1], radiance[r, 2] = rad0, rad1, rad2
     counters[C_BACK_FACE] += count_back_face

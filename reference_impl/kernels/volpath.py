@@ -65,7 +65,7 @@ from reference_impl.kernels.config import (C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT
 from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
                                            power_weight)
 from reference_impl.kernels.emitters import env_light_pdf, env_radiance, split_light_piece_all
-from reference_impl.kernels.light_sampling import cone_pdf
+from reference_impl.kernels.light_sampling import light_density
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.path import RR_THROUGHPUT_CAP, connect, next_ray
 from reference_impl.kernels.phase import hg_pdf, sample_hg, sample_isotropic, INV_FOUR_PI
@@ -295,7 +295,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
     ``media`` the :class:`.records.MediumTables`. ``timing`` as the path loop's; ``film_samples``
     (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler."""
     root, key, origin, direction, _o32, _d32, beta, _pdf_dir, _env_pdf = state
-    light_id, light_pmf, light_area = scene.light_id, lights.pmf, lights.area
+    light_id, light_pmf = scene.light_id, lights.pmf
     sphere_base = scene.prim_to_tri.shape[0] - scene.sphere.shape[0]
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd
@@ -368,7 +368,7 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
         prev_pdf = 0.0  # the density of the current ray's direction at the vertex it left (MIS)
         pn0, pn1, pn2 = 0.0, 0.0, 1.0  # that vertex's normal on the side the ray left (env_light_pdf)
         t_acc = 0.0  # the distance from that vertex to the current ray's origin (across null boundaries)
-        px0, px1, px2 = 0.0, 0.0, 0.0  # that vertex (a sphere light's cone from it: cone_pdf)
+        px0, px1, px2 = 0.0, 0.0, 0.0  # that vertex (a sphere light's cone from it: light_density)
         crossings = 0  # null boundaries the current ray has crossed
         eta2 = 1.0
         while True:
@@ -490,11 +490,8 @@ def trace_volpaths(state, scene_ptr, scene, lights, materials, cfg, radiance, co
                 if light >= 0 and cos_out > 0:
                     w = 1.0
                     if emit == EMIT_MIS:
-                        p_cone = cone_pdf(lights, light, px0, px1, px2, mutant)  # a sphere drawn by its cone from x
-                        if p_cone > 0.0:
-                            p_light = nd * light_pmf[light] * p_cone
-                        else:
-                            p_light = nd * (light_pmf[light] / light_area[light]) * (t_total * t_total) / cos_out
+                        p_light = light_density(lights, light, nd, light_pmf[light], px0, px1, px2, t_total, cos_out,
+                                                mutant)
                         w = power_weight(mutant, prev_pdf, p_light, False)
                     le0, le1, le2 = emission_at(scene, None, tri, hit.x0, hit.x1, hit.x2, mutant)
                     rad0 += b0 * le0 * w
