@@ -125,6 +125,11 @@ rtc_intersect16 = types.ExternalFunction("rtcIntersect16",
 # The same for packets of 8 and 4 rays (RTCRayHit8 / RTCRayHit4: the same layout, 8 or 4 lanes per field).
 rtc_intersect8 = types.ExternalFunction("rtcIntersect8", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
 rtc_intersect4 = types.ExternalFunction("rtcIntersect4", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+# void rtcOccluded16(const int* valid, RTCScene, RTCRay16*, RTCOccludedArguments*), and its 8- and 4-ray forms:
+# shadow rays in packets (RTCRay16: the ray fields of RTCRayHit16; a blocked lane's tfar set to -inf).
+rtc_occluded16 = types.ExternalFunction("rtcOccluded16", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+rtc_occluded8 = types.ExternalFunction("rtcOccluded8", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
+rtc_occluded4 = types.ExternalFunction("rtcOccluded4", types.void(types.uintp, types.uintp, types.uintp, types.uintp))
 # int clock_gettime(clockid_t, struct timespec*): samples of the time spent in queries.
 clock_gettime = types.ExternalFunction("clock_gettime", types.int32(types.int32, types.uintp))
 CLOCK_MONOTONIC = 1

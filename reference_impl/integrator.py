@@ -75,8 +75,8 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import (bsdf, camera, compile_once, config, film, path,  # optional: numba; noqa: F401
-                                        records, volpath, wavefront)
+    from reference_impl.kernels import (bsdf, camera, compile_once, config, film, first_hits,  # noqa: F401
+                                        path, records, volpath, wavefront)  # optional: numba
 
     return kernels
 
@@ -303,6 +303,14 @@ class _Context:
             self.emitter_tables = records.emitter_tables(em)
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
+        # Paths that end at their first hit (max_depth 2: direct light only) traced in blocks, their shadow rays in
+        # packets (kernels/first_hits.py; the path loop's bits), on a Lambertian scene lit by area lights alone, which
+        # the path loop runs with its options compiled out
+        self.first_hits = (FIRST_HITS and self.engine == "path" and self.config.max_depth in (1, 2)
+                           and s.direct == "area" and self.other_kinds is None
+                           and em is None and self.light_textures is None and self.shading is None
+                           and self.masks is None and self.nested is None and self.tree_tables is None
+                           and not self.geometry.num_spheres)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.camera_record = records.camera_record(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
@@ -520,6 +528,11 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     )
 
 
+#: whether paths that end at their first hit may be traced in blocks with their shadow rays in packets
+#: (kernels/first_hits.py) where a scene allows it; the images are the same either way (tests/reference_impl/
+#: test_first_hits.py switches it)
+FIRST_HITS = True
+
 #: the least number of units of work a render's pixels are cut into, per worker thread: enough that the units' unequal
 #: costs (a film's bright and dark rows) even out between the threads (docs/performance.md, "Units of work")
 UNITS_PER_THREAD = 8
@@ -598,6 +611,15 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
             kernels.compile_once.compile_once(kernels.volpath.trace_volpaths, args)
             ctx.compiled = True
         kernels.volpath.trace_volpaths(*args)
+        clock.seconds += timing[0] * 1e-9
+    elif ctx.engine == "path" and ctx.first_hits and record is None:
+        timing = np.zeros(2, np.int64)
+        args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
+                radiance, counters, timing, film_samples)
+        if not ctx.compiled:
+            kernels.compile_once.compile_once(kernels.first_hits.trace_first_hits, args)
+            ctx.compiled = True
+        kernels.first_hits.trace_first_hits(*args)
         clock.seconds += timing[0] * 1e-9
     elif ctx.engine == "path":
         timing = np.zeros(2, np.int64)

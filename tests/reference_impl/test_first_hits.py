@@ -1,0 +1,119 @@
+"""Paths that end at their first hit, traced in blocks with their shadow rays in packets (kernels/first_hits.py),
+give the path loop's image bit for bit, with the same variance and counters, whatever the settings, threads and
+planted faults; a packet of occlusion queries answers as one query per ray does; and only the scenes the path
+loop would run with its options compiled out take this way."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from conftest import load_small
+
+from harness.renderers import RenderRequest, get_renderer
+from reference_impl import integrator
+
+
+def _render(scene, spp, first_hits, monkeypatch, seed=3, **settings):
+    """A reference render with the first hits in blocks (``first_hits``) or with the path loop alone, and whether
+    the blocks ran."""
+    kernels = integrator._kernels()
+    calls = []
+    traced = kernels.first_hits.trace_first_hits
+
+    def spy(*args):
+        calls.append(len(args[0][0]))
+        return traced(*args)
+
+    monkeypatch.setattr(integrator, "FIRST_HITS", first_hits)
+    monkeypatch.setattr(kernels.first_hits, "trace_first_hits", spy)
+    request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
+    return get_renderer("reference").render(scene, request), bool(calls)
+
+
+def _same(scene, spp, monkeypatch, **settings):
+    blocks, ran = _render(scene, spp, True, monkeypatch, **settings)
+    loop, loop_ran = _render(scene, spp, False, monkeypatch, **settings)
+    assert ran and not loop_ran
+    assert np.array_equal(blocks.image, loop.image)
+    assert np.array_equal(blocks.variance, loop.variance, equal_nan=True)
+    counters = {k: v for k, v in blocks.stats.items() if k != "embree_microseconds"}
+    assert counters == {k: v for k, v in loop.stats.items() if k != "embree_microseconds"}
+    assert blocks.stats["shadow_rays"] > 0 or scene.max_depth == 1
+    return blocks
+
+
+CASES = [
+    ("soft-shadows", None, {}),
+    ("soft-shadows", None, {"sampler": "independent"}),
+    ("soft-shadows", None, {"shadow_rays": 3, "threads": 1, "batch_size": 1000}),
+    ("soft-shadows", None, {"replicates": 4}),
+    ("multi-light", 2, {}),  # eight lights: the choice of light and its pdf
+    ("multi-light", 2, {"sampler": "independent", "light_selection": "uniform", "shadow_rays": 2}),
+    ("cornell-box", 2, {}),  # light samples behind x (skipped), lights seen directly
+    ("cornell-box", 1, {}),  # emission alone: no light sample
+    ("textured-reflectance", 2, {}),  # reflectance from textures: the material step's lookups
+]
+
+
+def _textured_reflectance():
+    """textured-cornell-box with its light's texture dropped and its rough conductor made white: diffuse walls whose
+    reflectance is a bitmap and a checkerboard, lit by a plain area light."""
+    scene = load_small("textured-cornell-box", 24)
+    shapes = [dataclasses.replace(s, emission_texture=None) if s.emission is not None else s for s in scene.shapes]
+    materials = dict(scene.materials, metal=scene.materials["white"])
+    return dataclasses.replace(scene, shapes=shapes, materials=materials)
+
+
+@pytest.mark.parametrize("name, max_depth, settings", CASES)
+def test_first_hits_in_blocks_give_the_path_loops_bits(name, max_depth, settings, monkeypatch):
+    scene = _textured_reflectance() if name == "textured-reflectance" else load_small(name, 24)
+    if max_depth is not None:
+        scene = dataclasses.replace(scene, max_depth=max_depth)
+    _same(scene, 16, monkeypatch, **settings)
+
+
+@pytest.mark.parametrize("mutant", ["light-pdf-ignored", "no-cosine", "no-ray-offset", "camera-half-pixel",
+                                    "energy-loss-2pct"])
+def test_planted_faults_change_both_ways_alike(mutant, monkeypatch):
+    scene = dataclasses.replace(load_small("multi-light", 24), max_depth=2)
+    faulty = _same(scene, 16, monkeypatch, mutant=mutant)
+    clean, _ = _render(scene, 16, True, monkeypatch)
+    assert not np.array_equal(faulty.image, clean.image)
+
+
+@pytest.mark.parametrize("name, max_depth, settings", [
+    ("cornell-box", None, {}),  # paths that go on past their first hit: the path loop
+    ("soft-shadows", None, {"direct": "mis"}),
+    ("soft-shadows", None, {"direct": "hemisphere-cosine"}),
+    ("veach-mis", None, {}),  # glossy materials and sphere lights
+])
+def test_other_scenes_keep_the_path_loop(name, max_depth, settings, monkeypatch):
+    scene = load_small(name, 8)
+    _result, ran = _render(scene, 2, True, monkeypatch, **settings)
+    assert not ran
+
+
+def test_a_packet_answers_as_one_query_per_ray():
+    from reference_impl.embree_c import TriangleScene
+    from reference_impl.kernels.first_hits import occluded_packets
+    from reference_impl.kernels.queries import packet_buffer
+
+    rng = np.random.default_rng(5)
+    corners = rng.uniform(-1.0, 1.0, (200, 3, 3))
+    scene = TriangleScene(corners.reshape(-1, 3), np.arange(600).reshape(200, 3))
+    count = 1000
+    origin = rng.uniform(-1.5, 1.5, (count, 3))
+    direction = rng.normal(size=(count, 3))
+    direction /= np.linalg.norm(direction, axis=1)[:, None]
+    tfar = rng.uniform(0.0, 3.0, count).astype(np.float32)
+    tfar[::7] = np.inf
+    answers = {}
+    for width in (1, 4, 8, 16):
+        blocked = np.zeros(count, bool)
+        occluded_packets(scene.pointer, width, origin, direction, tfar, count, blocked, *packet_buffer())
+        answers[width] = blocked
+    assert 0.1 < answers[1].mean() < 0.9
+    for width in (4, 8, 16):
+        assert np.array_equal(answers[width], answers[1])
