@@ -75,8 +75,8 @@ def _kernels():
     """reference_impl.kernels with the modules a render runs (``kernels.config``, ``kernels.path``, ...), imported on
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
-    from reference_impl.kernels import (bsdf, camera, compile_once, config, film, first_hits,  # noqa: F401
-                                        path, records, volpath, wavefront)  # optional: numba
+    from reference_impl.kernels import (bsdf, camera, compile_once, config, film,  # optional: numba; noqa: F401
+                                        first_hits, path, records, volpath, wavefront)
 
     return kernels
 

@@ -45,7 +45,8 @@ from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSIN
                                            JIT_BORROW, JIT_NONRT, M_LIGHT_PDF_IGNORED, M_MIS_WEIGHTS_NOT_ONE,
                                            M_NO_COSINE, M_NO_RAY_OFFSET, M_SPHERE_CONE_PDF_AREA,
                                            M_SPHERE_POINTS_THETA)
-from reference_impl.kernels.emitters import emitter_direction, emitter_sample, split_light_uniform_all
+from reference_impl.kernels.emitters import (emitter_direction, emitter_sample, split_light_piece_all,
+                                             split_light_uniform_all)
 from reference_impl.kernels.light_sampling import (drawn_by_cone, light_point, point_in_cone, point_on_light,
                                                    sample_light_point, sample_surface_point, search_within,
                                                    sphere_cone, split_light_uniform, split_surface_uniform,
@@ -258,6 +259,24 @@ def light_piece(cfg, lights, light, u_tri):
         return -1
     f = lights.first[light]
     return f + search_within(lights.within_cdf, f, lights.count[light], u_tri)
+
+
+@njit(**JIT_BORROW)
+def light_choice(cfg, lights, sob, u_a, u_b, key, depth, j):
+    """Light sample j's choices at vertex ``depth`` of the path with ``key`` (area sampling, without a light tree):
+    (light k, its piece, u1, u2). With the stratified sampler (``sob``) one 2D point (u_a, u_b) of the pixel's set:
+    its first coordinate picks k and the piece and what is left of it is u1 (:func:`.emitters.split_light_piece_all`);
+    else four independent numbers (with one light, none for k: pdf(k) = 1)."""
+    num_lights = cfg.num_lights
+    if sob:
+        sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
+        return sel, piece, u1, u_b
+    u_sel = uniform(key, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
+    u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
+    u1 = uniform(key, dim_salt(depth, LIGHT_U1, j))
+    u2 = uniform(key, dim_salt(depth, LIGHT_U2, j))
+    sel = sample_discrete(lights.cdf, u_sel) if num_lights > 1 else 0
+    return sel, light_piece(cfg, lights, sel, u_tri), u1, u2
 
 
 @njit(**JIT_BORROW)

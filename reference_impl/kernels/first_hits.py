@@ -29,19 +29,16 @@ from numba import njit
 from reference_impl import embree_c
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_LIGHT_SELECT, C_SHADOW, C_SHADOW_SKIPPED,
                                            HEMI_UNIFORM, JIT, M_LIGHT_PDF_IGNORED, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import connection_ray, light_connection, light_piece
-from reference_impl.kernels.emitters import split_light_piece_all
+from reference_impl.kernels.direct import connection_ray, light_choice, light_connection
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.path import connect
 from reference_impl.kernels.queries import closest_prims_packets, now_ns, packet_buffer, packet_lane, packet_rest
-from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.shading import geometric_frame
 from reference_impl.kernels.sobol import (NOTHING_HELD, ahead, held_point, longest_run, pair_point,
                                           path_first_hit_seeds, pixel_run)
 from reference_impl.kernels.surface import emission_at, offset_origin, surface_hit
-from reference_impl.kernels.warps import dot3, sample_discrete
+from reference_impl.kernels.warps import dot3
 from reference_impl.materials import DIFFUSE, P_TWO_SIDED, ROW_SIZE
-from reference_impl.rng import LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2
 
 #: camera paths per block: their shadow rays are kept until the block's packets are queried
 BLOCK = 256
@@ -83,7 +80,7 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
     light tree; not recorded): each path's radiance added to ``radiance[root]``, the same counters and timing."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     light_id = scene.light_id
-    light_cdf, light_pmf = lights.cdf, lights.pmf
+    light_pmf = lights.pmf
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd
     mutant = cfg.mutant
@@ -175,16 +172,10 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
             lo0, lo1 = dot3(sf.s0, sf.s1, sf.s2, wo0, wo1, wo2), dot3(sf.t0, sf.t1, sf.t2, wo0, wo1, wo2)
             lo2 = cos_out
             for j in range(nd):
+                u_a, u_b = 0.0, 0.0
                 if sobol:  # one 2D point: its first coordinate picks the light and the piece too
-                    u_a, u2 = pair_point(held_point(fh.light, lx, ly, held_light, si * nd + j), si * nd + j)
-                    sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
-                else:
-                    u_sel = uniform(k, dim_salt(1, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
-                    u_tri = uniform(k, dim_salt(1, LIGHT_TRIANGLE, j))
-                    u1 = uniform(k, dim_salt(1, LIGHT_U1, j))
-                    u2 = uniform(k, dim_salt(1, LIGHT_U2, j))
-                    sel = sample_discrete(light_cdf, u_sel) if num_lights > 1 else 0
-                    piece = light_piece(cfg, lights, sel, u_tri)
+                    u_a, u_b = pair_point(held_point(fh.light, lx, ly, held_light, si * nd + j), si * nd + j)
+                sel, piece, u1, u2 = light_choice(cfg, lights, sobol, u_a, u_b, k, 1, j)
                 if num_lights > 1:
                     count_light_select += 1
                 pdf_select = light_pmf[sel]

@@ -62,9 +62,9 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
                                            HEMI_UNIFORM, JIT, JIT_BORROW, M_COSINE_PDF_PI, M_DOUBLE_EMISSION,
                                            M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, M_SHADING_NORMAL_SIDE,
                                            M_TREE_PMF_AT_HIT, RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_connection, light_piece,
-                                           light_sample, point_connection, power_weight)
-from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within, split_light_piece_all
+from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_choice, light_connection,
+                                           light_piece, light_sample, point_connection, power_weight)
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within
 from reference_impl.kernels.light_sampling import light_density
 from reference_impl.kernels.light_tree import pmf_of, select
 from reference_impl.kernels.cutout import shadow_transmittance, through_holes
@@ -77,7 +77,7 @@ from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead
                                           pair_point, path_first_hit_seeds, pixel_run, uniform_2d)
 from reference_impl.kernels.shading import geometric_frame, shading_frame, through_map, uv_aligned
 from reference_impl.kernels.surface import emission_at, hit_at, offset_origin, surface_hit
-from reference_impl.kernels.warps import PI, dot3, sample_discrete, sample_hemisphere
+from reference_impl.kernels.warps import PI, dot3, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_ANISOTROPIC, P_METALLIC, P_REFLECTANCE, P_SPEC_TRANS, P_TWO_SIDED,
                                       PRINCIPLED, ROUGHDIELECTRIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
@@ -248,7 +248,7 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     emission, light_id, prim_to_tri, tri_normal = scene.emission, scene.light_id, scene.prim_to_tri, scene.normal
     sphere_base = prim_to_tri.shape[0] - scene.sphere.shape[0]  # spheres: tested beside Embree's triangles (.queries)
-    light_cdf, light_pmf = lights.cdf, lights.pmf
+    light_pmf = lights.pmf
     nd = cfg.shadow_rays
     inv_nd = 1.0 / nd  # exact for Nd = 1, 2, 4, ...
     direct = cfg.direct
@@ -543,17 +543,12 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                     piece = light_piece(cfg, lights, sel, u_tri)
                                 if sel < 0:  # nothing in the tree can light x
                                     continue
-                            elif sob:  # one 2D point: its first coordinate picks the light and the piece too
-                                u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
-                                                     si * nd + j)
-                                sel, piece, u1 = split_light_piece_all(lights, num_lights, cfg.num_area_lights, u_a)
                             else:
-                                u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j)) if num_lights > 1 else 0.0
-                                u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
-                                u1 = uniform(k, dim_salt(depth, LIGHT_U1, j))
-                                u2 = uniform(k, dim_salt(depth, LIGHT_U2, j))
-                                sel = sample_discrete(light_cdf, u_sel) if num_lights > 1 else 0
-                                piece = light_piece(cfg, lights, sel, u_tri)
+                                u_a, u_b = 0.0, 0.0
+                                if sob:  # one 2D point: its first coordinate picks the light and the piece too
+                                    u_a, u_b = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
+                                                          si * nd + j)
+                                sel, piece, u1, u2 = light_choice(cfg, lights, sob, u_a, u_b, k, depth, j)
                             if num_lights > 1:
                                 count_light_select += 1
                             # mutant "light-pdf-ignored": pdf(y|k) alone
