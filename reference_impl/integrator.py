@@ -612,7 +612,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
             ctx.compiled = True
         kernels.volpath.trace_volpaths(*args)
         clock.seconds += timing[0] * 1e-9
-    elif ctx.engine == "path" and ctx.first_hits and record is None:
+    elif ctx.first_hits and record is None:  # (a path-loop scene: _Context.first_hits)
         timing = np.zeros(2, np.int64)
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
                 radiance, counters, timing, film_samples)

@@ -148,13 +148,12 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
             tri, cos_out = hit.tri, hit.cos_out
             light = light_id[tri]
             if light >= 0 and cos_out > 0:  # the camera ray's hit: no light sample could have found it (weight 1)
-                w = 1.0
                 le0, le1, le2 = emission_at(scene, None, tri, hit.x0, hit.x1, hit.x2, mutant)
-                rad0 += b0 * le0 * w
-                rad1 += b1 * le1 * w
-                rad2 += b2 * le2 * w
+                rad0 += b0 * le0
+                rad1 += b1 * le1
+                rad2 += b2 * le2
             rad[b, 0], rad[b, 1], rad[b, 2] = rad0, rad1, rad2
-            if not (max_depth == -1 or 2 <= max_depth):
+            if max_depth < 2:  # emission only: no light sample
                 continue
             material_at(materials, hit, row, mutant)
             kind = DIFFUSE
