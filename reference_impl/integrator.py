@@ -177,12 +177,14 @@ class _Workspace:
             self._samples = (np.empty(n, np.int64), np.empty(n, np.int64))
         return self._samples[0][:n], self._samples[1][:n]
 
-    def radiance(self, n: int) -> np.ndarray:
-        """Zeroed room for ``n`` camera samples' radiance (valid until this thread's next batch)."""
+    def radiance(self, n: int, zeroed: bool = True) -> np.ndarray:
+        """Room for ``n`` camera samples' radiance, zeroed unless the kernel writes every row (valid until this
+        thread's next batch)."""
         if self._radiance is None or len(self._radiance) < n:
             self._radiance = np.empty((n, 3))
         view = self._radiance[:n]
-        view.fill(0.0)
+        if zeroed:
+            view.fill(0.0)
         return view
 
     def state(self, which: int, n: int) -> tuple:
@@ -595,7 +597,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
     pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
     kernels.camera.camera_paths(film_samples, config, ctx.camera_record, pixel_filter, first)
-    radiance = ctx.workspace().radiance(n)
+    radiance = ctx.workspace().radiance(n, zeroed=not (ctx.first_hits and record is None))  # first_hits writes
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
     clock = _Clock()

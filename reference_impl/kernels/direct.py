@@ -335,6 +335,18 @@ def emitter_connection(cfg, emitters, e, pdf_select, u1, u2, x0, x1, x2, n0, n1,
 
 
 @njit(**JIT_BORROW)
+def area_light_point(cfg, scene, lights, light, piece, pdf_select, u1, u2):
+    """A point y of area light k = ``light`` (chosen with ``pdf_select``) drawn by area: on k's ``piece``
+    (:func:`light_piece`) from (u1, u2), with the planted fault "sphere-points-uniform-theta" on a sphere as that
+    fault draws it: (the triangle y lies in, y, p(y) = pdf(k) / A_k). It depends on nothing at x, so a block of paths
+    can draw its points before it knows its hits (:mod:`.first_hits`)."""
+    tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
+    if cfg.mutant:  # mutant "sphere-points-uniform-theta"
+        y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u1, u2)
+    return tri, y0, y1, y2, pdf_select / lights.area[light]
+
+
+@njit(**JIT_BORROW)
 def light_connection(cfg, scene, textures, lights, emitters, light, piece, pdf_select, u1, u2, x0, x1, x2, n0, n1,
                      n2, front_only):
     """The connection (above) of light k = ``light`` (chosen with ``pdf_select``): a point on area light k's
@@ -354,10 +366,8 @@ def light_connection(cfg, scene, textures, lights, emitters, light, piece, pdf_s
                                             x0, x1, x2)
                 return cone_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select, HALF_INV_PI / one_minus,
                                        x0, x1, x2)
-        tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
-        if cfg.mutant:  # mutant "sphere-points-uniform-theta"
-            y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u1, u2)
-        return point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_select / lights.area[light], x0, x1, x2)
+        tri, y0, y1, y2, pdf_area = area_light_point(cfg, scene, lights, light, piece, pdf_select, u1, u2)
+        return point_connection(cfg, scene, textures, tri, y0, y1, y2, pdf_area, x0, x1, x2)
     if emitters is not None:
         return emitter_connection(cfg, emitters, light - cfg.num_area_lights, pdf_select, u1, u2, x0, x1, x2, n0,
                                   n1, n2, front_only)

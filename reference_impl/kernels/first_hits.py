@@ -5,20 +5,25 @@ rays 16 at a time.
 For each block of :data:`BLOCK` consecutive camera paths of a batch (the camera rays' hits found in packets, as the
 path loop finds them):
 
-1. per path, what the path loop does at its first hit x before its shadow queries: the emission x shows the camera
-   ray (Le(x -> wo), weight 1), the material step, and the Nd light connections (light k with pdf(k), a point y on
-   it; Le G f |cos_x| / p through the BSDF door, :func:`.path.connect`), each kept with its shadow ray
-   (:func:`.direct.connection_ray`) where it needs one;
-2. the block's shadow rays, in the order they were made, as packets of ``cfg.packet_width`` occlusion queries
+1. per path that hit something, its Nd light samples: light k with pdf(k) and a point y on it with p(y)
+   (:func:`.direct.light_choice`, :func:`.direct.area_light_point`). Nothing in them depends on the hit, so they
+   are drawn in a loop of their own, where one sample's division and square root need not wait for its path's hit;
+2. per path, what the path loop does at its first hit x before its shadow queries: the emission x shows the camera
+   ray (Le(x -> wo), weight 1), the material step, and the Nd light connections to those points (Le G f |cos_x| / p
+   through the BSDF door, :func:`.path.connect`), each kept with its shadow ray (:func:`.direct.connection_ray`)
+   where it needs one;
+3. the block's shadow rays, in the order they were made, as packets of ``cfg.packet_width`` occlusion queries
    (``rtcOccluded16``, ``8`` or ``4``; one query per ray where the processor has no packets);
-3. per path, in the path loop's order: radiance += beta (the sum of its unblocked connections, in j order) / Nd.
+4. per path, in the path loop's order: radiance = emission + beta (the sum of its unblocked connections, in j
+   order) / Nd.
 
 Each path's radiance is summed in the order the path loop sums it, from the same numbers, and a packet answers as
 one query per ray does (the same float32 ray, :func:`.queries.packet_lane`), so the image is the path loop's, bit for
 bit (tests/reference_impl/test_first_hits.py). What the packets buy: Embree traverses its tree once for up to 16
-shadow rays that leave one pixel's hits (docs/performance.md, "Issue 39: shadow rays in packets"). Paths that go on
-past their first hit stay in the path loop: its first hits in blocks, the rest as before, took 1.01 x the time on
-the Cornell box and 1.05 x on multi-light (the same docs section).
+shadow rays that leave one pixel's hits (docs/performance.md, "Issue 39: shadow rays in packets"); what drawing the
+light samples first buys: 0.935 x the render time of soft-shadows (the same file, "Issue 39: light samples drawn
+first"). Paths that go on past their first hit stay in the path loop: its first hits in blocks, the rest as before,
+took 1.01 x the time on the Cornell box and 1.05 x on multi-light ("Issue 39: shadow rays in packets").
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from numba import njit
 from reference_impl import embree_c
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_LIGHT_SELECT, C_SHADOW, C_SHADOW_SKIPPED,
                                            HEMI_UNIFORM, JIT, M_LIGHT_PDF_IGNORED, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import connection_ray, light_choice, light_connection
+from reference_impl.kernels.direct import area_light_point, connection_ray, light_choice, point_connection
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.path import connect
 from reference_impl.kernels.queries import closest_prims_packets, now_ns, packet_buffer, packet_lane, packet_rest
@@ -77,7 +82,8 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) as :func:`.path.trace_paths`
     traces it, on a scene this runs for (``integrator._Context.first_hits``: max_depth 2 or 1, every material
     diffuse, ``direct = area``, area lights alone, no textured light, shading normal, sphere, mask, nested material or
-    light tree; not recorded): each path's radiance added to ``radiance[root]``, the same counters and timing."""
+    light tree; not recorded): each path's radiance written to ``radiance[root]`` (the path loop's sum, which starts
+    at 0: the buffer need not be zeroed), the same counters and timing."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     light_id = scene.light_id
     light_pmf = lights.pmf
@@ -115,6 +121,8 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
     s_value = np.empty((rays, 3))
     s_owner = np.empty(rays, np.int64)
     s_blocked = np.zeros(rays, np.bool_)
+    # the block's light samples, Nd a path: the triangle y lies in, y, p(y)
+    y_tri, y, y_pdf = np.empty(rays, np.int64), np.empty((rays, 3)), np.empty(rays)
     count_back_face = 0
     count_escaped = 0
     count_light_select = 0
@@ -123,12 +131,9 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
     for i0 in range(0, n, BLOCK):
         i1 = min(n, i0 + BLOCK)
         s = 0
-        for i in range(i0, i1):
-            b = i - i0
+        # the block's light samples (none for max_depth 1), drawn before its hits: nothing in them depends on x
+        for i in range(i0, i1 if max_depth >= 2 else i0):
             r = root[i]
-            k = key[i]
-            rad0, rad1, rad2 = radiance[r, 0], radiance[r, 1], radiance[r, 2]
-            lit[b] = False
             if sobol:
                 if film_pixel[r] != fh_pixel:  # a pixel's samples come together: its seeds and points once
                     fh_pixel = film_pixel[r]
@@ -136,6 +141,24 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
                     first, m_run = film_sample[r], pixel_run(film_pixel, film_sample, r)
                     held_light = ahead(fh.light, first * nd, m_run * nd, lx, ly, True)
                 si = film_sample[r]
+            if first_prim[i] < 0:
+                continue
+            for j in range(nd):
+                u_a, u_b = 0.0, 0.0
+                if sobol:  # one 2D point: its first coordinate picks the light and the piece too
+                    u_a, u_b = pair_point(held_point(fh.light, lx, ly, held_light, si * nd + j), si * nd + j)
+                sel, piece, u1, u2 = light_choice(cfg, lights, sobol, u_a, u_b, key[i], 1, j)
+                pdf_select = light_pmf[sel]
+                if mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
+                    pdf_select = 1.0
+                c = (i - i0) * nd + j
+                y_tri[c], y[c, 0], y[c, 1], y[c, 2], y_pdf[c] = area_light_point(cfg, scene, lights, sel, piece,
+                                                                                 pdf_select, u1, u2)
+        for i in range(i0, i1):
+            b = i - i0
+            r = root[i]
+            rad0, rad1, rad2 = 0.0, 0.0, 0.0
+            lit[b] = False
             p = np.int64(first_prim[i])
             if p < 0:
                 count_escaped += 1
@@ -171,17 +194,10 @@ def trace_first_hits(state, scene_ptr, scene, lights, materials, cfg, radiance, 
             lo0, lo1 = dot3(sf.s0, sf.s1, sf.s2, wo0, wo1, wo2), dot3(sf.t0, sf.t1, sf.t2, wo0, wo1, wo2)
             lo2 = cos_out
             for j in range(nd):
-                u_a, u_b = 0.0, 0.0
-                if sobol:  # one 2D point: its first coordinate picks the light and the piece too
-                    u_a, u_b = pair_point(held_point(fh.light, lx, ly, held_light, si * nd + j), si * nd + j)
-                sel, piece, u1, u2 = light_choice(cfg, lights, sobol, u_a, u_b, k, 1, j)
                 if num_lights > 1:
                     count_light_select += 1
-                pdf_select = light_pmf[sel]
-                if mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
-                    pdf_select = 1.0
-                conn = light_connection(cfg, scene, None, lights, None, sel, piece, pdf_select, u1, u2, x0, x1, x2,
-                                        ns0, ns1, ns2, True)
+                c = b * nd + j
+                conn = point_connection(cfg, scene, None, y_tri[c], y[c, 0], y[c, 1], y[c, 2], y_pdf[c], x0, x1, x2)
                 needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, False, conn, False, side, nx0,
                                                     nx1, nx2, sf, lo0, lo1, lo2, None)
                 if not needed:
