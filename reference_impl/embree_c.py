@@ -37,6 +37,11 @@ W_PRIM_ID, W_GEOM_ID = 12 + 5, 12 + 6
 PACKET = 16  # the widest packet (RTCRayHit16): a packet of width w has field f of lane l at word f * w + l
 PACKET_WORDS = 16 * 24  # up to 12 ray fields and 12 hit fields
 P_PRIM_ID, P_GEOM_ID = 12 + 5, 12 + 6  # fields of the hit, after the ray's 12
+# RTCIntersectArguments (Embree 4, rtcore.h): flags, feature_mask (uint32 each), then the context, filter and
+# intersect pointers (null: none), with room to spare for a build that adds a field; as uint32 words.
+ARGUMENT_WORDS = 16
+QUERY_FLAG_COHERENT = 1 << 16  # RTC_RAY_QUERY_FLAG_COHERENT: Embree's traversal for rays that travel together
+FEATURE_FLAG_ALL = 0xFFFFFFFF  # RTC_FEATURE_FLAG_ALL, what rtcInitIntersectArguments sets
 
 
 @functools.cache
