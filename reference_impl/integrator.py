@@ -597,7 +597,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
     pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
     kernels.camera.camera_paths(film_samples, config, ctx.camera_record, pixel_filter, first)
-    radiance = ctx.workspace().radiance(n, zeroed=not (ctx.first_hits and record is None))  # first_hits writes
+    # first_hits writes every path's row (the path loop and the wavefront add to theirs)
+    radiance = ctx.workspace().radiance(n, zeroed=not (ctx.first_hits and record is None))
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
