@@ -597,8 +597,10 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
     pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
     kernels.camera.camera_paths(film_samples, config, ctx.camera_record, pixel_filter, first)
+    # paths that end at their first hit, traced in blocks (a path-loop scene: _Context.first_hits), unless recorded
+    in_blocks = ctx.first_hits and record is None
     # first_hits writes every path's row (the path loop and the wavefront add to theirs)
-    radiance = ctx.workspace().radiance(n, zeroed=not (ctx.first_hits and record is None))
+    radiance = ctx.workspace().radiance(n, zeroed=not in_blocks)
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
     clock = _Clock()
@@ -615,7 +617,7 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
             ctx.compiled = True
         kernels.volpath.trace_volpaths(*args)
         clock.seconds += timing[0] * 1e-9
-    elif ctx.first_hits and record is None:  # (a path-loop scene: _Context.first_hits)
+    elif in_blocks:
         timing = np.zeros(2, np.int64)
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
                 radiance, counters, timing, film_samples)

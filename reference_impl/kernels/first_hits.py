@@ -20,11 +20,10 @@ path loop finds them):
 Each path's radiance is summed in the order the path loop sums it, from the same numbers, and a packet answers as
 one query per ray does (the same float32 ray, :func:`.queries.packet_lane`), so the image is the path loop's, bit for
 bit (tests/reference_impl/test_first_hits.py). What the packets buy: Embree traverses its tree once for up to 16
-shadow rays that leave one pixel's hits (docs/performance.md, "Issue 39: shadow rays in packets"); what drawing the
-light samples first buys: 0.935 x the render time of soft-shadows (the same file, "Issue 39: light samples drawn
-first, camera packets marked coherent"). Paths that go on past their first hit stay in the path loop: its first hits
-in blocks, the rest as before, took 1.01 x the time on the Cornell box and 1.05 x on multi-light ("Issue 39: shadow
-rays in packets").
+shadow rays that leave one pixel's hits (docs/performance.md, "Issue 39: shadow rays in packets"; what drawing the
+light samples first buys: "Issue 39: light samples drawn first, camera packets marked coherent"). Paths that go on
+past their first hit stay in the path loop: its first hits in blocks, the rest as before, took 1.01 x the time on the
+Cornell box and 1.05 x on multi-light ("Issue 39: shadow rays in packets").
 """
 
 from __future__ import annotations
