@@ -76,7 +76,7 @@ def _kernels():
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
     from reference_impl.kernels import (bsdf, camera, compile_once, config, film,  # optional: numba; noqa: F401
-                                        first_hits, path, records, volpath, wavefront)
+                                        blocks, path, records, volpath, wavefront)
 
     return kernels
 
@@ -305,14 +305,13 @@ class _Context:
             self.emitter_tables = records.emitter_tables(em)
             if s.direct in ("hemisphere-cosine", "hemisphere-uniform", "global-area"):
                 self.complements = len(em)
-        # Paths that end at their first hit (max_depth 2: direct light only) traced in blocks, their shadow rays in
-        # packets (kernels/first_hits.py; the path loop's bits), on a Lambertian scene lit by area lights alone, which
-        # the path loop runs with its options compiled out
-        self.first_hits = (FIRST_HITS and self.engine == "path" and self.config.max_depth in (1, 2)
-                           and s.direct == "area" and self.other_kinds is None
-                           and em is None and self.light_textures is None and self.shading is None
-                           and self.masks is None and self.nested is None and self.tree_tables is None
-                           and not self.geometry.num_spheres)
+        # Paths traced in blocks that go from vertex to vertex together, their rays in packets (kernels/blocks.py;
+        # the path loop's bits), on a Lambertian scene lit by area lights alone, which the path loop runs with its
+        # options compiled out
+        self.blocks = (BLOCKS and self.engine == "path" and s.direct == "area" and self.other_kinds is None
+                       and em is None and self.light_textures is None and self.shading is None
+                       and self.masks is None and self.nested is None and self.tree_tables is None
+                       and not self.geometry.num_spheres)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.camera_record = records.camera_record(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
@@ -530,10 +529,9 @@ def render(geometry: Geometry, camera: Camera, film: Film, settings: Settings, p
     )
 
 
-#: whether paths that end at their first hit may be traced in blocks with their shadow rays in packets
-#: (kernels/first_hits.py) where a scene allows it; the images are the same either way (tests/reference_impl/
-#: test_first_hits.py switches it)
-FIRST_HITS = True
+#: whether paths may be traced in blocks with their rays in packets (kernels/blocks.py) where a scene allows it; the
+#: images are the same either way (tests/reference_impl/test_blocks.py switches it)
+BLOCKS = True
 
 #: the least number of units of work a render's pixels are cut into, per worker thread: enough that the units' unequal
 #: costs (a film's bright and dark rows) even out between the threads (docs/performance.md, "Units of work")
@@ -597,9 +595,9 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
     pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
     kernels.camera.camera_paths(film_samples, config, ctx.camera_record, pixel_filter, first)
-    # paths that end at their first hit, traced in blocks (a path-loop scene: _Context.first_hits), unless recorded
-    in_blocks = ctx.first_hits and record is None
-    # first_hits writes every path's row (the path loop and the wavefront add to theirs)
+    # paths traced in blocks (a path-loop scene: _Context.blocks), unless recorded
+    in_blocks = ctx.blocks and record is None
+    # the blocks write every path's row (the path loop and the wavefront add to theirs)
     radiance = ctx.workspace().radiance(n, zeroed=not in_blocks)
     counters = np.zeros(len(COUNTERS), np.int64)
     counters[kernels.config.C_CAMERA] = n
@@ -622,9 +620,9 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
                 radiance, counters, timing, film_samples)
         if not ctx.compiled:
-            kernels.compile_once.compile_once(kernels.first_hits.trace_first_hits, args)
+            kernels.compile_once.compile_once(kernels.blocks.trace_blocks, args)
             ctx.compiled = True
-        kernels.first_hits.trace_first_hits(*args)
+        kernels.blocks.trace_blocks(*args)
         clock.seconds += timing[0] * 1e-9
     elif ctx.engine == "path":
         timing = np.zeros(2, np.int64)

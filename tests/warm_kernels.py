@@ -24,10 +24,10 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # (scene, settings) per group. The path loop's Lambertian specialisations (without and with emitters) and the
 # volumetric loop's one specialisation (every scene with media) in one group;
-# the wavefront, the path loop's glossy specialisations (without and with an environment) and the first hits in
-# blocks (kernels/first_hits.py) in the other: about equal compile times, few kernels shared.
+# the wavefront, the path loop's glossy specialisations (without and with an environment) and the blocks
+# (kernels/blocks.py) in the other: about equal compile times, few kernels shared.
 GROUPS = {
-    "path": [("cornell-box", {"engine": "path"}), ("multi-light", {"direct": "hemisphere-cosine"}),
+    "path": [("multi-light", {"direct": "hemisphere-cosine"}),
              ("point-spot", {}), ("envmap", {}), ("sun-sky", {}), ("fog-box", {})],
     "wavefront-glossy": [("cornell-box", {"engine": "wavefront"}),
                          ("multi-light", {"engine": "wavefront", "direct": "hemisphere-cosine"}),
@@ -35,7 +35,7 @@ GROUPS = {
                          ("cornell-box-specular", {}), ("white-furnace-glass", {}), ("soft-shadows", {})],
 }
 # the top-level kernels whose cache index files mean the groups have run (numba names them MODULE.FUNCTION-LINE...)
-INDEX_PREFIXES = ("path.", "wavefront.", "volpath.", "first_hits.")
+INDEX_PREFIXES = ("path.", "wavefront.", "volpath.", "blocks.")
 
 
 def cache_is_warm() -> bool:

@@ -37,9 +37,9 @@ module              what it holds                                              n
                     has answered
 ``path``            the path loop: whole paths, one at a time, every scene     (none: the wavefront in expectation,
                     and strategy with Ni = 1 (BSDF door, light door, MIS)      closed forms, Mitsuba)
-``first_hits``      paths that end at their first hit (max_depth 2) on a       (none: the path loop's bits,
-                    Lambertian scene lit by area lights: the path loop's work  tests/reference_impl/
-                    in blocks, the shadow rays as Embree packets               test_first_hits.py)
+``blocks``          the path loop's work on a Lambertian scene lit by area     (none: the path loop's bits,
+                    lights, in blocks of paths that go from vertex to vertex   tests/reference_impl/
+                    together, their rays as Embree packets                     test_blocks.py)
 ``material``        the material step: a material's kind and parameters at a   (none: the parameters are
                     hit, which the BSDF reads                                  ``Materials.params``' rows)
 ``bsdf``            evaluation, pdf and sampling of the materials' BSDFs       (none: Mitsuba 3's plugins; chi^2

@@ -1222,6 +1222,31 @@ def sample_eta(kind, row, woz, wiz):
 
 
 @njit(**JIT_BORROW)
+def diffuse_direction(uniform_diffuse, u1, u2):
+    """The diffuse kind's local direction for (u1, u2), before the side: cosine-weighted (p = cos / pi), or uniform
+    (p = 1 / (2 pi)) with ``uniform_diffuse``. It depends on nothing at x, so a block of paths can draw it before it
+    knows its hits (:mod:`.blocks`); :func:`diffuse_sample` makes it :func:`bsdf_sample`'s answer."""
+    if uniform_diffuse:
+        return uniform_hemisphere(u1, u2)
+    return cosine_hemisphere(u1, u2)
+
+
+@njit(**JIT_BORROW)
+def diffuse_sample(row, uniform_diffuse, woz, lx, ly, lz):
+    """:func:`bsdf_sample`'s answer for the diffuse kind and wo's local z ``woz`` from its local direction (lx, ly,
+    lz) (:func:`diffuse_direction`), turned to wo's side: w = rho (cosine), or 2 rho cos (uniform)."""
+    ok, sgn = _side(row, woz, 0.0)
+    if not ok or not lz > 0.0:
+        return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
+    if uniform_diffuse:
+        c = 2.0 * lz
+        return (True, lx, ly, sgn * lz, c * row[P_REFLECTANCE], c * row[P_REFLECTANCE + 1],
+                c * row[P_REFLECTANCE + 2], INV_2PI, False)
+    return (True, lx, ly, sgn * lz, row[P_REFLECTANCE], row[P_REFLECTANCE + 1], row[P_REFLECTANCE + 2],
+            lz * INV_PI, False)
+
+
+@njit(**JIT_BORROW)
 def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u2, later=True):
     """Sample wi for wo: (ok, wix, wiy, wiz, w0, w1, w2, pdf, delta). The diffuse kind samples the cosine-weighted
     hemisphere (p = cos / pi, w = rho), or with ``uniform_diffuse`` (``hemisphere = "uniform"``, the slides'
@@ -1230,24 +1255,14 @@ def bsdf_sample(kind, row, mutant, uniform_diffuse, wox, woy, woz, u_lobe, u1, u
     w = f |cos theta_i| / pdf per channel (a delta lobe: its weight, e.g. R F / P(lobe)); pdf per unit solid angle
     of wi, or for a delta lobe the discrete probability of the lobe; ok False when nothing is sampled (wo behind a
     one-sided surface, a sample below the horizon or on the wrong side for its lobe, a zero weight)."""
-    if kind == DIFFUSE or kind == CONDUCTOR or kind == ROUGHCONDUCTOR:
+    if kind == DIFFUSE:
+        lx, ly, lz = diffuse_direction(uniform_diffuse, u1, u2)
+        return diffuse_sample(row, uniform_diffuse, woz, lx, ly, lz)
+    if kind == CONDUCTOR or kind == ROUGHCONDUCTOR:
         ok, sgn = _side(row, woz, 0.0)
         if not ok:
             return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
         woz = sgn * woz
-        if kind == DIFFUSE:
-            if uniform_diffuse:
-                lx, ly, lz = uniform_hemisphere(u1, u2)
-                if not lz > 0.0:
-                    return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-                c = 2.0 * lz
-                return (True, lx, ly, sgn * lz, c * row[P_REFLECTANCE], c * row[P_REFLECTANCE + 1],
-                        c * row[P_REFLECTANCE + 2], INV_2PI, False)
-            lx, ly, lz = cosine_hemisphere(u1, u2)
-            if not lz > 0.0:
-                return False, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, False
-            return (True, lx, ly, sgn * lz, row[P_REFLECTANCE], row[P_REFLECTANCE + 1],
-                    row[P_REFLECTANCE + 2], lz * INV_PI, False)
         if kind == CONDUCTOR:
             f0, f1, f2 = _conductor_fresnel3(row, mutant, woz)
             return (True, -wox, -woy, sgn * woz, f0 * row[P_REFLECTANCE], f1 * row[P_REFLECTANCE + 1],

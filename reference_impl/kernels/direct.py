@@ -339,7 +339,7 @@ def area_light_point(cfg, scene, lights, light, piece, pdf_select, u1, u2):
     """A point y of area light k = ``light`` (chosen with ``pdf_select``) drawn by area: on k's ``piece``
     (:func:`light_piece`) from (u1, u2), with the planted fault "sphere-points-uniform-theta" on a sphere as that
     fault draws it: (the triangle y lies in, y, p(y) = pdf(k) / A_k). It depends on nothing at x, so a block of paths
-    can draw its points before it knows its hits (:mod:`.first_hits`)."""
+    can draw its points before it knows its hits (:mod:`.blocks`)."""
     tri, y0, y1, y2 = point_on_light(lights, piece, u1, u2)
     if cfg.mutant:  # mutant "sphere-points-uniform-theta"
         y0, y1, y2 = planted_sphere_point(cfg, scene, tri, y0, y1, y2, u1, u2)

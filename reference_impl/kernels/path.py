@@ -155,13 +155,23 @@ def next_ray(cfg, kind, row, uniform_diffuse, wanted, u_lobe, u1, u2, u_rr, key,
     of wo (+1: N's), ``ox`` x's offset origin on that side. Returns (whether the path goes on, whether roulette (or a weight
     that is zero or not finite) cut it, its direction, origin, the normal on the side it leaves, its throughput,
     eta2, its pdf, whether it is off a delta lobe)."""
+    lo0, lo1, lo2 = lo
+    sample = bsdf_sample(kind, row, cfg.mutant, uniform_diffuse, lo0, lo1, lo2, u_lobe, u1, u2, later)
+    return ray_after_sample(cfg, kind, row, uniform_diffuse, wanted, sample, u_rr, key, depth, lo, beta, eta2, sf, geo,
+                            side, x, ox)
+
+
+@njit(**JIT_BORROW)
+def ray_after_sample(cfg, kind, row, uniform_diffuse, wanted, sample, u_rr, key, depth, lo, beta, eta2, sf, geo, side,
+                     x, ox):
+    """:func:`next_ray` past the BSDF's sample ``sample`` (:func:`.bsdf.bsdf_sample`'s answer): the planted faults
+    of the indirect estimate, the direction in world space, its side, Russian roulette; the same answer."""
     mutant = cfg.mutant
     lo0, lo1, lo2 = lo
     b0, b1, b2 = beta
     nx0, nx1, nx2 = geo
     x0, x1, x2 = x
-    ok, li0, li1, li2, w0, w1, w2, pdf, delta = bsdf_sample(kind, row, mutant, uniform_diffuse, lo0, lo1, lo2, u_lobe,
-                                                            u1, u2, later)
+    ok, li0, li1, li2, w0, w1, w2, pdf, delta = sample
     # nothing sampled (below the horizon, a zero weight): the path carries no more light
     if not (ok and (wanted or delta)):
         return False, False, 0.0, 0.0, 1.0, x0, x1, x2, nx0, nx1, nx2, 0.0, 0.0, 0.0, eta2, 0.0, False
@@ -636,4 +646,4 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     timing[1] += queries + n
 
 
-__all__ = ["MAX_VERTICES", "connect", "shadow_query", "trace_paths"]
+__all__ = ["MAX_VERTICES", "connect", "next_ray", "ray_after_sample", "shadow_query", "trace_paths"]

@@ -163,6 +163,16 @@ def coherent_arguments():
 
 
 @njit(**JIT_INLINE)
+def incoherent_arguments():
+    """An RTCIntersectArguments with no query flag (``RTC_RAY_QUERY_FLAG_INCOHERENT``) and every feature on:
+    Embree's traversal for a packet of rays that need not travel together (the next vertices of several paths), the
+    one it takes when given none."""
+    args = np.zeros(embree_c.ARGUMENT_WORDS, np.uint32)
+    args[1] = embree_c.FEATURE_FLAG_ALL
+    return args
+
+
+@njit(**JIT_INLINE)
 def intersect_packet(scene_ptr, width, words, floats, valid, m, out, at, spheres, base, args):
     """Closest hits of the m rays a packet of ``width`` holds (:func:`packet_lane`, :func:`packet_rest`), one query
     (``rtcIntersect16``, ``8`` or ``4``, with the RTCIntersectArguments ``args``), then the spheres lane by lane

@@ -1,7 +1,7 @@
-"""Paths that end at their first hit, traced in blocks with their shadow rays in packets (kernels/first_hits.py),
-give the path loop's image bit for bit, with the same variance and counters, whatever the settings, threads and
-planted faults; a packet of occlusion queries answers as one query per ray does; and only the scenes the path
-loop would run with its options compiled out take this way."""
+"""Paths traced in blocks that go from vertex to vertex together, their rays in packets (kernels/blocks.py), give
+the path loop's image bit for bit, with the same variance and counters, whatever the depth, roulette, settings,
+threads and planted faults; a packet of occlusion or closest-hit queries answers as one query per ray does; and only
+the scenes the path loop would run with its options compiled out take this way."""
 
 from __future__ import annotations
 
@@ -15,19 +15,19 @@ from harness.renderers import RenderRequest, get_renderer
 from reference_impl import integrator
 
 
-def _render(scene, spp, first_hits, monkeypatch, seed=3, **settings):
-    """A reference render with the first hits in blocks (``first_hits``) or with the path loop alone, and whether
-    the blocks ran."""
+def _render(scene, spp, blocks, monkeypatch, seed=3, **settings):
+    """A reference render with the paths in blocks (``blocks``) or with the path loop alone, and whether the blocks
+    ran."""
     kernels = integrator._kernels()
     calls = []
-    traced = kernels.first_hits.trace_first_hits
+    traced = kernels.blocks.trace_blocks
 
     def spy(*args):
         calls.append(len(args[0][0]))
         return traced(*args)
 
-    monkeypatch.setattr(integrator, "FIRST_HITS", first_hits)
-    monkeypatch.setattr(kernels.first_hits, "trace_first_hits", spy)
+    monkeypatch.setattr(integrator, "BLOCKS", blocks)
+    monkeypatch.setattr(kernels.blocks, "trace_blocks", spy)
     request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
     return get_renderer("reference").render(scene, request), bool(calls)
 
@@ -54,6 +54,18 @@ CASES = [
     ("cornell-box", 2, {}),  # light samples behind x (skipped), lights seen directly
     ("cornell-box", 1, {}),  # emission alone: no light sample
     ("textured-reflectance", 2, {}),  # reflectance from textures: the material step's lookups
+    # paths that go on past their first hit: the BSDF's sample and roulette at every depth
+    ("cornell-box", None, {}),
+    ("cornell-box", None, {"sampler": "independent", "threads": 1, "batch_size": 1000}),
+    ("cornell-box", None, {"hemisphere": "uniform", "shadow_rays": 2}),
+    ("cornell-box", None, {"rr_depth": 1}),  # the first hit's roulette number from the pixel's points
+    ("cornell-box", None, {"rr": "fixed", "absorption": 0.4, "rr_depth": 1, "sampler": "independent"}),
+    ("cornell-box", None, {"rr": "pbrt"}),
+    ("cornell-box", None, {"rr": "throughput", "replicates": 3}),
+    ("cornell-box", -1, {}),  # unbounded: roulette alone ends the paths
+    ("cornell-box", 4, {"rr": "off"}),
+    ("multi-light", None, {"light_selection": "uniform", "shadow_rays": 3}),
+    ("textured-reflectance", None, {}),
 ]
 
 
@@ -67,7 +79,7 @@ def _textured_reflectance():
 
 
 @pytest.mark.parametrize("name, max_depth, settings", CASES)
-def test_first_hits_in_blocks_give_the_path_loops_bits(name, max_depth, settings, monkeypatch):
+def test_paths_in_blocks_give_the_path_loops_bits(name, max_depth, settings, monkeypatch):
     scene = _textured_reflectance() if name == "textured-reflectance" else load_small(name, 24)
     if max_depth is not None:
         scene = dataclasses.replace(scene, max_depth=max_depth)
@@ -75,16 +87,15 @@ def test_first_hits_in_blocks_give_the_path_loops_bits(name, max_depth, settings
 
 
 @pytest.mark.parametrize("mutant", ["light-pdf-ignored", "no-cosine", "no-ray-offset", "camera-half-pixel",
-                                    "energy-loss-2pct"])
+                                    "energy-loss-2pct", "double-emission", "rr-no-reweight", "cosine-pdf-pi"])
 def test_planted_faults_change_both_ways_alike(mutant, monkeypatch):
-    scene = dataclasses.replace(load_small("multi-light", 24), max_depth=2)
+    scene = dataclasses.replace(load_small("multi-light", 24), max_depth=5)  # roulette from depth 3 on
     faulty = _same(scene, 16, monkeypatch, mutant=mutant)
     clean, _ = _render(scene, 16, True, monkeypatch)
     assert not np.array_equal(faulty.image, clean.image)
 
 
 @pytest.mark.parametrize("name, max_depth, settings", [
-    ("cornell-box", None, {}),  # paths that go on past their first hit: the path loop
     ("soft-shadows", None, {"direct": "mis"}),
     ("soft-shadows", None, {"direct": "hemisphere-cosine"}),
     ("veach-mis", None, {}),  # glossy materials and sphere lights
@@ -97,8 +108,8 @@ def test_other_scenes_keep_the_path_loop(name, max_depth, settings, monkeypatch)
 
 def test_a_packet_answers_as_one_query_per_ray():
     from reference_impl.embree_c import TriangleScene
-    from reference_impl.kernels.first_hits import occluded_packets
-    from reference_impl.kernels.queries import packet_buffer
+    from reference_impl.kernels.blocks import closest_packets, occluded_packets
+    from reference_impl.kernels.queries import incoherent_arguments, packet_buffer
 
     rng = np.random.default_rng(5)
     corners = rng.uniform(-1.0, 1.0, (200, 3, 3))
@@ -117,3 +128,15 @@ def test_a_packet_answers_as_one_query_per_ray():
     assert 0.1 < answers[1].mean() < 0.9
     for width in (4, 8, 16):
         assert np.array_equal(answers[width], answers[1])
+    # closest hits of the rays of some slots, in an order of their own (the paths that go on)
+    slots = rng.permutation(count)[:700]
+    hits = {}
+    for width in (1, 4, 8, 16):
+        prim = np.full(count, -2, np.int64)
+        closest_packets(scene.pointer, width, slots, len(slots), origin, direction, prim, *packet_buffer(),
+                        incoherent_arguments(), np.empty(16, np.int64))
+        hits[width] = prim
+    assert np.all(np.delete(hits[1], slots) == -2)
+    assert 0.1 < np.mean(hits[1][slots] >= 0) < 0.9
+    for width in (4, 8, 16):
+        assert np.array_equal(hits[width], hits[1])
