@@ -299,7 +299,7 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                                                 (lo0, lo1, lo2), (b0, b1, b2), eta[b], sf, (nx0, nx1, nx2), side,
                                                 (x0, x1, x2), (ox0, ox1, ox2))
                     count_roulette += was_cut
-                    if go_on:  # the path's next ray, in its slot and as the next packets' ray number ``going``
+                    if go_on:  # the path's next ray in its slot, the slot the next depth's active one number ``going``
                         count_indirect += 1
                         d[b, 0], d[b, 1], d[b, 2] = w0, w1, w2
                         o[b, 0], o[b, 1], o[b, 2] = m0, m1, m2
@@ -332,8 +332,8 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 t_start = now_ns(ts)
                 occluded_packets(scene_ptr, width, s_origin, s_direction, s_tfar, s, s_blocked, words, floats, valid)
                 embree_ns += now_ns(ts) - t_start
-            # 4. each path's direct light, its connections summed in j order as the path loop sums them; the paths
-            # that go on take their next ray
+            # 4. each path's direct light, its connections summed in j order as the path loop sums them (with its
+            # throughput at this vertex: b_beta; n_beta holds the one past it)
             q = 0
             for a in range(m):
                 b = active[a]
