@@ -41,8 +41,9 @@ from reference_impl.kernels.direct import area_light_point, connection_ray, ligh
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.bsdf import diffuse_direction, diffuse_sample
 from reference_impl.kernels.path import MAX_VERTICES, connect, ray_after_sample
-from reference_impl.kernels.queries import (closest_prims_packets, incoherent_arguments, intersect_packet, now_ns,
-                                            packet_buffer, packet_lane, packet_rest)
+from reference_impl.kernels.queries import (closest_prim, closest_prims_packets, incoherent_arguments,
+                                            intersect_packet, now_ns, occluded, packet_buffer, packet_lane,
+                                            packet_rest)
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.shading import geometric_frame
 from reference_impl.kernels.sobol import (NOTHING_HELD, ahead, held_point, longest_run, pair_point,
@@ -62,10 +63,8 @@ def occluded_packets(scene_ptr, width, origin, direction, tfar, count, blocked, 
     ``tfar``), ``width`` rays per occlusion query (Embree sets a blocked lane's tfar to -inf), into ``blocked``."""
     if width == 1:
         for s in range(count):
-            packet_lane(words, floats, valid, 1, 0, origin[s, 0], origin[s, 1], origin[s, 2], direction[s, 0],
-                        direction[s, 1], direction[s, 2], tfar[s])
-            embree_c.rtc_occluded1(scene_ptr, words.ctypes.data, 0)
-            blocked[s] = floats[8] < 0
+            blocked[s] = occluded(scene_ptr, words, floats, origin[s, 0], origin[s, 1], origin[s, 2], direction[s, 0],
+                                  direction[s, 1], direction[s, 2], np.float64(tfar[s]), None)
         return
     for s0 in range(0, count, width):
         m = min(width, count - s0)
@@ -89,19 +88,20 @@ def closest_packets(scene_ptr, width, active, count, origin, direction, prim, wo
     """The closest hits of the rays of slots ``active[0:count]`` (float64 origins and unit directions, sent as float32
     as one query per ray sends them), ``width`` rays per query (one query per ray where ``width`` is 1), into
     ``prim`` by slot (-1: a miss)."""
+    if width == 1:
+        for a in range(count):
+            b = active[a]
+            prim[b] = closest_prim(scene_ptr, words, floats, origin[b, 0], origin[b, 1], origin[b, 2], direction[b, 0],
+                                   direction[b, 1], direction[b, 2], None, 0)
+        return
     for a0 in range(0, count, width):
         m = min(width, count - a0)
         for lane in range(m):
             b = active[a0 + lane]
             packet_lane(words, floats, valid, width, lane, origin[b, 0], origin[b, 1], origin[b, 2], direction[b, 0],
                         direction[b, 1], direction[b, 2], np.inf)
-        if width == 1:
-            words[embree_c.W_GEOM_ID] = embree_c.INVALID_ID
-            embree_c.rtc_intersect1(scene_ptr, words.ctypes.data, 0)
-            hits[0] = -1 if words[embree_c.W_GEOM_ID] == embree_c.INVALID_ID else np.int64(words[embree_c.W_PRIM_ID])
-        else:
-            packet_rest(words, floats, valid, width, m)
-            intersect_packet(scene_ptr, width, words, floats, valid, m, hits, 0, None, 0, args)
+        packet_rest(words, floats, valid, width, m)
+        intersect_packet(scene_ptr, width, words, floats, valid, m, hits, 0, None, 0, args)
         for lane in range(m):
             prim[active[a0 + lane]] = hits[lane]
 
@@ -184,6 +184,7 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
         m = min(n, i0 + BLOCK) - i0
         for b in range(m):
             active[b] = b
+            prim[b] = first_prim[i0 + b]
             rad[b, 0], rad[b, 1], rad[b, 2] = 0.0, 0.0, 0.0
             eta[b] = 1.0
         depth = 1
@@ -208,7 +209,7 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         held_bsdf = ahead(fh.bsdf, first, m_run, bx, by, next_ray_drawn)
                         held_rr = ahead(fh.lobe_roulette, first, m_run, cx, cy, next_ray_drawn and first_roulette)
                     si = film_sample[r]
-                if (first_prim[i] if depth == 1 else prim[b]) < 0 or not lights_drawn:
+                if prim[b] < 0 or not lights_drawn:
                     continue
                 # the BSDF's local direction for the next ray, and the roulette's number where it is drawn ahead
                 if draws_next:
@@ -251,7 +252,7 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 b = active[a]
                 i = i0 + b
                 lit[b] = False
-                p = np.int64(first_prim[i]) if depth == 1 else prim[b]
+                p = prim[b]
                 if p < 0:
                     count_escaped += 1
                     continue

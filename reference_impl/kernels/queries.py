@@ -150,26 +150,30 @@ def packet_rest(words, floats, valid, width, m):
 
 
 @njit(**JIT_INLINE)
-def coherent_arguments():
-    """An RTCIntersectArguments (:data:`.embree_c.ARGUMENT_WORDS`) with ``RTC_RAY_QUERY_FLAG_COHERENT`` and every
-    feature on: Embree's traversal for a packet of rays that travel together. The closest hit does not depend on the
-    order the tree is traversed in, but for hits at the same distance (a ray through an edge shared by two
-    triangles), of which the first found is kept: the 215 pinned images are unchanged by it. What it buys:
-    docs/performance.md, "Issue 39: light samples drawn first, camera packets marked coherent"."""
+def _query_arguments(flags):
+    """An RTCIntersectArguments (:data:`.embree_c.ARGUMENT_WORDS`) with the query ``flags`` and every feature on."""
     args = np.zeros(embree_c.ARGUMENT_WORDS, np.uint32)
-    args[0] = embree_c.QUERY_FLAG_COHERENT
+    args[0] = flags
     args[1] = embree_c.FEATURE_FLAG_ALL
     return args
 
 
 @njit(**JIT_INLINE)
+def coherent_arguments():
+    """:func:`_query_arguments` with ``RTC_RAY_QUERY_FLAG_COHERENT``: Embree's traversal for a packet of rays that
+    travel together. The closest hit does not depend on the order the tree is traversed in, but for hits at the same
+    distance (a ray through an edge shared by two triangles), of which the first found is kept: the 215 pinned images
+    are unchanged by it. What it buys: docs/performance.md, "Issue 39: light samples drawn first, camera packets
+    marked coherent"."""
+    return _query_arguments(embree_c.QUERY_FLAG_COHERENT)
+
+
+@njit(**JIT_INLINE)
 def incoherent_arguments():
-    """An RTCIntersectArguments with no query flag (``RTC_RAY_QUERY_FLAG_INCOHERENT``) and every feature on:
-    Embree's traversal for a packet of rays that need not travel together (the next vertices of several paths), the
-    one it takes when given none."""
-    args = np.zeros(embree_c.ARGUMENT_WORDS, np.uint32)
-    args[1] = embree_c.FEATURE_FLAG_ALL
-    return args
+    """:func:`_query_arguments` with no query flag (``RTC_RAY_QUERY_FLAG_INCOHERENT``): Embree's traversal for a
+    packet of rays that need not travel together (the next vertices of several paths), the one it takes when given
+    none."""
+    return _query_arguments(0)
 
 
 @njit(**JIT_INLINE)
