@@ -76,7 +76,7 @@ def _kernels():
     first use (importing numba takes a few tenths of a second, which only a render needs to pay)."""
     from reference_impl import kernels  # optional: numba-compiled, needed only to trace
     from reference_impl.kernels import (bsdf, camera, compile_once, config, film,  # optional: numba; noqa: F401
-                                        blocks, path, records, volpath, wavefront)
+                                        blocks, path_blocks, path, records, volpath, wavefront)
 
     return kernels
 
@@ -312,6 +312,10 @@ class _Context:
                        and em is None and self.light_textures is None and self.shading is None
                        and self.masks is None and self.nested is None and self.tree_tables is None
                        and not self.geometry.num_spheres)
+        # ... and likewise the path loop's other scenes but those with masks or nested materials, or a hemisphere or
+        # global-area strategy (kernels/path_blocks.py)
+        self.path_blocks = (BLOCKS and self.engine == "path" and not self.blocks and s.direct in ("area", "mis", "bsdf")
+                            and self.masks is None and self.nested is None)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.camera_record = records.camera_record(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
@@ -573,7 +577,8 @@ def _load_kernels(ctx: _Context, sampling: _Sampling, scale: float) -> None:
 def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, stats: dict, record=None,
                         sampling: _Sampling | None = None, finish: bool = True) -> np.ndarray:
     """Radiance estimates (n, 3) of camera samples (pixel, sample): ``rad(ray) * h(p)`` of Fig. 5.16. ``record``:
-    buffers for the path loop's rays (:mod:`reference_impl.kernels.record`, used by :mod:`reference_impl.replay`;
+    buffers for the rays of the path loop or of the blocks (:mod:`reference_impl.kernels.record`, used by
+    :mod:`reference_impl.replay`;
     the wavefront's rays are recorded from its batched queries). ``sampling``: the pass the samples
     belong to (a replicate), by default the render's own. ``finish`` = False leaves the planted fault
     "energy-loss-2pct" and the count of non-finite samples to the caller (:func:`kernels.film.finish_and_accumulate`,
@@ -595,8 +600,8 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
     film_samples = kernels.records.film_samples(pixel, sample, sampling.seed_key)
     pixel_filter = kernels.records.filter_samples(ctx.filter_kind, drawn)
     kernels.camera.camera_paths(film_samples, config, ctx.camera_record, pixel_filter, first)
-    # paths traced in blocks (a path-loop scene: _Context.blocks), unless recorded
-    in_blocks = ctx.blocks and record is None
+    # paths traced in blocks (a path-loop scene: _Context.blocks, path_blocks), recorded there too
+    in_blocks = ctx.blocks or ctx.path_blocks
     # the blocks write every path's row (the path loop and the wavefront add to theirs)
     radiance = ctx.workspace().radiance(n, zeroed=not in_blocks)
     counters = np.zeros(len(COUNTERS), np.int64)
@@ -615,10 +620,21 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
             ctx.compiled = True
         kernels.volpath.trace_volpaths(*args)
         clock.seconds += timing[0] * 1e-9
+    elif ctx.path_blocks:
+        timing = np.zeros(2, np.int64)
+        args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
+                radiance, counters, timing, film_samples, ctx.emitter_tables, ctx.other_kinds, ctx.light_textures,
+                ctx.shading,
+                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.later, ctx.tree_tables, record)
+        if not ctx.compiled:
+            kernels.compile_once.compile_once(kernels.path_blocks.trace_path_blocks, args)
+            ctx.compiled = True
+        kernels.path_blocks.trace_path_blocks(*args)
+        clock.seconds += timing[0] * 1e-9
     elif in_blocks:
         timing = np.zeros(2, np.int64)
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.material_tables, config,
-                radiance, counters, timing, film_samples)
+                radiance, counters, timing, film_samples, record)
         if not ctx.compiled:
             kernels.compile_once.compile_once(kernels.blocks.trace_blocks, args)
             ctx.compiled = True

@@ -4,21 +4,26 @@ through the same C API queries, in compiled loops that do nothing else, on the r
 :func:`record_rays` traces a part of a render (the scene's settings and spp, all samples of whole pixels spread over
 the film, until ``max_rays`` are recorded) and keeps every query: the camera rays in the batches that went to Embree
 in packets of 16 (``rtcIntersect16``), the closest-hit rays past the camera (indirect rays, and hemisphere sampling's
-direct-light rays; ``rtcIntersect1``), the occlusion rays with their tfar (shadow rays; ``rtcOccluded1``), each with
-Embree's answer. The path loop writes its own (:mod:`reference_impl.kernels.record`); a render the wavefront traces
-(Ni > 1, or ``engine = wavefront``) has its rays taken from the wavefront's batched queries.
+direct-light rays), the occlusion rays with their tfar (shadow rays), each with Embree's answer. The path loop writes
+its own (:mod:`reference_impl.kernels.record`), one query per ray (``rtcIntersect1``, ``rtcOccluded1``); the blocks
+(:mod:`reference_impl.kernels.blocks`, the render's engine on a Lambertian scene lit by area lights) write theirs
+with the size of each call that sent them in packets (``rtcIntersect16``, ``rtcOccluded16``: ``RayLog.packets``);
+a render the wavefront traces (Ni > 1, or ``engine = wavefront``) has its rays taken from the wavefront's batched
+queries.
 
-:class:`Replay` sends them again (``kernels.queries.closest_prims_packets``, ``closest_prims``, ``occluders``: a
-loop that fills the ray structure and calls Embree), each kind of query split into one contiguous share per thread
-of a thread pool, timed with ``time.perf_counter`` (monotonic) from the first share's start to the last one's end;
-:meth:`Replay.mismatches` compares the answers with the recorded ones, so that the replay is the same work.
+:class:`Replay` sends them again as the render sent them (``kernels.queries.closest_prims_packets``,
+``closest_prims``, ``occluders``; after the blocks, ``kernels.blocks.closest_groups`` and ``occluded_groups``, the
+same packets: a loop that fills the rays' structure and calls Embree), each kind of query split into one contiguous
+share per thread of a thread pool (whole calls of the render's), timed with ``time.perf_counter`` (monotonic) from
+the first share's start to the last one's end; :meth:`Replay.mismatches` compares the answers with the recorded
+ones, so that the replay is the same work.
 
     closest-hit rate = (camera + closest-hit rays) / (their replay seconds)
     occlusion rate   = occlusion rays / their replay seconds
     combined rate    = all rays / all replay seconds                 (the scene's mix of queries)
 
 The combined rate is what the renderer's rays per second would be if tracing cost nothing but Embree's queries,
-issued as the renderer issues them, one ray (or one pixel's packet) at a time.
+issued as the renderer issues them: one ray at a time or in the render's packets.
 """
 
 from __future__ import annotations
@@ -51,6 +56,10 @@ class RayLog:
     closest   list of (o64, d64, prim int32): closest-hit rays past the camera (-1: a miss), in float64 as the
               sphere tests take them (Embree's query rounds them to float32; the wavefront's are float32 already)
     occlusion list of (o64, d64, tfar32 (n,), blocked (n,) int8 1/0): occlusion rays
+    closest_groups, occlusion_groups
+              where ``packets``: lists of int64 arrays, one per entry of ``closest`` / ``occlusion``, the number of
+              rays each of the render's calls sent in packets of ``packet_width`` (kernels.records.RayRecord)
+    packets   whether the render sent the rays past the camera in packets (the blocks), not one per query
     paths     camera paths traced; ``stats`` their counters (integrator.COUNTERS)
     """
 
@@ -62,6 +71,9 @@ class RayLog:
     camera: list = field(default_factory=list)
     closest: list = field(default_factory=list)
     occlusion: list = field(default_factory=list)
+    closest_groups: list = field(default_factory=list)
+    occlusion_groups: list = field(default_factory=list)
+    packets: bool = False
     paths: int = 0
     stats: dict = field(default_factory=dict)
     owner: object = field(default=None, repr=False)  # keeps the Embree scene alive
@@ -127,6 +139,9 @@ def _trace_path_recorded(ctx, pixel, sample, stats, log: RayLog) -> None:
                         record.closest_prim[:closest]))
     log.occlusion.append((record.occlusion_origin[:occlusion], record.occlusion_direction[:occlusion],
                           record.occlusion_tfar[:occlusion], record.occlusion_blocked[:occlusion]))
+    if log.packets:
+        log.closest_groups.append(record.closest_groups[:int(record.counts[records.COUNT_CLOSEST_GROUPS])])
+        log.occlusion_groups.append(record.occlusion_groups[:int(record.counts[records.COUNT_OCCLUSION_GROUPS])])
 
 
 def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settings, emitters: Emitters | None = None,
@@ -142,7 +157,7 @@ def record_rays(geometry: Geometry, camera: Camera, film: Film, settings: Settin
                  spheres=ctx.intersector.spheres, sphere_base=ctx.intersector.sphere_base,
                  threads=settings.worker_threads(),
                  stats=dict.fromkeys(integrator.COUNTERS, 0) | {integrator.EMBREE_MICROSECONDS: 0},
-                 owner=ctx.intersector)
+                 owner=ctx.intersector, packets=ctx.blocks or ctx.path_blocks)
     if not ctx.has_lights or log.scene_pointer == 0:  # the render traces no ray at all
         return log
     if ctx.engine != "path":  # the wavefront's rays, from its batched queries
@@ -186,9 +201,10 @@ class Replay:
     answers of the last run with the recorded ones."""
 
     def __init__(self, log: RayLog, threads: int | None = None):
-        from reference_impl.kernels import queries  # optional: numba-compiled, loaded only to trace
+        from reference_impl.kernels import blocks, queries  # optional: numba-compiled, loaded only to trace
 
         self._queries = queries
+        self._blocks = blocks
         self.log = log
         self.threads = threads or log.threads
         self.counts = {phase: log.count(phase) for phase in PHASES}
@@ -205,13 +221,23 @@ class Replay:
         self._closest_out = np.full(self.counts["closest"], -1, np.int32)
         self._occlusion_out = np.full(self.counts["occlusion"], -1, np.int32)
         self._camera_shares = _shares([len(e[2]) for e in log.camera], self.threads)
-        self._closest_shares = self._ranges(self.counts["closest"])
-        self._occlusion_shares = self._ranges(self.counts["occlusion"])
+        if log.packets:  # whole calls of the render's per share: (first ray, end, the calls' sizes)
+            self._closest_shares = self._group_shares(log.closest_groups)
+            self._occlusion_shares = self._group_shares(log.occlusion_groups)
+        else:
+            self._closest_shares = self._ranges(self.counts["closest"])
+            self._occlusion_shares = self._ranges(self.counts["occlusion"])
         self._pool = ThreadPoolExecutor(max_workers=self.threads)
 
     def _ranges(self, n: int) -> list[tuple[int, int]]:
         bounds = np.linspace(0, n, self.threads + 1).astype(np.int64)
         return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a]
+
+    def _group_shares(self, groups: list) -> list[tuple[int, int, np.ndarray]]:
+        sizes = np.concatenate(groups).astype(np.int64) if groups else np.zeros(0, np.int64)
+        starts = np.concatenate(([0], np.cumsum(sizes)))
+        return [(int(starts[g[0]]), int(starts[g[-1] + 1]), np.ascontiguousarray(sizes[g[0]:g[-1] + 1]))
+                for g in _shares(sizes.tolist(), self.threads)]
 
     def _camera(self, share):
         ptr, log = self.log.scene_pointer, self.log
@@ -220,15 +246,25 @@ class Replay:
             self._queries.closest_prims_packets(ptr, log.packet_width, o, d, self._camera_out[index], log.spheres,
                                                 log.sphere_base)
 
-    def _closest_share(self, bounds):
-        a, b = bounds
+    def _closest_share(self, share):
         o, d, _ = self._closest
+        if self.log.packets:
+            a, b, sizes = share
+            self._blocks.closest_groups(self.log.scene_pointer, self.log.packet_width, o[a:b], d[a:b], sizes,
+                                        self._closest_out[a:b], self.log.spheres, self.log.sphere_base)
+            return
+        a, b = share
         self._queries.closest_prims(self.log.scene_pointer, o[a:b], d[a:b], self._closest_out[a:b], self.log.spheres,
                                     self.log.sphere_base)
 
-    def _occlusion_share(self, bounds):
-        a, b = bounds
+    def _occlusion_share(self, share):
         o, d, t, _ = self._occlusion
+        if self.log.packets:
+            a, b, sizes = share
+            self._blocks.occluded_groups(self.log.scene_pointer, self.log.packet_width, o[a:b], d[a:b], t[a:b], sizes,
+                                         self._occlusion_out[a:b], self.log.spheres)
+            return
+        a, b = share
         self._queries.occluders(self.log.scene_pointer, o[a:b], d[a:b], t[a:b], self._occlusion_out[a:b],
                                 self.log.spheres)
 

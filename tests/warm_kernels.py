@@ -24,8 +24,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # (scene, settings) per group. The path loop's Lambertian specialisations (without and with emitters) and the
 # volumetric loop's one specialisation (every scene with media) in one group;
-# the wavefront, the path loop's glossy specialisations (without and with an environment) and the blocks
-# (kernels/blocks.py) in the other: about equal compile times, few kernels shared.
+# the wavefront, the glossy blocks' specialisations (kernels/path_blocks.py), the path loop's with an environment
+# and the blocks (kernels/blocks.py) in the other: about equal compile times, few kernels shared.
 GROUPS = {
     "path": [("multi-light", {"direct": "hemisphere-cosine"}),
              ("point-spot", {}), ("envmap", {}), ("sun-sky", {}), ("fog-box", {})],
@@ -35,7 +35,7 @@ GROUPS = {
                          ("cornell-box-specular", {}), ("white-furnace-glass", {}), ("soft-shadows", {})],
 }
 # the top-level kernels whose cache index files mean the groups have run (numba names them MODULE.FUNCTION-LINE...)
-INDEX_PREFIXES = ("path.", "wavefront.", "volpath.", "blocks.")
+INDEX_PREFIXES = ("path.", "wavefront.", "volpath.", "blocks.", "path_blocks.")
 
 
 def cache_is_warm() -> bool:

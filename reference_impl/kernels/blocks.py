@@ -22,6 +22,8 @@ Per block, at each depth, over the block's paths still going (in their order):
    for incoherent rays).
 
 A block holds thousands of paths so that its packets stay full at the depths where roulette has ended most of them.
+A replay of the recorded rays (:mod:`reference_impl.replay`) sends them as the blocks sent them:
+:func:`closest_groups`, :func:`occluded_groups`.
 
 Each path's radiance is summed in the order the path loop sums it, from the same numbers, and a packet answers as
 one query per ray does (the same float32 ray, :func:`.queries.packet_lane`), so the image is the path loop's, bit for
@@ -43,7 +45,8 @@ from reference_impl.kernels.bsdf import diffuse_direction, diffuse_sample
 from reference_impl.kernels.path import MAX_VERTICES, connect, ray_after_sample
 from reference_impl.kernels.queries import (closest_prim, closest_prims_packets, incoherent_arguments,
                                             intersect_packet, now_ns, occluded, packet_buffer, packet_lane,
-                                            packet_rest)
+                                            packet_rest, sphere_nearest)
+from reference_impl.kernels.record import record_camera, record_closest, record_group, record_occluded
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.shading import geometric_frame
 from reference_impl.kernels.sobol import (NOTHING_HELD, ahead, held_point, longest_run, pair_point,
@@ -58,13 +61,15 @@ BLOCK = 4096
 
 
 @njit(**JIT)
-def occluded_packets(scene_ptr, width, origin, direction, tfar, count, blocked, words, floats, valid):
+def occluded_packets(scene_ptr, width, origin, direction, tfar, count, blocked, words, floats, valid, spheres=None):
     """Whether something blocks each of the shadow rays 0 .. count - 1 (float64 origins and unit directions, float32
-    ``tfar``), ``width`` rays per occlusion query (Embree sets a blocked lane's tfar to -inf), into ``blocked``."""
+    ``tfar``), ``width`` rays per occlusion query (Embree sets a blocked lane's tfar to -inf), into ``blocked``; and
+    the scene's ``spheres`` (None: none) tested on each float64 ray, as :func:`.queries.occluded` tests them, where
+    Embree found nothing."""
     if width == 1:
         for s in range(count):
             blocked[s] = occluded(scene_ptr, words, floats, origin[s, 0], origin[s, 1], origin[s, 2], direction[s, 0],
-                                  direction[s, 1], direction[s, 2], np.float64(tfar[s]), None)
+                                  direction[s, 1], direction[s, 2], np.float64(tfar[s]), spheres)
         return
     for s0 in range(0, count, width):
         m = min(width, count - s0)
@@ -81,18 +86,25 @@ def occluded_packets(scene_ptr, width, origin, direction, tfar, count, blocked, 
             embree_c.rtc_occluded4(valid.ctypes.data, scene_ptr, words.ctypes.data, 0)
         for lane in range(m):
             blocked[s0 + lane] = floats[8 * width + lane] < 0
+    if spheres is not None and spheres.shape[0] > 0:
+        for s in range(count):
+            if not blocked[s]:
+                blocked[s] = sphere_nearest(spheres, origin[s, 0], origin[s, 1], origin[s, 2], direction[s, 0],
+                                            direction[s, 1], direction[s, 2], np.float64(tfar[s]))[0] >= 0
 
 
 @njit(**JIT)
-def closest_packets(scene_ptr, width, active, count, origin, direction, prim, words, floats, valid, args, hits):
+def closest_packets(scene_ptr, width, active, count, origin, direction, prim, words, floats, valid, args, hits,
+                    spheres=None, base=0):
     """The closest hits of the rays of slots ``active[0:count]`` (float64 origins and unit directions, sent as float32
     as one query per ray sends them), ``width`` rays per query (one query per ray where ``width`` is 1), into
-    ``prim`` by slot (-1: a miss)."""
+    ``prim`` by slot (-1: a miss); the scene's ``spheres`` (None: none) tested on each float64 ray, nearer than
+    Embree's triangle, as :func:`.queries.closest_prim` tests them (primitive ``base`` + s)."""
     if width == 1:
         for a in range(count):
             b = active[a]
             prim[b] = closest_prim(scene_ptr, words, floats, origin[b, 0], origin[b, 1], origin[b, 2], direction[b, 0],
-                                   direction[b, 1], direction[b, 2], None, 0)
+                                   direction[b, 1], direction[b, 2], spheres, base)
         return
     for a0 in range(0, count, width):
         m = min(width, count - a0)
@@ -103,16 +115,60 @@ def closest_packets(scene_ptr, width, active, count, origin, direction, prim, wo
         packet_rest(words, floats, valid, width, m)
         intersect_packet(scene_ptr, width, words, floats, valid, m, hits, 0, None, 0, args)
         for lane in range(m):
-            prim[active[a0 + lane]] = hits[lane]
+            b = active[a0 + lane]
+            p = hits[lane]
+            if spheres is not None and spheres.shape[0] > 0:
+                t_max = np.float64(floats[8 * width + lane]) if p >= 0 else np.inf
+                sph, _t = sphere_nearest(spheres, origin[b, 0], origin[b, 1], origin[b, 2], direction[b, 0],
+                                         direction[b, 1], direction[b, 2], t_max)
+                if sph >= 0:
+                    p = base + sph
+            prim[b] = p
 
 
 @njit(**JIT)
-def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, counters, timing, film_samples):
+def closest_groups(scene_ptr, width, origin, direction, sizes, out, spheres, base):
+    """The closest hits of recorded rays (float64, in the order the blocks sent them) sent again as they sent them:
+    ``sizes[g]`` consecutive rays per call of :func:`closest_packets` (the scene's ``spheres`` tested as there);
+    into ``out`` (-1: a miss)."""
+    words, floats, valid = packet_buffer()
+    args = incoherent_arguments()
+    hits = np.empty(embree_c.PACKET, np.int64)
+    active = np.arange(len(out))
+    a = 0
+    for g in range(len(sizes)):
+        closest_packets(scene_ptr, width, active[a:], sizes[g], origin, direction, out, words, floats, valid, args,
+                        hits, spheres, base)
+        a += sizes[g]
+
+
+@njit(**JIT)
+def occluded_groups(scene_ptr, width, origin, direction, tfar, sizes, out, spheres):
+    """Whether something blocks each recorded shadow ray (in the order the blocks sent them), sent again as they
+    sent them: ``sizes[g]`` consecutive rays per call of :func:`occluded_packets` (the scene's ``spheres`` tested as
+    there); into ``out`` (0: blocked, -1: not, as :func:`.queries.occluders` answers)."""
+    words, floats, valid = packet_buffer()
+    blocked = np.zeros(len(out), np.bool_)
+    a = 0
+    for g in range(len(sizes)):
+        b = a + sizes[g]
+        occluded_packets(scene_ptr, width, origin[a:b], direction[a:b], tfar[a:b], sizes[g], blocked[a:b], words,
+                         floats, valid, spheres)
+        a = b
+    for i in range(len(out)):
+        out[i] = 0 if blocked[i] else -1
+
+
+@njit(**JIT)
+def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, counters, timing, film_samples,
+                 record=None):
     """Trace every camera path of ``state`` (the wavefront's ``camera_paths`` wrote them) as :func:`.path.trace_paths`
     traces it, on a scene this runs for (``integrator._Context.blocks``: every material diffuse, ``direct = area``,
-    area lights alone, no textured light, shading normal, sphere, mask, nested material or light tree; not recorded):
+    area lights alone, no textured light, shading normal, sphere, mask, nested material or light tree):
     each path's radiance written to ``radiance[root]`` (the path loop's sum, which starts at 0: the buffer need not
-    be zeroed), the same counters and timing."""
+    be zeroed), the same counters and timing. ``record``: None in a render (compiled out), or buffers that receive
+    every query's ray and answer in the order they were sent, and each call's count of packed rays
+    (:mod:`.record`, for :mod:`reference_impl.replay`)."""
     root, key, origin, direction, o32, d32, beta, _pdf_dir, _env_pdf = state
     light_id = scene.light_id
     light_pmf = lights.pmf
@@ -145,6 +201,8 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
         t_start = now_ns(ts)
         closest_prims_packets(scene_ptr, cfg.packet_width, o32, d32, first_prim, None, 0)
         embree_ns += now_ns(ts) - t_start
+        if record is not None:
+            record_camera(record, o32, d32, first_prim)
     width = cfg.packet_width
     words, floats, valid = packet_buffer()
     args = incoherent_arguments()
@@ -333,6 +391,11 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                 t_start = now_ns(ts)
                 occluded_packets(scene_ptr, width, s_origin, s_direction, s_tfar, s, s_blocked, words, floats, valid)
                 embree_ns += now_ns(ts) - t_start
+                if record is not None:
+                    for q in range(s):
+                        record_occluded(record, s_origin[q, 0], s_origin[q, 1], s_origin[q, 2], s_direction[q, 0],
+                                        s_direction[q, 1], s_direction[q, 2], s_tfar[q], s_blocked[q])
+                    record_group(record, True, s)
             # 4. each path's direct light, its connections summed in j order as the path loop sums them (with its
             # throughput at this vertex: b_beta; n_beta holds the one past it)
             q = 0
@@ -364,6 +427,11 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                     t_start = now_ns(ts)
                     closest_packets(scene_ptr, width, active, m, o, d, prim, words, floats, valid, args, hits)
                     embree_ns += now_ns(ts) - t_start
+                    if record is not None:
+                        for a in range(m):
+                            b = active[a]
+                            record_closest(record, o[b, 0], o[b, 1], o[b, 2], d[b, 0], d[b, 1], d[b, 2], prim[b])
+                        record_group(record, False, m)
                     queries += m
                 else:
                     for a in range(m):
@@ -383,4 +451,4 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     timing[1] += queries + n
 
 
-__all__ = ["BLOCK", "closest_packets", "occluded_packets", "trace_blocks"]
+__all__ = ["BLOCK", "closest_groups", "closest_packets", "occluded_groups", "occluded_packets", "trace_blocks"]

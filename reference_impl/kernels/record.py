@@ -4,7 +4,9 @@ written into buffers the caller sized (:class:`.records.RayRecord`).
 The camera rays of the batch and their hits take exactly one row per camera ray; the closest-hit rays past the
 camera and the occlusion rays (with their tfar and whether they were blocked) one row per query, while there is
 room. ``counts`` counts the closest-hit and occlusion queries made, also those that did not fit: a count above a
-buffer's length tells the caller to size it up and trace the batch again (the rays are the same every time).
+buffer's length tells the caller to size it up and trace the batch again (the rays are the same every time). An
+engine that sends its rays in packets (:mod:`.blocks`) also records how many consecutive rays each of its calls sent
+(:func:`record_group`), so that a replay sends the same packets.
 
 An engine takes ``record=None`` in a render, which numba's branch pruning compiles out (``if record is not None``
 is decided from the argument's type), so recording costs a render nothing.
@@ -15,7 +17,7 @@ from __future__ import annotations
 from numba import njit
 
 from reference_impl.kernels.config import JIT_INLINE
-from reference_impl.kernels.records import COUNT_CLOSEST, COUNT_OCCLUSION
+from reference_impl.kernels.records import COUNT_CLOSEST, COUNT_CLOSEST_GROUPS, COUNT_OCCLUSION, COUNT_OCCLUSION_GROUPS
 
 
 @njit(**JIT_INLINE)
@@ -53,3 +55,15 @@ def record_occluded(record, o0, o1, o2, d0, d1, d2, tfar, blocked):
         t[q] = tfar
         out[q] = 1 if blocked else 0
     counts[COUNT_OCCLUSION] = q + 1
+
+
+@njit(**JIT_INLINE)
+def record_group(record, occlusion, count):
+    """One call that sent the last ``count`` recorded closest-hit (``occlusion`` False) or occlusion rays as packets
+    (their first packet starting at the first of them)."""
+    groups = record.occlusion_groups if occlusion else record.closest_groups
+    at = COUNT_OCCLUSION_GROUPS if occlusion else COUNT_CLOSEST_GROUPS
+    g = record.counts[at]
+    if g < len(groups):
+        groups[g] = count
+    record.counts[at] = g + 1

@@ -499,7 +499,8 @@ def filter_samples(kind: int, drawn=None) -> FilterSamples:
     return FilterSamples(int(kind), _c(dx, dtype=np.float64), _c(dy, dtype=np.float64), _c(weight, dtype=np.float64))
 
 
-COUNT_CLOSEST, COUNT_OCCLUSION = 0, 1  # the entries of RayRecord.counts
+#: the entries of RayRecord.counts: queries made, and packet calls made (the blocks' groups)
+COUNT_CLOSEST, COUNT_OCCLUSION, COUNT_CLOSEST_GROUPS, COUNT_OCCLUSION_GROUPS = 0, 1, 2, 3
 
 
 class RayRecord(NamedTuple):
@@ -523,9 +524,14 @@ class RayRecord(NamedTuple):
         Where each stops.
     occlusion_blocked : (s,) int8
         1 where something blocked it, 0 where not.
-    counts : (2,) int64
+    closest_groups, occlusion_groups : (q,) and (s,) int64
+        Where an engine sends its rays in packets (:mod:`.blocks`): the number of rays of each call that sent
+        consecutive recorded rays as packets of ``packet_width`` (the first packet of a call starts at its first
+        ray); nothing where it sends one ray per query (the path loop).
+    counts : (4,) int64
         The closest-hit (``counts[COUNT_CLOSEST]``) and the occlusion (``counts[COUNT_OCCLUSION]``) queries made,
-        also those past q and s: a count above its room says the batch must be traced again with more.
+        also those past q and s: a count above its room says the batch must be traced again with more; the groups
+        recorded (``COUNT_CLOSEST_GROUPS``, ``COUNT_OCCLUSION_GROUPS``).
     """
 
     camera_origin: np.ndarray
@@ -538,6 +544,8 @@ class RayRecord(NamedTuple):
     occlusion_direction: np.ndarray
     occlusion_tfar: np.ndarray
     occlusion_blocked: np.ndarray
+    closest_groups: np.ndarray
+    occlusion_groups: np.ndarray
     counts: np.ndarray
 
 
@@ -548,7 +556,8 @@ def ray_record(cameras: int, closest: int, occlusion: int) -> RayRecord:
     return RayRecord(np.empty((cameras, 3), f32), np.empty((cameras, 3), f32), np.empty(cameras, np.int32),
                      np.empty((closest, 3), f64), np.empty((closest, 3), f64), np.empty(closest, np.int32),
                      np.empty((occlusion, 3), f64), np.empty((occlusion, 3), f64), np.empty(occlusion, f32),
-                     np.empty(occlusion, np.int8), np.zeros(2, np.int64))
+                     np.empty(occlusion, np.int8), np.empty(closest, np.int64), np.empty(occlusion, np.int64),
+                     np.zeros(4, np.int64))
 
 
 class MediumTables(NamedTuple):

@@ -98,7 +98,7 @@ def test_planted_faults_change_both_ways_alike(mutant, monkeypatch):
 @pytest.mark.parametrize("name, max_depth, settings", [
     ("soft-shadows", None, {"direct": "mis"}),
     ("soft-shadows", None, {"direct": "hemisphere-cosine"}),
-    ("veach-mis", None, {}),  # glossy materials and sphere lights
+    ("veach-mis", None, {}),  # glossy materials and sphere lights: kernels/path_blocks.py
 ])
 def test_other_scenes_keep_the_path_loop(name, max_depth, settings, monkeypatch):
     scene = load_small(name, 8)
@@ -106,7 +106,10 @@ def test_other_scenes_keep_the_path_loop(name, max_depth, settings, monkeypatch)
     assert not ran
 
 
-def test_a_packet_answers_as_one_query_per_ray():
+@pytest.mark.parametrize("with_spheres", [False, True])
+def test_a_packet_answers_as_one_query_per_ray(with_spheres):
+    """Occlusion and closest-hit packets of 4, 8 and 16 rays give the answers of one query per ray (width 1), also
+    with analytic spheres beside Embree's triangles (tested on the float64 rays, as one query per ray tests them)."""
     from reference_impl.embree_c import TriangleScene
     from reference_impl.kernels.blocks import closest_packets, occluded_packets
     from reference_impl.kernels.queries import incoherent_arguments, packet_buffer
@@ -120,10 +123,13 @@ def test_a_packet_answers_as_one_query_per_ray():
     direction /= np.linalg.norm(direction, axis=1)[:, None]
     tfar = rng.uniform(0.0, 3.0, count).astype(np.float32)
     tfar[::7] = np.inf
+    spheres, base = None, 0
+    if with_spheres:  # three spheres, primitives 200, 201, 202
+        spheres, base = np.array([[0.3, 0.2, -0.1, 0.4], [-0.8, 0.5, 0.6, 0.3], [0.5, -0.7, 0.9, 0.25]]), 200
     answers = {}
     for width in (1, 4, 8, 16):
         blocked = np.zeros(count, bool)
-        occluded_packets(scene.pointer, width, origin, direction, tfar, count, blocked, *packet_buffer())
+        occluded_packets(scene.pointer, width, origin, direction, tfar, count, blocked, *packet_buffer(), spheres)
         answers[width] = blocked
     assert 0.1 < answers[1].mean() < 0.9
     for width in (4, 8, 16):
@@ -134,9 +140,11 @@ def test_a_packet_answers_as_one_query_per_ray():
     for width in (1, 4, 8, 16):
         prim = np.full(count, -2, np.int64)
         closest_packets(scene.pointer, width, slots, len(slots), origin, direction, prim, *packet_buffer(),
-                        incoherent_arguments(), np.empty(16, np.int64))
+                        incoherent_arguments(), np.empty(16, np.int64), spheres, base)
         hits[width] = prim
     assert np.all(np.delete(hits[1], slots) == -2)
     assert 0.1 < np.mean(hits[1][slots] >= 0) < 0.9
+    if with_spheres:  # the spheres are hit, nearer than some triangles
+        assert 0.02 < np.mean(hits[1][slots] >= base) < 0.9
     for width in (4, 8, 16):
         assert np.array_equal(hits[width], hits[1])

@@ -1,0 +1,127 @@
+"""The path loop's paths traced in blocks that go from vertex to vertex together, their rays in packets
+(kernels/path_blocks.py), give the path loop's image bit for bit, with the same variance and counters, whatever the
+materials, lights, emitters, shading normals, direct-light strategy, depth, roulette, sampler, threads and planted
+faults; and the scenes it does not run (masks, nested materials, the hemisphere strategies, media, and the
+Lambertian area-lit scenes of kernels/blocks.py) keep their engine."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from conftest import load_small
+
+from harness.renderers import RenderRequest, get_renderer
+from reference_impl import integrator
+
+
+def _render(scene, spp, blocks, monkeypatch, seed=3, **settings):
+    """A reference render with the paths in blocks (``blocks``) or with the path loop alone, and whether the glossy
+    blocks ran."""
+    kernels = integrator._kernels()
+    calls = []
+    traced = kernels.path_blocks.trace_path_blocks
+
+    def spy(*args):
+        calls.append(len(args[0][0]))
+        return traced(*args)
+
+    monkeypatch.setattr(integrator, "BLOCKS", blocks)
+    monkeypatch.setattr(kernels.path_blocks, "trace_path_blocks", spy)
+    request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
+    return get_renderer("reference").render(scene, request), bool(calls)
+
+
+def _same(scene, spp, monkeypatch, **settings):
+    blocks, ran = _render(scene, spp, True, monkeypatch, **settings)
+    loop, loop_ran = _render(scene, spp, False, monkeypatch, **settings)
+    assert ran and not loop_ran
+    assert np.array_equal(blocks.image, loop.image)
+    assert np.array_equal(blocks.variance, loop.variance, equal_nan=True)
+    counters = {k: v for k, v in blocks.stats.items() if k != "embree_microseconds"}
+    assert counters == {k: v for k, v in loop.stats.items() if k != "embree_microseconds"}
+    return blocks
+
+
+CASES = [
+    # a mirror and glass (delta lobes: no light sample there), analytic spheres, max_depth 8
+    ("cornell-box-specular", None, {}),
+    ("cornell-box-specular", None, {"sampler": "independent", "threads": 1, "batch_size": 1000}),
+    ("cornell-box-specular", None, {"rr_depth": 1}),  # the first hit's roulette number from the pixel's points
+    ("cornell-box-specular", None, {"rr": "pbrt", "shadow_rays": 2}),
+    ("cornell-box-specular", None, {"direct": "bsdf"}),  # emission found by the BSDF's rays alone
+    ("cornell-box-specular", None, {"direct": "mis", "replicates": 3}),
+    ("cornell-box-specular", -1, {}),  # unbounded: roulette alone ends the paths
+    # rough conductors, sphere lights drawn by their cone, MIS
+    ("veach-mis", None, {}),
+    ("veach-mis", None, {"direct": "area", "light_selection": "uniform", "shadow_rays": 3}),
+    ("veach-mis", None, {"sampler": "independent", "rr": "off"}),
+    # a rough plastic floor, 64 lights, chosen by a light tree (pdf(k | x) at each vertex)
+    ("lamp-grid", None, {}),
+    ("lamp-grid", None, {"light_selection": "tree"}),
+    ("lamp-grid", 5, {"light_selection": "tree", "sampler": "independent", "rr_depth": 1}),
+    # a textured light, bitmap and procedural textures, a rough conductor
+    ("textured-cornell-box", None, {}),
+    # the other kinds: plastics, principled (anisotropic: its frame along dp/du; an environment), thin glass
+    ("plastic-cornell-box", None, {}),
+    ("principled-grid", None, {}),
+    ("thin-glass-window", None, {}),
+    # emitters that are not surfaces: point and spot lights (with direct = bsdf their own samples), environments
+    ("point-spot", None, {}),
+    ("point-spot", None, {"direct": "bsdf"}),
+    ("envmap", None, {}),
+    ("envmap", None, {"direct": "mis", "sampler": "independent"}),
+    ("sun-sky", None, {}),
+    # shading normals on Lambertian scenes: vertex normals, normal and bump maps
+    ("mapped-plates", 4, {}),
+    ("leaning-plate", 4, {}),
+    ("smooth-twins", None, {}),
+]
+
+
+@pytest.mark.parametrize("name, max_depth, settings", CASES)
+def test_paths_in_blocks_give_the_path_loops_bits(name, max_depth, settings, monkeypatch):
+    scene = load_small(name, 24)
+    if max_depth is not None:
+        scene = dataclasses.replace(scene, max_depth=max_depth)
+    result = _same(scene, 16, monkeypatch, **settings)
+    assert result.stats["indirect_rays"] > 0
+
+
+@pytest.mark.parametrize("name, mutant", [
+    ("cornell-box-specular", "double-emission"),
+    ("cornell-box-specular", "refraction-no-eta2"),
+    ("cornell-box-specular", "rr-no-reweight"),
+    ("veach-mis", "conductor-fresnel-one"),
+    ("veach-mis", "mis-weights-not-one"),
+    ("veach-mis", "sphere-cone-pdf-area"),
+    ("veach-mis", "microfacet-pdf-no-jacobian"),
+    ("veach-mis", "light-pdf-ignored"),
+    ("lamp-grid", "light-tree-pmf-at-hit"),  # (with light_selection = tree, below)
+    ("lamp-grid", "no-cosine"),
+    ("textured-cornell-box", "texture-v-flipped"),
+    ("leaning-plate", "shading-normal-side"),
+    ("mapped-plates", "normalmap-green-inverted"),
+    ("point-spot", "point-no-inverse-square"),
+    ("envmap", "envmap-pdf-no-sin"),
+])
+def test_planted_faults_change_both_ways_alike(name, mutant, monkeypatch):
+    scene = load_small(name, 24)
+    settings = {"light_selection": "tree"} if name == "lamp-grid" else {}
+    faulty = _same(scene, 16, monkeypatch, mutant=mutant, **settings)
+    clean, _ = _render(scene, 16, True, monkeypatch, **settings)
+    assert not np.array_equal(faulty.image, clean.image)
+
+
+@pytest.mark.parametrize("name, settings", [
+    ("cutout-leaf", {}),  # a mask
+    ("material-balls", {}),  # a blend, a twosided of two, a mask
+    ("soft-shadows", {"direct": "hemisphere-cosine"}),
+    ("fog-box", {}),  # media: the volumetric path loop
+    ("cornell-box", {}),  # Lambertian, area lights: kernels/blocks.py
+])
+def test_other_scenes_keep_their_engine(name, settings, monkeypatch):
+    scene = load_small(name, 8)
+    _result, ran = _render(scene, 2, True, monkeypatch, **settings)
+    assert not ran
