@@ -139,6 +139,42 @@ def load_small(name: str, width: int, height: int | None = None, **overrides):
     return dataclasses.replace(scene, film=film, **overrides)
 
 
+def render_spied(scene, spp: int, blocks: bool, monkeypatch, kernel: tuple[str, str], seed: int = 3, **settings):
+    """A reference render with the paths in blocks where a scene allows (``blocks``, ``integrator.BLOCKS``) or with
+    the path loop alone, and whether the kernel ``kernel`` (module of ``reference_impl.kernels``, function) ran."""
+    from harness.renderers import RenderRequest, get_renderer
+    from reference_impl import integrator
+
+    kernels = integrator._kernels()
+    module, name = getattr(kernels, kernel[0]), kernel[1]
+    calls = []
+    traced = getattr(module, name)
+
+    def spy(*args):
+        calls.append(len(args[0][0]))
+        return traced(*args)
+
+    monkeypatch.setattr(integrator, "BLOCKS", blocks)
+    monkeypatch.setattr(module, name, spy)
+    request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
+    return get_renderer("reference").render(scene, request), bool(calls)
+
+
+def same_as_path_loop(scene, spp: int, monkeypatch, kernel: tuple[str, str], **settings):
+    """Render ``scene`` with the blocks, where ``kernel`` must run, and with the path loop alone: the same image,
+    variance and counters (the Embree time aside). Returns the blocks' render."""
+    import numpy as np
+
+    blocks, ran = render_spied(scene, spp, True, monkeypatch, kernel, **settings)
+    loop, loop_ran = render_spied(scene, spp, False, monkeypatch, kernel, **settings)
+    assert ran and not loop_ran
+    assert np.array_equal(blocks.image, loop.image)
+    assert np.array_equal(blocks.variance, loop.variance, equal_nan=True)
+    counters = {k: v for k, v in blocks.stats.items() if k != "embree_microseconds"}
+    assert counters == {k: v for k, v in loop.stats.items() if k != "embree_microseconds"}
+    return blocks
+
+
 def render_reference(scene, spp: int, seed: int = 0, **settings):
     """Render with the reference renderer through the harness adapter; settings as key=value strings."""
     from harness.renderers import RenderRequest, get_renderer

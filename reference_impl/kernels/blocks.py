@@ -127,6 +127,40 @@ def closest_packets(scene_ptr, width, active, count, origin, direction, prim, wo
 
 
 @njit(**JIT)
+def shadow_queries(scene_ptr, width, origin, direction, tfar, count, blocked, words, floats, valid, spheres, record,
+                   ts):
+    """A block's shadow rays 0 .. count - 1 at one depth, as :func:`occluded_packets` asks them, recorded where
+    ``record`` is given (:mod:`.record`: each ray and answer, and the call's size); the nanoseconds it took."""
+    t_start = now_ns(ts)
+    occluded_packets(scene_ptr, width, origin, direction, tfar, count, blocked, words, floats, valid, spheres)
+    ns = now_ns(ts) - t_start
+    if record is not None:
+        for q in range(count):
+            record_occluded(record, origin[q, 0], origin[q, 1], origin[q, 2], direction[q, 0], direction[q, 1],
+                            direction[q, 2], tfar[q], blocked[q])
+        record_group(record, True, count)
+    return ns
+
+
+@njit(**JIT)
+def next_queries(scene_ptr, width, active, count, origin, direction, prim, words, floats, valid, args, hits, spheres,
+                 base, record, ts):
+    """The next vertices of a block's paths that go on (slots ``active[0:count]``), as :func:`closest_packets` asks
+    them, recorded where ``record`` is given; the nanoseconds it took."""
+    t_start = now_ns(ts)
+    closest_packets(scene_ptr, width, active, count, origin, direction, prim, words, floats, valid, args, hits,
+                    spheres, base)
+    ns = now_ns(ts) - t_start
+    if record is not None:
+        for a in range(count):
+            b = active[a]
+            record_closest(record, origin[b, 0], origin[b, 1], origin[b, 2], direction[b, 0], direction[b, 1],
+                           direction[b, 2], prim[b])
+        record_group(record, False, count)
+    return ns
+
+
+@njit(**JIT)
 def closest_groups(scene_ptr, width, origin, direction, sizes, out, spheres, base):
     """The closest hits of recorded rays (float64, in the order the blocks sent them) sent again as they sent them:
     ``sizes[g]`` consecutive rays per call of :func:`closest_packets` (the scene's ``spheres`` tested as there);
@@ -388,14 +422,8 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                     s += 1
             # 3. the shadow rays
             if s > 0 and scene_ptr != 0:
-                t_start = now_ns(ts)
-                occluded_packets(scene_ptr, width, s_origin, s_direction, s_tfar, s, s_blocked, words, floats, valid)
-                embree_ns += now_ns(ts) - t_start
-                if record is not None:
-                    for q in range(s):
-                        record_occluded(record, s_origin[q, 0], s_origin[q, 1], s_origin[q, 2], s_direction[q, 0],
-                                        s_direction[q, 1], s_direction[q, 2], s_tfar[q], s_blocked[q])
-                    record_group(record, True, s)
+                embree_ns += shadow_queries(scene_ptr, width, s_origin, s_direction, s_tfar, s, s_blocked, words,
+                                            floats, valid, None, record, ts)
             # 4. each path's direct light, its connections summed in j order as the path loop sums them (with its
             # throughput at this vertex: b_beta; n_beta holds the one past it)
             q = 0
@@ -424,14 +452,8 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
             # 5. the next vertices
             if m > 0:
                 if scene_ptr != 0:
-                    t_start = now_ns(ts)
-                    closest_packets(scene_ptr, width, active, m, o, d, prim, words, floats, valid, args, hits)
-                    embree_ns += now_ns(ts) - t_start
-                    if record is not None:
-                        for a in range(m):
-                            b = active[a]
-                            record_closest(record, o[b, 0], o[b, 1], o[b, 2], d[b, 0], d[b, 1], d[b, 2], prim[b])
-                        record_group(record, False, m)
+                    embree_ns += next_queries(scene_ptr, width, active, m, o, d, prim, words, floats, valid, args,
+                                              hits, None, 0, record, ts)
                     queries += m
                 else:
                     for a in range(m):
@@ -451,4 +473,5 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     timing[1] += queries + n
 
 
-__all__ = ["BLOCK", "closest_groups", "closest_packets", "occluded_groups", "occluded_packets", "trace_blocks"]
+__all__ = ["BLOCK", "closest_groups", "closest_packets", "next_queries", "occluded_groups", "occluded_packets",
+           "shadow_queries", "trace_blocks"]

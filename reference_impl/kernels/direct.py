@@ -44,13 +44,14 @@ from reference_impl.emitters import DIRECTIONAL, ENV_CONSTANT, ENV_MAP, POINT, S
 from reference_impl.kernels.config import (DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_MIS, HEMI_COSINE, JIT,
                                            JIT_BORROW, JIT_NONRT, M_LIGHT_PDF_IGNORED, M_MIS_WEIGHTS_NOT_ONE,
                                            M_NO_COSINE, M_NO_RAY_OFFSET, M_SPHERE_CONE_PDF_AREA,
-                                           M_SPHERE_POINTS_THETA)
-from reference_impl.kernels.emitters import (emitter_direction, emitter_sample, split_light_piece_all,
+                                           M_SPHERE_POINTS_THETA, M_TREE_PMF_AT_HIT)
+from reference_impl.kernels.emitters import (emitter_direction, emitter_sample, piece_within, split_light_piece_all,
                                              split_light_uniform_all)
-from reference_impl.kernels.light_sampling import (drawn_by_cone, light_point, point_in_cone, point_on_light,
-                                                   sample_light_point, sample_surface_point, search_within,
-                                                   sphere_cone, split_light_uniform, split_surface_uniform,
-                                                   toward_light_point)
+from reference_impl.kernels.light_sampling import (drawn_by_cone, light_density, light_point, point_in_cone,
+                                                   point_on_light, sample_light_point, sample_surface_point,
+                                                   search_within, sphere_cone, split_light_uniform,
+                                                   split_surface_uniform, toward_light_point)
+from reference_impl.kernels.light_tree import pmf_of, select
 from reference_impl.kernels.warps import sample_discrete
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.sobol import pair_point, uniform_2d
@@ -277,6 +278,43 @@ def light_choice(cfg, lights, sob, u_a, u_b, key, depth, j):
     u2 = uniform(key, dim_salt(depth, LIGHT_U2, j))
     sel = sample_discrete(lights.cdf, u_sel) if num_lights > 1 else 0
     return sel, light_piece(cfg, lights, sel, u_tri), u1, u2
+
+
+@njit(**JIT_BORROW)
+def tree_choice(cfg, lights, tree, sob, u_a, u_b, key, depth, j, x0, x1, x2, n0, n1, n2, mutant):
+    """Light sample j's choices at vertex x (normal N) of the path with ``key``, drawn from the light tree
+    (:func:`.light_tree.select`, pdf(k | x)): (light k, pdf(k | x), its piece, u1, u2); k < 0 where nothing in the
+    tree can light x. With the stratified sampler (``sob``) one 2D point (u_a, u_b) of the pixel's set: its first
+    coordinate walks the tree and what is left of it picks the piece and is u1 (:func:`.emitters.piece_within`);
+    else four independent numbers."""
+    if sob:
+        sel, pmf_k, u_rest = select(tree, cfg.num_area_lights, cfg.num_lights, u_a, x0, x1, x2, n0, n1, n2, mutant)
+        piece, u1 = piece_within(lights, cfg.num_area_lights, sel, u_rest)
+        return sel, pmf_k, piece, u1, u_b
+    u_sel = uniform(key, dim_salt(depth, LIGHT_SELECT, j))
+    u_tri = uniform(key, dim_salt(depth, LIGHT_TRIANGLE, j))
+    u1 = uniform(key, dim_salt(depth, LIGHT_U1, j))
+    u2 = uniform(key, dim_salt(depth, LIGHT_U2, j))
+    sel, pmf_k, _rest = select(tree, cfg.num_area_lights, cfg.num_lights, u_sel, x0, x1, x2, n0, n1, n2, mutant)
+    return sel, pmf_k, light_piece(cfg, lights, sel, u_tri), u1, u2
+
+
+@njit(**JIT_BORROW)
+def emission_weight(lights, tree, light, nd, prev_pdf, px, qn, hit, t, cos_out, mutant):
+    """MIS weight (power heuristic) of area light ``light``'s emission met at ``hit`` (distance t, cos_out = cos at
+    the light) by a BSDF ray of solid-angle pdf ``prev_pdf`` from the vertex ``px`` (normal ``qn``): against the Nd
+    light samples' density of the same direction there (:func:`.light_sampling.light_density`, pdf(k) the light's
+    pmf or the light tree's pdf(k | px), with the planted fault "light-tree-pmf-at-hit" the tree's at the hit)."""
+    if tree is None:
+        pmf_k = lights.pmf[light]
+    else:
+        tx0, tx1, tx2 = px
+        tn0, tn1, tn2 = qn
+        if mutant & M_TREE_PMF_AT_HIT:  # mutant "light-tree-pmf-at-hit": at the light's point
+            tx0, tx1, tx2, tn0, tn1, tn2 = hit.x0, hit.x1, hit.x2, hit.n0, hit.n1, hit.n2
+        pmf_k = pmf_of(tree, light, tx0, tx1, tx2, tn0, tn1, tn2, mutant)
+    p_light = light_density(lights, light, nd, pmf_k, px[0], px[1], px[2], t, cos_out, mutant)
+    return power_weight(mutant, prev_pdf, p_light, False)
 
 
 @njit(**JIT_BORROW)

@@ -61,12 +61,11 @@ from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_HEMI_DIRECT
                                            DIRECT_GLOBAL_AREA, DIRECT_HEMI_COSINE, DIRECT_HEMI_UNIFORM, DIRECT_MIS,
                                            HEMI_UNIFORM, JIT, JIT_BORROW, M_COSINE_PDF_PI, M_DOUBLE_EMISSION,
                                            M_LIGHT_PDF_IGNORED, M_NO_COSINE, M_RR_NO_REWEIGHT, M_SHADING_NORMAL_SIDE,
-                                           M_TREE_PMF_AT_HIT, RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_choice, light_connection,
-                                           light_piece, light_sample, point_connection, power_weight)
-from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within
-from reference_impl.kernels.light_sampling import light_density
-from reference_impl.kernels.light_tree import pmf_of, select
+                                           RR_ALBEDO, RR_OFF, RR_PBRT, RR_THROUGHPUT, SAMPLER_SOBOL)
+from reference_impl.kernels.direct import (connection_ray, emission_weight, emitter_connection, light_choice,
+                                           light_connection, light_sample, point_connection, power_weight,
+                                           tree_choice)
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.cutout import shadow_transmittance, through_holes
 from reference_impl.kernels.material import material_at, material_at_nested
 from reference_impl.kernels.queries import (TIMING_STRIDE, closest_prim_timed, closest_prims_packets, now_ns,
@@ -81,7 +80,7 @@ from reference_impl.kernels.warps import PI, dot3, sample_hemisphere
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_ANISOTROPIC, P_METALLIC, P_REFLECTANCE, P_SPEC_TRANS, P_TWO_SIDED,
                                       PRINCIPLED, ROUGHDIELECTRIC, ROW_SIZE, THINDIELECTRIC)
 from reference_impl.rng import (BLEND, BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, DIRECT_DIR_U1,
-                                DIRECT_DIR_U2, LIGHT_SELECT, LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2, ROULETTE)
+                                DIRECT_DIR_U2, ROULETTE)
 
 MAX_VERTICES = 1 << 16
 RR_THROUGHPUT_CAP = 0.95  # Mitsuba's path integrator
@@ -390,16 +389,9 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                 light = light_id[tri]
                 if light >= 0 and cos_out > 0:
                     w = 1.0
-                    if weighted:
-                        if tree is None:
-                            pmf_k = light_pmf[light]
-                        else:  # pdf(k | x) at the vertex the ray left
-                            tx0, tx1, tx2, tn0, tn1, tn2 = px0, px1, px2, qn0, qn1, qn2
-                            if mutant & M_TREE_PMF_AT_HIT:  # mutant "light-tree-pmf-at-hit": at the light's point
-                                tx0, tx1, tx2, tn0, tn1, tn2 = hit.x0, hit.x1, hit.x2, hit.n0, hit.n1, hit.n2
-                            pmf_k = pmf_of(tree, light, tx0, tx1, tx2, tn0, tn1, tn2, mutant)
-                        p_light = light_density(lights, light, nd, pmf_k, px0, px1, px2, t, cos_out, mutant)
-                        w = power_weight(mutant, prev_pdf, p_light, False)
+                    if weighted:  # pdf(k) (the tree's: pdf(k | x) at the vertex the ray left) and the light's density
+                        w = emission_weight(lights, tree, light, nd, prev_pdf, (px0, px1, px2), (qn0, qn1, qn2), hit,
+                                            t, cos_out, mutant)
                     le0, le1, le2 = emission_at(scene, textures, tri, hit.x0, hit.x1, hit.x2, mutant)
                     rad0 += b0 * le0 * w
                     rad1 += b1 * le1 * w
@@ -536,28 +528,17 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
                                 scene, lights, surfaces)
                             conn = point_connection(cfg, scene, textures, gtri, y0, y1, y2, pdf_area, x0, x1, x2)
                         else:
+                            u_a, u_b = 0.0, 0.0
+                            if sob:  # one 2D point: its first coordinate picks the light and the piece too
+                                u_a, u_b = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
+                                                      si * nd + j)
                             if tree is not None:  # pdf(k | x) from the light tree (kernels/light_tree.py)
-                                if sob:
-                                    u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
-                                                         si * nd + j)
-                                    sel, tree_pmf_k, u_rest = select(tree, cfg.num_area_lights, num_lights, u_a, x0,
-                                                                     x1, x2, nx0, nx1, nx2, mutant)
-                                    piece, u1 = piece_within(lights, cfg.num_area_lights, sel, u_rest)
-                                else:
-                                    u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
-                                    u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
-                                    u1 = uniform(k, dim_salt(depth, LIGHT_U1, j))
-                                    u2 = uniform(k, dim_salt(depth, LIGHT_U2, j))
-                                    sel, tree_pmf_k, _rest = select(tree, cfg.num_area_lights, num_lights, u_sel, x0,
-                                                                    x1, x2, nx0, nx1, nx2, mutant)
-                                    piece = light_piece(cfg, lights, sel, u_tri)
+                                sel, tree_pmf_k, piece, u1, u2 = tree_choice(cfg, lights, tree, sob, u_a, u_b, k,
+                                                                             depth, j, x0, x1, x2, nx0, nx1, nx2,
+                                                                             mutant)
                                 if sel < 0:  # nothing in the tree can light x
                                     continue
                             else:
-                                u_a, u_b = 0.0, 0.0
-                                if sob:  # one 2D point: its first coordinate picks the light and the piece too
-                                    u_a, u_b = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
-                                                          si * nd + j)
                                 sel, piece, u1, u2 = light_choice(cfg, lights, sob, u_a, u_b, k, depth, j)
                             if num_lights > 1:
                                 count_light_select += 1

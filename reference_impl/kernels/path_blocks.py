@@ -33,22 +33,20 @@ import numpy as np
 from numba import njit
 
 from reference_impl import embree_c
-from reference_impl.kernels.blocks import BLOCK, closest_packets, occluded_packets
+from reference_impl.kernels.blocks import BLOCK, next_queries, shadow_queries
 from reference_impl.kernels.bsdf import chooses_lobe, is_delta
 from reference_impl.emitters import DIRECTIONAL, POINT, SPOT
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT, C_ROULETTE,
                                            C_SHADOW, C_SHADOW_SKIPPED, DIRECT_BSDF, DIRECT_MIS, HEMI_UNIFORM, JIT,
                                            M_DOUBLE_EMISSION, M_LIGHT_PDF_IGNORED, M_SHADING_NORMAL_SIDE,
-                                           M_TREE_PMF_AT_HIT, RR_OFF, SAMPLER_SOBOL)
-from reference_impl.kernels.direct import (connection_ray, emitter_connection, light_choice, light_connection,
-                                           light_piece, power_weight)
-from reference_impl.kernels.emitters import env_light_pdf, env_radiance, piece_within
-from reference_impl.kernels.light_sampling import light_density
-from reference_impl.kernels.light_tree import pmf_of, select
+                                           RR_OFF, SAMPLER_SOBOL)
+from reference_impl.kernels.direct import (connection_ray, emission_weight, emitter_connection, light_choice,
+                                           light_connection, power_weight, tree_choice)
+from reference_impl.kernels.emitters import env_light_pdf, env_radiance
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.path import MAX_VERTICES, connect, next_ray
 from reference_impl.kernels.queries import closest_prims_packets, incoherent_arguments, now_ns, packet_buffer
-from reference_impl.kernels.record import record_camera, record_closest, record_group, record_occluded
+from reference_impl.kernels.record import record_camera
 from reference_impl.kernels.rng import dim_salt, uniform
 from reference_impl.kernels.shading import geometric_frame, shading_frame, uv_aligned
 from reference_impl.kernels.sobol import (NOTHING_HELD, PathFirstHitPairs, ahead, held_point, longest_run,
@@ -57,8 +55,7 @@ from reference_impl.kernels.surface import emission_at, offset_origin, surface_h
 from reference_impl.kernels.warps import dot3
 from reference_impl.materials import (DIELECTRIC, DIFFUSE, P_ANISOTROPIC, P_METALLIC, P_SPEC_TRANS, P_TWO_SIDED,
                                       PRINCIPLED, ROUGHDIELECTRIC, ROW_SIZE, THINDIELECTRIC)
-from reference_impl.rng import (BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2, LIGHT_SELECT,
-                                LIGHT_TRIANGLE, LIGHT_U1, LIGHT_U2)
+from reference_impl.rng import BSDF_LOBE, BSDF_U1, BSDF_U2, COMPLEMENT_U1, COMPLEMENT_U2
 
 
 @njit(**JIT)
@@ -211,17 +208,9 @@ def trace_path_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance,
                     light = light_id[tri]
                     if light >= 0 and cos_out > 0:
                         w = 1.0
-                        if weighted:
-                            if tree is None:
-                                pmf_k = light_pmf[light]
-                            else:  # pdf(k | x) at the vertex the ray left
-                                tx0, tx1, tx2, tn0, tn1, tn2 = px[b, 0], px[b, 1], px[b, 2], qn[b, 0], qn[b, 1], qn[b, 2]
-                                if mutant & M_TREE_PMF_AT_HIT:  # mutant "light-tree-pmf-at-hit": at the light's point
-                                    tx0, tx1, tx2, tn0, tn1, tn2 = hit.x0, hit.x1, hit.x2, hit.n0, hit.n1, hit.n2
-                                pmf_k = pmf_of(tree, light, tx0, tx1, tx2, tn0, tn1, tn2, mutant)
-                            p_light = light_density(lights, light, nd, pmf_k, px[b, 0], px[b, 1], px[b, 2], t,
-                                                    cos_out, mutant)
-                            w = power_weight(mutant, prev_pdf[b], p_light, False)
+                        if weighted:  # pdf(k) (the tree's at the vertex the ray left) and the light's density
+                            w = emission_weight(lights, tree, light, nd, prev_pdf[b], (px[b, 0], px[b, 1], px[b, 2]),
+                                                (qn[b, 0], qn[b, 1], qn[b, 2]), hit, t, cos_out, mutant)
                         le0, le1, le2 = emission_at(scene, textures, tri, hit.x0, hit.x1, hit.x2, mutant)
                         rad[b, 0] += b0 * le0 * w
                         rad[b, 1] += b1 * le1 * w
@@ -270,29 +259,20 @@ def trace_path_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance,
                             u2 = uniform(k, dim_salt(depth, COMPLEMENT_U2, e))
                             conn = emitter_connection(cfg, emitters, e, 1.0, u1, u2, x0, x1, x2, ns0, ns1, ns2,
                                                       front_only)
-                        elif tree is not None:  # pdf(k | x) from the light tree (kernels/light_tree.py)
-                            if sob:
-                                u_a, u2 = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j), si * nd + j)
-                                sel, pdf_select, u_rest = select(tree, cfg.num_area_lights, num_lights, u_a, x0, x1,
-                                                                 x2, nx0, nx1, nx2, mutant)
-                                piece, u1 = piece_within(lights, cfg.num_area_lights, sel, u_rest)
-                            else:
-                                u_sel = uniform(k, dim_salt(depth, LIGHT_SELECT, j))
-                                u_tri = uniform(k, dim_salt(depth, LIGHT_TRIANGLE, j))
-                                u1 = uniform(k, dim_salt(depth, LIGHT_U1, j))
-                                u2 = uniform(k, dim_salt(depth, LIGHT_U2, j))
-                                sel, pdf_select, _rest = select(tree, cfg.num_area_lights, num_lights, u_sel, x0, x1,
-                                                                x2, nx0, nx1, nx2, mutant)
-                                piece = light_piece(cfg, lights, sel, u_tri)
-                            if sel < 0:  # nothing in the tree can light x
-                                continue
                         else:
                             u_a, u_b = 0.0, 0.0
                             if sob:  # one 2D point: its first coordinate picks the light and the piece too
                                 u_a, u_b = pair_point(held_point(fh.light, lx, ly, held.light, si * nd + j),
                                                       si * nd + j)
-                            sel, piece, u1, u2 = light_choice(cfg, lights, sob, u_a, u_b, k, depth, j)
-                            pdf_select = light_pmf[sel]
+                            if tree is not None:  # pdf(k | x) from the light tree (kernels/light_tree.py)
+                                sel, pdf_select, piece, u1, u2 = tree_choice(cfg, lights, tree, sob, u_a, u_b, k,
+                                                                             depth, j, x0, x1, x2, nx0, nx1, nx2,
+                                                                             mutant)
+                                if sel < 0:  # nothing in the tree can light x
+                                    continue
+                            else:
+                                sel, piece, u1, u2 = light_choice(cfg, lights, sob, u_a, u_b, k, depth, j)
+                                pdf_select = light_pmf[sel]
                         if j < points:
                             if num_lights > 1:
                                 count_light_select += 1
@@ -353,15 +333,8 @@ def trace_path_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance,
                     going += 1
             # 2. the shadow rays
             if s > 0 and scene_ptr != 0:
-                t_start = now_ns(ts)
-                occluded_packets(scene_ptr, width, s_origin, s_direction, s_tfar, s, s_blocked, words, floats, valid,
-                                 spheres)
-                embree_ns += now_ns(ts) - t_start
-                if record is not None:
-                    for q in range(s):
-                        record_occluded(record, s_origin[q, 0], s_origin[q, 1], s_origin[q, 2], s_direction[q, 0],
-                                        s_direction[q, 1], s_direction[q, 2], s_tfar[q], s_blocked[q])
-                    record_group(record, True, s)
+                embree_ns += shadow_queries(scene_ptr, width, s_origin, s_direction, s_tfar, s, s_blocked, words,
+                                            floats, valid, spheres, record, ts)
             # 3. each path's direct light, its connections summed in j order as the path loop sums them (with its
             # throughput at this vertex: b_beta; n_beta holds the one past it)
             q = 0
@@ -400,16 +373,9 @@ def trace_path_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance,
             # 4. the next vertices
             if m > 0:
                 if scene_ptr != 0:
-                    t_start = now_ns(ts)
-                    closest_packets(scene_ptr, width, active, m, o, d, prim, words, floats, valid, args, hits, spheres,
-                                    sphere_base)
-                    embree_ns += now_ns(ts) - t_start
+                    embree_ns += next_queries(scene_ptr, width, active, m, o, d, prim, words, floats, valid, args,
+                                              hits, spheres, sphere_base, record, ts)
                     queries += m
-                    if record is not None:
-                        for a in range(m):
-                            b = active[a]
-                            record_closest(record, o[b, 0], o[b, 1], o[b, 2], d[b, 0], d[b, 1], d[b, 2], prim[b])
-                        record_group(record, False, m)
                 else:
                     for a in range(m):
                         prim[active[a]] = -1

@@ -10,38 +10,17 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import load_small
+from conftest import load_small, render_spied, same_as_path_loop
 
-from harness.renderers import RenderRequest, get_renderer
-from reference_impl import integrator
+KERNEL = ("path_blocks", "trace_path_blocks")  # the kernel the blocks run
 
 
 def _render(scene, spp, blocks, monkeypatch, seed=3, **settings):
-    """A reference render with the paths in blocks (``blocks``) or with the path loop alone, and whether the glossy
-    blocks ran."""
-    kernels = integrator._kernels()
-    calls = []
-    traced = kernels.path_blocks.trace_path_blocks
-
-    def spy(*args):
-        calls.append(len(args[0][0]))
-        return traced(*args)
-
-    monkeypatch.setattr(integrator, "BLOCKS", blocks)
-    monkeypatch.setattr(kernels.path_blocks, "trace_path_blocks", spy)
-    request = RenderRequest(spp=spp, seed=seed, settings={k: str(v) for k, v in settings.items()})
-    return get_renderer("reference").render(scene, request), bool(calls)
+    return render_spied(scene, spp, blocks, monkeypatch, KERNEL, seed, **settings)
 
 
 def _same(scene, spp, monkeypatch, **settings):
-    blocks, ran = _render(scene, spp, True, monkeypatch, **settings)
-    loop, loop_ran = _render(scene, spp, False, monkeypatch, **settings)
-    assert ran and not loop_ran
-    assert np.array_equal(blocks.image, loop.image)
-    assert np.array_equal(blocks.variance, loop.variance, equal_nan=True)
-    counters = {k: v for k, v in blocks.stats.items() if k != "embree_microseconds"}
-    assert counters == {k: v for k, v in loop.stats.items() if k != "embree_microseconds"}
-    return blocks
+    return same_as_path_loop(scene, spp, monkeypatch, KERNEL, **settings)
 
 
 CASES = [
