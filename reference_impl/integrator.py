@@ -312,10 +312,13 @@ class _Context:
                        and em is None and self.light_textures is None and self.shading is None
                        and self.masks is None and self.nested is None and self.tree_tables is None
                        and not self.geometry.num_spheres)
-        # ... and likewise the path loop's other scenes but those with masks or nested materials, or a hemisphere or
-        # global-area strategy (kernels/path_blocks.py)
-        self.path_blocks = (BLOCKS and self.engine == "path" and not self.blocks and s.direct in ("area", "mis", "bsdf")
-                            and self.masks is None and self.nested is None)
+        # ... and likewise a scene with a material that is not diffuse, but for masks and nested materials
+        # (kernels/path_blocks.py). Lambertian scenes with emitters, spheres, shading normals, textured lights or a
+        # light tree keep the path loop: their hemisphere and global-area strategies run it, and a scene whose
+        # strategies need both kernels compiles both (the README's first command went from 481 to 736 s with them
+        # in blocks too: docs/performance.md, "Issue 39: the path loop's scenes in blocks")
+        self.path_blocks = (BLOCKS and self.engine == "path" and self.other_kinds is not None
+                            and s.direct in ("area", "mis", "bsdf") and self.masks is None and self.nested is None)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]
         self.camera_record = records.camera_record(self.camera, self.film.width, self.film.height)
         self.seed_key = rng.seed_key(s.seed)
