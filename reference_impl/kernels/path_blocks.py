@@ -1,13 +1,14 @@
-"""The path loop's paths (:func:`.path.trace_paths`) traced as it traces them, bit for bit, in blocks of
-:data:`.blocks.BLOCK` camera paths that go from vertex to vertex together, so that Embree is asked for their rays in
-packets (:func:`.blocks.closest_packets`, :func:`.blocks.occluded_packets`), as :mod:`.blocks` does on a Lambertian
-scene lit by area lights alone (which it draws its light samples for ahead).
+"""The paths of a scene with a material that is not diffuse, traced as :func:`.path.trace_paths` traces them, bit for
+bit, in blocks of :data:`.blocks.BLOCK` camera paths that go from vertex to vertex together, so that Embree is asked
+for their rays in packets (:func:`.blocks.closest_packets`, :func:`.blocks.occluded_packets`), as :mod:`.blocks`
+does on a Lambertian scene lit by area lights alone (which it draws its light samples for ahead).
 
-The scenes: every BSDF kind, direct light ``area``, ``mis`` or ``bsdf``, area lights (spheres, textured ones, a
-light tree), emitters that are not surfaces (point, spot, directional lights, an environment), shading normals; not
-masks or nested materials, whose holes and choices the path loop resolves with queries of their own, nor the
-Lambertian strategies of hemisphere and global-area direct light (``integrator._Context.path_blocks``). Per block,
-at each depth, over the block's paths still going (in their order):
+The scenes (``integrator._Context.path_blocks``): every BSDF kind, direct light ``area``, ``mis`` or ``bsdf``, area
+lights (spheres, textured ones, a light tree), emitters that are not surfaces (point, spot, directional lights, an
+environment), shading normals; not masks or nested materials, whose holes and choices the path loop resolves with
+queries of its own. (The kernel also traces a Lambertian scene as the path loop does, ``other_kinds`` None; the
+integrator leaves those to the path loop, whose hemisphere and global-area strategies they also run.) Per block, at
+each depth, over the block's paths still going (in their order):
 
 1. what the path loop does at the vertex x before its queries (the same functions): the emission x shows the ray
    that found it, or the environment an escaping ray sees (weighted with ``mis`` by the power heuristic against the
@@ -24,7 +25,8 @@ at each depth, over the block's paths still going (in their order):
 
 Each path's radiance is summed in the order the path loop sums it, from the same numbers; a packet answers as one
 query per ray does, the spheres tested on the same float64 rays; so the image is the path loop's, bit for bit
-(tests/reference_impl/test_blocks.py). What the blocks buy: docs/performance.md, "Issue 39: glossy paths in blocks".
+(tests/reference_impl/test_path_blocks.py). What the blocks buy: docs/performance.md, "Issue 39: the path loop's
+scenes in blocks, and the replay in the render's packets".
 """
 
 from __future__ import annotations
