@@ -6,8 +6,9 @@ the film, until ``max_rays`` are recorded) and keeps every query: the camera ray
 in packets of 16 (``rtcIntersect16``), the closest-hit rays past the camera (indirect rays, and hemisphere sampling's
 direct-light rays), the occlusion rays with their tfar (shadow rays), each with Embree's answer. The path loop writes
 its own (:mod:`reference_impl.kernels.record`), one query per ray (``rtcIntersect1``, ``rtcOccluded1``); the blocks
-(:mod:`reference_impl.kernels.blocks`, the render's engine on a Lambertian scene lit by area lights) write theirs
-with the size of each call that sent them in packets (``rtcIntersect16``, ``rtcOccluded16``: ``RayLog.packets``);
+(:mod:`reference_impl.kernels.blocks` on a Lambertian scene lit by area lights, :mod:`reference_impl.kernels.
+path_blocks` on a glossy one) write theirs with the size of each call that sent them in packets (``rtcIntersect16``,
+``rtcOccluded16``: ``RayLog.packets``);
 a render the wavefront traces (Ni > 1, or ``engine = wavefront``) has its rays taken from the wavefront's batched
 queries.
 
