@@ -282,12 +282,11 @@ class _Context:
                                                    packet_width=self.intersector.packet_width)
         self.material_tables = records.material_tables(self.materials, self.mutant,
                                                        kernels.bsdf.roughplastic_luts(self.materials))
-        # None where no area light is textured: the path loop compiles the emission lookups out
+        # None where no area light is textured (with shading, spheres and emitters: which scenes the blocks take)
         self.light_textures = self.material_tables.textures if self.geometry.textured_lights else None
         # None where every material is diffuse: the path loop compiles the BSDF door's other kinds out
         self.other_kinds = True if is_glossy(self.materials) else None
-        # None where no triangle has vertex normals and no material a normal or bump map: the path loop compiles the
-        # shading frame's side tests out
+        # None where no triangle has vertex normals and no material a normal or bump map
         self.shading = True if (self.geometry.has_shading_normals or self.materials.perturbed
                                 or self.materials.anisotropic) else None
         # None where no material is made of others (blendbsdf, twosided of two, mask) / is a mask: the path loop
@@ -298,6 +297,13 @@ class _Context:
         self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
         self.medium_tables = records.medium_tables(self.media, len(self.geometry.triangles))
         self.volpath_emitters = records.emitter_tables(self.emitters if self.emitters is not None else Emitters([]))
+        # What the path loop takes for emitters, textured lights, shading frames and spheres: each given on every
+        # scene (an empty table, a lookup the scene's tables answer), as the volumetric loop takes them, so that
+        # scenes differing in these share one compiled specialization, where one per combination cost 20-40 s of
+        # compiling each (docs/performance.md, "The README's first command"). The glossy blocks, which the bench
+        # times, keep the flags above, which compile what a scene lacks out: given all four they took 1.04-1.14 x
+        # the time.
+        self.features = (self.volpath_emitters, self.material_tables.textures, True, self.scene_tables.sphere)
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
@@ -645,11 +651,10 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         clock.seconds += timing[0] * 1e-9
     elif ctx.engine == "path":
         timing = np.zeros(2, np.int64)
+        emitters, textures, shading, spheres = ctx.features
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                ctx.material_tables, config, radiance, counters, timing, film_samples, ctx.emitter_tables,
-                ctx.other_kinds, ctx.light_textures, record, ctx.shading,
-                ctx.scene_tables.sphere if ctx.geometry.num_spheres else None, ctx.nested, ctx.masks, ctx.later,
-                ctx.tree_tables)
+                ctx.material_tables, config, radiance, counters, timing, film_samples, emitters, ctx.other_kinds,
+                textures, record, shading, spheres, ctx.nested, ctx.masks, ctx.later, ctx.tree_tables)
         if not ctx.compiled:  # the first call of this render: another process may be compiling the same loop
             kernels.compile_once.compile_once(kernels.path.trace_paths, args)
             ctx.compiled = True

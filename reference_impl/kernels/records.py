@@ -385,6 +385,7 @@ def material_tables(materials, mutant: str = "", lut: np.ndarray | None = None) 
         raise SettingsError("materials.lut", f"expected an array of shape ({len(materials.kind)}, {LUT_SIZE}), "
                             f"got {np.shape(lut)}")
     texture = materials.texture if materials.textured else np.zeros((0, NUM_SLOTS), np.int64)
+    texture.setflags(write=False)  # read-only as Materials.texture is: one type for the kernels either way
     return MaterialTables(_c(materials.kind, dtype=np.int64), _c(materials.params, dtype=np.float64),
                           _c(texture, dtype=np.int64),
                           texture_tables(materials.textures, mutant == "texture-srgb-as-linear"),

@@ -225,8 +225,9 @@ def emission_at(scene, textures, tri, x0, x1, x2, mutant):
     """Le of the front side of triangle ``tri`` at its point x: ``scene.emission``'s row, or where the light is
     textured (``scene.emission_texture``) the texture's value at x's texture coordinates (``textures``: the
     materials' :class:`.records.TextureTables`, or None in a scene without textured lights; ``mutant``: the planted
-    faults' bits, which the lookup reads)."""
-    if textures is None or scene.emission_texture[tri] < 0:  # None: no textured light (numba compiles this out)
+    faults' bits, which the lookup reads); ``scene.emission_texture`` is empty in a scene without them."""
+    textured = scene.emission_texture
+    if textures is None or textured.shape[0] == 0 or textured[tri] < 0:  # None: compiled out
         e = scene.emission
         return e[tri, 0], e[tri, 1], e[tri, 2]
     return _textured_emission(scene, textures, tri, x0, x1, x2, mutant)
