@@ -297,13 +297,14 @@ class _Context:
         self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
         self.medium_tables = records.medium_tables(self.media, len(self.geometry.triangles))
         self.volpath_emitters = records.emitter_tables(self.emitters if self.emitters is not None else Emitters([]))
-        # What the path loop takes for emitters, textured lights, shading frames and spheres: each given on every
-        # scene (an empty table, a lookup the scene's tables answer), as the volumetric loop takes them, so that
-        # scenes differing in these share one compiled specialization, where one per combination cost 20-40 s of
-        # compiling each (docs/performance.md, "The README's first command"). The glossy blocks, which the bench
-        # times, keep the flags above, which compile what a scene lacks out: given all four they took 1.04-1.14 x
-        # the time.
-        self.features = (self.volpath_emitters, self.material_tables.textures, True, self.scene_tables.sphere)
+        # What the path loop takes for textured lights, shading frames and spheres: each given on every scene (a
+        # lookup the scene's tables answer: no texture, no vertex normal, no sphere), so that scenes differing in
+        # these share one compiled specialization, where one per combination cost 20-40 s of compiling each
+        # (docs/performance.md, "The README's first command"); emitters stay None where there are none (an empty
+        # table cost mapped-plates 17 % of its render time). The glossy blocks, which the bench times, keep the
+        # flags above, which compile what a scene lacks out: given these three, lamp-grid took 1.05 [0.99, 1.11] x
+        # its time and cornell-box-specular 1.03 [0.97, 1.10] x.
+        self.features = (self.material_tables.textures, True, self.scene_tables.sphere)
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
@@ -651,10 +652,10 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         clock.seconds += timing[0] * 1e-9
     elif ctx.engine == "path":
         timing = np.zeros(2, np.int64)
-        emitters, textures, shading, spheres = ctx.features
+        textures, shading, spheres = ctx.features
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
-                ctx.material_tables, config, radiance, counters, timing, film_samples, emitters, ctx.other_kinds,
-                textures, record, shading, spheres, ctx.nested, ctx.masks, ctx.later, ctx.tree_tables)
+                ctx.material_tables, config, radiance, counters, timing, film_samples, ctx.emitter_tables,
+                ctx.other_kinds, textures, record, shading, spheres, ctx.nested, ctx.masks, ctx.later, ctx.tree_tables)
         if not ctx.compiled:  # the first call of this render: another process may be compiling the same loop
             kernels.compile_once.compile_once(kernels.path.trace_paths, args)
             ctx.compiled = True
