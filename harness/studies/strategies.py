@@ -64,7 +64,7 @@ ENVIRONMENT_KEYS = ("env_sampling",)
 #: settings that only parameterise a strategy (they may accompany it in a case)
 STRATEGY_PARAMETERS = ("absorption", "rr_depth")
 DEFAULT_STRATEGY_SPP = 16
-#: a strategy render shorter than this is redone at 4x the spp (up to MAX_STRATEGY_SPP): shorter times are noise
+#: a strategy render shorter than this is redone at 2x the spp (up to MAX_STRATEGY_SPP): shorter times are noise
 MIN_STRATEGY_SECONDS = 0.05
 MAX_STRATEGY_SPP = 1024
 #: independent renders (seeds) of each strategy at each budget: their spread gives the intervals
@@ -240,7 +240,7 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     ``render(settings, spp, index)`` renders the strategy ``settings`` once at exactly ``spp`` (a new seed each call;
     ``index`` counts the repeats) and measures it: {"mse", "floor_mse", "variance", "seconds", "pixels", "spp",
     "film", "variance_regions"} (variance: :func:`mean_variance` of the render). The equal-spp budget is ``spp``,
-    quadrupled (up to MAX_STRATEGY_SPP) while the default's render takes under ``min_seconds``; each strategy's
+    doubled (up to MAX_STRATEGY_SPP) while the default's render takes under ``min_seconds``; each strategy's
     equal-time budget is the spp at which its time per path gives the default's time (a multiple of ``spp_step``),
     the equal-spp renders again where that is within :data:`EQUAL_TIME_TOLERANCE`. Every ratio to the default and
     every efficiency carries a ``level`` interval over the seeds (:mod:`harness.judges.efficiency`); "best" names a
@@ -261,8 +261,8 @@ def strategy_rows(scene_name: str, case_rows: list[dict], render: Callable[[dict
     budget = spp
     try:
         first = render({}, budget, 0)
-        while first["seconds"] < min_seconds and budget * 4 <= MAX_STRATEGY_SPP:
-            budget *= 4
+        while first["seconds"] < min_seconds and budget * 2 <= MAX_STRATEGY_SPP:
+            budget *= 2
             first = render({}, budget, 0)
         base = [first] + [render({}, budget, i) for i in range(1, repeats)]
     except Exception as err:  # noqa: BLE001 - without the default nothing compares

@@ -75,7 +75,7 @@ class StudyOptions:
     strategy_repeats: int = studies.STRATEGY_REPEATS
     k: float = conv.DEFAULT_K
     #: renders shorter than this are repeated for their timing (convergence, shadow rays); strategy renders this
-    #: short are redone at 4x the spp
+    #: short are redone at 2x the spp
     min_timing_seconds: float = conv.MIN_TIMING_SECONDS
     strategy_min_seconds: float = studies.MIN_STRATEGY_SECONDS
     #: the studies (convergence, strategies) use each scene's smallest case film; the shadow-ray study the largest
