@@ -297,14 +297,13 @@ class _Context:
         self.later = True if np.any(np.isin(self.materials.kind, (ROUGHPLASTIC, PRINCIPLED))) else None
         self.medium_tables = records.medium_tables(self.media, len(self.geometry.triangles))
         self.volpath_emitters = records.emitter_tables(self.emitters if self.emitters is not None else Emitters([]))
-        # What the path loop takes for textured lights, shading frames and spheres: each given on every scene (a
-        # lookup the scene's tables answer: no texture, no vertex normal, no sphere), so that scenes differing in
-        # these share one compiled specialization, where one per combination cost 20-40 s of compiling each
-        # (docs/performance.md, "The README's first command"); emitters stay None where there are none (an empty
-        # table cost mapped-plates 17 % of its render time). The glossy blocks, which the bench times, keep the
-        # flags above, which compile what a scene lacks out: given these three, lamp-grid took 1.05 [0.99, 1.11] x
-        # its time and cornell-box-specular 1.03 [0.97, 1.10] x.
-        self.features = (self.material_tables.textures, True, self.scene_tables.sphere)
+        # What the path loop takes for textured lights and spheres: given on every scene (a lookup the scene's
+        # tables answer: no textured light, no sphere), so that scenes differing in them share one compiled
+        # specialization (docs/performance.md, "The README's first command"), at the same speed (point-spot and
+        # sun-sky 1.02 and 1.01 x, neither told apart from 1). Emitters and shading frames stay None where a scene
+        # has none: given an empty emitter table, mapped-plates took 1.17 x its time; given shading, point-spot 1.09
+        # x. The glossy blocks, which the bench times, keep the flags above.
+        self.features = (self.material_tables.textures, self.shading, self.scene_tables.sphere)
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find

@@ -248,9 +248,8 @@ def trace_paths(state, scene_ptr, scene, lights, surfaces, materials, cfg, radia
     True (the material step resolves them, :func:`.material.material_at_nested`); ``masks`` likewise: None where no
     material is a mask, else True (rays pass their holes and shadow rays cross them, :mod:`.cutout`); ``later``
     likewise: None where no material is a rough plastic or a principled (the BSDF door's branches for them compiled
-    out, :mod:`.bsdf`), else True. The integrator gives ``textures``, ``shading`` and ``spheres`` on every scene
-    (``integrator._Context.features``): one specialization for them all, where one per combination cost seconds of
-    compiling each.
+    out, :mod:`.bsdf`), else True. The integrator gives ``textures`` and ``spheres`` on every scene
+    (``integrator._Context.features``): one specialization whether a scene has them or not.
     ``cfg``: the render's :class:`.config.KernelConfig` (its ``depth`` is not used: each vertex knows its own).
     ``film_samples`` (:class:`.records.FilmSamples`): the camera samples, for the stratified sampler.
     ``timing[0]`` receives the nanoseconds spent in Embree (one query in ``TIMING_STRIDE`` timed), ``timing[1]``
