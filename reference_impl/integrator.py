@@ -303,7 +303,7 @@ class _Context:
         # sun-sky 1.02 and 1.01 x, neither told apart from 1). Emitters and shading frames stay None where a scene
         # has none: given an empty emitter table, mapped-plates took 1.17 x its time; given shading, point-spot 1.09
         # x. The glossy blocks, which the bench times, keep the flags above.
-        self.features = (self.material_tables.textures, self.shading, self.scene_tables.sphere)
+        self.features = (self.material_tables.textures, self.scene_tables.sphere)
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
         self.complements = 0  # shadow rays per hit for the emitters the direct strategy cannot find
@@ -651,10 +651,11 @@ def _trace_camera_paths(ctx: _Context, pixel: np.ndarray, sample: np.ndarray, st
         clock.seconds += timing[0] * 1e-9
     elif ctx.engine == "path":
         timing = np.zeros(2, np.int64)
-        textures, shading, spheres = ctx.features
+        textures, spheres = ctx.features
         args = (first, ctx.intersector.scene_pointer, ctx.scene_tables, ctx.light_tables, ctx.surface_tables,
                 ctx.material_tables, config, radiance, counters, timing, film_samples, ctx.emitter_tables,
-                ctx.other_kinds, textures, record, shading, spheres, ctx.nested, ctx.masks, ctx.later, ctx.tree_tables)
+                ctx.other_kinds, textures, record, ctx.shading, spheres, ctx.nested, ctx.masks, ctx.later,
+                ctx.tree_tables)
         if not ctx.compiled:  # the first call of this render: another process may be compiling the same loop
             kernels.compile_once.compile_once(kernels.path.trace_paths, args)
             ctx.compiled = True
