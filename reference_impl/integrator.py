@@ -299,10 +299,9 @@ class _Context:
         self.volpath_emitters = records.emitter_tables(self.emitters if self.emitters is not None else Emitters([]))
         # What the path loop takes for textured lights and spheres: given on every scene (a lookup the scene's
         # tables answer: no textured light, no sphere), so that scenes differing in them share one compiled
-        # specialization (docs/performance.md, "The README's first command"), at the same speed (point-spot and
-        # sun-sky 1.02 and 1.01 x, neither told apart from 1). Emitters and shading frames stay None where a scene
-        # has none: given an empty emitter table, mapped-plates took 1.17 x its time; given shading, point-spot 1.09
-        # x. The glossy blocks, which the bench times, keep the flags above.
+        # specialization at the same speed. Emitters and shading frames stay None where a scene has none, and the
+        # glossy blocks keep the flags above: given them, renders were slower (docs/performance.md, "The README's
+        # first command").
         self.features = (self.material_tables.textures, self.scene_tables.sphere)
         self.compiled = False  # whether the path loop's specialization is ready here (kernels.compile_once)
         self.emitter_tables = None
@@ -320,9 +319,8 @@ class _Context:
                        and not self.geometry.num_spheres)
         # ... and likewise a scene with a material that is not diffuse, but for masks and nested materials
         # (kernels/path_blocks.py). Lambertian scenes with emitters, spheres, shading normals, textured lights or a
-        # light tree keep the path loop: their hemisphere and global-area strategies run it, and a scene whose
-        # strategies need both kernels compiles both (the README's first command went from 481 to 736 s with them
-        # in blocks too: docs/performance.md, "Issue 39: the path loop's scenes in blocks")
+        # light tree keep the path loop, which their hemisphere and global-area strategies need anyway: one kernel
+        # compiled for them, not two (docs/performance.md, "Issue 39: the path loop's scenes in blocks")
         self.path_blocks = (BLOCKS and self.engine == "path" and self.other_kinds is not None
                             and s.direct in ("area", "mis", "bsdf") and self.masks is None and self.nested is None)
         self.filter_kind = kernels.config.FILTER_KINDS[self.filter.name]

@@ -30,21 +30,26 @@ def _lock_folder(dispatcher) -> Path:
     return fallback
 
 
+def signature(dispatcher, args: tuple) -> tuple:
+    """The numba types of ``args`` as ``dispatcher`` would compile them: one specialization per distinct tuple."""
+    return tuple(dispatcher.typeof_pyval(a) for a in args)
+
+
 def compile_once(dispatcher, args: tuple) -> None:
     """Make ``dispatcher``'s specialization for the types of ``args`` ready in this process (numba's
     ``Dispatcher.compile``: loaded from the cache, else compiled and saved), one process at a time per signature.
     Nothing happens when this process has it already, or when ``dispatcher`` is not compiled (``NUMBA_DISABLE_JIT``)."""
     if not hasattr(dispatcher, "typeof_pyval"):
         return
-    signature = tuple(dispatcher.typeof_pyval(a) for a in args)
-    if signature in dispatcher.overloads:
+    types = signature(dispatcher, args)
+    if types in dispatcher.overloads:
         return
     name = f"{dispatcher.py_func.__module__}.{dispatcher.py_func.__qualname__}"
-    digest = hashlib.sha256(f"{name}{signature}".encode()).hexdigest()[:24]
+    digest = hashlib.sha256(f"{name}{types}".encode()).hexdigest()[:24]
     path = _lock_folder(dispatcher) / f"{dispatcher.py_func.__name__}-{digest}.lock"
     with open(path, "a") as handle:
         fcntl.flock(handle, fcntl.LOCK_EX)
         try:
-            dispatcher.compile(signature)
+            dispatcher.compile(types)
         finally:
             fcntl.flock(handle, fcntl.LOCK_UN)

@@ -27,7 +27,7 @@ def _signature(name: str, monkeypatch, **settings) -> tuple:
 
     def spy(dispatcher, args):
         if dispatcher is kernels.path.trace_paths:
-            found.append(tuple(dispatcher.typeof_pyval(a) for a in args))
+            found.append(kernels.compile_once.signature(dispatcher, args))
             raise _Stop
         real(dispatcher, args)
 
