@@ -48,11 +48,36 @@ def _floor(x):
 
 
 @njit(**JIT_BORROW)
+def wrap_pair(i, n, mode):
+    """:func:`wrap_index` of i and of i + 1, with one division: i + 1 wraps to 0 where i is the last of its period
+    (REPEAT: n, MIRROR: 2 n)."""
+    if mode == CLAMP:
+        return min(max(i, 0), n - 1), min(max(i + 1, 0), n - 1)
+    period = n if mode == REPEAT else 2 * n
+    m = i % period
+    m1 = m + 1 if m + 1 < period else 0
+    if mode == REPEAT:
+        return m, m1
+    return (m if m < n else 2 * n - 1 - m), (m1 if m1 < n else 2 * n - 1 - m1)
+
+
+@njit(**JIT_BORROW)
 def _texel(textures, k, i, j, wrap):
     w, h = textures.width[k], textures.height[k]
     t = textures.offset[k] + wrap_index(j, h, wrap) * w + wrap_index(i, w, wrap)
     texels = textures.texels
     return texels[t, 0], texels[t, 1], texels[t, 2]
+
+
+@njit(**JIT_BORROW)
+def _corners(textures, k, i, j, wrap):
+    """The rows of ``textures.texels`` of the four texels (i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1) of bitmap
+    ``k`` that a bilinear lookup blends, each coordinate wrapped by ``wrap`` (:func:`wrap_pair`)."""
+    w, h = textures.width[k], textures.height[k]
+    i0, i1 = wrap_pair(i, w, wrap)
+    j0, j1 = wrap_pair(j, h, wrap)
+    r0, r1 = textures.offset[k] + j0 * w, textures.offset[k] + j1 * w
+    return r0 + i0, r0 + i1, r1 + i0, r1 + i1
 
 
 # The lookups are called, not inlined (JIT_NONRT): a scene without textures never reaches them, and inlined at each of
@@ -82,10 +107,12 @@ def texture_eval(textures, k, u, v, mutant):
         y -= 0.5
     i, j = _floor(x), _floor(y)
     fa, fb = x - i, y - j
-    r00, g00, b00 = _texel(textures, k, i, j, wrap)
-    r10, g10, b10 = _texel(textures, k, i + 1, j, wrap)
-    r01, g01, b01 = _texel(textures, k, i, j + 1, wrap)
-    r11, g11, b11 = _texel(textures, k, i + 1, j + 1, wrap)
+    t00, t10, t01, t11 = _corners(textures, k, i, j, wrap)
+    texels = textures.texels
+    r00, g00, b00 = texels[t00, 0], texels[t00, 1], texels[t00, 2]
+    r10, g10, b10 = texels[t10, 0], texels[t10, 1], texels[t10, 2]
+    r01, g01, b01 = texels[t01, 0], texels[t01, 1], texels[t01, 2]
+    r11, g11, b11 = texels[t11, 0], texels[t11, 1], texels[t11, 2]
     w00, w10, w01, w11 = (1.0 - fa) * (1.0 - fb), fa * (1.0 - fb), (1.0 - fa) * fb, fa * fb
     return (w00 * r00 + w10 * r10 + w01 * r01 + w11 * r11, w00 * g00 + w10 * g10 + w01 * g01 + w11 * g11,
             w00 * b00 + w10 * b10 + w01 * b01 + w11 * b11)
@@ -133,10 +160,12 @@ def texture_grad_1(textures, k, u, v, mutant):
         y -= 0.5
     i, j = _floor(x), _floor(y)
     fa, fb = x - i, y - j
-    f00 = _luminance(_texel(textures, k, i, j, wrap))
-    f10 = _luminance(_texel(textures, k, i + 1, j, wrap))
-    f01 = _luminance(_texel(textures, k, i, j + 1, wrap))
-    f11 = _luminance(_texel(textures, k, i + 1, j + 1, wrap))
+    t00, t10, t01, t11 = _corners(textures, k, i, j, wrap)
+    texels = textures.texels
+    f00 = _luminance((texels[t00, 0], texels[t00, 1], texels[t00, 2]))
+    f10 = _luminance((texels[t10, 0], texels[t10, 1], texels[t10, 2]))
+    f01 = _luminance((texels[t01, 0], texels[t01, 1], texels[t01, 2]))
+    f11 = _luminance((texels[t11, 0], texels[t11, 1], texels[t11, 2]))
     du = (1.0 - fb) * (f10 - f00) + fb * (f11 - f01)
     dv = (1.0 - fa) * (f01 - f00) + fa * (f11 - f10)
     if mutant & M_TEXTURE_V_FLIPPED:
