@@ -62,11 +62,14 @@ def wrap_pair(i, n, mode):
 
 
 @njit(**JIT_BORROW)
+def _rgb(texels, t):
+    return texels[t, 0], texels[t, 1], texels[t, 2]
+
+
+@njit(**JIT_BORROW)
 def _texel(textures, k, i, j, wrap):
     w, h = textures.width[k], textures.height[k]
-    t = textures.offset[k] + wrap_index(j, h, wrap) * w + wrap_index(i, w, wrap)
-    texels = textures.texels
-    return texels[t, 0], texels[t, 1], texels[t, 2]
+    return _rgb(textures.texels, textures.offset[k] + wrap_index(j, h, wrap) * w + wrap_index(i, w, wrap))
 
 
 @njit(**JIT_BORROW)
@@ -109,10 +112,10 @@ def texture_eval(textures, k, u, v, mutant):
     fa, fb = x - i, y - j
     t00, t10, t01, t11 = _corners(textures, k, i, j, wrap)
     texels = textures.texels
-    r00, g00, b00 = texels[t00, 0], texels[t00, 1], texels[t00, 2]
-    r10, g10, b10 = texels[t10, 0], texels[t10, 1], texels[t10, 2]
-    r01, g01, b01 = texels[t01, 0], texels[t01, 1], texels[t01, 2]
-    r11, g11, b11 = texels[t11, 0], texels[t11, 1], texels[t11, 2]
+    r00, g00, b00 = _rgb(texels, t00)
+    r10, g10, b10 = _rgb(texels, t10)
+    r01, g01, b01 = _rgb(texels, t01)
+    r11, g11, b11 = _rgb(texels, t11)
     w00, w10, w01, w11 = (1.0 - fa) * (1.0 - fb), fa * (1.0 - fb), (1.0 - fa) * fb, fa * fb
     return (w00 * r00 + w10 * r10 + w01 * r01 + w11 * r11, w00 * g00 + w10 * g10 + w01 * g01 + w11 * g11,
             w00 * b00 + w10 * b10 + w01 * b01 + w11 * b11)
@@ -162,10 +165,8 @@ def texture_grad_1(textures, k, u, v, mutant):
     fa, fb = x - i, y - j
     t00, t10, t01, t11 = _corners(textures, k, i, j, wrap)
     texels = textures.texels
-    f00 = _luminance((texels[t00, 0], texels[t00, 1], texels[t00, 2]))
-    f10 = _luminance((texels[t10, 0], texels[t10, 1], texels[t10, 2]))
-    f01 = _luminance((texels[t01, 0], texels[t01, 1], texels[t01, 2]))
-    f11 = _luminance((texels[t11, 0], texels[t11, 1], texels[t11, 2]))
+    f00, f10 = _luminance(_rgb(texels, t00)), _luminance(_rgb(texels, t10))
+    f01, f11 = _luminance(_rgb(texels, t01)), _luminance(_rgb(texels, t11))
     du = (1.0 - fb) * (f10 - f00) + fb * (f11 - f01)
     dv = (1.0 - fa) * (f01 - f00) + fa * (f11 - f10)
     if mutant & M_TEXTURE_V_FLIPPED:

@@ -3,9 +3,11 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
+import pytest
 from numba import njit
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "benchmarks"))
@@ -36,3 +38,14 @@ def test_the_map_names_a_function_compiled_here_at_its_address(tmp_path):
     assert starts == sorted(starts)
     named = [(int(start, 16), int(size, 16)) for start, size, name in rows if name.endswith("_twice_plus_one")]
     assert any(start <= address < start + size for start, size in named)
+
+
+@pytest.mark.parametrize("argv, named", [(["no-such-scene"], "no-such-scene.toml"),
+                                         (["furnace", "--set", "bogus"], "--set"),
+                                         (["furnace", "--out", "/no/such/folder/perf.data"], "--out")])
+def test_bad_input_is_one_line_naming_it_and_exit_2(monkeypatch, capsys, argv, named):
+    monkeypatch.setattr(kernel_profile.shutil, "which", lambda _name: "/usr/bin/perf")  # checked before perf runs
+    monkeypatch.setenv("NUMBA_CACHE_DIR", os.environ.get("NUMBA_CACHE_DIR", ""))  # the script points it elsewhere
+    assert kernel_profile.main(argv) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("kernel_profile:")]
+    assert len(err) == 1 and named in err[0]

@@ -100,33 +100,51 @@ def shares(perf_data: Path, key: str) -> list[tuple[float, str]]:
 
 
 def main(argv=None) -> int:
+    from harness.core import options
+    from harness.core.errors import HarnessError
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene", help="a scene NAME of scenes/ or a scene file")
-    parser.add_argument("--spp", type=int, default=64)
-    parser.add_argument("--seconds", type=float, default=30.0, help="how long perf samples the render loop")
-    parser.add_argument("--top", type=int, default=25, help="functions listed")
+    parser.add_argument("--spp", type=options.int_type(minimum=1), default=64)
+    parser.add_argument("--seconds", type=options.number_type(positive=True), default=30.0,
+                        help="how long perf samples the render loop")
+    parser.add_argument("--top", type=options.int_type(minimum=1), default=25, help="functions listed")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="a renderer setting")
-    parser.add_argument("--out", type=Path, help="keep perf's data here (default: a temporary file)")
+    parser.add_argument("--out", type=options.out_file, help="keep perf's data here (default: a temporary file)")
     args = parser.parse_args(argv)
     if shutil.which("perf") is None:
         print("kernel_profile: perf not found (Debian: apt-get install linux-perf)", file=sys.stderr)
         return 2
+    if args.out is not None and not Path(args.out).resolve().parent.is_dir():
+        print(f"kernel_profile: --out: expected a file in an existing folder, got {args.out}", file=sys.stderr)
+        return 2
     scratch = Path(tempfile.mkdtemp(prefix="kernel-profile-"))
+    try:
+        return _profile(args, scratch, options, HarnessError)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _profile(args, scratch: Path, options, HarnessError) -> int:
+    """Compile, render once, then render while perf samples: :func:`main`'s work, in its scratch folder."""
     os.environ["NUMBA_CACHE_DIR"] = str(scratch / "numba")  # compiled here, so that their names can be read
     from harness.renderers import RenderRequest, get_renderer
     from harness.scene import load_scene
 
     root = Path(__file__).resolve().parents[3]
     path = Path(args.scene) if args.scene.endswith(".toml") else root / "scenes" / f"{args.scene}.toml"
-    scene = load_scene(path)
-    settings = {"threads": 1, **dict(kv.split("=", 1) for kv in args.set)}
     renderer = get_renderer("reference")
-    request = RenderRequest(spp=args.spp, seed=1, settings=settings)
-    print(f"compiling and rendering {path.name} once ...", file=sys.stderr, flush=True)
-    renderer.render(scene, request)
+    try:
+        scene = load_scene(path)
+        request = RenderRequest(spp=args.spp, seed=1, settings={"threads": 1, **options.parse_set(args.set)})
+        print(f"compiling and rendering {path.name} once ...", file=sys.stderr, flush=True)
+        renderer.render(scene, request)
+    except HarnessError as err:
+        print(f"kernel_profile: {err}", file=sys.stderr)
+        return 2
     perf_map = Path(f"/tmp/perf-{os.getpid()}.map")
     count = write_perf_map(kernel_functions(), perf_map)
-    perf_data = args.out or scratch / "perf.data"
+    perf_data = Path(args.out) if args.out else scratch / "perf.data"
     recorder = subprocess.Popen(["perf", "record", "-F", "2000", "-p", str(os.getpid()), "-o", str(perf_data), "--",
                                  "sleep", str(args.seconds)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     start, renders, seconds = time.perf_counter(), 0, 0.0
@@ -135,6 +153,10 @@ def main(argv=None) -> int:
         renders += 1
     wall = time.perf_counter() - start
     try:
+        if recorder.returncode != 0:
+            print(f"kernel_profile: perf record failed (exit {recorder.returncode}): may this user sample its own "
+                  "process? (perf_event_paranoid)", file=sys.stderr)
+            return 2
         functions, objects = shares(perf_data, "sym"), shares(perf_data, "dso")
     finally:
         perf_map.unlink(missing_ok=True)
@@ -146,7 +168,6 @@ def main(argv=None) -> int:
     print("by function:")
     for percent, name in functions[:args.top]:
         print(f"  {percent:5.1f} %  {name}")
-    shutil.rmtree(scratch / "numba", ignore_errors=True)
     return 0
 
 
