@@ -103,9 +103,10 @@ def main(argv=None) -> int:
     from harness.core import options
     from harness.core.errors import HarnessError
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description="Where a render's time goes, compiled function by compiled function: "
+                                     "perf record on a one-thread render loop, numba's kernels named. Needs perf.")
     parser.add_argument("scene", help="a scene NAME of scenes/ or a scene file")
-    parser.add_argument("--spp", type=options.int_type(minimum=1), default=64)
+    parser.add_argument("--spp", type=options.int_type(minimum=1), default=64, help="samples per pixel (64)")
     parser.add_argument("--seconds", type=options.number_type(positive=True), default=30.0,
                         help="how long perf samples the render loop")
     parser.add_argument("--top", type=options.int_type(minimum=1), default=25, help="functions listed")
