@@ -38,10 +38,8 @@ from numba import njit
 from reference_impl import embree_c
 from reference_impl.kernels.config import (C_BACK_FACE, C_ESCAPED, C_INDIRECT, C_LIGHT_SELECT, C_ROULETTE,
                                            C_SHADOW, C_SHADOW_SKIPPED, HEMI_UNIFORM, JIT, M_DOUBLE_EMISSION,
-                                           M_LIGHT_PDF_IGNORED, M_NO_RAY_OFFSET, RR_OFF, SAMPLER_SOBOL)
-from reference_impl.kernels.connections import (CHUNK, COS_Y, DIST2, M0, M1, M2, O0, O1, O2, PDF, R0, R1, R2, SCALE,
-                                                TFAR, W0, W1, W2, X0, X1, X2, Y0, Y1, Y2, point_connections, scratch)
-from reference_impl.kernels.direct import Connection, area_light_point, light_choice
+                                           M_LIGHT_PDF_IGNORED, RR_OFF, SAMPLER_SOBOL)
+from reference_impl.kernels.direct import area_light_point, connection_ray, light_choice, point_connection
 from reference_impl.kernels.material import material_at
 from reference_impl.kernels.bsdf import diffuse_direction, diffuse_sample
 from reference_impl.kernels.path import MAX_VERTICES, connect, ray_after_sample
@@ -50,12 +48,12 @@ from reference_impl.kernels.queries import (closest_prim, closest_prims_packets,
                                             packet_rest, sphere_nearest)
 from reference_impl.kernels.record import record_camera, record_closest, record_group, record_occluded
 from reference_impl.kernels.rng import dim_salt, uniform
-from reference_impl.kernels.shading import ShadingFrame, geometric_frame
+from reference_impl.kernels.shading import geometric_frame
 from reference_impl.kernels.sobol import (NOTHING_HELD, ahead, held_point, longest_run, pair_point,
                                           path_first_hit_seeds, pixel_run)
-from reference_impl.kernels.surface import emission_at, normal_at, offset_origin, surface_hit
+from reference_impl.kernels.surface import emission_at, offset_origin, surface_hit
 from reference_impl.kernels.warps import dot3
-from reference_impl.materials import DIFFUSE, P_REFLECTANCE, P_TWO_SIDED, ROW_SIZE
+from reference_impl.materials import DIFFUSE, P_TWO_SIDED, ROW_SIZE
 from reference_impl.rng import BSDF_U1, BSDF_U2
 
 #: camera paths per block: they go from vertex to vertex together, their rays kept until the block's packets
@@ -262,25 +260,11 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
     s_blocked = np.zeros(rays, np.bool_)
     s_value = np.empty((rays, 3))
     s_owner = np.empty(rays, np.int64)
-    # the block's light samples at one depth, Nd a path, in the order drawn: the triangle y lies in, y, its normal,
-    # p(y)
-    y_tri, y_pdf = np.empty(rays, np.int64), np.empty(rays)
-    y0, y1, y2, ym0, ym1, ym2 = (np.empty(rays), np.empty(rays), np.empty(rays), np.empty(rays), np.empty(rays),
-                                 np.empty(rays))
-    # ... the choices they are drawn from: their path's slot, light k, its piece, pdf(k), u1, u2
-    l_owner, l_sel, l_piece = np.empty(rays, np.int64), np.empty(rays, np.int64), np.empty(rays, np.int64)
+    # the block's light samples at one depth, Nd a path: the triangle y lies in, y, p(y)
+    y_tri, y, y_pdf = np.empty(rays, np.int64), np.empty((rays, 3)), np.empty(rays)
+    # ... and the choices they are drawn from: their row, light k, its piece, pdf(k), u1, u2
+    l_at, l_sel, l_piece = np.empty(rays, np.int64), np.empty(rays, np.int64), np.empty(rays, np.int64)
     l_pdf, l_u1, l_u2 = np.empty(rays), np.empty(rays), np.empty(rays)
-    # ... and their connections from x, CHUNK samples at a time (:func:`.connections.point_connections`)
-    cw = scratch()
-    # each lit vertex by its path's slot, for its connections: x, N, the rays' origin, the side wo leaves from, the
-    # geometric frame's tangents, wo in that frame, and the diffuse material's reflectance and two-sidedness (all
-    # that a diffuse BSDF reads of the material step's row)
-    v_x0, v_x1, v_x2, v_o0, v_o1, v_o2 = (np.empty(size), np.empty(size), np.empty(size), np.empty(size),
-                                          np.empty(size), np.empty(size))
-    v_n, v_s, v_t, v_lo, v_rho = (np.empty((size, 3)), np.empty((size, 3)), np.empty((size, 3)), np.empty((size, 3)),
-                                  np.empty((size, 3)))
-    v_side, v_two = np.empty(size), np.empty(size)
-    no_offset = (mutant & M_NO_RAY_OFFSET) != 0  # mutant "no-ray-offset": shadow rays from x itself
     count_back_face = 0
     count_escaped = 0
     count_indirect = 0
@@ -341,16 +325,16 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                     pdf_select = light_pmf[sel]
                     if mutant & M_LIGHT_PDF_IGNORED:  # mutant "light-pdf-ignored": pdf(y|k) alone
                         pdf_select = 1.0
-                    l_owner[ln], l_sel[ln], l_piece[ln], l_pdf[ln], l_u1[ln], l_u2[ln] = b, sel, piece, \
+                    l_at[ln], l_sel[ln], l_piece[ln], l_pdf[ln], l_u1[ln], l_u2[ln] = b * nd + j, sel, piece, \
                         pdf_select, u1, u2
                     ln += 1
             # the points on the lights and the BSDF's local directions, in loops of their own: one path's chains
             # need not wait for another's
             for t in range(ln):
-                tri, p0, p1, p2, y_pdf[t] = area_light_point(cfg, scene, lights, l_sel[t], l_piece[t], l_pdf[t],
-                                                             l_u1[t], l_u2[t])
-                y_tri[t], y0[t], y1[t], y2[t] = tri, p0, p1, p2
-                ym0[t], ym1[t], ym2[t] = normal_at(scene, tri, p0, p1, p2)
+                c = l_at[t]
+                y_tri[c], y[c, 0], y[c, 1], y[c, 2], y_pdf[c] = area_light_point(cfg, scene, lights, l_sel[t],
+                                                                                 l_piece[t], l_pdf[t], l_u1[t],
+                                                                                 l_u2[t])
             for t in range(dn):
                 g_l[t, 0], g_l[t, 1], g_l[t, 2] = diffuse_direction(uniform_diffuse, g_u1[t], g_u2[t])
             # 2. each vertex's work before its queries: emission, the material step, the next ray, the connections
@@ -416,67 +400,23 @@ def trace_blocks(state, scene_ptr, scene, lights, materials, cfg, radiance, coun
                         eta[b] = eta2
                         going_next[going] = b
                         going += 1
-                # what its connections read (2b, 2c)
-                v_x0[b], v_x1[b], v_x2[b], v_o0[b], v_o1[b], v_o2[b] = x0, x1, x2, ox0, ox1, ox2
-                v_n[b, 0], v_n[b, 1], v_n[b, 2] = nx0, nx1, nx2
-                v_s[b, 0], v_s[b, 1], v_s[b, 2] = sf.s0, sf.s1, sf.s2
-                v_t[b, 0], v_t[b, 1], v_t[b, 2] = sf.t0, sf.t1, sf.t2
-                v_lo[b, 0], v_lo[b, 1], v_lo[b, 2] = lo0, lo1, lo2
-                v_rho[b, 0], v_rho[b, 1], v_rho[b, 2] = row[P_REFLECTANCE], row[P_REFLECTANCE + 1], \
-                    row[P_REFLECTANCE + 2]
-                v_side[b], v_two[b] = side, row[P_TWO_SIDED]
-            # 2b. the light samples' connections from their vertices, CHUNK at a time (vectorised; those of vertices
-            # that are not lit are not read); 2c. each lit vertex's connections through its BSDF
-            # (:func:`.path.connect`), in the path loop's order, each kept with its shadow ray where it needs one
-            for t0 in range(0, ln, CHUNK):
-                cnt = min(CHUNK, ln - t0)
-                for q in range(cnt):
-                    t = t0 + q
-                    b = l_owner[t]
-                    cw[Y0 * CHUNK + q], cw[Y1 * CHUNK + q], cw[Y2 * CHUNK + q] = y0[t], y1[t], y2[t]
-                    cw[M0 * CHUNK + q], cw[M1 * CHUNK + q], cw[M2 * CHUNK + q] = ym0[t], ym1[t], ym2[t]
-                    cw[PDF * CHUNK + q] = y_pdf[t]
-                    cw[X0 * CHUNK + q], cw[X1 * CHUNK + q], cw[X2 * CHUNK + q] = v_x0[b], v_x1[b], v_x2[b]
-                    if no_offset:
-                        cw[O0 * CHUNK + q], cw[O1 * CHUNK + q], cw[O2 * CHUNK + q] = v_x0[b], v_x1[b], v_x2[b]
-                    else:
-                        cw[O0 * CHUNK + q], cw[O1 * CHUNK + q], cw[O2 * CHUNK + q] = v_o0[b], v_o1[b], v_o2[b]
-                point_connections(cw, cnt, cfg.offset_scene)
-                for q in range(cnt):
-                    t = t0 + q
-                    b = l_owner[t]
-                    if not lit[b]:
-                        continue
+                for j in range(nd):
                     if num_lights > 1:
                         count_light_select += 1
-                    tri = y_tri[t]
-                    dist2, cos_y = cw[DIST2 * CHUNK + q], cw[COS_Y * CHUNK + q]
-                    if not (dist2 > 0 and cos_y > 0 and light_id[tri] >= 0):  # point_connection's None
-                        count_shadow_skipped += 1
-                        continue
-                    e0, e1, e2 = emission_at(scene, None, tri, y0[t], y1[t], y2[t], mutant)
-                    sc = cw[SCALE * CHUNK + q]
-                    conn = Connection(True, cw[W0 * CHUNK + q], cw[W1 * CHUNK + q], cw[W2 * CHUNK + q], e0 * sc,
-                                      e1 * sc, e2 * sc, nd * y_pdf[t] * dist2 / cos_y, False, y0[t], y1[t], y2[t],
-                                      cos_y, True)
-                    n0, n1, n2 = v_n[b, 0], v_n[b, 1], v_n[b, 2]
-                    sf = ShadingFrame(v_s[b, 0], v_s[b, 1], v_s[b, 2], v_t[b, 0], v_t[b, 1], v_t[b, 2], n0, n1, n2,
-                                      n0, n1, n2, -1.0, False, False)
-                    row[P_REFLECTANCE], row[P_REFLECTANCE + 1] = v_rho[b, 0], v_rho[b, 1]
-                    row[P_REFLECTANCE + 2], row[P_TWO_SIDED] = v_rho[b, 2], v_two[b]
-                    needed, _cos_x, v0, v1, v2 = connect(mutant, DIFFUSE, row, uniform_diffuse, False, conn, False,
-                                                         v_side[b], n0, n1, n2, sf, v_lo[b, 0], v_lo[b, 1],
-                                                         v_lo[b, 2], None)
+                    c = b * nd + j
+                    conn = point_connection(cfg, scene, None, y_tri[c], y[c, 0], y[c, 1], y[c, 2], y_pdf[c], x0, x1,
+                                            x2)
+                    needed, cos_x, v0, v1, v2 = connect(mutant, kind, row, uniform_diffuse, False, conn, False, side,
+                                                        nx0, nx1, nx2, sf, lo0, lo1, lo2, None)
                     if not needed:
                         count_shadow_skipped += 1
                         continue
                     count_shadow += 1
-                    s_origin[s, 0], s_origin[s, 1], s_origin[s, 2] = (cw[O0 * CHUNK + q], cw[O1 * CHUNK + q],
-                                                                      cw[O2 * CHUNK + q])
-                    s_direction[s, 0], s_direction[s, 1], s_direction[s, 2] = (cw[R0 * CHUNK + q],
-                                                                               cw[R1 * CHUNK + q],
-                                                                               cw[R2 * CHUNK + q])
-                    s_tfar[s] = np.float32(cw[TFAR * CHUNK + q])
+                    so0, so1, so2, r0, r1, r2, tfar = connection_ray(cfg, conn, cos_x, False, x0, x1, x2, nx0, nx1,
+                                                                     nx2, ox0, ox1, ox2)
+                    s_origin[s, 0], s_origin[s, 1], s_origin[s, 2] = so0, so1, so2
+                    s_direction[s, 0], s_direction[s, 1], s_direction[s, 2] = r0, r1, r2
+                    s_tfar[s] = np.float32(tfar)
                     s_value[s, 0], s_value[s, 1], s_value[s, 2] = v0, v1, v2
                     s_owner[s] = b
                     s += 1
