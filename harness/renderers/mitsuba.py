@@ -25,7 +25,6 @@ import math
 import os
 import re
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -50,6 +49,7 @@ from harness.renderers.mitsuba_spec import (
     Vector,
     scene_spec,
 )
+from harness.renderers.processes import CommandStartError, CommandTimeout, run_group
 from harness.scene import Scene
 from reference_impl.filters import make_filter
 
@@ -82,7 +82,11 @@ def sampler_takes(sampler: str, count: int) -> bool:
     if sampler == "orthogonal":
         return root >= 2 and all(root % d for d in range(2, math.isqrt(root) + 1))
     return True
-PROBE_TIMEOUT_S = 300.0
+
+
+#: how long a probe (:func:`probe_variant`) may run before it counts as failed: llvm_ad_rgb answers in about 0.4 s,
+#: Dr.Jit's kernel cache cold or warm (docs/mitsuba.md)
+PROBE_TIMEOUT_S = 120.0
 
 _LIBLLVM_GLOBS = (
     "/usr/lib/*-linux-gnu/libLLVM*.so*",
@@ -149,7 +153,10 @@ def find_libllvm_candidates() -> list[str]:
 # Probing a variant in a subprocess
 
 _PROBE_SCRIPT = r"""
+import os
 import sys
+if len(sys.argv) > 2:  # the libLLVM to try, before Dr.Jit reads the variable
+    os.environ["DRJIT_LIBLLVM_PATH"] = sys.argv[2]
 import numpy as np
 import mitsuba as mi
 mi.set_variant(sys.argv[1])
@@ -166,7 +173,7 @@ scene = mi.load_dict({
 })
 image = np.array(mi.render(scene, spp=4))
 assert image.shape == (4, 4, 3) and np.all(np.isfinite(image)) and image.max() > 0.5, image
-print("MITSUBA_PROBE_OK", sys.argv[1])
+print("MITSUBA_PROBE_OK", sys.argv[1], file=sys.stderr)
 """
 
 
@@ -176,18 +183,16 @@ def gpu_present() -> bool:
 
 
 def probe_variant(variant: str, libllvm: str | None = None, timeout: float = PROBE_TIMEOUT_S) -> bool:
-    """Whether ``variant`` renders a tiny scene, tried in a fresh Python process (a crash there is just False)."""
-    env = dict(os.environ)
-    if libllvm:
-        env["DRJIT_LIBLLVM_PATH"] = libllvm
+    """Whether ``variant`` renders a tiny scene (with ``$DRJIT_LIBLLVM_PATH`` = ``libllvm`` where given), tried in a
+    fresh Python process: a crash or a hang there is just False. The process runs under
+    :func:`.processes.run_group`, so that it and all it started are killed at the timeout, and when this process ends
+    however it ends."""
+    argv = [sys.executable, "-c", _PROBE_SCRIPT, variant] + ([libllvm] if libllvm else [])
     try:
-        done = subprocess.run(
-            [sys.executable, "-c", _PROBE_SCRIPT, variant],
-            env=env, capture_output=True, text=True, timeout=timeout, check=False,
-        )
-    except (OSError, subprocess.TimeoutExpired):
+        code, _seconds, stderr = run_group(argv, Path(tempfile.gettempdir()), timeout)
+    except (CommandTimeout, CommandStartError):
         return False
-    return done.returncode == 0 and f"MITSUBA_PROBE_OK {variant}" in done.stdout
+    return code == 0 and f"MITSUBA_PROBE_OK {variant}".encode() in stderr
 
 
 def _package_version(name: str) -> str:

@@ -1,5 +1,6 @@
 """Running another program so that neither it nor anything it starts can outlast its run, and so that it cannot
-fill the harness's memory (external renderers, docs/external-renderers.md, "Running").
+fill the harness's memory (external renderers, docs/external-renderers.md, "No process outlives its run"; the Mitsuba
+variant probes, docs/mitsuba.md).
 
 :func:`run_group` runs a command without a shell, stdin and stdout on /dev/null, and keeps only the last
 :data:`STDERR_TAIL_BYTES` of its stderr, read as it comes. When the command exits, times out or the harness is

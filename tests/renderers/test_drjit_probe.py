@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -102,3 +103,54 @@ def test_the_probe_runs_once_per_file(tmp_path, monkeypatch):
     with pytest.raises(HarnessError):
         mts.check_user_libllvm()
     assert calls == [str(lib), str(lib)]
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+# a probe that writes its pid beside the libLLVM it was given (as an argument, or in the variable) and never answers
+HANGING_PROBE = ("import os, sys, time\nlib = sys.argv[2] if len(sys.argv) > 2 else os.environ['DRJIT_LIBLLVM_PATH']\n"
+                 "open(lib + '.pid', 'w').write(str(os.getpid()))\ntime.sleep(600)\n")
+
+
+def test_a_probe_that_hangs_is_false_at_its_timeout_and_killed(tmp_path, monkeypatch):
+    """A probe that never answers is a failed probe once its timeout passes, and nothing of it is left running."""
+    monkeypatch.setattr(mts, "_PROBE_SCRIPT", HANGING_PROBE)
+    lib = str(tmp_path / "libLLVM-99.so")
+    start = time.perf_counter()
+    assert mts.probe_variant("llvm_ad_rgb", lib, timeout=2.0) is False
+    assert time.perf_counter() - start < 30
+    pid = int(Path(lib + ".pid").read_text())
+    assert not _alive(pid)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_a_killed_harness_leaves_no_probe_behind(tmp_path):
+    """A harness killed outright (SIGKILL: a test's timeout, the OOM killer) while its probe runs takes the probe
+    with it, rather than leaving it to init (docs/mitsuba.md)."""
+    lib = str(tmp_path / "libLLVM-99.so")
+    parent = subprocess.Popen([sys.executable, "-c", "import sys\nimport harness.renderers.mitsuba as m\n"
+                               f"m._PROBE_SCRIPT = {HANGING_PROBE!r}\nm.probe_variant('llvm_ad_rgb', sys.argv[1])\n",
+                               lib])
+    try:
+        deadline = time.monotonic() + 60
+        while not Path(lib + ".pid").exists() or not Path(lib + ".pid").read_text():
+            assert time.monotonic() < deadline and parent.poll() is None, "the probe did not start"
+            time.sleep(0.05)
+        pid = int(Path(lib + ".pid").read_text())
+        assert _alive(pid)
+    finally:
+        parent.kill()
+        parent.wait()
+    deadline = time.monotonic() + 30
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    alive = _alive(pid)
+    if alive:
+        os.kill(pid, 9)
+    assert not alive, "the probe outlived the harness that started it"
