@@ -46,7 +46,7 @@ def filter_sample(kind, u):
 @njit(**JIT_BORROW)
 def film_direction(film_x, film_y, width, height, tan_x, tan_y):
     """(l_x, l_y) of the direction l = ((1 - 2 p_x / W) tan_x, (1 - 2 p_y / H) tan_y, 1) through film point p, in the
-    camera's frame."""
+    camera's frame; with the half-widths of an orthographic film in place of the tangents, the origin's offset."""
     return (1.0 - 2.0 * film_x / width) * tan_x, (1.0 - 2.0 * film_y / height) * tan_y
 
 
@@ -139,8 +139,7 @@ def camera_paths(samples, cfg, camera, pixel_filter, out):
     for i in range(n):
         o0, o1, o2 = e0, e1, e2
         if model == ORTHOGRAPHIC:
-            c0 = (1.0 - 2.0 * film_x[i] / width) * camera.half_x
-            c1 = (1.0 - 2.0 * film_y[i] / height) * camera.half_y
+            c0, c1 = film_direction(film_x[i], film_y[i], width, height, camera.half_x, camera.half_y)
             if mutant & M_ORTHO_ORIGIN_NOT_OFFSET:  # mutant "orthographic-origin-not-offset"
                 c0, c1 = 0.0, 0.0
             o0 += c0 * f00 + c1 * f01

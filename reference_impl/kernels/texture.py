@@ -79,7 +79,8 @@ def _corners(textures, k, i, j, wrap):
     w, h = textures.width[k], textures.height[k]
     i0, i1 = wrap_pair(i, w, wrap)
     j0, j1 = wrap_pair(j, h, wrap)
-    r0, r1 = textures.offset[k] + j0 * w, textures.offset[k] + j1 * w
+    base = textures.offset[k]
+    r0, r1 = base + j0 * w, base + j1 * w
     return r0 + i0, r0 + i1, r1 + i0, r1 + i1
 
 

@@ -101,7 +101,6 @@ def shares(perf_data: Path, key: str) -> list[tuple[float, str]]:
 
 def main(argv=None) -> int:
     from harness.core import options
-    from harness.core.errors import HarnessError
 
     parser = argparse.ArgumentParser(description="Where a render's time goes, compiled function by compiled function: "
                                      "perf record on a one-thread render loop, numba's kernels named. Needs perf.")
@@ -121,14 +120,16 @@ def main(argv=None) -> int:
         return 2
     scratch = Path(tempfile.mkdtemp(prefix="kernel-profile-"))
     try:
-        return _profile(args, scratch, options, HarnessError)
+        return _profile(args, scratch)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
 
 
-def _profile(args, scratch: Path, options, HarnessError) -> int:
+def _profile(args, scratch: Path) -> int:
     """Compile, render once, then render while perf samples: :func:`main`'s work, in its scratch folder."""
     os.environ["NUMBA_CACHE_DIR"] = str(scratch / "numba")  # compiled here, so that their names can be read
+    from harness.core import options
+    from harness.core.errors import HarnessError
     from harness.renderers import RenderRequest, get_renderer
     from harness.scene import load_scene
 
